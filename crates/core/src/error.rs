@@ -1,0 +1,150 @@
+//! Error types of the core crate.
+//!
+//! Every variant carries the offending value and, for batch input, the index of the
+//! offending element inside the batch, so that the I/O layer can name a file and line.
+
+use thiserror::Error;
+
+/// Why a batch of observations was rejected. A rejected batch leaves the model unchanged.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum ObservationError {
+    /// `times` and `values` have different lengths.
+    #[error("{times} times but {values} values")]
+    LengthMismatch {
+        /// Number of times given.
+        times: usize,
+        /// Number of values given.
+        values: usize,
+    },
+    /// A time is NaN or infinite.
+    #[error("time {time} is not a finite number")]
+    NonFiniteTime {
+        /// Index in the batch.
+        index: usize,
+        /// The offending time.
+        time: f64,
+    },
+    /// A time is negative (times are unix seconds, or seconds from a dataset start, ≥ 0).
+    #[error("time {time} is negative (times are seconds >= 0)")]
+    NegativeTime {
+        /// Index in the batch.
+        index: usize,
+        /// The offending time.
+        time: f64,
+    },
+    /// A time is earlier than the observation before it (observations must be in time order).
+    #[error("time {time} is earlier than the previous observation at {previous}")]
+    TimeNotIncreasing {
+        /// Index in the batch.
+        index: usize,
+        /// The offending time.
+        time: f64,
+        /// The latest time observed before it.
+        previous: f64,
+    },
+    /// A value is NaN or infinite.
+    #[error("value {value} is not a finite number")]
+    NonFiniteValue {
+        /// Index in the batch.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A value lies outside [0, 1].
+    #[error("value {value} is outside [0, 1]")]
+    ValueOutOfRange {
+        /// Index in the batch.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A model of binary states got a value other than 0 or 1.
+    #[error("value {value} is not binary (0 or 1)")]
+    NonBinaryValue {
+        /// Index in the batch.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A model of uniformly sampled series got a time off its sampling grid.
+    #[error("time {time} is not the next sample time {expected} of the uniform series")]
+    OffGrid {
+        /// Index in the batch.
+        index: usize,
+        /// The offending time.
+        time: f64,
+        /// The time the next sample must have.
+        expected: f64,
+    },
+}
+
+impl ObservationError {
+    /// Index of the offending element within its batch, if the error concerns one element.
+    pub fn index(&self) -> Option<usize> {
+        match *self {
+            ObservationError::LengthMismatch { .. } => None,
+            ObservationError::NonFiniteTime { index, .. }
+            | ObservationError::NegativeTime { index, .. }
+            | ObservationError::TimeNotIncreasing { index, .. }
+            | ObservationError::NonFiniteValue { index, .. }
+            | ObservationError::ValueOutOfRange { index, .. }
+            | ObservationError::NonBinaryValue { index, .. }
+            | ObservationError::OffGrid { index, .. } => Some(index),
+        }
+    }
+
+    /// Whether the error concerns a time (as opposed to a value).
+    pub fn is_about_time(&self) -> bool {
+        matches!(
+            self,
+            ObservationError::NonFiniteTime { .. }
+                | ObservationError::NegativeTime { .. }
+                | ObservationError::TimeNotIncreasing { .. }
+                | ObservationError::OffGrid { .. }
+        )
+    }
+}
+
+/// Why a model configuration or model specification was rejected.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// A period is zero, negative or not finite.
+    #[error("period {period_secs} s is not a positive finite number")]
+    PeriodNotPositive {
+        /// The offending period in seconds.
+        period_secs: f64,
+    },
+    /// A period set has no periods.
+    #[error("the set of candidate periods is empty")]
+    NoPeriods,
+    /// A period set is too large.
+    #[error("{count} candidate periods requested; at most {max} are supported")]
+    TooManyPeriods {
+        /// Requested number.
+        count: usize,
+        /// Largest supported number.
+        max: usize,
+    },
+    /// A numeric parameter is outside its range.
+    #[error("{name} = {value} is out of range: {expected}")]
+    OutOfRange {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given.
+        value: String,
+        /// What is accepted.
+        expected: &'static str,
+    },
+    /// A textual specification could not be parsed.
+    #[error("cannot parse {what} {text:?}: {reason}")]
+    Parse {
+        /// What was being parsed (e.g. "model", "period set").
+        what: &'static str,
+        /// The text given.
+        text: String,
+        /// Why it failed, including what would be accepted.
+        reason: String,
+    },
+}

@@ -1,0 +1,59 @@
+//! # chronomap-core
+//!
+//! Pure algorithms for world models that know time: models of a state (a door, a grid cell,
+//! a corridor, a person's presence) that learn from sparse, irregular observations how it
+//! changes with daily and weekly rhythms, and predict it for any time with calibrated
+//! probabilities. No I/O, no printing, no clocks, no global state: file formats, plots and
+//! the command line live in `chronomap-io` and the `chronomap` binary.
+//!
+//! ```
+//! use chronomap_core::{FremenModel, TemporalModel, Ordered};
+//!
+//! // An office door observed every 10 minutes for two weeks: open 9:00-17:00.
+//! let times: Vec<f64> = (0..2 * 7 * 144).map(|i| 1_451_865_600.0 + 600.0 * i as f64).collect();
+//! let open: Vec<f64> = times.iter()
+//!     .map(|&t| ((9.0..17.0).contains(&((t % 86_400.0) / 3600.0)) as u8) as f64)
+//!     .collect();
+//! let mut door = FremenModel::with_order(2);
+//! door.observe(&times, &open)?;
+//! let monday_noon_in_a_month = 1_451_865_600.0 + 28.0 * 86_400.0 + 12.0 * 3600.0;
+//! assert!(door.predict(monday_noon_in_a_month) > 0.7);
+//! assert_eq!(door.components()[0].period_secs, 86_400.0); // the daily rhythm
+//! # Ok::<(), chronomap_core::ObservationError>(())
+//! ```
+//!
+//! ## Layout
+//! * [`TemporalModel`] — the one trait of a state over time; [`Ordered`] — models whose
+//!   order can change without re-observing. [`conformance`] checks any implementation.
+//! * Models: [`MeanModel`], [`HistogramModel`], [`FremenModel`] (non-uniform incremental
+//!   FreMEn), [`PersistenceModel`], [`MarkovModel`] (short-term memory), [`PergamModel`]
+//!   (periodic Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
+//! * [`spec`] — models by name (`fremen:4`, `hist:24`, `auto`) and [`AnyModel`], the
+//!   serialisable union of all models. [`select`] — order and model selection on held-back
+//!   data. [`anomaly`] — anomaly detection. [`metrics`] — Brier score, binary error, paired
+//!   t-tests. [`naive`] — slow oracles for tests and benchmarks.
+#![deny(missing_docs)]
+
+pub mod conformance;
+pub mod error;
+pub mod exact;
+pub mod fremen;
+pub mod hist;
+pub mod mean;
+pub mod model;
+pub mod naive;
+pub mod observe;
+pub mod par;
+pub mod periods;
+pub mod spectrum;
+
+pub use error::{ConfigError, ObservationError};
+pub use fremen::{FremenConfig, FremenModel, FrequencyComponent};
+pub use hist::HistogramModel;
+pub use mean::MeanModel;
+pub use model::{Ordered, TemporalModel, binary_entropy};
+pub use observe::ObservedSpan;
+pub use par::Parallelism;
+pub use periods::PeriodSet;
+/// Complex numbers used by the spectral models.
+pub use rustfft::num_complex::Complex64;
