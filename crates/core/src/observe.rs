@@ -118,14 +118,14 @@ pub fn check_time(index: usize, time: f64, previous: Option<f64>) -> Result<(), 
     if time < 0.0 {
         return Err(ObservationError::NegativeTime { index, time });
     }
-    if let Some(previous) = previous {
-        if time < previous {
-            return Err(ObservationError::TimeNotIncreasing {
-                index,
-                time,
-                previous,
-            });
-        }
+    if let Some(previous) = previous
+        && time < previous
+    {
+        return Err(ObservationError::TimeNotIncreasing {
+            index,
+            time,
+            previous,
+        });
     }
     Ok(())
 }
