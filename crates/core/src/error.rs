@@ -148,3 +148,18 @@ pub enum ConfigError {
         reason: String,
     },
 }
+
+/// Why a model could not be built from a data set.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum BuildError {
+    /// The configuration is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The data violate the observation contract or the model's input requirements.
+    #[error(transparent)]
+    Observation(#[from] ObservationError),
+    /// There are not enough data to build the model.
+    #[error("not enough data: {0}")]
+    NotEnoughData(String),
+}

@@ -37,6 +37,7 @@
 pub mod conformance;
 pub mod error;
 pub mod exact;
+pub mod fft;
 pub mod fremen;
 pub mod hist;
 pub mod mean;
@@ -47,7 +48,8 @@ pub mod par;
 pub mod periods;
 pub mod spectrum;
 
-pub use error::{ConfigError, ObservationError};
+pub use error::{BuildError, ConfigError, ObservationError};
+pub use fft::{FftFremen, FftFremenConfig};
 pub use fremen::{FremenConfig, FremenModel, FrequencyComponent};
 pub use hist::HistogramModel;
 pub use mean::MeanModel;
