@@ -34,6 +34,7 @@
 //!   t-tests. [`naive`] — slow oracles for tests and benchmarks.
 #![deny(missing_docs)]
 
+pub mod anomaly;
 pub mod conformance;
 pub mod error;
 pub mod exact;
@@ -41,11 +42,13 @@ pub mod fft;
 pub mod fremen;
 pub mod hist;
 pub mod mean;
+pub mod metrics;
 pub mod model;
 pub mod naive;
 pub mod observe;
 pub mod par;
 pub mod periods;
+pub mod select;
 pub mod spectrum;
 
 pub use error::{BuildError, ConfigError, ObservationError};
