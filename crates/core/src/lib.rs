@@ -46,6 +46,7 @@ pub mod observe;
 pub mod par;
 pub mod periods;
 pub mod spectrum;
+pub mod stm;
 
 pub use error::{ConfigError, ObservationError};
 pub use fremen::{FremenConfig, FremenModel, FrequencyComponent};
@@ -57,3 +58,4 @@ pub use par::Parallelism;
 pub use periods::PeriodSet;
 /// Complex numbers used by the spectral models.
 pub use rustfft::num_complex::Complex64;
+pub use stm::MarkovModel;
