@@ -45,6 +45,7 @@ pub mod naive;
 pub mod observe;
 pub mod par;
 pub mod periods;
+pub mod persistence;
 pub mod spectrum;
 pub mod stm;
 
@@ -56,6 +57,7 @@ pub use model::{Ordered, TemporalModel, binary_entropy};
 pub use observe::ObservedSpan;
 pub use par::Parallelism;
 pub use periods::PeriodSet;
+pub use persistence::PersistenceModel;
 /// Complex numbers used by the spectral models.
 pub use rustfft::num_complex::Complex64;
 pub use stm::MarkovModel;
