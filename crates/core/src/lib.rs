@@ -44,6 +44,7 @@ pub mod model;
 pub mod naive;
 pub mod observe;
 pub mod par;
+pub mod pergam;
 pub mod periods;
 pub mod persistence;
 pub mod spectrum;
@@ -56,6 +57,7 @@ pub use mean::MeanModel;
 pub use model::{Ordered, TemporalModel, binary_entropy};
 pub use observe::ObservedSpan;
 pub use par::Parallelism;
+pub use pergam::{PergamComponent, PergamConfig, PergamFit, PergamModel};
 pub use periods::PeriodSet;
 pub use persistence::PersistenceModel;
 /// Complex numbers used by the spectral models.
