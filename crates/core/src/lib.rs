@@ -37,6 +37,7 @@
 pub mod anomaly;
 pub mod conformance;
 pub mod error;
+pub mod eval;
 pub mod exact;
 pub mod fft;
 pub mod fremen;
@@ -47,9 +48,13 @@ pub mod model;
 pub mod naive;
 pub mod observe;
 pub mod par;
+pub mod pergam;
 pub mod periods;
+pub mod persistence;
 pub mod select;
+pub mod spec;
 pub mod spectrum;
+pub mod stm;
 
 pub use error::{BuildError, ConfigError, ObservationError};
 pub use fft::{FftFremen, FftFremenConfig};
@@ -59,6 +64,10 @@ pub use mean::MeanModel;
 pub use model::{Ordered, TemporalModel, binary_entropy};
 pub use observe::ObservedSpan;
 pub use par::Parallelism;
+pub use pergam::{PergamComponent, PergamConfig, PergamFit, PergamModel};
 pub use periods::PeriodSet;
+pub use persistence::PersistenceModel;
+pub use spec::{AnyModel, FitOptions, ModelSpec};
 /// Complex numbers used by the spectral models.
 pub use rustfft::num_complex::Complex64;
+pub use stm::MarkovModel;
