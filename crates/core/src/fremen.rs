@@ -156,6 +156,14 @@ impl FremenModel {
         &self.config
     }
 
+    /// Checks invariants (for models read from files).
+    pub fn is_consistent(&self) -> bool {
+        self.config.validate().is_ok()
+            && self.sums.periods() == &self.config.periods
+            && self.sums.is_consistent()
+            && self.sums.count() == self.span.count
+    }
+
     /// The exact spectral accumulators.
     pub fn sums(&self) -> &SpectralSums {
         &self.sums

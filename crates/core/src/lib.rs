@@ -67,7 +67,7 @@ pub use par::Parallelism;
 pub use pergam::{PergamComponent, PergamConfig, PergamFit, PergamModel};
 pub use periods::PeriodSet;
 pub use persistence::PersistenceModel;
-pub use spec::{AnyModel, FitOptions, ModelSpec};
 /// Complex numbers used by the spectral models.
 pub use rustfft::num_complex::Complex64;
+pub use spec::{AnyModel, FitOptions, ModelSpec};
 pub use stm::MarkovModel;

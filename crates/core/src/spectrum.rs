@@ -102,6 +102,11 @@ impl SpectralSums {
         &self.per_period
     }
 
+    /// Checks invariants (for accumulators read from files).
+    pub fn is_consistent(&self) -> bool {
+        self.periods.clone().validated().is_ok() && self.per_period.len() == self.periods.len()
+    }
+
     /// Adds observations (values must already satisfy the observation contract: `|s| <= 1`).
     ///
     /// # Panics
