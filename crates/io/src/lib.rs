@@ -1,1 +1,11 @@
-//! placeholder
+//! # chronomap-io
+//!
+//! File formats, dataset readers, model files and plots of chronomap (overview to follow).
+#![deny(missing_docs)]
+
+pub mod text;
+
+pub use text::{
+    DataError, DataErrorKind, Field, TimeSeries, read_column, read_column_from, read_pairs,
+    read_pairs_from, read_test_set, read_test_set_from,
+};
