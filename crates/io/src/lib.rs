@@ -4,6 +4,7 @@
 #![deny(missing_docs)]
 
 pub mod model_file;
+pub mod plot;
 pub mod text;
 
 pub use model_file::{
