@@ -1,1 +1,65 @@
-//! placeholder
+//! # chronomap-io
+//!
+//! The edge of chronomap: everything that touches files. Dataset readers, versioned model
+//! files and PNG plots, around the pure algorithms of [`chronomap_core`].
+//!
+//! ```
+//! use chronomap_core::{FremenModel, TemporalModel};
+//! use chronomap_io::read_pairs_from;
+//!
+//! // A door observed every 6 hours for two weeks (`time value` lines, as in the datasets):
+//! // open (1) at 12:00, closed (0) at 0:00, 6:00 and 18:00.
+//! let mut text = String::from("# unix seconds, state\n");
+//! for i in 0..56 {
+//!     let t = 1_451_865_600 + 6 * 3600 * i;
+//!     text.push_str(&format!("{t} {}\n", u8::from(i % 4 == 2)));
+//! }
+//! let door = read_pairs_from("door.txt", text.as_bytes())?;
+//! assert_eq!(door.len(), 56);
+//!
+//! let mut model = FremenModel::with_order(1);
+//! model.observe(&door.times, &door.values)?;
+//! let noon_next_week = 1_451_865_600.0 + 14.0 * 86_400.0 + 12.0 * 3600.0;
+//! assert!(model.predict(noon_next_week) > 0.5);
+//!
+//! // Bad lines are reported with file, line and field, never silently skipped.
+//! let err = read_pairs_from("door.txt", "0 1\n60 yes\n".as_bytes()).unwrap_err();
+//! assert_eq!(err.to_string(), r#"door.txt:2: value: "yes" is not a number"#);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! ## Layout
+//! * [`text`] — readers of the door datasets bundled in `data/`: `time value` files
+//!   ([`read_pairs`]) and test sets of two line-aligned files ([`read_test_set`]), plain, `.xz`
+//!   or `.gz`. Everything read satisfies the
+//!   [observation contract](chronomap_core::observe); anything else is a [`DataError`] naming
+//!   file, line and field.
+//! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
+//!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
+//!   writes are atomic, and damaged, truncated or foreign files are rejected with a
+//!   [`ModelFileError`].
+//! * [`plot`] — PNG figures from plain data: stacked time panels
+//!   ([`render_panels_png`]) and amplitude spectra ([`render_spectrum_png`]), drawn with an
+//!   embedded font (no system fonts needed).
+//!
+//! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
+//! [`PlotErrorKind`]); their messages are complete on their own (they do not repeat through
+//! [`std::error::Error::source`]).
+#![deny(missing_docs)]
+
+pub mod model_file;
+pub mod plot;
+pub mod text;
+
+pub use model_file::{
+    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
+    write_model_file,
+};
+pub use plot::{
+    Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_panels_png,
+    render_spectrum_png,
+};
+pub use text::{
+    DataError, DataErrorKind, Field, TimeSeries, read_column, read_column_from, read_pairs,
+    read_pairs_from, read_test_set, read_test_set_from,
+};

@@ -1,0 +1,695 @@
+//! Readers of the text formats of the bundled door datasets (see `data/README.md`).
+//!
+//! ```
+//! use chronomap_io::text::{read_test_set_from, Field};
+//!
+//! // A test set is two line-aligned files: times, and values.
+//! let times = "# unix seconds\n1458518400\n1458518460\n1458518520\n";
+//! let values = "0\n1\n1\n";
+//! let set = read_test_set_from("times.txt", times.as_bytes(), "values.txt", values.as_bytes())?;
+//! assert_eq!(set.values, [0.0, 1.0, 1.0]);
+//!
+//! // Bad input is reported with file, line and field.
+//! let err = read_test_set_from("times.txt", "5\n4\n".as_bytes(), "values.txt", "0\n1\n".as_bytes())
+//!     .unwrap_err();
+//! assert_eq!((err.name(), err.line(), err.field()), ("times.txt", Some(2), Some(Field::Time)));
+//! # Ok::<(), chronomap_io::DataError>(())
+//! ```
+//!
+//! # Formats
+//! * **Pairs** ([`read_pairs`]): one observation per line, `time value`, the two fields separated
+//!   by whitespace or by a comma (`time,value`, `time, value`).
+//! * **Columns** ([`read_column`]): one number per line. A **test set** ([`read_test_set`]) is a
+//!   column of times and a column of values whose data lines correspond one to one.
+//!
+//! In both, blank lines and lines whose first non-blank character is `#` are skipped; line
+//! numbers in errors count every line of the file, skipped ones included (so they match what an
+//! editor shows). `\r\n` line ends and a leading UTF-8 byte order mark are accepted.
+//!
+//! Numbers are parsed with Rust's `f64` parser (`1458518400`, `0.5`, `1e3`), then checked
+//! against the [observation contract](chronomap_core::observe): times finite, `>= 0` and never
+//! going backwards (equal times are allowed), values finite and in `[0, 1]`.
+//!
+//! Files whose name ends in `.xz` or `.gz` are decompressed on the fly (multi-stream files
+//! included); any other file is read as plain text.
+//!
+//! # Errors
+//! Every problem is a [`DataError`] that names the file, the 1-based line and the field, and
+//! whose [`kind`](DataError::kind) can be matched on:
+//!
+//! ```text
+//! training_data.txt:17: time: "abc" is not a number
+//! training_data.txt:18: value: "1.5" is outside [0, 1]
+//! test_times_1.txt: no data lines (the input is empty or has only blank lines and # comments)
+//! ```
+
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, Read};
+use std::path::Path;
+
+use chronomap_core::ObservationError;
+use chronomap_core::observe::{check_time, check_value};
+use thiserror::Error;
+
+/// Longest accepted line in bytes (guards against reading a binary file as one huge line).
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Longest excerpt of offending text quoted in an error message, in characters.
+const MAX_QUOTED_CHARS: usize = 48;
+
+/// Size of the read buffer.
+const BUFFER_BYTES: usize = 64 * 1024;
+
+/// Observations in time order: `values[i]` was observed at `times[i]` (seconds).
+///
+/// Everything returned by the readers of this module satisfies the
+/// [observation contract](chronomap_core::observe), so it can be passed to
+/// [`TemporalModel::observe`](chronomap_core::TemporalModel::observe) as it is.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TimeSeries {
+    /// Times in seconds, never decreasing.
+    pub times: Vec<f64>,
+    /// States in `[0, 1]`, one per time.
+    pub values: Vec<f64>,
+}
+
+impl TimeSeries {
+    /// Number of observations.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// Whether there are no observations.
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+}
+
+/// Which field of a line an error concerns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Field {
+    /// The time of an observation (seconds).
+    Time,
+    /// The observed value (state in `[0, 1]`).
+    Value,
+}
+
+impl Field {
+    /// `"time"` or `"value"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Field::Time => "time",
+            Field::Value => "value",
+        }
+    }
+}
+
+impl fmt::Display for Field {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What is wrong with a data file (the part of a [`DataError`] after `file:line:`).
+///
+/// Offending text is quoted as it appears in the file (shortened if very long).
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum DataErrorKind {
+    /// The file could not be opened or read (missing file, permissions, corrupt compressed
+    /// data, ...).
+    #[error("cannot {action}: {io}")]
+    Io {
+        /// What was being done: `"open"` or `"read"`.
+        action: &'static str,
+        /// The underlying error.
+        io: io::Error,
+    },
+    /// A field is not a number.
+    #[error("{field}: {text:?} is not a number")]
+    NotANumber {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
+    /// A line has fewer fields than the format requires.
+    #[error("{field}: missing ({expected})")]
+    MissingField {
+        /// The first missing field.
+        field: Field,
+        /// What a line must look like.
+        expected: &'static str,
+    },
+    /// A line has more fields than the format allows.
+    #[error("unexpected extra field {text:?} ({expected})")]
+    ExtraField {
+        /// The first extra field.
+        text: String,
+        /// What a line must look like.
+        expected: &'static str,
+    },
+    /// A time or value is NaN or infinite (`nan`, `inf`, or a number too large for `f64`).
+    #[error("{field}: {text:?} is not a finite number")]
+    NonFinite {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
+    /// A time is negative.
+    #[error("time: {text:?} is negative (times are seconds >= 0)")]
+    NegativeTime {
+        /// The offending text.
+        text: String,
+    },
+    /// A time is earlier than the time of the data line before it.
+    #[error(
+        "time: {text:?} is earlier than the time {previous} on line {previous_line} \
+         (times must not go backwards)"
+    )]
+    TimeNotIncreasing {
+        /// The offending text.
+        text: String,
+        /// The previous time.
+        previous: f64,
+        /// The 1-based line of the previous time.
+        previous_line: usize,
+    },
+    /// A value lies outside `[0, 1]`.
+    #[error("value: {text:?} is outside [0, 1]")]
+    ValueOutOfRange {
+        /// The offending text.
+        text: String,
+    },
+    /// Another violation of the observation contract.
+    #[error("{field}: {text:?} is rejected: {reason}")]
+    Rejected {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+        /// The violation.
+        reason: ObservationError,
+    },
+    /// A line is longer than [`MAX_LINE_BYTES`] (probably not a text file).
+    #[error("line longer than {max} bytes (is this a text file?)")]
+    LineTooLong {
+        /// The limit in bytes.
+        max: usize,
+    },
+    /// There is no data line at all.
+    #[error("no data lines (the input is empty or has only blank lines and # comments)")]
+    Empty,
+    /// The two files of a test set have different numbers of data lines.
+    #[error(
+        "{values} values but {times_name} has {times} times \
+         (the two files of a test set must be line-aligned)"
+    )]
+    LineCountMismatch {
+        /// Name of the file of times.
+        times_name: String,
+        /// Number of data lines in the file of times.
+        times: usize,
+        /// Number of data lines in the file of values (the file the error is about).
+        values: usize,
+    },
+}
+
+/// Why a data file was rejected: the file, the 1-based line (when the problem is on a line) and
+/// the problem.
+///
+/// Displays as `file:line: problem`, e.g. `training_data.txt:17: time: "abc" is not a number`,
+/// or `file: problem` when no line is concerned.
+#[derive(Debug, Error)]
+#[error("{name}{}: {kind}", LineSuffix(*.line))]
+pub struct DataError {
+    name: String,
+    line: Option<usize>,
+    kind: DataErrorKind,
+}
+
+struct LineSuffix(Option<usize>);
+
+impl fmt::Display for LineSuffix {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Some(line) => write!(f, ":{line}"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl DataError {
+    /// An error about `name` (a path or another name of the input), optionally at a line.
+    pub fn new(name: impl Into<String>, line: Option<usize>, kind: DataErrorKind) -> Self {
+        DataError {
+            name: name.into(),
+            line,
+            kind,
+        }
+    }
+
+    /// The file (as given to the reader) or the name of the input.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The 1-based line, if the error concerns one line.
+    pub fn line(&self) -> Option<usize> {
+        self.line
+    }
+
+    /// What is wrong.
+    pub fn kind(&self) -> &DataErrorKind {
+        &self.kind
+    }
+
+    /// The field concerned, if any.
+    pub fn field(&self) -> Option<Field> {
+        match self.kind {
+            DataErrorKind::NotANumber { field, .. }
+            | DataErrorKind::MissingField { field, .. }
+            | DataErrorKind::NonFinite { field, .. }
+            | DataErrorKind::Rejected { field, .. } => Some(field),
+            DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
+                Some(Field::Time)
+            }
+            DataErrorKind::ValueOutOfRange { .. } => Some(Field::Value),
+            _ => None,
+        }
+    }
+}
+
+/// Reads a file of `time value` lines (plain, `.xz` or `.gz`).
+///
+/// ```no_run
+/// let training = chronomap_io::read_pairs("data/door_greg_2016/training_data.txt.xz")?;
+/// assert_eq!(training.len(), 96_480);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
+/// `time value` with a time and a value satisfying the
+/// [observation contract](chronomap_core::observe).
+pub fn read_pairs(path: impl AsRef<Path>) -> Result<TimeSeries, DataError> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    read_pairs_from(&name, open_data_file(path)?)
+}
+
+/// Reads `time value` lines (uncompressed text) from `reader`; `name` is used in errors.
+///
+/// ```
+/// let series = chronomap_io::read_pairs_from("door", "0 1\n60,0\n120, 1\n".as_bytes())?;
+/// assert_eq!(series.times, [0.0, 60.0, 120.0]);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// As [`read_pairs`].
+pub fn read_pairs_from(name: &str, reader: impl Read) -> Result<TimeSeries, DataError> {
+    const EXPECTED: &str = "expected two fields: time value";
+    let mut series = TimeSeries::default();
+    let mut previous: Option<(f64, usize)> = None;
+    for_each_data_line(name, reader, |line_number, line| {
+        let mut fields = Fields::new(line);
+        let time_text = required(fields.next(), Field::Time, EXPECTED)?;
+        let time = parse_time(time_text, previous, series.times.len())?;
+        let value_text = required(fields.next(), Field::Value, EXPECTED)?;
+        let value = parse_value(value_text, series.values.len())?;
+        if let Some(extra) = fields.next() {
+            return Err(DataErrorKind::ExtraField {
+                text: quote(extra),
+                expected: EXPECTED,
+            });
+        }
+        series.times.push(time);
+        series.values.push(value);
+        previous = Some((time, line_number));
+        Ok(())
+    })?;
+    Ok(series)
+}
+
+/// Reads a file with one time (`field == Field::Time`) or one value (`Field::Value`) per line
+/// (plain, `.xz` or `.gz`).
+///
+/// The field decides which part of the [observation contract](chronomap_core::observe) is
+/// checked and what errors call the numbers.
+///
+/// # Errors
+/// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
+/// exactly one number satisfying the contract.
+pub fn read_column(path: impl AsRef<Path>, field: Field) -> Result<Vec<f64>, DataError> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    read_column_from(&name, open_data_file(path)?, field)
+}
+
+/// Reads one number per line (uncompressed text) from `reader`; `name` is used in errors.
+///
+/// ```
+/// use chronomap_io::text::{read_column_from, DataErrorKind, Field};
+///
+/// assert_eq!(read_column_from("v", "0\n\n# gap\n0.5\n".as_bytes(), Field::Value)?, [0.0, 0.5]);
+/// let err = read_column_from("v", "0\n\n2\n".as_bytes(), Field::Value).unwrap_err();
+/// assert_eq!(err.to_string(), r#"v:3: value: "2" is outside [0, 1]"#);
+/// assert!(matches!(err.kind(), DataErrorKind::ValueOutOfRange { .. }));
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// As [`read_column`].
+pub fn read_column_from(
+    name: &str,
+    reader: impl Read,
+    field: Field,
+) -> Result<Vec<f64>, DataError> {
+    let expected = match field {
+        Field::Time => "expected one time per line",
+        Field::Value => "expected one value per line",
+    };
+    let mut numbers = Vec::new();
+    let mut previous: Option<(f64, usize)> = None;
+    for_each_data_line(name, reader, |line_number, line| {
+        let mut fields = Fields::new(line);
+        let text = required(fields.next(), field, expected)?;
+        let number = match field {
+            Field::Time => parse_time(text, previous, numbers.len())?,
+            Field::Value => parse_value(text, numbers.len())?,
+        };
+        if let Some(extra) = fields.next() {
+            return Err(DataErrorKind::ExtraField {
+                text: quote(extra),
+                expected,
+            });
+        }
+        numbers.push(number);
+        previous = Some((number, line_number));
+        Ok(())
+    })?;
+    Ok(numbers)
+}
+
+/// Reads a test set: a file of times and a line-aligned file of values (each plain, `.xz` or
+/// `.gz`).
+///
+/// ```no_run
+/// let week = chronomap_io::read_test_set(
+///     "data/door_greg_2016/test_times_1.txt.xz",
+///     "data/door_greg_2016/test_data_1.txt.xz",
+/// )?;
+/// assert_eq!(week.len(), 10_081);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// As [`read_column`] for either file, and [`DataErrorKind::LineCountMismatch`] (naming both
+/// files) if they have different numbers of data lines.
+pub fn read_test_set(
+    times_path: impl AsRef<Path>,
+    values_path: impl AsRef<Path>,
+) -> Result<TimeSeries, DataError> {
+    let (times_path, values_path) = (times_path.as_ref(), values_path.as_ref());
+    let times_name = times_path.display().to_string();
+    let values_name = values_path.display().to_string();
+    let times = read_column_from(&times_name, open_data_file(times_path)?, Field::Time)?;
+    let values = read_column_from(&values_name, open_data_file(values_path)?, Field::Value)?;
+    aligned(times_name, times, values_name, values)
+}
+
+/// Reads a test set from two readers of uncompressed text; the names are used in errors.
+///
+/// # Errors
+/// As [`read_test_set`].
+pub fn read_test_set_from(
+    times_name: &str,
+    times_reader: impl Read,
+    values_name: &str,
+    values_reader: impl Read,
+) -> Result<TimeSeries, DataError> {
+    let times = read_column_from(times_name, times_reader, Field::Time)?;
+    let values = read_column_from(values_name, values_reader, Field::Value)?;
+    aligned(times_name.to_owned(), times, values_name.to_owned(), values)
+}
+
+fn aligned(
+    times_name: String,
+    times: Vec<f64>,
+    values_name: String,
+    values: Vec<f64>,
+) -> Result<TimeSeries, DataError> {
+    if times.len() != values.len() {
+        return Err(DataError::new(
+            values_name,
+            None,
+            DataErrorKind::LineCountMismatch {
+                times_name,
+                times: times.len(),
+                values: values.len(),
+            },
+        ));
+    }
+    Ok(TimeSeries { times, values })
+}
+
+/// Opens a data file for reading, decompressing `.xz` and `.gz` files on the fly.
+///
+/// # Errors
+/// [`DataErrorKind::Io`] naming `path` if the file cannot be opened. Errors in compressed data
+/// surface later, as read errors.
+pub fn open_data_file(path: impl AsRef<Path>) -> Result<Box<dyn Read + Send>, DataError> {
+    let path = path.as_ref();
+    let file = File::open(path).map_err(|io| {
+        DataError::new(
+            path.display().to_string(),
+            None,
+            DataErrorKind::Io { action: "open", io },
+        )
+    })?;
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    Ok(if extension.eq_ignore_ascii_case("xz") {
+        Box::new(lzma_rust2::XzReader::new(
+            BufReader::with_capacity(BUFFER_BYTES, file),
+            true,
+        ))
+    } else if extension.eq_ignore_ascii_case("gz") {
+        Box::new(flate2::read::MultiGzDecoder::new(BufReader::with_capacity(
+            BUFFER_BYTES,
+            file,
+        )))
+    } else {
+        Box::new(file)
+    })
+}
+
+/// Calls `handle(line_number, line)` for every data line (not blank, not a comment), with the
+/// line end and surrounding whitespace removed. Returns the number of data lines, or an error
+/// for the first failing line.
+fn for_each_data_line(
+    name: &str,
+    reader: impl Read,
+    mut handle: impl FnMut(usize, &[u8]) -> Result<(), DataErrorKind>,
+) -> Result<usize, DataError> {
+    let mut reader = BufReader::with_capacity(BUFFER_BYTES, reader);
+    let mut buffer = Vec::with_capacity(256);
+    let mut line_number = 0usize;
+    let mut data_lines = 0usize;
+    loop {
+        buffer.clear();
+        let limit = MAX_LINE_BYTES as u64 + 2; // room for "\r\n"
+        let read = (&mut reader)
+            .take(limit)
+            .read_until(b'\n', &mut buffer)
+            .map_err(|io| {
+                DataError::new(
+                    name,
+                    Some(line_number + 1),
+                    DataErrorKind::Io { action: "read", io },
+                )
+            })?;
+        if read == 0 {
+            break;
+        }
+        line_number += 1;
+        let mut line = buffer.as_slice();
+        if line_number == 1 {
+            line = line.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(line);
+        }
+        let line = line.trim_ascii();
+        if line.len() > MAX_LINE_BYTES {
+            let kind = DataErrorKind::LineTooLong {
+                max: MAX_LINE_BYTES,
+            };
+            return Err(DataError::new(name, Some(line_number), kind));
+        }
+        if line.is_empty() || line[0] == b'#' {
+            continue;
+        }
+        handle(line_number, line).map_err(|kind| DataError::new(name, Some(line_number), kind))?;
+        data_lines += 1;
+    }
+    if data_lines == 0 {
+        return Err(DataError::new(name, None, DataErrorKind::Empty));
+    }
+    Ok(data_lines)
+}
+
+/// Fields of a trimmed line: separated by whitespace, or by one comma with optional whitespace
+/// around it. An empty field (`1,,2`, a leading or trailing comma) is returned as `b""`.
+struct Fields<'a> {
+    rest: &'a [u8],
+    first: bool,
+}
+
+impl<'a> Fields<'a> {
+    fn new(line: &'a [u8]) -> Self {
+        Fields {
+            rest: line,
+            first: true,
+        }
+    }
+}
+
+impl<'a> Iterator for Fields<'a> {
+    type Item = &'a [u8];
+
+    fn next(&mut self) -> Option<&'a [u8]> {
+        let mut rest = self.rest.trim_ascii_start();
+        let mut after_comma = false;
+        if !self.first
+            && let Some(stripped) = rest.strip_prefix(b",")
+        {
+            rest = stripped.trim_ascii_start();
+            after_comma = true;
+        }
+        if rest.is_empty() && !after_comma && !self.first {
+            self.rest = rest;
+            return None;
+        }
+        self.first = false;
+        let end = rest
+            .iter()
+            .position(|&b| b == b',' || b.is_ascii_whitespace())
+            .unwrap_or(rest.len());
+        let (field, tail) = rest.split_at(end);
+        self.rest = tail;
+        Some(field)
+    }
+}
+
+fn required<'a>(
+    field_text: Option<&'a [u8]>,
+    field: Field,
+    expected: &'static str,
+) -> Result<&'a [u8], DataErrorKind> {
+    match field_text {
+        Some(text) if !text.is_empty() => Ok(text),
+        _ => Err(DataErrorKind::MissingField { field, expected }),
+    }
+}
+
+fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
+    std::str::from_utf8(text)
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .ok_or_else(|| DataErrorKind::NotANumber {
+            field,
+            text: quote(text),
+        })
+}
+
+fn parse_time(
+    text: &[u8],
+    previous: Option<(f64, usize)>,
+    index: usize,
+) -> Result<f64, DataErrorKind> {
+    let time = parse_number(text, Field::Time)?;
+    check_time(index, time, previous.map(|(t, _)| t)).map_err(|reason| match reason {
+        ObservationError::NonFiniteTime { .. } => DataErrorKind::NonFinite {
+            field: Field::Time,
+            text: quote(text),
+        },
+        ObservationError::NegativeTime { .. } => DataErrorKind::NegativeTime { text: quote(text) },
+        ObservationError::TimeNotIncreasing { previous: t, .. } => {
+            DataErrorKind::TimeNotIncreasing {
+                text: quote(text),
+                previous: t,
+                previous_line: previous.map_or(0, |(_, line)| line),
+            }
+        }
+        reason => DataErrorKind::Rejected {
+            field: Field::Time,
+            text: quote(text),
+            reason,
+        },
+    })?;
+    Ok(time)
+}
+
+fn parse_value(text: &[u8], index: usize) -> Result<f64, DataErrorKind> {
+    let value = parse_number(text, Field::Value)?;
+    check_value(index, value).map_err(|reason| match reason {
+        ObservationError::NonFiniteValue { .. } => DataErrorKind::NonFinite {
+            field: Field::Value,
+            text: quote(text),
+        },
+        ObservationError::ValueOutOfRange { .. } => {
+            DataErrorKind::ValueOutOfRange { text: quote(text) }
+        }
+        reason => DataErrorKind::Rejected {
+            field: Field::Value,
+            text: quote(text),
+            reason,
+        },
+    })?;
+    Ok(value)
+}
+
+/// The offending text for an error message (lossy UTF-8, shortened if long).
+fn quote(text: &[u8]) -> String {
+    let text = String::from_utf8_lossy(text);
+    if text.chars().count() <= MAX_QUOTED_CHARS {
+        text.into_owned()
+    } else {
+        let mut short: String = text.chars().take(MAX_QUOTED_CHARS).collect();
+        short.push('…');
+        short
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fields(line: &str) -> Vec<&str> {
+        Fields::new(line.as_bytes())
+            .map(|f| std::str::from_utf8(f).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn splits_fields_on_whitespace_or_one_comma() {
+        assert_eq!(fields("1 0"), ["1", "0"]);
+        assert_eq!(fields("1\t 0"), ["1", "0"]);
+        assert_eq!(fields("1,0"), ["1", "0"]);
+        assert_eq!(fields("1 , 0"), ["1", "0"]);
+        assert_eq!(fields("1,,0"), ["1", "", "0"]);
+        assert_eq!(fields(",0"), ["", "0"]);
+        assert_eq!(fields("1,"), ["1", ""]);
+        assert_eq!(fields("1"), ["1"]);
+        assert_eq!(fields("1 0 x"), ["1", "0", "x"]);
+    }
+
+    #[test]
+    fn quotes_long_text_shortened() {
+        let long = "x".repeat(100);
+        let quoted = quote(long.as_bytes());
+        assert_eq!(quoted.chars().count(), MAX_QUOTED_CHARS + 1);
+        assert!(quoted.ends_with('…'));
+        assert_eq!(quote(b"\xff1"), "\u{fffd}1");
+    }
+}
