@@ -457,6 +457,15 @@ impl FftFremen {
         ones_in(&self.outliers, a, b) as f64 / (b - a) as f64
     }
 
+    /// The lossy model: the same spectrum without the outlier set (seed 001 §IV-C). It
+    /// predicts identically but no longer reconstructs the series exactly.
+    pub fn without_outliers(&self) -> Self {
+        FftFremen {
+            outliers: Vec::new(),
+            ..self.clone()
+        }
+    }
+
     /// Estimation error `ε_e = ε(0, N)` over the data of the last update.
     pub fn estimation_error(&self) -> f64 {
         self.error_between(0, self.model_len)
@@ -572,6 +581,39 @@ impl Ordered for FftFremen {
     fn set_order(&mut self, order: usize) {
         self.update_with_order(order.min(self.max_order()));
     }
+}
+
+/// Checks that `(times, values)` is a uniformly sampled binary series and returns its start,
+/// step and samples.
+///
+/// # Errors
+/// Fewer than two samples, a value other than 0/1, or a time off the grid
+/// `times[0] + i·step` (by more than 1e-6 of a step), with its index.
+pub fn uniform_binary_samples(
+    times: &[f64],
+    values: &[f64],
+) -> Result<(f64, f64, Vec<u8>), BuildError> {
+    crate::observe::validate(None, times, values)?;
+    if times.len() < 2 {
+        return Err(BuildError::NotEnoughData(
+            "a uniformly sampled series needs at least two samples".into(),
+        ));
+    }
+    crate::observe::check_binary(values)?;
+    let (start, step) = (times[0], times[1] - times[0]);
+    for (index, &time) in times.iter().enumerate() {
+        let expected = start + index as f64 * step;
+        if step <= 0.0 || (time - expected).abs() > 1e-6 * step {
+            return Err(ObservationError::OffGrid {
+                index,
+                time,
+                expected,
+            }
+            .into());
+        }
+    }
+    let samples = values.iter().map(|&v| u8::from(v == 1.0)).collect();
+    Ok((start, step, samples))
 }
 
 /// Change positions of a 0/1 series: `n` such that `s(n) ≠ s(n−1)`, with `s(−1) = 0`.

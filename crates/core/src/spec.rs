@@ -441,33 +441,7 @@ fn fit_fft(
     values: &[f64],
     options: &FitOptions,
 ) -> Result<Fitted, BuildError> {
-    if times.len() < 2 {
-        return Err(BuildError::NotEnoughData(
-            "fft needs at least two samples".into(),
-        ));
-    }
-    crate::observe::check_binary(values)?;
-    let step = times[1] - times[0];
-    if step <= 0.0 {
-        return Err(ObservationError::OffGrid {
-            index: 1,
-            time: times[1],
-            expected: times[0] + f64::MIN_POSITIVE,
-        }
-        .into());
-    }
-    for (index, &time) in times.iter().enumerate() {
-        let expected = times[0] + index as f64 * step;
-        if (time - expected).abs() > 1e-6 * step {
-            return Err(ObservationError::OffGrid {
-                index,
-                time,
-                expected,
-            }
-            .into());
-        }
-    }
-    let samples: Vec<u8> = values.iter().map(|&v| u8::from(v == 1.0)).collect();
+    let (start, step, samples) = crate::fft::uniform_binary_samples(times, values)?;
     let (order, selection) = match order {
         OrderSpec::Fixed(k) => (k, None),
         OrderSpec::Auto => {
@@ -490,7 +464,7 @@ fn fit_fft(
             )
         }
     };
-    let model = FftFremen::build(times[0], step, &samples, FftFremenConfig::with_order(order))?;
+    let model = FftFremen::build(start, step, &samples, FftFremenConfig::with_order(order))?;
     Ok(Fitted {
         model: AnyModel::Fft(model),
         selection,

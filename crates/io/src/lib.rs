@@ -52,14 +52,14 @@ pub mod plot;
 pub mod text;
 
 pub use model_file::{
-    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
-    write_model_file,
+    ModelFileError, ModelFileErrorKind, decode_any_model, decode_model, encode_model,
+    read_any_model, read_model_file, write_any_model, write_model_file,
 };
 pub use plot::{
     Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_panels_png,
     render_spectrum_png,
 };
 pub use text::{
-    DataError, DataErrorKind, Field, TimeSeries, read_column, read_column_from, read_pairs,
-    read_pairs_from, read_test_set, read_test_set_from,
+    DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
+    read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
 };

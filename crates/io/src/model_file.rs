@@ -43,6 +43,7 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use chronomap_core::AnyModel;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use thiserror::Error;
@@ -168,6 +169,13 @@ pub enum ModelFileErrorKind {
         /// The kind named in the header.
         kind: String,
         /// The deserialiser's message.
+        reason: String,
+    },
+    /// The payload decodes, but the model in it is not what the header says or breaks the
+    /// model's invariants (a file written by hand or by an incompatible build).
+    #[error("the model in the file is inconsistent: {reason}")]
+    Inconsistent {
+        /// What is wrong.
         reason: String,
     },
 }
@@ -337,6 +345,54 @@ pub fn read_model_file<T: DeserializeOwned>(
     let bytes = fs::read(path)
         .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
     decode_model(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// Writes any chronomap model (its [`AnyModel::kind`] is the file's kind).
+///
+/// # Errors
+/// As [`write_model_file`].
+pub fn write_any_model(path: impl AsRef<Path>, model: &AnyModel) -> Result<(), ModelFileError> {
+    write_model_file(path, model.kind(), model)
+}
+
+/// Reads a model written by [`write_any_model`], checking that it is the kind the header says
+/// and that its invariants hold, so that a file crafted by hand cannot make later code panic.
+///
+/// # Errors
+/// As [`read_model_file`], or [`ModelFileErrorKind::Inconsistent`].
+pub fn read_any_model(path: impl AsRef<Path>) -> Result<AnyModel, ModelFileError> {
+    let path = path.as_ref();
+    let (kind, model): (String, AnyModel) = read_model_file(path)?;
+    check_any_model(&kind, &model).map_err(|e| e.in_file(path))?;
+    Ok(model)
+}
+
+/// Decodes a model encoded by [`encode_model`] with [`AnyModel::kind`] as kind, with the checks
+/// of [`read_any_model`].
+///
+/// # Errors
+/// As [`decode_model`], or [`ModelFileErrorKind::Inconsistent`].
+pub fn decode_any_model(bytes: &[u8]) -> Result<AnyModel, ModelFileError> {
+    let (kind, model): (String, AnyModel) = decode_model(bytes)?;
+    check_any_model(&kind, &model)?;
+    Ok(model)
+}
+
+fn check_any_model(kind: &str, model: &AnyModel) -> Result<(), ModelFileError> {
+    if kind != model.kind() {
+        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
+            reason: format!(
+                "the header says {kind:?} but the payload is a {:?} model",
+                model.kind()
+            ),
+        }));
+    }
+    if !model.is_consistent() {
+        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
+            reason: format!("the {kind} model breaks its invariants"),
+        }));
+    }
+    Ok(())
 }
 
 fn checksum(header: &[u8], payload: &[u8]) -> u32 {

@@ -470,20 +470,32 @@ pub fn open_data_file(path: impl AsRef<Path>) -> Result<Box<dyn Read + Send>, Da
             DataErrorKind::Io { action: "open", io },
         )
     })?;
-    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    Ok(if extension.eq_ignore_ascii_case("xz") {
+    Ok(decompressing_reader(&path.to_string_lossy(), file))
+}
+
+/// Wraps `reader` in a decompressor chosen by the extension of `name`: `.xz` and `.gz` are
+/// decompressed on the fly, anything else is read as it is (used for embedded data).
+pub fn decompressing_reader<'a>(
+    name: &str,
+    reader: impl Read + Send + 'a,
+) -> Box<dyn Read + Send + 'a> {
+    let extension = Path::new(name)
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("");
+    if extension.eq_ignore_ascii_case("xz") {
         Box::new(lzma_rust2::XzReader::new(
-            BufReader::with_capacity(BUFFER_BYTES, file),
+            BufReader::with_capacity(BUFFER_BYTES, reader),
             true,
         ))
     } else if extension.eq_ignore_ascii_case("gz") {
         Box::new(flate2::read::MultiGzDecoder::new(BufReader::with_capacity(
             BUFFER_BYTES,
-            file,
+            reader,
         )))
     } else {
-        Box::new(file)
-    })
+        Box::new(reader)
+    }
 }
 
 /// Calls `handle(line_number, line)` for every data line (not blank, not a comment), with the

@@ -1,0 +1,88 @@
+//! Real data embedded in the binary for `chronomap demo` (see `data/README.md` for provenance),
+//! so that the demo runs from any directory.
+
+use anyhow::Result;
+use chronomap_io::{TimeSeries, decompressing_reader, read_pairs_from, read_test_set_from};
+
+/// One embedded file.
+pub struct Bundled {
+    /// Path below `data/`.
+    pub name: &'static str,
+    bytes: &'static [u8],
+}
+
+macro_rules! bundled {
+    ($path:literal) => {
+        Bundled {
+            name: $path,
+            bytes: include_bytes!(concat!("../data/", $path)),
+        }
+    };
+}
+
+pub const GREG_TRAINING: Bundled = bundled!("door_greg_2016/training_data.txt.xz");
+pub const GREG_TESTS: [(Bundled, Bundled); 5] = [
+    (
+        bundled!("door_greg_2016/test_times_1.txt.xz"),
+        bundled!("door_greg_2016/test_data_1.txt.xz"),
+    ),
+    (
+        bundled!("door_greg_2016/test_times_2.txt.xz"),
+        bundled!("door_greg_2016/test_data_2.txt.xz"),
+    ),
+    (
+        bundled!("door_greg_2016/test_times_3.txt.xz"),
+        bundled!("door_greg_2016/test_data_3.txt.xz"),
+    ),
+    (
+        bundled!("door_greg_2016/test_times_4.txt.xz"),
+        bundled!("door_greg_2016/test_data_4.txt.xz"),
+    ),
+    (
+        bundled!("door_greg_2016/test_times_5.txt.xz"),
+        bundled!("door_greg_2016/test_data_5.txt.xz"),
+    ),
+];
+pub const TOM_TRAINING: Bundled = bundled!("door_tom_2013/min/training_data.txt.xz");
+pub const TOM_TESTS: [(Bundled, Bundled); 3] = [
+    (
+        bundled!("door_tom_2013/min/test_times_1.txt.xz"),
+        bundled!("door_tom_2013/min/test_data_1.txt.xz"),
+    ),
+    (
+        bundled!("door_tom_2013/min/test_times_2.txt.xz"),
+        bundled!("door_tom_2013/min/test_data_2.txt.xz"),
+    ),
+    (
+        bundled!("door_tom_2013/min/test_times_3.txt.xz"),
+        bundled!("door_tom_2013/min/test_data_3.txt.xz"),
+    ),
+];
+pub const TOM_SECONDS_WEEK: (Bundled, Bundled) = (
+    bundled!("door_tom_2013/sec/test_times_0.txt.xz"),
+    bundled!("door_tom_2013/sec/test_data_0.txt.xz"),
+);
+pub const TOM_SECONDS_DAY8: (Bundled, Bundled) = (
+    bundled!("door_tom_2013/sec/test_times_1.txt.xz"),
+    bundled!("door_tom_2013/sec/test_data_1.txt.xz"),
+);
+
+impl Bundled {
+    /// Reads a `t value` file.
+    pub fn pairs(&self) -> Result<TimeSeries> {
+        Ok(read_pairs_from(
+            self.name,
+            decompressing_reader(self.name, self.bytes),
+        )?)
+    }
+}
+
+/// Reads a test set of two embedded files.
+pub fn test_set((times, values): &(Bundled, Bundled)) -> Result<TimeSeries> {
+    Ok(read_test_set_from(
+        times.name,
+        decompressing_reader(times.name, times.bytes),
+        values.name,
+        decompressing_reader(values.name, values.bytes),
+    )?)
+}

@@ -1,0 +1,361 @@
+//! Command-line flags. Only parsing and validation of single flags happen here; the commands
+//! turn them into models and readers.
+
+use std::path::PathBuf;
+
+use chronomap_core::PeriodSet;
+use chronomap_core::select::Criterion;
+use chronomap_core::spec::{FitOptions, ModelSpec};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+const AFTER_HELP: &str = "\
+Examples:
+  chronomap demo                       # evaluate and plot on the bundled door datasets
+  chronomap eval --train data/door_greg_2016/training_data.txt.xz \\
+      --test data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz \\
+      --models mean,fremen:2,fremen:auto,auto
+  chronomap fit --train training_data.txt --model fremen:auto -o door.cmm
+  chronomap predict door.cmm --at 1458561600 1458565200
+  chronomap inspect door.cmm
+
+Data files: `t value` lines (training) or one number per line (test times, test values);
+plain, .xz or .gz. Times are seconds (unix time or relative), values in [0, 1].";
+
+/// World models that know time: learn how states change with daily and weekly rhythms from
+/// sparse, irregular observations, and predict them.
+#[derive(Debug, Parser)]
+#[command(name = "chronomap", version, about, after_help = AFTER_HELP)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Evaluate models on the bundled real door data and write plots (the main job).
+    #[command(after_help = "Example:\n  chronomap demo --out chronomap-demo")]
+    Demo(DemoArgs),
+    /// Train models on a training file and score them on test sets (Brier score, binary
+    /// error, paired t-tests).
+    #[command(after_help = EVAL_HELP)]
+    Eval(EvalArgs),
+    /// Train one model and save it to a model file.
+    #[command(
+        after_help = "Example:\n  chronomap fit --train data/door_greg_2016/training_data.txt.xz --model fremen:auto -o door.cmm"
+    )]
+    Fit(FitArgs),
+    /// Predict with a saved model: probability and entropy at given times.
+    #[command(
+        after_help = "Examples:\n  chronomap predict door.cmm --at 1458561600 1458565200\n  chronomap predict door.cmm --times test_times_1.txt"
+    )]
+    Predict(PredictArgs),
+    /// Show what a saved model contains.
+    #[command(after_help = "Example:\n  chronomap inspect door.cmm")]
+    Inspect(InspectArgs),
+    /// List observations that a saved model finds anomalous at a confidence level
+    /// (FreMEn paper §V).
+    #[command(
+        after_help = "Example:\n  chronomap anomalies door.cmm --test test_times_1.txt,test_data_1.txt --confidence 0.99"
+    )]
+    Anomalies(AnomaliesArgs),
+    /// Compress a uniformly sampled binary series with FFT FreMEn and its outlier set
+    /// (lossless), and report errors and compression ratios (FreMEn paper §III-B, §IV).
+    #[command(after_help = COMPRESS_HELP)]
+    Compress(CompressArgs),
+}
+
+const EVAL_HELP: &str = "\
+Models: mean, hist:N[:PERIOD], fremen:K, fremen:auto, persistence[:K|auto], stm,
+pergam:K[:PERIOD], pergam:auto, fft:L|auto (uniform binary data), auto.
+
+Example:
+  chronomap eval --train data/door_greg_2016/training_data.txt.xz \\
+    --test data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz \\
+    --test data/door_greg_2016/test_times_2.txt.xz,data/door_greg_2016/test_data_2.txt.xz \\
+    --models mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto --json";
+
+const COMPRESS_HELP: &str = "\
+Example (the door week of the FreMEn paper, 604,800 one-second samples):
+  chronomap compress --series data/door_tom_2013/sec/test_times_0.txt.xz,data/door_tom_2013/sec/test_data_0.txt.xz \\
+    --order auto --test data/door_tom_2013/sec/test_times_1.txt.xz,data/door_tom_2013/sec/test_data_1.txt.xz -o door.cmm";
+
+/// Options shared by commands that fit models.
+#[derive(Debug, Args)]
+pub struct FitFlags {
+    /// Candidate periods of FreMEn models: week (604800/84: one week to 2 h), day, year,
+    /// BASE/COUNT (BASE/k for k = 1..COUNT) or a comma list of seconds.
+    #[arg(long, default_value = "week", value_parser = parse_periods)]
+    pub periods: PeriodSet,
+    /// Most recent fraction of the training time span held back to choose orders and models.
+    #[arg(long, default_value_t = 0.25, value_parser = parse_fraction)]
+    pub holdout: f64,
+    /// Largest FreMEn order that `auto` tries.
+    #[arg(long, default_value_t = 10)]
+    pub max_order: usize,
+    /// Error measure used to choose orders and models on held-back data.
+    #[arg(long, value_enum, default_value_t = CriterionArg::Brier)]
+    pub criterion: CriterionArg,
+}
+
+impl FitFlags {
+    /// The core options these flags describe.
+    pub fn options(&self) -> FitOptions {
+        FitOptions {
+            periods: self.periods.clone(),
+            holdout: self.holdout,
+            max_order: self.max_order,
+            criterion: self.criterion.into(),
+            parallelism: chronomap_core::Parallelism::Rayon(0),
+            ..FitOptions::default()
+        }
+    }
+}
+
+/// `--criterion` values.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum CriterionArg {
+    /// Mean squared error of the probability.
+    Brier,
+    /// Mean absolute error.
+    Absolute,
+    /// Fraction of wrongly predicted binary states.
+    Binary,
+}
+
+impl From<CriterionArg> for Criterion {
+    fn from(c: CriterionArg) -> Criterion {
+        match c {
+            CriterionArg::Brier => Criterion::Brier,
+            CriterionArg::Absolute => Criterion::AbsoluteError,
+            CriterionArg::Binary => Criterion::BinaryError,
+        }
+    }
+}
+
+/// `chronomap demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Folder the plots are written to.
+    #[arg(long, default_value = "chronomap-demo")]
+    pub out: PathBuf,
+    /// Skip writing plots.
+    #[arg(long)]
+    pub no_plots: bool,
+}
+
+/// `chronomap eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Training data: `t value` lines.
+    #[arg(long)]
+    pub train: PathBuf,
+    /// A test set as TIMES,VALUES (two line-aligned files); repeat for more test sets.
+    #[arg(long = "test", value_parser = parse_file_pair, required = true)]
+    pub tests: Vec<(PathBuf, PathBuf)>,
+    /// Comma-separated models to evaluate.
+    #[arg(long, value_parser = parse_models, default_value = "mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto")]
+    pub models: ModelList,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Significance level of the paired t-tests.
+    #[arg(long, default_value_t = 0.05, value_parser = parse_fraction)]
+    pub alpha: f64,
+    /// Fitting options.
+    #[command(flatten)]
+    pub fit: FitFlags,
+}
+
+/// A parsed `--models` list (a newtype so that clap treats it as one value).
+#[derive(Debug, Clone)]
+pub struct ModelList(pub Vec<ModelSpec>);
+
+/// `chronomap fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Training data: `t value` lines.
+    #[arg(long)]
+    pub train: PathBuf,
+    /// The model, e.g. fremen:4, fremen:auto, hist:24, auto.
+    #[arg(long, value_parser = parse_model)]
+    pub model: ModelSpec,
+    /// Model file to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Fitting options.
+    #[command(flatten)]
+    pub fit: FitFlags,
+}
+
+/// `chronomap predict`.
+#[derive(Debug, Args)]
+pub struct PredictArgs {
+    /// Model file written by `chronomap fit` or `chronomap compress`.
+    pub model: PathBuf,
+    /// Times to predict, one per line.
+    #[arg(long, conflicts_with = "at", required_unless_present = "at")]
+    pub times: Option<PathBuf>,
+    /// Times to predict (seconds).
+    #[arg(long, num_args = 1.., value_parser = parse_time)]
+    pub at: Vec<f64>,
+    /// Use this order instead of the stored one (FreMEn-family models).
+    #[arg(long)]
+    pub order: Option<usize>,
+}
+
+/// `chronomap inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// Model file.
+    pub model: PathBuf,
+    /// Print the whole spectrum, not only the components in use.
+    #[arg(long)]
+    pub spectrum: bool,
+}
+
+/// `chronomap anomalies`.
+#[derive(Debug, Args)]
+pub struct AnomaliesArgs {
+    /// Model file.
+    pub model: PathBuf,
+    /// Observations as TIMES,VALUES (two line-aligned files) or one `t value` file.
+    #[arg(long, value_parser = parse_series_source)]
+    pub test: SeriesSource,
+    /// Confidence level c in [0.5, 1]: anomalous if observed 0 while p >= c, or 1 while
+    /// p < 1 - c.
+    #[arg(long, default_value_t = 0.99)]
+    pub confidence: f64,
+}
+
+/// `chronomap compress`.
+#[derive(Debug, Args)]
+pub struct CompressArgs {
+    /// The series: TIMES,VALUES (two line-aligned files) or one `t value` file; uniformly
+    /// sampled 0/1 values.
+    #[arg(long, value_parser = parse_series_source)]
+    pub series: SeriesSource,
+    /// Number of spectral components, or `auto` (chosen by prediction error on the last 25 %).
+    #[arg(long, default_value = "auto")]
+    pub order: String,
+    /// Shortest period considered, in seconds (`none`: the whole spectrum up to Nyquist).
+    #[arg(long, default_value = "7200")]
+    pub shortest_period: String,
+    /// Measurements that follow the series (same sampling), added by eq. (8) to measure the
+    /// prediction error.
+    #[arg(long, value_parser = parse_series_source)]
+    pub test: Option<SeriesSource>,
+    /// Write the model file here.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+/// Where a series comes from.
+#[derive(Debug, Clone)]
+pub enum SeriesSource {
+    /// One `t value` file.
+    Pairs(PathBuf),
+    /// Two line-aligned files: times, values.
+    Split(PathBuf, PathBuf),
+}
+
+fn parse_periods(text: &str) -> Result<PeriodSet, String> {
+    text.parse()
+        .map_err(|e: chronomap_core::ConfigError| e.to_string())
+}
+
+fn parse_model(text: &str) -> Result<ModelSpec, String> {
+    text.parse()
+        .map_err(|e: chronomap_core::ConfigError| e.to_string())
+}
+
+fn parse_models(text: &str) -> Result<ModelList, String> {
+    chronomap_core::spec::parse_model_list(text)
+        .map(ModelList)
+        .map_err(|e| e.to_string())
+}
+
+fn parse_fraction(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(f) if f > 0.0 && f < 1.0 => Ok(f),
+        _ => Err(format!("{text:?} is not a number strictly between 0 and 1")),
+    }
+}
+
+fn parse_time(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(t) if t.is_finite() => Ok(t),
+        _ => Err(format!("{text:?} is not a time in seconds")),
+    }
+}
+
+fn parse_file_pair(text: &str) -> Result<(PathBuf, PathBuf), String> {
+    match text.split_once(',') {
+        Some((a, b)) if !a.is_empty() && !b.is_empty() && !b.contains(',') => {
+            Ok((PathBuf::from(a), PathBuf::from(b)))
+        }
+        _ => Err(format!(
+            "{text:?} is not TIMES,VALUES (two file names separated by one comma)"
+        )),
+    }
+}
+
+fn parse_series_source(text: &str) -> Result<SeriesSource, String> {
+    if text.contains(',') {
+        parse_file_pair(text).map(|(a, b)| SeriesSource::Split(a, b))
+    } else if text.is_empty() {
+        Err("empty file name".into())
+    } else {
+        Ok(SeriesSource::Pairs(PathBuf::from(text)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn eval_parses_the_acceptance_call() {
+        let cli = Cli::try_parse_from([
+            "chronomap",
+            "eval",
+            "--train",
+            "training_data.txt",
+            "--test",
+            "test_times_1.txt,test_data_1.txt",
+            "--test",
+            "test_times_2.txt,test_data_2.txt",
+            "--models",
+            "mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Eval(args) = cli.command else {
+            panic!("not eval")
+        };
+        assert_eq!(args.tests.len(), 2);
+        assert_eq!(args.models.0.len(), 8);
+        assert!(args.json);
+        assert!(Cli::try_parse_from(["chronomap", "eval", "--train", "a", "--test", "x"]).is_err());
+        assert!(
+            Cli::try_parse_from([
+                "chronomap",
+                "eval",
+                "--train",
+                "a",
+                "--test",
+                "x,y",
+                "--models",
+                "fremen:q"
+            ])
+            .is_err()
+        );
+    }
+}

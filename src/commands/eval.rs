@@ -1,0 +1,204 @@
+//! `chronomap eval`: the benchmark experiment of the FreMEn papers on any data.
+
+use std::io::Write;
+
+use anyhow::{Context, Result};
+use chronomap_core::eval::{EvalReport, TestSet, evaluate};
+use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use serde_json::json;
+
+use super::describe_selection;
+use crate::cli::EvalArgs;
+use crate::format::{Table, duration, time};
+
+pub fn run(args: &EvalArgs) -> Result<()> {
+    let train = read_pairs(&args.train)?;
+    let tests: Vec<TimeSeries> = args
+        .tests
+        .iter()
+        .map(|(t, v)| read_test_set(t, v))
+        .collect::<Result<_, _>>()?;
+    let sets: Vec<TestSet<'_>> = tests
+        .iter()
+        .map(|t| TestSet {
+            times: &t.times,
+            values: &t.values,
+        })
+        .collect();
+    let options = args.fit.options();
+    let total = args.models.0.len();
+    let mut done = 0;
+    let report = evaluate(
+        &args.models.0,
+        &train.times,
+        &train.values,
+        &sets,
+        &options,
+        |m| {
+            done += 1;
+            if !args.json {
+                eprint!("\rfitted {done}/{total} models ({})        ", m.spec);
+            }
+        },
+    )
+    .map_err(|(spec, e)| anyhow::anyhow!("model {spec}: {e}"))
+    .with_context(|| format!("cannot fit to {}", args.train.display()))?;
+    if !args.json {
+        eprint!("\r{}\r", " ".repeat(60));
+    }
+    let mut out = std::io::stdout().lock();
+    if args.json {
+        writeln!(out, "{}", to_json(args, &train, &tests, &report))?;
+    } else {
+        print_tables(&mut out, args, &train, &tests, &report)?;
+    }
+    Ok(())
+}
+
+fn to_json(
+    args: &EvalArgs,
+    train: &TimeSeries,
+    tests: &[TimeSeries],
+    report: &EvalReport,
+) -> serde_json::Value {
+    let name = |i: usize| report.models[i].spec.to_string();
+    json!({
+        "train": {
+            "file": args.train.display().to_string(),
+            "observations": train.len(),
+        },
+        "tests": args.tests.iter().zip(tests).map(|((t, v), s)| json!({
+            "times": t.display().to_string(),
+            "values": v.display().to_string(),
+            "samples": s.len(),
+        })).collect::<Vec<_>>(),
+        "models": report.models.iter().map(|m| json!({
+            "name": m.spec.to_string(),
+            "fitted": m.fitted.model.spec().to_string(),
+            "selection": m.fitted.selection.as_ref().map(describe_selection),
+            "tests": m.tests.iter().map(|t| json!({
+                "mse": t.mse,
+                "binary_error": t.binary_error,
+            })).collect::<Vec<_>>(),
+            "mean_mse": m.mean_mse(),
+            "mean_binary_error": m.mean_binary_error(),
+        })).collect::<Vec<_>>(),
+        "alpha": args.alpha,
+        "comparisons": report.comparisons.iter().map(|c| json!({
+            "better": name(c.better),
+            "worse": name(c.worse),
+            "mean_difference": c.test.mean_difference,
+            "t": if c.test.t.is_finite() { json!(c.test.t) } else { json!(null) },
+            "p_value": c.test.p_value,
+            "significant": c.test.p_value < args.alpha,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn print_tables(
+    out: &mut impl Write,
+    args: &EvalArgs,
+    train: &TimeSeries,
+    tests: &[TimeSeries],
+    report: &EvalReport,
+) -> Result<()> {
+    let span = train.times[train.len() - 1] - train.times[0];
+    writeln!(
+        out,
+        "training: {} — {} observations, {} .. {} ({}), {:.1} % ones",
+        args.train.display(),
+        train.len(),
+        time(train.times[0]),
+        time(train.times[train.len() - 1]),
+        duration(span),
+        100.0 * train.values.iter().sum::<f64>() / train.len() as f64
+    )?;
+    for (i, ((t, _), s)) in args.tests.iter().zip(tests).enumerate() {
+        writeln!(
+            out,
+            "test {}: {} — {} observations from {}",
+            i + 1,
+            t.display(),
+            s.len(),
+            time(s.times[0])
+        )?;
+    }
+    writeln!(out)?;
+    write_metric_table(
+        out,
+        report,
+        "Mean squared error of p(t) (Brier score), lower is better",
+        |t| t.mse,
+    )?;
+    writeln!(out)?;
+    write_metric_table(
+        out,
+        report,
+        "Binary error (fraction of wrongly predicted states)",
+        |t| t.binary_error,
+    )?;
+    writeln!(out)?;
+    let selections: Vec<_> = report
+        .models
+        .iter()
+        .filter_map(|m| m.fitted.selection.as_ref().map(|s| (m, s)))
+        .collect();
+    if !selections.is_empty() {
+        writeln!(out, "How the automatic models chose (training data only):")?;
+        for (m, s) in selections {
+            writeln!(out, "  {}: {}", m.spec, describe_selection(s))?;
+        }
+        writeln!(out)?;
+    }
+    if tests.len() < 2 {
+        writeln!(out, "(significance needs at least two test sets)")?;
+        return Ok(());
+    }
+    let mut significant: Vec<_> = report.significant(args.alpha).collect();
+    significant.sort_by(|a, b| a.test.p_value.total_cmp(&b.test.p_value));
+    writeln!(
+        out,
+        "Significant differences of the Brier score (paired t-test over {} test sets, p < {}):",
+        tests.len(),
+        args.alpha
+    )?;
+    if significant.is_empty() {
+        writeln!(out, "  none")?;
+    }
+    for c in significant {
+        writeln!(
+            out,
+            "  {:<18} better than {:<18} by {:.4} (p = {:.3})",
+            report.models[c.better].spec.to_string(),
+            report.models[c.worse].spec.to_string(),
+            -c.test.mean_difference,
+            c.test.p_value
+        )?;
+    }
+    Ok(())
+}
+
+fn write_metric_table(
+    out: &mut impl Write,
+    report: &EvalReport,
+    title: &str,
+    metric: impl Fn(&chronomap_core::metrics::TestScore) -> f64,
+) -> Result<()> {
+    let tests = report.models.first().map_or(0, |m| m.tests.len());
+    let mut header = vec!["model".to_string(), "fitted as".to_string()];
+    header.extend((1..=tests).map(|i| format!("test {i}")));
+    header.push("mean".into());
+    let mut table = Table::new(header);
+    for m in &report.models {
+        let values: Vec<f64> = m.tests.iter().map(&metric).collect();
+        let mut row = vec![m.spec.to_string(), m.fitted.model.spec().to_string()];
+        row.extend(values.iter().map(|v| format!("{v:.4}")));
+        row.push(format!(
+            "{:.4}",
+            values.iter().sum::<f64>() / values.len() as f64
+        ));
+        table.row(row);
+    }
+    writeln!(out, "{title}\n{}", table.render())?;
+    Ok(())
+}

@@ -1,0 +1,76 @@
+//! The subcommands: each turns flags into readers and models, calls the core, prints.
+
+mod compress;
+mod demo;
+mod eval;
+mod model;
+
+use anyhow::{Context, Result};
+use chronomap_core::AnyModel;
+use chronomap_core::spec::Selection;
+use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
+
+use crate::cli::{Command, SeriesSource};
+
+/// Runs one subcommand.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Demo(args) => demo::run(&args),
+        Command::Eval(args) => eval::run(&args),
+        Command::Fit(args) => model::fit(&args),
+        Command::Predict(args) => model::predict(&args),
+        Command::Inspect(args) => model::inspect(&args),
+        Command::Anomalies(args) => model::anomalies(&args),
+        Command::Compress(args) => compress::run(&args),
+    }
+}
+
+/// Reads a series from one `t value` file or two line-aligned files.
+fn read_series(source: &SeriesSource) -> Result<TimeSeries> {
+    Ok(match source {
+        SeriesSource::Pairs(path) => read_pairs(path)?,
+        SeriesSource::Split(times, values) => read_test_set(times, values)?,
+    })
+}
+
+/// Reads a model file, checking version, checksum and invariants.
+fn load_model(path: &std::path::Path) -> Result<AnyModel> {
+    read_any_model(path).context("cannot load the model")
+}
+
+/// One line saying how a model's order or family was chosen.
+fn describe_selection(selection: &Selection) -> String {
+    match selection {
+        Selection::Order(s) => {
+            let errors: Vec<String> = s
+                .errors
+                .iter()
+                .enumerate()
+                .map(|(k, e)| format!("{k}:{e:.4}"))
+                .collect();
+            format!(
+                "order {} chosen on {} held-back observations (error by order {})",
+                s.order,
+                s.held_back,
+                errors.join(" ")
+            )
+        }
+        Selection::Model {
+            chosen,
+            errors,
+            held_back,
+            inner,
+        } => {
+            let errors: Vec<String> = errors.iter().map(|(m, e)| format!("{m} {e:.4}")).collect();
+            let mut text = format!(
+                "{chosen} chosen on {held_back} held-back observations ({})",
+                errors.join(", ")
+            );
+            if let Some(inner) = inner {
+                text.push_str("; then ");
+                text.push_str(&describe_selection(inner));
+            }
+            text
+        }
+    }
+}
