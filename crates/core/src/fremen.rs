@@ -10,7 +10,7 @@
 //! (seed 000 eq. (4); seed 001 eq. (10) with `α_l = 2|γ_l|`), where `ς` saturates to
 //! `[0, 1]` (seed 001 eq. (2)). The coefficients are the centred non-uniform spectrum
 //! `γ_k = (1/n) Σ (s_i − μ) e^{-jω_k t_i}` (seed 001 eq. (11), seed 000 eq. (3)),
-//! accumulated exactly by [`SpectralSums`](crate::spectrum::SpectralSums): the mean is
+//! accumulated exactly by [`SpectralSums`]: the mean is
 //! removed with its *final* value, not a running one, so the model does not depend on how
 //! the observations were batched (the original FreMEn server does).
 //!
