@@ -106,6 +106,9 @@ pub struct FremenFit {
     /// Eligible components (see [`FremenConfig::min_span_factor`]) by decreasing amplitude;
     /// ties keep the longer period first.
     pub components: Vec<FrequencyComponent>,
+    /// For harmonic period sets `base/k`: the base period and each component's `k`, so that a
+    /// prediction reduces the time modulo the base once instead of once per component.
+    harmonics: Option<(f64, Vec<u32>)>,
 }
 
 /// FreMEn model of one state (see the [module docs](self)).
@@ -209,21 +212,32 @@ impl FremenModel {
         self.fit.get_or_init(|| {
             let gammas = self.sums.coefficients();
             let duration = self.span.duration();
-            let mut components: Vec<FrequencyComponent> = gammas
+            let mut indexed: Vec<(usize, FrequencyComponent)> = gammas
                 .iter()
                 .enumerate()
-                .map(|(k, g)| FrequencyComponent {
-                    period_secs: self.config.periods.period(k),
-                    amplitude: g.norm(),
-                    phase: g.arg(),
+                .map(|(k, g)| {
+                    let component = FrequencyComponent {
+                        period_secs: self.config.periods.period(k),
+                        amplitude: g.norm(),
+                        phase: g.arg(),
+                    };
+                    (k, component)
                 })
-                .filter(|c| duration >= self.config.min_span_factor * c.period_secs)
+                .filter(|(_, c)| duration >= self.config.min_span_factor * c.period_secs)
                 .collect();
             // Stable sort: equal amplitudes keep the period-set order (longer first).
-            components.sort_by(|a, b| b.amplitude.total_cmp(&a.amplitude));
+            indexed.sort_by(|a, b| b.1.amplitude.total_cmp(&a.1.amplitude));
+            let harmonics = match self.config.periods {
+                PeriodSet::Harmonics { base_secs, .. } => Some((
+                    base_secs,
+                    indexed.iter().map(|&(k, _)| k as u32 + 1).collect(),
+                )),
+                PeriodSet::List(_) => None,
+            };
             FremenFit {
                 mean: self.sums.mean().unwrap_or(0.5),
-                components,
+                components: indexed.into_iter().map(|(_, c)| c).collect(),
+                harmonics,
             }
         })
     }
@@ -252,12 +266,24 @@ impl FremenModel {
     /// Prediction before saturation: `μ + Σ 2|γ| cos(ωt + arg γ)` (may leave `[0, 1]`).
     pub fn predict_unsaturated(&self, time: f64) -> f64 {
         let fit = self.fit();
-        fit.mean
-            + self
-                .components()
-                .iter()
-                .map(|c| c.value_at(time))
-                .sum::<f64>()
+        let components = self.components();
+        match &fit.harmonics {
+            // Harmonic `k` of the base is at phase 2π·frac(k·r) with r = frac(t / base): one
+            // modulo per prediction, and the same exact phase the spectrum was computed with.
+            Some((base, ks)) => {
+                let r = cycle_fraction(time, *base);
+                fit.mean
+                    + components
+                        .iter()
+                        .zip(ks)
+                        .map(|(c, &k)| {
+                            let angle = TAU * (f64::from(k) * r).fract() + c.phase;
+                            2.0 * c.amplitude * angle.cos()
+                        })
+                        .sum::<f64>()
+            }
+            None => fit.mean + components.iter().map(|c| c.value_at(time)).sum::<f64>(),
+        }
     }
 
     /// Evenly spaced times: rotate each component's phasor instead of calling `cos` per
@@ -363,7 +389,9 @@ mod tests {
         for probe in 0..500 {
             let t = 1_453_000_000.0 + probe as f64 * 997.0;
             let expected = naive_fremen_predict(mean, &gammas, &periods, chosen, t);
-            assert!((model.predict(t) - expected).abs() < 1e-12);
+            // The oracle reduces t modulo each inexact period week/k (phase error up to
+            // ~1e-10 rad at unix times); the model reduces modulo the exact week.
+            assert!((model.predict(t) - expected).abs() < 1e-10);
         }
         // The strongest period of a weekday door is the day.
         assert_eq!(model.components()[0].period_secs, 86_400.0);
