@@ -13,11 +13,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (p, h) = (model.predict(monday_1pm), model.entropy(monday_1pm));
     println!("P(open) = {p:.2}, uncertainty {h:.2} bit");
     for c in model.components() {
-        println!(
-            "period {} h, amplitude {:.3}",
-            c.period_secs / 3600.0,
-            2.0 * c.amplitude
-        );
+        let hours = c.period_secs / 3600.0;
+        println!("{hours} h: amplitude {:.3}", 2.0 * c.amplitude);
     }
     // README:END
     Ok(())

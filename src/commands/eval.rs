@@ -1,6 +1,6 @@
 //! `chronomap eval`: the benchmark experiment of the FreMEn papers on any data.
 
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 
 use anyhow::{Context, Result};
 use chronomap_core::eval::{EvalReport, TestSet, evaluate};
@@ -28,6 +28,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let options = args.fit.options();
     let total = args.models.0.len();
     let mut done = 0;
+    // Progress on an interactive terminal only; logs and pipes stay clean.
+    let progress = std::io::stderr().is_terminal();
     let report = evaluate(
         &args.models.0,
         &train.times,
@@ -36,14 +38,17 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         &options,
         |m| {
             done += 1;
-            if !args.json {
+            if progress {
                 eprint!("\rfitted {done}/{total} models ({})        ", m.spec);
             }
         },
     )
-    .map_err(|(spec, e)| anyhow::anyhow!("model {spec}: {e}"))
+    .map_err(|(spec, e)| match e.observation_index() {
+        Some(i) => anyhow::anyhow!("model {spec}: training observation {}: {e}", i + 1),
+        None => anyhow::anyhow!("model {spec}: {e}"),
+    })
     .with_context(|| format!("cannot fit to {}", args.train.display()))?;
-    if !args.json {
+    if progress {
         eprint!("\r{}\r", " ".repeat(60));
     }
     let mut out = std::io::stdout().lock();

@@ -163,3 +163,13 @@ pub enum BuildError {
     #[error("not enough data: {0}")]
     NotEnoughData(String),
 }
+
+impl BuildError {
+    /// Index of the offending observation, for errors about one observation.
+    pub fn observation_index(&self) -> Option<usize> {
+        match self {
+            BuildError::Observation(e) => e.index(),
+            _ => None,
+        }
+    }
+}

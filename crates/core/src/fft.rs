@@ -796,12 +796,7 @@ pub fn run_length_spectrum(edges: &[u64], n: u64, max_bin: u64) -> Vec<Complex64
                         wi[i] = -s;
                     }
                 } else {
-                    for i in 0..BLOCK {
-                        let re = wr[i] * zr[i] - wi[i] * zi[i];
-                        let im = wr[i] * zi[i] + wi[i] * zr[i];
-                        wr[i] = re;
-                        wi[i] = im;
-                    }
+                    crate::spectrum::rotate_block(&mut wr, &mut wi, &zr, &zi);
                 }
             }
             let (mut re, mut im) = (0.0, 0.0);

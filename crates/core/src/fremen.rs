@@ -357,28 +357,11 @@ impl Ordered for FremenModel {
 mod tests {
     use super::*;
     use crate::naive::{naive_fremen_predict, naive_spectrum};
-
-    fn door_week() -> (Vec<f64>, Vec<f64>) {
-        // Open 8:00–18:00 on weekdays, observed at irregular times over three weeks.
-        let mut times = Vec::new();
-        let mut values = Vec::new();
-        let mut t = 1_451_865_600.0; // Monday 2016-01-04 00:00 UTC
-        let mut i = 0u64;
-        while t < 1_451_865_600.0 + 21.0 * 86_400.0 {
-            let day = ((t - 1_451_865_600.0) / 86_400.0) as u64 % 7;
-            let hour = cycle_fraction(t, 86_400.0) * 24.0;
-            let open = day < 5 && (8.0..18.0).contains(&hour);
-            times.push(t);
-            values.push(if open { 1.0 } else { 0.0 });
-            i += 1;
-            t += 300.0 + ((i * 2654435761) % 1200) as f64;
-        }
-        (times, values)
-    }
+    use crate::testdata::door_weeks;
 
     #[test]
     fn predictions_equal_the_naive_oracle() {
-        let (times, values) = door_week();
+        let (times, values) = door_weeks();
         let mut model = FremenModel::with_order(5);
         model.observe(&times, &values).unwrap();
         let periods = model.config().periods.periods();
@@ -399,7 +382,7 @@ mod tests {
 
     #[test]
     fn evenly_spaced_batch_prediction_equals_pointwise() {
-        let (times, values) = door_week();
+        let (times, values) = door_weeks();
         let mut model = FremenModel::with_order(4);
         model.observe(&times, &values).unwrap();
         let grid: Vec<f64> = (0..5000)
@@ -423,7 +406,7 @@ mod tests {
 
     #[test]
     fn span_rule_hides_periods_longer_than_the_data() {
-        let (times, values) = door_week();
+        let (times, values) = door_weeks();
         let config = FremenConfig {
             min_span_factor: 1.5,
             ..FremenConfig::with_order(3)

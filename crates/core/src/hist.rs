@@ -85,6 +85,11 @@ impl HistogramModel {
             .collect()
     }
 
+    /// Number of observations per bin.
+    pub fn bin_counts(&self) -> &[u64] {
+        &self.counts
+    }
+
     /// Checks internal consistency (for models read from files).
     pub fn is_consistent(&self) -> bool {
         !self.counts.is_empty()
@@ -92,6 +97,7 @@ impl HistogramModel {
             && self.sums.len() == self.counts.len()
             && self.period_secs.is_finite()
             && self.period_secs > 0.0
+            && self.counts.iter().sum::<u64>() == self.span.count
     }
 }
 

@@ -55,6 +55,8 @@ pub mod select;
 pub mod spec;
 pub mod spectrum;
 pub mod stm;
+#[cfg(test)]
+mod testdata;
 
 pub use error::{BuildError, ConfigError, ObservationError};
 pub use fft::{FftFremen, FftFremenConfig};

@@ -13,16 +13,21 @@ use crate::model::TemporalModel;
 /// # Panics
 /// If the slices differ in length.
 pub fn mse(predictions: &[f64], observations: &[f64]) -> f64 {
+    mean_of(predictions, observations, |p, s| (p - s) * (p - s))
+}
+
+/// Mean of `loss(p, s)` over aligned predictions and observations (0 when empty).
+fn mean_of(predictions: &[f64], observations: &[f64], loss: impl Fn(f64, f64) -> f64) -> f64 {
     assert_eq!(predictions.len(), observations.len());
     if predictions.is_empty() {
         return 0.0;
     }
-    predictions
+    let total: f64 = predictions
         .iter()
         .zip(observations)
-        .map(|(p, s)| (p - s) * (p - s))
-        .sum::<f64>()
-        / predictions.len() as f64
+        .map(|(&p, &s)| loss(p, s))
+        .sum();
+    total / predictions.len() as f64
 }
 
 /// Binary error `mean(((p > 0.5) − s)²)`: the fraction of wrongly predicted binary states
@@ -31,19 +36,10 @@ pub fn mse(predictions: &[f64], observations: &[f64]) -> f64 {
 /// # Panics
 /// If the slices differ in length.
 pub fn binary_error(predictions: &[f64], observations: &[f64]) -> f64 {
-    assert_eq!(predictions.len(), observations.len());
-    if predictions.is_empty() {
-        return 0.0;
-    }
-    predictions
-        .iter()
-        .zip(observations)
-        .map(|(&p, &s)| {
-            let d = f64::from(u8::from(p > 0.5)) - s;
-            d * d
-        })
-        .sum::<f64>()
-        / predictions.len() as f64
+    mean_of(predictions, observations, |p, s| {
+        let d = f64::from(u8::from(p > 0.5)) - s;
+        d * d
+    })
 }
 
 /// Mean absolute error `mean(|p − s|)` (the reconstruction criterion of seed 003 eq. (3)).
@@ -51,16 +47,7 @@ pub fn binary_error(predictions: &[f64], observations: &[f64]) -> f64 {
 /// # Panics
 /// If the slices differ in length.
 pub fn mean_absolute_error(predictions: &[f64], observations: &[f64]) -> f64 {
-    assert_eq!(predictions.len(), observations.len());
-    if predictions.is_empty() {
-        return 0.0;
-    }
-    predictions
-        .iter()
-        .zip(observations)
-        .map(|(p, s)| (p - s).abs())
-        .sum::<f64>()
-        / predictions.len() as f64
+    mean_of(predictions, observations, |p, s| (p - s).abs())
 }
 
 /// Scores of one model on one test set.

@@ -67,7 +67,7 @@ use std::sync::OnceLock;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{ConfigError, ObservationError};
-use crate::exact::ExactSum;
+use crate::hist::HistogramModel;
 use crate::model::{Ordered, TemporalModel, saturate};
 use crate::observe::ObservedSpan;
 use crate::periods::{DAY, cycle_fraction};
@@ -214,19 +214,15 @@ pub struct PergamFit {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PergamModel {
     config: PergamConfig,
-    span: ObservedSpan,
-    sums: Vec<ExactSum>,
-    counts: Vec<u64>,
+    /// The fold of eq. (8): per-bin sums and counts over the period.
+    fold: HistogramModel,
     #[serde(skip)]
     fit: OnceLock<PergamFit>,
 }
 
 impl PartialEq for PergamModel {
     fn eq(&self, other: &Self) -> bool {
-        self.config == other.config
-            && self.span == other.span
-            && self.sums == other.sums
-            && self.counts == other.counts
+        self.config == other.config && self.fold == other.fold
     }
 }
 
@@ -244,10 +240,8 @@ impl PergamModel {
     pub fn new(config: PergamConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(PergamModel {
-            sums: vec![ExactSum::default(); config.bins],
-            counts: vec![0; config.bins],
+            fold: HistogramModel::new(config.bins, config.period_secs)?,
             config,
-            span: ObservedSpan::default(),
             fit: OnceLock::new(),
         })
     }
@@ -267,8 +261,7 @@ impl PergamModel {
 
     /// Bin of a time.
     pub fn bin_of(&self, time: f64) -> usize {
-        let bins = self.config.bins;
-        ((cycle_fraction(time, self.config.period_secs) * bins as f64) as usize).min(bins - 1)
+        self.fold.bin_of(time)
     }
 
     /// Centre `c_b` of bin `b`, in seconds into the period.
@@ -278,11 +271,7 @@ impl PergamModel {
 
     /// The folded data `p'_b` of eq. (8): per-bin means (`None` for bins never observed).
     pub fn bin_means(&self) -> Vec<Option<f64>> {
-        self.sums
-            .iter()
-            .zip(&self.counts)
-            .map(|(s, &c)| (c > 0).then(|| s.to_f64() / c as f64))
-            .collect()
+        self.fold.bin_means()
     }
 
     /// The fitted mixture (computed on first use after new observations).
@@ -304,19 +293,20 @@ impl PergamModel {
     /// Checks internal consistency (for models read from files).
     pub fn is_consistent(&self) -> bool {
         self.config.validate().is_ok()
-            && self.sums.len() == self.config.bins
-            && self.counts.len() == self.config.bins
-            && self.counts.iter().sum::<u64>() == self.span.count
+            && self.fold.is_consistent()
+            && self.fold.bins() == self.config.bins
+            && self.fold.period_secs() == self.config.period_secs
     }
 
     fn compute_fit(&self) -> PergamFit {
         let period = self.config.period_secs;
-        let observed: Vec<(f64, f64, f64)> = (0..self.config.bins)
-            .filter(|&b| self.counts[b] > 0)
-            .map(|b| {
-                let n = self.counts[b] as f64;
-                (self.bin_centre_secs(b), self.sums[b].to_f64() / n, n)
-            })
+        let observed: Vec<(f64, f64, f64)> = self
+            .fold
+            .bin_means()
+            .iter()
+            .zip(self.fold.bin_counts())
+            .enumerate()
+            .filter_map(|(b, (mean, &n))| mean.map(|m| (self.bin_centre_secs(b), m, n as f64)))
             .collect();
         let points: Vec<(f64, f64)> = observed
             .iter()
@@ -489,19 +479,13 @@ fn run_em(
 
 impl TemporalModel for PergamModel {
     fn observe(&mut self, times: &[f64], values: &[f64]) -> Result<(), ObservationError> {
-        self.span.validate(times, values)?;
-        for (&t, &v) in times.iter().zip(values) {
-            let bin = self.bin_of(t);
-            self.sums[bin].add(v);
-            self.counts[bin] += 1;
-        }
-        self.span.extend(times);
+        self.fold.observe(times, values)?;
         self.fit = OnceLock::new();
         Ok(())
     }
 
     fn predict(&self, time: f64) -> f64 {
-        if self.span.count == 0 {
+        if self.fold.span().count == 0 {
             return 0.5;
         }
         let fit = self.fit();
@@ -512,7 +496,7 @@ impl TemporalModel for PergamModel {
     }
 
     fn span(&self) -> ObservedSpan {
-        self.span
+        self.fold.span()
     }
 }
 
@@ -653,7 +637,7 @@ mod tests {
         for (b, mean) in model.bin_means().iter().enumerate() {
             if let Some(p) = mean {
                 let g = model.density(model.bin_centre_secs(b));
-                let n = model.counts[b] as f64;
+                let n = model.fold.bin_counts()[b] as f64;
                 num += n * p * g;
                 den += n * g * g;
             }

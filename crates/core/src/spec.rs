@@ -344,46 +344,24 @@ impl ModelSpec {
                 m.observe(times, values)?;
                 fixed(AnyModel::Histogram(m))
             }
-            ModelSpec::Fremen(OrderSpec::Fixed(k)) => {
-                let mut m = FremenModel::new(fremen_config(k))?;
-                m.observe_par(times, values, options.parallelism)?;
-                fixed(AnyModel::Fremen(m))
-            }
-            ModelSpec::Fremen(OrderSpec::Auto) => {
-                let m = FremenModel::new(fremen_config(0))?;
-                let (m, s) = fit_with_order_selection(
-                    m,
-                    times,
-                    values,
-                    options.holdout,
-                    options.max_order,
-                    options.criterion,
-                )?;
-                Fitted {
-                    model: AnyModel::Fremen(m),
-                    selection: Some(Selection::Order(s)),
-                }
-            }
-            ModelSpec::Persistence(OrderSpec::Fixed(k)) => {
-                let mut m = PersistenceModel::new(fremen_config(k))?;
-                m.observe_par(times, values, options.parallelism)?;
-                fixed(AnyModel::Persistence(m))
-            }
-            ModelSpec::Persistence(OrderSpec::Auto) => {
-                let m = PersistenceModel::new(fremen_config(0))?;
-                let (m, s) = fit_with_order_selection(
-                    m,
-                    times,
-                    values,
-                    options.holdout,
-                    options.max_order,
-                    options.criterion,
-                )?;
-                Fitted {
-                    model: AnyModel::Persistence(m),
-                    selection: Some(Selection::Order(s)),
-                }
-            }
+            ModelSpec::Fremen(order) => fit_ordered(
+                FremenModel::new(fremen_config(0))?,
+                order,
+                times,
+                values,
+                options,
+                |m, t, v| m.observe_par(t, v, options.parallelism),
+                AnyModel::Fremen,
+            )?,
+            ModelSpec::Persistence(order) => fit_ordered(
+                PersistenceModel::new(fremen_config(0))?,
+                order,
+                times,
+                values,
+                options,
+                |m, t, v| m.observe_par(t, v, options.parallelism),
+                AnyModel::Persistence,
+            )?,
             ModelSpec::Markov => {
                 let mut m = MarkovModel::new();
                 m.observe(times, values)?;
@@ -432,6 +410,43 @@ impl ModelSpec {
         };
         Ok(fitted)
     }
+}
+
+/// A model of fixed order observing everything, or one whose order is chosen on the most
+/// recent `options.holdout` of the data.
+fn fit_ordered<M: TemporalModel + Ordered>(
+    mut model: M,
+    order: OrderSpec,
+    times: &[f64],
+    values: &[f64],
+    options: &FitOptions,
+    observe: impl FnOnce(&mut M, &[f64], &[f64]) -> Result<(), ObservationError>,
+    wrap: fn(M) -> AnyModel,
+) -> Result<Fitted, BuildError> {
+    Ok(match order {
+        OrderSpec::Fixed(k) => {
+            model.set_order(k);
+            observe(&mut model, times, values)?;
+            Fitted {
+                model: wrap(model),
+                selection: None,
+            }
+        }
+        OrderSpec::Auto => {
+            let (model, selection) = fit_with_order_selection(
+                model,
+                times,
+                values,
+                options.holdout,
+                options.max_order,
+                options.criterion,
+            )?;
+            Fitted {
+                model: wrap(model),
+                selection: Some(Selection::Order(selection)),
+            }
+        }
+    })
 }
 
 /// `fft:L`: the data must be a uniformly sampled binary series.

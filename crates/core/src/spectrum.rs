@@ -215,15 +215,27 @@ fn harmonic_block(base: f64, count: usize, t: &[f64], v: &[f64], out: &mut [Peri
                     wi[i] = -sin;
                 }
             } else {
-                for i in 0..BLOCK {
-                    let re = wr[i] * zr[i] - wi[i] * zi[i];
-                    let im = wr[i] * zi[i] + wi[i] * zr[i];
-                    wr[i] = re;
-                    wi[i] = im;
-                }
+                rotate_block(&mut wr, &mut wi, &zr, &zi);
             }
         }
         sums.add_block(block_sums(&s[..n], &wr[..n], &wi[..n]));
+    }
+}
+
+/// `w ← w·z` element-wise for a block of complex numbers in split (re, im) form: the step of
+/// the phasor recurrence `e^{-j(k+1)θ} = e^{-jkθ}·e^{-jθ}`, written so that it vectorises.
+#[inline(always)]
+pub(crate) fn rotate_block<const B: usize>(
+    wr: &mut [f64; B],
+    wi: &mut [f64; B],
+    zr: &[f64; B],
+    zi: &[f64; B],
+) {
+    for i in 0..B {
+        let re = wr[i] * zr[i] - wi[i] * zi[i];
+        let im = wr[i] * zi[i] + wi[i] * zr[i];
+        wr[i] = re;
+        wi[i] = im;
     }
 }
 
