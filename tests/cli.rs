@@ -201,3 +201,33 @@ fn fit_predict_inspect_and_damaged_model_files() {
         "{err}"
     );
 }
+
+#[test]
+fn demo_runs_on_bundled_data_and_writes_plots() {
+    let dir = scratch("demo");
+    let out = chronomap(&["demo", "--out", &dir.display().to_string()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    // The original FreMEn figures appear beside ours (fremen:4: 0.0670 both).
+    let fremen4 = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("fremen:4"))
+        .unwrap();
+    assert_eq!(fremen4.matches("0.0670").count(), 2, "{fremen4}");
+    assert!(text.contains("lossless"), "{text}");
+    for png in [
+        "tom_door_week.png",
+        "tom_door_spectrum.png",
+        "greg_door_test_week.png",
+        "greg_door_spectrum.png",
+    ] {
+        let size = std::fs::metadata(dir.join(png))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(size > 10_000, "{png}: {size} bytes");
+    }
+}

@@ -44,13 +44,7 @@ const ORIGINAL: [(&str, [f64; 5], f64); 3] = [
 fn evaluate_specs(specs: &str) -> Vec<(String, Vec<f64>, f64)> {
     let train = training();
     let tests = tests();
-    let sets: Vec<TestSet<'_>> = tests
-        .iter()
-        .map(|t| TestSet {
-            times: &t.times,
-            values: &t.values,
-        })
-        .collect();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
     let report = evaluate(
         &parse_model_list(specs).unwrap(),
         &train.times,

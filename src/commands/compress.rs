@@ -8,9 +8,9 @@ use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of, uniform_binary_s
 use chronomap_core::{AnyModel, TemporalModel};
 use chronomap_io::{encode_model, write_any_model};
 
-use super::read_series;
+use super::{fft_components_table, read_series};
 use crate::cli::CompressArgs;
-use crate::format::{Table, duration, period, time};
+use crate::format::{duration, time};
 
 /// What a compressed series looks like.
 pub struct CompressionReport {
@@ -98,15 +98,7 @@ pub fn run(args: &CompressArgs) -> Result<()> {
         edges_of(&samples)?.len(),
         100.0 * ones as f64 / samples.len() as f64
     );
-    let mut table = Table::new(["bin", "period", "amplitude |X|/N", "phase (rad)"]);
-    for c in m.components() {
-        table.row([
-            c.bin.to_string(),
-            period(m.period_of_bin(c.bin)),
-            format!("{:.5}", c.amplitude),
-            format!("{:+.3}", c.phase),
-        ]);
-    }
+    let table = fft_components_table(m);
     println!(
         "spectral model P: mean {:.5} and {} components\n{}",
         m.gain(),

@@ -18,13 +18,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         .iter()
         .map(|(t, v)| read_test_set(t, v))
         .collect::<Result<_, _>>()?;
-    let sets: Vec<TestSet<'_>> = tests
-        .iter()
-        .map(|t| TestSet {
-            times: &t.times,
-            values: &t.values,
-        })
-        .collect();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
     let options = args.fit.options();
     let total = args.models.0.len();
     let mut done = 0;

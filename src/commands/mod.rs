@@ -38,6 +38,20 @@ fn load_model(path: &std::path::Path) -> Result<AnyModel> {
     read_any_model(path).context("cannot load the model")
 }
 
+/// The spectral set `P` of an FFT FreMEn model as a table.
+fn fft_components_table(m: &chronomap_core::FftFremen) -> crate::format::Table {
+    let mut table = crate::format::Table::new(["bin", "period", "amplitude |X|/N", "phase (rad)"]);
+    for c in m.components() {
+        table.row([
+            c.bin.to_string(),
+            crate::format::period(m.period_of_bin(c.bin)),
+            format!("{:.5}", c.amplitude),
+            format!("{:+.3}", c.phase),
+        ]);
+    }
+    table
+}
+
 /// One line saying how a model's order or family was chosen.
 fn describe_selection(selection: &Selection) -> String {
     match selection {

@@ -7,7 +7,7 @@ use chronomap_core::anomaly::detect_anomalies;
 use chronomap_core::{AnyModel, FremenModel, Ordered, TemporalModel};
 use chronomap_io::{Field, read_column, read_pairs, write_any_model};
 
-use super::{describe_selection, load_model, read_series};
+use super::{describe_selection, fft_components_table, load_model, read_series};
 use crate::cli::{AnomaliesArgs, FitArgs, InspectArgs, PredictArgs};
 use crate::format::{Table, duration, period, time};
 
@@ -139,16 +139,7 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
                 m.outlier_toggles().len(),
                 m.estimation_error()
             );
-            let mut table = Table::new(["bin", "period", "amplitude", "phase"]);
-            for c in m.components() {
-                table.row([
-                    c.bin.to_string(),
-                    period(m.period_of_bin(c.bin)),
-                    format!("{:.5}", c.amplitude),
-                    format!("{:+.3}", c.phase),
-                ]);
-            }
-            println!("{}", table.render());
+            println!("{}", fft_components_table(m).render());
         }
     }
     Ok(())

@@ -81,6 +81,15 @@ impl TimeSeries {
     }
 
     /// Whether there are no observations.
+    /// The series as a test set of [`chronomap_core::eval`].
+    pub fn as_test_set(&self) -> chronomap_core::eval::TestSet<'_> {
+        chronomap_core::eval::TestSet {
+            times: &self.times,
+            values: &self.values,
+        }
+    }
+
+    /// Whether the series is empty.
     pub fn is_empty(&self) -> bool {
         self.times.is_empty()
     }
