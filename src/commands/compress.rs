@@ -8,7 +8,7 @@ use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of, uniform_binary_s
 use chronomap_core::{AnyModel, TemporalModel};
 use chronomap_io::{encode_model, write_any_model};
 
-use super::{fft_components_table, read_series};
+use super::{data_error, fft_components_table, read_series, source_name};
 use crate::cli::CompressArgs;
 use crate::format::{duration, time};
 
@@ -52,7 +52,8 @@ pub fn compress(
 
 pub fn run(args: &CompressArgs) -> Result<()> {
     let series = read_series(&args.series)?;
-    let (start, step, samples) = uniform_binary_samples(&series.times, &series.values)?;
+    let (start, step, samples) = uniform_binary_samples(&series.times, &series.values)
+        .map_err(|e| data_error(&source_name(&args.series), e))?;
     let shortest_period_secs = match args.shortest_period.as_str() {
         "none" => None,
         text => match text.parse::<f64>() {

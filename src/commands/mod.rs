@@ -33,6 +33,23 @@ fn read_series(source: &SeriesSource) -> Result<TimeSeries> {
     })
 }
 
+/// A model-building error about the data of `source`, naming the offending observation
+/// (its position among the data lines) when there is one.
+fn data_error(source: &str, error: chronomap_core::BuildError) -> anyhow::Error {
+    match error.observation_index() {
+        Some(i) => anyhow::anyhow!("{source}: observation {}: {error}", i + 1),
+        None => anyhow::anyhow!("{source}: {error}"),
+    }
+}
+
+/// Display name of a series source.
+fn source_name(source: &SeriesSource) -> String {
+    match source {
+        SeriesSource::Pairs(path) => path.display().to_string(),
+        SeriesSource::Split(times, values) => format!("{},{}", times.display(), values.display()),
+    }
+}
+
 /// Reads a model file, checking version, checksum and invariants.
 fn load_model(path: &std::path::Path) -> Result<AnyModel> {
     read_any_model(path).context("cannot load the model")

@@ -2,12 +2,12 @@
 
 use std::io::{BufWriter, Write};
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use chronomap_core::anomaly::detect_anomalies;
 use chronomap_core::{AnyModel, FremenModel, Ordered, TemporalModel};
 use chronomap_io::{Field, read_column, read_pairs, write_any_model};
 
-use super::{describe_selection, fft_components_table, load_model, read_series};
+use super::{data_error, describe_selection, fft_components_table, load_model, read_series};
 use crate::cli::{AnomaliesArgs, FitArgs, InspectArgs, PredictArgs};
 use crate::format::{Table, duration, period, time};
 
@@ -15,7 +15,9 @@ pub fn fit(args: &FitArgs) -> Result<()> {
     let train = read_pairs(&args.train)?;
     let fitted = args
         .model
-        .fit(&train.times, &train.values, &args.fit.options())?;
+        .fit(&train.times, &train.values, &args.fit.options())
+        .map_err(|e| data_error(&args.train.display().to_string(), e))
+        .with_context(|| format!("cannot fit {}", args.model))?;
     write_any_model(&args.output, &fitted.model)?;
     let size = std::fs::metadata(&args.output)
         .map(|m| m.len())
