@@ -54,7 +54,7 @@
 //! nothing predicts 0.5; one that has seen only zeros predicts 0 (no mixture is fitted).
 //!
 //! The fit is computed lazily on first use after new observations (or a new number of
-//! components) and cached. The per-bin sums are exact ([`ExactSum`]), so the model does not
+//! components) and cached. The per-bin sums are exact ([`ExactSum`](crate::exact::ExactSum), kept by a [`HistogramModel`]), so the model does not
 //! depend on how the observations were batched.
 //!
 //! # Complexity
