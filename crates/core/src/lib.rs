@@ -31,7 +31,8 @@
 //! * [`spec`] — models by name (`fremen:4`, `hist:24`, `auto`) and [`AnyModel`], the
 //!   serialisable union of all models. [`select`] — order and model selection on held-back
 //!   data. [`anomaly`] — anomaly detection. [`metrics`] — Brier score, binary error, paired
-//!   t-tests. [`naive`] — slow oracles for tests and benchmarks.
+//!   t-tests; [`eval`] — the train/test experiment of the FreMEn benchmarks. [`naive`] — slow
+//!   oracles for tests and benchmarks.
 #![deny(missing_docs)]
 
 pub mod anomaly;
