@@ -30,6 +30,16 @@ pub fn quantize(x: f64) -> i64 {
 pub struct ExactSum(i128);
 
 impl ExactSum {
+    /// The sum from its integer count of `2^-50` units.
+    pub const fn from_units(units: i128) -> Self {
+        ExactSum(units)
+    }
+
+    /// The integer count of `2^-50` units.
+    pub const fn units(self) -> i128 {
+        self.0
+    }
+
     /// Adds one term (`|x| < 2`).
     #[inline]
     pub fn add(&mut self, x: f64) {

@@ -149,6 +149,32 @@ impl FremenModel {
         })
     }
 
+    /// A model from its exact accumulators and span (e.g. one cell of a grid, see
+    /// [`crate::grid`]). Equal to the model that observed the same data.
+    ///
+    /// # Errors
+    /// Invalid configuration, or accumulators over other periods or with another count.
+    pub fn from_parts(
+        config: FremenConfig,
+        span: ObservedSpan,
+        sums: SpectralSums,
+    ) -> Result<Self, ConfigError> {
+        config.validate()?;
+        if sums.periods() != &config.periods || sums.count() != span.count {
+            return Err(ConfigError::OutOfRange {
+                name: "accumulators",
+                value: format!("{} observations over {}", sums.count(), sums.periods()),
+                expected: "the configured periods and the span's count",
+            });
+        }
+        Ok(FremenModel {
+            config,
+            span,
+            sums,
+            fit: OnceLock::new(),
+        })
+    }
+
     /// An empty model with the default periods (one week / 1..=84) and the given order.
     pub fn with_order(order: usize) -> Self {
         FremenModel::new(FremenConfig::with_order(order)).expect("default config is valid")

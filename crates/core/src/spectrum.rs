@@ -102,6 +102,28 @@ impl SpectralSums {
         &self.per_period
     }
 
+    /// Accumulators assembled from their parts (e.g. by a spatial container that computed them
+    /// with shared per-frame phasors, see [`phasors`]). `None` if `per_period` does not have
+    /// one entry per period.
+    pub fn from_parts(
+        periods: PeriodSet,
+        count: u64,
+        sum: ExactSum,
+        per_period: Vec<PeriodSums>,
+    ) -> Option<Self> {
+        (per_period.len() == periods.len()).then_some(SpectralSums {
+            periods,
+            count,
+            sum,
+            per_period,
+        })
+    }
+
+    /// The exact sum of the observed values `Σ s`.
+    pub fn value_sum(&self) -> ExactSum {
+        self.sum
+    }
+
     /// Checks invariants (for accumulators read from files).
     pub fn is_consistent(&self) -> bool {
         self.periods.clone().validated().is_ok() && self.per_period.len() == self.periods.len()
@@ -222,6 +244,52 @@ fn harmonic_block(base: f64, count: usize, t: &[f64], v: &[f64], out: &mut [Peri
     }
 }
 
+/// The phasors `e^{-jω_k t}` of one time for every candidate period, written to `re`/`im`.
+///
+/// The arithmetic is exactly that of the accumulation kernels of [`SpectralSums::add`]
+/// (same reductions, same recurrence, same re-anchoring), so sums of
+/// [`quantize`]d phasors built from these values are bit-identical to the
+/// accumulators of a [`SpectralSums`] fed the same times. Spatial containers use this to
+/// share one set of phasors per frame among many cells.
+///
+/// # Panics
+/// If `re` or `im` is shorter than the period set.
+pub fn phasors(periods: &PeriodSet, time: f64, re: &mut [f64], im: &mut [f64]) {
+    match periods {
+        PeriodSet::Harmonics { base_secs, count } => {
+            let count = *count as usize;
+            let r = cycle_fraction(time, *base_secs);
+            let (sin, cos) = (TAU * r).sin_cos();
+            let (zr, zi) = (cos, -sin);
+            let (mut wr, mut wi) = (zr, zi);
+            for k in 0..count {
+                if k > 0 {
+                    if k % ANCHOR == 0 {
+                        let m = (k + 1) as f64;
+                        let (sin, cos) = (TAU * (m * r).fract()).sin_cos();
+                        wr = cos;
+                        wi = -sin;
+                    } else {
+                        let next_re = wr * zr - wi * zi;
+                        let next_im = wr * zi + wi * zr;
+                        wr = next_re;
+                        wi = next_im;
+                    }
+                }
+                re[k] = wr;
+                im[k] = wi;
+            }
+        }
+        PeriodSet::List(list) => {
+            for (k, &period) in list.iter().enumerate() {
+                let (sin, cos) = (TAU * cycle_fraction(time, period)).sin_cos();
+                re[k] = cos;
+                im[k] = -sin;
+            }
+        }
+    }
+}
+
 /// `w ← w·z` element-wise for a block of complex numbers in split (re, im) form: the step of
 /// the phasor recurrence `e^{-j(k+1)θ} = e^{-jkθ}·e^{-jθ}`, written so that it vectorises.
 #[inline(always)]
@@ -303,6 +371,33 @@ mod tests {
         // reduces modulo the exact week, does not).
         for (k, (fast, slow)) in sums.coefficients().iter().zip(&naive).enumerate() {
             assert!((fast - slow).norm() < 1e-10, "period {k}: {fast} vs {slow}");
+        }
+    }
+
+    #[test]
+    fn scalar_phasors_reproduce_the_kernel_bit_for_bit() {
+        let (times, values) = irregular_series(300);
+        for periods in [
+            PeriodSet::harmonics(604_800.0, 200).unwrap(),
+            PeriodSet::from_periods(vec![86_400.0, 3_600.0 * 7.3]).unwrap(),
+        ] {
+            let mut kernel = SpectralSums::new(periods.clone());
+            kernel.add(&times, &values, Parallelism::Sequential);
+            let k = periods.len();
+            let (mut re, mut im) = (vec![0.0; k], vec![0.0; k]);
+            let mut scalar = vec![PeriodSums::default(); k];
+            for (&t, &s) in times.iter().zip(&values) {
+                phasors(&periods, t, &mut re, &mut im);
+                for (j, sums) in scalar.iter_mut().enumerate() {
+                    sums.add_block([
+                        quantize(s * re[j]),
+                        quantize(s * im[j]),
+                        quantize(re[j]),
+                        quantize(im[j]),
+                    ]);
+                }
+            }
+            assert_eq!(kernel.period_sums(), &scalar[..]);
         }
     }
 
