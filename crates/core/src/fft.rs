@@ -52,8 +52,6 @@ use crate::observe::ObservedSpan;
 
 /// Largest series length supported (2^40 samples: 35,000 years at 1 s).
 pub const MAX_LEN: u64 = 1 << 40;
-/// Margin by which an interval must clear the threshold to be skipped.
-const MARGIN: f64 = 1e-9;
 
 /// Configuration of an [`FftFremen`] model.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -346,52 +344,24 @@ impl FftFremen {
         self.predicted_state_at(n, 0.5) ^ (toggles % 2 == 1)
     }
 
-    /// Change positions of `s'(n, c)` over `[lo, hi)` (0 before `lo`).
+    /// Change positions of `s'(n, c)` over `[lo, hi)` (0 before `lo`), by
+    /// [`crate::crossings::threshold_toggles`] with the per-sample Lipschitz bound
+    /// `L = Σ 2A_k·2πk/N` of `p`.
     pub fn threshold_edges(&self, confidence: f64, lo: u64, hi: u64) -> Vec<u64> {
-        let mut out = Vec::new();
-        if hi <= lo || self.model_len == 0 {
-            return out;
+        if self.model_len == 0 {
+            return Vec::new();
         }
         let lipschitz: f64 = self
             .components
             .iter()
             .map(|c| 2.0 * c.amplitude * TAU * c.bin as f64 / self.model_len as f64)
             .sum();
-        let f_lo = self.p_at(lo) - confidence;
-        if f_lo >= 0.0 {
-            out.push(lo);
-        }
-        let last = hi - 1;
-        if last > lo {
-            let f_last = self.p_at(last) - confidence;
-            self.scan(confidence, lipschitz, (lo, f_lo), (last, f_last), &mut out);
-        }
-        out
-    }
-
-    /// Appends the toggles of `s'` in `(a, b]`, knowing `f = p − c` at both ends.
-    fn scan(&self, c: f64, lipschitz: f64, a: (u64, f64), b: (u64, f64), out: &mut Vec<u64>) {
-        let ((a, fa), (b, fb)) = (a, b);
-        if b - a <= 16 {
-            let mut previous = fa >= 0.0;
-            for n in a + 1..=b {
-                let f = if n == b { fb } else { self.p_at(n) - c };
-                let on = f >= 0.0;
-                if on != previous {
-                    out.push(n);
-                }
-                previous = on;
-            }
-            return;
-        }
-        if (fa >= 0.0) == (fb >= 0.0) && (fa + fb).abs() - lipschitz * (b - a) as f64 > 2.0 * MARGIN
-        {
-            return;
-        }
-        let m = a + (b - a) / 2;
-        let fm = self.p_at(m) - c;
-        self.scan(c, lipschitz, (a, fa), (m, fm), out);
-        self.scan(c, lipschitz, (m, fm), (b, fb), out);
+        crate::crossings::threshold_toggles(
+            lo,
+            hi,
+            &|n| self.p_at(n) - confidence,
+            &|a, b| lipschitz * (b - a) as f64,
+        )
     }
 
     /// Change positions of the stored series `s` over `[0, len)` (eq. (7) in bulk).

@@ -37,6 +37,7 @@
 
 pub mod anomaly;
 pub mod conformance;
+pub mod crossings;
 pub mod error;
 pub mod eval;
 pub mod exact;
