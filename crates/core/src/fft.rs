@@ -356,12 +356,9 @@ impl FftFremen {
             .iter()
             .map(|c| 2.0 * c.amplitude * TAU * c.bin as f64 / self.model_len as f64)
             .sum();
-        crate::crossings::threshold_toggles(
-            lo,
-            hi,
-            &|n| self.p_at(n) - confidence,
-            &|a, b| lipschitz * (b - a) as f64,
-        )
+        crate::crossings::threshold_toggles(lo, hi, &|n| self.p_at(n) - confidence, &|a, b| {
+            lipschitz * (b - a) as f64
+        })
     }
 
     /// Change positions of the stored series `s` over `[0, len)` (eq. (7) in bulk).

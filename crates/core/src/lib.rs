@@ -43,6 +43,7 @@ pub mod eval;
 pub mod exact;
 pub mod fft;
 pub mod fremen;
+pub mod grid;
 pub mod hist;
 pub mod mean;
 pub mod metrics;
