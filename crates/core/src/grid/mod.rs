@@ -293,6 +293,10 @@ pub struct FremenGrid {
     frame_times: Vec<f64>,
     /// Whether sparse observations were made (they are outside the frame history).
     had_sparse: bool,
+    /// Cells currently unknown (including never seen) and currently fractional: when both are
+    /// zero, binary frames take a fast path that compares one bit plane.
+    unknown_cells: u64,
+    fraction_cells: u64,
     #[serde(skip)]
     scratch: FramePhasors,
 }
@@ -355,6 +359,8 @@ impl FremenGrid {
             frame_span: ObservedSpan::default(),
             latest: None,
             had_sparse: false,
+            unknown_cells: geometry.cells() as u64,
+            fraction_cells: 0,
             scratch: FramePhasors::default(),
         })
     }
@@ -456,6 +462,10 @@ impl FremenGrid {
             }
         }
         let cells = self.geometry.cells();
+        if known.is_none() && self.unknown_cells == 0 && self.fraction_cells == 0 {
+            self.apply_binary_frame(time, occupied);
+            return Ok(());
+        }
         self.apply_frame(
             time,
             |w| {
@@ -514,6 +524,70 @@ impl FremenGrid {
         Ok(())
     }
 
+    /// The common case of a frame in which every cell is observed and binary while no cell is
+    /// unknown or fractional: only the occupied plane changes, so one XOR per 64 cells finds
+    /// the cells to update.
+    fn apply_binary_frame(&mut self, time: f64, occupied: &[u64]) {
+        let mut phasors = std::mem::take(&mut self.scratch);
+        phasors.compute(&self.config.fremen, time);
+        let frame = self.frames;
+        let previous_time = self.frame_span.last_time();
+        let cells = self.geometry.cells();
+        let last = self.occupied.len() - 1;
+        // Skip unchanged stretches 8 words (512 cells) at a time with a vectorised OR of XORs.
+        const CHUNK: usize = 8;
+        let mut w0 = 0;
+        while w0 <= last {
+            let w1 = (w0 + CHUNK).min(last + 1);
+            if w1 <= last
+                && occupied[w0..w1]
+                    .iter()
+                    .zip(&self.occupied[w0..w1])
+                    .fold(0u64, |acc, (a, b)| acc | (a ^ b))
+                    == 0
+            {
+                w0 = w1;
+                continue;
+            }
+            for (w, &bits) in occupied.iter().enumerate().take(w1).skip(w0) {
+                let new = if w == last {
+                    bits & tail_mask(w, cells)
+                } else {
+                    bits
+                };
+                let mut changed = new ^ self.occupied[w];
+                while changed != 0 {
+                    let j = changed.trailing_zeros() as usize;
+                    changed &= changed - 1;
+                    let (old_state, new_state) = if new & (1u64 << j) != 0 {
+                        (CellState::Free, CellState::Occupied)
+                    } else {
+                        (CellState::Occupied, CellState::Free)
+                    };
+                    self.transition(w * 64 + j, old_state, new_state, frame, time, previous_time);
+                }
+                self.occupied[w] = new;
+            }
+            w0 = w1;
+        }
+        self.finish_frame(time, phasors);
+    }
+
+    /// Adds the frame's phasors to the prefix and records the frame.
+    fn finish_frame(&mut self, time: f64, phasors: FramePhasors) {
+        for (p, q) in self.prefix.iter_mut().zip(&phasors.q) {
+            p[0] += i128::from(q[0]);
+            p[1] += i128::from(q[1]);
+        }
+        self.scratch = phasors;
+        self.frames += 1;
+        self.frame_span.extend(&[time]);
+        self.latest = Some(time);
+        if self.config.keep_history {
+            self.frame_times.push(time);
+        }
+    }
+
     /// Applies one dense frame given, per word, its new (occupied, unknown, fraction) planes
     /// and the fractional value of a cell.
     fn apply_frame(
@@ -559,21 +633,15 @@ impl FremenGrid {
                     self.add_fraction(cell, value, time, &phasors);
                 }
             }
+            self.unknown_cells =
+                self.unknown_cells + u64::from(unk.count_ones()) - u64::from(old_unk.count_ones());
+            self.fraction_cells = self.fraction_cells + u64::from(frac.count_ones())
+                - u64::from(old_frac.count_ones());
             self.occupied[w] = occ;
             self.unknown[w] = unk;
             self.fraction[w] = frac;
         }
-        for (p, q) in self.prefix.iter_mut().zip(&phasors.q) {
-            p[0] += i128::from(q[0]);
-            p[1] += i128::from(q[1]);
-        }
-        self.scratch = phasors;
-        self.frames += 1;
-        self.frame_span.extend(&[time]);
-        self.latest = Some(time);
-        if self.config.keep_history {
-            self.frame_times.push(time);
-        }
+        self.finish_frame(time, phasors);
     }
 
     /// Slot of a cell, allocated (with the current run opened at frame 0) if needed.
@@ -636,13 +704,17 @@ impl FremenGrid {
                 add_rows(
                     &mut self.occupied_pool[slot * k..(slot + 1) * k],
                     &self.prefix,
-                    1,
+                    true,
                 );
                 self.slots[slot].ones += f;
             }
             CellState::Unknown => {
                 let u = self.ensure_unknown(slot);
-                add_rows(&mut self.unknown_pool[u * k..(u + 1) * k], &self.prefix, 1);
+                add_rows(
+                    &mut self.unknown_pool[u * k..(u + 1) * k],
+                    &self.prefix,
+                    true,
+                );
                 let s = &mut self.slots[slot];
                 s.unknown_frames += f;
                 if s.first.is_nan() {
@@ -656,13 +728,17 @@ impl FremenGrid {
                 add_rows(
                     &mut self.occupied_pool[slot * k..(slot + 1) * k],
                     &self.prefix,
-                    -1,
+                    false,
                 );
                 self.slots[slot].ones -= f;
             }
             CellState::Unknown => {
                 let u = self.ensure_unknown(slot);
-                add_rows(&mut self.unknown_pool[u * k..(u + 1) * k], &self.prefix, -1);
+                add_rows(
+                    &mut self.unknown_pool[u * k..(u + 1) * k],
+                    &self.prefix,
+                    false,
+                );
                 let s = &mut self.slots[slot];
                 s.unknown_frames -= f;
                 if let Some(previous) = previous_time {
@@ -889,6 +965,7 @@ impl FremenGrid {
             )));
         }
         let mut grid = FremenGrid::new(geometry, first.config.clone())?;
+        grid.unknown_cells = 0;
         grid.frames = first.frames;
         grid.frame_span = first.frame_span;
         grid.latest = first.latest;
@@ -936,6 +1013,8 @@ impl FremenGrid {
                 }
                 grid.slots.push(s);
             }
+            grid.unknown_cells += part.unknown_cells;
+            grid.fraction_cells += part.fraction_cells;
             grid.occupied_pool.extend(part.occupied_pool);
             grid.unknown_pool.extend(part.unknown_pool);
             grid.had_sparse |= part.had_sparse;
@@ -954,12 +1033,19 @@ fn period_sums(weighted: [i128; 2], unweighted: [i128; 2]) -> PeriodSums {
     }
 }
 
-/// `rows += sign · prefix`, element-wise.
+/// `rows += prefix` (`add`) or `rows -= prefix`, element-wise: closing or opening a run.
 #[inline]
-fn add_rows(rows: &mut [[i128; 2]], prefix: &[[i128; 2]], sign: i128) {
-    for (r, p) in rows.iter_mut().zip(prefix) {
-        r[0] += sign * p[0];
-        r[1] += sign * p[1];
+fn add_rows(rows: &mut [[i128; 2]], prefix: &[[i128; 2]], add: bool) {
+    if add {
+        for (r, p) in rows.iter_mut().zip(prefix) {
+            r[0] += p[0];
+            r[1] += p[1];
+        }
+    } else {
+        for (r, p) in rows.iter_mut().zip(prefix) {
+            r[0] -= p[0];
+            r[1] -= p[1];
+        }
     }
 }
 

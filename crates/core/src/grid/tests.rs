@@ -390,3 +390,46 @@ fn bad_frames_are_rejected_and_change_nothing() {
     assert!(GridGeometry::planar(0, 5, 0.1, [0.0, 0.0]).is_err());
     assert!(GridGeometry::planar(5, 5, -0.1, [0.0, 0.0]).is_err());
 }
+
+#[test]
+fn fully_observed_binary_frames_take_the_fast_path_exactly() {
+    let geometry = GridGeometry::planar(200, 1, 1.0, [0.0, 0.0]).unwrap();
+    let config = GridConfig::default();
+    let mut rng = Rng(21);
+    let mut inputs = Vec::new();
+    let mut bits = vec![0u64; 4];
+    let mut t = 1_000_000.0;
+    for frame in 0..400 {
+        t += 5.0;
+        for _ in 0..3 {
+            let c = rng.below(40) as usize * 5; // a fifth of the cells change
+            bits[c / 64] ^= 1 << (c % 64);
+        }
+        if frame == 200 {
+            // One frame with an unknown cell and a fraction leaves the fast path for a while.
+            let mut values: Vec<i8> = (0..200)
+                .map(|c| {
+                    if bits[c / 64] >> (c % 64) & 1 == 1 {
+                        100
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            values[3] = -1;
+            values[4] = 50;
+            inputs.push((t, Input::Occupancy(values)));
+        } else {
+            // Garbage past the last cell must be ignored.
+            let mut frame_bits = bits.clone();
+            frame_bits[3] |= 1 << 63;
+            inputs.push((t, Input::Bits(frame_bits, None)));
+        }
+    }
+    let (grid, models) = build(geometry, config, &inputs);
+    assert_eq!((grid.unknown_cells, grid.fraction_cells), (0, 0));
+    for (c, model) in models.iter().enumerate() {
+        assert_eq!(grid.cell_model(c).as_ref(), Some(model), "cell {c}");
+    }
+    assert!(grid.dynamic_cells() <= 42, "{} slots", grid.dynamic_cells());
+}
