@@ -47,10 +47,12 @@
 //! [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
+pub mod grid_file;
 pub mod model_file;
 pub mod plot;
 pub mod text;
 
+pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use model_file::{
     ModelFileError, ModelFileErrorKind, decode_any_model, decode_model, encode_model,
     read_any_model, read_model_file, write_any_model, write_model_file,

@@ -217,7 +217,7 @@ impl fmt::Display for PathPrefix<'_> {
 }
 
 impl ModelFileError {
-    fn new(kind: ModelFileErrorKind) -> Self {
+    pub(crate) fn new(kind: ModelFileErrorKind) -> Self {
         ModelFileError { path: None, kind }
     }
 
@@ -228,7 +228,7 @@ impl ModelFileError {
         }
     }
 
-    fn in_file(mut self, path: &Path) -> Self {
+    pub(crate) fn in_file(mut self, path: &Path) -> Self {
         self.path = Some(path.to_owned());
         self
     }

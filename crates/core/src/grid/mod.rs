@@ -404,6 +404,33 @@ impl FremenGrid {
         )
     }
 
+    /// Checks internal invariants (for grids read from files).
+    pub fn is_consistent(&self) -> bool {
+        let k = self.config.fremen.periods.len();
+        let words = self.geometry.words();
+        let cells = self.geometry.cells();
+        let popcount = |plane: &[u64]| plane.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
+        self.geometry.validate().is_ok()
+            && self.config.fremen.validate().is_ok()
+            && self.prefix.len() == k
+            && self.occupied.len() == words
+            && self.unknown.len() == words
+            && self.fraction.len() == words
+            && self.slot_of.len() == cells
+            && self.occupied_pool.len() == self.slots.len() * k
+            && (k == 0 || self.unknown_pool.len() % k == 0)
+            && self.slots.iter().enumerate().all(|(i, s)| {
+                (s.cell as usize) < cells
+                    && self.slot_of[s.cell as usize] == i as u32
+                    && (s.unknown == NONE || (s.unknown as usize) < self.unknown_pool.len() / k.max(1))
+            })
+            && self.slot_of.iter().all(|&s| s == NONE || (s as usize) < self.slots.len())
+            && (!self.config.keep_history || self.frame_times.len() as u64 == self.frames)
+            && self.unknown_cells == popcount(&self.unknown)
+            && self.fraction_cells == popcount(&self.fraction)
+            && self.frame_span.count == self.frames
+    }
+
     /// Approximate heap memory used, in bytes.
     pub fn memory_bytes(&self) -> usize {
         let planes = 3 * self.occupied.len() * 8;

@@ -1,0 +1,90 @@
+//! Grid files: the learning state of a [`FremenGrid`], its compact ("lossy") model or its
+//! lossless model, in the versioned, checksummed container of [`crate::model_file`].
+
+use std::path::Path;
+
+use chronomap_core::grid::{FittedGrid, FremenGrid, LosslessGrid};
+use serde::{Deserialize, Serialize};
+
+use crate::model_file::{ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file, write_model_file};
+
+/// What a grid file holds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum GridFile {
+    /// Everything needed to continue learning (exact accumulators of every changing cell).
+    State(FremenGrid),
+    /// The compact model: predicts maps, cannot learn further (seed 001 §VI "lossy").
+    Lossy(FittedGrid),
+    /// The compact model and the outlier sets that reproduce every frame (§VI "lossless").
+    Lossless(LosslessGrid),
+}
+
+impl GridFile {
+    /// The kind written in the file header.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            GridFile::State(_) => "grid-state",
+            GridFile::Lossy(_) => "grid-lossy",
+            GridFile::Lossless(_) => "grid-lossless",
+        }
+    }
+
+    fn is_consistent(&self) -> bool {
+        match self {
+            GridFile::State(g) => g.is_consistent(),
+            GridFile::Lossy(g) => g.is_consistent(),
+            GridFile::Lossless(g) => g.is_consistent(),
+        }
+    }
+}
+
+/// Encodes a grid file in memory (its length is the file size of eq. (16)).
+///
+/// # Errors
+/// As [`encode_model`].
+pub fn encode_grid(grid: &GridFile) -> Result<Vec<u8>, ModelFileError> {
+    encode_model(grid.kind(), grid)
+}
+
+/// Decodes a grid file, checking the kind and the grid's invariants.
+///
+/// # Errors
+/// As [`decode_model`], or [`ModelFileErrorKind::Inconsistent`].
+pub fn decode_grid(bytes: &[u8]) -> Result<GridFile, ModelFileError> {
+    let (kind, grid): (String, GridFile) = decode_model(bytes)?;
+    check(&kind, &grid)?;
+    Ok(grid)
+}
+
+/// Writes a grid file atomically.
+///
+/// # Errors
+/// As [`write_model_file`].
+pub fn write_grid_file(path: impl AsRef<Path>, grid: &GridFile) -> Result<(), ModelFileError> {
+    write_model_file(path, grid.kind(), grid)
+}
+
+/// Reads a grid file, checking version, checksum, kind and invariants.
+///
+/// # Errors
+/// As [`read_model_file`], or [`ModelFileErrorKind::Inconsistent`]; errors name the path.
+pub fn read_grid_file(path: impl AsRef<Path>) -> Result<GridFile, ModelFileError> {
+    let path = path.as_ref();
+    let (kind, grid): (String, GridFile) = read_model_file(path)?;
+    check(&kind, &grid).map_err(|e| e.in_file(path))?;
+    Ok(grid)
+}
+
+fn check(kind: &str, grid: &GridFile) -> Result<(), ModelFileError> {
+    if kind != grid.kind() {
+        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
+            reason: format!("the header says {kind:?} but the payload is a {:?}", grid.kind()),
+        }));
+    }
+    if !grid.is_consistent() {
+        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
+            reason: format!("the {kind} breaks its invariants"),
+        }));
+    }
+    Ok(())
+}
