@@ -83,6 +83,13 @@
 //! events per frame on average (about 10 on a weekday, fewer at weekends), against 3,329
 //! words in a frame; `cargo run --release -p chronomap-synth --example office_stats` prints
 //! these numbers for any size, and the streaming throughput.
+//!
+//! Not calibrated, for comparison: FFT FreMEn (`chronomap_core::fft`, example
+//! `office_fremen`) built from all frames of each changed cell of a 6,400-cell grid
+//! mis-estimates 3.4 % (order 1), 2.4 % (order 2) and 1.2 % (order 5) of them, below the
+//! paper's 3–4 %: its spectrum spans the whole workload, so its slowest components also fit
+//! the persistent steps (their error falls from 23 % to 5 % at order 1), and the periodic
+//! cells' error falls from 14 % to 8 % at order 2 (the rest is jitter and skipped days).
 
 mod layout;
 mod process;
