@@ -47,6 +47,7 @@
 //! [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
+mod atomic;
 pub mod model_file;
 pub mod plot;
 pub mod text;
