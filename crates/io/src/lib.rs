@@ -38,17 +38,23 @@
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
 //!   [`ModelFileError`].
+//! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
+//!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
+//!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
+//!   ([`NavMapError`]) name the file, line and key.
 //! * [`plot`] — PNG figures from plain data: stacked time panels
 //!   ([`render_panels_png`]) and amplitude spectra ([`render_spectrum_png`]), drawn with an
 //!   embedded font (no system fonts needed).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
-//! [`PlotErrorKind`]); their messages are complete on their own (they do not repeat through
-//! [`std::error::Error::source`]).
+//! [`NavMapErrorKind`], [`PlotErrorKind`]); their messages are complete on their own (they do
+//! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
+mod atomic;
 pub mod grid_file;
 pub mod model_file;
+pub mod navmap;
 pub mod plot;
 pub mod text;
 
@@ -56,6 +62,11 @@ pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_gr
 pub use model_file::{
     ModelFileError, ModelFileErrorKind, decode_any_model, decode_model, encode_model,
     read_any_model, read_model_file, write_any_model, write_model_file,
+};
+pub use navmap::{
+    LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,
+    SavedMap, decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map,
+    read_map_yaml, save_map,
 };
 pub use plot::{
     Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_panels_png,

@@ -38,10 +38,9 @@
 //! flushed to disk, then renamed over the target, so a crash never leaves a half-written model.
 
 use std::fmt;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
+use std::fs;
+use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use chronomap_core::AnyModel;
 use serde::Serialize;
@@ -525,48 +524,15 @@ fn is_canonical_number(word: &[u8]) -> bool {
 }
 
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), ModelFileError> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let io_error = |action: &'static str| {
-        move |io| ModelFileError::at(path, ModelFileErrorKind::Io { action, io })
-    };
-    let file_name = path.file_name().ok_or_else(|| {
-        io_error("write")(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            "the path does not name a file",
-        ))
-    })?;
-    let dir = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
-    };
-    let mut temp_name = std::ffi::OsString::from(".");
-    temp_name.push(file_name);
-    temp_name.push(format!(
-        ".tmp-{}-{}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let temp = dir.join(temp_name);
-    let result = (|| {
-        let mut file: File = OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&temp)
-            .map_err(io_error("create a temporary file for"))?;
-        file.write_all(bytes).map_err(io_error("write"))?;
-        file.sync_all().map_err(io_error("flush"))?;
-        drop(file);
-        fs::rename(&temp, path).map_err(io_error("replace"))
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&temp);
-        return result;
-    }
-    // Make the rename itself durable where directories can be synced (best effort).
-    if let Ok(dir) = File::open(dir) {
-        let _ = dir.sync_all();
-    }
-    Ok(())
+    crate::atomic::write_atomically(path, bytes).map_err(|f| {
+        ModelFileError::at(
+            path,
+            ModelFileErrorKind::Io {
+                action: f.action,
+                io: f.io,
+            },
+        )
+    })
 }
 
 /// Header or payload excerpt for an error message (lossy UTF-8, shortened if long).

@@ -80,7 +80,6 @@ impl TimeSeries {
         self.times.len()
     }
 
-    /// Whether there are no observations.
     /// The series as a test set of [`chronomap_core::eval`].
     pub fn as_test_set(&self) -> chronomap_core::eval::TestSet<'_> {
         chronomap_core::eval::TestSet {
@@ -89,7 +88,7 @@ impl TimeSeries {
         }
     }
 
-    /// Whether the series is empty.
+    /// Whether there are no observations.
     pub fn is_empty(&self) -> bool {
         self.times.is_empty()
     }
