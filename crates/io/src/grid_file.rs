@@ -6,7 +6,10 @@ use std::path::Path;
 use chronomap_core::grid::{FittedGrid, FremenGrid, LosslessGrid};
 use serde::{Deserialize, Serialize};
 
-use crate::model_file::{ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file, write_model_file};
+use crate::model_file::{
+    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
+    write_model_file,
+};
 
 /// What a grid file holds.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -78,7 +81,10 @@ pub fn read_grid_file(path: impl AsRef<Path>) -> Result<GridFile, ModelFileError
 fn check(kind: &str, grid: &GridFile) -> Result<(), ModelFileError> {
     if kind != grid.kind() {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
-            reason: format!("the header says {kind:?} but the payload is a {:?}", grid.kind()),
+            reason: format!(
+                "the header says {kind:?} but the payload is a {:?}",
+                grid.kind()
+            ),
         }));
     }
     if !grid.is_consistent() {

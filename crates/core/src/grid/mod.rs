@@ -418,13 +418,17 @@ impl FremenGrid {
             && self.fraction.len() == words
             && self.slot_of.len() == cells
             && self.occupied_pool.len() == self.slots.len() * k
-            && (k == 0 || self.unknown_pool.len() % k == 0)
+            && (k == 0 || self.unknown_pool.len().is_multiple_of(k))
             && self.slots.iter().enumerate().all(|(i, s)| {
                 (s.cell as usize) < cells
                     && self.slot_of[s.cell as usize] == i as u32
-                    && (s.unknown == NONE || (s.unknown as usize) < self.unknown_pool.len() / k.max(1))
+                    && (s.unknown == NONE
+                        || (s.unknown as usize) < self.unknown_pool.len() / k.max(1))
             })
-            && self.slot_of.iter().all(|&s| s == NONE || (s as usize) < self.slots.len())
+            && self
+                .slot_of
+                .iter()
+                .all(|&s| s == NONE || (s as usize) < self.slots.len())
             && (!self.config.keep_history || self.frame_times.len() as u64 == self.frames)
             && self.unknown_cells == popcount(&self.unknown)
             && self.fraction_cells == popcount(&self.fraction)
