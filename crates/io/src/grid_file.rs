@@ -15,11 +15,11 @@ use crate::model_file::{
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum GridFile {
     /// Everything needed to continue learning (exact accumulators of every changing cell).
-    State(FremenGrid),
+    State(Box<FremenGrid>),
     /// The compact model: predicts maps, cannot learn further (seed 001 §VI "lossy").
-    Lossy(FittedGrid),
+    Lossy(Box<FittedGrid>),
     /// The compact model and the outlier sets that reproduce every frame (§VI "lossless").
-    Lossless(LosslessGrid),
+    Lossless(Box<LosslessGrid>),
 }
 
 impl GridFile {
