@@ -1,16 +1,19 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
+mod bench;
 mod compress;
 mod demo;
 mod eval;
+mod grid;
 mod model;
+mod synthetic;
 
 use anyhow::{Context, Result};
 use chronomap_core::AnyModel;
 use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
-use crate::cli::{Command, SeriesSource};
+use crate::cli::{BenchCommand, Command, GridCommand, SeriesSource};
 
 /// Runs one subcommand.
 pub fn run(command: Command) -> Result<()> {
@@ -22,6 +25,11 @@ pub fn run(command: Command) -> Result<()> {
         Command::Inspect(args) => model::inspect(&args),
         Command::Anomalies(args) => model::anomalies(&args),
         Command::Compress(args) => compress::run(&args),
+        Command::Grid(GridCommand::Build(args)) => grid::build(&args),
+        Command::Grid(GridCommand::Predict(args)) => grid::predict(&args),
+        Command::Grid(GridCommand::Stats(args)) => grid::stats(&args),
+        Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
+        Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
     }
 }
 

@@ -69,8 +69,8 @@ pub use navmap::{
     read_map_yaml, save_map,
 };
 pub use plot::{
-    Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_panels_png,
-    render_spectrum_png,
+    MapImage, Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_maps_png,
+    render_panels_png, render_spectrum_png,
 };
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,

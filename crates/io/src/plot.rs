@@ -824,3 +824,111 @@ mod tests {
         assert_eq!(log_ticks(&(0.9..60.0)), [1.0, 2.0, 5.0, 10.0, 20.0, 50.0]);
     }
 }
+
+/// One map image of a figure: occupancy probabilities of a `width × height` grid, row 0 at the
+/// bottom (as `nav_msgs/OccupancyGrid`), NaN for unknown cells.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapImage {
+    /// Title above the map.
+    pub title: String,
+    /// Cells along x.
+    pub width: u32,
+    /// Cells along y.
+    pub height: u32,
+    /// `width × height` probabilities in `[0, 1]`, or NaN for unknown.
+    pub values: Vec<f32>,
+}
+
+/// Colour of an occupancy probability: white (free) to black (occupied); unknown in a pale blue.
+fn occupancy_colour(p: f32) -> RGBColor {
+    if p.is_nan() {
+        RGBColor(205, 220, 235)
+    } else {
+        let g = (255.0 * (1.0 - p.clamp(0.0, 1.0))).round() as u8;
+        RGBColor(g, g, g)
+    }
+}
+
+/// Draws several maps side by side (e.g. the map predicted for two times of day), each cell a
+/// square of `cell_pixels` pixels, with titles and a legend of the colour scale.
+///
+/// # Errors
+/// A [`PlotError`] naming `path`: no maps, a map whose `values` do not have `width × height`
+/// entries, an image too large or small, or a drawing/writing failure.
+pub fn render_maps_png(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), PlotError> {
+    render_maps(maps, path, cell_pixels).map_err(|kind| PlotError::new(path, kind))
+}
+
+fn render_maps(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), PlotErrorKind> {
+    if maps.is_empty() {
+        return Err(PlotErrorKind::NoPanels);
+    }
+    for map in maps {
+        if map.values.len() != map.width as usize * map.height as usize
+            || map.width == 0
+            || map.height == 0
+        {
+            return Err(PlotErrorKind::NoData);
+        }
+    }
+    ensure_font()?;
+    let cell = cell_pixels.max(1);
+    let margin = 12u32;
+    let title_height = 40u32;
+    let legend_height = 36u32;
+    let map_width = maps.iter().map(|m| m.width).max().unwrap_or(1) * cell;
+    let map_height = maps.iter().map(|m| m.height).max().unwrap_or(1) * cell;
+    let width = maps.len() as u32 * (map_width + margin) + margin;
+    let height = title_height + map_height + legend_height + margin;
+    check_size(width.max(200), height.max(120), 120)?;
+    let (width, height) = (width.max(200), height.max(120));
+    let scale = Scale::for_width(width.max(800));
+    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(drawing)?;
+    for (i, map) in maps.iter().enumerate() {
+        let x0 = margin + i as u32 * (map_width + margin);
+        root.draw(&Text::new(
+            map.title.clone(),
+            (x0 as i32, 10),
+            scale.font(15.0),
+        ))
+        .map_err(drawing)?;
+        for y in 0..map.height {
+            for x in 0..map.width {
+                let p = map.values[(y * map.width + x) as usize];
+                // Row 0 is the bottom of the map: draw it last (lowest).
+                let top = title_height + (map.height - 1 - y) * cell;
+                let left = x0 + x * cell;
+                root.draw(&Rectangle::new(
+                    [
+                        (left as i32, top as i32),
+                        ((left + cell) as i32, (top + cell) as i32),
+                    ],
+                    occupancy_colour(p).filled(),
+                ))
+                .map_err(drawing)?;
+            }
+        }
+    }
+    // Legend: free, occupied, unknown.
+    let y = (title_height + map_height + 12) as i32;
+    let mut x = margin as i32;
+    for (label, colour) in [
+        ("free (p = 0)", occupancy_colour(0.0)),
+        ("p = 0.5", occupancy_colour(0.5)),
+        ("occupied (p = 1)", occupancy_colour(1.0)),
+        ("unknown", occupancy_colour(f32::NAN)),
+    ] {
+        root.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], colour.filled()))
+            .map_err(drawing)?;
+        root.draw(&Rectangle::new(
+            [(x, y), (x + 16, y + 16)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(drawing)?;
+        root.draw(&Text::new(label, (x + 22, y), scale.font(13.0)))
+            .map_err(drawing)?;
+        x += 40 + 9 * label.len() as i32;
+    }
+    root.present().map_err(drawing)
+}

@@ -10,6 +10,7 @@ use super::{CellState, FremenGrid, GridError, GridGeometry, NONE};
 use crate::crossings::threshold_toggles;
 use crate::fft::{ones_in, xor_edges};
 use crate::model::{Ordered, saturate};
+use crate::observe::ObservedSpan;
 use crate::periods::{PeriodSet, cycle_fraction};
 
 /// Which order each cell's model uses.
@@ -61,6 +62,8 @@ pub struct FittedCell {
 pub struct FittedGrid {
     geometry: GridGeometry,
     periods: PeriodSet,
+    /// Count and times of the frames the model was built from.
+    frames: ObservedSpan,
     /// Constant cells that are occupied.
     occupied: Vec<u64>,
     /// Cells never observed.
@@ -115,6 +118,7 @@ impl FremenGrid {
         FittedGrid {
             geometry: self.geometry,
             periods: self.config.fremen.periods.clone(),
+            frames: self.frame_span,
             occupied,
             unknown,
             cells,
@@ -182,6 +186,11 @@ impl FittedGrid {
         &self.geometry
     }
 
+    /// Count and times of the frames the model was built from.
+    pub fn frames(&self) -> ObservedSpan {
+        self.frames
+    }
+
     /// The cells with a model.
     pub fn cells(&self) -> &[FittedCell] {
         &self.cells
@@ -218,6 +227,16 @@ impl FittedGrid {
                     2.0 * f64::from(c.amplitude) * (a + f64::from(c.phase)).cos()
                 })
                 .sum::<f64>()
+    }
+
+    /// The state of a cell the model holds as constant (`None` if it has a model of its own or
+    /// was never observed).
+    pub fn constant_state(&self, cell: usize) -> Option<bool> {
+        let (w, b) = (cell / 64, 1u64 << (cell % 64));
+        if self.unknown[w] & b != 0 || self.cells.iter().any(|c| c.cell as usize == cell) {
+            return None;
+        }
+        Some(self.occupied[w] & b != 0)
     }
 
     /// Occupancy probability of every cell at `time` (NaN for cells never observed).
@@ -295,37 +314,9 @@ impl FremenGrid {
     /// and estimation errors are defined for binary frames).
     pub fn grid_history(&self, fitted: &FittedGrid) -> Result<GridHistory, GridError> {
         self.require_history("a history")?;
-        if self.had_sparse {
-            return Err(GridError::Unsupported(
-                "the grid had sparse observations, which are not part of the frame history".into(),
-            ));
-        }
-        let mut occupied = Vec::with_capacity(fitted.cells.len());
-        let mut unknown = Vec::with_capacity(fitted.cells.len());
+        let (mut occupied, mut unknown) = (Vec::new(), Vec::new());
         for cell in &fitted.cells {
-            let mut history = self.history(cell.cell as usize);
-            if history.first().is_none_or(|&(f, _)| f > 0) {
-                // Not observed before its first entry: unknown from frame 0.
-                history.insert(0, (0, CellState::Unknown));
-            }
-            let (mut occ, mut unk) = (Vec::new(), Vec::new());
-            let (mut was_occ, mut was_unk) = (false, false);
-            for (frame, state) in history {
-                if state == CellState::Fraction {
-                    return Err(GridError::Unsupported(format!(
-                        "cell {} had fractional occupancy; lossless storage keeps binary states",
-                        cell.cell
-                    )));
-                }
-                let (is_occ, is_unk) = (state == CellState::Occupied, state == CellState::Unknown);
-                if is_occ != was_occ {
-                    occ.push(frame);
-                }
-                if is_unk != was_unk {
-                    unk.push(frame);
-                }
-                (was_occ, was_unk) = (is_occ, is_unk);
-            }
+            let (occ, unk) = self.cell_toggles(cell.cell as usize)?;
             occupied.push(occ);
             unknown.push(unk);
         }
@@ -334,6 +325,41 @@ impl FremenGrid {
             occupied,
             unknown,
         })
+    }
+
+    /// Toggles of "occupied" and of "unknown" of one cell over the frames, from its history.
+    fn cell_toggles(&self, cell: usize) -> Result<(Vec<u64>, Vec<u64>), GridError> {
+        if self.had_sparse {
+            return Err(GridError::Unsupported(
+                "the grid had sparse observations, which are not part of the frame history".into(),
+            ));
+        }
+        let mut history = self.history(cell);
+        if history.is_empty() {
+            // A cell without history is constant since frame 0 (or never seen).
+            history.push((0, self.cell_state(cell)));
+        } else if history[0].0 > 0 {
+            // Not observed before its first entry: unknown from frame 0.
+            history.insert(0, (0, CellState::Unknown));
+        }
+        let (mut occ, mut unk) = (Vec::new(), Vec::new());
+        let (mut was_occ, mut was_unk) = (false, false);
+        for (frame, state) in history {
+            if state == CellState::Fraction {
+                return Err(GridError::Unsupported(format!(
+                    "cell {cell} had fractional occupancy; lossless storage and estimation errors keep binary states"
+                )));
+            }
+            let (is_occ, is_unk) = (state == CellState::Occupied, state == CellState::Unknown);
+            if is_occ != was_occ {
+                occ.push(frame);
+            }
+            if is_unk != was_unk {
+                unk.push(frame);
+            }
+            (was_occ, was_unk) = (is_occ, is_unk);
+        }
+        Ok((occ, unk))
     }
 
     /// Estimation error of seed 001 §VI: for every cell whose observed state changed at least
@@ -349,29 +375,49 @@ impl FremenGrid {
         from: u64,
         to: u64,
     ) -> Result<EstimationError, GridError> {
-        let history = self.grid_history(fitted)?;
+        self.require_history("an estimation error")?;
         let to = to.min(self.frames);
-        let per_cell: Vec<Option<(u64, u64)>> = fitted
+        let index: std::collections::HashMap<u32, usize> = fitted
             .cells
-            .par_iter()
+            .iter()
             .enumerate()
-            .map(|(i, cell)| {
-                let occ = &history.occupied[i];
-                let unk = &history.unknown[i];
-                let known = to.saturating_sub(from) - ones_in(unk, from, to);
-                let occupied = ones_in(occ, from, to);
+            .map(|(i, c)| (c.cell, i))
+            .collect();
+        let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> = self
+            .slots
+            .par_iter()
+            .map(|slot| {
+                let (occ, unk) = self.cell_toggles(slot.cell as usize)?;
+                let known = to.saturating_sub(from) - ones_in(&unk, from, to);
+                let occupied = ones_in(&occ, from, to);
                 // Cells that changed within the range are the ones §VI averages over.
                 if known == 0 || occupied == 0 || occupied == known {
-                    return None;
+                    return Ok(None);
                 }
-                let predicted = fitted.predicted_toggles(cell, &history.frame_times, from, to);
-                let mismatch = xor_edges(occ, &predicted);
+                let predicted = match index.get(&slot.cell) {
+                    Some(&i) => {
+                        fitted.predicted_toggles(&fitted.cells[i], &self.frame_times, from, to)
+                    }
+                    // Constant in the fitted model (e.g. it changed only after the model was
+                    // trained): its constant state, or unknown (not counted).
+                    None => match fitted.constant_state(slot.cell as usize) {
+                        Some(true) => vec![from],
+                        Some(false) => Vec::new(),
+                        None => return Ok(None),
+                    },
+                };
+                let mismatch = xor_edges(&occ, &predicted);
                 // Mismatches on known frames: |m| − |m ∧ unknown|.
-                let wrong = ones_in(&mismatch, from, to) - intersection(&mismatch, unk, from, to);
-                Some((wrong, known))
+                let wrong = ones_in(&mismatch, from, to) - intersection(&mismatch, &unk, from, to);
+                Ok(Some((wrong, known)))
             })
             .collect();
-        let counted: Vec<(u64, u64)> = per_cell.into_iter().flatten().collect();
+        let mut counted = Vec::new();
+        for result in per_cell {
+            if let Some(pair) = result? {
+                counted.push(pair);
+            }
+        }
         let cells = counted.len();
         let mean = if cells == 0 {
             0.0

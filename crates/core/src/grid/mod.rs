@@ -39,7 +39,10 @@ use crate::fremen::{FremenConfig, FremenModel};
 use crate::observe::{ObservedSpan, check_time};
 use crate::spectrum::{PeriodSums, SpectralSums, phasors};
 
-pub use fitted::{FittedGrid, GridHistory, LosslessGrid, OrderChoice};
+pub use fitted::{
+    CompactComponent, EstimationError, FittedCell, FittedGrid, GridHistory, LosslessGrid,
+    OrderChoice,
+};
 
 /// Largest number of cells a grid may have (2^32 − 1: cells are indexed by `u32`).
 pub const MAX_CELLS: usize = u32::MAX as usize;
