@@ -67,6 +67,20 @@ pub const TOM_SECONDS_DAY8: (Bundled, Bundled) = (
     bundled!("door_tom_2013/sec/test_data_1.txt.xz"),
 );
 
+/// Presence of the Aruba resident in each of the 10 areas, one file per area.
+pub const ARUBA_ROOMS: [Bundled; 10] = [
+    bundled!("aruba_rooms_1min/presence_minutes_0.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_1.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_2.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_3.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_4.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_5.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_6.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_7.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_8.txt.xz"),
+    bundled!("aruba_rooms_1min/presence_minutes_9.txt.xz"),
+];
+
 impl Bundled {
     /// Reads a `t value` file.
     pub fn pairs(&self) -> Result<TimeSeries> {

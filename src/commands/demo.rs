@@ -140,8 +140,15 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     if !args.no_plots {
         std::fs::create_dir_all(&args.out)
             .with_context(|| format!("cannot create {}", args.out.display()))?;
-        let written = plots(&args.out, &tom_train, &train, &tests[0], &greg)?;
-        println!("\n4. Plots:");
+    }
+    let out = (!args.no_plots).then_some(args.out.as_path());
+    let mut written = super::demo_grids::run(out)?;
+    if !args.no_plots {
+        written.splice(
+            0..0,
+            plots(&args.out, &tom_train, &train, &tests[0], &greg)?,
+        );
+        println!("\n5. Files written:");
         for path in written {
             println!("   {}", path);
         }

@@ -3,6 +3,7 @@
 mod bench;
 mod compress;
 mod demo;
+mod demo_grids;
 mod eval;
 mod grid;
 mod model;
