@@ -81,7 +81,7 @@ pub enum GridCommand {
     Build(GridBuildArgs),
     /// Predict the map at a time and write it as a ROS map_server / Nav2 map (YAML + image).
     #[command(
-        after_help = "Example:\n  chronomap grid predict office.cmg --time 1461661200 --out predicted/map\n  (writes predicted/map.yaml and predicted/map.pgm)"
+        after_help = "Example:\n  chronomap grid predict office.cmg --time 1461661200 --out predicted/map.yaml\n  (writes predicted/map.yaml and predicted/map.pgm)"
     )]
     Predict(GridPredictArgs),
     /// Show what a grid file holds: size, changing cells, compression ratio (eq. 16).
@@ -208,7 +208,8 @@ pub struct GridPredictArgs {
     /// Time to predict (seconds).
     #[arg(long, value_parser = parse_time)]
     pub time: f64,
-    /// Output path without extension: writes <OUT>.yaml and <OUT>.pgm (or .png with --mode scale).
+    /// The map's YAML file (`map.yaml`, or `map` without extension): the image is written beside
+    /// it (`map.pgm`, or `map.png` with --mode scale).
     #[arg(long)]
     pub out: PathBuf,
     /// Map mode: trinary (free/occupied/unknown, like map_saver) or scale (a costmap filter

@@ -443,7 +443,17 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
             })
             .collect(),
     };
-    if let Some(folder) = args.out.parent().filter(|f| !f.as_os_str().is_empty()) {
+    // `--out map.yaml` and `--out map` both mean map.yaml + map.pgm/png.
+    let base = if args
+        .out
+        .extension()
+        .is_some_and(|e| e == "yaml" || e == "yml")
+    {
+        args.out.with_extension("")
+    } else {
+        args.out.clone()
+    };
+    if let Some(folder) = base.parent().filter(|f| !f.as_os_str().is_empty()) {
         std::fs::create_dir_all(folder)
             .with_context(|| format!("cannot create {}", folder.display()))?;
     }
@@ -463,7 +473,7 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
         free_thresh: 0.196,
         ..SaveOptions::default()
     };
-    let saved = save_map(&args.out, &map, &options)?;
+    let saved = save_map(&base, &map, &options)?;
     let occupied = map.data.iter().filter(|&&v| v >= 65).count();
     let unknown = map.data.iter().filter(|&&v| v < 0).count();
     println!(
