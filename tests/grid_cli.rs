@@ -98,7 +98,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
             "--time",
             &t.to_string(),
             "--out",
-            &base.display().to_string(),
+            &base.with_extension("yaml").display().to_string(),
             "--order",
             "4",
         ]);

@@ -124,22 +124,13 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     for hour in [3.0, 11.0] {
         let t = monday + hour * 3600.0;
         let values = fitted.predict(t)[layer * w * h..(layer + 1) * w * h].to_vec();
-        let map = OccupancyMap {
-            width: w as u32,
-            height: h as u32,
-            resolution: geometry.resolution as f32,
-            origin: [geometry.origin[0], geometry.origin[1], 0.0],
-            data: values
-                .iter()
-                .map(|&p| {
-                    if p.is_nan() {
-                        -1
-                    } else {
-                        (100.0 * p).round() as i8
-                    }
-                })
-                .collect(),
-        };
+        let map = OccupancyMap::from_probabilities(
+            w as u32,
+            h as u32,
+            geometry.resolution as f32,
+            [geometry.origin[0], geometry.origin[1], 0.0],
+            &values,
+        );
         let saved = save_map(
             &out.join(format!("office_{:02}00", hour as u32)),
             &map,

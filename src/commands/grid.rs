@@ -427,22 +427,13 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
         &fitted.predict(args.time),
         layers(args.layers.as_deref(), g.depth)?,
     );
-    let map = OccupancyMap {
-        width: g.width,
-        height: g.height,
-        resolution: g.resolution as f32,
-        origin: [g.origin[0], g.origin[1], 0.0],
-        data: values
-            .iter()
-            .map(|&p| {
-                if p.is_nan() {
-                    -1
-                } else {
-                    (100.0 * p).round() as i8
-                }
-            })
-            .collect(),
-    };
+    let map = OccupancyMap::from_probabilities(
+        g.width,
+        g.height,
+        g.resolution as f32,
+        [g.origin[0], g.origin[1], 0.0],
+        &values,
+    );
     // `--out map.yaml` and `--out map` both mean map.yaml + map.pgm/png.
     let base = if args
         .out

@@ -213,6 +213,42 @@ impl OccupancyMap {
         }
     }
 
+    /// A map of occupancy probabilities (`width × height` values in `[0, 1]`, row 0 at the
+    /// bottom, NaN for unknown), each cell `round(100·p)` or −1.
+    ///
+    /// # Panics
+    /// If `probabilities` does not have `width · height` values.
+    pub fn from_probabilities(
+        width: u32,
+        height: u32,
+        resolution: f32,
+        origin: [f64; 3],
+        probabilities: &[f32],
+    ) -> Self {
+        assert_eq!(
+            probabilities.len(),
+            width as usize * height as usize,
+            "map size"
+        );
+        let data = probabilities
+            .iter()
+            .map(|&p| {
+                if p.is_nan() {
+                    UNKNOWN
+                } else {
+                    (100.0 * p.clamp(0.0, 1.0)).round() as i8
+                }
+            })
+            .collect();
+        OccupancyMap {
+            width,
+            height,
+            resolution,
+            origin,
+            data,
+        }
+    }
+
     /// Index in `data` of cell (`x`, `y`) (`y = 0` is the bottom row), if it is in the map.
     pub fn index(&self, x: u32, y: u32) -> Option<usize> {
         (x < self.width && y < self.height).then(|| y as usize * self.width as usize + x as usize)

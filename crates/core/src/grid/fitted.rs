@@ -229,6 +229,18 @@ impl FittedGrid {
                 .sum::<f64>()
     }
 
+    /// The constant state of a cell as the planes hold it (meaningless for cells with a model).
+    fn constant_cell(&self, cell: usize) -> CellState {
+        let (w, b) = (cell / 64, 1u64 << (cell % 64));
+        if self.unknown[w] & b != 0 {
+            CellState::Unknown
+        } else if self.occupied[w] & b != 0 {
+            CellState::Occupied
+        } else {
+            CellState::Free
+        }
+    }
+
     /// The state of a cell the model holds as constant (`None` if it has a model of its own or
     /// was never observed).
     pub fn constant_state(&self, cell: usize) -> Option<bool> {
@@ -243,15 +255,10 @@ impl FittedGrid {
     pub fn predict(&self, time: f64) -> Vec<f32> {
         let cells = self.geometry.cells();
         let mut map: Vec<f32> = (0..cells)
-            .map(|c| {
-                let (w, b) = (c / 64, 1u64 << (c % 64));
-                if self.unknown[w] & b != 0 {
-                    f32::NAN
-                } else if self.occupied[w] & b != 0 {
-                    1.0
-                } else {
-                    0.0
-                }
+            .map(|c| match self.constant_cell(c) {
+                CellState::Unknown => f32::NAN,
+                CellState::Occupied => 1.0,
+                _ => 0.0,
             })
             .collect();
         let angles: Vec<f64> = (0..self.periods.len())
@@ -631,18 +638,7 @@ impl LosslessGrid {
         assert!(frame < self.frames(), "frame {frame} out of range");
         let fitted = &self.fitted;
         let cells = fitted.geometry.cells();
-        let mut states: Vec<CellState> = (0..cells)
-            .map(|c| {
-                let (w, b) = (c / 64, 1u64 << (c % 64));
-                if fitted.unknown[w] & b != 0 {
-                    CellState::Unknown
-                } else if fitted.occupied[w] & b != 0 {
-                    CellState::Occupied
-                } else {
-                    CellState::Free
-                }
-            })
-            .collect();
+        let mut states: Vec<CellState> = (0..cells).map(|c| fitted.constant_cell(c)).collect();
         let time = self.frame_times[frame as usize];
         for (i, cell) in fitted.cells.iter().enumerate() {
             let parity = |t: &Toggles| t.0.partition_point(|&p| p <= frame) % 2 == 1;
