@@ -53,6 +53,7 @@ pub mod observe;
 pub mod par;
 pub mod pergam;
 pub mod periods;
+pub mod rng;
 pub mod persistence;
 pub mod select;
 pub mod spec;

@@ -2,7 +2,7 @@
 //!
 //! Seeded, reproducible synthetic workloads with known ground truth for chronomap's
 //! benchmarks and accuracy tests. Pure code: no I/O, no printing, no clocks; every random
-//! draw comes from the configuration's seed through the crate's own [`rng`].
+//! draw comes from the configuration's seed through [`rng`] (the PRNG of chronomap-core).
 //!
 //! * [`office`] — a 4-D occupancy grid of an office at the scale of the FreMEn paper
 //!   (seed 001 §VI: 213,000 cells, a frame every 5 s, 112 days), streamed frame by frame
@@ -28,7 +28,8 @@
 
 pub mod error;
 pub mod office;
-pub mod rng;
+/// Seeded pseudo-random numbers (shared with the rest of chronomap).
+pub use chronomap_core::rng;
 pub mod stats;
 
 pub use error::SynthError;

@@ -1,5 +1,6 @@
 //! Seeded pseudo-random numbers: SplitMix64 (seeding and hashing) and xoshiro256\*\*
-//! (the generator every random draw of this crate uses).
+//! (the generator every random draw of chronomap uses: exploration strategies, synthetic
+//! workloads).
 //!
 //! Both are the reference algorithms of Steele, Lea & Flood (SplitMix64) and Blackman &
 //! Vigna (xoshiro256\*\*), checked against their published outputs by known-answer tests, so
