@@ -5,6 +5,7 @@ mod compress;
 mod demo;
 mod demo_grids;
 mod eval;
+mod explore;
 mod grid;
 mod model;
 mod synthetic;
@@ -31,6 +32,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Grid(GridCommand::Stats(args)) => grid::stats(&args),
         Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
+        Command::Explore(args) => explore::run(&args),
     }
 }
 

@@ -52,6 +52,7 @@
 #![deny(missing_docs)]
 
 mod atomic;
+pub mod datasets;
 pub mod grid_file;
 pub mod model_file;
 pub mod navmap;
