@@ -225,6 +225,8 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
 
 /// Ratios of the exploration-ratio sweep (seed 000 Fig. 5).
 const SWEEP: [f64; 7] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9];
+/// Runs (seeds `seed..seed + SWEEP_SEEDS`) averaged per point of the sweep.
+const SWEEP_SEEDS: u64 = 5;
 
 /// Seed 000 Fig. 5: the model error of FreMEn with each strategy over two weeks, against the
 /// exploration ratio, with the static model (round robin) for reference.
@@ -234,12 +236,18 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
         .map(|s| (s, ModelKind::Fremen))
         .chain([(Strategy::RoundRobin, ModelKind::Mean)])
         .collect();
-    let jobs: Vec<(usize, f64)> = (0..runs.len())
-        .flat_map(|r| SWEEP.map(|e| (r, e)))
+    // Each point is the mean of SWEEP_SEEDS runs: the random strategies vary from run to run,
+    // most at low ratios.
+    let jobs: Vec<(usize, f64, u64)> = (0..runs.len())
+        .flat_map(|r| {
+            SWEEP
+                .into_iter()
+                .flat_map(move |e| (0..SWEEP_SEEDS).map(move |k| (r, e, seed + k)))
+        })
         .collect();
-    let errors: Vec<(usize, f64, f64)> = jobs
+    let single: Vec<(usize, f64, f64)> = jobs
         .into_par_iter()
-        .map(|(r, e)| {
+        .map(|(r, e, seed)| {
             let (strategy, model) = runs[r];
             let config = ExploreConfig {
                 ratio: e,
@@ -251,6 +259,13 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
                 .map(|x| (r, e, x.error_percent))
         })
         .collect::<Result<_, _>>()?;
+    let errors: Vec<(usize, f64, f64)> = (0..runs.len())
+        .flat_map(|r| SWEEP.map(|e| (r, e)))
+        .map(|(r, e)| {
+            let runs = single.iter().filter(|x| x.0 == r && x.1 == e);
+            (r, e, runs.map(|x| x.2).sum::<f64>() / SWEEP_SEEDS as f64)
+        })
+        .collect();
     let series = runs
         .iter()
         .enumerate()
@@ -270,7 +285,9 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
         .collect();
     let top = errors.iter().map(|e| e.2).fold(0.0, f64::max) * 1.1;
     let panel = Panel {
-        title: "Model error after two weeks of exploring the Aruba apartment, by exploration ratio (seed 000 Fig. 5)".into(),
+        title: format!(
+            "Model error after two weeks of exploration by exploration ratio (seed 000 Fig. 5, mean of {SWEEP_SEEDS} seeds)"
+        ),
         x_label: "exploration ratio e".into(),
         y_label: "model error [%]".into(),
         y_range: (0.0, top.max(1.0)),
