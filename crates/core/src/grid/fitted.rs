@@ -201,32 +201,30 @@ impl FittedGrid {
         &self.components
     }
 
-    /// `p(t)` of a fitted cell before saturation, from precomputed angles of every period.
-    fn value(&self, cell: &FittedCell, angles: &[f64]) -> f64 {
-        let comps =
-            &self.components[cell.start as usize..(cell.start as usize + cell.count as usize)];
+    /// `p(t)` of a fitted cell before saturation, given the phase angle `ω_k t` of each
+    /// period index `k` (one formula for bulk predictions and single evaluations, so that both
+    /// give the same bits).
+    fn value_with(&self, cell: &FittedCell, angle_of: impl Fn(usize) -> f64) -> f64 {
+        let start = cell.start as usize;
+        let comps = &self.components[start..start + cell.count as usize];
         f64::from(cell.mean)
             + comps
                 .iter()
                 .map(|c| {
-                    2.0 * f64::from(c.amplitude)
-                        * (angles[c.period as usize] + f64::from(c.phase)).cos()
+                    let a = angle_of(c.period as usize);
+                    2.0 * f64::from(c.amplitude) * (a + f64::from(c.phase)).cos()
                 })
                 .sum::<f64>()
     }
 
+    /// `p(t)` of a fitted cell before saturation, from precomputed angles of every period.
+    fn value(&self, cell: &FittedCell, angles: &[f64]) -> f64 {
+        self.value_with(cell, |k| angles[k])
+    }
+
     /// `p(t)` of a fitted cell before saturation at one time.
     fn value_at(&self, cell: &FittedCell, time: f64) -> f64 {
-        let comps =
-            &self.components[cell.start as usize..(cell.start as usize + cell.count as usize)];
-        f64::from(cell.mean)
-            + comps
-                .iter()
-                .map(|c| {
-                    let a = angle(&self.periods, c.period as usize, time);
-                    2.0 * f64::from(c.amplitude) * (a + f64::from(c.phase)).cos()
-                })
-                .sum::<f64>()
+        self.value_with(cell, |k| angle(&self.periods, k, time))
     }
 
     /// The constant state of a cell as the planes hold it (meaningless for cells with a model).
