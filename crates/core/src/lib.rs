@@ -36,6 +36,7 @@
 #![deny(missing_docs)]
 
 pub mod anomaly;
+pub mod automaton;
 pub mod conformance;
 pub mod crossings;
 pub mod error;
@@ -62,6 +63,7 @@ pub mod spectrum;
 pub mod stm;
 #[cfg(test)]
 mod testdata;
+pub mod topo;
 
 pub use error::{BuildError, ConfigError, ObservationError};
 pub use fft::{FftFremen, FftFremenConfig};
