@@ -39,6 +39,7 @@ pub mod anomaly;
 pub mod automaton;
 pub mod conformance;
 pub mod crossings;
+pub mod edges;
 pub mod error;
 pub mod eval;
 pub mod exact;
