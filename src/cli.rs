@@ -533,10 +533,15 @@ fn parse_fraction(text: &str) -> Result<f64, String> {
     }
 }
 
+/// A time in seconds (unix or relative) or an ISO 8601 date-time (UTC unless it has an offset).
 fn parse_time(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(t) if t.is_finite() => Ok(t),
-        _ => Err(format!("{text:?} is not a time in seconds")),
+        Ok(_) => Err(format!("{text:?} is not a finite time")),
+        Err(_) if text.contains('-') => crate::format::parse_iso8601(text),
+        Err(_) => Err(format!(
+            "{text:?} is not a time in seconds nor an ISO 8601 date-time (2014-07-21T09:30Z)"
+        )),
     }
 }
 
