@@ -68,6 +68,23 @@ impl Default for EdgeModelConfig {
     }
 }
 
+/// Scores of edge models on later attempts ([`EdgeModels::evaluate`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EdgeEvaluation {
+    /// Mean squared error of the success probabilities over all attempts.
+    pub success_brier: f64,
+    /// Mean squared error of the expected durations over successful attempts (s²).
+    pub duration_mse: f64,
+    /// The Brier score of the static per-edge success rates.
+    pub static_success_brier: f64,
+    /// The squared error of the static per-edge mean durations (s²).
+    pub static_duration_mse: f64,
+    /// Attempts scored.
+    pub attempts: usize,
+    /// Successful attempts among them (those whose durations are scored).
+    pub successes: usize,
+}
+
 /// The models of one edge.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct EdgeModel {
@@ -291,6 +308,49 @@ impl EdgeModels {
             .unzip()
     }
 
+    /// Scores the models on later attempts (`test[e]` for edge `e`): the Brier score of the
+    /// success probabilities over all attempts, the mean squared error of the expected durations
+    /// over the successful ones, and the same for the static per-edge means, the baseline the
+    /// periodic models must beat (seed 003 §VI).
+    ///
+    /// # Errors
+    /// `test` not one list per edge.
+    pub fn evaluate(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
+        if test.len() != self.edges.len() {
+            return Err(BuildError::NotEnoughData(format!(
+                "{} attempt lists for {} edges",
+                test.len(),
+                self.edges.len()
+            )));
+        }
+        let mut score = EdgeEvaluation::default();
+        let (mut brier, mut static_brier, mut mse, mut static_mse) = (0.0, 0.0, 0.0, 0.0);
+        for (edge, list) in test.iter().enumerate() {
+            let p_static = self.static_success_probability(edge);
+            let d_static = self.static_duration(edge);
+            for a in list {
+                let y = f64::from(u8::from(a.success));
+                brier += (self.success_probability(edge, a.time) - y).powi(2);
+                static_brier += (p_static - y).powi(2);
+                score.attempts += 1;
+                if a.success {
+                    mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
+                    static_mse += (d_static - a.duration_secs).powi(2);
+                    score.successes += 1;
+                }
+            }
+        }
+        if score.attempts > 0 {
+            score.success_brier = brier / score.attempts as f64;
+            score.static_success_brier = static_brier / score.attempts as f64;
+        }
+        if score.successes > 0 {
+            score.duration_mse = mse / score.successes as f64;
+            score.static_duration_mse = static_mse / score.successes as f64;
+        }
+        Ok(score)
+    }
+
     /// Restores the map's name index after deserialisation.
     pub fn reindex(&mut self) {
         self.map.reindex();
@@ -375,6 +435,59 @@ mod tests {
             flat.success_probability(0, day),
             flat.success_probability(0, day + 43_200.0)
         );
+    }
+
+    #[test]
+    fn evaluation_scores_against_hand_computed_values() {
+        // A never-tried edge predicts the prior 0.9 and the default duration; score it on one
+        // success (30 s) and one failure: Brier = (0.1² + 0.9²) / 2 = 0.41.
+        let models = EdgeModels::fit(
+            map(),
+            &[door_attempts(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let test = [
+            Vec::new(),
+            vec![
+                Attempt {
+                    time: 0.0,
+                    duration_secs: 30.0,
+                    success: true,
+                },
+                Attempt {
+                    time: 1.0,
+                    duration_secs: 99.0,
+                    success: false,
+                },
+            ],
+            Vec::new(),
+        ];
+        let score = models.evaluate(&test).unwrap();
+        assert_eq!((score.attempts, score.successes), (2, 1));
+        assert!((score.success_brier - 0.41).abs() < 1e-12);
+        assert_eq!(score.success_brier, score.static_success_brier);
+        let d = models.expected_duration(1, 0.0);
+        assert!((score.duration_mse - (d - 30.0).powi(2)).abs() < 1e-9);
+        // On the door's own rhythm the periodic model beats the static rate by far.
+        let later: Vec<Attempt> = door_attempts()
+            .into_iter()
+            .map(|a| Attempt {
+                time: a.time + 28.0 * 86_400.0,
+                ..a
+            })
+            .collect();
+        let score = models.evaluate(&[later, Vec::new(), Vec::new()]).unwrap();
+        assert!(
+            score.success_brier < 0.1 * score.static_success_brier,
+            "{score:?}"
+        );
+        // Every successful traversal took 20 s: both duration models are exact.
+        assert!(
+            score.duration_mse < 1e-9 && score.static_duration_mse < 1e-9,
+            "{score:?}"
+        );
+        assert!(models.evaluate(&[]).is_err());
     }
 
     #[test]
