@@ -1,14 +1,17 @@
 //! Topological-map files: the bundled Witham Wharf edge statistics, edge files and directories
-//! with every kind of bad input (errors name file, line and field, never a panic).
+//! with every kind of bad input (errors name file, line and field, never a panic), tmap2 YAML
+//! round trips and PyYAML-style anchors.
 
+use std::f64::consts::{FRAC_PI_2, PI};
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use chronomap_core::topo::TopoError;
+use chronomap_core::topo::{TopoError, TopoMap};
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
-    read_edge_directory, read_edge_directory_with_nodes, read_edge_file, read_edge_file_from,
+    TopoFileError, TopoFileErrorKind, decode_tmap2, encode_tmap2, read_edge_directory,
+    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2, write_tmap2,
 };
 
 fn witham_edges() -> PathBuf {
@@ -165,6 +168,15 @@ fn witham_with_extra_nodes_puts_them_first() {
         err.kind(),
         DataErrorKind::Map { error: TopoError::DuplicateNode(name) } if name == "A"
     ));
+}
+
+#[test]
+fn witham_exports_to_tmap2() {
+    let stats = read_edge_directory(witham_edges()).unwrap();
+    let tmap2 = encode_tmap2(&stats.map, "witham", "08-07-2014_16-23-58").unwrap();
+    let read = decode_tmap2("witham.tmap2.yaml", tmap2.as_bytes()).unwrap();
+    assert_eq!(read.map, stats.map);
+    assert_eq!(read.name, "witham");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -460,4 +472,425 @@ fn a_bad_line_in_a_directory_names_its_file() {
     let dir = folder("empty_file", &[("A_B.data", "")]);
     let err = read_edge_directory(&dir).unwrap_err();
     assert!(matches!(err.kind(), DataErrorKind::Empty), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// tmap2
+
+fn three_node_map() -> TopoMap {
+    let mut map = TopoMap::new();
+    map.add_node("LabDoor1", Some([1.25, -2.5, 0.0])).unwrap();
+    map.add_node("LabDoor2", Some([4.0, 2.0, FRAC_PI_2]))
+        .unwrap();
+    map.add_node("Kitchen", Some([-3.1, 0.7, -2.75])).unwrap();
+    map.add_node("Station", Some([1e-7, 12345.678, PI]))
+        .unwrap();
+    map.add_edge("LabDoor1_LabDoor2", "LabDoor1", "LabDoor2")
+        .unwrap();
+    map.add_edge("LabDoor2_LabDoor1", "LabDoor2", "LabDoor1")
+        .unwrap();
+    map.add_edge("LabDoor2_Kitchen", "LabDoor2", "Kitchen")
+        .unwrap();
+    map.add_edge("Kitchen_Station", "Kitchen", "Station")
+        .unwrap();
+    map
+}
+
+fn assert_same_map(read: &TopoMap, written: &TopoMap) {
+    assert_eq!(read.edges(), written.edges());
+    assert_eq!(read.nodes().len(), written.nodes().len());
+    for (r, w) in read.nodes().iter().zip(written.nodes()) {
+        assert_eq!(r.name, w.name);
+        match (r.pose, w.pose) {
+            (Some(r), Some(w)) => {
+                assert_eq!((r[0], r[1]), (w[0], w[1]), "x, y are exact");
+                let d = (r[2] - w[2]).rem_euclid(2.0 * PI);
+                assert!(d.min(2.0 * PI - d) < 1e-12, "yaw {} vs {}", r[2], w[2]);
+            }
+            (r, w) => assert_eq!(r, w),
+        }
+    }
+}
+
+#[test]
+fn tmap2_round_trips_nodes_poses_and_edges() {
+    let map = three_node_map();
+    let dir = scratch("tmap2_round_trip");
+    let path = dir.join("lab.tmap2.yaml");
+    write_tmap2(&path, &map, "lab").unwrap();
+    assert_same_map(&read_tmap2(&path).unwrap(), &map);
+    // no temporary file left behind
+    assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
+
+    let text = fs::read_to_string(&path).unwrap();
+    let read = decode_tmap2("lab", text.as_bytes()).unwrap();
+    assert_eq!(
+        (read.name.as_str(), read.metric_map.as_str()),
+        ("lab", "lab")
+    );
+    assert_eq!(read.pointset, "lab");
+    assert_eq!(read.actions, vec![Some("NavigateToPose".to_owned()); 4]);
+    assert!(text.starts_with("meta:\n  last_updated: "));
+    assert!(
+        text.contains(
+            "    - action: NavigateToPose\n      action_type: geometry_msgs/PoseStamped\n"
+        )
+    );
+    assert!(text.contains("          pose: $node.pose\n      node: LabDoor2\n"));
+    assert!(text.contains("      position:\n        x: 1.0e-7\n        y: 12345.678\n"));
+    assert!(text.ends_with("translation:\n    x: 0.0\n    y: 0.0\n    z: 0.0\n"));
+
+    // Nodes without a pose are written with a synthetic one and read back without.
+    let mut map = map;
+    map.add_node("Nowhere", None).unwrap();
+    map.add_edge("Station_Nowhere", "Station", "Nowhere")
+        .unwrap();
+    let text = encode_tmap2(&map, "lab", "01-01-2026_00-00-00").unwrap();
+    assert_eq!(text.matches("synthetic_pose: true").count(), 1);
+    assert_same_map(&decode_tmap2("lab", text.as_bytes()).unwrap().map, &map);
+
+    // Odd names are quoted and survive.
+    let mut odd = TopoMap::new();
+    odd.add_node("yes", Some([0.0, 0.0, 0.0])).unwrap();
+    odd.add_node("12", Some([1.0, 0.0, 0.0])).unwrap();
+    odd.add_node("a:b#c", Some([2.0, 0.0, 0.0])).unwrap();
+    odd.add_edge("yes_12", "yes", "12").unwrap();
+    odd.add_edge("x\"y", "12", "a:b#c").unwrap();
+    let text = encode_tmap2(&odd, "on", "now").unwrap();
+    let read = decode_tmap2("odd", text.as_bytes()).unwrap();
+    assert_same_map(&read.map, &odd);
+    assert_eq!(read.name, "on");
+}
+
+/// A tmap2 file the way PyYAML (`yaml.dump`, sorted keys, block style) writes one whose nodes
+/// share Python objects: `properties`, `verts` and the `goal` template are anchored once
+/// (`&id001`, ...) and aliased after (`*id001`). Node B's edge targets node C, defined later;
+/// C has no orientation and its edges are `null`.
+const PYYAML_TMAP2: &str = "\
+meta:
+  last_updated: 24-07-2026_13-05-00
+metric_map: riseholme
+name: riseholme
+nodes:
+- meta:
+    map: riseholme
+    node: WayPoint1
+    pointset: riseholme
+  node:
+    edges:
+    - action: NavigateToPose
+      action_type: geometry_msgs/PoseStamped
+      config: []
+      edge_id: WayPoint1_WayPoint2
+      fail_policy: fail
+      fluid_navigation: true
+      goal: &id002
+        target_pose:
+          header:
+            frame_id: $node.parent_frame
+          pose: $node.pose
+      node: WayPoint2
+      recovery_behaviours_config: ''
+      restrictions_planning: 'True'
+      restrictions_runtime: obstacleFree_1
+    localise_by_topic: ''
+    name: WayPoint1
+    parent_frame: map
+    pose:
+      orientation:
+        w: 0.7071067811865476
+        x: 0.0
+        y: 0.0
+        z: 0.7071067811865476
+      position:
+        x: -1.5
+        y: 3.25
+        z: 0.0
+    properties: &id001
+      xy_goal_tolerance: 0.3
+      yaw_goal_tolerance: 0.1
+    restrictions_planning: 'True'
+    restrictions_runtime: obstacleFree_1
+    verts: &id003
+    - x: 0.689
+      y: 0.285
+    - x: -0.689
+      y: -0.285
+- meta:
+    map: riseholme
+    node: WayPoint2
+    pointset: riseholme
+  node:
+    edges:
+    - action: row_traversal
+      action_type: geometry_msgs/PoseStamped
+      config: []
+      edge_id: WayPoint2_WayPoint1
+      fail_policy: fail
+      fluid_navigation: true
+      goal: *id002
+      node: WayPoint1
+      recovery_behaviours_config: ''
+      restrictions_planning: 'True'
+      restrictions_runtime: obstacleFree_1
+    - edge_id: WayPoint2_WayPoint3
+      goal: *id002
+      node: WayPoint3
+    localise_by_topic: ''
+    name: WayPoint2
+    parent_frame: map
+    pose:
+      orientation:
+        w: 1.0
+        x: 0.0
+        y: 0.0
+        z: 0.0
+      position:
+        x: 2
+        y: 3.25
+        z: 0.0
+    properties: *id001
+    verts: *id003
+- meta:
+    map: riseholme
+    node: WayPoint3
+    pointset: riseholme
+  node:
+    edges: null
+    name: WayPoint3
+    pose:
+      position: {x: 4.5, y: -1.0e-3, z: 0.0}
+    properties: *id001
+    verts: *id003
+pointset: riseholme
+transformation:
+  child: topo_map
+  parent: map
+  rotation:
+    w: 1.0
+    x: 0.0
+    y: 0.0
+    z: 0.0
+  translation:
+    x: 0.0
+    y: 0.0
+    z: 0.0
+";
+
+#[test]
+fn tmap2_with_pyyaml_anchors_and_aliases_reads() {
+    let dir = folder("pyyaml", &[("riseholme.tmap2.yaml", PYYAML_TMAP2)]);
+    let map = read_tmap2(dir.join("riseholme.tmap2.yaml")).unwrap();
+    let names: Vec<&str> = map.nodes().iter().map(|n| n.name.as_str()).collect();
+    assert_eq!(names, ["WayPoint1", "WayPoint2", "WayPoint3"]);
+    let [x, y, yaw] = map.nodes()[0].pose.unwrap();
+    assert_eq!((x, y), (-1.5, 3.25));
+    assert!((yaw - FRAC_PI_2).abs() < 1e-12);
+    assert_eq!(map.nodes()[1].pose, Some([2.0, 3.25, 0.0]));
+    assert_eq!(map.nodes()[2].pose, Some([4.5, -0.001, 0.0]));
+    let edges: Vec<(&str, usize, usize)> = map
+        .edges()
+        .iter()
+        .map(|e| (e.id.as_str(), e.from, e.to))
+        .collect();
+    assert_eq!(
+        edges,
+        [
+            ("WayPoint1_WayPoint2", 0, 1),
+            ("WayPoint2_WayPoint1", 1, 0),
+            ("WayPoint2_WayPoint3", 1, 2),
+        ]
+    );
+    let full = decode_tmap2("riseholme", PYYAML_TMAP2.as_bytes()).unwrap();
+    assert_eq!(
+        full.actions,
+        [
+            Some("NavigateToPose".to_owned()),
+            Some("row_traversal".to_owned()),
+            None
+        ]
+    );
+    assert_eq!(full.metric_map, "riseholme");
+
+    // Compressed files are read too.
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(PYYAML_TMAP2.as_bytes()).unwrap();
+    fs::write(dir.join("riseholme.tmap2.yaml.gz"), gz.finish().unwrap()).unwrap();
+    assert_eq!(
+        read_tmap2(dir.join("riseholme.tmap2.yaml.gz")).unwrap(),
+        map
+    );
+}
+
+#[test]
+fn strands_ros1_node_lists_read() {
+    // The STRANDS ROS 1 export: a top-level list of {meta, node}, aliases included.
+    let yaml = "\
+- meta: {map: witham, node: ChargingPoint, pointset: witham}
+  node:
+    name: ChargingPoint
+    map: witham
+    pointset: witham
+    pose:
+      position: {x: 0.1, y: 0.2, z: 0.0}
+      orientation: {x: 0.0, y: 0.0, z: 1.0, w: 0.0}
+    yaw_goal_tolerance: 0.1
+    verts: &id001 [{x: 0.5, y: 0.5}, {x: -0.5, y: 0.5}]
+    edges:
+    - {edge_id: ChargingPoint_Station, node: Station, action: undocking, top_vel: 0.55}
+- meta: {map: witham, node: Station, pointset: witham}
+  node:
+    name: Station
+    map: witham
+    pointset: witham
+    pose:
+      position: {x: 1.0, y: 0.2, z: 0.0}
+      orientation: {x: 0.0, y: 0.0, z: 0.0, w: 1.0}
+    verts: *id001
+    edges:
+    - {edge_id: Station_ChargingPoint, node: ChargingPoint, action: docking}
+";
+    let read = decode_tmap2("witham.yaml", yaml.as_bytes()).unwrap();
+    assert_eq!(
+        (read.name.as_str(), read.metric_map.as_str()),
+        ("witham", "witham")
+    );
+    assert_eq!(read.map.nodes().len(), 2);
+    assert_eq!(read.map.edges().len(), 2);
+    let yaw = read.map.nodes()[0].pose.unwrap()[2];
+    assert!((yaw - PI).abs() < 1e-12, "{yaw}");
+    assert_eq!(
+        read.actions,
+        [Some("undocking".to_owned()), Some("docking".to_owned())]
+    );
+}
+
+fn tmap2_err(yaml: &str) -> TopoFileError {
+    decode_tmap2("map.yaml", yaml.as_bytes()).expect_err(yaml)
+}
+
+#[test]
+fn tmap2_errors_name_file_line_and_key() {
+    let node = |pose: &str, edges: &str| {
+        format!("name: m\nnodes:\n- node:\n    name: A\n    pose:\n{pose}    edges:\n{edges}")
+    };
+    let good_pose = "      position: {x: 1.0, y: 2.0}\n";
+    let edge_to = |target: &str| format!("    - {{edge_id: A_X, node: {target}}}\n");
+    decode_tmap2("map.yaml", node(good_pose, &edge_to("A")).as_bytes()).unwrap();
+
+    let err = tmap2_err(&node("      orientation: {x: 0, y: 0, z: 0, w: 1}\n", ""));
+    assert_eq!(
+        err.to_string(),
+        "map.yaml:6: missing required key `nodes[0].node.pose.position`"
+    );
+    assert_eq!(
+        (err.file(), err.key()),
+        (Some("map.yaml"), Some("nodes[0].node.pose.position"))
+    );
+
+    let err = tmap2_err(&node("      position: {x: one, y: 2.0}\n", ""));
+    assert_eq!(
+        err.to_string(),
+        r#"map.yaml:6: nodes[0].node.pose.position.x: "one" is invalid (expected a finite number)"#
+    );
+    assert!(matches!(err.kind(), TopoFileErrorKind::InvalidValue { .. }));
+
+    let err = tmap2_err(&node(good_pose, &edge_to("a")));
+    assert_eq!(
+        err.to_string(),
+        r#"map.yaml:8: nodes[0].node.edges[0].node: unknown node "a" (did you mean "A"?)"#
+    );
+    assert_eq!(err.line(), Some(8));
+
+    let err = tmap2_err(&node(good_pose, "    - {node: A}\n"));
+    assert_eq!(err.key(), Some("nodes[0].node.edges[0].edge_id"));
+
+    let err = tmap2_err(&node(
+        good_pose,
+        "    - {edge_id: A_A, node: A}\n    - {edge_id: A_A, node: A}\n",
+    ));
+    assert_eq!(
+        err.to_string(),
+        r#"map.yaml:9: nodes[0].node.edges[1].edge_id: edge "A_A" is defined twice"#
+    );
+
+    let twice = "nodes:\n- node: {name: A, pose: {position: {x: 0, y: 0}}}\n\
+                 - node: {name: A, pose: {position: {x: 1, y: 0}}}\n";
+    let err = tmap2_err(twice);
+    assert_eq!(
+        err.to_string(),
+        r#"map.yaml:3: nodes[1].node.name: node "A" is defined twice"#
+    );
+
+    let err = tmap2_err("nodes: 5\n");
+    assert_eq!(
+        err.to_string(),
+        "map.yaml:1: nodes: 5 is invalid (expected a list)"
+    );
+    let err = tmap2_err("name: m\n");
+    assert_eq!(err.to_string(), "map.yaml:1: missing required key `nodes`");
+    let err = tmap2_err("nodes:\n- node: [1, 2]\n");
+    assert_eq!(err.key(), Some("nodes[0].node"));
+
+    for (yaml, message) in [
+        ("", "the top level is empty"),
+        ("42\n", "the top level is a single value"),
+    ] {
+        let err = tmap2_err(yaml);
+        assert!(
+            matches!(err.kind(), TopoFileErrorKind::Yaml { .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains(message), "{err}");
+    }
+    let err = tmap2_err("nodes:\n- node: {name: A\n");
+    assert!(
+        matches!(err.kind(), TopoFileErrorKind::Yaml { .. }),
+        "{err}"
+    );
+    assert!(err.line().is_some(), "{err}");
+    let err = tmap2_err("nodes: []\nnodes: []\n");
+    assert_eq!(
+        err.to_string(),
+        "map.yaml:2: not a topological map YAML file: the key `nodes` appears twice"
+    );
+    let err = tmap2_err("nodes:\n- node: {name: A, pose: {position: {x: 1, y: .nan}}}\n");
+    assert_eq!(
+        err.to_string(),
+        "map.yaml:2: nodes[0].node.pose.position.y: NaN is invalid (expected a finite number)"
+    );
+    let err = tmap2_err("nodes: *nothing\n");
+    assert!(
+        matches!(err.kind(), TopoFileErrorKind::Yaml { .. }),
+        "{err}"
+    );
+
+    // Deep nesting is refused, not a stack overflow.
+    let deep = format!("nodes: {}{}\n", "[".repeat(200), "]".repeat(200));
+    let err = tmap2_err(&deep);
+    assert!(
+        err.to_string().ends_with("collections nested too deeply"),
+        "{err}"
+    );
+
+    let err = read_tmap2(scratch("tmap2_missing").join("none.yaml")).unwrap_err();
+    assert!(
+        matches!(err.kind(), TopoFileErrorKind::Io { action: "read", .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn writers_reject_maps_they_cannot_write() {
+    let mut map = TopoMap::new();
+    map.add_node("A", Some([f64::NAN, 0.0, 0.0])).unwrap();
+    let err = encode_tmap2(&map, "m", "now").unwrap_err();
+    assert!(
+        matches!(err.kind(), TopoFileErrorKind::InvalidInput { .. }),
+        "{err}"
+    );
+    let path = scratch("bad_write").join("m.tmap2.yaml");
+    let err = write_tmap2(&path, &map, "m").unwrap_err();
+    assert_eq!(err.file(), Some(path.display().to_string().as_str()));
+    assert!(!path.exists());
 }
