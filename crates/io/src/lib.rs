@@ -44,8 +44,9 @@
 //!   ([`NavMapError`]) name the file, line and key.
 //! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
 //!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
-//!   and STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]); errors
-//!   ([`TopoFileError`]) name the file, line and key.
+//!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
+//!   GeoJSON graphs ([`write_route_geojson`]); errors ([`TopoFileError`]) name the file, line
+//!   and key.
 //! * [`plot`] — PNG figures from plain data: stacked time panels
 //!   ([`render_panels_png`]) and amplitude spectra ([`render_spectrum_png`]), drawn with an
 //!   embedded font (no system fonts needed).
@@ -84,6 +85,7 @@ pub use text::{
 };
 pub use topo_files::{
     EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
-    encode_tmap2, node_poses, read_edge_directory, read_edge_directory_with_nodes, read_edge_file,
-    read_edge_file_from, read_tmap2, write_tmap2,
+    encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
+    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2,
+    write_route_geojson, write_tmap2,
 };

@@ -1,8 +1,8 @@
 //! Topological-map files: edge-traversal statistics (`<From>_<To>.data` files, as in the Witham
-//! Wharf dataset) and STRANDS / LCAS `tmap2` YAML maps.
+//! Wharf dataset), STRANDS / LCAS `tmap2` YAML maps, and Nav2 route-server GeoJSON graphs.
 //!
 //! ```
-//! use chronomap_io::topo_files::{decode_tmap2, encode_tmap2, read_edge_file_from};
+//! use chronomap_io::topo_files::{decode_tmap2, encode_route_geojson, encode_tmap2, read_edge_file_from};
 //! use chronomap_core::topo::TopoMap;
 //!
 //! // One edge file: `t duration_s success` per line.
@@ -19,7 +19,10 @@
 //! let read = decode_tmap2("witham.tmap2.yaml", yaml.as_bytes())?;
 //! assert_eq!(read.map.edges(), map.edges());
 //! assert_eq!(read.actions, [Some("NavigateToPose".to_string())]);
-
+//!
+//! // The same map as a Nav2 route graph, with success probability and time per edge.
+//! let json = encode_route_geojson(&map, &[(0.2, 6.5)])?;
+//! assert!(json.contains("\"success_probability\": 0.2"));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
@@ -109,6 +112,19 @@
 //! double-quoted. Nodes without a pose get the synthetic layout of [`node_poses`] and
 //! `synthetic_pose: true` in their `properties`.
 //!
+//! # Nav2 route-server GeoJSON ([`write_route_geojson`])
+//! A `FeatureCollection` (with the `crs` member `urn:ogc:def:crs:EPSG::3857` that Nav2's
+//! example graphs carry, although coordinates are metres in the map frame) of:
+//! * one `Point` feature per node: properties `id` (the node index, `0..n`), `frame`
+//!   (`"map"`) and `metadata` `{name, synthetic_position}`; coordinates `[x, y]` from the
+//!   node's pose, or from the synthetic layout of [`node_poses`] (then
+//!   `synthetic_position: true`);
+//! * one `MultiLineString` feature per edge, from the start node's position to the end
+//!   node's: properties `id` (`n + edge index`, so ids are unique across nodes and edges, as
+//!   the route server requires), `startid`, `endid` and `metadata` `{name,
+//!   success_probability, abs_time_taken}` (probability in `[0, 1]`, seconds; Nav2's
+//!   `TimeScorer` reads `abs_time_taken`, `success_probability` is chronomap's own).
+//!
 //! # Not verified
 //! These formats were written from the project's notes (`ecosystem.md` §2), not checked
 //! against the loaders themselves:
@@ -116,6 +132,9 @@
 //!   the `meta.last_updated` format (`%d-%m-%Y_%H-%M-%S` is assumed), the default `verts`
 //!   polygon and tolerances, and whether LCAS tools accept the extra `synthetic_pose`
 //!   property. Files written here were read back by this module and by no other tool.
+//! * GeoJSON: the node property is `frame` (as in the notes; not `frameid`); that the route
+//!   server accepts node id 0, ignores the edge geometry, and keeps the extra metadata
+//!   members (`name`, `synthetic_position`, `success_probability`) as edge/node metadata.
 
 use std::collections::HashSet;
 use std::f64::consts::PI;
@@ -127,6 +146,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use chronomap_core::topo::{TopoError, TopoMap};
 use serde::de::{Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde_json::{Value, json};
 use serde_saphyr::Spanned;
 use thiserror::Error;
 
@@ -1353,6 +1373,98 @@ fn format_last_updated(unix_secs: u64) -> String {
         secs / 60 % 60,
         secs % 60
     )
+}
+
+// ---------------------------------------------------------------------------------------------
+// Nav2 route graph
+
+/// Writes `map` as a Nav2 route-server GeoJSON graph (atomically; see the
+/// [module docs](self#nav2-route-server-geojson-write_route_geojson)). `edge_metadata[i]` is
+/// `(success probability, time taken in seconds)` of `map.edges()[i]`.
+///
+/// # Errors
+/// As [`encode_route_geojson`], or [`TopoFileErrorKind::Io`] naming `path`.
+pub fn write_route_geojson(
+    path: impl AsRef<Path>,
+    map: &TopoMap,
+    edge_metadata: &[(f64, f64)],
+) -> Result<(), TopoFileError> {
+    let path = path.as_ref();
+    let text = encode_route_geojson(map, edge_metadata)
+        .map_err(|e| e.with_file(&path.display().to_string()))?;
+    write_file(path, text.as_bytes())
+}
+
+/// The text of a Nav2 route-server GeoJSON graph for `map` (pretty-printed JSON ending in a
+/// newline).
+///
+/// # Errors
+/// [`TopoFileErrorKind::InvalidInput`] if `edge_metadata` does not have one entry per edge, a
+/// probability is not in `[0, 1]`, a time is negative or not finite, or a pose is not finite.
+pub fn encode_route_geojson(
+    map: &TopoMap,
+    edge_metadata: &[(f64, f64)],
+) -> Result<String, TopoFileError> {
+    if edge_metadata.len() != map.edges().len() {
+        return Err(TopoFileError::invalid_input(format!(
+            "{} edge metadata entries for {} edges",
+            edge_metadata.len(),
+            map.edges().len()
+        )));
+    }
+    let poses = checked_poses(map)?;
+    let mut features = Vec::with_capacity(map.nodes().len() + map.edges().len());
+    for (index, (node, pose)) in map.nodes().iter().zip(&poses).enumerate() {
+        features.push(json!({
+            "type": "Feature",
+            "properties": {
+                "id": index,
+                "frame": "map",
+                "metadata": {"name": node.name, "synthetic_position": pose.synthetic},
+            },
+            "geometry": {"type": "Point", "coordinates": [pose.pose[0], pose.pose[1]]},
+        }));
+    }
+    let node_count = map.nodes().len();
+    let xy = |node: usize| [poses[node].pose[0], poses[node].pose[1]];
+    for (index, (edge, &(probability, time))) in map.edges().iter().zip(edge_metadata).enumerate() {
+        if !(0.0..=1.0).contains(&probability) {
+            return Err(TopoFileError::invalid_input(format!(
+                "edge {:?}: success probability {probability} is not in [0, 1]",
+                edge.id
+            )));
+        }
+        if !(time.is_finite() && time >= 0.0) {
+            return Err(TopoFileError::invalid_input(format!(
+                "edge {:?}: time taken {time} is not a finite number of seconds >= 0",
+                edge.id
+            )));
+        }
+        let (start, end) = (xy(edge.from), xy(edge.to));
+        features.push(json!({
+            "type": "Feature",
+            "properties": {
+                "id": node_count + index,
+                "startid": edge.from,
+                "endid": edge.to,
+                "metadata": {
+                    "name": edge.id,
+                    "success_probability": probability,
+                    "abs_time_taken": time,
+                },
+            },
+            "geometry": {"type": "MultiLineString", "coordinates": [[start, end]]},
+        }));
+    }
+    let collection: Value = json!({
+        "type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}},
+        "features": features,
+    });
+    let mut text = serde_json::to_string_pretty(&collection)
+        .map_err(|e| TopoFileError::invalid_input(format!("cannot encode as JSON: {e}")))?;
+    text.push('\n');
+    Ok(text)
 }
 
 #[cfg(test)]

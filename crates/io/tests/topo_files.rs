@@ -1,6 +1,6 @@
 //! Topological-map files: the bundled Witham Wharf edge statistics, edge files and directories
 //! with every kind of bad input (errors name file, line and field, never a panic), tmap2 YAML
-//! round trips and PyYAML-style anchors.
+//! round trips and PyYAML-style anchors, and Nav2 route-server GeoJSON.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::fs;
@@ -10,9 +10,11 @@ use std::path::{Path, PathBuf};
 use chronomap_core::topo::{TopoError, TopoMap};
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
-    TopoFileError, TopoFileErrorKind, decode_tmap2, encode_tmap2, read_edge_directory,
-    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2, write_tmap2,
+    TopoFileError, TopoFileErrorKind, decode_tmap2, encode_route_geojson, encode_tmap2,
+    read_edge_directory, read_edge_directory_with_nodes, read_edge_file, read_edge_file_from,
+    read_tmap2, write_route_geojson, write_tmap2,
 };
+use serde_json::Value;
 
 fn witham_edges() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/witham_topological_nav/edges")
@@ -171,8 +173,28 @@ fn witham_with_extra_nodes_puts_them_first() {
 }
 
 #[test]
-fn witham_exports_to_tmap2() {
+fn witham_exports_to_geojson_and_tmap2() {
     let stats = read_edge_directory(witham_edges()).unwrap();
+    let metadata: Vec<(f64, f64)> = stats
+        .attempts
+        .iter()
+        .enumerate()
+        .map(|(i, attempts)| {
+            let mean =
+                attempts.iter().map(|a| a.duration_secs).sum::<f64>() / attempts.len() as f64;
+            (stats.success_rate(i).unwrap(), mean)
+        })
+        .collect();
+    let json: Value =
+        serde_json::from_str(&encode_route_geojson(&stats.map, &metadata).unwrap()).unwrap();
+    let features = json["features"].as_array().unwrap();
+    assert_eq!(features.len(), 18 + 61);
+    assert!(
+        features[..18]
+            .iter()
+            .all(|f| f["properties"]["metadata"]["synthetic_position"] == true)
+    );
+
     let tmap2 = encode_tmap2(&stats.map, "witham", "08-07-2014_16-23-58").unwrap();
     let read = decode_tmap2("witham.tmap2.yaml", tmap2.as_bytes()).unwrap();
     assert_eq!(read.map, stats.map);
@@ -891,6 +913,123 @@ fn writers_reject_maps_they_cannot_write() {
     );
     let path = scratch("bad_write").join("m.tmap2.yaml");
     let err = write_tmap2(&path, &map, "m").unwrap_err();
+    assert_eq!(err.file(), Some(path.display().to_string().as_str()));
+    assert!(!path.exists());
+    let err = encode_route_geojson(&map, &[]).unwrap_err();
+    assert!(err.to_string().contains("not finite"), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Nav2 route graph GeoJSON
+
+#[test]
+fn route_geojson_has_nodes_edges_and_metadata() {
+    let mut map = three_node_map();
+    map.add_node("Nowhere", None).unwrap();
+    map.add_edge("Station_Nowhere", "Station", "Nowhere")
+        .unwrap();
+    let metadata = [
+        (0.2, 12.5),
+        (0.99, 8.0),
+        (1.0, 0.0),
+        (0.5, 30.25),
+        (0.0, 1.0),
+    ];
+    let path = scratch("geojson").join("route.geojson");
+    write_route_geojson(&path, &map, &metadata).unwrap();
+    let json: Value = serde_json::from_str(&fs::read_to_string(&path).unwrap()).unwrap();
+
+    assert_eq!(json["type"], "FeatureCollection");
+    assert_eq!(
+        json["crs"]["properties"]["name"],
+        "urn:ogc:def:crs:EPSG::3857"
+    );
+    let features = json["features"].as_array().unwrap();
+    assert_eq!(features.len(), 5 + 5);
+    let points: Vec<&Value> = features
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "Point")
+        .collect();
+    let lines: Vec<&Value> = features
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "MultiLineString")
+        .collect();
+    assert_eq!((points.len(), lines.len()), (5, 5));
+
+    // ids are unique across nodes and edges
+    let mut ids: Vec<u64> = features
+        .iter()
+        .map(|f| f["properties"]["id"].as_u64().unwrap())
+        .collect();
+    ids.sort_unstable();
+    ids.dedup();
+    assert_eq!(ids.len(), 10);
+
+    let door = &points[0]["properties"];
+    assert_eq!(
+        (door["id"].as_u64(), door["frame"].as_str()),
+        (Some(0), Some("map"))
+    );
+    assert_eq!(door["metadata"]["name"], "LabDoor1");
+    assert_eq!(door["metadata"]["synthetic_position"], false);
+    assert_eq!(
+        points[0]["geometry"]["coordinates"],
+        serde_json::json!([1.25, -2.5])
+    );
+    assert_eq!(
+        points[4]["properties"]["metadata"]["synthetic_position"],
+        true
+    );
+
+    let first = &lines[0]["properties"];
+    assert_eq!(first["id"].as_u64(), Some(5));
+    assert_eq!(
+        (first["startid"].as_u64(), first["endid"].as_u64()),
+        (Some(0), Some(1))
+    );
+    assert_eq!(first["metadata"]["name"], "LabDoor1_LabDoor2");
+    assert_eq!(first["metadata"]["success_probability"].as_f64(), Some(0.2));
+    assert_eq!(first["metadata"]["abs_time_taken"].as_f64(), Some(12.5));
+    assert_eq!(
+        lines[0]["geometry"]["coordinates"],
+        serde_json::json!([[[1.25, -2.5], [4.0, 2.0]]])
+    );
+    for (line, &(p, t)) in lines.iter().zip(&metadata) {
+        assert_eq!(
+            line["properties"]["metadata"]["success_probability"].as_f64(),
+            Some(p)
+        );
+        assert_eq!(
+            line["properties"]["metadata"]["abs_time_taken"].as_f64(),
+            Some(t)
+        );
+    }
+}
+
+#[test]
+fn route_geojson_rejects_bad_metadata() {
+    let map = three_node_map();
+    let err = encode_route_geojson(&map, &[(0.5, 1.0)]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "cannot write the map: 1 edge metadata entries for 4 edges"
+    );
+    let good = [(0.5, 1.0); 4];
+    encode_route_geojson(&map, &good).unwrap();
+    for bad in [
+        (1.5, 1.0),
+        (-0.1, 1.0),
+        (f64::NAN, 1.0),
+        (0.5, -1.0),
+        (0.5, f64::INFINITY),
+    ] {
+        let mut metadata = good;
+        metadata[2] = bad;
+        let err = encode_route_geojson(&map, &metadata).unwrap_err();
+        assert!(err.to_string().contains("LabDoor2_Kitchen"), "{err}");
+    }
+    let path = scratch("geojson_bad").join("route.geojson");
+    let err = write_route_geojson(&path, &map, &[]).unwrap_err();
     assert_eq!(err.file(), Some(path.display().to_string().as_str()));
     assert!(!path.exists());
 }
