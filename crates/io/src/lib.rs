@@ -42,12 +42,17 @@
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
 //!   ([`NavMapError`]) name the file, line and key.
+//! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
+//!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
+//!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
+//!   GeoJSON graphs ([`write_route_geojson`]); errors ([`TopoFileError`]) name the file, line
+//!   and key.
 //! * [`plot`] — PNG figures from plain data: stacked time panels
 //!   ([`render_panels_png`]) and amplitude spectra ([`render_spectrum_png`]), drawn with an
 //!   embedded font (no system fonts needed).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
-//! [`NavMapErrorKind`], [`PlotErrorKind`]); their messages are complete on their own (they do
+//! [`NavMapErrorKind`], [`PlotErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
 //! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
@@ -58,6 +63,7 @@ pub mod model_file;
 pub mod navmap;
 pub mod plot;
 pub mod text;
+pub mod topo_files;
 
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use model_file::{
@@ -76,4 +82,10 @@ pub use plot::{
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
+};
+pub use topo_files::{
+    EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
+    encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
+    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2,
+    write_route_geojson, write_tmap2,
 };

@@ -21,8 +21,10 @@
 //!   by whitespace or by a comma (`time,value`, `time, value`).
 //! * **Columns** ([`read_column`]): one number per line. A **test set** ([`read_test_set`]) is a
 //!   column of times and a column of values whose data lines correspond one to one.
+//! * **Edge files** of topological maps (`time duration success`, see
+//!   [`crate::topo_files`]) are read by the same line reader.
 //!
-//! In both, blank lines and lines whose first non-blank character is `#` are skipped; line
+//! In all of them, blank lines and lines whose first non-blank character is `#` are skipped; line
 //! numbers in errors count every line of the file, skipped ones included (so they match what an
 //! editor shows). `\r\n` line ends and a leading UTF-8 byte order mark are accepted.
 //!
@@ -101,14 +103,21 @@ pub enum Field {
     Time,
     /// The observed value (state in `[0, 1]`).
     Value,
+    /// How long an attempt took, in seconds (edge files of topological maps, see
+    /// [`crate::topo_files`]).
+    Duration,
+    /// Whether an attempt succeeded, `0` or `1` (edge files of topological maps).
+    Success,
 }
 
 impl Field {
-    /// `"time"` or `"value"`.
+    /// `"time"`, `"value"`, `"duration"` or `"success"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
             Field::Value => "value",
+            Field::Duration => "duration",
+            Field::Success => "success",
         }
     }
 }
@@ -190,6 +199,49 @@ pub enum DataErrorKind {
     ValueOutOfRange {
         /// The offending text.
         text: String,
+    },
+    /// A duration is negative.
+    #[error("duration: {text:?} is negative (durations are seconds >= 0)")]
+    NegativeDuration {
+        /// The offending text.
+        text: String,
+    },
+    /// A flag (such as [`Field::Success`]) is neither `0` nor `1`.
+    #[error("{field}: {text:?} is not 0 or 1")]
+    NotZeroOrOne {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
+    /// A file in a directory of edge files is neither an edge file nor a file the reader
+    /// ignores (see [`crate::topo_files`]).
+    #[error(
+        "not an edge file (a directory of edges holds <From>_<To>.data files, plain, .xz or \
+         .gz, and may hold path*.txt lists)"
+    )]
+    UnexpectedFile,
+    /// The name of an edge file does not name two nodes `<From>_<To>`.
+    #[error("edge file name {stem:?} does not name an edge <From>_<To>: {reason}")]
+    EdgeFileName {
+        /// The file name without its extensions.
+        stem: String,
+        /// Why it does not split.
+        reason: String,
+    },
+    /// Two files describe the same edge (e.g. `A_B.data` and `A_B.data.xz`).
+    #[error("edge {edge:?} has a second file: {other}")]
+    DuplicateEdgeFile {
+        /// The edge id.
+        edge: String,
+        /// The other file of the edge.
+        other: String,
+    },
+    /// The topological map cannot be built (e.g. an invalid or repeated node name).
+    #[error("{error}")]
+    Map {
+        /// What is wrong with the map.
+        error: chronomap_core::topo::TopoError,
     },
     /// Another violation of the observation contract.
     #[error("{field}: {text:?} is rejected: {reason}")]
@@ -280,7 +332,9 @@ impl DataError {
             DataErrorKind::NotANumber { field, .. }
             | DataErrorKind::MissingField { field, .. }
             | DataErrorKind::NonFinite { field, .. }
+            | DataErrorKind::NotZeroOrOne { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
+            DataErrorKind::NegativeDuration { .. } => Some(Field::Duration),
             DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
                 Some(Field::Time)
             }
@@ -320,33 +374,86 @@ pub fn read_pairs(path: impl AsRef<Path>) -> Result<TimeSeries, DataError> {
 /// As [`read_pairs`].
 pub fn read_pairs_from(name: &str, reader: impl Read) -> Result<TimeSeries, DataError> {
     const EXPECTED: &str = "expected two fields: time value";
-    let mut series = TimeSeries::default();
+    let (times, values) = read_timed_lines(name, reader, EXPECTED, |fields| fields.next_value())?;
+    Ok(TimeSeries { times, values })
+}
+
+/// The fields after the time of one data line, for [`read_timed_lines`].
+pub(crate) struct LineFields<'a> {
+    fields: Fields<'a>,
+    expected: &'static str,
+    index: usize,
+}
+
+impl<'a> LineFields<'a> {
+    /// The next field as text; [`DataErrorKind::MissingField`] if it is absent or empty.
+    pub(crate) fn next_text(&mut self, field: Field) -> Result<&'a [u8], DataErrorKind> {
+        required(self.fields.next(), field, self.expected)
+    }
+
+    /// The next field as a duration in seconds (finite, `>= 0`).
+    pub(crate) fn next_duration(&mut self) -> Result<f64, DataErrorKind> {
+        parse_duration(self.next_text(Field::Duration)?)
+    }
+
+    /// The next field as a success flag (`0` or `1`).
+    pub(crate) fn next_success(&mut self) -> Result<bool, DataErrorKind> {
+        parse_success(self.next_text(Field::Success)?)
+    }
+
+    /// The next field as an observed value (the [`Field::Value`] part of the observation
+    /// contract).
+    pub(crate) fn next_value(&mut self) -> Result<f64, DataErrorKind> {
+        let text = self.next_text(Field::Value)?;
+        parse_value(text, self.index)
+    }
+}
+
+/// The generic line reader behind [`read_pairs_from`] and the edge files of
+/// [`crate::topo_files`]: every data line starts with a time (checked against the
+/// [observation contract](chronomap_core::observe): finite, `>= 0`, never going backwards),
+/// `rest` parses the remaining fields into a record, and a field left over is an
+/// [`DataErrorKind::ExtraField`] error. `expected` describes a line for error messages.
+///
+/// Returns the times and the records, or the first error, naming `name` and the line.
+pub(crate) fn read_timed_lines<T>(
+    name: &str,
+    reader: impl Read,
+    expected: &'static str,
+    mut rest: impl FnMut(&mut LineFields<'_>) -> Result<T, DataErrorKind>,
+) -> Result<(Vec<f64>, Vec<T>), DataError> {
+    let mut times = Vec::new();
+    let mut records = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
     for_each_data_line(name, reader, |line_number, line| {
-        let mut fields = Fields::new(line);
-        let time_text = required(fields.next(), Field::Time, EXPECTED)?;
-        let time = parse_time(time_text, previous, series.times.len())?;
-        let value_text = required(fields.next(), Field::Value, EXPECTED)?;
-        let value = parse_value(value_text, series.values.len())?;
-        if let Some(extra) = fields.next() {
+        let mut fields = LineFields {
+            fields: Fields::new(line),
+            expected,
+            index: times.len(),
+        };
+        let time_text = fields.next_text(Field::Time)?;
+        let time = parse_time(time_text, previous, times.len())?;
+        let record = rest(&mut fields)?;
+        if let Some(extra) = fields.fields.next() {
             return Err(DataErrorKind::ExtraField {
                 text: quote(extra),
-                expected: EXPECTED,
+                expected,
             });
         }
-        series.times.push(time);
-        series.values.push(value);
+        times.push(time);
+        records.push(record);
         previous = Some((time, line_number));
         Ok(())
     })?;
-    Ok(series)
+    Ok((times, records))
 }
 
 /// Reads a file with one time (`field == Field::Time`) or one value (`Field::Value`) per line
 /// (plain, `.xz` or `.gz`).
 ///
 /// The field decides which part of the [observation contract](chronomap_core::observe) is
-/// checked and what errors call the numbers.
+/// checked and what errors call the numbers. Durations ([`Field::Duration`]) must be finite
+/// and `>= 0`; success flags ([`Field::Success`]) exactly `0` or `1` (read as `0.0`, `1.0`).
 ///
 /// # Errors
 /// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
@@ -379,6 +486,8 @@ pub fn read_column_from(
     let expected = match field {
         Field::Time => "expected one time per line",
         Field::Value => "expected one value per line",
+        Field::Duration => "expected one duration per line",
+        Field::Success => "expected one success flag (0 or 1) per line",
     };
     let mut numbers = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
@@ -388,6 +497,8 @@ pub fn read_column_from(
         let number = match field {
             Field::Time => parse_time(text, previous, numbers.len())?,
             Field::Value => parse_value(text, numbers.len())?,
+            Field::Duration => parse_duration(text)?,
+            Field::Success => f64::from(u8::from(parse_success(text)?)),
         };
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
@@ -667,6 +778,33 @@ fn parse_value(text: &[u8], index: usize) -> Result<f64, DataErrorKind> {
         },
     })?;
     Ok(value)
+}
+
+/// A duration in seconds: finite and `>= 0` (`-0` is read as `0`).
+fn parse_duration(text: &[u8]) -> Result<f64, DataErrorKind> {
+    let duration = parse_number(text, Field::Duration)?;
+    if !duration.is_finite() {
+        return Err(DataErrorKind::NonFinite {
+            field: Field::Duration,
+            text: quote(text),
+        });
+    }
+    if duration < 0.0 {
+        return Err(DataErrorKind::NegativeDuration { text: quote(text) });
+    }
+    Ok(duration + 0.0)
+}
+
+/// A success flag: exactly `0` or `1`.
+fn parse_success(text: &[u8]) -> Result<bool, DataErrorKind> {
+    match text {
+        b"0" => Ok(false),
+        b"1" => Ok(true),
+        _ => Err(DataErrorKind::NotZeroOrOne {
+            field: Field::Success,
+            text: quote(text),
+        }),
+    }
 }
 
 /// The offending text for an error message (lossy UTF-8, shortened if long).
