@@ -33,6 +33,8 @@
 //!   data. [`anomaly`] — anomaly detection. [`metrics`] — Brier score, binary error, paired
 //!   t-tests; [`eval`] — the train/test experiment of the FreMEn benchmarks. [`naive`] — slow
 //!   oracles for tests and benchmarks.
+//! * [`topo`] — topological maps; [`ltl`] — co-safe LTL tasks (`F (Kitchen & F Office)`)
+//!   and their automata ([`automaton::Dfa`]).
 #![deny(missing_docs)]
 
 pub mod anomaly;
@@ -48,6 +50,7 @@ pub mod fft;
 pub mod fremen;
 pub mod grid;
 pub mod hist;
+pub mod ltl;
 pub mod mean;
 pub mod metrics;
 pub mod model;
