@@ -100,6 +100,28 @@ pub struct EdgeModel {
     mean_duration_secs: Option<f64>,
 }
 
+impl EdgeModel {
+    /// The model of the success probability (`None`: too few attempts, the static rate is used).
+    pub fn success_model(&self) -> Option<&AnyModel> {
+        self.success.as_ref()
+    }
+
+    /// The model of successful durations, as fractions of [`EdgeModel::duration_scale`].
+    pub fn duration_model(&self) -> Option<&AnyModel> {
+        self.duration.as_ref()
+    }
+
+    /// The longest successful training duration (seconds): the unit of the duration model.
+    pub fn duration_scale(&self) -> f64 {
+        self.duration_scale
+    }
+
+    /// The mean successful duration (seconds), if any attempt succeeded.
+    pub fn mean_duration_secs(&self) -> Option<f64> {
+        self.mean_duration_secs
+    }
+}
+
 /// Models of every edge of a map.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct EdgeModels {

@@ -157,16 +157,10 @@ use crate::text::{
 // ---------------------------------------------------------------------------------------------
 // Edge files
 
-/// One attempt to traverse an edge.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EdgeAttempt {
-    /// When the attempt started (unix seconds).
-    pub time: f64,
-    /// How long it took (seconds, `>= 0`).
-    pub duration_secs: f64,
-    /// Whether the robot reached the target node.
-    pub success: bool,
-}
+/// One attempt to traverse an edge: the core's [`Attempt`](chronomap_core::edges::Attempt),
+/// so what the readers return goes straight into
+/// [`EdgeModels::fit`](chronomap_core::edges::EdgeModels::fit).
+pub use chronomap_core::edges::Attempt as EdgeAttempt;
 
 /// A topological map and every recorded attempt to traverse each of its edges.
 #[derive(Clone, Debug, Default, PartialEq)]
