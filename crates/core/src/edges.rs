@@ -2,11 +2,18 @@
 //! how long it takes (seed 003 §III–IV).
 //!
 //! Each edge gets two models: the probability that a traversal succeeds, `p_e(t)`, from all its
-//! attempts, and the duration of successful traversals, from those. Both are FreMEn models whose
-//! order is chosen per edge on the most recent part of its history (a chronological hold-out;
-//! order 0 is the static mean, so an edge whose outcomes are not periodic falls back to a static
-//! model). Durations are not in `[0, 1]`: they are modelled as fractions of the edge's longest
-//! training duration, and scaled back.
+//! attempts, and the duration of successful traversals, from those. Both are FreMEn models
+//! (seed 003 eqs. (1)–(2)) whose order is chosen per edge on the most recent part of its history
+//! (a chronological hold-out, scored like eq. (3); order 0 is the static mean, so an edge whose
+//! outcomes are not periodic falls back to a static model). Durations are not in `[0, 1]`: they
+//! are modelled as fractions of the edge's longest training duration, and scaled back.
+//!
+//! Success models also carry FreMEn's persistence term (seed 001 §III-D, eqs. (12)–(13)): the
+//! outcome of the latest attempt persists for a while. On the Witham Wharf data this is what
+//! predicts later weeks: a closed door makes the robot fail again and again for hours, at times
+//! of day that change from week to week (see `topo eval` in the README for the numbers). A model
+//! kept up to date with [`EdgeModels::observe`] uses it; far from the latest attempt the
+//! prediction is the periodic model's.
 //!
 //! Robots in the field need more than the model (their users asked for this: an edge predicted
 //! at probability 0 is never tried again, and a few unlucky attempts should not condemn an
@@ -45,6 +52,8 @@ pub struct EdgeModelConfig {
     pub floor: f64,
     /// Fit periodic (FreMEn) models; `false` = static means only.
     pub periodic: bool,
+    /// Add the persistence of the latest outcome to success models (seed 001 eqs. (12)–(13)).
+    pub persistence: bool,
     /// Fraction of each edge's time span held back to choose the orders.
     pub holdout: f64,
     /// Largest order tried.
@@ -61,6 +70,7 @@ impl Default for EdgeModelConfig {
             prior_attempts: 2.0,
             floor: 0.05,
             periodic: true,
+            persistence: true,
             holdout: 0.25,
             max_order: 10,
             default_duration_secs: None,
@@ -98,6 +108,8 @@ pub struct EdgeModel {
     duration: Option<AnyModel>,
     duration_scale: f64,
     mean_duration_secs: Option<f64>,
+    /// Time of the latest attempt seen (fitted or observed).
+    last_time: Option<f64>,
 }
 
 impl EdgeModel {
@@ -131,7 +143,19 @@ pub struct EdgeModels {
     default_duration_secs: f64,
 }
 
-fn spec(config: &EdgeModelConfig) -> ModelSpec {
+/// The model of success probabilities the configuration asks for.
+fn success_spec(config: &EdgeModelConfig) -> ModelSpec {
+    match (config.periodic, config.persistence) {
+        (true, true) => ModelSpec::Persistence(OrderSpec::Auto),
+        (true, false) => ModelSpec::Fremen(OrderSpec::Auto),
+        (false, true) => ModelSpec::Persistence(OrderSpec::Fixed(0)),
+        (false, false) => ModelSpec::Mean,
+    }
+}
+
+/// The model of durations: persistence does not help there (a slow traversal says little
+/// about the next one).
+fn duration_spec(config: &EdgeModelConfig) -> ModelSpec {
     if config.periodic {
         ModelSpec::Fremen(OrderSpec::Auto)
     } else {
@@ -151,12 +175,13 @@ fn options(config: &EdgeModelConfig, criterion: Criterion) -> FitOptions {
 /// Fits a model of `values` at `times`, falling back to the static mean when the history is
 /// too short to hold part of it back.
 fn fit_series(
+    spec: ModelSpec,
     times: &[f64],
     values: &[f64],
     config: &EdgeModelConfig,
     criterion: Criterion,
 ) -> Result<AnyModel, BuildError> {
-    match spec(config).fit(times, values, &options(config, criterion)) {
+    match spec.fit(times, values, &options(config, criterion)) {
         Ok(fitted) => Ok(fitted.model),
         Err(BuildError::NotEnoughData(_)) => Ok(ModelSpec::Mean
             .fit(times, values, &FitOptions::default())?
@@ -210,7 +235,16 @@ impl EdgeModels {
             crate::observe::validate(None, &times, &outcomes).map_err(|e| named(e.into()))?;
             let successes = list.iter().filter(|a| a.success).count();
             let success = if list.len() >= config.min_attempts {
-                Some(fit_series(&times, &outcomes, &config, Criterion::Brier).map_err(named)?)
+                Some(
+                    fit_series(
+                        success_spec(&config),
+                        &times,
+                        &outcomes,
+                        &config,
+                        Criterion::Brier,
+                    )
+                    .map_err(named)?,
+                )
             } else {
                 None
             };
@@ -221,7 +255,16 @@ impl EdgeModels {
             let duration = if good.len() >= config.min_attempts && scale > 0.0 {
                 let t: Vec<f64> = good.iter().map(|a| a.time).collect();
                 let v: Vec<f64> = good.iter().map(|a| a.duration_secs / scale).collect();
-                Some(fit_series(&t, &v, &config, Criterion::AbsoluteError).map_err(named)?)
+                Some(
+                    fit_series(
+                        duration_spec(&config),
+                        &t,
+                        &v,
+                        &config,
+                        Criterion::AbsoluteError,
+                    )
+                    .map_err(named)?,
+                )
             } else {
                 None
             };
@@ -232,6 +275,7 @@ impl EdgeModels {
                 duration,
                 duration_scale: scale,
                 mean_duration_secs,
+                last_time: list.last().map(|a| a.time),
             });
         }
         let mut means: Vec<f64> = edges.iter().filter_map(|e| e.mean_duration_secs).collect();
@@ -330,8 +374,8 @@ impl EdgeModels {
             .unzip()
     }
 
-    /// Scores the models on later attempts (`test[e]` for edge `e`): the Brier score of the
-    /// success probabilities over all attempts, the mean squared error of the expected durations
+    /// Scores the models, frozen as fitted, on later attempts (`test[e]` for edge `e`): the Brier
+    /// score of the success probabilities over all attempts, the mean squared error of the expected durations
     /// over the successful ones, and the same for the static per-edge means, the baseline the
     /// periodic models must beat (seed 003 §VI).
     ///
@@ -369,6 +413,55 @@ impl EdgeModels {
         if score.successes > 0 {
             score.duration_mse = mse / score.successes as f64;
             score.static_duration_mse = static_mse / score.successes as f64;
+        }
+        Ok(score)
+    }
+
+    /// Learns from one more attempt of `edge`, as a robot does after each traversal: the counts
+    /// behind the static rate, and the success model (its persistence term now starts from this
+    /// outcome). Duration models stay as fitted.
+    ///
+    /// # Errors
+    /// An attempt earlier than the edge's latest one, or with a non-finite time.
+    pub fn observe(
+        &mut self,
+        edge: usize,
+        attempt: &Attempt,
+    ) -> Result<(), crate::ObservationError> {
+        let e = &mut self.edges[edge];
+        let y = f64::from(u8::from(attempt.success));
+        crate::observe::validate(e.last_time, &[attempt.time], &[y])?;
+        if let Some(model) = &mut e.success {
+            model.observe(&[attempt.time], &[y])?;
+        }
+        e.attempts += 1;
+        e.successes += usize::from(attempt.success);
+        e.last_time = Some(attempt.time);
+        Ok(())
+    }
+
+    /// Scores the models as they would have served a robot over the test period: every attempt
+    /// is predicted from everything before it, then learned ([`EdgeModels::observe`]). The
+    /// static baseline is the running per-edge rate, updated the same way. Durations are
+    /// scored as in [`EdgeModels::evaluate`].
+    ///
+    /// # Errors
+    /// `test` not one list per edge, or attempts out of order.
+    pub fn evaluate_online(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
+        let mut score = self.evaluate(test)?;
+        let mut live = self.clone();
+        let (mut brier, mut static_brier) = (0.0, 0.0);
+        for (edge, list) in test.iter().enumerate() {
+            for a in list {
+                let y = f64::from(u8::from(a.success));
+                brier += (live.success_probability(edge, a.time) - y).powi(2);
+                static_brier += (live.static_success_probability(edge) - y).powi(2);
+                live.observe(edge, a)?;
+            }
+        }
+        if score.attempts > 0 {
+            score.success_brier = brier / score.attempts as f64;
+            score.static_success_brier = static_brier / score.attempts as f64;
         }
         Ok(score)
     }
@@ -449,6 +542,7 @@ mod tests {
             &[door_attempts(), Vec::new(), Vec::new()],
             EdgeModelConfig {
                 periodic: false,
+                persistence: false,
                 ..EdgeModelConfig::default()
             },
         )
@@ -510,6 +604,77 @@ mod tests {
             "{score:?}"
         );
         assert!(models.evaluate(&[]).is_err());
+    }
+
+    #[test]
+    fn observed_outcomes_persist_and_online_scores_use_them() {
+        // An edge that succeeds for 20 days, then fails in a burst: once a failure has been
+        // observed, the next attempt a minute later is predicted to fail; days later the
+        // prediction is back near the long-term rate.
+        let good: Vec<Attempt> = (0..20 * 24)
+            .map(|i| Attempt {
+                time: 3600.0 * f64::from(i),
+                duration_secs: 10.0,
+                success: i % 24 != 3,
+            })
+            .collect();
+        let mut models = EdgeModels::fit(
+            map(),
+            &[good.clone(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let end = 20.0 * 86_400.0;
+        let before = models.success_probability(0, end + 60.0);
+        assert!(before > 0.8, "{before}");
+        let burst: Vec<Attempt> = (0..10)
+            .map(|i| Attempt {
+                time: end + 60.0 * f64::from(i),
+                duration_secs: 5.0,
+                success: false,
+            })
+            .collect();
+        let score = models
+            .evaluate_online(&[burst.clone(), Vec::new(), Vec::new()])
+            .unwrap();
+        // Online, only the first failure of the burst is a surprise; the static rate is
+        // surprised by every one.
+        assert!(
+            score.success_brier < 0.5 * score.static_success_brier,
+            "{score:?}"
+        );
+        let week_later = end + 7.0 * 86_400.0;
+        let long_term = models.success_probability(0, week_later);
+        for a in &burst {
+            models.observe(0, a).unwrap();
+        }
+        assert_eq!(models.edge(0).attempts, good.len() + burst.len());
+        let soon = models.success_probability(0, end + 660.0);
+        let later = models.success_probability(0, week_later);
+        assert!(soon < 0.2 && long_term > 0.9, "{soon} {long_term}");
+        // A week on, the persistence has worn off; what remains is the burst's weight in the
+        // periodic model (ten failures at one time of day: FreMEn counts each of them).
+        assert!(
+            later > soon + 0.3 && later < long_term,
+            "{soon} {later} {long_term}"
+        );
+        // Attempts must not go back in time.
+        let err = models.observe(0, &good[5]).unwrap_err();
+        assert!(err.to_string().contains("time"), "{err}");
+        // Without persistence the burst does not change the prediction much.
+        let mut flat = EdgeModels::fit(
+            map(),
+            &[good, Vec::new(), Vec::new()],
+            EdgeModelConfig {
+                persistence: false,
+                ..EdgeModelConfig::default()
+            },
+        )
+        .unwrap();
+        for a in &burst {
+            flat.observe(0, a).unwrap();
+        }
+        assert!(flat.success_probability(0, end + 660.0) > soon + 0.3);
     }
 
     #[test]
