@@ -47,6 +47,7 @@ pub mod fft;
 pub mod fremen;
 pub mod grid;
 pub mod hist;
+pub mod mdp;
 pub mod mean;
 pub mod metrics;
 pub mod model;
