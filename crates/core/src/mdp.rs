@@ -35,7 +35,7 @@
 //!    with `Pmax = 0`): the run's outcome is known there.
 //! 3. The *expected cost* `C(s)` is the minimum, over the policies of the restricted MDP, of the
 //!    expected total cost accumulated until a decided state is reached — Storm's
-//!    `Rmin=? [F "decided"]` on the restricted product: policies that do not
+//!    `Rmin=? [F "decided"]` on the restricted product ([`restricted_drn`]): policies that do not
 //!    reach a decided state with probability one cost `+∞`, and `C(s) = +∞` if no restricted
 //!    policy reaches one almost surely. The latter cannot happen with exact values (a
 //!    memoryless `Pmax`-optimal policy uses restricted choices only and ends, almost surely, in
@@ -46,7 +46,15 @@
 //!    a product), except where that would loop forever through zero-cost choices: then the
 //!    first tied choice that moves closer to a decided state is taken. The policy reaches the
 //!    goal with probability `Pmax` and costs `C` in expectation.
+//!
+//! # Exports
+//! [`NavigationMdp::to_prism`] writes the PRISM language in the layout of STRANDS
+//! `mdp_plan_exec` (one `waypoint` variable, `-1` the failure sink, one command per edge
+//! named by its id, one label per node, rewards `"time"`), [`prism_property`] the matching
+//! `Pmax=? [ … ]`. [`SparseMdp::to_drn`], [`product_drn`] and [`restricted_drn`] write
+//! Storm's explicit DRN format, so that Storm can check the product without LTL.
 
+mod export;
 mod graph;
 mod product;
 mod solve;
@@ -59,11 +67,12 @@ use thiserror::Error;
 use crate::automaton::Dfa;
 use crate::topo::{Edge, TopoMap};
 
+pub use export::{prism_property, product_drn, restricted_drn};
 pub use product::{ProductMdp, ProductState};
 pub use solve::{Iterations, Solution, SolverOptions, solve};
 pub use sparse::{Choice, SparseMdp};
 
-/// Why an MDP could not be built or solved.
+/// Why an MDP could not be built, solved or exported.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
 pub enum MdpError {
@@ -193,6 +202,27 @@ pub enum MdpError {
         /// The largest change of the last iteration.
         change: f64,
     },
+    /// The solution was computed for another MDP.
+    #[error("the solution has {found} states, the MDP {expected}")]
+    SolutionMismatch {
+        /// States of the MDP.
+        expected: usize,
+        /// States of the solution.
+        found: usize,
+    },
+    /// A name cannot be written in the export format.
+    #[error("{name:?} cannot be written as {role}: {reason}")]
+    InvalidName {
+        /// The name.
+        name: String,
+        /// What it names in the format (PRISM action, PRISM label, DRN label, …).
+        role: &'static str,
+        /// Why not.
+        reason: &'static str,
+    },
+    /// A task formula cannot be turned into a PRISM property.
+    #[error("cannot write the formula as a PRISM property: {0}")]
+    InvalidFormula(String),
 }
 
 /// The Navigation MDP at time `t` of seed 003 §V: nodes of a topological map plus the failure

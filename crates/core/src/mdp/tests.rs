@@ -806,3 +806,149 @@ fn the_iteration_cap_is_an_error() {
         sol.cost_initial
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// Exports.
+
+#[test]
+fn prism_export_uses_the_strands_layout() {
+    let m = map(
+        &["WayPoint1", "WayPoint2"],
+        &[
+            ("WayPoint1_WayPoint2", "WayPoint1", "WayPoint2"),
+            ("WayPoint2_WayPoint1", "WayPoint2", "WayPoint1"),
+            ("Closed", "WayPoint2", "WayPoint2"),
+        ],
+    );
+    let nav = NavigationMdp::new(&m, &[0.93, 1.0, 0.0], &[12.4, 3.0, 0.5]).unwrap();
+    let expected = "\
+// Navigation MDP at time t (seed 003 sec. V), STRANDS mdp_plan_exec layout: waypoint = node index, -1 = failure sink
+mdp
+
+module M
+  waypoint:[-1..1] init 1;
+  [WayPoint1_WayPoint2] (waypoint=0) -> 0.93:(waypoint'=1) + 0.06999999999999995:(waypoint'=-1);
+  [WayPoint2_WayPoint1] (waypoint=1) -> 1.0:(waypoint'=0);
+  [Closed] (waypoint=1) -> 1.0:(waypoint'=-1);
+endmodule
+
+label \"WayPoint1\" = (waypoint=0);
+label \"WayPoint2\" = (waypoint=1);
+
+rewards \"time\"
+  [WayPoint1_WayPoint2] (waypoint=0):12.4;
+  [WayPoint2_WayPoint1] (waypoint=1):3.0;
+  [Closed] (waypoint=1):0.5;
+endrewards
+";
+    assert_eq!(nav.to_prism(1).unwrap(), expected);
+    assert!(matches!(
+        nav.to_prism(2),
+        Err(MdpError::NodeOutOfRange { node: 2, nodes: 2 })
+    ));
+}
+
+#[test]
+fn prism_export_rejects_names_prism_cannot_read() {
+    let check = |nodes: &[&str], edge: &str| {
+        let m = map(nodes, &[(edge, nodes[0], nodes[0])]);
+        NavigationMdp::new(&m, &[1.0], &[1.0]).unwrap().to_prism(0)
+    };
+    assert!(check(&["A"], "A_A").is_ok());
+    for (nodes, edge, name) in [
+        (&["A"][..], "a-b", "a-b"),
+        (&["A"][..], "module", "module"),
+        (&["A"][..], "1st", "1st"),
+        (&["init"][..], "e", "init"),
+        (&["Kitchen.1"][..], "e", "Kitchen.1"),
+    ] {
+        let err = check(nodes, edge).unwrap_err();
+        assert!(
+            matches!(&err, MdpError::InvalidName { name: n, .. } if n == name),
+            "{err:?}"
+        );
+    }
+}
+
+#[test]
+fn prism_property_quotes_node_names() {
+    let cases = [
+        ("F Kitchen", r#"Pmax=? [ F "Kitchen" ]"#),
+        ("F (A & F B)", r#"Pmax=? [ F ("A" & F "B") ]"#),
+        ("!X1 U Y", r#"Pmax=? [ !"X1" U "Y" ]"#),
+        ("F v1 || F v14", r#"Pmax=? [ F "v1" | F "v14" ]"#),
+        ("(F a) && G !b", r#"Pmax=? [ (F "a") & G !"b" ]"#),
+        ("a -> X b", r#"Pmax=? [ "a" => X "b" ]"#),
+        ("a <-> b", r#"Pmax=? [ "a" <=> "b" ]"#),
+        (r#"F "G" & true"#, r#"Pmax=? [ F "G" & true ]"#),
+    ];
+    for (ltl, prism) in cases {
+        assert_eq!(prism_property(ltl).unwrap(), prism, "{ltl}");
+    }
+    for bad in ["F a-b", "F 3x", "F \"open", "F a.b"] {
+        assert!(
+            matches!(prism_property(bad), Err(MdpError::InvalidFormula(_))),
+            "{bad}"
+        );
+    }
+}
+
+#[test]
+fn drn_export_is_storm_s_explicit_format() {
+    let (_, product, sol) = solve_nav(
+        &["S", "M", "G"],
+        &[
+            ("S_G", "S", "G", 0.5, 10.0),
+            ("S_M", "S", "M", 0.9, 30.0),
+            ("M_G", "M", "G", 0.9, 30.0),
+        ],
+        "S",
+        &eventually("G"),
+    );
+    // Product states: 0 = (S,0), 1 = (G,1) goal, 2 = (sink,0), 3 = (M,0).
+    let header = |choices: usize| {
+        format!(
+            "// written by chronomap-core (mdp::SparseMdp::to_drn)\n@type: MDP\n@parameters\n\n\
+             @reward_models\ntime\n@nr_states\n4\n@nr_choices\n{choices}\n@model\n"
+        )
+    };
+    let tail = "\
+state 1 goal decided
+\taction absorb [0.0]
+\t\t1 : 1.0
+state 2 decided
+\taction absorb [0.0]
+\t\t2 : 1.0
+state 3
+\taction M_G [30.0]
+\t\t1 : 0.9
+\t\t2 : 0.09999999999999998
+";
+    let full = format!(
+        "{}state 0 init\n\taction S_G [10.0]\n\t\t1 : 0.5\n\t\t2 : 0.5\n\
+         \taction S_M [30.0]\n\t\t3 : 0.9\n\t\t2 : 0.09999999999999998\n{tail}",
+        header(5)
+    );
+    assert_eq!(product_drn(product.mdp(), &sol).unwrap(), full);
+    // The restricted product keeps the Pmax-optimal S_M only.
+    let restricted = format!(
+        "{}state 0 init\n\taction S_M [30.0]\n\t\t3 : 0.9\n\t\t2 : 0.09999999999999998\n{tail}",
+        header(4)
+    );
+    assert_eq!(restricted_drn(product.mdp(), &sol).unwrap(), restricted);
+
+    let mdp = product.mdp();
+    assert!(matches!(
+        mdp.to_drn(&[("here", &[true][..])]),
+        Err(MdpError::LengthMismatch { .. })
+    ));
+    assert!(matches!(
+        mdp.to_drn(&[("goal", &[true; 4][..])]),
+        Err(MdpError::InvalidName { .. })
+    ));
+    let other = solve_nav(&["A"], &[], "A", &eventually("B")).2;
+    assert!(matches!(
+        product_drn(mdp, &other),
+        Err(MdpError::SolutionMismatch { .. })
+    ));
+}
