@@ -22,25 +22,27 @@
 //! so such a state is a goal state if that lasso passes through an accepting automaton state.
 //!
 //! # What is optimised ([`solve`], on any [`SparseMdp`] with goal states)
-//! 1. `Pmax(s)`: the maximum probability of reaching a goal state (`Pmax=? [F "goal"]`), by
-//!    value iteration from below after a graph analysis fixes the states with `Pmax = 0`, with
-//!    an interval iteration from above (maximal end components collapsed) that certifies the
-//!    precision ([`Solution::gap`]).
+//! 1. `Pmax(s)`: the maximum probability of reaching a goal state (`Pmax=? [F "goal"]`; in a
+//!    product, the probability of fulfilling the task), by value iteration from below after a
+//!    graph analysis fixes the states with `Pmax = 0`, with an interval iteration from above
+//!    (maximal end components collapsed) that certifies the precision ([`Solution::gap`]).
 //! 2. The *restricted* MDP keeps, in every state with `Pmax > 0` that is not a goal, the
-//!    choices whose one-step value `Σ δ(s, c, s')·Pmax(s')` equals `Pmax(s)`: numerically,
-//!    is within `max(ε·Pmax(s), gap)` of the best one (`ε` = [`SolverOptions::tolerance`],
-//!    `1e-12`; the certified gap keeps every truly optimal choice). A state is *decided* when
-//!    it is a goal or no goal
-//!    is reachable from it in the restricted MDP (this includes the failure sink and the states
-//!    with `Pmax = 0`): the run's outcome is known there.
-//! 3. The *expected cost* `C(s)` is the minimum, over the policies of the restricted MDP, of the
-//!    expected total cost accumulated until a decided state is reached — Storm's
-//!    `Rmin=? [F "decided"]` on the restricted product ([`restricted_drn`]): policies that do not
-//!    reach a decided state with probability one cost `+∞`, and `C(s) = +∞` if no restricted
-//!    policy reaches one almost surely. The latter cannot happen with exact values (a
-//!    memoryless `Pmax`-optimal policy uses restricted choices only and ends, almost surely, in
-//!    a goal or in a state with `Pmax = 0`), so `+∞` flags a numerical problem. Zero-cost
-//!    cycles are handled (zero-cost end components are collapsed before the iteration).
+//!    choices whose one-step value `Σ δ(s, c, s')·Pmax(s')` equals `Pmax(s)` — numerically,
+//!    those within `max(ε·Pmax(s), gap)` of the best one (`ε` = [`SolverOptions::tolerance`],
+//!    `1e-12`; widening to the certified gap keeps every truly optimal choice). The set `D`
+//!    of *decided* states holds the goals and the states from which no goal is reachable in
+//!    the restricted MDP (the failure sink, the states with `Pmax = 0`): there the outcome of
+//!    the run is known.
+//! 3. The *expected cost* is
+//!    `C(s) = min_σ E_s^σ[ Σ_{k<T} cost(c_k) ]`, `T` the first time the run is in `D`, over
+//!    the policies `σ` of the restricted MDP, where a policy with `P_s^σ(T < ∞) < 1` costs
+//!    `+∞`. This is Storm's `R{"time"}min=? [F "decided"]` on the restricted product
+//!    ([`restricted_drn`]; "decided" labels `D`), which follows the same `+∞` convention.
+//!    `C(s) = +∞` (no restricted policy reaches `D` almost surely) cannot happen with exact
+//!    values — a memoryless `Pmax`-optimal policy uses restricted choices only and ends,
+//!    almost surely, in a goal or in a state with `Pmax = 0` — so it flags a numerical
+//!    problem. Zero-cost cycles are handled (zero-cost end components are collapsed before the
+//!    value iteration, which otherwise would stop at a too-low fixpoint).
 //! 4. The policy picks, in every state that is not decided, the restricted choice of least
 //!    expected cost `cost(c) + Σ δ(s, c, s')·C(s')`; ties go to the first choice (edge order in
 //!    a product), except where that would loop forever through zero-cost choices: then the
@@ -51,8 +53,10 @@
 //! [`NavigationMdp::to_prism`] writes the PRISM language in the layout of STRANDS
 //! `mdp_plan_exec` (one `waypoint` variable, `-1` the failure sink, one command per edge
 //! named by its id, one label per node, rewards `"time"`), [`prism_property`] the matching
-//! `Pmax=? [ … ]`. [`SparseMdp::to_drn`], [`product_drn`] and [`restricted_drn`] write
-//! Storm's explicit DRN format, so that Storm can check the product without LTL.
+//! `Pmax=? [ … ]` of a co-safe LTL formula (node names that read as operators, `F`, `G`, `X`,
+//! `U`, `R`, `W`, must be quoted in the formula). [`SparseMdp::to_drn`], [`product_drn`] and
+//! [`restricted_drn`] write Storm's explicit DRN format, so that Storm can check the product
+//! without LTL (`tests/oracle/storm_check.py`).
 
 mod export;
 mod graph;
