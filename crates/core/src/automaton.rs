@@ -1,5 +1,5 @@
 //! Deterministic finite automata over node labels: the bridge between co-safe LTL tasks
-//! ([`crate::ltl`]) and navigation MDPs (module `mdp`).
+//! ([`crate::ltl`]) and navigation MDPs ([`crate::mdp`]).
 
 use serde::{Deserialize, Serialize};
 

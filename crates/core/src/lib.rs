@@ -51,6 +51,7 @@ pub mod fremen;
 pub mod grid;
 pub mod hist;
 pub mod ltl;
+pub mod mdp;
 pub mod mean;
 pub mod metrics;
 pub mod model;
