@@ -61,6 +61,7 @@ pub mod par;
 pub mod pergam;
 pub mod periods;
 pub mod persistence;
+pub mod plan;
 pub mod rng;
 pub mod select;
 pub mod spec;
