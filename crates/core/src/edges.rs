@@ -470,6 +470,72 @@ impl EdgeModels {
     pub fn reindex(&mut self) {
         self.map.reindex();
     }
+
+    /// Checks the invariants a deserialised value must hold before it is used (a file edited by
+    /// hand must give an error, not a panic or nonsense predictions). Call after
+    /// [`EdgeModels::reindex`].
+    ///
+    /// # Errors
+    /// What is wrong, in words.
+    pub fn check(&self) -> Result<(), String> {
+        let nodes = self.map.nodes().len();
+        for (i, edge) in self.map.edges().iter().enumerate() {
+            if edge.from >= nodes || edge.to >= nodes {
+                return Err(format!(
+                    "edge {i} ({:?}) joins nodes that do not exist",
+                    edge.id
+                ));
+            }
+        }
+        let mut ids: Vec<&str> = self.map.edges().iter().map(|e| e.id.as_str()).collect();
+        ids.sort_unstable();
+        if ids.windows(2).any(|w| w[0] == w[1]) {
+            return Err("two edges have the same id".into());
+        }
+        for (i, node) in self.map.nodes().iter().enumerate() {
+            if self.map.node(&node.name) != Ok(i) {
+                return Err(format!("node {:?} is defined twice", node.name));
+            }
+        }
+        if self.edges.len() != self.map.edges().len() {
+            return Err(format!(
+                "{} edge models for {} edges",
+                self.edges.len(),
+                self.map.edges().len()
+            ));
+        }
+        let c = &self.config;
+        let fraction = |x: f64| (0.0..=1.0).contains(&x);
+        if !(fraction(c.prior_success)
+            && fraction(c.floor)
+            && c.prior_attempts.is_finite()
+            && c.prior_attempts >= 0.0
+            && c.holdout.is_finite()
+            && self.default_duration_secs.is_finite()
+            && self.default_duration_secs >= 0.0)
+        {
+            return Err("the configuration holds values out of range".into());
+        }
+        for (edge, e) in self.map.edges().iter().zip(&self.edges) {
+            let models_ok = [&e.success, &e.duration]
+                .into_iter()
+                .flatten()
+                .all(AnyModel::is_consistent);
+            let numbers_ok = e.successes <= e.attempts
+                && e.duration_scale.is_finite()
+                && e.duration_scale >= 0.0
+                && e.mean_duration_secs
+                    .is_none_or(|d| d.is_finite() && d >= 0.0)
+                && e.last_time.is_none_or(f64::is_finite);
+            if !(models_ok && numbers_ok) {
+                return Err(format!(
+                    "the models of edge {:?} break their invariants",
+                    edge.id
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

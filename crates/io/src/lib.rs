@@ -67,8 +67,9 @@ pub mod topo_files;
 
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use model_file::{
-    ModelFileError, ModelFileErrorKind, decode_any_model, decode_model, encode_model,
-    read_any_model, read_model_file, write_any_model, write_model_file,
+    EDGE_MODELS_KIND, ModelFileError, ModelFileErrorKind, decode_any_model, decode_edge_models,
+    decode_model, encode_model, read_any_model, read_edge_models, read_model_file, write_any_model,
+    write_edge_models, write_model_file,
 };
 pub use navmap::{
     LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,

@@ -377,6 +377,57 @@ pub fn decode_any_model(bytes: &[u8]) -> Result<AnyModel, ModelFileError> {
     Ok(model)
 }
 
+/// The kind of edge-model files ([`write_edge_models`]).
+pub const EDGE_MODELS_KIND: &str = "topo-edge-models";
+
+/// Writes the models of a topological map's edges (map included) as a model file of kind
+/// [`EDGE_MODELS_KIND`], atomically.
+///
+/// # Errors
+/// As [`write_model_file`].
+pub fn write_edge_models(
+    path: impl AsRef<Path>,
+    models: &chronomap_core::edges::EdgeModels,
+) -> Result<(), ModelFileError> {
+    write_model_file(path, EDGE_MODELS_KIND, models)
+}
+
+/// Reads a file written by [`write_edge_models`], checking its kind and the models'
+/// invariants.
+///
+/// # Errors
+/// As [`read_model_file`], or [`ModelFileErrorKind::Inconsistent`] (another kind of model, or
+/// broken invariants).
+pub fn read_edge_models(
+    path: impl AsRef<Path>,
+) -> Result<chronomap_core::edges::EdgeModels, ModelFileError> {
+    let path = path.as_ref();
+    let bytes = fs::read(path)
+        .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
+    decode_edge_models(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// Decodes the bytes of an edge-model file, with the checks of [`read_edge_models`].
+///
+/// # Errors
+/// As [`read_edge_models`].
+pub fn decode_edge_models(
+    bytes: &[u8],
+) -> Result<chronomap_core::edges::EdgeModels, ModelFileError> {
+    let (kind, _) = check_container(bytes).map_err(ModelFileError::new)?;
+    if kind != EDGE_MODELS_KIND {
+        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
+            reason: format!("this is a {kind:?} model, not the edge models of a topological map"),
+        }));
+    }
+    let (_, mut models): (String, chronomap_core::edges::EdgeModels) = decode_model(bytes)?;
+    models.reindex();
+    models
+        .check()
+        .map_err(|reason| ModelFileError::new(ModelFileErrorKind::Inconsistent { reason }))?;
+    Ok(models)
+}
+
 fn check_any_model(kind: &str, model: &AnyModel) -> Result<(), ModelFileError> {
     if kind != model.kind() {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {

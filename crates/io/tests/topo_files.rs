@@ -1033,3 +1033,48 @@ fn route_geojson_rejects_bad_metadata() {
     assert_eq!(err.file(), Some(path.display().to_string().as_str()));
     assert!(!path.exists());
 }
+
+#[test]
+fn witham_edge_models_round_trip_through_a_checked_model_file() {
+    use chronomap_core::edges::{EdgeModelConfig, EdgeModels};
+    use chronomap_io::model_file::{
+        decode_edge_models, encode_model, read_edge_models, write_edge_models,
+    };
+
+    let stats = read_edge_directory(witham_edges()).unwrap();
+    let models = EdgeModels::fit(stats.map, &stats.attempts, EdgeModelConfig::default()).unwrap();
+    let dir = scratch("edge_models");
+    let path = dir.join("witham.cmt");
+    write_edge_models(&path, &models).unwrap();
+    let loaded = read_edge_models(&path).unwrap();
+    let door = loaded
+        .map()
+        .edges()
+        .iter()
+        .position(|e| e.id == "LabDoor1_LabDoor2");
+    let door = door.unwrap();
+    for t in [1_409_788_800.0, 1_409_810_400.0, 1_409_850_000.0] {
+        for e in 0..models.map().edges().len() {
+            assert_eq!(
+                models.success_probability(e, t).to_bits(),
+                loaded.success_probability(e, t).to_bits()
+            );
+            assert_eq!(
+                models.expected_duration(e, t).to_bits(),
+                loaded.expected_duration(e, t).to_bits()
+            );
+        }
+    }
+    // Names resolve after loading (the index is rebuilt).
+    assert_eq!(loaded.map().node("Kitchen"), models.map().node("Kitchen"));
+    assert!(loaded.success_probability(door, 1_409_788_800.0) < 1.0);
+    // Any changed byte is caught by the checksum; another kind of model is refused by name.
+    let mut bytes = fs::read(&path).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    assert!(decode_edge_models(&bytes).is_err());
+    let other = encode_model("fremen", &chronomap_core::FremenModel::with_order(1)).unwrap();
+    let err = decode_edge_models(&other).unwrap_err().to_string();
+    assert!(err.contains("\"fremen\""), "{err}");
+    fs::remove_dir_all(dir).unwrap();
+}
