@@ -24,8 +24,11 @@
 //! # What is optimised ([`solve`], on any [`SparseMdp`] with goal states)
 //! 1. `Pmax(s)`: the maximum probability of reaching a goal state (`Pmax=? [F "goal"]`; in a
 //!    product, the probability of fulfilling the task), by value iteration from below after a
-//!    graph analysis fixes the states with `Pmax = 0`, with an interval iteration from above
-//!    (maximal end components collapsed) that certifies the precision ([`Solution::gap`]).
+//!    graph analysis fixes the states with `Pmax = 0`, with an upper bound on the quotient by
+//!    the maximal end components that certifies the precision ([`Solution::gap`]): first the
+//!    optimistic guess `x + ε/2`, proved when a Bellman sweep does not raise it (optimistic
+//!    value iteration, Hartmanns and Kaminski, CAV 2020; one sweep on the Witham products,
+//!    25× faster than closing the gap from 1), else an interval iteration from 1.
 //! 2. The *restricted* MDP keeps, in every state with `Pmax > 0` that is not a goal, the
 //!    choices whose one-step value `Σ δ(s, c, s')·Pmax(s')` equals `Pmax(s)` — numerically,
 //!    those within `max(ε·Pmax(s), gap)` of the best one (`ε` = [`SolverOptions::tolerance`],

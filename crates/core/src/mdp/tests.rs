@@ -106,6 +106,8 @@ fn chain_with_one_risky_edge_has_pmax_p() {
     assert!(close(sol.pmax[at_b], 0.3));
     assert!(close(sol.cost[at_b], 7.0));
     assert!(sol.gap < 1e-12, "gap {}", sol.gap);
+    // The optimistic upper bound x + tol/2 is proved by one Bellman sweep.
+    assert_eq!(sol.iterations.pmax_upper, 1);
     // A, B, C (goal) and the sink.
     assert_eq!((sol.state_count, sol.choice_count), (4, 2));
 }
@@ -951,4 +953,35 @@ state 3
         product_drn(mdp, &other),
         Err(MdpError::SolutionMismatch { .. })
     ));
+}
+
+#[test]
+fn a_failed_optimistic_guess_falls_back_to_an_honest_gap() {
+    // 0 stays with 0.999, reaches the goal with 0.001: Pmax = 1. With tolerance 1e-3 the
+    // iteration from below stops at about 0.002; the guess 0.0025 is not inductive
+    // (B(u) = 0.001 + 0.999 u > u), so the interval iteration from 1 takes over, and the
+    // reported upper bound and gap are honest.
+    let mdp = SparseMdp::new(
+        0,
+        vec![false, true],
+        vec!["a".into()],
+        vec![
+            vec![Choice {
+                action: 0,
+                cost: 1.0,
+                outcomes: vec![(0, 0.999), (1, 0.001)],
+            }],
+            vec![],
+        ],
+    )
+    .unwrap();
+    let options = SolverOptions {
+        tolerance: 1e-3,
+        ..SolverOptions::default()
+    };
+    let sol = solve(&mdp, &options).unwrap();
+    assert!(sol.pmax_initial < 0.01, "{}", sol.pmax_initial);
+    assert_eq!(sol.pmax_upper[0], 1.0);
+    assert!(close(sol.gap, 1.0 - sol.pmax_initial));
+    assert!(sol.iterations.pmax_upper > 1);
 }
