@@ -58,6 +58,9 @@ pub struct EdgeModelConfig {
     pub holdout: f64,
     /// Largest order tried.
     pub max_order: usize,
+    /// The order of every success model (`None`: chosen per edge on the hold-out). Seed 003:
+    /// "typically, m = 2".
+    pub success_order: Option<usize>,
     /// Duration of edges that have never succeeded (seconds); `None`: the median over edges.
     pub default_duration_secs: Option<f64>,
 }
@@ -73,6 +76,7 @@ impl Default for EdgeModelConfig {
             persistence: true,
             holdout: 0.25,
             max_order: 10,
+            success_order: None,
             default_duration_secs: None,
         }
     }
@@ -145,9 +149,12 @@ pub struct EdgeModels {
 
 /// The model of success probabilities the configuration asks for.
 fn success_spec(config: &EdgeModelConfig) -> ModelSpec {
+    let order = config
+        .success_order
+        .map_or(OrderSpec::Auto, OrderSpec::Fixed);
     match (config.periodic, config.persistence) {
-        (true, true) => ModelSpec::Persistence(OrderSpec::Auto),
-        (true, false) => ModelSpec::Fremen(OrderSpec::Auto),
+        (true, true) => ModelSpec::Persistence(order),
+        (true, false) => ModelSpec::Fremen(order),
         (false, true) => ModelSpec::Persistence(OrderSpec::Fixed(0)),
         (false, false) => ModelSpec::Mean,
     }
@@ -298,6 +305,14 @@ impl EdgeModels {
     /// The configuration.
     pub fn config(&self) -> &EdgeModelConfig {
         &self.config
+    }
+
+    /// Time of the latest attempt the models have seen, over all edges.
+    pub fn last_time(&self) -> Option<f64> {
+        self.edges
+            .iter()
+            .filter_map(|e| e.last_time)
+            .max_by(f64::total_cmp)
     }
 
     /// The models of one edge.

@@ -55,13 +55,13 @@ use crate::topo::{TopoError, TopoMap};
 #[non_exhaustive]
 pub enum PlanError {
     /// The task is not a co-safe LTL formula (the error shows where).
-    #[error("task: {0}")]
+    #[error(transparent)]
     Task(#[from] LtlError),
     /// The task or the start names a node the map does not have.
-    #[error("{0}")]
+    #[error(transparent)]
     Node(#[from] TopoError),
     /// The MDP could not be built or solved.
-    #[error("{0}")]
+    #[error(transparent)]
     Mdp(#[from] MdpError),
 }
 
