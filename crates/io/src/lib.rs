@@ -48,8 +48,9 @@
 //!   GeoJSON graphs ([`write_route_geojson`]); errors ([`TopoFileError`]) name the file, line
 //!   and key.
 //! * [`plot`] — PNG figures from plain data: stacked time panels
-//!   ([`render_panels_png`]) and amplitude spectra ([`render_spectrum_png`]), drawn with an
-//!   embedded font (no system fonts needed).
+//!   ([`render_panels_png`]), amplitude spectra ([`render_spectrum_png`]), occupancy maps
+//!   ([`render_maps_png`]) and labelled heat maps such as a planner's "now or later?" table
+//!   ([`render_heatmap_png`]), drawn with an embedded font (no system fonts needed).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`PlotErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
@@ -77,7 +78,8 @@ pub use navmap::{
     read_map_yaml, save_map,
 };
 pub use plot::{
-    MapImage, Panel, PlotError, PlotErrorKind, Series, SeriesStyle, SpectrumBar, render_maps_png,
+    HEATMAP_NO_VALUE, Heatmap, HeatmapLayout, MapImage, Panel, PlotError, PlotErrorKind, Series,
+    SeriesStyle, SpectrumBar, heatmap_colour, render_heatmap_png, render_maps_png,
     render_panels_png, render_spectrum_png,
 };
 pub use text::{
@@ -86,7 +88,7 @@ pub use text::{
 };
 pub use topo_files::{
     EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
-    encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
+    encode_edge_file, encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
     read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2,
-    write_route_geojson, write_tmap2,
+    write_edge_directory, write_route_geojson, write_tmap2,
 };

@@ -150,6 +150,52 @@ pub enum PlotErrorKind {
         /// Its amplitude.
         amplitude: f64,
     },
+    /// A heat map without rows or without columns.
+    #[error("nothing to plot: the heat map has {rows} rows and {columns} columns")]
+    EmptyGrid {
+        /// Number of row labels.
+        rows: usize,
+        /// Number of column labels.
+        columns: usize,
+    },
+    /// A heat map whose number of values is not rows × columns.
+    #[error("the heat map has {found} values for {rows} rows × {columns} columns")]
+    ValueCount {
+        /// Number of row labels.
+        rows: usize,
+        /// Number of column labels.
+        columns: usize,
+        /// Number of values.
+        found: usize,
+    },
+    /// A heat map whose cell texts are neither empty nor one per cell.
+    #[error(
+        "the heat map has {found} cell texts for {rows} rows × {columns} columns (give none or one per cell)"
+    )]
+    CellTextCount {
+        /// Number of row labels.
+        rows: usize,
+        /// Number of column labels.
+        columns: usize,
+        /// Number of cell texts.
+        found: usize,
+    },
+    /// A heat-map value outside `[0, 1]` that is not NaN.
+    #[error(
+        "heat-map cell at row {row} ({row_label:?}), column {column} ({column_label:?}): value {value} is outside [0, 1] (NaN marks a cell without a value)"
+    )]
+    ValueOutOfRange {
+        /// 0-based row.
+        row: usize,
+        /// 0-based column.
+        column: usize,
+        /// Label of the row.
+        row_label: String,
+        /// Label of the column.
+        column_label: String,
+        /// The value.
+        value: f64,
+    },
     /// The embedded font could not be loaded.
     #[error("the embedded font could not be loaded")]
     Font,
@@ -929,6 +975,529 @@ fn render_maps(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), P
         root.draw(&Text::new(label, (x + 22, y), scale.font(13.0)))
             .map_err(drawing)?;
         x += 40 + 9 * label.len() as i32;
+    }
+    root.present().map_err(drawing)
+}
+
+/// A labelled grid of values in `[0, 1]` with an optional short text per cell, drawn by
+/// [`render_heatmap_png`].
+///
+/// Typical use: the "now or later?" table of a navigation planner (seed 003 Table III): one
+/// row per start time, one column per day, the value the maximum probability of completing the
+/// task when starting then, the text a code for the first action (explained in `legend`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Heatmap {
+    /// Title above the grid (empty: none).
+    pub title: String,
+    /// Title of the rows, written above the row labels (e.g. `"start time (UTC)"`; empty:
+    /// none).
+    pub row_label: String,
+    /// Title of the columns, written centred above the column labels (e.g. `"day"`; empty:
+    /// none).
+    pub column_label: String,
+    /// Row labels, top to bottom (e.g. `"00:00"`).
+    pub rows: Vec<String>,
+    /// Column labels, left to right (e.g. `"Mon 09-08"`).
+    pub columns: Vec<String>,
+    /// `rows.len() × columns.len()` values in `[0, 1]`, row-major (row 0 first); NaN marks a
+    /// cell without a value.
+    pub values: Vec<f64>,
+    /// Empty, or one short text per cell (same order as `values`), written after the value
+    /// (e.g. a one- or two-letter code of the first action).
+    pub cell_text: Vec<String>,
+    /// Title of the colour bar (e.g. `"Pmax"`; empty: none).
+    pub value_label: String,
+    /// Lines written under the grid (e.g. `"a = Station_LabDoor1"`).
+    pub legend: Vec<String>,
+}
+
+/// Where [`render_heatmap_png`] puts things, in pixels from the top-left corner of the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HeatmapLayout {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Width of a cell, including the 1-pixel white separator on its right.
+    pub cell_width: u32,
+    /// Height of a cell, including the 1-pixel white separator at its bottom.
+    pub cell_height: u32,
+    /// Left edge of the grid (of column 0).
+    pub grid_left: u32,
+    /// Top edge of the grid (of row 0).
+    pub grid_top: u32,
+    /// Left edge of the colour bar.
+    pub bar_left: u32,
+    /// Top edge of the colour bar (the colour of 1).
+    pub bar_top: u32,
+    /// Height of the colour bar; its last pixel row has the colour of 0.
+    pub bar_height: u32,
+    /// Top edge of the first legend line.
+    pub legend_top: u32,
+}
+
+impl HeatmapLayout {
+    /// Centre pixel of the cell in `row`, `column` (0-based; not checked against the grid).
+    pub fn cell_centre(&self, row: usize, column: usize) -> (u32, u32) {
+        let at = |start: u32, index: usize, size: u32| {
+            let offset = u64::from(size) * index as u64 + u64::from(size.saturating_sub(1) / 2);
+            u32::try_from(u64::from(start) + offset).unwrap_or(u32::MAX)
+        };
+        (
+            at(self.grid_left, column, self.cell_width),
+            at(self.grid_top, row, self.cell_height),
+        )
+    }
+}
+
+/// The 11 anchor colours of viridis (van der Walt and Smith's colour map of matplotlib) at
+/// 0, 0.1, …, 1: perceptually uniform, increasing in lightness, readable with colour
+/// blindness and in greyscale.
+const VIRIDIS: [RGBColor; 11] = [
+    RGBColor(68, 1, 84),
+    RGBColor(72, 37, 118),
+    RGBColor(65, 68, 135),
+    RGBColor(53, 96, 141),
+    RGBColor(42, 120, 142),
+    RGBColor(33, 144, 140),
+    RGBColor(34, 168, 132),
+    RGBColor(67, 191, 113),
+    RGBColor(122, 209, 81),
+    RGBColor(187, 223, 39),
+    RGBColor(253, 231, 37),
+];
+
+/// Colour of a heat-map cell without a value (NaN): a light neutral grey, which viridis never
+/// takes.
+pub const HEATMAP_NO_VALUE: RGBColor = RGBColor(218, 218, 218);
+
+/// Colour of a heat-map value: viridis (dark purple at 0 through teal to yellow at 1),
+/// linearly interpolated between 11 anchor colours; values outside `[0, 1]` are clamped, NaN
+/// gives [`HEATMAP_NO_VALUE`].
+pub fn heatmap_colour(value: f64) -> RGBColor {
+    if value.is_nan() {
+        return HEATMAP_NO_VALUE;
+    }
+    let steps = (VIRIDIS.len() - 1) as f64;
+    let position = value.clamp(0.0, 1.0) * steps;
+    let index = (position.floor() as usize).min(VIRIDIS.len() - 2);
+    let fraction = position - index as f64;
+    let (RGBColor(r0, g0, b0), RGBColor(r1, g1, b1)) = (VIRIDIS[index], VIRIDIS[index + 1]);
+    let mix =
+        |a: u8, b: u8| (f64::from(a) + fraction * (f64::from(b) - f64::from(a))).round() as u8;
+    RGBColor(mix(r0, r1), mix(g0, g1), mix(b0, b1))
+}
+
+/// Relative luminance of an sRGB colour (WCAG 2), 0 for black to 1 for white.
+fn relative_luminance(RGBColor(r, g, b): RGBColor) -> f64 {
+    let linear = |c: u8| {
+        let c = f64::from(c) / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    0.2126 * linear(r) + 0.7152 * linear(g) + 0.0722 * linear(b)
+}
+
+/// Black or white, whichever contrasts more with `background` (WCAG contrast ratio).
+fn text_colour_on(background: RGBColor) -> RGBColor {
+    let l = relative_luminance(background);
+    // (l + 0.05) / 0.05 against black, 1.05 / (l + 0.05) against white.
+    if (l + 0.05) * (l + 0.05) > 0.05 * 1.05 {
+        BLACK
+    } else {
+        WHITE
+    }
+}
+
+/// Fixed sizes of the heat-map layout in pixels (the image size follows from the grid).
+mod heat {
+    pub const MARGIN: u32 = 14;
+    pub const MIN_CELL_WIDTH: u32 = 90;
+    pub const CELL_HEIGHT: u32 = 26;
+    /// Free space left and right of the text in a cell, together.
+    pub const CELL_PADDING: u32 = 14;
+    pub const TITLE_LINE: u32 = 34;
+    pub const LABEL_LINE: u32 = 24;
+    pub const LEGEND_LINE: u32 = 21;
+    pub const LEGEND_GAP: u32 = 16;
+    pub const ROW_LABEL_GAP: u32 = 8;
+    pub const BAR_GAP: u32 = 24;
+    pub const BAR_WIDTH: u32 = 18;
+    pub const MIN_BAR_HEIGHT: u32 = 120;
+    pub const TICK: u32 = 5;
+    pub const SWATCH: u32 = 16;
+    /// Space under the colour bar for the "no value" swatch.
+    pub const SWATCH_BLOCK: u32 = 34;
+    pub const TITLE_FONT: f64 = 20.0;
+    pub const AXIS_FONT: f64 = 15.0;
+    pub const LABEL_FONT: f64 = 14.0;
+    pub const CELL_FONT: f64 = 14.0;
+    pub const LEGEND_FONT: f64 = 14.0;
+}
+
+/// Ticks of the colour bar.
+const HEATMAP_TICKS: [f64; 6] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0];
+
+/// Label of the "no value" swatch under the colour bar.
+const NO_VALUE_LABEL: &str = "no value";
+
+fn heat_font(size: f64) -> TextStyle<'static> {
+    (FAMILY, size).into_font().color(&BLACK)
+}
+
+/// Width in pixels of `text` in the embedded font at `size`.
+fn text_width(text: &str, size: f64) -> Result<u32, PlotErrorKind> {
+    if text.is_empty() {
+        return Ok(0);
+    }
+    (FAMILY, size)
+        .into_font()
+        .box_size(text)
+        .map(|(w, _)| w)
+        .map_err(|_| PlotErrorKind::Font)
+}
+
+/// Width in pixels of the widest of `texts` at `size`.
+fn max_text_width(
+    texts: impl IntoIterator<Item = impl AsRef<str>>,
+    size: f64,
+) -> Result<u32, PlotErrorKind> {
+    texts
+        .into_iter()
+        .try_fold(0, |widest, t| Ok(widest.max(text_width(t.as_ref(), size)?)))
+}
+
+/// Horizontal centre of the column title: over the middle of the grid, or further right if a
+/// title wider than the grid would otherwise cross the left margin.
+fn column_title_centre(grid_left: u64, grid_width: u64, title_width: u64) -> u64 {
+    (grid_left + grid_width / 2).max(u64::from(heat::MARGIN) + title_width.div_ceil(2))
+}
+
+/// Text of a cell: the value with two decimals (none for NaN), then the cell's text.
+fn cell_label(map: &Heatmap, index: usize) -> String {
+    let value = map.values[index];
+    let text = map.cell_text.get(index).map_or("", |t| t.as_str());
+    match (value.is_nan(), text.is_empty()) {
+        (true, _) => text.to_owned(),
+        (false, true) => format!("{value:.2}"),
+        (false, false) => format!("{value:.2} {text}"),
+    }
+}
+
+impl Heatmap {
+    /// Checks the grid: at least one row and one column, one value per cell, each in `[0, 1]`
+    /// or NaN, and no cell text or one per cell.
+    ///
+    /// # Errors
+    /// [`PlotErrorKind::EmptyGrid`], [`PlotErrorKind::ValueCount`],
+    /// [`PlotErrorKind::CellTextCount`] or [`PlotErrorKind::ValueOutOfRange`].
+    pub fn validate(&self) -> Result<(), PlotErrorKind> {
+        let (rows, columns) = (self.rows.len(), self.columns.len());
+        if rows == 0 || columns == 0 {
+            return Err(PlotErrorKind::EmptyGrid { rows, columns });
+        }
+        let cells = rows.checked_mul(columns);
+        if cells != Some(self.values.len()) {
+            return Err(PlotErrorKind::ValueCount {
+                rows,
+                columns,
+                found: self.values.len(),
+            });
+        }
+        if !self.cell_text.is_empty() && cells != Some(self.cell_text.len()) {
+            return Err(PlotErrorKind::CellTextCount {
+                rows,
+                columns,
+                found: self.cell_text.len(),
+            });
+        }
+        if let Some(index) = self
+            .values
+            .iter()
+            .position(|v| !(v.is_nan() || (0.0..=1.0).contains(v)))
+        {
+            let (row, column) = (index / columns, index % columns);
+            return Err(PlotErrorKind::ValueOutOfRange {
+                row,
+                column,
+                row_label: self.rows[row].clone(),
+                column_label: self.columns[column].clone(),
+                value: self.values[index],
+            });
+        }
+        Ok(())
+    }
+
+    /// Where [`render_heatmap_png`] will draw things, and the image size.
+    ///
+    /// Cells are [`CELL_HEIGHT`](heat::CELL_HEIGHT) = 26 pixels tall and as wide as the widest
+    /// cell text or column label needs (text plus 14 pixels), at least 90 pixels. Left of the
+    /// grid are the row labels, above it the title, the column title and the column labels,
+    /// right of it the colour bar (at least 120 pixels tall) with its ticks, under it the
+    /// legend lines. Each side is at least [`SIZE_RANGE`]`.0`.
+    ///
+    /// # Errors
+    /// As [`Heatmap::validate`]; [`PlotErrorKind::InvalidSize`] if the image would be larger
+    /// than [`SIZE_RANGE`]`.1` on a side.
+    pub fn layout(&self) -> Result<HeatmapLayout, PlotErrorKind> {
+        use heat::*;
+        self.validate()?;
+        ensure_font()?;
+        let cell_text_width = max_text_width(
+            (0..self.values.len()).map(|i| cell_label(self, i)),
+            CELL_FONT,
+        )?;
+        let column_label_width = max_text_width(&self.columns, LABEL_FONT)?;
+        let cell_width = MIN_CELL_WIDTH.max(cell_text_width.max(column_label_width) + CELL_PADDING);
+        let row_labels_width =
+            max_text_width(&self.rows, LABEL_FONT)?.max(text_width(&self.row_label, AXIS_FONT)?);
+
+        // Everything in u64: absurd grids must give a size error, not an overflow.
+        let wide = u64::from;
+        let has_nan = self.values.iter().any(|v| v.is_nan());
+        let grid_width = wide(cell_width) * self.columns.len() as u64;
+        let grid_height = wide(CELL_HEIGHT) * self.rows.len() as u64;
+        let swatch_block = if has_nan { wide(SWATCH_BLOCK) } else { 0 };
+        let bar_height = grid_height
+            .saturating_sub(swatch_block)
+            .max(wide(MIN_BAR_HEIGHT));
+        let body_height = grid_height.max(bar_height + swatch_block);
+
+        let mut grid_top = wide(MARGIN);
+        if !self.title.is_empty() {
+            grid_top += wide(TITLE_LINE);
+        }
+        if !self.column_label.is_empty() {
+            grid_top += wide(LABEL_LINE);
+        }
+        grid_top += wide(LABEL_LINE); // column labels, and the row and colour-bar titles
+        let grid_left = wide(MARGIN) + wide(row_labels_width) + wide(ROW_LABEL_GAP);
+        let bar_left = grid_left + grid_width + wide(BAR_GAP);
+        let tick_label_width = max_text_width(HEATMAP_TICKS.map(format_tick), LABEL_FONT)?;
+        let bar_area_width = wide(BAR_WIDTH + TICK + 4 + tick_label_width)
+            .max(wide(text_width(&self.value_label, AXIS_FONT)?))
+            .max(if has_nan {
+                wide(SWATCH + 6 + text_width(NO_VALUE_LABEL, LABEL_FONT)?)
+            } else {
+                0
+            });
+        let legend_top = grid_top + body_height + wide(LEGEND_GAP);
+        let legend_width = max_text_width(&self.legend, LEGEND_FONT)?;
+        let title_width = text_width(&self.title, TITLE_FONT)?;
+        let column_title_width = wide(text_width(&self.column_label, AXIS_FONT)?);
+        let column_title_right =
+            column_title_centre(grid_left, grid_width, column_title_width) + column_title_width / 2;
+        let width = (bar_left + bar_area_width + wide(MARGIN))
+            .max(column_title_right + wide(MARGIN))
+            .max(wide(legend_width) + 2 * wide(MARGIN))
+            .max(wide(title_width) + 2 * wide(MARGIN))
+            .max(wide(SIZE_RANGE.0));
+        let height = if self.legend.is_empty() {
+            grid_top + body_height + wide(MARGIN)
+        } else {
+            legend_top + wide(LEGEND_LINE) * self.legend.len() as u64 + wide(MARGIN)
+        }
+        .max(wide(SIZE_RANGE.0));
+        let narrow = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        let (width, height) = (narrow(width), narrow(height));
+        check_size(width, height, SIZE_RANGE.0)?;
+        // Every position is below the checked image size from here on.
+        Ok(HeatmapLayout {
+            width,
+            height,
+            cell_width,
+            cell_height: CELL_HEIGHT,
+            grid_left: narrow(grid_left),
+            grid_top: narrow(grid_top),
+            bar_left: narrow(bar_left),
+            bar_top: narrow(grid_top),
+            bar_height: narrow(bar_height),
+            legend_top: narrow(legend_top),
+        })
+    }
+}
+
+/// Renders a heat map: a grid of coloured cells, each with its value (two decimals) and text,
+/// row and column labels, a colour bar of the value scale (with a "no value" swatch if a value
+/// is NaN) and legend lines under the grid. The image size follows from the grid (see
+/// [`Heatmap::layout`]); for 24 rows × 7 columns with short labels it is about 900 × 830
+/// pixels.
+///
+/// Cells are coloured with [`heatmap_colour`] (viridis; [`HEATMAP_NO_VALUE`] grey for NaN);
+/// their text is black or white, whichever contrasts more with the cell.
+///
+/// # Errors
+/// A [`PlotError`] naming `path`: no rows or columns, a wrong number of values or cell texts,
+/// a value outside `[0, 1]` that is not NaN, an image larger than [`SIZE_RANGE`] allows, or a
+/// drawing/writing failure (e.g. the directory does not exist).
+pub fn render_heatmap_png(map: &Heatmap, path: &Path) -> Result<(), PlotError> {
+    render_heatmap(map, path).map_err(|kind| PlotError::new(path, kind))
+}
+
+/// Anchor of text: horizontal `h`, vertically centred on the given `y`.
+fn anchored(
+    style: TextStyle<'static>,
+    h: plotters::style::text_anchor::HPos,
+) -> TextStyle<'static> {
+    style.pos(plotters::style::text_anchor::Pos::new(
+        h,
+        plotters::style::text_anchor::VPos::Center,
+    ))
+}
+
+fn render_heatmap(map: &Heatmap, path: &Path) -> Result<(), PlotErrorKind> {
+    use heat::*;
+    use plotters::style::text_anchor::HPos;
+    let layout = map.layout()?;
+    let root = BitMapBackend::new(path, (layout.width, layout.height)).into_drawing_area();
+    root.fill(&WHITE).map_err(drawing)?;
+    let (cw, ch) = (layout.cell_width as i32, layout.cell_height as i32);
+    let (grid_left, grid_top) = (layout.grid_left as i32, layout.grid_top as i32);
+    let columns = map.columns.len();
+    let margin = MARGIN as i32;
+
+    // Title, column title, then the line of column labels (with the row and bar titles).
+    let mut y = margin;
+    if !map.title.is_empty() {
+        root.draw(&Text::new(
+            map.title.clone(),
+            (layout.width as i32 / 2, y + TITLE_LINE as i32 / 2 - 2),
+            anchored(heat_font(TITLE_FONT), HPos::Center),
+        ))
+        .map_err(drawing)?;
+        y += TITLE_LINE as i32;
+    }
+    if !map.column_label.is_empty() {
+        root.draw(&Text::new(
+            map.column_label.clone(),
+            (
+                column_title_centre(
+                    u64::from(layout.grid_left),
+                    u64::from(layout.cell_width) * columns as u64,
+                    u64::from(text_width(&map.column_label, AXIS_FONT)?),
+                ) as i32,
+                y + LABEL_LINE as i32 / 2,
+            ),
+            anchored(heat_font(AXIS_FONT), HPos::Center),
+        ))
+        .map_err(drawing)?;
+        y += LABEL_LINE as i32;
+    }
+    let header_y = y + LABEL_LINE as i32 / 2;
+    for (c, label) in map.columns.iter().enumerate() {
+        root.draw(&Text::new(
+            label.clone(),
+            (grid_left + cw * c as i32 + (cw - 1) / 2, header_y),
+            anchored(heat_font(LABEL_FONT), HPos::Center),
+        ))
+        .map_err(drawing)?;
+    }
+    let row_label_right = grid_left - ROW_LABEL_GAP as i32;
+    if !map.row_label.is_empty() {
+        root.draw(&Text::new(
+            map.row_label.clone(),
+            (row_label_right, header_y),
+            anchored(heat_font(AXIS_FONT), HPos::Right),
+        ))
+        .map_err(drawing)?;
+    }
+
+    // Cells, separated by 1-pixel white lines.
+    for (r, label) in map.rows.iter().enumerate() {
+        let top = grid_top + ch * r as i32;
+        root.draw(&Text::new(
+            label.clone(),
+            (row_label_right, top + (ch - 1) / 2),
+            anchored(heat_font(LABEL_FONT), HPos::Right),
+        ))
+        .map_err(drawing)?;
+        for c in 0..columns {
+            let index = r * columns + c;
+            let left = grid_left + cw * c as i32;
+            let colour = heatmap_colour(map.values[index]);
+            root.draw(&Rectangle::new(
+                [(left, top), (left + cw - 1, top + ch - 1)],
+                colour.filled(),
+            ))
+            .map_err(drawing)?;
+            let text = cell_label(map, index);
+            if !text.is_empty() {
+                let font = (FAMILY, CELL_FONT)
+                    .into_font()
+                    .color(&text_colour_on(colour));
+                root.draw(&Text::new(
+                    text,
+                    (left + (cw - 1) / 2, top + (ch - 1) / 2),
+                    anchored(font, HPos::Center),
+                ))
+                .map_err(drawing)?;
+            }
+        }
+    }
+
+    // Colour bar: 1 at the top, 0 at the bottom, ticks and labels on its right.
+    let (bar_left, bar_top) = (layout.bar_left as i32, layout.bar_top as i32);
+    let bar_height = layout.bar_height as i32;
+    let bar_right = bar_left + BAR_WIDTH as i32;
+    if !map.value_label.is_empty() {
+        root.draw(&Text::new(
+            map.value_label.clone(),
+            (bar_left, header_y),
+            anchored(heat_font(AXIS_FONT), HPos::Left),
+        ))
+        .map_err(drawing)?;
+    }
+    let bar_value = |offset: i32| 1.0 - f64::from(offset) / f64::from((bar_height - 1).max(1));
+    for offset in 0..bar_height {
+        let y = bar_top + offset;
+        root.draw(&Rectangle::new(
+            [(bar_left, y), (bar_right, y + 1)],
+            heatmap_colour(bar_value(offset)).filled(),
+        ))
+        .map_err(drawing)?;
+    }
+    for tick in HEATMAP_TICKS {
+        let y = bar_top + ((1.0 - tick) * f64::from(bar_height - 1)).round() as i32;
+        root.draw(&PathElement::new(
+            vec![(bar_right, y), (bar_right + TICK as i32, y)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(drawing)?;
+        root.draw(&Text::new(
+            format_tick(tick),
+            (bar_right + TICK as i32 + 4, y),
+            anchored(heat_font(LABEL_FONT), HPos::Left),
+        ))
+        .map_err(drawing)?;
+    }
+    if map.values.iter().any(|v| v.is_nan()) {
+        let top = bar_top + bar_height + (SWATCH_BLOCK - SWATCH) as i32 / 2 + 2;
+        let swatch = [
+            (bar_left, top),
+            (bar_left + SWATCH as i32, top + SWATCH as i32),
+        ];
+        root.draw(&Rectangle::new(swatch, HEATMAP_NO_VALUE.filled()))
+            .map_err(drawing)?;
+        root.draw(&Text::new(
+            NO_VALUE_LABEL,
+            (bar_left + SWATCH as i32 + 6, top + SWATCH as i32 / 2),
+            anchored(heat_font(LABEL_FONT), HPos::Left),
+        ))
+        .map_err(drawing)?;
+    }
+
+    // Legend lines.
+    for (i, line) in map.legend.iter().enumerate() {
+        let y = layout.legend_top as i32 + LEGEND_LINE as i32 * i as i32 + LEGEND_LINE as i32 / 2;
+        root.draw(&Text::new(
+            line.clone(),
+            (margin, y),
+            anchored(heat_font(LEGEND_FONT), HPos::Left),
+        ))
+        .map_err(drawing)?;
     }
     root.present().map_err(drawing)
 }

@@ -444,6 +444,73 @@ pub fn read_edge_directory_with_nodes(
     Ok(EdgeStatistics { map, attempts })
 }
 
+/// The text of an edge file: one `t duration success` line per attempt, numbers written so that
+/// they read back bit for bit.
+pub fn encode_edge_file(attempts: &[EdgeAttempt]) -> String {
+    let mut text = String::with_capacity(32 * attempts.len());
+    for a in attempts {
+        text.push_str(&format!(
+            "{} {} {}\n",
+            a.time,
+            a.duration_secs,
+            u8::from(a.success)
+        ));
+    }
+    text
+}
+
+/// Writes `stats` as a directory of edge files that [`read_edge_directory`] reads back: one
+/// `<id>.data` per edge with at least one attempt (an edge file cannot be empty, and the
+/// original data have no file for an edge without attempts either). Creates `dir` if needed;
+/// returns the number of files written.
+///
+/// # Errors
+/// [`TopoFileErrorKind::InvalidInput`] naming `dir` if it already holds edge files (they would
+/// mix with the new ones) or `stats` does not have one attempt list per edge;
+/// [`TopoFileErrorKind::Io`] if it cannot be created, listed or written.
+pub fn write_edge_directory(
+    dir: impl AsRef<Path>,
+    stats: &EdgeStatistics,
+) -> Result<usize, TopoFileError> {
+    let dir = dir.as_ref();
+    let name = dir.display().to_string();
+    let io_error = |action: &'static str, io: io::Error| {
+        TopoFileError::new(Some(&name), None, TopoFileErrorKind::Io { action, io })
+    };
+    if stats.attempts.len() != stats.map.edges().len() {
+        return Err(TopoFileError::invalid_input(format!(
+            "{} attempt lists for {} edges",
+            stats.attempts.len(),
+            stats.map.edges().len()
+        ))
+        .with_file(&name));
+    }
+    fs::create_dir_all(dir).map_err(|io| io_error("create the directory", io))?;
+    for entry in fs::read_dir(dir).map_err(|io| io_error("list the directory", io))? {
+        let entry = entry.map_err(|io| io_error("list the directory", io))?;
+        if let Some(file) = entry.file_name().to_str()
+            && edge_stem(file).is_some()
+        {
+            return Err(TopoFileError::invalid_input(format!(
+                "it already holds edge files ({file}); choose an empty directory"
+            ))
+            .with_file(&name));
+        }
+    }
+    let mut written = 0;
+    for (edge, attempts) in stats.map.edges().iter().zip(&stats.attempts) {
+        if attempts.is_empty() {
+            continue;
+        }
+        write_file(
+            &dir.join(format!("{}.data", edge.id)),
+            encode_edge_file(attempts).as_bytes(),
+        )?;
+        written += 1;
+    }
+    Ok(written)
+}
+
 /// Whether a file of an edge directory is one of the ignored `path*.txt` lists.
 fn is_path_list(file_name: &str) -> bool {
     file_name.starts_with("path") && file_name.ends_with(".txt")

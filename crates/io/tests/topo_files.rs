@@ -1078,3 +1078,41 @@ fn witham_edge_models_round_trip_through_a_checked_model_file() {
     assert!(err.contains("\"fremen\""), "{err}");
     fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn witham_split_writes_directories_that_read_back_exactly() {
+    use chronomap_io::topo_files::write_edge_directory;
+
+    let stats = read_edge_directory(witham_edges()).unwrap();
+    let (before, after) = stats.split_at(1_408_492_800.0);
+    let dir = scratch("split_write");
+    let written = write_edge_directory(dir.join("before"), &before).unwrap();
+    assert_eq!(
+        written,
+        before.attempts.iter().filter(|a| !a.is_empty()).count()
+    );
+    write_edge_directory(dir.join("after"), &after).unwrap();
+    for (part, original) in [("before", &before), ("after", &after)] {
+        let back = read_edge_directory(dir.join(part)).unwrap();
+        assert_eq!(back.total_attempts(), original.total_attempts());
+        for (edge, attempts) in back.map.edges().iter().zip(&back.attempts) {
+            assert_eq!(
+                Some(attempts.as_slice()),
+                original.attempts_of(&edge.id),
+                "{part} {}",
+                edge.id
+            );
+        }
+    }
+    assert_eq!(
+        before.total_attempts() + after.total_attempts(),
+        stats.total_attempts()
+    );
+    // Writing into a directory that already holds edge files would mix two data sets.
+    let err = write_edge_directory(dir.join("before"), &before).unwrap_err();
+    assert!(
+        err.to_string().contains("already holds edge files"),
+        "{err}"
+    );
+    fs::remove_dir_all(dir).unwrap();
+}
