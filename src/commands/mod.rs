@@ -1,6 +1,7 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
 mod bench;
+mod bench_plan;
 mod compress;
 mod demo;
 mod demo_grids;
@@ -9,13 +10,14 @@ mod explore;
 mod grid;
 mod model;
 mod synthetic;
+mod topo;
 
 use anyhow::{Context, Result};
 use chronomap_core::AnyModel;
 use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
-use crate::cli::{BenchCommand, Command, GridCommand, SeriesSource};
+use crate::cli::{BenchCommand, Command, GridCommand, SeriesSource, TopoCommand};
 
 /// Runs one subcommand.
 pub fn run(command: Command) -> Result<()> {
@@ -32,7 +34,13 @@ pub fn run(command: Command) -> Result<()> {
         Command::Grid(GridCommand::Stats(args)) => grid::stats(&args),
         Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
+        Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
         Command::Explore(args) => explore::run(&args),
+        Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
+        Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
+        Command::Topo(TopoCommand::Split(args)) => topo::split(&args),
+        Command::Topo(TopoCommand::Predict(args)) => topo::predict(&args),
+        Command::Plan(args) => topo::plan(&args),
     }
 }
 
