@@ -100,3 +100,84 @@ pub fn test_set((times, values): &(Bundled, Bundled)) -> Result<TimeSeries> {
         decompressing_reader(values.name, values.bytes),
     )?)
 }
+
+/// The Witham Wharf edge-traversal files (seed 003; `data/witham_topological_nav/edges`).
+pub const WITHAM_EDGES: [Bundled; 61] = [
+    bundled!("witham_topological_nav/edges/Aisle1_Aisle2.data.xz"),
+    bundled!("witham_topological_nav/edges/Aisle1_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/Aisle2_Aisle1.data.xz"),
+    bundled!("witham_topological_nav/edges/Aisle2_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/ChargingPoint_Station.data.xz"),
+    bundled!("witham_topological_nav/edges/GroundCentral_Kitchen.data.xz"),
+    bundled!("witham_topological_nav/edges/GroundCentral_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/GroundCentral_Sofas.data.xz"),
+    bundled!("witham_topological_nav/edges/GroundCentral_WayPoint3.data.xz"),
+    bundled!("witham_topological_nav/edges/GroundCentral_WayPoint4.data.xz"),
+    bundled!("witham_topological_nav/edges/Kitchen_GroundCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/Kitchen_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/Kitchen_Sofas.data.xz"),
+    bundled!("witham_topological_nav/edges/Kitchen_WayPoint3.data.xz"),
+    bundled!("witham_topological_nav/edges/LabCentral_LabDesk.data.xz"),
+    bundled!("witham_topological_nav/edges/LabCentral_LabDoor1.data.xz"),
+    bundled!("witham_topological_nav/edges/LabCentral_Station.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDesk_LabCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDesk_LabDoor1.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDesk_Station.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor1_LabCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor1_LabDesk.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor1_LabDoor2.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor1_Station.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor2_LabDoor1.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor2_Printer.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor2_WayPoint1.data.xz"),
+    bundled!("witham_topological_nav/edges/LabDoor2_WayPoint2.data.xz"),
+    bundled!("witham_topological_nav/edges/Printer_LabDoor2.data.xz"),
+    bundled!("witham_topological_nav/edges/Printer_Ramp1.data.xz"),
+    bundled!("witham_topological_nav/edges/Printer_WayPoint1.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp1_Printer.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp1_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp1_WayPoint2.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_Aisle1.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_Aisle2.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_GroundCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_Kitchen.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_Ramp1.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_Sofas.data.xz"),
+    bundled!("witham_topological_nav/edges/Ramp2_WayPoint4.data.xz"),
+    bundled!("witham_topological_nav/edges/Sofas_GroundCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/Sofas_Kitchen.data.xz"),
+    bundled!("witham_topological_nav/edges/Sofas_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/Sofas_WayPoint3.data.xz"),
+    bundled!("witham_topological_nav/edges/Station_ChargingPoint.data.xz"),
+    bundled!("witham_topological_nav/edges/Station_LabCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/Station_LabDesk.data.xz"),
+    bundled!("witham_topological_nav/edges/Station_LabDoor1.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint1_LabDoor2.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint1_Printer.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint2_LabDoor2.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint2_Ramp1.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint3_Kitchen.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint3_Sofas.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint3_WayPoint4.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint4_GroundCentral.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint4_Kitchen.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint4_Ramp2.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint4_Sofas.data.xz"),
+    bundled!("witham_topological_nav/edges/WayPoint4_WayPoint3.data.xz"),
+];
+
+/// Reads the embedded Witham edge files as `read_edge_directory` reads the directory.
+pub fn witham_edges() -> Result<chronomap_io::EdgeStatistics> {
+    let files: Vec<(&str, &[u8])> = WITHAM_EDGES
+        .iter()
+        .map(|b| {
+            let file_name = b.name.rsplit('/').next().unwrap_or(b.name);
+            (file_name, b.bytes)
+        })
+        .collect();
+    Ok(chronomap_io::read_edge_files(
+        "witham_topological_nav/edges",
+        &files,
+        &[],
+    )?)
+}

@@ -219,11 +219,21 @@ fn demo_runs_on_bundled_data_and_writes_plots() {
         .unwrap();
     assert_eq!(fremen4.matches("0.0670").count(), 2, "{fremen4}");
     assert!(text.contains("lossless"), "{text}");
+    // Section 5: the Witham edge models beat the static rates online (0.0336 vs 0.1297).
+    let online = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("online:"))
+        .unwrap();
+    assert!(
+        online.contains("0.0336") && online.contains("0.1297"),
+        "{online}"
+    );
     for png in [
         "tom_door_week.png",
         "tom_door_spectrum.png",
         "greg_door_test_week.png",
         "greg_door_spectrum.png",
+        "witham_now_or_later.png",
     ] {
         let size = std::fs::metadata(dir.join(png))
             .map(|m| m.len())

@@ -143,12 +143,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     }
     let out = (!args.no_plots).then_some(args.out.as_path());
     let mut written = super::demo_grids::run(out)?;
+    written.extend(super::demo_topo::run(out)?);
     if !args.no_plots {
         written.splice(
             0..0,
             plots(&args.out, &tom_train, &train, &tests[0], &greg)?,
         );
-        println!("\n5. Files written:");
+        println!("\n6. Files written:");
         for path in written {
             println!("   {}", path);
         }
@@ -212,7 +213,7 @@ fn print_significant(report: &EvalReport, max: usize) {
     }
 }
 
-fn indent(text: &str) -> String {
+pub(super) fn indent(text: &str) -> String {
     text.lines()
         .map(|l| format!("   {l}"))
         .collect::<Vec<_>>()

@@ -5,6 +5,7 @@ mod bench_plan;
 mod compress;
 mod demo;
 mod demo_grids;
+mod demo_topo;
 mod eval;
 mod explore;
 mod grid;

@@ -486,50 +486,118 @@ fn code(i: usize) -> String {
     }
 }
 
-pub fn plan(args: &PlanArgs) -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    let models = load(&args.model)?;
-    let map = models.map();
-    let start = map
-        .node(&args.from)
-        .with_context(|| format!("--from {}", args.from))?;
-    let task = Task::parse(&args.task, map).context("--task")?;
-    let options = SolverOptions::default();
-    if let Some(t) = args.when.time {
-        return plan_once(args, &models, start, &task, t, &options);
-    }
-    let first_day = match args
-        .week_of
-        .or_else(|| models.last_time().map(|t| t + 86_400.0))
-    {
-        Some(t) => (t / 86_400.0).floor() * 86_400.0,
-        None => bail!("the model has seen no attempt; give --week-of"),
-    };
-    let per_day = 1440 / args.step_mins as usize;
-    let times: Vec<f64> = (0..args.days as usize)
-        .flat_map(|d| {
-            (0..per_day).map(move |k| {
-                first_day + 86_400.0 * d as f64 + 60.0 * (k * args.step_mins as usize) as f64
+/// A now-or-later table (seed 003 Table III): the plans of `days` days × `per_day` start
+/// times, `step_mins` apart from midnight UTC of `first_day`; day-major.
+pub(super) struct DayTable<'a> {
+    map: &'a TopoMap,
+    task: String,
+    from: String,
+    first_day: f64,
+    days: usize,
+    per_day: usize,
+    step_mins: usize,
+    plans: Vec<PlanAt>,
+    /// The first edges that occur, in edge order: edge `codes[i]` is written `code(i)`.
+    codes: Vec<usize>,
+    /// Seconds spent planning.
+    pub(super) seconds: f64,
+}
+
+impl<'a> DayTable<'a> {
+    /// Plans `task` from `from` at every start time.
+    pub(super) fn compute(
+        models: &'a EdgeModels,
+        from: &str,
+        task: &str,
+        first_day: f64,
+        days: usize,
+        step_mins: usize,
+    ) -> Result<Self> {
+        let map = models.map();
+        let start = map.node(from).with_context(|| format!("--from {from}"))?;
+        let parsed = Task::parse(task, map).context("--task")?;
+        let first_day = (first_day / 86_400.0).floor() * 86_400.0;
+        let per_day = 1440 / step_mins.max(1);
+        let times: Vec<f64> = (0..days)
+            .flat_map(|d| {
+                (0..per_day)
+                    .map(move |k| first_day + 86_400.0 * d as f64 + 60.0 * (k * step_mins) as f64)
             })
+            .collect();
+        let started = Instant::now();
+        let plans = now_or_later(models, start, &parsed, &times, &SolverOptions::default())?;
+        let seconds = started.elapsed().as_secs_f64();
+        let mut codes: Vec<usize> = plans.iter().filter_map(|p| p.first_edge).collect();
+        codes.sort_unstable();
+        codes.dedup();
+        Ok(DayTable {
+            map,
+            task: task.to_string(),
+            from: from.to_string(),
+            first_day,
+            days,
+            per_day,
+            step_mins,
+            plans,
+            codes,
+            seconds,
         })
-        .collect();
-    let started = Instant::now();
-    let table = now_or_later(&models, start, &task, &times, &options)?;
-    let seconds = started.elapsed().as_secs_f64();
-    let edge_id = |p: &PlanAt| p.first_edge.map(|e| map.edges()[e].id.clone());
-    let mut codes: Vec<usize> = table.iter().filter_map(|p| p.first_edge).collect();
-    codes.sort_unstable();
-    codes.dedup();
-    let code_of = |p: &PlanAt| {
-        p.first_edge
-            .and_then(|e| codes.iter().position(|&c| c == e))
-            .map_or_else(|| "-".to_string(), code)
-    };
-    if let Some(path) = &args.plot {
-        plot_table(args, &table, per_day, &codes, map, path)?;
     }
-    if args.json {
-        let rows: Vec<Value> = table
+
+    fn at(&self, day: usize, k: usize) -> &PlanAt {
+        &self.plans[day * self.per_day + k]
+    }
+
+    fn code_of(&self, p: &PlanAt) -> String {
+        p.first_edge
+            .and_then(|e| self.codes.iter().position(|&c| c == e))
+            .map_or_else(|| "-".to_string(), code)
+    }
+
+    fn row_label(&self, k: usize) -> String {
+        let minutes = k * self.step_mins;
+        format!("{:02}:{:02}", minutes / 60, minutes % 60)
+    }
+
+    fn day_label(&self, d: usize) -> String {
+        day_label(self.first_day + 86_400.0 * d as f64)
+    }
+
+    fn legend(&self) -> Vec<String> {
+        self.codes
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| format!("{} = {}", code(i), self.map.edges()[e].id))
+            .chain(std::iter::once(
+                "- = nothing to do (the task holds, or cannot be fulfilled)".to_string(),
+            ))
+            .collect()
+    }
+
+    /// The table as text: `Pmax code` per start time (rows) and day (columns), then the legend.
+    pub(super) fn render(&self) -> String {
+        let mut header = vec!["start (UTC)".to_string()];
+        header.extend((0..self.days).map(|d| self.day_label(d)));
+        let mut grid = Table::new(header);
+        for k in 0..self.per_day {
+            let mut row = vec![self.row_label(k)];
+            for d in 0..self.days {
+                let p = self.at(d, k);
+                row.push(format!("{:.2} {}", p.pmax, self.code_of(p)));
+            }
+            grid.row(row);
+        }
+        let mut text = grid.render();
+        for line in self.legend() {
+            text.push_str(&format!("\n  {line}"));
+        }
+        text
+    }
+
+    /// The plans as JSON.
+    fn json(&self) -> Value {
+        let rows: Vec<Value> = self
+            .plans
             .iter()
             .map(|p| {
                 json!({
@@ -537,15 +605,72 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
                     "utc": time(p.time),
                     "pmax": p.pmax,
                     "expected_secs": p.expected_secs,
-                    "first_edge": edge_id(p),
+                    "first_edge": p.first_edge.map(|e| self.map.edges()[e].id.clone()),
                 })
             })
             .collect();
-        writeln!(
-            out,
-            "{}",
-            json!({"task": args.task, "from": args.from, "plans": rows, "seconds": seconds})
-        )?;
+        json!({"task": self.task, "from": self.from, "plans": rows, "seconds": self.seconds})
+    }
+
+    /// Writes the table as a PNG heat map.
+    pub(super) fn plot(&self, path: &Path) -> Result<()> {
+        let heatmap = Heatmap {
+            title: format!(
+                "Now or later? P(success) of {:?} from {}",
+                self.task, self.from
+            ),
+            row_label: "start (UTC)".to_string(),
+            column_label: "day".to_string(),
+            rows: (0..self.per_day).map(|k| self.row_label(k)).collect(),
+            columns: (0..self.days).map(|d| self.day_label(d)).collect(),
+            // Row-major, one row per start time.
+            values: (0..self.per_day)
+                .flat_map(|k| (0..self.days).map(move |d| (d, k)))
+                .map(|(d, k)| self.at(d, k).pmax.clamp(0.0, 1.0))
+                .collect(),
+            cell_text: (0..self.per_day)
+                .flat_map(|k| (0..self.days).map(move |d| (d, k)))
+                .map(|(d, k)| self.code_of(self.at(d, k)))
+                .collect(),
+            value_label: "Pmax".to_string(),
+            legend: self.legend(),
+        };
+        render_heatmap_png(&heatmap, path)?;
+        Ok(())
+    }
+}
+
+pub fn plan(args: &PlanArgs) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    let models = load(&args.model)?;
+    let map = models.map();
+    if let Some(t) = args.when.time {
+        let start = map
+            .node(&args.from)
+            .with_context(|| format!("--from {}", args.from))?;
+        let task = Task::parse(&args.task, map).context("--task")?;
+        return plan_once(args, &models, start, &task, t, &SolverOptions::default());
+    }
+    let first_day = match args
+        .week_of
+        .or_else(|| models.last_time().map(|t| t + 86_400.0))
+    {
+        Some(t) => t,
+        None => bail!("the model has seen no attempt; give --week-of"),
+    };
+    let table = DayTable::compute(
+        &models,
+        &args.from,
+        &args.task,
+        first_day,
+        args.days as usize,
+        args.step_mins as usize,
+    )?;
+    if let Some(path) = &args.plot {
+        table.plot(path)?;
+    }
+    if args.json {
+        writeln!(out, "{}", table.json())?;
         return Ok(());
     }
     writeln!(
@@ -553,83 +678,10 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
         "task {:?} from {}: maximum probability of success and first action, {} start times in {:.2} s",
         args.task,
         args.from,
-        table.len(),
-        seconds
+        table.plans.len(),
+        table.seconds
     )?;
-    let mut header = vec!["start (UTC)".to_string()];
-    header.extend((0..args.days as usize).map(|d| day_label(first_day + 86_400.0 * d as f64)));
-    let mut grid = Table::new(header);
-    for k in 0..per_day {
-        let minutes = k * args.step_mins as usize;
-        let mut row = vec![format!("{:02}:{:02}", minutes / 60, minutes % 60)];
-        for d in 0..args.days as usize {
-            let p = &table[d * per_day + k];
-            row.push(format!("{:.2} {}", p.pmax, code_of(p)));
-        }
-        grid.row(row);
-    }
-    writeln!(out, "{}", grid.render())?;
-    for (i, &e) in codes.iter().enumerate() {
-        let edge = &map.edges()[e];
-        writeln!(out, "  {} = {}", code(i), edge.id)?;
-    }
-    writeln!(
-        out,
-        "  - = nothing to do (the task holds, or cannot be fulfilled)"
-    )?;
-    Ok(())
-}
-
-fn plot_table(
-    args: &PlanArgs,
-    table: &[PlanAt],
-    per_day: usize,
-    codes: &[usize],
-    map: &TopoMap,
-    path: &Path,
-) -> Result<()> {
-    let days = table.len() / per_day.max(1);
-    let first_day = table.first().map_or(0.0, |p| p.time);
-    let heatmap = Heatmap {
-        title: format!(
-            "Now or later? P(success) of {:?} from {}",
-            args.task, args.from
-        ),
-        row_label: "start (UTC)".to_string(),
-        column_label: "day".to_string(),
-        rows: (0..per_day)
-            .map(|k| {
-                let minutes = k * args.step_mins as usize;
-                format!("{:02}:{:02}", minutes / 60, minutes % 60)
-            })
-            .collect(),
-        columns: (0..days)
-            .map(|d| day_label(first_day + 86_400.0 * d as f64))
-            .collect(),
-        // The table is day-major; the heat map is row-major with one row per start time.
-        values: (0..per_day)
-            .flat_map(|k| (0..days).map(move |d| table[d * per_day + k].pmax.clamp(0.0, 1.0)))
-            .collect(),
-        cell_text: (0..per_day)
-            .flat_map(|k| (0..days).map(move |d| (d, k)))
-            .map(|(d, k)| {
-                table[d * per_day + k]
-                    .first_edge
-                    .and_then(|e| codes.iter().position(|&c| c == e))
-                    .map_or_else(|| "-".to_string(), code)
-            })
-            .collect(),
-        value_label: "Pmax".to_string(),
-        legend: codes
-            .iter()
-            .enumerate()
-            .map(|(i, &e)| format!("{} = {}", code(i), map.edges()[e].id))
-            .chain(std::iter::once(
-                "- = nothing to do (the task holds, or cannot be fulfilled)".to_string(),
-            ))
-            .collect(),
-    };
-    render_heatmap_png(&heatmap, path)?;
+    writeln!(out, "{}", table.render())?;
     Ok(())
 }
 

@@ -89,6 +89,6 @@ pub use text::{
 pub use topo_files::{
     EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
     encode_edge_file, encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
-    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_tmap2,
-    write_edge_directory, write_route_geojson, write_tmap2,
+    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
+    read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
 };

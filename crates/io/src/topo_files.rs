@@ -372,6 +372,56 @@ pub fn read_edge_directory_with_nodes(
         files.push((stem, file_name, path));
     }
     files.sort();
+    statistics_of_files(&dir_name, nodes, &files, |path| read_edge_file(path))
+}
+
+/// As [`read_edge_directory_with_nodes`], from edge files in memory: `(file name, contents)`
+/// pairs (plain, `.xz` or `.gz` by the name's extension; names of path lists and hidden files
+/// are skipped as in a directory). `source` names the collection in errors; a file's errors
+/// name `source/file name`. Used for data embedded in a binary.
+///
+/// # Errors
+/// As [`read_edge_directory_with_nodes`].
+pub fn read_edge_files(
+    source: &str,
+    files: &[(&str, &[u8])],
+    nodes: &[&str],
+) -> Result<EdgeStatistics, DataError> {
+    let mut listed: Vec<(String, String, PathBuf)> = Vec::new();
+    for &(file_name, _) in files {
+        let path = Path::new(source).join(file_name);
+        if file_name.starts_with('.') || is_path_list(file_name) {
+            continue;
+        }
+        let stem = edge_stem(file_name).ok_or_else(|| {
+            DataError::new(
+                path.display().to_string(),
+                None,
+                DataErrorKind::UnexpectedFile,
+            )
+        })?;
+        listed.push((stem.to_owned(), file_name.to_owned(), path));
+    }
+    listed.sort();
+    statistics_of_files(source, nodes, &listed, |path| {
+        let name = path.display().to_string();
+        let file_name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let bytes = files
+            .iter()
+            .find(|(n, _)| *n == file_name)
+            .map_or(&[][..], |(_, b)| *b);
+        read_edge_file_from(&name, decompressing_reader(&name, bytes))
+    })
+}
+
+/// The map and attempts of sorted `(stem, file name, path)` edge files, each read by `read`.
+fn statistics_of_files(
+    dir_name: &str,
+    nodes: &[&str],
+    files: &[(String, String, PathBuf)],
+    read: impl Fn(&Path) -> Result<Vec<EdgeAttempt>, DataError>,
+) -> Result<EdgeStatistics, DataError> {
+    let dir_name = dir_name.to_owned();
     for pair in files.windows(2) {
         if pair[0].0 == pair[1].0 {
             return Err(DataError::new(
@@ -386,7 +436,7 @@ pub fn read_edge_directory_with_nodes(
     }
 
     let mut known: HashSet<&str> = nodes.iter().copied().collect();
-    for (stem, _, _) in &files {
+    for (stem, _, _) in files {
         if let Some((from, to)) = stem.split_once('_')
             && !to.contains('_')
         {
@@ -395,7 +445,7 @@ pub fn read_edge_directory_with_nodes(
         }
     }
     let mut ends = Vec::with_capacity(files.len());
-    for (stem, _, path) in &files {
+    for (stem, _, path) in files {
         let split = split_edge_stem(stem, &known).map_err(|reason| {
             DataError::new(
                 path.display().to_string(),
@@ -439,7 +489,7 @@ pub fn read_edge_directory_with_nodes(
     for ((stem, _, path), &(from, to)) in files.iter().zip(&ends) {
         map.add_edge(stem, from, to)
             .map_err(|e| map_error(&path.display().to_string(), e))?;
-        attempts.push(read_edge_file(path)?);
+        attempts.push(read(path)?);
     }
     Ok(EdgeStatistics { map, attempts })
 }

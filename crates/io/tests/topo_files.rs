@@ -12,7 +12,7 @@ use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
     TopoFileError, TopoFileErrorKind, decode_tmap2, encode_route_geojson, encode_tmap2,
     read_edge_directory, read_edge_directory_with_nodes, read_edge_file, read_edge_file_from,
-    read_tmap2, write_route_geojson, write_tmap2,
+    read_edge_files, read_tmap2, write_route_geojson, write_tmap2,
 };
 use serde_json::Value;
 
@@ -1115,4 +1115,33 @@ fn witham_split_writes_directories_that_read_back_exactly() {
         "{err}"
     );
     fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn edge_files_in_memory_read_as_the_directory() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/witham_topological_nav/edges");
+    let from_dir = read_edge_directory(&dir).unwrap();
+    let mut contents: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|entry| {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_str().unwrap().to_owned();
+            (name, std::fs::read(&path).unwrap())
+        })
+        .collect();
+    contents.reverse();
+    let files: Vec<(&str, &[u8])> = contents
+        .iter()
+        .map(|(n, b)| (n.as_str(), b.as_slice()))
+        .collect();
+    let from_memory = read_edge_files("witham", &files, &[]).unwrap();
+    assert_eq!(from_memory.map, from_dir.map);
+    assert_eq!(from_memory.attempts, from_dir.attempts);
+    assert_eq!(from_memory.total_attempts(), 25_316);
+    // Errors name the source and the file.
+    let bad: [(&str, &[u8]); 2] = [("A_B.data", b"1 -2 1\n"), ("B_A.data", b"1 2 1\n")];
+    let err = read_edge_files("embedded", &bad, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("embedded/A_B.data:1: duration"), "{err}");
 }
