@@ -1233,7 +1233,7 @@ impl Heatmap {
 
     /// Where [`render_heatmap_png`] will draw things, and the image size.
     ///
-    /// Cells are [`CELL_HEIGHT`](heat::CELL_HEIGHT) = 26 pixels tall and as wide as the widest
+    /// Cells are 26 pixels tall and as wide as the widest
     /// cell text or column label needs (text plus 14 pixels), at least 90 pixels. Left of the
     /// grid are the row labels, above it the title, the column title and the column labels,
     /// right of it the colour bar (at least 120 pixels tall) with its ticks, under it the
