@@ -54,6 +54,7 @@ pub mod ltl;
 pub mod mdp;
 pub mod mean;
 pub mod metrics;
+pub mod mixture;
 pub mod model;
 pub mod naive;
 pub mod observe;
