@@ -127,6 +127,19 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
             }
             println!("{}", table.render());
         }
+        AnyModel::Hypertime(m) => {
+            let periods: Vec<String> = m.periods().iter().map(|&p| period(p)).collect();
+            println!(
+                "{} mixture components over {} periodicities: {}",
+                m.components(),
+                m.periods().len(),
+                if periods.is_empty() {
+                    "none (the mean)".to_string()
+                } else {
+                    periods.join(", ")
+                }
+            );
+        }
         AnyModel::Fft(m) => {
             let (start, step) = m.sampling();
             println!(

@@ -49,6 +49,7 @@ pub mod explore;
 pub mod fft;
 pub mod fremen;
 pub mod grid;
+pub mod hypertime;
 pub mod hist;
 pub mod ltl;
 pub mod mdp;

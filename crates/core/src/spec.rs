@@ -24,6 +24,7 @@ use crate::error::{BuildError, ConfigError, ObservationError};
 use crate::fft::{FftFremen, FftFremenConfig};
 use crate::fremen::{FremenConfig, FremenModel};
 use crate::hist::HistogramModel;
+use crate::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
 use crate::mean::MeanModel;
 use crate::model::{Ordered, TemporalModel};
 use crate::observe::ObservedSpan;
@@ -83,6 +84,10 @@ pub enum ModelSpec {
     Fft(OrderSpec),
     /// `auto`.
     Auto,
+    /// `hyt-em:K` / `hyt-em:auto`: Warped Hypertime with EM clustering (seed 004, HyT-EM_k).
+    HypertimeEm(OrderSpec),
+    /// `hyt-km`: Warped Hypertime with k-means-initialised clustering, `k` by eq. 9 (HyT-KM).
+    HypertimeKm,
 }
 
 impl fmt::Display for ModelSpec {
@@ -106,12 +111,14 @@ impl fmt::Display for ModelSpec {
             } => write!(f, "pergam:{components}:{period_secs}"),
             ModelSpec::Fft(order) => write!(f, "fft:{order}"),
             ModelSpec::Auto => f.write_str("auto"),
+            ModelSpec::HypertimeEm(order) => write!(f, "hyt-em:{order}"),
+            ModelSpec::HypertimeKm => f.write_str("hyt-km"),
         }
     }
 }
 
 const ACCEPTED: &str = "mean, hist:N[:PERIOD], fremen:K|auto, persistence[:K|auto], stm, \
-                        pergam:K|auto[:PERIOD], fft:L|auto, auto";
+                        pergam:K|auto[:PERIOD], fft:L|auto, hyt-em:K|auto, hyt-km, auto";
 
 impl FromStr for ModelSpec {
     type Err = ConfigError;
@@ -203,6 +210,18 @@ impl FromStr for ModelSpec {
             "auto" => {
                 max_parts(1)?;
                 ModelSpec::Auto
+            }
+            "hyt-em" => {
+                max_parts(2)?;
+                let components = order(1, OrderSpec::Auto)?;
+                if components == OrderSpec::Fixed(0) {
+                    return Err(error("0 components; use 1 or more, or auto".into()));
+                }
+                ModelSpec::HypertimeEm(components)
+            }
+            "hyt-km" => {
+                max_parts(1)?;
+                ModelSpec::HypertimeKm
             }
             other => return Err(error(format!("unknown model {other:?}"))),
         };
@@ -407,9 +426,37 @@ impl ModelSpec {
             }
             ModelSpec::Fft(order) => fit_fft(order, times, values, options)?,
             ModelSpec::Auto => fit_auto(times, values, options)?,
+            ModelSpec::HypertimeEm(components) => {
+                let components = match components {
+                    OrderSpec::Fixed(k) => Components::Fixed(k),
+                    OrderSpec::Auto => Components::Auto,
+                };
+                fit_hypertime(Clustering::Em(components), times, values, options)?
+            }
+            ModelSpec::HypertimeKm => {
+                fit_hypertime(Clustering::KMeans, times, values, options)?
+            }
         };
         Ok(fitted)
     }
+}
+
+/// A Warped Hypertime model of all the data (it chooses its periodicities, and for `Auto` its
+/// components, on the most recent `options.holdout` itself).
+fn fit_hypertime(
+    clustering: Clustering,
+    times: &[f64],
+    values: &[f64],
+    options: &FitOptions,
+) -> Result<Fitted, BuildError> {
+    let mut config = HypertimeConfig::new(clustering);
+    config.holdout = options.holdout;
+    let mut model = HypertimeModel::new(config)?;
+    model.observe_and_fit(times, values)?;
+    Ok(Fitted {
+        model: AnyModel::Hypertime(Box::new(model)),
+        selection: None,
+    })
 }
 
 /// A model of fixed order observing everything, or one whose order is chosen on the most
@@ -537,6 +584,8 @@ pub enum AnyModel {
     Pergam(PergamModel),
     /// [`FftFremen`].
     Fft(FftFremen),
+    /// [`HypertimeModel`].
+    Hypertime(Box<HypertimeModel>),
 }
 
 macro_rules! delegate {
@@ -549,6 +598,7 @@ macro_rules! delegate {
             AnyModel::Markov($m) => $body,
             AnyModel::Pergam($m) => $body,
             AnyModel::Fft($m) => $body,
+            AnyModel::Hypertime($m) => $body,
         }
     };
 }
@@ -582,6 +632,10 @@ impl AnyModel {
             AnyModel::Markov(_) => "stm",
             AnyModel::Pergam(_) => "pergam",
             AnyModel::Fft(_) => "fft",
+            AnyModel::Hypertime(m) => match m.config().clustering {
+                Clustering::Em(_) => "hyt-em",
+                Clustering::KMeans => "hyt-km",
+            },
         }
     }
 
@@ -601,6 +655,10 @@ impl AnyModel {
                 period_secs: m.config().period_secs,
             },
             AnyModel::Fft(m) => ModelSpec::Fft(OrderSpec::Fixed(m.order())),
+            AnyModel::Hypertime(m) => match m.config().clustering {
+                Clustering::Em(_) => ModelSpec::HypertimeEm(OrderSpec::Fixed(m.components().max(1))),
+                Clustering::KMeans => ModelSpec::HypertimeKm,
+            },
         }
     }
 
@@ -637,6 +695,7 @@ impl AnyModel {
             AnyModel::Persistence(m) => m.fremen().is_consistent(),
             AnyModel::Pergam(m) => m.is_consistent(),
             AnyModel::Fft(m) => m.is_consistent(),
+            AnyModel::Hypertime(m) => m.is_consistent(),
         }
     }
 }
