@@ -44,6 +44,7 @@ pub mod crossings;
 pub mod edges;
 pub mod error;
 pub mod eval;
+pub mod events;
 pub mod exact;
 pub mod explore;
 pub mod fft;
