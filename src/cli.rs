@@ -590,13 +590,17 @@ pub struct GridPlotArgs {
 
 const EVAL_HELP: &str = "\
 Models: mean, hist:N[:PERIOD], fremen:K, fremen:auto, persistence[:K|auto], stm,
-pergam:K[:PERIOD], pergam:auto, fft:L|auto (uniform binary data), auto.
+pergam:K[:PERIOD], pergam:auto, fft:L|auto (uniform binary data), hyt-em:K|auto, hyt-km
+(Warped Hypertime), auto.
 
 Example:
   chronomap eval --train data/door_greg_2016/training_data.txt.xz \\
     --test data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz \\
     --test data/door_greg_2016/test_times_2.txt.xz,data/door_greg_2016/test_data_2.txt.xz \\
-    --models mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto --json";
+    --models mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto --json
+  # One file split in time: train before the first time, test between the times and after
+  chronomap eval --train data/witham_topological_nav/labdoor_velocity/training_data.txt.xz \
+    --split-at 2014-08-20,2014-08-27 --models mean,hist:24,fremen:auto,hyt-em:auto,hyt-km";
 
 const COMPRESS_HELP: &str = "\
 Example (the door week of the FreMEn paper, 604,800 one-second samples):
@@ -674,8 +678,12 @@ pub struct EvalArgs {
     #[arg(long)]
     pub train: PathBuf,
     /// A test set as TIMES,VALUES (two line-aligned files); repeat for more test sets.
-    #[arg(long = "test", value_parser = parse_file_pair, required = true)]
+    #[arg(long = "test", value_parser = parse_file_pair, required_unless_present = "split_at")]
     pub tests: Vec<(PathBuf, PathBuf)>,
+    /// Instead of --test: split the training file at these times (seconds or ISO 8601,
+    /// increasing): train on what comes before the first, test on each following interval.
+    #[arg(long, value_delimiter = ',', value_parser = parse_time, conflicts_with = "tests")]
+    pub split_at: Vec<f64>,
     /// Comma-separated models to evaluate.
     #[arg(long, value_parser = parse_models, default_value = "mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto")]
     pub models: ModelList,

@@ -2,7 +2,7 @@
 
 use std::io::{IsTerminal, Write};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use chronomap_core::eval::{EvalReport, TestSet, evaluate};
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
 use serde_json::json;
@@ -11,13 +11,76 @@ use super::describe_selection;
 use crate::cli::EvalArgs;
 use crate::format::{Table, duration, time};
 
+/// Test sets: their data and a (times, values) label each.
+type Tests = (Vec<TimeSeries>, Vec<(String, String)>);
+
+/// The training series and the test sets: from files, or one file split at times.
+fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
+    let all = read_pairs(&args.train)?;
+    if args.split_at.is_empty() {
+        let tests: Vec<TimeSeries> = args
+            .tests
+            .iter()
+            .map(|(t, v)| read_test_set(t, v))
+            .collect::<Result<_, _>>()?;
+        let labels = args
+            .tests
+            .iter()
+            .map(|(t, v)| (t.display().to_string(), v.display().to_string()))
+            .collect();
+        return Ok((all, (tests, labels)));
+    }
+    if let Some(w) = args.split_at.windows(2).find(|w| w[0] >= w[1]) {
+        bail!(
+            "--split-at: {} is not after {} (times must increase)",
+            time(w[1]),
+            time(w[0])
+        );
+    }
+    let part = |from: f64, to: f64| {
+        let (times, values): (Vec<f64>, Vec<f64>) = all
+            .times
+            .iter()
+            .zip(&all.values)
+            .filter(|&(&t, _)| t >= from && t < to)
+            .map(|(&t, &v)| (t, v))
+            .unzip();
+        TimeSeries { times, values }
+    };
+    let train = part(f64::NEG_INFINITY, args.split_at[0]);
+    if train.len() == 0 {
+        bail!(
+            "--split-at: {} has no observation before {}",
+            args.train.display(),
+            time(args.split_at[0])
+        );
+    }
+    let mut tests = Vec::new();
+    let mut labels = Vec::new();
+    for (i, &from) in args.split_at.iter().enumerate() {
+        let to = args.split_at.get(i + 1).copied().unwrap_or(f64::INFINITY);
+        let test = part(from, to);
+        let until = if to.is_finite() {
+            time(to)
+        } else {
+            "the end".to_string()
+        };
+        if test.len() == 0 {
+            bail!(
+                "--split-at: {} has no observation from {} to {until}",
+                args.train.display(),
+                time(from)
+            );
+        }
+        let label = format!("{} from {} to {until}", args.train.display(), time(from));
+        labels.push((label.clone(), label));
+        tests.push(test);
+    }
+    Ok((train, (tests, labels)))
+}
+
 pub fn run(args: &EvalArgs) -> Result<()> {
-    let train = read_pairs(&args.train)?;
-    let tests: Vec<TimeSeries> = args
-        .tests
-        .iter()
-        .map(|(t, v)| read_test_set(t, v))
-        .collect::<Result<_, _>>()?;
+    let (train, (tests, labels)) = load(args)?;
     let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
     let options = args.fit.options();
     let total = args.models.0.len();
@@ -47,9 +110,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     }
     let mut out = std::io::stdout().lock();
     if args.json {
-        writeln!(out, "{}", to_json(args, &train, &tests, &report))?;
+        writeln!(out, "{}", to_json(args, &train, &tests, &labels, &report))?;
     } else {
-        print_tables(&mut out, args, &train, &tests, &report)?;
+        print_tables(&mut out, args, &train, &tests, &labels, &report)?;
     }
     Ok(())
 }
@@ -58,6 +121,7 @@ fn to_json(
     args: &EvalArgs,
     train: &TimeSeries,
     tests: &[TimeSeries],
+    labels: &[(String, String)],
     report: &EvalReport,
 ) -> serde_json::Value {
     let name = |i: usize| report.models[i].spec.to_string();
@@ -66,9 +130,9 @@ fn to_json(
             "file": args.train.display().to_string(),
             "observations": train.len(),
         },
-        "tests": args.tests.iter().zip(tests).map(|((t, v), s)| json!({
-            "times": t.display().to_string(),
-            "values": v.display().to_string(),
+        "tests": labels.iter().zip(tests).map(|((t, v), s)| json!({
+            "times": t,
+            "values": v,
             "samples": s.len(),
         })).collect::<Vec<_>>(),
         "models": report.models.iter().map(|m| json!({
@@ -99,25 +163,31 @@ fn print_tables(
     args: &EvalArgs,
     train: &TimeSeries,
     tests: &[TimeSeries],
+    labels: &[(String, String)],
     report: &EvalReport,
 ) -> Result<()> {
     let span = train.times[train.len() - 1] - train.times[0];
+    let mean = train.values.iter().sum::<f64>() / train.len() as f64;
     writeln!(
         out,
-        "training: {} — {} observations, {} .. {} ({}), {:.1} % ones",
+        "training: {} — {} observations, {} .. {} ({}), {}",
         args.train.display(),
         train.len(),
         time(train.times[0]),
         time(train.times[train.len() - 1]),
         duration(span),
-        100.0 * train.values.iter().sum::<f64>() / train.len() as f64
+        if train.values.iter().all(|&v| v == 0.0 || v == 1.0) {
+            format!("{:.1} % ones", 100.0 * mean)
+        } else {
+            format!("mean value {mean:.4}")
+        }
     )?;
-    for (i, ((t, _), s)) in args.tests.iter().zip(tests).enumerate() {
+    for (i, ((t, _), s)) in labels.iter().zip(tests).enumerate() {
         writeln!(
             out,
             "test {}: {} — {} observations from {}",
             i + 1,
-            t.display(),
+            t,
             s.len(),
             time(s.times[0])
         )?;

@@ -30,6 +30,8 @@
 //! (and class), and the mixtures are fitted to the weighted merged points — the same
 //! likelihood, up to 60× fewer points on minute-sampled data.
 
+pub mod events;
+
 use serde::{Deserialize, Serialize};
 
 use crate::error::{BuildError, ConfigError, ObservationError};
@@ -609,14 +611,16 @@ impl HypertimeModel {
                     Clustering::Em(Components::Fixed(k)) => {
                         grow(&fit_rows, &check_rows, Some(k), &self.config, binary)?
                     }
-                    Clustering::KMeans => {
-                        grow(&fit_rows, &check_rows, None, &self.config, binary)?
-                    }
+                    Clustering::KMeans => grow(&fit_rows, &check_rows, None, &self.config, binary)?,
                     Clustering::Em(Components::Auto) => {
                         let mut best: Option<Structure> = None;
                         for k in 1..=self.config.max_components {
                             let s = grow(&fit_rows, &check_rows, Some(k), &self.config, binary)?;
-                            if best.as_ref().is_none_or(|b| s.error < b.error) {
+                            // Fewer components unless more are clearly better.
+                            if best
+                                .as_ref()
+                                .is_none_or(|b| s.error < b.error * (1.0 - 1e-9))
+                            {
                                 best = Some(s);
                             }
                         }
@@ -684,5 +688,108 @@ impl TemporalModel for HypertimeModel {
         let mut span = ObservedSpan::default();
         span.extend(&self.times);
         span
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::periods::DAY;
+
+    #[test]
+    fn projection_and_its_inverse() {
+        let periods = [WEEK, DAY, DAY / 3.0];
+        for i in 0..1000 {
+            let t = 1_451_865_600.0 + 7_919.0 * f64::from(i) + 0.25;
+            let mut x = Vec::new();
+            project(t, &periods, &mut x);
+            assert_eq!(x.len(), 6);
+            for (k, &period) in periods.iter().enumerate() {
+                let (cos, sin) = (x[2 * k], x[2 * k + 1]);
+                assert!((cos * cos + sin * sin - 1.0).abs() < 1e-12, "on the circle");
+                let back = phase_time(cos, sin, period);
+                let expected = t.rem_euclid(period);
+                let diff = (back - expected).abs();
+                assert!(
+                    diff < 1e-6 || (period - diff).abs() < 1e-6,
+                    "t {t} period {period}: {back} vs {expected}"
+                );
+                // A point off the unit circle in the same direction gives the same time.
+                assert!((phase_time(3.0 * cos, 3.0 * sin, period) - back).abs() < 1e-6);
+            }
+            // One period later: the same vector (what lets observations merge by week).
+            let mut y = Vec::new();
+            project(t + WEEK, &periods, &mut y);
+            for (a, b) in x.iter().zip(&y) {
+                assert!((a - b).abs() < 1e-9);
+            }
+        }
+        assert_eq!(phase_time(1.0, 0.0, DAY), 0.0);
+        assert!((phase_time(0.0, 1.0, DAY) - DAY / 4.0).abs() < 1e-9);
+        assert!((phase_time(-1.0, -1e-18, DAY) - DAY / 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn binary_rows_merge_by_second_of_the_week() {
+        let times = [0.0, 60.0, WEEK, WEEK + 60.0, 2.0 * WEEK + 0.2];
+        let values = [1.0, 0.0, 1.0, 1.0, 1.0];
+        let candidates: Vec<f64> = (1..=84).map(|k| WEEK / f64::from(k)).collect();
+        let rows = Rows::merge(&times, &values, &candidates, true);
+        assert_eq!(rows.times, vec![0.0, 60.0, 60.0]);
+        assert_eq!(rows.values, vec![1.0, 0.0, 1.0]);
+        assert_eq!(rows.weights, vec![3.0, 1.0, 1.0]);
+        // A candidate that does not divide the week: no merging.
+        let rows = Rows::merge(&times, &values, &[WEEK, 100_000.0], true);
+        assert_eq!(rows.weights, vec![1.0; 5]);
+        // Continuous values are never merged.
+        let rows = Rows::merge(&times, &values, &candidates, false);
+        assert_eq!(rows.times, times.to_vec());
+    }
+
+    #[test]
+    fn the_strongest_period_of_an_error_series() {
+        // A daily cosine plus a weaker 8-hour one, sampled irregularly.
+        let times: Vec<f64> = (0..3000).map(|i| 613.0 * f64::from(i) + 17.0).collect();
+        let e: Vec<f64> = times
+            .iter()
+            .map(|&t| {
+                (std::f64::consts::TAU * t / DAY).cos()
+                    + 0.3 * (std::f64::consts::TAU * t / (DAY / 3.0)).sin()
+            })
+            .collect();
+        let w = vec![1.0; times.len()];
+        let candidates: Vec<f64> = (1..=84).map(|k| WEEK / f64::from(k)).collect();
+        let (best, sum) = strongest_period(&times, &e, &w, &candidates, &[]);
+        assert_eq!(best, Some(DAY));
+        assert!(sum > 0.5 + 0.15 - 0.05, "{sum}");
+        let (next, _) = strongest_period(&times, &e, &w, &candidates, &[DAY]);
+        assert_eq!(next, Some(DAY / 3.0));
+        // All candidates used: none left.
+        assert_eq!(strongest_period(&times, &e, &w, &[DAY], &[DAY]).0, None);
+    }
+
+    #[test]
+    fn configuration_is_checked() {
+        let mut config = HypertimeConfig::new(Clustering::Em(Components::Fixed(0)));
+        assert!(HypertimeModel::new(config.clone()).is_err());
+        config.clustering = Clustering::KMeans;
+        config.holdout = 1.0;
+        assert!(HypertimeModel::new(config.clone()).is_err());
+        config.holdout = 0.25;
+        config.candidate_periods = vec![DAY, -1.0];
+        assert!(HypertimeModel::new(config.clone()).is_err());
+        config.candidate_periods = vec![];
+        assert!(HypertimeModel::new(config).is_err());
+    }
+
+    #[test]
+    fn bad_observations_leave_the_model_unchanged() {
+        let mut model = HypertimeModel::new(HypertimeConfig::new(Clustering::KMeans)).unwrap();
+        let before = model.clone();
+        assert!(model.observe(&[0.0, f64::NAN], &[0.0, 1.0]).is_err());
+        assert!(model.observe(&[10.0, 5.0], &[0.0, 1.0]).is_err());
+        assert!(model.observe(&[0.0, 5.0], &[0.0, 1.5]).is_err());
+        assert_eq!(model, before);
+        assert_eq!(model.predict(0.0), 0.5);
     }
 }

@@ -1,0 +1,468 @@
+//! Warped Hypertime for events in the plane (seed 004 §V-D): a Gaussian mixture over
+//! `[x, y, cos(2πt/T₁), sin(2πt/T₁), …]`, scaled into an intensity (events per m² per second),
+//! with the periodicities found in the error of the predicted number of events over time.
+//!
+//! The stages are those of [`super`] (seed 004 §III-B): cluster, estimate the error (eqs. 3–6),
+//! find the strongest periodicity of the error series (eq. 7), extend (eq. 8), while the error
+//! on the held-back most recent part of the training data falls. The error series is the
+//! predicted minus the observed number of events per time bin of the training span; the
+//! held-back error is the mean squared error of counts on a grid of
+//! [`EventModelConfig::check_cell`] metres × [`EventModelConfig::check_bin_secs`].
+//!
+//! Scaling (eq. 3): the mixture is a density over the warped space, not over time; the factor
+//! `c` makes the expected number of events over the training span equal the number observed:
+//! `c · ∫ f_φ(φ(t)) dt = N`, with `f_φ` the marginal of the mixture over the hypertime
+//! dimensions. The intensity is then `λ(t, x, y) = c · f(x, y, φ(t))`.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Components, project, strongest_period};
+use crate::error::{BuildError, ConfigError};
+use crate::events::{Event, EventGrid, EventIntensity};
+use crate::mixture::{EmConfig, EmInit, GaussianMixture, MixtureError, fit_em};
+use crate::periods::DAY;
+
+/// Settings of [`HypertimeEvents`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EventModelConfig {
+    /// Mixture components (`Auto`: chosen on the hold-out among `1..=max_components`).
+    pub components: Components,
+    /// Most components tried by `Auto`. Default 6.
+    pub max_components: usize,
+    /// Candidate periods (s). Default: one day divided by `1..=24` (data of a few days cannot
+    /// show longer rhythms).
+    pub candidate_periods: Vec<f64>,
+    /// Most periodicities. Default 4 (as HyT-KM's `number_of_periods`).
+    pub max_periods: usize,
+    /// Most recent fraction of the training span held back to decide. Default 0.25.
+    pub holdout: f64,
+    /// Time bin of the error series (s). Default 600.
+    pub residual_bin_secs: f64,
+    /// Cell side of the hold-out grid (m). Default 1.
+    pub check_cell: f64,
+    /// Time bin of the hold-out grid (s). Default 1800.
+    pub check_bin_secs: f64,
+    /// EM starts per fit. Default 2.
+    pub starts: usize,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for EventModelConfig {
+    fn default() -> Self {
+        EventModelConfig {
+            components: Components::Auto,
+            max_components: 6,
+            candidate_periods: (1..=24).map(|k| DAY / f64::from(k)).collect(),
+            max_periods: 4,
+            holdout: 0.25,
+            residual_bin_secs: 600.0,
+            check_cell: 1.0,
+            check_bin_secs: 1800.0,
+            starts: 2,
+            seed: 0,
+        }
+    }
+}
+
+impl EventModelConfig {
+    fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |name: &'static str, value: String, expected: &'static str| {
+            Err(ConfigError::OutOfRange {
+                name,
+                value,
+                expected,
+            })
+        };
+        if self.candidate_periods.is_empty() {
+            return Err(ConfigError::NoPeriods);
+        }
+        if let Some(p) = self
+            .candidate_periods
+            .iter()
+            .find(|p| !(p.is_finite() && **p > 0.0))
+        {
+            return bad("period", p.to_string(), "a positive number of seconds");
+        }
+        if self.components == Components::Fixed(0) || self.max_components == 0 {
+            return bad("components", "0".into(), "at least 1");
+        }
+        if !(self.holdout > 0.0 && self.holdout < 1.0) {
+            return bad(
+                "holdout",
+                self.holdout.to_string(),
+                "a fraction strictly between 0 and 1",
+            );
+        }
+        for (name, v) in [
+            ("residual_bin_secs", self.residual_bin_secs),
+            ("check_cell", self.check_cell),
+            ("check_bin_secs", self.check_bin_secs),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, v.to_string(), "a positive number");
+            }
+        }
+        if self.starts == 0 {
+            return bad("starts", "0".into(), "at least 1");
+        }
+        Ok(())
+    }
+}
+
+/// A fitted event intensity `λ(t, x, y)` (events per m² per second).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HypertimeEvents {
+    periods: Vec<f64>,
+    mixture: GaussianMixture,
+    /// The mixture over the hypertime dimensions only (`None` without periodicities).
+    time_marginal: Option<GaussianMixture>,
+    scale: f64,
+    name: String,
+}
+
+/// Events merged into weighted points `[x, y, hypertime…]` (5 cm, 30 s of the day).
+fn merged_points(events: &[Event], periods: &[f64], day_aligned: bool) -> (Vec<f64>, Vec<f64>) {
+    let dim = 2 + 2 * periods.len();
+    if !day_aligned {
+        let mut data = Vec::with_capacity(events.len() * dim);
+        for e in events {
+            data.push(e.x);
+            data.push(e.y);
+            project(e.t, periods, &mut data);
+        }
+        return (data, vec![1.0; events.len()]);
+    }
+    let mut keys: Vec<(i64, i64, i64)> = events
+        .iter()
+        .map(|e| {
+            (
+                (e.x / 0.05).round() as i64,
+                (e.y / 0.05).round() as i64,
+                (e.t.rem_euclid(DAY) / 30.0).round() as i64,
+            )
+        })
+        .collect();
+    keys.sort_unstable();
+    let mut data = Vec::new();
+    let mut weights: Vec<f64> = Vec::new();
+    let mut last = None;
+    for key in keys {
+        if last == Some(key) {
+            *weights.last_mut().expect("non-empty") += 1.0;
+            continue;
+        }
+        last = Some(key);
+        data.push(key.0 as f64 * 0.05);
+        data.push(key.1 as f64 * 0.05);
+        project(key.2 as f64 * 30.0, periods, &mut data);
+        weights.push(1.0);
+    }
+    (data, weights)
+}
+
+impl HypertimeEvents {
+    /// Fits the intensity to `train` events observed over `span` (seconds, `span.0 < span.1`;
+    /// every event inside).
+    ///
+    /// # Errors
+    /// An invalid configuration or span, fewer than 10 events, an event outside the span or
+    /// not finite, or a clustering failure.
+    pub fn fit(
+        train: &[Event],
+        span: (f64, f64),
+        config: &EventModelConfig,
+    ) -> Result<Self, BuildError> {
+        config.validate()?;
+        if !(span.0.is_finite() && span.1.is_finite() && span.0 < span.1) {
+            return Err(BuildError::NotEnoughData(format!(
+                "the training span {:?} is empty",
+                span
+            )));
+        }
+        if let Some(i) = train.iter().position(|e| {
+            !(e.t.is_finite() && e.x.is_finite() && e.y.is_finite()) || e.t < span.0 || e.t > span.1
+        }) {
+            return Err(BuildError::NotEnoughData(format!(
+                "event {i} is not finite or outside the training span"
+            )));
+        }
+        if train.len() < 10 {
+            return Err(BuildError::NotEnoughData(format!(
+                "{} events; at least 10 are needed",
+                train.len()
+            )));
+        }
+        let mut events = train.to_vec();
+        events.sort_by(|a, b| a.t.total_cmp(&b.t));
+        let cut = span.0 + (1.0 - config.holdout) * (span.1 - span.0);
+        let split = events.partition_point(|e| e.t < cut);
+        let (early, late) = events.split_at(split);
+        let chosen = if early.len() < 10 || late.is_empty() {
+            (Vec::new(), 1)
+        } else {
+            let ks: Vec<usize> = match config.components {
+                Components::Fixed(k) => vec![k],
+                Components::Auto => (1..=config.max_components).collect(),
+            };
+            let mut best: Option<(f64, Vec<f64>, usize)> = None;
+            for k in ks {
+                let (periods, error) = grow(early, late, (span.0, cut), (cut, span.1), k, config)?;
+                if best.as_ref().is_none_or(|b| error < b.0 * (1.0 - 1e-9)) {
+                    best = Some((error, periods, k));
+                }
+            }
+            let (_, periods, k) = best.expect("at least one k");
+            (periods, k)
+        };
+        let mut model = Self::fit_with(&events, span, &chosen.0, chosen.1, config)?;
+        model.name = format!("hyt-em:{}", chosen.1);
+        Ok(model)
+    }
+
+    /// The mixture with `periods` and `k` components, scaled over `span`.
+    fn fit_with(
+        events: &[Event],
+        span: (f64, f64),
+        periods: &[f64],
+        k: usize,
+        config: &EventModelConfig,
+    ) -> Result<Self, BuildError> {
+        let day_aligned = config.candidate_periods.iter().all(|&p| {
+            let n = DAY / p;
+            (n - n.round()).abs() < 1e-9
+        });
+        let (data, weights) = merged_points(events, periods, day_aligned);
+        let dim = 2 + 2 * periods.len();
+        let mut k = k;
+        let mixture = loop {
+            let em = EmConfig {
+                components: k,
+                starts: config.starts,
+                init: EmInit::KMeansPlusPlus,
+                seed: crate::rng::derive_seed(config.seed, 0x4556, periods.len() as u64, k as u64),
+                ..EmConfig::default()
+            };
+            match fit_em(&data, dim, Some(&weights), &em) {
+                Ok(fit) => break fit.mixture,
+                Err(MixtureError::TooFewPoints { points, .. }) if points >= 1 && k > 1 => {
+                    k = points.min(k - 1);
+                }
+                Err(e) => return Err(BuildError::NotEnoughData(e.to_string())),
+            }
+        };
+        let time_dims: Vec<usize> = (2..dim).collect();
+        let time_marginal = (!periods.is_empty()).then(|| mixture.marginal(&time_dims));
+        let mut model = HypertimeEvents {
+            periods: periods.to_vec(),
+            mixture,
+            time_marginal,
+            scale: 1.0,
+            name: format!("hyt-em:{k}"),
+        };
+        // Eq. (3): c · ∫ f_φ(φ(t)) dt over the span = number of events.
+        let step = 60.0_f64.min(span.1 - span.0);
+        let steps = ((span.1 - span.0) / step).ceil().max(1.0) as usize;
+        let dt = (span.1 - span.0) / steps as f64;
+        let integral: f64 = (0..steps)
+            .map(|i| model.time_density(span.0 + (i as f64 + 0.5) * dt) * dt)
+            .sum();
+        if integral > 0.0 && integral.is_finite() {
+            model.scale = events.len() as f64 / integral;
+        }
+        Ok(model)
+    }
+
+    /// The periodicities chosen (s).
+    pub fn periods(&self) -> &[f64] {
+        &self.periods
+    }
+
+    /// The mixture over `[x, y, hypertime…]`.
+    pub fn mixture(&self) -> &GaussianMixture {
+        &self.mixture
+    }
+
+    /// `f_φ(φ(t))`: the density of the hypertime dimensions at `t` (1 without periodicities).
+    fn time_density(&self, t: f64) -> f64 {
+        match &self.time_marginal {
+            None => 1.0,
+            Some(m) => {
+                let mut x = Vec::with_capacity(2 * self.periods.len());
+                project(t, &self.periods, &mut x);
+                m.log_density(&x).exp()
+            }
+        }
+    }
+
+    /// Expected events per second over the whole plane at `t`.
+    pub fn rate(&self, t: f64) -> f64 {
+        self.scale * self.time_density(t)
+    }
+
+    /// The intensity `λ(t, x, y)`: expected events per m² per second.
+    pub fn intensity(&self, t: f64, x: f64, y: f64) -> f64 {
+        let mut v = Vec::with_capacity(2 + 2 * self.periods.len());
+        v.push(x);
+        v.push(y);
+        project(t, &self.periods, &mut v);
+        self.scale * self.mixture.log_density(&v).exp()
+    }
+}
+
+/// Quadrature points per cell side and per time bin of [`EventIntensity::expected_counts`].
+const QUADRATURE: usize = 3;
+
+impl EventIntensity for HypertimeEvents {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    /// `∫∫∫ λ` over each cell by the midpoint rule on a 3 × 3 × 3 sub-grid.
+    fn expected_counts(&self, grid: &EventGrid) -> Vec<f64> {
+        let q = QUADRATURE as f64;
+        let mut out = vec![0.0; grid.len()];
+        let volume = grid.cell * grid.cell * grid.bin_secs / (q * q * q);
+        for b in 0..grid.nt {
+            for r in 0..grid.ny {
+                for c in 0..grid.nx {
+                    let (t0, x0, y0) = (
+                        grid.t0 + b as f64 * grid.bin_secs,
+                        grid.x0 + c as f64 * grid.cell,
+                        grid.y0 + r as f64 * grid.cell,
+                    );
+                    let mut sum = 0.0;
+                    for i in 0..QUADRATURE {
+                        let t = t0 + (i as f64 + 0.5) / q * grid.bin_secs;
+                        for j in 0..QUADRATURE {
+                            let x = x0 + (j as f64 + 0.5) / q * grid.cell;
+                            for l in 0..QUADRATURE {
+                                let y = y0 + (l as f64 + 0.5) / q * grid.cell;
+                                sum += self.intensity(t, x, y);
+                            }
+                        }
+                    }
+                    out[grid.index(b, r, c)] = sum * volume;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The bounding grid of `events` with cells of `cell` m and bins of `bin` s over `span`.
+fn grid_over(events: &[Event], span: (f64, f64), cell: f64, bin: f64) -> EventGrid {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for e in events {
+        x0 = x0.min(e.x);
+        y0 = y0.min(e.y);
+        x1 = x1.max(e.x);
+        y1 = y1.max(e.y);
+    }
+    if x0 > x1 {
+        (x0, y0, x1, y1) = (0.0, 0.0, cell, cell);
+    }
+    let x0 = (x0 / cell).floor() * cell;
+    let y0 = (y0 / cell).floor() * cell;
+    EventGrid {
+        x0,
+        y0,
+        cell,
+        nx: ((x1 - x0) / cell).floor() as usize + 1,
+        ny: ((y1 - y0) / cell).floor() as usize + 1,
+        t0: span.0,
+        bin_secs: bin,
+        nt: ((span.1 - span.0) / bin).ceil().max(1.0) as usize,
+    }
+}
+
+/// Stages 2–5 for `k` components on `early` (over `fit_span`), judged on `late` (over
+/// `check_span`): the periods kept and the held-back error.
+fn grow(
+    early: &[Event],
+    late: &[Event],
+    fit_span: (f64, f64),
+    check_span: (f64, f64),
+    k: usize,
+    config: &EventModelConfig,
+) -> Result<(Vec<f64>, f64), BuildError> {
+    let mut all = early.to_vec();
+    all.extend_from_slice(late);
+    let check_grid = grid_over(&all, check_span, config.check_cell, config.check_bin_secs);
+    let observed = check_grid.count(late);
+    let error_of = |model: &HypertimeEvents| {
+        let predicted = model.expected_counts(&check_grid);
+        predicted
+            .iter()
+            .zip(&observed)
+            .map(|(p, o)| (p - o) * (p - o))
+            .sum::<f64>()
+            / observed.len().max(1) as f64
+    };
+    let bins = ((fit_span.1 - fit_span.0) / config.residual_bin_secs)
+        .ceil()
+        .max(1.0) as usize;
+    let bin_times: Vec<f64> = (0..bins)
+        .map(|b| fit_span.0 + (b as f64 + 0.5) * config.residual_bin_secs)
+        .collect();
+    let mut observed_series = vec![0.0; bins];
+    for e in early {
+        let b = (((e.t - fit_span.0) / config.residual_bin_secs) as usize).min(bins - 1);
+        observed_series[b] += 1.0;
+    }
+    let mut periods = Vec::new();
+    let mut model = HypertimeEvents::fit_with(early, fit_span, &periods, k, config)?;
+    let mut error = error_of(&model);
+    while periods.len() < config.max_periods {
+        let residuals: Vec<f64> = bin_times
+            .iter()
+            .zip(&observed_series)
+            .map(|(&t, &o)| model.rate(t) * config.residual_bin_secs - o)
+            .collect();
+        let weights = vec![1.0; bins];
+        let (next, _) = strongest_period(
+            &bin_times,
+            &residuals,
+            &weights,
+            &config.candidate_periods,
+            &periods,
+        );
+        let Some(next) = next else { break };
+        let mut extended = periods.clone();
+        extended.push(next);
+        let candidate = HypertimeEvents::fit_with(early, fit_span, &extended, k, config)?;
+        let candidate_error = error_of(&candidate);
+        if candidate_error >= error {
+            break;
+        }
+        periods = extended;
+        model = candidate;
+        error = candidate_error;
+    }
+    Ok((periods, error))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn configuration_and_input_are_checked() {
+        let config = EventModelConfig {
+            holdout: 0.0,
+            ..EventModelConfig::default()
+        };
+        let events: Vec<Event> = (0..20)
+            .map(|i| Event {
+                t: f64::from(i),
+                x: 0.0,
+                y: 0.0,
+            })
+            .collect();
+        assert!(HypertimeEvents::fit(&events, (0.0, 20.0), &config).is_err());
+        let config = EventModelConfig::default();
+        assert!(HypertimeEvents::fit(&events, (5.0, 20.0), &config).is_err());
+        assert!(HypertimeEvents::fit(&events[..5], (0.0, 20.0), &config).is_err());
+        assert!(HypertimeEvents::fit(&events, (20.0, 20.0), &config).is_err());
+    }
+}
