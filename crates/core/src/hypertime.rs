@@ -609,9 +609,7 @@ impl HypertimeModel {
                     Clustering::Em(Components::Fixed(k)) => {
                         grow(&fit_rows, &check_rows, Some(k), &self.config, binary)?
                     }
-                    Clustering::KMeans => {
-                        grow(&fit_rows, &check_rows, None, &self.config, binary)?
-                    }
+                    Clustering::KMeans => grow(&fit_rows, &check_rows, None, &self.config, binary)?,
                     Clustering::Em(Components::Auto) => {
                         let mut best: Option<Structure> = None;
                         for k in 1..=self.config.max_components {

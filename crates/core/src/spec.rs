@@ -433,9 +433,7 @@ impl ModelSpec {
                 };
                 fit_hypertime(Clustering::Em(components), times, values, options)?
             }
-            ModelSpec::HypertimeKm => {
-                fit_hypertime(Clustering::KMeans, times, values, options)?
-            }
+            ModelSpec::HypertimeKm => fit_hypertime(Clustering::KMeans, times, values, options)?,
         };
         Ok(fitted)
     }
@@ -656,7 +654,9 @@ impl AnyModel {
             },
             AnyModel::Fft(m) => ModelSpec::Fft(OrderSpec::Fixed(m.order())),
             AnyModel::Hypertime(m) => match m.config().clustering {
-                Clustering::Em(_) => ModelSpec::HypertimeEm(OrderSpec::Fixed(m.components().max(1))),
+                Clustering::Em(_) => {
+                    ModelSpec::HypertimeEm(OrderSpec::Fixed(m.components().max(1)))
+                }
                 Clustering::KMeans => ModelSpec::HypertimeKm,
             },
         }
