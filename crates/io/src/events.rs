@@ -45,8 +45,8 @@ use std::path::Path;
 use chronomap_core::events::Event;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file,
-    parse_coordinate, parse_number, parse_time, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
+    parse_number, parse_time, quote, required,
 };
 
 /// What an event line must look like.
@@ -160,9 +160,10 @@ pub fn read_events_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
                 let y_text = required(fields.next(), Field::Y, EXPECTED)?;
                 let y = parse_coordinate(y_text, Field::Y)?;
                 if let Some(ranges) = ranges {
-                    for ((value, text), (field, &(min, max))) in [(t, t_text), (x, x_text), (y, y_text)]
-                        .into_iter()
-                        .zip(RANGE_FIELDS.iter().zip(ranges.iter()))
+                    for ((value, text), (field, &(min, max))) in
+                        [(t, t_text), (x, x_text), (y, y_text)]
+                            .into_iter()
+                            .zip(RANGE_FIELDS.iter().zip(ranges.iter()))
                     {
                         if !(min <= value && value <= max) {
                             return Err(DataErrorKind::OutsideRange {

@@ -188,7 +188,10 @@ fn plain_gzip_and_xz_files_read_the_same_and_merge_in_time_order() {
 
 #[test]
 fn bundled_lincoln_files_have_documented_counts() {
-    let whytes = read_events(data("whytes/wednesday_thursday_days_nights_only_ones.txt.xz")).unwrap();
+    let whytes = read_events(data(
+        "whytes/wednesday_thursday_days_nights_only_ones.txt.xz",
+    ))
+    .unwrap();
     assert_eq!(whytes.len(), 61_489);
     // Wednesday 2017-05-24 (UTC) has 29,938 detections, Thursday 31,551.
     let thursday = 1_495_670_400.0;

@@ -203,23 +203,32 @@ impl EventIntensity for CellHistogram {
     }
 }
 
+/// Training bins observed for less than this fraction of their length are not fed to the
+/// spectra (their few counts, scaled up, would be noise); they still count in the correction.
+const MIN_OBSERVED_FRACTION: f64 = 0.5;
+
 /// One cell of [`CellFremen`]: its FreMEn model of the scaled counts and the training counts.
 #[derive(Clone, Debug)]
 struct FremenCell {
-    model: FremenModel,
-    /// The cell's largest count in a training bin (counts / scale are in `[0, 1]`).
+    /// `None` if no well-observed bin of the cell has an event.
+    model: Option<FremenModel>,
+    /// The cell's largest count per fully observed bin (values / scale are in `[0, 1]`).
     scale: f64,
     /// Counts per training bin.
     counts: Vec<f64>,
-    /// Σ counts / Σ predictions over the training bins (at the current order).
+    /// Σ counts / Σ (prediction × observed fraction) over the training bins.
     correction: f64,
-    /// Mean count per training bin, used if every prediction over the training bins is 0.
+    /// Mean count per fully observed bin, used if the model predicts nothing over the
+    /// training bins.
     fallback: Option<f64>,
 }
 
 impl FremenCell {
     fn raw(&self, t: f64) -> f64 {
-        let p = self.model.predict_unsaturated(t) * self.scale;
+        let Some(model) = &self.model else {
+            return 0.0;
+        };
+        let p = model.predict_unsaturated(t) * self.scale;
         if p.is_finite() { p.max(0.0) } else { 0.0 }
     }
 
@@ -231,15 +240,19 @@ impl FremenCell {
         }
     }
 
-    fn correct(&mut self, times: &[f64]) {
-        let predicted: f64 = times.iter().map(|&t| self.raw(t)).sum();
+    fn correct(&mut self, times: &[f64], fractions: &[f64]) {
+        let predicted: f64 = times
+            .iter()
+            .zip(fractions)
+            .map(|(&t, f)| self.raw(t) * f)
+            .sum();
         let observed: f64 = self.counts.iter().sum();
         if predicted > 0.0 && predicted.is_finite() {
             self.correction = observed / predicted;
             self.fallback = None;
         } else {
             self.correction = 1.0;
-            self.fallback = Some(observed / times.len().max(1) as f64);
+            self.fallback = Some(observed / fractions.iter().sum::<f64>());
         }
     }
 }
@@ -252,8 +265,12 @@ impl FremenCell {
 /// so that each cell's (and the grid's) training total is reproduced.
 ///
 /// The training bins are the bins of `bin_secs` (aligned to multiples of it) that overlap a
-/// window of observation, counted as they are; a bin of another length is predicted at its
-/// centre and scaled by the ratio of the lengths.
+/// window of observation. A bin observed for a fraction `f` of its length (the first and
+/// last of a day) has its count divided by `f` before it enters the spectrum (bins with
+/// `f < 0.5` are left out of it), and its prediction weighs `f` in the correction: the
+/// expected count over the observed training time equals the training count. Order 0 is
+/// therefore exactly the [`StaticMap`]. A bin of another length than `bin_secs` is predicted
+/// at its centre and scaled by the ratio of the lengths.
 #[derive(Clone, Debug)]
 pub struct CellFremen {
     space: SpatialGrid,
@@ -261,6 +278,8 @@ pub struct CellFremen {
     order: usize,
     /// Centres of the training bins.
     times: Vec<f64>,
+    /// Observed fraction of every training bin.
+    fractions: Vec<f64>,
     cells: Vec<Option<FremenCell>>,
 }
 
@@ -303,6 +322,13 @@ impl CellFremen {
             }
         }
         let times: Vec<f64> = bins.iter().map(|&k| (k as f64 + 0.5) * bin_secs).collect();
+        let fractions: Vec<f64> = bins
+            .iter()
+            .map(|&k| {
+                let a = k as f64 * bin_secs;
+                (train.observed_between(a, a + bin_secs) / bin_secs).min(1.0)
+            })
+            .collect();
         let mut counts = vec![Vec::new(); space.len()];
         for e in train.observed_events() {
             let Some((r, c)) = space.cell_of(e.x, e.y) else {
@@ -323,18 +349,26 @@ impl CellFremen {
             order,
             min_span_factor: 0.0,
         };
+        let used: Vec<usize> = (0..bins.len())
+            .filter(|&i| fractions[i] >= MIN_OBSERVED_FRACTION)
+            .collect();
+        let used_times: Vec<f64> = used.iter().map(|&i| times[i]).collect();
         let cells = counts
             .into_iter()
             .map(|series| {
-                let scale = series.iter().copied().fold(0.0, f64::max);
-                if scale <= 0.0 {
+                if series.is_empty() {
                     return None;
                 }
-                let scaled: Vec<f64> = series.iter().map(|c| c / scale).collect();
-                let mut model = FremenModel::new(config.clone()).expect("valid configuration");
-                model
-                    .observe(&times, &scaled)
-                    .expect("bin centres are ordered and scaled counts lie in [0, 1]");
+                let values: Vec<f64> = used.iter().map(|&i| series[i] / fractions[i]).collect();
+                let scale = values.iter().copied().fold(0.0, f64::max);
+                let model = (scale > 0.0).then(|| {
+                    let scaled: Vec<f64> = values.iter().map(|v| v / scale).collect();
+                    let mut model = FremenModel::new(config.clone()).expect("valid configuration");
+                    model
+                        .observe(&used_times, &scaled)
+                        .expect("bin centres are ordered and scaled counts lie in [0, 1]");
+                    model
+                });
                 let mut cell = FremenCell {
                     model,
                     scale,
@@ -342,7 +376,7 @@ impl CellFremen {
                     correction: 1.0,
                     fallback: None,
                 };
-                cell.correct(&times);
+                cell.correct(&times, &fractions);
                 Some(cell)
             })
             .collect();
@@ -351,6 +385,7 @@ impl CellFremen {
             bin_secs,
             order,
             times,
+            fractions,
             cells,
         })
     }
@@ -364,19 +399,22 @@ impl CellFremen {
     pub fn set_order(&mut self, order: usize) {
         self.order = order;
         for cell in self.cells.iter_mut().flatten() {
-            cell.model.set_order(order);
-            cell.correct(&self.times);
+            if let Some(model) = &mut cell.model {
+                model.set_order(order);
+            }
+            cell.correct(&self.times, &self.fractions);
         }
     }
 
-    /// Expected counts per training bin of every cell (`bins × cells`, row-major) and the
-    /// training counts in the same layout: their per-cell sums are equal.
+    /// Expected counts in the observed part of every training bin, for every cell
+    /// (`bins × cells`, row-major), and the training counts in the same layout: their
+    /// per-cell sums are equal.
     pub fn training_fit(&self) -> (Vec<f64>, Vec<f64>) {
         let mut predicted = Vec::with_capacity(self.times.len() * self.cells.len());
         let mut observed = Vec::with_capacity(predicted.capacity());
-        for (i, &t) in self.times.iter().enumerate() {
+        for (i, (&t, &f)) in self.times.iter().zip(&self.fractions).enumerate() {
             for cell in &self.cells {
-                predicted.push(cell.as_ref().map_or(0.0, |c| c.predict(t)));
+                predicted.push(cell.as_ref().map_or(0.0, |c| c.predict(t) * f));
                 observed.push(cell.as_ref().map_or(0.0, |c| c.counts[i]));
             }
         }
@@ -567,15 +605,14 @@ mod tests {
         assert!((noon - 5.0).abs() < 0.5, "{noon}");
         assert!((evening - 4.0).abs() < 0.5, "{evening}");
         assert!(noon > morning + 0.5 && noon > evening + 0.5);
-        // Order 0 is the mean count per bin: flat.
+        // Order 0 is flat and equals the static map (events per observed second × bin).
         let mut flat = model.clone();
         flat.set_order(0);
-        assert!(
-            (flat.expected_counts(&two_cells().with_bins(0.0, 600.0, 1))[0]
-                - (events.len() - 1) as f64 / 120.0)
-                .abs()
-                < 1e-9
-        );
+        let grid = two_cells().with_bins(0.0, 600.0, 3);
+        let static_map = StaticMap::fit(&train, two_cells()).expected_counts(&grid);
+        for (f, s) in flat.expected_counts(&grid).iter().zip(&static_map) {
+            assert!((f - s).abs() < 1e-9 * s.max(1.0), "{f} vs {s}");
+        }
         // Predictions are finite and never negative, at any time and bin length.
         let day3 = two_cells().with_bins(3.0 * DAY, 1800.0, 48);
         assert!(

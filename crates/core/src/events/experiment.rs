@@ -207,7 +207,9 @@ pub struct EventScore {
     /// `100 · (1 − mse / mse of the static map)`: how much smaller the error is (in %).
     pub reduction_pct: f64,
     /// Paired t-test of the per-cell squared errors against those of the static map
-    /// (`None` with fewer than two cells). A negative mean difference means smaller errors.
+    /// (`None` with fewer than two cells): its t statistic, negative for smaller errors.
+    /// Squared errors equal to the static map's to 1e-9 relative (as FreMEn of order 0 has,
+    /// up to rounding) are reported as identical: `t = 0`, `p = 1`, reduction 0.
     pub t: Option<f64>,
     /// Its two-sided p-value.
     pub p_value: Option<f64>,
@@ -289,19 +291,30 @@ fn score_grid(
         let predicted = model.expected_counts(&grid);
         let errors = squared(&predicted);
         let model_mse = errors.iter().sum::<f64>() / errors.len() as f64;
-        let test = paired_t_test(&errors, &reference);
+        // A model that predicts what the static map predicts (FreMEn of order 0) differs
+        // from it by rounding only; that is no difference, not a "significant" one.
+        let same = errors
+            .iter()
+            .zip(&reference)
+            .all(|(a, b)| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-9));
+        let (t, p_value) = if same {
+            (Some(0.0), (errors.len() >= 2).then_some(1.0))
+        } else {
+            let test = paired_t_test(&errors, &reference);
+            (test.map(|t| t.t), test.map(|t| t.p_value))
+        };
         rows.push(EventScore {
             cell,
             bin_secs,
             model: model.name(),
             mse: model_mse,
-            reduction_pct: if reference_mse > 0.0 {
+            reduction_pct: if reference_mse > 0.0 && !same {
                 100.0 * (1.0 - model_mse / reference_mse)
             } else {
                 0.0
             },
-            t: test.map(|t| t.t),
-            p_value: test.map(|t| t.p_value),
+            t,
+            p_value,
             test_events,
             cells: grid.len(),
             grid,
