@@ -7,6 +7,7 @@ mod demo;
 mod demo_grids;
 mod demo_topo;
 mod eval;
+mod events;
 mod explore;
 mod grid;
 mod model;
@@ -18,7 +19,7 @@ use chronomap_core::AnyModel;
 use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
-use crate::cli::{BenchCommand, Command, GridCommand, SeriesSource, TopoCommand};
+use crate::cli::{BenchCommand, Command, EventsCommand, GridCommand, SeriesSource, TopoCommand};
 
 /// Runs one subcommand.
 pub fn run(command: Command) -> Result<()> {
@@ -42,6 +43,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Topo(TopoCommand::Split(args)) => topo::split(&args),
         Command::Topo(TopoCommand::Predict(args)) => topo::predict(&args),
         Command::Plan(args) => topo::plan(&args),
+        Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
     }
 }
 

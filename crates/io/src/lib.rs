@@ -34,6 +34,8 @@
 //!   or `.gz`. Everything read satisfies the
 //!   [observation contract](chronomap_core::observe); anything else is a [`DataError`] naming
 //!   file, line and field.
+//! * [`events`] — event files: people detected at `t x y` ([`read_events`], as in the bundled
+//!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -59,6 +61,7 @@
 
 mod atomic;
 pub mod datasets;
+pub mod events;
 pub mod grid_file;
 pub mod model_file;
 pub mod navmap;
@@ -66,6 +69,7 @@ pub mod plot;
 pub mod text;
 pub mod topo_files;
 
+pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use model_file::{
     EDGE_MODELS_KIND, ModelFileError, ModelFileErrorKind, decode_any_model, decode_edge_models,

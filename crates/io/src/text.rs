@@ -108,16 +108,22 @@ pub enum Field {
     Duration,
     /// Whether an attempt succeeded, `0` or `1` (edge files of topological maps).
     Success,
+    /// The x coordinate of an event, in metres (event files, see [`crate::events`]).
+    X,
+    /// The y coordinate of an event, in metres (event files).
+    Y,
 }
 
 impl Field {
-    /// `"time"`, `"value"`, `"duration"` or `"success"`.
+    /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"` or `"y"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
             Field::Value => "value",
             Field::Duration => "duration",
             Field::Success => "success",
+            Field::X => "x",
+            Field::Y => "y",
         }
     }
 }
@@ -237,6 +243,35 @@ pub enum DataErrorKind {
         /// The other file of the edge.
         other: String,
     },
+    /// A range line of an event file's header (`min max`) has `min > max`.
+    #[error("{field}: the range {min} .. {max} of the header is empty (min must not exceed max)")]
+    EmptyRange {
+        /// The field whose range it is.
+        field: Field,
+        /// The lower bound.
+        min: f64,
+        /// The upper bound.
+        max: f64,
+    },
+    /// A field lies outside the range the file's header declares.
+    #[error("{field}: {text:?} is outside the range {min} .. {max} of the header")]
+    OutsideRange {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+        /// The lower bound.
+        min: f64,
+        /// The upper bound.
+        max: f64,
+    },
+    /// An event file starts like a file with a range header (a first data line of two fields)
+    /// but does not continue like one.
+    #[error("{reason}")]
+    BadHeader {
+        /// What is wrong.
+        reason: String,
+    },
     /// The topological map cannot be built (e.g. an invalid or repeated node name).
     #[error("{error}")]
     Map {
@@ -333,6 +368,8 @@ impl DataError {
             | DataErrorKind::MissingField { field, .. }
             | DataErrorKind::NonFinite { field, .. }
             | DataErrorKind::NotZeroOrOne { field, .. }
+            | DataErrorKind::EmptyRange { field, .. }
+            | DataErrorKind::OutsideRange { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
             DataErrorKind::NegativeDuration { .. } => Some(Field::Duration),
             DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
@@ -488,6 +525,7 @@ pub fn read_column_from(
         Field::Value => "expected one value per line",
         Field::Duration => "expected one duration per line",
         Field::Success => "expected one success flag (0 or 1) per line",
+        Field::X | Field::Y => "expected one coordinate per line",
     };
     let mut numbers = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
@@ -499,6 +537,7 @@ pub fn read_column_from(
             Field::Value => parse_value(text, numbers.len())?,
             Field::Duration => parse_duration(text)?,
             Field::Success => f64::from(u8::from(parse_success(text)?)),
+            Field::X | Field::Y => parse_coordinate(text, field)?,
         };
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
@@ -620,7 +659,7 @@ pub fn decompressing_reader<'a>(
 /// Calls `handle(line_number, line)` for every data line (not blank, not a comment), with the
 /// line end and surrounding whitespace removed. Returns the number of data lines, or an error
 /// for the first failing line.
-fn for_each_data_line(
+pub(crate) fn for_each_data_line(
     name: &str,
     reader: impl Read,
     mut handle: impl FnMut(usize, &[u8]) -> Result<(), DataErrorKind>,
@@ -671,13 +710,13 @@ fn for_each_data_line(
 
 /// Fields of a trimmed line: separated by whitespace, or by one comma with optional whitespace
 /// around it. An empty field (`1,,2`, a leading or trailing comma) is returned as `b""`.
-struct Fields<'a> {
+pub(crate) struct Fields<'a> {
     rest: &'a [u8],
     first: bool,
 }
 
 impl<'a> Fields<'a> {
-    fn new(line: &'a [u8]) -> Self {
+    pub(crate) fn new(line: &'a [u8]) -> Self {
         Fields {
             rest: line,
             first: true,
@@ -712,7 +751,7 @@ impl<'a> Iterator for Fields<'a> {
     }
 }
 
-fn required<'a>(
+pub(crate) fn required<'a>(
     field_text: Option<&'a [u8]>,
     field: Field,
     expected: &'static str,
@@ -723,7 +762,7 @@ fn required<'a>(
     }
 }
 
-fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
+pub(crate) fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
     std::str::from_utf8(text)
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
@@ -733,7 +772,7 @@ fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
         })
 }
 
-fn parse_time(
+pub(crate) fn parse_time(
     text: &[u8],
     previous: Option<(f64, usize)>,
     index: usize,
@@ -780,6 +819,18 @@ fn parse_value(text: &[u8], index: usize) -> Result<f64, DataErrorKind> {
     Ok(value)
 }
 
+/// A coordinate in metres: any finite number.
+pub(crate) fn parse_coordinate(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
+    let value = parse_number(text, field)?;
+    if !value.is_finite() {
+        return Err(DataErrorKind::NonFinite {
+            field,
+            text: quote(text),
+        });
+    }
+    Ok(value)
+}
+
 /// A duration in seconds: finite and `>= 0` (`-0` is read as `0`).
 fn parse_duration(text: &[u8]) -> Result<f64, DataErrorKind> {
     let duration = parse_number(text, Field::Duration)?;
@@ -808,7 +859,7 @@ fn parse_success(text: &[u8]) -> Result<bool, DataErrorKind> {
 }
 
 /// The offending text for an error message (lossy UTF-8, shortened if long).
-fn quote(text: &[u8]) -> String {
+pub(crate) fn quote(text: &[u8]) -> String {
     let text = String::from_utf8_lossy(text);
     if text.chars().count() <= MAX_QUOTED_CHARS {
         text.into_owned()
