@@ -9,6 +9,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::events::{
     Event, EventModelBuilder, EventScore, TrainingData, default_builders, run_experiment,
 };
+use chronomap_core::hypertime::events::{EventModelConfig, HypertimeEventsBuilder};
 use chronomap_io::{read_event_files, read_events};
 use serde_json::{Value, json};
 
@@ -21,7 +22,11 @@ use crate::format::{Table, duration, time};
 /// is one more [`EventModelBuilder`] pushed here; the experiment, the tables and the JSON pick
 /// it up. Builders choose their parameters on the training data only.
 fn model_builders() -> Vec<Box<dyn EventModelBuilder>> {
-    default_builders()
+    let mut builders = default_builders();
+    builders.push(Box::new(HypertimeEventsBuilder::new(
+        EventModelConfig::default(),
+    )));
+    builders
 }
 
 fn file_list(paths: &[PathBuf]) -> String {

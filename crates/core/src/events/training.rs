@@ -38,6 +38,9 @@ pub enum EventError {
     /// The observation windows are empty, overlap, are out of order or last no time at all.
     #[error("bad observation windows: {0}")]
     BadWindows(String),
+    /// A model could not be fitted to the training events.
+    #[error("the model cannot be fitted: {0}")]
+    Fit(String),
     /// A cell size, bin length or other parameter is out of range.
     #[error("{name} = {value} is out of range: expected {expected}")]
     OutOfRange {

@@ -7,7 +7,8 @@
 //! on the held-back most recent part of the training data falls. The error series is the
 //! predicted minus the observed number of events per time bin of the training span; the
 //! held-back error is the mean squared error of counts on a grid of
-//! [`EventModelConfig::check_cell`] metres × [`EventModelConfig::check_bin_secs`].
+//! [`EventModelConfig::check_cell`] metres × [`EventModelConfig::check_bin_secs`] over the
+//! last observed day (or the last quarter of a single day: [`TrainingData::holdout`]).
 //!
 //! Scaling (eq. 3): the mixture is a density over the warped space, not over time; the factor
 //! `c` makes the expected number of events over the training span equal the number observed:
@@ -18,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Components, project, strongest_period};
 use crate::error::{BuildError, ConfigError};
-use crate::events::{Event, EventGrid, EventIntensity};
+use crate::events::{Event, EventGrid, EventIntensity, Holdout, SpatialGrid, TrainingData};
 use crate::mixture::{EmConfig, EmInit, GaussianMixture, MixtureError, fit_em};
 use crate::periods::DAY;
 
@@ -34,8 +35,6 @@ pub struct EventModelConfig {
     pub candidate_periods: Vec<f64>,
     /// Most periodicities. Default 4 (as HyT-KM's `number_of_periods`).
     pub max_periods: usize,
-    /// Most recent fraction of the training span held back to decide. Default 0.25.
-    pub holdout: f64,
     /// Time bin of the error series (s). Default 600.
     pub residual_bin_secs: f64,
     /// Cell side of the hold-out grid (m). Default 1.
@@ -55,7 +54,6 @@ impl Default for EventModelConfig {
             max_components: 6,
             candidate_periods: (1..=24).map(|k| DAY / f64::from(k)).collect(),
             max_periods: 4,
-            holdout: 0.25,
             residual_bin_secs: 600.0,
             check_cell: 1.0,
             check_bin_secs: 1800.0,
@@ -86,13 +84,6 @@ impl EventModelConfig {
         }
         if self.components == Components::Fixed(0) || self.max_components == 0 {
             return bad("components", "0".into(), "at least 1");
-        }
-        if !(self.holdout > 0.0 && self.holdout < 1.0) {
-            return bad(
-                "holdout",
-                self.holdout.to_string(),
-                "a fraction strictly between 0 and 1",
-            );
         }
         for (name, v) in [
             ("residual_bin_secs", self.residual_bin_secs),
@@ -162,72 +153,52 @@ fn merged_points(events: &[Event], periods: &[f64], day_aligned: bool) -> (Vec<f
 }
 
 impl HypertimeEvents {
-    /// Fits the intensity to `train` events observed over `span` (seconds, `span.0 < span.1`;
-    /// every event inside).
+    /// Fits the intensity to training events observed in `train`'s windows (nights without
+    /// observation do not count as time without events).
     ///
     /// # Errors
-    /// An invalid configuration or span, fewer than 10 events, an event outside the span or
-    /// not finite, or a clustering failure.
-    pub fn fit(
-        train: &[Event],
-        span: (f64, f64),
-        config: &EventModelConfig,
-    ) -> Result<Self, BuildError> {
+    /// An invalid configuration, fewer than 10 observed events, or a clustering failure.
+    pub fn fit(train: &TrainingData<'_>, config: &EventModelConfig) -> Result<Self, BuildError> {
         config.validate()?;
-        if !(span.0.is_finite() && span.1.is_finite() && span.0 < span.1) {
+        let observed: Vec<Event> = train.observed_events().copied().collect();
+        if observed.len() < 10 {
             return Err(BuildError::NotEnoughData(format!(
-                "the training span {:?} is empty",
-                span
+                "{} observed events; at least 10 are needed",
+                observed.len()
             )));
         }
-        if let Some(i) = train.iter().position(|e| {
-            !(e.t.is_finite() && e.x.is_finite() && e.y.is_finite()) || e.t < span.0 || e.t > span.1
-        }) {
-            return Err(BuildError::NotEnoughData(format!(
-                "event {i} is not finite or outside the training span"
-            )));
-        }
-        if train.len() < 10 {
-            return Err(BuildError::NotEnoughData(format!(
-                "{} events; at least 10 are needed",
-                train.len()
-            )));
-        }
-        let mut events = train.to_vec();
-        events.sort_by(|a, b| a.t.total_cmp(&b.t));
-        let cut = span.0 + (1.0 - config.holdout) * (span.1 - span.0);
-        let split = events.partition_point(|e| e.t < cut);
-        let (early, late) = events.split_at(split);
-        let chosen = if early.len() < 10 || late.is_empty() {
-            (Vec::new(), 1)
-        } else {
-            let ks: Vec<usize> = match config.components {
-                Components::Fixed(k) => vec![k],
-                Components::Auto => (1..=config.max_components).collect(),
-            };
-            let mut best: Option<(f64, Vec<f64>, usize)> = None;
-            for k in ks {
-                let (periods, error) = grow(early, late, (span.0, cut), (cut, span.1), k, config)?;
-                if best.as_ref().is_none_or(|b| error < b.0 * (1.0 - 1e-9)) {
-                    best = Some((error, periods, k));
+        let space = SpatialGrid::covering(&observed, config.check_cell)
+            .ok_or_else(|| BuildError::NotEnoughData("no events in the plane".into()))?;
+        let chosen = match train.holdout(space, config.check_bin_secs) {
+            None => (Vec::new(), 1),
+            Some(holdout) => {
+                let ks: Vec<usize> = match config.components {
+                    Components::Fixed(k) => vec![k],
+                    Components::Auto => (1..=config.max_components).collect(),
+                };
+                let mut best: Option<(f64, Vec<f64>, usize)> = None;
+                for k in ks {
+                    let (periods, error) = grow(&holdout, k, config)?;
+                    if best.as_ref().is_none_or(|b| error < b.0 * (1.0 - 1e-9)) {
+                        best = Some((error, periods, k));
+                    }
                 }
+                let (_, periods, k) = best.expect("at least one k");
+                (periods, k)
             }
-            let (_, periods, k) = best.expect("at least one k");
-            (periods, k)
         };
-        let mut model = Self::fit_with(&events, span, &chosen.0, chosen.1, config)?;
-        model.name = format!("hyt-em:{}", chosen.1);
-        Ok(model)
+        Self::fit_with(train, &chosen.0, chosen.1, config)
     }
 
-    /// The mixture with `periods` and `k` components, scaled over `span`.
+    /// The mixture with `periods` and `k` components, scaled over the observed windows.
     fn fit_with(
-        events: &[Event],
-        span: (f64, f64),
+        train: &TrainingData<'_>,
         periods: &[f64],
         k: usize,
         config: &EventModelConfig,
     ) -> Result<Self, BuildError> {
+        let events: Vec<Event> = train.observed_events().copied().collect();
+        let events = &events[..];
         let day_aligned = config.candidate_periods.iter().all(|&p| {
             let n = DAY / p;
             (n - n.round()).abs() < 1e-9
@@ -260,13 +231,15 @@ impl HypertimeEvents {
             scale: 1.0,
             name: format!("hyt-em:{k}"),
         };
-        // Eq. (3): c · ∫ f_φ(φ(t)) dt over the span = number of events.
-        let step = 60.0_f64.min(span.1 - span.0);
-        let steps = ((span.1 - span.0) / step).ceil().max(1.0) as usize;
-        let dt = (span.1 - span.0) / steps as f64;
-        let integral: f64 = (0..steps)
-            .map(|i| model.time_density(span.0 + (i as f64 + 0.5) * dt) * dt)
-            .sum();
+        // Eq. (3): c · ∫ f_φ(φ(t)) dt over the observed time = number of observed events.
+        let mut integral = 0.0;
+        for w in train.windows() {
+            let steps = (w.secs() / 60.0).ceil().max(1.0) as usize;
+            let dt = w.secs() / steps as f64;
+            integral += (0..steps)
+                .map(|i| model.time_density(w.start + (i as f64 + 0.5) * dt) * dt)
+                .sum::<f64>();
+        }
         if integral > 0.0 && integral.is_finite() {
             model.scale = events.len() as f64 / integral;
         }
@@ -350,48 +323,16 @@ impl EventIntensity for HypertimeEvents {
     }
 }
 
-/// The bounding grid of `events` with cells of `cell` m and bins of `bin` s over `span`.
-fn grid_over(events: &[Event], span: (f64, f64), cell: f64, bin: f64) -> EventGrid {
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for e in events {
-        x0 = x0.min(e.x);
-        y0 = y0.min(e.y);
-        x1 = x1.max(e.x);
-        y1 = y1.max(e.y);
-    }
-    if x0 > x1 {
-        (x0, y0, x1, y1) = (0.0, 0.0, cell, cell);
-    }
-    let x0 = (x0 / cell).floor() * cell;
-    let y0 = (y0 / cell).floor() * cell;
-    EventGrid {
-        x0,
-        y0,
-        cell,
-        nx: ((x1 - x0) / cell).floor() as usize + 1,
-        ny: ((y1 - y0) / cell).floor() as usize + 1,
-        t0: span.0,
-        bin_secs: bin,
-        nt: ((span.1 - span.0) / bin).ceil().max(1.0) as usize,
-    }
-}
-
-/// Stages 2–5 for `k` components on `early` (over `fit_span`), judged on `late` (over
-/// `check_span`): the periods kept and the held-back error.
+/// Stages 2–5 for `k` components on the fitted part of `holdout`, judged by the mean squared
+/// error of counts on its validation grid (eq. 6): the periods kept and that error.
 fn grow(
-    early: &[Event],
-    late: &[Event],
-    fit_span: (f64, f64),
-    check_span: (f64, f64),
+    holdout: &Holdout<'_>,
     k: usize,
     config: &EventModelConfig,
 ) -> Result<(Vec<f64>, f64), BuildError> {
-    let mut all = early.to_vec();
-    all.extend_from_slice(late);
-    let check_grid = grid_over(&all, check_span, config.check_cell, config.check_bin_secs);
-    let observed = check_grid.count(late);
+    let observed = holdout.validation_grid.count(holdout.validation_events);
     let error_of = |model: &HypertimeEvents| {
-        let predicted = model.expected_counts(&check_grid);
+        let predicted = model.expected_counts(&holdout.validation_grid);
         predicted
             .iter()
             .zip(&observed)
@@ -399,27 +340,41 @@ fn grow(
             .sum::<f64>()
             / observed.len().max(1) as f64
     };
-    let bins = ((fit_span.1 - fit_span.0) / config.residual_bin_secs)
-        .ceil()
-        .max(1.0) as usize;
-    let bin_times: Vec<f64> = (0..bins)
-        .map(|b| fit_span.0 + (b as f64 + 0.5) * config.residual_bin_secs)
-        .collect();
-    let mut observed_series = vec![0.0; bins];
-    for e in early {
-        let b = (((e.t - fit_span.0) / config.residual_bin_secs) as usize).min(bins - 1);
-        observed_series[b] += 1.0;
+    // The error series (eq. 5): predicted minus observed events per bin of the observed time.
+    let fit = &holdout.fit;
+    let mut bin_times = Vec::new();
+    let mut bin_secs = Vec::new();
+    for w in fit.windows() {
+        let bins = (w.secs() / config.residual_bin_secs).ceil().max(1.0) as usize;
+        let len = w.secs() / bins as f64;
+        for b in 0..bins {
+            bin_times.push(w.start + (b as f64 + 0.5) * len);
+            bin_secs.push(len);
+        }
+    }
+    let mut observed_series = vec![0.0; bin_times.len()];
+    for e in fit.observed_events() {
+        // The bin whose centre is nearest (bins are contiguous within a window).
+        let i = bin_times.partition_point(|&c| c < e.t);
+        let i = match i {
+            0 => 0,
+            i if i == bin_times.len() => i - 1,
+            i if e.t - bin_times[i - 1] <= bin_times[i] - e.t => i - 1,
+            i => i,
+        };
+        observed_series[i] += 1.0;
     }
     let mut periods = Vec::new();
-    let mut model = HypertimeEvents::fit_with(early, fit_span, &periods, k, config)?;
+    let mut model = HypertimeEvents::fit_with(fit, &periods, k, config)?;
     let mut error = error_of(&model);
     while periods.len() < config.max_periods {
         let residuals: Vec<f64> = bin_times
             .iter()
+            .zip(&bin_secs)
             .zip(&observed_series)
-            .map(|(&t, &o)| model.rate(t) * config.residual_bin_secs - o)
+            .map(|((&t, &len), &o)| model.rate(t) * len - o)
             .collect();
-        let weights = vec![1.0; bins];
+        let weights = vec![1.0; residuals.len()];
         let (next, _) = strongest_period(
             &bin_times,
             &residuals,
@@ -430,7 +385,7 @@ fn grow(
         let Some(next) = next else { break };
         let mut extended = periods.clone();
         extended.push(next);
-        let candidate = HypertimeEvents::fit_with(early, fit_span, &extended, k, config)?;
+        let candidate = HypertimeEvents::fit_with(fit, &extended, k, config)?;
         let candidate_error = error_of(&candidate);
         if candidate_error >= error {
             break;
@@ -445,13 +400,10 @@ fn grow(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::events::Window;
 
     #[test]
     fn configuration_and_input_are_checked() {
-        let config = EventModelConfig {
-            holdout: 0.0,
-            ..EventModelConfig::default()
-        };
         let events: Vec<Event> = (0..20)
             .map(|i| Event {
                 t: f64::from(i),
@@ -459,10 +411,98 @@ mod tests {
                 y: 0.0,
             })
             .collect();
-        assert!(HypertimeEvents::fit(&events, (0.0, 20.0), &config).is_err());
-        let config = EventModelConfig::default();
-        assert!(HypertimeEvents::fit(&events, (5.0, 20.0), &config).is_err());
-        assert!(HypertimeEvents::fit(&events[..5], (0.0, 20.0), &config).is_err());
-        assert!(HypertimeEvents::fit(&events, (20.0, 20.0), &config).is_err());
+        let train = TrainingData::new(
+            &events,
+            vec![Window {
+                start: 0.0,
+                end: 20.0,
+            }],
+        )
+        .unwrap();
+        let config = EventModelConfig {
+            check_cell: 0.0,
+            ..EventModelConfig::default()
+        };
+        assert!(HypertimeEvents::fit(&train, &config).is_err());
+        let few = TrainingData::new(
+            &events[..5],
+            vec![Window {
+                start: 0.0,
+                end: 20.0,
+            }],
+        )
+        .unwrap();
+        assert!(HypertimeEvents::fit(&few, &EventModelConfig::default()).is_err());
+    }
+}
+
+/// Builds [`HypertimeEvents`] for the event experiment ([`crate::events::run_experiment`]).
+///
+/// The model does not depend on the grid it is scored on, so one fit per training set serves
+/// every cell size and bin length (it is cached).
+#[derive(Debug, Default)]
+pub struct HypertimeEventsBuilder {
+    config: EventModelConfig,
+    cache: std::sync::Mutex<Option<(Vec<u64>, std::sync::Arc<HypertimeEvents>)>>,
+}
+
+impl HypertimeEventsBuilder {
+    /// A builder with these settings.
+    pub fn new(config: EventModelConfig) -> Self {
+        HypertimeEventsBuilder {
+            config,
+            cache: std::sync::Mutex::new(None),
+        }
+    }
+}
+
+/// A shared fitted model.
+struct Shared(std::sync::Arc<HypertimeEvents>);
+
+impl EventIntensity for Shared {
+    fn name(&self) -> String {
+        self.0.name()
+    }
+
+    fn expected_counts(&self, grid: &EventGrid) -> Vec<f64> {
+        self.0.expected_counts(grid)
+    }
+}
+
+impl crate::events::EventModelBuilder for HypertimeEventsBuilder {
+    fn family(&self) -> String {
+        "hyt-em".into()
+    }
+
+    fn build(
+        &self,
+        train: &TrainingData<'_>,
+        _space: SpatialGrid,
+        _bin_secs: f64,
+    ) -> Result<Box<dyn EventIntensity>, crate::events::EventError> {
+        // The key: every event and window, bit for bit.
+        let key: Vec<u64> = train
+            .events()
+            .iter()
+            .flat_map(|e| [e.t.to_bits(), e.x.to_bits(), e.y.to_bits()])
+            .chain(
+                train
+                    .windows()
+                    .iter()
+                    .flat_map(|w| [w.start.to_bits(), w.end.to_bits()]),
+            )
+            .collect();
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((cached, model)) = cache.as_ref()
+            && *cached == key
+        {
+            return Ok(Box::new(Shared(model.clone())));
+        }
+        let model = std::sync::Arc::new(
+            HypertimeEvents::fit(train, &self.config)
+                .map_err(|e| crate::events::EventError::Fit(e.to_string()))?,
+        );
+        *cache = Some((key, model.clone()));
+        Ok(Box::new(Shared(model)))
     }
 }
