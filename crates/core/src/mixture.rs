@@ -7,8 +7,22 @@
 //! responsibilities in the log domain (log-sum-exp), a ridge `regularization` added to every
 //! covariance diagonal (as scikit-learn's `reg_covar`), Cholesky factors checked on every
 //! M-step (a failed or ill-conditioned factor — smallest/largest eigenvalue below `1e-12` —
-//! restarts from a new seeded initialisation, and after `restarts` failures falls back to
-//! diagonal covariances), empty components re-seeded at the worst-explained point.
+//! restarts from a new seeded initialisation, and after [`NUMERICAL_RESTARTS`] failures falls
+//! back to diagonal covariances), empty components re-seeded at the worst-explained point.
+//!
+//! Every EM iteration is the standard pair (Dempster, Laird & Rubin 1977) for seed 004 eq. 2,
+//! `p(x) = Σ_c w_c N(x; μ_c, Σ_c)`: the E-step `r_ic = w_c N(x_i; μ_c, Σ_c) / p(x_i)`, the
+//! M-step `n_c = Σ_i v_i r_ic`, `w_c = n_c / Σ n`, `μ_c = Σ_i v_i r_ic x_i / n_c`,
+//! `Σ_c = Σ_i v_i r_ic (x_i − μ_c)(x_i − μ_c)ᵀ / n_c + λI` (`v_i` the row weights, `λ` the
+//! ridge), in the order and with the conventions of scikit-learn's `GaussianMixture`, whose
+//! trajectory [`fit_em_from`] reproduces (to ~1e-15 in `tests/sklearn_gmm.rs`). With the ridge
+//! the M-step maximises a penalised expected log-likelihood, so the likelihood is
+//! non-decreasing only up to terms of the order of `λ` (invisible at the default relative
+//! `1e-6`; about 1e-6 with an absolute `λ = 1e-4` on a 0/1 column, as in scikit-learn).
+//!
+//! The per-row loops run over fixed chunks of rows whose partial sums are added in chunk
+//! order, on the rayon pool when there are several: the bits do not depend on the number of
+//! threads.
 //!
 //! Data are `n × dim` row-major slices with optional non-negative per-row weights (a weight
 //! `w` counts as `w` identical rows: integer weights give exactly the result of duplicated
@@ -347,7 +361,8 @@ impl GaussianMixture {
     /// domain, so far-away points do not underflow to 0/0).
     ///
     /// # Panics
-    /// If a dimension is out of range or repeated, lengths differ, or no dimension is left.
+    /// If a dimension is out of range or repeated, lengths differ, no dimension is left, or a
+    /// given value is not finite.
     pub fn conditional(&self, given_dims: &[usize], given: &[f64]) -> GaussianMixture {
         self.check_dims(given_dims);
         assert_eq!(given_dims.len(), given.len(), "conditional: lengths differ");
@@ -447,7 +462,8 @@ pub enum EmInit {
     /// k-means++ seeding, then k-means, then covariances of the hard clusters (HyT-KM, seed 004
     /// §IV; scikit-learn's default `init_params="kmeans"` is similar).
     KMeans,
-    /// k-means++ seeding only (means), unit-weighted covariances of the data.
+    /// k-means++ seeding only (means), equal weights, and every covariance the weighted
+    /// covariance of all the data (plus the ridge).
     KMeansPlusPlus,
 }
 
@@ -497,7 +513,8 @@ pub struct EmFit {
     /// Final mean log-likelihood per unit weight.
     pub log_likelihood: f64,
     /// Mean log-likelihood after every iteration of the winning start (non-decreasing up to
-    /// rounding: EM's monotonicity).
+    /// rounding: EM's monotonicity; up to `O(regularization)` with a large ridge, see the
+    /// module doc). `trace.len() == iterations`; the last value is `log_likelihood`.
     pub trace: Vec<f64>,
     /// Iterations of the winning start.
     pub iterations: usize,
@@ -509,7 +526,16 @@ pub struct EmFit {
     pub diagonal: bool,
 }
 
-/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM.
+/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM (seed 004 eq. 2;
+/// HyT-EM of §IV).
+///
+/// `starts` independent starts, each from its own seeded initialisation; the start with the
+/// highest final log-likelihood wins. The ridge is `regularization`, times the mean
+/// per-dimension weighted variance of the data when `relative_regularization` (times 1 if that
+/// is 0). A start whose covariance fails the checks of the module doc restarts from a new
+/// seeded initialisation ([`EmFit::numerical_restarts`] counts them over all starts); after
+/// [`NUMERICAL_RESTARTS`] failures it fits diagonal covariances (variances floored at `1e-12`
+/// of the data's), which cannot fail.
 ///
 /// # Errors
 /// Malformed data ([`MixtureError::DimensionMismatch`], [`MixtureError::NonFinite`],
@@ -529,6 +555,14 @@ pub fn fit_em(
 
 /// EM from a given initial mixture (one start, no random choices): what scikit-learn's
 /// `GaussianMixture(means_init=…, weights_init=…, precisions_init=…)` does, for oracle tests.
+///
+/// With `relative_regularization: false` this is scikit-learn's `reg_covar = regularization`,
+/// `tol = tolerance`, `max_iter = max_iterations`: the same iterations (E-step, then M-step;
+/// stop after the M-step of the first iteration whose E-step log-likelihood changed by less
+/// than `tolerance`), `iterations` is its `n_iter_`. `components`, `starts`, `init` and `seed`
+/// are not used. A numerical failure (module doc) does not restart (there is nothing to draw):
+/// the fit goes on with diagonal covariances from that M-step on (`diagonal` is set).
+/// Components that become empty are re-seeded as in [`fit_em`].
 ///
 /// # Errors
 /// As [`fit_em`].

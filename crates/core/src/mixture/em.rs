@@ -148,6 +148,88 @@ struct EStats {
     sx: Vec<f64>,
 }
 
+/// `$f(d, args…)` with `d` a literal for `d <= 14` (the dimensions of hypertime), so that the
+/// `#[inline(always)]` row loops of `$f` are compiled with fixed trip counts and unrolled;
+/// the same arithmetic in the same order either way.
+macro_rules! specialise {
+    ($d:expr, $f:ident($($arg:expr),* $(,)?)) => {
+        match $d {
+            1 => $f(1, $($arg),*),
+            2 => $f(2, $($arg),*),
+            3 => $f(3, $($arg),*),
+            4 => $f(4, $($arg),*),
+            5 => $f(5, $($arg),*),
+            6 => $f(6, $($arg),*),
+            7 => $f(7, $($arg),*),
+            8 => $f(8, $($arg),*),
+            9 => $f(9, $($arg),*),
+            10 => $f(10, $($arg),*),
+            11 => $f(11, $($arg),*),
+            12 => $f(12, $($arg),*),
+            13 => $f(13, $($arg),*),
+            14 => $f(14, $($arg),*),
+            d => $f(d, $($arg),*),
+        }
+    };
+}
+
+/// The per-row kernel of the E-step: for every component the mean, the inverse `P = L⁻¹` of
+/// its Cholesky factor (lower triangular, rows packed), and `ln w_c − ½ ln det(2πΣ_c)`, so
+/// that `ln w_c N(x; μ_c, Σ_c) = log_normaliser − ½‖P(x − μ_c)‖²` (scikit-learn's
+/// `precisions_cholesky_`, transposed). A product instead of a substitution: the rows of `P`
+/// are independent, where each step of a substitution waits for the previous one.
+pub(super) struct Kernel<'a> {
+    mix: &'a GaussianMixture,
+    /// `k × d(d+1)/2`.
+    precision: Vec<f64>,
+}
+
+impl<'a> Kernel<'a> {
+    pub(super) fn new(mix: &'a GaussianMixture) -> Self {
+        let (d, k) = (mix.dim, mix.components());
+        let (d2, packed) = (d * d, d * (d + 1) / 2);
+        let mut precision = vec![0.0; k * packed];
+        let mut column = vec![0.0; d];
+        for c in 0..k {
+            let l = &mix.cholesky[c * d2..(c + 1) * d2];
+            let p = &mut precision[c * packed..(c + 1) * packed];
+            for j in 0..d {
+                column.fill(0.0);
+                column[j] = 1.0;
+                linalg::forward_solve(l, d, &mut column);
+                for i in j..d {
+                    p[i * (i + 1) / 2 + j] = column[i];
+                }
+            }
+        }
+        Kernel { mix, precision }
+    }
+
+    /// `ln w_c N(x; μ_c, Σ_c)` for every component into `out`; `diff` (length `d`, the
+    /// dimension) is scratch.
+    #[inline(always)]
+    fn log_densities(&self, d: usize, x: &[f64], out: &mut [f64], diff: &mut [f64]) {
+        let packed = d * (d + 1) / 2;
+        for (c, o) in out.iter_mut().enumerate() {
+            let mean = &self.mix.means[c * d..(c + 1) * d];
+            for ((e, xj), mj) in diff.iter_mut().zip(x).zip(mean) {
+                *e = xj - mj;
+            }
+            let p = &self.precision[c * packed..(c + 1) * packed];
+            let mut q = 0.0;
+            for i in 0..d {
+                let row = &p[i * (i + 1) / 2..][..=i];
+                let mut z = 0.0;
+                for (a, b) in row.iter().zip(&diff[..=i]) {
+                    z += a * b;
+                }
+                q += z * z;
+            }
+            *o = self.mix.log_normalisers[c] - 0.5 * q;
+        }
+    }
+}
+
 /// Sums in chunk order, starting from `+0.0` (the same order everywhere, so that a mixture's
 /// [`GaussianMixture::mean_log_likelihood`] equals the value EM computed, bit for bit).
 fn ordered_sum(parts: impl IntoIterator<Item = f64>) -> f64 {
@@ -156,66 +238,46 @@ fn ordered_sum(parts: impl IntoIterator<Item = f64>) -> f64 {
 
 /// `Σ_i w_i ln p(x_i) / Σ_i w_i`.
 pub(super) fn mean_log_likelihood(rows: &Rows<'_>, mix: &GaussianMixture) -> f64 {
-    let (k, d) = (mix.components(), rows.dim);
+    let kernel = Kernel::new(mix);
     let parts = rows.map_chunks(|start, len| {
-        let (mut lp, mut z) = (vec![0.0; k], vec![0.0; d]);
-        let mut sum = 0.0;
-        for i in start..start + len {
-            let w = rows.weight(i);
-            if w == 0.0 {
-                continue;
-            }
-            sum += w * mix.log_density_into(rows.row(i), &mut lp, &mut z);
-        }
-        sum
+        specialise!(rows.dim, log_likelihood_rows(rows, &kernel, start, len))
     });
     ordered_sum(parts) / rows.total
+}
+
+/// `Σ w_i ln p(x_i)` over rows `start..start + len`.
+#[inline(always)]
+fn log_likelihood_rows(
+    d: usize,
+    rows: &Rows<'_>,
+    kernel: &Kernel<'_>,
+    start: usize,
+    len: usize,
+) -> f64 {
+    let (mut lp, mut z) = (vec![0.0; kernel.mix.components()], vec![0.0; d]);
+    let mut sum = 0.0;
+    for i in start..start + len {
+        let w = rows.weight(i);
+        if w == 0.0 {
+            continue;
+        }
+        kernel.log_densities(d, rows.row(i), &mut lp, &mut z);
+        sum += w * linalg::log_sum_exp(&lp);
+    }
+    sum
 }
 
 /// The E-step: responsibilities `r_ic = exp(ln w_c N_c(x_i) − ln p(x_i))` into `ws`, and the
 /// first-order sums of the M-step.
 fn e_step(rows: &Rows<'_>, mix: &GaussianMixture, ws: &mut Workspace) -> EStats {
     let (k, d) = (mix.components(), rows.dim);
+    let kernel = Kernel::new(mix);
     let parts = rows.map_chunks_mut(
         &mut ws.resp,
         k,
         &mut ws.log_p,
         1,
-        |start, len, resp, log_p| {
-            let mut z = vec![0.0; d];
-            let (mut ll, mut nk, mut sx) = (0.0, vec![0.0; k], vec![0.0; k * d]);
-            for r in 0..len {
-                let i = start + r;
-                let g = &mut resp[r * k..(r + 1) * k];
-                let w = rows.weight(i);
-                if w == 0.0 {
-                    g.fill(0.0);
-                    log_p[r] = 0.0;
-                    continue;
-                }
-                let x = rows.row(i);
-                mix.component_log_densities_into(x, g, &mut z);
-                let lse = linalg::log_sum_exp(g);
-                log_p[r] = lse;
-                if lse.is_finite() {
-                    g.iter_mut().for_each(|v| *v = (*v - lse).exp());
-                } else {
-                    g.fill(1.0 / k as f64);
-                }
-                ll += w * lse;
-                for c in 0..k {
-                    let rc = w * g[c];
-                    if rc == 0.0 {
-                        continue;
-                    }
-                    for (s, xj) in sx[c * d..(c + 1) * d].iter_mut().zip(x) {
-                        *s += rc * xj;
-                    }
-                    nk[c] += rc;
-                }
-            }
-            (ll, nk, sx)
-        },
+        |start, len, resp, log_p| specialise!(d, e_rows(rows, &kernel, start, len, resp, log_p)),
     );
     let mut nk = vec![0.0; k];
     let mut sx = vec![0.0; k * d];
@@ -225,6 +287,99 @@ fn e_step(rows: &Rows<'_>, mix: &GaussianMixture, ws: &mut Workspace) -> EStats 
     }
     let ll = ordered_sum(parts.iter().map(|p| p.0)) / rows.total;
     EStats { ll, nk, sx }
+}
+
+/// The E-step over rows `start..start + len` (`resp` and `log_p` their slices): the partial
+/// `(Σ w ln p, Σ w r_c, Σ w r_c x)`.
+#[inline(always)]
+fn e_rows(
+    d: usize,
+    rows: &Rows<'_>,
+    kernel: &Kernel<'_>,
+    start: usize,
+    len: usize,
+    resp: &mut [f64],
+    log_p: &mut [f64],
+) -> (f64, Vec<f64>, Vec<f64>) {
+    let k = kernel.mix.components();
+    let mut z = vec![0.0; d];
+    let (mut ll, mut nk, mut sx) = (0.0, vec![0.0; k], vec![0.0; k * d]);
+    for r in 0..len {
+        let i = start + r;
+        let g = &mut resp[r * k..(r + 1) * k];
+        let w = rows.weight(i);
+        if w == 0.0 {
+            g.fill(0.0);
+            log_p[r] = 0.0;
+            continue;
+        }
+        let x = &rows.row(i)[..d];
+        kernel.log_densities(d, x, g, &mut z);
+        let lse = linalg::log_sum_exp_normalise(g);
+        log_p[r] = lse;
+        if !lse.is_finite() {
+            g.fill(1.0 / k as f64);
+        }
+        ll += w * lse;
+        for c in 0..k {
+            let rc = w * g[c];
+            if rc == 0.0 {
+                continue;
+            }
+            for (s, xj) in sx[c * d..(c + 1) * d].iter_mut().zip(x) {
+                *s += rc * xj;
+            }
+            nk[c] += rc;
+        }
+    }
+    (ll, nk, sx)
+}
+
+/// The scatter `Σ w r_c (x − μ_c)(x − μ_c)ᵀ` (lower triangles; diagonals only if `diagonal`)
+/// of rows `start..start + len`, components with `skip[c]` left out.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn scatter_rows(
+    d: usize,
+    rows: &Rows<'_>,
+    resp: &[f64],
+    means: &[f64],
+    skip: &[bool],
+    diagonal: bool,
+    start: usize,
+    len: usize,
+) -> Vec<f64> {
+    let (k, d2) = (skip.len(), d * d);
+    let mut s = vec![0.0; k * d2];
+    let mut diff = vec![0.0; d];
+    for i in start..start + len {
+        let w = rows.weight(i);
+        if w == 0.0 {
+            continue;
+        }
+        let (x, g) = (&rows.row(i)[..d], &resp[i * k..(i + 1) * k]);
+        for c in (0..k).filter(|&c| !skip[c]) {
+            let r = w * g[c];
+            if r == 0.0 {
+                continue;
+            }
+            for ((e, xj), mj) in diff.iter_mut().zip(x).zip(&means[c * d..(c + 1) * d]) {
+                *e = xj - mj;
+            }
+            let sc = &mut s[c * d2..(c + 1) * d2];
+            for a in 0..d {
+                let ra = r * diff[a];
+                if diagonal {
+                    sc[a * d + a] += ra * diff[a];
+                } else {
+                    for b in 0..=a {
+                        sc[a * d + b] += ra * diff[b];
+                    }
+                }
+            }
+        }
+    }
+    s
 }
 
 /// The M-step from the responsibilities in `ws`; `None` on a numerical failure.
@@ -258,36 +413,10 @@ fn m_step(
     }
     let diagonal = kind.is_diagonal();
     let parts = rows.map_chunks(|start, len| {
-        let mut s = vec![0.0; k * d2];
-        let mut diff = vec![0.0; d];
-        for i in start..start + len {
-            let w = rows.weight(i);
-            if w == 0.0 {
-                continue;
-            }
-            let (x, g) = (rows.row(i), &ws.resp[i * k..(i + 1) * k]);
-            for c in (0..k).filter(|&c| !empty[c]) {
-                let r = w * g[c];
-                if r == 0.0 {
-                    continue;
-                }
-                for ((e, xj), mj) in diff.iter_mut().zip(x).zip(&means[c * d..(c + 1) * d]) {
-                    *e = xj - mj;
-                }
-                let sc = &mut s[c * d2..(c + 1) * d2];
-                for a in 0..d {
-                    let ra = r * diff[a];
-                    if diagonal {
-                        sc[a * d + a] += ra * diff[a];
-                    } else {
-                        for b in 0..=a {
-                            sc[a * d + b] += ra * diff[b];
-                        }
-                    }
-                }
-            }
-        }
-        s
+        specialise!(
+            d,
+            scatter_rows(rows, &ws.resp, &means, &empty, diagonal, start, len)
+        )
     });
     let mut covariances = vec![0.0; k * d2];
     for p in &parts {

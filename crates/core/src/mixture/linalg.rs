@@ -157,6 +157,27 @@ pub(super) fn log_sum_exp(v: &[f64]) -> f64 {
     if !m.is_finite() {
         return m;
     }
-    let s: f64 = v.iter().map(|&a| (a - m).exp()).sum();
+    let mut s = 0.0;
+    for &a in v {
+        s += (a - m).exp();
+    }
+    m + s.ln()
+}
+
+/// [`log_sum_exp`] (the same bits), replacing `v` by the normalised `exp(v_c − ln Σ exp(v))`
+/// (the responsibilities), computed as `exp(v_c − max) / Σ exp(v − max)`: one exponential
+/// per value. If the sum is not finite, `v` is left as it was.
+#[inline]
+pub(super) fn log_sum_exp_normalise(v: &mut [f64]) -> f64 {
+    let m = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !m.is_finite() {
+        return m;
+    }
+    let mut s = 0.0;
+    for a in v.iter_mut() {
+        *a = (*a - m).exp();
+        s += *a;
+    }
+    v.iter_mut().for_each(|a| *a /= s);
     m + s.ln()
 }
