@@ -17,7 +17,7 @@ use super::{EmConfig, EmFit, EmInit, GaussianMixture, NUMERICAL_RESTARTS};
 use crate::rng::{Xoshiro256StarStar, derive_seed};
 
 /// Purpose tag of the seeds of EM's initialisations ("EM init").
-const TAG_EM: u64 = 0x454d_5f69_6e69_74;
+const TAG_EM: u64 = 0x0045_4d5f_696e_6974;
 
 /// Lloyd iterations of the k-means that initialises EM ([`EmInit::KMeans`]).
 const INIT_KMEANS_ITERATIONS: usize = 100;
@@ -394,7 +394,7 @@ fn m_step(
     let empty: Vec<bool> = stats
         .nk
         .iter()
-        .map(|&n| !(n > EMPTY_SHARE * rows.total))
+        .map(|&n| n.is_nan() || n <= EMPTY_SHARE * rows.total)
         .collect();
     let mut nk: Vec<f64> = stats.nk.iter().map(|n| n + 10.0 * f64::EPSILON).collect();
     let mut means: Vec<f64> = (0..k * d).map(|i| stats.sx[i] / nk[i / d]).collect();
@@ -553,12 +553,11 @@ pub(super) fn cluster_mixture(
     let (d, d2) = (rows.dim, rows.dim * rows.dim);
     let mut wk = vec![0.0; k];
     let mut sx = vec![0.0; k * d];
-    for i in 0..rows.n {
+    for (i, &c) in labels.iter().enumerate() {
         let w = rows.weight(i);
         if w == 0.0 {
             continue;
         }
-        let c = labels[i];
         wk[c] += w;
         for (s, x) in sx[c * d..(c + 1) * d].iter_mut().zip(rows.row(i)) {
             *s += w * x;
@@ -567,12 +566,11 @@ pub(super) fn cluster_mixture(
     let means: Vec<f64> = (0..k * d).map(|i| sx[i] / wk[i / d]).collect();
     let mut scatter = vec![0.0; k * d2];
     let mut diff = vec![0.0; d];
-    for i in 0..rows.n {
+    for (i, &c) in labels.iter().enumerate() {
         let w = rows.weight(i);
         if w == 0.0 {
             continue;
         }
-        let c = labels[i];
         for ((e, x), m) in diff.iter_mut().zip(rows.row(i)).zip(&means[c * d..]) {
             *e = x - m;
         }

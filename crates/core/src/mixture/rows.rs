@@ -61,7 +61,7 @@ impl<'a> Rows<'a> {
             }
             None => n as f64,
         };
-        if n == 0 || !(total > 0.0) {
+        if n == 0 || total.is_nan() || total <= 0.0 {
             return Err(MixtureError::EmptyData);
         }
         if !total.is_finite() {

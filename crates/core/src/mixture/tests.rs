@@ -691,7 +691,7 @@ fn moments_follow_the_law_of_total_variance() {
     assert!((mean - m).abs() < 1e-14);
     assert!((var - (second - m * m)).abs() < 1e-13);
     let (mean, var) = g.moments(1);
-    let m = 0.2 * 1.0 + 0.3 * -1.0 + 0.5 * 0.5;
+    let m = 0.2 * 1.0 - 0.3 + 0.5 * 0.5;
     let second = 0.2 * (2.0 + 1.0) + 0.3 * (0.5 + 1.0) + 0.5 * (1.0 + 0.25);
     assert!((mean - m).abs() < 1e-14);
     assert!((var - (second - m * m)).abs() < 1e-13);
