@@ -7,8 +7,22 @@
 //! responsibilities in the log domain (log-sum-exp), a ridge `regularization` added to every
 //! covariance diagonal (as scikit-learn's `reg_covar`), Cholesky factors checked on every
 //! M-step (a failed or ill-conditioned factor — smallest/largest eigenvalue below `1e-12` —
-//! restarts from a new seeded initialisation, and after `restarts` failures falls back to
-//! diagonal covariances), empty components re-seeded at the worst-explained point.
+//! restarts from a new seeded initialisation, and after [`NUMERICAL_RESTARTS`] failures falls
+//! back to diagonal covariances), empty components re-seeded at the worst-explained point.
+//!
+//! Every EM iteration is the standard pair (Dempster, Laird & Rubin 1977) for seed 004 eq. 2,
+//! `p(x) = Σ_c w_c N(x; μ_c, Σ_c)`: the E-step `r_ic = w_c N(x_i; μ_c, Σ_c) / p(x_i)`, the
+//! M-step `n_c = Σ_i v_i r_ic`, `w_c = n_c / Σ n`, `μ_c = Σ_i v_i r_ic x_i / n_c`,
+//! `Σ_c = Σ_i v_i r_ic (x_i − μ_c)(x_i − μ_c)ᵀ / n_c + λI` (`v_i` the row weights, `λ` the
+//! ridge), in the order and with the conventions of scikit-learn's `GaussianMixture`, whose
+//! trajectory [`fit_em_from`] reproduces (to ~1e-15 in `tests/sklearn_gmm.rs`). With the ridge
+//! the M-step maximises a penalised expected log-likelihood, so the likelihood is
+//! non-decreasing only up to terms of the order of `λ` (invisible at the default relative
+//! `1e-6`; about 1e-6 with an absolute `λ = 1e-4` on a 0/1 column, as in scikit-learn).
+//!
+//! The per-row loops run over fixed chunks of rows whose partial sums are added in chunk
+//! order, on the rayon pool when there are several: the bits do not depend on the number of
+//! threads.
 //!
 //! Data are `n × dim` row-major slices with optional non-negative per-row weights (a weight
 //! `w` counts as `w` identical rows: integer weights give exactly the result of duplicated
@@ -17,6 +31,20 @@
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+
+mod em;
+mod kmeans;
+mod linalg;
+mod rows;
+#[cfg(test)]
+mod tests;
+
+use rows::Rows;
+
+/// Numerical failures (a covariance that is not positive definite or is ill-conditioned) after
+/// which one start of [`fit_em`] stops restarting from new seeded initialisations and fits
+/// diagonal covariances instead.
+pub const NUMERICAL_RESTARTS: usize = 3;
 
 /// What went wrong.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -93,8 +121,127 @@ impl GaussianMixture {
         means: Vec<f64>,
         covariances: Vec<f64>,
     ) -> Result<Self, MixtureError> {
-        let _ = (dim, weights, means, covariances);
-        todo!()
+        if dim == 0 {
+            return Err(MixtureError::DimensionMismatch(
+                "dim must be at least 1".into(),
+            ));
+        }
+        let k = weights.len();
+        if k == 0 {
+            return Err(MixtureError::InvalidConfig(
+                "a mixture needs a component".into(),
+            ));
+        }
+        let d2 = dim * dim;
+        if means.len() != k * dim || covariances.len() != k * d2 {
+            return Err(MixtureError::DimensionMismatch(format!(
+                "{k} weights, {} mean values and {} covariance values in {dim} dimensions",
+                means.len(),
+                covariances.len()
+            )));
+        }
+        for (values, stride) in [(&means, dim), (&covariances, d2)] {
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                return Err(MixtureError::NonFinite {
+                    row: i / stride,
+                    coordinate: i % stride,
+                    value: values[i],
+                });
+            }
+        }
+        if let Some(w) = weights.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
+            return Err(MixtureError::InvalidConfig(format!(
+                "weight {w} is not a finite number >= 0"
+            )));
+        }
+        let sum: f64 = weights.iter().sum();
+        if !(sum > 0.0 && sum.is_finite()) {
+            return Err(MixtureError::InvalidConfig(format!(
+                "the weights sum to {sum}"
+            )));
+        }
+        let weights: Vec<f64> = weights.iter().map(|w| w / sum).collect();
+        let mut covariances = covariances;
+        let mut cholesky = Vec::with_capacity(k * d2);
+        for c in 0..k {
+            let cov = &mut covariances[c * d2..(c + 1) * d2];
+            for a in 0..dim {
+                for b in 0..a {
+                    let (x, y) = (cov[a * dim + b], cov[b * dim + a]);
+                    let scale = x
+                        .abs()
+                        .max(y.abs())
+                        .max((cov[a * dim + a] * cov[b * dim + b]).abs().sqrt());
+                    if (x - y).abs() > 1e-10 * scale {
+                        return Err(MixtureError::NotPositiveDefinite { component: c });
+                    }
+                    let m = 0.5 * (x + y);
+                    cov[a * dim + b] = m;
+                    cov[b * dim + a] = m;
+                }
+            }
+            let l = linalg::cholesky(cov, dim)
+                .ok_or(MixtureError::NotPositiveDefinite { component: c })?;
+            cholesky.extend_from_slice(&l);
+        }
+        Ok(GaussianMixture::from_factors(
+            dim,
+            weights,
+            means,
+            covariances,
+            cholesky,
+        ))
+    }
+
+    /// A mixture from normalised weights, means, covariances and their lower Cholesky
+    /// factors (seed 004 eq. 2): computes the log-normalisers.
+    fn from_factors(
+        dim: usize,
+        weights: Vec<f64>,
+        means: Vec<f64>,
+        covariances: Vec<f64>,
+        cholesky: Vec<f64>,
+    ) -> Self {
+        let d2 = dim * dim;
+        let log_2pi = dim as f64 * (2.0 * std::f64::consts::PI).ln();
+        let log_normalisers = weights
+            .iter()
+            .enumerate()
+            .map(|(c, w)| {
+                w.ln() - 0.5 * log_2pi - linalg::half_log_det(&cholesky[c * d2..(c + 1) * d2], dim)
+            })
+            .collect();
+        GaussianMixture {
+            dim,
+            weights,
+            means,
+            covariances,
+            cholesky,
+            log_normalisers,
+        }
+    }
+
+    /// [`GaussianMixture::component_log_densities`] with caller-provided scratch `z`
+    /// (length `dim`): allocation-free, the kernel of every E-step.
+    #[inline]
+    fn component_log_densities_into(&self, x: &[f64], out: &mut [f64], z: &mut [f64]) {
+        let (d, d2) = (self.dim, self.dim * self.dim);
+        for (c, o) in out.iter_mut().enumerate() {
+            let q = linalg::mahalanobis2(
+                &self.cholesky[c * d2..(c + 1) * d2],
+                &self.means[c * d..(c + 1) * d],
+                x,
+                z,
+            );
+            *o = self.log_normalisers[c] - 0.5 * q;
+        }
+    }
+
+    /// `ln p(x)` with caller-provided scratch: `lp` (length `k`) and `z` (length `dim`).
+    #[inline]
+    fn log_density_into(&self, x: &[f64], lp: &mut [f64], z: &mut [f64]) -> f64 {
+        self.component_log_densities_into(x, lp, z);
+        linalg::log_sum_exp(lp)
     }
 
     /// Dimensions.
@@ -128,8 +275,14 @@ impl GaussianMixture {
     /// # Panics
     /// If `x.len() != dim`.
     pub fn log_density(&self, x: &[f64]) -> f64 {
-        let _ = x;
-        todo!()
+        assert_eq!(
+            x.len(),
+            self.dim,
+            "log_density: point of the wrong dimension"
+        );
+        let mut lp = vec![0.0; self.components()];
+        let mut z = vec![0.0; self.dim];
+        self.log_density_into(x, &mut lp, &mut z)
     }
 
     /// `ln(w_c · N(x; μ_c, Σ_c))` for every component, written into `out` (length `k`).
@@ -137,8 +290,18 @@ impl GaussianMixture {
     /// # Panics
     /// If the lengths are wrong.
     pub fn component_log_densities(&self, x: &[f64], out: &mut [f64]) {
-        let _ = (x, out);
-        todo!()
+        assert_eq!(
+            x.len(),
+            self.dim,
+            "component_log_densities: point of the wrong dimension"
+        );
+        assert_eq!(
+            out.len(),
+            self.components(),
+            "component_log_densities: output length"
+        );
+        let mut z = vec![0.0; self.dim];
+        self.component_log_densities_into(x, out, &mut z);
     }
 
     /// Weighted mean log-likelihood per unit weight of `data` (`n × dim`).
@@ -150,8 +313,8 @@ impl GaussianMixture {
         data: &[f64],
         weights: Option<&[f64]>,
     ) -> Result<f64, MixtureError> {
-        let _ = (data, weights);
-        todo!()
+        let rows = Rows::new(data, self.dim, weights)?;
+        Ok(em::mean_log_likelihood(&rows, self))
     }
 
     /// The marginal mixture over `dims` (in that order).
@@ -159,8 +322,37 @@ impl GaussianMixture {
     /// # Panics
     /// If a dimension is out of range or repeated.
     pub fn marginal(&self, dims: &[usize]) -> GaussianMixture {
-        let _ = dims;
-        todo!()
+        self.check_dims(dims);
+        assert!(!dims.is_empty(), "marginal: no dimension");
+        let (d, d2, m) = (self.dim, self.dim * self.dim, dims.len());
+        let k = self.components();
+        let mut means = Vec::with_capacity(k * m);
+        let mut covariances = Vec::with_capacity(k * m * m);
+        let mut cholesky = Vec::with_capacity(k * m * m);
+        for c in 0..k {
+            let mean = self.mean(c);
+            means.extend(dims.iter().map(|&i| mean[i]));
+            let cov = &self.covariances[c * d2..(c + 1) * d2];
+            let mut sub: Vec<f64> = dims
+                .iter()
+                .flat_map(|&i| dims.iter().map(move |&j| cov[i * d + j]))
+                .collect();
+            let l = linalg::cholesky_with_jitter(&mut sub, m)
+                .expect("a principal submatrix of a positive definite covariance");
+            covariances.extend_from_slice(&sub);
+            cholesky.extend_from_slice(&l);
+        }
+        GaussianMixture::from_factors(m, self.weights.clone(), means, covariances, cholesky)
+    }
+
+    /// Panics unless `dims` are distinct dimensions of the mixture.
+    fn check_dims(&self, dims: &[usize]) {
+        let mut seen = vec![false; self.dim];
+        for &i in dims {
+            assert!(i < self.dim, "dimension {i} out of range 0..{}", self.dim);
+            assert!(!seen[i], "dimension {i} repeated");
+            seen[i] = true;
+        }
     }
 
     /// The conditional mixture of the other dimensions (in increasing order) given
@@ -169,16 +361,98 @@ impl GaussianMixture {
     /// domain, so far-away points do not underflow to 0/0).
     ///
     /// # Panics
-    /// If a dimension is out of range or repeated, lengths differ, or no dimension is left.
+    /// If a dimension is out of range or repeated, lengths differ, no dimension is left, or a
+    /// given value is not finite.
     pub fn conditional(&self, given_dims: &[usize], given: &[f64]) -> GaussianMixture {
-        let _ = (given_dims, given);
-        todo!()
+        self.check_dims(given_dims);
+        assert_eq!(given_dims.len(), given.len(), "conditional: lengths differ");
+        assert!(
+            given.iter().all(|v| v.is_finite()),
+            "conditional: a given value is not finite"
+        );
+        let others: Vec<usize> = (0..self.dim).filter(|i| !given_dims.contains(i)).collect();
+        assert!(!others.is_empty(), "conditional: no dimension is left");
+        let (d, d2) = (self.dim, self.dim * self.dim);
+        let (p, m, k) = (others.len(), given_dims.len(), self.components());
+        let log_2pi = m as f64 * (2.0 * std::f64::consts::PI).ln();
+        let mut log_weights = Vec::with_capacity(k);
+        let mut means = Vec::with_capacity(k * p);
+        let mut covariances = Vec::with_capacity(k * p * p);
+        let mut cholesky = Vec::with_capacity(k * p * p);
+        for c in 0..k {
+            let mean = self.mean(c);
+            let cov = &self.covariances[c * d2..(c + 1) * d2];
+            // Σ_bb = L_b L_bᵀ, u = L_b⁻¹ (x_b − μ_b), V = L_b⁻¹ Σ_ba (m × p).
+            let mut s_bb: Vec<f64> = given_dims
+                .iter()
+                .flat_map(|&i| given_dims.iter().map(move |&j| cov[i * d + j]))
+                .collect();
+            let (mut u, mut v) = (Vec::new(), vec![0.0; m * p]);
+            let mut log_weight = self.weights[c].ln();
+            if m > 0 {
+                let l_b = linalg::cholesky_with_jitter(&mut s_bb, m)
+                    .expect("a principal submatrix of a positive definite covariance");
+                u = given_dims
+                    .iter()
+                    .zip(given)
+                    .map(|(&i, x)| x - mean[i])
+                    .collect();
+                linalg::forward_solve(&l_b, m, &mut u);
+                let mut column = vec![0.0; m];
+                for (j, &a) in others.iter().enumerate() {
+                    for (e, &b) in column.iter_mut().zip(given_dims) {
+                        *e = cov[b * d + a];
+                    }
+                    linalg::forward_solve(&l_b, m, &mut column);
+                    for i in 0..m {
+                        v[i * p + j] = column[i];
+                    }
+                }
+                let q: f64 = u.iter().map(|e| e * e).sum();
+                log_weight += -0.5 * log_2pi - linalg::half_log_det(&l_b, m) - 0.5 * q;
+            }
+            log_weights.push(log_weight);
+            // μ_a|b = μ_a + Vᵀu, Σ_a|b = Σ_aa − VᵀV (Schur complement).
+            for (j, &a) in others.iter().enumerate() {
+                let shift: f64 = (0..m).map(|i| v[i * p + j] * u[i]).sum();
+                means.push(mean[a] + shift);
+            }
+            let mut schur = vec![0.0; p * p];
+            for (j, &a) in others.iter().enumerate() {
+                for (l, &b) in others.iter().enumerate().take(j + 1) {
+                    let vv: f64 = (0..m).map(|i| v[i * p + j] * v[i * p + l]).sum();
+                    let s = cov[a * d + b] - vv;
+                    schur[j * p + l] = s;
+                    schur[l * p + j] = s;
+                }
+            }
+            let l = linalg::cholesky_with_jitter(&mut schur, p)
+                .expect("a Schur complement of a positive definite covariance");
+            covariances.extend_from_slice(&schur);
+            cholesky.extend_from_slice(&l);
+        }
+        let total = linalg::log_sum_exp(&log_weights);
+        let weights = if total.is_finite() {
+            log_weights.iter().map(|lw| (lw - total).exp()).collect()
+        } else {
+            // Every component is infinitely far (in its own metric): keep the prior weights.
+            self.weights.clone()
+        };
+        GaussianMixture::from_factors(p, weights, means, covariances, cholesky)
     }
 
     /// Mean and variance of the mixture in dimension `d` (law of total variance).
     pub fn moments(&self, d: usize) -> (f64, f64) {
-        let _ = d;
-        todo!()
+        assert!(d < self.dim, "dimension {d} out of range 0..{}", self.dim);
+        let k = self.components();
+        let mean: f64 = (0..k).map(|c| self.weights[c] * self.mean(c)[d]).sum();
+        let variance: f64 = (0..k)
+            .map(|c| {
+                let delta = self.mean(c)[d] - mean;
+                self.weights[c] * (self.covariance(c)[d * self.dim + d] + delta * delta)
+            })
+            .sum();
+        (mean, variance)
     }
 }
 
@@ -188,7 +462,8 @@ pub enum EmInit {
     /// k-means++ seeding, then k-means, then covariances of the hard clusters (HyT-KM, seed 004
     /// §IV; scikit-learn's default `init_params="kmeans"` is similar).
     KMeans,
-    /// k-means++ seeding only (means), unit-weighted covariances of the data.
+    /// k-means++ seeding only (means), equal weights, and every covariance the weighted
+    /// covariance of all the data (plus the ridge).
     KMeansPlusPlus,
 }
 
@@ -238,7 +513,8 @@ pub struct EmFit {
     /// Final mean log-likelihood per unit weight.
     pub log_likelihood: f64,
     /// Mean log-likelihood after every iteration of the winning start (non-decreasing up to
-    /// rounding: EM's monotonicity).
+    /// rounding: EM's monotonicity; up to `O(regularization)` with a large ridge, see the
+    /// module doc). `trace.len() == iterations`; the last value is `log_likelihood`.
     pub trace: Vec<f64>,
     /// Iterations of the winning start.
     pub iterations: usize,
@@ -250,7 +526,16 @@ pub struct EmFit {
     pub diagonal: bool,
 }
 
-/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM.
+/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM (seed 004 eq. 2;
+/// HyT-EM of §IV).
+///
+/// `starts` independent starts, each from its own seeded initialisation; the start with the
+/// highest final log-likelihood wins. The ridge is `regularization`, times the mean
+/// per-dimension weighted variance of the data when `relative_regularization` (times 1 if that
+/// is 0). A start whose covariance fails the checks of the module doc restarts from a new
+/// seeded initialisation ([`EmFit::numerical_restarts`] counts them over all starts); after
+/// [`NUMERICAL_RESTARTS`] failures it fits diagonal covariances (variances floored at `1e-12`
+/// of the data's), which cannot fail.
 ///
 /// # Errors
 /// Malformed data ([`MixtureError::DimensionMismatch`], [`MixtureError::NonFinite`],
@@ -262,12 +547,22 @@ pub fn fit_em(
     weights: Option<&[f64]>,
     config: &EmConfig,
 ) -> Result<EmFit, MixtureError> {
-    let _ = (data, dim, weights, config);
-    todo!()
+    config.check()?;
+    let rows = Rows::new(data, dim, weights)?;
+    check_distinct(&rows, config.components)?;
+    Ok(em::fit(&rows, config))
 }
 
 /// EM from a given initial mixture (one start, no random choices): what scikit-learn's
 /// `GaussianMixture(means_init=…, weights_init=…, precisions_init=…)` does, for oracle tests.
+///
+/// With `relative_regularization: false` this is scikit-learn's `reg_covar = regularization`,
+/// `tol = tolerance`, `max_iter = max_iterations`: the same iterations (E-step, then M-step;
+/// stop after the M-step of the first iteration whose E-step log-likelihood changed by less
+/// than `tolerance`), `iterations` is its `n_iter_`. `components`, `starts`, `init` and `seed`
+/// are not used. A numerical failure (module doc) does not restart (there is nothing to draw):
+/// the fit goes on with diagonal covariances from that M-step on (`diagonal` is set).
+/// Components that become empty are re-seeded as in [`fit_em`].
 ///
 /// # Errors
 /// As [`fit_em`].
@@ -278,8 +573,60 @@ pub fn fit_em_from(
     initial: &GaussianMixture,
     config: &EmConfig,
 ) -> Result<EmFit, MixtureError> {
-    let _ = (data, dim, weights, initial, config);
-    todo!()
+    config.check_iteration_settings()?;
+    let rows = Rows::new(data, dim, weights)?;
+    if initial.dim() != dim {
+        return Err(MixtureError::DimensionMismatch(format!(
+            "the initial mixture has {} dimensions, the data {dim}",
+            initial.dim()
+        )));
+    }
+    check_distinct(&rows, initial.components())?;
+    Ok(em::fit_from(&rows, initial, config))
+}
+
+/// [`MixtureError::TooFewPoints`] unless `rows` has at least `k` distinct rows.
+fn check_distinct(rows: &Rows<'_>, k: usize) -> Result<(), MixtureError> {
+    let points = rows.distinct_up_to(k);
+    if points < k {
+        return Err(MixtureError::TooFewPoints {
+            points,
+            components: k,
+        });
+    }
+    Ok(())
+}
+
+impl EmConfig {
+    /// Checks every field.
+    fn check(&self) -> Result<(), MixtureError> {
+        if self.components == 0 {
+            return Err(MixtureError::InvalidConfig(
+                "components must be >= 1".into(),
+            ));
+        }
+        if self.starts == 0 {
+            return Err(MixtureError::InvalidConfig("starts must be >= 1".into()));
+        }
+        self.check_iteration_settings()
+    }
+
+    /// Checks the fields [`fit_em_from`] uses.
+    fn check_iteration_settings(&self) -> Result<(), MixtureError> {
+        if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
+            return Err(MixtureError::InvalidConfig(format!(
+                "tolerance {} is not a finite number >= 0",
+                self.tolerance
+            )));
+        }
+        if !(self.regularization >= 0.0 && self.regularization.is_finite()) {
+            return Err(MixtureError::InvalidConfig(format!(
+                "regularization {} is not a finite number >= 0",
+                self.regularization
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// k-means settings.
@@ -329,8 +676,15 @@ pub fn kmeans(
     weights: Option<&[f64]>,
     config: &KMeansConfig,
 ) -> Result<KMeansFit, MixtureError> {
-    let _ = (data, dim, weights, config);
-    todo!()
+    if config.clusters == 0 {
+        return Err(MixtureError::InvalidConfig("clusters must be >= 1".into()));
+    }
+    if config.starts == 0 {
+        return Err(MixtureError::InvalidConfig("starts must be >= 1".into()));
+    }
+    let rows = Rows::new(data, dim, weights)?;
+    check_distinct(&rows, config.clusters)?;
+    Ok(kmeans::fit(&rows, config))
 }
 
 /// The mixture of hard clusters: weights = cluster weight shares, means and (regularised)
@@ -347,6 +701,27 @@ pub fn mixture_of_clusters(
     k: usize,
     regularization: f64,
 ) -> Result<GaussianMixture, MixtureError> {
-    let _ = (data, dim, weights, labels, k, regularization);
-    todo!()
+    if k == 0 {
+        return Err(MixtureError::InvalidConfig("k must be >= 1".into()));
+    }
+    if !(regularization >= 0.0 && regularization.is_finite()) {
+        return Err(MixtureError::InvalidConfig(format!(
+            "regularization {regularization} is not a finite number >= 0"
+        )));
+    }
+    let rows = Rows::new(data, dim, weights)?;
+    if labels.len() != rows.n {
+        return Err(MixtureError::DimensionMismatch(format!(
+            "{} labels for {} rows",
+            labels.len(),
+            rows.n
+        )));
+    }
+    if let Some(l) = labels.iter().find(|&&l| l >= k) {
+        return Err(MixtureError::DimensionMismatch(format!(
+            "label {l} is not below k = {k}"
+        )));
+    }
+    em::cluster_mixture(&rows, labels, k, regularization, em::Covariances::Full)
+        .map_err(|component| MixtureError::NotPositiveDefinite { component })
 }
