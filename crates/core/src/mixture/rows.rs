@@ -93,7 +93,7 @@ impl<'a> Rows<'a> {
 
     /// `min(k, number of distinct rows of positive weight)` (`-0.0 == 0.0`).
     pub fn distinct_up_to(&self, k: usize) -> usize {
-        let mut found: Vec<usize> = Vec::with_capacity(k);
+        let mut found: Vec<usize> = Vec::with_capacity(k.min(self.n));
         for i in 0..self.n {
             if found.len() >= k {
                 break;

@@ -810,6 +810,13 @@ fn bad_input_gives_the_right_error() {
     );
     assert!(fit_em(&few, 2, None, &config(4, 0)).is_ok());
     assert_eq!(
+        fit_em(&few, 2, None, &config(usize::MAX, 0)),
+        Err(MixtureError::TooFewPoints {
+            points: 4,
+            components: usize::MAX
+        })
+    );
+    assert_eq!(
         kmeans(
             &few,
             2,
@@ -905,4 +912,67 @@ fn mixtures_serialise_round_trip() {
     let bytes = postcard::to_allocvec(&fit.mixture).unwrap();
     let back: GaussianMixture = postcard::from_bytes(&bytes).unwrap();
     assert_eq!(back, fit.mixture);
+}
+
+#[test]
+fn small_degenerate_data_never_panic_or_give_nan() {
+    // Few distinct points (on a grid, on a circle, identical but one), random integer
+    // weights with zeros, every k up to the number of distinct points, both inits, with and
+    // without regularisation.
+    let mut rng = Xoshiro256StarStar::seed_from_u64(99);
+    for case in 0..60 {
+        let dim = 1 + case % 4;
+        let n = 2 + rng.int_in(0, 30) as usize;
+        let levels = 1 + rng.int_in(0, 3);
+        let mut data: Vec<f64> = (0..n * dim)
+            .map(|_| rng.int_in(0, levels) as f64 * 0.5)
+            .collect();
+        if case % 5 == 0 {
+            data.iter_mut().for_each(|v| *v = 3.0);
+            data[0] = 3.5;
+        }
+        let weights: Vec<f64> = (0..n).map(|_| rng.int_in(0, 3) as f64).collect();
+        let weights = if weights.iter().all(|&w| w == 0.0) || case % 3 == 0 {
+            None
+        } else {
+            Some(weights)
+        };
+        let rows = Rows::new(&data, dim, weights.as_deref()).unwrap();
+        let distinct = rows.distinct_up_to(usize::MAX);
+        for k in 1..=distinct.min(6) {
+            for (init, reg) in [(EmInit::KMeans, 1e-6), (EmInit::KMeansPlusPlus, 0.0)] {
+                let cfg = EmConfig {
+                    components: k,
+                    init,
+                    regularization: reg,
+                    starts: 2,
+                    max_iterations: 50,
+                    seed: case as u64,
+                    ..EmConfig::default()
+                };
+                let what = format!("case {case}, dim {dim}, k {k}, {init:?}");
+                let fit = fit_em(&data, dim, weights.as_deref(), &cfg)
+                    .unwrap_or_else(|e| panic!("{what}: {e}"));
+                assert_finite(&fit.mixture, &what);
+                assert!(!fit.log_likelihood.is_nan(), "{what}");
+                assert!(fit.trace.iter().all(|v| !v.is_nan()), "{what}");
+                let km = kmeans(
+                    &data,
+                    dim,
+                    weights.as_deref(),
+                    &KMeansConfig {
+                        clusters: k,
+                        ..KMeansConfig::default()
+                    },
+                )
+                .unwrap();
+                assert!(km.inertia.is_finite() && km.centres.iter().all(|v| v.is_finite()));
+            }
+        }
+        let too_many = distinct + 1;
+        assert!(matches!(
+            fit_em(&data, dim, weights.as_deref(), &config(too_many, 0)),
+            Err(MixtureError::TooFewPoints { .. })
+        ));
+    }
 }
