@@ -87,7 +87,7 @@ fn wednesday_and_thursday_to_friday_json_has_the_documented_shape_and_numbers() 
         .iter()
         .map(|r| r["model"].as_str().unwrap())
         .collect();
-    assert_eq!(models.len(), 4, "{models:?}");
+    assert_eq!(models.len(), 5, "{models:?}");
     assert_eq!(models[..2], ["static", "mean"]);
     assert!(models[2].starts_with("hist:") && models[3].starts_with("fremen:"));
     for r in results {
@@ -134,6 +134,11 @@ fn wednesday_and_thursday_to_friday_json_has_the_documented_shape_and_numbers() 
     close(&results[2]["reduction_pct"], 45.30, 0.005);
     assert_eq!(models[3], "fremen:4");
     close(&results[3]["reduction_pct"], 24.24, 0.005);
+    // Warped Hypertime (seed 004): 2 components and the 12-hour periodicity, chosen on the
+    // Thursday held out of the training days; better than the static map, worse than the
+    // per-cell temporal models here.
+    assert_eq!(models[4], "hyt-em:2@12h");
+    close(&results[4]["reduction_pct"], 9.646, 0.005);
 }
 
 #[test]

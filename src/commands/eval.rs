@@ -48,7 +48,7 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
         TimeSeries { times, values }
     };
     let train = part(f64::NEG_INFINITY, args.split_at[0]);
-    if train.len() == 0 {
+    if train.is_empty() {
         bail!(
             "--split-at: {} has no observation before {}",
             args.train.display(),
@@ -65,7 +65,7 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
         } else {
             "the end".to_string()
         };
-        if test.len() == 0 {
+        if test.is_empty() {
             bail!(
                 "--split-at: {} has no observation from {} to {until}",
                 args.train.display(),

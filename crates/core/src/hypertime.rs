@@ -768,6 +768,62 @@ mod tests {
         assert_eq!(strongest_period(&times, &e, &w, &[DAY], &[DAY]).0, None);
     }
 
+    /// A door open 8:00-18:00 every day, observed every 20 minutes for three weeks.
+    fn daily_door() -> (Vec<f64>, Vec<f64>) {
+        let times: Vec<f64> = (0..3 * 7 * 72)
+            .map(|i| 1_451_865_600.0 + 1200.0 * f64::from(i))
+            .collect();
+        let values = times
+            .iter()
+            .map(|&t| f64::from(u8::from((8.0..18.0).contains(&((t % DAY) / 3600.0)))))
+            .collect();
+        (times, values)
+    }
+
+    #[test]
+    fn a_daily_door_is_found_and_predicted() {
+        let (times, values) = daily_door();
+        for clustering in [Clustering::Em(Components::Fixed(2)), Clustering::KMeans] {
+            let mut model = HypertimeModel::new(HypertimeConfig::new(clustering)).unwrap();
+            model.observe(&times, &values).unwrap();
+            assert_eq!(model.periods()[0], DAY, "{clustering:?}");
+            let next_week = times[times.len() - 1] + 1200.0;
+            let noon = next_week - next_week % DAY + 7.0 * DAY + 13.0 * 3600.0;
+            let night = noon - 10.0 * 3600.0;
+            assert!(
+                model.predict(noon) > 0.9,
+                "{clustering:?}: {}",
+                model.predict(noon)
+            );
+            assert!(
+                model.predict(night) < 0.1,
+                "{clustering:?}: {}",
+                model.predict(night)
+            );
+        }
+    }
+
+    #[test]
+    fn conformance() {
+        let (times, values) = daily_door();
+        let (times, values) = (&times[..60], &values[..60]);
+        crate::conformance::check_temporal_model(
+            || {
+                HypertimeModel::new(HypertimeConfig::new(Clustering::Em(Components::Fixed(2))))
+                    .unwrap()
+            },
+            times,
+            values,
+        );
+        // Continuous values.
+        let soft: Vec<f64> = values.iter().map(|v| 0.2 + 0.5 * v).collect();
+        crate::conformance::check_temporal_model(
+            || HypertimeModel::new(HypertimeConfig::new(Clustering::KMeans)).unwrap(),
+            times,
+            &soft,
+        );
+    }
+
     #[test]
     fn configuration_is_checked() {
         let mut config = HypertimeConfig::new(Clustering::Em(Components::Fixed(0)));

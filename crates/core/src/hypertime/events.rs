@@ -229,7 +229,15 @@ impl HypertimeEvents {
             mixture,
             time_marginal,
             scale: 1.0,
-            name: format!("hyt-em:{k}"),
+            name: if periods.is_empty() {
+                format!("hyt-em:{k}")
+            } else {
+                let hours: Vec<String> = periods
+                    .iter()
+                    .map(|p| format!("{}h", (p / 360.0).round() / 10.0))
+                    .collect();
+                format!("hyt-em:{k}@{}", hours.join(","))
+            },
         };
         // Eq. (3): c · ∫ f_φ(φ(t)) dt over the observed time = number of observed events.
         let mut integral = 0.0;
