@@ -86,6 +86,51 @@ pub enum Command {
     /// happen in each cell and time bin (seed 004 §V-D).
     #[command(subcommand)]
     Events(EventsCommand),
+    /// Warped Hypertime for 2-D events (seed 004): fit the intensity of detections over space
+    /// and time, print the periodicities found, draw the predicted density at chosen times.
+    #[command(after_help = HYPERTIME_HELP)]
+    Hypertime(HypertimeArgs),
+}
+
+const HYPERTIME_HELP: &str = "\
+Example (people in the Lincoln corridors; Wednesday and Thursday, maps for Friday 10:00 and 16:30):
+  chronomap hypertime \\
+      --train data/lincoln_pedestrians_2017/whytes/wednesday_thursday_days_nights_only_ones.txt.xz \\
+      --at 2017-05-26T10:00Z,2017-05-26T16:30Z --plot docs/img/pedestrians_hypertime.png
+
+The model is a Gaussian mixture over [x, y, cos(2πt/T), sin(2πt/T), ...] with the periods T found
+in the error of the predicted number of detections over time, kept while they lower the error on
+the last training day (or the last quarter of a single day); components likewise (--components).
+The map shows the expected detections per m² per hour; all maps share one colour scale (black =
+the largest value).";
+
+/// `chronomap hypertime`.
+#[derive(Debug, Args)]
+pub struct HypertimeArgs {
+    /// Training event files (`t x y ...` lines), comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub train: Vec<PathBuf>,
+    /// Use only detections before this time: seconds or ISO 8601.
+    #[arg(long, value_parser = parse_time)]
+    pub train_before: Option<f64>,
+    /// Times to draw the predicted density at (seconds or ISO 8601), comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = parse_time)]
+    pub at: Vec<f64>,
+    /// Mixture components: a number or `auto`.
+    #[arg(long, default_value = "auto")]
+    pub components: String,
+    /// Cell size of the maps in metres.
+    #[arg(long, default_value_t = 0.25, value_parser = parse_positive)]
+    pub cell: f64,
+    /// Detections further apart than this many seconds start a new window of observation.
+    #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
+    pub gap: f64,
+    /// Write the maps at --at as one PNG.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 const EVENTS_HELP_EVAL: &str = "\

@@ -257,3 +257,34 @@ fn help_shows_the_documented_commands() {
     assert!(help.contains("--train-before 2017-05-25"), "{help}");
     assert!(help.contains("raw_days/2017_05_26.txt.xz --json"), "{help}");
 }
+
+/// `chronomap hypertime` on Wednesday and Thursday: the 12-hour periodicity and two
+/// components chosen on Thursday, a busy late afternoon (16:30) against a quiet morning, and
+/// the maps as a PNG.
+#[test]
+fn hypertime_finds_the_afternoon_and_draws_it() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("hypertime_cli");
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("maps.png").display().to_string();
+    let text = stdout(&chronomap(&[
+        "hypertime",
+        "--train",
+        &whytes(),
+        "--at",
+        "2017-05-26T10:00Z,2017-05-26T16:30Z",
+        "--plot",
+        &png,
+        "--json",
+    ]));
+    let json: Value = serde_json::from_str(&text).expect("one JSON object");
+    assert_eq!(json["periods_secs"], serde_json::json!([43200.0]));
+    assert_eq!(json["components"], 2);
+    let morning = json["maps"][0]["total_per_hour"].as_f64().unwrap();
+    let afternoon = json["maps"][1]["total_per_hour"].as_f64().unwrap();
+    assert!((morning - 92.0).abs() < 1.0, "{morning}");
+    assert!((afternoon - 24_078.0).abs() < 10.0, "{afternoon}");
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let bad = chronomap(&["hypertime", "--train", &whytes(), "--components", "0"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--components"));
+}

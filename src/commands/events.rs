@@ -9,11 +9,15 @@ use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::events::{
     Event, EventModelBuilder, EventScore, TrainingData, default_builders, run_experiment,
 };
-use chronomap_core::hypertime::events::{EventModelConfig, HypertimeEventsBuilder};
-use chronomap_io::{read_event_files, read_events};
+use chronomap_core::events::{EventIntensity, SpatialGrid};
+use chronomap_core::hypertime::Components;
+use chronomap_core::hypertime::events::{
+    EventModelConfig, HypertimeEvents, HypertimeEventsBuilder,
+};
+use chronomap_io::{MapImage, read_event_files, read_events, render_scaled_maps_png};
 use serde_json::{Value, json};
 
-use crate::cli::EventsEvalArgs;
+use crate::cli::{EventsEvalArgs, HypertimeArgs};
 use crate::format::{Table, duration, time};
 
 /// The models of the tables, in order: static map, global mean, `Hist_n`, FreMEn per cell.
@@ -198,4 +202,130 @@ fn score_json(r: &EventScore) -> Value {
             "nt": r.grid.nt,
         },
     })
+}
+
+/// `chronomap hypertime`: fit the Warped Hypertime event intensity and draw it.
+pub fn hypertime(args: &HypertimeArgs) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    let names = file_list(&args.train);
+    let mut events = read_event_files(&args.train).context("cannot read the training events")?;
+    if let Some(before) = args.train_before {
+        events.retain(|e| e.t < before);
+    }
+    if events.is_empty() {
+        bail!("{names}: no detections (before --train-before?)");
+    }
+    let train =
+        TrainingData::from_events(&events, args.gap).map_err(|e| anyhow!("{names}: {e}"))?;
+    let components = match args.components.as_str() {
+        "auto" => Components::Auto,
+        k => match k.parse::<usize>() {
+            Ok(k) if k >= 1 => Components::Fixed(k),
+            _ => bail!("--components {k:?}: give a whole number >= 1 or auto"),
+        },
+    };
+    let config = EventModelConfig {
+        components,
+        ..EventModelConfig::default()
+    };
+    let started = std::time::Instant::now();
+    let model = HypertimeEvents::fit(&train, &config)
+        .with_context(|| format!("cannot fit the hypertime model to {names}"))?;
+    let seconds = started.elapsed().as_secs_f64();
+    let periods: Vec<String> = model.periods().iter().map(|&p| duration(p)).collect();
+    let observed: Vec<Event> = train.observed_events().copied().collect();
+    let space = SpatialGrid::covering(&observed, args.cell)
+        .ok_or_else(|| anyhow!("{names}: no detections in the plane"))?;
+    // Expected detections per m² per hour at each time, on the cells' centres.
+    let maps: Vec<Vec<f64>> = args
+        .at
+        .iter()
+        .map(|&t| {
+            let grid = space.with_bins(t - 1800.0, 3600.0, 1);
+            model
+                .expected_counts(&grid)
+                .into_iter()
+                .map(|c| c / (args.cell * args.cell))
+                .collect()
+        })
+        .collect();
+    if let Some(path) = &args.plot {
+        if maps.is_empty() {
+            bail!("--plot needs at least one time in --at");
+        }
+        let max = maps
+            .iter()
+            .flatten()
+            .copied()
+            .fold(0.0f64, f64::max)
+            .max(f64::MIN_POSITIVE);
+        let images: Vec<MapImage> = args
+            .at
+            .iter()
+            .zip(&maps)
+            .map(|(&t, map)| MapImage {
+                title: format!("{} (max {:.1}/m²/h)", time(t), max),
+                width: space.nx as u32,
+                height: space.ny as u32,
+                // Row 0 is the bottom (the smallest y), as the renderer draws maps. A square
+                // root scale, so that quiet places stay visible beside the busiest one.
+                values: (0..space.ny)
+                    .flat_map(|r| (0..space.nx).map(move |c| (r, c)))
+                    .map(|(r, c)| (map[space.index(r, c)] / max).sqrt() as f32)
+                    .collect(),
+            })
+            .collect();
+        let pixels = (480 / space.nx.max(space.ny).max(1)).clamp(1, 16) as u32;
+        let quarter = format!("{:.1}/m²/h", max / 4.0);
+        let legend = [("none", 0.0), (quarter.as_str(), 0.5), ("the maximum", 1.0)];
+        render_scaled_maps_png(&images, path, pixels, &legend)?;
+    }
+    if args.json {
+        writeln!(
+            out,
+            "{}",
+            json!({
+                "train": {"files": names, "events": events.len(), "observed_secs": train.observed_secs()},
+                "periods_secs": model.periods(),
+                "components": model.mixture().components(),
+                "fit_seconds": seconds,
+                "maps": args.at.iter().zip(&maps).map(|(&t, m)| json!({
+                    "time": t,
+                    "total_per_hour": m.iter().sum::<f64>() * args.cell * args.cell,
+                    "max_per_m2_hour": m.iter().copied().fold(0.0f64, f64::max),
+                })).collect::<Vec<_>>(),
+            })
+        )?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "{names}: {} detections, {} observed; fitted in {seconds:.1} s",
+        events.len(),
+        duration(train.observed_secs())
+    )?;
+    writeln!(
+        out,
+        "{} mixture components over [x, y{}]; periodicities: {}",
+        model.mixture().components(),
+        ", cos, sin".repeat(model.periods().len()),
+        if periods.is_empty() {
+            "none (the spatial distribution does not change with time)".to_string()
+        } else {
+            periods.join(", ")
+        }
+    )?;
+    for (&t, map) in args.at.iter().zip(&maps) {
+        writeln!(
+            out,
+            "{}: {:.0} detections per hour expected, at most {:.1} per m² per hour",
+            time(t),
+            map.iter().sum::<f64>() * args.cell * args.cell,
+            map.iter().copied().fold(0.0f64, f64::max)
+        )?;
+    }
+    if let Some(path) = &args.plot {
+        writeln!(out, "wrote {}", path.display())?;
+    }
+    Ok(())
 }

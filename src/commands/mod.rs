@@ -44,6 +44,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Topo(TopoCommand::Predict(args)) => topo::predict(&args),
         Command::Plan(args) => topo::plan(&args),
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
+        Command::Hypertime(args) => events::hypertime(&args),
     }
 }
 

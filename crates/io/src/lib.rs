@@ -84,7 +84,7 @@ pub use navmap::{
 pub use plot::{
     HEATMAP_NO_VALUE, Heatmap, HeatmapLayout, MapImage, Panel, PlotError, PlotErrorKind, Series,
     SeriesStyle, SpectrumBar, heatmap_colour, render_heatmap_png, render_maps_png,
-    render_panels_png, render_spectrum_png,
+    render_panels_png, render_scaled_maps_png, render_spectrum_png,
 };
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,

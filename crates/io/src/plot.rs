@@ -902,10 +902,36 @@ fn occupancy_colour(p: f32) -> RGBColor {
 /// A [`PlotError`] naming `path`: no maps, a map whose `values` do not have `width × height`
 /// entries, an image too large or small, or a drawing/writing failure.
 pub fn render_maps_png(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), PlotError> {
-    render_maps(maps, path, cell_pixels).map_err(|kind| PlotError::new(path, kind))
+    let legend = [
+        ("free (p = 0)", 0.0),
+        ("p = 0.5", 0.5),
+        ("occupied (p = 1)", 1.0),
+        ("unknown", f32::NAN),
+    ];
+    render_maps(maps, path, cell_pixels, &legend).map_err(|kind| PlotError::new(path, kind))
 }
 
-fn render_maps(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), PlotErrorKind> {
+/// As [`render_maps_png`] for maps of other quantities scaled into `[0, 1]` (e.g. a predicted
+/// density divided by its maximum): the legend shows `legend` — `(label, value)` pairs —
+/// instead of the occupancy legend.
+///
+/// # Errors
+/// As [`render_maps_png`].
+pub fn render_scaled_maps_png(
+    maps: &[MapImage],
+    path: &Path,
+    cell_pixels: u32,
+    legend: &[(&str, f32)],
+) -> Result<(), PlotError> {
+    render_maps(maps, path, cell_pixels, legend).map_err(|kind| PlotError::new(path, kind))
+}
+
+fn render_maps(
+    maps: &[MapImage],
+    path: &Path,
+    cell_pixels: u32,
+    legend: &[(&str, f32)],
+) -> Result<(), PlotErrorKind> {
     if maps.is_empty() {
         return Err(PlotErrorKind::NoPanels);
     }
@@ -956,15 +982,11 @@ fn render_maps(maps: &[MapImage], path: &Path, cell_pixels: u32) -> Result<(), P
             }
         }
     }
-    // Legend: free, occupied, unknown.
+    // Legend: e.g. free, occupied, unknown.
     let y = (title_height + map_height + 12) as i32;
     let mut x = margin as i32;
-    for (label, colour) in [
-        ("free (p = 0)", occupancy_colour(0.0)),
-        ("p = 0.5", occupancy_colour(0.5)),
-        ("occupied (p = 1)", occupancy_colour(1.0)),
-        ("unknown", occupancy_colour(f32::NAN)),
-    ] {
+    for &(label, value) in legend {
+        let colour = occupancy_colour(value);
         root.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], colour.filled()))
             .map_err(drawing)?;
         root.draw(&Rectangle::new(
