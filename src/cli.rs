@@ -90,6 +90,46 @@ pub enum Command {
     /// and time, print the periodicities found, draw the predicted density at chosen times.
     #[command(after_help = HYPERTIME_HELP)]
     Hypertime(HypertimeArgs),
+    /// Which features will be visible? Pick the n most likely at every test slot and count the
+    /// visible ones (seed 001 §VII Table I, seed 004 §V-B).
+    #[command(after_help = FEATURES_HELP)]
+    Features(FeaturesArgs),
+}
+
+const FEATURES_HELP: &str = "\
+Example (111 image features at one place of the Brayford office, one week in 10-minute slots,
+each written on 10 lines; train on the first 6 days, test on the 7th):
+  chronomap features --matrix data/brayford_week/features_0.txt.xz --lines-per-slot 10 \\
+      --train-days 6 --n 5,10,20,50 --models mean,hist:24,fremen:auto,hyt-em:auto,hyt-km
+
+A matrix file has one line per time slot with one 0/1 field per feature (1 = visible); slot k
+starts at k × --slot-secs. Every model is fitted per feature on the training slots only; at every
+test slot the n features with the highest predicted visibility are picked.";
+
+/// `chronomap features`.
+#[derive(Debug, Args)]
+pub struct FeaturesArgs {
+    /// State matrix: one line per slot, one 0/1 per feature.
+    #[arg(long)]
+    pub matrix: PathBuf,
+    /// Length of a slot in seconds.
+    #[arg(long, default_value_t = 600.0, value_parser = parse_positive)]
+    pub slot_secs: f64,
+    /// Lines per slot (the rows of a slot are repeated; the first is used).
+    #[arg(long, default_value_t = 1)]
+    pub lines_per_slot: usize,
+    /// Days of slots to train on; the rest is the test.
+    #[arg(long, default_value_t = 6.0, value_parser = parse_positive)]
+    pub train_days: f64,
+    /// Numbers of features to pick, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "5,10,20,50")]
+    pub n: Vec<usize>,
+    /// Models, comma-separated.
+    #[arg(long, value_parser = parse_models, default_value = "mean,hist:24,fremen:auto,hyt-em:auto,hyt-km")]
+    pub models: ModelList,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 const HYPERTIME_HELP: &str = "\

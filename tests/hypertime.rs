@@ -166,3 +166,50 @@ fn labdoor_velocity_hypertime_equals_the_mean() {
     assert!((m - train_mean).abs() < 1e-9, "{m} vs {train_mean}");
     assert!(v > 0.0 && v < 0.05, "{v}");
 }
+
+/// Feature visibility at one Brayford place (seed 001 §VII Table I protocol, seed 004 §V-B):
+/// trained on 6 days, the 5 features each model picks per 10-minute slot of day 7. Measured:
+/// mean 39.9 %, FreMEn order 2 85.7 %, HyT-KM 85.0 % of them visible (`chronomap features`;
+/// docs/hypertime.md).
+#[test]
+fn feature_visibility_needs_time() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "features",
+            "--matrix",
+            &data("brayford_week/features_0.txt.xz")
+                .display()
+                .to_string(),
+            "--lines-per-slot",
+            "10",
+            "--train-days",
+            "6",
+            "--n",
+            "5,20",
+            "--models",
+            "mean,fremen:2,hyt-km",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["features"], 111);
+    assert_eq!(
+        (json["train_slots"].as_u64(), json["test_slots"].as_u64()),
+        (Some(864), Some(144))
+    );
+    let rate = |m: usize, n: usize| json["models"][m]["reobservation"][n].as_f64().unwrap();
+    assert!((rate(0, 0) - 0.399).abs() < 0.001, "mean {}", rate(0, 0));
+    assert!(
+        (rate(1, 0) - 0.857).abs() < 0.001,
+        "fremen:2 {}",
+        rate(1, 0)
+    );
+    assert!((rate(2, 0) - 0.850).abs() < 0.01, "hyt-km {}", rate(2, 0));
+    assert!(rate(2, 1) > rate(0, 1) + 0.2);
+}

@@ -9,6 +9,7 @@ mod demo_topo;
 mod eval;
 mod events;
 mod explore;
+mod features;
 mod grid;
 mod model;
 mod synthetic;
@@ -45,6 +46,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Plan(args) => topo::plan(&args),
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
         Command::Hypertime(args) => events::hypertime(&args),
+        Command::Features(args) => features::run(&args),
     }
 }
 

@@ -73,6 +73,7 @@ pub mod stm;
 #[cfg(test)]
 mod testdata;
 pub mod topo;
+pub mod visibility;
 
 pub use error::{BuildError, ConfigError, ObservationError};
 pub use fft::{FftFremen, FftFremenConfig};

@@ -63,6 +63,7 @@ mod atomic;
 pub mod datasets;
 pub mod events;
 pub mod grid_file;
+pub mod matrix;
 pub mod model_file;
 pub mod navmap;
 pub mod plot;
@@ -71,6 +72,7 @@ pub mod topo_files;
 
 pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
+pub use matrix::{read_state_matrix, read_state_matrix_from};
 pub use model_file::{
     EDGE_MODELS_KIND, ModelFileError, ModelFileErrorKind, decode_any_model, decode_edge_models,
     decode_model, encode_model, read_any_model, read_edge_models, read_model_file, write_any_model,
