@@ -29,8 +29,7 @@ pub fn read_state_matrix_from(name: &str, reader: impl Read) -> Result<Vec<Vec<f
     let mut rows: Vec<Vec<f64>> = Vec::new();
     for_each_data_line(name, reader, |_, line| {
         let mut row = Vec::with_capacity(rows.first().map_or(16, Vec::len));
-        let mut fields = Fields::new(line);
-        while let Some(field) = fields.next() {
+        for field in Fields::new(line) {
             let text = String::from_utf8_lossy(field);
             match field {
                 b"0" => row.push(0.0),
