@@ -103,16 +103,8 @@ impl HypertimeConfig {
                 expected,
             })
         };
-        if self.candidate_periods.is_empty() {
-            return Err(ConfigError::NoPeriods);
-        }
-        if let Some(p) = self
-            .candidate_periods
-            .iter()
-            .find(|p| !(p.is_finite() && **p > 0.0))
-        {
-            return bad("period", p.to_string(), "a positive number of seconds");
-        }
+        // The checks of every spectral model's candidate periods.
+        crate::periods::PeriodSet::from_periods(self.candidate_periods.clone())?;
         if let Clustering::Em(Components::Fixed(0)) = self.clustering {
             return bad("components", "0".into(), "at least 1");
         }

@@ -72,16 +72,8 @@ impl EventModelConfig {
                 expected,
             })
         };
-        if self.candidate_periods.is_empty() {
-            return Err(ConfigError::NoPeriods);
-        }
-        if let Some(p) = self
-            .candidate_periods
-            .iter()
-            .find(|p| !(p.is_finite() && **p > 0.0))
-        {
-            return bad("period", p.to_string(), "a positive number of seconds");
-        }
+        // The checks of every spectral model's candidate periods.
+        crate::periods::PeriodSet::from_periods(self.candidate_periods.clone())?;
         if self.components == Components::Fixed(0) || self.max_components == 0 {
             return bad("components", "0".into(), "at least 1");
         }
