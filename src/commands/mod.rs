@@ -128,5 +128,19 @@ fn describe_selection(selection: &Selection) -> String {
             }
             text
         }
+        Selection::Hypertime {
+            periods,
+            components,
+        } => {
+            let periods: Vec<String> = periods.iter().map(|&p| crate::format::period(p)).collect();
+            format!(
+                "{components} mixture components, periodicities {} (chosen on the most recent 25 % of the training data)",
+                if periods.is_empty() {
+                    "none".to_string()
+                } else {
+                    periods.join(", ")
+                }
+            )
+        }
     }
 }

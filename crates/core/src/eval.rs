@@ -117,7 +117,16 @@ pub fn evaluate(
             } else {
                 (j, i)
             };
-            if let Some(test) = paired_t_test(&models[better].mses(), &models[worse].mses()) {
+            let (a, b) = (models[better].mses(), models[worse].mses());
+            // Scores equal up to rounding (e.g. two models that both predict the training
+            // mean): no difference to test, whatever the rounding noise's variance.
+            let scale = a.iter().chain(&b).fold(0.0f64, |m, x| m.max(x.abs()));
+            let equal = a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-9 * scale);
+            if let Some(mut test) = paired_t_test(&a, &b) {
+                if equal {
+                    test.t = 0.0;
+                    test.p_value = 1.0;
+                }
                 comparisons.push(Comparison {
                     better,
                     worse,
@@ -130,4 +139,56 @@ pub fn evaluate(
         models,
         comparisons,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::parse_model_list;
+
+    /// Two models with the same predictions are never "significantly" different, even when
+    /// rounding makes their scores differ in the last bits.
+    #[test]
+    fn equal_scores_are_not_significant() {
+        let times: Vec<f64> = (0..200).map(|i| 600.0 * f64::from(i)).collect();
+        // Continuous values without a rhythm: hypertime keeps no periodicity and predicts the
+        // mean through its mixture's moments, equal to the mean up to rounding.
+        let values: Vec<f64> = (0..200)
+            .map(|i| 0.3 + 0.4 * f64::from(u8::from(i % 7 == 0)))
+            .collect();
+        let test_times: Vec<Vec<f64>> = (0..3)
+            .map(|k| {
+                (0..50)
+                    .map(|i| 200_000.0 + 1e5 * f64::from(k) + 600.0 * f64::from(i))
+                    .collect()
+            })
+            .collect();
+        let test_values: Vec<Vec<f64>> = (0..3)
+            .map(|k| {
+                (0..50)
+                    .map(|i| f64::from(u8::from((i + k) % 5 == 0)))
+                    .collect()
+            })
+            .collect();
+        let tests: Vec<TestSet<'_>> = test_times
+            .iter()
+            .zip(&test_values)
+            .map(|(t, v)| TestSet {
+                times: t,
+                values: v,
+            })
+            .collect();
+        let report = evaluate(
+            &parse_model_list("mean,hyt-km").unwrap(),
+            &times,
+            &values,
+            &tests,
+            &FitOptions::default(),
+            |_| {},
+        )
+        .unwrap();
+        assert_eq!(report.comparisons.len(), 1);
+        assert_eq!(report.comparisons[0].test.p_value, 1.0);
+        assert_eq!(report.significant(0.05).count(), 0);
+    }
 }

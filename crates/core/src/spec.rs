@@ -296,6 +296,14 @@ pub enum Selection {
         /// How the chosen model's own order was then chosen, if it has one.
         inner: Option<Box<Selection>>,
     },
+    /// The periodicities and components of a Warped Hypertime model, chosen on the most
+    /// recent part of the training data (seed 004 §III-B).
+    Hypertime {
+        /// Periods found, in the order found (seconds).
+        periods: Vec<f64>,
+        /// Mixture components.
+        components: usize,
+    },
 }
 
 /// A fitted model and how it was chosen.
@@ -451,9 +459,13 @@ fn fit_hypertime(
     config.holdout = options.holdout;
     let mut model = HypertimeModel::new(config)?;
     model.observe_and_fit(times, values)?;
+    let selection = Selection::Hypertime {
+        periods: model.periods().to_vec(),
+        components: model.components(),
+    };
     Ok(Fitted {
         model: AnyModel::Hypertime(Box::new(model)),
-        selection: None,
+        selection: Some(selection),
     })
 }
 
