@@ -605,9 +605,15 @@ impl HypertimeModel {
                     }
                     Clustering::KMeans => grow(&fit_rows, &check_rows, None, &self.config, binary)?,
                     Clustering::Em(Components::Auto) => {
+                        // Every k independently (in parallel), then chosen in order: the result
+                        // does not depend on the threads.
+                        use rayon::prelude::*;
+                        let structures: Vec<Structure> = (1..=self.config.max_components)
+                            .into_par_iter()
+                            .map(|k| grow(&fit_rows, &check_rows, Some(k), &self.config, binary))
+                            .collect::<Result<_, _>>()?;
                         let mut best: Option<Structure> = None;
-                        for k in 1..=self.config.max_components {
-                            let s = grow(&fit_rows, &check_rows, Some(k), &self.config, binary)?;
+                        for s in structures {
                             // Fewer components unless more are clearly better.
                             if best
                                 .as_ref()
