@@ -196,17 +196,29 @@ fn print_tables(
     write_metric_table(
         out,
         report,
-        "Mean squared error of p(t) (Brier score), lower is better",
+        if train.values.iter().all(|&v| v == 0.0 || v == 1.0) {
+            "Mean squared error of p(t) (Brier score), lower is better"
+        } else {
+            "Mean squared error of the predicted value, lower is better"
+        },
         |t| t.mse,
     )?;
     writeln!(out)?;
-    write_metric_table(
-        out,
-        report,
-        "Binary error (fraction of wrongly predicted states)",
-        |t| t.binary_error,
-    )?;
-    writeln!(out)?;
+    // The binary error (p > 0.5 against the state) means nothing for continuous values.
+    let binary = train
+        .values
+        .iter()
+        .chain(tests.iter().flat_map(|t| &t.values))
+        .all(|&v| v == 0.0 || v == 1.0);
+    if binary {
+        write_metric_table(
+            out,
+            report,
+            "Binary error (fraction of wrongly predicted states)",
+            |t| t.binary_error,
+        )?;
+        writeln!(out)?;
+    }
     let selections: Vec<_> = report
         .models
         .iter()
@@ -227,7 +239,12 @@ fn print_tables(
     significant.sort_by(|a, b| a.test.p_value.total_cmp(&b.test.p_value));
     writeln!(
         out,
-        "Significant differences of the Brier score (paired t-test over {} test sets, p < {}):",
+        "Significant differences of the {} (paired t-test over {} test sets, p < {}):",
+        if binary {
+            "Brier score"
+        } else {
+            "mean squared error"
+        },
         tests.len(),
         args.alpha
     )?;
