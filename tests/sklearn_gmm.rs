@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::Instant;
 
 use chronomap_core::mixture::{
     EmConfig, EmFit, GaussianMixture, KMeansConfig, fit_em_from, kmeans, mixture_of_clusters,
@@ -283,27 +283,12 @@ fn cases() -> Vec<Case> {
     cases
 }
 
-/// A temporary directory, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new() -> Self {
-        let nanos = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let dir = std::env::temp_dir().join(format!(
-            "chronomap-sklearn-gmm-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+/// A fresh scratch directory under the target directory (the pattern of every CLI test).
+fn scratch(test: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
 }
 
 /// Runs `sklearn_gmm.py` on the case files; returns its JSON output (file name -> result).
@@ -440,11 +425,11 @@ fn fit_em_from_follows_scikit_learns_trajectory() {
         eprintln!("sklearn_gmm: scikit-learn comparison SKIPPED: {enable}");
         return;
     };
-    let dir = TempDir::new();
+    let dir = scratch("sklearn_gmm");
     let files: Vec<PathBuf> = cases
         .iter()
         .map(|case| {
-            let path = dir.0.join(format!("{}.json", case.name));
+            let path = dir.join(format!("{}.json", case.name));
             std::fs::write(&path, case.json().to_string()).unwrap();
             path
         })

@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::Instant;
 
 use chronomap_core::edges::{EdgeModelConfig, EdgeModels};
 use chronomap_core::mdp::{SolverOptions, prism_property, product_drn, restricted_drn};
@@ -57,27 +57,12 @@ struct Ours {
     property: String,
 }
 
-/// A temporary directory, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new() -> Self {
-        let nanos = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let dir = std::env::temp_dir().join(format!(
-            "chronomap-storm-witham-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+/// A fresh scratch directory under the target directory (the pattern of every CLI test).
+fn scratch(test: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
 }
 
 /// Plans every case, writes its files and `expected.json` into `dir`; returns our values by
@@ -258,8 +243,8 @@ fn run_storm(python: &str, dir: &Path, files: &[PathBuf]) -> Value {
 fn witham_pmax_and_expected_times_equal_storms_for_every_hour() {
     let started = Instant::now();
     let models = witham_models();
-    let dir = TempDir::new();
-    let (ours, files) = write_cases(&models, &dir.0);
+    let dir = scratch("storm_witham");
+    let (ours, files) = write_cases(&models, &dir);
     println!(
         "chronomap: fitted and planned {} cases in {:.2} s",
         ours.len(),
@@ -300,7 +285,7 @@ fn witham_pmax_and_expected_times_equal_storms_for_every_hour() {
         eprintln!("storm_witham: Storm comparison SKIPPED: {enable}");
         return;
     };
-    let storm = run_storm(&python, &dir.0, &files);
+    let storm = run_storm(&python, &dir, &files);
     let agreement = compare(&ours, &storm);
 
     println!(
