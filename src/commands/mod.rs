@@ -12,6 +12,7 @@ mod explore;
 mod features;
 mod grid;
 mod model;
+mod serve;
 mod synthetic;
 mod topo;
 
@@ -47,6 +48,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
+        Command::Serve(args) => serve::serve(&args),
+        Command::Client(args) => serve::client(&args),
     }
 }
 

@@ -1,0 +1,268 @@
+//! The wire protocol: request and response bodies of every endpoint, shared by the server and
+//! the [client](crate::client).
+//!
+//! The operations are those users of the original FreMEn server know (`add`, `addvalues`,
+//! `predict`, `forecast`, `entropy`, `forecastEntropy`, `evaluate`, `detect`, `remove`, `view`,
+//! `list`), as JSON over HTTP. Times are seconds (unix time for real robots), `f64`.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// Longest model id, in bytes of UTF-8. The original server's buffer held 100 bytes and its
+/// check allowed 1000; here the bound is checked, documented and the same everywhere.
+pub const MAX_ID_BYTES: usize = 256;
+
+/// The model a `create` (or a first `add` with `model`) makes when none is named: FreMEn
+/// of order 2 over the candidate periods one week / 1..=84.
+pub const DEFAULT_MODEL: &str = "fremen:2";
+
+/// Every error: a machine-readable kind and a sentence for people.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBody {
+    /// `bad_request`, `unauthorized`, `not_found`, `conflict`, `payload_too_large`,
+    /// `unavailable` or `internal`.
+    pub error: String,
+    /// What was wrong, naming the field (and element index) at fault.
+    pub reason: String,
+}
+
+/// Creates a model (`PUT /v1/models/{id}`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CreateRequest {
+    /// Model spec (`fremen:K`, `persistence:K`, `hist:N[:PERIOD]`, `pergam:K[:PERIOD]`,
+    /// `stm`, `mean`); default `fremen:2`.
+    #[serde(default)]
+    pub model: Option<String>,
+    /// For continuous states: the range `[lo, hi]` of the values; values are mapped onto
+    /// `[0, 1]` and predictions back. Absent: values must lie in `[0, 1]`.
+    #[serde(default)]
+    pub range: Option<[f64; 2]>,
+}
+
+/// Binary observations of one state (`POST /v1/add`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AddRequest {
+    /// Model id.
+    pub id: String,
+    /// Observation times (s), not decreasing, not earlier than the model's last observation.
+    pub times: Vec<f64>,
+    /// Observed states.
+    pub states: Vec<bool>,
+    /// Spec of the model to create if `id` does not exist yet (else `404`).
+    #[serde(default)]
+    pub model: Option<String>,
+}
+
+/// Observations with values of one state (`POST /v1/addvalues`), or one batch of
+/// [`ObservationsRequest`].
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AddValuesRequest {
+    /// Model id.
+    pub id: String,
+    /// Observation times (s), not decreasing.
+    pub times: Vec<f64>,
+    /// Values in `[0, 1]`, or in the model's `range`.
+    pub values: Vec<f64>,
+    /// Spec of the model to create if `id` does not exist yet (else `404`).
+    #[serde(default)]
+    pub model: Option<String>,
+}
+
+/// Observations of many states in one durable commit (`POST /v1/observations`): all batches
+/// are accepted or none is.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ObservationsRequest {
+    /// One batch per model.
+    pub batches: Vec<AddValuesRequest>,
+}
+
+/// What a write did, returned once it is durable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct WriteAck {
+    /// Observations added.
+    pub observations: u64,
+    /// Position of the commit in the observation log.
+    pub seq: u64,
+}
+
+/// Predictions of one model at many times (`POST /v1/predict`, `POST /v1/entropy`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PredictRequest {
+    /// Model id.
+    pub id: String,
+    /// Times (s), any order.
+    pub times: Vec<f64>,
+    /// Order to predict with (models with an order); default the model's own.
+    #[serde(default)]
+    pub order: Option<usize>,
+}
+
+/// Answer to [`PredictRequest`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PredictResponse {
+    /// `p(t)` in `[0, 1]` for `predict`, binary entropy in bits for `entropy`.
+    pub values: Vec<f64>,
+    /// For models with a `range` and `predict`: the predictions mapped back onto it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scaled: Option<Vec<f64>>,
+}
+
+/// Predictions of many models at one time (`POST /v1/forecast`, `POST /v1/forecastEntropy`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ForecastRequest {
+    /// Model ids.
+    pub ids: Vec<String>,
+    /// The time (s).
+    pub time: f64,
+    /// One order for every model.
+    #[serde(default)]
+    pub order: Option<usize>,
+    /// One order per model (same length as `ids`); overrides `order`.
+    #[serde(default)]
+    pub orders: Option<Vec<usize>>,
+}
+
+/// Answer to [`ForecastRequest`]: one value per id, in the order of `ids`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ForecastResponse {
+    /// `p(t)` or entropies (bits).
+    pub values: Vec<f64>,
+}
+
+/// Errors of a model per order on given data (`POST /v1/evaluate`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EvaluateRequest {
+    /// Model id.
+    pub id: String,
+    /// Times (s).
+    pub times: Vec<f64>,
+    /// Observed values (in the model's range).
+    pub values: Vec<f64>,
+    /// Largest order evaluated (default 10, at most the model's largest).
+    #[serde(default)]
+    pub max_order: Option<usize>,
+}
+
+/// Answer to [`EvaluateRequest`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct EvaluateResponse {
+    /// The orders evaluated (`[null]`-free: models without an order give one entry, 0).
+    pub orders: Vec<usize>,
+    /// Per order: the fraction of binary states mispredicted (`p > 0.5` vs state), as the
+    /// original server reported; for non-binary values the mean absolute error.
+    pub errors: Vec<f64>,
+    /// Per order: mean squared error of `p(t)` (Brier score for binary states).
+    pub brier: Vec<f64>,
+    /// The order with the smallest error (the first, on ties).
+    pub best_order: usize,
+    /// `binary_error` or `mean_absolute_error`.
+    pub metric: String,
+}
+
+/// Anomaly detection on given data (`POST /v1/detect`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DetectRequest {
+    /// Model id.
+    pub id: String,
+    /// Times (s).
+    pub times: Vec<f64>,
+    /// Observed values (in the model's range).
+    pub values: Vec<f64>,
+    /// Report observations with `|value - p(t)| >= confidence` (in `(0, 1]`).
+    pub confidence: f64,
+    /// Order to predict with; default the model's own.
+    #[serde(default)]
+    pub order: Option<usize>,
+}
+
+/// One anomalous observation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Anomaly {
+    /// Its time.
+    pub time: f64,
+    /// Its value.
+    pub value: f64,
+    /// What the model predicted then (in the model's range).
+    pub predicted: f64,
+}
+
+/// Answer to [`DetectRequest`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DetectResponse {
+    /// The anomalies, in the order given.
+    pub anomalies: Vec<Anomaly>,
+}
+
+/// A periodic component of a spectral model (seed 001 eq. 2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Component {
+    /// Period (s).
+    pub period_secs: f64,
+    /// Amplitude `|γ|`.
+    pub amplitude: f64,
+    /// Phase `arg γ` (rad).
+    pub phase: f64,
+}
+
+/// A model's description (`GET /v1/models/{id}`, and the entries of `list`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ModelInfo {
+    /// Model id.
+    pub id: String,
+    /// Its spec, e.g. `fremen:2`.
+    pub model: String,
+    /// Value range of continuous states.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range: Option<[f64; 2]>,
+    /// Observations seen.
+    pub observations: u64,
+    /// First observation time.
+    pub first_time: Option<f64>,
+    /// Last observation time.
+    pub last_time: Option<f64>,
+    /// Mean of the (normalised) observations, for spectral models (`α_0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean: Option<f64>,
+    /// Components used for prediction, strongest first, for spectral models (`view`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub components: Vec<Component>,
+}
+
+/// All models (`GET /v1/models`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ListResponse {
+    /// By id.
+    pub models: Vec<ModelInfo>,
+}
+
+/// Every observation a model holds, from the durable log (`GET /v1/models/{id}/observations`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ObservationsResponse {
+    /// Times (s).
+    pub times: Vec<f64>,
+    /// Values as given (in the model's range).
+    pub values: Vec<f64>,
+}
+
+/// Service health (`GET /v1/health`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Health {
+    /// `ok`.
+    pub status: String,
+    /// Models held.
+    pub models: u64,
+    /// The store, e.g. `redb DIR/chronomap.redb`.
+    pub store: String,
+    /// Last committed position of the observation log.
+    pub seq: u64,
+    /// Whether writes need a bearer token.
+    pub auth: bool,
+}

@@ -1,0 +1,290 @@
+//! A typed client of the service: one method per endpoint, the service's JSON errors as
+//! [`ClientError::Api`].
+
+use reqwest::{Method, StatusCode};
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use crate::api::*;
+
+/// Why a call failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// The service answered with an error.
+    #[error("{status}: {}", body.reason)]
+    Api {
+        /// HTTP status.
+        status: StatusCode,
+        /// The service's error.
+        body: ErrorBody,
+    },
+    /// No answer (connection refused or reset, timeout) or an answer that is not the API's.
+    #[error("{0}")]
+    Transport(String),
+}
+
+impl ClientError {
+    /// The HTTP status of an API error.
+    pub fn status(&self) -> Option<StatusCode> {
+        match self {
+            ClientError::Api { status, .. } => Some(*status),
+            ClientError::Transport(_) => None,
+        }
+    }
+}
+
+/// A connection to one service (cheap to clone; clones share connections).
+#[derive(Clone, Debug)]
+pub struct Client {
+    base: String,
+    token: Option<String>,
+    http: reqwest::Client,
+}
+
+impl Client {
+    /// A client of the service at `base` (e.g. `http://127.0.0.1:8470`), sending `token` as
+    /// bearer token with writes.
+    ///
+    /// # Errors
+    /// A base that is not an `http://` URL.
+    pub fn new(base: &str, token: Option<String>) -> Result<Self, ClientError> {
+        if !base.starts_with("http://") {
+            return Err(ClientError::Transport(format!(
+                "service address {base:?} is not an http:// URL"
+            )));
+        }
+        let http = reqwest::Client::builder()
+            .no_proxy()
+            .build()
+            .map_err(|e| ClientError::Transport(e.to_string()))?;
+        Ok(Client {
+            base: base.trim_end_matches('/').to_owned(),
+            token,
+            http,
+        })
+    }
+
+    async fn call<B: Serialize + ?Sized, R: DeserializeOwned>(
+        &self,
+        method: Method,
+        path: &str,
+        body: Option<&B>,
+    ) -> Result<R, ClientError> {
+        let mut request = self.http.request(method, format!("{}{path}", self.base));
+        if let Some(token) = &self.token {
+            request = request.bearer_auth(token);
+        }
+        if let Some(body) = body {
+            request = request.json(body);
+        }
+        let response = request
+            .send()
+            .await
+            .map_err(|e| ClientError::Transport(format!("{}{path}: {e}", self.base)))?;
+        let status = response.status();
+        let bytes = response
+            .bytes()
+            .await
+            .map_err(|e| ClientError::Transport(format!("{}{path}: {e}", self.base)))?;
+        if status.is_success() {
+            serde_json::from_slice(&bytes).map_err(|e| {
+                ClientError::Transport(format!("{}{path}: unexpected answer: {e}", self.base))
+            })
+        } else {
+            let body = serde_json::from_slice(&bytes).unwrap_or_else(|_| ErrorBody {
+                error: "unknown".into(),
+                reason: String::from_utf8_lossy(&bytes).into_owned(),
+            });
+            Err(ClientError::Api { status, body })
+        }
+    }
+
+    /// `GET /v1/health`.
+    pub async fn health(&self) -> Result<Health, ClientError> {
+        self.call::<(), _>(Method::GET, "/v1/health", None).await
+    }
+
+    /// Creates a model (`model` spec, `range` for continuous values).
+    pub async fn create(
+        &self,
+        id: &str,
+        model: Option<&str>,
+        range: Option<[f64; 2]>,
+    ) -> Result<WriteAck, ClientError> {
+        let body = CreateRequest {
+            model: model.map(str::to_owned),
+            range,
+        };
+        self.call(Method::PUT, &model_path(id, ""), Some(&body))
+            .await
+    }
+
+    /// Removes a model.
+    pub async fn remove(&self, id: &str) -> Result<WriteAck, ClientError> {
+        self.call::<(), _>(Method::DELETE, &model_path(id, ""), None)
+            .await
+    }
+
+    /// A model's parameters.
+    pub async fn view(&self, id: &str) -> Result<ModelInfo, ClientError> {
+        self.call::<(), _>(Method::GET, &model_path(id, ""), None)
+            .await
+    }
+
+    /// All models.
+    pub async fn list(&self) -> Result<ListResponse, ClientError> {
+        self.call::<(), _>(Method::GET, "/v1/models", None).await
+    }
+
+    /// Every observation a model holds.
+    pub async fn observations(&self, id: &str) -> Result<ObservationsResponse, ClientError> {
+        self.call::<(), _>(Method::GET, &model_path(id, "/observations"), None)
+            .await
+    }
+
+    /// Adds binary observations, creating the model as `model` if it does not exist.
+    pub async fn add(
+        &self,
+        id: &str,
+        times: &[f64],
+        states: &[bool],
+        model: Option<&str>,
+    ) -> Result<WriteAck, ClientError> {
+        let body = AddRequest {
+            id: id.to_owned(),
+            times: times.to_vec(),
+            states: states.to_vec(),
+            model: model.map(str::to_owned),
+        };
+        self.call(Method::POST, "/v1/add", Some(&body)).await
+    }
+
+    /// Adds observations with values.
+    pub async fn add_values(
+        &self,
+        id: &str,
+        times: &[f64],
+        values: &[f64],
+        model: Option<&str>,
+    ) -> Result<WriteAck, ClientError> {
+        let body = AddValuesRequest {
+            id: id.to_owned(),
+            times: times.to_vec(),
+            values: values.to_vec(),
+            model: model.map(str::to_owned),
+        };
+        self.call(Method::POST, "/v1/addvalues", Some(&body)).await
+    }
+
+    /// Adds observations of many models in one durable commit.
+    pub async fn add_batches(
+        &self,
+        request: &ObservationsRequest,
+    ) -> Result<WriteAck, ClientError> {
+        self.call(Method::POST, "/v1/observations", Some(request))
+            .await
+    }
+
+    /// `p(t)` at many times.
+    pub async fn predict(
+        &self,
+        id: &str,
+        times: &[f64],
+        order: Option<usize>,
+    ) -> Result<PredictResponse, ClientError> {
+        let body = PredictRequest {
+            id: id.to_owned(),
+            times: times.to_vec(),
+            order,
+        };
+        self.call(Method::POST, "/v1/predict", Some(&body)).await
+    }
+
+    /// Entropies (bits) at many times.
+    pub async fn entropy(
+        &self,
+        id: &str,
+        times: &[f64],
+        order: Option<usize>,
+    ) -> Result<PredictResponse, ClientError> {
+        let body = PredictRequest {
+            id: id.to_owned(),
+            times: times.to_vec(),
+            order,
+        };
+        self.call(Method::POST, "/v1/entropy", Some(&body)).await
+    }
+
+    /// `p(t)` of many models at one time.
+    pub async fn forecast(
+        &self,
+        request: &ForecastRequest,
+    ) -> Result<ForecastResponse, ClientError> {
+        self.call(Method::POST, "/v1/forecast", Some(request)).await
+    }
+
+    /// Entropies of many models at one time.
+    pub async fn forecast_entropy(
+        &self,
+        request: &ForecastRequest,
+    ) -> Result<ForecastResponse, ClientError> {
+        self.call(Method::POST, "/v1/forecastEntropy", Some(request))
+            .await
+    }
+
+    /// Errors per order on given data.
+    pub async fn evaluate(
+        &self,
+        request: &EvaluateRequest,
+    ) -> Result<EvaluateResponse, ClientError> {
+        self.call(Method::POST, "/v1/evaluate", Some(request)).await
+    }
+
+    /// Anomalies in given data.
+    pub async fn detect(&self, request: &DetectRequest) -> Result<DetectResponse, ClientError> {
+        self.call(Method::POST, "/v1/detect", Some(request)).await
+    }
+
+    /// A raw request, for tests of hostile input: method, path, body bytes; returns status
+    /// and body.
+    pub async fn raw(
+        &self,
+        method: Method,
+        path: &str,
+        body: Vec<u8>,
+        token: Option<&str>,
+    ) -> Result<(StatusCode, String), ClientError> {
+        let mut request = self
+            .http
+            .request(method, format!("{}{path}", self.base))
+            .header("content-type", "application/json")
+            .body(body);
+        if let Some(token) = token {
+            request = request.bearer_auth(token);
+        }
+        let response = request
+            .send()
+            .await
+            .map_err(|e| ClientError::Transport(e.to_string()))?;
+        let status = response.status();
+        let text = response
+            .text()
+            .await
+            .map_err(|e| ClientError::Transport(e.to_string()))?;
+        Ok((status, text))
+    }
+}
+
+/// `/v1/models/{id}{suffix}` with the id percent-encoded.
+fn model_path(id: &str, suffix: &str) -> String {
+    let mut path = String::from("/v1/models/");
+    for byte in id.bytes() {
+        if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
+            path.push(byte as char);
+        } else {
+            path.push_str(&format!("%{byte:02X}"));
+        }
+    }
+    path.push_str(suffix);
+    path
+}

@@ -1,0 +1,369 @@
+//! The models the service holds, and the one function that changes them:
+//! [`Registry::apply`] of a [`LogRecord`]. The live service and recovery after a crash apply
+//! the same records in the same order, so a restarted service holds exactly the models an
+//! uninterrupted one would.
+
+use std::collections::HashMap;
+
+use chronomap_core::spec::OrderSpec;
+use chronomap_core::{
+    AnyModel, FremenConfig, FremenModel, HistogramModel, MarkovModel, MeanModel, ModelSpec,
+    ObservationError, Ordered, PergamConfig, PergamModel, PersistenceModel, TemporalModel,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::api::{Component, MAX_ID_BYTES, ModelInfo};
+use crate::log::LogRecord;
+
+/// How a model was created: what it is and the range of its values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModelConfig {
+    /// The model.
+    pub spec: ModelSpec,
+    /// Range `[lo, hi]` of continuous values, mapped onto `[0, 1]`.
+    pub range: Option<[f64; 2]>,
+}
+
+impl ModelConfig {
+    /// Parses and checks a spec and range as a client gives them.
+    ///
+    /// # Errors
+    /// A sentence naming the field: unparsable spec, a model that is fitted offline only
+    /// (`auto` orders, `fft`, hypertime), or a range that is not finite and increasing.
+    pub fn parse(model: Option<&str>, range: Option<[f64; 2]>) -> Result<Self, String> {
+        let text = model.unwrap_or(crate::api::DEFAULT_MODEL);
+        let spec: ModelSpec = text.parse().map_err(|e| format!("field `model`: {e}"))?;
+        empty_model(&spec).map_err(|e| format!("field `model`: {e}"))?;
+        if let Some([lo, hi]) = range
+            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+        {
+            return Err(format!(
+                "field `range`: [{lo}, {hi}] is not a finite interval with lo < hi"
+            ));
+        }
+        Ok(ModelConfig { spec, range })
+    }
+
+    /// The model this configuration describes, having seen nothing.
+    ///
+    /// # Errors
+    /// As [`ModelConfig::parse`].
+    pub fn empty_model(&self) -> Result<AnyModel, String> {
+        empty_model(&self.spec)
+    }
+
+    /// Maps a value as given onto `[0, 1]`.
+    pub fn normalise(&self, value: f64) -> f64 {
+        match self.range {
+            Some([lo, hi]) => (value - lo) / (hi - lo),
+            None => value,
+        }
+    }
+
+    /// Maps a prediction in `[0, 1]` back onto the range.
+    pub fn scale(&self, p: f64) -> f64 {
+        match self.range {
+            Some([lo, hi]) => lo + p * (hi - lo),
+            None => p,
+        }
+    }
+}
+
+/// An empty model of an online-trainable spec.
+fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
+    let fixed = |order: &OrderSpec, what: &str| match order {
+        OrderSpec::Fixed(k) => Ok(*k),
+        OrderSpec::Auto => Err(format!(
+            "`{spec}`: the service needs a fixed {what}; choose one with `evaluate` \
+             (errors per order) and ask for other orders per request"
+        )),
+    };
+    let config_error = |e: chronomap_core::ConfigError| format!("`{spec}`: {e}");
+    Ok(match spec {
+        ModelSpec::Mean => AnyModel::Mean(MeanModel::new()),
+        ModelSpec::Histogram { bins, period_secs } => {
+            AnyModel::Histogram(HistogramModel::new(*bins, *period_secs).map_err(config_error)?)
+        }
+        ModelSpec::Fremen(order) => AnyModel::Fremen(
+            FremenModel::new(FremenConfig::with_order(fixed(order, "order")?))
+                .map_err(config_error)?,
+        ),
+        ModelSpec::Persistence(order) => AnyModel::Persistence(
+            PersistenceModel::new(FremenConfig::with_order(fixed(order, "order")?))
+                .map_err(config_error)?,
+        ),
+        ModelSpec::Markov => AnyModel::Markov(MarkovModel::new()),
+        ModelSpec::Pergam {
+            components,
+            period_secs,
+        } => AnyModel::Pergam(
+            PergamModel::new(PergamConfig {
+                components: fixed(components, "number of components")?,
+                period_secs: *period_secs,
+                ..PergamConfig::default()
+            })
+            .map_err(config_error)?,
+        ),
+        ModelSpec::Fft(_)
+        | ModelSpec::Auto
+        | ModelSpec::HypertimeEm(_)
+        | ModelSpec::HypertimeKm => {
+            return Err(format!(
+                "`{spec}` is fitted offline on a whole series (`chronomap fit`); the service \
+                 serves models that learn online: fremen:K, persistence:K, hist:N[:PERIOD], \
+                 pergam:K[:PERIOD], stm, mean"
+            ));
+        }
+    })
+}
+
+/// Checks a model id: 1 to [`MAX_ID_BYTES`] bytes of UTF-8 without control characters.
+///
+/// # Errors
+/// A sentence saying what is wrong.
+pub fn check_id(id: &str) -> Result<(), String> {
+    if id.is_empty() {
+        return Err("model id is empty".into());
+    }
+    if id.len() > MAX_ID_BYTES {
+        return Err(format!(
+            "model id is {} bytes long; at most {MAX_ID_BYTES} bytes of UTF-8 are allowed",
+            id.len()
+        ));
+    }
+    if let Some(c) = id.chars().find(|c| c.is_control()) {
+        return Err(format!(
+            "model id contains the control character U+{:04X}",
+            c as u32
+        ));
+    }
+    Ok(())
+}
+
+/// One model and its configuration.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Entry {
+    /// How it was created.
+    pub config: ModelConfig,
+    /// The model.
+    pub model: AnyModel,
+}
+
+impl Entry {
+    /// Adds observations given in the model's range.
+    ///
+    /// # Errors
+    /// The first violation of the observation contract; the entry is then unchanged.
+    pub fn observe(&mut self, times: &[f64], values: &[f64]) -> Result<(), ObservationError> {
+        if self.config.range.is_none() {
+            return self.model.observe(times, values);
+        }
+        let normalised: Vec<f64> = values.iter().map(|&v| self.config.normalise(v)).collect();
+        self.model.observe(times, &normalised)
+    }
+
+    /// The model predicting with `order` (a copy when the order differs from its own).
+    ///
+    /// # Errors
+    /// An order above the model's largest, or an order for a model without one.
+    pub fn with_order(
+        &self,
+        order: Option<usize>,
+    ) -> Result<std::borrow::Cow<'_, AnyModel>, String> {
+        let Some(order) = order else {
+            return Ok(std::borrow::Cow::Borrowed(&self.model));
+        };
+        if self.model.order() == Some(order) {
+            return Ok(std::borrow::Cow::Borrowed(&self.model));
+        }
+        let max = max_order(&self.model)
+            .ok_or_else(|| format!("field `order`: a `{}` model has no order", self.config.spec))?;
+        if order > max {
+            return Err(format!(
+                "field `order`: {order} is above this model's largest order {max}"
+            ));
+        }
+        let mut copy = self.model.clone();
+        copy.set_order(order);
+        Ok(std::borrow::Cow::Owned(copy))
+    }
+
+    /// The description `view` and `list` return.
+    pub fn info(&self, id: &str) -> ModelInfo {
+        let span = self.model.span();
+        let fremen = match &self.model {
+            AnyModel::Fremen(m) => Some(m),
+            AnyModel::Persistence(m) => Some(m.fremen()),
+            _ => None,
+        };
+        ModelInfo {
+            id: id.to_owned(),
+            model: self.config.spec.to_string(),
+            range: self.config.range,
+            observations: span.count,
+            first_time: (span.count > 0).then_some(span.first),
+            last_time: (span.count > 0).then_some(span.last),
+            mean: fremen.map(|m| m.fit().mean),
+            components: fremen
+                .map(|m| {
+                    m.components()
+                        .iter()
+                        .map(|c| Component {
+                            period_secs: c.period_secs,
+                            amplitude: c.amplitude,
+                            phase: c.phase,
+                        })
+                        .collect()
+                })
+                .unwrap_or_default(),
+        }
+    }
+}
+
+/// Largest order of a model that has one.
+pub fn max_order(model: &AnyModel) -> Option<usize> {
+    Some(match model {
+        AnyModel::Fremen(m) => m.max_order(),
+        AnyModel::Persistence(m) => m.max_order(),
+        AnyModel::Pergam(m) => m.max_order(),
+        AnyModel::Fft(m) => m.max_order(),
+        _ => return None,
+    })
+}
+
+/// Why a record could not be applied.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ApplyError {
+    /// The id does not exist.
+    NotFound(String),
+    /// The id exists with another configuration.
+    Conflict(String),
+    /// Observations violate the contract (index within the batch, reason).
+    Observation(String, ObservationError),
+    /// The configuration cannot be built.
+    Config(String),
+}
+
+impl std::fmt::Display for ApplyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ApplyError::NotFound(id) => write!(f, "no model with id {id:?}"),
+            ApplyError::Conflict(id) => write!(
+                f,
+                "model {id:?} exists with another configuration; remove it first"
+            ),
+            ApplyError::Observation(id, e) => match e.index() {
+                Some(i) => write!(f, "model {id:?}, observation {i}: {e}"),
+                None => write!(f, "model {id:?}: {e}"),
+            },
+            ApplyError::Config(reason) => f.write_str(reason),
+        }
+    }
+}
+
+/// All models, by id.
+#[derive(Clone, Debug, Default)]
+pub struct Registry {
+    models: HashMap<String, Entry>,
+}
+
+impl Registry {
+    /// No models.
+    pub fn new() -> Self {
+        Registry::default()
+    }
+
+    /// The model with this id.
+    pub fn get(&self, id: &str) -> Option<&Entry> {
+        self.models.get(id)
+    }
+
+    /// Number of models.
+    pub fn len(&self) -> usize {
+        self.models.len()
+    }
+
+    /// Whether there is no model.
+    pub fn is_empty(&self) -> bool {
+        self.models.is_empty()
+    }
+
+    /// Ids, sorted.
+    pub fn ids(&self) -> Vec<&str> {
+        let mut ids: Vec<&str> = self.models.keys().map(String::as_str).collect();
+        ids.sort_unstable();
+        ids
+    }
+
+    /// Inserts or replaces (recovery from snapshots, and the writer's staged entries).
+    pub fn put(&mut self, id: String, entry: Option<Entry>) {
+        match entry {
+            Some(entry) => {
+                self.models.insert(id, entry);
+            }
+            None => {
+                self.models.remove(&id);
+            }
+        }
+    }
+
+    /// Applies one log record (recovery replays the log with this).
+    ///
+    /// # Errors
+    /// See [`apply_to`]; the registry is then unchanged.
+    pub fn apply(&mut self, record: &LogRecord) -> Result<(), ApplyError> {
+        match record {
+            // In place: a model observes atomically (unchanged on error).
+            LogRecord::Observe { id, times, values } => self
+                .models
+                .get_mut(id.as_str())
+                .ok_or_else(|| ApplyError::NotFound(id.clone()))?
+                .observe(times, values)
+                .map_err(|e| ApplyError::Observation(id.clone(), e)),
+            _ => {
+                let id = record.id();
+                let mut slot = self.models.remove(id);
+                let before = slot.clone();
+                let result = apply_to(&mut slot, record);
+                self.put(id.to_owned(), if result.is_ok() { slot } else { before });
+                result
+            }
+        }
+    }
+}
+
+/// Applies one log record to the state of its id (`None`: no such model).
+///
+/// # Errors
+/// `Create` of an existing id with another configuration, `Observe`/`Remove` of a missing id,
+/// observations that violate the contract. `slot` is then unchanged.
+pub fn apply_to(slot: &mut Option<Entry>, record: &LogRecord) -> Result<(), ApplyError> {
+    match record {
+        LogRecord::Create { id, config } => match slot {
+            Some(entry) if entry.config == *config => Ok(()),
+            Some(_) => Err(ApplyError::Conflict(id.clone())),
+            None => {
+                let model = config.empty_model().map_err(ApplyError::Config)?;
+                *slot = Some(Entry {
+                    config: config.clone(),
+                    model,
+                });
+                Ok(())
+            }
+        },
+        LogRecord::Observe { id, times, values } => {
+            let entry = slot
+                .as_mut()
+                .ok_or_else(|| ApplyError::NotFound(id.clone()))?;
+            entry
+                .observe(times, values)
+                .map_err(|e| ApplyError::Observation(id.clone(), e))
+        }
+        LogRecord::Remove { id } => {
+            if slot.take().is_none() {
+                return Err(ApplyError::NotFound(id.clone()));
+            }
+            Ok(())
+        }
+    }
+}

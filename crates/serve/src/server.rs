@@ -1,0 +1,795 @@
+//! The HTTP/JSON API: routes, handlers, bearer-token checks, size limits and JSON errors.
+//! Handlers only translate: reads go to the published [`Registry`](crate::registry::Registry),
+//! writes to the [writer](crate::writer).
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+use axum::body::Bytes;
+use axum::extract::rejection::{BytesRejection, PathRejection};
+use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::{get, post, put};
+use axum::{Json, Router};
+use chronomap_core::{TemporalModel, binary_entropy};
+use serde::de::DeserializeOwned;
+use tokio::sync::{mpsc, oneshot};
+use utoipa::OpenApi;
+
+use crate::api::*;
+use crate::registry::{ApplyError, ModelConfig, check_id};
+use crate::store::Store;
+use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, WriteOp};
+
+/// Largest request body by default (bytes): about a million observations in JSON.
+pub const DEFAULT_MAX_BODY_BYTES: usize = 32 << 20;
+
+/// How the service runs.
+#[derive(Clone, Debug)]
+pub struct ServiceConfig {
+    /// Bearer token that writes and deletes need (`None`: no check).
+    pub token: Option<String>,
+    /// Largest request body (bytes); larger ones get `413`.
+    pub max_body_bytes: usize,
+    /// When models are snapshotted.
+    pub checkpoint: CheckpointPolicy,
+}
+
+impl Default for ServiceConfig {
+    fn default() -> Self {
+        ServiceConfig {
+            token: None,
+            max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            checkpoint: CheckpointPolicy::default(),
+        }
+    }
+}
+
+/// A recovered service, ready to answer requests.
+pub struct Service {
+    state: AppState,
+    max_body_bytes: usize,
+    writer: std::thread::JoinHandle<()>,
+}
+
+#[derive(Clone)]
+struct AppState {
+    shared: Arc<Shared>,
+    writes: mpsc::Sender<WriteCommand>,
+    token: Option<Arc<str>>,
+}
+
+impl Service {
+    /// Recovers every model from `store` (last checkpoint + log replay) and starts the writer.
+    ///
+    /// Call outside an async context: recovery blocks on the store.
+    ///
+    /// # Errors
+    /// The store cannot be read or holds damaged entries (named in the message).
+    pub fn start(store: Arc<dyn Store>, config: ServiceConfig) -> Result<Self, String> {
+        let shared = Arc::new(writer::recover(store)?);
+        let (writes, commands) = mpsc::channel(1024);
+        let writer_shared = Arc::clone(&shared);
+        let policy = config.checkpoint;
+        let writer = std::thread::Builder::new()
+            .name("chronomap-writer".into())
+            .spawn(move || writer::run(writer_shared, commands, policy))
+            .map_err(|e| format!("cannot start the writer thread: {e}"))?;
+        Ok(Service {
+            state: AppState {
+                shared,
+                writes,
+                token: config.token.map(Arc::from),
+            },
+            max_body_bytes: config.max_body_bytes,
+            writer,
+        })
+    }
+
+    /// Number of models recovered or held.
+    pub fn models(&self) -> usize {
+        self.state
+            .shared
+            .registry
+            .read()
+            .expect("registry lock")
+            .len()
+    }
+
+    /// The API as an axum router.
+    pub fn router(&self) -> Router {
+        router(self.state.clone(), self.max_body_bytes)
+    }
+
+    /// Serves on `listener` until `shutdown` completes, then finishes the writes in flight and
+    /// writes a last checkpoint.
+    ///
+    /// # Errors
+    /// The listener fails.
+    pub async fn run(
+        self,
+        listener: tokio::net::TcpListener,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> std::io::Result<()> {
+        let app = self.router();
+        let Service { state, writer, .. } = self;
+        drop(state);
+        axum::serve(
+            listener,
+            app.into_make_service_with_connect_info::<SocketAddr>(),
+        )
+        .with_graceful_shutdown(shutdown)
+        .await?;
+        // The router (and every sender of writes) is gone: the writer drains and checkpoints.
+        tokio::task::spawn_blocking(move || writer.join())
+            .await
+            .ok();
+        Ok(())
+    }
+}
+
+/// The OpenAPI 3.1 description, served at `/openapi.json`.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "chronomap",
+        description = "World models that know time: add observations of states, ask for \
+                       predictions at any time. Writes need `Authorization: Bearer TOKEN` when \
+                       the service has a token."
+    ),
+    paths(
+        health, list, create, view, remove, observations, add, addvalues, add_batch, predict,
+        entropy, forecast, forecast_entropy, evaluate, detect
+    ),
+    modifiers(&BearerAuth)
+)]
+pub struct ApiDoc;
+
+struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
+        openapi
+            .components
+            .get_or_insert_with(Default::default)
+            .add_security_scheme(
+                "bearer",
+                SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
+            );
+    }
+}
+
+fn router(state: AppState, max_body_bytes: usize) -> Router {
+    let writes = Router::new()
+        .route("/v1/models/{id}", put(create).delete(remove))
+        .route("/v1/add", post(add))
+        .route("/v1/addvalues", post(addvalues))
+        .route("/v1/observations", post(add_batch))
+        .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
+    Router::new()
+        .route("/", get(web_page))
+        .route("/openapi.json", get(openapi))
+        .route("/v1/health", get(health))
+        .route("/v1/models", get(list))
+        .route("/v1/models/{id}", get(view))
+        .route("/v1/models/{id}/observations", get(observations))
+        .route("/v1/predict", post(predict))
+        .route("/v1/entropy", post(entropy))
+        .route("/v1/forecast", post(forecast))
+        .route("/v1/forecastEntropy", post(forecast_entropy))
+        .route("/v1/evaluate", post(evaluate))
+        .route("/v1/detect", post(detect))
+        .merge(writes)
+        .fallback(|| async { ApiError::not_found("no such endpoint; see /openapi.json".into()) })
+        .method_not_allowed_fallback(|| async {
+            ApiError::new(
+                StatusCode::METHOD_NOT_ALLOWED,
+                "method_not_allowed",
+                "this endpoint does not take that method; see /openapi.json".into(),
+            )
+        })
+        .layer(DefaultBodyLimit::max(max_body_bytes))
+        .with_state(state)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors and extraction
+
+/// An error response: status and [`ErrorBody`].
+#[derive(Debug)]
+pub struct ApiError {
+    status: StatusCode,
+    body: ErrorBody,
+}
+
+impl ApiError {
+    fn new(status: StatusCode, error: &str, reason: String) -> Self {
+        ApiError {
+            status,
+            body: ErrorBody {
+                error: error.to_owned(),
+                reason,
+            },
+        }
+    }
+
+    fn bad_request(reason: String) -> Self {
+        ApiError::new(StatusCode::BAD_REQUEST, "bad_request", reason)
+    }
+
+    fn not_found(reason: String) -> Self {
+        ApiError::new(StatusCode::NOT_FOUND, "not_found", reason)
+    }
+
+    fn unknown(id: &str) -> Self {
+        ApiError::not_found(format!("no model with id {id:?}"))
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let mut response = (self.status, Json(self.body)).into_response();
+        if self.status == StatusCode::UNAUTHORIZED {
+            response
+                .headers_mut()
+                .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        response
+    }
+}
+
+impl From<WriteError> for ApiError {
+    fn from(e: WriteError) -> Self {
+        match e {
+            WriteError::Apply(e @ ApplyError::NotFound(_)) => ApiError::not_found(e.to_string()),
+            WriteError::Apply(e @ ApplyError::Conflict(_)) => {
+                ApiError::new(StatusCode::CONFLICT, "conflict", e.to_string())
+            }
+            WriteError::Apply(e) => ApiError::bad_request(e.to_string()),
+            WriteError::Store(reason) => {
+                ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", reason)
+            }
+        }
+    }
+}
+
+/// Parses a JSON body whatever its content type, with `413` for oversize bodies and `400`
+/// naming the line, column and field of anything malformed.
+fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
+    let bytes = body.map_err(|rejection| {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "payload_too_large",
+                "the request body is larger than the service's limit (--max-body-bytes); \
+                 split it into several requests"
+                    .into(),
+            )
+        } else {
+            ApiError::bad_request(format!("cannot read the request body: {rejection}"))
+        }
+    })?;
+    serde_json::from_slice(&bytes)
+        .map_err(|e| ApiError::bad_request(format!("malformed JSON body: {e}")))
+}
+
+fn path_id(path: Result<Path<String>, PathRejection>) -> Result<String, ApiError> {
+    let Path(id) = path.map_err(|e| ApiError::bad_request(format!("model id in the path: {e}")))?;
+    check_id(&id).map_err(ApiError::bad_request)?;
+    Ok(id)
+}
+
+fn checked_id(id: &str, field: &str) -> Result<(), ApiError> {
+    check_id(id).map_err(|e| ApiError::bad_request(format!("field `{field}`: {e}")))
+}
+
+async fn require_token(
+    State(state): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, ApiError> {
+    if let Some(token) = &state.token {
+        let given = request
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer "));
+        let ok = given.is_some_and(|g| constant_time_eq(g.as_bytes(), token.as_bytes()));
+        if !ok {
+            let reason = if given.is_none() {
+                "this endpoint changes models and needs `Authorization: Bearer TOKEN` \
+                 (the token file was printed when the service started)"
+            } else {
+                "wrong bearer token"
+            };
+            return Err(ApiError::new(
+                StatusCode::UNAUTHORIZED,
+                "unauthorized",
+                reason.into(),
+            ));
+        }
+    }
+    Ok(next.run(request).await)
+}
+
+/// Compares without stopping at the first difference (no timing hint about the token).
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+async fn submit(state: &AppState, ops: Vec<WriteOp>) -> Result<WriteAck, ApiError> {
+    let (reply, outcome) = oneshot::channel();
+    let unavailable = || {
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "unavailable",
+            "the service is shutting down".into(),
+        )
+    };
+    state
+        .writes
+        .send(WriteCommand { ops, reply })
+        .await
+        .map_err(|_| unavailable())?;
+    let written = outcome.await.map_err(|_| unavailable())??;
+    Ok(WriteAck {
+        observations: written.observations,
+        seq: written.seq,
+    })
+}
+
+fn create_config(model: Option<&str>) -> Result<Option<ModelConfig>, ApiError> {
+    model
+        .map(|m| ModelConfig::parse(Some(m), None).map_err(ApiError::bad_request))
+        .transpose()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Handlers
+
+async fn web_page() -> Html<&'static str> {
+    Html(include_str!("web/index.html"))
+}
+
+async fn openapi() -> Response {
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        ApiDoc::openapi()
+            .to_pretty_json()
+            .expect("the OpenAPI description serialises"),
+    )
+        .into_response()
+}
+
+/// Service health.
+#[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health)))]
+async fn health(State(state): State<AppState>) -> Json<Health> {
+    let models = state.shared.registry.read().expect("registry lock").len() as u64;
+    Json(Health {
+        status: "ok".into(),
+        models,
+        store: state.shared.store.describe(),
+        seq: state.shared.seq.load(Ordering::Acquire),
+        auth: state.token.is_some(),
+    })
+}
+
+/// All models, by id (`list`).
+#[utoipa::path(get, path = "/v1/models", responses((status = 200, body = ListResponse)))]
+async fn list(State(state): State<AppState>) -> Json<ListResponse> {
+    let registry = state.shared.registry.read().expect("registry lock");
+    let models = registry
+        .ids()
+        .into_iter()
+        .map(|id| {
+            let mut info = registry.get(id).expect("listed id").info(id);
+            info.components.clear();
+            info
+        })
+        .collect();
+    Json(ListResponse { models })
+}
+
+/// Creates a model; no change if it exists with the same configuration.
+#[utoipa::path(put, path = "/v1/models/{id}", request_body = CreateRequest,
+    params(("id" = String, Path, description = "model id, 1 to 256 bytes of UTF-8")),
+    security(("bearer" = [])),
+    responses((status = 200, body = WriteAck), (status = 400, body = ErrorBody),
+              (status = 401, body = ErrorBody), (status = 409, body = ErrorBody)))]
+async fn create(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<WriteAck>, ApiError> {
+    let id = path_id(path)?;
+    let request: CreateRequest = parse_body(body)?;
+    let config = ModelConfig::parse(request.model.as_deref(), request.range)
+        .map_err(ApiError::bad_request)?;
+    Ok(Json(
+        submit(&state, vec![WriteOp::Create { id, config }]).await?,
+    ))
+}
+
+/// A model's parameters (`view`).
+#[utoipa::path(get, path = "/v1/models/{id}",
+    params(("id" = String, Path, description = "model id")),
+    responses((status = 200, body = ModelInfo), (status = 404, body = ErrorBody)))]
+async fn view(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<ModelInfo>, ApiError> {
+    let id = path_id(path)?;
+    let registry = state.shared.registry.read().expect("registry lock");
+    let entry = registry.get(&id).ok_or_else(|| ApiError::unknown(&id))?;
+    Ok(Json(entry.info(&id)))
+}
+
+/// Removes a model (`remove`).
+#[utoipa::path(delete, path = "/v1/models/{id}",
+    params(("id" = String, Path, description = "model id")),
+    security(("bearer" = [])),
+    responses((status = 200, body = WriteAck), (status = 401, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn remove(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<WriteAck>, ApiError> {
+    let id = path_id(path)?;
+    Ok(Json(submit(&state, vec![WriteOp::Remove { id }]).await?))
+}
+
+/// Every observation the model holds, read back from the durable log.
+#[utoipa::path(get, path = "/v1/models/{id}/observations",
+    params(("id" = String, Path, description = "model id")),
+    responses((status = 200, body = ObservationsResponse), (status = 404, body = ErrorBody)))]
+async fn observations(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<ObservationsResponse>, ApiError> {
+    let id = path_id(path)?;
+    if state
+        .shared
+        .registry
+        .read()
+        .expect("registry lock")
+        .get(&id)
+        .is_none()
+    {
+        return Err(ApiError::unknown(&id));
+    }
+    let store = Arc::clone(&state.shared.store);
+    let (times, values) =
+        tokio::task::spawn_blocking(move || writer::observations_of(&*store, &id))
+            .await
+            .map_err(|e| {
+                ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", e.to_string())
+            })?
+            .map_err(|e| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", e))?;
+    Ok(Json(ObservationsResponse { times, values }))
+}
+
+/// Adds binary observations of one state (`add`); answers once they are durable.
+#[utoipa::path(post, path = "/v1/add", request_body = AddRequest, security(("bearer" = [])),
+    responses((status = 200, body = WriteAck), (status = 400, body = ErrorBody),
+              (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),
+              (status = 413, body = ErrorBody)))]
+async fn add(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<WriteAck>, ApiError> {
+    let request: AddRequest = parse_body(body)?;
+    checked_id(&request.id, "id")?;
+    let values = request
+        .states
+        .iter()
+        .map(|&s| f64::from(u8::from(s)))
+        .collect();
+    let op = WriteOp::Observe {
+        create: create_config(request.model.as_deref())?,
+        id: request.id,
+        times: request.times,
+        values,
+    };
+    Ok(Json(submit(&state, vec![op]).await?))
+}
+
+/// Adds observations with values of one state (`addvalues`); answers once they are durable.
+#[utoipa::path(post, path = "/v1/addvalues", request_body = AddValuesRequest,
+    security(("bearer" = [])),
+    responses((status = 200, body = WriteAck), (status = 400, body = ErrorBody),
+              (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),
+              (status = 413, body = ErrorBody)))]
+async fn addvalues(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<WriteAck>, ApiError> {
+    let request: AddValuesRequest = parse_body(body)?;
+    let op = values_op(request, "id")?;
+    Ok(Json(submit(&state, vec![op]).await?))
+}
+
+fn values_op(request: AddValuesRequest, field: &str) -> Result<WriteOp, ApiError> {
+    checked_id(&request.id, field)?;
+    Ok(WriteOp::Observe {
+        create: create_config(request.model.as_deref())?,
+        id: request.id,
+        times: request.times,
+        values: request.values,
+    })
+}
+
+/// Adds observations of many states in one durable commit: all batches or none.
+#[utoipa::path(post, path = "/v1/observations", request_body = ObservationsRequest,
+    security(("bearer" = [])),
+    responses((status = 200, body = WriteAck), (status = 400, body = ErrorBody),
+              (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),
+              (status = 413, body = ErrorBody)))]
+async fn add_batch(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<WriteAck>, ApiError> {
+    let request: ObservationsRequest = parse_body(body)?;
+    let ops = request
+        .batches
+        .into_iter()
+        .enumerate()
+        .map(|(i, batch)| values_op(batch, &format!("batches[{i}].id")))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Json(submit(&state, ops).await?))
+}
+
+fn check_times(times: &[f64]) -> Result<(), ApiError> {
+    // JSON has no NaN or infinity, but a client library may still send 1e999.
+    match times.iter().position(|t| !t.is_finite()) {
+        Some(i) => Err(ApiError::bad_request(format!(
+            "field `times`, element {i}: not a finite number"
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn predictions(
+    state: &AppState,
+    request: &PredictRequest,
+    map: fn(f64) -> f64,
+    scaled: bool,
+) -> Result<PredictResponse, ApiError> {
+    checked_id(&request.id, "id")?;
+    check_times(&request.times)?;
+    let registry = state.shared.registry.read().expect("registry lock");
+    let entry = registry
+        .get(&request.id)
+        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let model = entry
+        .with_order(request.order)
+        .map_err(ApiError::bad_request)?;
+    let mut values = model.predict_many(&request.times);
+    let scaled = (scaled && entry.config.range.is_some())
+        .then(|| values.iter().map(|&p| entry.config.scale(p)).collect());
+    values.iter_mut().for_each(|v| *v = map(*v));
+    Ok(PredictResponse { values, scaled })
+}
+
+/// `p(t)` of one model at many times (`predict`).
+#[utoipa::path(post, path = "/v1/predict", request_body = PredictRequest,
+    responses((status = 200, body = PredictResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn predict(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PredictResponse>, ApiError> {
+    let request: PredictRequest = parse_body(body)?;
+    Ok(Json(predictions(&state, &request, |p| p, true)?))
+}
+
+/// Binary entropy (bits) of one model's predictions at many times (`entropy`).
+#[utoipa::path(post, path = "/v1/entropy", request_body = PredictRequest,
+    responses((status = 200, body = PredictResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn entropy(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<PredictResponse>, ApiError> {
+    let request: PredictRequest = parse_body(body)?;
+    Ok(Json(predictions(&state, &request, binary_entropy, false)?))
+}
+
+fn forecasts(
+    state: &AppState,
+    request: &ForecastRequest,
+    map: fn(f64) -> f64,
+) -> Result<ForecastResponse, ApiError> {
+    if !request.time.is_finite() {
+        return Err(ApiError::bad_request(
+            "field `time`: not a finite number".into(),
+        ));
+    }
+    if let Some(orders) = &request.orders
+        && orders.len() != request.ids.len()
+    {
+        return Err(ApiError::bad_request(format!(
+            "field `orders`: {} orders for {} ids",
+            orders.len(),
+            request.ids.len()
+        )));
+    }
+    let registry = state.shared.registry.read().expect("registry lock");
+    let mut values = Vec::with_capacity(request.ids.len());
+    for (i, id) in request.ids.iter().enumerate() {
+        checked_id(id, &format!("ids[{i}]"))?;
+        let entry = registry.get(id).ok_or_else(|| ApiError::unknown(id))?;
+        let order = request.orders.as_ref().map(|o| o[i]).or(request.order);
+        let model = entry
+            .with_order(order)
+            .map_err(|e| ApiError::bad_request(format!("ids[{i}]: {e}")))?;
+        values.push(map(model.predict(request.time)));
+    }
+    Ok(ForecastResponse { values })
+}
+
+/// `p(t)` of many models at one time (`forecast`), with one order each or one for all.
+#[utoipa::path(post, path = "/v1/forecast", request_body = ForecastRequest,
+    responses((status = 200, body = ForecastResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn forecast(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<ForecastResponse>, ApiError> {
+    let request: ForecastRequest = parse_body(body)?;
+    Ok(Json(forecasts(&state, &request, |p| p)?))
+}
+
+/// Binary entropy (bits) of many models at one time (`forecastEntropy`).
+#[utoipa::path(post, path = "/v1/forecastEntropy", request_body = ForecastRequest,
+    responses((status = 200, body = ForecastResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn forecast_entropy(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<ForecastResponse>, ApiError> {
+    let request: ForecastRequest = parse_body(body)?;
+    Ok(Json(forecasts(&state, &request, binary_entropy)?))
+}
+
+fn check_data(times: &[f64], values: &[f64]) -> Result<(), ApiError> {
+    check_times(times)?;
+    if times.len() != values.len() {
+        return Err(ApiError::bad_request(format!(
+            "{} times but {} values",
+            times.len(),
+            values.len()
+        )));
+    }
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(ApiError::bad_request(format!(
+            "field `values`, element {i}: not a finite number"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// Errors of a model for every order on given data (`evaluate`).
+#[utoipa::path(post, path = "/v1/evaluate", request_body = EvaluateRequest,
+    responses((status = 200, body = EvaluateResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn evaluate(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<EvaluateResponse>, ApiError> {
+    let request: EvaluateRequest = parse_body(body)?;
+    checked_id(&request.id, "id")?;
+    check_data(&request.times, &request.values)?;
+    if request.times.is_empty() {
+        return Err(ApiError::bad_request(
+            "field `times`: nothing to evaluate on".into(),
+        ));
+    }
+    let registry = state.shared.registry.read().expect("registry lock");
+    let entry = registry
+        .get(&request.id)
+        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let targets: Vec<f64> = request
+        .values
+        .iter()
+        .map(|&v| entry.config.normalise(v))
+        .collect();
+    let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
+    let orders: Vec<usize> = match crate::registry::max_order(&entry.model) {
+        Some(max) => (0..=request.max_order.unwrap_or(10).min(max)).collect(),
+        None => vec![0],
+    };
+    let mut errors = Vec::with_capacity(orders.len());
+    let mut brier = Vec::with_capacity(orders.len());
+    for &order in &orders {
+        let model = if crate::registry::max_order(&entry.model).is_some() {
+            entry
+                .with_order(Some(order))
+                .map_err(ApiError::bad_request)?
+        } else {
+            std::borrow::Cow::Borrowed(&entry.model)
+        };
+        let p = model.predict_many(&request.times);
+        let n = p.len() as f64;
+        let error = p
+            .iter()
+            .zip(&targets)
+            .map(|(&p, &s)| {
+                if binary {
+                    f64::from(u8::from((p > 0.5) != (s > 0.5)))
+                } else {
+                    (p - s).abs()
+                }
+            })
+            .sum::<f64>()
+            / n;
+        errors.push(error);
+        brier.push(
+            p.iter()
+                .zip(&targets)
+                .map(|(p, s)| (p - s) * (p - s))
+                .sum::<f64>()
+                / n,
+        );
+    }
+    let best = errors
+        .iter()
+        .enumerate()
+        .fold(0, |best, (i, &e)| if e < errors[best] { i } else { best });
+    Ok(Json(EvaluateResponse {
+        best_order: orders[best],
+        orders,
+        errors,
+        brier,
+        metric: if binary {
+            "binary_error"
+        } else {
+            "mean_absolute_error"
+        }
+        .into(),
+    }))
+}
+
+/// Observations that differ from the prediction by at least `confidence` (`detect`).
+#[utoipa::path(post, path = "/v1/detect", request_body = DetectRequest,
+    responses((status = 200, body = DetectResponse), (status = 400, body = ErrorBody),
+              (status = 404, body = ErrorBody)))]
+async fn detect(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<DetectResponse>, ApiError> {
+    let request: DetectRequest = parse_body(body)?;
+    checked_id(&request.id, "id")?;
+    check_data(&request.times, &request.values)?;
+    if !(request.confidence > 0.0 && request.confidence <= 1.0) {
+        return Err(ApiError::bad_request(format!(
+            "field `confidence`: {} is not in (0, 1]",
+            request.confidence
+        )));
+    }
+    let registry = state.shared.registry.read().expect("registry lock");
+    let entry = registry
+        .get(&request.id)
+        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let model = entry
+        .with_order(request.order)
+        .map_err(ApiError::bad_request)?;
+    let anomalies = request
+        .times
+        .iter()
+        .zip(&request.values)
+        .filter_map(|(&time, &value)| {
+            let p = model.predict(time);
+            ((entry.config.normalise(value) - p).abs() >= request.confidence).then(|| Anomaly {
+                time,
+                value,
+                predicted: entry.config.scale(p),
+            })
+        })
+        .collect();
+    Ok(Json(DetectResponse { anomalies }))
+}

@@ -1,0 +1,108 @@
+//! Where the service keeps its state: an append-only log of commit groups and, at
+//! checkpoints, a snapshot of every model that changed. Recovery loads the snapshots and
+//! replays the log after the checkpoint.
+//!
+//! Two backends implement [`Store`]: [`RedbStore`], an embedded file (the default), and
+//! [`PostgresStore`], a PostgreSQL database.
+
+mod postgres;
+mod redb_store;
+
+pub use postgres::PostgresStore;
+pub use redb_store::RedbStore;
+
+use chronomap_io::model_file::{decode_model, encode_model};
+
+use crate::registry::Entry;
+
+/// Kind tag of model snapshots (inside a versioned, checksummed model-file container).
+const SNAPSHOT_KIND: &str = "serve-snapshot";
+
+/// A store failure: I/O, the database, or damaged content.
+#[derive(Debug, thiserror::Error)]
+#[error("{store}: {reason}")]
+pub struct StoreError {
+    /// Which store (path or connection).
+    pub store: String,
+    /// What went wrong.
+    pub reason: String,
+}
+
+/// What a store holds at start-up.
+#[derive(Debug, Default)]
+pub struct Recovered {
+    /// The log position every snapshot covers.
+    pub checkpoint: u64,
+    /// Snapshots (id, encoded entry).
+    pub snapshots: Vec<(String, Vec<u8>)>,
+    /// Last log position written.
+    pub last_seq: u64,
+}
+
+/// What [`Store::scan`] calls with each commit group: its log position and bytes.
+pub type Visit<'a> = dyn FnMut(u64, &[u8]) -> Result<(), StoreError> + 'a;
+
+/// Durable storage of the log and the snapshots.
+///
+/// Methods block; the service calls them from its writer thread and from blocking tasks.
+pub trait Store: Send + Sync {
+    /// What and where the store is, for messages.
+    fn describe(&self) -> String;
+
+    /// The checkpoint, its snapshots and the last log position.
+    ///
+    /// # Errors
+    /// The store cannot be read.
+    fn recover(&self) -> Result<Recovered, StoreError>;
+
+    /// Appends one commit group at position `seq`; returns once it is durable.
+    ///
+    /// # Errors
+    /// The group may or may not be durable; the caller must stop writing.
+    fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError>;
+
+    /// Records that the snapshots cover the log up to `seq`: writes `snapshots`, deletes those
+    /// of `removed` ids, atomically.
+    ///
+    /// # Errors
+    /// The store cannot be written; the previous checkpoint stays valid.
+    fn checkpoint(
+        &self,
+        seq: u64,
+        snapshots: &[(String, Vec<u8>)],
+        removed: &[String],
+    ) -> Result<(), StoreError>;
+
+    /// Calls `visit` with every commit group from position `from` on, in order.
+    ///
+    /// # Errors
+    /// The store cannot be read, or `visit` failed.
+    fn scan(
+        &self,
+        from: u64,
+        visit: &mut Visit<'_>,
+    ) -> Result<(), StoreError>;
+}
+
+/// Encodes a model entry as a snapshot (versioned, CRC-32-checked container).
+pub fn encode_snapshot(entry: &Entry) -> Vec<u8> {
+    encode_model(SNAPSHOT_KIND, entry).expect("entries always serialise")
+}
+
+/// Decodes a snapshot.
+///
+/// # Errors
+/// A damaged or foreign snapshot, naming the id.
+pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
+    let (kind, entry): (String, Entry) =
+        decode_model(bytes).map_err(|e| format!("snapshot of {id:?}: {e}"))?;
+    if kind != SNAPSHOT_KIND {
+        return Err(format!(
+            "snapshot of {id:?}: a {kind:?} container, not a model snapshot"
+        ));
+    }
+    if !entry.model.is_consistent() {
+        return Err(format!("snapshot of {id:?}: inconsistent model parameters"));
+    }
+    Ok(entry)
+}

@@ -1,0 +1,125 @@
+//! The embedded default store: one redb file (ACID, copy-on-write B-trees, fsync on commit).
+
+use std::path::{Path, PathBuf};
+
+use redb::{Database, ReadableDatabase, ReadableTable, TableDefinition};
+
+use super::{Recovered, Store, StoreError, Visit};
+
+const LOG: TableDefinition<u64, &[u8]> = TableDefinition::new("log");
+const SNAPSHOTS: TableDefinition<&str, &[u8]> = TableDefinition::new("snapshots");
+const META: TableDefinition<&str, u64> = TableDefinition::new("meta");
+const CHECKPOINT: &str = "checkpoint";
+
+/// The log and snapshots in one redb database file.
+pub struct RedbStore {
+    path: PathBuf,
+    db: Database,
+}
+
+impl RedbStore {
+    /// Opens (or creates) the database at `path`.
+    ///
+    /// # Errors
+    /// The file cannot be opened, is not a redb database, or another process holds it.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, StoreError> {
+        let path = path.as_ref().to_path_buf();
+        let db = Database::create(&path).map_err(|e| StoreError {
+            store: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        let store = RedbStore { path, db };
+        let txn = store.db.begin_write().map_err(|e| store.error(e))?;
+        {
+            txn.open_table(LOG).map_err(|e| store.error(e))?;
+            txn.open_table(SNAPSHOTS).map_err(|e| store.error(e))?;
+            txn.open_table(META).map_err(|e| store.error(e))?;
+        }
+        txn.commit().map_err(|e| store.error(e))?;
+        Ok(store)
+    }
+
+    fn error(&self, e: impl std::fmt::Display) -> StoreError {
+        StoreError {
+            store: self.path.display().to_string(),
+            reason: e.to_string(),
+        }
+    }
+}
+
+impl Store for RedbStore {
+    fn describe(&self) -> String {
+        format!("redb {}", self.path.display())
+    }
+
+    fn recover(&self) -> Result<Recovered, StoreError> {
+        let txn = self.db.begin_read().map_err(|e| self.error(e))?;
+        let meta = txn.open_table(META).map_err(|e| self.error(e))?;
+        let checkpoint = meta
+            .get(CHECKPOINT)
+            .map_err(|e| self.error(e))?
+            .map_or(0, |v| v.value());
+        let snapshots_table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
+        let mut snapshots = Vec::new();
+        for row in snapshots_table.iter().map_err(|e| self.error(e))? {
+            let (id, bytes) = row.map_err(|e| self.error(e))?;
+            snapshots.push((id.value().to_owned(), bytes.value().to_vec()));
+        }
+        let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
+        let last_seq = log
+            .last()
+            .map_err(|e| self.error(e))?
+            .map_or(0, |(k, _)| k.value());
+        Ok(Recovered {
+            checkpoint,
+            snapshots,
+            last_seq,
+        })
+    }
+
+    fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError> {
+        let txn = self.db.begin_write().map_err(|e| self.error(e))?;
+        {
+            let mut log = txn.open_table(LOG).map_err(|e| self.error(e))?;
+            log.insert(seq, group).map_err(|e| self.error(e))?;
+        }
+        txn.commit().map_err(|e| self.error(e))
+    }
+
+    fn checkpoint(
+        &self,
+        seq: u64,
+        snapshots: &[(String, Vec<u8>)],
+        removed: &[String],
+    ) -> Result<(), StoreError> {
+        let txn = self.db.begin_write().map_err(|e| self.error(e))?;
+        {
+            let mut table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
+            for (id, bytes) in snapshots {
+                table
+                    .insert(id.as_str(), bytes.as_slice())
+                    .map_err(|e| self.error(e))?;
+            }
+            for id in removed {
+                table.remove(id.as_str()).map_err(|e| self.error(e))?;
+            }
+            let mut meta = txn.open_table(META).map_err(|e| self.error(e))?;
+            meta.insert(CHECKPOINT, seq).map_err(|e| self.error(e))?;
+        }
+        txn.commit().map_err(|e| self.error(e))
+    }
+
+    fn scan(
+        &self,
+        from: u64,
+        visit: &mut Visit<'_>,
+    ) -> Result<(), StoreError> {
+        let txn = self.db.begin_read().map_err(|e| self.error(e))?;
+        let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
+        for row in log.range(from..).map_err(|e| self.error(e))? {
+            let (seq, bytes) = row.map_err(|e| self.error(e))?;
+            visit(seq.value(), bytes.value())?;
+        }
+        Ok(())
+    }
+}

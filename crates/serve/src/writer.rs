@@ -1,0 +1,407 @@
+//! The single writer: group commit of every change.
+//!
+//! Requests hand their writes to one thread. It takes every write waiting, checks each
+//! request's writes on copies of the models they touch (a request is accepted whole or
+//! rejected whole), appends the accepted ones as one commit group to the store, and only
+//! once the store says the group is durable does it publish the new models and acknowledge
+//! the requests. Readers therefore never see an observation that a crash could lose, and
+//! the log order is the order the models saw their observations in, which is what recovery
+//! replays.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, RwLock};
+use std::time::{Duration, Instant};
+
+use tokio::sync::{mpsc, oneshot};
+
+use crate::log::{LogRecord, decode_group, encode_group};
+use crate::registry::{ApplyError, Entry, ModelConfig, Registry, apply_to};
+use crate::store::{Store, StoreError, decode_snapshot, encode_snapshot};
+
+/// One change a request asks for.
+#[derive(Clone, Debug)]
+pub enum WriteOp {
+    /// Create a model (no change if it exists with the same configuration).
+    Create {
+        /// Model id.
+        id: String,
+        /// Configuration.
+        config: ModelConfig,
+    },
+    /// Add observations, creating the model with `create` if it does not exist.
+    Observe {
+        /// Model id.
+        id: String,
+        /// Times (s).
+        times: Vec<f64>,
+        /// Values as given.
+        values: Vec<f64>,
+        /// Configuration of the model to create if missing.
+        create: Option<ModelConfig>,
+    },
+    /// Remove a model.
+    Remove {
+        /// Model id.
+        id: String,
+    },
+}
+
+/// Why a write was not made.
+#[derive(Clone, Debug)]
+pub enum WriteError {
+    /// The request is wrong (nothing was written).
+    Apply(ApplyError),
+    /// The store failed; the service accepts no more writes.
+    Store(String),
+}
+
+/// A successful write.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Written {
+    /// Observations added.
+    pub observations: u64,
+    /// Log position of the commit group.
+    pub seq: u64,
+}
+
+/// Writes of one request and where to send the outcome.
+pub struct WriteCommand {
+    /// The writes, applied in order, all or none.
+    pub ops: Vec<WriteOp>,
+    /// Outcome.
+    pub reply: oneshot::Sender<Result<Written, WriteError>>,
+}
+
+/// When the writer snapshots the models that changed.
+#[derive(Clone, Copy, Debug)]
+pub struct CheckpointPolicy {
+    /// After this many observations since the last checkpoint.
+    pub every_observations: u64,
+    /// After this much time with changes since the last checkpoint.
+    pub every: Duration,
+}
+
+impl Default for CheckpointPolicy {
+    fn default() -> Self {
+        CheckpointPolicy {
+            every_observations: 1_000_000,
+            every: Duration::from_secs(60),
+        }
+    }
+}
+
+/// State shared by the writer and the request handlers.
+pub struct Shared {
+    /// The published models (readers take the read lock).
+    pub registry: RwLock<Registry>,
+    /// The store.
+    pub store: Arc<dyn Store>,
+    /// Last durable log position.
+    pub seq: AtomicU64,
+}
+
+/// Loads the last checkpoint and replays the log after it.
+///
+/// # Errors
+/// The store cannot be read, or a snapshot or log entry is damaged (the message names it).
+pub fn recover(store: Arc<dyn Store>) -> Result<Shared, String> {
+    let recovered = store.recover().map_err(|e| e.to_string())?;
+    let mut registry = Registry::new();
+    for (id, bytes) in &recovered.snapshots {
+        registry.put(id.clone(), Some(decode_snapshot(id, bytes)?));
+    }
+    let mut last = recovered.checkpoint;
+    store
+        .scan(recovered.checkpoint + 1, &mut |seq, bytes| {
+            let fail = |reason: String| StoreError {
+                store: store.describe(),
+                reason,
+            };
+            for record in decode_group(seq, bytes).map_err(|e| fail(e.to_string()))? {
+                registry
+                    .apply(&record)
+                    .map_err(|e| fail(format!("log entry {seq} cannot be replayed: {e}")))?;
+            }
+            last = seq;
+            Ok(())
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(Shared {
+        registry: RwLock::new(registry),
+        seq: AtomicU64::new(last.max(recovered.last_seq)),
+        store,
+    })
+}
+
+/// Every observation of `id` since it was last created, from the durable log.
+///
+/// # Errors
+/// The store cannot be read or an entry is damaged.
+pub fn observations_of(store: &dyn Store, id: &str) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let mut times = Vec::new();
+    let mut values = Vec::new();
+    store
+        .scan(1, &mut |seq, bytes| {
+            let records = decode_group(seq, bytes).map_err(|e| StoreError {
+                store: store.describe(),
+                reason: e.to_string(),
+            })?;
+            for record in records.iter().filter(|r| r.id() == id) {
+                match record {
+                    LogRecord::Observe {
+                        times: t,
+                        values: v,
+                        ..
+                    } => {
+                        times.extend_from_slice(t);
+                        values.extend_from_slice(v);
+                    }
+                    LogRecord::Create { .. } | LogRecord::Remove { .. } => {
+                        times.clear();
+                        values.clear();
+                    }
+                }
+            }
+            Ok(())
+        })
+        .map_err(|e| e.to_string())?;
+    Ok((times, values))
+}
+
+/// Most observations gathered into one commit group.
+const MAX_GROUP_OBSERVATIONS: usize = 4_000_000;
+
+/// Runs the writer until every sender is dropped, then writes a final checkpoint.
+pub fn run(
+    shared: Arc<Shared>,
+    mut commands: mpsc::Receiver<WriteCommand>,
+    policy: CheckpointPolicy,
+) {
+    let mut failed: Option<String> = None;
+    let mut checkpoints = Checkpoints::new(policy);
+    while let Some(first) = commands.blocking_recv() {
+        let mut group = vec![first];
+        let mut pending: usize = group[0].ops.iter().map(op_observations).sum();
+        while pending < MAX_GROUP_OBSERVATIONS {
+            match commands.try_recv() {
+                Ok(command) => {
+                    pending += command.ops.iter().map(op_observations).sum::<usize>();
+                    group.push(command);
+                }
+                Err(_) => break,
+            }
+        }
+        if let Some(reason) = &failed {
+            for command in group {
+                let _ = command.reply.send(Err(WriteError::Store(reason.clone())));
+            }
+            continue;
+        }
+        if let Err(reason) = commit_group(&shared, group, &mut checkpoints) {
+            failed = Some(reason);
+        }
+        checkpoints.maybe_write(&shared, false);
+    }
+    if failed.is_none() {
+        checkpoints.maybe_write(&shared, true);
+    }
+}
+
+fn op_observations(op: &WriteOp) -> usize {
+    match op {
+        WriteOp::Observe { times, .. } => times.len(),
+        _ => 0,
+    }
+}
+
+/// Checks, commits and publishes one group; returns the store failure, if any.
+fn commit_group(
+    shared: &Shared,
+    group: Vec<WriteCommand>,
+    checkpoints: &mut Checkpoints,
+) -> Result<(), String> {
+    let mut staged: HashMap<String, Option<Entry>> = HashMap::new();
+    let mut records: Vec<LogRecord> = Vec::new();
+    let mut outcomes = Vec::with_capacity(group.len());
+    {
+        let registry = shared.registry.read().expect("registry lock");
+        for command in group {
+            let mut scratch: HashMap<String, Option<Entry>> = HashMap::new();
+            let mut command_records = Vec::new();
+            let result = stage(
+                command.ops,
+                &registry,
+                &staged,
+                &mut scratch,
+                &mut command_records,
+            );
+            match result {
+                Ok(observations) => {
+                    staged.extend(scratch);
+                    records.extend(command_records);
+                    outcomes.push((command.reply, Ok(observations)));
+                }
+                Err(e) => outcomes.push((command.reply, Err(e))),
+            }
+        }
+    }
+    let seq = shared.seq.load(Ordering::Acquire);
+    let mut store_failure = None;
+    let committed_seq = if records.is_empty() {
+        seq
+    } else {
+        let bytes = encode_group(&records);
+        match shared.store.append(seq + 1, &bytes) {
+            Ok(()) => {
+                let mut registry = shared.registry.write().expect("registry lock");
+                for (id, slot) in staged {
+                    checkpoints.touched(&id, slot.is_some());
+                    registry.put(id, slot);
+                }
+                shared.seq.store(seq + 1, Ordering::Release);
+                checkpoints.observations +=
+                    records.iter().map(|r| r.observations() as u64).sum::<u64>();
+                seq + 1
+            }
+            Err(e) => {
+                store_failure = Some(format!(
+                    "the store failed ({e}); writes are refused until the service is restarted"
+                ));
+                seq
+            }
+        }
+    };
+    for (reply, outcome) in outcomes {
+        let outcome = match (&store_failure, outcome) {
+            (_, Err(e)) => Err(WriteError::Apply(e)),
+            (Some(reason), Ok(_)) => Err(WriteError::Store(reason.clone())),
+            (None, Ok(observations)) => Ok(Written {
+                observations,
+                seq: committed_seq,
+            }),
+        };
+        let _ = reply.send(outcome);
+    }
+    store_failure.map_or(Ok(()), Err)
+}
+
+/// Turns a request's ops into records, applying them to copies of the models.
+fn stage(
+    ops: Vec<WriteOp>,
+    registry: &Registry,
+    staged: &HashMap<String, Option<Entry>>,
+    scratch: &mut HashMap<String, Option<Entry>>,
+    records: &mut Vec<LogRecord>,
+) -> Result<u64, ApplyError> {
+    let mut observations = 0;
+    for op in ops {
+        let id = match &op {
+            WriteOp::Create { id, .. } | WriteOp::Observe { id, .. } | WriteOp::Remove { id } => {
+                id.clone()
+            }
+        };
+        let slot = scratch
+            .entry(id.clone())
+            .or_insert_with(|| match staged.get(&id) {
+                Some(slot) => slot.clone(),
+                None => registry.get(&id).cloned(),
+            });
+        let mut push = |record: LogRecord, slot: &mut Option<Entry>| {
+            apply_to(slot, &record)?;
+            records.push(record);
+            Ok::<(), ApplyError>(())
+        };
+        match op {
+            WriteOp::Create { id, config } => {
+                if slot.as_ref().is_some_and(|e| e.config == config) {
+                    continue;
+                }
+                push(LogRecord::Create { id, config }, slot)?;
+            }
+            WriteOp::Observe {
+                id,
+                times,
+                values,
+                create,
+            } => {
+                if slot.is_none()
+                    && let Some(config) = create
+                {
+                    push(
+                        LogRecord::Create {
+                            id: id.clone(),
+                            config,
+                        },
+                        slot,
+                    )?;
+                }
+                observations += times.len() as u64;
+                push(LogRecord::Observe { id, times, values }, slot)?;
+            }
+            WriteOp::Remove { id } => push(LogRecord::Remove { id }, slot)?,
+        }
+    }
+    Ok(observations)
+}
+
+/// Which models changed since the last checkpoint, and when to write the next.
+struct Checkpoints {
+    policy: CheckpointPolicy,
+    dirty: HashSet<String>,
+    removed: HashSet<String>,
+    observations: u64,
+    last: Instant,
+}
+
+impl Checkpoints {
+    fn new(policy: CheckpointPolicy) -> Self {
+        Checkpoints {
+            policy,
+            dirty: HashSet::new(),
+            removed: HashSet::new(),
+            observations: 0,
+            last: Instant::now(),
+        }
+    }
+
+    fn touched(&mut self, id: &str, exists: bool) {
+        if exists {
+            self.removed.remove(id);
+            self.dirty.insert(id.to_owned());
+        } else {
+            self.dirty.remove(id);
+            self.removed.insert(id.to_owned());
+        }
+    }
+
+    /// Snapshots every changed model if the policy (or `force`) says so.
+    fn maybe_write(&mut self, shared: &Shared, force: bool) {
+        let changed = !self.dirty.is_empty() || !self.removed.is_empty();
+        let due = self.observations >= self.policy.every_observations
+            || self.last.elapsed() >= self.policy.every;
+        if !changed || !(due || force) {
+            return;
+        }
+        let (seq, snapshots) = {
+            let registry = shared.registry.read().expect("registry lock");
+            let snapshots: Vec<(String, Vec<u8>)> = self
+                .dirty
+                .iter()
+                .filter_map(|id| registry.get(id).map(|e| (id.clone(), encode_snapshot(e))))
+                .collect();
+            (shared.seq.load(Ordering::Acquire), snapshots)
+        };
+        let removed: Vec<String> = self.removed.iter().cloned().collect();
+        match shared.store.checkpoint(seq, &snapshots, &removed) {
+            Ok(()) => {
+                self.dirty.clear();
+                self.removed.clear();
+                self.observations = 0;
+                self.last = Instant::now();
+            }
+            // The log still holds everything; the next checkpoint tries again.
+            Err(e) => eprintln!("warning: checkpoint at log position {seq} failed: {e}"),
+        }
+    }
+}

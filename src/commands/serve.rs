@@ -1,0 +1,282 @@
+//! `chronomap serve` and `chronomap client`: flags to a store, a token and a service; the
+//! client subcommands print what the service answers.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
+use chronomap_serve::client::Client;
+use chronomap_serve::store::{PostgresStore, RedbStore, Store};
+use chronomap_serve::writer::CheckpointPolicy;
+use chronomap_serve::{Service, ServiceConfig};
+
+use crate::cli::{ClientArgs, ClientCommand, ServeArgs};
+
+/// Shortest token accepted from a token file.
+const MIN_TOKEN_CHARS: usize = 16;
+
+/// `chronomap serve`.
+pub fn serve(args: &ServeArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.data)
+        .with_context(|| format!("cannot create the data directory {}", args.data.display()))?;
+    let token_file = if args.no_token {
+        None
+    } else {
+        Some(
+            args.token_file
+                .clone()
+                .unwrap_or_else(|| args.data.join("token")),
+        )
+    };
+    let token = token_file
+        .as_deref()
+        .map(read_or_create_token)
+        .transpose()?;
+    let store: Arc<dyn Store> = match &args.postgres {
+        Some(config) => Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
+        None => Arc::new(RedbStore::open(args.data.join("chronomap.redb"))?),
+    };
+    let description = store.describe();
+    let config = ServiceConfig {
+        token,
+        max_body_bytes: args.max_body_bytes,
+        checkpoint: CheckpointPolicy {
+            every_observations: args.snapshot_every,
+            every: Duration::from_secs_f64(args.snapshot_secs),
+        },
+    };
+    let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
+    let models = service.models();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    runtime.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(args.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", args.listen))?;
+        let address = listener.local_addr()?;
+        let mut out = std::io::stdout().lock();
+        writeln!(
+            out,
+            "chronomap serve: listening on http://{address} ({description}, {models} models recovered)"
+        )?;
+        match &token_file {
+            Some(file) => writeln!(
+                out,
+                "writes need `Authorization: Bearer TOKEN` with the token in {}",
+                file.display()
+            )?,
+            None => writeln!(out, "warning: writes need no token (--no-token)")?,
+        }
+        writeln!(out, "API description: http://{address}/openapi.json")?;
+        out.flush()?;
+        drop(out);
+        service
+            .run(listener, shutdown_signal())
+            .await
+            .context("the service failed")
+    })
+}
+
+/// Completes on Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = terminate => {}
+    }
+}
+
+/// The token in `path`, or a new random one written there (readable by the owner only).
+fn read_or_create_token(path: &Path) -> Result<String> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => {
+            let token = text.trim().to_owned();
+            if token.chars().count() < MIN_TOKEN_CHARS || token.chars().any(char::is_whitespace) {
+                bail!(
+                    "{}: a token must be at least {MIN_TOKEN_CHARS} characters without spaces",
+                    path.display()
+                );
+            }
+            Ok(token)
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let mut bytes = [0u8; 32];
+            getrandom::fill(&mut bytes)
+                .map_err(|e| anyhow::anyhow!("no random numbers for a token: {e}"))?;
+            let token: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+            let mut options = std::fs::OpenOptions::new();
+            options.write(true).create_new(true);
+            #[cfg(unix)]
+            std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+            let mut file = options
+                .open(path)
+                .with_context(|| format!("cannot create the token file {}", path.display()))?;
+            writeln!(file, "{token}")
+                .and_then(|()| file.sync_all())
+                .with_context(|| format!("cannot write the token file {}", path.display()))?;
+            Ok(token)
+        }
+        Err(e) => Err(e).with_context(|| format!("cannot read the token file {}", path.display())),
+    }
+}
+
+/// `chronomap client`.
+pub fn client(args: &ClientArgs) -> Result<()> {
+    let token = args
+        .token_file
+        .as_deref()
+        .map(|path| -> Result<String> {
+            Ok(std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read the token file {}", path.display()))?
+                .trim()
+                .to_owned())
+        })
+        .transpose()?;
+    let client = Client::new(&args.url, token)?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    runtime.block_on(run_client(&client, &args.command))
+}
+
+async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    match command {
+        ClientCommand::Health => writeln!(out, "{}", json(&client.health().await?))?,
+        ClientCommand::List => {
+            for model in client.list().await?.models {
+                writeln!(
+                    out,
+                    "{}\t{}\t{} observations",
+                    model.id, model.model, model.observations
+                )?;
+            }
+        }
+        ClientCommand::View { id } => writeln!(out, "{}", json(&client.view(id).await?))?,
+        ClientCommand::Create { id, model, range } => {
+            let range = range.as_ref().map(|r| [r[0], r[1]]);
+            let ack = client.create(id, Some(model), range).await?;
+            writeln!(out, "created {id:?} ({model}) at log position {}", ack.seq)?;
+        }
+        ClientCommand::Remove { id } => {
+            client.remove(id).await?;
+            writeln!(out, "removed {id:?}")?;
+        }
+        ClientCommand::Add {
+            id,
+            file,
+            model,
+            batch,
+        } => {
+            let series = super::read_series(file)?;
+            let mut added: u64 = 0;
+            for (times, values) in series
+                .times
+                .chunks((*batch).max(1))
+                .zip(series.values.chunks((*batch).max(1)))
+            {
+                let ack = client
+                    .add_values(id, times, values, model.as_deref())
+                    .await
+                    .with_context(|| {
+                        format!(
+                            "{}: observations {}..{} were not added ({added} were)",
+                            super::source_name(file),
+                            added + 1,
+                            added + times.len() as u64
+                        )
+                    })?;
+                added += ack.observations;
+            }
+            writeln!(out, "added {added} observations to {id:?}")?;
+        }
+        ClientCommand::Predict {
+            id,
+            at,
+            from,
+            to,
+            step,
+            order,
+        } => {
+            let times = match (from, to) {
+                (Some(from), Some(to)) => range_times(*from, *to, *step)?,
+                _ if !at.is_empty() => at.clone(),
+                _ => bail!("give --at TIMES or --from T --to T [--step S]"),
+            };
+            let p = client.predict(id, &times, *order).await?;
+            let entropies = client.entropy(id, &times, *order).await?;
+            writeln!(out, "time\tprobability\tentropy")?;
+            for ((t, p), h) in times.iter().zip(&p.values).zip(&entropies.values) {
+                writeln!(out, "{}\t{p:.4}\t{h:.4}", crate::format::time(*t))?;
+            }
+        }
+        ClientCommand::Forecast { ids, at, order } => {
+            let request = ForecastRequest {
+                ids: ids.clone(),
+                time: *at,
+                order: *order,
+                orders: None,
+            };
+            let p = client.forecast(&request).await?;
+            for (id, p) in ids.iter().zip(p.values) {
+                writeln!(out, "{id}\t{p:.4}")?;
+            }
+        }
+        ClientCommand::Evaluate {
+            id,
+            file,
+            max_order,
+        } => {
+            let series = super::read_series(file)?;
+            let request = EvaluateRequest {
+                id: id.clone(),
+                times: series.times,
+                values: series.values,
+                max_order: *max_order,
+            };
+            let e = client.evaluate(&request).await?;
+            writeln!(out, "order\t{}\tbrier", e.metric)?;
+            for ((order, error), brier) in e.orders.iter().zip(&e.errors).zip(&e.brier) {
+                writeln!(out, "{order}\t{error:.4}\t{brier:.4}")?;
+            }
+            writeln!(out, "best order: {}", e.best_order)?;
+        }
+    }
+    Ok(())
+}
+
+/// `from, from + step, ...` up to `to`.
+fn range_times(from: f64, to: f64, step: f64) -> Result<Vec<f64>> {
+    if to < from {
+        bail!("--to is before --from");
+    }
+    let n = ((to - from) / step).floor() as usize + 1;
+    if n > 1_000_000 {
+        bail!("{n} times: choose a larger --step");
+    }
+    Ok((0..n).map(|i| from + i as f64 * step).collect())
+}
+
+/// Pretty JSON of a response.
+fn json(value: &impl serde::Serialize) -> String {
+    serde_json::to_string_pretty(value).expect("responses serialise")
+}
