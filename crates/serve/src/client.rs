@@ -1,7 +1,7 @@
 //! A typed client of the service: one method per endpoint, the service's JSON errors as
 //! [`ClientError::Api`].
 
-use reqwest::{Method, StatusCode};
+pub use reqwest::{Method, StatusCode};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 

@@ -79,7 +79,7 @@ fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
         )),
     };
     let config_error = |e: chronomap_core::ConfigError| format!("`{spec}`: {e}");
-    Ok(match spec {
+    let model = match spec {
         ModelSpec::Mean => AnyModel::Mean(MeanModel::new()),
         ModelSpec::Histogram { bins, period_secs } => {
             AnyModel::Histogram(HistogramModel::new(*bins, *period_secs).map_err(config_error)?)
@@ -114,7 +114,19 @@ fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
                  pergam:K[:PERIOD], stm, mean"
             ));
         }
-    })
+    };
+    // A too-large order would silently be clamped; say so instead (the original server
+    // refused orders above its number of periodicities too).
+    if let (Some(order), Some(max)) = (model.order(), max_order(&model))
+        && let ModelSpec::Fremen(OrderSpec::Fixed(k)) | ModelSpec::Persistence(OrderSpec::Fixed(k)) =
+            spec
+        && (*k > max || order != *k)
+    {
+        return Err(format!(
+            "`{spec}`: order {k} is above the largest order {max}"
+        ));
+    }
+    Ok(model)
 }
 
 /// Checks a model id: 1 to [`MAX_ID_BYTES`] bytes of UTF-8 without control characters.
