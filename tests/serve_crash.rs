@@ -42,7 +42,7 @@ async fn client_loop(
 ) {
     let client = Client::new(&url, Some(token)).unwrap();
     let mut rng = Xoshiro256StarStar::seed_from_u64(client_index as u64 + 1);
-    let mut clock = vec![1_400_000_000.0_f64; IDS_PER_CLIENT];
+    let mut clock = [1_400_000_000.0_f64; IDS_PER_CLIENT];
     while !stop.load(Ordering::Relaxed) {
         let slot = (rng.next_u64() % IDS_PER_CLIENT as u64) as usize;
         let (id, spec) = {
