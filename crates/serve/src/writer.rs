@@ -405,3 +405,180 @@ impl Checkpoints {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::RedbStore;
+    use chronomap_core::TemporalModel;
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("chronomap-writer-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn config(spec: &str) -> ModelConfig {
+        ModelConfig::parse(Some(spec), None).unwrap()
+    }
+
+    fn observe(id: &str, t0: f64, n: usize) -> WriteOp {
+        let times: Vec<f64> = (0..n).map(|k| t0 + k as f64 * 600.0).collect();
+        let values = times
+            .iter()
+            .map(|t| f64::from(u8::from((t % 86_400.0) > 30_000.0)))
+            .collect();
+        WriteOp::Observe {
+            id: id.into(),
+            times,
+            values,
+            create: Some(config("fremen:2")),
+        }
+    }
+
+    /// Runs a writer over `store`, sends every request of `requests` as one channel burst
+    /// (so that they share commit groups), returns the outcomes and the registry.
+    fn run_writer(
+        store: Arc<dyn Store>,
+        requests: Vec<Vec<WriteOp>>,
+        policy: CheckpointPolicy,
+    ) -> (Vec<Result<Written, WriteError>>, Arc<Shared>) {
+        let shared = Arc::new(recover(store).unwrap());
+        let (sender, receiver) = mpsc::channel(1024);
+        let mut replies = Vec::new();
+        for ops in requests {
+            let (reply, outcome) = oneshot::channel();
+            sender.try_send(WriteCommand { ops, reply }).unwrap();
+            replies.push(outcome);
+        }
+        drop(sender);
+        let writer_shared = Arc::clone(&shared);
+        std::thread::spawn(move || run(writer_shared, receiver, policy))
+            .join()
+            .unwrap();
+        let outcomes = replies
+            .into_iter()
+            .map(|r| r.blocking_recv().unwrap())
+            .collect();
+        (outcomes, shared)
+    }
+
+    fn models(shared: &Shared) -> Vec<(String, Vec<u8>)> {
+        let registry = shared.registry.read().unwrap();
+        registry
+            .ids()
+            .into_iter()
+            .map(|id| (id.to_owned(), encode_snapshot(registry.get(id).unwrap())))
+            .collect()
+    }
+
+    #[test]
+    fn a_request_is_accepted_whole_or_rejected_whole() {
+        let dir = scratch("atomic");
+        let store: Arc<dyn Store> = Arc::new(RedbStore::open(dir.join("db")).unwrap());
+        let requests = vec![
+            vec![observe("a", 0.0, 10)],
+            // Valid for "b", then a time before a's last one: nothing of it may stay.
+            vec![observe("b", 0.0, 5), observe("a", 100.0, 3)],
+            vec![observe("b", 0.0, 7)],
+            vec![WriteOp::Remove { id: "nope".into() }],
+        ];
+        let (outcomes, shared) =
+            run_writer(Arc::clone(&store), requests, CheckpointPolicy::default());
+        assert_eq!(outcomes[0].as_ref().unwrap().observations, 10);
+        assert!(matches!(
+            &outcomes[1],
+            Err(WriteError::Apply(ApplyError::Observation(id, _))) if id == "a"
+        ));
+        assert_eq!(outcomes[2].as_ref().unwrap().observations, 7);
+        assert!(matches!(
+            &outcomes[3],
+            Err(WriteError::Apply(ApplyError::NotFound(_)))
+        ));
+        let registry = shared.registry.read().unwrap();
+        assert_eq!(registry.get("a").unwrap().model.span().count, 10);
+        assert_eq!(registry.get("b").unwrap().model.span().count, 7);
+        // All three accepted requests went into one commit group.
+        assert_eq!(shared.seq.load(Ordering::Acquire), 1);
+    }
+
+    #[test]
+    fn recovery_from_checkpoints_and_log_equals_the_live_models() {
+        for (name, every) in [("checkpoint-at-exit-only", u64::MAX), ("checkpoints", 25)] {
+            let dir = scratch(name);
+            let store: Arc<dyn Store> = Arc::new(RedbStore::open(dir.join("db")).unwrap());
+            let policy = CheckpointPolicy {
+                every_observations: every,
+                every: Duration::from_secs(3600),
+            };
+            let mut live = Vec::new();
+            // Three runs of the writer over the same store, as three service lifetimes.
+            for round in 0..3 {
+                let t0 = round as f64 * 1e6;
+                let requests = vec![
+                    vec![observe("door", t0, 40)],
+                    vec![
+                        observe("lab", t0, 15),
+                        observe("door", t0 + 40.0 * 600.0, 9),
+                    ],
+                    vec![WriteOp::Remove { id: "lab".into() }],
+                    vec![WriteOp::Create {
+                        id: "lab".into(),
+                        config: config("hist:24"),
+                    }],
+                    vec![observe("lab", t0 + 1.0, 30)],
+                ];
+                let (outcomes, shared) = run_writer(Arc::clone(&store), requests, policy);
+                assert!(outcomes.iter().all(Result::is_ok), "{outcomes:?}");
+                live = models(&shared);
+            }
+            let recovered = recover(Arc::clone(&store)).unwrap();
+            assert_eq!(models(&recovered), live, "{name}");
+            // The continuous times of "door" across lifetimes: 3 × 49 observations.
+            let registry = recovered.registry.read().unwrap();
+            assert_eq!(registry.get("door").unwrap().model.span().count, 147);
+            assert_eq!(registry.get("lab").unwrap().config, config("hist:24"));
+            drop(registry);
+            let (times, _) = observations_of(&*store, "lab").unwrap();
+            assert_eq!(times.len(), 30, "observations since the last create");
+        }
+    }
+
+    #[test]
+    fn damaged_snapshots_and_log_entries_stop_recovery_with_their_name() {
+        let dir = scratch("damaged");
+        let path = dir.join("db");
+        {
+            let store: Arc<dyn Store> = Arc::new(RedbStore::open(&path).unwrap());
+            let (outcomes, _) = run_writer(
+                Arc::clone(&store),
+                vec![vec![observe("door", 0.0, 20)]],
+                CheckpointPolicy::default(),
+            );
+            assert!(outcomes[0].is_ok());
+            let mut snapshot = encode_snapshot(&Entry {
+                config: config("fremen:2"),
+                model: config("fremen:2").empty_model().unwrap(),
+            });
+            *snapshot.last_mut().unwrap() ^= 0x40;
+            store
+                .checkpoint(0, &[("door".into(), snapshot)], &[])
+                .unwrap();
+        }
+        let store: Arc<dyn Store> = Arc::new(RedbStore::open(&path).unwrap());
+        let error = recover(Arc::clone(&store)).err().unwrap();
+        assert!(
+            error.contains("snapshot of \"door\"") && error.contains("checksum"),
+            "{error}"
+        );
+        store.checkpoint(0, &[], &["door".into()]).unwrap();
+        store.append(2, b"CMLOG\x001\nxxxx garbage").unwrap();
+        let error = recover(store).err().unwrap();
+        assert!(
+            error.contains("log entry 2") && error.contains("checksum"),
+            "{error}"
+        );
+    }
+}

@@ -1,0 +1,178 @@
+//! `chronomap serve` + `chronomap client` on the bundled Greg door data: ten weeks of minute
+//! observations added through the command-line client predict exactly what the same model
+//! predicts when trained in one process, and the service documents every endpoint.
+
+mod service;
+
+use std::process::Command;
+
+use chronomap_core::{FremenModel, TemporalModel};
+use chronomap_serve::client::Client;
+use service::{Backend, free_port, scratch, start};
+
+const TRAIN: &str = "data/door_greg_2016/training_data.txt.xz";
+
+fn client_command(url: &str, data: &std::path::Path, args: &[&str]) -> String {
+    let output = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(["client", "--url", url, "--token-file"])
+        .arg(data.join("token"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "chronomap client {args:?}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8(output.stdout).unwrap()
+}
+
+#[test]
+fn door_data_through_the_service_predict_as_the_model_trained_offline() {
+    let data = scratch("serve_cli_door");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let out = client_command(
+        &server.url,
+        &data,
+        &[
+            "add",
+            "greg-door",
+            "--file",
+            TRAIN,
+            "--model",
+            "fremen:2",
+            "--batch",
+            "20000",
+        ],
+    );
+    assert_eq!(out.trim(), "added 96480 observations to \"greg-door\"");
+
+    let series = chronomap_io::read_pairs(TRAIN).unwrap();
+    let mut reference = FremenModel::with_order(2);
+    reference.observe(&series.times, &series.values).unwrap();
+    // The day after the training data (2016-03-14), hour by hour.
+    let day: Vec<f64> = (0..=24)
+        .map(|h| 1_457_913_600.0 + h as f64 * 3600.0)
+        .collect();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let client = Client::new(&server.url, None).unwrap();
+    let served = runtime
+        .block_on(client.predict("greg-door", &day, None))
+        .unwrap();
+    let expected = reference.predict_many(&day);
+    assert_eq!(served.values, expected);
+    // The door's daily rhythm: closed at night, open now and then around midday.
+    assert!(expected[3] < 0.01 && expected[13] > 0.25, "{expected:?}");
+
+    let table = client_command(
+        &server.url,
+        &data,
+        &[
+            "predict",
+            "greg-door",
+            "--from",
+            "2016-03-14T00:00Z",
+            "--to",
+            "2016-03-15T00:00Z",
+            "--step",
+            "3600",
+        ],
+    );
+    let rows: Vec<&str> = table.lines().skip(1).collect();
+    assert_eq!(rows.len(), 25);
+    for (row, p) in rows.iter().zip(&expected) {
+        let printed: f64 = row.split('\t').nth(1).unwrap().parse().unwrap();
+        assert!((printed - p).abs() <= 5e-5, "{row} vs {p}");
+    }
+
+    // evaluate: the binary error of every order on the first test week, as computed here.
+    let out = client_command(
+        &server.url,
+        &data,
+        &[
+            "evaluate",
+            "greg-door",
+            "--file",
+            "data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz",
+            "--max-order",
+            "4",
+        ],
+    );
+    let test = chronomap_io::read_test_set(
+        "data/door_greg_2016/test_times_1.txt.xz",
+        "data/door_greg_2016/test_data_1.txt.xz",
+    )
+    .unwrap();
+    let mismatches = test
+        .times
+        .iter()
+        .zip(&test.values)
+        .filter(|&(&t, &s)| (reference.predict(t) > 0.5) != (s > 0.5))
+        .count();
+    let error = mismatches as f64 / test.times.len() as f64;
+    let order2 = out.lines().find(|l| l.starts_with("2\t")).unwrap();
+    let printed: f64 = order2.split('\t').nth(1).unwrap().parse().unwrap();
+    assert!((printed - error).abs() <= 5e-5, "{order2} vs {error}");
+
+    // View: the two strongest periodicities of the door are the day and the week.
+    let info = runtime.block_on(client.view("greg-door")).unwrap();
+    let mut periods: Vec<f64> = info.components.iter().map(|c| c.period_secs).collect();
+    periods.sort_by(f64::total_cmp);
+    assert_eq!(periods, [86_400.0, 604_800.0]);
+}
+
+#[test]
+fn every_endpoint_is_documented_and_the_web_page_is_served() {
+    let data = scratch("serve_cli_openapi");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let client = Client::new(&server.url, None).unwrap();
+    let get = |path: &str| {
+        let (status, text) = runtime
+            .block_on(client.raw(chronomap_serve::client::Method::GET, path, vec![], None))
+            .unwrap();
+        assert_eq!(status, 200, "{path}");
+        text
+    };
+    let spec: serde_json::Value = serde_json::from_str(&get("/openapi.json")).unwrap();
+    let expected = [
+        ("/v1/health", "get"),
+        ("/v1/models", "get"),
+        ("/v1/models/{id}", "get"),
+        ("/v1/models/{id}", "put"),
+        ("/v1/models/{id}", "delete"),
+        ("/v1/models/{id}/observations", "get"),
+        ("/v1/add", "post"),
+        ("/v1/addvalues", "post"),
+        ("/v1/observations", "post"),
+        ("/v1/predict", "post"),
+        ("/v1/entropy", "post"),
+        ("/v1/forecast", "post"),
+        ("/v1/forecastEntropy", "post"),
+        ("/v1/evaluate", "post"),
+        ("/v1/detect", "post"),
+    ];
+    let paths = spec["paths"].as_object().unwrap();
+    let documented: usize = paths.values().map(|p| p.as_object().unwrap().len()).sum();
+    assert_eq!(documented, expected.len());
+    for (path, method) in expected {
+        assert!(
+            paths[path][method].is_object(),
+            "{method} {path} is not documented"
+        );
+    }
+    // Writes declare the bearer token.
+    assert!(paths["/v1/add"]["post"]["security"].is_array());
+    assert_eq!(
+        spec["components"]["securitySchemes"]["bearer"]["scheme"],
+        "bearer"
+    );
+    let page = get("/");
+    assert!(page.contains("/v1/predict") && page.contains("<svg"));
+}
