@@ -176,3 +176,53 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
     let page = get("/");
     assert!(page.contains("/v1/predict") && page.contains("<svg"));
 }
+
+#[test]
+fn the_readme_service_example_runs() {
+    if Command::new("curl").arg("--version").output().is_err() {
+        eprintln!("skipped: the README example needs curl");
+        return;
+    }
+    let readme = include_str!("../README.md");
+    let block = readme
+        .split("<!-- service-example")
+        .nth(1)
+        .and_then(|rest| rest.split("```sh\n").nth(1))
+        .and_then(|rest| rest.split("\n```").next())
+        .expect("the service example block in README.md");
+    let data = scratch("serve_cli_readme");
+    let port = free_port();
+    let (serve_line, script) = block.split_once('\n').unwrap();
+    assert!(serve_line.starts_with("chronomap serve --data chronomap-data &"));
+    let _server = start(&data, port, &Backend::Redb, &[]);
+    let script = script
+        .replace("chronomap-data", &data.display().to_string())
+        .replace("8470", &port.to_string());
+    let bin_dir = std::path::Path::new(env!("CARGO_BIN_EXE_chronomap"))
+        .parent()
+        .unwrap();
+    let path = format!(
+        "{}:{}",
+        bin_dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let output = Command::new("bash")
+        .args(["-euo", "pipefail", "-c", &script])
+        .env("PATH", path)
+        .env("CHRONOMAP_URL", format!("http://127.0.0.1:{port}"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(stdout.contains(r#"{"observations":4,"seq":1}"#), "{stdout}");
+    assert!(stdout.contains("added 96480 observations"), "{stdout}");
+    assert!(
+        stdout.contains(r#"{"values":[0.0,0.0,0.0,0.0,0.0,0.0,0.03783847058902408,"#),
+        "{stdout}"
+    );
+    assert!(stdout.contains("2016-03-14 13:00 UTC\t0.2913"), "{stdout}");
+}
