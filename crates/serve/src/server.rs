@@ -1,6 +1,6 @@
 //! The HTTP/JSON API: routes, handlers, bearer-token checks, size limits and JSON errors.
 //! Handlers only translate: reads go to the published [`Registry`](crate::registry::Registry),
-//! writes to the [writer](crate::writer).
+//! writes to the [`crate::writer`].
 
 use std::future::Future;
 use std::net::SocketAddr;
