@@ -226,3 +226,125 @@ fn the_readme_service_example_runs() {
     );
     assert!(stdout.contains("2016-03-14 13:00 UTC\t0.2913"), "{stdout}");
 }
+
+#[test]
+fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
+    use chronomap_core::binary_entropy;
+    use chronomap_serve::api::{DetectRequest, ForecastRequest};
+
+    let data = scratch("serve_cli_operations");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let token = service::token(&data);
+    let client = Client::new(&server.url, Some(token)).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let series = chronomap_io::read_pairs(TRAIN).unwrap();
+    // Two doors: the first five weeks and the last five weeks of the Greg door.
+    let half = series.times.len() / 2;
+    let parts = [(0, half), (half, series.times.len())];
+    let mut references = Vec::new();
+    for (k, &(a, b)) in parts.iter().enumerate() {
+        let id = format!("door-{k}");
+        runtime
+            .block_on(client.create(&id, Some("fremen:4"), None))
+            .unwrap();
+        runtime
+            .block_on(client.add_values(&id, &series.times[a..b], &series.values[a..b], None))
+            .unwrap();
+        let mut model = FremenModel::with_order(4);
+        model
+            .observe(&series.times[a..b], &series.values[a..b])
+            .unwrap();
+        references.push(model);
+    }
+    let t = 1_457_956_800.0; // 2016-03-14 12:00 UTC
+    let request = ForecastRequest {
+        ids: vec!["door-0".into(), "door-1".into()],
+        time: t,
+        order: None,
+        orders: Some(vec![1, 3]),
+    };
+    let forecast = runtime.block_on(client.forecast(&request)).unwrap();
+    let entropies = runtime.block_on(client.forecast_entropy(&request)).unwrap();
+    for (k, order) in [1, 3].into_iter().enumerate() {
+        let mut model = references[k].clone();
+        chronomap_core::Ordered::set_order(&mut model, order);
+        assert_eq!(forecast.values[k], model.predict(t));
+        assert_eq!(entropies.values[k], binary_entropy(model.predict(t)));
+    }
+
+    // detect: the observations of the first test week that the model finds anomalous.
+    let test = chronomap_io::read_test_set(
+        "data/door_greg_2016/test_times_1.txt.xz",
+        "data/door_greg_2016/test_data_1.txt.xz",
+    )
+    .unwrap();
+    let detect = DetectRequest {
+        id: "door-1".into(),
+        times: test.times.clone(),
+        values: test.values.clone(),
+        confidence: 0.8,
+        order: None,
+    };
+    let found = runtime.block_on(client.detect(&detect)).unwrap().anomalies;
+    let expected: Vec<f64> = test
+        .times
+        .iter()
+        .zip(&test.values)
+        .filter(|&(&t, &v)| (v - references[1].predict(t)).abs() >= 0.8)
+        .map(|(&t, _)| t)
+        .collect();
+    assert!(!expected.is_empty());
+    assert_eq!(found.iter().map(|a| a.time).collect::<Vec<_>>(), expected);
+
+    // A continuous state in a range: temperatures 10..30 °C.
+    runtime
+        .block_on(client.create("lab-temperature", Some("hist:24:86400"), Some([10.0, 30.0])))
+        .unwrap();
+    runtime
+        .block_on(client.add_values("lab-temperature", &[3600.0, 90_000.0], &[14.0, 18.0], None))
+        .unwrap();
+    let p = runtime
+        .block_on(client.predict("lab-temperature", &[5400.0], None))
+        .unwrap();
+    // Both observations fall in the same hourly bin of the day: (0.2 + 0.4) / 2.
+    assert!((p.values[0] - 0.3).abs() < 1e-12, "{p:?}");
+    assert!(
+        (p.scaled.as_ref().unwrap()[0] - 16.0).abs() < 1e-10,
+        "{p:?}"
+    );
+    let out_of_range = runtime
+        .block_on(client.add_values("lab-temperature", &[200_000.0], &[31.0], None))
+        .unwrap_err();
+    assert_eq!(
+        out_of_range.status(),
+        Some(chronomap_serve::client::StatusCode::BAD_REQUEST)
+    );
+
+    // remove, then the model is gone and its id free for another kind.
+    runtime.block_on(client.remove("door-0")).unwrap();
+    let gone = runtime.block_on(client.view("door-0")).unwrap_err();
+    assert_eq!(
+        gone.status(),
+        Some(chronomap_serve::client::StatusCode::NOT_FOUND)
+    );
+    runtime
+        .block_on(client.create("door-0", Some("stm"), None))
+        .unwrap();
+    let list = runtime.block_on(client.list()).unwrap();
+    let kinds: Vec<(&str, &str)> = list
+        .models
+        .iter()
+        .map(|m| (m.id.as_str(), m.model.as_str()))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            ("door-0", "stm"),
+            ("door-1", "fremen:4"),
+            ("lab-temperature", "hist:24:86400")
+        ]
+    );
+}
