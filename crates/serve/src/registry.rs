@@ -162,16 +162,29 @@ pub struct Entry {
 }
 
 impl Entry {
-    /// Adds observations given in the model's range.
+    /// Adds observations given in the model's range (`id` is for errors).
     ///
     /// # Errors
-    /// The first violation of the observation contract; the entry is then unchanged.
-    pub fn observe(&mut self, times: &[f64], values: &[f64]) -> Result<(), ObservationError> {
-        if self.config.range.is_none() {
-            return self.model.observe(times, values);
-        }
-        let normalised: Vec<f64> = values.iter().map(|&v| self.config.normalise(v)).collect();
-        self.model.observe(times, &normalised)
+    /// The first violation of the observation contract, or a value outside the model's range;
+    /// the entry is then unchanged.
+    pub fn observe(&mut self, id: &str, times: &[f64], values: &[f64]) -> Result<(), ApplyError> {
+        let observed = match self.config.range {
+            None => self.model.observe(times, values),
+            Some([lo, hi]) => {
+                if let Some(index) = values.iter().position(|v| !(lo..=hi).contains(v)) {
+                    return Err(ApplyError::OutOfRange {
+                        id: id.to_owned(),
+                        index,
+                        value: values[index],
+                        range: [lo, hi],
+                    });
+                }
+                let normalised: Vec<f64> =
+                    values.iter().map(|&v| self.config.normalise(v)).collect();
+                self.model.observe(times, &normalised)
+            }
+        };
+        observed.map_err(|e| ApplyError::Observation(id.to_owned(), e))
     }
 
     /// The model predicting with `order` (a copy when the order differs from its own).
@@ -254,6 +267,17 @@ pub enum ApplyError {
     Observation(String, ObservationError),
     /// The configuration cannot be built.
     Config(String),
+    /// A value outside the range of a model of continuous values.
+    OutOfRange {
+        /// Model id.
+        id: String,
+        /// Index within the batch.
+        index: usize,
+        /// The value.
+        value: f64,
+        /// The model's range.
+        range: [f64; 2],
+    },
 }
 
 impl std::fmt::Display for ApplyError {
@@ -269,6 +293,16 @@ impl std::fmt::Display for ApplyError {
                 None => write!(f, "model {id:?}: {e}"),
             },
             ApplyError::Config(reason) => f.write_str(reason),
+            ApplyError::OutOfRange {
+                id,
+                index,
+                value,
+                range: [lo, hi],
+            } => write!(
+                f,
+                "model {id:?}, observation {index}: value {value} is outside the model's range \
+                 [{lo}, {hi}]"
+            ),
         }
     }
 }
@@ -330,8 +364,7 @@ impl Registry {
                 .models
                 .get_mut(id.as_str())
                 .ok_or_else(|| ApplyError::NotFound(id.clone()))?
-                .observe(times, values)
-                .map_err(|e| ApplyError::Observation(id.clone(), e)),
+                .observe(id, times, values),
             _ => {
                 let id = record.id();
                 let mut slot = self.models.remove(id);
@@ -367,9 +400,7 @@ pub fn apply_to(slot: &mut Option<Entry>, record: &LogRecord) -> Result<(), Appl
             let entry = slot
                 .as_mut()
                 .ok_or_else(|| ApplyError::NotFound(id.clone()))?;
-            entry
-                .observe(times, values)
-                .map_err(|e| ApplyError::Observation(id.clone(), e))
+            entry.observe(id, times, values)
         }
         LogRecord::Remove { id } => {
             if slot.take().is_none() {
