@@ -105,6 +105,7 @@ pub enum Command {
 const SERVE_HELP: &str = "\
 Examples:
   chronomap serve --data chronomap-data
+  chronomap serve --data chronomap-data --topo witham=witham.cmt
   chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
 
 Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN`; the token
@@ -144,6 +145,31 @@ pub struct ServeArgs {
     /// ... or after this many seconds with changes.
     #[arg(long, default_value_t = 60.0, value_parser = parse_positive)]
     pub snapshot_secs: f64,
+    /// Serve a topological map with edge models (from `chronomap topo fit`) as NAME=FILE:
+    /// edge predictions and now-or-later plans at /v1/topo/NAME/. Repeatable.
+    #[arg(long, value_parser = parse_named_file)]
+    pub topo: Vec<(String, PathBuf)>,
+    /// Serve an occupancy grid file (from `chronomap grid build`) as NAME=FILE: predicted maps
+    /// at /v1/grid/NAME/predict. Repeatable.
+    #[arg(long, value_parser = parse_named_file)]
+    pub grid: Vec<(String, PathBuf)>,
+}
+
+fn parse_named_file(text: &str) -> Result<(String, PathBuf), String> {
+    match text.split_once('=') {
+        Some((name, file))
+            if !name.is_empty()
+                && !file.is_empty()
+                && name
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b)) =>
+        {
+            Ok((name.to_owned(), PathBuf::from(file)))
+        }
+        _ => Err(format!(
+            "{text:?} is not NAME=FILE (NAME of letters, digits, '-', '_' or '.')"
+        )),
+    }
 }
 
 /// `chronomap client`.

@@ -157,6 +157,10 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
         ("/v1/forecastEntropy", "post"),
         ("/v1/evaluate", "post"),
         ("/v1/detect", "post"),
+        ("/v1/maps", "get"),
+        ("/v1/topo/{name}/predict", "post"),
+        ("/v1/topo/{name}/plan", "post"),
+        ("/v1/grid/{name}/predict", "post"),
     ];
     let paths = spec["paths"].as_object().unwrap();
     let documented: usize = paths.values().map(|p| p.as_object().unwrap().len()).sum();
@@ -347,4 +351,138 @@ fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
             ("lab-temperature", "hist:24:86400")
         ]
     );
+}
+
+#[test]
+fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
+    use chronomap_core::grid::{FremenGrid, GridConfig, GridGeometry};
+    use chronomap_core::mdp::SolverOptions;
+    use chronomap_core::plan::{Task, plan_at};
+    use chronomap_serve::maps::{EdgesResponse, GridResponse, PlanResponse};
+
+    let data = scratch("serve_cli_maps");
+    // The Witham Wharf deployment's edge models, fitted by the command line.
+    let witham = data.join("witham.cmt");
+    let status = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "topo",
+            "fit",
+            "--edges",
+            "data/witham_topological_nav/edges",
+            "-o",
+        ])
+        .arg(&witham)
+        .args(["--success-order", "1"])
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    // A small grid: a door cell open by day, a wall, a free cell; three days of frames.
+    let geometry = GridGeometry::planar(3, 1, 0.5, [0.0, 0.0]).unwrap();
+    let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();
+    for k in 0..3 * 48 {
+        let t = 1_400_000_000.0 + k as f64 * 1800.0;
+        let day = ((t % 86_400.0) / 3600.0 - 12.0).abs() < 5.0;
+        grid.observe_occupancy(t, &[if day { 0 } else { 100 }, 100, 0])
+            .unwrap();
+    }
+    let grid_path = data.join("door.cmg");
+    chronomap_io::grid_file::write_grid_file(
+        &grid_path,
+        &chronomap_io::grid_file::GridFile::State(Box::new(grid.clone())),
+    )
+    .unwrap();
+
+    let topo_flag = format!("witham={}", witham.display());
+    let grid_flag = format!("door={}", grid_path.display());
+    let server = start(
+        &data,
+        free_port(),
+        &Backend::Redb,
+        &["--topo", &topo_flag, "--grid", &grid_flag],
+    );
+    let client = Client::new(&server.url, None).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let post = |path: &str, body: serde_json::Value| -> (u16, String) {
+        let (status, text) = runtime
+            .block_on(client.raw(
+                chronomap_serve::client::Method::POST,
+                path,
+                body.to_string().into_bytes(),
+                None,
+            ))
+            .unwrap();
+        (status.as_u16(), text)
+    };
+
+    let models = chronomap_io::model_file::read_edge_models(&witham).unwrap();
+    let t = 1_409_839_200.0; // 2014-09-04 14:00 UTC
+    let (status, text) = post("/v1/topo/witham/predict", serde_json::json!({ "time": t }));
+    assert_eq!(status, 200, "{text}");
+    let edges: EdgesResponse = serde_json::from_str(&text).unwrap();
+    let (success, duration) = models.at(t);
+    assert_eq!(edges.edges.len(), 61);
+    for (k, e) in edges.edges.iter().enumerate() {
+        assert_eq!(
+            (e.success, e.duration_secs),
+            (success[k], duration[k]),
+            "{}",
+            e.id
+        );
+    }
+    let door = edges
+        .edges
+        .iter()
+        .find(|e| e.id == "LabDoor1_LabDoor2")
+        .unwrap();
+    assert_eq!(
+        (door.from.as_str(), door.to.as_str()),
+        ("LabDoor1", "LabDoor2")
+    );
+
+    // Now or later: the night against the afternoon, as the planner in one process says.
+    let times = [1_409_796_000.0, t]; // 02:00 and 14:00
+    let (status, text) = post(
+        "/v1/topo/witham/plan",
+        serde_json::json!({ "from": "Station", "task": "F Kitchen", "times": times }),
+    );
+    assert_eq!(status, 200, "{text}");
+    let plans: PlanResponse = serde_json::from_str(&text).unwrap();
+    let task = Task::parse("F Kitchen", models.map()).unwrap();
+    let start_node = models.map().node("Station").unwrap();
+    for (served, &time) in plans.plans.iter().zip(&times) {
+        let expected =
+            plan_at(&models, start_node, &task, time, &SolverOptions::default()).unwrap();
+        assert_eq!(
+            (served.pmax, served.expected_secs),
+            (expected.pmax, expected.expected_secs)
+        );
+        assert_eq!(
+            served.first_edge,
+            expected
+                .first_edge
+                .map(|e| models.map().edges()[e].id.clone())
+        );
+    }
+    assert!(plans.plans[0].pmax < plans.plans[1].pmax, "{plans:?}");
+    let (status, text) = post(
+        "/v1/topo/witham/plan",
+        serde_json::json!({ "from": "Station", "task": "F Kitchn", "times": [t] }),
+    );
+    assert_eq!(status, 400);
+    assert!(text.contains("did you mean"), "{text}");
+
+    let (status, text) = post("/v1/grid/door/predict", serde_json::json!({ "time": t }));
+    assert_eq!(status, 200, "{text}");
+    let served: GridResponse = serde_json::from_str(&text).unwrap();
+    assert_eq!(served.shape, [3, 1, 1]);
+    assert_eq!(served.values, grid.predict_map(t));
+    let (status, _) = post("/v1/grid/nope/predict", serde_json::json!({ "time": t }));
+    assert_eq!(status, 404);
 }

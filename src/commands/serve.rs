@@ -9,6 +9,7 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
 use chronomap_serve::client::Client;
+use chronomap_serve::maps::Maps;
 use chronomap_serve::store::{PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
@@ -39,6 +40,17 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         Some(config) => Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
         None => Arc::new(RedbStore::open(args.data.join("chronomap.redb"))?),
     };
+    let mut maps = Maps::default();
+    for (name, path) in &args.topo {
+        let models = chronomap_io::model_file::read_edge_models(path)
+            .with_context(|| format!("--topo {name}"))?;
+        maps.topological.insert(name.clone(), models);
+    }
+    for (name, path) in &args.grid {
+        let grid = chronomap_io::grid_file::read_grid_file(path)
+            .with_context(|| format!("--grid {name}"))?;
+        maps.grids.insert(name.clone(), grid);
+    }
     let description = store.describe();
     let config = ServiceConfig {
         token,
@@ -47,6 +59,7 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             every_observations: args.snapshot_every,
             every: Duration::from_secs_f64(args.snapshot_secs),
         },
+        maps: Arc::new(maps),
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();

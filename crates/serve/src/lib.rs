@@ -8,6 +8,7 @@
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
 //!   in an embedded redb file or in PostgreSQL.
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
+//! * [`maps`]: topological maps and occupancy grids served read-only beside the models.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
 //! * [`client`]: a typed client.
 //!
@@ -28,6 +29,7 @@
 pub mod api;
 pub mod client;
 pub mod log;
+pub mod maps;
 pub mod registry;
 pub mod server;
 pub mod store;

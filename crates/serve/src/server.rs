@@ -21,6 +21,7 @@ use tokio::sync::{mpsc, oneshot};
 use utoipa::OpenApi;
 
 use crate::api::*;
+use crate::maps::Maps;
 use crate::registry::{ApplyError, ModelConfig, check_id};
 use crate::store::Store;
 use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, WriteOp};
@@ -37,6 +38,8 @@ pub struct ServiceConfig {
     pub max_body_bytes: usize,
     /// When models are snapshotted.
     pub checkpoint: CheckpointPolicy,
+    /// Topological maps and grids served read-only.
+    pub maps: Arc<Maps>,
 }
 
 impl Default for ServiceConfig {
@@ -45,6 +48,7 @@ impl Default for ServiceConfig {
             token: None,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             checkpoint: CheckpointPolicy::default(),
+            maps: Arc::new(Maps::default()),
         }
     }
 }
@@ -52,6 +56,7 @@ impl Default for ServiceConfig {
 /// A recovered service, ready to answer requests.
 pub struct Service {
     state: AppState,
+    maps: Arc<Maps>,
     max_body_bytes: usize,
     writer: std::thread::JoinHandle<()>,
 }
@@ -85,6 +90,7 @@ impl Service {
                 writes,
                 token: config.token.map(Arc::from),
             },
+            maps: config.maps,
             max_body_bytes: config.max_body_bytes,
             writer,
         })
@@ -102,7 +108,11 @@ impl Service {
 
     /// The API as an axum router.
     pub fn router(&self) -> Router {
-        router(self.state.clone(), self.max_body_bytes)
+        router(
+            self.state.clone(),
+            Arc::clone(&self.maps),
+            self.max_body_bytes,
+        )
     }
 
     /// Serves on `listener` until `shutdown` completes, then finishes the writes in flight and
@@ -143,7 +153,8 @@ impl Service {
     ),
     paths(
         health, list, create, view, remove, observations, add, addvalues, add_batch, predict,
-        entropy, forecast, forecast_entropy, evaluate, detect
+        entropy, forecast, forecast_entropy, evaluate, detect, crate::maps::list,
+        crate::maps::topo_predict, crate::maps::topo_plan, crate::maps::grid_predict
     ),
     modifiers(&BearerAuth)
 )]
@@ -164,7 +175,7 @@ impl utoipa::Modify for BearerAuth {
     }
 }
 
-fn router(state: AppState, max_body_bytes: usize) -> Router {
+fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
     let writes = Router::new()
         .route("/v1/models/{id}", put(create).delete(remove))
         .route("/v1/add", post(add))
@@ -185,6 +196,8 @@ fn router(state: AppState, max_body_bytes: usize) -> Router {
         .route("/v1/evaluate", post(evaluate))
         .route("/v1/detect", post(detect))
         .merge(writes)
+        .with_state(state)
+        .merge(crate::maps::router(maps))
         .fallback(|| async { ApiError::not_found("no such endpoint; see /openapi.json".into()) })
         .method_not_allowed_fallback(|| async {
             ApiError::new(
@@ -194,7 +207,6 @@ fn router(state: AppState, max_body_bytes: usize) -> Router {
             )
         })
         .layer(DefaultBodyLimit::max(max_body_bytes))
-        .with_state(state)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -218,11 +230,11 @@ impl ApiError {
         }
     }
 
-    fn bad_request(reason: String) -> Self {
+    pub(crate) fn bad_request(reason: String) -> Self {
         ApiError::new(StatusCode::BAD_REQUEST, "bad_request", reason)
     }
 
-    fn not_found(reason: String) -> Self {
+    pub(crate) fn not_found(reason: String) -> Self {
         ApiError::new(StatusCode::NOT_FOUND, "not_found", reason)
     }
 
@@ -260,7 +272,9 @@ impl From<WriteError> for ApiError {
 
 /// Parses a JSON body whatever its content type, with `413` for oversize bodies and `400`
 /// naming the line, column and field of anything malformed.
-fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
+pub(crate) fn parse_body<T: DeserializeOwned>(
+    body: Result<Bytes, BytesRejection>,
+) -> Result<T, ApiError> {
     let bytes = body.map_err(|rejection| {
         if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
             ApiError::new(
