@@ -77,11 +77,7 @@ pub trait Store: Send + Sync {
     ///
     /// # Errors
     /// The store cannot be read, or `visit` failed.
-    fn scan(
-        &self,
-        from: u64,
-        visit: &mut Visit<'_>,
-    ) -> Result<(), StoreError>;
+    fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError>;
 }
 
 /// Encodes a model entry as a snapshot (versioned, CRC-32-checked container).

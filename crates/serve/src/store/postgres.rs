@@ -179,11 +179,7 @@ impl Store for PostgresStore {
         })
     }
 
-    fn scan(
-        &self,
-        from: u64,
-        visit: &mut Visit<'_>,
-    ) -> Result<(), StoreError> {
+    fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError> {
         let from = self.seq_param(from)?;
         // Pages of groups, so that a long log is never held in memory at once.
         const PAGE: i64 = 256;

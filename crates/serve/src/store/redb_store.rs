@@ -109,11 +109,7 @@ impl Store for RedbStore {
         txn.commit().map_err(|e| self.error(e))
     }
 
-    fn scan(
-        &self,
-        from: u64,
-        visit: &mut Visit<'_>,
-    ) -> Result<(), StoreError> {
+    fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError> {
         let txn = self.db.begin_read().map_err(|e| self.error(e))?;
         let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
         for row in log.range(from..).map_err(|e| self.error(e))? {
