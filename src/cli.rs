@@ -741,6 +741,11 @@ pub enum BenchCommand {
     /// Storm (stormpy) on the same cases in the same run.
     #[command(after_help = BENCH_PLAN_HELP)]
     Plan(BenchPlanArgs),
+    /// The service on loopback (redb store, token): latency of predict and forecast from
+    /// concurrent clients, and durable observations/s of batched adds, against the same work
+    /// done in-process (and straight into redb) in the same run.
+    #[command(after_help = BENCH_SERVE_HELP)]
+    Serve(BenchServeArgs),
 }
 
 /// `chronomap bench grid`.
@@ -784,6 +789,64 @@ pub struct BenchPlanArgs {
     /// Also time Storm in exact (rational) arithmetic (slow).
     #[arg(long)]
     pub exact: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+const BENCH_SERVE_HELP: &str = "\
+Examples:
+  chronomap bench serve                          # about 10 s on 2 cores
+  chronomap bench serve --models 1000 --clients 8 --json
+  chronomap bench serve --observations 2000000 --batch 20000 --data bench-data   # keep the store";
+
+/// `chronomap bench serve`.
+#[derive(Debug, Args)]
+pub struct BenchServeArgs {
+    /// Models served (each is the training door, shifted by one hour per model).
+    #[arg(long, default_value_t = 100)]
+    pub models: usize,
+    /// Spec of the models.
+    #[arg(long, default_value = "fremen:2")]
+    pub model: String,
+    /// Training data of every model (`t value` lines; default: the bundled greg door, 96,480
+    /// observations at one a minute).
+    #[arg(long)]
+    pub train: Option<PathBuf>,
+    /// Observations added to each model through the API before the latency test (default:
+    /// two weeks of the greg door).
+    #[arg(long, default_value_t = 20_160)]
+    pub preload: usize,
+    /// Concurrent clients, each with its own connection.
+    #[arg(long, default_value_t = 4)]
+    pub clients: usize,
+    /// Timed requests per client and kind of request (after 20 untimed ones).
+    #[arg(long, default_value_t = 5_000)]
+    pub requests: usize,
+    /// Time limit per kind of request of the latency test (s).
+    #[arg(long, default_value_t = 5.0)]
+    pub latency_seconds: f64,
+    /// Times per request of the second predict test (the next hours).
+    #[arg(long, default_value_t = 24)]
+    pub predict_times: usize,
+    /// Models per forecast request (at most --models).
+    #[arg(long, default_value_t = 100)]
+    pub forecast_ids: usize,
+    /// Observations of the durable-throughput test, in all.
+    #[arg(long, default_value_t = 10_000_000)]
+    pub observations: u64,
+    /// Observations per request (`POST /v1/observations`, one durable commit).
+    #[arg(long, default_value_t = 100_000)]
+    pub batch: usize,
+    /// Models per request (the batch is split evenly among them).
+    #[arg(long, default_value_t = 10)]
+    pub batch_ids: usize,
+    /// Time limit of the durable-throughput test (s).
+    #[arg(long, default_value_t = 30.0)]
+    pub seconds: f64,
+    /// Keep the service's store in this (new or empty) directory instead of a temporary one.
+    #[arg(long)]
+    pub data: Option<PathBuf>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

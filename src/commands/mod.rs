@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_plan;
+mod bench_serve;
 mod compress;
 mod demo;
 mod demo_grids;
@@ -39,6 +40,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
+        Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
