@@ -719,7 +719,7 @@ async fn send_all(
                         break;
                     }
                     let request = client.raw(
-                        reqwest::Method::POST,
+                        chronomap_serve::client::Method::POST,
                         "/v1/observations",
                         body.bytes.clone(),
                         Some(&token),
@@ -728,7 +728,7 @@ async fn send_all(
                         .await
                         .context("POST /v1/observations: no answer")??;
                     ensure!(
-                        status == reqwest::StatusCode::OK,
+                        status == chronomap_serve::client::StatusCode::OK,
                         "POST /v1/observations: {status}: {text}"
                     );
                     let ack: WriteAck =
