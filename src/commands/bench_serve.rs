@@ -160,8 +160,8 @@ pub fn serve(args: &BenchServeArgs) -> Result<()> {
         values.clear();
         door.take(stream, args.preload, &mut times, &mut values);
         entry
-            .observe(&times, &values)
-            .map_err(|e| anyhow!("{id}: {e}"))?;
+            .observe(&id, &times, &values)
+            .map_err(|e| anyhow!("{e}"))?;
         local.put(id.clone(), Some(entry));
     }
     let preload_in_process = started.elapsed().as_secs_f64();
@@ -822,8 +822,8 @@ fn write_baselines(bodies: &[Body], local: &mut Registry, dir: &Path) -> Result<
                 }
             };
             entry
-                .observe(&batch.times, &batch.values)
-                .map_err(|e| anyhow!("{}: {e}", batch.id))?;
+                .observe(&batch.id, &batch.times, &batch.values)
+                .map_err(|e| anyhow!("{e}"))?;
             applied += batch.times.len() as u64;
         }
         if started.elapsed() > limit {
