@@ -160,7 +160,7 @@ pub fn serve(args: &BenchServeArgs) -> Result<()> {
         values.clear();
         door.take(stream, args.preload, &mut times, &mut values);
         entry
-            .observe(&id, &times, &values)
+            .observe(id, &times, &values)
             .map_err(|e| anyhow!("{e}"))?;
         local.put(id.clone(), Some(entry));
     }
