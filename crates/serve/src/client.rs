@@ -192,12 +192,7 @@ impl Client {
         times: &[f64],
         order: Option<usize>,
     ) -> Result<PredictResponse, ClientError> {
-        let body = PredictRequest {
-            id: id.to_owned(),
-            times: times.to_vec(),
-            order,
-        };
-        self.call(Method::POST, "/v1/predict", Some(&body)).await
+        self.at_times("/v1/predict", id, times, order).await
     }
 
     /// Entropies (bits) at many times.
@@ -207,12 +202,22 @@ impl Client {
         times: &[f64],
         order: Option<usize>,
     ) -> Result<PredictResponse, ClientError> {
+        self.at_times("/v1/entropy", id, times, order).await
+    }
+
+    async fn at_times(
+        &self,
+        path: &str,
+        id: &str,
+        times: &[f64],
+        order: Option<usize>,
+    ) -> Result<PredictResponse, ClientError> {
         let body = PredictRequest {
             id: id.to_owned(),
             times: times.to_vec(),
             order,
         };
-        self.call(Method::POST, "/v1/entropy", Some(&body)).await
+        self.call(Method::POST, path, Some(&body)).await
     }
 
     /// `p(t)` of many models at one time.

@@ -22,7 +22,7 @@ use utoipa::OpenApi;
 
 use crate::api::*;
 use crate::maps::Maps;
-use crate::registry::{ApplyError, ModelConfig, check_id};
+use crate::registry::{ApplyError, Entry, ModelConfig, Registry, check_id};
 use crate::store::Store;
 use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, WriteOp};
 
@@ -302,6 +302,12 @@ fn checked_id(id: &str, field: &str) -> Result<(), ApiError> {
     check_id(id).map_err(|e| ApiError::bad_request(format!("field `{field}`: {e}")))
 }
 
+/// The model `id` (given in `field`): `400` for a malformed id, `404` for an unknown one.
+fn model_entry<'a>(registry: &'a Registry, id: &str, field: &str) -> Result<&'a Entry, ApiError> {
+    checked_id(id, field)?;
+    registry.get(id).ok_or_else(|| ApiError::unknown(id))
+}
+
 async fn require_token(
     State(state): State<AppState>,
     request: Request,
@@ -573,12 +579,9 @@ fn predictions(
     map: fn(f64) -> f64,
     scaled: bool,
 ) -> Result<PredictResponse, ApiError> {
-    checked_id(&request.id, "id")?;
     check_times(&request.times)?;
     let registry = state.shared.registry.read().expect("registry lock");
-    let entry = registry
-        .get(&request.id)
-        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let entry = model_entry(&registry, &request.id, "id")?;
     let model = entry
         .with_order(request.order)
         .map_err(ApiError::bad_request)?;
@@ -635,8 +638,7 @@ fn forecasts(
     let registry = state.shared.registry.read().expect("registry lock");
     let mut values = Vec::with_capacity(request.ids.len());
     for (i, id) in request.ids.iter().enumerate() {
-        checked_id(id, &format!("ids[{i}]"))?;
-        let entry = registry.get(id).ok_or_else(|| ApiError::unknown(id))?;
+        let entry = model_entry(&registry, id, &format!("ids[{i}]"))?;
         let order = request.orders.as_ref().map(|o| o[i]).or(request.order);
         let model = entry
             .with_order(order)
@@ -696,7 +698,6 @@ async fn evaluate(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Json<EvaluateResponse>, ApiError> {
     let request: EvaluateRequest = parse_body(body)?;
-    checked_id(&request.id, "id")?;
     check_data(&request.times, &request.values)?;
     if request.times.is_empty() {
         return Err(ApiError::bad_request(
@@ -704,9 +705,7 @@ async fn evaluate(
         ));
     }
     let registry = state.shared.registry.read().expect("registry lock");
-    let entry = registry
-        .get(&request.id)
-        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let entry = model_entry(&registry, &request.id, "id")?;
     let targets: Vec<f64> = request
         .values
         .iter()
@@ -777,7 +776,6 @@ async fn detect(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Json<DetectResponse>, ApiError> {
     let request: DetectRequest = parse_body(body)?;
-    checked_id(&request.id, "id")?;
     check_data(&request.times, &request.values)?;
     if !(request.confidence > 0.0 && request.confidence <= 1.0) {
         return Err(ApiError::bad_request(format!(
@@ -786,9 +784,7 @@ async fn detect(
         )));
     }
     let registry = state.shared.registry.read().expect("registry lock");
-    let entry = registry
-        .get(&request.id)
-        .ok_or_else(|| ApiError::unknown(&request.id))?;
+    let entry = model_entry(&registry, &request.id, "id")?;
     let model = entry
         .with_order(request.order)
         .map_err(ApiError::bad_request)?;
