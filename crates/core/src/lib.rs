@@ -49,6 +49,7 @@ pub mod exact;
 pub mod explore;
 pub mod fft;
 pub mod fremen;
+pub mod gp;
 pub mod grid;
 pub mod hist;
 pub mod hypertime;
