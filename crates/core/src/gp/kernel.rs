@@ -91,6 +91,16 @@ impl ActivityKernel {
         ActivityKernel { params }
     }
 
+    /// Replaces all log-parameters (layout above; the number of periodic components may
+    /// change). Panics unless `params.len() = 3 + 3ψ`.
+    pub fn set_params(&mut self, params: &[f64]) {
+        assert!(
+            params.len() >= 3 && (params.len() - 3).is_multiple_of(3),
+            "ActivityKernel needs 3 + 3ψ parameters"
+        );
+        self.params = params.to_vec();
+    }
+
     /// Number of periodic components `ψ`.
     pub fn n_components(&self) -> usize {
         (self.params.len() - 3) / 3

@@ -105,6 +105,11 @@ impl HeteroGaussian {
         }
     }
 
+    /// Number of quadrature nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
     /// `E_{q(f)q(g)}[ln N(y | f, ζ(g)²)]` and its gradient (seed 002 eq. 4.12, one term of the
     /// sum). The `f`-expectation is closed form,
     /// `E_f[ln N(y|f, s²)] = −½ ln(2π s²) − ((y − m_f)² + v_f)/(2 s²)`; the `g`-expectations

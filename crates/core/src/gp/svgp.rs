@@ -13,6 +13,7 @@ use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
 use faer::{Accum, Mat, MatRef, Par};
+use serde::{Deserialize, Serialize};
 
 use super::kernel::{
     ActivityKernel, Kernel, Point, RbfKernel, cross, cross_grad, diag_grad, gram, gram_grad,
@@ -353,10 +354,130 @@ impl<K: Kernel> LatentGp<K> {
 
 // ---------------------------------------------------------------- the heteroscedastic model
 
+/// The serialised form of [`HeteroSvgp`] (log-parameters, inducing inputs, `q(v)` means and
+/// packed lower Cholesky factors row by row), validated on the way back.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct SavedHeteroSvgp {
+    kernel_f: Vec<f64>,
+    kernel_g: Vec<f64>,
+    z_f: Vec<Point>,
+    z_g: Vec<Point>,
+    q_mean_f: Vec<f64>,
+    q_chol_f: Vec<f64>,
+    q_mean_g: Vec<f64>,
+    q_chol_g: Vec<f64>,
+    jitter: f64,
+    quadrature_nodes: usize,
+}
+
+fn pack_lower(l: &Mat<f64>) -> Vec<f64> {
+    let n = l.nrows();
+    (0..n)
+        .flat_map(|i| (0..=i).map(move |j| l[(i, j)]))
+        .collect()
+}
+
+fn unpack_lower(v: &[f64], n: usize) -> Result<Mat<f64>, GpError> {
+    if v.len() != n * (n + 1) / 2 {
+        return Err(GpError::InvalidInput(format!(
+            "packed Cholesky factor has {} entries, expected {}",
+            v.len(),
+            n * (n + 1) / 2
+        )));
+    }
+    let mut m = Mat::zeros(n, n);
+    let mut k = 0;
+    for i in 0..n {
+        for j in 0..=i {
+            m[(i, j)] = v[k];
+            k += 1;
+        }
+        if m[(i, i)].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return Err(GpError::InvalidInput(
+                "Cholesky factor has a non-positive diagonal".into(),
+            ));
+        }
+    }
+    Ok(m)
+}
+
+impl From<HeteroSvgp> for SavedHeteroSvgp {
+    fn from(m: HeteroSvgp) -> Self {
+        SavedHeteroSvgp {
+            kernel_f: m.f.kernel.params().to_vec(),
+            kernel_g: m.g.kernel.params().to_vec(),
+            q_chol_f: pack_lower(&m.f.q.chol),
+            q_chol_g: pack_lower(&m.g.q.chol),
+            z_f: m.f.z,
+            z_g: m.g.z,
+            q_mean_f: m.f.q.mean,
+            q_mean_g: m.g.q.mean,
+            jitter: m.jitter,
+            quadrature_nodes: m.likelihood.n_nodes(),
+        }
+    }
+}
+
+impl TryFrom<SavedHeteroSvgp> for HeteroSvgp {
+    type Error = GpError;
+    fn try_from(s: SavedHeteroSvgp) -> Result<Self, GpError> {
+        let all_finite = s
+            .kernel_f
+            .iter()
+            .chain(&s.kernel_g)
+            .chain(s.z_f.iter().flatten())
+            .chain(s.z_g.iter().flatten())
+            .chain(&s.q_mean_f)
+            .chain(&s.q_mean_g)
+            .chain(&s.q_chol_f)
+            .chain(&s.q_chol_g)
+            .all(|v| v.is_finite());
+        let ok = all_finite
+            && s.kernel_f.len() >= 3
+            && (s.kernel_f.len() - 3).is_multiple_of(3)
+            && s.kernel_g.len() == 4
+            && s.z_f.len() == s.q_mean_f.len()
+            && s.z_g.len() == s.q_mean_g.len()
+            && s.jitter >= 0.0
+            && (1..=200).contains(&s.quadrature_nodes);
+        if !ok {
+            return Err(GpError::InvalidInput("inconsistent saved model".into()));
+        }
+        let mut kf = ActivityKernel::new(1.0, [1.0, 1.0], &[]);
+        let mut kg = RbfKernel::new(1.0, [1.0; 3]);
+        // ActivityKernel::new with no components has 3 parameters; grow to the saved length.
+        kf.set_params(&s.kernel_f);
+        kg.params_mut().copy_from_slice(&s.kernel_g);
+        Ok(HeteroSvgp {
+            f: LatentGp {
+                kernel: kf,
+                q: Variational {
+                    chol: unpack_lower(&s.q_chol_f, s.z_f.len())?,
+                    mean: s.q_mean_f,
+                },
+                z: s.z_f,
+            },
+            g: LatentGp {
+                kernel: kg,
+                q: Variational {
+                    chol: unpack_lower(&s.q_chol_g, s.z_g.len())?,
+                    mean: s.q_mean_g,
+                },
+                z: s.z_g,
+            },
+            likelihood: HeteroGaussian::new(s.quadrature_nodes),
+            jitter: s.jitter,
+        })
+    }
+}
+
 /// The CoPA-Map model, seed 002 eq. (4.7): `y ~ N(f(x), ζ(g(x))²)` with `f ~ GP(0, k_f)`
 /// ([`ActivityKernel`], eqs. 4.8–4.10) and `g ~ GP(0, k_g)` ([`RbfKernel`], eq. 4.11), each
 /// approximated by a whitened SVGP with its own inducing inputs.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// Serialisable (serde) for saving a trained model; deserialisation validates shapes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SavedHeteroSvgp", into = "SavedHeteroSvgp")]
 pub struct HeteroSvgp {
     /// The latent rate function `f`.
     pub f: LatentGp<ActivityKernel>,

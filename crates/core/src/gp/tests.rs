@@ -596,3 +596,26 @@ fn invalid_inputs_are_rejected() {
         Err(GpError::NotPositiveDefinite { .. })
     ));
 }
+
+#[test]
+fn models_round_trip_through_serde_and_bad_ones_are_rejected() {
+    let (x, y) = synthetic(5, 100);
+    let z: Vec<Point> = x.iter().step_by(10).copied().collect();
+    let mut model = small_model(z);
+    let config = TrainConfig {
+        iterations: 5,
+        batch_size: 50,
+        ..TrainConfig::default()
+    };
+    train(&mut model, &x, &y, &config, SEQ).unwrap();
+    let bytes = postcard::to_allocvec(&model).unwrap();
+    let back: HeteroSvgp = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, model);
+    let p = model.predict(&x[..5], SEQ).unwrap();
+    assert_eq!(back.predict(&x[..5], SEQ).unwrap(), p);
+    // A q(v) whose mean does not match the inducing inputs is refused.
+    let mut bad = model.clone();
+    bad.f.q.mean.pop();
+    let bytes = postcard::to_allocvec(&bad).unwrap();
+    assert!(postcard::from_bytes::<HeteroSvgp>(&bytes).is_err());
+}
