@@ -222,12 +222,17 @@ impl<K: Kernel> LatentGp<K> {
         let l = chol(kzz.as_ref()).ok_or(GpError::NotPositiveDefinite { what: "K(Z, Z)" })?;
         let mut a = cross(&self.kernel, &self.z, x, par);
         solve_l(&l, &mut a);
+        Ok(self.with_q(l, a))
+    }
+
+    /// The marginals for the current `q` from `L` and `A` (which do not depend on `q`).
+    fn with_q(&self, l: Mat<f64>, a: Mat<f64>) -> Marginals {
         let sa = mm(self.q.chol.as_ref().transpose(), a.as_ref());
         let kxx = self.kernel.diag();
-        let m = self.z.len();
-        let mut mean = vec![0.0; x.len()];
-        let mut var = vec![0.0; x.len()];
-        for j in 0..x.len() {
+        let (m, b) = (a.nrows(), a.ncols());
+        let mut mean = vec![0.0; b];
+        let mut var = vec![0.0; b];
+        for j in 0..b {
             let (mut mj, mut aa, mut ss) = (0.0, 0.0, 0.0);
             for i in 0..m {
                 mj += a[(i, j)] * self.q.mean[i];
@@ -237,13 +242,19 @@ impl<K: Kernel> LatentGp<K> {
             mean[j] = mj;
             var[j] = (kxx - aa + ss).max(1e-12 * kxx);
         }
-        Ok(Marginals {
+        Marginals {
             mean,
             var,
             l,
             a,
             sa,
-        })
+        }
+    }
+
+    /// Marginals computed for another `q` of this latent GP, updated to the current `q`
+    /// (`O(B·M²)`: the kernel matrices and `L⁻¹ K(Z, X)` are reused).
+    pub fn refresh(&self, marg: Marginals) -> Marginals {
+        self.with_q(marg.l, marg.a)
     }
 
     /// Adds to `dtheta` (kernel log-parameters) and `dz` (inducing inputs) the gradient of
@@ -606,7 +617,20 @@ impl HeteroSvgp {
         check_data(x, y)?;
         let mf = self.f.marginals(x, self.jitter, par)?;
         let mg = self.g.marginals(x, self.jitter, par)?;
-        let lik = self.batch_lik(y, &mf, &mg, scale);
+        Ok(self.grad_from(x, y, scale, &mf, &mg, par))
+    }
+
+    /// [`HeteroSvgp::elbo_grad`] from already computed marginals.
+    fn grad_from(
+        &self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        mf: &Marginals,
+        mg: &Marginals,
+        par: Parallelism,
+    ) -> ElboGrad {
+        let lik = self.batch_lik(y, mf, mg, scale);
         let mut out = ElboGrad {
             elbo: lik.ell - self.f.q.kl() - self.g.q.kl(),
             d_kernel_f: vec![0.0; self.f.kernel.params().len()],
@@ -616,7 +640,7 @@ impl HeteroSvgp {
         };
         self.f.marginals_backward(
             x,
-            &mf,
+            mf,
             &lik.dmf,
             &lik.dvf,
             &mut out.d_kernel_f,
@@ -625,14 +649,14 @@ impl HeteroSvgp {
         );
         self.g.marginals_backward(
             x,
-            &mg,
+            mg,
             &lik.dmg,
             &lik.dvg,
             &mut out.d_kernel_g,
             &mut out.d_z_g,
             par,
         );
-        Ok(out)
+        out
     }
 
     /// One natural-gradient step of size `rho` on `q(v_f)` and `q(v_g)` with the batch
@@ -657,6 +681,46 @@ impl HeteroSvgp {
         self.f.q = qf;
         self.g.q = qg;
         Ok(elbo)
+    }
+
+    /// One training iteration on the batch `(x, y)`: a natural-gradient step of size `rho` on
+    /// both `q` (halved up to 10 times while the new precision is not positive definite),
+    /// then the ELBO gradient for the hyperparameters at the new `q`, reusing the kernel
+    /// matrices of the step. Returns the ELBO estimate before the step and that gradient.
+    pub fn train_step(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        par: Parallelism,
+    ) -> Result<(f64, ElboGrad), GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        let lik = self.batch_lik(y, &mf, &mg, scale);
+        let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
+        let mut rho = rho;
+        let mut tries = 0;
+        let (qf, qg) = loop {
+            let step = self
+                .f
+                .natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)
+                .and_then(|qf| Ok((qf, self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?)));
+            match step {
+                Ok(q) => break q,
+                Err(GpError::NotPositiveDefinite { .. }) if tries < 10 => {
+                    rho *= 0.5;
+                    tries += 1;
+                }
+                Err(e) => return Err(e),
+            }
+        };
+        self.f.q = qf;
+        self.g.q = qg;
+        let mf = self.f.refresh(mf);
+        let mg = self.g.refresh(mg);
+        Ok((elbo, self.grad_from(x, y, scale, &mf, &mg, par)))
     }
 
     /// Predictive mean and standard deviation of `y` at `x` (seed 002 eq. 4.19): mean `m_f`,
@@ -838,20 +902,8 @@ pub fn train(
             bx.push(x[i]);
             by.push(y[i]);
         }
-        let mut rho = config.natgrad_step;
-        let mut tries = 0;
-        let elbo = loop {
-            match model.natgrad_step(&bx, &by, scale, rho, par) {
-                Ok(e) => break e,
-                Err(GpError::NotPositiveDefinite { .. }) if tries < 10 => {
-                    rho *= 0.5;
-                    tries += 1;
-                }
-                Err(e) => return Err(e),
-            }
-        };
+        let (elbo, grad) = model.train_step(&bx, &by, scale, config.natgrad_step, par)?;
         trace.push(elbo);
-        let grad = model.elbo_grad(&bx, &by, scale, par)?;
         let mut p = model.hyperparameters(config.train_inducing);
         adam.ascend(&mut p, &grad.flatten(config.train_inducing));
         model.set_hyperparameters(&p, config.train_inducing);

@@ -619,3 +619,20 @@ fn models_round_trip_through_serde_and_bad_ones_are_rejected() {
     let bytes = postcard::to_allocvec(&bad).unwrap();
     assert!(postcard::from_bytes::<HeteroSvgp>(&bytes).is_err());
 }
+
+#[test]
+fn train_step_reuses_kernel_matrices_without_changing_results() {
+    let (x, y) = synthetic(6, 80);
+    let z: Vec<Point> = x.iter().step_by(8).copied().collect();
+    let mut a = small_model(z);
+    let mut rng = Xoshiro256StarStar::seed_from_u64(3);
+    a.f.q = random_q(&mut rng, 10);
+    let mut b = a.clone();
+    let (elbo_a, grad_a) = a.train_step(&x, &y, 2.0, 0.3, SEQ).unwrap();
+    let elbo_b = b.natgrad_step(&x, &y, 2.0, 0.3, SEQ).unwrap();
+    let grad_b = b.elbo_grad(&x, &y, 2.0, SEQ).unwrap();
+    assert_eq!(elbo_a, elbo_b);
+    assert_eq!(a, b);
+    assert_eq!(grad_a, grad_b);
+    assert!(grad_a.elbo > elbo_a, "{} -> {}", elbo_a, grad_a.elbo);
+}
