@@ -41,7 +41,10 @@ use std::collections::HashMap;
 
 use thiserror::Error;
 
-pub use baselines::{CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig, GlobalMean};
+pub use baselines::{
+    Baseline, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig,
+    GlobalMean, select_baseline,
+};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]

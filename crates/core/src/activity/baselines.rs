@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use super::{ActivityError, CellKey, RatePredictor, RateSamples};
+use super::{ActivityError, CellKey, RatePredictor, RateSamples, Scores, score};
 
 /// One rate everywhere and always: the mean of the training rates.
 #[derive(Clone, Debug, PartialEq)]
@@ -440,6 +440,106 @@ fn cross_validated_order(
     best
 }
 
+/// The baselines by name, for choosing one at run time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Baseline {
+    /// [`GlobalMean`].
+    GlobalMean,
+    /// [`CellMean`].
+    Ml,
+    /// [`FrAam`].
+    FrAam,
+}
+
+impl Baseline {
+    /// All baselines, in the order of the tables.
+    pub const ALL: [Baseline; 3] = [Baseline::GlobalMean, Baseline::Ml, Baseline::FrAam];
+
+    /// The name its model reports ([`RatePredictor::name`]): `"global_mean"`, `"ml"`,
+    /// `"fr_aam"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Baseline::GlobalMean => "global_mean",
+            Baseline::Ml => "ml",
+            Baseline::FrAam => "fr_aam",
+        }
+    }
+
+    /// Fits the baseline on `train`.
+    ///
+    /// # Errors
+    /// As the model's `fit`.
+    pub fn fit(
+        self,
+        train: &RateSamples,
+        config: &FrAamConfig,
+    ) -> Result<Box<dyn RatePredictor + Send + Sync>, ActivityError> {
+        Ok(match self {
+            Baseline::GlobalMean => Box::new(GlobalMean::fit(train)?),
+            Baseline::Ml => Box::new(CellMean::fit(train)?),
+            Baseline::FrAam => Box::new(FrAam::fit(train, config)?),
+        })
+    }
+}
+
+/// How [`select_baseline`] chose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaselineSelection {
+    /// The baseline of the least hold-out NRMSE.
+    pub chosen: Baseline,
+    /// Samples with `t >= cut` were held out.
+    pub cut: f64,
+    /// Every baseline's scores on the hold-out, in the order of [`Baseline::ALL`].
+    pub scores: Vec<(Baseline, Scores)>,
+}
+
+/// Chooses a baseline on the training data alone: each is fitted on the samples before the
+/// last `holdout` fraction of the distinct training times and scored on the rest; the least
+/// NRMSE wins (ties: the simpler, earlier in [`Baseline::ALL`]).
+///
+/// # Errors
+/// [`ActivityError::Config`] if `holdout` is not in `(0, 1)` or the training data have fewer
+/// than two distinct times; errors of fitting or scoring.
+pub fn select_baseline(
+    train: &RateSamples,
+    holdout: f64,
+    config: &FrAamConfig,
+) -> Result<BaselineSelection, ActivityError> {
+    if !(holdout > 0.0 && holdout < 1.0) {
+        return Err(ActivityError::Config(format!(
+            "hold-out fraction {holdout} must be in (0, 1)"
+        )));
+    }
+    let mut times = train.t().to_vec();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    if times.len() < 2 {
+        return Err(ActivityError::Config(
+            "choosing a model needs training data at two or more times".into(),
+        ));
+    }
+    let first_held =
+        ((times.len() as f64 * (1.0 - holdout)).ceil() as usize).clamp(1, times.len() - 1);
+    let cut = times[first_held];
+    let (fit_part, held) = train.split_at(cut);
+    let mut scores = Vec::with_capacity(Baseline::ALL.len());
+    for baseline in Baseline::ALL {
+        let model = baseline.fit(&fit_part, config)?;
+        scores.push((baseline, score(model.as_ref(), &held)?));
+    }
+    let mut chosen = scores[0];
+    for &s in &scores[1..] {
+        if s.1.nrmse < chosen.1.nrmse {
+            chosen = s;
+        }
+    }
+    Ok(BaselineSelection {
+        chosen: chosen.0,
+        cut,
+        scores,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -535,6 +635,23 @@ mod tests {
             let p = m.predict([0.25, 0.25], 100.0 + f64::from(t));
             assert!((p - 10.0).abs() < 2.5, "{p}");
         }
+    }
+
+    #[test]
+    fn selection_holds_out_the_last_times_and_picks_the_least_nrmse() {
+        // A busy and a quiet cell, constant: the per-cell mean is exact, the global mean not.
+        let mut rows = Vec::new();
+        for t in 0..10 {
+            rows.push(([0.25, 0.25], f64::from(t), 10.0));
+            rows.push(([0.75, 0.25], f64::from(t), 1.0));
+        }
+        let s = samples(&rows);
+        let sel = select_baseline(&s, 0.2, &FrAamConfig::default()).unwrap();
+        assert_eq!(sel.cut, 8.0);
+        assert_eq!(sel.chosen, Baseline::Ml);
+        assert_eq!(sel.scores[1].1.nrmse, 0.0);
+        assert!(select_baseline(&s, 1.0, &FrAamConfig::default()).is_err());
+        assert!(select_baseline(&samples(&rows[..2]), 0.2, &FrAamConfig::default()).is_err());
     }
 
     #[test]
