@@ -86,6 +86,10 @@ pub enum Command {
     /// happen in each cell and time bin (seed 004 §V-D).
     #[command(subcommand)]
     Events(EventsCommand),
+    /// Maps of human activity over space and time (CoPA-Map, dissertation chapter 4): score
+    /// models of the rate of people per cell and hour against the baselines of §4.3.2.
+    #[command(subcommand)]
+    Activity(ActivityCommand),
     /// Warped Hypertime for 2-D events (seed 004): fit the intensity of detections over space
     /// and time, print the periodicities found, draw the predicted density at chosen times.
     #[command(after_help = HYPERTIME_HELP)]
@@ -412,6 +416,71 @@ pub struct EventsEvalArgs {
     /// Detections further apart than this many seconds start a new window of observation.
     #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
     pub gap: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+const ACTIVITY_HELP_EVAL: &str = "\
+Examples (the bundled ATC grid of CoPA-Map, 10 days x 12 recorded hours, t = hour-bin index):
+  # train on the first 8 days, test on the last 2
+  chronomap activity eval \\
+      --train data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz --split-at 96
+  chronomap activity eval --train TRAIN.csv --test TEST.csv --json
+
+Files are CSV with the header x1,x2,t,y (cell centre in metres, time bin, people per hour of
+observation), plain, .xz or .gz; see data/README.md. NRMSE is eq. (4.20) of the dissertation
+(RMSE over the mean test rate), chi2 the chi-square distance of eq. (4.21). Every baseline is
+scored; the top-level nrmse/chi2 are those of --model. `auto` (default) picks the baseline of the
+least NRMSE on the last 20 % of the training times (never on the test). CoPA-Map itself (`copa`)
+comes with the Gaussian-process core. Fr-AAM treats each row as one hour of observation: the grid
+files carry rates, not the dwell times behind them.";
+
+/// `chronomap activity ...`.
+#[derive(Debug, Subcommand)]
+pub enum ActivityCommand {
+    /// Fit activity models on training rates and score them on later ones: NRMSE and
+    /// chi-square distance of every baseline and of the chosen model.
+    #[command(after_help = ACTIVITY_HELP_EVAL)]
+    Eval(ActivityEvalArgs),
+}
+
+/// Which model gives the top-level scores of `chronomap activity eval`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ActivityModel {
+    /// The baseline of the least NRMSE on a chronological hold-out of the training data.
+    Auto,
+    /// The mean of all training rates.
+    GlobalMean,
+    /// The per-cell mean of the training rates (maximum likelihood, §4.3.2).
+    Ml,
+    /// Per-cell FreMEn Poisson-spectral model with a Gamma prior (§4.3.2).
+    FrAam,
+}
+
+/// `chronomap activity eval`.
+#[derive(Debug, Args)]
+pub struct ActivityEvalArgs {
+    /// Training rates, CSV `x1,x2,t,y`.
+    #[arg(long)]
+    pub train: PathBuf,
+    /// Test rates, CSV `x1,x2,t,y` (later than the training data).
+    #[arg(
+        long,
+        conflicts_with = "split_at",
+        required_unless_present = "split_at"
+    )]
+    pub test: Option<PathBuf>,
+    /// Split --train chronologically instead: train on t < T, test on t >= T.
+    #[arg(long, value_name = "T")]
+    pub split_at: Option<f64>,
+    /// The model of the top-level scores.
+    #[arg(long, value_enum, default_value_t = ActivityModel::Auto)]
+    pub model: ActivityModel,
+    /// Fr-AAM: the base period in units of t (12: a day of the ATC grid's 12 recorded hours);
+    /// candidate periods are period/1 .. period/6.
+    #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
+    pub period: f64,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

@@ -1,5 +1,6 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
+mod activity;
 mod bench;
 mod bench_plan;
 mod bench_serve;
@@ -22,7 +23,9 @@ use chronomap_core::AnyModel;
 use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
-use crate::cli::{BenchCommand, Command, EventsCommand, GridCommand, SeriesSource, TopoCommand};
+use crate::cli::{
+    ActivityCommand, BenchCommand, Command, EventsCommand, GridCommand, SeriesSource, TopoCommand,
+};
 
 /// Runs one subcommand.
 pub fn run(command: Command) -> Result<()> {
@@ -48,6 +51,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Topo(TopoCommand::Predict(args)) => topo::predict(&args),
         Command::Plan(args) => topo::plan(&args),
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
+        Command::Activity(ActivityCommand::Eval(args)) => activity::eval(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),

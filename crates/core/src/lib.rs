@@ -37,6 +37,7 @@
 //!   and their automata ([`automaton::Dfa`]).
 #![deny(missing_docs)]
 
+pub mod activity;
 pub mod anomaly;
 pub mod automaton;
 pub mod conformance;

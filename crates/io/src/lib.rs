@@ -36,6 +36,8 @@
 //!   file, line and field.
 //! * [`events`] — event files: people detected at `t x y` ([`read_events`], as in the bundled
 //!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
+//! * [`activity`] — activity-rate grids: people per hour of observation at spatio-temporal
+//!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -59,6 +61,7 @@
 //! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
+pub mod activity;
 mod atomic;
 pub mod datasets;
 pub mod events;
@@ -70,6 +73,7 @@ pub mod plot;
 pub mod text;
 pub mod topo_files;
 
+pub use activity::{read_rate_samples, read_rate_samples_from};
 pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};

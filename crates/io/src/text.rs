@@ -112,10 +112,20 @@ pub enum Field {
     X,
     /// The y coordinate of an event, in metres (event files).
     Y,
+    /// The first coordinate of a cell centre, in metres (activity-rate grids, see
+    /// [`crate::activity`]).
+    X1,
+    /// The second coordinate of a cell centre, in metres (activity-rate grids).
+    X2,
+    /// The time bin of a sample of an activity-rate grid (column `t`).
+    BinTime,
+    /// A rate of people per hour of observation (column `y` of activity-rate grids).
+    Rate,
 }
 
 impl Field {
-    /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"` or `"y"`.
+    /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"`, `"y"`, or the column names of
+    /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]).
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
@@ -124,6 +134,10 @@ impl Field {
             Field::Success => "success",
             Field::X => "x",
             Field::Y => "y",
+            Field::X1 => "x1",
+            Field::X2 => "x2",
+            Field::BinTime => "t",
+            Field::Rate => "y",
         }
     }
 }
@@ -294,6 +308,14 @@ pub enum DataErrorKind {
         /// The limit in bytes.
         max: usize,
     },
+    /// A field that must not be negative is (rates of people in activity-rate grids).
+    #[error("{field}: {text:?} is negative (must be >= 0)")]
+    Negative {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
     /// There is no data line at all.
     #[error("no data lines (the input is empty or has only blank lines and # comments)")]
     Empty,
@@ -370,6 +392,7 @@ impl DataError {
             | DataErrorKind::NotZeroOrOne { field, .. }
             | DataErrorKind::EmptyRange { field, .. }
             | DataErrorKind::OutsideRange { field, .. }
+            | DataErrorKind::Negative { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
             DataErrorKind::NegativeDuration { .. } => Some(Field::Duration),
             DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
@@ -525,7 +548,9 @@ pub fn read_column_from(
         Field::Value => "expected one value per line",
         Field::Duration => "expected one duration per line",
         Field::Success => "expected one success flag (0 or 1) per line",
-        Field::X | Field::Y => "expected one coordinate per line",
+        Field::X | Field::Y | Field::X1 | Field::X2 => "expected one coordinate per line",
+        Field::BinTime => "expected one time bin per line",
+        Field::Rate => "expected one rate per line",
     };
     let mut numbers = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
@@ -537,7 +562,10 @@ pub fn read_column_from(
             Field::Value => parse_value(text, numbers.len())?,
             Field::Duration => parse_duration(text)?,
             Field::Success => f64::from(u8::from(parse_success(text)?)),
-            Field::X | Field::Y => parse_coordinate(text, field)?,
+            Field::X | Field::Y | Field::X1 | Field::X2 | Field::BinTime => {
+                parse_coordinate(text, field)?
+            }
+            Field::Rate => parse_rate(text)?,
         };
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
@@ -760,6 +788,18 @@ pub(crate) fn required<'a>(
         Some(text) if !text.is_empty() => Ok(text),
         _ => Err(DataErrorKind::MissingField { field, expected }),
     }
+}
+
+/// A finite rate `>= 0` (column `y` of activity-rate grids).
+pub(crate) fn parse_rate(text: &[u8]) -> Result<f64, DataErrorKind> {
+    let rate = parse_coordinate(text, Field::Rate)?;
+    if rate < 0.0 {
+        return Err(DataErrorKind::Negative {
+            field: Field::Rate,
+            text: quote(text),
+        });
+    }
+    Ok(rate)
 }
 
 pub(crate) fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {

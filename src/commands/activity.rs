@@ -1,0 +1,192 @@
+//! `chronomap activity eval`: scores of models of human activity (rates of people per cell and
+//! hour) on later data, eq. (4.20) NRMSE and eq. (4.21) χ²-distance of dissertation chapter 4.
+
+use std::io::Write;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use chronomap_core::activity::{
+    Baseline, FrAamConfig, RatePredictor, RateSamples, Scores, score, select_baseline,
+};
+use chronomap_io::read_rate_samples;
+use serde_json::{Map, Value, json};
+
+use crate::cli::{ActivityEvalArgs, ActivityModel};
+use crate::format::Table;
+
+/// Fraction of the distinct training times that `--model auto` holds out to choose a model.
+const HOLDOUT: f64 = 0.2;
+
+pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
+    let train_name = args.train.display().to_string();
+    let all = read_rate_samples(&args.train).context("cannot read the training rates")?;
+    let (train, test, test_name) = match (&args.test, args.split_at) {
+        (Some(path), _) => {
+            let name = path.display().to_string();
+            let test = read_rate_samples(path).context("cannot read the test rates")?;
+            (all, test, name)
+        }
+        (None, Some(at)) => {
+            let (train, test) = all.split_at(at);
+            if train.is_empty() {
+                bail!("{train_name}: no sample has t < {at} (--split-at): nothing to train on");
+            }
+            if test.is_empty() {
+                bail!("{train_name}: no sample has t >= {at} (--split-at): nothing to test on");
+            }
+            (train, test, format!("{train_name} (t >= {at})"))
+        }
+        (None, None) => bail!("give --test or --split-at"),
+    };
+    if test.mean_rate() == 0.0 {
+        bail!("{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined");
+    }
+    let config = FrAamConfig {
+        period: args.period,
+        ..FrAamConfig::default()
+    };
+
+    let mut baselines = Vec::new();
+    for baseline in Baseline::ALL {
+        let model = baseline
+            .fit(&train, &config)
+            .map_err(|e| anyhow!("{train_name}: {}: {e}", baseline.name()))?;
+        let scores = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
+        baselines.push((baseline, scores));
+    }
+
+    // The top-level model, timed from the training samples to a fitted model (including the
+    // choice of `auto`).
+    let start = Instant::now();
+    let (chosen, selection) = match args.model {
+        ActivityModel::Auto => {
+            let selection = select_baseline(&train, HOLDOUT, &config)
+                .map_err(|e| anyhow!("{train_name}: cannot choose a model: {e}"))?;
+            (selection.chosen, Some(selection))
+        }
+        ActivityModel::GlobalMean => (Baseline::GlobalMean, None),
+        ActivityModel::Ml => (Baseline::Ml, None),
+        ActivityModel::FrAam => (Baseline::FrAam, None),
+    };
+    let model: Box<dyn RatePredictor + Send + Sync> = chosen
+        .fit(&train, &config)
+        .map_err(|e| anyhow!("{train_name}: {}: {e}", chosen.name()))?;
+    let train_seconds = start.elapsed().as_secs_f64();
+    let top = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
+
+    let mut out = std::io::stdout().lock();
+    if args.json {
+        let mut table = Map::new();
+        for (baseline, s) in &baselines {
+            table.insert(baseline.name().into(), scores_json(s));
+        }
+        let selected_by = match &selection {
+            Some(sel) => json!({
+                "holdout_from_t": sel.cut,
+                "scores": sel.scores.iter().map(|(b, s)| (b.name().to_string(), scores_json(s))).collect::<Map<_, _>>(),
+            }),
+            None => Value::String("--model".into()),
+        };
+        writeln!(
+            out,
+            "{}",
+            json!({
+                "model": chosen.name(),
+                "selected_by": selected_by,
+                "nrmse": top.nrmse,
+                "chi2": top.chi2,
+                "train_seconds": train_seconds,
+                "train": summary_json(&train_name, &train),
+                "test": summary_json(&test_name, &test),
+                "split_at": args.split_at,
+                "baselines": table,
+            })
+        )?;
+        return Ok(());
+    }
+
+    writeln!(
+        out,
+        "training: {train_name}{}",
+        summary(&train, args.split_at.map(|at| format!("t < {at}")))
+    )?;
+    writeln!(out, "test: {test_name}{}", summary(&test, None))?;
+    writeln!(out)?;
+    let mut table = Table::new(["model", "NRMSE", "chi2"]);
+    for (baseline, s) in &baselines {
+        table.row([
+            baseline.name().to_string(),
+            format!("{:.4}", s.nrmse),
+            format!("{:.1}", s.chi2),
+        ]);
+    }
+    write!(out, "{}", table.render())?;
+    let why = match &selection {
+        Some(sel) => {
+            let scores: Vec<String> = sel
+                .scores
+                .iter()
+                .map(|(b, s)| format!("{} {:.4}", b.name(), s.nrmse))
+                .collect();
+            format!(
+                "chosen by --model auto: least NRMSE on the training samples with t >= {} held \
+                 out ({})",
+                sel.cut,
+                scores.join(", ")
+            )
+        }
+        None => "chosen by --model".to_string(),
+    };
+    writeln!(
+        out,
+        "\nmodel: {} ({why}); NRMSE {:.4}, chi2 {:.1}, trained in {:.3} s",
+        chosen.name(),
+        top.nrmse,
+        top.chi2,
+        train_seconds
+    )?;
+    writeln!(
+        out,
+        "NRMSE: eq. (4.20), root mean square error over the mean test rate; chi2: eq. (4.21), \
+         chi-square distance (lower is better for both). CoPA-Map (`copa`) comes with the \
+         Gaussian-process core."
+    )?;
+    Ok(())
+}
+
+fn scores_json(s: &Scores) -> Value {
+    json!({ "nrmse": s.nrmse, "chi2": s.chi2 })
+}
+
+fn time_range(samples: &RateSamples) -> (f64, f64) {
+    samples
+        .t()
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        })
+}
+
+fn summary_json(name: &str, samples: &RateSamples) -> Value {
+    let (first, last) = time_range(samples);
+    json!({
+        "file": name,
+        "samples": samples.len(),
+        "cells": samples.cell_count(),
+        "t_first": first,
+        "t_last": last,
+        "mean_rate": samples.mean_rate(),
+    })
+}
+
+/// `: 61131 samples (t < 96), 652 cells, t 0 .. 95, mean rate 42.1 per hour`.
+fn summary(samples: &RateSamples, part: Option<String>) -> String {
+    let (first, last) = time_range(samples);
+    let part = part.map(|p| format!(" ({p})")).unwrap_or_default();
+    format!(
+        ": {} samples{part}, {} cells, t {first} .. {last}, mean rate {:.2} per hour",
+        samples.len(),
+        samples.cell_count(),
+        samples.mean_rate()
+    )
+}

@@ -1,0 +1,223 @@
+//! `chronomap activity eval` end to end on the bundled ATC grid of CoPA-Map (dissertation
+//! chapter 4): the measured scores of the baselines on a chronological split (8 days of
+//! training, 2 of test), the JSON shape of issue 8, and errors naming file, line and column.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn chronomap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(args)
+        .output()
+        .expect("run chronomap")
+}
+
+fn atc() -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz")
+        .display()
+        .to_string()
+}
+
+fn stdout(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The error of a run that must fail with exit code 2 and no panic.
+fn error(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "accepted: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+fn close(value: &Value, expected: f64, tolerance: f64) {
+    let v = value
+        .as_f64()
+        .unwrap_or_else(|| panic!("not a number: {value}"));
+    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
+}
+
+fn scratch(name: &str, text: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_cli");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
+    let text = stdout(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        &atc(),
+        "--split-at",
+        "96",
+        "--json",
+    ]));
+    let json: Value = serde_json::from_str(&text).expect("one JSON object");
+    assert_eq!(json["train"]["samples"], 61_131);
+    assert_eq!(json["test"]["samples"], 15_325);
+    assert_eq!(json["train"]["cells"], 652);
+    close(&json["test"]["mean_rate"], 40.4974, 1e-4);
+    let b = &json["baselines"];
+    // Measured: on the last two days every baseline is poor (NRMSE > 2); the temporal
+    // Fr-AAM is best, the per-cell mean beats the global mean only slightly.
+    close(&b["global_mean"]["nrmse"], 2.18116, 1e-4);
+    close(&b["global_mean"]["chi2"], 476_455.5, 1.0);
+    close(&b["ml"]["nrmse"], 2.15099, 1e-4);
+    close(&b["ml"]["chi2"], 346_923.2, 1.0);
+    close(&b["fr_aam"]["nrmse"], 2.10227, 1e-4);
+    close(&b["fr_aam"]["chi2"], 268_615.3, 1.0);
+    // `auto` chooses on the training data alone (t >= 77 held out), where the global mean
+    // wins, so the top-level scores are the global mean's, not the test's best.
+    assert_eq!(json["model"], "global_mean");
+    close(&json["selected_by"]["holdout_from_t"], 77.0, 0.0);
+    close(
+        &json["selected_by"]["scores"]["global_mean"]["nrmse"],
+        1.81434,
+        1e-4,
+    );
+    close(
+        &json["selected_by"]["scores"]["fr_aam"]["nrmse"],
+        1.95707,
+        1e-4,
+    );
+    assert_eq!(json["nrmse"], b["global_mean"]["nrmse"]);
+    assert_eq!(json["chi2"], b["global_mean"]["chi2"]);
+    assert!(json["train_seconds"].as_f64().unwrap() >= 0.0);
+}
+
+#[test]
+fn chosen_model_gives_the_top_level_scores_and_the_table_names_it() {
+    let text = stdout(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        &atc(),
+        "--split-at",
+        "96",
+        "--model",
+        "fr-aam",
+    ]));
+    assert!(text.contains("61131 samples (t < 96), 652 cells"), "{text}");
+    assert!(text.contains("fr_aam       2.1023  268615.3"), "{text}");
+    assert!(
+        text.contains("model: fr_aam (chosen by --model); NRMSE 2.1023"),
+        "{text}"
+    );
+}
+
+#[test]
+fn train_and_test_files_are_scored_as_given() {
+    let train = scratch(
+        "train.csv",
+        "x1,x2,t,y\n0.25,0.25,0,10\n0.25,0.25,1,10\n0.75,0.25,0,1e-06\n0.75,0.25,1,2\n",
+    );
+    let test = scratch("test.csv", "x1,x2,t,y\n0.25,0.25,2,10\n0.75,0.25,2,1\n");
+    let text = stdout(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        train.to_str().unwrap(),
+        "--test",
+        test.to_str().unwrap(),
+        "--model",
+        "ml",
+        "--json",
+    ]));
+    let json: Value = serde_json::from_str(&text).unwrap();
+    // ML predicts 10 and ~1: errors 0 and ~0; mean truth 5.5.
+    close(&json["nrmse"], 0.0, 1e-6);
+    // Global mean 5.5: errors 4.5 and -4.5, NRMSE sqrt(2 · 4.5² / (5.5² · 2)) = 4.5 / 5.5.
+    close(&json["baselines"]["global_mean"]["nrmse"], 4.5 / 5.5, 1e-6);
+    // chi2: 4.5² / 15.5 + 4.5² / 6.5
+    close(
+        &json["baselines"]["global_mean"]["chi2"],
+        4.5 * 4.5 / 15.5 + 4.5 * 4.5 / 6.5,
+        1e-6,
+    );
+    assert!(json["split_at"].is_null());
+}
+
+#[test]
+fn bad_input_is_an_error_naming_file_line_and_column() {
+    let bad_rate = scratch("negative.csv", "x1,x2,t,y\n0,0,0,1\n0,0,1,-3\n");
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        bad_rate.to_str().unwrap(),
+        "--split-at",
+        "1",
+    ]));
+    assert!(
+        err.contains("negative.csv:3: y: \"-3\" is negative"),
+        "{err}"
+    );
+    let nan = scratch("nan.csv", "x1,x2,t,y\n0,NaN,0,1\n");
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        &atc(),
+        "--test",
+        nan.to_str().unwrap(),
+    ]));
+    assert!(
+        err.contains("nan.csv:2: x2: \"NaN\" is not a finite number"),
+        "{err}"
+    );
+    let header = scratch("header.csv", "x,y,t,rate\n0,0,0,1\n");
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        header.to_str().unwrap(),
+        "--split-at",
+        "1",
+    ]));
+    assert!(
+        err.contains("header.csv:1: expected the header `x1,x2,t,y`"),
+        "{err}"
+    );
+    let short = scratch("short.csv", "x1,x2,t,y\n0,0,0,1\n0,0\n");
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        short.to_str().unwrap(),
+        "--split-at",
+        "1",
+    ]));
+    assert!(err.contains("short.csv:3: t: missing"), "{err}");
+    // A split that leaves nothing to test on.
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        &atc(),
+        "--split-at",
+        "500",
+    ]));
+    assert!(err.contains("no sample has t >= 500"), "{err}");
+    // A missing file names itself.
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        "no-such-grid.csv",
+        "--split-at",
+        "1",
+    ]));
+    assert!(err.contains("no-such-grid.csv"), "{err}");
+}
