@@ -36,6 +36,7 @@
 //! [`CellMean`] ("ML") and the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM").
 
 pub mod baselines;
+pub mod copa;
 
 use std::collections::HashMap;
 
@@ -45,6 +46,7 @@ pub use baselines::{
     Baseline, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig,
     GlobalMean, select_baseline,
 };
+pub use copa::{CopaConfig, CopaMap};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]
