@@ -1,5 +1,5 @@
 //! The HTTP/JSON API: routes, handlers, bearer-token checks, size limits and JSON errors.
-//! Handlers only translate: reads go to the published [`Registry`](crate::registry::Registry),
+//! Handlers only translate: reads go to the published [`Registry`],
 //! writes to the [`crate::writer`].
 
 use std::future::Future;
