@@ -4,9 +4,10 @@
 //! * Space is scaled onto `[0, 1]` with one scale for both axes (distances keep their ratio),
 //!   time by the span of the training times; rates are standardised (zero mean, unit variance).
 //! * The temporal kernel starts with the day and its first harmonics (`day_period` in units of
-//!   `t`); periods are then trained with the other hyperparameters. Algorithm 4.1 (periods from
-//!   a NUDFT of sampled cells, inducing points by duration-weighted k-means) is not yet built:
-//!   the inducing points here are evenly spaced training inputs.
+//!   `t`); periods are then trained with the other hyperparameters. The inducing points are
+//!   k-means centres of the training inputs (Algorithm 4.1, unweighted: grid files carry no
+//!   observation durations). Algorithm 4.1's periods from a NUDFT of sampled cells are not yet
+//!   built.
 //! * Negative predicted rates are set to zero, as §4.2.3 does.
 
 use serde::{Deserialize, Serialize};
@@ -15,6 +16,7 @@ use super::{RatePredictor, RateSamples};
 use crate::gp::{
     ActivityKernel, GpError, HeteroSvgp, PeriodicComponent, Point, RbfKernel, TrainConfig, train,
 };
+use crate::mixture::{KMeansConfig, kmeans};
 use crate::par::Parallelism;
 
 /// How CoPA-Map is fitted.
@@ -114,9 +116,25 @@ impl CopaMap {
         };
         let x: Vec<Point> = xs.iter().zip(ts).map(|(&p, &t)| copa.input(p, t)).collect();
         let y: Vec<f64> = ys.iter().map(|v| (v - mean) / sd).collect();
-        // Evenly spaced training inputs as inducing points (deterministic).
-        let z: Vec<Point> = (0..config.inducing)
-            .map(|k| x[k * n / config.inducing])
+        // Inducing points: k-means centres of the training inputs (Algorithm 4.1 weights them
+        // by observation duration; the grid files carry none, so every row weighs the same).
+        let flat: Vec<f64> = x.iter().flatten().copied().collect();
+        let clusters = kmeans(
+            &flat,
+            3,
+            None,
+            &KMeansConfig {
+                clusters: config.inducing,
+                max_iterations: 30,
+                starts: 1,
+                seed: config.seed,
+            },
+        )
+        .map_err(|e| GpError::InvalidInput(format!("inducing points: {e}")))?;
+        let z: Vec<Point> = clusters
+            .centres
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
             .collect();
         let day = config.day_period / time_scale;
         let components: Vec<PeriodicComponent> = (1..=config.harmonics)
