@@ -56,10 +56,7 @@ impl Default for CopaConfig {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CopaMap {
     model: HeteroSvgp,
-    origin: [f64; 2],
-    space_scale: f64,
-    time_origin: f64,
-    time_scale: f64,
+    scaling: InputScaling,
     mean: f64,
     sd: f64,
     /// Minibatch ELBO after every iteration.
@@ -100,21 +97,17 @@ impl CopaMap {
         let sd = (ys.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n as f64)
             .sqrt()
             .max(1e-12);
-        let mut copa = CopaMap {
-            model: HeteroSvgp::new(
-                ActivityKernel::new(0.3, [0.05, 0.05], &[]),
-                RbfKernel::new(0.5, [0.05, 0.05, 0.05]),
-                Vec::new(),
-            ),
+        let scaling = InputScaling {
             origin,
             space_scale,
             time_origin,
             time_scale,
-            mean,
-            sd,
-            trace: Vec::new(),
         };
-        let x: Vec<Point> = xs.iter().zip(ts).map(|(&p, &t)| copa.input(p, t)).collect();
+        let x: Vec<Point> = xs
+            .iter()
+            .zip(ts)
+            .map(|(&p, &t)| scaling.apply(p, t))
+            .collect();
         let y: Vec<f64> = ys.iter().map(|v| (v - mean) / sd).collect();
         // Inducing points: k-means centres of the training inputs (Algorithm 4.1 weights them
         // by observation duration; the grid files carry none, so every row weighs the same).
@@ -144,7 +137,7 @@ impl CopaMap {
                 period: day / h as f64,
             })
             .collect();
-        copa.model = HeteroSvgp::new(
+        let mut model = HeteroSvgp::new(
             ActivityKernel::new(0.3, [0.05, 0.05], &components),
             RbfKernel::new(0.5, [0.05, 0.05, 0.05]),
             z,
@@ -155,16 +148,14 @@ impl CopaMap {
             seed: config.seed,
             ..TrainConfig::default()
         };
-        copa.trace = train(&mut copa.model, &x, &y, &train_config, config.parallelism)?;
-        Ok(copa)
-    }
-
-    fn input(&self, p: [f64; 2], t: f64) -> Point {
-        [
-            (p[0] - self.origin[0]) / self.space_scale,
-            (p[1] - self.origin[1]) / self.space_scale,
-            (t - self.time_origin) / self.time_scale,
-        ]
+        let trace = train(&mut model, &x, &y, &train_config, config.parallelism)?;
+        Ok(CopaMap {
+            model,
+            scaling,
+            mean,
+            sd,
+            trace,
+        })
     }
 
     /// Mean and standard deviation of the rate at many points (rates ≥ 0).
@@ -176,7 +167,10 @@ impl CopaMap {
         points: &[([f64; 2], f64)],
         par: Parallelism,
     ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
-        let x: Vec<Point> = points.iter().map(|&(p, t)| self.input(p, t)).collect();
+        let x: Vec<Point> = points
+            .iter()
+            .map(|&(p, t)| self.scaling.apply(p, t))
+            .collect();
         let prediction = self.model.predict(&x, par)?;
         let mean = prediction
             .mean
@@ -194,8 +188,28 @@ impl CopaMap {
             .kernel
             .components()
             .iter()
-            .map(|c| c.period * self.time_scale)
+            .map(|c| c.period * self.scaling.time_scale)
             .collect()
+    }
+}
+
+/// Inputs onto `[0, 1]`: both spatial axes by one scale (distances keep their ratio), time by
+/// the training span.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+struct InputScaling {
+    origin: [f64; 2],
+    space_scale: f64,
+    time_origin: f64,
+    time_scale: f64,
+}
+
+impl InputScaling {
+    fn apply(&self, p: [f64; 2], t: f64) -> Point {
+        [
+            (p[0] - self.origin[0]) / self.space_scale,
+            (p[1] - self.origin[1]) / self.space_scale,
+            (t - self.time_origin) / self.time_scale,
+        ]
     }
 }
 
