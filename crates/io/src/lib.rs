@@ -38,6 +38,8 @@
 //!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
 //! * [`activity`] — activity-rate grids: people per hour of observation at spatio-temporal
 //!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
+//! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
+//!   bundled ATC day), returned in time order.
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -72,6 +74,7 @@ pub mod navmap;
 pub mod plot;
 pub mod text;
 pub mod topo_files;
+pub mod tracks;
 
 pub use activity::{read_rate_samples, read_rate_samples_from};
 pub use events::{read_event_files, read_events, read_events_from};
@@ -102,3 +105,4 @@ pub use topo_files::{
     read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
     read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
 };
+pub use tracks::{read_track_files, read_tracks, read_tracks_from};

@@ -121,11 +121,18 @@ pub enum Field {
     BinTime,
     /// A rate of people per hour of observation (column `y` of activity-rate grids).
     Rate,
+    /// The id of a tracked person (pedestrian track files, see [`crate::tracks`]).
+    Person,
+    /// A walking speed in m/s (pedestrian track files).
+    Speed,
+    /// A walking direction in radians (pedestrian track files).
+    Heading,
 }
 
 impl Field {
-    /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"`, `"y"`, or the column names of
-    /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]).
+    /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"`, `"y"`, the column names of
+    /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]), or `"person"`,
+    /// `"speed"`, `"heading"` of pedestrian tracks.
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
@@ -138,6 +145,9 @@ impl Field {
             Field::X2 => "x2",
             Field::BinTime => "t",
             Field::Rate => "y",
+            Field::Person => "person",
+            Field::Speed => "speed",
+            Field::Heading => "heading",
         }
     }
 }
@@ -551,6 +561,9 @@ pub fn read_column_from(
         Field::X | Field::Y | Field::X1 | Field::X2 => "expected one coordinate per line",
         Field::BinTime => "expected one time bin per line",
         Field::Rate => "expected one rate per line",
+        Field::Person => "expected one person id per line",
+        Field::Speed => "expected one speed per line",
+        Field::Heading => "expected one heading per line",
     };
     let mut numbers = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
@@ -562,10 +575,11 @@ pub fn read_column_from(
             Field::Value => parse_value(text, numbers.len())?,
             Field::Duration => parse_duration(text)?,
             Field::Success => f64::from(u8::from(parse_success(text)?)),
-            Field::X | Field::Y | Field::X1 | Field::X2 | Field::BinTime => {
+            Field::X | Field::Y | Field::X1 | Field::X2 | Field::BinTime | Field::Heading => {
                 parse_coordinate(text, field)?
             }
-            Field::Rate => parse_rate(text)?,
+            Field::Rate | Field::Speed => parse_non_negative(text, field)?,
+            Field::Person => parse_person(text)? as f64,
         };
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
@@ -792,14 +806,31 @@ pub(crate) fn required<'a>(
 
 /// A finite rate `>= 0` (column `y` of activity-rate grids).
 pub(crate) fn parse_rate(text: &[u8]) -> Result<f64, DataErrorKind> {
-    let rate = parse_coordinate(text, Field::Rate)?;
-    if rate < 0.0 {
+    parse_non_negative(text, Field::Rate)
+}
+
+/// A finite number `>= 0` (rates, speeds).
+pub(crate) fn parse_non_negative(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
+    let value = parse_coordinate(text, field)?;
+    if value < 0.0 {
         return Err(DataErrorKind::Negative {
-            field: Field::Rate,
+            field,
             text: quote(text),
         });
     }
-    Ok(rate)
+    Ok(value)
+}
+
+/// A person id: an integer `0 ..= 2⁶⁴−1` (no sign, no fraction).
+pub(crate) fn parse_person(text: &[u8]) -> Result<u64, DataErrorKind> {
+    std::str::from_utf8(text)
+        .ok()
+        .filter(|s| s.bytes().all(|b| b.is_ascii_digit()))
+        .and_then(|s| s.parse::<u64>().ok())
+        .ok_or_else(|| DataErrorKind::NotANumber {
+            field: Field::Person,
+            text: quote(text),
+        })
 }
 
 pub(crate) fn parse_number(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {

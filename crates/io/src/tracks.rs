@@ -1,0 +1,183 @@
+//! Readers of pedestrian track files: the ATC shopping-centre tracks bundled in
+//! `data/atc_20121024_1hz/` (see `data/README.md`), one detection of a tracked person per line.
+//!
+//! ```
+//! use chronomap_io::tracks::read_tracks_from;
+//! use chronomap_io::Field;
+//!
+//! // t, person, x, y, speed, heading — sorted by person in the file, by time when read.
+//! let text = "1351040401.9,9551000,-22.19,2.28,0.66,-2.09\n\
+//!             1351040400.9,9551000,-22.17,2.54,0.78,1.97\n";
+//! let tracks = read_tracks_from("atc.csv", text.as_bytes())?;
+//! assert_eq!(tracks.len(), 2);
+//! assert_eq!((tracks[0].t, tracks[0].x, tracks[0].y), (1351040400.9, -22.17, 2.54));
+//!
+//! // Errors name the file, line and field.
+//! let err = read_tracks_from("atc.csv", "1,-5,0,0,0,0\n".as_bytes()).unwrap_err();
+//! assert_eq!(err.to_string(), r#"atc.csv:1: person: "-5" is not a number"#);
+//! assert_eq!(err.field(), Some(Field::Person));
+//! # Ok::<(), chronomap_io::DataError>(())
+//! ```
+//!
+//! # Format
+//! CSV without a header, six fields per line: `t` (unix seconds), `person` (an id, an integer
+//! `0 ..= 2⁶⁴−1`), `x`, `y` (metres, map frame), `speed` (m/s, `>= 0`) and `heading`
+//! (radians). Lines may come in any order (the ATC files are sorted by person); the reader
+//! returns the detections sorted by time (a stable sort: equal times keep the file order).
+//! Speed and heading are checked but not returned: the activity models use where and when
+//! people were, not how they moved.
+//!
+//! As in [`crate::text`], blank lines and `#` comments are skipped, line numbers count every
+//! line, and plain, `.xz` and `.gz` files are read. Every problem is a [`DataError`]:
+//!
+//! ```text
+//! atc-1024-10_train.csv.xz:17: x: "nan" is not a finite number
+//! atc-1024-10_train.csv.xz:18: time: "-3" is negative (times are seconds >= 0)
+//! atc-1024-10_train.csv.xz:19: heading: missing (expected six fields: t,person,x,y,speed,heading)
+//! ```
+
+use std::io::Read;
+use std::path::Path;
+
+use chronomap_core::events::Event;
+
+use crate::text::{
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
+    parse_non_negative, parse_person, quote, required,
+};
+
+/// What a track line must look like.
+const EXPECTED: &str = "expected six fields: t,person,x,y,speed,heading";
+
+/// Reads a pedestrian track file (plain, `.xz` or `.gz`; see the [module docs](self)) and
+/// returns its detections sorted by time.
+///
+/// ```no_run
+/// let ten = chronomap_io::read_tracks("data/atc_20121024_1hz/atc-1024-10_train.csv.xz")?;
+/// assert_eq!(ten.len(), 38_633);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// A [`DataError`] naming `path` if the file cannot be read, has no detection, or a line
+/// breaks the rules of the [module docs](self).
+pub fn read_tracks(path: impl AsRef<Path>) -> Result<Vec<Event>, DataError> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    read_tracks_from(&name, open_data_file(path)?)
+}
+
+/// Reads several track files and merges their detections in time order (stable: equal times
+/// keep the order of the files).
+///
+/// # Errors
+/// The first error of [`read_tracks`].
+pub fn read_track_files(paths: &[impl AsRef<Path>]) -> Result<Vec<Event>, DataError> {
+    let mut all = Vec::new();
+    for path in paths {
+        all.extend(read_tracks(path)?);
+    }
+    all.sort_by(|a, b| a.t.total_cmp(&b.t));
+    Ok(all)
+}
+
+/// Reads pedestrian tracks (uncompressed text) from `reader`; `name` is used in errors.
+///
+/// # Errors
+/// As [`read_tracks`].
+pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, DataError> {
+    let mut events = Vec::new();
+    for_each_data_line(name, reader, |_, line| {
+        let mut fields = Fields::new(line);
+        let mut next = |field| required(fields.next(), field, EXPECTED);
+        let t_text = next(Field::Time)?;
+        let t = parse_coordinate(t_text, Field::Time)?;
+        if t < 0.0 {
+            return Err(DataErrorKind::NegativeTime {
+                text: quote(t_text),
+            });
+        }
+        parse_person(next(Field::Person)?)?;
+        let x = parse_coordinate(next(Field::X)?, Field::X)?;
+        let y = parse_coordinate(next(Field::Y)?, Field::Y)?;
+        parse_non_negative(next(Field::Speed)?, Field::Speed)?;
+        parse_coordinate(next(Field::Heading)?, Field::Heading)?;
+        if let Some(extra) = fields.next() {
+            return Err(DataErrorKind::ExtraField {
+                text: quote(extra),
+                expected: EXPECTED,
+            });
+        }
+        events.push(Event { t, x, y });
+        Ok(())
+    })?;
+    if events.is_empty() {
+        return Err(DataError::new(name, None, DataErrorKind::Empty));
+    }
+    events.sort_by(|a, b| a.t.total_cmp(&b.t));
+    Ok(events)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn error(text: &str) -> DataError {
+        read_tracks_from("atc.csv", text.as_bytes()).unwrap_err()
+    }
+
+    #[test]
+    fn sorts_by_time_and_keeps_equal_times_in_file_order() {
+        let text = "# ATC\n5,1,0,0,0,0\r\n3,2,1,1,0.5,1\n\n5,3,2,2,0,0\n";
+        let e = read_tracks_from("atc.csv", text.as_bytes()).unwrap();
+        let got: Vec<(f64, f64)> = e.iter().map(|e| (e.t, e.x)).collect();
+        assert_eq!(got, [(3.0, 1.0), (5.0, 0.0), (5.0, 2.0)]);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_field() {
+        let cases = [
+            (
+                "1,1,nan,0,0,0\n",
+                1,
+                Some(Field::X),
+                "x: \"nan\" is not a finite number",
+            ),
+            (
+                "1,1,0,0,0,0\n-3,1,0,0,0,0\n",
+                2,
+                Some(Field::Time),
+                "time: \"-3\" is negative",
+            ),
+            (
+                "1,99999999999999999999999,0,0,0,0\n",
+                1,
+                Some(Field::Person),
+                "person:",
+            ),
+            ("1,1.5,0,0,0,0\n", 1, Some(Field::Person), "person: \"1.5\""),
+            (
+                "1,1,0,0,-1,0\n",
+                1,
+                Some(Field::Speed),
+                "speed: \"-1\" is negative",
+            ),
+            ("1,1,0,0,0\n", 1, Some(Field::Heading), "heading: missing"),
+            ("1,1,0,0,0,0,7\n", 1, None, "unexpected extra field \"7\""),
+            (
+                "1,1,0,inf,0,0\n",
+                1,
+                Some(Field::Y),
+                "y: \"inf\" is not a finite number",
+            ),
+        ];
+        for (text, line, field, message) in cases {
+            let err = error(text);
+            assert_eq!(err.line(), Some(line), "{text}");
+            assert_eq!(err.field(), field, "{text}");
+            assert!(err.to_string().contains(message), "{text}: {err}");
+            assert!(err.to_string().starts_with("atc.csv:"), "{err}");
+        }
+        assert!(matches!(error("# nothing\n").kind(), DataErrorKind::Empty));
+    }
+}
