@@ -446,6 +446,52 @@ pub enum ActivityCommand {
     /// chi-square distance of every baseline and of the chosen model.
     #[command(after_help = ACTIVITY_HELP_EVAL)]
     Eval(ActivityEvalArgs),
+    /// Ground truth from pedestrian tracks (§4.3.2): distinct people per cell and hour,
+    /// counted over whole bins, in the cells of a training grid; writes `x1,x2,t,y`.
+    #[command(after_help = ACTIVITY_HELP_TRUTH)]
+    Truth(ActivityTruthArgs),
+}
+
+const ACTIVITY_HELP_TRUTH: &str = "\
+Example (the bundled ATC day 2012-10-24 as a test day after the ten days of the training grid;
+bins 1,2,4..10 are the hours 10:00..20:00 that the tracks cover in full, 12:00 is missing):
+  chronomap activity truth --tracks data/atc_20121024_1hz/atc-1024-*_train.csv.xz \\
+      --cells data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz \\
+      --t0 1351036800 --bins 1,2,4,5,6,7,8,9,10 --t-offset 120 -o atc_20121024_truth.csv
+  chronomap activity eval --train data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz \\
+      --test atc_20121024_truth.csv --model copa
+
+Tracks are CSV `t,person,x,y,speed,heading` (plain, .xz or .gz). A cell's count is the number of
+distinct person ids detected in it during the bin; rates are people per hour (count / bin length
+in hours). The output's t is the bin index plus --t-offset.";
+
+/// `chronomap activity truth`.
+#[derive(Debug, Args)]
+pub struct ActivityTruthArgs {
+    /// Pedestrian track files, CSV `t,person,x,y,speed,heading`.
+    #[arg(long, num_args = 1.., required = true)]
+    pub tracks: Vec<PathBuf>,
+    /// The grid whose cells get a ground truth (CSV `x1,x2,t,y`; its distinct cells are used).
+    #[arg(long)]
+    pub cells: PathBuf,
+    /// Start of bin 0 in the tracks' time unit (unix seconds).
+    #[arg(long)]
+    pub t0: f64,
+    /// Length of a bin in seconds.
+    #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
+    pub bin_seconds: f64,
+    /// Bin indices to count, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub bins: Vec<i64>,
+    /// Added to the bin index to give the output's t.
+    #[arg(long, default_value_t = 0.0)]
+    pub t_offset: f64,
+    /// Side of a cell in metres (cells are aligned to multiples of it).
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub cell: f64,
+    /// Output CSV `x1,x2,t,y`.
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// Which model gives the top-level scores of `chronomap activity eval`.
@@ -461,6 +507,15 @@ pub enum ActivityModel {
     FrAam,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
+}
+
+/// The scale CoPA-Map models rates on (`chronomap_core::activity::RateScale`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CopaScale {
+    /// The rates themselves, as §4.2 writes the model.
+    Rate,
+    /// ln(1 + rate); predictions are the predictive median.
+    Log1p,
 }
 
 /// `chronomap activity eval`.
@@ -492,6 +547,10 @@ pub struct ActivityEvalArgs {
     /// CoPA-Map: training iterations.
     #[arg(long, default_value_t = 300)]
     pub iterations: usize,
+    /// CoPA-Map: model the rates themselves (rate, as §4.2 does) or ln(1 + rate), predicting
+    /// the median (log1p: follows typical activity rather than the spikes of brief glimpses).
+    #[arg(long, value_enum, default_value_t = CopaScale::Rate)]
+    pub scale: CopaScale,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

@@ -7,13 +7,13 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
 use chronomap_core::activity::{
-    Baseline, CopaConfig, CopaMap, FrAamConfig, RatePredictor, RateSamples, Scores, score,
-    select_baseline,
+    Baseline, CopaConfig, CopaMap, FrAamConfig, RatePredictor, RateSamples, RateScale, Scores,
+    score, select_baseline,
 };
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
 
-use crate::cli::{ActivityEvalArgs, ActivityModel};
+use crate::cli::{ActivityEvalArgs, ActivityModel, CopaScale};
 use crate::format::Table;
 
 /// Fraction of the distinct training times that `--model auto` holds out to choose a model.
@@ -81,6 +81,10 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 iterations: args.iterations,
                 day_period: args.period,
                 parallelism: Parallelism::Rayon(0),
+                target: match args.scale {
+                    CopaScale::Log1p => RateScale::Log1p,
+                    CopaScale::Rate => RateScale::Rate,
+                },
                 ..CopaConfig::default()
             };
             Box::new(

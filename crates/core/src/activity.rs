@@ -37,6 +37,7 @@
 
 pub mod baselines;
 pub mod copa;
+pub mod truth;
 
 use std::collections::HashMap;
 
@@ -46,7 +47,7 @@ pub use baselines::{
     Baseline, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig,
     GlobalMean, select_baseline,
 };
-pub use copa::{CopaConfig, CopaMap};
+pub use copa::{CopaConfig, CopaMap, RateScale};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]

@@ -120,6 +120,47 @@ pub fn read_rate_samples_from(name: &str, reader: impl Read) -> Result<RateSampl
     Ok(samples)
 }
 
+/// The text of an activity-rate grid: the header `x1,x2,t,y` and one line per sample, numbers
+/// written in their shortest form that reads back to the same `f64`.
+///
+/// ```
+/// use chronomap_core::activity::RateSamples;
+/// use chronomap_io::activity::{encode_rate_samples, read_rate_samples_from};
+///
+/// let samples = RateSamples::new(vec![[3.75, -1.25]], vec![120.0], vec![0.1 + 0.2])?;
+/// let text = encode_rate_samples(&samples);
+/// assert_eq!(text, "x1,x2,t,y\n3.75,-1.25,120,0.30000000000000004\n");
+/// assert_eq!(read_rate_samples_from("back.csv", text.as_bytes())?, samples);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn encode_rate_samples(samples: &RateSamples) -> String {
+    use std::fmt::Write;
+    let mut text = String::from("x1,x2,t,y\n");
+    for ((x, t), y) in samples.x().iter().zip(samples.t()).zip(samples.y()) {
+        writeln!(text, "{},{},{},{}", x[0], x[1], t, y).expect("writing to a String");
+    }
+    text
+}
+
+/// Writes [`encode_rate_samples`] to `path` atomically (a temporary file renamed over the
+/// target: a crash never leaves half a file).
+///
+/// # Errors
+/// A [`DataError`] naming `path` if it cannot be written.
+pub fn write_rate_samples(path: impl AsRef<Path>, samples: &RateSamples) -> Result<(), DataError> {
+    let path = path.as_ref();
+    crate::atomic::write_atomically(path, encode_rate_samples(samples).as_bytes()).map_err(|f| {
+        DataError::new(
+            path.display().to_string(),
+            None,
+            DataErrorKind::Io {
+                action: f.action,
+                io: f.io,
+            },
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -76,7 +76,9 @@ pub mod text;
 pub mod topo_files;
 pub mod tracks;
 
-pub use activity::{read_rate_samples, read_rate_samples_from};
+pub use activity::{
+    encode_rate_samples, read_rate_samples, read_rate_samples_from, write_rate_samples,
+};
 pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};
@@ -105,4 +107,6 @@ pub use topo_files::{
     read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
     read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
 };
-pub use tracks::{read_track_files, read_tracks, read_tracks_from};
+pub use tracks::{
+    read_track_files, read_track_point_files, read_track_points, read_tracks, read_tracks_from,
+};

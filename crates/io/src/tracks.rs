@@ -39,6 +39,7 @@
 use std::io::Read;
 use std::path::Path;
 
+use chronomap_core::activity::truth::TrackPoint;
 use chronomap_core::events::Event;
 
 use crate::text::{
@@ -86,6 +87,45 @@ pub fn read_track_files(paths: &[impl AsRef<Path>]) -> Result<Vec<Event>, DataEr
 /// # Errors
 /// As [`read_tracks`].
 pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, DataError> {
+    Ok(read_track_points_from(name, reader)?
+        .into_iter()
+        .map(|p| Event {
+            t: p.t,
+            x: p.x,
+            y: p.y,
+        })
+        .collect())
+}
+
+/// As [`read_tracks`], keeping the person ids: what counting distinct people needs
+/// ([`chronomap_core::activity::truth::person_counts`]).
+///
+/// # Errors
+/// As [`read_tracks`].
+pub fn read_track_points(path: impl AsRef<Path>) -> Result<Vec<TrackPoint>, DataError> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    read_track_points_from(&name, open_data_file(path)?)
+}
+
+/// As [`read_track_files`], keeping the person ids.
+///
+/// # Errors
+/// The first error of [`read_track_points`].
+pub fn read_track_point_files(paths: &[impl AsRef<Path>]) -> Result<Vec<TrackPoint>, DataError> {
+    let mut all = Vec::new();
+    for path in paths {
+        all.extend(read_track_points(path)?);
+    }
+    all.sort_by(|a, b| a.t.total_cmp(&b.t));
+    Ok(all)
+}
+
+/// As [`read_tracks_from`], keeping the person ids.
+///
+/// # Errors
+/// As [`read_tracks`].
+pub fn read_track_points_from(name: &str, reader: impl Read) -> Result<Vec<TrackPoint>, DataError> {
     let mut events = Vec::new();
     for_each_data_line(name, reader, |_, line| {
         let mut fields = Fields::new(line);
@@ -97,7 +137,7 @@ pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
                 text: quote(t_text),
             });
         }
-        parse_person(next(Field::Person)?)?;
+        let person = parse_person(next(Field::Person)?)?;
         let x = parse_coordinate(next(Field::X)?, Field::X)?;
         let y = parse_coordinate(next(Field::Y)?, Field::Y)?;
         parse_non_negative(next(Field::Speed)?, Field::Speed)?;
@@ -108,7 +148,7 @@ pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
                 expected: EXPECTED,
             });
         }
-        events.push(Event { t, x, y });
+        events.push(TrackPoint { t, person, x, y });
         Ok(())
     })?;
     if events.is_empty() {

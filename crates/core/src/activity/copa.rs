@@ -36,6 +36,33 @@ pub struct CopaConfig {
     pub seed: u64,
     /// Threads of the kernel evaluations (results do not depend on it).
     pub parallelism: Parallelism,
+    /// The scale the GP models the rates on.
+    pub target: RateScale,
+}
+
+/// The scale on which CoPA-Map models the rates `y`.
+///
+/// Rates seen by a moving robot are heavy-tailed: a cell glimpsed for seconds with one person
+/// in it reads hundreds of people per hour. [`RateScale::Log1p`] models `ln(1 + y)` and
+/// predicts `exp(m) − 1` for the predictive mean `m` of `ln(1 + y)` (the predictive median of
+/// the rate), which follows what is typical rather than the spikes; [`RateScale::Rate`] models
+/// `y` itself, as §4.2 writes it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RateScale {
+    /// Model the rates themselves (standardised).
+    #[default]
+    Rate,
+    /// Model `ln(1 + y)` (standardised) and predict `exp(m) − 1`.
+    Log1p,
+}
+
+impl RateScale {
+    fn forward(self, y: f64) -> f64 {
+        match self {
+            RateScale::Rate => y,
+            RateScale::Log1p => y.ln_1p(),
+        }
+    }
 }
 
 impl Default for CopaConfig {
@@ -48,6 +75,7 @@ impl Default for CopaConfig {
             harmonics: 2,
             seed: 0,
             parallelism: Parallelism::Sequential,
+            target: RateScale::default(),
         }
     }
 }
@@ -59,6 +87,7 @@ pub struct CopaMap {
     scaling: InputScaling,
     mean: f64,
     sd: f64,
+    target: RateScale,
     /// Minibatch ELBO after every iteration.
     pub trace: Vec<f64>,
 }
@@ -85,7 +114,11 @@ impl CopaMap {
         }
         let xs = train_samples.x();
         let ts = train_samples.t();
-        let ys = train_samples.y();
+        let ys: Vec<f64> = train_samples
+            .y()
+            .iter()
+            .map(|&y| config.target.forward(y))
+            .collect();
         let lo = |k: usize| xs.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
         let hi = |k: usize| xs.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
         let origin = [lo(0), lo(1)];
@@ -154,11 +187,14 @@ impl CopaMap {
             scaling,
             mean,
             sd,
+            target: config.target,
             trace,
         })
     }
 
-    /// Mean and standard deviation of the rate at many points (rates ≥ 0).
+    /// Predicted rate (≥ 0) and its standard deviation at many points: with
+    /// [`RateScale::Rate`] the predictive mean of eq. (4.19) (negative means set to 0), with
+    /// [`RateScale::Log1p`] the predictive median `exp(m) − 1`.
     ///
     /// # Errors
     /// Non-finite inputs.
@@ -172,12 +208,22 @@ impl CopaMap {
             .map(|&(p, t)| self.scaling.apply(p, t))
             .collect();
         let prediction = self.model.predict(&x, par)?;
-        let mean = prediction
+        let (mean, std) = prediction
             .mean
             .iter()
-            .map(|f| (self.mean + self.sd * f).max(0.0))
-            .collect();
-        let std = prediction.std.iter().map(|s| s * self.sd).collect();
+            .zip(&prediction.std)
+            .map(|(f, s)| {
+                let (m, s) = (self.mean + self.sd * f, s * self.sd);
+                match self.target {
+                    RateScale::Rate => (m.max(0.0), s),
+                    // 1 + y is log-normal: median e^m, std sqrt((e^{s²} − 1) e^{2m + s²}).
+                    RateScale::Log1p => (
+                        m.exp_m1().max(0.0),
+                        ((s * s).exp_m1() * (2.0 * m + s * s).exp()).sqrt(),
+                    ),
+                }
+            })
+            .unzip();
         Ok((mean, std))
     }
 
