@@ -450,6 +450,73 @@ pub enum ActivityCommand {
     /// counted over whole bins, in the cells of a training grid; writes `x1,x2,t,y`.
     #[command(after_help = ACTIVITY_HELP_TRUTH)]
     Truth(ActivityTruthArgs),
+    /// Fit CoPA-Map to training rates and save it as a model file (versioned, checksummed).
+    #[command(after_help = ACTIVITY_HELP_FIT)]
+    Fit(ActivityFitArgs),
+    /// Predict the rate of people (mean and standard deviation) with a saved CoPA-Map over a
+    /// grid of cells at chosen times; write CSV and/or a PNG of mean and std per time.
+    #[command(after_help = ACTIVITY_HELP_FIT)]
+    Predict(ActivityPredictArgs),
+}
+
+const ACTIVITY_HELP_FIT: &str = "\
+Example (the bundled ATC grid; t is the hour bin, 12 recorded hours a day from 09:00, so t = 123
+is 12:00 and t = 129 is 18:00 of the day after the ten training days):
+  chronomap activity fit --train data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz \\
+      -o atc.cmcopa
+  chronomap activity predict --model atc.cmcopa --t 123 --t 129 \\
+      --map data/atc_copa_map_grid/atc_map.yaml --png atc_copa.png --csv atc_copa.csv";
+
+/// `chronomap activity fit`.
+#[derive(Debug, Args)]
+pub struct ActivityFitArgs {
+    /// Training rates, CSV `x1,x2,t,y`.
+    #[arg(long)]
+    pub train: PathBuf,
+    /// Where to write the model.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Length of a day in units of t (12: the ATC grid's 12 recorded hours).
+    #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
+    pub period: f64,
+    /// Inducing points.
+    #[arg(long, default_value_t = 200)]
+    pub inducing: usize,
+    /// Training iterations.
+    #[arg(long, default_value_t = 300)]
+    pub iterations: usize,
+    /// Model the rates themselves or ln(1 + rate).
+    #[arg(long, value_enum, default_value_t = CopaScale::Rate)]
+    pub scale: CopaScale,
+    /// Seed of the minibatches and of the k-means of the inducing points.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// `chronomap activity predict`.
+#[derive(Debug, Args)]
+pub struct ActivityPredictArgs {
+    /// A model written by `chronomap activity fit`.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Times to predict (repeat the flag), in the units of the training t.
+    #[arg(long = "t", required = true)]
+    pub times: Vec<f64>,
+    /// Region `x_min,y_min,x_max,y_max` in metres (default: the model's training square).
+    #[arg(long, value_delimiter = ',', num_args = 4)]
+    pub region: Option<Vec<f64>>,
+    /// Side of a cell in metres.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub cell: f64,
+    /// A ROS map (YAML) whose occupied cells are left out (drawn as obstacles).
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// Write `x1,x2,t,mean,std` here.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Draw the predicted mean and standard deviation at every time as a PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
 }
 
 const ACTIVITY_HELP_TRUTH: &str = "\

@@ -227,6 +227,41 @@ impl CopaMap {
         Ok((mean, std))
     }
 
+    /// The square of the plane the model was trained on: `[x_min, y_min, x_max, y_max]` with
+    /// the lower-left corner of the training cells' centres and the longer of their two spans.
+    pub fn domain(&self) -> [f64; 4] {
+        let [x, y] = self.scaling.origin;
+        let s = self.scaling.space_scale;
+        [x, y, x + s, y + s]
+    }
+
+    /// Checks what a model read from a file must satisfy beyond the shapes its deserialiser
+    /// checks: finite scalings with positive scales and a finite standardisation.
+    ///
+    /// # Errors
+    /// [`GpError::InvalidInput`] naming the first bad value.
+    pub fn check(&self) -> Result<(), GpError> {
+        let s = &self.scaling;
+        let finite = [
+            s.origin[0],
+            s.origin[1],
+            s.space_scale,
+            s.time_origin,
+            s.time_scale,
+            self.mean,
+            self.sd,
+        ]
+        .iter()
+        .all(|v| v.is_finite());
+        if !finite || s.space_scale <= 0.0 || s.time_scale <= 0.0 || self.sd <= 0.0 {
+            return Err(GpError::InvalidInput(format!(
+                "CoPA-Map scaling {s:?}, mean {} and sd {} must be finite with positive scales",
+                self.mean, self.sd
+            )));
+        }
+        Ok(())
+    }
+
     /// The fitted periods, in units of `t`.
     pub fn periods(&self) -> Vec<f64> {
         self.model
