@@ -446,6 +446,11 @@ pub enum ActivityCommand {
     /// chi-square distance of every baseline and of the chosen model.
     #[command(after_help = ACTIVITY_HELP_EVAL)]
     Eval(ActivityEvalArgs),
+    /// Build training rates from pedestrian detections as simulated patrol robots see them
+    /// (§4.2.2, eqs. 4.5-4.6), or the ground truth of §4.3.2: CSV
+    /// x1,x2,t,y,count,duration_s.
+    #[command(after_help = ACTIVITY_HELP_EXTRACT)]
+    Extract(ActivityExtractArgs),
     /// Ground truth from pedestrian tracks (§4.3.2): distinct people per cell and hour,
     /// counted over whole bins, in the cells of a training grid; writes `x1,x2,t,y`.
     #[command(after_help = ACTIVITY_HELP_TRUTH)]
@@ -561,6 +566,28 @@ pub struct ActivityTruthArgs {
     pub output: PathBuf,
 }
 
+const ACTIVITY_HELP_EXTRACT: &str = "\
+Examples (the bundled ATC day, 2012-10-24; bin 0 = 09:00 JST):
+  chronomap activity extract --tracks data/atc_20121024_1hz/*.csv.xz \\
+      --map data/atc_copa_map_grid/atc_map.yaml --paths data/atc_20121024_1hz/robot_paths.csv \\
+      -o atc-1024-train.csv
+  chronomap activity eval --train atc-1024-train.csv --split-at 7 --model copa
+  # the ground truth of §4.3.2 in the cells the robots saw: every cell, every bin, duration = bin
+  chronomap activity extract --tracks data/atc_20121024_1hz/*.csv.xz \\
+      --map data/atc_copa_map_grid/atc_map.yaml --paths data/atc_20121024_1hz/robot_paths.csv \\
+      --ground-truth -o atc-1024-truth.csv
+
+The robots (all paths of --paths, or those named by --robot) loop along their paths from --t0
+on at --speed and observe together. Every --step seconds, a cell (--cell metres, aligned to
+multiples of it) is visible when its centre is within --fov metres of a robot and the
+Bresenham line to it crosses no occupied map cell. A visible cell adds the step to its observed
+duration and counts the detections of that step inside it; y = count / duration in detections
+per hour of observation (detections, not distinct people: the bundled tracks are 1 Hz with 90 %
+kept). t is the bin index (t0 + t * bin seconds); --t0 defaults to the start of the bin of the
+first detection (a multiple of --bin since 1970), --bins to every bin with a detection (an
+hour missing from the data is not read as an empty hour). --ground-truth writes, for every bin and every cell the robots saw (or the cells
+of --cells-from), the detections in the cell during the whole bin, ignoring the map.";
+
 /// Which model gives the top-level scores of `chronomap activity eval`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
@@ -583,6 +610,64 @@ pub enum CopaScale {
     Rate,
     /// ln(1 + rate); predictions are the predictive median.
     Log1p,
+}
+
+/// `chronomap activity extract`.
+#[derive(Debug, Args)]
+pub struct ActivityExtractArgs {
+    /// Pedestrian track files `t,person,x,y,speed,heading` (plain, .xz or .gz).
+    #[arg(long, required = true, num_args = 1..)]
+    pub tracks: Vec<PathBuf>,
+    /// ROS map YAML file (map_server / Nav2) of the environment.
+    #[arg(long, required_unless_present = "cells_from")]
+    pub map: Option<PathBuf>,
+    /// Robot path file, CSV `path,x,y,stop_s`.
+    #[arg(long, visible_alias = "path", required_unless_present = "cells_from")]
+    pub paths: Option<PathBuf>,
+    /// Only the paths of these names (repeatable; default all).
+    #[arg(long = "robot", value_name = "NAME")]
+    pub robots: Vec<String>,
+    /// Robot speed, m/s.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub speed: f64,
+    /// Field-of-view radius, metres.
+    #[arg(long, default_value_t = 3.5, value_parser = parse_positive)]
+    pub fov: f64,
+    /// Cell side, metres.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub cell: f64,
+    /// Time-bin length, seconds.
+    #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
+    pub bin: f64,
+    /// Simulation step, seconds (the bin length must be a whole multiple of it).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    pub step: f64,
+    /// Start of bin 0 and of the robots' loops, unix seconds.
+    #[arg(long)]
+    pub t0: Option<f64>,
+    /// Bins to extract (indices from --t0, comma-separated; default: every bin with a
+    /// detection).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub bins: Vec<i64>,
+    /// Map cells with at least this occupancy (percent) block sight.
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(i8).range(0..=100))]
+    pub min_occupancy: i8,
+    /// Write the ground truth of §4.3.2 instead (duration = bin, map ignored).
+    #[arg(long)]
+    pub ground_truth: bool,
+    /// With --ground-truth: the cells of this rate file (x1,x2 of its rows) instead of the
+    /// cells the robots saw.
+    #[arg(long, requires = "ground_truth", value_name = "FILE")]
+    pub cells_from: Option<PathBuf>,
+    /// Rate written where nobody was seen (the bundled ATC grid writes 1e-6).
+    #[arg(long, default_value_t = 0.0, value_parser = parse_non_negative)]
+    pub zero_rate: f64,
+    /// Output CSV x1,x2,t,y,count,duration_s.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `chronomap activity eval`.

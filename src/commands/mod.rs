@@ -1,6 +1,7 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
 mod activity;
+mod activity_extract;
 mod activity_model;
 mod activity_truth;
 mod bench;
@@ -57,6 +58,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Activity(ActivityCommand::Truth(args)) => activity_truth::truth(&args),
         Command::Activity(ActivityCommand::Fit(args)) => activity_model::fit(&args),
         Command::Activity(ActivityCommand::Predict(args)) => activity_model::predict(&args),
+        Command::Activity(ActivityCommand::Extract(args)) => activity_extract::run(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),

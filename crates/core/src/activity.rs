@@ -34,9 +34,15 @@
 //! eq. (4.20) ([`nrmse`]) and the χ²-distance of eq. (4.21) ([`chi2_distance`]). The baselines
 //! of §4.3.2 are in [`baselines`]: [`GlobalMean`], the maximum-likelihood per-cell mean
 //! [`CellMean`] ("ML") and the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM").
+//!
+//! # Where samples come from
+//! [`extract`] builds them from pedestrian detections as a simulated robot sees them (§4.2.2,
+//! eqs. 4.5–4.6: a field of view pruned at the obstacles of a map, counts over observed
+//! durations), and the ground truth of §4.3.2 from all detections.
 
 pub mod baselines;
 pub mod copa;
+pub mod extract;
 pub mod truth;
 
 use std::collections::HashMap;

@@ -40,6 +40,9 @@
 //!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
 //! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
 //!   bundled ATC day), returned in time order.
+//! * [`robot_paths`] — patrol loops of simulated robots, CSV `path,x,y,stop_s`
+//!   ([`read_robot_paths`], as in the bundled ATC day), from which `chronomap activity
+//!   extract` builds training rates ([`write_rate_grid`]).
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -72,12 +75,14 @@ pub mod matrix;
 pub mod model_file;
 pub mod navmap;
 pub mod plot;
+pub mod robot_paths;
 pub mod text;
 pub mod topo_files;
 pub mod tracks;
 
 pub use activity::{
-    encode_rate_samples, read_rate_samples, read_rate_samples_from, write_rate_samples,
+    RateGrid, encode_rate_samples, format_rate_grid, read_rate_grid, read_rate_grid_from,
+    read_rate_samples, read_rate_samples_from, write_rate_grid, write_rate_samples,
 };
 pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
@@ -97,6 +102,7 @@ pub use plot::{
     SeriesStyle, SpectrumBar, heatmap_colour, render_heatmap_png, render_maps_png,
     render_panels_png, render_scaled_maps_png, render_spectrum_png,
 };
+pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,

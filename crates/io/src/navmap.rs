@@ -259,6 +259,61 @@ impl OccupancyMap {
         self.index(x, y).and_then(|i| self.data.get(i).copied())
     }
 
+    /// The map as the obstacle grid of [`chronomap_core::activity::extract`]: a cell blocks
+    /// sight when its occupancy is at least `min_occupancy` percent (in a trinary map, 100 for
+    /// occupied cells); free and unknown (`-1`) cells do not. The resolution is the shortest
+    /// decimal of the `f32` (0.05, not 0.0500000007).
+    ///
+    /// ```
+    /// use chronomap_io::OccupancyMap;
+    ///
+    /// let mut map = OccupancyMap::new(4, 2, 0.05, [-1.0, 2.0, 0.0]);
+    /// map.data = vec![0, 100, -1, 30, 0, 0, 0, 65];
+    /// let grid = map.obstacle_grid(50)?;
+    /// assert_eq!((grid.resolution(), grid.origin()), (0.05, [-1.0, 2.0]));
+    /// assert!(grid.is_blocked(1, 0) && grid.is_blocked(3, 1));
+    /// assert!(!grid.is_blocked(2, 0) && !grid.is_blocked(3, 0));
+    /// # Ok::<(), chronomap_io::NavMapErrorKind>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`NavMapErrorKind::InvalidMap`] for an empty or inconsistent map, or a rotated one
+    /// (yaw ≠ 0).
+    pub fn obstacle_grid(
+        &self,
+        min_occupancy: i8,
+    ) -> Result<chronomap_core::activity::extract::ObstacleGrid, NavMapErrorKind> {
+        self.check()?;
+        if self.origin[2] != 0.0 {
+            return Err(NavMapErrorKind::InvalidMap {
+                reason: format!(
+                    "the origin's yaw is {} rad: rotated maps are not supported here",
+                    self.origin[2]
+                ),
+            });
+        }
+        let resolution: f64 = self
+            .resolution
+            .to_string()
+            .parse()
+            .expect("an f32 prints as a decimal");
+        let blocked = self
+            .data
+            .iter()
+            .map(|&v| v >= min_occupancy && v >= 0)
+            .collect();
+        chronomap_core::activity::extract::ObstacleGrid::new(
+            self.width as usize,
+            self.height as usize,
+            resolution,
+            [self.origin[0], self.origin[1]],
+            blocked,
+        )
+        .map_err(|e| NavMapErrorKind::InvalidMap {
+            reason: e.to_string(),
+        })
+    }
+
     /// Checks what a writer needs: a non-empty map whose `data` has `width · height` cells,
     /// a positive finite resolution and a finite origin.
     fn check(&self) -> Result<(), NavMapErrorKind> {

@@ -127,12 +127,22 @@ pub enum Field {
     Speed,
     /// A walking direction in radians (pedestrian track files).
     Heading,
+    /// A number of detections in a cell (column `count` of extracted activity-rate grids).
+    Count,
+    /// How long a cell was observed, in seconds (column `duration_s` of extracted
+    /// activity-rate grids).
+    ObservedDuration,
+    /// The name of a robot path (robot path files, see [`crate::robot_paths`]).
+    PathName,
+    /// How long a robot stops at a waypoint, in seconds (robot path files).
+    Stop,
 }
 
 impl Field {
     /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"`, `"y"`, the column names of
-    /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]), or `"person"`,
-    /// `"speed"`, `"heading"` of pedestrian tracks.
+    /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]), `"count"`,
+    /// `"duration_s"`, `"person"`, `"speed"`, `"heading"` of pedestrian tracks, or `"path"`
+    /// and `"stop_s"` of robot path files.
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
@@ -148,6 +158,10 @@ impl Field {
             Field::Person => "person",
             Field::Speed => "speed",
             Field::Heading => "heading",
+            Field::Count => "count",
+            Field::ObservedDuration => "duration_s",
+            Field::PathName => "path",
+            Field::Stop => "stop_s",
         }
     }
 }
@@ -326,6 +340,41 @@ pub enum DataErrorKind {
         /// The offending text.
         text: String,
     },
+    /// A name (of a robot path) is not letters, digits, `_` and `-`.
+    #[error("{field}: {text:?} is not a name (letters, digits, `_` and `-`)")]
+    BadName {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
+    /// A field that must be positive is not (observed durations).
+    #[error("{field}: {text:?} is not positive (must be > 0)")]
+    NotPositive {
+        /// The field.
+        field: Field,
+        /// The offending text.
+        text: String,
+    },
+    /// A robot path's waypoints are not consecutive lines.
+    #[error(
+        "path {name:?} continues after other paths (it began on line {first_line}; the \
+         waypoints of a path must be consecutive lines)"
+    )]
+    PathInterrupted {
+        /// The path.
+        name: String,
+        /// The line of its first waypoint.
+        first_line: usize,
+    },
+    /// The waypoints of a robot path do not make a path (reported at its first waypoint).
+    #[error("path {name:?}: {error}")]
+    RobotPath {
+        /// The path.
+        name: String,
+        /// What is wrong.
+        error: chronomap_core::activity::extract::ExtractError,
+    },
     /// There is no data line at all.
     #[error("no data lines (the input is empty or has only blank lines and # comments)")]
     Empty,
@@ -403,12 +452,15 @@ impl DataError {
             | DataErrorKind::EmptyRange { field, .. }
             | DataErrorKind::OutsideRange { field, .. }
             | DataErrorKind::Negative { field, .. }
+            | DataErrorKind::BadName { field, .. }
+            | DataErrorKind::NotPositive { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
             DataErrorKind::NegativeDuration { .. } => Some(Field::Duration),
             DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
                 Some(Field::Time)
             }
             DataErrorKind::ValueOutOfRange { .. } => Some(Field::Value),
+            DataErrorKind::PathInterrupted { .. } => Some(Field::PathName),
             _ => None,
         }
     }
@@ -564,6 +616,10 @@ pub fn read_column_from(
         Field::Person => "expected one person id per line",
         Field::Speed => "expected one speed per line",
         Field::Heading => "expected one heading per line",
+        Field::Count => "expected one count per line",
+        Field::ObservedDuration => "expected one observed duration per line",
+        Field::PathName => "expected one number per line (path names are not numbers)",
+        Field::Stop => "expected one stop duration per line",
     };
     let mut numbers = Vec::new();
     let mut previous: Option<(f64, usize)> = None;
@@ -578,7 +634,20 @@ pub fn read_column_from(
             Field::X | Field::Y | Field::X1 | Field::X2 | Field::BinTime | Field::Heading => {
                 parse_coordinate(text, field)?
             }
-            Field::Rate | Field::Speed => parse_non_negative(text, field)?,
+            Field::Rate | Field::Speed | Field::Count | Field::Stop => {
+                parse_non_negative(text, field)?
+            }
+            Field::ObservedDuration => {
+                let duration = parse_coordinate(text, field)?;
+                if duration <= 0.0 {
+                    return Err(DataErrorKind::NotPositive {
+                        field,
+                        text: quote(text),
+                    });
+                }
+                duration
+            }
+            Field::PathName => parse_number(text, field)?,
             Field::Person => parse_person(text)? as f64,
         };
         if let Some(extra) = fields.next() {

@@ -1,0 +1,202 @@
+//! `chronomap activity extract`: CoPA-Map's training data from pedestrian detections as
+//! simulated patrol robots see them (§4.2.2, eqs. 4.5–4.6 of dissertation chapter 4), or the
+//! ground truth of §4.3.2.
+
+use std::io::Write;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use chronomap_core::activity::extract::{
+    ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract, ground_truth,
+};
+use chronomap_io::navmap::{LoadSemantics, load_map};
+use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_rate_grid};
+use serde_json::json;
+
+use crate::cli::ActivityExtractArgs;
+
+pub fn run(args: &ActivityExtractArgs) -> Result<()> {
+    let started = Instant::now();
+    let detections = read_track_files(&args.tracks).context("cannot read the tracks")?;
+    let Some(first) = detections.first().map(|d| d.t) else {
+        bail!("the track files have no detection");
+    };
+    eprintln!(
+        "read {} detections from {} files in {:.1} s",
+        detections.len(),
+        args.tracks.len(),
+        started.elapsed().as_secs_f64()
+    );
+    let t0 = args.t0.unwrap_or((first / args.bin).floor() * args.bin);
+    let config = ExtractConfig {
+        fov_radius: args.fov,
+        cell_size: args.cell,
+        bin_seconds: args.bin,
+        step_seconds: args.step,
+        t0,
+    };
+    // By default every bin with a detection: a bin without any (an hour missing from the
+    // data) would read as "nobody there".
+    let bins: Vec<i64> = if args.bins.is_empty() {
+        let mut bins: Vec<i64> = detections
+            .iter()
+            .map(|d| ((d.t - t0) / args.bin).floor() as i64)
+            .collect();
+        bins.dedup();
+        bins
+    } else {
+        args.bins.clone()
+    };
+
+    let simulate = Instant::now();
+    let (extraction, robots) = match (&args.cells_from, args.ground_truth) {
+        (Some(cells_file), true) => {
+            let cells: Vec<[f64; 2]> = read_rate_samples(cells_file)
+                .context("cannot read the cells of --cells-from")?
+                .x()
+                .to_vec();
+            let truth = ground_truth(&detections, &cells, &bins, &config)
+                .map_err(|e| anyhow!("ground truth: {e}"))?;
+            (truth, Vec::new())
+        }
+        _ => {
+            let (grid, robots) = robots_on_map(args)?;
+            let paths: Vec<RobotPath> = robots.iter().map(|(_, p)| p.clone()).collect();
+            let seen = extract(&grid, &paths, &detections, &bins, &config)
+                .map_err(|e| anyhow!("extraction: {e}"))?;
+            if args.ground_truth {
+                let truth = ground_truth(&detections, &seen.cells(), &bins, &config)
+                    .map_err(|e| anyhow!("ground truth: {e}"))?;
+                (truth, robots)
+            } else {
+                (seen, robots)
+            }
+        }
+    };
+    let seconds = simulate.elapsed().as_secs_f64();
+    if extraction.is_empty() {
+        bail!("no cell was observed in bins {bins:?}: nothing to write");
+    }
+    write_rate_grid(&args.output, &extraction, args.zero_rate).context("cannot write the rates")?;
+    report(args, &extraction, &robots, &bins, t0, seconds)
+}
+
+/// The obstacle grid of `--map` and the selected paths of `--paths`, each checked to stay on
+/// free cells.
+fn robots_on_map(args: &ActivityExtractArgs) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>)> {
+    let (Some(map_file), Some(paths_file)) = (&args.map, &args.paths) else {
+        bail!("give --map and --paths (or --ground-truth with --cells-from)");
+    };
+    let map_name = map_file.display().to_string();
+    let map = load_map(map_file, LoadSemantics::Nav2).context("cannot load the map")?;
+    let grid = map
+        .obstacle_grid(args.min_occupancy)
+        .map_err(|e| anyhow!("{map_name}: {e}"))?;
+    let paths_name = paths_file.display().to_string();
+    let all = read_robot_paths(paths_file, args.speed).context("cannot read the robot paths")?;
+    for name in &args.robots {
+        if !all.iter().any(|p| &p.name == name) {
+            let names: Vec<&str> = all.iter().map(|p| p.name.as_str()).collect();
+            bail!(
+                "{paths_name}: no path named {name:?} (--robot); the file has {}",
+                names.join(", ")
+            );
+        }
+    }
+    let mut robots = Vec::new();
+    for named in all {
+        if !args.robots.is_empty() && !args.robots.contains(&named.name) {
+            continue;
+        }
+        if let Some((at, outside)) = named.path.first_blocked(&grid, grid.resolution() / 2.0) {
+            bail!(
+                "{paths_name}:{}: path {:?} passes ({:.3}, {:.3}), which is {} of {map_name}",
+                named.line,
+                named.name,
+                at[0],
+                at[1],
+                if outside {
+                    "outside the map"
+                } else {
+                    "an obstacle"
+                }
+            );
+        }
+        robots.push((named.name, named.path));
+    }
+    Ok((grid, robots))
+}
+
+fn report(
+    args: &ActivityExtractArgs,
+    extraction: &Extraction,
+    robots: &[(String, RobotPath)],
+    bins: &[i64],
+    t0: f64,
+    seconds: f64,
+) -> Result<()> {
+    let cells = extraction.cells().len();
+    let samples = extraction.len();
+    let count = extraction.total_count();
+    let duration = extraction.total_duration();
+    let mean_rate = extraction.to_rate_samples().mean_rate();
+    let pooled_rate = count as f64 * 3600.0 / duration;
+    let kind = if args.ground_truth {
+        "ground truth"
+    } else {
+        "training data"
+    };
+    let mut out = std::io::stdout().lock();
+    if args.json {
+        let robots: Vec<_> = robots
+            .iter()
+            .map(|(name, p)| {
+                json!({"name": name, "length_m": p.length(), "loop_s": p.period(), "waypoints": p.waypoints().len()})
+            })
+            .collect();
+        writeln!(
+            out,
+            "{}",
+            json!({
+                "kind": kind,
+                "output": args.output.display().to_string(),
+                "samples": samples,
+                "cells": cells,
+                "bins": bins,
+                "t0": t0,
+                "total_count": count,
+                "total_duration_s": duration,
+                "mean_rate_per_hour": mean_rate,
+                "pooled_rate_per_hour": pooled_rate,
+                "robots": robots,
+                "seconds": seconds,
+            })
+        )?;
+        return Ok(());
+    }
+    for (name, p) in robots {
+        writeln!(
+            out,
+            "robot {name}: {} waypoints, loop {:.1} m, {:.0} s at {} m/s",
+            p.waypoints().len(),
+            p.length(),
+            p.period(),
+            p.speed()
+        )?;
+    }
+    writeln!(
+        out,
+        "{kind}: {samples} samples over {cells} cells and {} bins (t0 = {t0}, {} s each), \
+         written to {}",
+        bins.len(),
+        args.bin,
+        args.output.display()
+    )?;
+    writeln!(
+        out,
+        "{count} detections in {:.1} h of cell observation: mean rate {mean_rate:.2} per hour \
+         (pooled {pooled_rate:.2}); computed in {seconds:.2} s",
+        duration / 3600.0
+    )?;
+    Ok(())
+}
