@@ -1,6 +1,7 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
 mod activity;
+mod activity_disturbance;
 mod bench;
 mod bench_plan;
 mod bench_serve;
@@ -52,6 +53,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Plan(args) => topo::plan(&args),
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),
         Command::Activity(ActivityCommand::Eval(args)) => activity::eval(&args),
+        Command::Activity(ActivityCommand::Disturbance(args)) => activity_disturbance::run(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),

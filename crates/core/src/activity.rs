@@ -34,9 +34,12 @@
 //! eq. (4.20) ([`nrmse`]) and the χ²-distance of eq. (4.21) ([`chi2_distance`]). The baselines
 //! of §4.3.2 are in [`baselines`]: [`GlobalMean`], the maximum-likelihood per-cell mean
 //! [`CellMean`] ("ML") and the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM").
+//! [`disturbance`] is the service-disturbance benchmark of eq. (4.22): patrols planned on any
+//! model's predicted rates, and the people they pass.
 
 pub mod baselines;
 pub mod copa;
+pub mod disturbance;
 
 use std::collections::HashMap;
 

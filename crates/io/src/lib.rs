@@ -40,6 +40,8 @@
 //!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
 //! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
 //!   bundled ATC day), returned in time order.
+//! * [`scenarios`] — navigation scenarios for the service-disturbance benchmark: named patrols
+//!   through waypoints, CSV `scenario,waypoint,x,y` ([`scenarios::read_scenarios`]).
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -72,6 +74,7 @@ pub mod matrix;
 pub mod model_file;
 pub mod navmap;
 pub mod plot;
+pub mod scenarios;
 pub mod text;
 pub mod topo_files;
 pub mod tracks;
