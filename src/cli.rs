@@ -462,6 +462,10 @@ pub enum ActivityCommand {
     /// grid of cells at chosen times; write CSV and/or a PNG of mean and std per time.
     #[command(after_help = ACTIVITY_HELP_FIT)]
     Predict(ActivityPredictArgs),
+    /// The service-disturbance benchmark (eq. 4.22): patrols planned on each model's predicted
+    /// rates, and the people they pass on a test day.
+    #[command(after_help = ACTIVITY_HELP_DISTURBANCE)]
+    Disturbance(ActivityDisturbanceArgs),
 }
 
 const ACTIVITY_HELP_FIT: &str = "\
@@ -1552,6 +1556,79 @@ fn parse_series_source(text: &str) -> Result<SeriesSource, String> {
     } else {
         Ok(SeriesSource::Pairs(PathBuf::from(text)))
     }
+}
+
+const ACTIVITY_HELP_DISTURBANCE: &str = "\
+Example (the bundled ATC grid for training, the bundled day 2012-10-24 for testing):
+  chronomap activity disturbance \\
+      --train data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz \\
+      --tracks data/atc_20121024_1hz/atc-1024-*_train.csv.xz \\
+      --map data/atc_copa_map_grid/atc_map.yaml \\
+      --scenarios data/atc_20121024_1hz/disturbance_scenarios.csv --plot disturbance.png
+
+Each scenario is a patrol A -> B -> C -> D (a CSV `scenario,waypoint,x,y`, see data/README.md),
+started every 15 minutes of the test day whose whole slot lies in the tracked time. Paths are
+planned by Dijkstra on the 8-connected 0.5 m cells of the training grid that are free on the map
+(--clearance from obstacles); a cell costs its length times (predicted rate + --epsilon), the
+`occupancy` baseline its length alone (the shortest route). Encounters are the person detections
+within 1 m of the robot driving at 0.5 m/s; E(rho) of eq. (4.22) sums those of the cheapest
+floor(n_nav rho) patrols (ties: the earlier first). Models: occupancy, global_mean, ml, fr_aam and
+copa (CoPA-Map; about a minute with the defaults on 2 cores).";
+
+/// `chronomap activity disturbance`.
+#[derive(Debug, Args)]
+pub struct ActivityDisturbanceArgs {
+    /// Training rates, CSV `x1,x2,t,y` (the planning cells are its cells).
+    #[arg(long)]
+    pub train: PathBuf,
+    /// Pedestrian track files of the test day (`t,person,x,y,speed,heading`).
+    #[arg(long, num_args = 1.., required = true)]
+    pub tracks: Vec<PathBuf>,
+    /// ROS map YAML of the environment.
+    #[arg(long)]
+    pub map: PathBuf,
+    /// Scenario file, CSV `scenario,waypoint,x,y`.
+    #[arg(long)]
+    pub scenarios: PathBuf,
+    /// The scenario to run (a name in --scenarios), or `all`.
+    #[arg(long, default_value = "all")]
+    pub scenario: String,
+    /// Start of the test day's first hour bin: unix seconds or ISO 8601 (default: the hour of
+    /// the first detection).
+    #[arg(long, value_parser = parse_time)]
+    pub day_start: Option<f64>,
+    /// The model time t of that first hour bin (default: the first whole day after the
+    /// training data, a multiple of --period).
+    #[arg(long)]
+    pub t0: Option<f64>,
+    /// Hour bins per day in the training grid (12 for the ATC grid, 09:00 to 21:00).
+    #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
+    pub period: f64,
+    /// The robot keeps this many metres from obstacles at every cell centre.
+    #[arg(long, default_value_t = 0.3, value_parser = parse_non_negative)]
+    pub clearance: f64,
+    /// Added to every predicted rate (people per hour) in the path cost.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    pub epsilon: f64,
+    /// CoPA-Map: inducing points.
+    #[arg(long, default_value_t = 200)]
+    pub inducing: usize,
+    /// CoPA-Map: training iterations.
+    #[arg(long, default_value_t = 300)]
+    pub iterations: usize,
+    /// Leave CoPA-Map out (the other models take seconds).
+    #[arg(long)]
+    pub no_copa: bool,
+    /// Write E(rho) per model, one panel per scenario, to this PNG.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write the map, CoPA-Map's (or --no-copa: ML's) cost map at the busiest hour and every
+    /// model's path then, one panel per scenario, to this PNG.
+    #[arg(long)]
+    pub plot_paths: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[cfg(test)]

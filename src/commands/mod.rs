@@ -4,6 +4,7 @@ mod activity;
 mod activity_extract;
 mod activity_model;
 mod activity_truth;
+mod activity_disturbance;
 mod bench;
 mod bench_plan;
 mod bench_serve;
@@ -59,6 +60,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Activity(ActivityCommand::Fit(args)) => activity_model::fit(&args),
         Command::Activity(ActivityCommand::Predict(args)) => activity_model::predict(&args),
         Command::Activity(ActivityCommand::Extract(args)) => activity_extract::run(&args),
+        Command::Activity(ActivityCommand::Disturbance(args)) => activity_disturbance::run(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),

@@ -39,9 +39,13 @@
 //! [`extract`] builds them from pedestrian detections as a simulated robot sees them (§4.2.2,
 //! eqs. 4.5–4.6: a field of view pruned at the obstacles of a map, counts over observed
 //! durations), and the ground truth of §4.3.2 from all detections.
+//!
+//! [`disturbance`] is the service-disturbance benchmark of eq. (4.22): patrols planned on any
+//! model's predicted rates, and the people they pass.
 
 pub mod baselines;
 pub mod copa;
+pub mod disturbance;
 pub mod extract;
 pub mod truth;
 

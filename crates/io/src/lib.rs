@@ -43,6 +43,8 @@
 //! * [`robot_paths`] — patrol loops of simulated robots, CSV `path,x,y,stop_s`
 //!   ([`read_robot_paths`], as in the bundled ATC day), from which `chronomap activity
 //!   extract` builds training rates ([`write_rate_grid`]).
+//! * [`scenarios`] — navigation scenarios for the service-disturbance benchmark: named patrols
+//!   through waypoints, CSV `scenario,waypoint,x,y` ([`scenarios::read_scenarios`]).
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
@@ -76,6 +78,7 @@ pub mod model_file;
 pub mod navmap;
 pub mod plot;
 pub mod robot_paths;
+pub mod scenarios;
 pub mod text;
 pub mod topo_files;
 pub mod tracks;

@@ -1523,3 +1523,186 @@ fn render_heatmap(map: &Heatmap, path: &Path) -> Result<(), PlotErrorKind> {
     }
     root.present().map_err(drawing)
 }
+
+/// One labelled path of a [`PathMap`]: points in metres (map frame), joined by lines.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PathMapPath {
+    /// Legend text (e.g. the model that planned it).
+    pub label: String,
+    /// The points in order.
+    pub points: Vec<[f64; 2]>,
+}
+
+/// A cost map with paths over it, drawn by [`render_path_maps_png`]: a `cols × rows` grid of
+/// square cells of `cell` metres from `origin` (row 0 at the bottom), each coloured by a
+/// value in `[0, 1]` (viridis; NaN: a cell the robot may not enter), with obstacle points,
+/// people, labelled waypoints and paths on top.
+///
+/// Typical use: Figure 4.12 of the CoPA-Map chapter, a model's predicted rates at a busy hour
+/// and the patrols every model plans then.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PathMap {
+    /// Title above the map.
+    pub title: String,
+    /// Lower-left corner of cell (0, 0), metres.
+    pub origin: [f64; 2],
+    /// Cell size in metres (> 0).
+    pub cell: f64,
+    /// Cells along x.
+    pub cols: usize,
+    /// Cells along y.
+    pub rows: usize,
+    /// `cols × rows` values in `[0, 1]`, row 0 at the bottom; NaN for cells without one.
+    pub values: Vec<f32>,
+    /// Obstacle points (e.g. occupied map pixels), drawn black.
+    pub obstacles: Vec<[f64; 2]>,
+    /// People (e.g. detections during the patrol), drawn as small white dots.
+    pub people: Vec<[f64; 2]>,
+    /// Paths, coloured by [`PALETTE`] in order; earlier paths are drawn wider so that paths
+    /// that coincide stay visible.
+    pub paths: Vec<PathMapPath>,
+    /// Labelled waypoints.
+    pub waypoints: Vec<(String, [f64; 2])>,
+}
+
+/// Draws path maps side by side, each cell a square of `cell_pixels` pixels, with a legend of
+/// the paths (the labels of the first map) below.
+///
+/// # Errors
+/// A [`PlotError`] naming `path`: no maps, a map without cells, whose `values` do not have
+/// `cols × rows` entries or whose cell size is not positive, an image too large or small, or
+/// a drawing/writing failure.
+pub fn render_path_maps_png(
+    maps: &[PathMap],
+    path: &Path,
+    cell_pixels: u32,
+) -> Result<(), PlotError> {
+    render_path_maps(maps, path, cell_pixels).map_err(|kind| PlotError::new(path, kind))
+}
+
+fn render_path_maps(maps: &[PathMap], path: &Path, cell_pixels: u32) -> Result<(), PlotErrorKind> {
+    if maps.is_empty() {
+        return Err(PlotErrorKind::NoPanels);
+    }
+    for map in maps {
+        if map.cols == 0
+            || map.rows == 0
+            || map.values.len() != map.cols * map.rows
+            || !(map.cell.is_finite() && map.cell > 0.0)
+        {
+            return Err(PlotErrorKind::NoData);
+        }
+    }
+    ensure_font()?;
+    let cell = cell_pixels.max(1);
+    let margin = 12u32;
+    let title_height = 40u32;
+    let legend_height = 40u32;
+    let map_width = maps.iter().map(|m| m.cols).max().unwrap_or(1) as u32 * cell;
+    let map_height = maps.iter().map(|m| m.rows).max().unwrap_or(1) as u32 * cell;
+    let width = (maps.len() as u32 * (map_width + margin) + margin).max(200);
+    let height = (title_height + map_height + legend_height + margin).max(120);
+    check_size(width, height, 120)?;
+    let scale = Scale::for_width(width.min(1600));
+    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(drawing)?;
+    for (i, map) in maps.iter().enumerate() {
+        let x0 = margin + i as u32 * (map_width + margin);
+        // Metres to pixels of this panel.
+        let to_px = |p: [f64; 2]| -> (i32, i32) {
+            let fx = (p[0] - map.origin[0]) / map.cell;
+            let fy = (p[1] - map.origin[1]) / map.cell;
+            (
+                (f64::from(x0) + fx * f64::from(cell)).round() as i32,
+                (f64::from(title_height) + (map.rows as f64 - fy) * f64::from(cell)).round() as i32,
+            )
+        };
+        root.draw(&Text::new(
+            map.title.clone(),
+            (x0 as i32, 10),
+            scale.font(14.0),
+        ))
+        .map_err(drawing)?;
+        for row in 0..map.rows {
+            for column in 0..map.cols {
+                let v = map.values[row * map.cols + column];
+                let top = title_height + (map.rows - 1 - row) as u32 * cell;
+                let left = x0 + column as u32 * cell;
+                root.draw(&Rectangle::new(
+                    [
+                        (left as i32, top as i32),
+                        ((left + cell) as i32, (top + cell) as i32),
+                    ],
+                    heatmap_colour(f64::from(v)).filled(),
+                ))
+                .map_err(drawing)?;
+            }
+        }
+        let inside = |p: &[f64; 2]| {
+            p[0] >= map.origin[0]
+                && p[1] >= map.origin[1]
+                && p[0] < map.origin[0] + map.cols as f64 * map.cell
+                && p[1] < map.origin[1] + map.rows as f64 * map.cell
+        };
+        let dot = (cell / 12).max(1) as i32;
+        for p in map.obstacles.iter().filter(|p| inside(p)) {
+            let (x, y) = to_px(*p);
+            root.draw(&Rectangle::new(
+                [(x - dot, y - dot), (x + dot, y + dot)],
+                BLACK.filled(),
+            ))
+            .map_err(drawing)?;
+        }
+        for p in map.people.iter().filter(|p| inside(p)) {
+            root.draw(&Circle::new(to_px(*p), dot, WHITE.filled()))
+                .map_err(drawing)?;
+        }
+        let n = map.paths.len();
+        for (k, line) in map.paths.iter().enumerate() {
+            let colour = PALETTE[k % PALETTE.len()];
+            let width = scale.px(2.0) + 2 * scale.px(1.5) * (n - 1 - k) as u32;
+            let points: Vec<(i32, i32)> = line.points.iter().map(|&p| to_px(p)).collect();
+            root.draw(&PathElement::new(points, colour.stroke_width(width)))
+                .map_err(drawing)?;
+        }
+        for (label, at) in &map.waypoints {
+            let (x, y) = to_px(*at);
+            let r = (cell / 3).max(3) as i32;
+            root.draw(&Circle::new((x, y), r, WHITE.filled()))
+                .map_err(drawing)?;
+            root.draw(&Circle::new((x, y), r, BLACK.stroke_width(2)))
+                .map_err(drawing)?;
+            root.draw(&Text::new(
+                label.clone(),
+                (x + r + 2, y - r - 2),
+                scale.font(16.0),
+            ))
+            .map_err(drawing)?;
+        }
+    }
+    // Legend: the paths of the first map.
+    let y = (title_height + map_height + 14) as i32;
+    let mut x = margin as i32;
+    for (k, line) in maps[0].paths.iter().enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        root.draw(&PathElement::new(
+            vec![(x, y + 8), (x + 28, y + 8)],
+            colour.stroke_width(scale.px(4.0)),
+        ))
+        .map_err(drawing)?;
+        root.draw(&Text::new(
+            line.label.clone(),
+            (x + 34, y),
+            scale.font(13.0),
+        ))
+        .map_err(drawing)?;
+        x += 60 + 9 * line.label.len() as i32;
+    }
+    root.draw(&Text::new(
+        "colour: value 0 (dark) to 1 (yellow); grey: not drivable; black: obstacles; white dots: people",
+        (x + 20, y),
+        scale.font(13.0),
+    ))
+    .map_err(drawing)?;
+    root.present().map_err(drawing)
+}

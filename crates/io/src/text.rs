@@ -326,6 +326,14 @@ pub enum DataErrorKind {
         /// The violation.
         reason: ObservationError,
     },
+    /// A line of a scenario file breaks its rules (see [`crate::scenarios`]): a bad name, a
+    /// repeated waypoint, a scenario split over separate blocks of lines or with fewer than
+    /// two waypoints. The reason starts with the column concerned.
+    #[error("{reason}")]
+    Scenario {
+        /// What is wrong, e.g. `waypoint: "A" appears twice in scenario "hallway"`.
+        reason: String,
+    },
     /// A line is longer than [`MAX_LINE_BYTES`] (probably not a text file).
     #[error("line longer than {max} bytes (is this a text file?)")]
     LineTooLong {
