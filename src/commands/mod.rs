@@ -1,10 +1,10 @@
 //! The subcommands: each turns flags into readers and models, calls the core, prints.
 
 mod activity;
+mod activity_disturbance;
 mod activity_extract;
 mod activity_model;
 mod activity_truth;
-mod activity_disturbance;
 mod bench;
 mod bench_plan;
 mod bench_serve;
