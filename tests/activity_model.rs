@@ -2,38 +2,11 @@
 //! with mean and standard deviation over the map, draws them, and damaged or foreign model
 //! files are refused with their name.
 
+mod common;
+
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn repo(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(path)
-        .display()
-        .to_string()
-}
-
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
+use common::{chronomap, error, repo, stdout};
 
 #[test]
 fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
