@@ -451,7 +451,8 @@ pub enum ActivityCommand {
 /// Which model gives the top-level scores of `chronomap activity eval`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
-    /// The baseline of the least NRMSE on a chronological hold-out of the training data.
+    /// The baseline of the least NRMSE on a chronological hold-out of the training data
+    /// (global mean, ML or Fr-AAM; GP-Hom is too slow to be tried).
     Auto,
     /// The mean of all training rates.
     GlobalMean,
@@ -459,6 +460,9 @@ pub enum ActivityModel {
     Ml,
     /// Per-cell FreMEn Poisson-spectral model with a Gamma prior (§4.3.2).
     FrAam,
+    /// GP-Hom: a log-Gaussian Cox process, CoPA-Map's kernel with a Poisson likelihood
+    /// (§4.3.2); trained with --inducing and --iterations.
+    GpHom,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
 }
@@ -486,10 +490,10 @@ pub struct ActivityEvalArgs {
     /// candidate periods are period/1 .. period/6.
     #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
     pub period: f64,
-    /// CoPA-Map: inducing points.
+    /// CoPA-Map and GP-Hom: inducing points.
     #[arg(long, default_value_t = 200)]
     pub inducing: usize,
-    /// CoPA-Map: training iterations.
+    /// CoPA-Map and GP-Hom: training iterations.
     #[arg(long, default_value_t = 300)]
     pub iterations: usize,
     /// Print one JSON object.
