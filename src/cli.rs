@@ -595,7 +595,8 @@ of --cells-from), the detections in the cell during the whole bin, ignoring the 
 /// Which model gives the top-level scores of `chronomap activity eval`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
-    /// The baseline of the least NRMSE on a chronological hold-out of the training data.
+    /// The baseline of the least NRMSE on a chronological hold-out of the training data
+    /// (global mean, ML or Fr-AAM; GP-Hom is too slow to be tried).
     Auto,
     /// The mean of all training rates.
     GlobalMean,
@@ -603,6 +604,9 @@ pub enum ActivityModel {
     Ml,
     /// Per-cell FreMEn Poisson-spectral model with a Gamma prior (§4.3.2).
     FrAam,
+    /// GP-Hom: a log-Gaussian Cox process, CoPA-Map's kernel with a Poisson likelihood
+    /// (§4.3.2); trained with --inducing and --iterations.
+    GpHom,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
 }
@@ -697,10 +701,10 @@ pub struct ActivityEvalArgs {
     /// candidate periods are period/1 .. period/6.
     #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
     pub period: f64,
-    /// CoPA-Map: inducing points.
+    /// CoPA-Map and GP-Hom: inducing points.
     #[arg(long, default_value_t = 200)]
     pub inducing: usize,
-    /// CoPA-Map: training iterations.
+    /// CoPA-Map and GP-Hom: training iterations.
     #[arg(long, default_value_t = 300)]
     pub iterations: usize,
     /// CoPA-Map: model the rates themselves (rate, as §4.2 does) or ln(1 + rate), predicting
@@ -1616,7 +1620,8 @@ pub struct ActivityDisturbanceArgs {
     /// CoPA-Map: training iterations.
     #[arg(long, default_value_t = 300)]
     pub iterations: usize,
-    /// Leave CoPA-Map out (the other models take seconds).
+    /// Leave the two Gaussian-process models out, CoPA-Map and GP-Hom (the others take
+    /// seconds).
     #[arg(long)]
     pub no_copa: bool,
     /// Write E(rho) per model, one panel per scenario, to this PNG.

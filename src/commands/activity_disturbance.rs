@@ -14,7 +14,8 @@ use chronomap_core::activity::disturbance::{
     Scenario, disturbance_curve, patrol_starts, run_patrols,
 };
 use chronomap_core::activity::{
-    Baseline, CellKey, CopaConfig, CopaMap, FrAamConfig, RatePredictor, RateSamples,
+    Baseline, BaselineConfig, CellKey, CopaConfig, CopaMap, FrAamConfig, GpHomConfig,
+    RatePredictor, RateSamples,
 };
 use chronomap_core::events::observed_windows;
 use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
@@ -347,14 +348,26 @@ fn fit_models(args: &ActivityDisturbanceArgs, train: &RateSamples) -> Result<Vec
         model: None,
         fit_seconds: 0.0,
     }];
-    let fr_aam = FrAamConfig {
-        period: args.period,
-        ..FrAamConfig::default()
+    let config = BaselineConfig {
+        fr_aam: FrAamConfig {
+            period: args.period,
+            ..FrAamConfig::default()
+        },
+        gp_hom: GpHomConfig {
+            inducing: args.inducing,
+            iterations: args.iterations,
+            day_period: args.period,
+            parallelism: Parallelism::Rayon(0),
+            ..GpHomConfig::default()
+        },
     };
     for baseline in Baseline::ALL {
+        if args.no_copa && baseline == Baseline::GpHom {
+            continue;
+        }
         let start = Instant::now();
         let model = baseline
-            .fit(train, &fr_aam)
+            .fit(train, &config)
             .map_err(|e| anyhow!("{}: {e}", baseline.name()))?;
         contenders.push(Contender {
             name: baseline.name().into(),

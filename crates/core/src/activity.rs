@@ -33,7 +33,8 @@
 //! Every model implements [`RatePredictor`]; [`score`] evaluates any of them with the NRMSE of
 //! eq. (4.20) ([`nrmse`]) and the χ²-distance of eq. (4.21) ([`chi2_distance`]). The baselines
 //! of §4.3.2 are in [`baselines`]: [`GlobalMean`], the maximum-likelihood per-cell mean
-//! [`CellMean`] ("ML") and the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM").
+//! [`CellMean`] ("ML"), the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM") and the
+//! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]). CoPA-Map is [`CopaMap`].
 //!
 //! # Where samples come from
 //! [`extract`] builds them from pedestrian detections as a simulated robot sees them (§4.2.2,
@@ -47,6 +48,7 @@ pub mod baselines;
 pub mod copa;
 pub mod disturbance;
 pub mod extract;
+pub mod gphom;
 pub mod truth;
 
 use std::collections::HashMap;
@@ -54,10 +56,11 @@ use std::collections::HashMap;
 use thiserror::Error;
 
 pub use baselines::{
-    Baseline, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig,
-    GlobalMean, select_baseline,
+    Baseline, BaselineConfig, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent,
+    FrAamConfig, GlobalMean, select_baseline,
 };
 pub use copa::{CopaConfig, CopaMap, RateScale};
+pub use gphom::{GpHom, GpHomConfig};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -98,6 +101,9 @@ pub enum ActivityError {
     /// A model's configuration is invalid.
     #[error("invalid configuration: {0}")]
     Config(String),
+    /// A Gaussian-process model (GP-Hom) could not be fitted.
+    #[error(transparent)]
+    Gp(#[from] crate::gp::GpError),
 }
 
 /// Rates of people at spatio-temporal cells: `y[i]` people per hour of observation were seen

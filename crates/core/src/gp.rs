@@ -9,6 +9,10 @@
 //! log-parameters and inducing inputs ([`train`]); the expected log-likelihood is closed
 //! form in `f` and Gauss–Hermite in `g` ([`HeteroGaussian`]).
 //!
+//! GP-Hom, the homoscedastic baseline of §4.3.2, is [`PoissonSvgp`]: one latent function with
+//! the same kernel and a Poisson likelihood with log link (a log-Gaussian Cox process), trained
+//! by the same [`train`] (any [`SvgpModel`]).
+//!
 //! Per iteration the cost is `O(B·M² + M³)` for a minibatch of `B` points and `M` inducing
 //! points; nothing of size `n` is touched except the minibatch copy.
 //!
@@ -44,14 +48,16 @@
 //! ```
 
 pub mod kernel;
+pub mod poisson;
 pub mod quad;
 pub mod svgp;
 #[cfg(test)]
 mod tests;
 
 pub use kernel::{ActivityKernel, Kernel, PeriodicComponent, Point, RbfKernel};
+pub use poisson::{ExpectedPoissonLogLik, PoissonElboGrad, PoissonSvgp, expected_poisson_log_lik};
 pub use quad::{ExpectedLogLik, HeteroGaussian, gauss_hermite, softplus};
 pub use svgp::{
-    Adam, ElboGrad, GpError, HeteroSvgp, LatentGp, Marginals, Prediction, TrainConfig, Variational,
-    train,
+    Adam, ElboGrad, GpError, HeteroSvgp, LatentGp, Marginals, Prediction, SvgpModel, TrainConfig,
+    Variational, train,
 };

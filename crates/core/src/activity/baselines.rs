@@ -1,9 +1,10 @@
 //! The baselines of §4.3.2 (dissertation chapter 4): a global mean, the maximum-likelihood
-//! per-cell mean ("ML") and the per-cell Poisson-spectral FreMEn model ("Fr-AAM",
-//! Jovan et al. 2016).
+//! per-cell mean ("ML"), the per-cell Poisson-spectral FreMEn model ("Fr-AAM",
+//! Jovan et al. 2016) and, by name, the log-Gaussian Cox process GP-Hom ([`super::GpHom`]).
 
 use std::collections::HashMap;
 
+use super::gphom::{GpHom, GpHomConfig};
 use super::{ActivityError, CellKey, RatePredictor, RateSamples, Scores, score};
 
 /// One rate everywhere and always: the mean of the training rates.
@@ -449,19 +450,40 @@ pub enum Baseline {
     Ml,
     /// [`FrAam`].
     FrAam,
+    /// [`GpHom`].
+    GpHom,
+}
+
+/// The settings of every baseline that has some.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BaselineConfig {
+    /// Fr-AAM.
+    pub fr_aam: FrAamConfig,
+    /// GP-Hom.
+    pub gp_hom: GpHomConfig,
 }
 
 impl Baseline {
     /// All baselines, in the order of the tables.
-    pub const ALL: [Baseline; 3] = [Baseline::GlobalMean, Baseline::Ml, Baseline::FrAam];
+    pub const ALL: [Baseline; 4] = [
+        Baseline::GlobalMean,
+        Baseline::Ml,
+        Baseline::FrAam,
+        Baseline::GpHom,
+    ];
+
+    /// The baselines [`select_baseline`] chooses among: all but GP-Hom, whose training costs
+    /// seconds to minutes where the others take milliseconds.
+    pub const SELECTABLE: [Baseline; 3] = [Baseline::GlobalMean, Baseline::Ml, Baseline::FrAam];
 
     /// The name its model reports ([`RatePredictor::name`]): `"global_mean"`, `"ml"`,
-    /// `"fr_aam"`.
+    /// `"fr_aam"`, `"gp_hom"`.
     pub fn name(self) -> &'static str {
         match self {
             Baseline::GlobalMean => "global_mean",
             Baseline::Ml => "ml",
             Baseline::FrAam => "fr_aam",
+            Baseline::GpHom => "gp_hom",
         }
     }
 
@@ -472,12 +494,13 @@ impl Baseline {
     pub fn fit(
         self,
         train: &RateSamples,
-        config: &FrAamConfig,
+        config: &BaselineConfig,
     ) -> Result<Box<dyn RatePredictor + Send + Sync>, ActivityError> {
         Ok(match self {
             Baseline::GlobalMean => Box::new(GlobalMean::fit(train)?),
             Baseline::Ml => Box::new(CellMean::fit(train)?),
-            Baseline::FrAam => Box::new(FrAam::fit(train, config)?),
+            Baseline::FrAam => Box::new(FrAam::fit(train, &config.fr_aam)?),
+            Baseline::GpHom => Box::new(GpHom::fit(train, &config.gp_hom)?),
         })
     }
 }
@@ -489,13 +512,13 @@ pub struct BaselineSelection {
     pub chosen: Baseline,
     /// Samples with `t >= cut` were held out.
     pub cut: f64,
-    /// Every baseline's scores on the hold-out, in the order of [`Baseline::ALL`].
+    /// Every candidate's scores on the hold-out, in the order of [`Baseline::SELECTABLE`].
     pub scores: Vec<(Baseline, Scores)>,
 }
 
-/// Chooses a baseline on the training data alone: each is fitted on the samples before the
-/// last `holdout` fraction of the distinct training times and scored on the rest; the least
-/// NRMSE wins (ties: the simpler, earlier in [`Baseline::ALL`]).
+/// Chooses a baseline among [`Baseline::SELECTABLE`] on the training data alone: each is
+/// fitted on the samples before the last `holdout` fraction of the distinct training times and
+/// scored on the rest; the least NRMSE wins (ties: the simpler, earlier in the list).
 ///
 /// # Errors
 /// [`ActivityError::Config`] if `holdout` is not in `(0, 1)` or the training data have fewer
@@ -503,7 +526,7 @@ pub struct BaselineSelection {
 pub fn select_baseline(
     train: &RateSamples,
     holdout: f64,
-    config: &FrAamConfig,
+    config: &BaselineConfig,
 ) -> Result<BaselineSelection, ActivityError> {
     if !(holdout > 0.0 && holdout < 1.0) {
         return Err(ActivityError::Config(format!(
@@ -522,8 +545,8 @@ pub fn select_baseline(
         ((times.len() as f64 * (1.0 - holdout)).ceil() as usize).clamp(1, times.len() - 1);
     let cut = times[first_held];
     let (fit_part, held) = train.split_at(cut);
-    let mut scores = Vec::with_capacity(Baseline::ALL.len());
-    for baseline in Baseline::ALL {
+    let mut scores = Vec::with_capacity(Baseline::SELECTABLE.len());
+    for baseline in Baseline::SELECTABLE {
         let model = baseline.fit(&fit_part, config)?;
         scores.push((baseline, score(model.as_ref(), &held)?));
     }
@@ -646,12 +669,12 @@ mod tests {
             rows.push(([0.75, 0.25], f64::from(t), 1.0));
         }
         let s = samples(&rows);
-        let sel = select_baseline(&s, 0.2, &FrAamConfig::default()).unwrap();
+        let sel = select_baseline(&s, 0.2, &BaselineConfig::default()).unwrap();
         assert_eq!(sel.cut, 8.0);
         assert_eq!(sel.chosen, Baseline::Ml);
         assert_eq!(sel.scores[1].1.nrmse, 0.0);
-        assert!(select_baseline(&s, 1.0, &FrAamConfig::default()).is_err());
-        assert!(select_baseline(&samples(&rows[..2]), 0.2, &FrAamConfig::default()).is_err());
+        assert!(select_baseline(&s, 1.0, &BaselineConfig::default()).is_err());
+        assert!(select_baseline(&samples(&rows[..2]), 0.2, &BaselineConfig::default()).is_err());
     }
 
     #[test]

@@ -112,57 +112,20 @@ impl CopaMap {
                 config.day_period
             )));
         }
-        let xs = train_samples.x();
-        let ts = train_samples.t();
         let ys: Vec<f64> = train_samples
             .y()
             .iter()
             .map(|&y| config.target.forward(y))
             .collect();
-        let lo = |k: usize| xs.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
-        let hi = |k: usize| xs.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
-        let origin = [lo(0), lo(1)];
-        let space_scale = (hi(0) - origin[0]).max(hi(1) - origin[1]).max(1e-9);
-        let time_origin = ts.iter().copied().fold(f64::INFINITY, f64::min);
-        let time_scale = (ts.iter().copied().fold(f64::NEG_INFINITY, f64::max) - time_origin)
-            .max(config.day_period);
         let mean = ys.iter().sum::<f64>() / n as f64;
         let sd = (ys.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n as f64)
             .sqrt()
             .max(1e-12);
-        let scaling = InputScaling {
-            origin,
-            space_scale,
-            time_origin,
-            time_scale,
-        };
-        let x: Vec<Point> = xs
-            .iter()
-            .zip(ts)
-            .map(|(&p, &t)| scaling.apply(p, t))
-            .collect();
+        let scaling = InputScaling::of(train_samples, config.day_period);
+        let x = scaling.apply_all(train_samples);
         let y: Vec<f64> = ys.iter().map(|v| (v - mean) / sd).collect();
-        // Inducing points: k-means centres of the training inputs (Algorithm 4.1 weights them
-        // by observation duration; the grid files carry none, so every row weighs the same).
-        let flat: Vec<f64> = x.iter().flatten().copied().collect();
-        let clusters = kmeans(
-            &flat,
-            3,
-            None,
-            &KMeansConfig {
-                clusters: config.inducing,
-                max_iterations: 30,
-                starts: 1,
-                seed: config.seed,
-            },
-        )
-        .map_err(|e| GpError::InvalidInput(format!("inducing points: {e}")))?;
-        let z: Vec<Point> = clusters
-            .centres
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect();
-        let day = config.day_period / time_scale;
+        let z = kmeans_inducing(&x, config.inducing, config.seed)?;
+        let day = config.day_period / scaling.time_scale;
         let components: Vec<PeriodicComponent> = (1..=config.harmonics)
             .map(|h| PeriodicComponent {
                 variance: 0.5 / h as f64,
@@ -274,18 +237,73 @@ impl CopaMap {
     }
 }
 
+/// Inducing points: `m` k-means centres of the (scaled) training inputs (Algorithm 4.1 weights
+/// them by observation duration; the grid files carry none, so every row weighs the same).
+pub(crate) fn kmeans_inducing(x: &[Point], m: usize, seed: u64) -> Result<Vec<Point>, GpError> {
+    let flat: Vec<f64> = x.iter().flatten().copied().collect();
+    let clusters = kmeans(
+        &flat,
+        3,
+        None,
+        &KMeansConfig {
+            clusters: m,
+            max_iterations: 30,
+            starts: 1,
+            seed,
+        },
+    )
+    .map_err(|e| GpError::InvalidInput(format!("inducing points: {e}")))?;
+    Ok(clusters
+        .centres
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect())
+}
+
 /// Inputs onto `[0, 1]`: both spatial axes by one scale (distances keep their ratio), time by
 /// the training span.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-struct InputScaling {
+pub(crate) struct InputScaling {
     origin: [f64; 2],
     space_scale: f64,
     time_origin: f64,
-    time_scale: f64,
+    /// The training span in units of `t` (at least one day).
+    pub(crate) time_scale: f64,
 }
 
 impl InputScaling {
-    fn apply(&self, p: [f64; 2], t: f64) -> Point {
+    /// The scaling of the (non-empty) training samples: origin at the least coordinates and
+    /// time, time scale the training span but at least `day_period`.
+    pub(crate) fn of(samples: &RateSamples, day_period: f64) -> Self {
+        let xs = samples.x();
+        let ts = samples.t();
+        let lo = |k: usize| xs.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+        let hi = |k: usize| xs.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
+        let origin = [lo(0), lo(1)];
+        let space_scale = (hi(0) - origin[0]).max(hi(1) - origin[1]).max(1e-9);
+        let time_origin = ts.iter().copied().fold(f64::INFINITY, f64::min);
+        let time_scale =
+            (ts.iter().copied().fold(f64::NEG_INFINITY, f64::max) - time_origin).max(day_period);
+        InputScaling {
+            origin,
+            space_scale,
+            time_origin,
+            time_scale,
+        }
+    }
+
+    /// Every sample's input, scaled.
+    pub(crate) fn apply_all(&self, samples: &RateSamples) -> Vec<Point> {
+        samples
+            .x()
+            .iter()
+            .zip(samples.t())
+            .map(|(&p, &t)| self.apply(p, t))
+            .collect()
+    }
+
+    /// One input, scaled.
+    pub(crate) fn apply(&self, p: [f64; 2], t: f64) -> Point {
         [
             (p[0] - self.origin[0]) / self.space_scale,
             (p[1] - self.origin[1]) / self.space_scale,

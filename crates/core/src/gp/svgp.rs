@@ -381,14 +381,14 @@ struct SavedHeteroSvgp {
     quadrature_nodes: usize,
 }
 
-fn pack_lower(l: &Mat<f64>) -> Vec<f64> {
+pub(super) fn pack_lower(l: &Mat<f64>) -> Vec<f64> {
     let n = l.nrows();
     (0..n)
         .flat_map(|i| (0..=i).map(move |j| l[(i, j)]))
         .collect()
 }
 
-fn unpack_lower(v: &[f64], n: usize) -> Result<Mat<f64>, GpError> {
+pub(super) fn unpack_lower(v: &[f64], n: usize) -> Result<Mat<f64>, GpError> {
     if v.len() != n * (n + 1) / 2 {
         return Err(GpError::InvalidInput(format!(
             "packed Cholesky factor has {} entries, expected {}",
@@ -515,12 +515,14 @@ pub struct ElboGrad {
     pub d_z_g: Vec<Point>,
 }
 
-/// Predictive mean and standard deviation of `y`.
+/// Predictive means and standard deviations: of `y` for [`HeteroSvgp::predict`], of the rate
+/// `exp f` for [`PoissonSvgp::predict`](super::PoissonSvgp::predict).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Prediction {
-    /// `E[y] = m_f`.
+    /// [`HeteroSvgp`]: `E[y] = m_f`; [`PoissonSvgp`](super::PoissonSvgp): `E[exp f]`.
     pub mean: Vec<f64>,
-    /// `√(Σ_f + E[ζ(g)²])`.
+    /// [`HeteroSvgp`]: `√(Σ_f + E[ζ(g)²])`; [`PoissonSvgp`](super::PoissonSvgp): the standard
+    /// deviation of `exp f`.
     pub std: Vec<f64>,
 }
 
@@ -533,7 +535,7 @@ struct BatchLik {
     dvg: Vec<f64>,
 }
 
-fn check_data(x: &[Point], y: &[f64]) -> Result<(), GpError> {
+pub(super) fn check_data(x: &[Point], y: &[f64]) -> Result<(), GpError> {
     if x.len() != y.len() {
         return Err(GpError::InvalidInput(format!(
             "{} inputs but {} targets",
@@ -700,22 +702,10 @@ impl HeteroSvgp {
         let mg = self.g.marginals(x, self.jitter, par)?;
         let lik = self.batch_lik(y, &mf, &mg, scale);
         let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
-        let mut rho = rho;
-        let mut tries = 0;
-        let (qf, qg) = loop {
-            let step = self
-                .f
-                .natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)
-                .and_then(|qf| Ok((qf, self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?)));
-            match step {
-                Ok(q) => break q,
-                Err(GpError::NotPositiveDefinite { .. }) if tries < 10 => {
-                    rho *= 0.5;
-                    tries += 1;
-                }
-                Err(e) => return Err(e),
-            }
-        };
+        let (qf, qg) = with_step_halving(rho, |rho| {
+            let qf = self.f.natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)?;
+            Ok((qf, self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?))
+        })?;
         self.f.q = qf;
         self.g.q = qg;
         let mf = self.f.refresh(mf);
@@ -866,19 +856,100 @@ impl Default for TrainConfig {
     }
 }
 
-/// Trains `model` on `(x, y)` by alternating a natural-gradient step on `q(v_f)`, `q(v_g)`
-/// and an Adam step on the hyperparameters (and inducing inputs) on the same minibatch
-/// (seed 002 §4.2.5). Returns the minibatch ELBO estimate (scaled by `n/|B|`) measured at
-/// the start of each iteration. A natural-gradient step that is not positive definite is
-/// retried with half the step size (up to 10 times) before the error is returned.
-pub fn train(
-    model: &mut HeteroSvgp,
+/// Runs `step(rho)` and, while it fails for a matrix that is not positive definite, again
+/// with half the step size (up to 10 times) before the error is returned.
+pub(super) fn with_step_halving<T>(
+    rho: f64,
+    mut step: impl FnMut(f64) -> Result<T, GpError>,
+) -> Result<T, GpError> {
+    let mut rho = rho;
+    let mut tries = 0;
+    loop {
+        match step(rho) {
+            Err(GpError::NotPositiveDefinite { .. }) if tries < 10 => {
+                rho *= 0.5;
+                tries += 1;
+            }
+            result => return result,
+        }
+    }
+}
+
+/// A sparse variational GP that [`train`] optimises: [`HeteroSvgp`] (CoPA-Map) and
+/// [`PoissonSvgp`](super::PoissonSvgp) (GP-Hom).
+pub trait SvgpModel {
+    /// Checks a training set before any change (lengths, finite values, the likelihood's
+    /// range of `y`).
+    ///
+    /// # Errors
+    /// [`GpError::InvalidInput`] naming the first offending row.
+    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError>;
+
+    /// One training iteration on the batch `(x, y)` scaled by `scale`: a natural-gradient
+    /// step of size `rho` on every `q(v)` (halved while not positive definite), then the ELBO
+    /// gradient at the new `q` flattened in the order of
+    /// [`SvgpModel::hyperparameters`]`(with_inducing)`. Returns the ELBO estimate before the
+    /// step and that gradient.
+    ///
+    /// # Errors
+    /// As the model's `train_step`.
+    fn train_iteration(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        with_inducing: bool,
+        par: Parallelism,
+    ) -> Result<(f64, Vec<f64>), GpError>;
+
+    /// The hyperparameters trained by Adam, flattened.
+    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64>;
+
+    /// Inverse of [`SvgpModel::hyperparameters`].
+    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool);
+}
+
+impl SvgpModel for HeteroSvgp {
+    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
+        check_data(x, y)
+    }
+
+    fn train_iteration(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        with_inducing: bool,
+        par: Parallelism,
+    ) -> Result<(f64, Vec<f64>), GpError> {
+        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
+        Ok((elbo, grad.flatten(with_inducing)))
+    }
+
+    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
+        HeteroSvgp::hyperparameters(self, with_inducing)
+    }
+
+    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
+        HeteroSvgp::set_hyperparameters(self, p, with_inducing);
+    }
+}
+
+/// Trains `model` on `(x, y)` by alternating a natural-gradient step on its `q(v)` and an
+/// Adam step on the hyperparameters (and inducing inputs) on the same minibatch (seed 002
+/// §4.2.5). Returns the minibatch ELBO estimate (scaled by `n/|B|`) measured at the start of
+/// each iteration. A natural-gradient step that is not positive definite is retried with half
+/// the step size (up to 10 times) before the error is returned.
+pub fn train<M: SvgpModel>(
+    model: &mut M,
     x: &[Point],
     y: &[f64],
     config: &TrainConfig,
     par: Parallelism,
 ) -> Result<Vec<f64>, GpError> {
-    check_data(x, y)?;
+    model.check_training_data(x, y)?;
     if x.is_empty() {
         return Err(GpError::InvalidInput("no training data".into()));
     }
@@ -902,10 +973,17 @@ pub fn train(
             bx.push(x[i]);
             by.push(y[i]);
         }
-        let (elbo, grad) = model.train_step(&bx, &by, scale, config.natgrad_step, par)?;
+        let (elbo, grad) = model.train_iteration(
+            &bx,
+            &by,
+            scale,
+            config.natgrad_step,
+            config.train_inducing,
+            par,
+        )?;
         trace.push(elbo);
         let mut p = model.hyperparameters(config.train_inducing);
-        adam.ascend(&mut p, &grad.flatten(config.train_inducing));
+        adam.ascend(&mut p, &grad);
         model.set_hyperparameters(&p, config.train_inducing);
     }
     Ok(trace)
