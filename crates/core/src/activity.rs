@@ -37,6 +37,7 @@
 
 pub mod baselines;
 pub mod copa;
+pub mod init;
 
 use std::collections::HashMap;
 
@@ -46,7 +47,8 @@ pub use baselines::{
     Baseline, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent, FrAamConfig,
     GlobalMean, select_baseline,
 };
-pub use copa::{CopaConfig, CopaMap};
+pub use copa::{CopaConfig, CopaMap, PeriodInitMode};
+pub use init::{PeriodInit, SpectralInitConfig, initial_periods};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]
