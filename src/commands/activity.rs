@@ -7,13 +7,13 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
 use chronomap_core::activity::{
-    Baseline, CopaConfig, CopaMap, FrAamConfig, RatePredictor, RateSamples, Scores, score,
-    select_baseline,
+    Baseline, CopaConfig, CopaMap, FrAamConfig, PeriodInitMode, RatePredictor, RateSamples, Scores,
+    score, select_baseline,
 };
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
 
-use crate::cli::{ActivityEvalArgs, ActivityModel};
+use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit};
 use crate::format::Table;
 
 /// Fraction of the distinct training times that `--model auto` holds out to choose a model.
@@ -71,6 +71,8 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         ActivityModel::FrAam => (Some(Baseline::FrAam), None),
         ActivityModel::Copa => (None, None),
     };
+    // CoPA-Map's initial periods, for the JSON output.
+    let mut copa_init = Value::Null;
     let model: Box<dyn RatePredictor + Send + Sync> = match chosen {
         Some(baseline) => baseline
             .fit(&train, &config)
@@ -80,12 +82,26 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 inducing: args.inducing,
                 iterations: args.iterations,
                 day_period: args.period,
+                init: match args.init {
+                    CopaInit::Spectral => PeriodInitMode::Spectral,
+                    CopaInit::Day => PeriodInitMode::Day,
+                },
                 parallelism: Parallelism::Rayon(0),
                 ..CopaConfig::default()
             };
-            Box::new(
-                CopaMap::fit(&train, &copa).map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?,
-            )
+            let map =
+                CopaMap::fit(&train, &copa).map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?;
+            copa_init = match &map.period_init {
+                Some(init) => json!({
+                    "mode": "spectral",
+                    "psi": init.psi,
+                    "periods": init.periods,
+                    "variances": init.variances,
+                    "fallback": init.none.map(|why| format!("{why:?}")),
+                }),
+                None => json!({"mode": "day"}),
+            };
+            Box::new(map)
         }
     };
     let chosen_name = model.name().to_string();
@@ -114,6 +130,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 "nrmse": top.nrmse,
                 "chi2": top.chi2,
                 "train_seconds": train_seconds,
+                "copa_init": copa_init,
                 "train": summary_json(&train_name, &train),
                 "test": summary_json(&test_name, &test),
                 "split_at": args.split_at,
