@@ -283,6 +283,7 @@ fn copa_map_beats_every_baseline_on_the_later_days() {
     ]));
     let json: Value = serde_json::from_str(&text).expect("one JSON object");
     assert_eq!(json["model"], "copa");
+    assert_eq!(json["copa_init"]["mode"], "day");
     let nrmse = json["nrmse"].as_f64().unwrap();
     let chi2 = json["chi2"].as_f64().unwrap();
     // Measured: NRMSE 2.0415, chi2 239,119 (Fr-AAM 2.1023 / 268,615, ML 2.1510, global 2.1812,

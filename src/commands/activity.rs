@@ -7,13 +7,13 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
 use chronomap_core::activity::{
-    Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, RatePredictor,
-    RateSamples, RateScale, Scores, score, select_baseline,
+    Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, PeriodInitMode,
+    RatePredictor, RateSamples, RateScale, Scores, score, select_baseline,
 };
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
 
-use crate::cli::{ActivityEvalArgs, ActivityModel, CopaScale};
+use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::format::Table;
 
 /// Fraction of the distinct training times that `--model auto` holds out to choose a model.
@@ -86,6 +86,8 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         ActivityModel::GpHom => (Some(Baseline::GpHom), None),
         ActivityModel::Copa => (None, None),
     };
+    // CoPA-Map's initial periods, for the JSON output.
+    let mut copa_init = Value::Null;
     let (model, train_seconds): (Box<dyn RatePredictor + Send + Sync>, f64) = match chosen {
         Some(baseline) => {
             let i = Baseline::ALL
@@ -100,6 +102,10 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 inducing: args.inducing,
                 iterations: args.iterations,
                 day_period: args.period,
+                init: match args.init {
+                    CopaInit::Spectral => PeriodInitMode::Spectral,
+                    CopaInit::Day => PeriodInitMode::Day,
+                },
                 parallelism: Parallelism::Rayon(0),
                 target: match args.scale {
                     CopaScale::Log1p => RateScale::Log1p,
@@ -107,9 +113,19 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 },
                 ..CopaConfig::default()
             };
-            let model =
+            let map =
                 CopaMap::fit(&train, &copa).map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?;
-            (Box::new(model), start.elapsed().as_secs_f64())
+            copa_init = match &map.period_init {
+                Some(init) => json!({
+                    "mode": "spectral",
+                    "psi": init.psi,
+                    "periods": init.periods,
+                    "variances": init.variances,
+                    "fallback": init.none.map(|why| format!("{why:?}")),
+                }),
+                None => json!({"mode": "day"}),
+            };
+            (Box::new(map), start.elapsed().as_secs_f64())
         }
     };
     let chosen_name = model.name().to_string();
@@ -139,6 +155,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 "nrmse": top.nrmse,
                 "chi2": top.chi2,
                 "train_seconds": train_seconds,
+                "copa_init": copa_init,
                 "train": summary_json(&train_name, &train),
                 "test": summary_json(&test_name, &test),
                 "split_at": args.split_at,

@@ -49,6 +49,7 @@ pub mod copa;
 pub mod disturbance;
 pub mod extract;
 pub mod gphom;
+pub mod init;
 pub mod truth;
 
 use std::collections::HashMap;
@@ -59,8 +60,9 @@ pub use baselines::{
     Baseline, BaselineConfig, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent,
     FrAamConfig, GlobalMean, select_baseline,
 };
-pub use copa::{CopaConfig, CopaMap, RateScale};
+pub use copa::{CopaConfig, CopaMap, PeriodInitMode, RateScale};
 pub use gphom::{GpHom, GpHomConfig};
+pub use init::{PeriodInit, SpectralInitConfig, initial_periods};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]

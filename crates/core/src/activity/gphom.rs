@@ -12,7 +12,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::copa::{InputScaling, kmeans_inducing};
+use super::copa::InputScaling;
+use super::init::inducing_points;
 use super::{RatePredictor, RateSamples};
 use crate::gp::{
     ActivityKernel, GpError, PeriodicComponent, Point, PoissonSvgp, TrainConfig, train,
@@ -100,7 +101,8 @@ impl GpHom {
         }
         let scaling = InputScaling::of(train_samples, config.day_period);
         let x = scaling.apply_all(train_samples);
-        let z = kmeans_inducing(&x, config.inducing.min(distinct(&x)), config.seed)?;
+        let z = inducing_points(&x, None, config.inducing.min(distinct(&x)), config.seed)
+            .map_err(|e| GpError::InvalidInput(e.to_string()))?;
         let day = config.day_period / scaling.time_scale;
         let components: Vec<PeriodicComponent> = (1..=config.harmonics)
             .map(|h| PeriodicComponent {
