@@ -597,12 +597,15 @@ of --cells-from), the detections in the cell during the whole bin, ignoring the 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
     /// The baseline of the least NRMSE on a chronological hold-out of the training data
-    /// (global mean, ML or Fr-AAM; GP-Hom is too slow to be tried).
+    /// (global mean, ML, ML-log or Fr-AAM; GP-Hom is too slow to be tried).
     Auto,
     /// The mean of all training rates.
     GlobalMean,
     /// The per-cell mean of the training rates (maximum likelihood, §4.3.2).
     Ml,
+    /// The per-cell mean of ln(1 + rate), predicting exp(mean) − 1: robust to the huge rates
+    /// of briefly observed cells.
+    MlLog,
     /// Per-cell FreMEn Poisson-spectral model with a Gamma prior (§4.3.2).
     FrAam,
     /// GP-Hom: a log-Gaussian Cox process, CoPA-Map's kernel with a Poisson likelihood

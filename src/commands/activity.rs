@@ -82,6 +82,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         }
         ActivityModel::GlobalMean => (Some(Baseline::GlobalMean), None),
         ActivityModel::Ml => (Some(Baseline::Ml), None),
+        ActivityModel::MlLog => (Some(Baseline::MlLog), None),
         ActivityModel::FrAam => (Some(Baseline::FrAam), None),
         ActivityModel::GpHom => (Some(Baseline::GpHom), None),
         ActivityModel::Copa => (None, None),

@@ -57,8 +57,8 @@ use std::collections::HashMap;
 use thiserror::Error;
 
 pub use baselines::{
-    Baseline, BaselineConfig, BaselineSelection, CellMean, FrAam, FrAamCell, FrAamComponent,
-    FrAamConfig, GlobalMean, select_baseline,
+    Baseline, BaselineConfig, BaselineSelection, CellLogMean, CellMean, FrAam, FrAamCell,
+    FrAamComponent, FrAamConfig, GlobalMean, select_baseline,
 };
 pub use copa::{CopaConfig, CopaMap, PeriodInitMode, RateScale};
 pub use gphom::{GpHom, GpHomConfig};
