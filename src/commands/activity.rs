@@ -16,6 +16,24 @@ use serde_json::{Map, Value, json};
 use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::format::Table;
 
+/// The baselines' settings from the command line: Fr-AAM's base period, and GP-Hom trained
+/// like CoPA-Map (day period, inducing points, iterations) on every core.
+pub(super) fn baseline_config(period: f64, inducing: usize, iterations: usize) -> BaselineConfig {
+    BaselineConfig {
+        fr_aam: FrAamConfig {
+            period,
+            ..FrAamConfig::default()
+        },
+        gp_hom: GpHomConfig {
+            inducing,
+            iterations,
+            day_period: period,
+            parallelism: Parallelism::Rayon(0),
+            ..GpHomConfig::default()
+        },
+    }
+}
+
 /// Fraction of the distinct training times that `--model auto` holds out to choose a model.
 const HOLDOUT: f64 = 0.2;
 
@@ -43,19 +61,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     if test.mean_rate() == 0.0 {
         bail!("{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined");
     }
-    let config = BaselineConfig {
-        fr_aam: FrAamConfig {
-            period: args.period,
-            ..FrAamConfig::default()
-        },
-        gp_hom: GpHomConfig {
-            inducing: args.inducing,
-            iterations: args.iterations,
-            day_period: args.period,
-            parallelism: Parallelism::Rayon(0),
-            ..GpHomConfig::default()
-        },
-    };
+    let config = baseline_config(args.period, args.inducing, args.iterations);
 
     // Every baseline, fitted once and timed; the top-level model reuses its fit.
     let mut baselines = Vec::new();

@@ -14,8 +14,7 @@ use chronomap_core::activity::disturbance::{
     Scenario, disturbance_curve, patrol_starts, run_patrols,
 };
 use chronomap_core::activity::{
-    Baseline, BaselineConfig, CellKey, CopaConfig, CopaMap, FrAamConfig, GpHomConfig,
-    RatePredictor, RateSamples,
+    Baseline, CellKey, CopaConfig, CopaMap, RatePredictor, RateSamples,
 };
 use chronomap_core::events::observed_windows;
 use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
@@ -348,19 +347,7 @@ fn fit_models(args: &ActivityDisturbanceArgs, train: &RateSamples) -> Result<Vec
         model: None,
         fit_seconds: 0.0,
     }];
-    let config = BaselineConfig {
-        fr_aam: FrAamConfig {
-            period: args.period,
-            ..FrAamConfig::default()
-        },
-        gp_hom: GpHomConfig {
-            inducing: args.inducing,
-            iterations: args.iterations,
-            day_period: args.period,
-            parallelism: Parallelism::Rayon(0),
-            ..GpHomConfig::default()
-        },
-    };
+    let config = super::activity::baseline_config(args.period, args.inducing, args.iterations);
     for baseline in Baseline::ALL {
         if args.no_copa && baseline == Baseline::GpHom {
             continue;
