@@ -1062,6 +1062,11 @@ pub enum BenchCommand {
     /// done in-process (and straight into redb) in the same run.
     #[command(after_help = BENCH_SERVE_HELP)]
     Serve(BenchServeArgs),
+    /// CoPA-Map's activity pipeline (seed 002 chapter 4) on the bundled ATC data: training-data
+    /// extraction (§4.2.2) against a bare binning pass over the same detections, and CoPA-Map
+    /// training (eqs. 4.12–4.16) against the bare faer matrix products of its iterations.
+    #[command(after_help = BENCH_ACTIVITY_HELP)]
+    Activity(BenchActivityArgs),
 }
 
 /// `chronomap bench grid`.
@@ -1163,6 +1168,53 @@ pub struct BenchServeArgs {
     /// Keep the service's store in this (new or empty) directory instead of a temporary one.
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+const BENCH_ACTIVITY_HELP: &str = "\
+Examples:
+  chronomap bench activity                     # the whole ATC day and the default fit (~1.5 min on 2 cores)
+  chronomap bench activity --quick --json      # one hour of tracks, 12 iterations (smoke test)
+  chronomap bench activity --iterations 50 --sequential-iterations 10";
+
+/// `chronomap bench activity`.
+#[derive(Debug, Args)]
+pub struct BenchActivityArgs {
+    /// Pedestrian track files (default: every `atc-1024-*_train.csv.xz` of
+    /// data/atc_20121024_1hz, the whole day; with --quick only its 10:00 file).
+    #[arg(long, num_args = 1..)]
+    pub tracks: Vec<PathBuf>,
+    /// ROS map YAML file of the environment.
+    #[arg(long, default_value = "data/atc_copa_map_grid/atc_map.yaml")]
+    pub map: PathBuf,
+    /// Patrol paths of the simulated robots, CSV `path,x,y,stop_s` (all are used).
+    #[arg(long, default_value = "data/atc_20121024_1hz/robot_paths.csv")]
+    pub paths: PathBuf,
+    /// Training rates of CoPA-Map, CSV `x1,x2,t,y`.
+    #[arg(
+        long,
+        default_value = "data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
+    )]
+    pub train: PathBuf,
+    /// Timed extractions after a warm-up, ten bare scans each (medians are reported; default
+    /// 5, 2 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: Option<u32>,
+    /// Timed CoPA-Map fits (the median is reported; each takes about 40 s with the defaults).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub fit_repeats: u32,
+    /// CoPA-Map training iterations (default: `CopaConfig`'s, 300; 12 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub iterations: Option<u32>,
+    /// Iterations of the one-thread vs all-threads comparison (0 leaves it out; default 30,
+    /// 12 with --quick); the timed fits serve as its all-threads side when they run as many.
+    #[arg(long)]
+    pub sequential_iterations: Option<u32>,
+    /// A run of under 20 s for smoke tests: one hour of tracks, 12 iterations, fewer repeats.
+    #[arg(long)]
+    pub quick: bool,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

@@ -3,12 +3,14 @@
 //! ground truth of §4.3.2.
 
 use std::io::Write;
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract, ground_truth,
 };
+use chronomap_core::events::Event;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_rate_grid};
 use serde_json::json;
@@ -38,12 +40,7 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     // By default every bin with a detection: a bin without any (an hour missing from the
     // data) would read as "nobody there".
     let bins: Vec<i64> = if args.bins.is_empty() {
-        let mut bins: Vec<i64> = detections
-            .iter()
-            .map(|d| ((d.t - t0) / args.bin).floor() as i64)
-            .collect();
-        bins.dedup();
-        bins
+        detection_bins(&detections, t0, args.bin)
     } else {
         args.bins.clone()
     };
@@ -60,7 +57,16 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
             (truth, Vec::new())
         }
         _ => {
-            let (grid, robots) = robots_on_map(args)?;
+            let (Some(map_file), Some(paths_file)) = (&args.map, &args.paths) else {
+                bail!("give --map and --paths (or --ground-truth with --cells-from)");
+            };
+            let (grid, robots) = robots_on_map(
+                map_file,
+                paths_file,
+                args.speed,
+                args.min_occupancy,
+                &args.robots,
+            )?;
             let paths: Vec<RobotPath> = robots.iter().map(|(_, p)| p.clone()).collect();
             let seen = extract(&grid, &paths, &detections, &bins, &config)
                 .map_err(|e| anyhow!("extraction: {e}"))?;
@@ -81,31 +87,46 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     report(args, &extraction, &robots, &bins, t0, seconds)
 }
 
-/// The obstacle grid of `--map` and the selected paths of `--paths`, each checked to stay on
-/// free cells.
-fn robots_on_map(args: &ActivityExtractArgs) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>)> {
-    let (Some(map_file), Some(paths_file)) = (&args.map, &args.paths) else {
-        bail!("give --map and --paths (or --ground-truth with --cells-from)");
-    };
+/// Every time bin (of `bin` seconds from `t0`) with a detection, in order, for detections
+/// sorted by time (as the track readers return them).
+pub(super) fn detection_bins(detections: &[Event], t0: f64, bin: f64) -> Vec<i64> {
+    let mut bins: Vec<i64> = detections
+        .iter()
+        .map(|d| ((d.t - t0) / bin).floor() as i64)
+        .collect();
+    bins.dedup();
+    bins
+}
+
+/// The obstacle grid of a ROS map (cells of at least `min_occupancy` percent block sight) and
+/// the paths of a robot-path file (all, or those named in `names`) at `speed` m/s, each checked
+/// to stay on free cells: the setup of `activity extract` and `bench activity`.
+pub(super) fn robots_on_map(
+    map_file: &Path,
+    paths_file: &Path,
+    speed: f64,
+    min_occupancy: i8,
+    names: &[String],
+) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>)> {
     let map_name = map_file.display().to_string();
     let map = load_map(map_file, LoadSemantics::Nav2).context("cannot load the map")?;
     let grid = map
-        .obstacle_grid(args.min_occupancy)
+        .obstacle_grid(min_occupancy)
         .map_err(|e| anyhow!("{map_name}: {e}"))?;
     let paths_name = paths_file.display().to_string();
-    let all = read_robot_paths(paths_file, args.speed).context("cannot read the robot paths")?;
-    for name in &args.robots {
+    let all = read_robot_paths(paths_file, speed).context("cannot read the robot paths")?;
+    for name in names {
         if !all.iter().any(|p| &p.name == name) {
-            let names: Vec<&str> = all.iter().map(|p| p.name.as_str()).collect();
+            let known: Vec<&str> = all.iter().map(|p| p.name.as_str()).collect();
             bail!(
                 "{paths_name}: no path named {name:?} (--robot); the file has {}",
-                names.join(", ")
+                known.join(", ")
             );
         }
     }
     let mut robots = Vec::new();
     for named in all {
-        if !args.robots.is_empty() && !args.robots.contains(&named.name) {
+        if !names.is_empty() && !names.contains(&named.name) {
             continue;
         }
         if let Some((at, outside)) = named.path.first_blocked(&grid, grid.resolution() / 2.0) {

@@ -55,7 +55,8 @@ fn sweep(models: &EdgeModels) -> Result<Vec<(String, Planned)>> {
     Ok(cases)
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
+/// The median of `values` (the mean of the middle two for an even count).
+pub(super) fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);
     let n = values.len();
     if n.is_multiple_of(2) {

@@ -6,6 +6,7 @@ mod activity_extract;
 mod activity_model;
 mod activity_truth;
 mod bench;
+mod bench_activity;
 mod bench_plan;
 mod bench_serve;
 mod compress;
@@ -48,6 +49,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
+        Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
