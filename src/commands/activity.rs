@@ -8,7 +8,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
 use chronomap_core::activity::{
     Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, PeriodInitMode,
-    RatePredictor, RateSamples, RateScale, Scores, score, select_baseline,
+    RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
@@ -55,6 +55,11 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
             parallelism: Parallelism::Rayon(0),
             ..GpHomConfig::default()
         },
+        whyte: WhyteConfig {
+            day_period: args.period,
+            parallelism: Parallelism::Rayon(0),
+            ..WhyteConfig::default()
+        },
     };
 
     // Every baseline, fitted once and timed; the top-level model reuses its fit.
@@ -85,6 +90,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         ActivityModel::MlLog => (Some(Baseline::MlLog), None),
         ActivityModel::FrAam => (Some(Baseline::FrAam), None),
         ActivityModel::GpHom => (Some(Baseline::GpHom), None),
+        ActivityModel::Whyte => (Some(Baseline::Whyte), None),
         ActivityModel::Copa => (None, None),
     };
     // CoPA-Map's initial periods, for the JSON output.

@@ -15,7 +15,7 @@ use chronomap_core::activity::disturbance::{
 };
 use chronomap_core::activity::{
     Baseline, BaselineConfig, CellKey, CopaConfig, CopaMap, FrAamConfig, GpHomConfig,
-    RatePredictor, RateSamples,
+    RatePredictor, RateSamples, WhyteConfig,
 };
 use chronomap_core::events::observed_windows;
 use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
@@ -359,6 +359,11 @@ fn fit_models(args: &ActivityDisturbanceArgs, train: &RateSamples) -> Result<Vec
             day_period: args.period,
             parallelism: Parallelism::Rayon(0),
             ..GpHomConfig::default()
+        },
+        whyte: WhyteConfig {
+            day_period: args.period,
+            parallelism: Parallelism::Rayon(0),
+            ..WhyteConfig::default()
         },
     };
     for baseline in Baseline::ALL {
