@@ -597,7 +597,7 @@ of --cells-from), the detections in the cell during the whole bin, ignoring the 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
     /// The baseline of the least NRMSE on a chronological hold-out of the training data
-    /// (global mean, ML, ML-log or Fr-AAM; GP-Hom is too slow to be tried).
+    /// (global mean, ML, ML-log or Fr-AAM; GP-Hom and WHyTe are too slow to be tried).
     Auto,
     /// The mean of all training rates.
     GlobalMean,
@@ -611,6 +611,11 @@ pub enum ActivityModel {
     /// GP-Hom: a log-Gaussian Cox process, CoPA-Map's kernel with a Poisson likelihood
     /// (§4.3.2); trained with --inducing and --iterations.
     GpHom,
+    /// WHyTe (Warped Hypertime, seed 004): a Gaussian mixture of people over space and the
+    /// circles of the periods found in its error (day/1 .. day/6 of --period), divided by the
+    /// same mixture weighted by observation time; periods and components (4, 8, 16, 32)
+    /// chosen on a hold-out of the last 20 % of the training times.
+    Whyte,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
 }
@@ -710,8 +715,8 @@ pub struct ActivityEvalArgs {
     /// The model of the top-level scores.
     #[arg(long, value_enum, default_value_t = ActivityModel::Auto)]
     pub model: ActivityModel,
-    /// Fr-AAM: the base period in units of t (12: a day of the ATC grid's 12 recorded hours);
-    /// candidate periods are period/1 .. period/6.
+    /// Fr-AAM and WHyTe: the base period in units of t (12: a day of the ATC grid's 12 recorded
+    /// hours); candidate periods are period/1 .. period/6.
     #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
     pub period: f64,
     /// CoPA-Map and GP-Hom: inducing points.
@@ -1645,8 +1650,9 @@ planned by Dijkstra on the 8-connected 0.5 m cells of the training grid that are
 (--clearance from obstacles); a cell costs its length times (predicted rate + --epsilon), the
 `occupancy` baseline its length alone (the shortest route). Encounters are the person detections
 within 1 m of the robot driving at 0.5 m/s; E(rho) of eq. (4.22) sums those of the cheapest
-floor(n_nav rho) patrols (ties: the earlier first). Models: occupancy, global_mean, ml, fr_aam and
-copa (CoPA-Map; about a minute with the defaults on 2 cores).";
+floor(n_nav rho) patrols (ties: the earlier first). Models: occupancy, global_mean, ml, ml_log,
+fr_aam, gp_hom, whyte (WHyTe, about 5 s) and copa (CoPA-Map; about a minute with the defaults on
+2 cores).";
 
 /// `chronomap activity disturbance`.
 #[derive(Debug, Args)]

@@ -92,7 +92,14 @@ fn atc_hallway_two_hours_measured_encounters() {
         .collect();
     assert_eq!(
         names,
-        ["occupancy", "global_mean", "ml", "ml_log", "fr_aam"]
+        [
+            "occupancy",
+            "global_mean",
+            "ml",
+            "ml_log",
+            "fr_aam",
+            "whyte"
+        ]
     );
     let patrols = models[0]["patrols"].as_array().unwrap();
     assert_eq!(patrols[0]["model_t"], 124.0);
@@ -119,6 +126,10 @@ fn atc_hallway_two_hours_measured_encounters() {
         .map(|p| p["cost"].as_f64().unwrap())
         .collect();
     assert!(fr[0] != fr[7]);
+    // WHyTe's smooth rates pick routes as short as the shortest one (27.5 m), other ones
+    // among the equally short, and meet 73 detections in all (9 % more).
+    assert_eq!(curve(&models[5]), [0, 11, 14, 19, 43, 43, 51, 58, 67, 73]);
+    assert!((models[5]["mean_path_m"].as_f64().unwrap() - 27.521).abs() < 1e-3);
 
     // The table says the same.
     let out = hallway(&scenarios, &[]);

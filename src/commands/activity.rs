@@ -8,7 +8,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
 use chronomap_core::activity::{
     Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, PeriodInitMode,
-    RatePredictor, RateSamples, RateScale, Scores, score, select_baseline,
+    RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
@@ -30,6 +30,11 @@ pub(super) fn baseline_config(period: f64, inducing: usize, iterations: usize) -
             day_period: period,
             parallelism: Parallelism::Rayon(0),
             ..GpHomConfig::default()
+        },
+        whyte: WhyteConfig {
+            day_period: period,
+            parallelism: Parallelism::Rayon(0),
+            ..WhyteConfig::default()
         },
     }
 }
@@ -91,6 +96,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         ActivityModel::MlLog => (Some(Baseline::MlLog), None),
         ActivityModel::FrAam => (Some(Baseline::FrAam), None),
         ActivityModel::GpHom => (Some(Baseline::GpHom), None),
+        ActivityModel::Whyte => (Some(Baseline::Whyte), None),
         ActivityModel::Copa => (None, None),
     };
     // CoPA-Map's initial periods, for the JSON output.

@@ -34,7 +34,9 @@
 //! eq. (4.20) ([`nrmse`]) and the χ²-distance of eq. (4.21) ([`chi2_distance`]). The baselines
 //! of §4.3.2 are in [`baselines`]: [`GlobalMean`], the maximum-likelihood per-cell mean
 //! [`CellMean`] ("ML"), the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM") and the
-//! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]). CoPA-Map is [`CopaMap`].
+//! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]); Warped Hypertime (seed 004) is
+//! [`Whyte`] ("WHyTe", in [`whyte`]): a mixture of people over warped space-time divided by one
+//! of observation. CoPA-Map is [`CopaMap`].
 //!
 //! # Where samples come from
 //! [`extract`] builds them from pedestrian detections as a simulated robot sees them (§4.2.2,
@@ -51,6 +53,7 @@ pub mod extract;
 pub mod gphom;
 pub mod init;
 pub mod truth;
+pub mod whyte;
 
 use std::collections::HashMap;
 
@@ -63,6 +66,7 @@ pub use baselines::{
 pub use copa::{CopaConfig, CopaMap, PeriodInitMode, RateScale};
 pub use gphom::{GpHom, GpHomConfig};
 pub use init::{PeriodInit, SpectralInitConfig, initial_periods};
+pub use whyte::{Whyte, WhyteConfig, WhyteTrial};
 
 /// Why rate samples or a model were rejected.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -256,7 +260,7 @@ impl CellKey {
 /// A model of the activity rate at any place and time: the interface every baseline and
 /// CoPA-Map implement, so that [`score`] and the command line treat them alike.
 pub trait RatePredictor {
-    /// Short name (`"ml"`, `"global_mean"`, `"fr_aam"`, ...).
+    /// Short name (`"ml"`, `"global_mean"`, `"fr_aam"`, `"whyte"`, ...).
     fn name(&self) -> &str;
 
     /// Predicted rate (people per hour of observation, `>= 0`) in the cell centred at `x` at

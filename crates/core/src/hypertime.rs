@@ -385,7 +385,7 @@ impl Fitted {
 
 /// The strongest period of the weighted error series `e` at `times` among `candidates` not
 /// yet `used` (eq. 7), and the sum of all candidates' amplitudes (eq. 9).
-fn strongest_period(
+pub(crate) fn strongest_period(
     times: &[f64],
     errors: &[f64],
     weights: &[f64],
