@@ -104,6 +104,10 @@ pub enum Command {
     Serve(ServeArgs),
     /// Talk to a running service: add observations, predict, forecast, view, list, remove.
     Client(ClientArgs),
+    /// Behavior trees in BehaviorTree.CPP 4 XML: check a file, or tick a tree whose leaves
+    /// follow a script (seed 002 §5.2-5.3).
+    #[command(subcommand)]
+    Bt(BtCommand),
 }
 
 const SERVE_HELP: &str = "\
@@ -1709,6 +1713,76 @@ pub struct ActivityDisturbanceArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+}
+
+// ---------------------------------------------------------------------------------------------
+// Behavior trees: `chronomap bt`
+
+const BT_HELP_CHECK: &str = "\
+Example:
+  chronomap bt check tests/data/bt/door.xml
+
+Reads BehaviorTree.CPP 4 XML (<root BTCPP_format=\"4\">): built-in controls and decorators,
+<SubTree>, and leaves declared in <TreeNodesModel> or written as <Action ID=\"...\"/> /
+<Condition ID=\"...\"/>. Prints the tree to execute with the uids that `bt run` and .btlog files
+use (depth first, subtrees expanded). Errors name the file, line, column and attribute.";
+
+const BT_HELP_RUN: &str = "\
+Example:
+  chronomap bt run tests/data/bt/door.xml --script tests/data/bt/door.script --btlog door.btlog
+
+The script gives the outcome of leaves (by instance name: the name attribute, or the ID) per
+tick; an outcome holds until changed:
+  # comment
+  tick 1: IsDoorClosed=success, OpenDoor=failure, PickLock=running
+  tick 2: PickLock=failure
+  tick 4 @ 1000: PickLock=success
+Ticks run from 1 to the last tick of the script (one root tick each, as BehaviorTree.CPP's
+tickExactlyOnce) and stop when the root succeeds or fails. `@ MS` sets a tick's time in
+milliseconds; other ticks come --tick-ms after the previous one. The trace lists every status
+change of every tick; --btlog writes them as a Groot2 log (times from 0).";
+
+/// `chronomap bt ...`.
+#[derive(Debug, Subcommand)]
+pub enum BtCommand {
+    /// Load and check a BehaviorTree.CPP 4 XML file and print the tree with node uids.
+    #[command(after_help = BT_HELP_CHECK)]
+    Check(BtCheckArgs),
+    /// Tick a tree whose leaves follow a script of outcomes and print every status change.
+    #[command(after_help = BT_HELP_RUN)]
+    Run(BtRunArgs),
+}
+
+/// `chronomap bt check`.
+#[derive(Debug, Args)]
+pub struct BtCheckArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The tree to print (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Also write the file in the canonical BehaviorTree.CPP 4 form (compact nodes, node models).
+    #[arg(long)]
+    pub save: Option<PathBuf>,
+}
+
+/// `chronomap bt run`.
+#[derive(Debug, Args)]
+pub struct BtRunArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The outcomes of the leaves, tick by tick (see below).
+    #[arg(long)]
+    pub script: PathBuf,
+    /// The tree to run (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Milliseconds between ticks whose time the script does not give.
+    #[arg(long, default_value_t = 100)]
+    pub tick_ms: u64,
+    /// Write the status changes as a Groot2 execution log (must end in .btlog).
+    #[arg(long)]
+    pub btlog: Option<PathBuf>,
 }
 
 #[cfg(test)]

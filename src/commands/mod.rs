@@ -9,6 +9,7 @@ mod bench;
 mod bench_activity;
 mod bench_plan;
 mod bench_serve;
+mod bt;
 mod compress;
 mod demo;
 mod demo_grids;
@@ -29,7 +30,8 @@ use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
 use crate::cli::{
-    ActivityCommand, BenchCommand, Command, EventsCommand, GridCommand, SeriesSource, TopoCommand,
+    ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, SeriesSource,
+    TopoCommand,
 };
 
 /// Runs one subcommand.
@@ -67,6 +69,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),
         Command::Client(args) => serve::client(&args),
+        Command::Bt(BtCommand::Check(args)) => bt::check(&args),
+        Command::Bt(BtCommand::Run(args)) => bt::run(&args),
     }
 }
 

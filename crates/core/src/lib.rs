@@ -35,11 +35,14 @@
 //!   oracles for tests and benchmarks.
 //! * [`topo`] — topological maps; [`ltl`] — co-safe LTL tasks (`F (Kitchen & F Office)`)
 //!   and their automata ([`automaton::Dfa`]).
+//! * [`bt`] — behavior trees with BehaviorTree.CPP 4 semantics: tree descriptions, a
+//!   registry of leaves, a typed blackboard, ticks with an injected clock, status transitions.
 #![deny(missing_docs)]
 
 pub mod activity;
 pub mod anomaly;
 pub mod automaton;
+pub mod bt;
 pub mod conformance;
 pub mod crossings;
 pub mod edges;

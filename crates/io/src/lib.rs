@@ -58,6 +58,11 @@
 //!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
 //!   GeoJSON graphs ([`write_route_geojson`]); errors ([`TopoFileError`]) name the file, line
 //!   and key.
+//! * [`bt_xml`] — BehaviorTree.CPP 4 XML behavior trees ([`read_bt_xml`], [`encode_bt_xml`]):
+//!   both node forms, subtrees, `<TreeNodesModel>`; errors ([`BtXmlError`]) name the file,
+//!   line, column and attribute. [`bt_log`] — Groot2 `.btlog` execution logs from recorded
+//!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
+//!   `chronomap bt run` ([`read_bt_script`]).
 //! * [`plot`] — PNG figures from plain data: stacked time panels
 //!   ([`render_panels_png`]), amplitude spectra ([`render_spectrum_png`]), occupancy maps
 //!   ([`render_maps_png`]) and labelled heat maps such as a planner's "now or later?" table
@@ -70,6 +75,9 @@
 
 pub mod activity;
 mod atomic;
+pub mod bt_log;
+pub mod bt_script;
+pub mod bt_xml;
 pub mod datasets;
 pub mod events;
 pub mod grid_file;
@@ -87,6 +95,9 @@ pub use activity::{
     RateGrid, encode_rate_samples, format_rate_grid, read_rate_grid, read_rate_grid_from,
     read_rate_samples, read_rate_samples_from, write_rate_grid, write_rate_samples,
 };
+pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
+pub use bt_script::{BtScriptError, read_bt_script};
+pub use bt_xml::{BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml, write_bt_xml};
 pub use events::{read_event_files, read_events, read_events_from};
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};
