@@ -68,6 +68,7 @@ pub mod periods;
 pub mod persistence;
 pub mod plan;
 pub mod rng;
+pub mod sbt;
 pub mod select;
 pub mod spec;
 pub mod spectrum;
