@@ -67,6 +67,7 @@ pub mod pergam;
 pub mod periods;
 pub mod persistence;
 pub mod plan;
+pub mod psbt;
 pub mod rng;
 pub mod sbt;
 pub mod select;

@@ -242,7 +242,7 @@ pub enum Target {
 /// A probability distribution over targets (sparse).
 type Dist = Vec<(Target, f64)>;
 
-fn add_scaled(into: &mut Dist, from: &Dist, factor: f64) {
+pub(crate) fn add_scaled(into: &mut Vec<(Target, f64)>, from: &[(Target, f64)], factor: f64) {
     if factor == 0.0 {
         return;
     }
@@ -609,7 +609,6 @@ pub(crate) fn poisson_weights(m: f64, steps: usize) -> (Vec<f64>, f64) {
 
 /// `P(N ≥ k)` for `k = 0..=steps`, `N ~ Poisson(m)` (the probability that the `k`-th jump of
 /// the uniformised chain has happened by the time `m/Λ`), and `P(N > steps)`.
-#[allow(dead_code)] // used by the person search (next commit)
 pub(crate) fn poisson_survival(m: f64, steps: usize) -> (Vec<f64>, f64) {
     let (weights, tail) = poisson_weights(m, steps);
     let mut survival = vec![0.0; steps + 1];
