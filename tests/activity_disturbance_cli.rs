@@ -90,7 +90,10 @@ fn atc_hallway_two_hours_measured_encounters() {
         .iter()
         .map(|m| m["model"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["occupancy", "global_mean", "ml", "ml_log", "fr_aam"]);
+    assert_eq!(
+        names,
+        ["occupancy", "global_mean", "ml", "ml_log", "fr_aam"]
+    );
     let patrols = models[0]["patrols"].as_array().unwrap();
     assert_eq!(patrols[0]["model_t"], 124.0);
     assert_eq!(patrols[7]["model_t"], 125.0);

@@ -59,6 +59,7 @@
 //! [`Candidates::reference_values`]; the tests assert both agree.
 
 pub mod actions;
+pub mod eval;
 pub mod field;
 pub mod path;
 pub mod places;

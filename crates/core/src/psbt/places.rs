@@ -149,7 +149,7 @@ fn next_permutation(v: &mut [usize]) -> bool {
     true
 }
 
-/// The open tour from node 0 through nodes `1..=n` by a genetic algorithm [Dav10]: order
+/// The open tour from node 0 through nodes `1..=n` by a genetic algorithm (\[Dav10\] in the seed): order
 /// crossover of two tournament-selected parents, segment-reversal mutation, the best tour kept
 /// (elitism); the initial population holds the nearest-neighbour tour and random ones. The
 /// best tour is then improved by 2-opt and or-opt moves until none helps. Deterministic for a

@@ -913,6 +913,17 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
         }
     }
 
+    /// The candidate set PSBT compares for `seed` (the places sampled and ordered as
+    /// [`SearchContext::plan`] does): what benchmarks time the fast walk and the reference on.
+    ///
+    /// # Errors
+    /// As [`SearchContext::plan`].
+    pub fn psbt_candidates(&mut self, seed: u64) -> Result<Candidates, PsbtError> {
+        let places = self.psbt_places(seed)?;
+        let ordered = self.order(&places, seed, 2)?;
+        Ok(self.candidates(&ordered)?.0)
+    }
+
     /// The help location's planning cell.
     pub fn start_cell(&self) -> usize {
         self.start_cell
