@@ -322,12 +322,42 @@ fn eval(args: &PsbtEvalArgs) -> Result<()> {
                         o.p_success[last]
                     }
                 };
-                r[1..].iter().all(|o| p(&r[0]) >= p(o) - 1e-12)
+                r[1..].iter().all(|o| p(&r[0]) >= p(o) - 1e-9)
             })
             .count();
         ok as f64 / results.len() as f64
     };
 
+    // Per baseline: the share of starts where it beats PSBT at t_max (by more than 1e-9).
+    let beaten_by = |scored_side: bool| -> Vec<(String, f64)> {
+        let last = times.len() - 1;
+        let p = |o: &MethodOutcome| {
+            if scored_side {
+                o.scored.as_ref().map_or(f64::NAN, |s| s[last])
+            } else {
+                o.p_success[last]
+            }
+        };
+        (1..methods.len())
+            .map(|m| {
+                let n = results
+                    .iter()
+                    .filter(|r| p(&r[m]) > p(&r[0]) + 1e-9)
+                    .count();
+                (
+                    methods[m].name().to_string(),
+                    n as f64 / results.len() as f64,
+                )
+            })
+            .collect()
+    };
+    let beaten_text = |scored_side: bool| {
+        beaten_by(scored_side)
+            .iter()
+            .map(|(name, f)| format!("{name} {:.1} %", 100.0 * f))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let table = |summaries: &[Summary]| {
         let mut header = vec!["method".to_string()];
         header.extend(times.iter().map(|t| format!("t={t:.0} s")));
@@ -411,6 +441,8 @@ fn eval(args: &PsbtEvalArgs) -> Result<()> {
                 "psbt_over_gm_at_140_percent_scored": scored.as_deref().and_then(relative_to_gm),
                 "psbt_ge_all_at_tmax_fraction": ge_all(false),
                 "psbt_ge_all_at_tmax_fraction_scored": scored.as_ref().map(|_| ge_all(true)),
+                "beats_psbt_at_tmax_fraction": beaten_by(false).into_iter().map(|(k, v)| (k, json!(v))).collect::<serde_json::Map<String, Value>>(),
+                "beats_psbt_at_tmax_fraction_scored": scored.as_ref().map(|_| beaten_by(true).into_iter().map(|(k, v)| (k, json!(v))).collect::<serde_json::Map<String, Value>>()),
                 "seconds": seconds,
             })
         );
@@ -430,8 +462,9 @@ fn eval(args: &PsbtEvalArgs) -> Result<()> {
             println!("PSBT vs GM at 140 s: {p:+.1} % (the dissertation: +5.7 %)");
         }
         println!(
-            "PSBT >= every baseline at t_max from {:.1} % of the starts",
-            100.0 * ge_all(false)
+            "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
+            100.0 * ge_all(false),
+            beaten_text(false)
         );
         if let Some(scored) = &scored {
             println!("\nthe same plans scored on the model of the evaluated hour:");
@@ -440,8 +473,9 @@ fn eval(args: &PsbtEvalArgs) -> Result<()> {
                 println!("PSBT vs GM at 140 s: {p:+.1} %");
             }
             println!(
-                "PSBT >= every baseline at t_max from {:.1} % of the starts",
-                100.0 * ge_all(true)
+                "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
+                100.0 * ge_all(true),
+                beaten_text(true)
             );
         }
     }
