@@ -277,7 +277,7 @@ pub fn run(args: &ActivityDisturbanceArgs) -> Result<()> {
 }
 
 /// The obstacles of a ROS map: cells at least [`OCCUPIED_PERCENT`] occupied or unknown.
-fn obstacles_of(map: &OccupancyMap) -> Result<ObstacleGrid> {
+pub(super) fn obstacles_of(map: &OccupancyMap) -> Result<ObstacleGrid> {
     if map.origin[2] != 0.0 {
         bail!(
             "the map is rotated (yaw {}): only maps aligned with their frame are supported",

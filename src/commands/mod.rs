@@ -8,6 +8,7 @@ mod activity_truth;
 mod bench;
 mod bench_activity;
 mod bench_plan;
+mod bench_psbt;
 mod bench_serve;
 mod bt;
 mod compress;
@@ -20,6 +21,7 @@ mod explore;
 mod features;
 mod grid;
 mod model;
+mod psbt;
 mod serve;
 mod synthetic;
 mod topo;
@@ -52,6 +54,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
         Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
+        Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
@@ -65,6 +68,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Activity(ActivityCommand::Predict(args)) => activity_model::predict(&args),
         Command::Activity(ActivityCommand::Extract(args)) => activity_extract::run(&args),
         Command::Activity(ActivityCommand::Disturbance(args)) => activity_disturbance::run(&args),
+        Command::Psbt(args) => psbt::run(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         Command::Serve(args) => serve::serve(&args),

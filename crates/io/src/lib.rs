@@ -85,6 +85,7 @@ pub mod matrix;
 pub mod model_file;
 pub mod navmap;
 pub mod plot;
+pub mod psbt_xml;
 pub mod robot_paths;
 pub mod scenarios;
 pub mod text;

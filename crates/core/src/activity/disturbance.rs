@@ -370,7 +370,7 @@ impl PlanningGrid {
 
     /// The free neighbours of cell `index` in its Moore neighbourhood with the step lengths;
     /// a diagonal neighbour only if both cells beside the diagonal are free.
-    fn neighbours(&self, index: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+    pub(crate) fn neighbours(&self, index: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
         let (row, column) = ((index / self.cols) as isize, (index % self.cols) as isize);
         const STEPS: [(isize, isize); 8] = [
             (1, 0),
