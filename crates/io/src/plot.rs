@@ -40,8 +40,9 @@ const FAMILY: &str = "sans-serif";
 /// Smallest and largest accepted image side in pixels.
 pub const SIZE_RANGE: (u32, u32) = (200, 8192);
 
-/// Colours of the series, in order (Okabe–Ito palette, readable with colour blindness).
-pub const PALETTE: [RGBColor; 7] = [
+/// Colours of the series, in order: the Okabe–Ito palette (readable with colour blindness), its
+/// yellow replaced by a mid grey that stays visible on white. Eight series get eight colours.
+pub const PALETTE: [RGBColor; 8] = [
     RGBColor(0, 114, 178),   // blue
     RGBColor(213, 94, 0),    // vermillion
     RGBColor(0, 158, 115),   // bluish green
@@ -49,6 +50,7 @@ pub const PALETTE: [RGBColor; 7] = [
     RGBColor(230, 159, 0),   // orange
     RGBColor(86, 180, 233),  // sky blue
     RGBColor(0, 0, 0),       // black
+    RGBColor(128, 128, 128), // grey
 ];
 
 const GRID: RGBColor = RGBColor(225, 225, 225);
