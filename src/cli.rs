@@ -1105,7 +1105,7 @@ pub struct BenchPsbtArgs {
     #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "data/atc_20121024_1hz/atc-1024-13_train.csv.xz,data/atc_20121024_1hz/atc-1024-14_train.csv.xz")]
     pub activity: Vec<PathBuf>,
     /// Help location `x,y` (metres).
-    #[arg(long, value_parser = parse_xy, default_value = "10,-3")]
+    #[arg(long, value_parser = parse_xy, allow_hyphen_values = true, default_value = "10,-3")]
     pub from: [f64; 2],
     /// Time of the request (unix seconds or ISO 8601).
     #[arg(long, value_parser = parse_time, default_value = "1351058400")]
@@ -1208,7 +1208,7 @@ pub struct PsbtSynthArgs {
     #[command(flatten)]
     pub world: Option<PsbtWorldArgs>,
     /// Help location `x,y` in metres (map frame).
-    #[arg(long, value_parser = parse_xy, required = true)]
+    #[arg(long, value_parser = parse_xy, allow_hyphen_values = true, required = true)]
     pub from: Option<[f64; 2]>,
     /// Time of the request: unix seconds or ISO 8601.
     #[arg(long, value_parser = parse_time, required = true)]

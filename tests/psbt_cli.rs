@@ -69,6 +69,29 @@ fn a_busy_start_waits() {
     );
 }
 
+/// A negative x after a space is the value of `--from`, not an unknown option.
+#[test]
+fn a_negative_x_needs_no_equals_sign() {
+    let map = repo("data/atc_copa_map_grid/atc_map.yaml");
+    let activity = tracks(&[13]);
+    let out = chronomap(&[
+        "psbt",
+        "--map",
+        &map,
+        "--activity",
+        &activity,
+        "--from",
+        "-100,0",
+        "--time",
+        "0",
+    ]);
+    let err = error(&out);
+    assert!(
+        err.contains("--from -100,0: the start (-100, 0) lies outside the map"),
+        "{err}"
+    );
+}
+
 #[test]
 fn bad_input_is_a_clear_error() {
     let err = error(&synth("100,0", &[]));
