@@ -725,8 +725,8 @@ pub struct ActivityEvalArgs {
     /// Split --train chronologically instead: train on t < T, test on t >= T.
     #[arg(long, value_name = "T")]
     pub split_at: Option<f64>,
-    /// The model of the top-level scores.
-    #[arg(long, value_enum, default_value_t = ActivityModel::Auto)]
+    /// The model of the top-level scores (default: CoPA-Map; every baseline is scored too).
+    #[arg(long, value_enum, default_value_t = ActivityModel::Copa)]
     pub model: ActivityModel,
     /// Fr-AAM and WHyTe: the base period in units of t (12: a day of the ATC grid's 12 recorded
     /// hours); candidate periods are period/1 .. period/6.

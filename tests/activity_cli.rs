@@ -68,6 +68,8 @@ fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
         "20",
         "--iterations",
         "20",
+        "--model",
+        "auto",
         "--json",
     ]));
     let json: Value = serde_json::from_str(&text).expect("one JSON object");
