@@ -250,3 +250,28 @@ fn sigkill_loses_no_acknowledged_observation_postgres() {
     );
     crash_test("serve_crash_postgres", Backend::Postgres(config, schema));
 }
+
+/// One service per schema: a second store on a schema that a live session holds is refused
+/// with a message that says so, and gets the schema once the first is gone (as a restarted
+/// service does after a crash, when PostgreSQL has ended the dead process's session).
+#[test]
+fn a_postgres_schema_has_one_owner_at_a_time() {
+    use chronomap_serve::store::PostgresStore;
+    let Some(config) = service::postgres() else {
+        return;
+    };
+    let schema = format!("owner_{}", std::process::id());
+    let first = PostgresStore::connect(&config, &schema).unwrap();
+    let wait = Duration::from_millis(300);
+    let refused = PostgresStore::connect_waiting(&config, &schema, wait)
+        .err()
+        .expect("a second owner of a held schema");
+    let message = refused.to_string();
+    assert!(
+        message.contains(&format!("postgres schema {schema}")),
+        "{message}"
+    );
+    assert!(message.contains("one service per schema"), "{message}");
+    drop(first);
+    PostgresStore::connect_waiting(&config, &schema, Duration::from_secs(5)).unwrap();
+}

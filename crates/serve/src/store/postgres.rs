@@ -1,13 +1,25 @@
 //! The PostgreSQL store: the same log and snapshots as tables of one schema, for labs that
 //! already run a database server. Every commit group is one transaction, durable when
 //! PostgreSQL acknowledges the commit (`synchronous_commit` as the server configures it).
+//!
+//! One service owns a schema at a time: [`PostgresStore::connect`] takes a session-level
+//! advisory lock on it and waits (up to [`OWNER_WAIT`]) while another session holds it. After
+//! a crash this fences the dead process out: its database session may still be finishing a
+//! statement it sent (a log append, a checkpoint), and PostgreSQL releases the lock only when
+//! that session has ended, so the new service never reads a state that a late commit of the
+//! old one changes afterwards. Recovery then reads the checkpoint, the snapshots and the end
+//! of the log in one repeatable-read transaction, so they are one consistent state.
 
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use tokio::runtime::Runtime;
 use tokio_postgres::{Client, NoTls};
 
 use super::{Recovered, Store, StoreError, Visit};
+
+/// How long [`PostgresStore::connect`] waits for another session to give up the schema.
+pub const OWNER_WAIT: Duration = Duration::from_secs(15);
 
 /// The log and snapshots in tables `log`, `snapshots` and `meta` of one schema.
 pub struct PostgresStore {
@@ -18,13 +30,23 @@ pub struct PostgresStore {
 }
 
 impl PostgresStore {
-    /// Connects (`config` as libpq's `key=value` string or a `postgresql://` URL) and creates
-    /// the schema and its tables if they do not exist.
+    /// Connects (`config` as libpq's `key=value` string or a `postgresql://` URL), creates
+    /// the schema and its tables if they do not exist, and takes the schema's advisory lock
+    /// (see the module documentation).
     ///
     /// # Errors
-    /// The server cannot be reached, refuses the login, or the schema name is not a plain
-    /// identifier (`[a-z_][a-z0-9_]*`, up to 63 bytes).
+    /// The server cannot be reached, refuses the login, the schema name is not a plain
+    /// identifier (`[a-z_][a-z0-9_]*`, up to 63 bytes), or another session still holds the
+    /// schema after [`OWNER_WAIT`].
     pub fn connect(config: &str, schema: &str) -> Result<Self, StoreError> {
+        Self::connect_waiting(config, schema, OWNER_WAIT)
+    }
+
+    /// [`PostgresStore::connect`], waiting at most `wait` for the schema's lock.
+    ///
+    /// # Errors
+    /// As [`PostgresStore::connect`].
+    pub fn connect_waiting(config: &str, schema: &str, wait: Duration) -> Result<Self, StoreError> {
         let describe = format!("postgres schema {schema}");
         let error = |reason: String| StoreError {
             store: describe.clone(),
@@ -64,6 +86,29 @@ impl PostgresStore {
                 ))
                 .await
                 .map_err(|e| error(format!("cannot create tables: {e}")))?;
+            let lock = format!("chronomap serve: {schema}");
+            let start = Instant::now();
+            loop {
+                let owned: bool = client
+                    .query_one(
+                        "SELECT pg_try_advisory_lock(hashtextextended($1, 0))",
+                        &[&lock],
+                    )
+                    .await
+                    .map_err(|e| error(format!("cannot lock the schema: {e}")))?
+                    .get(0);
+                if owned {
+                    break;
+                }
+                if start.elapsed() >= wait {
+                    return Err(error(format!(
+                        "another session (a running chronomap serve?) has held the schema for {:.1} s; \
+                         one service per schema",
+                        wait.as_secs_f64()
+                    )));
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
             Ok::<_, StoreError>(client)
         })?;
         Ok(PostgresStore {
@@ -93,8 +138,16 @@ impl Store for PostgresStore {
 
     fn recover(&self) -> Result<Recovered, StoreError> {
         let s = &self.schema;
-        let client = self.client.lock().expect("postgres client lock");
+        let mut client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
+            // One snapshot of the database for all three reads.
+            let client = client
+                .build_transaction()
+                .isolation_level(tokio_postgres::IsolationLevel::RepeatableRead)
+                .read_only(true)
+                .start()
+                .await
+                .map_err(|e| self.error(e))?;
             let checkpoint = client
                 .query_opt(
                     &format!("SELECT value FROM {s}.meta WHERE key = 'checkpoint'"),
@@ -115,6 +168,7 @@ impl Store for PostgresStore {
                 .await
                 .map_err(|e| self.error(e))?
                 .get::<_, i64>(0) as u64;
+            client.commit().await.map_err(|e| self.error(e))?;
             Ok(Recovered {
                 checkpoint,
                 snapshots,
