@@ -71,6 +71,7 @@ pub mod periods;
 pub mod persistence;
 pub mod plan;
 pub mod psbt;
+mod queue;
 pub mod rng;
 pub mod sbt;
 pub mod select;

@@ -60,13 +60,13 @@
 //!   (earlier first): the Occupancy Map baseline, whose every patrol costs the same, serves
 //!   in time order.
 
-use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 
 use thiserror::Error;
 
 use super::{RatePredictor, RateSamples};
 use crate::events::{Event, Window};
+use crate::queue::MinCost;
 
 /// Why the benchmark could not run.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -420,28 +420,6 @@ pub struct GridPath {
     pub cost: f64,
 }
 
-/// A Dijkstra queue entry: cost so far (ordered by `total_cmp`, least first), then the cell
-/// (least first), so that the search is deterministic.
-#[derive(PartialEq)]
-struct Entry(f64, usize);
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .0
-            .total_cmp(&self.0)
-            .then_with(|| other.1.cmp(&self.1))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
 /// The least-cost path from cell `from` to cell `to` (Dijkstra on the Moore graph of free
 /// cells, [module docs](self)): entering cell `v` from its neighbour `u` costs
 /// `|u − v| · weights[v]`. Among equally cheap paths the first one found wins (neighbours are
@@ -464,8 +442,8 @@ pub fn shortest_path(
     let mut done = vec![false; grid.len()];
     let mut queue = BinaryHeap::new();
     best[from] = 0.0;
-    queue.push(Entry(0.0, from));
-    while let Some(Entry(cost, cell)) = queue.pop() {
+    queue.push(MinCost(0.0, from));
+    while let Some(MinCost(cost, cell)) = queue.pop() {
         if done[cell] {
             continue;
         }
@@ -478,7 +456,7 @@ pub fn shortest_path(
             if !done[next] && candidate < best[next] {
                 best[next] = candidate;
                 previous[next] = cell;
-                queue.push(Entry(candidate, next));
+                queue.push(MinCost(candidate, next));
             }
         }
     }

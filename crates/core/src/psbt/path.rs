@@ -3,10 +3,10 @@
 //! and a bounded Dijkstra tree from the help location, which gives every place's path and
 //! distance back to it in one pass.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use crate::activity::disturbance::PlanningGrid;
+use crate::queue::MinCost;
 
 /// A path through free cells and its length in metres (centre to centre).
 #[derive(Clone, Debug, PartialEq)]
@@ -26,28 +26,6 @@ impl CellPath {
             cells,
             length: self.length,
         }
-    }
-}
-
-/// Queue entry: priority (least first, by `total_cmp`), then the cell (least first), so the
-/// search is deterministic.
-#[derive(PartialEq)]
-struct Entry(f64, usize);
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .0
-            .total_cmp(&self.0)
-            .then_with(|| other.1.cmp(&self.1))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
     }
 }
 
@@ -75,8 +53,8 @@ pub fn astar(grid: &PlanningGrid, from: usize, to: usize) -> Option<CellPath> {
     let mut done = vec![false; grid.len()];
     let mut queue = BinaryHeap::new();
     best[from] = 0.0;
-    queue.push(Entry(octile(grid, from, to), from));
-    while let Some(Entry(_, cell)) = queue.pop() {
+    queue.push(MinCost(octile(grid, from, to), from));
+    while let Some(MinCost(_, cell)) = queue.pop() {
         if done[cell] {
             continue;
         }
@@ -89,7 +67,7 @@ pub fn astar(grid: &PlanningGrid, from: usize, to: usize) -> Option<CellPath> {
             if !done[next] && g < best[next] {
                 best[next] = g;
                 previous[next] = cell;
-                queue.push(Entry(g + octile(grid, next, to), next));
+                queue.push(MinCost(g + octile(grid, next, to), next));
             }
         }
     }
@@ -128,8 +106,8 @@ impl DistanceTree {
         let mut done = vec![false; grid.len()];
         let mut queue = BinaryHeap::new();
         distance[source] = 0.0;
-        queue.push(Entry(0.0, source));
-        while let Some(Entry(d, cell)) = queue.pop() {
+        queue.push(MinCost(0.0, source));
+        while let Some(MinCost(d, cell)) = queue.pop() {
             if done[cell] {
                 continue;
             }
@@ -139,7 +117,7 @@ impl DistanceTree {
                 if candidate <= max_distance && !done[next] && candidate < distance[next] {
                     distance[next] = candidate;
                     previous[next] = cell;
-                    queue.push(Entry(candidate, next));
+                    queue.push(MinCost(candidate, next));
                 }
             }
         }
