@@ -3,7 +3,7 @@
 //! PostgreSQL acknowledges the commit (`synchronous_commit` as the server configures it).
 //!
 //! One service owns a schema at a time: [`PostgresStore::connect`] takes a session-level
-//! advisory lock on it and waits (up to [`OWNER_WAIT`]) while another session holds it. After
+//! advisory lock on it and waits (up to 15 s) while another session holds it. After
 //! a crash this fences the dead process out: its database session may still be finishing a
 //! statement it sent (a log append, a checkpoint), and PostgreSQL releases the lock only when
 //! that session has ended, so the new service never reads a state that a late commit of the
@@ -19,7 +19,7 @@ use tokio_postgres::{Client, NoTls};
 use super::{Recovered, Store, StoreError, Visit};
 
 /// How long [`PostgresStore::connect`] waits for another session to give up the schema.
-pub const OWNER_WAIT: Duration = Duration::from_secs(15);
+const OWNER_WAIT: Duration = Duration::from_secs(15);
 
 /// The log and snapshots in tables `log`, `snapshots` and `meta` of one schema.
 pub struct PostgresStore {
@@ -37,7 +37,7 @@ impl PostgresStore {
     /// # Errors
     /// The server cannot be reached, refuses the login, the schema name is not a plain
     /// identifier (`[a-z_][a-z0-9_]*`, up to 63 bytes), or another session still holds the
-    /// schema after [`OWNER_WAIT`].
+    /// schema after 15 s (see [`PostgresStore::connect_waiting`] for another wait).
     pub fn connect(config: &str, schema: &str) -> Result<Self, StoreError> {
         Self::connect_waiting(config, schema, OWNER_WAIT)
     }
