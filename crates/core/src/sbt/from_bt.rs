@@ -194,18 +194,36 @@ impl Converter<'_> {
                     .map_err(bad)
             }
             NodeCategory::Control => {
+                // The node itself is checked before its children, so that the error names
+                // the outermost node that cannot be analysed.
+                let sequence = match def.id.as_str() {
+                    "Sequence" | "SequenceWithMemory" => true,
+                    "Fallback" => false,
+                    "Parallel" => return Err(unsupported("children run at the same time")),
+                    "ReactiveSequence" | "ReactiveFallback" => {
+                        return Err(unsupported(
+                            "it re-ticks earlier children while a later one runs",
+                        ));
+                    }
+                    _ => return Err(unsupported("not a built-in control node")),
+                };
                 let children = self.children(def, tree, path)?;
-                match def.id.as_str() {
-                    "Sequence" | "SequenceWithMemory" => Ok(Node::Sequence(children)),
-                    "Fallback" => Ok(Node::Fallback(children)),
-                    "Parallel" => Err(unsupported("children run at the same time")),
-                    "ReactiveSequence" | "ReactiveFallback" => Err(unsupported(
-                        "it re-ticks earlier children while a later one runs",
-                    )),
-                    _ => Err(unsupported("not a built-in control node")),
-                }
+                Ok(if sequence {
+                    Node::Sequence(children)
+                } else {
+                    Node::Fallback(children)
+                })
             }
             NodeCategory::Decorator => {
+                match def.id.as_str() {
+                    "Inverter"
+                    | "ForceSuccess"
+                    | "ForceFailure"
+                    | "RetryUntilSuccessful"
+                    | "Repeat" => {}
+                    "Timeout" => return Err(unsupported("a deterministic deadline")),
+                    _ => return Err(unsupported("not a built-in decorator")),
+                }
                 let mut children = self.children(def, tree, path)?;
                 let child = children.pop().ok_or_else(|| unsupported("no child"))?;
                 let copies = |port: &str| -> Result<usize, FromBtError> {
@@ -229,9 +247,7 @@ impl Converter<'_> {
                     "RetryUntilSuccessful" => {
                         Ok(Node::Fallback(vec![child; copies("num_attempts")?]))
                     }
-                    "Repeat" => Ok(Node::Sequence(vec![child; copies("num_cycles")?])),
-                    "Timeout" => Err(unsupported("a deterministic deadline")),
-                    _ => Err(unsupported("not a built-in decorator")),
+                    _ => Ok(Node::Sequence(vec![child; copies("num_cycles")?])),
                 }
             }
             NodeCategory::SubTree => {
