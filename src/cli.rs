@@ -1181,7 +1181,8 @@ pub struct PsbtWorldArgs {
     /// ROS map YAML (map_server / Nav2).
     #[arg(long)]
     pub map: PathBuf,
-    /// Pedestrian track files, `t,person,x,y,speed,heading` (comma-separated; .xz/.gz read).
+    /// Pedestrian track files, `t,person,x,y,speed,heading` (comma-separated; .xz/.gz read),
+    /// or one CoPA-Map model file of `chronomap activity fit` (.cmcopa; synthesis only).
     #[arg(long, value_delimiter = ',', num_args = 1.., required = true)]
     pub activity: Vec<PathBuf>,
     /// Side of a cell of the activity model in metres.
@@ -1216,6 +1217,13 @@ pub struct PsbtSynthArgs {
     /// Seed of place sampling and of the TSP's genetic algorithm.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// With a CoPA-Map model: the model time to use (its own t units; default: --time on the
+    /// ATC grid's axis, hours since 2012-10-24 09:00 JST with 12 recorded hours a day).
+    #[arg(long)]
+    pub model_t: Option<f64>,
+    /// With a CoPA-Map model: side in metres of the cells whose rates it was trained on.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub model_cell: f64,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
