@@ -1181,7 +1181,8 @@ pub struct PsbtWorldArgs {
     /// ROS map YAML (map_server / Nav2).
     #[arg(long)]
     pub map: PathBuf,
-    /// Pedestrian track files, `t,person,x,y,speed,heading` (comma-separated; .xz/.gz read).
+    /// Pedestrian track files, `t,person,x,y,speed,heading` (comma-separated; .xz/.gz read),
+    /// or one CoPA-Map model file of `chronomap activity fit` (.cmcopa; synthesis only).
     #[arg(long, value_delimiter = ',', num_args = 1.., required = true)]
     pub activity: Vec<PathBuf>,
     /// Side of a cell of the activity model in metres.
@@ -1216,6 +1217,13 @@ pub struct PsbtSynthArgs {
     /// Seed of place sampling and of the TSP's genetic algorithm.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// With a CoPA-Map model: the model time to use (its own t units; default: --time on the
+    /// ATC grid's axis, hours since 2012-10-24 09:00 JST with 12 recorded hours a day).
+    #[arg(long)]
+    pub model_t: Option<f64>,
+    /// With a CoPA-Map model: side in metres of the cells whose rates it was trained on.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
+    pub model_cell: f64,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -1915,6 +1923,51 @@ pub enum BtCommand {
     /// Tick a tree whose leaves follow a script of outcomes and print every status change.
     #[command(after_help = BT_HELP_RUN)]
     Run(BtRunArgs),
+    /// Analyse a tree as a stochastic behavior tree: p_s,T(t), p_f,T(t) and mean times.
+    #[command(after_help = BT_HELP_ANALYSE)]
+    Analyse(BtAnalyseArgs),
+}
+
+const BT_HELP_ANALYSE: &str = "\
+Example:
+  chronomap bt analyse tests/data/bt/door.xml --params tests/data/bt/door_sbt.csv --t-max 120
+
+Seed 002 §5.2.2: every action ends in success with probability p_s after an Exp(mu) time,
+else in failure after an Exp(nu) time; a condition holds with probability p_s and takes no
+time. The parameters file is CSV with a header, one row per leaf (instance name, or ID for
+every instance of it); conditions leave mu and nu empty, p_f is optional (= 1 - p_s):
+  node,p_s,p_f,mu,nu
+  IsDoorClosed,0.7,,,
+  OpenDoor,0.4,0.6,0.1,0.5
+Supported: Sequence, SequenceWithMemory, Fallback, Inverter, ForceSuccess, ForceFailure,
+RetryUntilSuccessful and Repeat with a literal count, SubTree, AlwaysSuccess, AlwaysFailure,
+SetBlackboard. Prints p_s,T(t) and p_f,T(t) (eq. 5.1) at --steps times up to --t-max (default:
+three times the longer mean time), the eventual probabilities and the exact mean times to
+success and failure (1/mu_T, 1/nu_T).";
+
+/// `chronomap bt analyse`.
+#[derive(Debug, Args)]
+pub struct BtAnalyseArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The leaves' parameters: CSV `node,p_s,p_f,mu,nu` (see below).
+    #[arg(long)]
+    pub params: PathBuf,
+    /// The tree to analyse (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Last time of the table, seconds after the tree starts.
+    #[arg(long)]
+    pub t_max: Option<f64>,
+    /// Number of intervals of the time table.
+    #[arg(long, default_value_t = 10)]
+    pub steps: usize,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Draw p_s,T(t) and p_f,T(t) into a PNG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
 }
 
 /// `chronomap bt check`.

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{chronomap, error, repo, stdout};
+use common::{chronomap, close, error, repo, stdout};
 
 fn scratch(test: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
@@ -268,6 +268,160 @@ fn bad_files_and_scripts_exit_2_with_the_place_of_the_problem() {
     ]));
     assert!(
         err.contains("door.log: the file name must end in .btlog"),
+        "{err}"
+    );
+}
+
+/// `bt analyse` on the door tree with tests/data/bt/door_sbt.csv. Hand computation: the
+/// subtree fails only if OpenDoor, three PickLock attempts and SmashDoor all fail,
+/// 0.6 · 0.5³ · 0.2 = 0.015; the fallback succeeds with 0.3 + 0.7 · 0.985 = 0.9895 (the door is
+/// open, or the subtree opens it); the sequence with 0.9895 · 0.95 = 0.940025.
+#[test]
+fn analyse_gives_the_hand_computed_probabilities_of_the_door_tree() {
+    let dir = scratch("bt_analyse_door");
+    let png = dir.join("door_sbt.png").display().to_string();
+    let door = repo("tests/data/bt/door.xml");
+    let params = repo("tests/data/bt/door_sbt.csv");
+    let args = [
+        "bt", "analyse", &door, "--params", &params, "--t-max", "120", "--steps", "4", "--json",
+        "--plot", &png,
+    ];
+    let json: serde_json::Value = serde_json::from_str(&stdout(&chronomap(&args))).unwrap();
+    close(&json["p_success"], 0.940025, 1e-12);
+    close(&json["p_failure"], 0.059975, 1e-12);
+    assert_eq!(json["tree"], "MainTree");
+    let curve = json["curve"].as_array().unwrap();
+    assert_eq!(curve.len(), 5);
+    close(&curve[0]["t"], 0.0, 0.0);
+    close(&curve[0]["p_success"], 0.0, 1e-15);
+    close(&curve[4]["t"], 120.0, 1e-12);
+    // Increasing towards the eventual values.
+    let ps: Vec<f64> = curve
+        .iter()
+        .map(|p| p["p_success"].as_f64().unwrap())
+        .collect();
+    assert!(ps.windows(2).all(|w| w[0] < w[1]), "{ps:?}");
+    assert!(ps[4] < 0.940025 && ps[4] > 0.93, "{ps:?}");
+    let (ts, mu) = (
+        json["time_to_success"].as_f64().unwrap(),
+        json["mu_t"].as_f64().unwrap(),
+    );
+    assert!((ts * mu - 1.0).abs() < 1e-12);
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+
+    let text = stdout(&chronomap(&args[..args.len() - 3]));
+    assert!(
+        text.contains("eventually: p_s = 0.940025, p_f = 0.059975\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("       0.000    0.000000    0.000000\n"),
+        "{text}"
+    );
+}
+
+/// A Fallback of two actions, hand-made: p_s = p1 + (1 − p1) p2 and
+/// p_s,T(t) = p1 (1 − e^{−μ1 t}) + (1 − p1) p2 Hypo(ν1, μ2)(t).
+#[test]
+fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
+    let dir = scratch("bt_analyse_fallback");
+    let xml = dir.join("search.xml");
+    std::fs::write(
+        &xml,
+        r#"<root BTCPP_format="4">
+  <BehaviorTree ID="Search">
+    <Fallback>
+      <Action ID="SearchCorridor"/>
+      <Action ID="WaitAtDoor"/>
+    </Fallback>
+  </BehaviorTree>
+</root>
+"#,
+    )
+    .unwrap();
+    let params = dir.join("search.csv");
+    std::fs::write(
+        &params,
+        "node,p_s,p_f,mu,nu\nSearchCorridor,0.6,,0.05,0.025\nWaitAtDoor,0.9,0.1,0.02,0.01\n",
+    )
+    .unwrap();
+    let (xml, params) = (xml.display().to_string(), params.display().to_string());
+    let out = chronomap(&[
+        "bt", "analyse", &xml, "--params", &params, "--t-max", "60", "--steps", "1", "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    close(&json["p_success"], 0.6 + 0.4 * 0.9, 1e-12);
+    let t: f64 = 60.0;
+    let hypo = |a: f64, b: f64| 1.0 - (b * (-a * t).exp() - a * (-b * t).exp()) / (b - a);
+    let expected = 0.6 * (1.0 - (-0.05 * t).exp()) + 0.4 * 0.9 * hypo(0.025, 0.02);
+    close(&json["curve"][1]["p_success"], expected, 1e-11);
+    close(
+        &json["time_to_success"],
+        (0.6 * 20.0 + 0.36 * (40.0 + 50.0)) / 0.96,
+        1e-9,
+    );
+}
+
+#[test]
+fn analyse_names_the_line_of_an_unsupported_node_and_bad_parameters() {
+    let params = repo("tests/data/bt/door_sbt.csv");
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &repo("tests/data/bt/parallel.xml"),
+        "--params",
+        &params,
+    ]));
+    assert!(
+        err.contains("parallel.xml:7:5: Timeout is not supported by the stochastic analysis"),
+        "{err}"
+    );
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &repo("tests/data/bt/monitor.xml"),
+        "--params",
+        &params,
+    ]));
+    assert!(
+        err.contains("monitor.xml:") && err.contains("is not supported"),
+        "{err}"
+    );
+
+    let dir = scratch("bt_analyse_bad");
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.5,0.2,0.5\n").unwrap();
+    let door = repo("tests/data/bt/door.xml");
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(
+        err.contains("bad.csv:2: field p_f: p_s + p_f = 0.9"),
+        "{err}"
+    );
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,fast,0.5\n").unwrap();
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(err.contains("bad.csv:2: field mu: \"fast\""), "{err}");
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,0.2,0.5\n").unwrap();
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(
+        err.contains("door.xml:") && err.contains("no parameters for Condition \"IsDoorClosed\""),
         "{err}"
     );
 }

@@ -168,3 +168,125 @@ fn eval_compares_every_method() {
     }
     assert!(v["psbt_over_gm_at_140_percent"].is_number());
 }
+
+/// A small CoPA-Map fitted here (30 inducing points, 20 iterations: about 2 s) and saved as
+/// `activity fit` saves it.
+fn small_copa_model(dir: &std::path::Path) -> String {
+    let model = dir.join("atc_small.cmcopa").display().to_string();
+    stdout(&chronomap(&[
+        "activity",
+        "fit",
+        "--train",
+        &repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"),
+        "--inducing",
+        "30",
+        "--iterations",
+        "20",
+        "-o",
+        &model,
+    ]));
+    model
+}
+
+fn scratch(test: &str) -> std::path::PathBuf {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `--activity MODEL.cmcopa`: the synthesis runs on the saved CoPA-Map's field. 14:30 JST on
+/// the first day is t = 5.5 on the ATC grid's axis; measured p_s,T(200 s) = 0.9733 (the track
+/// model of the same hour gives 0.9474).
+#[test]
+fn synthesis_from_a_saved_copa_map() {
+    let dir = scratch("psbt_copa");
+    let model = small_copa_model(&dir);
+    let map = repo("data/atc_copa_map_grid/atc_map.yaml");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "psbt",
+            "--map",
+            &map,
+            "--activity",
+            &model,
+            "--from=21.25,-18.25",
+            "--time",
+            "2012-10-24T05:30Z",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        serde_json::from_str::<Value>(&stdout(&chronomap(&args))).unwrap()
+    };
+    let json = run(&[]);
+    close(&json["model_t"], 5.5, 1e-9);
+    close(&json["p_success"], 0.9733, 0.01);
+    assert!(json["expected_time_s"].as_f64().unwrap() > 0.0);
+    assert!(
+        json["tree_xml"]
+            .as_str()
+            .unwrap()
+            .contains("<Action ID=\"MoveTo\" x=\"21.25\" y=\"-18.25\"/>")
+    );
+    // --model-t overrides the mapping: 20:30 JST of the first day (t = 11.5).
+    let late = run(&["--model-t", "11.5"]);
+    close(&late["model_t"], 11.5, 1e-12);
+    assert!(late["p_success"].as_f64().unwrap() > 0.5);
+
+    // Errors: a night hour without --model-t, a file that is not a model, a model mixed
+    // with tracks, and `psbt eval`, which needs tracks.
+    let night = error(&chronomap(&[
+        "psbt",
+        "--map",
+        &map,
+        "--activity",
+        &model,
+        "--from=21.25,-18.25",
+        "--time",
+        "2012-10-24T14:00Z",
+    ]));
+    assert!(
+        night.contains("outside 09:00-21:00 JST") && night.contains("--model-t"),
+        "{night}"
+    );
+    let fake = dir.join("fake.cmcopa");
+    std::fs::write(&fake, "t,person,x,y\n").unwrap();
+    let fake = fake.display().to_string();
+    let err = error(&chronomap(&[
+        "psbt",
+        "--map",
+        &map,
+        "--activity",
+        &fake,
+        "--from=21.25,-18.25",
+        "--time",
+        "0",
+    ]));
+    assert!(
+        err.contains("fake.cmcopa") && err.contains("not a chronomap model file"),
+        "{err}"
+    );
+    let mixed = format!("{model},{}", tracks(&[13]));
+    let err = error(&chronomap(&[
+        "psbt",
+        "--map",
+        &map,
+        "--activity",
+        &mixed,
+        "--from=21.25,-18.25",
+        "--time",
+        "0",
+    ]));
+    assert!(err.contains("not both (1 of 2 files are models)"), "{err}");
+    let err = error(&chronomap(&[
+        "psbt",
+        "eval",
+        "--map",
+        &map,
+        "--activity",
+        &model,
+        "--time",
+        "2012-10-24T05:30Z",
+    ]));
+    assert!(err.contains("psbt eval needs pedestrian tracks"), "{err}");
+}

@@ -75,6 +75,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Client(args) => serve::client(&args),
         Command::Bt(BtCommand::Check(args)) => bt::check(&args),
         Command::Bt(BtCommand::Run(args)) => bt::run(&args),
+        Command::Bt(BtCommand::Analyse(args)) => bt::analyse(&args),
     }
 }
 

@@ -1,5 +1,5 @@
 //! `chronomap psbt`: the person search behavior tree of seed 002 §5.4, synthesised from a
-//! grid Poisson model (eq. 5.7) learned from pedestrian tracks; `chronomap psbt eval`: the
+//! grid Poisson model (eq. 5.7) learned from pedestrian tracks, or from a saved CoPA-Map; `chronomap psbt eval`: the
 //! model-based comparison of §5.4.4 (Fig. 5.11).
 
 use std::path::Path;
@@ -7,17 +7,18 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::Parallelism;
+use chronomap_core::activity::CopaMap;
 use chronomap_core::activity::disturbance::PlanningGrid;
 use chronomap_core::activity::truth::TrackPoint;
 use chronomap_core::psbt::eval::{MethodOutcome, evaluate_start, sample_starts};
 use chronomap_core::psbt::{
-    Choice, GammaPrior, GridPoisson, GridSpec, Method, PsbtConfig, synthesize,
+    Choice, GammaPrior, GridPoisson, GridSpec, Method, PsbtConfig, copa_field, synthesize,
 };
 use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::plot::{Panel, Series, SeriesStyle, render_panels_png};
 use chronomap_io::psbt_xml::psbt_to_xml;
-use chronomap_io::read_track_point_files;
+use chronomap_io::{read_model_file, read_track_point_files};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
@@ -41,6 +42,22 @@ pub(super) fn load_world(
     planning_cell: f64,
     clearance: f64,
 ) -> Result<World> {
+    let (grid, origin, size) = planning_grid(map, planning_cell, clearance)?;
+    let points = read_track_point_files(activity).context("cannot read the tracks")?;
+    Ok(World {
+        grid,
+        points,
+        origin,
+        size,
+    })
+}
+
+/// The planning grid of the map's free cells, its lower-left corner and size (metres).
+fn planning_grid(
+    map: &Path,
+    planning_cell: f64,
+    clearance: f64,
+) -> Result<(PlanningGrid, [f64; 2], [f64; 2])> {
     let map_name = map.display().to_string();
     let occupancy = load_map(map, LoadSemantics::Nav2)?;
     let obstacles = obstacles_of(&occupancy).map_err(|e| anyhow!("{map_name}: {e}"))?;
@@ -58,13 +75,76 @@ pub(super) fn load_world(
     if grid.free_count() == 0 {
         bail!("{map_name}: no planning cell is {clearance} m away from every obstacle");
     }
-    let points = read_track_point_files(activity).context("cannot read the tracks")?;
-    Ok(World {
-        grid,
-        points,
-        origin,
-        size,
-    })
+    Ok((grid, origin, size))
+}
+
+/// The kind written into CoPA-Map model files (as `activity fit` writes them).
+const COPA_KIND: &str = "copa-map";
+
+/// The ATC grid's time axis (data/README.md): `t` counts hours from 2012-10-24 09:00 JST
+/// (unix 1351036800), 12 recorded hours (09:00–21:00) a day, nights removed.
+const ATC_T0: f64 = 1_351_036_800.0;
+const ATC_HOURS_PER_DAY: f64 = 12.0;
+
+/// The model time of the unix time `time` on the ATC grid's axis: `12·d + h` on day `d` at
+/// `h` hours after 09:00 JST; `None` outside 09:00–21:00 JST (the model has no night).
+fn atc_model_time(time: f64) -> Option<f64> {
+    let since = time - ATC_T0;
+    let day = (since / 86_400.0).floor();
+    let hours = (since - day * 86_400.0) / 3600.0;
+    (hours < ATC_HOURS_PER_DAY).then_some(ATC_HOURS_PER_DAY * day + hours)
+}
+
+/// Whether `--activity` names a saved model rather than tracks: one file that starts with the
+/// model-file magic word or ends in `.cmcopa`.
+fn is_model_source(activity: &[std::path::PathBuf]) -> Result<bool> {
+    let is_model = |path: &Path| -> Result<bool> {
+        if path.extension().is_some_and(|e| e == "cmcopa") {
+            return Ok(true);
+        }
+        let mut start = [0u8; 16];
+        let mut file = std::fs::File::open(path)
+            .with_context(|| format!("{}: cannot open", path.display()))?;
+        let n = std::io::Read::read(&mut file, &mut start)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        Ok(start[..n].starts_with(chronomap_io::model_file::MAGIC.as_bytes()))
+    };
+    let mut models = 0;
+    for path in activity {
+        models += usize::from(is_model(path)?);
+    }
+    match (models, activity.len()) {
+        (0, _) => Ok(false),
+        (1, 1) => Ok(true),
+        _ => bail!(
+            "--activity: give one CoPA-Map model file or pedestrian track files, not both \
+             ({models} of {} files are models)",
+            activity.len()
+        ),
+    }
+}
+
+/// The activity field of a saved CoPA-Map at the request time ([`copa_field`]).
+fn copa_world_field(path: &Path, args: &PsbtSynthArgs, time: f64) -> Result<(GridPoisson, f64)> {
+    let name = path.display().to_string();
+    let (kind, model): (String, CopaMap) = read_model_file(path)?;
+    if kind != COPA_KIND {
+        bail!("{name}: a model of kind {kind:?}, not a CoPA-Map ({COPA_KIND:?})");
+    }
+    model.check().map_err(|e| anyhow!("{name}: {e}"))?;
+    let model_t = match args.model_t {
+        Some(t) => t,
+        None => atc_model_time(time).ok_or_else(|| {
+            anyhow!(
+                "--time {}: outside 09:00-21:00 JST, which the ATC grid's time axis covers \
+                 (give --model-t)",
+                crate::format::time(time)
+            )
+        })?,
+    };
+    let field = copa_field(&model, args.model_cell, model_t, Parallelism::Rayon(0))
+        .map_err(|e| anyhow!("{name}: {e}"))?;
+    Ok((field, model_t))
 }
 
 /// The grid Poisson model (eq. 5.7) over the map from the tracks `keep` accepts (by time).
@@ -129,17 +209,28 @@ fn synth(args: &PsbtSynthArgs) -> Result<()> {
         bail!("--map, --activity, --from and --time are needed");
     };
     let config = config_of(world_args)?;
-    let world = load_world(
-        &world_args.map,
-        &world_args.activity,
-        world_args.planning_cell,
-        world_args.clearance,
-    )?;
-    let model = fit_model(&world, world_args.cell, world_args.interval, |_| true)?
-        .ok_or_else(|| anyhow!("the tracks hold no detection"))?;
+    let (grid, model, model_t) = if is_model_source(&world_args.activity)? {
+        let (grid, _, _) = planning_grid(
+            &world_args.map,
+            world_args.planning_cell,
+            world_args.clearance,
+        )?;
+        let (field, model_t) = copa_world_field(&world_args.activity[0], args, time)?;
+        (grid, field, Some(model_t))
+    } else {
+        let world = load_world(
+            &world_args.map,
+            &world_args.activity,
+            world_args.planning_cell,
+            world_args.clearance,
+        )?;
+        let model = fit_model(&world, world_args.cell, world_args.interval, |_| true)?
+            .ok_or_else(|| anyhow!("the tracks hold no detection"))?;
+        (world.grid, model, None)
+    };
     let started = Instant::now();
     let plan = synthesize(
-        &world.grid,
+        &grid,
         &model,
         from,
         time,
@@ -163,6 +254,7 @@ fn synth(args: &PsbtSynthArgs) -> Result<()> {
                 "choices": describe(&plan.choices),
                 "horizon_s": config.horizon_s,
                 "seed": args.seed,
+                "model_t": model_t,
             })
         );
     } else {
@@ -182,6 +274,9 @@ fn synth(args: &PsbtSynthArgs) -> Result<()> {
             plan.expected_time_s
                 .map_or("-".into(), |t| format!("{t:.1} s"))
         );
+        if let Some(t) = model_t {
+            println!("activity: CoPA-Map at model t = {t:.3}");
+        }
         print!("{xml}");
     }
     Ok(())
@@ -253,6 +348,12 @@ fn summarise(
 
 fn eval(args: &PsbtEvalArgs) -> Result<()> {
     let config = config_of(&args.world)?;
+    if is_model_source(&args.world.activity)? {
+        bail!(
+            "--activity: psbt eval needs pedestrian tracks (it learns a planning model from the \
+             hours before --time and scores on the hour itself); a saved model serves synthesis"
+        );
+    }
     let world = load_world(
         &args.world.map,
         &args.world.activity,

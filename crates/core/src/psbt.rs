@@ -65,7 +65,7 @@ pub mod path;
 pub mod places;
 mod synth;
 
-pub use field::{GammaPrior, GridPoisson, GridSpec, RateField};
+pub use field::{GammaPrior, GridPoisson, GridSpec, RateField, copa_field};
 pub use places::TspConfig;
 pub use synth::{
     Candidates, Choice, DiscCache, Method, Plan, SearchContext, Synthesis, baseline, synthesize,

@@ -61,7 +61,10 @@
 //!   against both and against closed forms.
 
 pub mod dense;
+pub mod from_bt;
 pub mod simulate;
+
+pub use from_bt::{FromBtError, FromBtErrorKind, LeafParams, from_bt};
 
 use thiserror::Error;
 

@@ -97,6 +97,19 @@ pub struct BtXml {
     pub document: BtDocument,
     /// Things that were read leniently (each `file:line:column: text`).
     pub warnings: Vec<String>,
+    /// The 1-based line and column of every node's element, by tree ID and child path (as
+    /// [`NodeLocation`](chronomap_core::bt::NodeLocation) locates nodes), so that an analysis
+    /// of the document can name the line of a node.
+    pub node_positions: HashMap<(String, Vec<usize>), (u32, u32)>,
+}
+
+impl BtXml {
+    /// The line and column of the node at `location`, if it was read from this file.
+    pub fn position(&self, location: &chronomap_core::bt::NodeLocation) -> Option<(u32, u32)> {
+        self.node_positions
+            .get(&(location.tree.clone(), location.path.clone()))
+            .copied()
+    }
 }
 
 /// What is wrong with a BehaviorTree.CPP XML file (the part of a [`BtXmlError`] after
@@ -303,8 +316,9 @@ pub fn parse_bt_xml(name: &str, text: &str, registry: &Registry) -> Result<BtXml
             e.file = Some(name.to_owned());
             e
         })
-        .map(|(document, warnings)| BtXml {
+        .map(|(document, warnings, node_positions)| BtXml {
             document,
+            node_positions,
             warnings: warnings
                 .into_iter()
                 .map(|((line, column), text)| format!("{name}:{line}:{column}: {text}"))
@@ -360,7 +374,13 @@ struct Reader<'a> {
     warnings: Vec<(Pos, String)>,
 }
 
-fn parse(text: &str, registry: &Registry) -> Result<(BtDocument, Vec<(Pos, String)>), BtXmlError> {
+type Parsed = (
+    BtDocument,
+    Vec<(Pos, String)>,
+    HashMap<(String, Vec<usize>), Pos>,
+);
+
+fn parse(text: &str, registry: &Registry) -> Result<Parsed, BtXmlError> {
     let options = ParsingOptions {
         allow_dtd: false,
         ..ParsingOptions::default()
@@ -489,7 +509,12 @@ fn parse(text: &str, registry: &Registry) -> Result<(BtDocument, Vec<(Pos, Strin
         };
         located(position, e)
     })?;
-    Ok((document, reader.warnings))
+    let positions = reader
+        .nodes
+        .into_iter()
+        .map(|(key, p)| (key, p.element))
+        .collect();
+    Ok((document, reader.warnings, positions))
 }
 
 fn located(position: Option<Pos>, e: DefinitionError) -> BtXmlError {

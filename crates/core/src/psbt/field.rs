@@ -4,7 +4,9 @@
 use std::collections::{HashMap, HashSet};
 
 use super::PsbtError;
+use crate::activity::CopaMap;
 use crate::activity::truth::TrackPoint;
+use crate::par::Parallelism;
 
 /// A spatio-temporal rate of people `λ(x, t)` (§5.4.1): any chronomap activity model can drive
 /// the person search by implementing this.
@@ -293,4 +295,80 @@ impl RateField for GridPoisson {
         }
         total
     }
+}
+
+/// The activity of a fitted CoPA-Map (seed 002 §4.2) as a [`RateField`] for the person search
+/// (§5.4.1): the grid model of eq. 5.7 whose cells are those the model was trained on, each
+/// with the model's predicted rate at its centre at the model time `model_t`.
+///
+/// Units: CoPA-Map predicts people per hour of observation in a cell of side `cell` metres
+/// (the ATC grid: 0.5 m), so a cell's rate is `y / 3600` people per second and the density
+/// `y / (3600 · cell²)` people per second and square metre, which is what
+/// [`RateField::density`] returns. Time: the field is the model at `model_t` (in the model's
+/// own `t` units, hour bins for the ATC grid) at every query time — the person search
+/// evaluates its rates at the request time only (eqs. 5.9 and 5.14), and the caller maps that
+/// time onto the model's axis. Space: the cells tile the model's training square
+/// ([`CopaMap::domain`], widened by half a cell to the cell edges); outside it the rate is 0,
+/// as for [`GridPoisson`].
+///
+/// # Errors
+/// [`PsbtError::Config`] for a cell that is not a positive number, a non-finite `model_t`, a
+/// training square of more than 2²⁸ cells, or a prediction that fails or is not finite.
+pub fn copa_field(
+    model: &CopaMap,
+    cell: f64,
+    model_t: f64,
+    parallelism: Parallelism,
+) -> Result<GridPoisson, PsbtError> {
+    if !(cell.is_finite() && cell > 0.0 && model_t.is_finite()) {
+        return Err(PsbtError::Config(format!(
+            "CoPA-Map cell {cell} m at t = {model_t}: need a positive cell and a finite time"
+        )));
+    }
+    let [x0, y0, x1, y1] = model.domain();
+    let origin = [x0 - cell / 2.0, y0 - cell / 2.0];
+    let cols = ((x1 - x0) / cell).round() as usize + 1;
+    let rows = ((y1 - y0) / cell).round() as usize + 1;
+    // One interval of an hour: a cell "observed for 3600 s with y people" has rate y/3600 per
+    // second. The prior is negligible (1e-300 people in 1e-300 s).
+    let spec = GridSpec {
+        origin,
+        cell,
+        cols,
+        rows,
+        t0: 0.0,
+        interval: 3600.0,
+        intervals: 1,
+    };
+    let prior = GammaPrior {
+        alpha: 1e-300,
+        beta: 1e-300,
+    };
+    let mut field = GridPoisson::new(spec, prior)?;
+    let centres: Vec<([f64; 2], f64)> = (0..rows)
+        .flat_map(|r| {
+            (0..cols).map(move |c| {
+                (
+                    [
+                        origin[0] + (c as f64 + 0.5) * cell,
+                        origin[1] + (r as f64 + 0.5) * cell,
+                    ],
+                    model_t,
+                )
+            })
+        })
+        .collect();
+    let (mean, _) = model
+        .predict_with_std(&centres, parallelism)
+        .map_err(|e| PsbtError::Config(format!("CoPA-Map prediction: {e}")))?;
+    for (&(x, _), &per_hour) in centres.iter().zip(&mean) {
+        if !(per_hour.is_finite() && per_hour >= 0.0) {
+            return Err(PsbtError::Config(format!(
+                "CoPA-Map predicts {per_hour} people per hour at ({}, {})",
+                x[0], x[1]
+            )));
+        }
+        field.observe(x, 0.0, per_hour, 3600.0)?;
+    }
+    Ok(field)
 }

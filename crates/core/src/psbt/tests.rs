@@ -535,3 +535,44 @@ fn bad_starts_and_settings_are_errors() {
         Err(PsbtError::Config(_))
     ));
 }
+
+/// A CoPA-Map as the field of the person search: people per hour in 0.5 m cells become
+/// people per second per square metre (`y / (3600 · 0.25)`), cell by cell at the model time,
+/// and 0 outside the training square.
+#[test]
+fn copa_field_converts_people_per_hour_per_cell_to_a_density() {
+    use crate::activity::{CopaConfig, CopaMap, RatePredictor, RateSamples};
+    let (mut x, mut t, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    for hour in 0..6 {
+        for i in 0..8 {
+            for j in 0..8 {
+                x.push([i as f64 * 0.5 + 0.25, j as f64 * 0.5 + 0.25]);
+                t.push(f64::from(hour));
+                y.push(20.0 + 10.0 * i as f64 + f64::from(hour));
+            }
+        }
+    }
+    let samples = RateSamples::new(x, t, y).unwrap();
+    let config = CopaConfig {
+        inducing: 10,
+        iterations: 10,
+        batch_size: 100,
+        ..CopaConfig::default()
+    };
+    let model = CopaMap::fit(&samples, &config).unwrap();
+    let field = copa_field(&model, 0.5, 3.0, crate::Parallelism::Sequential).unwrap();
+    for &(cx, cy) in &[(0.25, 0.25), (3.75, 1.25), (2.25, 3.75)] {
+        let per_hour = model.predict([cx, cy], 3.0);
+        assert!(per_hour > 1.0, "{per_hour}");
+        let expected = per_hour / 3600.0 / 0.25;
+        // Any point of the cell, at any query time (the field is the model at t = 3).
+        for (dx, dy, at) in [(0.0, 0.0, 0.0), (0.2, -0.2, 1e9)] {
+            let d = field.density([cx + dx, cy + dy], at);
+            assert!((d - expected).abs() < 1e-12 * expected, "{d} vs {expected}");
+        }
+    }
+    assert_eq!(field.density([-1.0, 1.0], 0.0), 0.0);
+    assert_eq!(field.density([1.0, 4.5], 0.0), 0.0);
+    assert!(copa_field(&model, 0.0, 3.0, crate::Parallelism::Sequential).is_err());
+    assert!(copa_field(&model, 0.5, f64::NAN, crate::Parallelism::Sequential).is_err());
+}
