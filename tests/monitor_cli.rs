@@ -80,7 +80,7 @@ fn the_hand_written_scenario_gives_the_known_interventions() {
         .unwrap();
     assert_eq!(
         (slow["count"].as_u64(), slow["successes"].as_u64()),
-        (Some(2), Some(1))
+        (Some(3), Some(1))
     );
 }
 
