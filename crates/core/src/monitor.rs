@@ -465,7 +465,7 @@ pub fn recovery(leaf: &str) -> Option<&'static Recovery> {
 /// same category needs to be performed within one minute".
 pub const SUCCESS_WINDOW: Duration = Duration::from_secs(60);
 
-/// Judges recoveries by the rule of seed 002 §5.3.2 (after [HBJ+17]): the recovery started at
+/// Judges recoveries by the rule of seed 002 §5.3.2 (after \[HBJ+17\]): the recovery started at
 /// `starts[i].0` in category `starts[i].1` succeeded iff no other recovery of the same category
 /// starts in `(t_i, t_i + window]`. Recoveries are judged from their start times; a recovery
 /// with less than `window` left before `end` and no later one of its category counts as a
