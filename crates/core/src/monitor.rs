@@ -257,7 +257,8 @@ impl Monitor {
     }
 
     /// Adds a sample at time `t` (samples should come in time order; an earlier one is placed
-    /// where it belongs). Old samples no longer needed are dropped.
+    /// where it belongs). Samples no longer needed to evaluate at or after the latest sample are
+    /// dropped: a level, status or heartbeat keeps its latest sample, a rate the latest window.
     ///
     /// # Errors
     /// A value that is not finite.
