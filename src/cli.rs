@@ -117,6 +117,10 @@ pub enum Command {
     /// follow a script (seed 002 §5.2-5.3).
     #[command(subcommand)]
     Bt(BtCommand),
+    /// System monitoring of seed 002 §5.3: a fault-injection simulation of monitors feeding a
+    /// behavior-tree arbiter that blocks the patrol and runs the recoveries of Table 5.1.
+    #[command(subcommand)]
+    Monitor(MonitorCommand),
 }
 
 const SERVE_HELP: &str = "\
@@ -2000,6 +2004,53 @@ pub struct BtRunArgs {
     /// Write the status changes as a Groot2 execution log (must end in .btlog).
     #[arg(long)]
     pub btlog: Option<PathBuf>,
+}
+
+const MONITOR_HELP_SIM: &str = "\
+Examples:
+  chronomap monitor sim --hours 8 --seed 1
+  chronomap monitor sim --hours 1 --faults faults.txt --certain
+
+A fault file has one fault a line: TIME KIND [TARGET] [fails=N] [for=SECONDS], TIME in seconds
+or h:mm:ss, KIND node_crash (TARGET localization, move_base or camera), topic_slow (/scan),
+cpu_overload, localization_lost, navigation_failure or stuck; fails=N makes the first N
+recoveries on it fail, for= sets a CPU overload's length (120 s). Without --faults, faults are
+drawn at random from the seed. A recovery counts as successful if no recovery of the same
+category starts within one minute (seed 002 §5.3.2); TSL is the time between supervisor
+interventions the robot did not request.";
+
+/// `chronomap monitor ...`.
+#[derive(Debug, Subcommand)]
+pub enum MonitorCommand {
+    /// Simulate a patrol with injected faults; print every recovery and the metrics of
+    /// Tables 5.2 and 5.3.
+    #[command(after_help = MONITOR_HELP_SIM)]
+    Sim(MonitorSimArgs),
+}
+
+/// `chronomap monitor sim`.
+#[derive(Debug, Args)]
+pub struct MonitorSimArgs {
+    /// Simulated hours.
+    #[arg(long, default_value_t = 8.0)]
+    pub hours: f64,
+    /// Seed of the random faults and recovery outcomes.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Faults to inject instead of random ones (see below).
+    #[arg(long)]
+    pub faults: Option<PathBuf>,
+    /// Every recovery fixes its fault (unless the fault says fails=N) instead of Table 5.3's
+    /// success rates.
+    #[arg(long)]
+    pub certain: bool,
+    /// The arbiter tree (BehaviorTree.CPP 4 XML with the simulation's leaves; default: the
+    /// built-in one, tests/data/bt/monitor_arbiter.xml).
+    #[arg(long)]
+    pub arbiter: Option<PathBuf>,
+    /// Print JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[cfg(test)]

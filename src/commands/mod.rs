@@ -21,6 +21,7 @@ mod explore;
 mod features;
 mod grid;
 mod model;
+mod monitor;
 mod psbt;
 mod serve;
 mod synthetic;
@@ -32,8 +33,8 @@ use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
 
 use crate::cli::{
-    ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, SeriesSource,
-    TopoCommand,
+    ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, MonitorCommand,
+    SeriesSource, TopoCommand,
 };
 
 /// Runs one subcommand.
@@ -76,6 +77,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bt(BtCommand::Check(args)) => bt::check(&args),
         Command::Bt(BtCommand::Run(args)) => bt::run(&args),
         Command::Bt(BtCommand::Analyse(args)) => bt::analyse(&args),
+        Command::Monitor(MonitorCommand::Sim(args)) => monitor::sim(&args),
     }
 }
 

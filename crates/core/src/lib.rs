@@ -63,6 +63,7 @@ pub mod mean;
 pub mod metrics;
 pub mod mixture;
 pub mod model;
+pub mod monitor;
 pub mod naive;
 pub mod observe;
 pub mod par;
