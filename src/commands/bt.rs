@@ -283,7 +283,7 @@ struct CurvePoint {
     p_failure: f64,
 }
 
-/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2 ([`sbt::from_bt`]), eq. 5.1
+/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2 ([`sbt::from_bt()`]), eq. 5.1
 /// by uniformisation ([`sbt::Chain::transient`]) and the exact mean times that replace the
 /// averaged rates of eqs. 5.3–5.4 ([`sbt::Chain::means`]).
 pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {

@@ -24,7 +24,9 @@ fn arbiter(args: &MonitorSimArgs) -> Result<BtDocument> {
     let Some(file) = &args.arbiter else {
         return Ok(arbiter_document());
     };
-    let BtXml { document, warnings } = read_bt_xml(file, &Registry::new())?;
+    let BtXml {
+        document, warnings, ..
+    } = read_bt_xml(file, &Registry::new())?;
     for warning in warnings {
         eprintln!("warning: {warning}");
     }
