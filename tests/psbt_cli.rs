@@ -226,7 +226,7 @@ fn synthesis_from_a_saved_copa_map() {
         json["tree_xml"]
             .as_str()
             .unwrap()
-            .contains("<Action ID=\"MoveTo\" x=\"21.25\" y=\"-18.25\"/>")
+            .contains("<MoveTo x=\"21.25\" y=\"-18.25\"/>")
     );
     // --model-t overrides the mapping: 20:30 JST of the first day (t = 11.5).
     let late = run(&["--model-t", "11.5"]);
