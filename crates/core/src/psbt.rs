@@ -143,6 +143,12 @@ pub struct PsbtConfig {
     pub max_distance_m: f64,
     /// `n_λ` of the GC baseline (50).
     pub close_maxima: usize,
+    /// Whether the first places are the targets of the greedy baselines GM and GC (the cell
+    /// of highest rate, and the nearest of the `n_λ` highest), the others sampled `∝` rate
+    /// (true). Then PSBT's candidates contain the GM, GC and W trees, so PSBT is at least as
+    /// good as each of them at `t_max` under the planning model, as the seed argues for W
+    /// alone. `false` samples all `n_pl` places, as §5.4.3 does.
+    pub include_maxima: bool,
     /// Truncation error allowed in the uniformisation (1e-10).
     pub tolerance: f64,
     /// The genetic algorithm of the open TSP.
@@ -161,6 +167,7 @@ impl Default for PsbtConfig {
             horizon_s: 200.0,
             max_distance_m: 50.0,
             close_maxima: 50,
+            include_maxima: true,
             tolerance: 1e-10,
             tsp: TspConfig::default(),
         }

@@ -5,11 +5,13 @@
 use crate::rng::Xoshiro256StarStar;
 
 /// Samples up to `count` of the `candidates` (each with its cell rate and position) with
-/// probability `∝` rate (§5.4.3). A draw closer than `radius` to a kept place replaces it only
-/// if its rate is larger (then every kept place within `radius` goes); otherwise it is dropped.
-/// Stops after `count` places or `50·count` draws. Returns indices into `candidates`.
+/// probability `∝` rate (§5.4.3), after the `fixed` ones (indices kept first, as they are). A
+/// draw closer than `radius` to a kept place replaces it only if its rate is larger (then every
+/// kept place within `radius` goes) and none of them is fixed; otherwise it is dropped. Stops
+/// after `count` places or `50·count` draws. Returns indices into `candidates`, the fixed first.
 pub fn sample_places(
     candidates: &[([f64; 2], f64)],
+    fixed: &[usize],
     count: usize,
     radius: f64,
     rng: &mut Xoshiro256StarStar,
@@ -21,7 +23,13 @@ pub fn sample_places(
         cumulative.push(total);
     }
     let mut kept: Vec<usize> = Vec::new();
-    if total <= 0.0 || count == 0 {
+    for &f in fixed {
+        if kept.len() < count && f < candidates.len() && !kept.contains(&f) {
+            kept.push(f);
+        }
+    }
+    let is_fixed = |k: usize| fixed.contains(&k);
+    if total <= 0.0 || kept.len() == count {
         return kept;
     }
     let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]) < radius;
@@ -42,7 +50,10 @@ pub fn sample_places(
             .copied()
             .filter(|&k| near(candidates[k].0, at))
             .collect();
-        if conflicts.iter().all(|&k| rate > candidates[k].1) {
+        if conflicts
+            .iter()
+            .all(|&k| !is_fixed(k) && rate > candidates[k].1)
+        {
             kept.retain(|k| !conflicts.contains(k));
             kept.push(drawn);
         }

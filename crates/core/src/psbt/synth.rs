@@ -616,7 +616,32 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
         Xoshiro256StarStar::seed_from_u64(derive_seed(seed, tag, 0, 0))
     }
 
-    /// PSBT's places: sampled `∝` rate, thinned by `r_D` (§5.4.3).
+    /// The targets of the greedy baselines (§5.4.4): GM the reachable cell of highest rate, GC
+    /// the nearest (by path) of the `n_λ` highest. Equal rates: the nearer, then the lower index.
+    fn greedy_targets(&self) -> Result<(usize, usize), PsbtError> {
+        let mut cells = self.reachable()?;
+        cells.sort_by(|a, b| {
+            b.1.total_cmp(&a.1)
+                .then_with(|| self.tree.distance(a.0).total_cmp(&self.tree.distance(b.0)))
+                .then_with(|| a.0.cmp(&b.0))
+        });
+        let global = cells[0].0;
+        let close = cells
+            .iter()
+            .take(self.config.close_maxima.max(1))
+            .min_by(|a, b| {
+                self.tree
+                    .distance(a.0)
+                    .total_cmp(&self.tree.distance(b.0))
+                    .then_with(|| a.0.cmp(&b.0))
+            })
+            .expect("the start is reachable")
+            .0;
+        Ok((global, close))
+    }
+
+    /// PSBT's places: sampled `∝` rate, thinned by `r_D` (§5.4.3); with
+    /// [`PsbtConfig::include_maxima`], the targets of GM and GC first.
     fn psbt_places(&self, seed: u64) -> Result<Vec<usize>, PsbtError> {
         let cells: Vec<(usize, f64)> = self
             .reachable()?
@@ -627,8 +652,18 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
             .iter()
             .map(|&(c, r)| (self.grid.centre(c), r))
             .collect();
+        let fixed: Vec<usize> = if self.config.include_maxima {
+            let (global, close) = self.greedy_targets()?;
+            [global, close]
+                .into_iter()
+                .filter_map(|target| cells.iter().position(|&(c, _)| c == target))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let picked = sample_places(
             &candidates,
+            &fixed,
             self.config.places,
             self.config.detection_radius_m,
             &mut self.rng(seed, 1),
@@ -880,28 +915,8 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
                 self.finish(method, &candidates, &geometry, 1, None)
             }
             Method::Gm | Method::Gc => {
-                let mut cells = self.reachable()?;
-                // Highest rate first; equal rates: the nearer, then the lower index.
-                cells.sort_by(|a, b| {
-                    b.1.total_cmp(&a.1)
-                        .then_with(|| self.tree.distance(a.0).total_cmp(&self.tree.distance(b.0)))
-                        .then_with(|| a.0.cmp(&b.0))
-                });
-                let target = if method == Method::Gm {
-                    cells[0].0
-                } else {
-                    cells
-                        .iter()
-                        .take(self.config.close_maxima.max(1))
-                        .min_by(|a, b| {
-                            self.tree
-                                .distance(a.0)
-                                .total_cmp(&self.tree.distance(b.0))
-                                .then_with(|| a.0.cmp(&b.0))
-                        })
-                        .expect("the start is reachable")
-                        .0
-                };
+                let (global, close) = self.greedy_targets()?;
+                let target = if method == Method::Gm { global } else { close };
                 if target == self.start_cell {
                     let (candidates, geometry) = self.candidates(&[])?;
                     self.finish(method, &candidates, &geometry, 1, None)

@@ -576,3 +576,94 @@ fn copa_field_converts_people_per_hour_per_cell_to_a_density() {
     assert!(copa_field(&model, 0.0, 3.0, crate::Parallelism::Sequential).is_err());
     assert!(copa_field(&model, 0.5, f64::NAN, crate::Parallelism::Sequential).is_err());
 }
+
+/// Fixed places come first and stay; draws near them are dropped, whatever their rate.
+#[test]
+fn fixed_places_are_kept_first() {
+    use super::places::sample_places;
+    let candidates: Vec<([f64; 2], f64)> = (0..40)
+        .map(|i| ([i as f64, 0.0], if i == 5 { 0.001 } else { 1.0 + i as f64 }))
+        .collect();
+    let mut rng = Xoshiro256StarStar::seed_from_u64(3);
+    let kept = sample_places(&candidates, &[5, 30], 6, 2.0, &mut rng);
+    assert_eq!(&kept[..2], &[5, 30]);
+    assert_eq!(kept.len(), 6);
+    for (a, &i) in kept.iter().enumerate() {
+        for &j in &kept[a + 1..] {
+            assert!(
+                (candidates[i].0[0] - candidates[j].0[0]).abs() >= 2.0,
+                "{kept:?}"
+            );
+        }
+    }
+    // More fixed places than wanted: the first ones.
+    assert_eq!(
+        sample_places(&candidates, &[7, 9, 11], 2, 2.0, &mut rng),
+        vec![7, 9]
+    );
+    // No rate at all: only the fixed ones.
+    let dead: Vec<([f64; 2], f64)> = candidates.iter().map(|&(at, _)| (at, 0.0)).collect();
+    assert_eq!(sample_places(&dead, &[4], 6, 2.0, &mut rng), vec![4]);
+}
+
+/// With the greedy targets among its places, PSBT's candidates contain the trees of GM, GC and
+/// W (and PP's, which searches the same places): on random activity over random rooms, PSBT's
+/// `p_s,T(t_max)` is never below theirs.
+#[test]
+fn psbt_is_never_below_the_baselines_it_contains() {
+    let mut rng = Xoshiro256StarStar::seed_from_u64(17);
+    let config = PsbtConfig {
+        places: 4,
+        ..PsbtConfig::default()
+    };
+    for case in 0..6 {
+        let grid = random_grid(&mut rng, 40, 24, 0.15);
+        let spec = GridSpec {
+            origin: [0.0, 0.0],
+            cell: 1.0,
+            cols: 20,
+            rows: 12,
+            t0: 0.0,
+            interval: 3600.0,
+            intervals: 1,
+        };
+        let mut model = GridPoisson::new(spec, GammaPrior::default()).unwrap();
+        for x in 0..20 {
+            for y in 0..12 {
+                let people = if rng.bernoulli(0.1) {
+                    rng.next_f64() * 400.0
+                } else {
+                    rng.next_f64() * 5.0
+                };
+                model
+                    .observe([x as f64 + 0.5, y as f64 + 0.5], 0.0, people, 3600.0)
+                    .unwrap();
+            }
+        }
+        let free: Vec<usize> = (0..grid.len()).filter(|&c| grid.is_free(c)).collect();
+        for start in 0..3 {
+            let from = grid.centre(free[rng.int_in(0, free.len() as u64 - 1) as usize]);
+            let seed = (case * 3 + start) as u64;
+            let Ok(psbt) = synthesize(
+                &grid,
+                &model,
+                from,
+                10.0,
+                &config,
+                seed,
+                Parallelism::Sequential,
+            ) else {
+                continue; // a start walled in: places unreachable
+            };
+            for method in [Method::Gm, Method::Gc, Method::W, Method::Pp] {
+                let other = baseline(&grid, &model, from, 10.0, &config, method, seed).unwrap();
+                assert!(
+                    psbt.p_success >= other.p_success - 1e-9,
+                    "case {case} start {start}: PSBT {} < {method:?} {}",
+                    psbt.p_success,
+                    other.p_success
+                );
+            }
+        }
+    }
+}
