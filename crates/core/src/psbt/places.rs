@@ -89,9 +89,13 @@ pub fn sample_uniform(
     kept
 }
 
-/// Settings of the genetic algorithm for the open TSP.
+/// Settings of the open TSP: exact for few places, else the genetic algorithm.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TspConfig {
+    /// Up to this many places every tour is tried ([`open_tsp_brute_force`]; 7 by default:
+    /// `7! = 5040` tours, fewer than the `population × generations` the genetic algorithm
+    /// evaluates); more are ordered by [`open_tsp_genetic`].
+    pub exact_up_to: usize,
     /// Tours per generation.
     pub population: usize,
     /// Generations.
@@ -103,6 +107,7 @@ pub struct TspConfig {
 impl Default for TspConfig {
     fn default() -> Self {
         TspConfig {
+            exact_up_to: 7,
             population: 100,
             generations: 300,
             mutation: 0.3,
@@ -158,6 +163,16 @@ fn next_permutation(v: &mut [usize]) -> bool {
     v.swap(i - 1, j);
     v[i..].reverse();
     true
+}
+
+/// The open tour from node 0 through nodes `1..=n` (§5.4.3): the cheapest by brute force for
+/// `n ≤` [`TspConfig::exact_up_to`], else by [`open_tsp_genetic`].
+pub fn open_tsp(cost: &[Vec<f64>], config: &TspConfig, rng: &mut Xoshiro256StarStar) -> Vec<usize> {
+    if cost.len().saturating_sub(1) <= config.exact_up_to.min(10) {
+        open_tsp_brute_force(cost)
+    } else {
+        open_tsp_genetic(cost, config, rng)
+    }
 }
 
 /// The open tour from node 0 through nodes `1..=n` by a genetic algorithm (\[Dav10\] in the seed): order

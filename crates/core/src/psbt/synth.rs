@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use super::actions::{MIN_RATE, SearchAction, WaitAction, move_to};
 use super::path::{CellPath, DistanceTree, astar, sample_cells};
-use super::places::{open_tsp_genetic, sample_places, sample_uniform};
+use super::places::{open_tsp, sample_places, sample_uniform};
 use super::{PersonSearchTree, Phase, PsbtConfig, PsbtError, RateField, Step, phase_chain};
 use crate::Parallelism;
 use crate::activity::disturbance::PlanningGrid;
@@ -720,7 +720,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
                     .collect()
             })
             .collect();
-        let order = open_tsp_genetic(&cost, &self.config.tsp, &mut self.rng(seed, tag));
+        let order = open_tsp(&cost, &self.config.tsp, &mut self.rng(seed, tag));
         Ok(order.into_iter().map(|k| cells[k - 1]).collect())
     }
 

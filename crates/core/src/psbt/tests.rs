@@ -3,7 +3,7 @@
 
 use super::actions::{SearchAction, WaitAction, move_to};
 use super::path::{CellPath, DistanceTree, astar, sample_cells};
-use super::places::{open_tsp_brute_force, open_tsp_genetic, tour_cost};
+use super::places::{open_tsp, open_tsp_brute_force, open_tsp_genetic, tour_cost};
 use super::*;
 use crate::Parallelism;
 use crate::activity::disturbance::shortest_path;
@@ -162,6 +162,13 @@ fn tsp_genetic_matches_brute_force() {
                 close(tour_cost(&cost, &ga), tour_cost(&cost, &best), 1e-9),
                 "n={n}"
             );
+            // What the synthesis uses: exact up to 7 places, the GA beyond.
+            let chosen = open_tsp(
+                &cost,
+                &TspConfig::default(),
+                &mut Xoshiro256StarStar::seed_from_u64(1),
+            );
+            assert_eq!(chosen, if n <= 7 { best } else { ga }, "n={n}");
         }
     }
 }
