@@ -384,25 +384,36 @@ fn grid_poisson_learns_rates() {
 /// waiting at the empty start (W) and the purely proactive PP.
 fn corridor() -> (PlanningGrid, GridPoisson) {
     let grid = PlanningGrid::new([0.0, 0.0], 0.5, 60, 6).unwrap();
+    let model = one_hour_model(30, 3, |x, _| if x >= 24 { 360.0 } else { 0.0 });
+    (grid, model)
+}
+
+/// A grid Poisson model of `cols × rows` 1 m cells from the origin, one hour observed, with
+/// `people(x, y)` people seen in cell (x, y).
+fn one_hour_model(
+    cols: usize,
+    rows: usize,
+    mut people: impl FnMut(usize, usize) -> f64,
+) -> GridPoisson {
     let spec = GridSpec {
         origin: [0.0, 0.0],
         cell: 1.0,
-        cols: 30,
-        rows: 3,
+        cols,
+        rows,
         t0: 0.0,
         interval: 3600.0,
         intervals: 1,
     };
     let mut model = GridPoisson::new(spec, GammaPrior::default()).unwrap();
-    for x in 0..30 {
-        for y in 0..3 {
-            let people = if x >= 24 { 360.0 } else { 0.0 };
+    for x in 0..cols {
+        for y in 0..rows {
+            let seen = people(x, y);
             model
-                .observe([x as f64 + 0.5, y as f64 + 0.5], 0.0, people, 3600.0)
+                .observe([x as f64 + 0.5, y as f64 + 0.5], 0.0, seen, 3600.0)
                 .unwrap();
         }
     }
-    (grid, model)
+    model
 }
 
 #[test]
@@ -625,28 +636,13 @@ fn psbt_is_never_below_the_baselines_it_contains() {
     };
     for case in 0..6 {
         let grid = random_grid(&mut rng, 40, 24, 0.15);
-        let spec = GridSpec {
-            origin: [0.0, 0.0],
-            cell: 1.0,
-            cols: 20,
-            rows: 12,
-            t0: 0.0,
-            interval: 3600.0,
-            intervals: 1,
-        };
-        let mut model = GridPoisson::new(spec, GammaPrior::default()).unwrap();
-        for x in 0..20 {
-            for y in 0..12 {
-                let people = if rng.bernoulli(0.1) {
-                    rng.next_f64() * 400.0
-                } else {
-                    rng.next_f64() * 5.0
-                };
-                model
-                    .observe([x as f64 + 0.5, y as f64 + 0.5], 0.0, people, 3600.0)
-                    .unwrap();
+        let model = one_hour_model(20, 12, |_, _| {
+            if rng.bernoulli(0.1) {
+                rng.next_f64() * 400.0
+            } else {
+                rng.next_f64() * 5.0
             }
-        }
+        });
         let free: Vec<usize> = (0..grid.len()).filter(|&c| grid.is_free(c)).collect();
         for start in 0..3 {
             let from = grid.centre(free[rng.int_in(0, free.len() as u64 - 1) as usize]);
