@@ -14,6 +14,10 @@ use crate::rng::{Xoshiro256StarStar, derive_seed};
 use crate::sbt::dense::DenseGenerator;
 use crate::sbt::{Action, SbtError, poisson_survival, poisson_truncation};
 
+/// Paths between the start (node 0) and the places (nodes `1..`), all pairs; `None` on the
+/// diagonal.
+type Paths = Vec<Vec<Option<CellPath>>>;
+
 /// Memoised `∫_D λ` (eqs. 5.9, 5.14) at planning-cell centres, for one field and time.
 #[derive(Clone, Debug, Default)]
 pub struct DiscCache {
@@ -673,7 +677,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
 
     /// The paths between the start (node 0) and `cells` (nodes `1..`), all pairs.
     #[allow(clippy::needless_range_loop)] // i and j name nodes of a symmetric table
-    fn pair_paths(&self, cells: &[usize]) -> Result<Vec<Vec<Option<CellPath>>>, PsbtError> {
+    fn pair_paths(&self, cells: &[usize]) -> Result<Paths, PsbtError> {
         let n = cells.len();
         let mut paths = vec![vec![None; n + 1]; n + 1];
         let node = |i: usize| {
@@ -705,7 +709,13 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
     }
 
     /// Orders `cells` by the open TSP over the expected times to fail `ν_sp⁻¹` (eq. 5.17).
-    fn order(&self, cells: &[usize], seed: u64, tag: u64) -> Result<Vec<usize>, PsbtError> {
+    /// Returns the ordered cells and their paths (all pairs, nodes in the new order).
+    fn order(
+        &self,
+        cells: &[usize],
+        seed: u64,
+        tag: u64,
+    ) -> Result<(Vec<usize>, Paths), PsbtError> {
         let paths = self.pair_paths(cells)?;
         let n = cells.len();
         let cost: Vec<Vec<f64>> = (0..=n)
@@ -721,13 +731,28 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
             })
             .collect();
         let order = open_tsp(&cost, &self.config.tsp, &mut self.rng(seed, tag));
-        Ok(order.into_iter().map(|k| cells[k - 1]).collect())
+        // Node k of the new order is node `old[k]` of the table (the start stays node 0).
+        let old: Vec<usize> = std::iter::once(0).chain(order.iter().copied()).collect();
+        let reordered = old
+            .iter()
+            .map(|&i| old.iter().map(|&j| paths[i][j].clone()).collect())
+            .collect();
+        Ok((order.into_iter().map(|k| cells[k - 1]).collect(), reordered))
     }
 
     /// The candidate set over places `cells` (in visiting order).
     fn candidates(&mut self, cells: &[usize]) -> Result<(Candidates, Geometry), PsbtError> {
-        let n = cells.len();
         let paths = self.pair_paths(cells)?;
+        self.candidates_on(cells, paths)
+    }
+
+    /// [`Self::candidates`] with the paths between the places already planned.
+    fn candidates_on(
+        &mut self,
+        cells: &[usize],
+        paths: Paths,
+    ) -> Result<(Candidates, Geometry), PsbtError> {
+        let n = cells.len();
         let mut all_cells = vec![self.start_cell];
         all_cells.extend_from_slice(cells);
         let mut at = vec![self.start];
@@ -863,8 +888,8 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
         match method {
             Method::Psbt | Method::Pp => {
                 let places = self.psbt_places(seed)?;
-                let ordered = self.order(&places, seed, 2)?;
-                let (candidates, geometry) = self.candidates(&ordered)?;
+                let (ordered, paths) = self.order(&places, seed, 2)?;
+                let (candidates, geometry) = self.candidates_on(&ordered, paths)?;
                 if method == Method::Psbt {
                     let (index, value) = candidates.best(horizon, tolerance, parallelism);
                     self.finish(method, &candidates, &geometry, index, Some(value))
@@ -890,7 +915,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
                 .into_iter()
                 .map(|i| cells[i])
                 .collect();
-                let ordered = self.order(&picked, seed, 4)?;
+                let (ordered, paths) = self.order(&picked, seed, 4)?;
                 let choices: Vec<Choice> = ordered
                     .iter()
                     .map(|_| {
@@ -901,7 +926,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
                         }
                     })
                     .collect();
-                let (candidates, geometry) = self.candidates(&ordered)?;
+                let (candidates, geometry) = self.candidates_on(&ordered, paths)?;
                 self.finish(
                     method,
                     &candidates,
@@ -935,8 +960,8 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
     /// As [`SearchContext::plan`].
     pub fn psbt_candidates(&mut self, seed: u64) -> Result<Candidates, PsbtError> {
         let places = self.psbt_places(seed)?;
-        let ordered = self.order(&places, seed, 2)?;
-        Ok(self.candidates(&ordered)?.0)
+        let (ordered, paths) = self.order(&places, seed, 2)?;
+        Ok(self.candidates_on(&ordered, paths)?.0)
     }
 
     /// The help location's planning cell.
