@@ -19,7 +19,8 @@ fn scratch(test: &str) -> PathBuf {
     dir
 }
 
-fn scenario(extra: &[&str]) -> Value {
+/// `monitor sim` on the bundled half-hour fault scenario, every recovery certain: its stdout.
+fn scenario_output(extra: &[&str]) -> String {
     let faults = repo("tests/data/monitor/faults.txt");
     let mut args = vec![
         "monitor",
@@ -29,10 +30,15 @@ fn scenario(extra: &[&str]) -> Value {
         "--faults",
         &faults,
         "--certain",
-        "--json",
     ];
     args.extend_from_slice(extra);
-    serde_json::from_str(&stdout(&chronomap(&args))).unwrap()
+    stdout(&chronomap(&args))
+}
+
+fn scenario(extra: &[&str]) -> Value {
+    let mut args = vec!["--json"];
+    args.extend_from_slice(extra);
+    serde_json::from_str(&scenario_output(&args)).unwrap()
 }
 
 #[test]
@@ -86,16 +92,7 @@ fn the_hand_written_scenario_gives_the_known_interventions() {
 
 #[test]
 fn the_table_output_lists_interventions_and_metrics() {
-    let faults = repo("tests/data/monitor/faults.txt");
-    let out = stdout(&chronomap(&[
-        "monitor",
-        "sim",
-        "--hours",
-        "0.5",
-        "--faults",
-        &faults,
-        "--certain",
-    ]));
+    let out = scenario_output(&[]);
     assert!(
         out.starts_with("7 faults injected over 0.5 h; 7 recoveries, 1 messages, 1 unrequested"),
         "{out}"
