@@ -622,8 +622,9 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
 
     /// The targets of the greedy baselines (§5.4.4): GM the reachable cell of highest rate, GC
     /// the nearest (by path) of the `n_λ` highest. Equal rates: the nearer, then the lower index.
-    fn greedy_targets(&self) -> Result<(usize, usize), PsbtError> {
-        let mut cells = self.reachable()?;
+    /// `reachable` is [`Self::reachable`]'s list.
+    fn greedy_targets(&self, reachable: &[(usize, f64)]) -> (usize, usize) {
+        let mut cells = reachable.to_vec();
         cells.sort_by(|a, b| {
             b.1.total_cmp(&a.1)
                 .then_with(|| self.tree.distance(a.0).total_cmp(&self.tree.distance(b.0)))
@@ -641,15 +642,16 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
             })
             .expect("the start is reachable")
             .0;
-        Ok((global, close))
+        (global, close)
     }
 
     /// PSBT's places: sampled `∝` rate, thinned by `r_D` (§5.4.3); with
     /// [`PsbtConfig::include_maxima`], the targets of GM and GC first.
     fn psbt_places(&self, seed: u64) -> Result<Vec<usize>, PsbtError> {
-        let cells: Vec<(usize, f64)> = self
-            .reachable()?
-            .into_iter()
+        let reachable = self.reachable()?;
+        let cells: Vec<(usize, f64)> = reachable
+            .iter()
+            .copied()
             .filter(|&(c, _)| c != self.start_cell)
             .collect();
         let candidates: Vec<([f64; 2], f64)> = cells
@@ -657,7 +659,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
             .map(|&(c, r)| (self.grid.centre(c), r))
             .collect();
         let fixed: Vec<usize> = if self.config.include_maxima {
-            let (global, close) = self.greedy_targets()?;
+            let (global, close) = self.greedy_targets(&reachable);
             [global, close]
                 .into_iter()
                 .filter_map(|target| cells.iter().position(|&(c, _)| c == target))
@@ -940,7 +942,7 @@ impl<'a, F: RateField + ?Sized> SearchContext<'a, F> {
                 self.finish(method, &candidates, &geometry, 1, None)
             }
             Method::Gm | Method::Gc => {
-                let (global, close) = self.greedy_targets()?;
+                let (global, close) = self.greedy_targets(&self.reachable()?);
                 let target = if method == Method::Gm { global } else { close };
                 if target == self.start_cell {
                     let (candidates, geometry) = self.candidates(&[])?;
