@@ -1,4 +1,4 @@
-//! Writes navigation MDP cases for the Storm cross-check of `chronomap_core::mdp`: per case
+//! Writes navigation MDP cases for the Storm cross-check of `chronomap_topo::mdp`: per case
 //! the product (`NAME.drn`), the restricted product (`NAME.restricted.drn`), the Navigation
 //! MDP in PRISM (`NAME.nm`) with its co-safe LTL property (`NAME.props`), and the values
 //! chronomap computes (`expected.json`, the shape `tests/oracle/storm_check.py` reads).
@@ -12,12 +12,12 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use chronomap_core::automaton::Dfa;
-use chronomap_core::mdp::{
+use chronomap_core::rng::Xoshiro256StarStar;
+use chronomap_topo::automaton::Dfa;
+use chronomap_topo::map::TopoMap;
+use chronomap_topo::mdp::{
     NavigationMdp, SolverOptions, prism_property, product_drn, restricted_drn,
 };
-use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_core::topo::TopoMap;
 use serde_json::{Value, json};
 
 struct Case {

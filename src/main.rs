@@ -1,31 +1,28 @@
 //! `chronomap`: the command-line tool. Glue only: flags in `cli`, commands in `commands`,
-//! algorithms in `chronomap-core`, files and plots in `chronomap-io`.
+//! algorithms in the library crates, files in `chronomap-io`, pictures in `chronomap-plot`,
+//! what is shown and how the process ends in `output`.
 
 mod bundled;
 mod cli;
 mod commands;
 mod format;
+mod output;
 
-use std::io::ErrorKind;
 use std::process::ExitCode;
 
 use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
+    output::set_quiet(cli.quiet);
     match commands::run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            // A closed pipe (`chronomap predict ... | head`) is not a failure.
-            if error
-                .chain()
-                .filter_map(|e| e.downcast_ref::<std::io::Error>())
-                .any(|e| e.kind() == ErrorKind::BrokenPipe)
-            {
-                return ExitCode::SUCCESS;
+            let code = output::exit_code(&error);
+            if code != 0 {
+                eprintln!("error: {error:#}");
             }
-            eprintln!("error: {error:#}");
-            ExitCode::from(2)
+            ExitCode::from(code)
         }
     }
 }

@@ -5,11 +5,11 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::Parallelism;
-use chronomap_core::activity::{
+use chronomap_activity::{
     Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, PeriodInitMode,
     RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
+use chronomap_core::Parallelism;
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
 

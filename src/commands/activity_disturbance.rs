@@ -8,22 +8,20 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::Parallelism;
-use chronomap_core::activity::disturbance::{
+use chronomap_activity::disturbance::{
     Detections, DisturbanceConfig, ObstacleGrid, PathCost, PatrolRun, PatrolSlot, PlanningGrid,
     Scenario, disturbance_curve, patrol_starts, run_patrols,
 };
-use chronomap_core::activity::{
-    Baseline, CellKey, CopaConfig, CopaMap, RatePredictor, RateSamples,
-};
-use chronomap_core::events::observed_windows;
+use chronomap_activity::{Baseline, CellKey, CopaConfig, CopaMap, RatePredictor, RateSamples};
+use chronomap_core::Parallelism;
+use chronomap_hypertime::events::observed_windows;
 use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
-use chronomap_io::plot::{
-    Panel, PathMap, PathMapPath, Series, SeriesStyle, render_panels_png, render_path_maps_png,
-};
 use chronomap_io::read_rate_samples;
 use chronomap_io::scenarios::read_scenarios;
 use chronomap_io::tracks::read_track_files;
+use chronomap_plot::{
+    Panel, PathMap, PathMapPath, Series, SeriesStyle, render_panels_png, render_path_maps_png,
+};
 use serde_json::{Value, json};
 
 use crate::cli::ActivityDisturbanceArgs;
@@ -290,10 +288,10 @@ pub(super) fn obstacles_of(map: &OccupancyMap) -> Result<ObstacleGrid> {
         .map(|&v| !(0..OCCUPIED_PERCENT).contains(&v))
         .collect();
     Ok(ObstacleGrid::new(
-        [map.origin[0], map.origin[1]],
-        f64::from(map.resolution),
         map.width as usize,
         map.height as usize,
+        f64::from(map.resolution),
+        [map.origin[0], map.origin[1]],
         blocked,
     )?)
 }

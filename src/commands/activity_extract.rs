@@ -7,10 +7,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::activity::extract::{
+use chronomap_activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract, ground_truth,
 };
-use chronomap_core::events::Event;
+use chronomap_hypertime::events::Event;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_rate_grid};
 use serde_json::json;

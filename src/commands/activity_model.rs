@@ -6,11 +6,11 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
+use chronomap_activity::{CopaConfig, CopaMap, RateScale};
 use chronomap_core::Parallelism;
-use chronomap_core::activity::{CopaConfig, CopaMap, RateScale};
 use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
-use chronomap_io::plot::{MapImage, render_scaled_maps_png};
 use chronomap_io::{read_model_file, read_rate_samples, write_model_file};
+use chronomap_plot::{MapImage, render_scaled_maps_png};
 
 use crate::cli::{ActivityFitArgs, ActivityPredictArgs, CopaScale};
 

@@ -5,7 +5,7 @@
 use std::io::Write;
 
 use anyhow::{Context, Result, bail};
-use chronomap_core::activity::truth::{TruthGrid, person_counts};
+use chronomap_activity::truth::{TruthGrid, person_counts};
 use chronomap_io::{read_rate_samples, read_track_point_files, write_rate_samples};
 
 use crate::cli::ActivityTruthArgs;

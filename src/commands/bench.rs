@@ -2,7 +2,7 @@
 //! bare scan of the same frames in the same run.
 
 use anyhow::Result;
-use chronomap_core::grid::GridConfig;
+use chronomap_grid::GridConfig;
 use serde_json::json;
 
 use super::synthetic::{bare_scan, build, office, office_geometry, peak_rss_mb, with_progress};

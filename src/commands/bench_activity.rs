@@ -18,12 +18,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
+use chronomap_activity::extract::{ExtractConfig, ObstacleGrid, RobotPath, extract, visible_cells};
+use chronomap_activity::{CopaConfig, CopaMap, RateSamples};
 use chronomap_core::Parallelism;
-use chronomap_core::activity::extract::{
-    ExtractConfig, ObstacleGrid, RobotPath, extract, visible_cells,
-};
-use chronomap_core::activity::{CopaConfig, CopaMap, RateSamples};
-use chronomap_core::events::Event;
+use chronomap_hypertime::events::Event;
 use chronomap_io::{read_rate_samples, read_track_files};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};

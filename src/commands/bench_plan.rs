@@ -13,9 +13,9 @@ use std::process::Command;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::edges::{EdgeModelConfig, EdgeModels};
-use chronomap_core::mdp::{SolverOptions, prism_property, product_drn, restricted_drn};
-use chronomap_core::plan::{Planned, Task, plan_full};
+use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
+use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn, restricted_drn};
+use chronomap_topo::plan::{Planned, Task, plan_full};
 use serde_json::{Value, json};
 
 use crate::cli::BenchPlanArgs;

@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Result, anyhow};
 use chronomap_core::Parallelism;
-use chronomap_core::psbt::{PsbtConfig, SearchContext, synthesize};
 use chronomap_core::rng::Xoshiro256StarStar;
+use chronomap_psbt::{PsbtConfig, SearchContext, synthesize};
 use serde_json::json;
 
 use super::psbt::{fit_model, load_world};

@@ -8,11 +8,11 @@ use std::time::Duration;
 use std::collections::BTreeMap;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::bt::script::{run_script, scripted_registry};
-use chronomap_core::bt::{BtDocument, NodeCategory, Registry, Status, Tree};
-use chronomap_core::sbt::{self, LeafParams};
+use chronomap_bt::sbt::{self, LeafParams};
+use chronomap_bt::script::{run_script, scripted_registry};
+use chronomap_bt::{BtDocument, NodeCategory, Registry, Status, Tree};
 use chronomap_io::{BtXml, read_bt_script, read_bt_xml, write_bt_xml, write_btlog};
-use chronomap_io::{Panel, Series, SeriesStyle, render_panels_png};
+use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde::Serialize;
 
 use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs};
@@ -35,7 +35,7 @@ fn instantiate(
     file: &std::path::Path,
     doc: &BtDocument,
     tree: Option<&str>,
-) -> Result<(Tree, chronomap_core::bt::script::ScriptedOutcomes)> {
+) -> Result<(Tree, chronomap_bt::script::ScriptedOutcomes)> {
     let name = file.display();
     let (registry, outcomes) =
         scripted_registry(doc).with_context(|| format!("{name}: cannot implement the leaves"))?;

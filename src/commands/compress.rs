@@ -4,9 +4,10 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
+use chronomap_core::TemporalModel;
 use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of, uniform_binary_samples};
-use chronomap_core::{AnyModel, TemporalModel};
 use chronomap_io::{encode_model, write_any_model};
+use chronomap_models::AnyModel;
 
 use super::{data_error, fft_components_table, read_series, source_name};
 use crate::cli::CompressArgs;

@@ -5,12 +5,14 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use chronomap_core::eval::{EvalReport, TestSet, evaluate};
 use chronomap_core::fft::{FftFremenConfig, uniform_binary_samples};
-use chronomap_core::spec::{FitOptions, ModelSpec, parse_model_list};
-use chronomap_core::{AnyModel, FremenModel, Ordered, Parallelism, TemporalModel};
-use chronomap_io::{
-    Panel, Series, SeriesStyle, SpectrumBar, TimeSeries, render_panels_png, render_spectrum_png,
+use chronomap_core::{FremenModel, Ordered, Parallelism, TemporalModel};
+use chronomap_io::TimeSeries;
+use chronomap_models::AnyModel;
+use chronomap_models::eval::{EvalReport, TestSet, evaluate};
+use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
+use chronomap_plot::{
+    Panel, Series, SeriesStyle, SpectrumBar, render_panels_png, render_spectrum_png,
 };
 
 use super::compress::compress;

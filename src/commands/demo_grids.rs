@@ -5,9 +5,10 @@ use std::path::Path;
 
 use anyhow::Result;
 use chronomap_core::FremenConfig;
-use chronomap_core::grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
+use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
+use chronomap_io::TimeSeries;
 use chronomap_io::navmap::{OccupancyMap, SaveOptions, save_map};
-use chronomap_io::{MapImage, TimeSeries, render_maps_png};
+use chronomap_plot::{MapImage, render_maps_png};
 
 use super::synthetic::{build, office, office_geometry, partition};
 use crate::bundled;

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Result, anyhow};
-use chronomap_core::edges::{EdgeModelConfig, EdgeModels};
+use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
 
 use super::demo::indent;
 use super::topo::DayTable;

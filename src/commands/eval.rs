@@ -3,8 +3,8 @@
 use std::io::{IsTerminal, Write};
 
 use anyhow::{Context, Result, bail};
-use chronomap_core::eval::{EvalReport, TestSet, evaluate};
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use chronomap_models::eval::{EvalReport, TestSet, evaluate};
 use serde_json::json;
 
 use super::describe_selection;

@@ -6,15 +6,16 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::events::{
+use chronomap_hypertime::events::{
     Event, EventModelBuilder, EventScore, TrainingData, default_builders, run_experiment,
 };
-use chronomap_core::events::{EventIntensity, SpatialGrid};
-use chronomap_core::hypertime::Components;
-use chronomap_core::hypertime::events::{
+use chronomap_hypertime::events::{EventIntensity, SpatialGrid};
+use chronomap_hypertime::hypertime::Components;
+use chronomap_hypertime::hypertime::events::{
     EventModelConfig, HypertimeEvents, HypertimeEventsBuilder,
 };
-use chronomap_io::{MapImage, read_event_files, read_events, render_scaled_maps_png};
+use chronomap_io::{read_event_files, read_events};
+use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::{Value, json};
 
 use crate::cli::{EventsEvalArgs, HypertimeArgs};

@@ -4,12 +4,12 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use chronomap_core::explore::{
+use chronomap_core::{FremenModel, MarkovModel, MeanModel, PergamConfig, PergamModel};
+use chronomap_explore::{
     AutoOrder, DailyModel, ExploreConfig, ExploreResult, Strategy, World, explore,
 };
-use chronomap_core::{FremenModel, MarkovModel, MeanModel, PergamConfig, PergamModel};
 use chronomap_io::datasets::{load_aruba, load_brayford};
-use chronomap_io::{Panel, Series, SeriesStyle, render_panels_png};
+use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use rayon::prelude::*;
 use serde_json::json;
 

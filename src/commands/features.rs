@@ -5,9 +5,9 @@ use std::io::Write;
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_core::TemporalModel;
 use chronomap_core::metrics::mse;
-use chronomap_core::spec::FitOptions;
 use chronomap_core::visibility::reobservation_rate;
 use chronomap_io::read_state_matrix;
+use chronomap_models::spec::FitOptions;
 use rayon::prelude::*;
 use serde_json::json;
 

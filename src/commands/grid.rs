@@ -6,11 +6,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail, ensure};
 use chronomap_core::FremenConfig;
-use chronomap_core::grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
+use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
-use chronomap_io::{
-    GridFile, MapImage, encode_grid, read_grid_file, read_pairs, render_maps_png, write_grid_file,
-};
+use chronomap_io::{GridFile, encode_grid, read_grid_file, read_pairs, write_grid_file};
+use chronomap_plot::{MapImage, render_maps_png};
 
 use super::synthetic::{build as build_synthetic, office, office_geometry, with_progress};
 use crate::cli::{

@@ -28,9 +28,9 @@ mod synthetic;
 mod topo;
 
 use anyhow::{Context, Result};
-use chronomap_core::AnyModel;
-use chronomap_core::spec::Selection;
 use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
+use chronomap_models::AnyModel;
+use chronomap_models::spec::Selection;
 
 use crate::cli::{
     ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, MonitorCommand,

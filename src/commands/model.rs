@@ -4,8 +4,9 @@ use std::io::{BufWriter, Write};
 
 use anyhow::{Context, Result, bail};
 use chronomap_core::anomaly::detect_anomalies;
-use chronomap_core::{AnyModel, FremenModel, Ordered, TemporalModel};
+use chronomap_core::{FremenModel, Ordered, TemporalModel};
 use chronomap_io::{Field, read_column, read_pairs, write_any_model};
+use chronomap_models::AnyModel;
 
 use super::{data_error, describe_selection, fft_components_table, load_model, read_series};
 use crate::cli::{AnomaliesArgs, FitArgs, InspectArgs, PredictArgs};

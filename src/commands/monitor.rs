@@ -1,15 +1,15 @@
 //! `chronomap monitor sim`: the fault-injection simulation of the system monitoring of seed 002
-//! §5.3 (`chronomap_core::monitor::sim`), printed as the intervention table and the metrics of
+//! §5.3 (`chronomap_bt::monitor::sim`), printed as the intervention table and the metrics of
 //! Tables 5.2 and 5.3.
 
 use std::io::Write;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use chronomap_core::bt::{BtDocument, Registry};
-use chronomap_core::monitor::sim::{
+use chronomap_bt::monitor::sim::{
     SimConfig, SimReport, arbiter_document, parse_faults, random_faults, simulate,
 };
+use chronomap_bt::{BtDocument, Registry};
 use chronomap_io::{BtXml, read_bt_xml};
 
 use crate::cli::MonitorSimArgs;

@@ -6,19 +6,19 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
+use chronomap_activity::CopaMap;
+use chronomap_activity::disturbance::PlanningGrid;
+use chronomap_activity::truth::TrackPoint;
 use chronomap_core::Parallelism;
-use chronomap_core::activity::CopaMap;
-use chronomap_core::activity::disturbance::PlanningGrid;
-use chronomap_core::activity::truth::TrackPoint;
-use chronomap_core::psbt::eval::{MethodOutcome, evaluate_start, sample_starts};
-use chronomap_core::psbt::{
-    Choice, GammaPrior, GridPoisson, GridSpec, Method, PsbtConfig, copa_field, synthesize,
-};
 use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 use chronomap_io::navmap::{LoadSemantics, load_map};
-use chronomap_io::plot::{Panel, Series, SeriesStyle, render_panels_png};
 use chronomap_io::psbt_xml::psbt_to_xml;
 use chronomap_io::{read_model_file, read_track_point_files};
+use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
+use chronomap_psbt::eval::{MethodOutcome, evaluate_start, sample_starts};
+use chronomap_psbt::{
+    Choice, GammaPrior, GridPoisson, GridSpec, Method, PsbtConfig, copa_field, synthesize,
+};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use chronomap_core::grid::{FremenGrid, GridConfig, GridGeometry};
+use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
 use chronomap_synth::office::{OfficeConfig, OfficeWorkload};
 
 /// Geometry of the synthetic office: the paper's 213,000 cells as a 71 × 60 × 50 block of

@@ -6,14 +6,15 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_core::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels};
-use chronomap_core::mdp::{SolverOptions, prism_property, product_drn};
-use chronomap_core::plan::{PlanAt, Task, now_or_later, plan_full};
-use chronomap_core::topo::TopoMap;
 use chronomap_io::{
-    EdgeStatistics, Heatmap, read_edge_directory, read_edge_models, render_heatmap_png,
-    write_edge_directory, write_edge_models, write_route_geojson, write_tmap2,
+    EdgeStatistics, read_edge_directory, read_edge_models, write_edge_directory, write_edge_models,
+    write_route_geojson, write_tmap2,
 };
+use chronomap_plot::{Heatmap, render_heatmap_png};
+use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels};
+use chronomap_topo::map::TopoMap;
+use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
+use chronomap_topo::plan::{PlanAt, Task, now_or_later, plan_full};
 use serde_json::{Value, json};
 
 use crate::cli::{

@@ -150,7 +150,7 @@ impl FremenModel {
     }
 
     /// A model from its exact accumulators and span (e.g. one cell of a grid, see
-    /// [`crate::grid`]). Equal to the model that observed the same data.
+    /// `chronomap-grid`). Equal to the model that observed the same data.
     ///
     /// # Errors
     /// Invalid configuration, or accumulators over other periods or with another count.

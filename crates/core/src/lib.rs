@@ -28,60 +28,42 @@
 //! * Models: [`MeanModel`], [`HistogramModel`], [`FremenModel`] (non-uniform incremental
 //!   FreMEn), [`PersistenceModel`], [`MarkovModel`] (short-term memory), [`PergamModel`]
 //!   (periodic Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
-//! * [`spec`] — models by name (`fremen:4`, `hist:24`, `auto`) and [`AnyModel`], the
-//!   serialisable union of all models. [`select`] — order and model selection on held-back
-//!   data. [`anomaly`] — anomaly detection. [`metrics`] — Brier score, binary error, paired
-//!   t-tests; [`eval`] — the train/test experiment of the FreMEn benchmarks. [`naive`] — slow
-//!   oracles for tests and benchmarks.
-//! * [`topo`] — topological maps; [`ltl`] — co-safe LTL tasks (`F (Kitchen & F Office)`)
-//!   and their automata ([`automaton::Dfa`]).
-//! * [`bt`] — behavior trees with BehaviorTree.CPP 4 semantics: tree descriptions, a
-//!   registry of leaves, a typed blackboard, ticks with an injected clock, status transitions.
+//! * [`select`] — order and model selection on held-back data. [`anomaly`] — anomaly
+//!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`naive`] — slow
+//!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
+//!   use (results never depend on it); [`rng`] — seeded randomness.
+//!
+//! The other domains are crates of their own over this one (see `ARCHITECTURE.md`):
+//! `chronomap-models` (models by name, the serialisable union of all models, the benchmark
+//! experiment), `chronomap-grid`, `chronomap-explore`, `chronomap-hypertime`,
+//! `chronomap-topo`, `chronomap-activity`, `chronomap-bt` and `chronomap-psbt`.
 #![deny(missing_docs)]
 
-pub mod activity;
 pub mod anomaly;
-pub mod automaton;
-pub mod bt;
 pub mod conformance;
 pub mod crossings;
-pub mod edges;
 pub mod error;
-pub mod eval;
-pub mod events;
 pub mod exact;
-pub mod explore;
 pub mod fft;
 pub mod fremen;
-pub mod gp;
-pub mod grid;
 pub mod hist;
-pub mod hypertime;
-pub mod ltl;
-pub mod mdp;
 pub mod mean;
 pub mod metrics;
-pub mod mixture;
 pub mod model;
-pub mod monitor;
 pub mod naive;
 pub mod observe;
 pub mod par;
 pub mod pergam;
 pub mod periods;
 pub mod persistence;
-pub mod plan;
-pub mod psbt;
-mod queue;
-pub mod rng;
-pub mod sbt;
+pub mod progress;
+/// Seeded pseudo-random numbers (the `chronomap-rng` crate).
+pub use chronomap_rng as rng;
 pub mod select;
-pub mod spec;
 pub mod spectrum;
 pub mod stm;
 #[cfg(test)]
 mod testdata;
-pub mod topo;
 pub mod visibility;
 
 pub use error::{BuildError, ConfigError, ObservationError};
@@ -97,5 +79,4 @@ pub use periods::PeriodSet;
 pub use persistence::PersistenceModel;
 /// Complex numbers used by the spectral models.
 pub use rustfft::num_complex::Complex64;
-pub use spec::{AnyModel, FitOptions, ModelSpec};
 pub use stm::MarkovModel;

@@ -44,8 +44,8 @@
 use std::io::Read;
 use std::path::Path;
 
-use chronomap_core::activity::RateSamples;
-use chronomap_core::activity::extract::Extraction;
+use chronomap_activity::RateSamples;
+use chronomap_activity::extract::Extraction;
 
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
@@ -78,7 +78,7 @@ pub struct RateGrid {
 
 impl RateGrid {
     /// Observed durations in hours (the dwell times of
-    /// [`FrAam::fit_with_dwell`](chronomap_core::activity::FrAam::fit_with_dwell)), if the file
+    /// [`FrAam::fit_with_dwell`](chronomap_activity::FrAam::fit_with_dwell)), if the file
     /// has them.
     pub fn dwell_hours(&self) -> Option<Vec<f64>> {
         self.durations
@@ -221,7 +221,7 @@ pub fn read_rate_grid_from(name: &str, reader: impl Read) -> Result<RateGrid, Da
 /// the count is 0 (the bundled ATC grid writes `1e-6` there; `0.0` keeps `y = c/Δ` exact).
 ///
 /// ```
-/// use chronomap_core::activity::extract::{CellObservation, Extraction};
+/// use chronomap_activity::extract::{CellObservation, Extraction};
 /// use chronomap_io::activity::{format_rate_grid, read_rate_grid_from};
 ///
 /// let cell = |bin, count| CellObservation { centre: [3.75, -1.25], bin, count, duration: 1800.0 };
@@ -280,7 +280,7 @@ pub fn write_rate_grid(
 /// written in their shortest form that reads back to the same `f64`.
 ///
 /// ```
-/// use chronomap_core::activity::RateSamples;
+/// use chronomap_activity::RateSamples;
 /// use chronomap_io::activity::{encode_rate_samples, read_rate_samples_from};
 ///
 /// let samples = RateSamples::new(vec![[3.75, -1.25]], vec![120.0], vec![0.1 + 0.2])?;

@@ -33,7 +33,7 @@ use std::io::{self, Write};
 use std::path::Path;
 use std::time::Duration;
 
-use chronomap_core::bt::{Transition, Tree};
+use chronomap_bt::{Transition, Tree};
 use thiserror::Error;
 
 use crate::bt_xml::encode_tree_xml;

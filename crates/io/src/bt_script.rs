@@ -18,7 +18,7 @@
 //! * `#` starts a comment; blank lines are ignored.
 //!
 //! ```
-//! use chronomap_core::bt::Status;
+//! use chronomap_bt::Status;
 //! use chronomap_io::bt_script::parse_bt_script;
 //!
 //! let script = parse_bt_script("door.script", "tick 1: OpenDoor=running\ntick 3 @ 500: OpenDoor=success\n")?;
@@ -35,8 +35,8 @@ use std::fmt;
 use std::io;
 use std::path::Path;
 
-use chronomap_core::bt::Status;
-use chronomap_core::bt::script::{Script, ScriptTick};
+use chronomap_bt::Status;
+use chronomap_bt::script::{Script, ScriptTick};
 use thiserror::Error;
 
 /// What is wrong with a script line (the part of a [`BtScriptError`] after `file:line:`).

@@ -2,7 +2,7 @@
 //! the canonical form Groot2 and BehaviorTree.CPP load.
 //!
 //! ```
-//! use chronomap_core::bt::{NodeCategory, Registry};
+//! use chronomap_bt::{NodeCategory, Registry};
 //! use chronomap_io::bt_xml::{encode_bt_xml, parse_bt_xml};
 //!
 //! let text = r#"
@@ -54,7 +54,7 @@
 //!   `_while`, `_onSuccess`, `_onFailure`, `_post`, `_onHalted`) and `<include>` are errors
 //!   (not supported).
 //!
-//! After reading, the document is checked with [`chronomap_core::bt::validate`] (unknown IDs,
+//! After reading, the document is checked with [`chronomap_bt::validate`] (unknown IDs,
 //! children per category, required and unknown ports, literal values, subtrees). Every error
 //! is a [`BtXmlError`] with the line and column of the element or attribute concerned.
 //!
@@ -71,7 +71,7 @@ use std::fmt::{self, Write as _};
 use std::io;
 use std::path::Path;
 
-use chronomap_core::bt::{
+use chronomap_bt::{
     BtDocument, DefinitionError, DefinitionErrorKind, NodeCategory, NodeDef, NodeModel,
     PortDirection, PortSpec, Registry, Tree, TreeDef, is_builtin, validate,
 };
@@ -98,14 +98,14 @@ pub struct BtXml {
     /// Things that were read leniently (each `file:line:column: text`).
     pub warnings: Vec<String>,
     /// The 1-based line and column of every node's element, by tree ID and child path (as
-    /// [`NodeLocation`](chronomap_core::bt::NodeLocation) locates nodes), so that an analysis
+    /// [`NodeLocation`](chronomap_bt::NodeLocation) locates nodes), so that an analysis
     /// of the document can name the line of a node.
     pub node_positions: HashMap<(String, Vec<usize>), (u32, u32)>,
 }
 
 impl BtXml {
     /// The line and column of the node at `location`, if it was read from this file.
-    pub fn position(&self, location: &chronomap_core::bt::NodeLocation) -> Option<(u32, u32)> {
+    pub fn position(&self, location: &chronomap_bt::NodeLocation) -> Option<(u32, u32)> {
         self.node_positions
             .get(&(location.tree.clone(), location.path.clone()))
             .copied()

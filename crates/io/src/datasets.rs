@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use chronomap_core::explore::World;
+use chronomap_explore::World;
 use thiserror::Error;
 
 use crate::text::{DataError, Field, read_column, read_pairs};

@@ -42,7 +42,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use chronomap_core::events::Event;
+use chronomap_hypertime::events::Event;
 
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use chronomap_core::grid::{FittedGrid, FremenGrid, LosslessGrid};
+use chronomap_grid::{FittedGrid, FremenGrid, LosslessGrid};
 use serde::{Deserialize, Serialize};
 
 use crate::model_file::{

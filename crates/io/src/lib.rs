@@ -1,7 +1,7 @@
 //! # chronomap-io
 //!
 //! The edge of chronomap: everything that touches files. Dataset readers, versioned model
-//! files and PNG plots, around the pure algorithms of [`chronomap_core`].
+//! files, ROS maps and behavior trees, around the pure algorithms of [`chronomap_core`].
 //!
 //! ```
 //! use chronomap_core::{FremenModel, TemporalModel};
@@ -63,71 +63,87 @@
 //!   line, column and attribute. [`bt_log`] — Groot2 `.btlog` execution logs from recorded
 //!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
 //!   `chronomap bt run` ([`read_bt_script`]).
-//! * [`plot`] — PNG figures from plain data: stacked time panels
-//!   ([`render_panels_png`]), amplitude spectra ([`render_spectrum_png`]), occupancy maps
-//!   ([`render_maps_png`]) and labelled heat maps such as a planner's "now or later?" table
-//!   ([`render_heatmap_png`]), drawn with an embedded font (no system fonts needed).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
-//! [`NavMapErrorKind`], [`PlotErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
+//! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
 //! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
+#[cfg(feature = "activity")]
 pub mod activity;
 mod atomic;
+#[cfg(feature = "bt")]
 pub mod bt_log;
+#[cfg(feature = "bt")]
 pub mod bt_script;
+#[cfg(feature = "bt")]
 pub mod bt_xml;
+#[cfg(feature = "explore")]
 pub mod datasets;
+#[cfg(feature = "hypertime")]
 pub mod events;
+#[cfg(feature = "grid")]
 pub mod grid_file;
 pub mod matrix;
 pub mod model_file;
+#[cfg(feature = "navmap")]
 pub mod navmap;
-pub mod plot;
+#[cfg(feature = "psbt")]
 pub mod psbt_xml;
+#[cfg(feature = "activity")]
 pub mod robot_paths;
+#[cfg(feature = "activity")]
 pub mod scenarios;
 pub mod text;
+#[cfg(feature = "topo")]
 pub mod topo_files;
+#[cfg(feature = "activity")]
 pub mod tracks;
 
+#[cfg(feature = "activity")]
 pub use activity::{
     RateGrid, encode_rate_samples, format_rate_grid, read_rate_grid, read_rate_grid_from,
     read_rate_samples, read_rate_samples_from, write_rate_grid, write_rate_samples,
 };
+#[cfg(feature = "bt")]
 pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
+#[cfg(feature = "bt")]
 pub use bt_script::{BtScriptError, read_bt_script};
+#[cfg(feature = "bt")]
 pub use bt_xml::{BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml, write_bt_xml};
+#[cfg(feature = "hypertime")]
 pub use events::{read_event_files, read_events, read_events_from};
+#[cfg(feature = "grid")]
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};
+#[cfg(feature = "topo")]
+pub use model_file::{EDGE_MODELS_KIND, decode_edge_models, read_edge_models, write_edge_models};
 pub use model_file::{
-    EDGE_MODELS_KIND, ModelFileError, ModelFileErrorKind, decode_any_model, decode_edge_models,
-    decode_model, encode_model, read_any_model, read_edge_models, read_model_file, write_any_model,
-    write_edge_models, write_model_file,
+    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
+    write_model_file,
 };
+#[cfg(feature = "models")]
+pub use model_file::{decode_any_model, read_any_model, write_any_model};
+#[cfg(feature = "navmap")]
 pub use navmap::{
     LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,
     SavedMap, decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map,
     read_map_yaml, save_map,
 };
-pub use plot::{
-    HEATMAP_NO_VALUE, Heatmap, HeatmapLayout, MapImage, Panel, PlotError, PlotErrorKind, Series,
-    SeriesStyle, SpectrumBar, heatmap_colour, render_heatmap_png, render_maps_png,
-    render_panels_png, render_scaled_maps_png, render_spectrum_png,
-};
+#[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
 };
+#[cfg(feature = "topo")]
 pub use topo_files::{
     EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
     encode_edge_file, encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
     read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
     read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
 };
+#[cfg(feature = "activity")]
 pub use tracks::{
     read_track_files, read_track_point_files, read_track_points, read_tracks, read_tracks_from,
 };

@@ -42,7 +42,8 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use chronomap_core::AnyModel;
+#[cfg(feature = "models")]
+use chronomap_models::AnyModel;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use thiserror::Error;
@@ -346,6 +347,7 @@ pub fn read_model_file<T: DeserializeOwned>(
     decode_model(&bytes).map_err(|e| e.in_file(path))
 }
 
+#[cfg(feature = "models")]
 /// Writes any chronomap model (its [`AnyModel::kind`] is the file's kind).
 ///
 /// # Errors
@@ -354,6 +356,7 @@ pub fn write_any_model(path: impl AsRef<Path>, model: &AnyModel) -> Result<(), M
     write_model_file(path, model.kind(), model)
 }
 
+#[cfg(feature = "models")]
 /// Reads a model written by [`write_any_model`], checking that it is the kind the header says
 /// and that its invariants hold, so that a file crafted by hand cannot make later code panic.
 ///
@@ -366,6 +369,7 @@ pub fn read_any_model(path: impl AsRef<Path>) -> Result<AnyModel, ModelFileError
     Ok(model)
 }
 
+#[cfg(feature = "models")]
 /// Decodes a model encoded by [`encode_model`] with [`AnyModel::kind`] as kind, with the checks
 /// of [`read_any_model`].
 ///
@@ -377,9 +381,11 @@ pub fn decode_any_model(bytes: &[u8]) -> Result<AnyModel, ModelFileError> {
     Ok(model)
 }
 
+#[cfg(feature = "topo")]
 /// The kind of edge-model files ([`write_edge_models`]).
 pub const EDGE_MODELS_KIND: &str = "topo-edge-models";
 
+#[cfg(feature = "topo")]
 /// Writes the models of a topological map's edges (map included) as a model file of kind
 /// [`EDGE_MODELS_KIND`], atomically.
 ///
@@ -387,11 +393,12 @@ pub const EDGE_MODELS_KIND: &str = "topo-edge-models";
 /// As [`write_model_file`].
 pub fn write_edge_models(
     path: impl AsRef<Path>,
-    models: &chronomap_core::edges::EdgeModels,
+    models: &chronomap_topo::edges::EdgeModels,
 ) -> Result<(), ModelFileError> {
     write_model_file(path, EDGE_MODELS_KIND, models)
 }
 
+#[cfg(feature = "topo")]
 /// Reads a file written by [`write_edge_models`], checking its kind and the models'
 /// invariants.
 ///
@@ -400,27 +407,28 @@ pub fn write_edge_models(
 /// broken invariants).
 pub fn read_edge_models(
     path: impl AsRef<Path>,
-) -> Result<chronomap_core::edges::EdgeModels, ModelFileError> {
+) -> Result<chronomap_topo::edges::EdgeModels, ModelFileError> {
     let path = path.as_ref();
     let bytes = fs::read(path)
         .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
     decode_edge_models(&bytes).map_err(|e| e.in_file(path))
 }
 
+#[cfg(feature = "topo")]
 /// Decodes the bytes of an edge-model file, with the checks of [`read_edge_models`].
 ///
 /// # Errors
 /// As [`read_edge_models`].
 pub fn decode_edge_models(
     bytes: &[u8],
-) -> Result<chronomap_core::edges::EdgeModels, ModelFileError> {
+) -> Result<chronomap_topo::edges::EdgeModels, ModelFileError> {
     let (kind, _) = check_container(bytes).map_err(ModelFileError::new)?;
     if kind != EDGE_MODELS_KIND {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
             reason: format!("this is a {kind:?} model, not the edge models of a topological map"),
         }));
     }
-    let (_, mut models): (String, chronomap_core::edges::EdgeModels) = decode_model(bytes)?;
+    let (_, mut models): (String, chronomap_topo::edges::EdgeModels) = decode_model(bytes)?;
     models.reindex();
     models
         .check()
@@ -428,6 +436,7 @@ pub fn decode_edge_models(
     Ok(models)
 }
 
+#[cfg(feature = "models")]
 fn check_any_model(kind: &str, model: &AnyModel) -> Result<(), ModelFileError> {
     if kind != model.kind() {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {

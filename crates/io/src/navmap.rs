@@ -259,7 +259,7 @@ impl OccupancyMap {
         self.index(x, y).and_then(|i| self.data.get(i).copied())
     }
 
-    /// The map as the obstacle grid of [`chronomap_core::activity::extract`]: a cell blocks
+    /// The map as the [`ObstacleGrid`](chronomap_spatial::ObstacleGrid) of `chronomap-activity`'s training-sample extraction: a cell blocks
     /// sight when its occupancy is at least `min_occupancy` percent (in a trinary map, 100 for
     /// occupied cells); free and unknown (`-1`) cells do not. The resolution is the shortest
     /// decimal of the `f32` (0.05, not 0.0500000007).
@@ -282,7 +282,7 @@ impl OccupancyMap {
     pub fn obstacle_grid(
         &self,
         min_occupancy: i8,
-    ) -> Result<chronomap_core::activity::extract::ObstacleGrid, NavMapErrorKind> {
+    ) -> Result<chronomap_spatial::ObstacleGrid, NavMapErrorKind> {
         self.check()?;
         if self.origin[2] != 0.0 {
             return Err(NavMapErrorKind::InvalidMap {
@@ -302,7 +302,7 @@ impl OccupancyMap {
             .iter()
             .map(|&v| v >= min_occupancy && v >= 0)
             .collect();
-        chronomap_core::activity::extract::ObstacleGrid::new(
+        chronomap_spatial::ObstacleGrid::new(
             self.width as usize,
             self.height as usize,
             resolution,

@@ -1,12 +1,12 @@
-//! A synthesised person search tree ([`chronomap_core::psbt`], seed 002 Fig. 5.9) as a
+//! A synthesised person search tree ([`chronomap_psbt`], seed 002 Fig. 5.9) as a
 //! BehaviorTree.CPP v4 document: `Sequence(Fallback(actions…), MoveTo x₀)`, written by the
 //! canonical writer of [`crate::bt_xml`] with a `<TreeNodesModel>` of its three actions, so
 //! that the file is self-describing (Groot2 shows the ports) and reads back with
 //! [`crate::bt_xml::parse_bt_xml`].
 //!
 //! ```
-//! use chronomap_core::psbt::path::CellPath;
-//! use chronomap_core::psbt::{PersonSearchTree, Phase, Step};
+//! use chronomap_psbt::path::CellPath;
+//! use chronomap_psbt::{PersonSearchTree, Phase, Step};
 //! use chronomap_io::psbt_xml::psbt_to_xml;
 //!
 //! let tree = PersonSearchTree {
@@ -33,8 +33,8 @@
 //! tree `PersonSearch`; a caller's tree runs it where help is needed (Fig. 5.9's
 //! "Symbiotic error" condition is the caller's).
 
-use chronomap_core::bt::{BtDocument, NodeCategory, NodeDef, NodeModel, PortSpec, TreeDef};
-use chronomap_core::psbt::{PersonSearchTree, Step};
+use chronomap_bt::{BtDocument, NodeCategory, NodeDef, NodeModel, PortSpec, TreeDef};
+use chronomap_psbt::{PersonSearchTree, Step};
 
 use crate::bt_xml::encode_bt_xml;
 
@@ -93,9 +93,9 @@ pub fn psbt_to_xml(tree: &PersonSearchTree) -> String {
 
 #[cfg(test)]
 mod tests {
-    use chronomap_core::bt::Registry;
-    use chronomap_core::psbt::path::CellPath;
-    use chronomap_core::psbt::{PersonSearchTree, Phase, Step};
+    use chronomap_bt::Registry;
+    use chronomap_psbt::path::CellPath;
+    use chronomap_psbt::{PersonSearchTree, Phase, Step};
 
     use super::{psbt_document, psbt_to_xml};
     use crate::bt_xml::parse_bt_xml;

@@ -45,7 +45,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use chronomap_core::activity::extract::{RobotPath, Waypoint};
+use chronomap_activity::extract::{RobotPath, Waypoint};
 
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,

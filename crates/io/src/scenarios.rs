@@ -1,6 +1,6 @@
 //! Readers of navigation-scenario files: named patrols through waypoints for the
 //! service-disturbance benchmark of CoPA-Map (seed 002 §4.3.5, see
-//! [`chronomap_core::activity::disturbance`]), such as the *hallway* and *shops* scenarios in
+//! [`chronomap_activity::disturbance`]), such as the *hallway* and *shops* scenarios in
 //! `data/atc_20121024_1hz/disturbance_scenarios.csv` (see `data/README.md`).
 //!
 //! ```
@@ -40,7 +40,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use chronomap_core::activity::disturbance::{Scenario, Waypoint};
+use chronomap_activity::disturbance::{Scenario, Waypoint};
 
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,

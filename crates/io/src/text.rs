@@ -82,9 +82,10 @@ impl TimeSeries {
         self.times.len()
     }
 
-    /// The series as a test set of [`chronomap_core::eval`].
-    pub fn as_test_set(&self) -> chronomap_core::eval::TestSet<'_> {
-        chronomap_core::eval::TestSet {
+    #[cfg(feature = "models")]
+    /// The series as a test set of [`chronomap_models::eval`].
+    pub fn as_test_set(&self) -> chronomap_models::eval::TestSet<'_> {
+        chronomap_models::eval::TestSet {
             times: &self.times,
             values: &self.values,
         }
@@ -310,11 +311,12 @@ pub enum DataErrorKind {
         /// What is wrong.
         reason: String,
     },
+    #[cfg(feature = "topo")]
     /// The topological map cannot be built (e.g. an invalid or repeated node name).
     #[error("{error}")]
     Map {
         /// What is wrong with the map.
-        error: chronomap_core::topo::TopoError,
+        error: chronomap_topo::map::TopoError,
     },
     /// Another violation of the observation contract.
     #[error("{field}: {text:?} is rejected: {reason}")]
@@ -375,13 +377,14 @@ pub enum DataErrorKind {
         /// The line of its first waypoint.
         first_line: usize,
     },
+    #[cfg(feature = "activity")]
     /// The waypoints of a robot path do not make a path (reported at its first waypoint).
     #[error("path {name:?}: {error}")]
     RobotPath {
         /// The path.
         name: String,
         /// What is wrong.
-        error: chronomap_core::activity::extract::ExtractError,
+        error: chronomap_activity::extract::ExtractError,
     },
     /// There is no data line at all.
     #[error("no data lines (the input is empty or has only blank lines and # comments)")]

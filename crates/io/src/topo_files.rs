@@ -3,7 +3,7 @@
 //!
 //! ```
 //! use chronomap_io::topo_files::{decode_tmap2, encode_route_geojson, encode_tmap2, read_edge_file_from};
-//! use chronomap_core::topo::TopoMap;
+//! use chronomap_topo::map::TopoMap;
 //!
 //! // One edge file: `t duration_s success` per line.
 //! let attempts = read_edge_file_from("LabDoor1_LabDoor2.data",
@@ -144,7 +144,7 @@ use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use chronomap_core::topo::{TopoError, TopoMap};
+use chronomap_topo::map::{TopoError, TopoMap};
 use serde::de::{Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde_json::{Value, json};
 use serde_saphyr::Spanned;
@@ -157,10 +157,10 @@ use crate::text::{
 // ---------------------------------------------------------------------------------------------
 // Edge files
 
-/// One attempt to traverse an edge: the core's [`Attempt`](chronomap_core::edges::Attempt),
+/// One attempt to traverse an edge: the core's [`Attempt`](chronomap_topo::edges::Attempt),
 /// so what the readers return goes straight into
-/// [`EdgeModels::fit`](chronomap_core::edges::EdgeModels::fit).
-pub use chronomap_core::edges::Attempt as EdgeAttempt;
+/// [`EdgeModels::fit`](chronomap_topo::edges::EdgeModels::fit).
+pub use chronomap_topo::edges::Attempt as EdgeAttempt;
 
 /// A topological map and every recorded attempt to traverse each of its edges.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -226,7 +226,7 @@ impl EdgeStatistics {
     ///
     /// ```
     /// use chronomap_io::topo_files::{EdgeAttempt, EdgeStatistics};
-    /// use chronomap_core::topo::TopoMap;
+    /// use chronomap_topo::map::TopoMap;
     ///
     /// let mut map = TopoMap::new();
     /// map.add_node("A", None)?;
@@ -237,7 +237,7 @@ impl EdgeStatistics {
     /// let (before, after) = stats.split_at(20.0);
     /// assert_eq!((before.total_attempts(), after.total_attempts()), (1, 1));
     /// assert_eq!(after.attempts[0][0].time, 20.0);
-    /// # Ok::<(), chronomap_core::topo::TopoError>(())
+    /// # Ok::<(), chronomap_topo::map::TopoError>(())
     /// ```
     pub fn split_at(&self, split: f64) -> (EdgeStatistics, EdgeStatistics) {
         let (before, after) = self

@@ -39,8 +39,8 @@
 use std::io::Read;
 use std::path::Path;
 
-use chronomap_core::activity::truth::TrackPoint;
-use chronomap_core::events::Event;
+use chronomap_activity::truth::TrackPoint;
+use chronomap_hypertime::events::Event;
 
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
@@ -98,7 +98,7 @@ pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
 }
 
 /// As [`read_tracks`], keeping the person ids: what counting distinct people needs
-/// ([`chronomap_core::activity::truth::person_counts`]).
+/// ([`chronomap_activity::truth::person_counts`]).
 ///
 /// # Errors
 /// As [`read_tracks`].

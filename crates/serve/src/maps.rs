@@ -15,11 +15,11 @@ use axum::extract::rejection::{BytesRejection, PathRejection};
 use axum::extract::{Path, State};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use chronomap_core::edges::EdgeModels;
-use chronomap_core::grid::GridGeometry;
-use chronomap_core::mdp::SolverOptions;
-use chronomap_core::plan::{Task, now_or_later};
+use chronomap_grid::GridGeometry;
 use chronomap_io::grid_file::GridFile;
+use chronomap_topo::edges::EdgeModels;
+use chronomap_topo::mdp::SolverOptions;
+use chronomap_topo::plan::{Task, now_or_later};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 

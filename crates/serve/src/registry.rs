@@ -5,11 +5,12 @@
 
 use std::collections::HashMap;
 
-use chronomap_core::spec::OrderSpec;
 use chronomap_core::{
-    AnyModel, FremenConfig, FremenModel, HistogramModel, MarkovModel, MeanModel, ModelSpec,
-    ObservationError, Ordered, PergamConfig, PergamModel, PersistenceModel, TemporalModel,
+    FremenConfig, FremenModel, HistogramModel, MarkovModel, MeanModel, ObservationError, Ordered,
+    PergamConfig, PergamModel, PersistenceModel, TemporalModel,
 };
+use chronomap_models::spec::OrderSpec;
+use chronomap_models::{AnyModel, ModelSpec};
 use serde::{Deserialize, Serialize};
 
 use crate::api::{Component, MAX_ID_BYTES, ModelInfo};

@@ -1,7 +1,7 @@
 //! The per-cell descriptors of an office, drawn once from the seed.
 
 use super::{CellClass, DAY_SECS, OfficeConfig, day_of};
-use crate::rng::{Xoshiro256StarStar, derive_seed};
+use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 
 /// Purpose tags of the random streams (see [`derive_seed`]).
 pub(crate) const TAG_LAYOUT: u64 = 1;

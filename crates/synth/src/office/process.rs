@@ -2,7 +2,7 @@
 
 use super::layout::{Cell, TAG_NOISE, TAG_PERIODIC};
 use super::{DAY_SECS, OfficeWorkload, day_of, is_weekday};
-use crate::rng::{Xoshiro256StarStar, derive_seed};
+use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 
 /// Longest noise burst, frames (bursts last 1 to this many frames, uniformly).
 pub(crate) const MAX_BURST_FRAMES: u64 = 6;

@@ -28,7 +28,7 @@ fn fingerprint(office: &OfficeWorkload) -> Vec<u64> {
     let mut prints = Vec::new();
     while let Some((_, _, words)) = stream.next_frame() {
         let h = words.iter().fold(0u64, |h, &w| {
-            crate::rng::mix64(h ^ w).wrapping_add(0x9E37_79B9_7F4A_7C15)
+            chronomap_core::rng::mix64(h ^ w).wrapping_add(0x9E37_79B9_7F4A_7C15)
         });
         prints.push(h);
     }

@@ -1,0 +1,990 @@
+//! The whitened sparse variational GP with two latent functions `f` (activity rate) and `g`
+//! (noise), seed 002 eqs. (4.12)–(4.16), its natural-gradient and Adam updates, and
+//! prediction.
+//!
+//! **Whitening.** Each latent GP has inducing values `u = L v` with `L Lᵀ = K(Z, Z) + jitter·I`
+//! and `q(v) = N(μ, S)`, `S = L_S L_Sᵀ`. Then `q(u) = N(L μ, L S Lᵀ)` and the marginals of
+//! eqs. (4.13)–(4.16) become, with `a_i = L⁻¹ k(Z, x_i)`,
+//! `m_i = a_iᵀ μ` and `Σ_ii = k(x_i, x_i) + a_iᵀ (S − I) a_i`, while
+//! `KL(q(u) ‖ p(u)) = KL(N(μ, S) ‖ N(0, I))` no longer depends on the hyperparameters.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::{Accum, Mat, MatRef, Par};
+use serde::{Deserialize, Serialize};
+
+use super::kernel::{
+    ActivityKernel, Kernel, Point, RbfKernel, cross, cross_grad, diag_grad, gram, gram_grad,
+};
+use super::quad::HeteroGaussian;
+use chronomap_core::par::Parallelism;
+use chronomap_core::rng::Xoshiro256StarStar;
+
+/// Errors of the GP module.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GpError {
+    /// A matrix that must be positive definite is not (numerically).
+    #[error("{what} is not positive definite")]
+    NotPositiveDefinite {
+        /// Which matrix.
+        what: &'static str,
+    },
+    /// Inputs are inconsistent (lengths, non-finite values, empty sets).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+}
+
+// ---------------------------------------------------------------- small dense linear algebra
+
+/// Lower Cholesky factor of the symmetric matrix `a` (lower triangle read).
+pub(super) fn chol(a: MatRef<'_, f64>) -> Option<Mat<f64>> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
+    let n = a.nrows();
+    let mut m = Mat::from_fn(n, n, |i, j| if j <= i { a[(i, j)] } else { 0.0 });
+    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(
+        n,
+        Par::Seq,
+        Default::default(),
+    ));
+    cholesky_in_place(
+        m.as_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .ok()?;
+    for j in 0..n {
+        for i in 0..j {
+            m[(i, j)] = 0.0;
+        }
+        if m[(j, j)].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+    }
+    let finite = (0..n).all(|j| (j..n).all(|i| m[(i, j)].is_finite()));
+    finite.then_some(m)
+}
+
+/// Cholesky factor of a matrix that is positive definite in exact arithmetic but may have lost
+/// it to rounding: a growing ridge (from `ε·max|a_ii|`) is added until the factor exists.
+fn chol_ridge(a: &Mat<f64>) -> Option<Mat<f64>> {
+    if let Some(l) = chol(a.as_ref()) {
+        return Some(l);
+    }
+    let n = a.nrows();
+    let scale = (0..n)
+        .map(|i| a[(i, i)].abs())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let mut ridge = scale * f64::EPSILON;
+    for _ in 0..10 {
+        let b = Mat::from_fn(n, n, |i, j| a[(i, j)] + if i == j { ridge } else { 0.0 });
+        if let Some(l) = chol(b.as_ref()) {
+            return Some(l);
+        }
+        ridge *= 10.0;
+    }
+    None
+}
+
+/// `L x = b` in place.
+pub(super) fn solve_l(l: &Mat<f64>, b: &mut Mat<f64>) {
+    solve_lower_triangular_in_place(l.as_ref(), b.as_mut(), Par::Seq);
+}
+
+/// `Lᵀ x = b` in place.
+pub(super) fn solve_lt(l: &Mat<f64>, b: &mut Mat<f64>) {
+    solve_upper_triangular_in_place(l.as_ref().transpose(), b.as_mut(), Par::Seq);
+}
+
+/// `a · b`.
+pub(super) fn mm(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut c = Mat::zeros(a.nrows(), b.ncols());
+    matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
+    c
+}
+
+/// `L⁻¹` of a lower-triangular `L`.
+fn inv_lower(l: &Mat<f64>) -> Mat<f64> {
+    let mut x = Mat::identity(l.nrows(), l.nrows());
+    solve_l(l, &mut x);
+    x
+}
+
+fn col(v: &[f64]) -> Mat<f64> {
+    Mat::from_fn(v.len(), 1, |i, _| v[i])
+}
+
+// ---------------------------------------------------------------- variational distribution
+
+/// The whitened variational distribution `q(v) = N(μ, L_S L_Sᵀ)` of one latent GP.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variational {
+    /// The mean `μ` (length `M`).
+    pub mean: Vec<f64>,
+    /// Lower Cholesky factor `L_S` of the covariance (`M × M`).
+    pub chol: Mat<f64>,
+}
+
+impl Variational {
+    /// The prior `N(0, I)` over `M` whitened inducing values (GPflow's initialisation).
+    pub fn prior(m: usize) -> Self {
+        Variational {
+            mean: vec![0.0; m],
+            chol: Mat::identity(m, m),
+        }
+    }
+
+    /// Number of inducing values `M`.
+    pub fn len(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// `true` when there are no inducing values.
+    pub fn is_empty(&self) -> bool {
+        self.mean.is_empty()
+    }
+
+    /// The covariance `S = L_S L_Sᵀ`.
+    pub fn covariance(&self) -> Mat<f64> {
+        mm(self.chol.as_ref(), self.chol.as_ref().transpose())
+    }
+
+    /// `KL(N(μ, S) ‖ N(0, I)) = ½ (tr S + μᵀμ − M − ln|S|)`, which equals
+    /// `KL(q(u) ‖ p(u))` of seed 002 eq. (4.12) under whitening.
+    pub fn kl(&self) -> f64 {
+        let m = self.len();
+        let mut tr = 0.0;
+        let mut logdet = 0.0;
+        for j in 0..m {
+            for i in j..m {
+                tr += self.chol[(i, j)] * self.chol[(i, j)];
+            }
+            logdet += 2.0 * self.chol[(j, j)].ln();
+        }
+        let mm: f64 = self.mean.iter().map(|v| v * v).sum();
+        0.5 * (tr + mm - m as f64 - logdet)
+    }
+}
+
+// ---------------------------------------------------------------- one latent GP
+
+/// One latent GP of the model: kernel, inducing inputs `Z` and whitened `q(v)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LatentGp<K> {
+    /// The covariance function.
+    pub kernel: K,
+    /// The inducing inputs `Z` (`M` points).
+    pub z: Vec<Point>,
+    /// The whitened variational distribution.
+    pub q: Variational,
+}
+
+/// Marginals of one latent GP at a batch of inputs and the intermediates for gradients.
+#[derive(Clone, Debug)]
+pub struct Marginals {
+    /// Means `m_i`, seed 002 eq. (4.13)/(4.15).
+    pub mean: Vec<f64>,
+    /// Variances `Σ_ii`, seed 002 eq. (4.14)/(4.16).
+    pub var: Vec<f64>,
+    /// `L = chol(K(Z, Z) + jitter·I)`.
+    l: Mat<f64>,
+    /// `A = L⁻¹ K(Z, X)` (`M × B`).
+    a: Mat<f64>,
+    /// `L_Sᵀ A`.
+    sa: Mat<f64>,
+}
+
+impl<K: Kernel> LatentGp<K> {
+    /// A latent GP with the prior `q(v) = N(0, I)`.
+    pub fn new(kernel: K, z: Vec<Point>) -> Self {
+        let m = z.len();
+        LatentGp {
+            kernel,
+            z,
+            q: Variational::prior(m),
+        }
+    }
+
+    /// The marginals `q(f_i) = N(m_i, Σ_ii)` at `x` (seed 002 eqs. 4.13–4.16, diagonal only,
+    /// whitened): cost `O(B·M² + M³)`.
+    pub fn marginals(
+        &self,
+        x: &[Point],
+        jitter: f64,
+        par: Parallelism,
+    ) -> Result<Marginals, GpError> {
+        let kzz = gram(&self.kernel, &self.z, jitter, par);
+        let l = chol(kzz.as_ref()).ok_or(GpError::NotPositiveDefinite { what: "K(Z, Z)" })?;
+        let mut a = cross(&self.kernel, &self.z, x, par);
+        solve_l(&l, &mut a);
+        Ok(self.with_q(l, a))
+    }
+
+    /// The marginals for the current `q` from `L` and `A` (which do not depend on `q`).
+    fn with_q(&self, l: Mat<f64>, a: Mat<f64>) -> Marginals {
+        let sa = mm(self.q.chol.as_ref().transpose(), a.as_ref());
+        let kxx = self.kernel.diag();
+        let (m, b) = (a.nrows(), a.ncols());
+        let mut mean = vec![0.0; b];
+        let mut var = vec![0.0; b];
+        for j in 0..b {
+            let (mut mj, mut aa, mut ss) = (0.0, 0.0, 0.0);
+            for i in 0..m {
+                mj += a[(i, j)] * self.q.mean[i];
+                aa += a[(i, j)] * a[(i, j)];
+                ss += sa[(i, j)] * sa[(i, j)];
+            }
+            mean[j] = mj;
+            var[j] = (kxx - aa + ss).max(1e-12 * kxx);
+        }
+        Marginals {
+            mean,
+            var,
+            l,
+            a,
+            sa,
+        }
+    }
+
+    /// Marginals computed for another `q` of this latent GP, updated to the current `q`
+    /// (`O(B·M²)`: the kernel matrices and `L⁻¹ K(Z, X)` are reused).
+    pub fn refresh(&self, marg: Marginals) -> Marginals {
+        self.with_q(marg.l, marg.a)
+    }
+
+    /// Adds to `dtheta` (kernel log-parameters) and `dz` (inducing inputs) the gradient of
+    /// `Σ_i dm_i m_i + dv_i Σ_ii` through the marginals (reverse mode through `A = L⁻¹K(Z,X)`
+    /// and the Cholesky factor `L`, Murray 2016: `K̄ = L⁻ᵀ Φ(Lᵀ L̄) L⁻¹`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn marginals_backward(
+        &self,
+        x: &[Point],
+        marg: &Marginals,
+        dm: &[f64],
+        dv: &[f64],
+        dtheta: &mut [f64],
+        dz: &mut [Point],
+        par: Parallelism,
+    ) {
+        let (m, b) = (self.z.len(), x.len());
+        // Ā = μ dmᵀ + 2 (S − I) A diag(dv), with (S − I) A = L_S (L_Sᵀ A) − A.
+        let s_a = mm(self.q.chol.as_ref(), marg.sa.as_ref());
+        let mut kzx_bar = Mat::from_fn(m, b, |i, j| {
+            self.q.mean[i] * dm[j] + 2.0 * (s_a[(i, j)] - marg.a[(i, j)]) * dv[j]
+        });
+        // K̄(Z, X) = L⁻ᵀ Ā; L̄ = −K̄(Z, X) Aᵀ.
+        solve_lt(&marg.l, &mut kzx_bar);
+        let mut lbar = Mat::zeros(m, m);
+        matmul(
+            lbar.as_mut(),
+            Accum::Replace,
+            kzx_bar.as_ref(),
+            marg.a.as_ref().transpose(),
+            -1.0,
+            Par::Seq,
+        );
+        // Φ(Lᵀ L̄): lower triangle with halved diagonal.
+        let mut phi = mm(marg.l.as_ref().transpose(), lbar.as_ref());
+        for j in 0..m {
+            for i in 0..j {
+                phi[(i, j)] = 0.0;
+            }
+            phi[(j, j)] *= 0.5;
+        }
+        // K̄(Z, Z) = L⁻ᵀ Φ L⁻¹ = (L⁻ᵀ (L⁻ᵀ Φ)ᵀ)ᵀ.
+        solve_lt(&marg.l, &mut phi);
+        let mut t = phi.transpose().to_owned();
+        solve_lt(&marg.l, &mut t);
+        let kzz_bar = t.transpose().to_owned();
+        gram_grad(&self.kernel, &self.z, kzz_bar.as_ref(), dtheta, dz, par);
+        cross_grad(
+            &self.kernel,
+            &self.z,
+            x,
+            kzx_bar.as_ref(),
+            dtheta,
+            Some(dz),
+            None,
+            par,
+        );
+        diag_grad(&self.kernel, dv, dtheta);
+    }
+
+    /// One natural-gradient step of size `rho` on `q(v)` (Salimbeni et al. 2018), given the
+    /// gradient of the (scaled) expected log-likelihood with respect to the marginals
+    /// (`dm_i = ∂/∂m_i`, `dv_i = ∂/∂Σ_ii`). In natural parameters
+    /// `θ = (S⁻¹μ, −½S⁻¹)` the step is `θ ← (1−ρ)θ + ρ(θ_prior + ∂E/∂η)` with `η = (μ, S + μμᵀ)`:
+    /// `S⁻¹ ← (1−ρ)S⁻¹ + ρ(I − 2G)`, `S⁻¹μ ← (1−ρ)S⁻¹μ + ρ(A dm − 2Gμ)`, `G = A diag(dv) Aᵀ`.
+    /// With a Gaussian likelihood and `ρ = 1` this is the optimal (Titsias) `q`.
+    /// Returns the new `q` (fails when the new `S⁻¹` is not positive definite).
+    pub fn natgrad_update(
+        &self,
+        marg: &Marginals,
+        dm: &[f64],
+        dv: &[f64],
+        rho: f64,
+    ) -> Result<Variational, GpError> {
+        let (m, b) = (self.z.len(), dm.len());
+        let a = &marg.a;
+        let a_dv = Mat::from_fn(m, b, |i, j| a[(i, j)] * dv[j]);
+        let g = mm(a_dv.as_ref(), a.as_ref().transpose());
+        let linv = inv_lower(&self.q.chol);
+        let prec = mm(linv.as_ref().transpose(), linv.as_ref());
+        let mu = col(&self.q.mean);
+        let theta1 = mm(prec.as_ref(), mu.as_ref());
+        let g_mu = mm(g.as_ref(), mu.as_ref());
+        let a_dm = mm(a.as_ref(), col(dm).as_ref());
+        let new_prec = Mat::from_fn(m, m, |i, j| {
+            let eye = if i == j { 1.0 } else { 0.0 };
+            (1.0 - rho) * prec[(i, j)] + rho * (eye - 2.0 * 0.5 * (g[(i, j)] + g[(j, i)]))
+        });
+        let mut t1 = Mat::from_fn(m, 1, |i, _| {
+            (1.0 - rho) * theta1[(i, 0)] + rho * (a_dm[(i, 0)] - 2.0 * g_mu[(i, 0)])
+        });
+        let lp = chol(new_prec.as_ref()).ok_or(GpError::NotPositiveDefinite {
+            what: "natural-gradient precision",
+        })?;
+        solve_l(&lp, &mut t1);
+        solve_lt(&lp, &mut t1);
+        let w = inv_lower(&lp);
+        let s = mm(w.as_ref().transpose(), w.as_ref());
+        let ls = chol_ridge(&s).ok_or(GpError::NotPositiveDefinite {
+            what: "natural-gradient covariance",
+        })?;
+        Ok(Variational {
+            mean: (0..m).map(|i| t1[(i, 0)]).collect(),
+            chol: ls,
+        })
+    }
+}
+
+// ---------------------------------------------------------------- the heteroscedastic model
+
+/// The serialised form of [`HeteroSvgp`] (log-parameters, inducing inputs, `q(v)` means and
+/// packed lower Cholesky factors row by row), validated on the way back.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct SavedHeteroSvgp {
+    kernel_f: Vec<f64>,
+    kernel_g: Vec<f64>,
+    z_f: Vec<Point>,
+    z_g: Vec<Point>,
+    q_mean_f: Vec<f64>,
+    q_chol_f: Vec<f64>,
+    q_mean_g: Vec<f64>,
+    q_chol_g: Vec<f64>,
+    jitter: f64,
+    quadrature_nodes: usize,
+}
+
+pub(super) fn pack_lower(l: &Mat<f64>) -> Vec<f64> {
+    let n = l.nrows();
+    (0..n)
+        .flat_map(|i| (0..=i).map(move |j| l[(i, j)]))
+        .collect()
+}
+
+pub(super) fn unpack_lower(v: &[f64], n: usize) -> Result<Mat<f64>, GpError> {
+    if v.len() != n * (n + 1) / 2 {
+        return Err(GpError::InvalidInput(format!(
+            "packed Cholesky factor has {} entries, expected {}",
+            v.len(),
+            n * (n + 1) / 2
+        )));
+    }
+    let mut m = Mat::zeros(n, n);
+    let mut k = 0;
+    for i in 0..n {
+        for j in 0..=i {
+            m[(i, j)] = v[k];
+            k += 1;
+        }
+        if m[(i, i)].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return Err(GpError::InvalidInput(
+                "Cholesky factor has a non-positive diagonal".into(),
+            ));
+        }
+    }
+    Ok(m)
+}
+
+impl From<HeteroSvgp> for SavedHeteroSvgp {
+    fn from(m: HeteroSvgp) -> Self {
+        SavedHeteroSvgp {
+            kernel_f: m.f.kernel.params().to_vec(),
+            kernel_g: m.g.kernel.params().to_vec(),
+            q_chol_f: pack_lower(&m.f.q.chol),
+            q_chol_g: pack_lower(&m.g.q.chol),
+            z_f: m.f.z,
+            z_g: m.g.z,
+            q_mean_f: m.f.q.mean,
+            q_mean_g: m.g.q.mean,
+            jitter: m.jitter,
+            quadrature_nodes: m.likelihood.n_nodes(),
+        }
+    }
+}
+
+impl TryFrom<SavedHeteroSvgp> for HeteroSvgp {
+    type Error = GpError;
+    fn try_from(s: SavedHeteroSvgp) -> Result<Self, GpError> {
+        let all_finite = s
+            .kernel_f
+            .iter()
+            .chain(&s.kernel_g)
+            .chain(s.z_f.iter().flatten())
+            .chain(s.z_g.iter().flatten())
+            .chain(&s.q_mean_f)
+            .chain(&s.q_mean_g)
+            .chain(&s.q_chol_f)
+            .chain(&s.q_chol_g)
+            .all(|v| v.is_finite());
+        let ok = all_finite
+            && s.kernel_f.len() >= 3
+            && (s.kernel_f.len() - 3).is_multiple_of(3)
+            && s.kernel_g.len() == 4
+            && s.z_f.len() == s.q_mean_f.len()
+            && s.z_g.len() == s.q_mean_g.len()
+            && s.jitter >= 0.0
+            && (1..=200).contains(&s.quadrature_nodes);
+        if !ok {
+            return Err(GpError::InvalidInput("inconsistent saved model".into()));
+        }
+        let mut kf = ActivityKernel::new(1.0, [1.0, 1.0], &[]);
+        let mut kg = RbfKernel::new(1.0, [1.0; 3]);
+        // ActivityKernel::new with no components has 3 parameters; grow to the saved length.
+        kf.set_params(&s.kernel_f);
+        kg.params_mut().copy_from_slice(&s.kernel_g);
+        Ok(HeteroSvgp {
+            f: LatentGp {
+                kernel: kf,
+                q: Variational {
+                    chol: unpack_lower(&s.q_chol_f, s.z_f.len())?,
+                    mean: s.q_mean_f,
+                },
+                z: s.z_f,
+            },
+            g: LatentGp {
+                kernel: kg,
+                q: Variational {
+                    chol: unpack_lower(&s.q_chol_g, s.z_g.len())?,
+                    mean: s.q_mean_g,
+                },
+                z: s.z_g,
+            },
+            likelihood: HeteroGaussian::new(s.quadrature_nodes),
+            jitter: s.jitter,
+        })
+    }
+}
+
+/// The CoPA-Map model, seed 002 eq. (4.7): `y ~ N(f(x), ζ(g(x))²)` with `f ~ GP(0, k_f)`
+/// ([`ActivityKernel`], eqs. 4.8–4.10) and `g ~ GP(0, k_g)` ([`RbfKernel`], eq. 4.11), each
+/// approximated by a whitened SVGP with its own inducing inputs.
+///
+/// Serialisable (serde) for saving a trained model; deserialisation validates shapes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SavedHeteroSvgp", into = "SavedHeteroSvgp")]
+pub struct HeteroSvgp {
+    /// The latent rate function `f`.
+    pub f: LatentGp<ActivityKernel>,
+    /// The latent noise function `g` (noise standard deviation `ζ(g)`).
+    pub g: LatentGp<RbfKernel>,
+    /// The likelihood and its quadrature rule.
+    pub likelihood: HeteroGaussian,
+    /// Jitter added to the diagonal of `K(Z, Z)` (default `1e-6`).
+    pub jitter: f64,
+}
+
+/// The ELBO estimate of a minibatch and its gradient.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElboGrad {
+    /// `scale · Σ_batch E[ln p(y|f,g)] − KL_f − KL_g`.
+    pub elbo: f64,
+    /// `∂/∂` log-parameters of `k_f`.
+    pub d_kernel_f: Vec<f64>,
+    /// `∂/∂` log-parameters of `k_g`.
+    pub d_kernel_g: Vec<f64>,
+    /// `∂/∂Z_f`.
+    pub d_z_f: Vec<Point>,
+    /// `∂/∂Z_g`.
+    pub d_z_g: Vec<Point>,
+}
+
+/// Predictive means and standard deviations: of `y` for [`HeteroSvgp::predict`], of the rate
+/// `exp f` for [`PoissonSvgp::predict`](super::PoissonSvgp::predict).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Prediction {
+    /// [`HeteroSvgp`]: `E[y] = m_f`; [`PoissonSvgp`](super::PoissonSvgp): `E[exp f]`.
+    pub mean: Vec<f64>,
+    /// [`HeteroSvgp`]: `√(Σ_f + E[ζ(g)²])`; [`PoissonSvgp`](super::PoissonSvgp): the standard
+    /// deviation of `exp f`.
+    pub std: Vec<f64>,
+}
+
+/// Per-point likelihood gradients and the summed expected log-likelihood of a batch.
+struct BatchLik {
+    ell: f64,
+    dmf: Vec<f64>,
+    dvf: Vec<f64>,
+    dmg: Vec<f64>,
+    dvg: Vec<f64>,
+}
+
+pub(super) fn check_data(x: &[Point], y: &[f64]) -> Result<(), GpError> {
+    if x.len() != y.len() {
+        return Err(GpError::InvalidInput(format!(
+            "{} inputs but {} targets",
+            x.len(),
+            y.len()
+        )));
+    }
+    if let Some(i) = x
+        .iter()
+        .zip(y)
+        .position(|(p, v)| !(p.iter().all(|c| c.is_finite()) && v.is_finite()))
+    {
+        return Err(GpError::InvalidInput(format!(
+            "non-finite value at row {i}"
+        )));
+    }
+    Ok(())
+}
+
+impl HeteroSvgp {
+    /// A model with kernels `kernel_f`, `kernel_g`, the same initial inducing inputs `z` for
+    /// both latent GPs and priors `q(v_f) = q(v_g) = N(0, I)` (as GPflow's `SVGP`).
+    pub fn new(kernel_f: ActivityKernel, kernel_g: RbfKernel, z: Vec<Point>) -> Self {
+        HeteroSvgp {
+            f: LatentGp::new(kernel_f, z.clone()),
+            g: LatentGp::new(kernel_g, z),
+            likelihood: HeteroGaussian::default(),
+            jitter: 1e-6,
+        }
+    }
+
+    fn batch_lik(&self, y: &[f64], mf: &Marginals, mg: &Marginals, scale: f64) -> BatchLik {
+        let n = y.len();
+        let mut out = BatchLik {
+            ell: 0.0,
+            dmf: vec![0.0; n],
+            dvf: vec![0.0; n],
+            dmg: vec![0.0; n],
+            dvg: vec![0.0; n],
+        };
+        for (i, &yi) in y.iter().enumerate() {
+            let e = self
+                .likelihood
+                .expected_log_lik(yi, mf.mean[i], mf.var[i], mg.mean[i], mg.var[i]);
+            out.ell += e.value;
+            out.dmf[i] = scale * e.d_mf;
+            out.dvf[i] = scale * e.d_vf;
+            out.dmg[i] = scale * e.d_mg;
+            out.dvg[i] = scale * e.d_vg;
+        }
+        out.ell *= scale;
+        out
+    }
+
+    /// The ELBO (seed 002 eq. 4.12) estimated on the batch `(x, y)`: the expected
+    /// log-likelihood summed over the batch times `scale` (use `n / |B|` for a minibatch of a
+    /// data set of `n` points, `1` for the full data) minus both KL terms.
+    pub fn elbo(
+        &self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        par: Parallelism,
+    ) -> Result<f64, GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        let lik = self.batch_lik(y, &mf, &mg, scale);
+        Ok(lik.ell - self.f.q.kl() - self.g.q.kl())
+    }
+
+    /// [`HeteroSvgp::elbo`] and its exact gradient with respect to both kernels'
+    /// log-parameters and both sets of inducing inputs (with `q(v)` held fixed).
+    pub fn elbo_grad(
+        &self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        par: Parallelism,
+    ) -> Result<ElboGrad, GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        Ok(self.grad_from(x, y, scale, &mf, &mg, par))
+    }
+
+    /// [`HeteroSvgp::elbo_grad`] from already computed marginals.
+    fn grad_from(
+        &self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        mf: &Marginals,
+        mg: &Marginals,
+        par: Parallelism,
+    ) -> ElboGrad {
+        let lik = self.batch_lik(y, mf, mg, scale);
+        let mut out = ElboGrad {
+            elbo: lik.ell - self.f.q.kl() - self.g.q.kl(),
+            d_kernel_f: vec![0.0; self.f.kernel.params().len()],
+            d_kernel_g: vec![0.0; self.g.kernel.params().len()],
+            d_z_f: vec![[0.0; 3]; self.f.z.len()],
+            d_z_g: vec![[0.0; 3]; self.g.z.len()],
+        };
+        self.f.marginals_backward(
+            x,
+            mf,
+            &lik.dmf,
+            &lik.dvf,
+            &mut out.d_kernel_f,
+            &mut out.d_z_f,
+            par,
+        );
+        self.g.marginals_backward(
+            x,
+            mg,
+            &lik.dmg,
+            &lik.dvg,
+            &mut out.d_kernel_g,
+            &mut out.d_z_g,
+            par,
+        );
+        out
+    }
+
+    /// One natural-gradient step of size `rho` on `q(v_f)` and `q(v_g)` with the batch
+    /// `(x, y)` scaled by `scale` (both use the marginals before the step, as GPflow's
+    /// `NaturalGradient` does). Returns the ELBO estimate before the step. If a step is not
+    /// positive definite, neither `q` changes and the error is returned.
+    pub fn natgrad_step(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        par: Parallelism,
+    ) -> Result<f64, GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        let lik = self.batch_lik(y, &mf, &mg, scale);
+        let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
+        let qf = self.f.natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)?;
+        let qg = self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?;
+        self.f.q = qf;
+        self.g.q = qg;
+        Ok(elbo)
+    }
+
+    /// One training iteration on the batch `(x, y)`: a natural-gradient step of size `rho` on
+    /// both `q` (halved up to 10 times while the new precision is not positive definite),
+    /// then the ELBO gradient for the hyperparameters at the new `q`, reusing the kernel
+    /// matrices of the step. Returns the ELBO estimate before the step and that gradient.
+    pub fn train_step(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        par: Parallelism,
+    ) -> Result<(f64, ElboGrad), GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        let lik = self.batch_lik(y, &mf, &mg, scale);
+        let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
+        let (qf, qg) = with_step_halving(rho, |rho| {
+            let qf = self.f.natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)?;
+            Ok((qf, self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?))
+        })?;
+        self.f.q = qf;
+        self.g.q = qg;
+        let mf = self.f.refresh(mf);
+        let mg = self.g.refresh(mg);
+        Ok((elbo, self.grad_from(x, y, scale, &mf, &mg, par)))
+    }
+
+    /// Predictive mean and standard deviation of `y` at `x` (seed 002 eq. 4.19): mean `m_f`,
+    /// variance `Σ_f + E_{q(g)}[ζ(g)²]`. Works in chunks of 1024 points.
+    pub fn predict(&self, x: &[Point], par: Parallelism) -> Result<Prediction, GpError> {
+        let mut out = Prediction {
+            mean: Vec::with_capacity(x.len()),
+            std: Vec::with_capacity(x.len()),
+        };
+        for chunk in x.chunks(1024) {
+            let mf = self.f.marginals(chunk, self.jitter, par)?;
+            let mg = self.g.marginals(chunk, self.jitter, par)?;
+            for i in 0..chunk.len() {
+                out.mean.push(mf.mean[i]);
+                let noise = self
+                    .likelihood
+                    .expected_noise_variance(mg.mean[i], mg.var[i]);
+                out.std.push((mf.var[i] + noise).sqrt());
+            }
+        }
+        Ok(out)
+    }
+
+    /// All hyperparameters trained by Adam, flattened: `k_f` log-parameters, `k_g`
+    /// log-parameters, then (if `with_inducing`) `Z_f` and `Z_g` row by row.
+    pub fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
+        let mut p = self.f.kernel.params().to_vec();
+        p.extend_from_slice(self.g.kernel.params());
+        if with_inducing {
+            p.extend(self.f.z.iter().flatten());
+            p.extend(self.g.z.iter().flatten());
+        }
+        p
+    }
+
+    /// Inverse of [`HeteroSvgp::hyperparameters`].
+    pub fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
+        let nf = self.f.kernel.params().len();
+        let ng = self.g.kernel.params().len();
+        self.f.kernel.params_mut().copy_from_slice(&p[..nf]);
+        self.g.kernel.params_mut().copy_from_slice(&p[nf..nf + ng]);
+        if with_inducing {
+            let mut rest = p[nf + ng..].chunks_exact(3);
+            for z in self.f.z.iter_mut().chain(self.g.z.iter_mut()) {
+                let c = rest.next().expect("parameter vector too short");
+                z.copy_from_slice(c);
+            }
+        }
+    }
+}
+
+impl ElboGrad {
+    /// The gradient flattened in the order of [`HeteroSvgp::hyperparameters`].
+    pub fn flatten(&self, with_inducing: bool) -> Vec<f64> {
+        let mut p = self.d_kernel_f.clone();
+        p.extend_from_slice(&self.d_kernel_g);
+        if with_inducing {
+            p.extend(self.d_z_f.iter().flatten());
+            p.extend(self.d_z_g.iter().flatten());
+        }
+        p
+    }
+}
+
+// ---------------------------------------------------------------- optimisation
+
+/// The Adam optimiser (Kingma & Ba 2014), here ascending an objective.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Adam {
+    /// Step size.
+    pub learning_rate: f64,
+    /// First-moment decay (0.9).
+    pub beta1: f64,
+    /// Second-moment decay (0.999).
+    pub beta2: f64,
+    /// Denominator offset (1e-7 as in TensorFlow).
+    pub epsilon: f64,
+    m: Vec<f64>,
+    v: Vec<f64>,
+    t: i32,
+}
+
+impl Adam {
+    /// Adam with step size `learning_rate` and the usual defaults.
+    pub fn new(learning_rate: f64) -> Self {
+        Adam {
+            learning_rate,
+            beta1: 0.9,
+            beta2: 0.999,
+            epsilon: 1e-7,
+            m: Vec::new(),
+            v: Vec::new(),
+            t: 0,
+        }
+    }
+
+    /// One ascent step: `p ← p + lr · m̂ / (√v̂ + ε)`.
+    pub fn ascend(&mut self, params: &mut [f64], grad: &[f64]) {
+        if self.m.len() != params.len() {
+            self.m = vec![0.0; params.len()];
+            self.v = vec![0.0; params.len()];
+            self.t = 0;
+        }
+        self.t += 1;
+        let c1 = 1.0 - self.beta1.powi(self.t);
+        let c2 = 1.0 - self.beta2.powi(self.t);
+        for i in 0..params.len() {
+            self.m[i] = self.beta1 * self.m[i] + (1.0 - self.beta1) * grad[i];
+            self.v[i] = self.beta2 * self.v[i] + (1.0 - self.beta2) * grad[i] * grad[i];
+            params[i] +=
+                self.learning_rate * (self.m[i] / c1) / ((self.v[i] / c2).sqrt() + self.epsilon);
+        }
+    }
+}
+
+/// Settings of [`train`] (defaults follow the original `adam_natgrad` optimiser).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// Number of iterations (one natural-gradient step and one Adam step each).
+    pub iterations: usize,
+    /// Minibatch size (the full data when larger than `n`).
+    pub batch_size: usize,
+    /// Natural-gradient step size `γ` (0.1).
+    pub natgrad_step: f64,
+    /// Adam step size (0.01).
+    pub learning_rate: f64,
+    /// Whether Adam also moves the inducing inputs.
+    pub train_inducing: bool,
+    /// Seed of the minibatch sampler.
+    pub seed: u64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            iterations: 200,
+            batch_size: 1100,
+            natgrad_step: 0.1,
+            learning_rate: 0.01,
+            train_inducing: true,
+            seed: 0,
+        }
+    }
+}
+
+/// Runs `step(rho)` and, while it fails for a matrix that is not positive definite, again
+/// with half the step size (up to 10 times) before the error is returned.
+pub(super) fn with_step_halving<T>(
+    rho: f64,
+    mut step: impl FnMut(f64) -> Result<T, GpError>,
+) -> Result<T, GpError> {
+    let mut rho = rho;
+    let mut tries = 0;
+    loop {
+        match step(rho) {
+            Err(GpError::NotPositiveDefinite { .. }) if tries < 10 => {
+                rho *= 0.5;
+                tries += 1;
+            }
+            result => return result,
+        }
+    }
+}
+
+/// A sparse variational GP that [`train`] optimises: [`HeteroSvgp`] (CoPA-Map) and
+/// [`PoissonSvgp`](super::PoissonSvgp) (GP-Hom).
+pub trait SvgpModel {
+    /// Checks a training set before any change (lengths, finite values, the likelihood's
+    /// range of `y`).
+    ///
+    /// # Errors
+    /// [`GpError::InvalidInput`] naming the first offending row.
+    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError>;
+
+    /// One training iteration on the batch `(x, y)` scaled by `scale`: a natural-gradient
+    /// step of size `rho` on every `q(v)` (halved while not positive definite), then the ELBO
+    /// gradient at the new `q` flattened in the order of
+    /// [`SvgpModel::hyperparameters`]`(with_inducing)`. Returns the ELBO estimate before the
+    /// step and that gradient.
+    ///
+    /// # Errors
+    /// As the model's `train_step`.
+    fn train_iteration(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        with_inducing: bool,
+        par: Parallelism,
+    ) -> Result<(f64, Vec<f64>), GpError>;
+
+    /// The hyperparameters trained by Adam, flattened.
+    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64>;
+
+    /// Inverse of [`SvgpModel::hyperparameters`].
+    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool);
+}
+
+impl SvgpModel for HeteroSvgp {
+    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
+        check_data(x, y)
+    }
+
+    fn train_iteration(
+        &mut self,
+        x: &[Point],
+        y: &[f64],
+        scale: f64,
+        rho: f64,
+        with_inducing: bool,
+        par: Parallelism,
+    ) -> Result<(f64, Vec<f64>), GpError> {
+        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
+        Ok((elbo, grad.flatten(with_inducing)))
+    }
+
+    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
+        HeteroSvgp::hyperparameters(self, with_inducing)
+    }
+
+    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
+        HeteroSvgp::set_hyperparameters(self, p, with_inducing);
+    }
+}
+
+/// Trains `model` on `(x, y)` by alternating a natural-gradient step on its `q(v)` and an
+/// Adam step on the hyperparameters (and inducing inputs) on the same minibatch (seed 002
+/// §4.2.5). Returns the minibatch ELBO estimate (scaled by `n/|B|`) measured at the start of
+/// each iteration. A natural-gradient step that is not positive definite is retried with half
+/// the step size (up to 10 times) before the error is returned.
+pub fn train<M: SvgpModel>(
+    model: &mut M,
+    x: &[Point],
+    y: &[f64],
+    config: &TrainConfig,
+    par: Parallelism,
+) -> Result<Vec<f64>, GpError> {
+    model.check_training_data(x, y)?;
+    if x.is_empty() {
+        return Err(GpError::InvalidInput("no training data".into()));
+    }
+    let n = x.len();
+    let b = config.batch_size.clamp(1, n);
+    let scale = n as f64 / b as f64;
+    let mut rng = Xoshiro256StarStar::seed_from_u64(config.seed);
+    let mut adam = Adam::new(config.learning_rate);
+    let mut idx: Vec<usize> = (0..n).collect();
+    let mut trace = Vec::with_capacity(config.iterations);
+    let (mut bx, mut by) = (Vec::with_capacity(b), Vec::with_capacity(b));
+    for _ in 0..config.iterations {
+        // Partial Fisher–Yates: the first b entries of idx are a uniform sample.
+        for i in 0..b {
+            let j = rng.int_in(i as u64, (n - 1) as u64) as usize;
+            idx.swap(i, j);
+        }
+        bx.clear();
+        by.clear();
+        for &i in &idx[..b] {
+            bx.push(x[i]);
+            by.push(y[i]);
+        }
+        let (elbo, grad) = model.train_iteration(
+            &bx,
+            &by,
+            scale,
+            config.natgrad_step,
+            config.train_inducing,
+            par,
+        )?;
+        trace.push(elbo);
+        let mut p = model.hyperparameters(config.train_inducing);
+        adam.ascend(&mut p, &grad);
+        model.set_hyperparameters(&p, config.train_inducing);
+    }
+    Ok(trace)
+}

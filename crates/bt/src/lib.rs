@@ -1,0 +1,162 @@
+//! Behavior trees with the semantics of BehaviorTree.CPP 4: the task-switching formalism of the
+//! executive system of dissertation seed 002 (§5.2.1, Algorithms 5.1 and 5.2) and of its
+//! monitoring arbiter (§5.3, Table 5.1), as Nav2 and many ROS robots run them.
+//!
+//! A tree is first a plain, reusable description — a [`BtDocument`] of [`TreeDef`]s made of
+//! [`NodeDef`]s (kind, ID, instance name, port attributes, children) — which
+//! `chronomap-io` reads from and writes to BehaviorTree.CPP 4 XML and which analyses (stochastic
+//! behavior trees, §5.2.2) can walk without running anything. [`Tree::new`] instantiates it with
+//! a [`Registry`] of leaf implementations into a runtime tree whose nodes carry a status, a
+//! uid (1, 2, … in depth-first order, subtrees expanded where they are used) and the blackboard
+//! scope they read their ports from.
+//!
+//! ```
+//! use std::time::Duration;
+//! use chronomap_bt::{BtDocument, NodeDef, Registry, Status, Tree, TreeDef};
+//!
+//! // Fallback(IsDoorOpen, RetryUntilSuccessful(OpenDoor)) with closures as leaves.
+//! let mut registry = Registry::new();
+//! registry.register_condition_fn("IsDoorOpen", |_| Ok(Status::Failure))?;
+//! registry.register_action_fn("OpenDoor", |ctx| {
+//!     // Running on the first tick of an attempt, success on the next one.
+//!     Ok(if ctx.status() == Status::Running { Status::Success } else { Status::Running })
+//! })?;
+//! let root = NodeDef::control("Fallback")
+//!     .child(NodeDef::condition("IsDoorOpen"))
+//!     .child(
+//!         NodeDef::decorator("RetryUntilSuccessful")
+//!             .port("num_attempts", "3")
+//!             .child(NodeDef::action("OpenDoor")),
+//!     );
+//! let doc = BtDocument::single(TreeDef::new("Main", root));
+//! let mut tree = Tree::new(&doc, &registry)?;
+//! assert_eq!(tree.tick_once(Duration::ZERO)?, Status::Running);
+//! assert_eq!(tree.tick_once(Duration::from_millis(100))?, Status::Success);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! ## What is implemented
+//! * Statuses [`Status`]: idle, running, success, failure (BehaviorTree.CPP's codes 0–3;
+//!   `SKIPPED` needs scripted pre-conditions, which are not supported).
+//! * Control nodes `Sequence`, `ReactiveSequence`, `SequenceWithMemory`, `Fallback`,
+//!   `ReactiveFallback`, `Parallel` (`success_count`, `failure_count`, negative = "all");
+//!   decorators `Inverter`, `RetryUntilSuccessful` (`num_attempts`), `Repeat` (`num_cycles`),
+//!   `Timeout` (`msec`), `ForceSuccess`, `ForceFailure`; `SubTree` with port remapping and
+//!   `_autoremap`; built-in leaves `AlwaysSuccess`, `AlwaysFailure`, `SetBlackboard`,
+//!   `Sleep`. The exact rules, with the BehaviorTree.CPP 4 functions they follow, are in
+//!   [`runtime`].
+//! * User leaves (actions and conditions) registered by ID in a [`Registry`]: closures or
+//!   [`LeafNode`] trait objects with a halt hook; actions may return running across ticks.
+//! * A typed [`Blackboard`] ([`Value`]: bool, i64, f64, string; literal port strings are parsed
+//!   as BehaviorTree.CPP's `convertFromString` does), input/output ports, `{key}` references,
+//!   `{=}`, `@key` for the root blackboard, subtree remapping.
+//! * Time is injected: every tick gets `now` from the caller (a [`Duration`] since an origin the
+//!   caller chooses), so `Timeout` and `Sleep` are deterministic; nothing here reads a clock.
+//! * Every status change can be recorded as a [`Transition`] (time, uid, previous and new
+//!   status), the content of a Groot2 `.btlog` file (written by `chronomap-io`).
+//! * [`script`]: leaves whose outcomes a script gives tick by tick, for `chronomap bt run` and
+//!   for tests.
+//!
+//! [`Duration`]: std::time::Duration
+#![deny(missing_docs)]
+
+pub mod monitor;
+pub mod sbt;
+
+pub mod blackboard;
+mod builtin;
+mod error;
+pub mod model;
+pub mod registry;
+pub mod runtime;
+pub mod script;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+pub use blackboard::{Blackboard, BlackboardError, FromValue, ScopeId, Value};
+pub use builtin::{UNSUPPORTED_BUILTINS, builtin_model, is_builtin};
+pub use error::{DefinitionError, DefinitionErrorKind, PortError, TickError, TickErrorKind};
+pub use model::{
+    BtDocument, NodeCategory, NodeDef, NodeLocation, NodeModel, PortDirection, PortSpec, PortType,
+    TreeDef, blackboard_pointer,
+};
+pub use registry::{
+    LeafContext, LeafError, LeafNode, Manifest, ManifestSource, Registry, RegistryError,
+};
+pub use runtime::{Node, SubtreeInstance, Transition, Tree};
+pub use validate::validate;
+
+use serde::{Deserialize, Serialize};
+
+/// The status of a node: what a tick returns, and what a node is between ticks.
+///
+/// The discriminants are BehaviorTree.CPP's `NodeStatus` codes (`IDLE = 0`, `RUNNING = 1`,
+/// `SUCCESS = 2`, `FAILURE = 3`), which Groot2 `.btlog` files store.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum Status {
+    /// Not ticked since it was last reset or halted.
+    Idle = 0,
+    /// Execution ongoing (seed 002 §5.2.1: *R*).
+    Running = 1,
+    /// Goal achieved (*S*).
+    Success = 2,
+    /// Failed (*F*).
+    Failure = 3,
+}
+
+impl Status {
+    /// The BehaviorTree.CPP code (0–3).
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The status of a BehaviorTree.CPP code (0–3); `None` for others (4 is `SKIPPED`).
+    pub fn from_code(code: u8) -> Option<Status> {
+        match code {
+            0 => Some(Status::Idle),
+            1 => Some(Status::Running),
+            2 => Some(Status::Success),
+            3 => Some(Status::Failure),
+            _ => None,
+        }
+    }
+
+    /// Success or failure (BehaviorTree.CPP's `isStatusCompleted`).
+    pub fn is_completed(self) -> bool {
+        matches!(self, Status::Success | Status::Failure)
+    }
+
+    /// The upper-case name BehaviorTree.CPP prints (`RUNNING`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Idle => "IDLE",
+            Status::Running => "RUNNING",
+            Status::Success => "SUCCESS",
+            Status::Failure => "FAILURE",
+        }
+    }
+}
+
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Status {
+    type Err = String;
+
+    /// `idle`, `running`, `success`, `failure` in any case.
+    fn from_str(s: &str) -> Result<Status, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "idle" => Ok(Status::Idle),
+            "running" => Ok(Status::Running),
+            "success" => Ok(Status::Success),
+            "failure" => Ok(Status::Failure),
+            _ => Err(format!(
+                "{s:?} is not a status (expected success, failure, running or idle)"
+            )),
+        }
+    }
+}

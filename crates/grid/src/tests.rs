@@ -1,0 +1,435 @@
+use super::*;
+use chronomap_core::model::TemporalModel;
+
+/// xorshift64* — deterministic test randomness.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+}
+
+/// A frame as the grid receives it, and the observations it means per cell.
+enum Input {
+    Occupancy(Vec<i8>),
+    Bits(Vec<u64>, Option<Vec<u64>>),
+    Sparse(Vec<u32>, Vec<f64>),
+}
+
+/// Per-cell behaviours: static, flipping, sometimes unknown, fractional, never seen, late.
+fn cell_value(rng: &mut Rng, cell: usize, frame: usize, binary: bool) -> i8 {
+    match cell % 9 {
+        0 => 0,
+        1 => 100,
+        2 => {
+            if (frame / 7 + cell).is_multiple_of(3) {
+                100
+            } else {
+                0
+            }
+        }
+        3 => {
+            if rng.below(5) == 0 {
+                -1
+            } else if rng.below(2) == 0 {
+                100
+            } else {
+                0
+            }
+        }
+        4 if !binary => [0, 35, 100, 70][rng.below(4) as usize],
+        5 => -1,
+        6 => {
+            if frame < 40 {
+                -1
+            } else if (frame / 5).is_multiple_of(2) {
+                100
+            } else {
+                0
+            }
+        }
+        7 => {
+            if frame % 50 == 49 {
+                -1
+            } else {
+                100
+            }
+        }
+        _ => {
+            if rng.below(10) == 0 {
+                100
+            } else {
+                0
+            }
+        }
+    }
+}
+
+fn scenario(cells: usize, frames: usize, binary: bool, seed: u64) -> Vec<(f64, Input)> {
+    let mut rng = Rng(seed);
+    let mut t = 1_451_865_600.0;
+    let mut out = Vec::new();
+    for frame in 0..frames {
+        t += 600.0 + rng.below(3000) as f64;
+        let values: Vec<i8> = (0..cells)
+            .map(|c| cell_value(&mut rng, c, frame, binary))
+            .collect();
+        if frame % 3 == 1 {
+            let words = cells.div_ceil(64);
+            let (mut occ, mut known) = (vec![0u64; words], vec![0u64; words]);
+            for (c, &v) in values.iter().enumerate() {
+                if v >= 0 {
+                    known[c / 64] |= 1 << (c % 64);
+                }
+                if v >= 50 {
+                    occ[c / 64] |= 1 << (c % 64);
+                }
+            }
+            out.push((t, Input::Bits(occ, Some(known))));
+        } else {
+            out.push((t, Input::Occupancy(values)));
+        }
+        if !binary && frame % 17 == 5 {
+            t += 10.0;
+            let picked: Vec<u32> = (0..4).map(|_| rng.below(cells as u64) as u32).collect();
+            let values = picked.iter().map(|&c| f64::from(c % 3) / 2.0).collect();
+            out.push((t, Input::Sparse(picked, values)));
+        }
+    }
+    out
+}
+
+/// Feeds the scenario to a grid, and each cell's own observations to its own FremenModel.
+fn build(
+    geometry: GridGeometry,
+    config: GridConfig,
+    inputs: &[(f64, Input)],
+) -> (FremenGrid, Vec<FremenModel>) {
+    let cells = geometry.cells();
+    let mut grid = FremenGrid::new(geometry, config.clone()).unwrap();
+    let mut models: Vec<FremenModel> = (0..cells)
+        .map(|_| FremenModel::new(config.fremen.clone()).unwrap())
+        .collect();
+    for (t, input) in inputs {
+        match input {
+            Input::Occupancy(values) => {
+                grid.observe_occupancy(*t, values).unwrap();
+                for (c, &v) in values.iter().enumerate() {
+                    if v >= 0 {
+                        models[c].observe(&[*t], &[f64::from(v) / 100.0]).unwrap();
+                    }
+                }
+            }
+            Input::Bits(occ, known) => {
+                grid.observe_bits(*t, occ, known.as_deref()).unwrap();
+                for (c, model) in models.iter_mut().enumerate() {
+                    let bit = 1u64 << (c % 64);
+                    if known.as_ref().is_none_or(|k| k[c / 64] & bit != 0) {
+                        let v = if occ[c / 64] & bit != 0 { 1.0 } else { 0.0 };
+                        model.observe(&[*t], &[v]).unwrap();
+                    }
+                }
+            }
+            Input::Sparse(picked, values) => {
+                grid.observe_cells(*t, picked, values).unwrap();
+                for (&c, &v) in picked.iter().zip(values) {
+                    models[c as usize].observe(&[*t], &[v]).unwrap();
+                }
+            }
+        }
+    }
+    (grid, models)
+}
+
+#[test]
+fn every_cell_equals_cell_by_cell_fremen_exactly() {
+    let geometry = GridGeometry::planar(7, 11, 0.1, [-1.0, 2.0]).unwrap();
+    let config = GridConfig::default();
+    let inputs = scenario(geometry.cells(), 300, false, 7);
+    let (grid, models) = build(geometry, config, &inputs);
+    let mut seen = 0;
+    for (c, model) in models.iter().enumerate() {
+        match grid.cell_model(c) {
+            None => assert_eq!(
+                model.span().count,
+                0,
+                "cell {c} observed but the grid has no model"
+            ),
+            Some(from_grid) => {
+                seen += 1;
+                assert_eq!(
+                    &from_grid, model,
+                    "cell {c} differs from cell-by-cell FreMEn"
+                );
+                let t = 1_460_000_000.0 + 777.0 * c as f64;
+                assert_eq!(from_grid.predict(t).to_bits(), model.predict(t).to_bits());
+            }
+        }
+    }
+    assert!(seen > 60, "{seen} cells observed");
+}
+
+#[test]
+fn predicted_maps_equal_the_cell_models() {
+    let geometry = GridGeometry::planar(9, 8, 0.05, [0.0, 0.0]).unwrap();
+    let config = GridConfig {
+        fremen: FremenConfig::with_order(3),
+        keep_history: false,
+    };
+    let inputs = scenario(geometry.cells(), 200, false, 11);
+    let (grid, models) = build(geometry, config, &inputs);
+    let t = 1_461_000_000.0;
+    let map = grid.predict_map(t);
+    for (c, model) in models.iter().enumerate() {
+        if model.span().count == 0 {
+            assert!(map[c].is_nan());
+        } else {
+            assert!(
+                (f64::from(map[c]) - model.predict(t)).abs() < 1e-5,
+                "cell {c}"
+            );
+        }
+    }
+}
+
+#[test]
+fn grids_built_on_parts_concatenate_to_the_whole() {
+    let whole = GridGeometry::planar(141, 1, 1.0, [0.0, 0.0]).unwrap();
+    let inputs = scenario(141, 120, true, 3);
+    let (grid, _) = build(whole, GridConfig::default(), &inputs);
+    let split = |range: std::ops::Range<usize>| -> Vec<(f64, Input)> {
+        inputs
+            .iter()
+            .map(|(t, input)| {
+                let part = match input {
+                    Input::Occupancy(v) => Input::Occupancy(v[range.clone()].to_vec()),
+                    Input::Bits(o, k) => {
+                        let w = range.start / 64..range.end.div_ceil(64);
+                        Input::Bits(o[w.clone()].to_vec(), k.as_ref().map(|k| k[w].to_vec()))
+                    }
+                    Input::Sparse(..) => unreachable!("binary scenario has no sparse input"),
+                };
+                (*t, part)
+            })
+            .collect()
+    };
+    let left_geometry = GridGeometry::planar(128, 1, 1.0, [0.0, 0.0]).unwrap();
+    let right_geometry = GridGeometry::planar(13, 1, 1.0, [128.0, 0.0]).unwrap();
+    let (left, _) = build(left_geometry, GridConfig::default(), &split(0..128));
+    let (right, _) = build(right_geometry, GridConfig::default(), &split(128..141));
+    let joined = FremenGrid::concat(whole, vec![left.clone(), right]).unwrap();
+    for c in 0..141 {
+        assert_eq!(joined.cell_model(c), grid.cell_model(c), "cell {c}");
+    }
+    assert!(FremenGrid::concat(whole, vec![left]).is_err());
+}
+
+#[test]
+fn lossless_grids_reconstruct_every_frame() {
+    let geometry = GridGeometry::planar(10, 9, 0.1, [0.0, 0.0]).unwrap();
+    let config = GridConfig {
+        fremen: FremenConfig::with_order(2),
+        keep_history: true,
+    };
+    let inputs = scenario(geometry.cells(), 250, true, 5);
+    let (grid, _) = build(geometry, config, &inputs);
+    // Constant cells (classes 0 and 1) cost no per-cell storage; changing ones do.
+    for c in 0..geometry.cells() {
+        let constant = c % 9 <= 1;
+        assert_eq!(grid.slot_of[c] == NONE, constant || c % 9 == 5, "cell {c}");
+    }
+    let lossless = grid.lossless(OrderChoice::Fixed(2)).unwrap();
+    assert!(lossless.is_consistent());
+    for (frame, (_, input)) in inputs.iter().enumerate() {
+        let states = lossless.reconstruct_frame(frame as u64);
+        let expected: Vec<CellState> = match input {
+            Input::Occupancy(v) => v
+                .iter()
+                .map(|&v| match v {
+                    -1 => CellState::Unknown,
+                    100 => CellState::Occupied,
+                    _ => CellState::Free,
+                })
+                .collect(),
+            Input::Bits(o, k) => (0..geometry.cells())
+                .map(|c| {
+                    let bit = 1u64 << (c % 64);
+                    if k.as_ref().is_some_and(|k| k[c / 64] & bit == 0) {
+                        CellState::Unknown
+                    } else if o[c / 64] & bit != 0 {
+                        CellState::Occupied
+                    } else {
+                        CellState::Free
+                    }
+                })
+                .collect(),
+            Input::Sparse(..) => unreachable!(),
+        };
+        assert_eq!(states, expected, "frame {frame}");
+    }
+    // Fractional frames cannot be stored losslessly.
+    let (fractional, _) = build(
+        geometry,
+        GridConfig {
+            keep_history: true,
+            ..GridConfig::default()
+        },
+        &scenario(90, 50, false, 1),
+    );
+    assert!(fractional.lossless(OrderChoice::Fixed(1)).is_err());
+}
+
+#[test]
+fn estimation_error_counts_mispredicted_states_of_changing_cells() {
+    // One cell occupied 8:00-18:00 every day, one constant, one never seen; hourly frames for
+    // four weeks. Order 0 (the majority state, free) is wrong 10/24 of the time.
+    let geometry = GridGeometry::planar(3, 1, 1.0, [0.0, 0.0]).unwrap();
+    let config = GridConfig {
+        keep_history: true,
+        ..GridConfig::default()
+    };
+    let mut grid = FremenGrid::new(geometry, config).unwrap();
+    for h in 0..28 * 24 {
+        let hour = h % 24;
+        let door = if (8..18).contains(&hour) { 100 } else { 0 };
+        grid.observe_occupancy(3600.0 * h as f64, &[door, 100, -1])
+            .unwrap();
+    }
+    let frames = grid.frames();
+    let static_error = grid
+        .estimation_error(&grid.fitted(OrderChoice::Fixed(0)), 0, frames)
+        .unwrap();
+    assert_eq!(static_error.changed_cells, 1);
+    assert!((static_error.mean_cell_error - 10.0 / 24.0).abs() < 1e-12);
+    let fremen = grid
+        .estimation_error(&grid.fitted(OrderChoice::Fixed(4)), 0, frames)
+        .unwrap();
+    assert!(
+        fremen.mean_cell_error < 0.1 * static_error.mean_cell_error,
+        "{fremen:?}"
+    );
+}
+
+#[test]
+fn per_cell_orders_are_chosen_on_held_back_frames() {
+    let geometry = GridGeometry::planar(2, 1, 1.0, [0.0, 0.0]).unwrap();
+    let config = GridConfig {
+        keep_history: true,
+        ..GridConfig::default()
+    };
+    let mut grid = FremenGrid::new(geometry, config).unwrap();
+    let mut trained = None;
+    let mut rng = Rng(9);
+    for h in 0..28 * 24 {
+        if h == 21 * 24 {
+            trained = Some(grid.clone());
+        }
+        let daily = if (8..18).contains(&(h % 24)) { 100 } else { 0 };
+        // Cell 1 is noise around a low mean: no periodic component predicts it.
+        let noise = if rng.below(5) == 0 { 100 } else { 0 };
+        grid.observe_occupancy(3600.0 * h as f64, &[daily, noise])
+            .unwrap();
+    }
+    let orders = grid.select_cell_orders(&trained.unwrap(), 5).unwrap();
+    assert!(orders[0] >= 1, "{orders:?}");
+    assert_eq!(orders[1], 0, "{orders:?}");
+}
+
+#[test]
+fn bad_frames_are_rejected_and_change_nothing() {
+    let geometry = GridGeometry::planar(5, 5, 0.1, [0.0, 0.0]).unwrap();
+    let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();
+    grid.observe_occupancy(100.0, &[0; 25]).unwrap();
+    let before = grid.clone();
+    let errors = [
+        grid.observe_occupancy(200.0, &[0; 24]).unwrap_err(),
+        grid.observe_occupancy(200.0, &{
+            let mut v = [0i8; 25];
+            v[7] = 101;
+            v
+        })
+        .unwrap_err(),
+        grid.observe_occupancy(200.0, &[-1; 25]).unwrap_err(),
+        grid.observe_occupancy(50.0, &[0; 25]).unwrap_err(),
+        grid.observe_occupancy(f64::NAN, &[0; 25]).unwrap_err(),
+        grid.observe_bits(200.0, &[], None).unwrap_err(),
+        grid.observe_bits(200.0, &[0], Some(&[0])).unwrap_err(),
+        grid.observe_cells(200.0, &[25], &[1.0]).unwrap_err(),
+        grid.observe_cells(200.0, &[3], &[1.5]).unwrap_err(),
+    ];
+    assert!(matches!(
+        errors[0],
+        GridError::FrameLength {
+            expected: 25,
+            found: 24,
+            ..
+        }
+    ));
+    assert!(matches!(
+        errors[1],
+        GridError::CellValue {
+            cell: 7,
+            value: 101
+        }
+    ));
+    assert!(matches!(errors[2], GridError::NothingObserved { .. }));
+    assert!(matches!(
+        errors[3],
+        GridError::Observation(ObservationError::TimeNotIncreasing { .. })
+    ));
+    assert!(matches!(errors[6], GridError::NothingObserved { .. }));
+    assert!(matches!(errors[7], GridError::CellIndex { cell: 25, .. }));
+    assert_eq!(grid, before);
+    assert!(GridGeometry::planar(0, 5, 0.1, [0.0, 0.0]).is_err());
+    assert!(GridGeometry::planar(5, 5, -0.1, [0.0, 0.0]).is_err());
+}
+
+#[test]
+fn fully_observed_binary_frames_take_the_fast_path_exactly() {
+    let geometry = GridGeometry::planar(200, 1, 1.0, [0.0, 0.0]).unwrap();
+    let config = GridConfig::default();
+    let mut rng = Rng(21);
+    let mut inputs = Vec::new();
+    let mut bits = vec![0u64; 4];
+    let mut t = 1_000_000.0;
+    for frame in 0..400 {
+        t += 5.0;
+        for _ in 0..3 {
+            let c = rng.below(40) as usize * 5; // a fifth of the cells change
+            bits[c / 64] ^= 1 << (c % 64);
+        }
+        if frame == 200 {
+            // One frame with an unknown cell and a fraction leaves the fast path for a while.
+            let mut values: Vec<i8> = (0..200)
+                .map(|c| {
+                    if bits[c / 64] >> (c % 64) & 1 == 1 {
+                        100
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            values[3] = -1;
+            values[4] = 50;
+            inputs.push((t, Input::Occupancy(values)));
+        } else {
+            // Garbage past the last cell must be ignored.
+            let mut frame_bits = bits.clone();
+            frame_bits[3] |= 1 << 63;
+            inputs.push((t, Input::Bits(frame_bits, None)));
+        }
+    }
+    let (grid, models) = build(geometry, config, &inputs);
+    assert_eq!((grid.unknown_cells, grid.fraction_cells), (0, 0));
+    for (c, model) in models.iter().enumerate() {
+        assert_eq!(grid.cell_model(c).as_ref(), Some(model), "cell {c}");
+    }
+    assert!(grid.dynamic_cells() <= 42, "{} slots", grid.dynamic_cells());
+}

@@ -1,0 +1,13 @@
+//! The tests of chronomap-io on the bundled real files and on hostile input, one module per
+//! format, in one test binary.
+
+mod bt_log;
+mod bt_xml;
+mod copa_init;
+mod events;
+mod matrix;
+mod model_file;
+mod navmap;
+mod text;
+mod topo_files;
+mod tracks;

@@ -1,0 +1,16 @@
+//! # chronomap-models
+//!
+//! Every temporal model of chronomap by name: [`ModelSpec`] parses `fremen:auto`, `hist:24`,
+//! `hyt-em:3` or `auto` and fits it; [`AnyModel`] is the serialisable union of all models that
+//! files, the command line and the service pass around; [`eval`] runs the train/test
+//! experiment of the FreMEn benchmarks over any list of specs.
+//!
+//! The Warped Hypertime models come from `chronomap-hypertime` behind the `hypertime` cargo
+//! feature (on by default); without it, crates that only need the FreMEn family (topological
+//! edge models) do not compile the mixture code and its linear algebra.
+#![deny(missing_docs)]
+
+pub mod eval;
+pub mod spec;
+
+pub use spec::{AnyModel, FitOptions, ModelSpec};

@@ -1,0 +1,798 @@
+//! Models by name (`fremen:4`, `hist:24`, `auto`, ...) and [`AnyModel`], the union of all
+//! models that files, the command line and services pass around.
+//!
+//! Like RustFFT's planner, [`ModelSpec::fit`] chooses and builds a model from a description,
+//! but hides nothing: every model is also constructible directly.
+//!
+//! | spec | model |
+//! |---|---|
+//! | `mean` | [`MeanModel`], long-term memory (seed 000 §4.3.1) |
+//! | `hist:N[:PERIOD]` | [`HistogramModel`], N bins over PERIOD s (default one week) |
+//! | `fremen:K`, `fremen:auto` | [`FremenModel`] of order K, or K chosen on held-back data |
+//! | `persistence[:K\|:auto]` | [`PersistenceModel`], FreMEn + persistence (seed 001 eq. (12)–(13)) |
+//! | `stm` | [`MarkovModel`], short-term memory (seed 000 eq. (5)–(6)) |
+//! | `pergam:K[:PERIOD]`, `pergam:auto` | [`PergamModel`], periodic Gaussian mixture (seed 000 eq. (7)–(9)) |
+//! | `fft:L`, `fft:auto` | [`FftFremen`], FFT FreMEn with outlier set (uniformly sampled binary data only) |
+//! | `auto` | the candidate with the lowest error on held-back data, refitted on everything |
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use chronomap_core::error::{BuildError, ConfigError, ObservationError};
+use chronomap_core::fft::{FftFremen, FftFremenConfig};
+use chronomap_core::fremen::{FremenConfig, FremenModel};
+use chronomap_core::hist::HistogramModel;
+use chronomap_core::mean::MeanModel;
+use chronomap_core::model::{Ordered, TemporalModel};
+use chronomap_core::observe::ObservedSpan;
+use chronomap_core::par::Parallelism;
+use chronomap_core::pergam::{PergamConfig, PergamModel};
+use chronomap_core::periods::{DAY, PeriodSet, WEEK};
+use chronomap_core::persistence::PersistenceModel;
+use chronomap_core::select::{
+    Criterion, OrderSelection, fit_with_order_selection, holdout_split, select_order_online,
+};
+use chronomap_core::stm::MarkovModel;
+#[cfg(feature = "hypertime")]
+use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
+
+/// A model order: fixed, or chosen on held-back data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OrderSpec {
+    /// This order.
+    Fixed(usize),
+    /// Chosen by [`chronomap_core::select`].
+    Auto,
+}
+
+impl fmt::Display for OrderSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OrderSpec::Fixed(k) => write!(f, "{k}"),
+            OrderSpec::Auto => f.write_str("auto"),
+        }
+    }
+}
+
+/// A model described by name and parameters (see the [module docs](self)).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ModelSpec {
+    /// `mean`.
+    Mean,
+    /// `hist:N[:PERIOD]`.
+    Histogram {
+        /// Number of bins.
+        bins: usize,
+        /// Period in seconds.
+        period_secs: f64,
+    },
+    /// `fremen:K` / `fremen:auto`.
+    Fremen(OrderSpec),
+    /// `persistence:K` / `persistence:auto`.
+    Persistence(OrderSpec),
+    /// `stm`.
+    Markov,
+    /// `pergam:K[:PERIOD]` / `pergam:auto`.
+    Pergam {
+        /// Number of components.
+        components: OrderSpec,
+        /// Period in seconds.
+        period_secs: f64,
+    },
+    /// `fft:L` / `fft:auto`.
+    Fft(OrderSpec),
+    /// `auto`.
+    Auto,
+    #[cfg(feature = "hypertime")]
+    /// `hyt-em:K` / `hyt-em:auto`: Warped Hypertime with EM clustering (seed 004, HyT-EM_k).
+    HypertimeEm(OrderSpec),
+    #[cfg(feature = "hypertime")]
+    /// `hyt-km`: Warped Hypertime with k-means-initialised clustering, `k` by eq. 9 (HyT-KM).
+    HypertimeKm,
+}
+
+impl fmt::Display for ModelSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ModelSpec::Mean => f.write_str("mean"),
+            ModelSpec::Histogram { bins, period_secs } if *period_secs == WEEK => {
+                write!(f, "hist:{bins}")
+            }
+            ModelSpec::Histogram { bins, period_secs } => write!(f, "hist:{bins}:{period_secs}"),
+            ModelSpec::Fremen(order) => write!(f, "fremen:{order}"),
+            ModelSpec::Persistence(order) => write!(f, "persistence:{order}"),
+            ModelSpec::Markov => f.write_str("stm"),
+            ModelSpec::Pergam {
+                components,
+                period_secs,
+            } if *period_secs == DAY => write!(f, "pergam:{components}"),
+            ModelSpec::Pergam {
+                components,
+                period_secs,
+            } => write!(f, "pergam:{components}:{period_secs}"),
+            ModelSpec::Fft(order) => write!(f, "fft:{order}"),
+            ModelSpec::Auto => f.write_str("auto"),
+            #[cfg(feature = "hypertime")]
+            ModelSpec::HypertimeEm(order) => write!(f, "hyt-em:{order}"),
+            #[cfg(feature = "hypertime")]
+            ModelSpec::HypertimeKm => f.write_str("hyt-km"),
+        }
+    }
+}
+
+const ACCEPTED: &str = "mean, hist:N[:PERIOD], fremen:K|auto, persistence[:K|auto], stm, \
+                        pergam:K|auto[:PERIOD], fft:L|auto, hyt-em:K|auto, hyt-km, auto";
+
+impl FromStr for ModelSpec {
+    type Err = ConfigError;
+
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        let error = |reason: String| ConfigError::Parse {
+            what: "model",
+            text: text.to_string(),
+            reason: format!("{reason}; accepted: {ACCEPTED}"),
+        };
+        let parts: Vec<&str> = text.trim().split(':').map(str::trim).collect();
+        let order = |index: usize, default: OrderSpec| -> Result<OrderSpec, ConfigError> {
+            match parts.get(index) {
+                None => Ok(default),
+                Some(&"auto") => Ok(OrderSpec::Auto),
+                Some(k) => k
+                    .parse()
+                    .map(OrderSpec::Fixed)
+                    .map_err(|_| error(format!("order {k:?} is not a whole number or 'auto'"))),
+            }
+        };
+        let period = |index: usize, default: f64| -> Result<f64, ConfigError> {
+            match parts.get(index) {
+                None => Ok(default),
+                Some(p) => match p.parse::<f64>() {
+                    Ok(p) if p.is_finite() && p > 0.0 => Ok(p),
+                    _ => Err(error(format!(
+                        "period {p:?} is not a positive number of seconds"
+                    ))),
+                },
+            }
+        };
+        let max_parts = |n: usize| {
+            if parts.len() > n {
+                Err(error(format!("too many ':' fields for {}", parts[0])))
+            } else {
+                Ok(())
+            }
+        };
+        let spec = match parts[0] {
+            "mean" => {
+                max_parts(1)?;
+                ModelSpec::Mean
+            }
+            "hist" => {
+                max_parts(3)?;
+                let bins = match parts.get(1) {
+                    None => 24,
+                    Some(n) => n
+                        .parse()
+                        .ok()
+                        .filter(|&n| (1..=chronomap_core::hist::MAX_BINS).contains(&n))
+                        .ok_or_else(|| error(format!("bins {n:?} is not in 1..=1048576")))?,
+                };
+                ModelSpec::Histogram {
+                    bins,
+                    period_secs: period(2, WEEK)?,
+                }
+            }
+            "fremen" => {
+                max_parts(2)?;
+                ModelSpec::Fremen(order(1, OrderSpec::Auto)?)
+            }
+            "persistence" => {
+                max_parts(2)?;
+                ModelSpec::Persistence(order(1, OrderSpec::Auto)?)
+            }
+            "stm" => {
+                max_parts(1)?;
+                ModelSpec::Markov
+            }
+            "pergam" => {
+                max_parts(3)?;
+                let components = order(1, OrderSpec::Fixed(2))?;
+                if let OrderSpec::Fixed(k) = components
+                    && !(1..=chronomap_core::pergam::MAX_COMPONENTS).contains(&k)
+                {
+                    return Err(error(format!("{k} components; use 1..=16")));
+                }
+                ModelSpec::Pergam {
+                    components,
+                    period_secs: period(2, DAY)?,
+                }
+            }
+            "fft" => {
+                max_parts(2)?;
+                ModelSpec::Fft(order(1, OrderSpec::Auto)?)
+            }
+            "auto" => {
+                max_parts(1)?;
+                ModelSpec::Auto
+            }
+            #[cfg(feature = "hypertime")]
+            "hyt-em" => {
+                max_parts(2)?;
+                let components = order(1, OrderSpec::Auto)?;
+                if components == OrderSpec::Fixed(0) {
+                    return Err(error("0 components; use 1 or more, or auto".into()));
+                }
+                ModelSpec::HypertimeEm(components)
+            }
+            #[cfg(feature = "hypertime")]
+            "hyt-km" => {
+                max_parts(1)?;
+                ModelSpec::HypertimeKm
+            }
+            #[cfg(not(feature = "hypertime"))]
+            "hyt-em" | "hyt-km" => {
+                return Err(error(
+                    "Warped Hypertime models need the `hypertime` feature of chronomap-models"
+                        .into(),
+                ));
+            }
+            other => return Err(error(format!("unknown model {other:?}"))),
+        };
+        Ok(spec)
+    }
+}
+
+/// Parses a comma-separated list of model specs.
+///
+/// # Errors
+/// The first spec that does not parse, or an empty list.
+pub fn parse_model_list(text: &str) -> Result<Vec<ModelSpec>, ConfigError> {
+    let specs: Vec<ModelSpec> = text
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(str::parse)
+        .collect::<Result<_, _>>()?;
+    if specs.is_empty() {
+        return Err(ConfigError::Parse {
+            what: "model list",
+            text: text.to_string(),
+            reason: format!("no model given; accepted: {ACCEPTED}"),
+        });
+    }
+    Ok(specs)
+}
+
+/// Options of [`ModelSpec::fit`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Candidate periods of FreMEn-based models (default one week / 1..=84).
+    pub periods: PeriodSet,
+    /// Most recent fraction of the training time span held back to choose orders and models
+    /// (default 0.25, the 75/25 chronological split of the deployed FreMEn tools).
+    pub holdout: f64,
+    /// Largest FreMEn order tried by `auto` (default 10).
+    pub max_order: usize,
+    /// Largest number of mixture components tried by `pergam:auto` (default 6).
+    pub max_components: usize,
+    /// How held-back predictions are scored (default Brier).
+    pub criterion: Criterion,
+    /// Parallelism of the spectral accumulation (results do not depend on it).
+    pub parallelism: Parallelism,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            periods: PeriodSet::default(),
+            holdout: 0.25,
+            max_order: 10,
+            max_components: 6,
+            criterion: Criterion::Brier,
+            parallelism: Parallelism::Sequential,
+        }
+    }
+}
+
+/// How a fitted model's order or family was chosen.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Selection {
+    /// The order was chosen on held-back data.
+    Order(OrderSelection),
+    /// The model was chosen among candidates on held-back data (`auto`).
+    Model {
+        /// The candidate chosen.
+        chosen: ModelSpec,
+        /// Held-back error of every candidate.
+        errors: Vec<(ModelSpec, f64)>,
+        /// Number of held-back observations.
+        held_back: usize,
+        /// How the chosen model's own order was then chosen, if it has one.
+        inner: Option<Box<Selection>>,
+    },
+    #[cfg(feature = "hypertime")]
+    /// The periodicities and components of a Warped Hypertime model, chosen on the most
+    /// recent part of the training data (seed 004 §III-B).
+    Hypertime {
+        /// Periods found, in the order found (seconds).
+        periods: Vec<f64>,
+        /// Mixture components.
+        components: usize,
+    },
+}
+
+/// A fitted model and how it was chosen.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// The model, having observed all the training data.
+    pub model: AnyModel,
+    /// How its order or family was chosen (`None` for fixed specs).
+    pub selection: Option<Selection>,
+}
+
+impl ModelSpec {
+    /// The candidates `auto` chooses from.
+    pub fn auto_candidates() -> Vec<ModelSpec> {
+        vec![
+            ModelSpec::Mean,
+            ModelSpec::Histogram {
+                bins: 24,
+                period_secs: WEEK,
+            },
+            ModelSpec::Histogram {
+                bins: 168,
+                period_secs: WEEK,
+            },
+            ModelSpec::Fremen(OrderSpec::Auto),
+            ModelSpec::Persistence(OrderSpec::Auto),
+            ModelSpec::Pergam {
+                components: OrderSpec::Auto,
+                period_secs: DAY,
+            },
+            ModelSpec::Markov,
+        ]
+    }
+
+    /// Builds the model this spec describes from training observations, choosing orders and
+    /// models on held-back data where the spec says `auto`.
+    ///
+    /// # Errors
+    /// Data violating the observation contract, too few data to hold some back, or (for
+    /// `fft`) data that are not a uniformly sampled binary series.
+    pub fn fit(
+        &self,
+        times: &[f64],
+        values: &[f64],
+        options: &FitOptions,
+    ) -> Result<Fitted, BuildError> {
+        chronomap_core::observe::validate(None, times, values)?;
+        let fremen_config = |order: usize| FremenConfig {
+            periods: options.periods.clone(),
+            order,
+            ..FremenConfig::default()
+        };
+        let fixed = |model: AnyModel| Fitted {
+            model,
+            selection: None,
+        };
+        let fitted = match *self {
+            ModelSpec::Mean => {
+                let mut m = MeanModel::new();
+                m.observe(times, values)?;
+                fixed(AnyModel::Mean(m))
+            }
+            ModelSpec::Histogram { bins, period_secs } => {
+                let mut m = HistogramModel::new(bins, period_secs)?;
+                m.observe(times, values)?;
+                fixed(AnyModel::Histogram(m))
+            }
+            ModelSpec::Fremen(order) => fit_ordered(
+                FremenModel::new(fremen_config(0))?,
+                order,
+                times,
+                values,
+                options,
+                |m, t, v| m.observe_par(t, v, options.parallelism),
+                AnyModel::Fremen,
+            )?,
+            ModelSpec::Persistence(order) => fit_ordered(
+                PersistenceModel::new(fremen_config(0))?,
+                order,
+                times,
+                values,
+                options,
+                |m, t, v| m.observe_par(t, v, options.parallelism),
+                AnyModel::Persistence,
+            )?,
+            ModelSpec::Markov => {
+                let mut m = MarkovModel::new();
+                m.observe(times, values)?;
+                fixed(AnyModel::Markov(m))
+            }
+            ModelSpec::Pergam {
+                components,
+                period_secs,
+            } => {
+                let config = |k: usize| PergamConfig {
+                    components: k,
+                    period_secs,
+                    ..PergamConfig::default()
+                };
+                match components {
+                    OrderSpec::Fixed(k) => {
+                        let mut m = PergamModel::new(config(k))?;
+                        m.observe(times, values)?;
+                        fixed(AnyModel::Pergam(m))
+                    }
+                    OrderSpec::Auto => {
+                        let mut m = PergamModel::new(config(1))?;
+                        let split = holdout_split(times, options.holdout)?;
+                        m.observe(&times[..split], &values[..split])?;
+                        // Order 0 is not a mixture; try 1..=max.
+                        let mut s = select_order_online(
+                            &mut m,
+                            &times[split..],
+                            &values[split..],
+                            options.max_components,
+                            options.criterion,
+                        )?;
+                        if s.order == 0 {
+                            s.order = 1;
+                            m.set_order(1);
+                        }
+                        Fitted {
+                            model: AnyModel::Pergam(m),
+                            selection: Some(Selection::Order(s)),
+                        }
+                    }
+                }
+            }
+            ModelSpec::Fft(order) => fit_fft(order, times, values, options)?,
+            ModelSpec::Auto => fit_auto(times, values, options)?,
+            #[cfg(feature = "hypertime")]
+            ModelSpec::HypertimeEm(components) => {
+                let components = match components {
+                    OrderSpec::Fixed(k) => Components::Fixed(k),
+                    OrderSpec::Auto => Components::Auto,
+                };
+                fit_hypertime(Clustering::Em(components), times, values, options)?
+            }
+            #[cfg(feature = "hypertime")]
+            ModelSpec::HypertimeKm => fit_hypertime(Clustering::KMeans, times, values, options)?,
+        };
+        Ok(fitted)
+    }
+}
+
+#[cfg(feature = "hypertime")]
+/// A Warped Hypertime model of all the data (it chooses its periodicities, and for `Auto` its
+/// components, on the most recent `options.holdout` itself).
+fn fit_hypertime(
+    clustering: Clustering,
+    times: &[f64],
+    values: &[f64],
+    options: &FitOptions,
+) -> Result<Fitted, BuildError> {
+    let mut config = HypertimeConfig::new(clustering);
+    config.holdout = options.holdout;
+    let mut model = HypertimeModel::new(config)?;
+    model.observe_and_fit(times, values)?;
+    let selection = Selection::Hypertime {
+        periods: model.periods().to_vec(),
+        components: model.components(),
+    };
+    Ok(Fitted {
+        model: AnyModel::Hypertime(Box::new(model)),
+        selection: Some(selection),
+    })
+}
+
+/// A model of fixed order observing everything, or one whose order is chosen on the most
+/// recent `options.holdout` of the data.
+fn fit_ordered<M: TemporalModel + Ordered>(
+    mut model: M,
+    order: OrderSpec,
+    times: &[f64],
+    values: &[f64],
+    options: &FitOptions,
+    observe: impl FnOnce(&mut M, &[f64], &[f64]) -> Result<(), ObservationError>,
+    wrap: fn(M) -> AnyModel,
+) -> Result<Fitted, BuildError> {
+    Ok(match order {
+        OrderSpec::Fixed(k) => {
+            model.set_order(k);
+            observe(&mut model, times, values)?;
+            Fitted {
+                model: wrap(model),
+                selection: None,
+            }
+        }
+        OrderSpec::Auto => {
+            let (model, selection) = fit_with_order_selection(
+                model,
+                times,
+                values,
+                options.holdout,
+                options.max_order,
+                options.criterion,
+            )?;
+            Fitted {
+                model: wrap(model),
+                selection: Some(Selection::Order(selection)),
+            }
+        }
+    })
+}
+
+/// `fft:L`: the data must be a uniformly sampled binary series.
+fn fit_fft(
+    order: OrderSpec,
+    times: &[f64],
+    values: &[f64],
+    options: &FitOptions,
+) -> Result<Fitted, BuildError> {
+    let (start, step, samples) = chronomap_core::fft::uniform_binary_samples(times, values)?;
+    let (order, selection) = match order {
+        OrderSpec::Fixed(k) => (k, None),
+        OrderSpec::Auto => {
+            let (best, errors) = FftFremen::select_order(
+                &samples,
+                step,
+                options.holdout,
+                options.max_order,
+                FftFremenConfig::default(),
+            )?;
+            let held_back =
+                samples.len() - ((samples.len() as f64) * (1.0 - options.holdout)).round() as usize;
+            (
+                best,
+                Some(Selection::Order(OrderSelection {
+                    order: best,
+                    errors,
+                    held_back,
+                })),
+            )
+        }
+    };
+    let model = FftFremen::build(start, step, &samples, FftFremenConfig::with_order(order))?;
+    Ok(Fitted {
+        model: AnyModel::Fft(model),
+        selection,
+    })
+}
+
+/// `auto`: every candidate is fitted on the earlier part, scored on the held-back part, and
+/// the best is refitted on everything (ties keep the earlier, simpler candidate).
+fn fit_auto(times: &[f64], values: &[f64], options: &FitOptions) -> Result<Fitted, BuildError> {
+    let split = holdout_split(times, options.holdout)?;
+    let (train_t, train_v) = (&times[..split], &values[..split]);
+    let (held_t, held_v) = (&times[split..], &values[split..]);
+    let mut errors = Vec::new();
+    for candidate in ModelSpec::auto_candidates() {
+        // A candidate that cannot be fitted on the earlier part (e.g. too short to hold
+        // back again) is skipped rather than failing `auto`.
+        if let Ok(fitted) = candidate.fit(train_t, train_v, options) {
+            let predictions = fitted.model.predict_many(held_t);
+            errors.push((candidate, options.criterion.error(&predictions, held_v)));
+        }
+    }
+    let (chosen, _) = errors
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .cloned()
+        .ok_or_else(|| BuildError::NotEnoughData("no candidate model could be fitted".into()))?;
+    let refit = chosen.fit(times, values, options)?;
+    Ok(Fitted {
+        model: refit.model,
+        selection: Some(Selection::Model {
+            chosen,
+            errors,
+            held_back: held_t.len(),
+            inner: refit.selection.map(Box::new),
+        }),
+    })
+}
+
+/// Any model of this crate: what model files store and services hold.
+///
+/// Variants are only ever appended (their index is part of the model file format).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum AnyModel {
+    /// [`MeanModel`].
+    Mean(MeanModel),
+    /// [`HistogramModel`].
+    Histogram(HistogramModel),
+    /// [`FremenModel`].
+    Fremen(FremenModel),
+    /// [`PersistenceModel`].
+    Persistence(PersistenceModel),
+    /// [`MarkovModel`].
+    Markov(MarkovModel),
+    /// [`PergamModel`].
+    Pergam(PergamModel),
+    /// [`FftFremen`].
+    Fft(FftFremen),
+    #[cfg(feature = "hypertime")]
+    /// [`HypertimeModel`].
+    Hypertime(Box<HypertimeModel>),
+}
+
+macro_rules! delegate {
+    ($self:expr, $m:ident => $body:expr) => {
+        match $self {
+            AnyModel::Mean($m) => $body,
+            AnyModel::Histogram($m) => $body,
+            AnyModel::Fremen($m) => $body,
+            AnyModel::Persistence($m) => $body,
+            AnyModel::Markov($m) => $body,
+            AnyModel::Pergam($m) => $body,
+            AnyModel::Fft($m) => $body,
+            #[cfg(feature = "hypertime")]
+            AnyModel::Hypertime($m) => $body,
+        }
+    };
+}
+
+impl TemporalModel for AnyModel {
+    fn observe(&mut self, times: &[f64], values: &[f64]) -> Result<(), ObservationError> {
+        delegate!(self, m => m.observe(times, values))
+    }
+
+    fn predict(&self, time: f64) -> f64 {
+        delegate!(self, m => m.predict(time))
+    }
+
+    fn predict_into(&self, times: &[f64], out: &mut [f64]) {
+        delegate!(self, m => m.predict_into(times, out))
+    }
+
+    fn span(&self) -> ObservedSpan {
+        delegate!(self, m => m.span())
+    }
+}
+
+impl AnyModel {
+    /// Short name of the model family (the first field of its spec).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            AnyModel::Mean(_) => "mean",
+            AnyModel::Histogram(_) => "hist",
+            AnyModel::Fremen(_) => "fremen",
+            AnyModel::Persistence(_) => "persistence",
+            AnyModel::Markov(_) => "stm",
+            AnyModel::Pergam(_) => "pergam",
+            AnyModel::Fft(_) => "fft",
+            #[cfg(feature = "hypertime")]
+            AnyModel::Hypertime(m) => match m.config().clustering {
+                Clustering::Em(_) => "hyt-em",
+                Clustering::KMeans => "hyt-km",
+            },
+        }
+    }
+
+    /// The spec that describes this model as it is now (orders resolved).
+    pub fn spec(&self) -> ModelSpec {
+        match self {
+            AnyModel::Mean(_) => ModelSpec::Mean,
+            AnyModel::Histogram(h) => ModelSpec::Histogram {
+                bins: h.bins(),
+                period_secs: h.period_secs(),
+            },
+            AnyModel::Fremen(m) => ModelSpec::Fremen(OrderSpec::Fixed(m.order())),
+            AnyModel::Persistence(m) => ModelSpec::Persistence(OrderSpec::Fixed(m.order())),
+            AnyModel::Markov(_) => ModelSpec::Markov,
+            AnyModel::Pergam(m) => ModelSpec::Pergam {
+                components: OrderSpec::Fixed(m.order()),
+                period_secs: m.config().period_secs,
+            },
+            AnyModel::Fft(m) => ModelSpec::Fft(OrderSpec::Fixed(m.order())),
+            #[cfg(feature = "hypertime")]
+            AnyModel::Hypertime(m) => match m.config().clustering {
+                Clustering::Em(_) => {
+                    ModelSpec::HypertimeEm(OrderSpec::Fixed(m.components().max(1)))
+                }
+                Clustering::KMeans => ModelSpec::HypertimeKm,
+            },
+        }
+    }
+
+    /// The order, for models that have one.
+    pub fn order(&self) -> Option<usize> {
+        match self {
+            AnyModel::Fremen(m) => Some(m.order()),
+            AnyModel::Persistence(m) => Some(m.order()),
+            AnyModel::Pergam(m) => Some(m.order()),
+            AnyModel::Fft(m) => Some(m.order()),
+            _ => None,
+        }
+    }
+
+    /// Changes the order of models that have one; returns whether it did.
+    pub fn set_order(&mut self, order: usize) -> bool {
+        match self {
+            AnyModel::Fremen(m) => m.set_order(order),
+            AnyModel::Persistence(m) => m.set_order(order),
+            AnyModel::Pergam(m) => m.set_order(order.max(1)),
+            AnyModel::Fft(m) => m.set_order(order),
+            _ => return false,
+        }
+        true
+    }
+
+    /// Checks internal invariants (for models read from files, which may have been written by
+    /// other versions or by hand).
+    pub fn is_consistent(&self) -> bool {
+        match self {
+            AnyModel::Mean(_) | AnyModel::Markov(_) => true,
+            AnyModel::Histogram(m) => m.is_consistent(),
+            AnyModel::Fremen(m) => m.is_consistent(),
+            AnyModel::Persistence(m) => m.fremen().is_consistent(),
+            AnyModel::Pergam(m) => m.is_consistent(),
+            AnyModel::Fft(m) => m.is_consistent(),
+            #[cfg(feature = "hypertime")]
+            AnyModel::Hypertime(m) => m.is_consistent(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_round_trip_through_text() {
+        for text in [
+            "mean",
+            "hist:24",
+            "hist:48:86400",
+            "fremen:4",
+            "fremen:auto",
+            "persistence:2",
+            "persistence:auto",
+            "stm",
+            "pergam:2",
+            "pergam:auto",
+            "pergam:3:604800",
+            "fft:5",
+            "fft:auto",
+            "auto",
+        ] {
+            let spec: ModelSpec = text.parse().unwrap();
+            assert_eq!(spec.to_string(), text);
+        }
+        assert_eq!(
+            "fremen".parse::<ModelSpec>().unwrap(),
+            ModelSpec::Fremen(OrderSpec::Auto)
+        );
+        assert_eq!(parse_model_list("mean, fremen:2").unwrap().len(), 2);
+    }
+
+    #[test]
+    fn bad_specs_say_what_is_accepted() {
+        for text in [
+            "",
+            "fremen:x",
+            "hist:0",
+            "pergam:40",
+            "mean:3",
+            "hist:24:-5",
+            "nope",
+        ] {
+            let err = text.parse::<ModelSpec>().unwrap_err().to_string();
+            assert!(err.contains("accepted: mean"), "{text}: {err}");
+        }
+        assert!(parse_model_list(" , ").is_err());
+    }
+
+    #[test]
+    fn fft_spec_refuses_irregular_data() {
+        let times = [0.0, 60.0, 120.0, 200.0];
+        let err = ModelSpec::Fft(OrderSpec::Fixed(1))
+            .fit(&times, &[0.0, 1.0, 1.0, 0.0], &FitOptions::default())
+            .unwrap_err();
+        assert!(matches!(
+            err,
+            BuildError::Observation(ObservationError::OffGrid { index: 3, .. })
+        ));
+    }
+}

@@ -1,0 +1,185 @@
+//! Geometric search paths `𝔾`, `l_sp` of eq. 5.13: A* on the 8-connected planning grid (the
+//! [`PlanningGrid`] of the disturbance benchmark, whose Dijkstra is the oracle of the tests),
+//! and a bounded Dijkstra tree from the help location, which gives every place's path and
+//! distance back to it in one pass.
+
+use std::collections::BinaryHeap;
+
+use chronomap_activity::disturbance::PlanningGrid;
+use chronomap_spatial::queue::MinCost;
+
+/// A path through free cells and its length in metres (centre to centre).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CellPath {
+    /// The cells from start to goal, both included.
+    pub cells: Vec<usize>,
+    /// Length in metres.
+    pub length: f64,
+}
+
+impl CellPath {
+    /// The same path driven the other way.
+    pub fn reversed(&self) -> CellPath {
+        let mut cells = self.cells.clone();
+        cells.reverse();
+        CellPath {
+            cells,
+            length: self.length,
+        }
+    }
+}
+
+/// The octile distance between two cells: the shortest 8-connected path without obstacles,
+/// a consistent A* heuristic.
+fn octile(grid: &PlanningGrid, a: usize, b: usize) -> f64 {
+    let cols = grid.cols();
+    let dx = (a % cols).abs_diff(b % cols) as f64;
+    let dy = (a / cols).abs_diff(b / cols) as f64;
+    grid.cell_size() * (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy))
+}
+
+/// The shortest path from cell `from` to cell `to` through free cells (8-connected, no
+/// corner cutting, steps of `cell` and `cell·√2`), by A* with the octile heuristic. `None`
+/// if either cell is blocked or they are not connected.
+///
+/// # Complexity
+/// `O(E log E)` for the `E` cells expanded, at most the free cells of the grid.
+pub fn astar(grid: &PlanningGrid, from: usize, to: usize) -> Option<CellPath> {
+    if !grid.is_free(from) || !grid.is_free(to) {
+        return None;
+    }
+    let mut best = vec![f64::INFINITY; grid.len()];
+    let mut previous = vec![usize::MAX; grid.len()];
+    let mut done = vec![false; grid.len()];
+    let mut queue = BinaryHeap::new();
+    best[from] = 0.0;
+    queue.push(MinCost(octile(grid, from, to), from));
+    while let Some(MinCost(_, cell)) = queue.pop() {
+        if done[cell] {
+            continue;
+        }
+        done[cell] = true;
+        if cell == to {
+            break;
+        }
+        for (next, step) in grid.neighbours(cell) {
+            let g = best[cell] + step;
+            if !done[next] && g < best[next] {
+                best[next] = g;
+                previous[next] = cell;
+                queue.push(MinCost(g + octile(grid, next, to), next));
+            }
+        }
+    }
+    done[to].then(|| trace(&previous, from, to, best[to]))
+}
+
+fn trace(previous: &[usize], from: usize, to: usize, length: f64) -> CellPath {
+    let mut cells = vec![to];
+    while let Some(&last) = cells.last()
+        && last != from
+    {
+        cells.push(previous[last]);
+    }
+    cells.reverse();
+    CellPath { cells, length }
+}
+
+/// Shortest distances from one cell to every free cell within a bound, and the tree of
+/// shortest paths (Dijkstra, the same moves as [`astar`]).
+#[derive(Clone, Debug)]
+pub struct DistanceTree {
+    source: usize,
+    distance: Vec<f64>,
+    previous: Vec<usize>,
+}
+
+impl DistanceTree {
+    /// Dijkstra from `source`, settling the cells up to `max_distance` metres away.
+    /// Returns `None` if `source` is blocked.
+    pub fn new(grid: &PlanningGrid, source: usize, max_distance: f64) -> Option<Self> {
+        if !grid.is_free(source) {
+            return None;
+        }
+        let mut distance = vec![f64::INFINITY; grid.len()];
+        let mut previous = vec![usize::MAX; grid.len()];
+        let mut done = vec![false; grid.len()];
+        let mut queue = BinaryHeap::new();
+        distance[source] = 0.0;
+        queue.push(MinCost(0.0, source));
+        while let Some(MinCost(d, cell)) = queue.pop() {
+            if done[cell] {
+                continue;
+            }
+            done[cell] = true;
+            for (next, step) in grid.neighbours(cell) {
+                let candidate = d + step;
+                if candidate <= max_distance && !done[next] && candidate < distance[next] {
+                    distance[next] = candidate;
+                    previous[next] = cell;
+                    queue.push(MinCost(candidate, next));
+                }
+            }
+        }
+        Some(DistanceTree {
+            source,
+            distance,
+            previous,
+        })
+    }
+
+    /// The source cell.
+    pub fn source(&self) -> usize {
+        self.source
+    }
+
+    /// Distance in metres to `cell` (infinite beyond the bound or unreachable).
+    pub fn distance(&self, cell: usize) -> f64 {
+        self.distance.get(cell).copied().unwrap_or(f64::INFINITY)
+    }
+
+    /// The cells within the bound, the source included, in index order.
+    pub fn reached(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.distance.len()).filter(|&i| self.distance[i].is_finite())
+    }
+
+    /// The shortest path from the source to `cell`, if it is within the bound.
+    pub fn path_to(&self, cell: usize) -> Option<CellPath> {
+        let d = self.distance(cell);
+        d.is_finite()
+            .then(|| trace(&self.previous, self.source, cell, d))
+    }
+}
+
+/// Points along a path every `spacing` metres from its start (`⌊l/spacing⌋ + 1` points), each
+/// given as the path cell nearest to it: the positions `x(t_k)` of the robot at
+/// `t_k = k Δt` when it drives at `v̄` and `spacing = v̄ Δt` (eq. 5.14).
+pub fn sample_cells(grid: &PlanningGrid, path: &CellPath, spacing: f64) -> Vec<usize> {
+    let cells = &path.cells;
+    if cells.len() <= 1 || spacing.is_nan() || spacing <= 0.0 {
+        return cells.first().copied().into_iter().collect();
+    }
+    let count = (path.length / spacing + 1e-9).floor() as usize + 1;
+    let mut out = Vec::with_capacity(count);
+    let (mut segment, mut start_of_segment) = (0usize, 0.0f64);
+    let length_of = |i: usize| {
+        let (a, b) = (grid.centre(cells[i]), grid.centre(cells[i + 1]));
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+    };
+    let mut current = length_of(0);
+    for k in 0..count {
+        let s = k as f64 * spacing;
+        while segment + 2 < cells.len() && s > start_of_segment + current {
+            start_of_segment += current;
+            segment += 1;
+            current = length_of(segment);
+        }
+        let along = s - start_of_segment;
+        out.push(if along <= current / 2.0 {
+            cells[segment]
+        } else {
+            cells[segment + 1]
+        });
+    }
+    out
+}

@@ -1,0 +1,799 @@
+//! Temporal models of the edges of a topological map: when a navigation action succeeds and
+//! how long it takes (seed 003 §III–IV).
+//!
+//! Each edge gets two models: the probability that a traversal succeeds, `p_e(t)`, from all its
+//! attempts, and the duration of successful traversals, from those. Both are FreMEn models
+//! (seed 003 eqs. (1)–(2)) whose order is chosen per edge on the most recent part of its history
+//! (a chronological hold-out, scored like eq. (3); order 0 is the static mean, so an edge whose
+//! outcomes are not periodic falls back to a static model). Durations are not in `[0, 1]`: they
+//! are modelled as fractions of the edge's longest training duration, and scaled back.
+//!
+//! Success models also carry FreMEn's persistence term (seed 001 §III-D, eqs. (12)–(13)): the
+//! outcome of the latest attempt persists for a while. On the Witham Wharf data this is what
+//! predicts later weeks: a closed door makes the robot fail again and again for hours, at times
+//! of day that change from week to week (see `topo eval` in the README for the numbers). A model
+//! kept up to date with [`EdgeModels::observe`] uses it; far from the latest attempt the
+//! prediction is the periodic model's.
+//!
+//! Robots in the field need more than the model (their users asked for this: an edge predicted
+//! at probability 0 is never tried again, and a few unlucky attempts should not condemn an
+//! edge): predictions are shrunk towards a prior with the weight of a few pseudo-attempts, edges
+//! with few attempts use the shrunk mean only, and success probabilities never go below a floor.
+
+use serde::{Deserialize, Serialize};
+
+use crate::map::TopoMap;
+use chronomap_core::error::BuildError;
+use chronomap_core::model::TemporalModel;
+use chronomap_core::select::Criterion;
+use chronomap_models::spec::{AnyModel, FitOptions, ModelSpec, OrderSpec};
+
+/// One traversal attempt of an edge.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Attempt {
+    /// When the attempt started (seconds).
+    pub time: f64,
+    /// How long it took (seconds, ≥ 0).
+    pub duration_secs: f64,
+    /// Whether the robot reached the edge's target.
+    pub success: bool,
+}
+
+/// How edge models are fitted and queried.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EdgeModelConfig {
+    /// Edges with fewer attempts use the (shrunk) static mean only.
+    pub min_attempts: usize,
+    /// Prior success probability of an edge.
+    pub prior_success: f64,
+    /// Weight of the prior, in pseudo-attempts.
+    pub prior_attempts: f64,
+    /// Success probabilities never go below this.
+    pub floor: f64,
+    /// Fit periodic (FreMEn) models; `false` = static means only.
+    pub periodic: bool,
+    /// Add the persistence of the latest outcome to success models (seed 001 eqs. (12)–(13)).
+    pub persistence: bool,
+    /// Fraction of each edge's time span held back to choose the orders.
+    pub holdout: f64,
+    /// Largest order tried.
+    pub max_order: usize,
+    /// The order of every success model (`None`: chosen per edge on the hold-out). Seed 003:
+    /// "typically, m = 2".
+    pub success_order: Option<usize>,
+    /// Duration of edges that have never succeeded (seconds); `None`: the median over edges.
+    pub default_duration_secs: Option<f64>,
+}
+
+impl Default for EdgeModelConfig {
+    fn default() -> Self {
+        EdgeModelConfig {
+            min_attempts: 10,
+            prior_success: 0.9,
+            prior_attempts: 2.0,
+            floor: 0.05,
+            periodic: true,
+            persistence: true,
+            holdout: 0.25,
+            max_order: 10,
+            success_order: None,
+            default_duration_secs: None,
+        }
+    }
+}
+
+/// Scores of edge models on later attempts ([`EdgeModels::evaluate`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EdgeEvaluation {
+    /// Mean squared error of the success probabilities over all attempts.
+    pub success_brier: f64,
+    /// Mean squared error of the expected durations over successful attempts (s²).
+    pub duration_mse: f64,
+    /// The Brier score of the static per-edge success rates.
+    pub static_success_brier: f64,
+    /// The squared error of the static per-edge mean durations (s²).
+    pub static_duration_mse: f64,
+    /// Attempts scored.
+    pub attempts: usize,
+    /// Successful attempts among them (those whose durations are scored).
+    pub successes: usize,
+}
+
+/// The models of one edge.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EdgeModel {
+    /// Number of attempts the models learned from.
+    pub attempts: usize,
+    /// Number of successful ones.
+    pub successes: usize,
+    /// `p_e(t)` before shrinking (`None` with fewer than `min_attempts` attempts).
+    success: Option<AnyModel>,
+    /// Successful durations as fractions of `duration_scale`.
+    duration: Option<AnyModel>,
+    duration_scale: f64,
+    mean_duration_secs: Option<f64>,
+    /// Time of the latest attempt seen (fitted or observed).
+    last_time: Option<f64>,
+}
+
+impl EdgeModel {
+    /// The model of the success probability (`None`: too few attempts, the static rate is used).
+    pub fn success_model(&self) -> Option<&AnyModel> {
+        self.success.as_ref()
+    }
+
+    /// The model of successful durations, as fractions of [`EdgeModel::duration_scale`].
+    pub fn duration_model(&self) -> Option<&AnyModel> {
+        self.duration.as_ref()
+    }
+
+    /// The longest successful training duration (seconds): the unit of the duration model.
+    pub fn duration_scale(&self) -> f64 {
+        self.duration_scale
+    }
+
+    /// The mean successful duration (seconds), if any attempt succeeded.
+    pub fn mean_duration_secs(&self) -> Option<f64> {
+        self.mean_duration_secs
+    }
+}
+
+/// Models of every edge of a map.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EdgeModels {
+    map: TopoMap,
+    config: EdgeModelConfig,
+    edges: Vec<EdgeModel>,
+    default_duration_secs: f64,
+}
+
+/// The model of success probabilities the configuration asks for.
+fn success_spec(config: &EdgeModelConfig) -> ModelSpec {
+    let order = config
+        .success_order
+        .map_or(OrderSpec::Auto, OrderSpec::Fixed);
+    match (config.periodic, config.persistence) {
+        (true, true) => ModelSpec::Persistence(order),
+        (true, false) => ModelSpec::Fremen(order),
+        (false, true) => ModelSpec::Persistence(OrderSpec::Fixed(0)),
+        (false, false) => ModelSpec::Mean,
+    }
+}
+
+/// The model of durations: persistence does not help there (a slow traversal says little
+/// about the next one).
+fn duration_spec(config: &EdgeModelConfig) -> ModelSpec {
+    if config.periodic {
+        ModelSpec::Fremen(OrderSpec::Auto)
+    } else {
+        ModelSpec::Mean
+    }
+}
+
+fn options(config: &EdgeModelConfig, criterion: Criterion) -> FitOptions {
+    FitOptions {
+        holdout: config.holdout,
+        max_order: config.max_order,
+        criterion,
+        ..FitOptions::default()
+    }
+}
+
+/// Fits a model of `values` at `times`, falling back to the static mean when the history is
+/// too short to hold part of it back.
+fn fit_series(
+    spec: ModelSpec,
+    times: &[f64],
+    values: &[f64],
+    config: &EdgeModelConfig,
+    criterion: Criterion,
+) -> Result<AnyModel, BuildError> {
+    match spec.fit(times, values, &options(config, criterion)) {
+        Ok(fitted) => Ok(fitted.model),
+        Err(BuildError::NotEnoughData(_)) => Ok(ModelSpec::Mean
+            .fit(times, values, &FitOptions::default())?
+            .model),
+        Err(e) => Err(e),
+    }
+}
+
+impl EdgeModels {
+    /// Fits the models of every edge of `map` from `attempts[e]` (in time order per edge).
+    /// Success probabilities are chosen by the Brier score on the held-back attempts, durations
+    /// by the absolute error (seed 003 eq. (3)), which is robust to the long tail of durations.
+    ///
+    /// # Errors
+    /// `attempts` not one list per edge, or attempts violating the observation contract (times
+    /// going backwards, negative or non-finite durations), with the edge named.
+    pub fn fit(
+        map: TopoMap,
+        attempts: &[Vec<Attempt>],
+        config: EdgeModelConfig,
+    ) -> Result<Self, (String, BuildError)> {
+        if attempts.len() != map.edges().len() {
+            return Err((
+                "the map".into(),
+                BuildError::NotEnoughData(format!(
+                    "{} attempt lists for {} edges",
+                    attempts.len(),
+                    map.edges().len()
+                )),
+            ));
+        }
+        let mut edges = Vec::with_capacity(attempts.len());
+        for (edge, list) in map.edges().iter().zip(attempts) {
+            let named = |e: BuildError| (edge.id.clone(), e);
+            if let Some(bad) = list
+                .iter()
+                .position(|a| !(a.duration_secs.is_finite() && a.duration_secs >= 0.0))
+            {
+                return Err(named(BuildError::Observation(
+                    chronomap_core::ObservationError::ValueOutOfRange {
+                        index: bad,
+                        value: list[bad].duration_secs,
+                    },
+                )));
+            }
+            let times: Vec<f64> = list.iter().map(|a| a.time).collect();
+            let outcomes: Vec<f64> = list
+                .iter()
+                .map(|a| f64::from(u8::from(a.success)))
+                .collect();
+            chronomap_core::observe::validate(None, &times, &outcomes)
+                .map_err(|e| named(e.into()))?;
+            let successes = list.iter().filter(|a| a.success).count();
+            let success = if list.len() >= config.min_attempts {
+                Some(
+                    fit_series(
+                        success_spec(&config),
+                        &times,
+                        &outcomes,
+                        &config,
+                        Criterion::Brier,
+                    )
+                    .map_err(named)?,
+                )
+            } else {
+                None
+            };
+            let good: Vec<&Attempt> = list.iter().filter(|a| a.success).collect();
+            let scale = good.iter().map(|a| a.duration_secs).fold(0.0f64, f64::max);
+            let mean_duration_secs = (!good.is_empty())
+                .then(|| good.iter().map(|a| a.duration_secs).sum::<f64>() / good.len() as f64);
+            let duration = if good.len() >= config.min_attempts && scale > 0.0 {
+                let t: Vec<f64> = good.iter().map(|a| a.time).collect();
+                let v: Vec<f64> = good.iter().map(|a| a.duration_secs / scale).collect();
+                Some(
+                    fit_series(
+                        duration_spec(&config),
+                        &t,
+                        &v,
+                        &config,
+                        Criterion::AbsoluteError,
+                    )
+                    .map_err(named)?,
+                )
+            } else {
+                None
+            };
+            edges.push(EdgeModel {
+                attempts: list.len(),
+                successes,
+                success,
+                duration,
+                duration_scale: scale,
+                mean_duration_secs,
+                last_time: list.last().map(|a| a.time),
+            });
+        }
+        let mut means: Vec<f64> = edges.iter().filter_map(|e| e.mean_duration_secs).collect();
+        means.sort_by(f64::total_cmp);
+        let median = means.get(means.len() / 2).copied().unwrap_or(60.0);
+        let default_duration_secs = config.default_duration_secs.unwrap_or(median);
+        Ok(EdgeModels {
+            map,
+            config,
+            edges,
+            default_duration_secs,
+        })
+    }
+
+    /// The map.
+    pub fn map(&self) -> &TopoMap {
+        &self.map
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &EdgeModelConfig {
+        &self.config
+    }
+
+    /// Time of the latest attempt the models have seen, over all edges.
+    pub fn last_time(&self) -> Option<f64> {
+        self.edges
+            .iter()
+            .filter_map(|e| e.last_time)
+            .max_by(f64::total_cmp)
+    }
+
+    /// The models of one edge.
+    pub fn edge(&self, edge: usize) -> &EdgeModel {
+        &self.edges[edge]
+    }
+
+    /// Probability that traversing `edge` at `time` succeeds: the edge's model (or its static
+    /// mean with few attempts), shrunk towards the prior by `prior_attempts` pseudo-attempts,
+    /// never below the floor.
+    pub fn success_probability(&self, edge: usize, time: f64) -> f64 {
+        let e = &self.edges[edge];
+        let c = &self.config;
+        let observed = match &e.success {
+            Some(model) => model.predict(time),
+            None if e.attempts > 0 => e.successes as f64 / e.attempts as f64,
+            None => c.prior_success,
+        };
+        let n = e.attempts as f64;
+        let shrunk = (n * observed + c.prior_attempts * c.prior_success) / (n + c.prior_attempts);
+        shrunk.clamp(c.floor, 1.0)
+    }
+
+    /// The static (time-independent) success probability of an edge with the same prior and
+    /// floor: the baseline the periodic models must beat.
+    pub fn static_success_probability(&self, edge: usize) -> f64 {
+        let e = &self.edges[edge];
+        let c = &self.config;
+        let n = e.attempts as f64;
+        let mean = if e.attempts > 0 {
+            e.successes as f64 / n
+        } else {
+            c.prior_success
+        };
+        ((n * mean + c.prior_attempts * c.prior_success) / (n + c.prior_attempts))
+            .clamp(c.floor, 1.0)
+    }
+
+    /// Expected duration of a successful traversal of `edge` at `time` (seconds).
+    pub fn expected_duration(&self, edge: usize, time: f64) -> f64 {
+        let e = &self.edges[edge];
+        match (&e.duration, e.mean_duration_secs) {
+            (Some(model), _) => model.predict(time) * e.duration_scale,
+            (None, Some(mean)) => mean,
+            (None, None) => self.default_duration_secs,
+        }
+    }
+
+    /// The static expected duration of an edge (its mean successful duration).
+    pub fn static_duration(&self, edge: usize) -> f64 {
+        self.edges[edge]
+            .mean_duration_secs
+            .unwrap_or(self.default_duration_secs)
+    }
+
+    /// A rough confidence in an edge's prediction: the standard deviation of a Beta posterior
+    /// with the edge's attempts and the prior's pseudo-attempts.
+    pub fn success_uncertainty(&self, edge: usize, time: f64) -> f64 {
+        let p = self.success_probability(edge, time);
+        let n = self.edges[edge].attempts as f64 + self.config.prior_attempts;
+        (p * (1.0 - p) / (n + 1.0)).sqrt()
+    }
+
+    /// Success probabilities and expected durations of every edge at `time` (the inputs of a
+    /// navigation MDP at that time).
+    pub fn at(&self, time: f64) -> (Vec<f64>, Vec<f64>) {
+        (0..self.edges.len())
+            .map(|e| {
+                (
+                    self.success_probability(e, time),
+                    self.expected_duration(e, time),
+                )
+            })
+            .unzip()
+    }
+
+    /// Scores the models, frozen as fitted, on later attempts (`test[e]` for edge `e`): the Brier
+    /// score of the success probabilities over all attempts, the mean squared error of the expected durations
+    /// over the successful ones, and the same for the static per-edge means, the baseline the
+    /// periodic models must beat (seed 003 §VI).
+    ///
+    /// # Errors
+    /// `test` not one list per edge.
+    pub fn evaluate(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
+        if test.len() != self.edges.len() {
+            return Err(BuildError::NotEnoughData(format!(
+                "{} attempt lists for {} edges",
+                test.len(),
+                self.edges.len()
+            )));
+        }
+        let mut score = EdgeEvaluation::default();
+        let (mut brier, mut static_brier, mut mse, mut static_mse) = (0.0, 0.0, 0.0, 0.0);
+        for (edge, list) in test.iter().enumerate() {
+            let p_static = self.static_success_probability(edge);
+            let d_static = self.static_duration(edge);
+            for a in list {
+                let y = f64::from(u8::from(a.success));
+                brier += (self.success_probability(edge, a.time) - y).powi(2);
+                static_brier += (p_static - y).powi(2);
+                score.attempts += 1;
+                if a.success {
+                    mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
+                    static_mse += (d_static - a.duration_secs).powi(2);
+                    score.successes += 1;
+                }
+            }
+        }
+        if score.attempts > 0 {
+            score.success_brier = brier / score.attempts as f64;
+            score.static_success_brier = static_brier / score.attempts as f64;
+        }
+        if score.successes > 0 {
+            score.duration_mse = mse / score.successes as f64;
+            score.static_duration_mse = static_mse / score.successes as f64;
+        }
+        Ok(score)
+    }
+
+    /// Learns from one more attempt of `edge`, as a robot does after each traversal: the counts
+    /// behind the static rate, and the success model (its persistence term now starts from this
+    /// outcome). Duration models stay as fitted.
+    ///
+    /// # Errors
+    /// An attempt earlier than the edge's latest one, or with a non-finite time.
+    pub fn observe(
+        &mut self,
+        edge: usize,
+        attempt: &Attempt,
+    ) -> Result<(), chronomap_core::ObservationError> {
+        let e = &mut self.edges[edge];
+        let y = f64::from(u8::from(attempt.success));
+        chronomap_core::observe::validate(e.last_time, &[attempt.time], &[y])?;
+        if let Some(model) = &mut e.success {
+            model.observe(&[attempt.time], &[y])?;
+        }
+        e.attempts += 1;
+        e.successes += usize::from(attempt.success);
+        e.last_time = Some(attempt.time);
+        Ok(())
+    }
+
+    /// Scores the models as they would have served a robot over the test period: every attempt
+    /// is predicted from everything before it, then learned ([`EdgeModels::observe`]). The
+    /// static baseline is the running per-edge rate, updated the same way. Durations are
+    /// scored as in [`EdgeModels::evaluate`].
+    ///
+    /// # Errors
+    /// `test` not one list per edge, or attempts out of order.
+    pub fn evaluate_online(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
+        let mut score = self.evaluate(test)?;
+        let mut live = self.clone();
+        let (mut brier, mut static_brier) = (0.0, 0.0);
+        for (edge, list) in test.iter().enumerate() {
+            for a in list {
+                let y = f64::from(u8::from(a.success));
+                brier += (live.success_probability(edge, a.time) - y).powi(2);
+                static_brier += (live.static_success_probability(edge) - y).powi(2);
+                live.observe(edge, a)?;
+            }
+        }
+        if score.attempts > 0 {
+            score.success_brier = brier / score.attempts as f64;
+            score.static_success_brier = static_brier / score.attempts as f64;
+        }
+        Ok(score)
+    }
+
+    /// Restores the map's name index after deserialisation.
+    pub fn reindex(&mut self) {
+        self.map.reindex();
+    }
+
+    /// Checks the invariants a deserialised value must hold before it is used (a file edited by
+    /// hand must give an error, not a panic or nonsense predictions). Call after
+    /// [`EdgeModels::reindex`].
+    ///
+    /// # Errors
+    /// What is wrong, in words.
+    pub fn check(&self) -> Result<(), String> {
+        let nodes = self.map.nodes().len();
+        for (i, edge) in self.map.edges().iter().enumerate() {
+            if edge.from >= nodes || edge.to >= nodes {
+                return Err(format!(
+                    "edge {i} ({:?}) joins nodes that do not exist",
+                    edge.id
+                ));
+            }
+        }
+        let mut ids: Vec<&str> = self.map.edges().iter().map(|e| e.id.as_str()).collect();
+        ids.sort_unstable();
+        if ids.windows(2).any(|w| w[0] == w[1]) {
+            return Err("two edges have the same id".into());
+        }
+        for (i, node) in self.map.nodes().iter().enumerate() {
+            if self.map.node(&node.name) != Ok(i) {
+                return Err(format!("node {:?} is defined twice", node.name));
+            }
+        }
+        if self.edges.len() != self.map.edges().len() {
+            return Err(format!(
+                "{} edge models for {} edges",
+                self.edges.len(),
+                self.map.edges().len()
+            ));
+        }
+        let c = &self.config;
+        let fraction = |x: f64| (0.0..=1.0).contains(&x);
+        if !(fraction(c.prior_success)
+            && fraction(c.floor)
+            && c.prior_attempts.is_finite()
+            && c.prior_attempts >= 0.0
+            && c.holdout.is_finite()
+            && self.default_duration_secs.is_finite()
+            && self.default_duration_secs >= 0.0)
+        {
+            return Err("the configuration holds values out of range".into());
+        }
+        for (edge, e) in self.map.edges().iter().zip(&self.edges) {
+            let models_ok = [&e.success, &e.duration]
+                .into_iter()
+                .flatten()
+                .all(AnyModel::is_consistent);
+            let numbers_ok = e.successes <= e.attempts
+                && e.duration_scale.is_finite()
+                && e.duration_scale >= 0.0
+                && e.mean_duration_secs
+                    .is_none_or(|d| d.is_finite() && d >= 0.0)
+                && e.last_time.is_none_or(f64::is_finite);
+            if !(models_ok && numbers_ok) {
+                return Err(format!(
+                    "the models of edge {:?} break their invariants",
+                    edge.id
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A door closed every morning (0:00-12:00), open afternoons; attempts every 30 min for 4 weeks.
+    fn door_attempts() -> Vec<Attempt> {
+        (0..28 * 48)
+            .map(|i| {
+                let t = 1_404_000_000.0 - 1_404_000_000.0 % 86_400.0 + 1800.0 * i as f64;
+                let hour = (t % 86_400.0) / 3600.0;
+                Attempt {
+                    time: t,
+                    duration_secs: if hour < 12.0 { 40.0 } else { 20.0 },
+                    success: hour >= 12.0,
+                }
+            })
+            .collect()
+    }
+
+    fn map() -> TopoMap {
+        let mut map = TopoMap::new();
+        for n in ["A", "B", "C"] {
+            map.add_node(n, None).unwrap();
+        }
+        map.add_edge("A_B", "A", "B").unwrap();
+        map.add_edge("B_C", "B", "C").unwrap();
+        map.add_edge("C_A", "C", "A").unwrap();
+        map
+    }
+
+    #[test]
+    fn periodic_edges_follow_their_rhythm_and_sparse_edges_their_prior() {
+        let few = vec![
+            Attempt {
+                time: 10.0,
+                duration_secs: 30.0,
+                success: false,
+            },
+            Attempt {
+                time: 20.0,
+                duration_secs: 31.0,
+                success: false,
+            },
+        ];
+        let models = EdgeModels::fit(
+            map(),
+            &[door_attempts(), few, Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let day = 1_404_000_000.0 - 1_404_000_000.0 % 86_400.0 + 30.0 * 86_400.0;
+        let morning = models.success_probability(0, day + 6.0 * 3600.0);
+        let afternoon = models.success_probability(0, day + 18.0 * 3600.0);
+        assert!(afternoon > 0.8 && morning < 0.2, "{morning} {afternoon}");
+        // Two failures and a prior of 0.9 with 2 pseudo-attempts: (0 + 1.8) / 4 = 0.45.
+        assert!((models.success_probability(1, 0.0) - 0.45).abs() < 1e-12);
+        // Never tried: the prior.
+        assert!((models.success_probability(2, 0.0) - 0.9).abs() < 1e-12);
+        // Durations of successful traversals only (afternoons: 20 s).
+        assert!((models.expected_duration(0, day + 18.0 * 3600.0) - 20.0).abs() < 2.0);
+        // The edge that never succeeded has no duration of its own: the median of the others.
+        assert_eq!(models.expected_duration(1, 0.0), 20.0);
+        let (p, d) = models.at(day);
+        assert_eq!((p.len(), d.len()), (3, 3));
+        // Static models ignore the time.
+        let flat = EdgeModels::fit(
+            map(),
+            &[door_attempts(), Vec::new(), Vec::new()],
+            EdgeModelConfig {
+                periodic: false,
+                persistence: false,
+                ..EdgeModelConfig::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            flat.success_probability(0, day),
+            flat.success_probability(0, day + 43_200.0)
+        );
+    }
+
+    #[test]
+    fn evaluation_scores_against_hand_computed_values() {
+        // A never-tried edge predicts the prior 0.9 and the default duration; score it on one
+        // success (30 s) and one failure: Brier = (0.1² + 0.9²) / 2 = 0.41.
+        let models = EdgeModels::fit(
+            map(),
+            &[door_attempts(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let test = [
+            Vec::new(),
+            vec![
+                Attempt {
+                    time: 0.0,
+                    duration_secs: 30.0,
+                    success: true,
+                },
+                Attempt {
+                    time: 1.0,
+                    duration_secs: 99.0,
+                    success: false,
+                },
+            ],
+            Vec::new(),
+        ];
+        let score = models.evaluate(&test).unwrap();
+        assert_eq!((score.attempts, score.successes), (2, 1));
+        assert!((score.success_brier - 0.41).abs() < 1e-12);
+        assert_eq!(score.success_brier, score.static_success_brier);
+        let d = models.expected_duration(1, 0.0);
+        assert!((score.duration_mse - (d - 30.0).powi(2)).abs() < 1e-9);
+        // On the door's own rhythm the periodic model beats the static rate by far.
+        let later: Vec<Attempt> = door_attempts()
+            .into_iter()
+            .map(|a| Attempt {
+                time: a.time + 28.0 * 86_400.0,
+                ..a
+            })
+            .collect();
+        let score = models.evaluate(&[later, Vec::new(), Vec::new()]).unwrap();
+        assert!(
+            score.success_brier < 0.1 * score.static_success_brier,
+            "{score:?}"
+        );
+        // Every successful traversal took 20 s: both duration models are exact.
+        assert!(
+            score.duration_mse < 1e-9 && score.static_duration_mse < 1e-9,
+            "{score:?}"
+        );
+        assert!(models.evaluate(&[]).is_err());
+    }
+
+    #[test]
+    fn observed_outcomes_persist_and_online_scores_use_them() {
+        // An edge that succeeds for 20 days, then fails in a burst: once a failure has been
+        // observed, the next attempt a minute later is predicted to fail; days later the
+        // prediction is back near the long-term rate.
+        let good: Vec<Attempt> = (0..20 * 24)
+            .map(|i| Attempt {
+                time: 3600.0 * f64::from(i),
+                duration_secs: 10.0,
+                success: i % 24 != 3,
+            })
+            .collect();
+        let mut models = EdgeModels::fit(
+            map(),
+            &[good.clone(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let end = 20.0 * 86_400.0;
+        let before = models.success_probability(0, end + 60.0);
+        assert!(before > 0.8, "{before}");
+        let burst: Vec<Attempt> = (0..10)
+            .map(|i| Attempt {
+                time: end + 60.0 * f64::from(i),
+                duration_secs: 5.0,
+                success: false,
+            })
+            .collect();
+        let score = models
+            .evaluate_online(&[burst.clone(), Vec::new(), Vec::new()])
+            .unwrap();
+        // Online, only the first failure of the burst is a surprise; the static rate is
+        // surprised by every one.
+        assert!(
+            score.success_brier < 0.5 * score.static_success_brier,
+            "{score:?}"
+        );
+        let week_later = end + 7.0 * 86_400.0;
+        let long_term = models.success_probability(0, week_later);
+        for a in &burst {
+            models.observe(0, a).unwrap();
+        }
+        assert_eq!(models.edge(0).attempts, good.len() + burst.len());
+        let soon = models.success_probability(0, end + 660.0);
+        let later = models.success_probability(0, week_later);
+        assert!(soon < 0.2 && long_term > 0.9, "{soon} {long_term}");
+        // A week on, the persistence has worn off; what remains is the burst's weight in the
+        // periodic model (ten failures at one time of day: FreMEn counts each of them).
+        assert!(
+            later > soon + 0.3 && later < long_term,
+            "{soon} {later} {long_term}"
+        );
+        // Attempts must not go back in time.
+        let err = models.observe(0, &good[5]).unwrap_err();
+        assert!(err.to_string().contains("time"), "{err}");
+        // Without persistence the burst does not change the prediction much.
+        let mut flat = EdgeModels::fit(
+            map(),
+            &[good, Vec::new(), Vec::new()],
+            EdgeModelConfig {
+                persistence: false,
+                ..EdgeModelConfig::default()
+            },
+        )
+        .unwrap();
+        for a in &burst {
+            flat.observe(0, a).unwrap();
+        }
+        assert!(flat.success_probability(0, end + 660.0) > soon + 0.3);
+    }
+
+    #[test]
+    fn the_floor_keeps_failing_edges_alive_and_bad_attempts_are_named() {
+        let failures: Vec<Attempt> = (0..50)
+            .map(|i| Attempt {
+                time: f64::from(i),
+                duration_secs: 5.0,
+                success: false,
+            })
+            .collect();
+        let models = EdgeModels::fit(
+            map(),
+            &[failures.clone(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        assert!(models.success_probability(0, 100.0) >= 0.05);
+        let mut bad = failures.clone();
+        bad[3].duration_secs = -1.0;
+        let err = EdgeModels::fit(
+            map(),
+            &[bad, Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap_err();
+        assert_eq!(err.0, "A_B");
+        let mut backwards = failures;
+        backwards[10].time = 1.0;
+        assert!(
+            EdgeModels::fit(
+                map(),
+                &[backwards, Vec::new(), Vec::new()],
+                EdgeModelConfig::default()
+            )
+            .is_err()
+        );
+        assert!(EdgeModels::fit(map(), &[Vec::new()], EdgeModelConfig::default()).is_err());
+    }
+}

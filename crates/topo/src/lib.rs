@@ -1,0 +1,18 @@
+//! # chronomap-topo
+//!
+//! Navigation on topological maps whose edges know time (Fentanes et al., "Now or later?",
+//! ICRA 2015): [`map`] — named nodes and directed edges; [`edges`] — one success and one
+//! duration model per edge, learned from traversal attempts; [`ltl`] — co-safe LTL tasks over
+//! node names and their automata ([`automaton`]); [`mdp`] — the Navigation MDP at a time `t`,
+//! its product with a task automaton, and the solver of `Pmax` and expected time; [`plan`] —
+//! all of it together: the policy for a task started now, and "now or later?".
+#![deny(missing_docs)]
+
+pub mod automaton;
+pub mod edges;
+pub mod ltl;
+pub mod map;
+pub mod mdp;
+pub mod plan;
+
+pub use map::TopoMap;

@@ -1,0 +1,213 @@
+//! Flags of `chronomap bench`.
+
+#[allow(unused_imports)]
+use super::*;
+
+/// `chronomap bench ...`.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// The 4-D office grid of seed 001 §VI (213,000 cells x 17,280 frames/day x 112 days),
+    /// streamed from the synthetic generator into FreMEn grids, against a bare scan of the same
+    /// frames.
+    Grid(BenchGridArgs),
+    /// Planning on the Witham map (seed 003 §V), 24 hours x 3 tasks, end to end, against
+    /// Storm (stormpy) on the same cases in the same run.
+    #[command(after_help = BENCH_PLAN_HELP)]
+    Plan(BenchPlanArgs),
+    /// The service on loopback (redb store, token): latency of predict and forecast from
+    /// concurrent clients, and durable observations/s of batched adds, against the same work
+    /// done in-process (and straight into redb) in the same run.
+    #[command(after_help = BENCH_SERVE_HELP)]
+    Serve(BenchServeArgs),
+    /// CoPA-Map's activity pipeline (seed 002 chapter 4) on the bundled ATC data: training-data
+    /// extraction (§4.2.2) against a bare binning pass over the same detections, and CoPA-Map
+    /// training (eqs. 4.12–4.16) against the bare faer matrix products of its iterations.
+    #[command(after_help = BENCH_ACTIVITY_HELP)]
+    Activity(BenchActivityArgs),
+    /// Person search tree synthesis (dissertation §5.4) for 6 and 10 places on the bundled ATC
+    /// day, against the dense-generator reference and a per-tree solve in the same run.
+    #[command(after_help = BENCH_PSBT_HELP)]
+    Psbt(BenchPsbtArgs),
+}
+
+pub(super) const BENCH_PSBT_HELP: &str = "\
+Example:
+  chronomap bench psbt --json";
+
+/// `chronomap bench psbt`.
+#[derive(Debug, Args)]
+pub struct BenchPsbtArgs {
+    /// ROS map YAML.
+    #[arg(long, default_value = "data/atc_copa_map_grid/atc_map.yaml")]
+    pub map: PathBuf,
+    /// Pedestrian track files (comma-separated).
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "data/atc_20121024_1hz/atc-1024-13_train.csv.xz,data/atc_20121024_1hz/atc-1024-14_train.csv.xz")]
+    pub activity: Vec<PathBuf>,
+    /// Help location `x,y` (metres).
+    #[arg(long, value_parser = parse_xy, allow_hyphen_values = true, default_value = "10,-3")]
+    pub from: [f64; 2],
+    /// Time of the request (unix seconds or ISO 8601).
+    #[arg(long, value_parser = parse_time, default_value = "1351058400")]
+    pub time: f64,
+    /// Timed repetitions of each synthesis (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// At most this many candidates are solved by the dense reference (a seeded sample; the
+    /// time of the rest is extrapolated).
+    #[arg(long, default_value_t = 1000)]
+    pub reference_sample: usize,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `chronomap bench grid`.
+#[derive(Debug, Args)]
+pub struct BenchGridArgs {
+    /// Days of 5-second frames.
+    #[arg(long, default_value_t = 112)]
+    pub days: u32,
+    /// Number of cells.
+    #[arg(long, default_value_t = 213_000)]
+    pub cells: usize,
+    /// Seed of the synthetic office.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Threads (default: all).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_PLAN_HELP: &str = "\
+Examples:
+  chronomap bench plan                                   # chronomap only
+  chronomap bench plan --storm-python storm-venv/bin/python --json
+  (Storm: python3 -m venv storm-venv && storm-venv/bin/pip install stormpy==2.0.0)";
+
+/// `chronomap bench plan`.
+#[derive(Debug, Args)]
+pub struct BenchPlanArgs {
+    /// The Witham edge files (`<From>_<To>.data.xz`).
+    #[arg(long, default_value = "data/witham_topological_nav/edges")]
+    pub edges: PathBuf,
+    /// A Python interpreter that imports stormpy 2.0: time Storm on the same cases.
+    #[arg(long)]
+    pub storm_python: Option<PathBuf>,
+    /// Timed sweeps over the 72 cases after a warm-up (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// Also time Storm in exact (rational) arithmetic (slow).
+    #[arg(long)]
+    pub exact: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_SERVE_HELP: &str = "\
+Examples:
+  chronomap bench serve                          # about 10 s on 2 cores
+  chronomap bench serve --models 1000 --clients 8 --json
+  chronomap bench serve --observations 2000000 --batch 20000 --data bench-data   # keep the store";
+
+/// `chronomap bench serve`.
+#[derive(Debug, Args)]
+pub struct BenchServeArgs {
+    /// Models served (each is the training door, shifted by one hour per model).
+    #[arg(long, default_value_t = 100)]
+    pub models: usize,
+    /// Spec of the models.
+    #[arg(long, default_value = "fremen:2")]
+    pub model: String,
+    /// Training data of every model (`t value` lines; default: the bundled greg door, 96,480
+    /// observations at one a minute).
+    #[arg(long)]
+    pub train: Option<PathBuf>,
+    /// Observations added to each model through the API before the latency test (default:
+    /// two weeks of the greg door).
+    #[arg(long, default_value_t = 20_160)]
+    pub preload: usize,
+    /// Concurrent clients, each with its own connection.
+    #[arg(long, default_value_t = 4)]
+    pub clients: usize,
+    /// Timed requests per client and kind of request (after 20 untimed ones).
+    #[arg(long, default_value_t = 5_000)]
+    pub requests: usize,
+    /// Time limit per kind of request of the latency test (s).
+    #[arg(long, default_value_t = 5.0)]
+    pub latency_seconds: f64,
+    /// Times per request of the second predict test (the next hours).
+    #[arg(long, default_value_t = 24)]
+    pub predict_times: usize,
+    /// Models per forecast request (at most --models).
+    #[arg(long, default_value_t = 100)]
+    pub forecast_ids: usize,
+    /// Observations of the durable-throughput test, in all.
+    #[arg(long, default_value_t = 10_000_000)]
+    pub observations: u64,
+    /// Observations per request (`POST /v1/observations`, one durable commit).
+    #[arg(long, default_value_t = 100_000)]
+    pub batch: usize,
+    /// Models per request (the batch is split evenly among them).
+    #[arg(long, default_value_t = 10)]
+    pub batch_ids: usize,
+    /// Time limit of the durable-throughput test (s).
+    #[arg(long, default_value_t = 30.0)]
+    pub seconds: f64,
+    /// Keep the service's store in this (new or empty) directory instead of a temporary one.
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_ACTIVITY_HELP: &str = "\
+Examples:
+  chronomap bench activity                     # the whole ATC day and the default fit (~1.5 min on 2 cores)
+  chronomap bench activity --quick --json      # one hour of tracks, 12 iterations (smoke test)
+  chronomap bench activity --iterations 50 --sequential-iterations 10";
+
+/// `chronomap bench activity`.
+#[derive(Debug, Args)]
+pub struct BenchActivityArgs {
+    /// Pedestrian track files (default: every `atc-1024-*_train.csv.xz` of
+    /// data/atc_20121024_1hz, the whole day; with --quick only its 10:00 file).
+    #[arg(long, num_args = 1..)]
+    pub tracks: Vec<PathBuf>,
+    /// ROS map YAML file of the environment.
+    #[arg(long, default_value = "data/atc_copa_map_grid/atc_map.yaml")]
+    pub map: PathBuf,
+    /// Patrol paths of the simulated robots, CSV `path,x,y,stop_s` (all are used).
+    #[arg(long, default_value = "data/atc_20121024_1hz/robot_paths.csv")]
+    pub paths: PathBuf,
+    /// Training rates of CoPA-Map, CSV `x1,x2,t,y`.
+    #[arg(
+        long,
+        default_value = "data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
+    )]
+    pub train: PathBuf,
+    /// Timed extractions after a warm-up, ten bare scans each (medians are reported; default
+    /// 5, 2 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: Option<u32>,
+    /// Timed CoPA-Map fits (the median is reported; each takes about 40 s with the defaults).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub fit_repeats: u32,
+    /// CoPA-Map training iterations (default: `CopaConfig`'s, 300; 12 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub iterations: Option<u32>,
+    /// Iterations of the one-thread vs all-threads comparison (0 leaves it out; default 30,
+    /// 12 with --quick); the timed fits serve as its all-threads side when they run as many.
+    #[arg(long)]
+    pub sequential_iterations: Option<u32>,
+    /// A run of under 20 s for smoke tests: one hour of tracks, 12 iterations, fewer repeats.
+    #[arg(long)]
+    pub quick: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}

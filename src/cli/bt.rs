@@ -1,0 +1,212 @@
+//! Flags of `chronomap bt` and `chronomap monitor`.
+
+#[allow(unused_imports)]
+use super::*;
+
+pub(super) const BT_HELP_CHECK: &str = "\
+Example:
+  chronomap bt check tests/data/bt/door.xml
+
+Reads BehaviorTree.CPP 4 XML (<root BTCPP_format=\"4\">): built-in controls and decorators,
+<SubTree>, and leaves declared in <TreeNodesModel> or written as <Action ID=\"...\"/> /
+<Condition ID=\"...\"/>. Prints the tree to execute with the uids that `bt run` and .btlog files
+use (depth first, subtrees expanded). Errors name the file, line, column and attribute.";
+
+pub(super) const BT_HELP_RUN: &str = "\
+Example:
+  chronomap bt run tests/data/bt/door.xml --script tests/data/bt/door.script --btlog door.btlog
+
+The script gives the outcome of leaves (by instance name: the name attribute, or the ID) per
+tick; an outcome holds until changed:
+  # comment
+  tick 1: IsDoorClosed=success, OpenDoor=failure, PickLock=running
+  tick 2: PickLock=failure
+  tick 4 @ 1000: PickLock=success
+Ticks run from 1 to the last tick of the script (one root tick each, as BehaviorTree.CPP's
+tickExactlyOnce) and stop when the root succeeds or fails. `@ MS` sets a tick's time in
+milliseconds; other ticks come --tick-ms after the previous one. The trace lists every status
+change of every tick; --btlog writes them as a Groot2 log (times from 0).";
+
+/// `chronomap bt ...`.
+#[derive(Debug, Subcommand)]
+pub enum BtCommand {
+    /// Load and check a BehaviorTree.CPP 4 XML file and print the tree with node uids.
+    #[command(after_help = BT_HELP_CHECK)]
+    Check(BtCheckArgs),
+    /// Tick a tree whose leaves follow a script of outcomes and print every status change.
+    #[command(after_help = BT_HELP_RUN)]
+    Run(BtRunArgs),
+    /// Analyse a tree as a stochastic behavior tree: p_s,T(t), p_f,T(t) and mean times.
+    #[command(after_help = BT_HELP_ANALYSE)]
+    Analyse(BtAnalyseArgs),
+}
+
+pub(super) const BT_HELP_ANALYSE: &str = "\
+Example:
+  chronomap bt analyse tests/data/bt/door.xml --params tests/data/bt/door_sbt.csv --t-max 120
+
+Seed 002 §5.2.2: every action ends in success with probability p_s after an Exp(mu) time,
+else in failure after an Exp(nu) time; a condition holds with probability p_s and takes no
+time. The parameters file is CSV with a header, one row per leaf (instance name, or ID for
+every instance of it); conditions leave mu and nu empty, p_f is optional (= 1 - p_s):
+  node,p_s,p_f,mu,nu
+  IsDoorClosed,0.7,,,
+  OpenDoor,0.4,0.6,0.1,0.5
+Supported: Sequence, SequenceWithMemory, Fallback, Inverter, ForceSuccess, ForceFailure,
+RetryUntilSuccessful and Repeat with a literal count, SubTree, AlwaysSuccess, AlwaysFailure,
+SetBlackboard. Prints p_s,T(t) and p_f,T(t) (eq. 5.1) at --steps times up to --t-max (default:
+three times the longer mean time), the eventual probabilities and the exact mean times to
+success and failure (1/mu_T, 1/nu_T).";
+
+/// `chronomap bt analyse`.
+#[derive(Debug, Args)]
+pub struct BtAnalyseArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The leaves' parameters: CSV `node,p_s,p_f,mu,nu` (see below).
+    #[arg(long)]
+    pub params: PathBuf,
+    /// The tree to analyse (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Last time of the table, seconds after the tree starts.
+    #[arg(long)]
+    pub t_max: Option<f64>,
+    /// Number of intervals of the time table.
+    #[arg(long, default_value_t = 10)]
+    pub steps: usize,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Draw p_s,T(t) and p_f,T(t) into a PNG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// `chronomap bt check`.
+#[derive(Debug, Args)]
+pub struct BtCheckArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The tree to print (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Also write the file in the canonical BehaviorTree.CPP 4 form (compact nodes, node models).
+    #[arg(long)]
+    pub save: Option<PathBuf>,
+}
+
+/// `chronomap bt run`.
+#[derive(Debug, Args)]
+pub struct BtRunArgs {
+    /// The XML file.
+    pub file: PathBuf,
+    /// The outcomes of the leaves, tick by tick (see below).
+    #[arg(long)]
+    pub script: PathBuf,
+    /// The tree to run (default: main_tree_to_execute, or the only tree).
+    #[arg(long)]
+    pub tree: Option<String>,
+    /// Milliseconds between ticks whose time the script does not give.
+    #[arg(long, default_value_t = 100)]
+    pub tick_ms: u64,
+    /// Write the status changes as a Groot2 execution log (must end in .btlog).
+    #[arg(long)]
+    pub btlog: Option<PathBuf>,
+}
+
+pub(super) const MONITOR_HELP_SIM: &str = "\
+Examples:
+  chronomap monitor sim --hours 8 --seed 1
+  chronomap monitor sim --hours 1 --faults faults.txt --certain
+
+A fault file has one fault a line: TIME KIND [TARGET] [fails=N] [for=SECONDS], TIME in seconds
+or h:mm:ss, KIND node_crash (TARGET localization, move_base or camera), topic_slow (/scan),
+cpu_overload, localization_lost, navigation_failure or stuck; fails=N makes the first N
+recoveries on it fail, for= sets a CPU overload's length (120 s). Without --faults, faults are
+drawn at random from the seed. A recovery counts as successful if no recovery of the same
+category starts within one minute (seed 002 §5.3.2); TSL is the time between supervisor
+interventions the robot did not request.";
+
+/// `chronomap monitor ...`.
+#[derive(Debug, Subcommand)]
+pub enum MonitorCommand {
+    /// Simulate a patrol with injected faults; print every recovery and the metrics of
+    /// Tables 5.2 and 5.3.
+    #[command(after_help = MONITOR_HELP_SIM)]
+    Sim(MonitorSimArgs),
+}
+
+/// `chronomap monitor sim`.
+#[derive(Debug, Args)]
+pub struct MonitorSimArgs {
+    /// Simulated hours.
+    #[arg(long, default_value_t = 8.0)]
+    pub hours: f64,
+    /// Seed of the random faults and recovery outcomes.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Faults to inject instead of random ones (see below).
+    #[arg(long)]
+    pub faults: Option<PathBuf>,
+    /// Every recovery fixes its fault (unless the fault says fails=N) instead of Table 5.3's
+    /// success rates.
+    #[arg(long)]
+    pub certain: bool,
+    /// The arbiter tree (BehaviorTree.CPP 4 XML with the simulation's leaves; default: the
+    /// built-in one, tests/data/bt/monitor_arbiter.xml).
+    #[arg(long)]
+    pub arbiter: Option<PathBuf>,
+    /// Print JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn eval_parses_the_acceptance_call() {
+        let cli = Cli::try_parse_from([
+            "chronomap",
+            "eval",
+            "--train",
+            "training_data.txt",
+            "--test",
+            "test_times_1.txt,test_data_1.txt",
+            "--test",
+            "test_times_2.txt,test_data_2.txt",
+            "--models",
+            "mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Eval(args) = cli.command else {
+            panic!("not eval")
+        };
+        assert_eq!(args.tests.len(), 2);
+        assert_eq!(args.models.0.len(), 8);
+        assert!(args.json);
+        assert!(Cli::try_parse_from(["chronomap", "eval", "--train", "a", "--test", "x"]).is_err());
+        assert!(
+            Cli::try_parse_from([
+                "chronomap",
+                "eval",
+                "--train",
+                "a",
+                "--test",
+                "x,y",
+                "--models",
+                "fremen:q"
+            ])
+            .is_err()
+        );
+    }
+}

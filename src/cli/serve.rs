@@ -1,0 +1,181 @@
+//! Flags of `chronomap serve` and `chronomap client`.
+
+#[allow(unused_imports)]
+use super::*;
+
+pub(super) const SERVE_HELP: &str = "\
+Examples:
+  chronomap serve --data chronomap-data
+  chronomap serve --data chronomap-data --topo witham=witham.cmt
+  chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
+
+Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN`; the token
+is read from --token-file (default DATA/token), which is created with a random token if it does not
+exist. Reads (predict, forecast, view, ...) need no token. Every acknowledged observation is durable:
+a restart (also after a crash or SIGKILL) restores every model exactly.";
+
+/// `chronomap serve`.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// Directory of the embedded store (`chronomap.redb`) and of the default token file.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Address to listen on (loopback by default; port 0 picks a free port).
+    #[arg(long, default_value = "127.0.0.1:8470")]
+    pub listen: std::net::SocketAddr,
+    /// File holding the bearer token for writes (created with a random token if missing);
+    /// default DATA/token.
+    #[arg(long, conflicts_with = "no_token")]
+    pub token_file: Option<PathBuf>,
+    /// Accept writes without a token (only sensible on a loopback address of a one-user machine).
+    #[arg(long)]
+    pub no_token: bool,
+    /// Keep the log and snapshots in PostgreSQL instead of DATA/chronomap.redb: a libpq
+    /// connection string (`host=127.0.0.1 user=robot dbname=lab`) or postgresql:// URL.
+    #[arg(long)]
+    pub postgres: Option<String>,
+    /// PostgreSQL schema of the tables (created if missing).
+    #[arg(long, default_value = "chronomap", requires = "postgres")]
+    pub postgres_schema: String,
+    /// Largest request body in bytes (larger ones get 413).
+    #[arg(long, default_value_t = 32 << 20)]
+    pub max_body_bytes: usize,
+    /// Snapshot changed models after this many observations (recovery replays fewer).
+    #[arg(long, default_value_t = 1_000_000)]
+    pub snapshot_every: u64,
+    /// ... or after this many seconds with changes.
+    #[arg(long, default_value_t = 60.0, value_parser = parse_positive)]
+    pub snapshot_secs: f64,
+    /// Serve a topological map with edge models (from `chronomap topo fit`) as NAME=FILE:
+    /// edge predictions and now-or-later plans at /v1/topo/NAME/. Repeatable.
+    #[arg(long, value_parser = parse_named_file)]
+    pub topo: Vec<(String, PathBuf)>,
+    /// Serve an occupancy grid file (from `chronomap grid build`) as NAME=FILE: predicted maps
+    /// at /v1/grid/NAME/predict. Repeatable.
+    #[arg(long, value_parser = parse_named_file)]
+    pub grid: Vec<(String, PathBuf)>,
+}
+
+pub(super) fn parse_named_file(text: &str) -> Result<(String, PathBuf), String> {
+    match text.split_once('=') {
+        Some((name, file))
+            if !name.is_empty()
+                && !file.is_empty()
+                && name
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b)) =>
+        {
+            Ok((name.to_owned(), PathBuf::from(file)))
+        }
+        _ => Err(format!(
+            "{text:?} is not NAME=FILE (NAME of letters, digits, '-', '_' or '.')"
+        )),
+    }
+}
+
+/// `chronomap client`.
+#[derive(Debug, Args)]
+pub struct ClientArgs {
+    /// Service address.
+    #[arg(long, default_value = "http://127.0.0.1:8470", env = "CHRONOMAP_URL")]
+    pub url: String,
+    /// File holding the bearer token for writes (as printed by `chronomap serve`).
+    #[arg(long, env = "CHRONOMAP_TOKEN_FILE")]
+    pub token_file: Option<PathBuf>,
+    /// What to ask.
+    #[command(subcommand)]
+    pub command: ClientCommand,
+}
+
+/// `chronomap client` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum ClientCommand {
+    /// Service health.
+    Health,
+    /// All models.
+    List,
+    /// A model's parameters.
+    View {
+        /// Model id.
+        id: String,
+    },
+    /// Create a model.
+    Create {
+        /// Model id.
+        id: String,
+        /// Model spec (fremen:K, persistence:K, hist:N, pergam:K, stm, mean).
+        #[arg(long, default_value = "fremen:2")]
+        model: String,
+        /// Value range LO,HI of continuous states.
+        #[arg(long, value_delimiter = ',', num_args = 2)]
+        range: Option<Vec<f64>>,
+    },
+    /// Remove a model.
+    Remove {
+        /// Model id.
+        id: String,
+    },
+    /// Add observations from a `t value` file (or TIMES,VALUES files), in batches.
+    #[command(
+        after_help = "Example:\n  chronomap client add lab-door --file data/door_greg_2016/training_data.txt.xz --model fremen:2"
+    )]
+    Add {
+        /// Model id.
+        id: String,
+        /// Observations: one `t value` file, or TIMES,VALUES (two line-aligned files).
+        #[arg(long, value_parser = parse_series_source)]
+        file: SeriesSource,
+        /// Spec of the model to create if it does not exist.
+        #[arg(long)]
+        model: Option<String>,
+        /// Observations per request.
+        #[arg(long, default_value_t = 100_000)]
+        batch: usize,
+    },
+    /// Predict p(t): at given times, or from --from to --to every --step seconds.
+    #[command(
+        after_help = "Example:\n  chronomap client predict lab-door --from 2016-03-21T00:00Z --to 2016-03-22T00:00Z --step 3600"
+    )]
+    Predict {
+        /// Model id.
+        id: String,
+        /// Times (seconds or ISO 8601).
+        #[arg(long, num_args = 1.., value_parser = parse_time, conflicts_with_all = ["from", "to"])]
+        at: Vec<f64>,
+        /// First time of a range.
+        #[arg(long, value_parser = parse_time, requires = "to")]
+        from: Option<f64>,
+        /// Last time of a range.
+        #[arg(long, value_parser = parse_time, requires = "from")]
+        to: Option<f64>,
+        /// Step of a range (s).
+        #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
+        step: f64,
+        /// Order to predict with.
+        #[arg(long)]
+        order: Option<usize>,
+    },
+    /// p(t) of many models at one time.
+    Forecast {
+        /// Model ids, comma-separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        ids: Vec<String>,
+        /// The time (seconds or ISO 8601).
+        #[arg(long, value_parser = parse_time)]
+        at: f64,
+        /// Order for every model.
+        #[arg(long)]
+        order: Option<usize>,
+    },
+    /// Errors per order on a `t value` file.
+    Evaluate {
+        /// Model id.
+        id: String,
+        /// Observations.
+        #[arg(long, value_parser = parse_series_source)]
+        file: SeriesSource,
+        /// Largest order.
+        #[arg(long)]
+        max_order: Option<usize>,
+    },
+}

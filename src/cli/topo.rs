@@ -1,0 +1,238 @@
+//! Flags of `chronomap topo` and `chronomap plan`.
+
+#[allow(unused_imports)]
+use super::*;
+
+pub(super) const TOPO_HELP_FIT: &str = "\
+Example:
+  chronomap topo fit --edges data/witham_topological_nav/edges -o witham.cmt
+
+Edge files are `<From>_<To>.data` (plain, .xz or .gz) with lines `t duration_s success(0|1)`.";
+
+pub(super) const TOPO_HELP_EVAL: &str = "\
+Example (the last two weeks of the bundled Witham Wharf data):
+  chronomap topo split --edges data/witham_topological_nav/edges --at 2014-08-20 \\
+      --before witham-train --after witham-test
+  chronomap topo eval --train witham-train --test witham-test --json
+
+Protocols: `online` (default) predicts every test attempt from everything before it, as a robot
+that keeps learning does, and learns it afterwards (the static baseline is the running per-edge
+rate); `frozen` predicts all test attempts with the models as fitted on the training data.";
+
+pub(super) const PLAN_HELP: &str = "\
+Examples:
+  chronomap topo fit --edges data/witham_topological_nav/edges -o witham.cmt
+  chronomap plan --model witham.cmt --from Station --task \"F Kitchen\" --time 2014-09-04T10:00Z
+  chronomap plan --model witham.cmt --from Station --task \"F Kitchen\" --day-table --plot kitchen.png
+  chronomap plan --model witham.cmt --from Station --task \"!Ramp1 U Kitchen\" --time 2014-09-04T10:00Z \\
+      --prism witham.nm --drn witham.drn
+
+Tasks are co-safe LTL over node names: ! & | -> X F U ( ) true false; e.g. \"F Kitchen\",
+\"F (Printer & F Kitchen)\" (visit in order), \"!Ramp1 U Kitchen\" (avoid Ramp1 until Kitchen).";
+
+/// `chronomap topo ...`.
+#[derive(Debug, Subcommand)]
+pub enum TopoCommand {
+    /// Fit the success and duration models of every edge from a directory of edge files.
+    #[command(after_help = TOPO_HELP_FIT)]
+    Fit(TopoFitArgs),
+    /// Fit on one directory of edge files and score on another (later) one against the
+    /// static per-edge models.
+    #[command(after_help = TOPO_HELP_EVAL)]
+    Eval(TopoEvalArgs),
+    /// Split a directory of edge files at a time into two directories (before, at-or-after).
+    Split(TopoSplitArgs),
+    /// Predict every edge at a time; optionally write the map with its predictions as a Nav2
+    /// route graph (GeoJSON) or a tmap2 file.
+    #[command(
+        after_help = "Example:\n  chronomap topo predict witham.cmt --time 2014-09-04T08:00Z --geojson witham.geojson"
+    )]
+    Predict(TopoPredictArgs),
+}
+
+/// How edge models are fitted.
+#[derive(Debug, Args)]
+pub struct EdgeModelFlags {
+    /// Static per-edge models only: no periodic (FreMEn) components.
+    #[arg(long = "static")]
+    pub static_only: bool,
+    /// No persistence term (the outcome of the latest attempt does not carry over).
+    #[arg(long)]
+    pub no_persistence: bool,
+    /// Edges with fewer attempts use their (shrunk) success rate only.
+    #[arg(long, default_value_t = 10)]
+    pub min_attempts: usize,
+    /// Prior success probability of an edge.
+    #[arg(long, default_value_t = 0.9, value_parser = parse_probability)]
+    pub prior: f64,
+    /// Weight of the prior, in attempts.
+    #[arg(long, default_value_t = 2.0, value_parser = parse_non_negative)]
+    pub prior_attempts: f64,
+    /// Success probabilities never go below this.
+    #[arg(long, default_value_t = 0.05, value_parser = parse_probability)]
+    pub floor: f64,
+    /// Largest FreMEn order tried per edge.
+    #[arg(long, default_value_t = 10)]
+    pub max_order: usize,
+    /// Fix the order of every success model instead of choosing it per edge (seed 003:
+    /// "typically, m = 2").
+    #[arg(long)]
+    pub success_order: Option<usize>,
+    /// Most recent fraction of each edge's history held back to choose its orders.
+    #[arg(long, default_value_t = 0.25, value_parser = parse_fraction)]
+    pub holdout: f64,
+}
+
+impl EdgeModelFlags {
+    /// The core configuration these flags describe.
+    pub fn config(&self) -> chronomap_topo::edges::EdgeModelConfig {
+        chronomap_topo::edges::EdgeModelConfig {
+            min_attempts: self.min_attempts,
+            prior_success: self.prior,
+            prior_attempts: self.prior_attempts,
+            floor: self.floor,
+            periodic: !self.static_only,
+            persistence: !self.no_persistence,
+            holdout: self.holdout,
+            max_order: self.max_order,
+            success_order: self.success_order,
+            default_duration_secs: None,
+        }
+    }
+}
+
+/// `chronomap topo fit`.
+#[derive(Debug, Args)]
+pub struct TopoFitArgs {
+    /// Directory of edge files.
+    #[arg(long)]
+    pub edges: PathBuf,
+    /// Model file to write.
+    #[arg(short, long = "out")]
+    pub output: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Model options.
+    #[command(flatten)]
+    pub model: EdgeModelFlags,
+}
+
+/// `--protocol` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ProtocolArg {
+    /// Each test attempt is predicted, then learned.
+    Online,
+    /// The models stay as fitted on the training data.
+    Frozen,
+}
+
+/// `chronomap topo eval`.
+#[derive(Debug, Args)]
+pub struct TopoEvalArgs {
+    /// Directory of training edge files.
+    #[arg(long)]
+    pub train: PathBuf,
+    /// Directory of test edge files (later attempts).
+    #[arg(long)]
+    pub test: PathBuf,
+    /// How the test attempts are predicted.
+    #[arg(long, value_enum, default_value_t = ProtocolArg::Online)]
+    pub protocol: ProtocolArg,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Also show the scores of every edge.
+    #[arg(long)]
+    pub per_edge: bool,
+    /// Model options.
+    #[command(flatten)]
+    pub model: EdgeModelFlags,
+}
+
+/// `chronomap topo split`.
+#[derive(Debug, Args)]
+pub struct TopoSplitArgs {
+    /// Directory of edge files.
+    #[arg(long)]
+    pub edges: PathBuf,
+    /// Split time: seconds or ISO 8601 (UTC unless an offset is given).
+    #[arg(long, value_parser = parse_time)]
+    pub at: f64,
+    /// Directory for the attempts before the split (created; must not hold edge files).
+    #[arg(long)]
+    pub before: PathBuf,
+    /// Directory for the attempts at or after the split.
+    #[arg(long)]
+    pub after: PathBuf,
+}
+
+/// `chronomap topo predict`.
+#[derive(Debug, Args)]
+pub struct TopoPredictArgs {
+    /// Edge-model file (`topo fit`).
+    pub model: PathBuf,
+    /// Time: seconds or ISO 8601.
+    #[arg(long, value_parser = parse_time)]
+    pub time: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the map as a Nav2 route-server graph (GeoJSON) with the predictions.
+    #[arg(long)]
+    pub geojson: Option<PathBuf>,
+    /// Write the map as an LCAS tmap2 file.
+    #[arg(long)]
+    pub tmap2: Option<PathBuf>,
+}
+
+/// When `plan` plans.
+#[derive(Debug, Args)]
+#[group(required = true, multiple = false)]
+pub struct PlanWhen {
+    /// Plan for this start time: seconds or ISO 8601 (UTC unless an offset is given).
+    #[arg(long, value_parser = parse_time)]
+    pub time: Option<f64>,
+    /// The now-or-later table: every hour (see --step-mins) of a week (see --week-of).
+    #[arg(long)]
+    pub day_table: bool,
+}
+
+/// `chronomap plan`.
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// Edge-model file (`topo fit`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Start node.
+    #[arg(long)]
+    pub from: String,
+    /// Co-safe LTL task over node names.
+    #[arg(long)]
+    pub task: String,
+    /// When.
+    #[command(flatten)]
+    pub when: PlanWhen,
+    /// Any time in the first day of the table (default: the day after the model's data).
+    #[arg(long, value_parser = parse_time)]
+    pub week_of: Option<f64>,
+    /// Days in the table.
+    #[arg(long, default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=28))]
+    pub days: u32,
+    /// Minutes between the table's start times.
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(5..=720))]
+    pub step_mins: u32,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the table as a PNG heat map.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write the Navigation MDP at --time in the PRISM language (STRANDS layout) and its
+    /// property next to it (`.props`).
+    #[arg(long)]
+    pub prism: Option<PathBuf>,
+    /// Write the product MDP at --time in Storm's explicit DRN format.
+    #[arg(long)]
+    pub drn: Option<PathBuf>,
+}

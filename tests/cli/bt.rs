@@ -1,0 +1,427 @@
+//! `chronomap bt check` and `chronomap bt run` on the bundled door tree (tests/data/bt): the
+//! printed structure with uids, the tick-by-tick trace of a scripted run, the Groot2 log it
+//! writes, and exit code 1 with located messages for bad files.
+
+use crate::common;
+
+use std::path::PathBuf;
+
+use common::{chronomap, close, error, repo, stdout};
+
+fn scratch(test: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {
+    let door = repo("tests/data/bt/door.xml");
+    let text = stdout(&chronomap(&["bt", "check", &door]));
+    let expected = format!(
+        "{door}: BehaviorTree.CPP 4, 2 trees (MainTree, DoorClosed); MainTree has 11 nodes, 5 of them leaves
+ uid  node
+   1  Sequence \"cross_door\"
+   2    Fallback
+   3      Inverter
+   4        IsDoorClosed (Condition)
+   5      SubTree DoorClosed \"open_it\" door={{door}}
+   6        Fallback \"try_to_open\"
+   7          OpenDoor (Action) door={{door}}
+   8          RetryUntilSuccessful num_attempts=3
+   9            PickLock (Action) door={{door}}
+  10          SmashDoor (Action) door={{door}}
+  11    PassThroughDoor (Action) door={{door}}
+"
+    );
+    assert_eq!(text, expected);
+}
+
+#[test]
+fn check_can_print_another_tree_and_save_the_canonical_form() {
+    let dir = scratch("bt_check_save");
+    let saved = dir.join("door_canonical.xml").display().to_string();
+    let door = repo("tests/data/bt/door.xml");
+    let text = stdout(&chronomap(&[
+        "bt",
+        "check",
+        &door,
+        "--tree",
+        "DoorClosed",
+        "--save",
+        &saved,
+    ]));
+    assert!(
+        text.contains("DoorClosed has 5 nodes, 3 of them leaves"),
+        "{text}"
+    );
+    assert!(text.contains("   1  Fallback \"try_to_open\"\n"), "{text}");
+    // The saved file checks again, with the same structure.
+    let again = stdout(&chronomap(&["bt", "check", &saved]));
+    let original = stdout(&chronomap(&["bt", "check", &door]));
+    let table = |t: &str| t.split_once('\n').unwrap().1.to_owned();
+    assert_eq!(table(&again), table(&original));
+    let xml = std::fs::read_to_string(&saved).unwrap();
+    assert!(xml.contains("<IsDoorClosed/>"), "compact form: {xml}");
+}
+
+#[test]
+fn run_prints_every_transition_of_every_tick_and_writes_a_btlog() {
+    let dir = scratch("bt_run_door");
+    let log = dir.join("door.btlog").display().to_string();
+    let text = stdout(&chronomap(&[
+        "bt",
+        "run",
+        &repo("tests/data/bt/door.xml"),
+        "--script",
+        &repo("tests/data/bt/door.script"),
+        "--btlog",
+        &log,
+    ]));
+    let expected = format!(
+        "\
+tick 1 @ 0 ms: RUNNING
+    1 cross_door            IDLE -> RUNNING
+    2 Fallback              IDLE -> RUNNING
+    3 Inverter              IDLE -> RUNNING
+    4 IsDoorClosed          IDLE -> SUCCESS
+    4 IsDoorClosed          SUCCESS -> IDLE
+    3 Inverter              RUNNING -> FAILURE
+    5 open_it               IDLE -> RUNNING
+    6 try_to_open           IDLE -> RUNNING
+    7 OpenDoor              IDLE -> FAILURE
+    8 RetryUntilSuccessful  IDLE -> RUNNING
+    9 PickLock              IDLE -> RUNNING
+tick 2 @ 100 ms: RUNNING
+    9 PickLock              RUNNING -> FAILURE
+    9 PickLock              FAILURE -> IDLE
+    9 PickLock              IDLE -> FAILURE
+    9 PickLock              FAILURE -> IDLE
+tick 3 @ 200 ms: RUNNING
+    9 PickLock              IDLE -> RUNNING
+tick 4 @ 1000 ms: RUNNING
+    9 PickLock              RUNNING -> SUCCESS
+    9 PickLock              SUCCESS -> IDLE
+    8 RetryUntilSuccessful  RUNNING -> SUCCESS
+    7 OpenDoor              FAILURE -> IDLE
+    8 RetryUntilSuccessful  SUCCESS -> IDLE
+    6 try_to_open           RUNNING -> SUCCESS
+    6 try_to_open           SUCCESS -> IDLE
+    5 open_it               RUNNING -> SUCCESS
+    3 Inverter              FAILURE -> IDLE
+    5 open_it               SUCCESS -> IDLE
+    2 Fallback              RUNNING -> SUCCESS
+   11 PassThroughDoor       IDLE -> RUNNING
+tick 5 @ 1100 ms: SUCCESS
+   11 PassThroughDoor       RUNNING -> SUCCESS
+    2 Fallback              SUCCESS -> IDLE
+   11 PassThroughDoor       SUCCESS -> IDLE
+    1 cross_door            RUNNING -> SUCCESS
+    1 cross_door            SUCCESS -> IDLE
+result: SUCCESS at tick 5 (1100 ms)
+wrote {log} (33 transitions of 11 nodes)
+"
+    );
+    assert_eq!(text, expected);
+    let bytes = std::fs::read(&log).unwrap();
+    assert_eq!(&bytes[..19], b"BTCPP4-FileLogger2\x01");
+    let parsed = chronomap_io::read_btlog(&log).unwrap();
+    assert_eq!(parsed.transitions.len(), 33);
+    assert_eq!(parsed.first_timestamp_us, 0);
+    let last = parsed.transitions.last().unwrap();
+    assert_eq!((last.delta_us, last.uid, last.status), (1_100_000, 1, 0));
+}
+
+#[test]
+fn run_reports_a_tree_still_running_and_unused_script_ticks() {
+    let dir = scratch("bt_run_partial");
+    let script = dir.join("short.script");
+    std::fs::write(
+        &script,
+        "tick 1: IsDoorClosed=failure, PassThroughDoor=running\ntick 3: PassThroughDoor=success\ntick 4:\ntick 6:\n",
+    )
+    .unwrap();
+    let script = script.display().to_string();
+    let door = repo("tests/data/bt/door.xml");
+    let text = stdout(&chronomap(&[
+        "bt",
+        "run",
+        &door,
+        "--script",
+        &script,
+        "--tick-ms",
+        "250",
+    ]));
+    assert!(text.starts_with("tick 1 @ 0 ms: RUNNING\n"), "{text}");
+    assert!(text.contains("tick 3 @ 500 ms: SUCCESS\n"), "{text}");
+    assert!(
+        text.ends_with(
+            "result: SUCCESS at tick 3 (500 ms)\nnote: the tree finished before script ticks 4, 6\n"
+        ),
+        "{text}"
+    );
+
+    std::fs::write(
+        dir.join("short.script"),
+        "tick 1: IsDoorClosed=failure, PassThroughDoor=running\n",
+    )
+    .unwrap();
+    let text = stdout(&chronomap(&["bt", "run", &door, "--script", &script]));
+    assert!(
+        text.ends_with("result: still RUNNING after tick 1 (0 ms)\n"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
+    let dir = scratch("bt_errors");
+    let bad = dir.join("bad.xml");
+    std::fs::write(
+        &bad,
+        "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"Main\">\n    <Repeat num_cycles=\"twice\">\n      <AlwaysSuccess/>\n    </Repeat>\n  </BehaviorTree>\n</root>\n",
+    )
+    .unwrap();
+    let bad = bad.display().to_string();
+    let err = error(&chronomap(&["bt", "check", &bad]));
+    assert_eq!(
+        err,
+        format!(
+            "error: {bad}:3:13: attribute num_cycles=\"twice\" of \"Repeat\" is invalid (expected an integer)\n"
+        )
+    );
+
+    let v3 = dir.join("v3.xml");
+    std::fs::write(&v3, "<root BTCPP_format=\"3\">\n</root>\n").unwrap();
+    let err = error(&chronomap(&["bt", "check", &v3.display().to_string()]));
+    assert!(
+        err.contains("v3.xml:1:7: attribute BTCPP_format=\"3\": only BehaviorTree.CPP format 4"),
+        "{err}"
+    );
+
+    let two = dir.join("two.xml");
+    std::fs::write(
+        &two,
+        "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree>\n  <BehaviorTree ID=\"B\"><AlwaysFailure/></BehaviorTree>\n</root>\n",
+    )
+    .unwrap();
+    let two = two.display().to_string();
+    let err = error(&chronomap(&["bt", "check", &two]));
+    assert!(
+        err.contains("which tree? (use --tree): the document has several trees (A, B)"),
+        "{err}"
+    );
+    let text = stdout(&chronomap(&["bt", "check", &two, "--tree", "B"]));
+    assert!(text.contains("   1  AlwaysFailure (Action)\n"), "{text}");
+
+    let err = error(&chronomap(&[
+        "bt",
+        "check",
+        &dir.join("missing.xml").display().to_string(),
+    ]));
+    assert!(err.contains("missing.xml: cannot read:"), "{err}");
+
+    let script = dir.join("typo.script");
+    std::fs::write(
+        &script,
+        "tick 1: IsDoorClosed=success\ntick 2: PickLok=failure\n",
+    )
+    .unwrap();
+    let script = script.display().to_string();
+    let door = repo("tests/data/bt/door.xml");
+    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
+    assert!(
+        err.contains("typo.script: tick 2: the tree has no leaf named \"PickLok\" (its leaves: IsDoorClosed, OpenDoor, PassThroughDoor, PickLock, SmashDoor)"),
+        "{err}"
+    );
+
+    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=maybe\n").unwrap();
+    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
+    assert!(
+        err.contains("typo.script:1: outcome of \"IsDoorClosed\": \"maybe\""),
+        "{err}"
+    );
+
+    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=failure\n").unwrap();
+    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
+    assert!(
+        err.contains("tick 1: node 11 (PassThroughDoor): ticked, but the script has given no outcome for \"PassThroughDoor\" yet"),
+        "{err}"
+    );
+
+    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=running\n").unwrap();
+    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
+    assert!(
+        err.contains("\"IsDoorClosed\" is a condition and cannot return RUNNING"),
+        "{err}"
+    );
+
+    std::fs::write(
+        dir.join("typo.script"),
+        "tick 1: IsDoorClosed=failure, PassThroughDoor=success\n",
+    )
+    .unwrap();
+    let log = dir.join("door.log").display().to_string();
+    let err = error(&chronomap(&[
+        "bt", "run", &door, "--script", &script, "--btlog", &log,
+    ]));
+    assert!(
+        err.contains("door.log: the file name must end in .btlog"),
+        "{err}"
+    );
+}
+
+/// `bt analyse` on the door tree with tests/data/bt/door_sbt.csv. Hand computation: the
+/// subtree fails only if OpenDoor, three PickLock attempts and SmashDoor all fail,
+/// 0.6 · 0.5³ · 0.2 = 0.015; the fallback succeeds with 0.3 + 0.7 · 0.985 = 0.9895 (the door is
+/// open, or the subtree opens it); the sequence with 0.9895 · 0.95 = 0.940025.
+#[test]
+fn analyse_gives_the_hand_computed_probabilities_of_the_door_tree() {
+    let dir = scratch("bt_analyse_door");
+    let png = dir.join("door_sbt.png").display().to_string();
+    let door = repo("tests/data/bt/door.xml");
+    let params = repo("tests/data/bt/door_sbt.csv");
+    let args = [
+        "bt", "analyse", &door, "--params", &params, "--t-max", "120", "--steps", "4", "--json",
+        "--plot", &png,
+    ];
+    let json: serde_json::Value = serde_json::from_str(&stdout(&chronomap(&args))).unwrap();
+    close(&json["p_success"], 0.940025, 1e-12);
+    close(&json["p_failure"], 0.059975, 1e-12);
+    assert_eq!(json["tree"], "MainTree");
+    let curve = json["curve"].as_array().unwrap();
+    assert_eq!(curve.len(), 5);
+    close(&curve[0]["t"], 0.0, 0.0);
+    close(&curve[0]["p_success"], 0.0, 1e-15);
+    close(&curve[4]["t"], 120.0, 1e-12);
+    // Increasing towards the eventual values.
+    let ps: Vec<f64> = curve
+        .iter()
+        .map(|p| p["p_success"].as_f64().unwrap())
+        .collect();
+    assert!(ps.windows(2).all(|w| w[0] < w[1]), "{ps:?}");
+    assert!(ps[4] < 0.940025 && ps[4] > 0.93, "{ps:?}");
+    let (ts, mu) = (
+        json["time_to_success"].as_f64().unwrap(),
+        json["mu_t"].as_f64().unwrap(),
+    );
+    assert!((ts * mu - 1.0).abs() < 1e-12);
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+
+    let text = stdout(&chronomap(&args[..args.len() - 3]));
+    assert!(
+        text.contains("eventually: p_s = 0.940025, p_f = 0.059975\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("       0.000    0.000000    0.000000\n"),
+        "{text}"
+    );
+}
+
+/// A Fallback of two actions, hand-made: p_s = p1 + (1 − p1) p2 and
+/// p_s,T(t) = p1 (1 − e^{−μ1 t}) + (1 − p1) p2 Hypo(ν1, μ2)(t).
+#[test]
+fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
+    let dir = scratch("bt_analyse_fallback");
+    let xml = dir.join("search.xml");
+    std::fs::write(
+        &xml,
+        r#"<root BTCPP_format="4">
+  <BehaviorTree ID="Search">
+    <Fallback>
+      <Action ID="SearchCorridor"/>
+      <Action ID="WaitAtDoor"/>
+    </Fallback>
+  </BehaviorTree>
+</root>
+"#,
+    )
+    .unwrap();
+    let params = dir.join("search.csv");
+    std::fs::write(
+        &params,
+        "node,p_s,p_f,mu,nu\nSearchCorridor,0.6,,0.05,0.025\nWaitAtDoor,0.9,0.1,0.02,0.01\n",
+    )
+    .unwrap();
+    let (xml, params) = (xml.display().to_string(), params.display().to_string());
+    let out = chronomap(&[
+        "bt", "analyse", &xml, "--params", &params, "--t-max", "60", "--steps", "1", "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    close(&json["p_success"], 0.6 + 0.4 * 0.9, 1e-12);
+    let t: f64 = 60.0;
+    let hypo = |a: f64, b: f64| 1.0 - (b * (-a * t).exp() - a * (-b * t).exp()) / (b - a);
+    let expected = 0.6 * (1.0 - (-0.05 * t).exp()) + 0.4 * 0.9 * hypo(0.025, 0.02);
+    close(&json["curve"][1]["p_success"], expected, 1e-11);
+    close(
+        &json["time_to_success"],
+        (0.6 * 20.0 + 0.36 * (40.0 + 50.0)) / 0.96,
+        1e-9,
+    );
+}
+
+#[test]
+fn analyse_names_the_line_of_an_unsupported_node_and_bad_parameters() {
+    let params = repo("tests/data/bt/door_sbt.csv");
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &repo("tests/data/bt/parallel.xml"),
+        "--params",
+        &params,
+    ]));
+    assert!(
+        err.contains("parallel.xml:7:5: Timeout is not supported by the stochastic analysis"),
+        "{err}"
+    );
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &repo("tests/data/bt/monitor.xml"),
+        "--params",
+        &params,
+    ]));
+    assert!(
+        err.contains("monitor.xml:") && err.contains("is not supported"),
+        "{err}"
+    );
+
+    let dir = scratch("bt_analyse_bad");
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.5,0.2,0.5\n").unwrap();
+    let door = repo("tests/data/bt/door.xml");
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(
+        err.contains("bad.csv:2: field p_f: p_s + p_f = 0.9"),
+        "{err}"
+    );
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,fast,0.5\n").unwrap();
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(err.contains("bad.csv:2: field mu: \"fast\""), "{err}");
+    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,0.2,0.5\n").unwrap();
+    let err = error(&chronomap(&[
+        "bt",
+        "analyse",
+        &door,
+        "--params",
+        &bad.display().to_string(),
+    ]));
+    assert!(
+        err.contains("door.xml:") && err.contains("no parameters for Condition \"IsDoorClosed\""),
+        "{err}"
+    );
+}

@@ -1,0 +1,195 @@
+//! The greg door dataset (Lincoln, 2016): chronomap against the original FreMEn code's
+//! published figures, and the model contract on real data.
+
+use std::path::PathBuf;
+
+use chronomap_core::conformance::check_temporal_model;
+use chronomap_core::{
+    FremenModel, HistogramModel, MarkovModel, MeanModel, PergamModel, PersistenceModel,
+    TemporalModel,
+};
+use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs, read_test_set};
+use chronomap_models::AnyModel;
+use chronomap_models::eval::{TestSet, evaluate};
+use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
+
+fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/door_greg_2016")
+        .join(name)
+}
+
+fn training() -> TimeSeries {
+    read_pairs(data("training_data.txt.xz")).unwrap()
+}
+
+fn tests() -> Vec<TimeSeries> {
+    (1..=5)
+        .map(|i| {
+            read_test_set(
+                data(&format!("test_times_{i}.txt.xz")),
+                data(&format!("test_data_{i}.txt.xz")),
+            )
+            .unwrap()
+        })
+        .collect()
+}
+
+/// Mean squared error per test week 1..5 of the original FreMEn C++ code (data README).
+const ORIGINAL: [(&str, [f64; 5], f64); 3] = [
+    ("fremen:0", [0.0899, 0.0772, 0.0835, 0.0849, 0.0681], 0.0807),
+    ("fremen:2", [0.0728, 0.0683, 0.0751, 0.0697, 0.0646], 0.0701),
+    ("fremen:4", [0.0700, 0.0688, 0.0711, 0.0641, 0.0611], 0.0670),
+];
+
+fn evaluate_specs(specs: &str) -> Vec<(String, Vec<f64>, f64)> {
+    let train = training();
+    let tests = tests();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
+    let report = evaluate(
+        &parse_model_list(specs).unwrap(),
+        &train.times,
+        &train.values,
+        &sets,
+        &FitOptions::default(),
+        |_| {},
+    )
+    .unwrap();
+    report
+        .models
+        .iter()
+        .map(|m| (m.spec.to_string(), m.mses(), m.mean_mse()))
+        .collect()
+}
+
+#[test]
+fn original_fremen_figures_are_reproduced() {
+    let results = evaluate_specs("fremen:0,fremen:2,fremen:4");
+    for ((name, weeks, mean), (ref_name, ref_weeks, ref_mean)) in results.iter().zip(ORIGINAL) {
+        assert_eq!(name, ref_name);
+        assert!(
+            (mean - ref_mean).abs() <= 0.0005,
+            "{name}: mean {mean:.5} vs original {ref_mean}"
+        );
+        for (week, (got, want)) in weeks.iter().zip(ref_weeks).enumerate() {
+            assert!(
+                (got - want).abs() <= 0.0005,
+                "{name} week {}: {got:.5} vs original {want}",
+                week + 1
+            );
+        }
+    }
+}
+
+#[test]
+fn automatic_models_reach_the_target_from_training_data_only() {
+    for (name, _, mean) in evaluate_specs("fremen:auto,auto") {
+        assert!(mean <= 0.0680, "{name}: mean MSE {mean:.5} > 0.0680");
+    }
+}
+
+#[test]
+fn the_original_histogram_figure_is_24_bins_over_a_day() {
+    let results = evaluate_specs("hist:24:86400,hist:24");
+    assert!((results[0].2 - 0.0703).abs() <= 0.0005, "{:?}", results[0]);
+    // Over a week the same 24 bins are 7 h wide and do worse.
+    assert!(results[1].2 > results[0].2);
+}
+
+#[test]
+fn every_model_keeps_the_contract_on_real_data() {
+    let train = training();
+    // Two weeks keep the chunk-by-one part of the check fast.
+    let n = 2 * 7 * 1440;
+    let (t, v) = (&train.times[..n], &train.values[..n]);
+    check_temporal_model(MeanModel::new, t, v);
+    check_temporal_model(|| HistogramModel::weekly(24).unwrap(), t, v);
+    check_temporal_model(|| FremenModel::with_order(4), t, v);
+    check_temporal_model(|| PersistenceModel::with_order(2), t, v);
+    check_temporal_model(MarkovModel::new, t, v);
+    check_temporal_model(|| PergamModel::with_components(2).unwrap(), t, v);
+}
+
+#[test]
+fn daily_chunks_give_the_same_models_as_one_batch() {
+    let train = training();
+    let week = &tests()[0];
+    for spec in [
+        "mean",
+        "hist:24",
+        "fremen:4",
+        "persistence:2",
+        "stm",
+        "pergam:2",
+    ] {
+        let spec: ModelSpec = spec.parse().unwrap();
+        let batch = spec
+            .fit(&train.times, &train.values, &FitOptions::default())
+            .unwrap()
+            .model;
+        let mut chunked = spec
+            .fit(
+                &train.times[..1],
+                &train.values[..1],
+                &FitOptions::default(),
+            )
+            .unwrap()
+            .model;
+        for (t, v) in train.times[1..]
+            .chunks(1440)
+            .zip(train.values[1..].chunks(1440))
+        {
+            chunked.observe(t, v).unwrap();
+        }
+        let (a, b) = (
+            batch.predict_many(&week.times),
+            chunked.predict_many(&week.times),
+        );
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{spec}: chunked and batch models differ"
+        );
+    }
+}
+
+#[test]
+fn every_model_survives_save_and_load_bit_identically() {
+    let train = training();
+    let week = &tests()[0];
+    for spec in [
+        "mean",
+        "hist:24",
+        "fremen:auto",
+        "persistence:2",
+        "stm",
+        "pergam:2",
+    ] {
+        let spec: ModelSpec = spec.parse().unwrap();
+        let model = spec
+            .fit(&train.times, &train.values, &FitOptions::default())
+            .unwrap()
+            .model;
+        let bytes = encode_model(model.kind(), &model).unwrap();
+        let loaded: AnyModel = decode_any_model(&bytes).unwrap();
+        assert_eq!(loaded.spec(), model.spec());
+        let (a, b) = (
+            model.predict_many(&week.times),
+            loaded.predict_many(&week.times),
+        );
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{spec}"
+        );
+        // A model whose header names another kind is refused, not misread.
+        let other = if model.kind() == "mean" {
+            "hist"
+        } else {
+            "mean"
+        };
+        let relabelled = encode_model(other, &model).unwrap();
+        assert!(
+            decode_any_model(&relabelled).is_err(),
+            "{spec} relabelled as {other}"
+        );
+    }
+}

@@ -1,0 +1,299 @@
+//! `chronomap grid` end to end: frames from ROS/Nav2 map files and per-cell series, predicted
+//! maps that our map reader (Nav2 semantics) reads back, and clear errors for bad frames.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
+use chronomap_io::{GridFile, read_grid_file};
+
+fn chronomap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(args)
+        .output()
+        .expect("run chronomap")
+}
+
+fn scratch(test: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A 4×3 map: a wall column (x = 0), a door (cell 5) closed from 18:00 to 8:00, an unseen
+/// corner (cell 11), the rest free.
+fn door_map(hour: u64) -> OccupancyMap {
+    let mut data = vec![0i8; 12];
+    for y in 0..3 {
+        data[y * 4] = 100;
+    }
+    data[5] = if (8..18).contains(&hour) { 0 } else { 100 };
+    data[11] = -1;
+    OccupancyMap {
+        width: 4,
+        height: 3,
+        resolution: 0.05,
+        origin: [-1.5, 2.25, 0.0],
+        data,
+    }
+}
+
+/// Writes two weeks of hourly maps and the frame list; returns the list's path.
+fn write_frames(dir: &Path) -> PathBuf {
+    let mut list = String::from("# time map\n");
+    let start = 1_451_865_600u64; // Monday 2016-01-04 00:00 UTC
+    for h in 0..14 * 24u64 {
+        let name = format!("maps/frame_{h:04}");
+        save_map(
+            &dir.join(&name),
+            &door_map(h % 24),
+            &SaveOptions {
+                free_thresh: 0.196,
+                ..SaveOptions::default()
+            },
+        )
+        .unwrap();
+        list.push_str(&format!("{} {name}.yaml\n", start + 3600 * h));
+    }
+    let path = dir.join("frames.txt");
+    std::fs::write(&path, list).unwrap();
+    path
+}
+
+#[test]
+fn predicted_maps_are_nav2_maps_that_read_back() {
+    let dir = scratch("grid_predict");
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    let list = write_frames(&dir);
+    let grid = dir.join("door.cmg").display().to_string();
+    let out = chronomap(&[
+        "grid",
+        "build",
+        "--frames",
+        &list.display().to_string(),
+        "-o",
+        &grid,
+        "--order",
+        "4",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let GridFile::State(state) = read_grid_file(&grid).unwrap() else {
+        panic!("not a learning state")
+    };
+    assert_eq!(state.frames(), 14 * 24);
+
+    // 3:00 and 13:00 a week after the data: the door closed, then open.
+    for (hour, door) in [(3u64, 100i8), (13, 0)] {
+        let t = 1_451_865_600 + (21 * 24 + hour) * 3600;
+        let base = dir.join(format!("predicted/at_{hour}"));
+        let out = chronomap(&[
+            "grid",
+            "predict",
+            &grid,
+            "--time",
+            &t.to_string(),
+            "--out",
+            &base.with_extension("yaml").display().to_string(),
+            "--order",
+            "4",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
+        assert!(yaml.starts_with("# map predicted by chronomap"), "{yaml}");
+        assert!(yaml.contains(&format!("t = {t}")), "{yaml}");
+        assert!(yaml.contains("image: at_"), "{yaml}");
+        let map = load_map(&base.with_extension("yaml"), LoadSemantics::Nav2).unwrap();
+        assert_eq!((map.width, map.height, map.resolution), (4, 3, 0.05));
+        assert_eq!(map.origin, [-1.5, 2.25, 0.0]);
+        let mut expected = door_map(hour).data;
+        expected[5] = door;
+        assert_eq!(map.data, expected, "{hour}:00");
+    }
+
+    // A scale-mode mask for a costmap filter.
+    let base = dir.join("predicted/mask");
+    let out = chronomap(&[
+        "grid",
+        "predict",
+        &grid,
+        "--time",
+        "1453680000",
+        "--out",
+        &base.display().to_string(),
+        "--mode",
+        "scale",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(base.with_extension("png").exists());
+    let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
+    assert!(yaml.contains("mode: scale"), "{yaml}");
+
+    let out = chronomap(&["grid", "stats", &grid]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("336") && text.contains("compression"),
+        "{text}"
+    );
+    let png = dir.join("maps.png");
+    let out = chronomap(&["grid", "plot", &grid, "-o", &png.display().to_string()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    let _ = MapMode::Trinary;
+}
+
+#[test]
+fn bad_frames_give_clear_errors() {
+    let dir = scratch("grid_bad");
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    let opts = SaveOptions {
+        free_thresh: 0.196,
+        ..SaveOptions::default()
+    };
+    save_map(&dir.join("maps/a"), &door_map(3), &opts).unwrap();
+    let mut wide = door_map(3);
+    wide.width = 6;
+    wide.data = vec![0; 18];
+    save_map(&dir.join("maps/wide"), &wide, &opts).unwrap();
+    let mut blind = door_map(3);
+    blind.data = vec![-1; 12];
+    save_map(&dir.join("maps/blind"), &blind, &opts).unwrap();
+    save_map(&dir.join("maps/cut"), &door_map(3), &opts).unwrap();
+    let pgm = std::fs::read(dir.join("maps/cut.pgm")).unwrap();
+    std::fs::write(dir.join("maps/cut.pgm"), &pgm[..pgm.len() - 5]).unwrap();
+
+    let cases = [
+        (
+            "backwards",
+            "100 maps/a.yaml\n50 maps/a.yaml\n",
+            "frames.txt:2",
+            "earlier",
+        ),
+        (
+            "dimensions",
+            "100 maps/a.yaml\n200 maps/wide.yaml\n",
+            "frames.txt:2",
+            "6x3 but the first map is 4x3",
+        ),
+        (
+            "unknown_only",
+            "100 maps/a.yaml\n200 maps/blind.yaml\n",
+            "frames.txt:2",
+            "observes no cell",
+        ),
+        (
+            "truncated",
+            "100 maps/a.yaml\n200 maps/cut.yaml\n",
+            "cut.pgm",
+            "trunc",
+        ),
+        (
+            "not_a_time",
+            "100 maps/a.yaml\nsoon maps/a.yaml\n",
+            "frames.txt:2",
+            "not a number",
+        ),
+    ];
+    for (name, list, where_, what) in cases {
+        let list_path = dir.join(format!("{name}/frames.txt"));
+        std::fs::create_dir_all(list_path.parent().unwrap()).unwrap();
+        let list = list.replace("maps/", "../maps/");
+        std::fs::write(&list_path, list).unwrap();
+        let out = chronomap(&[
+            "grid",
+            "build",
+            "--frames",
+            &list_path.display().to_string(),
+            "-o",
+            &dir.join("x.cmg").display().to_string(),
+        ]);
+        assert_eq!(out.status.code(), Some(1), "{name} accepted");
+        let err = String::from_utf8_lossy(&out.stderr).to_lowercase();
+        assert!(
+            err.contains(&where_.to_lowercase()) && err.contains(&what.to_lowercase()),
+            "{name}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+}
+
+#[test]
+fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
+    let dir = scratch("grid_series");
+    let files: Vec<String> = (0..3)
+        .map(|r| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join(format!("data/aruba_rooms_1min/presence_minutes_{r}.txt.xz"))
+                .display()
+                .to_string()
+        })
+        .collect();
+    let out_path = dir.join("flat.cmg").display().to_string();
+    let out = chronomap(&[
+        "grid",
+        "build",
+        "--cell-series",
+        &files.join(","),
+        "--store",
+        "lossy",
+        "--order",
+        "auto",
+        "-o",
+        &out_path,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(matches!(
+        read_grid_file(&out_path).unwrap(),
+        GridFile::Lossy(_)
+    ));
+
+    let office = dir.join("office.cmg").display().to_string();
+    let out = chronomap(&[
+        "grid",
+        "build",
+        "--synthetic",
+        "--cells",
+        "6400",
+        "--days",
+        "14",
+        "--errors",
+        "--store",
+        "lossless",
+        "-o",
+        &office,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("static (order 0)") && text.contains("FreMEn auto"),
+        "{text}"
+    );
+    let GridFile::Lossless(lossless) = read_grid_file(&office).unwrap() else {
+        panic!("not lossless")
+    };
+    assert_eq!(lossless.frames(), 14 * 17_280);
+}

@@ -1,0 +1,32 @@
+//! The tests of the `chronomap` binary and of the whole stack on real data, one module per
+//! command or dataset, in one test binary (one link instead of one per file).
+#![allow(dead_code)] // each module uses a different subset of the shared helpers
+
+mod common;
+mod service;
+
+mod activity;
+mod activity_disturbance;
+mod activity_extract;
+mod activity_model;
+mod activity_truth;
+mod aruba;
+mod basics;
+mod bench_activity;
+mod bench_serve;
+mod bt;
+mod events;
+mod explore;
+mod greg_door;
+mod grid;
+mod hypertime;
+mod monitor;
+mod psbt;
+mod readme;
+mod serve;
+mod serve_crash;
+mod serve_security;
+mod sklearn_gmm;
+mod storm_witham;
+mod tom_door;
+mod topo;

@@ -1,0 +1,116 @@
+//! Shared by the service tests: start `chronomap serve` as a real process on a fixed loopback
+//! port, kill it, restart it.
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A fresh scratch directory for one test.
+pub fn scratch(test: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A loopback port free right now.
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Where the models live.
+#[derive(Clone, Debug)]
+pub enum Backend {
+    /// `DATA/chronomap.redb`.
+    Redb,
+    /// PostgreSQL (connection string, schema).
+    Postgres(String, String),
+}
+
+/// The PostgreSQL connection string for tests, if configured (`CHRONOMAP_POSTGRES`). Without
+/// it the test is skipped, unless `CHRONOMAP_REQUIRE_POSTGRES=1` (as in CI) makes it fail.
+pub fn postgres() -> Option<String> {
+    match std::env::var("CHRONOMAP_POSTGRES") {
+        Ok(config) if !config.is_empty() => Some(config),
+        _ => {
+            if std::env::var("CHRONOMAP_REQUIRE_POSTGRES").as_deref() == Ok("1") {
+                panic!("CHRONOMAP_REQUIRE_POSTGRES=1 but CHRONOMAP_POSTGRES is not set");
+            }
+            eprintln!(
+                "skipped: set CHRONOMAP_POSTGRES='host=127.0.0.1 user=... dbname=...' to run the \
+                 PostgreSQL variant (.ci/run does)"
+            );
+            None
+        }
+    }
+}
+
+/// A running `chronomap serve`.
+pub struct Server {
+    pub child: Child,
+    pub url: String,
+    pub started_in: Duration,
+}
+
+/// Starts `chronomap serve` on `port` and waits until it listens.
+pub fn start(data: &Path, port: u16, backend: &Backend, extra: &[&str]) -> Server {
+    let begin = Instant::now();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_chronomap"));
+    command
+        .args(["serve", "--data"])
+        .arg(data)
+        .args(["--listen", &format!("127.0.0.1:{port}")])
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit());
+    if let Backend::Postgres(config, schema) = backend {
+        command.args(["--postgres", config, "--postgres-schema", schema]);
+    }
+    let mut child = command.spawn().expect("chronomap serve starts");
+    let stdout = child.stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines();
+    let first = lines
+        .next()
+        .expect("chronomap serve prints a line")
+        .expect("readable stdout");
+    assert!(
+        first.contains(&format!("listening on http://127.0.0.1:{port}")),
+        "unexpected first line: {first}"
+    );
+    // Keep draining stdout so that the server never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines {});
+    Server {
+        child,
+        url: format!("http://127.0.0.1:{port}"),
+        started_in: begin.elapsed(),
+    }
+}
+
+impl Server {
+    /// SIGKILL: no shutdown code runs.
+    pub fn kill(mut self) {
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The token the server generated in `data`.
+pub fn token(data: &Path) -> String {
+    std::fs::read_to_string(data.join("token"))
+        .unwrap()
+        .trim()
+        .to_owned()
+}
