@@ -5,7 +5,9 @@
 //! periodic components of the observed signal's spectrum over a fixed set Ω of candidate
 //! periods `T_k` (`ω_k = 2π / T_k`):
 //!
-//! $$ p(t) = \varsigma\Big(\mu + \sum_{l=1}^{m} 2|\gamma_l| \cos(\omega_l t + \arg\gamma_l)\Big) $$
+//! ```text
+//! p(t) = ς( μ + Σ_{l=1..m} 2|γ_l| cos(ω_l t + arg γ_l) )
+//! ```
 //!
 //! (seed 000 eq. (4); seed 001 eq. (10) with `α_l = 2|γ_l|`), where `ς` saturates to
 //! `[0, 1]` (seed 001 eq. (2)). The coefficients are the centred non-uniform spectrum

@@ -14,8 +14,9 @@
 //! bump straddling midnight was cut in two. Here every component is a *wrapped* normal
 //! density on the circle,
 //!
-//! $$ g_j(x) = \sum_{m=-2}^{2} \mathcal N(x + mP;\ \mu_j, \sigma_j), \qquad
-//!    g(x) = \sum_{j=1}^{K} \pi_j\, g_j(x), $$
+//! ```text
+//! g_j(x) = Σ_{m=−2..2} 𝒩(x + mP; μ_j, σ_j),    g(x) = Σ_{j=1..K} π_j g_j(x),
+//! ```
 //!
 //! (σ is at most `P/2`, so the images beyond `|m| = 2` are negligible), and EM treats the image
 //! `m` as part of the latent variable.
@@ -47,8 +48,9 @@
 //! as the least-squares scale of the density against the folded data, weighting each bin by
 //! its number of observations:
 //!
-//! $$ A = \frac{\sum_b n_b\, p'_b\, g(c_b)}{\sum_b n_b\, g(c_b)^2}, \qquad
-//!    p(t) = \varsigma\big(A\, g(t \bmod P)\big), $$
+//! ```text
+//! A = Σ_b n_b p'_b g(c_b) / Σ_b n_b g(c_b)²,    p(t) = ς(A · g(t mod P)),
+//! ```
 //!
 //! i.e. `w_j = A π_j` in eq. (9), with `ς` the saturation to `[0, 1]`. A model that has seen
 //! nothing predicts 0.5; one that has seen only zeros predicts 0 (no mixture is fitted).

@@ -5,14 +5,18 @@
 //! persistence model adds the expectation that a state seen recently has not changed yet.
 //! Its one parameter is the persistence `τ`, the mean time between changes, estimated as
 //!
-//! $$ \tau^{-1} = \frac{1}{n} \sum \frac{|s(t) - s(t_l)|}{t - t_l} \qquad (12) $$
+//! ```text
+//! 1/τ = (1/n) Σ |s(t) − s(t_l)| / (t − t_l)                            (12)
+//! ```
 //!
 //! over the `n` pairs of consecutive observations with `t − t_l > 0` (eq. (12) writes the
 //! same mean as a running update). Observations at the same instant as the previous one
 //! carry no evidence about the rate of change and only replace the last state `s(t_l)`.
 //! The prediction blends the last observation and the long-term model:
 //!
-//! $$ p'(t) = s(t_l)\, w + p(t)\,(1 - w), \qquad w = e^{-|t - t_l| \tau^{-1}} \qquad (13) $$
+//! ```text
+//! p'(t) = s(t_l)·w + p(t)·(1 − w),    w = exp(−|t − t_l| / τ)          (13)
+//! ```
 //!
 //! Close to the last observation (`|t − t_l| ≪ τ`) the model repeats it; far from it
 //! (`|t − t_l| ≫ τ`) it is FreMEn. The seed writes `t_l − t` for future times; queries before

@@ -3,11 +3,15 @@
 //! # Model (seed 000 §4.2, eqs. (5)–(6))
 //! The state switches from 0 to 1 with rate `α` and from 1 to 0 with rate `β` (per second):
 //!
-//! $$ \dot p_0 = -\alpha p_0 + \beta p_1, \qquad \dot p_1 = -\beta p_1 + \alpha p_0 \qquad (5) $$
+//! ```text
+//! dp₀/dt = −α p₀ + β p₁,    dp₁/dt = −β p₁ + α p₀                      (5)
+//! ```
 //!
 //! whose solution, given the state `s_l` observed last, at time `T`, is
 //!
-//! $$ p(t) = \pi + (s_l - \pi)\, e^{-(\alpha+\beta)|t - T|}, \qquad \pi = \frac{\alpha}{\alpha+\beta} \qquad (6) $$
+//! ```text
+//! p(t) = π + (s_l − π)·exp(−(α + β)|t − T|),    π = α / (α + β)        (6)
+//! ```
 //!
 //! Right after an observation the model predicts what was seen; far from it, the stationary
 //! probability `π`. The seed writes `t − T` for future times; queries before `T` use
