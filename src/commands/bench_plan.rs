@@ -19,11 +19,6 @@ impl Progress for StageLog {
     }
 }
 
-/// The median of `values` (until `bench activity` measures in the bench crate).
-pub(super) fn median(values: Vec<f64>) -> f64 {
-    chronomap_bench::median(&values)
-}
-
 pub fn plan(args: &BenchPlanArgs) -> Result<()> {
     let bench = chronomap_bench::plan::run(
         &PlanConfig {
