@@ -4,12 +4,13 @@
 //! One module per domain. Each exposes a function that runs its benchmark from a config struct
 //! and returns a result struct (`serde::Serialize`) with the timings, the baseline timings of
 //! the same run and the ratios; printing (tables, `--json`) is the caller's:
-//! `chronomap bench plan|activity|psbt` and the `chronomap-bench` binary of this crate
+//! `chronomap bench plan|serve|activity|psbt` and the `chronomap-bench` binary of this crate
 //! (the FreMEn benchmarks).
 //!
 //! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict (seed 001) against the textbook
 //!   transforms of `chronomap_core::naive`.
 //! * [`plan`]: planning on the Witham map (seed 003 §V) against Storm on the same cases.
+//! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
 //! * [`activity`]: CoPA-Map's training-data extraction and training (seed 002 chapter 4)
 //!   against bare scans and bare matrix products.
 //! * [`psbt`]: person search tree synthesis (seed 002 §5.4.3) against the dense reference and
@@ -25,6 +26,8 @@ pub mod activity;
 pub mod fremen;
 pub mod plan;
 pub mod psbt;
+#[cfg(feature = "serve")]
+pub mod serve;
 
 /// The median of `values`: the middle one, or the mean of the middle two for an even count
 /// (NaN for none).
