@@ -30,7 +30,7 @@ use crate::median;
 pub const DAY: f64 = 1_409_788_800.0;
 
 /// (start node, task): reachability, an ordered visit, an avoid-until; all cross the lab door
-/// (the same cases as `tests/storm_witham.rs`). Each is planned at every hour of [`DAY`].
+/// (the same cases as `tests/cli/storm_witham.rs`). Each is planned at every hour of [`DAY`].
 pub const TASKS: [(&str, &str); 3] = [
     ("Station", "F Kitchen"),
     ("Station", "F (Printer & F (Kitchen & F Station))"),
