@@ -1,0 +1,58 @@
+//! Benchmarks of chronomap: every fast path is timed against a baseline measured in the same
+//! run on the same machine, and the ratio is reported (see BENCHMARKS.md).
+//!
+//! One module per domain. Each exposes a function that runs its benchmark from a config struct
+//! and returns a result struct (`serde::Serialize`) with the timings, the baseline timings of
+//! the same run and the ratios; printing (tables, `--json`) is the caller's:
+//! `chronomap bench plan|serve|activity|psbt` and the `chronomap-bench` binary of this crate
+//! (the FreMEn benchmarks).
+//!
+//! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict (seed 001) against the textbook
+//!   transforms of `chronomap_core::naive`.
+//! * [`plan`]: planning on the Witham map (seed 003 §V) against Storm on the same cases.
+//! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
+//! * [`activity`]: CoPA-Map's training-data extraction and training (seed 002 chapter 4)
+//!   against bare scans and bare matrix products.
+//! * [`psbt`]: person search tree synthesis (seed 002 §5.4.3) against the dense reference and
+//!   a per-tree solve.
+//!
+//! Benchmarks are an edge of the workspace: they read clocks and files. The algorithms they
+//! time come from the library crates; a baseline written only for a benchmark lives here, with
+//! a doc comment saying what it is the baseline of (slow oracles that tests need too live in
+//! the domain crates' `naive` modules).
+#![deny(missing_docs)]
+
+pub mod activity;
+pub mod fremen;
+pub mod plan;
+pub mod psbt;
+#[cfg(feature = "serve")]
+pub mod serve;
+
+/// The median of `values`: the middle one, or the mean of the middle two for an even count
+/// (NaN for none).
+pub fn median(values: &[f64]) -> f64 {
+    let mut values = values.to_vec();
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n == 0 {
+        f64::NAN
+    } else if n.is_multiple_of(2) {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    } else {
+        values[n / 2]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::median;
+
+    #[test]
+    fn median_is_the_middle_value_or_the_mean_of_the_middle_two() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(&[7.0]), 7.0);
+        assert!(median(&[]).is_nan());
+    }
+}
