@@ -34,8 +34,11 @@
 //!   ([`EventModelBuilder`], [`default_builders`]).
 //! * [`run_experiment`] — the experiment of seed 004 §V-D: MSE per cell of every model against
 //!   the test counts, its reduction against the static map and a paired t-test.
+//! * [`density`] — maps of the expected events per m² per hour at given times, and the
+//!   extent of a set of events.
 
 mod baselines;
+pub mod density;
 mod experiment;
 mod training;
 
