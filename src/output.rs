@@ -1,7 +1,7 @@
 //! What the binary shows: results on stdout (text or `--json`), progress bars and errors on
 //! stderr, exit codes.
 //!
-//! * Results go through [`outln!`], which returns the write error instead of panicking, so a
+//! * Results go through [`outln!`](crate::outln), which returns the write error instead of panicking, so a
 //!   closed pipe (`chronomap inspect door.cmm | head -1`) ends the command quietly: `main`
 //!   exits 0 when the first error in the chain is a broken pipe.
 //! * Exit codes: 0 success (and a closed output pipe), 1 a failure at run time (a bad file, a
@@ -35,7 +35,7 @@ macro_rules! outln {
     };
 }
 
-/// Writes to stdout without a newline; like [`outln!`].
+/// Writes to stdout without a newline; like [`outln!`](crate::outln).
 #[macro_export]
 macro_rules! out {
     ($($arg:tt)*) => {
@@ -44,10 +44,15 @@ macro_rules! out {
 }
 
 /// Prints `value` as pretty JSON on stdout (the `--json` output of every command).
+///
+/// The text is made first and written in one go: a closed pipe is then the `io::Error` that
+/// [`exit_code`] recognises (serde_json's writer would hide it in its own error), and a value
+/// that cannot be serialised prints nothing.
 pub fn print_json(value: &impl Serialize) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
     let mut stdout = io::stdout().lock();
-    serde_json::to_writer_pretty(&mut stdout, value)?;
-    stdout.write_all(b"\n")?;
+    stdout.write_all(text.as_bytes())?;
     stdout.flush()?;
     Ok(())
 }
