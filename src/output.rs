@@ -44,10 +44,15 @@ macro_rules! out {
 }
 
 /// Prints `value` as pretty JSON on stdout (the `--json` output of every command).
+///
+/// The text is made first and written in one go: a closed pipe is then the `io::Error` that
+/// [`exit_code`] recognises (serde_json's writer would hide it in its own error), and a value
+/// that cannot be serialised prints nothing.
 pub fn print_json(value: &impl Serialize) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
     let mut stdout = io::stdout().lock();
-    serde_json::to_writer_pretty(&mut stdout, value)?;
-    stdout.write_all(b"\n")?;
+    stdout.write_all(text.as_bytes())?;
     stdout.flush()?;
     Ok(())
 }

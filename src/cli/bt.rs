@@ -192,7 +192,7 @@ mod tests {
             panic!("not eval")
         };
         assert_eq!(args.tests.len(), 2);
-        assert_eq!(args.models.0.len(), 8);
+        assert_eq!(model_specs(&args.models).len(), 8);
         assert!(args.json);
         assert!(Cli::try_parse_from(["chronomap", "eval", "--train", "a", "--test", "x"]).is_err());
         assert!(

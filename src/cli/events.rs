@@ -2,6 +2,7 @@
 
 #[allow(unused_imports)]
 use super::*;
+use chronomap_hypertime::hypertime::Components;
 
 pub(super) const FEATURES_HELP: &str = "\
 Example (111 image features at one place of the Brayford office, one week in 10-minute slots,
@@ -23,17 +24,17 @@ pub struct FeaturesArgs {
     #[arg(long, default_value_t = 600.0, value_parser = parse_positive)]
     pub slot_secs: f64,
     /// Lines per slot (the rows of a slot are repeated; the first is used).
-    #[arg(long, default_value_t = 1)]
-    pub lines_per_slot: usize,
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub lines_per_slot: u32,
     /// Days of slots to train on; the rest is the test.
     #[arg(long, default_value_t = 6.0, value_parser = parse_positive)]
     pub train_days: f64,
-    /// Numbers of features to pick, comma-separated.
+    /// Numbers of features to pick (comma-separated or repeated).
     #[arg(long, value_delimiter = ',', default_value = "5,10,20,50")]
     pub n: Vec<usize>,
-    /// Models, comma-separated.
+    /// Models (comma-separated or repeated).
     #[arg(long, value_parser = parse_models, default_value = "mean,hist:24,fremen:auto,hyt-em:auto,hyt-km")]
-    pub models: ModelList,
+    pub models: Vec<ModelList>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -54,30 +55,43 @@ the largest value).";
 /// `chronomap hypertime`.
 #[derive(Debug, Args)]
 pub struct HypertimeArgs {
-    /// Training event files (`t x y ...` lines), comma-separated.
+    /// Training event files (`t x y ...` lines; comma-separated or repeated).
     #[arg(long, value_delimiter = ',', required = true)]
     pub train: Vec<PathBuf>,
-    /// Use only detections before this time: seconds or ISO 8601.
+    /// Use only detections before this time: unix seconds or ISO 8601 (UTC unless an offset is
+    /// given).
     #[arg(long, value_parser = parse_time)]
     pub train_before: Option<f64>,
-    /// Times to draw the predicted density at (seconds or ISO 8601), comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_time)]
+    /// Times to draw the predicted density at: unix seconds or ISO 8601 such as
+    /// 2017-05-26T10:00Z (UTC unless an offset is given); comma-separated, space-separated or
+    /// repeated.
+    #[arg(long, num_args = 1.., value_delimiter = ',', action = clap::ArgAction::Append, value_parser = parse_time)]
     pub at: Vec<f64>,
-    /// Mixture components: a number or `auto`.
-    #[arg(long, default_value = "auto")]
-    pub components: String,
+    /// Mixture components: a number >= 1 or `auto`.
+    #[arg(long, default_value = "auto", value_parser = parse_components)]
+    pub components: Components,
     /// Cell size of the maps in metres.
     #[arg(long, default_value_t = 0.25, value_parser = parse_positive)]
     pub cell: f64,
     /// Detections further apart than this many seconds start a new window of observation.
     #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
     pub gap: f64,
-    /// Write the maps at --at as one PNG.
-    #[arg(long)]
+    /// Draw the maps at --at into this PNG.
+    #[arg(long, requires = "at")]
     pub plot: Option<PathBuf>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_components(text: &str) -> Result<Components, String> {
+    match text {
+        "auto" => Ok(Components::Auto),
+        k => match k.parse::<usize>() {
+            Ok(k) if k >= 1 => Ok(Components::Fixed(k)),
+            _ => Err(format!("{k:?}: give a whole number >= 1 or auto")),
+        },
+    }
 }
 
 pub(super) const EVENTS_HELP_EVAL: &str = "\
@@ -114,23 +128,24 @@ pub enum EventsCommand {
 /// `chronomap events eval`.
 #[derive(Debug, Args)]
 pub struct EventsEvalArgs {
-    /// Training event files, comma-separated (merged in time order).
+    /// Training event files, merged in time order (comma-separated or repeated).
     #[arg(long, value_delimiter = ',', required = true)]
     pub train: Vec<PathBuf>,
-    /// Use only training detections before this time: seconds or ISO 8601 (UTC unless an
-    /// offset is given).
+    /// Use only training detections before this time: unix seconds or ISO 8601 such as
+    /// 2017-05-25T00:00Z (UTC unless an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub train_before: Option<f64>,
     /// Test event file (a later day).
     #[arg(long)]
     pub test: PathBuf,
-    /// Use only test detections at or after this time: seconds or ISO 8601.
+    /// Use only test detections at or after this time: unix seconds or ISO 8601 (UTC unless
+    /// an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub test_from: Option<f64>,
-    /// Cell sizes in metres, comma-separated.
+    /// Cell sizes in metres (comma-separated or repeated).
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2", value_parser = parse_positive)]
     pub cells: Vec<f64>,
-    /// Bin lengths in seconds, comma-separated.
+    /// Bin lengths in seconds (comma-separated or repeated).
     #[arg(long, value_delimiter = ',', default_value = "600,1800,3600", value_parser = parse_positive)]
     pub bins: Vec<f64>,
     /// Detections further apart than this many seconds start a new window of observation.

@@ -8,7 +8,7 @@ Examples:
   chronomap explore --dataset aruba --data data/aruba_rooms_1min --ratio 0.5
   chronomap explore --dataset brayford --data data/brayford_week --ratio 0.5 --json
   chronomap explore --dataset aruba --data data/aruba_rooms_1min \\
-      --sweep docs/img/exploration_sweep.png --behaviour docs/img/exploration_behaviour.png";
+      --plot-sweep docs/img/exploration_sweep.png --plot-behaviour docs/img/exploration_behaviour.png";
 
 /// Datasets `explore` reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -40,12 +40,12 @@ pub struct ExploreArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Also write the exploration-ratio sweep (seed 000 Fig. 5) to this PNG.
-    #[arg(long)]
-    pub sweep: Option<PathBuf>,
-    /// Also write the behaviour of the first days (seed 000 Fig. 6) to this PNG.
-    #[arg(long)]
-    pub behaviour: Option<PathBuf>,
+    /// Also draw the exploration-ratio sweep (seed 000 Fig. 5) into this PNG.
+    #[arg(long, alias = "sweep")]
+    pub plot_sweep: Option<PathBuf>,
+    /// Also draw the behaviour of the first days (seed 000 Fig. 6) into this PNG.
+    #[arg(long, alias = "behaviour")]
+    pub plot_behaviour: Option<PathBuf>,
 }
 
 pub(super) fn parse_ratio(text: &str) -> Result<f64, String> {

@@ -11,16 +11,13 @@ pub enum GridCommand {
     #[command(after_help = GRID_BUILD_HELP)]
     Build(GridBuildArgs),
     /// Predict the map at a time and write it as a ROS map_server / Nav2 map (YAML + image).
-    #[command(
-        after_help = "Example:\n  chronomap grid predict office.cmg --time 1461661200 --out predicted/map.yaml\n  (writes predicted/map.yaml and predicted/map.pgm)"
-    )]
+    #[command(after_help = GRID_PREDICT_HELP)]
     Predict(GridPredictArgs),
     /// Show what a grid file holds: size, changing cells, compression ratio (eq. 16).
+    #[command(after_help = "Example:\n  chronomap grid stats office.cmg --json")]
     Stats(GridStatsArgs),
     /// Draw the maps predicted for several times side by side.
-    #[command(
-        after_help = "Example:\n  chronomap grid plot office.cmg --time 1461636000 --time 1461672000 -o maps.png"
-    )]
+    #[command(after_help = GRID_PLOT_HELP)]
     Plot(GridPlotArgs),
 }
 
@@ -28,7 +25,21 @@ pub(super) const GRID_BUILD_HELP: &str = "\
 Examples:
   chronomap grid build --synthetic --days 14 --cells 32000 -o office.cmg --errors
   chronomap grid build --frames frames.txt -o corridor.cmg   # lines: <unix time> <map.yaml>
-  chronomap grid build --cell-series data/aruba_rooms_1min/presence_minutes_0.txt.xz,... -o flat.cmg";
+  chronomap grid build --cell-series data/aruba_rooms_1min/presence_minutes_0.txt.xz,... -o flat.cmg --json";
+
+pub(super) const GRID_PREDICT_HELP: &str = "\
+The time is unix seconds or ISO 8601 (2016-04-26T09:00:00Z; UTC unless an offset is given).
+
+Examples:
+  chronomap grid predict office.cmg --time 1461661200 -o predicted/map.yaml
+  (writes predicted/map.yaml and predicted/map.pgm)
+  chronomap grid predict office.cmg --time 2016-04-26T09:00:00Z -o mask --mode scale --json";
+
+pub(super) const GRID_PLOT_HELP: &str = "\
+Times are unix seconds or ISO 8601 (2016-04-26T02:00:00Z; UTC unless an offset is given).
+
+Example:
+  chronomap grid plot office.cmg --time 1461636000,1461672000 --plot maps.png";
 
 /// Where `grid build` gets its frames.
 #[derive(Debug, Args)]
@@ -37,11 +48,12 @@ pub struct GridSource {
     /// The synthetic office (see --cells, --days, --seed).
     #[arg(long)]
     pub synthetic: bool,
-    /// A list of frames, one per line: `<time> <map.yaml>` (ROS map_server / Nav2 maps, paths
-    /// relative to the list).
+    /// A list of frames, one per line: `<time> <map.yaml>` (times in unix seconds; ROS
+    /// map_server / Nav2 maps, paths relative to the list).
     #[arg(long)]
     pub frames: Option<PathBuf>,
-    /// One `t value` file per cell (a symbolic map), all with the same times, comma-separated.
+    /// One `t value` file per cell (a symbolic map), all with the same times; comma-separated
+    /// or repeated.
     #[arg(long, value_delimiter = ',')]
     pub cell_series: Vec<PathBuf>,
 }
@@ -73,8 +85,8 @@ pub struct GridBuildArgs {
     pub store: StoreArg,
     /// Order of the stored compact model: a number, or `auto` (chosen per cell on the held-back
     /// frames).
-    #[arg(long, default_value = "2")]
-    pub order: String,
+    #[arg(long, default_value = "2", value_parser = parse_grid_order)]
+    pub order: GridOrder,
     /// Candidate periods of every cell's FreMEn model.
     #[arg(long, default_value = "week", value_parser = parse_periods)]
     pub periods: PeriodSet,
@@ -87,8 +99,30 @@ pub struct GridBuildArgs {
     #[arg(long, default_value_t = 0.25, value_parser = parse_fraction)]
     pub holdout: f64,
     /// Threads for the synthetic office (default: all).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
+    /// Print one JSON object.
     #[arg(long)]
-    pub threads: Option<usize>,
+    pub json: bool,
+}
+
+/// `--order` of `grid build`: a number or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GridOrder {
+    /// Every cell with this order.
+    Fixed(usize),
+    /// Each cell's order chosen on the held-back frames.
+    Auto,
+}
+
+fn parse_grid_order(text: &str) -> Result<GridOrder, String> {
+    match text {
+        "auto" => Ok(GridOrder::Auto),
+        k => k
+            .parse()
+            .map(GridOrder::Fixed)
+            .map_err(|_| format!("{k:?} is not a whole number or 'auto'")),
+    }
 }
 
 /// `--store` values.
@@ -107,13 +141,13 @@ pub enum StoreArg {
 pub struct GridPredictArgs {
     /// Grid file.
     pub grid: PathBuf,
-    /// Time to predict (seconds).
+    /// Time to predict: unix seconds or ISO 8601 (UTC unless an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub time: f64,
     /// The map's YAML file (`map.yaml`, or `map` without extension): the image is written beside
     /// it (`map.pgm`, or `map.png` with --mode scale).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(short, long, alias = "out")]
+    pub output: PathBuf,
     /// Map mode: trinary (free/occupied/unknown, like map_saver) or scale (a costmap filter
     /// mask).
     #[arg(long, value_enum, default_value_t = MapModeArg::Trinary)]
@@ -123,8 +157,28 @@ pub struct GridPredictArgs {
     pub order: Option<usize>,
     /// For 3-D grids: the layers (z indices, `a..b`) projected onto the 2-D map; a column is as
     /// occupied as its most occupied known cell (default: all layers).
+    #[arg(long, value_parser = parse_layers)]
+    pub layers: Option<Layers>,
+    /// Print one JSON object.
     #[arg(long)]
-    pub layers: Option<String>,
+    pub json: bool,
+}
+
+/// `--layers a..b`: z indices `a` (inclusive) to `b` (exclusive).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layers(pub u32, pub u32);
+
+fn parse_layers(text: &str) -> Result<Layers, String> {
+    let bad = || format!("{text:?} is not a..b (first and last + 1 layer, a < b)");
+    let (a, b) = text.split_once("..").ok_or_else(bad)?;
+    let (a, b): (u32, u32) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
+    if a >= b {
+        return Err(bad());
+    }
+    Ok(Layers(a, b))
 }
 
 /// `--mode` values.
@@ -141,6 +195,9 @@ pub enum MapModeArg {
 pub struct GridStatsArgs {
     /// Grid file.
     pub grid: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `chronomap grid plot`.
@@ -148,16 +205,17 @@ pub struct GridStatsArgs {
 pub struct GridPlotArgs {
     /// Grid file.
     pub grid: PathBuf,
-    /// Times to predict (repeat; default: 3:00 and 14:00 on the day after the data).
-    #[arg(long = "time", value_parser = parse_time)]
+    /// Times to predict: unix seconds or ISO 8601 (UTC unless an offset is given);
+    /// comma-separated or repeated (default: 3:00 and 14:00 on the day after the data).
+    #[arg(long = "time", value_delimiter = ',', value_parser = parse_time)]
     pub times: Vec<f64>,
     /// Order of the prediction (learning-state files only).
     #[arg(long)]
     pub order: Option<usize>,
     /// Layers of a 3-D grid to project (`a..b`).
-    #[arg(long)]
-    pub layers: Option<String>,
+    #[arg(long, value_parser = parse_layers)]
+    pub layers: Option<Layers>,
     /// PNG to write.
-    #[arg(short, long)]
-    pub output: PathBuf,
+    #[arg(long, short_alias = 'o', alias = "output")]
+    pub plot: PathBuf,
 }

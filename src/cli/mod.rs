@@ -60,30 +60,24 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Evaluate models on the bundled real door data and write plots (the main job).
-    #[command(after_help = "Example:\n  chronomap demo --out chronomap-demo")]
+    #[command(after_help = DEMO_HELP)]
     Demo(DemoArgs),
     /// Train models on a training file and score them on test sets (Brier score, binary
     /// error, paired t-tests).
     #[command(after_help = EVAL_HELP)]
     Eval(EvalArgs),
     /// Train one model and save it to a model file.
-    #[command(
-        after_help = "Example:\n  chronomap fit --train data/door_greg_2016/training_data.txt.xz --model fremen:auto -o door.cmm"
-    )]
+    #[command(after_help = FIT_HELP)]
     Fit(FitArgs),
     /// Predict with a saved model: probability and entropy at given times.
-    #[command(
-        after_help = "Examples:\n  chronomap predict door.cmm --at 1458561600 1458565200\n  chronomap predict door.cmm --times test_times_1.txt"
-    )]
+    #[command(after_help = PREDICT_HELP)]
     Predict(PredictArgs),
     /// Show what a saved model contains.
-    #[command(after_help = "Example:\n  chronomap inspect door.cmm")]
+    #[command(after_help = INSPECT_HELP)]
     Inspect(InspectArgs),
     /// List observations that a saved model finds anomalous at a confidence level
     /// (FreMEn paper §V).
-    #[command(
-        after_help = "Example:\n  chronomap anomalies door.cmm --test test_times_1.txt,test_data_1.txt --confidence 0.99"
-    )]
+    #[command(after_help = ANOMALIES_HELP)]
     Anomalies(AnomaliesArgs),
     /// Compress a uniformly sampled binary series with FFT FreMEn and its outlier set
     /// (lossless), and report errors and compression ratios (FreMEn paper §III-B, §IV).

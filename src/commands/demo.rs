@@ -20,6 +20,9 @@ use super::describe_selection;
 use crate::bundled;
 use crate::cli::DemoArgs;
 use crate::format::{Table, duration, time};
+use crate::outln;
+use crate::output::ProgressBar;
+use chronomap_core::progress::Progress;
 
 /// Mean Brier score over greg door test weeks 1..5 of the original FreMEn C++ code
 /// (strands-project/fremen `CFrelement`), from the dataset's README.
@@ -38,7 +41,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         parallelism: Parallelism::Rayon(0),
         ..FitOptions::default()
     };
-    println!("chronomap demo: temporal models of real doors, beside the original FreMEn code\n");
+    outln!("chronomap demo: temporal models of real doors, beside the original FreMEn code\n")?;
 
     // 1. Greg's door.
     let train = bundled::GREG_TRAINING.pairs()?;
@@ -46,7 +49,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .iter()
         .map(bundled::test_set)
         .collect::<Result<_>>()?;
-    println!(
+    outln!(
         "1. An office door in Lincoln, 2016 (data/door_greg_2016): trained on {} minutes from {} to {}, \
          tested on the {} weeks that follow. The door is open {:.1} % of the time.\n",
         train.len(),
@@ -54,25 +57,25 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         time(train.times[train.len() - 1]),
         tests.len(),
         100.0 * train.values.iter().sum::<f64>() / train.len() as f64
-    );
+    )?;
     let specs = parse_model_list(
         "mean,fremen:0,fremen:2,fremen:4,fremen:auto,persistence:auto,stm,hist:24,hist:24:86400,pergam:2,auto",
     )?;
-    let greg = run_eval(&specs, &train, &tests, &options)?;
+    let greg = run_eval("greg door: fitting", &specs, &train, &tests, &options)?;
     print_eval(&greg, |name| {
         GREG_REFERENCE
             .iter()
             .chain(std::iter::once(&GREG_HIST_REFERENCE))
             .find(|(n, _)| *n == name)
             .map(|(_, v)| *v)
-    });
-    println!(
+    })?;
+    outln!(
         "\n   'original' = mean squared error of the original FreMEn C++ code on the same weeks. \
          Its 24-bin histogram figure matches 24 bins over a day (hist:24:86400); \
          24 bins over a week (hist:24) is shown too. The original PerGaM had no wrap-around at midnight."
-    );
-    print_selections(&greg);
-    print_significant(&greg, 8);
+    )?;
+    print_selections(&greg)?;
+    print_significant(&greg, 8)?;
 
     // 2. Tom's door, one week at one minute.
     let tom_train = bundled::TOM_TRAINING.pairs()?;
@@ -80,29 +83,35 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .iter()
         .map(bundled::test_set)
         .collect::<Result<_>>()?;
-    println!(
+    outln!(
         "\n2. The door of the FreMEn paper (seed 001 §V), 2013: trained on one week at one minute, \
          tested on days 8, 9 and 13 (door closed all day).\n"
-    );
+    )?;
     let tom_specs =
         parse_model_list("mean,fremen:1,fremen:2,fremen:4,fremen:auto,hist:24,pergam:2,auto")?;
-    let tom = run_eval(&tom_specs, &tom_train, &tom_tests, &options)?;
-    print_eval(&tom, |_| None);
-    print_selections(&tom);
-    println!(
+    let tom = run_eval(
+        "tom door: fitting",
+        &tom_specs,
+        &tom_train,
+        &tom_tests,
+        &options,
+    )?;
+    print_eval(&tom, |_| None)?;
+    print_selections(&tom)?;
+    outln!(
         "   With a single week of training, the most recent quarter held back to choose an order is \
          the weekend, which weekday rhythms mispredict: the automatic choices fall back to (nearly) \
          constant models here, while ten weeks of greg's door give them enough to choose well."
-    );
+    )?;
 
     // 3. FFT FreMEn on the one-second week.
     let week = bundled::test_set(&bundled::TOM_SECONDS_WEEK)?;
     let day8 = bundled::test_set(&bundled::TOM_SECONDS_DAY8)?;
     let (start, step, samples) = uniform_binary_samples(&week.times, &week.values)?;
-    println!(
+    outln!(
         "\n3. FFT FreMEn with outlier set (seed 001 §III-B) on the same door at one second: {} samples.\n",
         samples.len()
-    );
+    )?;
     let mut table = Table::new([
         "order",
         "outlier toggles",
@@ -114,8 +123,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "eps_p day 8",
         "build ms",
     ]);
-    for order in [0usize, 2, 5, 10] {
-        let report = compress(start, step, &samples, FftFremenConfig::with_order(order))?;
+    let orders = [0usize, 2, 5, 10];
+    let bar = ProgressBar::stage("FFT FreMEn", orders.len() as u64);
+    for order in orders {
+        let compressed = compress(start, step, &samples, FftFremenConfig::with_order(order))?;
+        let (report, build_ms) = (&compressed.series, compressed.build_ms);
         let mut model = report.model.clone();
         let before = model.len();
         model.observe(&day8.times, &day8.values)?;
@@ -128,49 +140,56 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             format!("1:{:.0}", report.ratio(report.lossy_file_bytes)),
             if report.lossless { "yes" } else { "NO" }.to_string(),
             format!("{:.4}", model.error_between(before, model.len())),
-            format!("{:.2}", report.build_ms),
+            format!("{build_ms:.2}"),
         ]);
         anyhow::ensure!(report.lossless, "FFT FreMEn order {order} is not lossless");
+        bar.advance(1);
     }
-    println!("{}", indent(&table.render()));
-    println!(
+    drop(bar);
+    outln!("{}", indent(&table.render()))?;
+    outln!(
         "\n   The paper reports ~360 outlier values (180 intervals), ~1:100 lossless and ~1:1000 lossy \
          compression of this week at 2 Hz, built in 3.7 ms (FFTW, i7). eps_e = estimation error, \
          eps_p = prediction error on day 8 (eq. 14-15)."
-    );
+    )?;
 
     if !args.no_plots {
-        std::fs::create_dir_all(&args.out)
-            .with_context(|| format!("cannot create {}", args.out.display()))?;
+        std::fs::create_dir_all(&args.output)
+            .with_context(|| format!("cannot create {}", args.output.display()))?;
     }
-    let out = (!args.no_plots).then_some(args.out.as_path());
+    let out = (!args.no_plots).then_some(args.output.as_path());
     let mut written = super::demo_grids::run(out)?;
     written.extend(super::demo_topo::run(out)?);
     if !args.no_plots {
-        written.splice(
-            0..0,
-            plots(&args.out, &tom_train, &train, &tests[0], &greg)?,
-        );
-        println!("\n6. Files written:");
+        let bar = ProgressBar::stage("plots", 0);
+        let figures = plots(&args.output, &tom_train, &train, &tests[0], &greg)?;
+        drop(bar);
+        written.splice(0..0, figures);
+        outln!("\n6. Files written:")?;
         for path in written {
-            println!("   {}", path);
+            outln!("   {}", path)?;
         }
     }
     Ok(())
 }
 
+/// Evaluates `specs` with a progress bar named `stage` (cleared before anything is printed).
 fn run_eval(
+    stage: &str,
     specs: &[ModelSpec],
     train: &TimeSeries,
     tests: &[TimeSeries],
     options: &FitOptions,
 ) -> Result<EvalReport> {
     let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
-    evaluate(specs, &train.times, &train.values, &sets, options, |_| {})
-        .map_err(|(spec, e)| anyhow::anyhow!("model {spec}: {e}"))
+    let bar = ProgressBar::stage(stage, specs.len() as u64);
+    evaluate(specs, &train.times, &train.values, &sets, options, |_| {
+        bar.advance(1)
+    })
+    .map_err(|(spec, e)| anyhow::anyhow!("model {spec}: {e}"))
 }
 
-fn print_eval(report: &EvalReport, reference: impl Fn(&str) -> Option<f64>) {
+fn print_eval(report: &EvalReport, reference: impl Fn(&str) -> Option<f64>) -> Result<()> {
     let tests = report.models[0].tests.len();
     let mut header = vec!["model".to_string(), "fitted as".into()];
     header.extend((1..=tests).map(|i| format!("test {i}")));
@@ -185,34 +204,37 @@ fn print_eval(report: &EvalReport, reference: impl Fn(&str) -> Option<f64>) {
         row.push(format!("{:.4}", m.mean_binary_error()));
         table.row(row);
     }
-    println!("{}", indent(&table.render()));
+    outln!("{}", indent(&table.render()))?;
+    Ok(())
 }
 
-fn print_selections(report: &EvalReport) {
+fn print_selections(report: &EvalReport) -> Result<()> {
     for m in &report.models {
         if let Some(s) = &m.fitted.selection {
-            println!("   {}: {}", m.spec, describe_selection(s));
+            outln!("   {}: {}", m.spec, describe_selection(s))?;
         }
     }
+    Ok(())
 }
 
-fn print_significant(report: &EvalReport, max: usize) {
+fn print_significant(report: &EvalReport, max: usize) -> Result<()> {
     let mut significant: Vec<_> = report.significant(0.05).collect();
     significant.sort_by(|a, b| a.test.p_value.total_cmp(&b.test.p_value));
-    println!(
+    outln!(
         "   {} of {} pairs differ significantly (paired t-test over the test weeks, p < 0.05); the strongest:",
         significant.len(),
         report.comparisons.len()
-    );
+    )?;
     for c in significant.iter().take(max) {
-        println!(
+        outln!(
             "     {} better than {} by {:.4} (p = {:.4})",
             report.models[c.better].spec,
             report.models[c.worse].spec,
             -c.test.mean_difference,
             c.test.p_value
-        );
+        )?;
     }
+    Ok(())
 }
 
 pub(super) fn indent(text: &str) -> String {

@@ -11,6 +11,8 @@ use super::demo::indent;
 use super::topo::DayTable;
 use crate::bundled;
 use crate::format::{Table, time};
+use crate::outln;
+use crate::output::ProgressBar;
 
 /// 2014-08-20 00:00 UTC: the chronological split (train before, test from).
 const SPLIT: f64 = 1_408_492_800.0;
@@ -18,21 +20,9 @@ const SPLIT: f64 = 1_408_492_800.0;
 /// Prints section 5 of the demo; writes the heat map into `out` if given. Returns the files
 /// written.
 pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
-    println!(
+    outln!(
         "\n5. Now or later? Navigation on a topological map whose edges know time (seed 003).\n"
-    );
-    let stats = bundled::witham_edges()?;
-    let (first, last) = stats
-        .time_span()
-        .ok_or_else(|| anyhow!("the Witham data have no attempt"))?;
-    println!(
-        "   Witham Wharf, {} nodes, {} edges, {} traversal attempts, {} .. {}.",
-        stats.map.nodes().len(),
-        stats.map.edges().len(),
-        stats.total_attempts(),
-        time(first),
-        time(last)
-    );
+    )?;
     // Success: FreMEn of order 1 with persistence (the daily rhythm of the doors plus the
     // memory of the last attempts); durations: FreMEn with automatic order.
     let config = EdgeModelConfig {
@@ -44,17 +34,31 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
             .map_err(|(edge, e)| anyhow!("Witham edge {edge}: {e}"))
     };
 
+    let bar = ProgressBar::stage("Witham edges", 0);
+    let stats = bundled::witham_edges()?;
+    let (first, last) = stats
+        .time_span()
+        .ok_or_else(|| anyhow!("the Witham data have no attempt"))?;
     let (train, test) = stats.split_at(SPLIT);
     let train_attempts = train.total_attempts();
     let models = fit(train.map, &train.attempts)?;
     let online = models.evaluate_online(&test.attempts)?;
     let frozen = models.evaluate(&test.attempts)?;
-    println!(
+    drop(bar);
+    outln!(
+        "   Witham Wharf, {} nodes, {} edges, {} traversal attempts, {} .. {}.",
+        stats.map.nodes().len(),
+        stats.map.edges().len(),
+        stats.total_attempts(),
+        time(first),
+        time(last)
+    )?;
+    outln!(
         "   Trained on the {} attempts before {}, scored on the {} after (the robot's later weeks):\n",
         train_attempts,
         time(SPLIT),
         test.total_attempts()
-    );
+    )?;
     let mut table = Table::new([
         "protocol",
         "success Brier",
@@ -79,29 +83,31 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
             format!("{:.2}", score.static_duration_mse),
         ]);
     }
-    println!("{}", indent(&table.render()));
-    println!(
+    outln!("{}", indent(&table.render()))?;
+    outln!(
         "\n   Online, the per-edge models beat the static per-edge rates by far: persistence (seed \
          001 eq. 12-13)\n   carries the robot's retry bursts. Frozen for weeks, the daily rhythm \
          alone does not transfer."
-    );
+    )?;
 
+    let bar = ProgressBar::stage("Witham plans", 0);
     let started = Instant::now();
     let models = fit(stats.map, &stats.attempts)?;
     let fit_seconds = started.elapsed().as_secs_f64();
     let table = DayTable::compute(&models, "Station", "F Kitchen", last + 86_400.0, 7, 120)?;
-    println!(
+    drop(bar);
+    outln!(
         "\n   Fitted on all attempts in {fit_seconds:.2} s. Task \"F Kitchen\" from Station: the lab's \
          only way out\n   is the door LabDoor1 -> LabDoor2. Maximum probability of success and first \
          action in the week\n   after the data ({} plans in {:.1} ms):\n",
         7 * 12,
         1e3 * table.seconds
-    );
-    println!("{}", indent(&table.render()));
-    println!(
+    )?;
+    outln!("{}", indent(&table.render()))?;
+    outln!(
         "\n   The door's daily rhythm: hopeless at night, best in the afternoon; the first night \
          still\n   remembers the successes just before the data end (persistence)."
-    );
+    )?;
     let mut written = Vec::new();
     if let Some(dir) = out {
         let path = dir.join("witham_now_or_later.png");

@@ -1,15 +1,17 @@
 //! `chronomap eval`: the benchmark experiment of the FreMEn papers on any data.
 
-use std::io::{IsTerminal, Write};
-
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow};
+use chronomap_core::progress::Progress;
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
+use chronomap_models::split::{SplitError, chronological_split};
 use serde_json::json;
 
 use super::describe_selection;
-use crate::cli::EvalArgs;
+use crate::cli::{EvalArgs, model_specs};
 use crate::format::{Table, duration, time};
+use crate::outln;
+use crate::output::{ProgressBar, print_json, usage};
 
 /// Test sets: their data and a (times, values) label each.
 type Tests = (Vec<TimeSeries>, Vec<(String, String)>);
@@ -30,91 +32,66 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
             .collect();
         return Ok((all, (tests, labels)));
     }
-    if let Some(w) = args.split_at.windows(2).find(|w| w[0] >= w[1]) {
-        bail!(
-            "--split-at: {} is not after {} (times must increase)",
-            time(w[1]),
-            time(w[0])
-        );
-    }
-    let part = |from: f64, to: f64| {
-        let (times, values): (Vec<f64>, Vec<f64>) = all
-            .times
-            .iter()
-            .zip(&all.values)
-            .filter(|&(&t, _)| t >= from && t < to)
-            .map(|(&t, &v)| (t, v))
-            .unzip();
-        TimeSeries { times, values }
-    };
-    let train = part(f64::NEG_INFINITY, args.split_at[0]);
-    if train.is_empty() {
-        bail!(
-            "--split-at: {} has no observation before {}",
-            args.train.display(),
-            time(args.split_at[0])
-        );
-    }
-    let mut tests = Vec::new();
-    let mut labels = Vec::new();
-    for (i, &from) in args.split_at.iter().enumerate() {
-        let to = args.split_at.get(i + 1).copied().unwrap_or(f64::INFINITY);
-        let test = part(from, to);
-        let until = if to.is_finite() {
+    let until = |to: f64| {
+        if to.is_finite() {
             time(to)
         } else {
             "the end".to_string()
-        };
-        if test.is_empty() {
-            bail!(
-                "--split-at: {} has no observation from {} to {until}",
-                args.train.display(),
-                time(from)
-            );
         }
-        let label = format!("{} from {} to {until}", args.train.display(), time(from));
+    };
+    let file = args.train.display();
+    let split = chronological_split(&all.times, &args.split_at).map_err(|e| match e {
+        SplitError::NotIncreasing { previous, next } => usage(format!(
+            "--split-at: {} is not after {} (times must increase)",
+            time(next),
+            time(previous)
+        )),
+        SplitError::EmptyTrain { before } => anyhow!(
+            "--split-at: {file} has no observation before {}",
+            time(before)
+        ),
+        SplitError::EmptyTest { from, to } => anyhow!(
+            "--split-at: {file} has no observation from {} to {}",
+            time(from),
+            until(to)
+        ),
+        e => anyhow!("--split-at: {e}"),
+    })?;
+    let part = |range: std::ops::Range<usize>| TimeSeries {
+        times: all.times[range.clone()].to_vec(),
+        values: all.values[range].to_vec(),
+    };
+    let mut labels = Vec::new();
+    for (i, &from) in args.split_at.iter().enumerate() {
+        let to = args.split_at.get(i + 1).copied().unwrap_or(f64::INFINITY);
+        let label = format!("{file} from {} to {}", time(from), until(to));
         labels.push((label.clone(), label));
-        tests.push(test);
     }
-    Ok((train, (tests, labels)))
+    let tests = split.tests.into_iter().map(part).collect();
+    Ok((part(split.train), (tests, labels)))
 }
 
 pub fn run(args: &EvalArgs) -> Result<()> {
     let (train, (tests, labels)) = load(args)?;
     let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
     let options = args.fit.options();
-    let total = args.models.0.len();
-    let mut done = 0;
-    // Progress on an interactive terminal only; logs and pipes stay clean.
-    let progress = std::io::stderr().is_terminal();
-    let report = evaluate(
-        &args.models.0,
-        &train.times,
-        &train.values,
-        &sets,
-        &options,
-        |m| {
-            done += 1;
-            if progress {
-                eprint!("\rfitted {done}/{total} models ({})        ", m.spec);
-            }
-        },
-    )
+    let specs = model_specs(&args.models);
+    let report = {
+        let bar = ProgressBar::stage("fitting models", specs.len() as u64);
+        evaluate(&specs, &train.times, &train.values, &sets, &options, |_| {
+            bar.advance(1)
+        })
+    }
     .map_err(|(spec, e)| match e.observation_index() {
         Some(i) => anyhow::anyhow!("model {spec}: training observation {}: {e}", i + 1),
         None => anyhow::anyhow!("model {spec}: {e}"),
     })
     .with_context(|| format!("cannot fit to {}", args.train.display()))?;
-    if progress {
-        eprint!("\r{}\r", " ".repeat(60));
-    }
-    let mut out = std::io::stdout().lock();
     if args.json {
-        writeln!(out, "{}", to_json(args, &train, &tests, &labels, &report))?;
+        print_json(&to_json(args, &train, &tests, &labels, &report))
     } else {
-        print_tables(&mut out, args, &train, &tests, &labels, &report)?;
+        print_tables(args, &train, &tests, &labels, &report)
     }
-    Ok(())
 }
 
 fn to_json(
@@ -159,7 +136,6 @@ fn to_json(
 }
 
 fn print_tables(
-    out: &mut impl Write,
     args: &EvalArgs,
     train: &TimeSeries,
     tests: &[TimeSeries],
@@ -168,8 +144,7 @@ fn print_tables(
 ) -> Result<()> {
     let span = train.times[train.len() - 1] - train.times[0];
     let mean = train.values.iter().sum::<f64>() / train.len() as f64;
-    writeln!(
-        out,
+    outln!(
         "training: {} — {} observations, {} .. {} ({}), {}",
         args.train.display(),
         train.len(),
@@ -183,8 +158,7 @@ fn print_tables(
         }
     )?;
     for (i, ((t, _), s)) in labels.iter().zip(tests).enumerate() {
-        writeln!(
-            out,
+        outln!(
             "test {}: {} — {} observations from {}",
             i + 1,
             t,
@@ -192,9 +166,8 @@ fn print_tables(
             time(s.times[0])
         )?;
     }
-    writeln!(out)?;
+    outln!()?;
     write_metric_table(
-        out,
         report,
         if train.values.iter().all(|&v| v == 0.0 || v == 1.0) {
             "Mean squared error of p(t) (Brier score), lower is better"
@@ -203,7 +176,7 @@ fn print_tables(
         },
         |t| t.mse,
     )?;
-    writeln!(out)?;
+    outln!()?;
     // The binary error (p > 0.5 against the state) means nothing for continuous values.
     let binary = train
         .values
@@ -212,12 +185,11 @@ fn print_tables(
         .all(|&v| v == 0.0 || v == 1.0);
     if binary {
         write_metric_table(
-            out,
             report,
             "Binary error (fraction of wrongly predicted states)",
             |t| t.binary_error,
         )?;
-        writeln!(out)?;
+        outln!()?;
     }
     let selections: Vec<_> = report
         .models
@@ -225,20 +197,19 @@ fn print_tables(
         .filter_map(|m| m.fitted.selection.as_ref().map(|s| (m, s)))
         .collect();
     if !selections.is_empty() {
-        writeln!(out, "How the automatic models chose (training data only):")?;
+        outln!("How the automatic models chose (training data only):")?;
         for (m, s) in selections {
-            writeln!(out, "  {}: {}", m.spec, describe_selection(s))?;
+            outln!("  {}: {}", m.spec, describe_selection(s))?;
         }
-        writeln!(out)?;
+        outln!()?;
     }
     if tests.len() < 2 {
-        writeln!(out, "(significance needs at least two test sets)")?;
+        outln!("(significance needs at least two test sets)")?;
         return Ok(());
     }
     let mut significant: Vec<_> = report.significant(args.alpha).collect();
     significant.sort_by(|a, b| a.test.p_value.total_cmp(&b.test.p_value));
-    writeln!(
-        out,
+    outln!(
         "Significant differences of the {} (paired t-test over {} test sets, p < {}):",
         if binary {
             "Brier score"
@@ -249,11 +220,10 @@ fn print_tables(
         args.alpha
     )?;
     if significant.is_empty() {
-        writeln!(out, "  none")?;
+        outln!("  none")?;
     }
     for c in significant {
-        writeln!(
-            out,
+        outln!(
             "  {:<18} better than {:<18} by {:.4} (p = {:.3})",
             report.models[c.better].spec.to_string(),
             report.models[c.worse].spec.to_string(),
@@ -265,7 +235,6 @@ fn print_tables(
 }
 
 fn write_metric_table(
-    out: &mut impl Write,
     report: &EvalReport,
     title: &str,
     metric: impl Fn(&chronomap_core::metrics::TestScore) -> f64,
@@ -285,6 +254,6 @@ fn write_metric_table(
         ));
         table.row(row);
     }
-    writeln!(out, "{title}\n{}", table.render())?;
+    outln!("{title}\n{}", table.render())?;
     Ok(())
 }

@@ -4,129 +4,26 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use chronomap_core::{FremenModel, MarkovModel, MeanModel, PergamConfig, PergamModel};
-use chronomap_explore::{
-    AutoOrder, DailyModel, ExploreConfig, ExploreResult, Strategy, World, explore,
+use chronomap_core::Parallelism;
+use chronomap_explore::table::{
+    ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, SWEEP_SEEDS, busiest_locations,
+    exploration_sweep, explore_table, row_title,
 };
+use chronomap_explore::{ExploreConfig, Strategy, World, explore};
 use chronomap_io::datasets::{load_aruba, load_brayford};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
-use rayon::prelude::*;
 use serde_json::json;
 
 use crate::cli::{DatasetArg, ExploreArgs};
 use crate::format::{Table, time};
-
-/// The temporal models of seed 000 §4 as the tables name them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ModelKind {
-    /// SM: short-term memory (continuous-time Markov chain).
-    ShortTerm,
-    /// LM: long-term memory (the mean).
-    Mean,
-    /// FT: FreMEn with its order chosen every day.
-    Fremen,
-    /// GM: periodic Gaussian mixture over the day.
-    Pergam,
-}
-
-impl ModelKind {
-    pub const ALL: [ModelKind; 4] = [
-        ModelKind::ShortTerm,
-        ModelKind::Mean,
-        ModelKind::Fremen,
-        ModelKind::Pergam,
-    ];
-
-    /// Name in JSON.
-    pub fn name(self) -> &'static str {
-        match self {
-            ModelKind::ShortTerm => "stm",
-            ModelKind::Mean => "mean",
-            ModelKind::Fremen => "fremen",
-            ModelKind::Pergam => "pergam",
-        }
-    }
-
-    /// Column title of the paper's tables.
-    fn column(self) -> &'static str {
-        match self {
-            ModelKind::ShortTerm => "SM",
-            ModelKind::Mean => "LM",
-            ModelKind::Fremen => "FT",
-            ModelKind::Pergam => "GM",
-        }
-    }
-
-    /// A fresh model of one state.
-    pub fn make(self) -> Box<dyn DailyModel> {
-        match self {
-            ModelKind::ShortTerm => Box::new(MarkovModel::new()),
-            ModelKind::Mean => Box::new(MeanModel::new()),
-            ModelKind::Fremen => Box::new(AutoOrder::new(FremenModel::with_order(0))),
-            // One bin per 10-minute observation slot: the finest time the schedule resolves.
-            ModelKind::Pergam => Box::new(
-                PergamModel::new(PergamConfig {
-                    components: 2,
-                    bins: 144,
-                    ..PergamConfig::default()
-                })
-                .expect("a valid configuration"),
-            ),
-        }
-    }
-}
-
-/// Row title of the paper's tables.
-fn row_title(strategy: Strategy) -> &'static str {
-    match strategy {
-        Strategy::RoundRobin => "Round Robin",
-        Strategy::Random => "Random",
-        Strategy::Greedy => "Greedy",
-        Strategy::MonteCarlo { .. } => "Monte-Carlo",
-        Strategy::Novelty { .. } => "Novelty-driven",
-    }
-}
-
-/// Seed 000 Table 1 (Aruba, symbolic) and Table 2 (Brayford, people presence), in percent:
-/// rows Round Robin, Random, Greedy, Monte-Carlo, Novelty; columns SM, LM, FT, GM.
-const PAPER_ARUBA: [[f64; 4]; 5] = [
-    [9.3, 9.7, 6.5, 7.5],
-    [8.9, 9.5, 9.2, 7.5],
-    [8.5, 8.7, 7.0, 9.4],
-    [8.5, 8.9, 5.8, 6.4],
-    [8.5, 8.9, 5.7, 6.1],
-];
-const PAPER_BRAYFORD: [[f64; 4]; 5] = [
-    [23.7, 23.7, 16.3, 20.2],
-    [23.7, 23.8, 23.0, 23.8],
-    [20.2, 22.3, 19.2, 20.1],
-    [23.5, 23.5, 16.4, 19.3],
-    [23.4, 23.5, 15.2, 19.4],
-];
+use crate::outln;
+use crate::output::{ProgressBar, print_json};
 
 fn load(args: &ExploreArgs) -> Result<World> {
     Ok(match args.dataset {
         DatasetArg::Aruba => load_aruba(&args.data)?,
         DatasetArg::Brayford => load_brayford(&args.data)?,
     })
-}
-
-/// Runs every strategy with every model.
-pub fn table(
-    world: &World,
-    config: &ExploreConfig,
-) -> Result<Vec<(Strategy, ModelKind, ExploreResult)>> {
-    let combos: Vec<(Strategy, ModelKind)> = Strategy::all()
-        .into_iter()
-        .flat_map(|s| ModelKind::ALL.map(|m| (s, m)))
-        .collect();
-    combos
-        .into_par_iter()
-        .map(|(strategy, model)| {
-            let result = explore(world, strategy, &move || model.make(), config)?;
-            Ok((strategy, model, result))
-        })
-        .collect()
 }
 
 pub fn run(args: &ExploreArgs) -> Result<()> {
@@ -138,31 +35,31 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
         seed: args.seed,
         ..ExploreConfig::default()
     };
-    let results = table(&world, &config)?;
-    let paper = match args.dataset {
-        DatasetArg::Aruba => &PAPER_ARUBA,
-        DatasetArg::Brayford => &PAPER_BRAYFORD,
+    let results = {
+        let bar = ProgressBar::new();
+        explore_table(&world, &config, Parallelism::Rayon(0), &bar)?
     };
-    let days = results[0].2.daily_error_percent.len();
+    let paper = match args.dataset {
+        DatasetArg::Aruba => &PAPER_TABLE_1_ARUBA,
+        DatasetArg::Brayford => &PAPER_TABLE_2_BRAYFORD,
+    };
+    let days = results[0].result.daily_error_percent.len();
     if args.json {
-        println!(
-            "{}",
-            json!({
-                "dataset": format!("{:?}", args.dataset).to_lowercase(),
-                "ratio": args.ratio,
-                "seed": args.seed,
-                "days": days,
-                "results": results.iter().map(|(s, m, r)| json!({
-                    "strategy": s.name(),
-                    "model": m.name(),
-                    "error_percent": r.error_percent,
-                    "explored_fraction": r.explored_fraction,
-                    "redirects": r.redirects,
-                })).collect::<Vec<_>>(),
-            })
-        );
+        print_json(&json!({
+            "dataset": format!("{:?}", args.dataset).to_lowercase(),
+            "ratio": args.ratio,
+            "seed": args.seed,
+            "days": days,
+            "results": results.iter().map(|e| json!({
+                "strategy": e.strategy.name(),
+                "model": e.model.name(),
+                "error_percent": e.result.error_percent,
+                "explored_fraction": e.result.explored_fraction,
+                "redirects": e.result.redirects,
+            })).collect::<Vec<_>>(),
+        }))?;
     } else {
-        println!(
+        outln!(
             "{}: {} locations, {} days from {}, exploration ratio e = {}, 10-minute observations, seed {}",
             args.data.display(),
             world.locations.len(),
@@ -170,15 +67,15 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
             time(world.start),
             args.ratio,
             args.seed
-        );
-        println!(
+        )?;
+        outln!(
             "Model error of eq. (2) [%], ours (paper{}):\n",
             if args.ratio == 0.5 {
                 ", Table 1 / Table 2"
             } else {
                 " at e = 0.5"
             }
-        );
+        )?;
         let mut header = vec!["strategy".to_string()];
         header.extend(ModelKind::ALL.map(|m| m.column().to_string()));
         let mut t = Table::new(header);
@@ -187,103 +84,66 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
             for (col, model) in ModelKind::ALL.into_iter().enumerate() {
                 let r = results
                     .iter()
-                    .find(|(s, m, _)| *s == strategy && *m == model)
-                    .map(|(_, _, r)| r)
+                    .find(|e| e.strategy == strategy && e.model == model)
+                    .map(|e| &e.result)
                     .context("missing result")?;
                 cells.push(format!("{:4.1} ({:4.1})", r.error_percent, paper[row][col]));
             }
             t.row(cells);
         }
-        println!("{}", t.render());
+        outln!("{}", t.render())?;
         let best = results
             .iter()
-            .min_by(|a, b| a.2.error_percent.total_cmp(&b.2.error_percent))
+            .min_by(|a, b| a.result.error_percent.total_cmp(&b.result.error_percent))
             .context("no results")?;
-        println!(
+        outln!(
             "\nbest: {} + {} at {:.2} %; explored {:.1} % of the slots; novelty redirected {} slots",
-            best.0.name(),
-            best.1.name(),
-            best.2.error_percent,
-            100.0 * best.2.explored_fraction,
+            best.strategy.name(),
+            best.model.name(),
+            best.result.error_percent,
+            100.0 * best.result.explored_fraction,
             results
                 .iter()
-                .filter(|(s, m, _)| matches!(s, Strategy::Novelty { .. }) && *m == ModelKind::Fremen)
-                .map(|(_, _, r)| r.redirects)
+                .filter(|e| matches!(e.strategy, Strategy::Novelty { .. })
+                    && e.model == ModelKind::Fremen)
+                .map(|e| e.result.redirects)
                 .sum::<usize>()
-        );
+        )?;
     }
-    if let Some(path) = &args.sweep {
+    if let Some(path) = &args.plot_sweep {
         sweep(&world, args.seed, path)?;
         eprintln!("wrote {}", path.display());
     }
-    if let Some(path) = &args.behaviour {
+    if let Some(path) = &args.plot_behaviour {
         behaviour(&world, args.ratio, args.seed, path)?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
 
-/// Ratios of the exploration-ratio sweep (seed 000 Fig. 5).
-const SWEEP: [f64; 7] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9];
-/// Runs (seeds `seed..seed + SWEEP_SEEDS`) averaged per point of the sweep.
-const SWEEP_SEEDS: u64 = 5;
-
-/// Seed 000 Fig. 5: the model error of FreMEn with each strategy over two weeks, against the
-/// exploration ratio, with the static model (round robin) for reference.
+/// Seed 000 Fig. 5 ([`exploration_sweep`]) drawn into `path`.
 pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
-    let runs: Vec<(Strategy, ModelKind)> = Strategy::all()
-        .into_iter()
-        .map(|s| (s, ModelKind::Fremen))
-        .chain([(Strategy::RoundRobin, ModelKind::Mean)])
-        .collect();
-    // Each point is the mean of SWEEP_SEEDS runs: the random strategies vary from run to run,
-    // most at low ratios.
-    let jobs: Vec<(usize, f64, u64)> = (0..runs.len())
-        .flat_map(|r| {
-            SWEEP
-                .into_iter()
-                .flat_map(move |e| (0..SWEEP_SEEDS).map(move |k| (r, e, seed + k)))
-        })
-        .collect();
-    let single: Vec<(usize, f64, f64)> = jobs
-        .into_par_iter()
-        .map(|(r, e, seed)| {
-            let (strategy, model) = runs[r];
-            let config = ExploreConfig {
-                ratio: e,
-                days: Some(14),
-                seed,
-                ..ExploreConfig::default()
-            };
-            explore(world, strategy, &move || model.make(), &config)
-                .map(|x| (r, e, x.error_percent))
-        })
-        .collect::<Result<_, _>>()?;
-    let errors: Vec<(usize, f64, f64)> = (0..runs.len())
-        .flat_map(|r| SWEEP.map(|e| (r, e)))
-        .map(|(r, e)| {
-            let runs = single.iter().filter(|x| x.0 == r && x.1 == e);
-            (r, e, runs.map(|x| x.2).sum::<f64>() / SWEEP_SEEDS as f64)
-        })
-        .collect();
-    let series = runs
+    let curves = {
+        let bar = ProgressBar::new();
+        exploration_sweep(world, seed, Parallelism::Rayon(0), &bar)?
+    };
+    let series = curves
         .iter()
-        .enumerate()
-        .map(|(r, (strategy, model))| Series {
-            label: if *model == ModelKind::Fremen {
-                format!("{} + FreMEn", row_title(*strategy))
+        .map(|curve| Series {
+            label: if curve.model == ModelKind::Fremen {
+                format!("{} + FreMEn", row_title(curve.strategy))
             } else {
-                format!("{} + static (mean)", row_title(*strategy))
+                format!("{} + static (mean)", row_title(curve.strategy))
             },
-            points: errors
-                .iter()
-                .filter(|(i, _, _)| *i == r)
-                .map(|&(_, e, err)| (e, err))
-                .collect(),
+            points: curve.points.clone(),
             style: SeriesStyle::Line,
         })
         .collect();
-    let top = errors.iter().map(|e| e.2).fold(0.0, f64::max) * 1.1;
+    let top = curves
+        .iter()
+        .flat_map(|c| c.points.iter().map(|p| p.1))
+        .fold(0.0, f64::max)
+        * 1.1;
     let panel = Panel {
         title: format!(
             "Model error after two weeks of exploration by exploration ratio (seed 000 Fig. 5, mean of {SWEEP_SEEDS} seeds)"
@@ -316,16 +176,7 @@ pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()
     )?;
     let trace = &result.trace;
     // The three busiest areas (one state per location in these datasets).
-    let mut areas: Vec<usize> = (0..world.locations.len()).collect();
-    areas.sort_by_key(|&l| {
-        std::cmp::Reverse(
-            world.truth[world.locations[l][0]]
-                .iter()
-                .map(|&v| u64::from(v))
-                .sum::<u64>(),
-        )
-    });
-    areas.truncate(3);
+    let areas = busiest_locations(world, 3);
     let day = |t: f64| (t - world.start) / 86_400.0;
     let steps = days * (86_400.0 / world.step_secs) as usize;
     let offset = |k: usize| 1.5 * (2 - k) as f64;

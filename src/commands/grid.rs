@@ -4,56 +4,52 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail, ensure};
-use chronomap_core::FremenConfig;
+use anyhow::{Context, Result, anyhow, ensure};
+use chronomap_core::metrics::compression_ratio;
+use chronomap_core::progress::Progress;
+use chronomap_core::{FremenConfig, Parallelism};
+use chronomap_grid::build::{
+    GridBuild, build_from_frames, build_partitioned, holdout_splits, occupancy_percent,
+};
+use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
-use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
-use chronomap_io::{GridFile, encode_grid, read_grid_file, read_pairs, write_grid_file};
+use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, save_map};
+use chronomap_io::{
+    GridFile, encode_grid, load_frame_map, read_frame_list, read_grid_file, read_pairs,
+    write_grid_file,
+};
 use chronomap_plot::{MapImage, render_maps_png};
+use chronomap_synth::office_grid::office;
+use serde_json::{Value, json};
 
-use super::synthetic::{build as build_synthetic, office, office_geometry, with_progress};
 use crate::cli::{
-    GridBuildArgs, GridPlotArgs, GridPredictArgs, GridStatsArgs, MapModeArg, StoreArg,
+    GridBuildArgs, GridOrder, GridPlotArgs, GridPredictArgs, GridStatsArgs, Layers, MapModeArg,
+    StoreArg,
 };
 use crate::format::{Table, duration, time};
+use crate::outln;
+use crate::output::{ProgressBar, print_json, usage};
 
 /// Largest order `auto` and the error table consider.
 const MAX_ORDER: usize = 5;
 
-/// The order flag: a number or `auto`.
-enum OrderFlag {
-    Fixed(usize),
-    Auto,
-}
-
-fn parse_order(text: &str) -> Result<OrderFlag> {
-    match text {
-        "auto" => Ok(OrderFlag::Auto),
-        k => Ok(OrderFlag::Fixed(k.parse().with_context(|| {
-            format!("--order {k:?} is not a whole number or 'auto'")
-        })?)),
-    }
-}
-
-/// A built grid with the snapshots taken at the held-back splits.
-struct BuiltGrid {
-    grid: FremenGrid,
-    /// The grid before frame `split_inner` and before `split` (if requested).
-    snapshots: Vec<FremenGrid>,
+/// A built grid, where it came from and how long it took.
+struct Built {
+    build: GridBuild,
+    /// The first held-back frame.
     split: u64,
     seconds: f64,
     source: String,
 }
 
 pub fn build(args: &GridBuildArgs) -> Result<()> {
-    let order = parse_order(&args.order)?;
     let needs_history =
-        args.errors || args.store == StoreArg::Lossless || matches!(order, OrderFlag::Auto);
+        args.errors || args.store == StoreArg::Lossless || args.order == GridOrder::Auto;
     let fremen = FremenConfig {
         periods: args.periods.clone(),
-        order: match order {
-            OrderFlag::Fixed(k) => k,
-            OrderFlag::Auto => 2,
+        order: match args.order {
+            GridOrder::Fixed(k) => k,
+            GridOrder::Auto => 2,
         },
         ..FremenConfig::default()
     };
@@ -61,73 +57,164 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
         fremen,
         keep_history: needs_history,
     };
-    let built = if args.source.synthetic {
-        build_from_synthetic(args, &config, needs_history)?
-    } else if let Some(list) = &args.source.frames {
-        build_from_map_list(list, args, &config, needs_history)?
-    } else {
-        build_from_cell_series(&args.source.cell_series, args, &config, needs_history)?
+    let built = {
+        let bar = ProgressBar::new();
+        if args.source.synthetic {
+            build_from_synthetic(args, &config, needs_history, &bar)?
+        } else if let Some(list) = &args.source.frames {
+            build_from_map_list(list, args, &config, needs_history, &bar)?
+        } else {
+            build_from_cell_series(&args.source.cell_series, args, &config, needs_history, &bar)?
+        }
     };
-    let grid = &built.grid;
-    let geometry = grid.geometry();
+    let grid = &built.build.grid;
+    let geometry = *grid.geometry();
     let span = grid.frame_span();
-    println!(
-        "{}: {} frames from {} to {} ({}), {} cells ({}x{}x{} at {} m)",
-        built.source,
-        grid.frames(),
-        time(span.first),
-        time(span.last),
-        duration(span.duration()),
-        geometry.cells(),
-        geometry.width,
-        geometry.height,
-        geometry.depth,
-        geometry.resolution
-    );
-    println!(
-        "built in {:.2} s: {} cells changed or needed storage, grid memory {:.1} MB",
-        built.seconds,
-        grid.dynamic_cells(),
-        grid.memory_bytes() as f64 / 1048576.0
-    );
     let observations = geometry.cells() as f64 * grid.frames() as f64;
-    let ratio = |bytes: usize| observations / (8.0 * bytes as f64);
-
-    let choice = match order {
-        OrderFlag::Fixed(k) => OrderChoice::Fixed(k),
-        OrderFlag::Auto => {
-            let trained = built.snapshots.last().context("no held-back snapshot")?;
+    if !args.json {
+        outln!(
+            "{}: {} frames from {} to {} ({}), {} cells ({}x{}x{} at {} m)",
+            built.source,
+            grid.frames(),
+            time(span.first),
+            time(span.last),
+            duration(span.duration()),
+            geometry.cells(),
+            geometry.width,
+            geometry.height,
+            geometry.depth,
+            geometry.resolution
+        )?;
+        outln!(
+            "built in {:.2} s: {} cells changed or needed storage, grid memory {:.1} MB",
+            built.seconds,
+            grid.dynamic_cells(),
+            grid.memory_bytes() as f64 / 1048576.0
+        )?;
+    }
+    let choice = match args.order {
+        GridOrder::Fixed(k) => OrderChoice::Fixed(k),
+        GridOrder::Auto => {
+            let trained = built
+                .build
+                .snapshots
+                .last()
+                .context("no held-back snapshot")?;
             OrderChoice::PerCell(grid.select_cell_orders(trained, MAX_ORDER)?)
         }
     };
-    if args.errors {
-        report_errors(&built, ratio)?;
-    }
+    let errors = if args.errors {
+        let table = error_table(&built, observations)?;
+        if !args.json {
+            print_error_table(&built, &table)?;
+        }
+        Some(table)
+    } else {
+        None
+    };
     let file = match args.store {
-        StoreArg::State => GridFile::State(Box::new(built.grid.clone())),
+        StoreArg::State => GridFile::State(Box::new(grid.clone())),
         StoreArg::Lossy => GridFile::Lossy(Box::new(grid.fitted(choice))),
         StoreArg::Lossless => GridFile::Lossless(Box::new(grid.lossless(choice)?)),
     };
     write_grid_file(&args.output, &file)?;
     let bytes = std::fs::metadata(&args.output)?.len() as usize;
-    println!(
+    let ratio = compression_ratio(observations, bytes);
+    if args.json {
+        return print_json(&json!({
+            "source": built.source,
+            "frames": grid.frames(),
+            "first": span.first,
+            "last": span.last,
+            "geometry": geometry_json(&geometry),
+            "seconds": built.seconds,
+            "dynamic_cells": grid.dynamic_cells(),
+            "memory_mb": grid.memory_bytes() as f64 / 1048576.0,
+            "errors": errors.map(|t| t.json(built.split, grid.frames())),
+            "output": args.output.display().to_string(),
+            "kind": file.kind(),
+            "bytes": bytes,
+            "compression_ratio": ratio,
+        }));
+    }
+    outln!(
         "wrote {} ({}, {} bytes, compression 1:{:.0} by eq. 16)",
         args.output.display(),
         file.kind(),
         bytes,
-        ratio(bytes)
-    );
+        ratio
+    )?;
     Ok(())
 }
 
-/// The error table of seed 001 §VI: estimation error over all frames, prediction error on the
-/// held-back frames, and file sizes, for static, orders 1..5 and per-cell auto.
-fn report_errors(built: &BuiltGrid, ratio: impl Fn(usize) -> f64) -> Result<()> {
-    let grid = &built.grid;
-    let [inner, trained] = &built.snapshots[..] else {
-        bail!("the error report needs two held-back snapshots");
+/// The rows of the error table of seed 001 §VI with the sizes of their files.
+struct ErrorTable {
+    rows: Vec<(OrderErrors, usize, usize)>,
+    observations: f64,
+    seconds: f64,
+}
+
+impl ErrorTable {
+    fn name(orders: RowOrders) -> String {
+        match orders {
+            RowOrders::Fixed(0) => "static (order 0)".to_string(),
+            RowOrders::Fixed(k) => format!("FreMEn order {k}"),
+            RowOrders::PerCell => "FreMEn auto (per cell)".to_string(),
+        }
+    }
+
+    fn json(&self, split: u64, frames: u64) -> Value {
+        json!({
+            "changed_cells": self.rows.last().map(|r| r.0.estimation.changed_cells),
+            "split": split,
+            "frames": frames,
+            "rows": self.rows.iter().map(|(r, lossy, lossless)| json!({
+                "model": Self::name(r.orders),
+                "order": match r.orders {
+                    RowOrders::Fixed(k) => json!(k),
+                    RowOrders::PerCell => json!("auto"),
+                },
+                "estimation_error": r.estimation.mean_cell_error,
+                "prediction_error": r.prediction.mean_cell_error,
+                "lossy_bytes": lossy,
+                "lossy_ratio": compression_ratio(self.observations, *lossy),
+                "lossless_bytes": lossless,
+                "lossless_ratio": compression_ratio(self.observations, *lossless),
+            })).collect::<Vec<_>>(),
+        })
+    }
+}
+
+/// Estimation and prediction errors for static, orders 1..5 and per-cell auto, and the sizes
+/// of their lossy and lossless files.
+fn error_table(built: &Built, observations: f64) -> Result<ErrorTable> {
+    let grid = &built.build.grid;
+    let [inner, trained] = &built.build.snapshots[..] else {
+        return Err(anyhow!("the error report needs two held-back snapshots"));
     };
-    let (split, frames) = (built.split, grid.frames());
+    let started = Instant::now();
+    let bar = ProgressBar::new();
+    let rows = order_errors(grid, inner, trained, MAX_ORDER, &bar)?;
+    bar.stage("file sizes", rows.len() as u64);
+    let rows = rows
+        .into_iter()
+        .map(|r| {
+            let lossless = grid.lossless(r.final_orders.clone())?;
+            let lossy = encode_grid(&GridFile::Lossy(Box::new(r.fitted.clone())))?.len();
+            let lossless = encode_grid(&GridFile::Lossless(Box::new(lossless)))?.len();
+            bar.advance(1);
+            Ok((r, lossy, lossless))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(ErrorTable {
+        rows,
+        observations,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
+    let (split, frames) = (built.split, built.build.grid.frames());
     let mut table = Table::new([
         "model",
         "estimation error",
@@ -137,137 +224,66 @@ fn report_errors(built: &BuiltGrid, ratio: impl Fn(usize) -> f64) -> Result<()> 
         "lossless bytes",
         "lossless ratio",
     ]);
-    let started = Instant::now();
-    let auto_final = OrderChoice::PerCell(grid.select_cell_orders(trained, MAX_ORDER)?);
-    // For the prediction error, choose the orders without the frames they are tested on.
-    let auto_trained = OrderChoice::PerCell(trained.select_cell_orders(inner, MAX_ORDER)?);
-    let mut rows: Vec<(String, OrderChoice, OrderChoice)> = (0..=MAX_ORDER)
-        .map(|k| {
-            let name = if k == 0 {
-                "static (order 0)".to_string()
-            } else {
-                format!("FreMEn order {k}")
-            };
-            (name, OrderChoice::Fixed(k), OrderChoice::Fixed(k))
-        })
-        .collect();
-    rows.push(("FreMEn auto (per cell)".into(), auto_final, auto_trained));
-    let mut changed = 0;
-    for (name, final_orders, trained_orders) in rows {
-        let fitted = grid.fitted(final_orders.clone());
-        let estimation = grid.estimation_error(&fitted, 0, frames)?;
-        let prediction = grid.estimation_error(&trained.fitted(trained_orders), split, frames)?;
-        changed = estimation.changed_cells;
-        let lossy = encode_grid(&GridFile::Lossy(Box::new(fitted)))?.len();
-        let lossless =
-            encode_grid(&GridFile::Lossless(Box::new(grid.lossless(final_orders)?)))?.len();
+    for (r, lossy, lossless) in &errors.rows {
         table.row([
-            name,
-            format!("{:.2} %", 100.0 * estimation.mean_cell_error),
-            format!("{:.2} %", 100.0 * prediction.mean_cell_error),
+            ErrorTable::name(r.orders),
+            format!("{:.2} %", 100.0 * r.estimation.mean_cell_error),
+            format!("{:.2} %", 100.0 * r.prediction.mean_cell_error),
             lossy.to_string(),
-            format!("1:{:.0}", ratio(lossy)),
+            format!("1:{:.0}", compression_ratio(errors.observations, *lossy)),
             lossless.to_string(),
-            format!("1:{:.0}", ratio(lossless)),
+            format!("1:{:.0}", compression_ratio(errors.observations, *lossless)),
         ]);
     }
-    println!(
+    let changed = errors
+        .rows
+        .last()
+        .map_or(0, |r| r.0.estimation.changed_cells);
+    outln!(
         "\nErrors over the {changed} cells that changed (seed 001 §VI: mean over those cells of the fraction of \
          wrongly estimated states). Estimation: models built on all {frames} frames. Prediction: models \
          built on the first {split} frames, tested on the {} after them.",
         frames - split
-    );
-    println!("{}", table.render());
-    println!(
+    )?;
+    outln!("{}", table.render())?;
+    outln!(
         "(seed 001 §VI: static ~6 %, lossy FreMEn 3-4 %, lossless 1:250; computed in {:.1} s)\n",
-        started.elapsed().as_secs_f64()
-    );
+        errors.seconds
+    )?;
     Ok(())
-}
-
-/// Frame indices of the two held-back splits: `inner` then `split`.
-fn splits(frames: u64, holdout: f64) -> [u64; 2] {
-    let split = ((frames as f64) * (1.0 - holdout)).round() as u64;
-    let inner = ((split as f64) * (1.0 - holdout)).round() as u64;
-    [inner, split]
 }
 
 fn build_from_synthetic(
     args: &GridBuildArgs,
     config: &GridConfig,
     snapshots: bool,
-) -> Result<BuiltGrid> {
+    progress: &dyn Progress,
+) -> Result<Built> {
     let workload = office(args.cells, args.days, args.seed)?;
-    let geometry = office_geometry(args.cells)?;
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let geometry = workload.geometry()?;
     let frames = workload.frames();
+    let splits = holdout_splits(frames, args.holdout);
     let at = if snapshots {
-        splits(frames, args.holdout).to_vec()
+        splits.to_vec()
     } else {
         Vec::new()
     };
-    let total = frames * super::synthetic::partition(args.cells, threads).len() as u64;
-    let built = with_progress("building", total, |p| {
-        build_synthetic(&workload, geometry, config, threads, &at, p)
-    })?;
-    Ok(BuiltGrid {
-        grid: built.grid,
-        snapshots: built.snapshots,
-        split: at.get(1).copied().unwrap_or(frames),
-        seconds: built.seconds,
+    let started = Instant::now();
+    let build =
+        |parallelism| build_partitioned(&workload, geometry, config, &at, parallelism, progress);
+    let build = match args.threads {
+        None => build(Parallelism::Rayon(0))?,
+        Some(threads) => rayon::ThreadPoolBuilder::new()
+            .num_threads(threads as usize)
+            .build()?
+            .install(|| build(Parallelism::Rayon(0)))?,
+    };
+    Ok(Built {
+        build,
+        split: splits[1],
+        seconds: started.elapsed().as_secs_f64(),
         source: format!("synthetic office (seed {})", args.seed),
     })
-}
-
-/// Builds from frames given one at a time, taking snapshots before the split frames.
-fn build_from_frames(
-    geometry: GridGeometry,
-    config: &GridConfig,
-    frames: usize,
-    snapshots: bool,
-    holdout: f64,
-    mut next: impl FnMut(usize, &mut FremenGrid) -> Result<()>,
-) -> Result<(FremenGrid, Vec<FremenGrid>, u64)> {
-    let mut grid = FremenGrid::new(geometry, config.clone())?;
-    let at = splits(frames as u64, holdout);
-    let mut taken = Vec::new();
-    for f in 0..frames {
-        if snapshots && at.contains(&(f as u64)) {
-            taken.push(grid.clone());
-        }
-        next(f, &mut grid)?;
-    }
-    Ok((grid, taken, at[1]))
-}
-
-/// Reads a frame list: `<time> <map.yaml>` per line, paths relative to the list's folder.
-fn read_frame_list(list: &Path) -> Result<Vec<(f64, PathBuf, usize)>> {
-    let text = std::fs::read_to_string(list)
-        .with_context(|| format!("{}: cannot read", list.display()))?;
-    let folder = list.parent().unwrap_or(Path::new("."));
-    let mut frames = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let mut fields = line.split_whitespace();
-        let (Some(t), Some(path), None) = (fields.next(), fields.next(), fields.next()) else {
-            bail!("{}:{}: expected `<time> <map.yaml>`", list.display(), i + 1);
-        };
-        let t: f64 = t
-            .parse()
-            .ok()
-            .filter(|t: &f64| t.is_finite())
-            .with_context(|| {
-                format!("{}:{}: time: {t:?} is not a number", list.display(), i + 1)
-            })?;
-        frames.push((t, folder.join(path), i + 1));
-    }
-    ensure!(!frames.is_empty(), "{}: no frames listed", list.display());
-    Ok(frames)
 }
 
 fn build_from_map_list(
@@ -275,54 +291,40 @@ fn build_from_map_list(
     args: &GridBuildArgs,
     config: &GridConfig,
     snapshots: bool,
-) -> Result<BuiltGrid> {
+    progress: &dyn Progress,
+) -> Result<Built> {
     let started = Instant::now();
+    let name = list.display().to_string();
     let frames = read_frame_list(list)?;
     let semantics = if args.ros1 {
         LoadSemantics::Ros1
     } else {
         LoadSemantics::Nav2
     };
-    let first = load_map(&frames[0].1, semantics)?;
+    let first = load_frame_map(&name, &frames[0], semantics, None)?;
     let geometry = GridGeometry::planar(
         first.width,
         first.height,
         f64::from(first.resolution),
         [first.origin[0], first.origin[1]],
     )?;
-    let (grid, snapshots, split) = build_from_frames(
-        geometry,
-        config,
-        frames.len(),
-        snapshots,
-        args.holdout,
-        |f, grid| {
-            let (t, path, line) = &frames[f];
-            let map = if f == 0 {
-                first.clone()
-            } else {
-                load_map(path, semantics)?
-            };
-            ensure!(
-                map.width == first.width && map.height == first.height,
-                "{}:{line}: {} is {}x{} but the first map is {}x{}",
-                list.display(),
-                path.display(),
-                map.width,
-                map.height,
-                first.width,
-                first.height
-            );
-            grid.observe_occupancy(*t, &map.data)
-                .with_context(|| format!("{}:{line}: {}", list.display(), path.display()))
-        },
-    )?;
-    Ok(BuiltGrid {
-        grid,
-        snapshots,
-        split,
+    let splits = holdout_splits(frames.len() as u64, args.holdout);
+    let at = if snapshots { &splits[..] } else { &[] };
+    let build = build_from_frames(geometry, config, frames.len(), at, progress, |f, grid| {
+        let frame = &frames[f];
+        let map = if f == 0 {
+            first.clone()
+        } else {
+            load_frame_map(&name, frame, semantics, Some(&first))?
+        };
+        grid.observe_occupancy(frame.time, &map.data)
+            .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
+    })?;
+    Ok(Built {
+        build,
+        split: splits[1],
         seconds: started.elapsed().as_secs_f64(),
-        source: list.display().to_string(),
+        source: name,
     })
 }
 
@@ -331,7 +333,8 @@ fn build_from_cell_series(
     args: &GridBuildArgs,
     config: &GridConfig,
     snapshots: bool,
-) -> Result<BuiltGrid> {
+    progress: &dyn Progress,
+) -> Result<Built> {
     let started = Instant::now();
     let series = files
         .iter()
@@ -347,24 +350,25 @@ fn build_from_cell_series(
         );
     }
     let geometry = GridGeometry::planar(series.len() as u32, 1, 1.0, [0.0, 0.0])?;
-    let (grid, snapshots, split) = build_from_frames(
+    let splits = holdout_splits(reference.len() as u64, args.holdout);
+    let at = if snapshots { &splits[..] } else { &[] };
+    let build = build_from_frames(
         geometry,
         config,
         reference.len(),
-        snapshots,
-        args.holdout,
+        at,
+        progress,
         |f, grid| {
             let frame: Vec<i8> = series
                 .iter()
-                .map(|s| (100.0 * s.values[f]).round() as i8)
+                .map(|s| occupancy_percent(s.values[f]))
                 .collect();
-            Ok(grid.observe_occupancy(reference.times[f], &frame)?)
+            Ok::<_, anyhow::Error>(grid.observe_occupancy(reference.times[f], &frame)?)
         },
     )?;
-    Ok(BuiltGrid {
-        grid,
-        snapshots,
-        split,
+    Ok(Built {
+        build,
+        split: splits[1],
         seconds: started.elapsed().as_secs_f64(),
         source: format!("{} cell series", files.len()),
     })
@@ -378,53 +382,44 @@ fn fitted_of(file: GridFile, order: Option<usize>) -> Result<FittedGrid> {
             grid.fitted(OrderChoice::Fixed(k))
         }
         GridFile::Lossy(_) | GridFile::Lossless(_) if order.is_some() => {
-            bail!("--order needs a learning-state grid file (this one stores a fitted model)")
+            return Err(usage(
+                "--order needs a learning-state grid file (this one stores a fitted model)",
+            ));
         }
         GridFile::Lossy(fitted) => *fitted,
         GridFile::Lossless(lossless) => lossless.fitted,
     })
 }
 
-/// Parses `a..b` layers of a grid `depth` layers deep (default all).
-fn layers(text: Option<&str>, depth: u32) -> Result<std::ops::Range<u32>> {
-    let Some(text) = text else {
-        return Ok(0..depth);
-    };
-    let (a, b) = text
-        .split_once("..")
-        .with_context(|| format!("--layers {text:?} is not a..b"))?;
-    let (a, b): (u32, u32) = (a.parse()?, b.parse()?);
-    ensure!(
-        a < b && b <= depth,
-        "--layers {a}..{b} is not within 0..{depth}"
-    );
-    Ok(a..b)
+/// The layers of `--layers` (default all) of a grid `depth` layers deep.
+fn layers(layers: Option<Layers>, depth: u32) -> Result<std::ops::Range<u32>> {
+    match layers {
+        None => Ok(0..depth),
+        Some(Layers(a, b)) if b <= depth => Ok(a..b),
+        Some(Layers(a, b)) => Err(usage(format!(
+            "--layers {a}..{b} is not within 0..{depth} (the grid's layers)"
+        ))),
+    }
 }
 
-/// A 2-D map of the prediction: for a 3-D grid, each column takes its most occupied known cell
-/// in `layers`; NaN where every cell is unknown.
-fn project(fitted: &FittedGrid, values: &[f32], layers: std::ops::Range<u32>) -> Vec<f32> {
-    let g = fitted.geometry();
-    let (w, h) = (g.width as usize, g.height as usize);
-    let mut out = vec![f32::NAN; w * h];
-    for z in layers {
-        let layer = &values[z as usize * w * h..(z as usize + 1) * w * h];
-        for (o, &v) in out.iter_mut().zip(layer) {
-            if !v.is_nan() && (o.is_nan() || v > *o) {
-                *o = v;
-            }
-        }
-    }
-    out
+fn geometry_json(g: &GridGeometry) -> Value {
+    json!({
+        "width": g.width,
+        "height": g.height,
+        "depth": g.depth,
+        "cells": g.cells(),
+        "resolution": g.resolution,
+        "origin": g.origin,
+    })
 }
 
 pub fn predict(args: &GridPredictArgs) -> Result<()> {
     let fitted = fitted_of(read_grid_file(&args.grid)?, args.order)?;
     let g = *fitted.geometry();
-    let values = project(
-        &fitted,
+    let values = project_layers(
+        &g,
         &fitted.predict(args.time),
-        layers(args.layers.as_deref(), g.depth)?,
+        layers(args.layers, g.depth)?,
     );
     let map = OccupancyMap::from_probabilities(
         g.width,
@@ -433,15 +428,15 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
         [g.origin[0], g.origin[1], 0.0],
         &values,
     );
-    // `--out map.yaml` and `--out map` both mean map.yaml + map.pgm/png.
+    // `-o map.yaml` and `-o map` both mean map.yaml + map.pgm/png.
     let base = if args
-        .out
+        .output
         .extension()
         .is_some_and(|e| e == "yaml" || e == "yml")
     {
-        args.out.with_extension("")
+        args.output.with_extension("")
     } else {
-        args.out.clone()
+        args.output.clone()
     };
     if let Some(folder) = base.parent().filter(|f| !f.as_os_str().is_empty()) {
         std::fs::create_dir_all(folder)
@@ -466,14 +461,28 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
     let saved = save_map(&base, &map, &options)?;
     let occupied = map.data.iter().filter(|&&v| v >= 65).count();
     let unknown = map.data.iter().filter(|&&v| v < 0).count();
-    println!(
+    if args.json {
+        return print_json(&json!({
+            "grid": args.grid.display().to_string(),
+            "time": args.time,
+            "width": map.width,
+            "height": map.height,
+            "occupied": occupied,
+            "unknown": unknown,
+            "free": map.data.len() - occupied - unknown,
+            "mode": options.mode.as_str(),
+            "yaml": saved.yaml.display().to_string(),
+            "image": saved.image.display().to_string(),
+        }));
+    }
+    outln!(
         "predicted {}x{} map for {}: {occupied} occupied, {unknown} unknown cells; wrote {} and {}",
         map.width,
         map.height,
         time(args.time),
         saved.yaml.display(),
         saved.image.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -482,65 +491,105 @@ pub fn stats(args: &GridStatsArgs) -> Result<()> {
         .with_context(|| format!("{}: cannot read", args.grid.display()))?
         .len();
     let file = read_grid_file(&args.grid)?;
-    println!(
+    let (geometry, frames) = match &file {
+        GridFile::State(grid) => (*grid.geometry(), grid.frame_span()),
+        GridFile::Lossy(fitted) => (*fitted.geometry(), fitted.frames()),
+        GridFile::Lossless(lossless) => (*lossless.fitted.geometry(), lossless.fitted.frames()),
+    };
+    let observations = geometry.cells() as f64 * frames.count as f64;
+    let ratio = (frames.count > 0).then(|| compression_ratio(observations, bytes as usize));
+    if args.json {
+        let contents = match &file {
+            GridFile::State(grid) => state_json(grid),
+            GridFile::Lossy(fitted) => fitted_json(fitted),
+            GridFile::Lossless(lossless) => {
+                let mut value = fitted_json(&lossless.fitted);
+                value["outlier_toggles"] = json!(lossless.outlier_toggles());
+                value
+            }
+        };
+        return print_json(&json!({
+            "file": args.grid.display().to_string(),
+            "kind": file.kind(),
+            "bytes": bytes,
+            "geometry": geometry_json(&geometry),
+            "frames": (frames.count > 0).then(|| json!({
+                "count": frames.count,
+                "first": frames.first,
+                "last": frames.last,
+            })),
+            "cell_observations": observations,
+            "compression_ratio": ratio,
+            "contents": contents,
+        }));
+    }
+    outln!(
         "file: {} ({}, {bytes} bytes)",
         args.grid.display(),
         file.kind()
-    );
-    let (geometry, frames, extra) = match &file {
-        GridFile::State(grid) => (
-            *grid.geometry(),
-            grid.frame_span(),
-            format!(
-                "{} cells with storage, {:.1} MB in memory, periods {}",
-                grid.dynamic_cells(),
-                grid.memory_bytes() as f64 / 1048576.0,
-                grid.config().fremen.periods
-            ),
-        ),
-        GridFile::Lossy(fitted) => (*fitted.geometry(), fitted.frames(), describe_fitted(fitted)),
-        GridFile::Lossless(lossless) => (
-            *lossless.fitted.geometry(),
-            lossless.fitted.frames(),
-            format!(
-                "{}; {} outlier toggles",
-                describe_fitted(&lossless.fitted),
-                lossless.outlier_toggles()
-            ),
-        ),
-    };
-    println!(
+    )?;
+    outln!(
         "grid: {}x{}x{} cells at {} m, origin {:?}",
-        geometry.width, geometry.height, geometry.depth, geometry.resolution, geometry.origin
-    );
-    if frames.count > 0 {
-        println!(
+        geometry.width,
+        geometry.height,
+        geometry.depth,
+        geometry.resolution,
+        geometry.origin
+    )?;
+    if let Some(ratio) = ratio {
+        outln!(
             "frames: {} from {} to {} ({})",
             frames.count,
             time(frames.first),
             time(frames.last),
             duration(frames.duration())
-        );
-        let observations = geometry.cells() as f64 * frames.count as f64;
-        println!(
-            "compression (eq. 16): {:.3e} cell observations in {bytes} bytes = 1:{:.0}",
-            observations,
-            observations / (8.0 * bytes as f64)
-        );
+        )?;
+        outln!(
+            "compression (eq. 16): {observations:.3e} cell observations in {bytes} bytes = 1:{ratio:.0}"
+        )?;
     }
-    println!("{extra}");
+    let extra = match &file {
+        GridFile::State(grid) => format!(
+            "{} cells with storage, {:.1} MB in memory, periods {}",
+            grid.dynamic_cells(),
+            grid.memory_bytes() as f64 / 1048576.0,
+            grid.config().fremen.periods
+        ),
+        GridFile::Lossy(fitted) => describe_fitted(fitted),
+        GridFile::Lossless(lossless) => format!(
+            "{}; {} outlier toggles",
+            describe_fitted(&lossless.fitted),
+            lossless.outlier_toggles()
+        ),
+    };
+    outln!("{extra}")?;
     Ok(())
 }
 
+fn state_json(grid: &FremenGrid) -> Value {
+    json!({
+        "dynamic_cells": grid.dynamic_cells(),
+        "memory_mb": grid.memory_bytes() as f64 / 1048576.0,
+        "periods": grid.config().fremen.periods.to_string(),
+        "order": grid.config().fremen.order,
+    })
+}
+
+fn fitted_json(fitted: &FittedGrid) -> Value {
+    json!({
+        "fitted_cells": fitted.cells().len(),
+        "orders": fitted
+            .order_counts()
+            .into_iter()
+            .map(|(order, cells)| json!({"order": order, "cells": cells}))
+            .collect::<Vec<_>>(),
+    })
+}
+
 fn describe_fitted(fitted: &FittedGrid) -> String {
-    let mut orders = [0usize; 256];
-    for c in fitted.cells() {
-        orders[usize::from(c.count)] += 1;
-    }
-    let listed: Vec<String> = orders
-        .iter()
-        .enumerate()
-        .filter(|&(_, &n)| n > 0)
+    let listed: Vec<String> = fitted
+        .order_counts()
+        .into_iter()
         .map(|(k, n)| format!("{n} of order {k}"))
         .collect();
     format!(
@@ -560,18 +609,18 @@ pub fn plot(args: &GridPlotArgs) -> Result<()> {
     } else {
         args.times.clone()
     };
-    let range = layers(args.layers.as_deref(), g.depth)?;
+    let range = layers(args.layers, g.depth)?;
     let maps: Vec<MapImage> = times
         .iter()
         .map(|&t| MapImage {
             title: format!("predicted for {}", time(t)),
             width: g.width,
             height: g.height,
-            values: project(&fitted, &fitted.predict(t), range.clone()),
+            values: project_layers(&g, &fitted.predict(t), range.clone()),
         })
         .collect();
     let cell_pixels = (700 / g.width.max(g.height)).clamp(1, 40);
-    render_maps_png(&maps, &args.output, cell_pixels)?;
-    println!("wrote {}", args.output.display());
+    render_maps_png(&maps, &args.plot, cell_pixels)?;
+    outln!("wrote {}", args.plot.display())?;
     Ok(())
 }

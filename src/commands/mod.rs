@@ -24,7 +24,6 @@ mod model;
 mod monitor;
 mod psbt;
 mod serve;
-mod synthetic;
 mod topo;
 
 use anyhow::{Context, Result};

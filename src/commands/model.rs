@@ -1,16 +1,19 @@
 //! `chronomap fit`, `predict`, `inspect` and `anomalies`: working with saved models.
 
-use std::io::{BufWriter, Write};
+use std::fmt::Write as _;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use chronomap_core::anomaly::detect_anomalies;
-use chronomap_core::{FremenModel, Ordered, TemporalModel};
+use chronomap_core::{FremenModel, FrequencyComponent, Ordered, TemporalModel, binary_entropy};
 use chronomap_io::{Field, read_column, read_pairs, write_any_model};
 use chronomap_models::AnyModel;
+use serde_json::{Value, json};
 
 use super::{data_error, describe_selection, fft_components_table, load_model, read_series};
 use crate::cli::{AnomaliesArgs, FitArgs, InspectArgs, PredictArgs};
 use crate::format::{Table, duration, period, time};
+use crate::output::{print_json, usage};
+use crate::{out, outln};
 
 pub fn fit(args: &FitArgs) -> Result<()> {
     let train = read_pairs(&args.train)?;
@@ -23,101 +26,142 @@ pub fn fit(args: &FitArgs) -> Result<()> {
     let size = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);
-    println!(
+    let selection = fitted.selection.as_ref().map(describe_selection);
+    if args.json {
+        return print_json(&json!({
+            "train": {
+                "file": args.train.display().to_string(),
+                "observations": train.len(),
+            },
+            "model": args.model.to_string(),
+            "fitted": fitted.model.spec().to_string(),
+            "kind": fitted.model.kind(),
+            "order": fitted.model.order(),
+            "selection": selection,
+            "output": args.output.display().to_string(),
+            "bytes": size,
+        }));
+    }
+    outln!(
         "fitted {} as {} on {} observations of {}",
         args.model,
         fitted.model.spec(),
         train.len(),
         args.train.display()
-    );
-    if let Some(selection) = &fitted.selection {
-        println!("{}", describe_selection(selection));
+    )?;
+    if let Some(selection) = selection {
+        outln!("{selection}")?;
     }
-    println!("wrote {} ({size} bytes)", args.output.display());
+    outln!("wrote {} ({size} bytes)", args.output.display())?;
     Ok(())
 }
+
+/// Lines of `predict` written to stdout at once (one write per chunk, not per line).
+const PREDICT_CHUNK: usize = 4096;
 
 pub fn predict(args: &PredictArgs) -> Result<()> {
     let mut model = load_model(&args.model)?;
     if let Some(order) = args.order
         && !model.set_order(order)
     {
-        bail!("a {} model has no order to change", model.kind());
+        return Err(usage(format!(
+            "--order: a {} model has no order to change",
+            model.kind()
+        )));
     }
     let times = match &args.times {
         Some(path) => read_column(path, Field::Time)?,
         None => args.at.clone(),
     };
     let predictions = model.predict_many(&times);
-    let mut out = BufWriter::new(std::io::stdout().lock());
-    writeln!(out, "# time\tp\tentropy_bits")?;
-    for (t, p) in times.iter().zip(predictions) {
-        writeln!(out, "{t}\t{p:.6}\t{:.6}", chronomap_core::binary_entropy(p))?;
+    if args.json {
+        let rows: Vec<Value> = times
+            .iter()
+            .zip(&predictions)
+            .map(|(&t, &p)| json!({"time": t, "p": p, "entropy_bits": binary_entropy(p)}))
+            .collect();
+        return print_json(&json!({
+            "model": args.model.display().to_string(),
+            "spec": model.spec().to_string(),
+            "order": model.order(),
+            "predictions": rows,
+        }));
     }
-    out.flush()?;
+    outln!("# time\tp\tentropy_bits")?;
+    let mut chunk = String::new();
+    for (i, (t, p)) in times.iter().zip(predictions).enumerate() {
+        writeln!(chunk, "{t}\t{p:.6}\t{:.6}", binary_entropy(p))?;
+        if (i + 1) % PREDICT_CHUNK == 0 {
+            out!("{chunk}")?;
+            chunk.clear();
+        }
+    }
+    out!("{chunk}")?;
     Ok(())
 }
 
 pub fn inspect(args: &InspectArgs) -> Result<()> {
     let model = load_model(&args.model)?;
+    if args.json {
+        return print_json(&inspect_json(args, &model));
+    }
     let span = model.span();
-    println!("file:   {}", args.model.display());
-    println!("model:  {} ({})", model.spec(), model.kind());
+    outln!("file:   {}", args.model.display())?;
+    outln!("model:  {} ({})", model.spec(), model.kind())?;
     if span.count > 0 {
-        println!(
+        outln!(
             "data:   {} observations, {} .. {} ({})",
             span.count,
             time(span.first),
             time(span.last),
             duration(span.duration())
-        );
+        )?;
     } else {
-        println!("data:   none (predicts 0.5)");
+        outln!("data:   none (predicts 0.5)")?;
     }
     match &model {
-        AnyModel::Mean(m) => println!("mean:   {:.6}", m.mean().unwrap_or(0.5)),
+        AnyModel::Mean(m) => outln!("mean:   {:.6}", m.mean().unwrap_or(0.5))?,
         AnyModel::Histogram(h) => {
-            println!("bins:   {} over {}", h.bins(), period(h.period_secs()));
+            outln!("bins:   {} over {}", h.bins(), period(h.period_secs()))?;
             let mut table = Table::new(["bin", "from", "mean"]);
             for (i, mean) in h.bin_means().iter().enumerate() {
-                let from = h.period_secs() * i as f64 / h.bins() as f64;
                 table.row([
                     i.to_string(),
-                    duration(from),
+                    duration(bin_start(h.period_secs(), h.bins(), i)),
                     mean.map_or("-".into(), |m| format!("{m:.4}")),
                 ]);
             }
-            println!("{}", table.render());
+            outln!("{}", table.render())?;
         }
-        AnyModel::Fremen(m) => print_fremen(m, args.spectrum),
+        AnyModel::Fremen(m) => print_fremen(m, args.spectrum)?,
         AnyModel::Persistence(m) => {
             match m.persistence_secs() {
-                Some(tau) => println!("persistence tau: {} (eq. 12)", duration(tau)),
-                None => println!("persistence tau: infinite (no change observed)"),
+                Some(tau) => outln!("persistence tau: {} (eq. 12)", duration(tau))?,
+                None => outln!("persistence tau: infinite (no change observed)")?,
             }
-            print_fremen(m.fremen(), args.spectrum);
+            print_fremen(m.fremen(), args.spectrum)?;
         }
         AnyModel::Markov(m) => {
-            println!(
+            outln!(
                 "rates:  0->1 {:.3e}/s, 1->0 {:.3e}/s",
                 m.rate_up_per_sec(),
                 m.rate_down_per_sec()
-            );
+            )?;
             if let Some(pi) = m.stationary() {
-                println!("stationary p: {pi:.4}");
+                outln!("stationary p: {pi:.4}")?;
             }
             if let Some((t, s)) = m.last_observation() {
-                println!("last observation: {s} at {}", time(t));
+                outln!("last observation: {s} at {}", time(t))?;
             }
         }
         AnyModel::Pergam(m) => {
             let fit = m.fit();
-            println!(
+            outln!(
                 "period: {}, scale A = {:.4}, {} EM iterations",
                 period(m.config().period_secs),
                 fit.scale,
                 fit.iterations
-            );
+            )?;
             let mut table = Table::new(["weight", "mean (into period)", "sigma"]);
             for c in &fit.components {
                 table.row([
@@ -126,11 +170,11 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
                     duration(c.sigma_secs),
                 ]);
             }
-            println!("{}", table.render());
+            outln!("{}", table.render())?;
         }
         AnyModel::Hypertime(m) => {
             let periods: Vec<String> = m.periods().iter().map(|&p| period(p)).collect();
-            println!(
+            outln!(
                 "{} mixture components over {} periodicities: {}",
                 m.components(),
                 m.periods().len(),
@@ -139,44 +183,55 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
                 } else {
                     periods.join(", ")
                 }
-            );
+            )?;
         }
         AnyModel::Fft(m) => {
             let (start, step) = m.sampling();
-            println!(
+            outln!(
                 "series: {} samples every {step} s from {} (spectrum over the first {})",
                 m.len(),
                 time(start),
                 m.model_len()
-            );
-            println!(
+            )?;
+            outln!(
                 "gain:   {:.6}; outlier set: {} toggles; estimation error {:.4}",
                 m.gain(),
                 m.outlier_toggles().len(),
                 m.estimation_error()
-            );
-            println!("{}", fft_components_table(m).render());
+            )?;
+            outln!("{}", fft_components_table(m).render())?;
         }
     }
     Ok(())
 }
 
-fn print_fremen(m: &FremenModel, full: bool) {
-    let fit = m.fit();
-    println!(
-        "FreMEn: order {} of {} candidate periods ({}), mean {:.6}",
-        m.order(),
-        m.max_order(),
-        m.config().periods,
-        fit.mean
-    );
-    let mut table = Table::new(["period", "|gamma|", "cos amplitude", "phase (rad)", "used"]);
+/// Start of histogram bin `i` of `bins` over `period` seconds.
+fn bin_start(period: f64, bins: usize, i: usize) -> f64 {
+    period * i as f64 / bins as f64
+}
+
+/// The rows of a FreMEn table: the components in use, or the whole spectrum.
+fn fremen_rows(m: &FremenModel, full: bool) -> (Vec<FrequencyComponent>, Vec<f64>) {
     let used: Vec<f64> = m.components().iter().map(|c| c.period_secs).collect();
     let rows = if full {
         m.spectrum()
     } else {
         m.components().to_vec()
     };
+    (rows, used)
+}
+
+fn print_fremen(m: &FremenModel, full: bool) -> std::io::Result<()> {
+    let fit = m.fit();
+    outln!(
+        "FreMEn: order {} of {} candidate periods ({}), mean {:.6}",
+        m.order(),
+        m.max_order(),
+        m.config().periods,
+        fit.mean
+    )?;
+    let mut table = Table::new(["period", "|gamma|", "cos amplitude", "phase (rad)", "used"]);
+    let (rows, used) = fremen_rows(m, full);
     for c in rows {
         table.row([
             period(c.period_secs),
@@ -191,21 +246,136 @@ fn print_fremen(m: &FremenModel, full: bool) {
             .to_string(),
         ]);
     }
-    println!("{}", table.render());
+    outln!("{}", table.render())
+}
+
+fn fremen_json(m: &FremenModel, full: bool) -> Value {
+    let (rows, used) = fremen_rows(m, full);
+    json!({
+        "order": m.order(),
+        "max_order": m.max_order(),
+        "periods": m.config().periods.to_string(),
+        "mean": m.fit().mean,
+        "components": rows.iter().map(|c| json!({
+            "period_secs": c.period_secs,
+            "amplitude": c.amplitude,
+            "cos_amplitude": 2.0 * c.amplitude,
+            "phase": c.phase,
+            "used": used.contains(&c.period_secs),
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn inspect_json(args: &InspectArgs, model: &AnyModel) -> Value {
+    let span = model.span();
+    let data = (span.count > 0).then(|| {
+        json!({
+            "observations": span.count,
+            "first": span.first,
+            "last": span.last,
+            "duration_secs": span.duration(),
+        })
+    });
+    let details = match model {
+        AnyModel::Mean(m) => json!({"mean": m.mean().unwrap_or(0.5)}),
+        AnyModel::Histogram(h) => json!({
+            "bins": h.bins(),
+            "period_secs": h.period_secs(),
+            "bin_means": h.bin_means(),
+            "bin_starts_secs": (0..h.bins())
+                .map(|i| bin_start(h.period_secs(), h.bins(), i))
+                .collect::<Vec<_>>(),
+        }),
+        AnyModel::Fremen(m) => json!({"fremen": fremen_json(m, args.spectrum)}),
+        AnyModel::Persistence(m) => json!({
+            "persistence_secs": m.persistence_secs(),
+            "fremen": fremen_json(m.fremen(), args.spectrum),
+        }),
+        AnyModel::Markov(m) => json!({
+            "rate_up_per_sec": m.rate_up_per_sec(),
+            "rate_down_per_sec": m.rate_down_per_sec(),
+            "stationary": m.stationary(),
+            "last_observation": m.last_observation().map(|(t, s)| json!({"time": t, "state": s})),
+        }),
+        AnyModel::Pergam(m) => {
+            let fit = m.fit();
+            json!({
+                "period_secs": m.config().period_secs,
+                "scale": fit.scale,
+                "iterations": fit.iterations,
+                "components": fit.components.iter().map(|c| json!({
+                    "weight": c.weight,
+                    "mean_secs": c.mean_secs,
+                    "sigma_secs": c.sigma_secs,
+                })).collect::<Vec<_>>(),
+            })
+        }
+        AnyModel::Hypertime(m) => json!({
+            "components": m.components(),
+            "periods_secs": m.periods(),
+        }),
+        AnyModel::Fft(m) => {
+            let (start, step) = m.sampling();
+            json!({
+                "samples": m.len(),
+                "start": start,
+                "step_secs": step,
+                "model_len": m.model_len(),
+                "gain": m.gain(),
+                "outlier_toggles": m.outlier_toggles().len(),
+                "estimation_error": m.estimation_error(),
+                "components": fft_components_json(m),
+            })
+        }
+    };
+    json!({
+        "file": args.model.display().to_string(),
+        "model": model.spec().to_string(),
+        "kind": model.kind(),
+        "data": data,
+        "details": details,
+    })
+}
+
+/// The spectral set `P` of an FFT FreMEn model as JSON (the rows of [`fft_components_table`]).
+pub(super) fn fft_components_json(m: &chronomap_core::FftFremen) -> Vec<Value> {
+    m.components()
+        .iter()
+        .map(|c| {
+            json!({
+                "bin": c.bin,
+                "period_secs": m.period_of_bin(c.bin),
+                "amplitude": c.amplitude,
+                "phase": c.phase,
+            })
+        })
+        .collect()
 }
 
 pub fn anomalies(args: &AnomaliesArgs) -> Result<()> {
     let model = load_model(&args.model)?;
     let series = read_series(&args.test)?;
     let found = detect_anomalies(&model, &series.times, &series.values, args.confidence)?;
-    println!(
+    if args.json {
+        return print_json(&json!({
+            "model": args.model.display().to_string(),
+            "observations": series.len(),
+            "confidence": args.confidence,
+            "anomalies": found.iter().map(|a| json!({
+                "time": a.time,
+                "observed": a.observed,
+                "p": a.predicted,
+            })).collect::<Vec<_>>(),
+        }));
+    }
+    outln!(
         "{} of {} observations are anomalous at confidence {} (observed 0 while p >= {}, or 1 while p < {:.3})",
         found.len(),
         series.len(),
         args.confidence,
         args.confidence,
         1.0 - args.confidence
-    );
+    )?;
     let mut table = Table::new(["time", "observed", "p(t)"]);
     for a in &found {
         table.row([
@@ -215,7 +385,7 @@ pub fn anomalies(args: &AnomaliesArgs) -> Result<()> {
         ]);
     }
     if !found.is_empty() {
-        println!("{}", table.render());
+        outln!("{}", table.render())?;
     }
     Ok(())
 }

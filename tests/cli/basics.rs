@@ -19,6 +19,24 @@ fn greg(name: &str) -> String {
         .to_string()
 }
 
+/// The JSON of a run that must succeed.
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+fn tom(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/door_tom_2013/sec")
+        .join(name)
+        .display()
+        .to_string()
+}
+
 fn scratch(test: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
     std::fs::create_dir_all(&dir).unwrap();
@@ -184,10 +202,79 @@ fn fit_predict_inspect_and_damaged_model_files() {
         .collect();
     assert_eq!(p.len(), 2);
     assert!(p[0] > 0.2 && p[1] < 0.05, "{p:?}");
+    // The same times comma-separated, repeated and in ISO 8601, as JSON: the same numbers.
+    for at in [
+        &["--at", "1458565200,1458529200"][..],
+        &["--at", "2016-03-21T13:00:00Z", "--at", "2016-03-21T03:00Z"],
+    ] {
+        let mut args = vec!["predict", &model, "--json"];
+        args.extend(at);
+        let json = json_of(&chronomap(&args));
+        assert_eq!(json["spec"], "fremen:4");
+        assert_eq!(json["order"], 4);
+        let rows = json["predictions"].as_array().unwrap();
+        assert_eq!(rows.len(), 2, "{at:?}");
+        assert_eq!(rows[0]["time"], 1_458_565_200.0);
+        assert_eq!(rows[1]["time"], 1_458_529_200.0);
+        for (row, text) in rows.iter().zip(&p) {
+            let q = row["p"].as_f64().unwrap();
+            assert_eq!(format!("{q:.6}").parse::<f64>().unwrap(), *text, "{at:?}");
+            let h = row["entropy_bits"].as_f64().unwrap();
+            let bits = |x: f64| if x > 0.0 { -x * x.log2() } else { 0.0 };
+            let expected = bits(q) + bits(1.0 - q);
+            assert!((h - expected).abs() < 1e-12, "{h} vs {expected}");
+        }
+    }
 
     let out = chronomap(&["inspect", &model]);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("fremen:4") && text.contains("24 h"), "{text}");
+    // As JSON: the four components in use, the daily one among them, and the mean shown.
+    let json = json_of(&chronomap(&["inspect", &model, "--json"]));
+    assert_eq!(
+        (json["model"].as_str(), json["kind"].as_str()),
+        (Some("fremen:4"), Some("fremen"))
+    );
+    assert_eq!(json["data"]["observations"], 96_480);
+    let fremen = &json["details"]["fremen"];
+    assert_eq!(
+        (fremen["order"].as_u64(), fremen["max_order"].as_u64()),
+        (Some(4), Some(84))
+    );
+    let mean = fremen["mean"].as_f64().unwrap();
+    assert!(text.contains(&format!("mean {mean:.6}")), "{text}");
+    let components = fremen["components"].as_array().unwrap();
+    assert_eq!(components.len(), 4);
+    assert!(components.iter().all(|c| c["used"] == true));
+    assert!(components.iter().any(|c| c["period_secs"] == 86_400.0));
+    let whole = json_of(&chronomap(&["inspect", &model, "--spectrum", "--json"]));
+    let spectrum = whole["details"]["fremen"]["components"].as_array().unwrap();
+    assert_eq!(spectrum.len(), 84);
+    assert_eq!(spectrum.iter().filter(|c| c["used"] == true).count(), 4);
+
+    // `fit --json` says what it fitted and wrote.
+    let auto = dir.join("auto.cmm").display().to_string();
+    let json = json_of(&chronomap(&[
+        "fit",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--model",
+        "fremen:auto",
+        "-o",
+        &auto,
+        "--json",
+    ]));
+    assert_eq!(json["model"], "fremen:auto");
+    assert_eq!(json["train"]["observations"], 96_480);
+    assert_eq!(json["bytes"], std::fs::metadata(&auto).unwrap().len());
+    let fitted = json["fitted"].as_str().unwrap();
+    assert_eq!(format!("fremen:{}", json["order"]), fitted);
+    assert!(
+        json["selection"]
+            .as_str()
+            .unwrap()
+            .contains("held-back observations")
+    );
 
     let mut bytes = std::fs::read(&model).unwrap();
     let last = bytes.len() - 1;
@@ -205,7 +292,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
 #[test]
 fn demo_runs_on_bundled_data_and_writes_plots() {
     let dir = scratch("demo");
-    let out = chronomap(&["demo", "--out", &dir.display().to_string()]);
+    let out = chronomap(&["demo", "-o", &dir.display().to_string()]);
     assert!(
         out.status.success(),
         "{}",
@@ -239,5 +326,259 @@ fn demo_runs_on_bundled_data_and_writes_plots() {
             .map(|m| m.len())
             .unwrap_or(0);
         assert!(size > 10_000, "{png}: {size} bytes");
+    }
+}
+
+#[test]
+fn anomalies_and_compress_print_the_same_numbers_as_json() {
+    let dir = scratch("anomalies_compress");
+    let model = dir.join("door.cmm").display().to_string();
+    let out = chronomap(&[
+        "fit",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--model",
+        "fremen:4",
+        "-o",
+        &model,
+    ]);
+    assert!(out.status.success());
+    let test = format!(
+        "{},{}",
+        greg("test_times_1.txt.xz"),
+        greg("test_data_1.txt.xz")
+    );
+    let args = ["anomalies", &model, "--test", &test, "--confidence", "0.7"];
+    let out = chronomap(&args);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut with_json = args.to_vec();
+    with_json.push("--json");
+    let json = json_of(&chronomap(&with_json));
+    assert_eq!(json["observations"], 10_081);
+    assert_eq!(json["confidence"], 0.7);
+    let found = json["anomalies"].as_array().unwrap();
+    assert!(!found.is_empty());
+    assert!(
+        text.starts_with(&format!(
+            "{} of 10081 observations are anomalous at confidence 0.7",
+            found.len()
+        )),
+        "{text}"
+    );
+    // Every anomaly: observed 0 while p >= 0.7, or 1 while p < 0.3; its p is in the table.
+    for a in found {
+        let (p, observed) = (a["p"].as_f64().unwrap(), a["observed"].as_f64().unwrap());
+        assert!(
+            (observed == 0.0 && p >= 0.7) || (observed == 1.0 && p < 0.3),
+            "{a}"
+        );
+        assert!(text.contains(&format!("{p:.4}")), "{p}");
+    }
+
+    // The door week of the FreMEn paper at one second, order 5.
+    let series = format!(
+        "{},{}",
+        tom("test_times_0.txt.xz"),
+        tom("test_data_0.txt.xz")
+    );
+    let day8 = format!(
+        "{},{}",
+        tom("test_times_1.txt.xz"),
+        tom("test_data_1.txt.xz")
+    );
+    let args = [
+        "compress", "--series", &series, "--order", "5", "--test", &day8,
+    ];
+    let out = chronomap(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut with_json = args.to_vec();
+    with_json.push("--json");
+    let json = json_of(&chronomap(&with_json));
+    assert_eq!(json["series"]["samples"], 604_800);
+    assert_eq!(json["series"]["changes"], 350);
+    assert_eq!(json["order"], 5);
+    assert_eq!(json["components"].as_array().unwrap().len(), 5);
+    assert_eq!(json["lossless"], true);
+    let toggles = json["outlier_toggles"].as_u64().unwrap();
+    let eps_e = json["estimation_error"].as_f64().unwrap();
+    assert!(
+        text.contains(&format!("outlier set O: {toggles} toggles")),
+        "{text}"
+    );
+    assert!(text.contains(&format!("eps_e = {eps_e:.4}")), "{text}");
+    let (bytes, lossy) = (
+        json["file_bytes"].as_u64().unwrap(),
+        json["lossy_file_bytes"].as_u64().unwrap(),
+    );
+    let ratio = json["ratio_lossless"].as_f64().unwrap();
+    assert_eq!(ratio, 604_800.0 / (8.0 * bytes as f64));
+    assert!(
+        text.contains(&format!("model file: {bytes} bytes, compression ratio 1:{ratio:.0} lossless; without the outlier set {lossy} bytes")),
+        "{text}"
+    );
+    let eps_p = json["test"]["prediction_error"].as_f64().unwrap();
+    assert_eq!(json["test"]["samples"], 86_400);
+    assert!(
+        text.contains(&format!("prediction error eps_p = {eps_p:.4}")),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_closed_pipe_ends_the_output_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+
+    let dir = scratch("closed_pipe");
+    let model = dir.join("door.cmm").display().to_string();
+    let out = chronomap(&[
+        "fit",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--model",
+        "fremen:4",
+        "-o",
+        &model,
+    ]);
+    assert!(out.status.success());
+    // 604,800 predictions (about 15 MB): far more than a pipe holds. Read one line, close.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(["predict", &model, "--times", &tom("test_times_0.txt.xz")])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert_eq!(first, "# time\tp\tentropy_bits\n");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked") && !err.contains("error"), "{err}");
+    // Text and JSON to a pipe that is closed before anything is written.
+    for args in [
+        &["inspect", &model, "--spectrum"][..],
+        &["inspect", &model, "--spectrum", "--json"],
+        &[
+            "predict",
+            &model,
+            "--times",
+            &tom("test_times_1.txt.xz"),
+            "--json",
+        ],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        assert!(
+            !err.contains("panicked") && !err.contains("error"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn runtime_errors_exit_1_and_usage_errors_exit_2() {
+    let dir = scratch("exit_codes");
+    let mean = dir.join("mean.cmm").display().to_string();
+    let out = chronomap(&[
+        "fit",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--model",
+        "mean",
+        "-o",
+        &mean,
+    ]);
+    assert!(out.status.success());
+    let code = |args: &[&str]| {
+        let out = chronomap(args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        (out.status.code(), err)
+    };
+    // Run time: files that are missing or bad.
+    let missing = dir.join("missing.cmm").display().to_string();
+    let (c, err) = code(&["predict", &missing, "--at", "0"]);
+    assert_eq!(c, Some(1), "{err}");
+    assert!(err.contains("missing.cmm"), "{err}");
+    let (c, err) = code(&["grid", "stats", &missing]);
+    assert_eq!(c, Some(1), "{err}");
+    let (c, _) = code(&["inspect", &greg("training_data.txt.xz")]);
+    assert_eq!(c, Some(1));
+    // Usage: what clap refuses, and flags that contradict each other or the input.
+    for (args, says) in [
+        (&["predict", &mean][..], "--times"),
+        (&["predict", &mean, "--at", "yesterday"], "ISO 8601"),
+        (&["predict", &mean, "--at", "0", "--order", "3"], "--order"),
+        (
+            &["compress", "--series", &mean, "--order", "many"],
+            "--order",
+        ),
+        (
+            &["anomalies", &mean, "--test", &mean, "--confidence", "2"],
+            "confidence",
+        ),
+        (
+            &[
+                "eval",
+                "--train",
+                &greg("training_data.txt.xz"),
+                "--split-at",
+                "2016-02-01,2016-01-20",
+            ],
+            "is not after",
+        ),
+        (&["grid", "predict", &mean, "--time", "0"], "--output"),
+        (&["hypertime", "--train", &mean, "--plot", "x.png"], "--at"),
+        (
+            &["features", "--matrix", &mean, "--lines-per-slot", "0"],
+            "--lines-per-slot",
+        ),
+    ] {
+        let (c, err) = code(args);
+        assert_eq!(c, Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn help_says_which_time_formats_are_accepted() {
+    for command in [
+        &["predict"][..],
+        &["eval"],
+        &["grid", "predict"],
+        &["grid", "plot"],
+        &["hypertime"],
+        &["events", "eval"],
+    ] {
+        let mut args = command.to_vec();
+        args.push("--help");
+        let out = chronomap(&args);
+        assert!(out.status.success());
+        // Words as they read, whatever the terminal's width wraps.
+        let help = String::from_utf8_lossy(&out.stdout)
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert!(
+            help.contains("ISO 8601") && help.contains("unix seconds"),
+            "{command:?}: {help}"
+        );
     }
 }

@@ -284,7 +284,8 @@ fn hypertime_finds_the_afternoon_and_draws_it() {
     assert!((morning - 92.0).abs() < 1.0, "{morning}");
     assert!((afternoon - 24_078.0).abs() < 10.0, "{afternoon}");
     assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    // A value clap cannot take is a usage error (exit code 2).
     let bad = chronomap(&["hypertime", "--train", &whytes(), "--components", "0"]);
-    assert_eq!(bad.status.code(), Some(1));
+    assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--components"));
 }

@@ -87,8 +87,9 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
     };
     assert_eq!(state.frames(), 14 * 24);
 
-    // 3:00 and 13:00 a week after the data: the door closed, then open.
-    for (hour, door) in [(3u64, 100i8), (13, 0)] {
+    // 3:00 and 13:00 a week after the data: the door closed, then open (the old spelling
+    // `--out` of the output is still accepted).
+    for (hour, door, output) in [(3u64, 100i8, "-o"), (13, 0, "--out")] {
         let t = 1_451_865_600 + (21 * 24 + hour) * 3600;
         let base = dir.join(format!("predicted/at_{hour}"));
         let out = chronomap(&[
@@ -97,7 +98,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
             &grid,
             "--time",
             &t.to_string(),
-            "--out",
+            output,
             &base.with_extension("yaml").display().to_string(),
             "--order",
             "4",
@@ -126,11 +127,12 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         "predict",
         &grid,
         "--time",
-        "1453680000",
-        "--out",
+        "2016-01-25T00:00:00Z",
+        "-o",
         &base.display().to_string(),
         "--mode",
         "scale",
+        "--json",
     ]);
     assert!(
         out.status.success(),
@@ -140,6 +142,24 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
     assert!(base.with_extension("png").exists());
     let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
     assert!(yaml.contains("mode: scale"), "{yaml}");
+    // The JSON of the prediction: 2016-01-25 00:00 is 1453680000, at night: the wall and the
+    // door occupied, the corner unknown.
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["time"], 1_453_680_000.0);
+    assert_eq!(
+        (json["width"].as_u64(), json["height"].as_u64()),
+        (Some(4), Some(3))
+    );
+    assert_eq!(
+        (json["occupied"].as_u64(), json["unknown"].as_u64()),
+        (Some(4), Some(1))
+    );
+    assert_eq!(json["free"], 7);
+    assert_eq!(json["mode"], "scale");
+    assert_eq!(
+        json["image"],
+        base.with_extension("png").display().to_string()
+    );
 
     let out = chronomap(&["grid", "stats", &grid]);
     let text = String::from_utf8(out.stdout).unwrap();
@@ -147,14 +167,46 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         text.contains("336") && text.contains("compression"),
         "{text}"
     );
-    let png = dir.join("maps.png");
-    let out = chronomap(&["grid", "plot", &grid, "-o", &png.display().to_string()]);
+    let out = chronomap(&["grid", "stats", &grid, "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["kind"], "grid-state");
+    assert_eq!(json["frames"]["count"], 336);
+    assert_eq!(json["geometry"]["cells"], 12);
+    assert_eq!(json["cell_observations"], 12.0 * 336.0);
+    let bytes = json["bytes"].as_u64().unwrap();
+    assert_eq!(bytes, std::fs::metadata(&grid).unwrap().len());
+    let ratio = json["compression_ratio"].as_f64().unwrap();
+    assert_eq!(ratio, 12.0 * 336.0 / (8.0 * bytes as f64));
     assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        text.contains(&format!("in {bytes} bytes = 1:{ratio:.0}")),
+        "{text}"
     );
-    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    // The door and the unseen corner changed or needed storage.
+    let cells = json["contents"]["dynamic_cells"].as_u64().unwrap();
+    assert!(
+        text.contains(&format!("{cells} cells with storage")),
+        "{text}"
+    );
+
+    // Maps for two times given comma-separated; the old `-o` still names the picture.
+    for flag in ["--plot", "-o"] {
+        let png = dir.join(format!("maps{flag}.png"));
+        let out = chronomap(&[
+            "grid",
+            "plot",
+            &grid,
+            "--time",
+            "1453680000,2016-01-25T13:00Z",
+            flag,
+            &png.display().to_string(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    }
     let _ = MapMode::Trinary;
 }
 
@@ -268,7 +320,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
     ));
 
     let office = dir.join("office.cmg").display().to_string();
-    let out = chronomap(&[
+    let args = [
         "grid",
         "build",
         "--synthetic",
@@ -281,7 +333,8 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         "lossless",
         "-o",
         &office,
-    ]);
+    ];
+    let out = chronomap(&args);
     assert!(
         out.status.success(),
         "{}",
@@ -296,4 +349,42 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         panic!("not lossless")
     };
     assert_eq!(lossless.frames(), 14 * 17_280);
+    // The same build on one thread, as JSON: the error table's numbers are the text's.
+    let mut one_thread = args.to_vec();
+    one_thread.extend(["--threads", "1", "--json"]);
+    let out = chronomap(&one_thread);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["frames"], 14 * 17_280);
+    assert_eq!(json["kind"], "grid-lossless");
+    let errors = &json["errors"];
+    let rows = errors["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 7);
+    assert_eq!(rows[0]["model"], "static (order 0)");
+    assert_eq!(rows[6]["order"], "auto");
+    let changed = errors["changed_cells"].as_u64().unwrap();
+    assert!(
+        text.contains(&format!("Errors over the {changed} cells that changed")),
+        "{text}"
+    );
+    for row in rows {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(row["model"].as_str().unwrap()))
+            .unwrap();
+        for key in ["estimation_error", "prediction_error"] {
+            let percent = format!("{:.2} %", 100.0 * row[key].as_f64().unwrap());
+            assert!(line.contains(&percent), "{key} {percent}: {line}");
+        }
+        // Predictions and errors do not depend on the threads; the static error of the
+        // office is about 6 % (seed 001 §VI).
+        if row["order"] == 0 {
+            let e = row["estimation_error"].as_f64().unwrap();
+            assert!((0.04..0.08).contains(&e), "{e}");
+        }
+    }
 }

@@ -9,6 +9,8 @@
 //!
 //! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict (seed 001) against the textbook
 //!   transforms of `chronomap_core::naive`.
+//! * [`grid`]: the occupancy-grid build at paper scale (seed 001 §VI) against a bare scan of
+//!   the same frames.
 //! * [`plan`]: planning on the Witham map (seed 003 §V) against Storm on the same cases.
 //! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
 //! * [`activity`]: CoPA-Map's training-data extraction and training (seed 002 chapter 4)
@@ -24,6 +26,7 @@
 
 pub mod activity;
 pub mod fremen;
+pub mod grid;
 pub mod plan;
 pub mod psbt;
 #[cfg(feature = "serve")]

@@ -31,7 +31,8 @@
 //! * [`select`] — order and model selection on held-back data. [`anomaly`] — anomaly
 //!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`naive`] — slow
 //!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
-//!   use (results never depend on it); [`rng`] — seeded randomness.
+//!   use (results never depend on it); [`rng`] — seeded randomness; [`time`] — calendar
+//!   conversions and ISO 8601 parsing without a clock.
 //!
 //! The other domains are crates of their own over this one (see `ARCHITECTURE.md`):
 //! `chronomap-models` (models by name, the serialisable union of all models, the benchmark
@@ -64,6 +65,7 @@ pub mod spectrum;
 pub mod stm;
 #[cfg(test)]
 mod testdata;
+pub mod time;
 pub mod visibility;
 
 pub use error::{BuildError, ConfigError, ObservationError};

@@ -134,6 +134,18 @@ pub fn paired_t_test(a: &[f64], b: &[f64]) -> Option<PairedTTest> {
     })
 }
 
+/// The compression ratio of eq. (16) of seed 001 (FreMEn, §IV-C): `r = m·n / z` for `m`
+/// observations of `n` binary states stored in a file of `z` bits (`bytes` bytes). A grid
+/// of `c` cells observed in `f` frames is `m·n = c·f` cell observations.
+///
+/// ```
+/// // 604,800 one-second samples of a door in a 756-byte file: 1:100.
+/// assert_eq!(chronomap_core::metrics::compression_ratio(604_800.0, 756), 100.0);
+/// ```
+pub fn compression_ratio(observations: f64, bytes: usize) -> f64 {
+    observations / (8.0 * bytes as f64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,8 +25,11 @@
 //! Slots planned for other tasks stay so, which keeps the exploration ratio.
 //!
 //! Any [`TemporalModel`] plugs in through [`DailyModel`]; [`AutoOrder`] adds the daily order
-//! selection of seed 000 §4.1.3 to an [`Ordered`] model.
+//! selection of seed 000 §4.1.3 to an [`Ordered`] model. [`table`] runs the experiments of §7:
+//! every strategy with every model, and the sweep over exploration ratios.
 #![deny(missing_docs)]
+
+pub mod table;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;

@@ -27,9 +27,15 @@
 //! and an unknown-run accumulator only if they were ever unknown. Grids over disjoint cell
 //! ranges that saw the same frame times can be built on separate threads and
 //! [concatenated](FremenGrid::concat).
+//!
+//! [`build`] builds grids from sequences of frames (with the snapshots of a chronological
+//! hold-out) and from sources that stream parts of the cells on separate threads; [`report`]
+//! computes the error table of seed 001 §VI and other views of a built grid.
 #![deny(missing_docs)]
 
+pub mod build;
 mod fitted;
+pub mod report;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;

@@ -34,15 +34,18 @@
 //!   ([`EventModelBuilder`], [`default_builders`]).
 //! * [`run_experiment`] — the experiment of seed 004 §V-D: MSE per cell of every model against
 //!   the test counts, its reduction against the static map and a paired t-test.
+//! * [`density`] — maps of the expected events per m² per hour at given times, and the
+//!   extent of a set of events.
 
 mod baselines;
+pub mod density;
 mod experiment;
 mod training;
 
 pub use baselines::{CellFremen, CellHistogram, GlobalMean, StaticMap};
 pub use experiment::{
     EventModelBuilder, EventScore, FremenBuilder, GlobalMeanBuilder, HistogramBuilder,
-    StaticBuilder, default_builders, run_experiment,
+    StaticBuilder, default_builders, run_experiment, run_experiment_reporting,
 };
 pub use training::{EventError, Holdout, TrainingData, Window, observed_windows};
 

@@ -48,11 +48,13 @@
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
-//!   [`ModelFileError`].
+//!   [`ModelFileError`]. [`compression`] — the sizes and compression ratios of FFT FreMEn
+//!   model files (seed 001 eq. (16)).
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
-//!   ([`NavMapError`]) name the file, line and key.
+//!   ([`NavMapError`]) name the file, line and key. [`frame_list`] — the `<time> <map.yaml>`
+//!   lists of maps that occupancy grids are built from ([`read_frame_list`]).
 //! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
 //!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
 //!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
@@ -78,10 +80,14 @@ pub mod bt_log;
 pub mod bt_script;
 #[cfg(feature = "bt")]
 pub mod bt_xml;
+#[cfg(feature = "models")]
+pub mod compression;
 #[cfg(feature = "explore")]
 pub mod datasets;
 #[cfg(feature = "hypertime")]
 pub mod events;
+#[cfg(feature = "navmap")]
+pub mod frame_list;
 #[cfg(feature = "grid")]
 pub mod grid_file;
 pub mod matrix;
@@ -113,6 +119,8 @@ pub use bt_script::{BtScriptError, read_bt_script};
 pub use bt_xml::{BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml, write_bt_xml};
 #[cfg(feature = "hypertime")]
 pub use events::{read_event_files, read_events, read_events_from};
+#[cfg(feature = "navmap")]
+pub use frame_list::{Frame, FrameMapError, load_frame_map, read_frame_list, read_frame_list_from};
 #[cfg(feature = "grid")]
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};

@@ -137,13 +137,15 @@ pub enum Field {
     PathName,
     /// How long a robot stops at a waypoint, in seconds (robot path files).
     Stop,
+    /// The map file of a frame (frame lists of occupancy grids, module `frame_list`).
+    MapFile,
 }
 
 impl Field {
     /// `"time"`, `"value"`, `"duration"`, `"success"`, `"x"`, `"y"`, the column names of
     /// activity-rate grids `"x1"`, `"x2"`, `"t"`, `"y"` (for [`Field::Rate`]), `"count"`,
     /// `"duration_s"`, `"person"`, `"speed"`, `"heading"` of pedestrian tracks, or `"path"`
-    /// and `"stop_s"` of robot path files.
+    /// and `"stop_s"` of robot path files, or `"map"` of frame lists.
     pub fn as_str(self) -> &'static str {
         match self {
             Field::Time => "time",
@@ -163,6 +165,7 @@ impl Field {
             Field::ObservedDuration => "duration_s",
             Field::PathName => "path",
             Field::Stop => "stop_s",
+            Field::MapFile => "map",
         }
     }
 }
@@ -629,7 +632,9 @@ pub fn read_column_from(
         Field::Heading => "expected one heading per line",
         Field::Count => "expected one count per line",
         Field::ObservedDuration => "expected one observed duration per line",
-        Field::PathName => "expected one number per line (path names are not numbers)",
+        Field::PathName | Field::MapFile => {
+            "expected one number per line (path names are not numbers)"
+        }
         Field::Stop => "expected one stop duration per line",
     };
     let mut numbers = Vec::new();
@@ -658,7 +663,7 @@ pub fn read_column_from(
                 }
                 duration
             }
-            Field::PathName => parse_number(text, field)?,
+            Field::PathName | Field::MapFile => parse_number(text, field)?,
             Field::Person => parse_person(text)? as f64,
         };
         if let Some(extra) = fields.next() {

@@ -3,7 +3,9 @@
 //! Every temporal model of chronomap by name: [`ModelSpec`] parses `fremen:auto`, `hist:24`,
 //! `hyt-em:3` or `auto` and fits it; [`AnyModel`] is the serialisable union of all models that
 //! files, the command line and the service pass around; [`eval`] runs the train/test
-//! experiment of the FreMEn benchmarks over any list of specs.
+//! experiment of the FreMEn benchmarks over any list of specs; [`features`] the feature
+//! visibility experiment (which features will the robot see?); [`split`] chronological
+//! splits of one series into training and test parts.
 //!
 //! The Warped Hypertime models come from `chronomap-hypertime` behind the `hypertime` cargo
 //! feature (on by default); without it, crates that only need the FreMEn family (topological
@@ -11,6 +13,8 @@
 #![deny(missing_docs)]
 
 pub mod eval;
+pub mod features;
 pub mod spec;
+pub mod split;
 
 pub use spec::{AnyModel, FitOptions, ModelSpec};

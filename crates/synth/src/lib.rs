@@ -8,6 +8,8 @@
 //!   (seed 001 §VI: 213,000 cells, a frame every 5 s, 112 days), streamed frame by frame
 //!   so that the ~51 GB of frame bits never exist in memory at once.
 //! * [`stats`] — per-cell statistics of a streamed range (the static model's error).
+//! * [`office_grid`] — the office as a `chronomap-grid` grid: its geometry and its streams as
+//!   a source of partitioned builds.
 //!
 //! ```
 //! use chronomap_synth::office::{OfficeConfig, OfficeWorkload};
@@ -28,6 +30,7 @@
 
 pub mod error;
 pub mod office;
+pub mod office_grid;
 /// Seeded pseudo-random numbers (shared with the rest of chronomap).
 pub use chronomap_core::rng;
 pub mod stats;

@@ -4,6 +4,7 @@
 use rayon::prelude::*;
 
 use chronomap_core::metrics::{mse, paired_t_test};
+use chronomap_core::progress::{NoProgress, Progress};
 
 use super::baselines::{CellFremen, CellHistogram, GlobalMean, StaticMap};
 use super::training::{EventError, Holdout, TrainingData, check_events};
@@ -242,6 +243,21 @@ pub fn run_experiment(
     bins: &[f64],
     builders: &[Box<dyn EventModelBuilder>],
 ) -> Result<Vec<EventScore>, EventError> {
+    run_experiment_reporting(train, test, cells, bins, builders, &NoProgress)
+}
+
+/// [`run_experiment`], reporting one step per (cell size, bin length) to `progress`.
+///
+/// # Errors
+/// As [`run_experiment`].
+pub fn run_experiment_reporting(
+    train: &TrainingData<'_>,
+    test: &[Event],
+    cells: &[f64],
+    bins: &[f64],
+    builders: &[Box<dyn EventModelBuilder>],
+    progress: &dyn Progress,
+) -> Result<Vec<EventScore>, EventError> {
     if test.is_empty() {
         return Err(EventError::NoEvents { what: "test" });
     }
@@ -259,9 +275,14 @@ pub fn run_experiment(
         .iter()
         .flat_map(|&c| bins.iter().map(move |&b| (c, b)))
         .collect();
+    progress.stage("scoring event models", configs.len() as u64);
     let rows: Result<Vec<Vec<EventScore>>, EventError> = configs
         .par_iter()
-        .map(|&(cell, bin_secs)| score_grid(train, test, cell, bin_secs, builders))
+        .map(|&(cell, bin_secs)| {
+            let scores = score_grid(train, test, cell, bin_secs, builders);
+            progress.advance(1);
+            scores
+        })
         .collect();
     Ok(rows?.into_iter().flatten().collect())
 }
@@ -353,6 +374,30 @@ mod tests {
             }
         }
         events
+    }
+
+    #[test]
+    fn progress_counts_the_grids_and_changes_nothing() {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        struct Count(AtomicU64);
+        impl Progress for Count {
+            fn advance(&self, steps: u64) {
+                self.0.fetch_add(steps, Ordering::Relaxed);
+            }
+        }
+        let train_events = days(0..2);
+        let test = days(2..3);
+        let train = TrainingData::from_events(&train_events, 3600.0).unwrap();
+        let count = Count(AtomicU64::new(0));
+        let (cells, bins) = ([1.0, 2.0], [900.0, 1800.0, 3600.0]);
+        let builders = default_builders();
+        let rows =
+            run_experiment_reporting(&train, &test, &cells, &bins, &builders, &count).unwrap();
+        assert_eq!(count.0.load(Ordering::Relaxed), 6);
+        assert_eq!(
+            rows,
+            run_experiment(&train, &test, &cells, &bins, &builders).unwrap()
+        );
     }
 
     #[test]
