@@ -20,11 +20,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
+use chronomap_client::Client;
 use chronomap_core::TemporalModel;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_io::TimeSeries;
 use chronomap_serve::api::{AddValuesRequest, ForecastRequest, ObservationsRequest, WriteAck};
-use chronomap_serve::client::Client;
 use chronomap_serve::log::{LogRecord, encode_group};
 use chronomap_serve::registry::{Entry, ModelConfig, Registry};
 use chronomap_serve::store::{RedbStore, Store};
@@ -719,7 +719,7 @@ async fn send_all(
                         break;
                     }
                     let request = client.raw(
-                        chronomap_serve::client::Method::POST,
+                        chronomap_client::Method::POST,
                         "/v1/observations",
                         body.bytes.clone(),
                         Some(&token),
@@ -728,7 +728,7 @@ async fn send_all(
                         .await
                         .context("POST /v1/observations: no answer")??;
                     ensure!(
-                        status == chronomap_serve::client::StatusCode::OK,
+                        status == chronomap_client::StatusCode::OK,
                         "POST /v1/observations: {status}: {text}"
                     );
                     let ack: WriteAck =

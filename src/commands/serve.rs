@@ -7,8 +7,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use chronomap_client::Client;
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
-use chronomap_serve::client::Client;
 use chronomap_serve::maps::Maps;
 use chronomap_serve::store::{PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;

@@ -6,8 +6,8 @@ use crate::service;
 
 use std::process::Command;
 
+use chronomap_client::Client;
 use chronomap_core::{FremenModel, TemporalModel};
-use chronomap_serve::client::Client;
 use service::{Backend, free_port, scratch, start};
 
 const TRAIN: &str = "data/door_greg_2016/training_data.txt.xz";
@@ -135,7 +135,7 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
     let client = Client::new(&server.url, None).unwrap();
     let get = |path: &str| {
         let (status, text) = runtime
-            .block_on(client.raw(chronomap_serve::client::Method::GET, path, vec![], None))
+            .block_on(client.raw(chronomap_client::Method::GET, path, vec![], None))
             .unwrap();
         assert_eq!(status, 200, "{path}");
         text
@@ -324,16 +324,13 @@ fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
         .unwrap_err();
     assert_eq!(
         out_of_range.status(),
-        Some(chronomap_serve::client::StatusCode::BAD_REQUEST)
+        Some(chronomap_client::StatusCode::BAD_REQUEST)
     );
 
     // remove, then the model is gone and its id free for another kind.
     runtime.block_on(client.remove("door-0")).unwrap();
     let gone = runtime.block_on(client.view("door-0")).unwrap_err();
-    assert_eq!(
-        gone.status(),
-        Some(chronomap_serve::client::StatusCode::NOT_FOUND)
-    );
+    assert_eq!(gone.status(), Some(chronomap_client::StatusCode::NOT_FOUND));
     runtime
         .block_on(client.create("door-0", Some("stm"), None))
         .unwrap();
@@ -412,7 +409,7 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     let post = |path: &str, body: serde_json::Value| -> (u16, String) {
         let (status, text) = runtime
             .block_on(client.raw(
-                chronomap_serve::client::Method::POST,
+                chronomap_client::Method::POST,
                 path,
                 body.to_string().into_bytes(),
                 None,
