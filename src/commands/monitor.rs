@@ -6,9 +6,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use chronomap_bt::monitor::sim::{
-    SimConfig, SimReport, arbiter_document, parse_faults, random_faults, simulate,
-};
+use chronomap_bt::monitor::sim::{SimConfig, SimReport, arbiter_document, random_faults, simulate};
 use chronomap_bt::{BtDocument, Registry};
 use chronomap_io::{BtXml, read_bt_xml};
 
@@ -42,12 +40,7 @@ pub fn sim(args: &MonitorSimArgs) -> Result<()> {
     }
     let duration = Duration::from_secs((args.hours * 3600.0).round() as u64);
     let faults = match &args.faults {
-        Some(file) => {
-            let name = file.display();
-            let text = std::fs::read_to_string(file).with_context(|| name.to_string())?;
-            parse_faults(&text)
-                .map_err(|e| anyhow::anyhow!("{name}:{}: {}: {}", e.line, e.field, e.message))?
-        }
+        Some(file) => chronomap_io::read_fault_file(file)?,
         None => random_faults(args.seed, duration),
     };
     let doc = arbiter(args)?;

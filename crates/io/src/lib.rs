@@ -52,7 +52,9 @@
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
-//!   ([`NavMapError`]) name the file, line and key.
+//!   ([`NavMapError`]) name the file, line and key. A map's obstacles for sight lines
+//!   ([`OccupancyMap::obstacle_grid`]) and for path planners, unknown cells blocking
+//!   ([`OccupancyMap::planning_obstacles`]).
 //! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
 //!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
 //!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
@@ -62,7 +64,9 @@
 //!   both node forms, subtrees, `<TreeNodesModel>`; errors ([`BtXmlError`]) name the file,
 //!   line, column and attribute. [`bt_log`] — Groot2 `.btlog` execution logs from recorded
 //!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
-//!   `chronomap bt run` ([`read_bt_script`]).
+//!   `chronomap bt run` ([`read_bt_script`]); [`sbt_params`] — leaf parameters of a stochastic
+//!   behavior tree for `chronomap bt analyse` ([`read_leaf_params`]); [`monitor_faults`] —
+//!   faults injected into the monitoring simulation ([`read_fault_file`]).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
@@ -86,12 +90,18 @@ pub mod events;
 pub mod grid_file;
 pub mod matrix;
 pub mod model_file;
+#[cfg(feature = "bt")]
+pub mod monitor_faults;
 #[cfg(feature = "navmap")]
 pub mod navmap;
+#[cfg(feature = "navmap")]
+mod navmap_obstacles;
 #[cfg(feature = "psbt")]
 pub mod psbt_xml;
 #[cfg(feature = "activity")]
 pub mod robot_paths;
+#[cfg(feature = "bt")]
+pub mod sbt_params;
 #[cfg(feature = "activity")]
 pub mod scenarios;
 pub mod text;
@@ -124,6 +134,8 @@ pub use model_file::{
 };
 #[cfg(feature = "models")]
 pub use model_file::{decode_any_model, read_any_model, write_any_model};
+#[cfg(feature = "bt")]
+pub use monitor_faults::{FaultFileError, read_fault_file};
 #[cfg(feature = "navmap")]
 pub use navmap::{
     LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,
@@ -132,6 +144,8 @@ pub use navmap::{
 };
 #[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
+#[cfg(feature = "bt")]
+pub use sbt_params::{SbtParamsError, read_leaf_params};
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
