@@ -79,3 +79,38 @@ fn gp_hom_reports_its_iterations_through_the_baselines() {
         .unwrap();
     assert!(log.0.lock().unwrap().is_empty());
 }
+
+#[test]
+fn the_extraction_reports_every_bin_and_sees_the_same() {
+    use crate::extract::{
+        ExtractConfig, ObstacleGrid, RobotPath, Waypoint, extract, extract_with_progress,
+    };
+    use chronomap_hypertime::events::Event;
+
+    let room = ObstacleGrid::free(200, 200, 0.05, [0.0, 0.0]).unwrap();
+    let robot = RobotPath::new(vec![Waypoint::new([5.0, 5.0], 60.0)], 0.5).unwrap();
+    let people = [
+        Event {
+            t: 10.0,
+            x: 5.2,
+            y: 5.3,
+        },
+        Event {
+            t: 3700.0,
+            x: 5.4,
+            y: 5.1,
+        },
+    ];
+    let config = ExtractConfig {
+        step_seconds: 60.0,
+        ..ExtractConfig::default()
+    };
+    let log = Log::default();
+    let robots = [robot];
+    let watched =
+        extract_with_progress(&room, &robots, &people, &[0, 1, 3], &config, &log).unwrap();
+    assert_eq!(*log.0.lock().unwrap(), [("bins".to_owned(), 3, 3)]);
+    let plain = extract(&room, &robots, &people, &[0, 1, 3], &config).unwrap();
+    assert_eq!(watched.observations, plain.observations);
+    assert_eq!(watched.total_count(), 2);
+}

@@ -38,6 +38,8 @@
 //!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
 //! * [`activity`] — activity-rate grids: people per hour of observation at spatio-temporal
 //!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
+//! * [`rate_predictions`] — predicted rates with their standard deviation, CSV
+//!   `x1,x2,t,mean,std` ([`rate_predictions::write_rate_predictions`]).
 //! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
 //!   bundled ATC day), returned in time order.
 //! * [`robot_paths`] — patrol loops of simulated robots, CSV `path,x,y,stop_s`
@@ -98,6 +100,8 @@ pub mod navmap;
 mod navmap_obstacles;
 #[cfg(feature = "psbt")]
 pub mod psbt_xml;
+#[cfg(feature = "activity")]
+pub mod rate_predictions;
 #[cfg(feature = "activity")]
 pub mod robot_paths;
 #[cfg(feature = "bt")]
