@@ -156,7 +156,7 @@ pub struct TopoSplitArgs {
     /// Directory of edge files.
     #[arg(long)]
     pub edges: PathBuf,
-    /// Split time: seconds or ISO 8601 (UTC unless an offset is given).
+    /// Split time: unix seconds or ISO 8601 (2014-08-20; UTC unless an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub at: f64,
     /// Directory for the attempts before the split (created; must not hold edge files).
