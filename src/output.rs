@@ -1,9 +1,9 @@
 //! What the binary shows: results on stdout (text or `--json`), progress bars and errors on
 //! stderr, exit codes.
 //!
-//! * Results go through [`outln!`](crate::outln), which returns the write error instead of panicking, so a
-//!   closed pipe (`chronomap inspect door.cmm | head -1`) ends the command quietly: `main`
-//!   exits 0 when the first error in the chain is a broken pipe.
+//! * Results go through [`outln!`](crate::outln!), which returns the write error instead of
+//!   panicking, so a closed pipe (`chronomap inspect door.cmm | head -1`) ends the command
+//!   quietly: `main` exits 0 when the first error in the chain is a broken pipe.
 //! * Exit codes: 0 success (and a closed output pipe), 1 a failure at run time (a bad file, a
 //!   model that cannot be built), 2 a usage error: what clap rejects, and a [`UsageError`]
 //!   returned by a command for flags that contradict each other.
@@ -35,7 +35,7 @@ macro_rules! outln {
     };
 }
 
-/// Writes to stdout without a newline; like [`outln!`](crate::outln).
+/// Writes to stdout without a newline; like [`outln!`](crate::outln!).
 #[macro_export]
 macro_rules! out {
     ($($arg:tt)*) => {

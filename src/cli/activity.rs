@@ -56,8 +56,11 @@ Example (the bundled ATC grid; t is the hour bin, 12 recorded hours a day from 0
 is 12:00 and t = 129 is 18:00 of the day after the ten training days):
   chronomap activity fit --train data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz \\
       -o atc.cmcopa
-  chronomap activity predict --model atc.cmcopa --t 123 --t 129 \\
-      --map data/atc_copa_map_grid/atc_map.yaml --png atc_copa.png --csv atc_copa.csv";
+  chronomap activity predict --model atc.cmcopa --t 123,129 \\
+      --map data/atc_copa_map_grid/atc_map.yaml --plot atc_copa.png -o atc_copa.csv
+
+Times (--t) are in the units of the training t (for the ATC grid the hour-bin index), not wall-clock
+times; repeat the flag or separate them by commas.";
 
 /// `chronomap activity fit`.
 #[derive(Debug, Args)]
@@ -83,6 +86,9 @@ pub struct ActivityFitArgs {
     /// Seed of the minibatches and of the k-means of the inducing points.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `chronomap activity predict`.
@@ -91,11 +97,23 @@ pub struct ActivityPredictArgs {
     /// A model written by `chronomap activity fit`.
     #[arg(long)]
     pub model: PathBuf,
-    /// Times to predict (repeat the flag), in the units of the training t.
-    #[arg(long = "t", required = true)]
+    /// Times to predict, in the units of the training t (numbers, not dates); repeat the flag
+    /// or separate them by commas.
+    #[arg(
+        long = "t",
+        required = true,
+        value_delimiter = ',',
+        num_args = 1..,
+        allow_negative_numbers = true
+    )]
     pub times: Vec<f64>,
     /// Region `x_min,y_min,x_max,y_max` in metres (default: the model's training square).
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 4,
+        allow_negative_numbers = true
+    )]
     pub region: Option<Vec<f64>>,
     /// Side of a cell in metres.
     #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
@@ -103,12 +121,17 @@ pub struct ActivityPredictArgs {
     /// A ROS map (YAML) whose occupied cells are left out (drawn as obstacles).
     #[arg(long)]
     pub map: Option<PathBuf>,
-    /// Write `x1,x2,t,mean,std` here.
+    /// Write the predictions as CSV `x1,x2,t,mean,std` here (else they are printed, unless
+    /// --plot is given). `--csv` is an old spelling.
+    #[arg(short, long, alias = "csv")]
+    pub output: Option<PathBuf>,
+    /// Draw the predicted mean and standard deviation at every time as a PNG (`--png` is an
+    /// old spelling).
+    #[arg(long, alias = "png")]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON object with every prediction.
     #[arg(long)]
-    pub csv: Option<PathBuf>,
-    /// Draw the predicted mean and standard deviation at every time as a PNG.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
+    pub json: bool,
 }
 
 pub(super) const ACTIVITY_HELP_TRUTH: &str = "\
@@ -127,20 +150,26 @@ in hours). The output's t is the bin index plus --t-offset.";
 /// `chronomap activity truth`.
 #[derive(Debug, Args)]
 pub struct ActivityTruthArgs {
-    /// Pedestrian track files, CSV `t,person,x,y,speed,heading`.
-    #[arg(long, num_args = 1.., required = true)]
+    /// Pedestrian track files, CSV `t,person,x,y,speed,heading`: several after the flag,
+    /// the flag repeated, or separated by commas.
+    #[arg(long, num_args = 1.., value_delimiter = ',', required = true)]
     pub tracks: Vec<PathBuf>,
     /// The grid whose cells get a ground truth (CSV `x1,x2,t,y`; its distinct cells are used).
     #[arg(long)]
     pub cells: PathBuf,
-    /// Start of bin 0 in the tracks' time unit (unix seconds).
-    #[arg(long)]
+    /// Start of bin 0 in the tracks' time: unix seconds or ISO 8601 (2012-10-24T09:00+09:00).
+    #[arg(long, value_parser = parse_time)]
     pub t0: f64,
     /// Length of a bin in seconds.
     #[arg(long, default_value_t = 3600.0, value_parser = parse_positive)]
     pub bin_seconds: f64,
-    /// Bin indices to count, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true)]
+    /// Bin indices to count: comma-separated or the flag repeated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        allow_negative_numbers = true
+    )]
     pub bins: Vec<i64>,
     /// Added to the bin index to give the output's t.
     #[arg(long, default_value_t = 0.0)]
@@ -151,6 +180,9 @@ pub struct ActivityTruthArgs {
     /// Output CSV `x1,x2,t,y`.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub(super) const ACTIVITY_HELP_EXTRACT: &str = "\
@@ -214,8 +246,9 @@ pub enum CopaScale {
 /// `chronomap activity extract`.
 #[derive(Debug, Args)]
 pub struct ActivityExtractArgs {
-    /// Pedestrian track files `t,person,x,y,speed,heading` (plain, .xz or .gz).
-    #[arg(long, required = true, num_args = 1..)]
+    /// Pedestrian track files `t,person,x,y,speed,heading` (plain, .xz or .gz): several
+    /// after the flag, the flag repeated, or separated by commas.
+    #[arg(long, required = true, num_args = 1.., value_delimiter = ',')]
     pub tracks: Vec<PathBuf>,
     /// ROS map YAML file (map_server / Nav2) of the environment.
     #[arg(long, required_unless_present = "cells_from")]
@@ -223,8 +256,9 @@ pub struct ActivityExtractArgs {
     /// Robot path file, CSV `path,x,y,stop_s`.
     #[arg(long, visible_alias = "path", required_unless_present = "cells_from")]
     pub paths: Option<PathBuf>,
-    /// Only the paths of these names (repeatable; default all).
-    #[arg(long = "robot", value_name = "NAME")]
+    /// Only the paths of these names (repeat the flag or separate them by commas; default
+    /// all).
+    #[arg(long = "robot", value_name = "NAME", value_delimiter = ',')]
     pub robots: Vec<String>,
     /// Robot speed, m/s.
     #[arg(long, default_value_t = 0.5, value_parser = parse_positive)]
@@ -241,11 +275,12 @@ pub struct ActivityExtractArgs {
     /// Simulation step, seconds (the bin length must be a whole multiple of it).
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     pub step: f64,
-    /// Start of bin 0 and of the robots' loops, unix seconds.
-    #[arg(long)]
+    /// Start of bin 0 and of the robots' loops: unix seconds or ISO 8601
+    /// (2012-10-24T09:00+09:00).
+    #[arg(long, value_parser = parse_time)]
     pub t0: Option<f64>,
-    /// Bins to extract (indices from --t0, comma-separated; default: every bin with a
-    /// detection).
+    /// Bins to extract (indices from --t0, comma-separated or the flag repeated; default:
+    /// every bin with a detection).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub bins: Vec<i64>,
     /// Map cells with at least this occupancy (percent) block sight.
@@ -344,8 +379,9 @@ pub struct ActivityDisturbanceArgs {
     /// Training rates, CSV `x1,x2,t,y` (the planning cells are its cells).
     #[arg(long)]
     pub train: PathBuf,
-    /// Pedestrian track files of the test day (`t,person,x,y,speed,heading`).
-    #[arg(long, num_args = 1.., required = true)]
+    /// Pedestrian track files of the test day (`t,person,x,y,speed,heading`): several after
+    /// the flag, the flag repeated, or separated by commas.
+    #[arg(long, num_args = 1.., value_delimiter = ',', required = true)]
     pub tracks: Vec<PathBuf>,
     /// ROS map YAML of the environment.
     #[arg(long)]
@@ -356,13 +392,14 @@ pub struct ActivityDisturbanceArgs {
     /// The scenario to run (a name in --scenarios), or `all`.
     #[arg(long, default_value = "all")]
     pub scenario: String,
-    /// Start of the test day's first hour bin: unix seconds or ISO 8601 (default: the hour of
-    /// the first detection).
+    /// Start of the test day's first hour bin: unix seconds or ISO 8601
+    /// (2012-10-24T09:00+09:00; UTC unless an offset is given). Default: the hour of the first
+    /// detection.
     #[arg(long, value_parser = parse_time)]
     pub day_start: Option<f64>,
-    /// The model time t of that first hour bin (default: the first whole day after the
-    /// training data, a multiple of --period).
-    #[arg(long)]
+    /// The model time t of that first hour bin, in the units of the training t (default: the
+    /// first whole day after the training data, a multiple of --period).
+    #[arg(long, allow_negative_numbers = true)]
     pub t0: Option<f64>,
     /// Hour bins per day in the training grid (12 for the ATC grid, 09:00 to 21:00).
     #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]

@@ -17,6 +17,7 @@ pub enum BenchCommand {
     /// The service on loopback (redb store, token): latency of predict and forecast from
     /// concurrent clients, and durable observations/s of batched adds, against the same work
     /// done in-process (and straight into redb) in the same run.
+    #[cfg(feature = "serve")]
     #[command(after_help = BENCH_SERVE_HELP)]
     Serve(BenchServeArgs),
     /// CoPA-Map's activity pipeline (seed 002 chapter 4) on the bundled ATC data: training-data
@@ -107,6 +108,7 @@ pub struct BenchPlanArgs {
     pub json: bool,
 }
 
+#[cfg(feature = "serve")]
 pub(super) const BENCH_SERVE_HELP: &str = "\
 Examples:
   chronomap bench serve                          # about 10 s on 2 cores
@@ -114,6 +116,7 @@ Examples:
   chronomap bench serve --observations 2000000 --batch 20000 --data bench-data   # keep the store";
 
 /// `chronomap bench serve`.
+#[cfg(feature = "serve")]
 #[derive(Debug, Args)]
 pub struct BenchServeArgs {
     /// Models served (each is the training door, shifted by one hour per model).

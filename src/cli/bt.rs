@@ -69,12 +69,12 @@ pub struct BtAnalyseArgs {
     /// The tree to analyse (default: main_tree_to_execute, or the only tree).
     #[arg(long)]
     pub tree: Option<String>,
-    /// Last time of the table, seconds after the tree starts.
-    #[arg(long)]
+    /// Last time of the table, seconds after the tree starts (a positive number).
+    #[arg(long, value_parser = parse_positive)]
     pub t_max: Option<f64>,
-    /// Number of intervals of the time table.
-    #[arg(long, default_value_t = 10)]
-    pub steps: usize,
+    /// Number of intervals of the time table (at least 1).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    pub steps: u32,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -91,9 +91,13 @@ pub struct BtCheckArgs {
     /// The tree to print (default: main_tree_to_execute, or the only tree).
     #[arg(long)]
     pub tree: Option<String>,
-    /// Also write the file in the canonical BehaviorTree.CPP 4 form (compact nodes, node models).
+    /// Also write the file in the canonical BehaviorTree.CPP 4 form (compact nodes, node
+    /// models); `--save` is an old spelling.
+    #[arg(short, long, alias = "save")]
+    pub output: Option<PathBuf>,
+    /// Print the tree as one JSON object (nodes depth first with uids, as in the table).
     #[arg(long)]
-    pub save: Option<PathBuf>,
+    pub json: bool,
 }
 
 /// `chronomap bt run`.
@@ -113,6 +117,9 @@ pub struct BtRunArgs {
     /// Write the status changes as a Groot2 execution log (must end in .btlog).
     #[arg(long)]
     pub btlog: Option<PathBuf>,
+    /// Print the run as one JSON object (every tick with its transitions).
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub(super) const MONITOR_HELP_SIM: &str = "\

@@ -16,6 +16,7 @@ mod explore;
 mod grid;
 mod model;
 mod psbt;
+#[cfg(feature = "serve")]
 mod serve;
 mod topo;
 
@@ -27,6 +28,7 @@ pub use explore::*;
 pub use grid::*;
 pub use model::*;
 pub use psbt::*;
+#[cfg(feature = "serve")]
 pub use serve::*;
 pub use topo::*;
 
@@ -128,9 +130,11 @@ pub enum Command {
     Features(FeaturesArgs),
     /// Run the world-model service: an HTTP/JSON API over durable models (add observations,
     /// predict, forecast), with an OpenAPI description at /openapi.json.
+    #[cfg(feature = "serve")]
     #[command(after_help = SERVE_HELP)]
     Serve(ServeArgs),
     /// Talk to a running service: add observations, predict, forecast, view, list, remove.
+    #[cfg(feature = "serve")]
     Client(ClientArgs),
     /// Behavior trees in BehaviorTree.CPP 4 XML: check a file, or tick a tree whose leaves
     /// follow a script (seed 002 §5.2-5.3).

@@ -42,8 +42,9 @@ pub struct PsbtWorldArgs {
     /// ROS map YAML (map_server / Nav2).
     #[arg(long)]
     pub map: PathBuf,
-    /// Pedestrian track files, `t,person,x,y,speed,heading` (comma-separated; .xz/.gz read),
-    /// or one CoPA-Map model file of `chronomap activity fit` (.cmcopa; synthesis only).
+    /// Pedestrian track files, `t,person,x,y,speed,heading` (several after the flag, the flag
+    /// repeated, or comma-separated; .xz/.gz read), or one CoPA-Map model file of `chronomap
+    /// activity fit` (.cmcopa; synthesis only).
     #[arg(long, value_delimiter = ',', num_args = 1.., required = true)]
     pub activity: Vec<PathBuf>,
     /// Side of a cell of the activity model in metres.
@@ -72,7 +73,8 @@ pub struct PsbtSynthArgs {
     /// Help location `x,y` in metres (map frame).
     #[arg(long, value_parser = parse_xy, allow_hyphen_values = true, required = true)]
     pub from: Option<[f64; 2]>,
-    /// Time of the request: unix seconds or ISO 8601.
+    /// Time of the request: unix seconds or ISO 8601 (2012-10-24T05:30Z; UTC unless an offset
+    /// is given).
     #[arg(long, value_parser = parse_time, required = true)]
     pub time: Option<f64>,
     /// Seed of place sampling and of the TSP's genetic algorithm.
@@ -96,11 +98,13 @@ pub struct PsbtEvalArgs {
     /// Map and activity.
     #[command(flatten)]
     pub world: PsbtWorldArgs,
-    /// Time of the requests (unix seconds or ISO 8601).
+    /// Time of the requests: unix seconds or ISO 8601 (2012-10-24T06:30Z; UTC unless an
+    /// offset is given).
     #[arg(long, value_parser = parse_time)]
     pub time: f64,
-    /// The planning model learns from tracks before this time (default: the start of the
-    /// interval of --time); the scoring model from the tracks of that interval.
+    /// The planning model learns from tracks before this time (unix seconds or ISO 8601;
+    /// default: the start of the interval of --time); the scoring model from the tracks of
+    /// that interval.
     #[arg(long, value_parser = parse_time)]
     pub train_until: Option<f64>,
     /// Number of random help locations.

@@ -47,12 +47,13 @@ pub struct ServeArgs {
     #[arg(long, default_value_t = 60.0, value_parser = parse_positive)]
     pub snapshot_secs: f64,
     /// Serve a topological map with edge models (from `chronomap topo fit`) as NAME=FILE:
-    /// edge predictions and now-or-later plans at /v1/topo/NAME/. Repeatable.
-    #[arg(long, value_parser = parse_named_file)]
+    /// edge predictions and now-or-later plans at /v1/topo/NAME/. Repeat the flag or separate
+    /// them by commas.
+    #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub topo: Vec<(String, PathBuf)>,
     /// Serve an occupancy grid file (from `chronomap grid build`) as NAME=FILE: predicted maps
-    /// at /v1/grid/NAME/predict. Repeatable.
-    #[arg(long, value_parser = parse_named_file)]
+    /// at /v1/grid/NAME/predict. Repeat the flag or separate them by commas.
+    #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub grid: Vec<(String, PathBuf)>,
 }
 
@@ -82,6 +83,9 @@ pub struct ClientArgs {
     /// File holding the bearer token for writes (as printed by `chronomap serve`).
     #[arg(long, env = "CHRONOMAP_TOKEN_FILE")]
     pub token_file: Option<PathBuf>,
+    /// Print the answer as one JSON object (`health` and `view` always do).
+    #[arg(long, global = true)]
+    pub json: bool,
     /// What to ask.
     #[command(subcommand)]
     pub command: ClientCommand,
@@ -139,13 +143,20 @@ pub enum ClientCommand {
     Predict {
         /// Model id.
         id: String,
-        /// Times (seconds or ISO 8601).
-        #[arg(long, num_args = 1.., value_parser = parse_time, conflicts_with_all = ["from", "to"])]
+        /// Times: unix seconds or ISO 8601 (2016-03-21T13:00Z; UTC unless an offset is given);
+        /// several after the flag, the flag repeated, or separated by commas.
+        #[arg(
+            long,
+            num_args = 1..,
+            value_delimiter = ',',
+            value_parser = parse_time,
+            conflicts_with_all = ["from", "to"]
+        )]
         at: Vec<f64>,
-        /// First time of a range.
+        /// First time of a range (unix seconds or ISO 8601).
         #[arg(long, value_parser = parse_time, requires = "to")]
         from: Option<f64>,
-        /// Last time of a range.
+        /// Last time of a range (unix seconds or ISO 8601).
         #[arg(long, value_parser = parse_time, requires = "from")]
         to: Option<f64>,
         /// Step of a range (s).
@@ -157,10 +168,10 @@ pub enum ClientCommand {
     },
     /// p(t) of many models at one time.
     Forecast {
-        /// Model ids, comma-separated.
+        /// Model ids: comma-separated or the flag repeated.
         #[arg(long, value_delimiter = ',', required = true)]
         ids: Vec<String>,
-        /// The time (seconds or ISO 8601).
+        /// The time: unix seconds or ISO 8601 (2016-03-21T13:00Z).
         #[arg(long, value_parser = parse_time)]
         at: f64,
         /// Order for every model.

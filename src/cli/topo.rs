@@ -107,8 +107,8 @@ pub struct TopoFitArgs {
     /// Directory of edge files.
     #[arg(long)]
     pub edges: PathBuf,
-    /// Model file to write.
-    #[arg(short, long = "out")]
+    /// Model file to write (`--out` is an old spelling).
+    #[arg(short, long, alias = "out")]
     pub output: PathBuf,
     /// Print one JSON object.
     #[arg(long)]
@@ -156,7 +156,7 @@ pub struct TopoSplitArgs {
     /// Directory of edge files.
     #[arg(long)]
     pub edges: PathBuf,
-    /// Split time: seconds or ISO 8601 (UTC unless an offset is given).
+    /// Split time: unix seconds or ISO 8601 (2014-08-20; UTC unless an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub at: f64,
     /// Directory for the attempts before the split (created; must not hold edge files).
@@ -165,6 +165,9 @@ pub struct TopoSplitArgs {
     /// Directory for the attempts at or after the split.
     #[arg(long)]
     pub after: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `chronomap topo predict`.
@@ -172,7 +175,7 @@ pub struct TopoSplitArgs {
 pub struct TopoPredictArgs {
     /// Edge-model file (`topo fit`).
     pub model: PathBuf,
-    /// Time: seconds or ISO 8601.
+    /// Time: unix seconds or ISO 8601 (2014-09-04T08:00Z; UTC unless an offset is given).
     #[arg(long, value_parser = parse_time)]
     pub time: f64,
     /// Print one JSON object.
@@ -190,7 +193,8 @@ pub struct TopoPredictArgs {
 #[derive(Debug, Args)]
 #[group(required = true, multiple = false)]
 pub struct PlanWhen {
-    /// Plan for this start time: seconds or ISO 8601 (UTC unless an offset is given).
+    /// Plan for this start time: unix seconds or ISO 8601 (2014-09-04T10:00Z; UTC unless an
+    /// offset is given).
     #[arg(long, value_parser = parse_time)]
     pub time: Option<f64>,
     /// The now-or-later table: every hour (see --step-mins) of a week (see --week-of).
@@ -213,26 +217,37 @@ pub struct PlanArgs {
     /// When.
     #[command(flatten)]
     pub when: PlanWhen,
-    /// Any time in the first day of the table (default: the day after the model's data).
-    #[arg(long, value_parser = parse_time)]
+    /// Any time in the first day of the table: unix seconds or ISO 8601 (2014-09-05; UTC
+    /// unless an offset is given). Default: the day after the model's data.
+    #[arg(long, value_parser = parse_time, conflicts_with = "time")]
     pub week_of: Option<f64>,
     /// Days in the table.
-    #[arg(long, default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=28))]
+    #[arg(
+        long,
+        default_value_t = 7,
+        value_parser = clap::value_parser!(u32).range(1..=28),
+        conflicts_with = "time"
+    )]
     pub days: u32,
     /// Minutes between the table's start times.
-    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(5..=720))]
+    #[arg(
+        long,
+        default_value_t = 60,
+        value_parser = clap::value_parser!(u32).range(5..=720),
+        conflicts_with = "time"
+    )]
     pub step_mins: u32,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Write the table as a PNG heat map.
-    #[arg(long)]
+    /// Write the table as a PNG heat map (with --day-table).
+    #[arg(long, conflicts_with = "time")]
     pub plot: Option<PathBuf>,
     /// Write the Navigation MDP at --time in the PRISM language (STRANDS layout) and its
     /// property next to it (`.props`).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "day_table")]
     pub prism: Option<PathBuf>,
     /// Write the product MDP at --time in Storm's explicit DRN format.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "day_table")]
     pub drn: Option<PathBuf>,
 }

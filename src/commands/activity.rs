@@ -1,7 +1,6 @@
 //! `chronomap activity eval`: scores of models of human activity (rates of people per cell and
 //! hour) on later data, eq. (4.20) NRMSE and eq. (4.21) χ²-distance of dissertation chapter 4.
 
-use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -15,6 +14,8 @@ use serde_json::{Map, Value, json};
 
 use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::format::Table;
+use crate::output::{ProgressBar, print_json, usage};
+use crate::{out, outln};
 
 /// The baselines' settings from the command line: Fr-AAM's base period, and GP-Hom trained
 /// like CoPA-Map (day period, inducing points, iterations) on every core.
@@ -61,7 +62,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
             }
             (train, test, format!("{train_name} (t >= {at})"))
         }
-        (None, None) => bail!("give --test or --split-at"),
+        (None, None) => return Err(usage("give --test or --split-at")),
     };
     if test.mean_rate() == 0.0 {
         bail!("{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined");
@@ -69,12 +70,14 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     let config = baseline_config(args.period, args.inducing, args.iterations);
 
     // Every baseline, fitted once and timed; the top-level model reuses its fit.
+    let progress = ProgressBar::new();
     let mut baselines = Vec::new();
     let mut fitted = Vec::new();
     for baseline in Baseline::ALL {
+        chronomap_core::progress::Progress::stage(&progress, baseline.name(), 0);
         let start = Instant::now();
         let model = baseline
-            .fit(&train, &config)
+            .fit_with_progress(&train, &config, &progress)
             .map_err(|e| anyhow!("{train_name}: {}: {e}", baseline.name()))?;
         let seconds = start.elapsed().as_secs_f64();
         let scores = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
@@ -126,8 +129,8 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
                 },
                 ..CopaConfig::default()
             };
-            let map =
-                CopaMap::fit(&train, &copa).map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?;
+            let map = CopaMap::fit_with_progress(&train, &copa, &progress)
+                .map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?;
             copa_init = match &map.period_init {
                 Some(init) => json!({
                     "mode": "spectral",
@@ -143,8 +146,8 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     };
     let chosen_name = model.name().to_string();
     let top = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
+    drop(progress);
 
-    let mut out = std::io::stdout().lock();
     if args.json {
         let mut table = Map::new();
         for (baseline, s, seconds) in &baselines {
@@ -159,32 +162,26 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
             }),
             None => Value::String("--model".into()),
         };
-        writeln!(
-            out,
-            "{}",
-            json!({
-                "model": chosen_name,
-                "selected_by": selected_by,
-                "nrmse": top.nrmse,
-                "chi2": top.chi2,
-                "train_seconds": train_seconds,
-                "copa_init": copa_init,
-                "train": summary_json(&train_name, &train),
-                "test": summary_json(&test_name, &test),
-                "split_at": args.split_at,
-                "baselines": table,
-            })
-        )?;
-        return Ok(());
+        return print_json(&json!({
+            "model": chosen_name,
+            "selected_by": selected_by,
+            "nrmse": top.nrmse,
+            "chi2": top.chi2,
+            "train_seconds": train_seconds,
+            "copa_init": copa_init,
+            "train": summary_json(&train_name, &train),
+            "test": summary_json(&test_name, &test),
+            "split_at": args.split_at,
+            "baselines": table,
+        }));
     }
 
-    writeln!(
-        out,
+    outln!(
         "training: {train_name}{}",
         summary(&train, args.split_at.map(|at| format!("t < {at}")))
     )?;
-    writeln!(out, "test: {test_name}{}", summary(&test, None))?;
-    writeln!(out)?;
+    outln!("test: {test_name}{}", summary(&test, None))?;
+    outln!()?;
     let mut table = Table::new(["model", "NRMSE", "chi2", "train s"]);
     for (baseline, s, seconds) in &baselines {
         table.row([
@@ -194,7 +191,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
             format!("{seconds:.3}"),
         ]);
     }
-    write!(out, "{}", table.render())?;
+    out!("{}", table.render())?;
     let why = match &selection {
         Some(sel) => {
             let scores: Vec<String> = sel
@@ -211,13 +208,14 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         }
         None => "chosen by --model".to_string(),
     };
-    writeln!(
-        out,
+    outln!(
         "\nmodel: {} ({why}); NRMSE {:.4}, chi2 {:.1}, trained in {:.3} s",
-        chosen_name, top.nrmse, top.chi2, train_seconds
+        chosen_name,
+        top.nrmse,
+        top.chi2,
+        train_seconds
     )?;
-    writeln!(
-        out,
+    outln!(
         "NRMSE: eq. (4.20), root mean square error over the mean test rate; chi2: eq. (4.21), \
          chi-square distance (lower is better for both). gp_hom is trained with --inducing and \
          --iterations as CoPA-Map (`--model copa`); `--model auto` chooses among the others."

@@ -2,13 +2,12 @@
 //! simulated patrol robots see them (§4.2.2, eqs. 4.5–4.6 of dissertation chapter 4), or the
 //! ground truth of §4.3.2.
 
-use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::extract::{
-    ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract, ground_truth,
+    ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
 };
 use chronomap_hypertime::events::Event;
 use chronomap_io::navmap::{LoadSemantics, load_map};
@@ -16,6 +15,8 @@ use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_
 use serde_json::json;
 
 use crate::cli::ActivityExtractArgs;
+use crate::outln;
+use crate::output::{print_json, usage};
 
 pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     let started = Instant::now();
@@ -58,7 +59,9 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
         }
         _ => {
             let (Some(map_file), Some(paths_file)) = (&args.map, &args.paths) else {
-                bail!("give --map and --paths (or --ground-truth with --cells-from)");
+                return Err(usage(
+                    "give --map and --paths (or --ground-truth with --cells-from)",
+                ));
             };
             let (grid, robots) = robots_on_map(
                 map_file,
@@ -68,8 +71,15 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
                 &args.robots,
             )?;
             let paths: Vec<RobotPath> = robots.iter().map(|(_, p)| p.clone()).collect();
-            let seen = extract(&grid, &paths, &detections, &bins, &config)
-                .map_err(|e| anyhow!("extraction: {e}"))?;
+            let seen = extract_with_progress(
+                &grid,
+                &paths,
+                &detections,
+                &bins,
+                &config,
+                &crate::output::ProgressBar::new(),
+            )
+            .map_err(|e| anyhow!("extraction: {e}"))?;
             if args.ground_truth {
                 let truth = ground_truth(&detections, &seen.cells(), &bins, &config)
                     .map_err(|e| anyhow!("ground truth: {e}"))?;
@@ -87,15 +97,10 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     report(args, &extraction, &robots, &bins, t0, seconds)
 }
 
-/// Every time bin (of `bin` seconds from `t0`) with a detection, in order, for detections
-/// sorted by time (as the track readers return them).
+/// Every time bin (of `bin` seconds from `t0`) with a detection
+/// ([`chronomap_activity::grids::detection_bins`]).
 pub(super) fn detection_bins(detections: &[Event], t0: f64, bin: f64) -> Vec<i64> {
-    let mut bins: Vec<i64> = detections
-        .iter()
-        .map(|d| ((d.t - t0) / bin).floor() as i64)
-        .collect();
-    bins.dedup();
-    bins
+    chronomap_activity::grids::detection_bins(detections, t0, bin)
 }
 
 /// The obstacle grid of a ROS map (cells of at least `min_occupancy` percent block sight) and
@@ -167,7 +172,6 @@ fn report(
     } else {
         "training data"
     };
-    let mut out = std::io::stdout().lock();
     if args.json {
         let robots: Vec<_> = robots
             .iter()
@@ -175,29 +179,23 @@ fn report(
                 json!({"name": name, "length_m": p.length(), "loop_s": p.period(), "waypoints": p.waypoints().len()})
             })
             .collect();
-        writeln!(
-            out,
-            "{}",
-            json!({
-                "kind": kind,
-                "output": args.output.display().to_string(),
-                "samples": samples,
-                "cells": cells,
-                "bins": bins,
-                "t0": t0,
-                "total_count": count,
-                "total_duration_s": duration,
-                "mean_rate_per_hour": mean_rate,
-                "pooled_rate_per_hour": pooled_rate,
-                "robots": robots,
-                "seconds": seconds,
-            })
-        )?;
-        return Ok(());
+        return print_json(&json!({
+            "kind": kind,
+            "output": args.output.display().to_string(),
+            "samples": samples,
+            "cells": cells,
+            "bins": bins,
+            "t0": t0,
+            "total_count": count,
+            "total_duration_s": duration,
+            "mean_rate_per_hour": mean_rate,
+            "pooled_rate_per_hour": pooled_rate,
+            "robots": robots,
+            "seconds": seconds,
+        }));
     }
     for (name, p) in robots {
-        writeln!(
-            out,
+        outln!(
             "robot {name}: {} waypoints, loop {:.1} m, {:.0} s at {} m/s",
             p.waypoints().len(),
             p.length(),
@@ -205,16 +203,14 @@ fn report(
             p.speed()
         )?;
     }
-    writeln!(
-        out,
+    outln!(
         "{kind}: {samples} samples over {cells} cells and {} bins (t0 = {t0}, {} s each), \
          written to {}",
         bins.len(),
         args.bin,
         args.output.display()
     )?;
-    writeln!(
-        out,
+    outln!(
         "{count} detections in {:.1} h of cell observation: mean rate {mean_rate:.2} per hour \
          (pooled {pooled_rate:.2}); computed in {seconds:.2} s",
         duration / 3600.0

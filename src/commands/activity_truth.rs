@@ -2,34 +2,21 @@
 //! distinct people per cell and time bin, counted over whole bins — in the cells of a
 //! training grid, written as an `x1,x2,t,y` grid for `chronomap activity eval --test`.
 
-use std::io::Write;
-
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow};
+use chronomap_activity::grids::{check_aligned, distinct_cells};
 use chronomap_activity::truth::{TruthGrid, person_counts};
 use chronomap_io::{read_rate_samples, read_track_point_files, write_rate_samples};
+use serde_json::json;
 
 use crate::cli::ActivityTruthArgs;
+use crate::outln;
+use crate::output::print_json;
 
 pub fn truth(args: &ActivityTruthArgs) -> Result<()> {
     let cells_name = args.cells.display().to_string();
     let grid = read_rate_samples(&args.cells).context("cannot read the grid of --cells")?;
-    let mut cells: Vec<[f64; 2]> = grid.cells().keys().map(|k| k.centre()).collect();
-    cells.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    for c in &cells {
-        for v in c {
-            let k = v / args.cell - 0.5;
-            if (k - k.round()).abs() > 1e-9 {
-                bail!(
-                    "{cells_name}: cell centre ({}, {}) is not the centre of a {} m cell aligned \
-                     to multiples of {} m (--cell)",
-                    c[0],
-                    c[1],
-                    args.cell,
-                    args.cell
-                );
-            }
-        }
-    }
+    let cells = distinct_cells(&grid);
+    check_aligned(&cells, args.cell).map_err(|e| anyhow!("{cells_name}: {e} (--cell)"))?;
     let points = read_track_point_files(&args.tracks).context("cannot read the tracks")?;
     let truth = person_counts(
         &points,
@@ -43,9 +30,17 @@ pub fn truth(args: &ActivityTruthArgs) -> Result<()> {
         },
     )?;
     write_rate_samples(&args.output, &truth)?;
-    let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
+    if args.json {
+        return print_json(&json!({
+            "output": args.output.display().to_string(),
+            "samples": truth.len(),
+            "cells": cells.len(),
+            "bins": args.bins,
+            "detections": points.len(),
+            "mean_rate_per_hour": truth.mean_rate(),
+        }));
+    }
+    outln!(
         "{}: {} samples ({} cells × {} bins) from {} detections; mean {:.3} people per hour",
         args.output.display(),
         truth.len(),

@@ -2,20 +2,22 @@
 //! trees (seed 002 §5.2–5.3) checked and printed, ticked with leaves that follow a script of
 //! outcomes, or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4).
 
-use std::io::Write;
 use std::time::Duration;
 
-use std::collections::BTreeMap;
-
-use anyhow::{Context, Result, anyhow, bail};
-use chronomap_bt::sbt::{self, LeafParams};
+use anyhow::{Context, Result, anyhow};
+use chronomap_bt::sbt;
 use chronomap_bt::script::{run_script, scripted_registry};
 use chronomap_bt::{BtDocument, NodeCategory, Registry, Status, Tree};
-use chronomap_io::{BtXml, read_bt_script, read_bt_xml, write_bt_xml, write_btlog};
+use chronomap_io::{
+    BtXml, read_bt_script, read_bt_xml, read_leaf_params, write_bt_xml, write_btlog,
+};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde::Serialize;
+use serde_json::{Value, json};
 
 use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs};
+use crate::outln;
+use crate::output::print_json;
 
 /// Reads the file with the built-in nodes and the file's own node models, printing warnings.
 fn load(file: &std::path::Path) -> Result<BtDocument> {
@@ -53,15 +55,29 @@ fn instantiate(
 pub fn check(args: &BtCheckArgs) -> Result<()> {
     let doc = load(&args.file)?;
     let (tree, _) = instantiate(&args.file, &doc, args.tree.as_deref())?;
-    let mut out = std::io::stdout().lock();
     let ids: Vec<&str> = doc.trees.iter().map(|t| t.id.as_str()).collect();
     let leaves = tree
         .nodes()
         .iter()
         .filter(|n| n.category().is_leaf())
         .count();
-    writeln!(
-        out,
+    if let Some(path) = &args.output {
+        write_bt_xml(path, &doc)?;
+    }
+    if args.json {
+        let mut nodes = Vec::new();
+        node_json(&tree, 0, 0, &mut nodes);
+        return print_json(&json!({
+            "file": args.file.display().to_string(),
+            "format": 4,
+            "trees": ids,
+            "tree": tree.subtrees()[0].tree_id,
+            "leaves": leaves,
+            "nodes": nodes,
+            "output": args.output.as_ref().map(|p| p.display().to_string()),
+        }));
+    }
+    outln!(
         "{}: BehaviorTree.CPP 4, {} tree{} ({}); {} has {} nodes, {} of them leaves",
         args.file.display(),
         ids.len(),
@@ -71,12 +87,10 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
         tree.nodes().len(),
         leaves
     )?;
-    writeln!(out, " uid  node")?;
-    print_node(&mut out, &tree, 0, 0)?;
-    if let Some(path) = &args.save {
-        write_bt_xml(path, &doc)?;
-        writeln!(
-            out,
+    outln!(" uid  node")?;
+    print_node(&tree, 0, 0)?;
+    if let Some(path) = &args.output {
+        outln!(
             "wrote {} (canonical BehaviorTree.CPP 4 XML)",
             path.display()
         )?;
@@ -84,7 +98,7 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_node(out: &mut impl Write, tree: &Tree, index: usize, depth: usize) -> Result<()> {
+fn print_node(tree: &Tree, index: usize, depth: usize) -> Result<()> {
     let node = &tree.nodes()[index];
     let mut label = match node.category() {
         NodeCategory::SubTree => format!("SubTree {}", node.id()),
@@ -99,11 +113,32 @@ fn print_node(out: &mut impl Write, tree: &Tree, index: usize, depth: usize) -> 
     for (port, value) in node.attributes() {
         label.push_str(&format!(" {port}={value}"));
     }
-    writeln!(out, "{:>4}  {}{label}", node.uid(), "  ".repeat(depth))?;
+    outln!("{:>4}  {}{label}", node.uid(), "  ".repeat(depth))?;
     for &child in node.children() {
-        print_node(out, tree, child, depth + 1)?;
+        print_node(tree, child, depth + 1)?;
     }
     Ok(())
+}
+
+/// The nodes depth first, as `bt check` prints them.
+fn node_json(tree: &Tree, index: usize, depth: usize, out: &mut Vec<Value>) {
+    let node = &tree.nodes()[index];
+    out.push(json!({
+        "uid": node.uid(),
+        "id": node.id(),
+        "name": node.name(),
+        "category": node.category().to_string(),
+        "depth": depth,
+        "attributes": node
+            .attributes()
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v)))
+            .collect::<serde_json::Map<_, _>>(),
+        "children": node.children().iter().map(|&c| tree.nodes()[c].uid()).collect::<Vec<_>>(),
+    }));
+    for &child in node.children() {
+        node_json(tree, child, depth + 1, out);
+    }
 }
 
 pub fn run(args: &BtRunArgs) -> Result<()> {
@@ -113,47 +148,85 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
     let period = Duration::from_millis(args.tick_ms);
     let run = run_script(&mut tree, &outcomes, &script, period)
         .with_context(|| format!("{}", args.script.display()))?;
+    let transitions: Vec<_> = run
+        .ticks
+        .iter()
+        .flat_map(|t| t.transitions.iter().copied())
+        .collect();
+    if let Some(path) = &args.btlog {
+        write_btlog(path, &tree, Duration::ZERO, &transitions)?;
+    }
+    let last = run.ticks.last().expect("scripts have at least one tick");
+    let name_of = |uid: u16| tree.node(uid).map_or("?", |n| n.name());
+    if args.json {
+        let ticks: Vec<Value> = run
+            .ticks
+            .iter()
+            .map(|tick| {
+                json!({
+                    "tick": tick.tick,
+                    "time_ms": tick.time.as_millis() as u64,
+                    "status": tick.status.to_string(),
+                    "transitions": tick.transitions.iter().map(|t| json!({
+                        "uid": t.uid,
+                        "name": name_of(t.uid),
+                        "from": t.from.to_string(),
+                        "to": t.to.to_string(),
+                    })).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        return print_json(&json!({
+            "file": args.file.display().to_string(),
+            "script": args.script.display().to_string(),
+            "tree": tree.subtrees()[0].tree_id,
+            "finished": run.finished,
+            "status": last.status.to_string(),
+            "last_tick": last.tick,
+            "last_time_ms": last.time.as_millis() as u64,
+            "unused_ticks": run.unused,
+            "ticks": ticks,
+            "transitions": transitions.len(),
+            "btlog": args.btlog.as_ref().map(|p| p.display().to_string()),
+        }));
+    }
     let width = tree
         .nodes()
         .iter()
         .map(|n| n.name().chars().count())
         .max()
         .unwrap_or(0);
-    let mut out = std::io::stdout().lock();
     for tick in &run.ticks {
-        writeln!(
-            out,
+        outln!(
             "tick {} @ {} ms: {}",
             tick.tick,
             tick.time.as_millis(),
             tick.status
         )?;
         for t in &tick.transitions {
-            let name = tree.node(t.uid).map_or("?", |n| n.name());
+            let name = name_of(t.uid);
             let halted = if t.from == Status::Running && t.to == Status::Idle {
                 " (halted)"
             } else {
                 ""
             };
-            writeln!(
-                out,
+            outln!(
                 "  {:>3} {name:<width$}  {} -> {}{halted}",
-                t.uid, t.from, t.to
+                t.uid,
+                t.from,
+                t.to
             )?;
         }
     }
-    let last = run.ticks.last().expect("scripts have at least one tick");
     if run.finished {
-        writeln!(
-            out,
+        outln!(
             "result: {} at tick {} ({} ms)",
             last.status,
             last.tick,
             last.time.as_millis()
         )?;
     } else {
-        writeln!(
-            out,
+        outln!(
             "result: still RUNNING after tick {} ({} ms)",
             last.tick,
             last.time.as_millis()
@@ -161,22 +234,14 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
     }
     if !run.unused.is_empty() {
         let unused: Vec<String> = run.unused.iter().map(u64::to_string).collect();
-        writeln!(
-            out,
+        outln!(
             "note: the tree finished before script tick{} {}",
             if unused.len() == 1 { "" } else { "s" },
             unused.join(", ")
         )?;
     }
     if let Some(path) = &args.btlog {
-        let transitions: Vec<_> = run
-            .ticks
-            .iter()
-            .flat_map(|t| t.transitions.iter().copied())
-            .collect();
-        write_btlog(path, &tree, Duration::ZERO, &transitions)?;
-        writeln!(
-            out,
+        outln!(
             "wrote {} ({} transitions of {} nodes)",
             path.display(),
             transitions.len(),
@@ -184,81 +249,6 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         )?;
     }
     Ok(())
-}
-
-/// Reads the parameters CSV `node,p_s,p_f,mu,nu` (header first; `#` comments and blank lines
-/// skipped; `p_f`, and `mu`, `nu` for conditions, may be empty). `p_f`, when given, must be
-/// `1 − p_s`: the model of §5.2.2 has every leaf end in success or failure.
-fn read_params(path: &std::path::Path) -> Result<BTreeMap<String, LeafParams>> {
-    let name = path.display();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-    let mut rows = text
-        .lines()
-        .enumerate()
-        .map(|(i, line)| (i + 1, line.trim()))
-        .filter(|(_, line)| !line.is_empty() && !line.starts_with('#'));
-    const HEADER: [&str; 5] = ["node", "p_s", "p_f", "mu", "nu"];
-    match rows.next() {
-        Some((_, header)) if header.split(',').map(str::trim).eq(HEADER.iter().copied()) => {}
-        Some((line, header)) => {
-            bail!(
-                "{name}:{line}: header {header:?}: expected {}",
-                HEADER.join(",")
-            )
-        }
-        None => bail!("{name}: no rows (expected the header {})", HEADER.join(",")),
-    }
-    let mut params = BTreeMap::new();
-    for (line, row) in rows {
-        let fields: Vec<&str> = row.split(',').map(str::trim).collect();
-        if fields.len() != HEADER.len() {
-            bail!(
-                "{name}:{line}: {} fields, expected {} ({})",
-                fields.len(),
-                HEADER.len(),
-                HEADER.join(",")
-            );
-        }
-        let number = |i: usize| -> Result<Option<f64>> {
-            if fields[i].is_empty() {
-                return Ok(None);
-            }
-            match fields[i].parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(Some(v)),
-                _ => bail!(
-                    "{name}:{line}: field {}: {:?} is not a finite number",
-                    HEADER[i],
-                    fields[i]
-                ),
-            }
-        };
-        if fields[0].is_empty() {
-            bail!("{name}:{line}: field node: empty");
-        }
-        let Some(p_success) = number(1)? else {
-            bail!("{name}:{line}: field p_s: empty");
-        };
-        if let Some(p_failure) = number(2)?
-            && (p_success + p_failure - 1.0).abs() > 1e-9
-        {
-            bail!(
-                "{name}:{line}: field p_f: p_s + p_f = {} (every leaf ends in success or \
-                 failure, so p_f = 1 - p_s)",
-                p_success + p_failure
-            );
-        }
-        let (mu, nu) = (number(3)?, number(4)?);
-        if mu.is_some() != nu.is_some() {
-            bail!("{name}:{line}: give both mu and nu (action) or neither (condition)");
-        }
-        if params
-            .insert(fields[0].to_owned(), LeafParams { p_success, mu, nu })
-            .is_some()
-        {
-            bail!("{name}:{line}: field node: {:?} appears twice", fields[0]);
-        }
-    }
-    Ok(params)
 }
 
 #[derive(Serialize)]
@@ -289,7 +279,7 @@ struct CurvePoint {
 pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
     let file = args.file.display().to_string();
     let xml = load_xml(&args.file)?;
-    let params = read_params(&args.params)?;
+    let params = read_leaf_params(&args.params)?;
     let doc = &xml.document;
     let tree_id = match &args.tree {
         Some(t) => t.clone(),
@@ -305,12 +295,8 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
         })?;
     let chain = tree.chain().with_context(|| file.clone())?;
     let means = chain.means();
-    if args.steps == 0 {
-        bail!("--steps must be at least 1");
-    }
     let t_max = match args.t_max {
-        Some(t) if t.is_finite() && t > 0.0 => t,
-        Some(t) => bail!("--t-max {t}: expected a positive number of seconds"),
+        Some(t) => t,
         None => {
             let longest = [means.time_to_success, means.time_to_failure]
                 .into_iter()
@@ -320,7 +306,7 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
         }
     };
     let times: Vec<f64> = (0..=args.steps)
-        .map(|i| t_max * i as f64 / args.steps as f64)
+        .map(|i| t_max * f64::from(i) / f64::from(args.steps))
         .collect();
     const TOLERANCE: f64 = 1e-12;
     let curve = chain.transient(&times, TOLERANCE)?;
@@ -345,43 +331,36 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
             })
             .collect(),
     };
-    let mut out = std::io::stdout().lock();
     if args.json {
-        serde_json::to_writer_pretty(&mut out, &analysis)?;
-        writeln!(out)?;
+        print_json(&analysis)?;
     } else {
         let leaves = params.len();
-        writeln!(
-            out,
+        outln!(
             "{file}: tree {tree_id} as a stochastic behavior tree (§5.2.2): {} transient states, \
              {leaves} leaf parameter rows",
             analysis.states
         )?;
-        writeln!(
-            out,
+        outln!(
             "eventually: p_s = {:.6}, p_f = {:.6}",
-            analysis.p_success, analysis.p_failure
+            analysis.p_success,
+            analysis.p_failure
         )?;
         let mean = |label: &str, rate: &str, t: Option<f64>| match t {
             Some(t) => format!("{label} = {t:.3} s ({rate} = {:.6} /s)", 1.0 / t),
             None => format!("{label}: never"),
         };
-        writeln!(
-            out,
+        outln!(
             "{}, {}",
             mean("E[T | success]", "mu_T", analysis.time_to_success),
             mean("E[T | failure]", "nu_T", analysis.time_to_failure)
         )?;
-        writeln!(
-            out,
-            "{:>12}  {:>10}  {:>10}",
-            "t [s]", "p_s,T(t)", "p_f,T(t)"
-        )?;
+        outln!("{:>12}  {:>10}  {:>10}", "t [s]", "p_s,T(t)", "p_f,T(t)")?;
         for p in &analysis.curve {
-            writeln!(
-                out,
+            outln!(
                 "{:>12.3}  {:>10.6}  {:>10.6}",
-                p.t, p.p_success, p.p_failure
+                p.t,
+                p.p_success,
+                p.p_failure
             )?;
         }
     }
@@ -405,7 +384,7 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
         };
         render_panels_png(&[panel], path, 1000, 500)?;
         if !args.json {
-            writeln!(out, "wrote {}", path.display())?;
+            outln!("wrote {}", path.display())?;
         }
     }
     Ok(())

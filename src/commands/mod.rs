@@ -9,6 +9,7 @@ mod bench;
 mod bench_activity;
 mod bench_plan;
 mod bench_psbt;
+#[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
 mod compress;
@@ -23,6 +24,7 @@ mod grid;
 mod model;
 mod monitor;
 mod psbt;
+#[cfg(feature = "serve")]
 mod serve;
 mod topo;
 
@@ -52,6 +54,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
+        #[cfg(feature = "serve")]
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
         Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
@@ -71,7 +74,9 @@ pub fn run(command: Command) -> Result<()> {
         Command::Psbt(args) => psbt::run(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
+        #[cfg(feature = "serve")]
         Command::Serve(args) => serve::serve(&args),
+        #[cfg(feature = "serve")]
         Command::Client(args) => serve::client(&args),
         Command::Bt(BtCommand::Check(args)) => bt::check(&args),
         Command::Bt(BtCommand::Run(args)) => bt::run(&args),

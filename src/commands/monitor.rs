@@ -2,18 +2,17 @@
 //! §5.3 (`chronomap_bt::monitor::sim`), printed as the intervention table and the metrics of
 //! Tables 5.2 and 5.3.
 
-use std::io::Write;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use chronomap_bt::monitor::sim::{
-    SimConfig, SimReport, arbiter_document, parse_faults, random_faults, simulate,
-};
+use chronomap_bt::monitor::sim::{SimConfig, SimReport, arbiter_document, random_faults, simulate};
 use chronomap_bt::{BtDocument, Registry};
 use chronomap_io::{BtXml, read_bt_xml};
 
 use crate::cli::MonitorSimArgs;
 use crate::format::Table;
+use crate::outln;
+use crate::output::print_json;
 
 fn clock(seconds: f64) -> String {
     let s = seconds.round() as u64;
@@ -42,12 +41,7 @@ pub fn sim(args: &MonitorSimArgs) -> Result<()> {
     }
     let duration = Duration::from_secs((args.hours * 3600.0).round() as u64);
     let faults = match &args.faults {
-        Some(file) => {
-            let name = file.display();
-            let text = std::fs::read_to_string(file).with_context(|| name.to_string())?;
-            parse_faults(&text)
-                .map_err(|e| anyhow::anyhow!("{name}:{}: {}: {}", e.line, e.field, e.message))?
-        }
+        Some(file) => chronomap_io::read_fault_file(file)?,
         None => random_faults(args.seed, duration),
     };
     let doc = arbiter(args)?;
@@ -60,19 +54,15 @@ pub fn sim(args: &MonitorSimArgs) -> Result<()> {
         .as_ref()
         .map_or_else(|| "arbiter".to_owned(), |f| f.display().to_string());
     let report = simulate(&config, &doc).with_context(|| name)?;
-    let mut out = std::io::stdout().lock();
     if args.json {
-        let text = serde_json::to_string_pretty(&report)?;
-        writeln!(out, "{text}")?;
+        print_json(&report)
     } else {
-        print_report(&mut out, &report)?;
+        print_report(&report)
     }
-    Ok(())
 }
 
-fn print_report(out: &mut impl Write, r: &SimReport) -> Result<()> {
-    writeln!(
-        out,
+fn print_report(r: &SimReport) -> Result<()> {
+    outln!(
         "{} faults injected over {:.1} h; {} recoveries, {} messages, {} unrequested supervisor interventions",
         r.faults.len(),
         r.operating_h,
@@ -98,11 +88,8 @@ fn print_report(out: &mut impl Write, r: &SimReport) -> Result<()> {
                 if i.success { "yes" } else { "no" }.to_owned(),
             ]);
         }
-        writeln!(
-            out,
-            "\nInterventions (success: no recovery of the same category within 60 s, §5.3.2)"
-        )?;
-        writeln!(out, "{}", table.render())?;
+        outln!("\nInterventions (success: no recovery of the same category within 60 s, §5.3.2)")?;
+        outln!("{}", table.render())?;
         let mut table = Table::new(["type", "reaction", "#", "success"]);
         for x in &r.reactions {
             table.row([
@@ -112,19 +99,19 @@ fn print_report(out: &mut impl Write, r: &SimReport) -> Result<()> {
                 format!("{:.1} %", 100.0 * x.successes as f64 / x.count as f64),
             ]);
         }
-        writeln!(out, "\nRecoveries by category (Table 5.3)")?;
-        writeln!(out, "{}", table.render())?;
+        outln!("\nRecoveries by category (Table 5.3)")?;
+        outln!("{}", table.render())?;
     }
     if !(r.messages.is_empty() && r.unrequested.is_empty()) {
-        writeln!(out)?;
+        outln!()?;
     }
     for (t, text) in &r.messages {
-        writeln!(out, "message at {}: {text}", clock(*t))?;
+        outln!("message at {}: {text}", clock(*t))?;
     }
     for t in &r.unrequested {
-        writeln!(out, "unrequested supervisor intervention at {}", clock(*t))?;
+        outln!("unrequested supervisor intervention at {}", clock(*t))?;
     }
-    writeln!(out, "\nMetrics (Table 5.2)")?;
+    outln!("\nMetrics (Table 5.2)")?;
     let mut table = Table::new(["metric", "value"]);
     table.row([
         "time operating t_o".to_owned(),
@@ -137,6 +124,6 @@ fn print_report(out: &mut impl Write, r: &SimReport) -> Result<()> {
     ]);
     table.row(["mean TSL".to_owned(), format!("{:.2} h", r.tsl_mean_h)]);
     table.row(["max TSL".to_owned(), format!("{:.2} h", r.tsl_max_h)]);
-    writeln!(out, "{}", table.render())?;
+    outln!("{}", table.render())?;
     Ok(())
 }

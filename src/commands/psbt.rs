@@ -6,25 +6,24 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
-use chronomap_activity::CopaMap;
 use chronomap_activity::disturbance::PlanningGrid;
+use chronomap_activity::planning::{map_grid, map_size};
 use chronomap_activity::truth::TrackPoint;
 use chronomap_core::Parallelism;
-use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::psbt_xml::psbt_to_xml;
-use chronomap_io::{read_model_file, read_track_point_files};
+use chronomap_io::read_track_point_files;
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
-use chronomap_psbt::eval::{MethodOutcome, evaluate_start, sample_starts};
-use chronomap_psbt::{
-    Choice, GammaPrior, GridPoisson, GridSpec, Method, PsbtConfig, copa_field, synthesize,
-};
-use rayon::prelude::*;
+use chronomap_psbt::compare::{Comparison, MethodSummary, compare};
+use chronomap_psbt::world::grid_poisson_from_tracks;
+use chronomap_psbt::{Choice, GridPoisson, PsbtConfig, copa_field, synthesize};
 use serde_json::{Value, json};
 
-use super::activity_disturbance::obstacles_of;
+use super::activity_disturbance::OCCUPIED_PERCENT;
 use crate::cli::{PsbtArgs, PsbtCommand, PsbtEvalArgs, PsbtSynthArgs, PsbtWorldArgs};
 use crate::format::Table;
+use crate::output::{ProgressBar, print_json, usage};
+use crate::{out, outln};
 
 /// Where the robot may drive and the tracks it learns people from.
 pub(super) struct World {
@@ -60,39 +59,12 @@ fn planning_grid(
 ) -> Result<(PlanningGrid, [f64; 2], [f64; 2])> {
     let map_name = map.display().to_string();
     let occupancy = load_map(map, LoadSemantics::Nav2)?;
-    let obstacles = obstacles_of(&occupancy).map_err(|e| anyhow!("{map_name}: {e}"))?;
-    let resolution = f64::from(occupancy.resolution);
-    let size = [
-        f64::from(occupancy.width) * resolution,
-        f64::from(occupancy.height) * resolution,
-    ];
-    let origin = [occupancy.origin[0], occupancy.origin[1]];
-    let cols = (size[0] / planning_cell).floor() as usize;
-    let rows = (size[1] / planning_cell).floor() as usize;
-    let mut grid = PlanningGrid::new(origin, planning_cell, cols, rows)
+    let obstacles = occupancy
+        .planning_obstacles(OCCUPIED_PERCENT)
         .map_err(|e| anyhow!("{map_name}: {e}"))?;
-    grid.block_obstacles(&obstacles, clearance);
-    if grid.free_count() == 0 {
-        bail!("{map_name}: no planning cell is {clearance} m away from every obstacle");
-    }
-    Ok((grid, origin, size))
-}
-
-/// The kind written into CoPA-Map model files (as `activity fit` writes them).
-const COPA_KIND: &str = "copa-map";
-
-/// The ATC grid's time axis (data/README.md): `t` counts hours from 2012-10-24 09:00 JST
-/// (unix 1351036800), 12 recorded hours (09:00–21:00) a day, nights removed.
-const ATC_T0: f64 = 1_351_036_800.0;
-const ATC_HOURS_PER_DAY: f64 = 12.0;
-
-/// The model time of the unix time `time` on the ATC grid's axis: `12·d + h` on day `d` at
-/// `h` hours after 09:00 JST; `None` outside 09:00–21:00 JST (the model has no night).
-fn atc_model_time(time: f64) -> Option<f64> {
-    let since = time - ATC_T0;
-    let day = (since / 86_400.0).floor();
-    let hours = (since - day * 86_400.0) / 3600.0;
-    (hours < ATC_HOURS_PER_DAY).then_some(ATC_HOURS_PER_DAY * day + hours)
+    let grid =
+        map_grid(&obstacles, planning_cell, clearance).map_err(|e| anyhow!("{map_name}: {e}"))?;
+    Ok((grid, obstacles.origin(), map_size(&obstacles)))
 }
 
 /// Whether `--activity` names a saved model rather than tracks: one file that starts with the
@@ -127,14 +99,10 @@ fn is_model_source(activity: &[std::path::PathBuf]) -> Result<bool> {
 /// The activity field of a saved CoPA-Map at the request time ([`copa_field`]).
 fn copa_world_field(path: &Path, args: &PsbtSynthArgs, time: f64) -> Result<(GridPoisson, f64)> {
     let name = path.display().to_string();
-    let (kind, model): (String, CopaMap) = read_model_file(path)?;
-    if kind != COPA_KIND {
-        bail!("{name}: a model of kind {kind:?}, not a CoPA-Map ({COPA_KIND:?})");
-    }
-    model.check().map_err(|e| anyhow!("{name}: {e}"))?;
+    let model = super::activity_model::read_copa_map(path)?;
     let model_t = match args.model_t {
         Some(t) => t,
-        None => atc_model_time(time).ok_or_else(|| {
+        None => chronomap_activity::atc::model_time(time).ok_or_else(|| {
             anyhow!(
                 "--time {}: outside 09:00-21:00 JST, which the ATC grid's time axis covers \
                  (give --model-t)",
@@ -154,25 +122,14 @@ pub(super) fn fit_model(
     interval: f64,
     keep: impl Fn(f64) -> bool,
 ) -> Result<Option<GridPoisson>> {
-    let points: Vec<TrackPoint> = world.points.iter().copied().filter(|p| keep(p.t)).collect();
-    let (Some(first), Some(last)) = (points.first(), points.last()) else {
-        return Ok(None);
-    };
-    let t0 = (first.t / interval).floor() * interval;
-    let spec = GridSpec {
-        origin: world.origin,
+    Ok(grid_poisson_from_tracks(
+        &world.points,
+        world.origin,
+        world.size,
         cell,
-        cols: (world.size[0] / cell).ceil() as usize,
-        rows: (world.size[1] / cell).ceil() as usize,
-        t0,
         interval,
-        intervals: ((last.t - t0) / interval).floor() as usize + 1,
-    };
-    Ok(Some(GridPoisson::from_tracks(
-        &points,
-        spec,
-        GammaPrior::default(),
-    )?))
+        keep,
+    )?)
 }
 
 fn config_of(world: &PsbtWorldArgs) -> Result<PsbtConfig> {
@@ -206,7 +163,7 @@ fn describe(choices: &Option<Vec<Choice>>) -> Value {
 
 fn synth(args: &PsbtSynthArgs) -> Result<()> {
     let (Some(world_args), Some(from), Some(time)) = (&args.world, args.from, args.time) else {
-        bail!("--map, --activity, --from and --time are needed");
+        return Err(usage("--map, --activity, --from and --time are needed"));
     };
     let config = config_of(world_args)?;
     let (grid, model, model_t) = if is_model_source(&world_args.activity)? {
@@ -242,108 +199,40 @@ fn synth(args: &PsbtSynthArgs) -> Result<()> {
     let synthesis_ms = started.elapsed().as_secs_f64() * 1e3;
     let xml = psbt_to_xml(&plan.tree);
     if args.json {
-        println!(
-            "{}",
-            json!({
-                "tree_xml": xml,
-                "p_success": plan.p_success,
-                "expected_time_s": plan.expected_time_s,
-                "synthesis_ms": synthesis_ms,
-                "candidates": plan.candidates,
-                "places": plan.places,
-                "choices": describe(&plan.choices),
-                "horizon_s": config.horizon_s,
-                "seed": args.seed,
-                "model_t": model_t,
-            })
-        );
-    } else {
-        println!(
-            "person search from ({}, {}) at {}: {} candidate trees over {} places in {:.1} ms",
-            from[0],
-            from[1],
-            crate::format::time(time),
-            plan.candidates,
-            plan.places.len(),
-            synthesis_ms
-        );
-        println!(
-            "p_s,T({} s) = {:.4}; expected time to success E[T|S] = {}",
-            config.horizon_s,
-            plan.p_success,
-            plan.expected_time_s
-                .map_or("-".into(), |t| format!("{t:.1} s"))
-        );
-        if let Some(t) = model_t {
-            println!("activity: CoPA-Map at model t = {t:.3}");
-        }
-        print!("{xml}");
+        return print_json(&json!({
+            "tree_xml": xml,
+            "p_success": plan.p_success,
+            "expected_time_s": plan.expected_time_s,
+            "synthesis_ms": synthesis_ms,
+            "candidates": plan.candidates,
+            "places": plan.places,
+            "choices": describe(&plan.choices),
+            "horizon_s": config.horizon_s,
+            "seed": args.seed,
+            "model_t": model_t,
+        }));
     }
+    outln!(
+        "person search from ({}, {}) at {}: {} candidate trees over {} places in {:.1} ms",
+        from[0],
+        from[1],
+        crate::format::time(time),
+        plan.candidates,
+        plan.places.len(),
+        synthesis_ms
+    )?;
+    outln!(
+        "p_s,T({} s) = {:.4}; expected time to success E[T|S] = {}",
+        config.horizon_s,
+        plan.p_success,
+        plan.expected_time_s
+            .map_or("-".into(), |t| format!("{t:.1} s"))
+    )?;
+    if let Some(t) = model_t {
+        outln!("activity: CoPA-Map at model t = {t:.3}")?;
+    }
+    out!("{xml}")?;
     Ok(())
-}
-
-/// Mean and sample standard deviation.
-fn mean_std(values: &[f64]) -> (f64, f64) {
-    if values.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let var = if values.len() > 1 {
-        values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
-    } else {
-        0.0
-    };
-    (mean, var.sqrt())
-}
-
-/// Per method: mean and std of `p_s,T(t_k)` over the starts, and of `E[T|S]`.
-struct Summary {
-    p_mean: Vec<f64>,
-    p_std: Vec<f64>,
-    time: (f64, f64),
-}
-
-fn summarise(
-    results: &[Vec<MethodOutcome>],
-    m: usize,
-    times: usize,
-    scored: bool,
-) -> Option<Summary> {
-    let series = |k: usize| -> Option<Vec<f64>> {
-        results
-            .iter()
-            .map(|r| {
-                if scored {
-                    r[m].scored.as_ref().map(|s| s[k])
-                } else {
-                    Some(r[m].p_success[k])
-                }
-            })
-            .collect()
-    };
-    let mut p_mean = Vec::with_capacity(times);
-    let mut p_std = Vec::with_capacity(times);
-    for k in 0..times {
-        let (mean, std) = mean_std(&series(k)?);
-        p_mean.push(mean);
-        p_std.push(std);
-    }
-    let expected: Vec<f64> = results
-        .iter()
-        .filter_map(|r| {
-            if scored {
-                r[m].scored_expected_time_s
-            } else {
-                r[m].expected_time_s
-            }
-        })
-        .collect();
-    Some(Summary {
-        p_mean,
-        p_std,
-        time: mean_std(&expected),
-    })
 }
 
 fn eval(args: &PsbtEvalArgs) -> Result<()> {
@@ -368,217 +257,166 @@ fn eval(args: &PsbtEvalArgs) -> Result<()> {
     let score_model = fit_model(&world, args.world.cell, interval, |t| {
         t >= hour && t < hour + interval
     })?;
-    let mut rng = Xoshiro256StarStar::seed_from_u64(derive_seed(args.seed, 11, 0, 0));
-    let starts = sample_starts(
-        &world.grid,
-        args.starts,
-        |c| plan_model.has_detections(c),
-        &mut rng,
-    );
-    if starts.is_empty() {
-        bail!("no free planning cell where the tracks saw anybody");
-    }
-    let times: Vec<f64> = (1..)
-        .map(|k| 20.0 * f64::from(k))
-        .take_while(|&t| t <= config.horizon_s + 1e-9)
-        .collect();
     let started = Instant::now();
-    let results: Vec<Vec<MethodOutcome>> = starts
-        .par_iter()
-        .enumerate()
-        .map(|(i, &from)| {
-            evaluate_start(
-                &world.grid,
-                &plan_model,
-                score_model.as_ref(),
-                from,
-                args.time,
-                &config,
-                derive_seed(args.seed, 12, i as u64, 0),
-                &times,
-            )
-            .map_err(|e| anyhow!("start {i} ({}, {}): {e}", from[0], from[1]))
-        })
-        .collect::<Result<_>>()?;
+    let comparison = compare(
+        &world.grid,
+        &plan_model,
+        score_model.as_ref(),
+        args.time,
+        &config,
+        args.starts,
+        args.seed,
+        Parallelism::Rayon(0),
+        &ProgressBar::new(),
+    )?;
     let seconds = started.elapsed().as_secs_f64();
-
-    let methods = Method::ALL;
-    let planned: Vec<Summary> = (0..methods.len())
-        .map(|m| summarise(&results, m, times.len(), false).expect("always planned"))
-        .collect();
-    let scored: Option<Vec<Summary>> = (0..methods.len())
-        .map(|m| summarise(&results, m, times.len(), true))
-        .collect();
-    // The dissertation's claim: PSBT >= every baseline; +5.7 % over GM after 140 s.
-    let k140 = times.iter().position(|&t| (t - 140.0).abs() < 1e-9);
-    let ge_all = |scored_side: bool| -> f64 {
-        let last = times.len() - 1;
-        let ok = results
-            .iter()
-            .filter(|r| {
-                let p = |o: &MethodOutcome| {
-                    if scored_side {
-                        o.scored.as_ref().map_or(f64::NAN, |s| s[last])
-                    } else {
-                        o.p_success[last]
-                    }
-                };
-                r[1..].iter().all(|o| p(&r[0]) >= p(o) - 1e-9)
-            })
-            .count();
-        ok as f64 / results.len() as f64
-    };
-
-    // Per baseline: the share of starts where it beats PSBT at t_max (by more than 1e-9).
-    let beaten_by = |scored_side: bool| -> Vec<(String, f64)> {
-        let last = times.len() - 1;
-        let p = |o: &MethodOutcome| {
-            if scored_side {
-                o.scored.as_ref().map_or(f64::NAN, |s| s[last])
-            } else {
-                o.p_success[last]
-            }
-        };
-        (1..methods.len())
-            .map(|m| {
-                let n = results
-                    .iter()
-                    .filter(|r| p(&r[m]) > p(&r[0]) + 1e-9)
-                    .count();
-                (
-                    methods[m].name().to_string(),
-                    n as f64 / results.len() as f64,
-                )
-            })
-            .collect()
-    };
-    let beaten_text = |scored_side: bool| {
-        beaten_by(scored_side)
-            .iter()
-            .map(|(name, f)| format!("{name} {:.1} %", 100.0 * f))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let table = |summaries: &[Summary]| {
-        let mut header = vec!["method".to_string()];
-        header.extend(times.iter().map(|t| format!("t={t:.0} s")));
-        header.push("E[T|S] (s)".into());
-        let mut table = Table::new(header);
-        for (m, s) in methods.iter().zip(summaries) {
-            let mut row = vec![m.name().to_string()];
-            row.extend(
-                s.p_mean
-                    .iter()
-                    .zip(&s.p_std)
-                    .map(|(a, b)| format!("{a:.3}±{b:.3}")),
-            );
-            row.push(format!("{:.1}±{:.1}", s.time.0, s.time.1));
-            table.row(row);
-        }
-        table.render()
-    };
-    let relative_to_gm =
-        |s: &[Summary]| k140.map(|k| (s[0].p_mean[k] - s[1].p_mean[k]) / s[1].p_mean[k] * 100.0);
+    let planned = comparison
+        .summaries(false)
+        .expect("the planning model scores every plan");
+    let scored = comparison.summaries(true);
+    let times = &comparison.times;
+    let starts = comparison.outcomes.len();
 
     if let Some(path) = &args.plot {
-        let panel = |title: &str, summaries: &[Summary]| Panel {
-            title: title.into(),
-            x_label: "t [s]".into(),
-            y_label: "mean p_s,T(t)".into(),
-            y_range: (0.0, 1.0),
-            series: methods
-                .iter()
-                .zip(summaries)
-                .map(|(m, s)| Series {
-                    label: m.name().into(),
-                    points: times
-                        .iter()
-                        .copied()
-                        .zip(s.p_mean.iter().copied())
-                        .collect(),
-                    style: SeriesStyle::Line,
-                })
-                .collect(),
-        };
-        let mut panels = vec![panel(
-            &format!("planning model ({} starts)", results.len()),
-            &planned,
-        )];
-        if let Some(scored) = &scored {
-            panels.push(panel("scored on the model of the evaluated hour", scored));
-        }
-        render_panels_png(&panels, path, 1400, 520)?;
+        plot(path, &comparison, &planned, scored.as_deref())?;
     }
 
+    let beaten = |scored_side: bool| {
+        comparison
+            .beats_psbt_fraction(scored_side)
+            .into_iter()
+            .map(|(m, f)| (m.name().to_string(), json!(f)))
+            .collect::<serde_json::Map<String, Value>>()
+    };
     if args.json {
-        let summary_json = |summaries: &[Summary]| -> Value {
-            methods
+        let summary_json = |summaries: &[MethodSummary]| -> Value {
+            summaries
                 .iter()
-                .zip(summaries)
-                .map(|(m, s)| {
+                .map(|s| {
                     (
-                        m.name().to_string(),
+                        s.method.name().to_string(),
                         json!({
                             "p_success_mean": s.p_mean,
                             "p_success_std": s.p_std,
-                            "expected_time_mean_s": s.time.0,
-                            "expected_time_std_s": s.time.1,
+                            "expected_time_mean_s": s.time_mean_s,
+                            "expected_time_std_s": s.time_std_s,
                         }),
                     )
                 })
                 .collect::<serde_json::Map<String, Value>>()
                 .into()
         };
-        println!(
-            "{}",
-            json!({
-                "starts": results.len(),
-                "time": args.time,
-                "train_until": train_until,
-                "times_s": times,
-                "planning_model": summary_json(&planned),
-                "scoring_model": scored.as_deref().map(summary_json),
-                "psbt_over_gm_at_140_percent": relative_to_gm(&planned),
-                "psbt_over_gm_at_140_percent_scored": scored.as_deref().and_then(relative_to_gm),
-                "psbt_ge_all_at_tmax_fraction": ge_all(false),
-                "psbt_ge_all_at_tmax_fraction_scored": scored.as_ref().map(|_| ge_all(true)),
-                "beats_psbt_at_tmax_fraction": beaten_by(false).into_iter().map(|(k, v)| (k, json!(v))).collect::<serde_json::Map<String, Value>>(),
-                "beats_psbt_at_tmax_fraction_scored": scored.as_ref().map(|_| beaten_by(true).into_iter().map(|(k, v)| (k, json!(v))).collect::<serde_json::Map<String, Value>>()),
-                "seconds": seconds,
-            })
-        );
-    } else {
-        println!(
-            "{} help locations at {} (planning model: tracks before {}; scoring model: the \
-             tracks of that hour), {} places, {:.1} s",
-            results.len(),
-            crate::format::time(args.time),
-            crate::format::time(train_until),
-            config.places,
-            seconds
-        );
-        println!("\np_s,T(t), mean ± std over the starts, on the planning model:");
-        println!("{}", table(&planned));
-        if let Some(p) = relative_to_gm(&planned) {
-            println!("PSBT vs GM at 140 s: {p:+.1} % (the dissertation: +5.7 %)");
-        }
-        println!(
-            "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
-            100.0 * ge_all(false),
-            beaten_text(false)
-        );
-        if let Some(scored) = &scored {
-            println!("\nthe same plans scored on the model of the evaluated hour:");
-            println!("{}", table(scored));
-            if let Some(p) = relative_to_gm(scored) {
-                println!("PSBT vs GM at 140 s: {p:+.1} %");
-            }
-            println!(
-                "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
-                100.0 * ge_all(true),
-                beaten_text(true)
-            );
-        }
+        return print_json(&json!({
+            "starts": starts,
+            "time": args.time,
+            "train_until": train_until,
+            "times_s": times,
+            "planning_model": summary_json(&planned),
+            "scoring_model": scored.as_deref().map(summary_json),
+            "psbt_over_gm_at_140_percent": comparison.gain_over_gm_percent(&planned),
+            "psbt_over_gm_at_140_percent_scored": scored.as_deref().and_then(|s| comparison.gain_over_gm_percent(s)),
+            "psbt_ge_all_at_tmax_fraction": comparison.psbt_at_least_all_fraction(false),
+            "psbt_ge_all_at_tmax_fraction_scored": scored.as_ref().map(|_| comparison.psbt_at_least_all_fraction(true)),
+            "beats_psbt_at_tmax_fraction": beaten(false),
+            "beats_psbt_at_tmax_fraction_scored": scored.as_ref().map(|_| beaten(true)),
+            "seconds": seconds,
+        }));
     }
+
+    let table = |summaries: &[MethodSummary]| {
+        let mut header = vec!["method".to_string()];
+        header.extend(times.iter().map(|t| format!("t={t:.0} s")));
+        header.push("E[T|S] (s)".into());
+        let mut table = Table::new(header);
+        for s in summaries {
+            let mut row = vec![s.method.name().to_string()];
+            row.extend(
+                s.p_mean
+                    .iter()
+                    .zip(&s.p_std)
+                    .map(|(a, b)| format!("{a:.3}±{b:.3}")),
+            );
+            row.push(format!("{:.1}±{:.1}", s.time_mean_s, s.time_std_s));
+            table.row(row);
+        }
+        table.render()
+    };
+    let beaten_text = |scored_side: bool| {
+        comparison
+            .beats_psbt_fraction(scored_side)
+            .iter()
+            .map(|(m, f)| format!("{} {:.1} %", m.name(), 100.0 * f))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    outln!(
+        "{} help locations at {} (planning model: tracks before {}; scoring model: the \
+         tracks of that hour), {} places, {:.1} s",
+        starts,
+        crate::format::time(args.time),
+        crate::format::time(train_until),
+        config.places,
+        seconds
+    )?;
+    outln!("\np_s,T(t), mean ± std over the starts, on the planning model:")?;
+    outln!("{}", table(&planned))?;
+    if let Some(p) = comparison.gain_over_gm_percent(&planned) {
+        outln!("PSBT vs GM at 140 s: {p:+.1} % (the dissertation: +5.7 %)")?;
+    }
+    outln!(
+        "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
+        100.0 * comparison.psbt_at_least_all_fraction(false),
+        beaten_text(false)
+    )?;
+    if let Some(scored) = &scored {
+        outln!("\nthe same plans scored on the model of the evaluated hour:")?;
+        outln!("{}", table(scored))?;
+        if let Some(p) = comparison.gain_over_gm_percent(scored) {
+            outln!("PSBT vs GM at 140 s: {p:+.1} %")?;
+        }
+        outln!(
+            "PSBT >= every baseline at t_max from {:.1} % of the starts; a baseline beats it from: {}",
+            100.0 * comparison.psbt_at_least_all_fraction(true),
+            beaten_text(true)
+        )?;
+    }
+    Ok(())
+}
+
+/// Mean `p_s,T(t)` of every method over the starts: on the planning model, and on the
+/// scoring model if there is one.
+fn plot(
+    path: &Path,
+    comparison: &Comparison,
+    planned: &[MethodSummary],
+    scored: Option<&[MethodSummary]>,
+) -> Result<()> {
+    let panel = |title: &str, summaries: &[MethodSummary]| Panel {
+        title: title.into(),
+        x_label: "t [s]".into(),
+        y_label: "mean p_s,T(t)".into(),
+        y_range: (0.0, 1.0),
+        series: summaries
+            .iter()
+            .map(|s| Series {
+                label: s.method.name().into(),
+                points: comparison
+                    .times
+                    .iter()
+                    .copied()
+                    .zip(s.p_mean.iter().copied())
+                    .collect(),
+                style: SeriesStyle::Line,
+            })
+            .collect(),
+    };
+    let mut panels = vec![panel(
+        &format!("planning model ({} starts)", comparison.outcomes.len()),
+        planned,
+    )];
+    if let Some(scored) = scored {
+        panels.push(panel("scored on the model of the evaluated hour", scored));
+    }
+    render_panels_png(&panels, path, 1400, 520)?;
     Ok(())
 }

@@ -7,14 +7,17 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use chronomap_client::Client;
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
-use chronomap_serve::client::Client;
 use chronomap_serve::maps::Maps;
 use chronomap_serve::store::{PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
+use serde_json::json;
 
 use crate::cli::{ClientArgs, ClientCommand, ServeArgs};
+use crate::outln;
+use crate::output::{print_json, usage};
 
 /// Shortest token accepted from a token file.
 const MIN_TOKEN_CHARS: usize = 16;
@@ -72,22 +75,18 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             .await
             .with_context(|| format!("cannot listen on {}", args.listen))?;
         let address = listener.local_addr()?;
-        let mut out = std::io::stdout().lock();
-        writeln!(
-            out,
+        outln!(
             "chronomap serve: listening on http://{address} ({description}, {models} models recovered)"
         )?;
         match &token_file {
-            Some(file) => writeln!(
-                out,
+            Some(file) => outln!(
                 "writes need `Authorization: Bearer TOKEN` with the token in {}",
                 file.display()
             )?,
-            None => writeln!(out, "warning: writes need no token (--no-token)")?,
+            None => outln!("warning: writes need no token (--no-token)")?,
         }
-        writeln!(out, "API description: http://{address}/openapi.json")?;
-        out.flush()?;
-        drop(out);
+        outln!("API description: http://{address}/openapi.json")?;
+        std::io::stdout().flush()?;
         service
             .run(listener, shutdown_signal())
             .await
@@ -153,6 +152,17 @@ fn read_or_create_token(path: &Path) -> Result<String> {
 
 /// `chronomap client`.
 pub fn client(args: &ClientArgs) -> Result<()> {
+    // Flags that contradict each other are refused before any connection.
+    let times = match &args.command {
+        ClientCommand::Predict {
+            at, from, to, step, ..
+        } => Some(match (from, to) {
+            (Some(from), Some(to)) => range_times(*from, *to, *step)?,
+            _ if !at.is_empty() => at.clone(),
+            _ => return Err(usage("give --at TIMES or --from T --to T [--step S]")),
+        }),
+        _ => None,
+    };
     let token = args
         .token_file
         .as_deref()
@@ -168,31 +178,46 @@ pub fn client(args: &ClientArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
-    runtime.block_on(run_client(&client, &args.command))
+    runtime.block_on(run_client(&client, &args.command, times, args.json))
 }
 
-async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
-    let mut out = std::io::stdout().lock();
+async fn run_client(
+    client: &Client,
+    command: &ClientCommand,
+    times: Option<Vec<f64>>,
+    as_json: bool,
+) -> Result<()> {
     match command {
-        ClientCommand::Health => writeln!(out, "{}", json(&client.health().await?))?,
+        ClientCommand::Health => print_json(&client.health().await?)?,
         ClientCommand::List => {
-            for model in client.list().await?.models {
-                writeln!(
-                    out,
+            let list = client.list().await?;
+            if as_json {
+                return print_json(&list);
+            }
+            for model in list.models {
+                outln!(
                     "{}\t{}\t{} observations",
-                    model.id, model.model, model.observations
+                    model.id,
+                    model.model,
+                    model.observations
                 )?;
             }
         }
-        ClientCommand::View { id } => writeln!(out, "{}", json(&client.view(id).await?))?,
+        ClientCommand::View { id } => print_json(&client.view(id).await?)?,
         ClientCommand::Create { id, model, range } => {
             let range = range.as_ref().map(|r| [r[0], r[1]]);
             let ack = client.create(id, Some(model), range).await?;
-            writeln!(out, "created {id:?} ({model}) at log position {}", ack.seq)?;
+            if as_json {
+                return print_json(&json!({"id": id, "model": model, "seq": ack.seq}));
+            }
+            outln!("created {id:?} ({model}) at log position {}", ack.seq)?;
         }
         ClientCommand::Remove { id } => {
-            client.remove(id).await?;
-            writeln!(out, "removed {id:?}")?;
+            let ack = client.remove(id).await?;
+            if as_json {
+                return print_json(&json!({"id": id, "removed": true, "seq": ack.seq}));
+            }
+            outln!("removed {id:?}")?;
         }
         ClientCommand::Add {
             id,
@@ -202,6 +227,7 @@ async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
         } => {
             let series = super::read_series(file)?;
             let mut added: u64 = 0;
+            let mut seq = None;
             for (times, values) in series
                 .times
                 .chunks((*batch).max(1))
@@ -219,27 +245,28 @@ async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
                         )
                     })?;
                 added += ack.observations;
+                seq = Some(ack.seq);
             }
-            writeln!(out, "added {added} observations to {id:?}")?;
+            if as_json {
+                return print_json(&json!({"id": id, "added": added, "seq": seq}));
+            }
+            outln!("added {added} observations to {id:?}")?;
         }
-        ClientCommand::Predict {
-            id,
-            at,
-            from,
-            to,
-            step,
-            order,
-        } => {
-            let times = match (from, to) {
-                (Some(from), Some(to)) => range_times(*from, *to, *step)?,
-                _ if !at.is_empty() => at.clone(),
-                _ => bail!("give --at TIMES or --from T --to T [--step S]"),
-            };
+        ClientCommand::Predict { id, order, .. } => {
+            let times = times.expect("checked in client()");
             let p = client.predict(id, &times, *order).await?;
             let entropies = client.entropy(id, &times, *order).await?;
-            writeln!(out, "time\tprobability\tentropy")?;
+            if as_json {
+                return print_json(&json!({
+                    "id": id,
+                    "times": times,
+                    "probability": p.values,
+                    "entropy": entropies.values,
+                }));
+            }
+            outln!("time\tprobability\tentropy")?;
             for ((t, p), h) in times.iter().zip(&p.values).zip(&entropies.values) {
-                writeln!(out, "{}\t{p:.4}\t{h:.4}", crate::format::time(*t))?;
+                outln!("{}\t{p:.4}\t{h:.4}", crate::format::time(*t))?;
             }
         }
         ClientCommand::Forecast { ids, at, order } => {
@@ -250,8 +277,11 @@ async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
                 orders: None,
             };
             let p = client.forecast(&request).await?;
+            if as_json {
+                return print_json(&json!({"time": at, "ids": ids, "probability": p.values}));
+            }
             for (id, p) in ids.iter().zip(p.values) {
-                writeln!(out, "{id}\t{p:.4}")?;
+                outln!("{id}\t{p:.4}")?;
             }
         }
         ClientCommand::Evaluate {
@@ -267,11 +297,14 @@ async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
                 max_order: *max_order,
             };
             let e = client.evaluate(&request).await?;
-            writeln!(out, "order\t{}\tbrier", e.metric)?;
-            for ((order, error), brier) in e.orders.iter().zip(&e.errors).zip(&e.brier) {
-                writeln!(out, "{order}\t{error:.4}\t{brier:.4}")?;
+            if as_json {
+                return print_json(&e);
             }
-            writeln!(out, "best order: {}", e.best_order)?;
+            outln!("order\t{}\tbrier", e.metric)?;
+            for ((order, error), brier) in e.orders.iter().zip(&e.errors).zip(&e.brier) {
+                outln!("{order}\t{error:.4}\t{brier:.4}")?;
+            }
+            outln!("best order: {}", e.best_order)?;
         }
     }
     Ok(())
@@ -280,16 +313,11 @@ async fn run_client(client: &Client, command: &ClientCommand) -> Result<()> {
 /// `from, from + step, ...` up to `to`.
 fn range_times(from: f64, to: f64, step: f64) -> Result<Vec<f64>> {
     if to < from {
-        bail!("--to is before --from");
+        return Err(usage("--to is before --from"));
     }
     let n = ((to - from) / step).floor() as usize + 1;
     if n > 1_000_000 {
-        bail!("{n} times: choose a larger --step");
+        return Err(usage(format!("{n} times: choose a larger --step")));
     }
     Ok((0..n).map(|i| from + i as f64 * step).collect())
-}
-
-/// Pretty JSON of a response.
-fn json(value: &impl serde::Serialize) -> String {
-    serde_json::to_string_pretty(value).expect("responses serialise")
 }

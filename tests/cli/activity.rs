@@ -337,3 +337,41 @@ fn copa_map_beats_every_baseline_on_the_later_days() {
     }
     assert!(json["train_seconds"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn test_and_split_at_together_or_neither_are_usage_errors() {
+    use crate::common::usage_error;
+    let train = scratch(
+        "usage_train.csv",
+        "x1,x2,t,y\n0.25,0.25,0,10\n0.25,0.25,1,10\n",
+    );
+    let train = train.to_str().unwrap();
+    let err = usage_error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        train,
+        "--test",
+        train,
+        "--split-at",
+        "1",
+    ]));
+    assert!(err.contains("--split-at"), "{err}");
+    let err = usage_error(&chronomap(&["activity", "eval", "--train", train]));
+    assert!(
+        err.contains("--split-at") || err.contains("--test"),
+        "{err}"
+    );
+    // A model that cannot be trained is a failure at run time.
+    let err = error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        train,
+        "--split-at",
+        "1",
+        "--model",
+        "copa",
+    ]));
+    assert!(err.contains("CoPA-Map"), "{err}");
+}

@@ -70,3 +70,93 @@ fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
     ]));
     assert!(err.contains("--region"), "{err}");
 }
+
+#[test]
+fn predict_writes_with_the_new_spellings_prints_json_and_survives_a_closed_pipe() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_model_json");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = |name: &str| dir.join(name).display().to_string();
+    let model = path("tiny.cmcopa");
+    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    let text = stdout(&chronomap(&[
+        "activity",
+        "fit",
+        "--train",
+        &grid,
+        "--inducing",
+        "10",
+        "--iterations",
+        "3",
+        "--output",
+        &model,
+        "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        (v["samples"].as_u64(), v["cells"].as_u64()),
+        (Some(76_456), Some(652))
+    );
+    assert_eq!(v["iterations"], 3);
+    assert_eq!(v["periods"].as_array().unwrap().len(), 2);
+
+    let (csv, png) = (path("tiny.csv"), path("tiny.png"));
+    let map = repo("data/atc_copa_map_grid/atc_map.yaml");
+    let text = stdout(&chronomap(&[
+        "activity", "predict", "--model", &model, "--t", "123,129", "--map", &map, "-o", &csv,
+        "--plot", &png, "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // The same cells as the documented call: 49 × 49 minus the walls, at two times.
+    assert_eq!(
+        (v["cols"].as_u64(), v["rows"].as_u64()),
+        (Some(49), Some(49))
+    );
+    assert_eq!(v["times"], serde_json::json!([123.0, 129.0]));
+    let predictions = v["predictions"].as_array().unwrap();
+    assert_eq!(predictions.len(), 4084);
+    assert_eq!(predictions[0]["x1"], 3.75);
+    assert_eq!(predictions[0]["x2"], 4.25);
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(rows.lines().count(), 4085);
+    let first: Vec<f64> = rows
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert_eq!(first[3], predictions[0]["mean"].as_f64().unwrap());
+    assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
+    // Times must be finite: a usage error.
+    let err = usage_error(&chronomap(&[
+        "activity", "predict", "--model", &model, "--t", "inf",
+    ]));
+    assert!(err.contains("--t inf"), "{err}");
+
+    // 4 × 2401 rows of CSV (about 400 KB) into a pipe closed after the header.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "activity",
+            "predict",
+            "--model",
+            &model,
+            "--t",
+            "120,121,122,123",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut header = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut header)
+        .unwrap();
+    assert_eq!(header, "x1,x2,t,mean,std\n");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}

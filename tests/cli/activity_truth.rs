@@ -87,3 +87,64 @@ fn the_atc_day_is_a_test_day_on_which_copa_map_beats_the_baselines() {
         assert!(v["nrmse"].as_f64() < v["baselines"][baseline]["nrmse"].as_f64());
     }
 }
+
+#[test]
+fn truth_prints_its_summary_as_json_and_takes_comma_separated_tracks() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_truth_json");
+    std::fs::create_dir_all(&dir).unwrap();
+    let truth = dir.join("truth.csv").display().to_string();
+    let tracks = [10, 11]
+        .map(|h| repo(&format!("data/atc_20121024_1hz/atc-1024-{h}_train.csv.xz")))
+        .join(",");
+    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    let text = stdout(&chronomap(&[
+        "activity",
+        "truth",
+        "--tracks",
+        &tracks,
+        "--cells",
+        &grid,
+        "--t0",
+        "2012-10-24T09:00+09:00",
+        "--bins",
+        "1",
+        "--bins",
+        "2",
+        "--t-offset",
+        "120",
+        "-o",
+        &truth,
+        "--json",
+    ]));
+    let v: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["samples"], 1304);
+    assert_eq!(v["cells"], 652);
+    assert_eq!(v["bins"], serde_json::json!([1, 2]));
+    // The file holds what the summary says.
+    let written = chronomap_io::read_rate_samples(&truth).unwrap();
+    assert_eq!(written.len(), 1304);
+    assert_eq!(written.t()[0], 121.0);
+    close(&v["mean_rate_per_hour"], written.mean_rate(), 1e-12);
+    // A cell size the grid's cells are not aligned to names the file and the flag.
+    let err = common::error(&chronomap(&[
+        "activity",
+        "truth",
+        "--tracks",
+        &tracks,
+        "--cells",
+        &grid,
+        "--t0",
+        "1351036800",
+        "--bins",
+        "1",
+        "--cell",
+        "0.3",
+        "-o",
+        &truth,
+    ]));
+    assert!(
+        err.contains("grid_atc_50cm_60min_train_xy.csv.xz: cell centre"),
+        "{err}"
+    );
+    assert!(err.contains("(--cell)"), "{err}");
+}

@@ -425,3 +425,68 @@ fn analyse_names_the_line_of_an_unsupported_node_and_bad_parameters() {
         "{err}"
     );
 }
+
+#[test]
+fn check_and_run_print_json_and_write_with_output() {
+    let dir = scratch("bt_json");
+    let door = repo("tests/data/bt/door.xml");
+    let saved = dir.join("door.xml").display().to_string();
+    let text = stdout(&chronomap(&["bt", "check", &door, "--json", "-o", &saved]));
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["trees"], serde_json::json!(["MainTree", "DoorClosed"]));
+    assert_eq!(v["tree"], "MainTree");
+    assert_eq!(v["leaves"], 5);
+    let nodes = v["nodes"].as_array().unwrap();
+    assert_eq!(nodes.len(), 11);
+    // Depth first, as the table: uid 5 is the subtree, 9 the lock under the retry.
+    assert_eq!(nodes[4]["uid"], 5);
+    assert_eq!(nodes[4]["category"], "SubTree");
+    assert_eq!(nodes[4]["name"], "open_it");
+    assert_eq!(nodes[4]["children"], serde_json::json!([6]));
+    assert_eq!(nodes[8]["id"], "PickLock");
+    assert_eq!(nodes[8]["depth"], 5);
+    assert_eq!(nodes[8]["attributes"]["door"], "{door}");
+    assert_eq!(nodes[7]["attributes"]["num_attempts"], "3");
+    assert!(
+        std::fs::read_to_string(&saved)
+            .unwrap()
+            .contains("<IsDoorClosed/>")
+    );
+
+    let text = stdout(&chronomap(&[
+        "bt",
+        "run",
+        &door,
+        "--script",
+        &repo("tests/data/bt/door.script"),
+        "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["finished"], true);
+    assert_eq!(v["status"], "SUCCESS");
+    assert_eq!(
+        (v["last_tick"].as_u64(), v["last_time_ms"].as_u64()),
+        (Some(5), Some(1100))
+    );
+    assert_eq!(v["transitions"], 33);
+    let ticks = v["ticks"].as_array().unwrap();
+    assert_eq!(ticks.len(), 5);
+    assert_eq!(ticks[2]["time_ms"], 200);
+    assert_eq!(
+        ticks[2]["transitions"][0],
+        serde_json::json!({"uid": 9, "name": "PickLock", "from": "IDLE", "to": "RUNNING"})
+    );
+    assert!(v["unused_ticks"].as_array().unwrap().is_empty());
+}
+
+#[test]
+fn analyse_refuses_impossible_tables_as_usage_errors() {
+    let door = repo("tests/data/bt/door.xml");
+    let params = repo("tests/data/bt/door_sbt.csv");
+    for (flag, value) in [("--steps", "0"), ("--t-max", "-1"), ("--t-max", "0")] {
+        let arg = format!("{flag}={value}");
+        let out = chronomap(&["bt", "analyse", &door, "--params", &params, &arg]);
+        let err = common::usage_error(&out);
+        assert!(err.contains(flag), "{err}");
+    }
+}

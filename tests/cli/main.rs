@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each module uses a different subset of the shared helpers
 
 mod common;
+#[cfg(feature = "serve")]
 mod service;
 
 mod activity;
@@ -13,6 +14,7 @@ mod activity_truth;
 mod aruba;
 mod basics;
 mod bench_activity;
+#[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
 mod events;
@@ -23,8 +25,11 @@ mod hypertime;
 mod monitor;
 mod psbt;
 mod readme;
+#[cfg(feature = "serve")]
 mod serve;
+#[cfg(feature = "serve")]
 mod serve_crash;
+#[cfg(feature = "serve")]
 mod serve_security;
 mod sklearn_gmm;
 mod storm_witham;

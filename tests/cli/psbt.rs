@@ -312,3 +312,31 @@ fn synthesis_from_a_saved_copa_map() {
     ]));
     assert!(err.contains("psbt eval needs pedestrian tracks"), "{err}");
 }
+
+#[test]
+fn synthesis_without_a_map_is_a_usage_error_and_bad_values_a_failure() {
+    // No --map and --activity: the command cannot run at all (exit 2).
+    let err = usage_error(&chronomap(&[
+        "psbt",
+        "--from=10,-3",
+        "--time",
+        "2012-10-24T05:30Z",
+    ]));
+    assert!(err.contains("--map") && err.contains("--activity"), "{err}");
+    // A time that is neither seconds nor ISO 8601 is refused by the parser (exit 2)...
+    let map = repo("data/atc_copa_map_grid/atc_map.yaml");
+    let activity = tracks(&[13]);
+    let err = usage_error(&chronomap(&[
+        "psbt",
+        "--map",
+        &map,
+        "--activity",
+        &activity,
+        "--from=10,-3",
+        "--time",
+        "noon",
+    ]));
+    assert!(err.contains("ISO 8601"), "{err}");
+    // ... a start off the map only when the map is read (exit 1).
+    error(&synth("-500,0", &[]));
+}

@@ -6,8 +6,8 @@ use crate::service;
 
 use std::process::Command;
 
+use chronomap_client::Client;
 use chronomap_core::{FremenModel, TemporalModel};
-use chronomap_serve::client::Client;
 use service::{Backend, free_port, scratch, start};
 
 const TRAIN: &str = "data/door_greg_2016/training_data.txt.xz";
@@ -135,7 +135,7 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
     let client = Client::new(&server.url, None).unwrap();
     let get = |path: &str| {
         let (status, text) = runtime
-            .block_on(client.raw(chronomap_serve::client::Method::GET, path, vec![], None))
+            .block_on(client.raw(chronomap_client::Method::GET, path, vec![], None))
             .unwrap();
         assert_eq!(status, 200, "{path}");
         text
@@ -324,16 +324,13 @@ fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
         .unwrap_err();
     assert_eq!(
         out_of_range.status(),
-        Some(chronomap_serve::client::StatusCode::BAD_REQUEST)
+        Some(chronomap_client::StatusCode::BAD_REQUEST)
     );
 
     // remove, then the model is gone and its id free for another kind.
     runtime.block_on(client.remove("door-0")).unwrap();
     let gone = runtime.block_on(client.view("door-0")).unwrap_err();
-    assert_eq!(
-        gone.status(),
-        Some(chronomap_serve::client::StatusCode::NOT_FOUND)
-    );
+    assert_eq!(gone.status(), Some(chronomap_client::StatusCode::NOT_FOUND));
     runtime
         .block_on(client.create("door-0", Some("stm"), None))
         .unwrap();
@@ -412,7 +409,7 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     let post = |path: &str, body: serde_json::Value| -> (u16, String) {
         let (status, text) = runtime
             .block_on(client.raw(
-                chronomap_serve::client::Method::POST,
+                chronomap_client::Method::POST,
                 path,
                 body.to_string().into_bytes(),
                 None,
@@ -485,4 +482,81 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     assert_eq!(served.values, grid.predict_map(t));
     let (status, _) = post("/v1/grid/nope/predict", serde_json::json!({ "time": t }));
     assert_eq!(status, 404);
+}
+
+#[test]
+fn the_client_prints_json_and_refuses_contradicting_flags_before_connecting() {
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_chronomap"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    // No service runs at this address: the usage errors come first (exit 2), then a refused
+    // connection is a failure at run time (exit 1).
+    let url = format!("http://127.0.0.1:{}", free_port());
+    for (args, expected) in [
+        (vec!["predict", "door"], "give --at TIMES"),
+        (
+            vec!["predict", "door", "--from", "100", "--to", "50"],
+            "--to is before --from",
+        ),
+        (
+            vec![
+                "predict", "door", "--from", "0", "--to", "1e9", "--step", "1",
+            ],
+            "choose a larger --step",
+        ),
+    ] {
+        let mut all = vec!["client", "--url", &url];
+        all.extend(args);
+        let out = run(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(expected), "{err}");
+    }
+    let out = run(&["client", "--url", &url, "predict", "door", "--at", "0,3600"]);
+    assert_eq!(out.status.code(), Some(1));
+
+    let data = scratch("serve_cli_json");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let json = |args: &[&str]| -> serde_json::Value {
+        let mut all = args.to_vec();
+        all.push("--json");
+        serde_json::from_str(&client_command(&server.url, &data, &all)).unwrap()
+    };
+    let v = json(&["add", "greg-door", "--file", TRAIN, "--model", "fremen:2"]);
+    assert_eq!(v["added"], 96_480);
+    assert_eq!(v["id"], "greg-door");
+    let series = chronomap_io::read_pairs(TRAIN).unwrap();
+    let mut reference = FremenModel::with_order(2);
+    reference.observe(&series.times, &series.values).unwrap();
+    // Three hours of the day after the data, as ISO 8601 and seconds, comma-separated.
+    let v = json(&[
+        "predict",
+        "greg-door",
+        "--at",
+        "2016-03-14T03:00Z,1457960400",
+        "--at",
+        "1457964000",
+    ]);
+    let times = [1_457_924_400.0, 1_457_960_400.0, 1_457_964_000.0];
+    assert_eq!(v["times"], serde_json::json!(times));
+    let expected = reference.predict_many(&times);
+    let served: Vec<f64> = v["probability"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p.as_f64().unwrap())
+        .collect();
+    assert_eq!(served, expected);
+    assert_eq!(v["entropy"].as_array().unwrap().len(), 3);
+    let v = json(&["list"]);
+    assert_eq!(v["models"][0]["id"], "greg-door");
+    assert_eq!(v["models"][0]["observations"], 96_480);
+    let v = json(&["forecast", "--ids", "greg-door", "--at", "1457960400"]);
+    assert_eq!(v["probability"][0].as_f64(), Some(expected[1]));
+    let v = json(&["remove", "greg-door"]);
+    assert_eq!(v["removed"], true);
+    assert!(json(&["list"])["models"].as_array().unwrap().is_empty());
 }

@@ -10,10 +10,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use chronomap_client::{Client, ClientError};
 use chronomap_core::TemporalModel;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_models::AnyModel;
-use chronomap_serve::client::{Client, ClientError};
 use chronomap_serve::registry::ModelConfig;
 use service::{Backend, Server, free_port, scratch, start, token};
 

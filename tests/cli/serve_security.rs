@@ -4,9 +4,9 @@
 
 use crate::service;
 
+use chronomap_client::Client;
+use chronomap_client::{Method, StatusCode};
 use chronomap_serve::api::{Health, ListResponse};
-use chronomap_serve::client::Client;
-use chronomap_serve::client::{Method, StatusCode};
 use service::{Backend, free_port, scratch, start, token};
 
 /// Everything a client can see of the service's state.

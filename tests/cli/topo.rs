@@ -320,3 +320,155 @@ fn bad_input_gets_clear_errors() {
     ]));
     assert!(err.contains("duration"), "{err}");
 }
+
+#[test]
+fn split_prints_json_and_flags_that_contradict_exit_2() {
+    use crate::common::usage_error;
+    let dir = scratch("topo_split_json");
+    let (before, after) = (path(&dir, "before"), path(&dir, "after"));
+    let out = stdout(&chronomap(&[
+        "topo",
+        "split",
+        "--edges",
+        &edges(),
+        "--at",
+        "1408492800",
+        "--before",
+        &before,
+        "--after",
+        &after,
+        "--json",
+    ]));
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["at"], 1_408_492_800.0);
+    assert_eq!(v["utc"], "2014-08-20 00:00 UTC");
+    assert_eq!(v["before"]["attempts"], 11_282);
+    assert_eq!(v["before"]["edge_files"], 57);
+    assert_eq!(v["after"]["attempts"], 14_034);
+    assert_eq!(v["after"]["edge_files"], 56);
+
+    // Contradictions are usage errors (exit 2), before anything is read or written.
+    let err = usage_error(&chronomap(&[
+        "topo",
+        "split",
+        "--edges",
+        &edges(),
+        "--at",
+        "1408492800",
+        "--before",
+        &before,
+        "--after",
+        &before,
+    ]));
+    assert!(
+        err.contains("--before and --after are the same directory"),
+        "{err}"
+    );
+    let err = usage_error(&chronomap(&[
+        "topo", "eval", "--train", &before, "--test", &before,
+    ]));
+    assert!(err.contains("same directory"), "{err}");
+    let model = fit(&dir, &[]);
+    let plan = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--model",
+            &model,
+            "--from",
+            "Station",
+            "--task",
+            "F Kitchen",
+        ];
+        args.extend_from_slice(extra);
+        chronomap(&args)
+    };
+    let err = usage_error(&plan(&["--day-table", "--prism", "w.nm"]));
+    assert!(err.contains("--time"), "{err}");
+    let err = usage_error(&plan(&[
+        "--time",
+        "2014-09-04T14:00Z",
+        "--week-of",
+        "2014-09-05",
+    ]));
+    assert!(err.contains("--week-of"), "{err}");
+    // A bad task is a failure at run time (exit 1), not a usage error.
+    error(&chronomap(&[
+        "plan",
+        "--model",
+        &model,
+        "--from",
+        "Station",
+        "--task",
+        "G Kitchen",
+        "--time",
+        "2014-09-04T14:00Z",
+    ]));
+}
+
+#[test]
+fn fit_writes_with_output_or_the_old_out_and_a_closed_pipe_ends_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+
+    let dir = scratch("topo_fit_output");
+    let (new, old) = (path(&dir, "new.cmt"), path(&dir, "old.cmt"));
+    let text = stdout(&chronomap(&[
+        "topo",
+        "fit",
+        "--edges",
+        &edges(),
+        "--output",
+        &new,
+        "--json",
+    ]));
+    let v: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        (v["nodes"].as_u64(), v["edges"].as_u64()),
+        (Some(18), Some(61))
+    );
+    assert_eq!(v["attempts"], 25_316);
+    // Table II of the full data: 11 static edges, 30 of order 0, 13 of order 4 or more.
+    assert_eq!(
+        v["success_orders"],
+        serde_json::json!([11, 30, 5, 1, 1, 13])
+    );
+    stdout(&chronomap(&[
+        "topo",
+        "fit",
+        "--edges",
+        &edges(),
+        "--out",
+        &old,
+    ]));
+    assert_eq!(std::fs::read(&new).unwrap(), std::fs::read(&old).unwrap());
+
+    // A table of 288 start times by 28 days (about 90 KB, more than a pipe holds) into a pipe
+    // that is closed after the first line.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "plan",
+            "--model",
+            &new,
+            "--from",
+            "Station",
+            "--task",
+            "F Kitchen",
+        ])
+        .args(["--day-table", "--days", "28", "--step-mins", "5"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(
+        first.starts_with("task \"F Kitchen\" from Station"),
+        "{first}"
+    );
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}

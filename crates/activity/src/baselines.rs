@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use super::gphom::{GpHom, GpHomConfig};
 use super::whyte::{Whyte, WhyteConfig};
 use super::{ActivityError, CellKey, RatePredictor, RateSamples, Scores, score};
+use chronomap_core::progress::{NoProgress, Progress};
 
 /// One rate everywhere and always: the mean of the training rates.
 #[derive(Clone, Debug, PartialEq)]
@@ -574,12 +575,26 @@ impl Baseline {
         train: &RateSamples,
         config: &BaselineConfig,
     ) -> Result<Box<dyn RatePredictor + Send + Sync>, ActivityError> {
+        self.fit_with_progress(train, config, &NoProgress)
+    }
+
+    /// [`Baseline::fit`], reporting GP-Hom's training iterations to `progress` (the other
+    /// baselines report nothing). The result is the same.
+    ///
+    /// # Errors
+    /// As the model's `fit`.
+    pub fn fit_with_progress(
+        self,
+        train: &RateSamples,
+        config: &BaselineConfig,
+        progress: &dyn Progress,
+    ) -> Result<Box<dyn RatePredictor + Send + Sync>, ActivityError> {
         Ok(match self {
             Baseline::GlobalMean => Box::new(GlobalMean::fit(train)?),
             Baseline::Ml => Box::new(CellMean::fit(train)?),
             Baseline::MlLog => Box::new(CellLogMean::fit(train)?),
             Baseline::FrAam => Box::new(FrAam::fit(train, &config.fr_aam)?),
-            Baseline::GpHom => Box::new(GpHom::fit(train, &config.gp_hom)?),
+            Baseline::GpHom => Box::new(GpHom::fit_with_progress(train, &config.gp_hom, progress)?),
             Baseline::Whyte => Box::new(Whyte::fit(train, &config.whyte)?),
         })
     }

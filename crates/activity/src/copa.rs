@@ -17,9 +17,11 @@ use serde::{Deserialize, Serialize};
 use super::init::{PeriodInit, SpectralInitConfig, inducing_points, initial_periods};
 use super::{RatePredictor, RateSamples};
 use crate::gp::{
-    ActivityKernel, GpError, HeteroSvgp, PeriodicComponent, Point, RbfKernel, TrainConfig, train,
+    ActivityKernel, GpError, HeteroSvgp, PeriodicComponent, Point, RbfKernel, TrainConfig,
+    train_with_progress,
 };
 use chronomap_core::par::Parallelism;
+use chronomap_core::progress::{NoProgress, Progress};
 
 /// Where the periods of CoPA-Map's temporal kernel start.
 ///
@@ -128,7 +130,20 @@ impl CopaMap {
     /// Fewer training samples than inducing points, a configuration out of range, or a
     /// kernel matrix that is not positive definite.
     pub fn fit(train_samples: &RateSamples, config: &CopaConfig) -> Result<Self, GpError> {
-        Self::fit_init(train_samples, None, config)
+        Self::fit_init(train_samples, None, config, &NoProgress)
+    }
+
+    /// [`CopaMap::fit`], reporting the stage `CoPA-Map` with one step per training iteration
+    /// to `progress`. The result is the same.
+    ///
+    /// # Errors
+    /// As [`CopaMap::fit`].
+    pub fn fit_with_progress(
+        train_samples: &RateSamples,
+        config: &CopaConfig,
+        progress: &dyn Progress,
+    ) -> Result<Self, GpError> {
+        Self::fit_init(train_samples, None, config, progress)
     }
 
     /// Fits CoPA-Map to training rates observed for `dwell[i]` hours each: the durations weight
@@ -141,13 +156,14 @@ impl CopaMap {
         dwell: &[f64],
         config: &CopaConfig,
     ) -> Result<Self, GpError> {
-        Self::fit_init(train_samples, Some(dwell), config)
+        Self::fit_init(train_samples, Some(dwell), config, &NoProgress)
     }
 
     fn fit_init(
         train_samples: &RateSamples,
         dwell: Option<&[f64]>,
         config: &CopaConfig,
+        progress: &dyn Progress,
     ) -> Result<Self, GpError> {
         let n = train_samples.len();
         if config.inducing == 0 || n < config.inducing || config.harmonics == 0 {
@@ -214,7 +230,15 @@ impl CopaMap {
             seed: config.seed,
             ..TrainConfig::default()
         };
-        let trace = train(&mut model, &x, &y, &train_config, config.parallelism)?;
+        progress.stage("CoPA-Map", config.iterations as u64);
+        let trace = train_with_progress(
+            &mut model,
+            &x,
+            &y,
+            &train_config,
+            config.parallelism,
+            progress,
+        )?;
         Ok(CopaMap {
             model,
             scaling,

@@ -59,6 +59,7 @@ use std::collections::HashMap;
 use thiserror::Error;
 
 use super::RateSamples;
+use chronomap_core::progress::{NoProgress, Progress};
 use chronomap_hypertime::events::Event;
 pub use chronomap_spatial::ObstacleGrid;
 
@@ -594,6 +595,22 @@ pub fn extract(
     bins: &[i64],
     config: &ExtractConfig,
 ) -> Result<Extraction, ExtractError> {
+    extract_with_progress(grid, robots, detections, bins, config, &NoProgress)
+}
+
+/// [`extract`], reporting the stage `bins` with one step per time bin simulated to
+/// `progress`. The result is the same.
+///
+/// # Errors
+/// As [`extract`].
+pub fn extract_with_progress(
+    grid: &ObstacleGrid,
+    robots: &[RobotPath],
+    detections: &[Event],
+    bins: &[i64],
+    config: &ExtractConfig,
+    progress: &dyn Progress,
+) -> Result<Extraction, ExtractError> {
     let steps = config.steps()?;
     let bins = distinct_bins(bins)?;
     if robots.is_empty() {
@@ -621,6 +638,7 @@ pub fn extract(
     let mut visible_steps: Vec<Vec<u32>> = vec![Vec::new(); bins.len()];
     let mut stamp: Vec<u64> = Vec::new();
     let mut clock: u64 = 0;
+    progress.stage("bins", bins.len() as u64);
     for (b, &bin) in bins.iter().enumerate() {
         let row = &mut visible_steps[b];
         for step in 0..steps {
@@ -641,6 +659,7 @@ pub fn extract(
                 }
             }
         }
+        progress.advance(1);
     }
 
     // c: detections inside a cell visible in the detection's step (every pose of that step

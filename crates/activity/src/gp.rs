@@ -59,5 +59,5 @@ pub use poisson::{ExpectedPoissonLogLik, PoissonElboGrad, PoissonSvgp, expected_
 pub use quad::{ExpectedLogLik, HeteroGaussian, gauss_hermite, softplus};
 pub use svgp::{
     Adam, ElboGrad, GpError, HeteroSvgp, LatentGp, Marginals, Prediction, SvgpModel, TrainConfig,
-    Variational, train,
+    Variational, train, train_with_progress,
 };

@@ -16,9 +16,11 @@ use super::copa::InputScaling;
 use super::init::inducing_points;
 use super::{RatePredictor, RateSamples};
 use crate::gp::{
-    ActivityKernel, GpError, PeriodicComponent, Point, PoissonSvgp, TrainConfig, train,
+    ActivityKernel, GpError, PeriodicComponent, Point, PoissonSvgp, TrainConfig,
+    train_with_progress,
 };
 use chronomap_core::par::Parallelism;
+use chronomap_core::progress::{NoProgress, Progress};
 
 /// How GP-Hom is fitted (the defaults of [`super::CopaConfig`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -80,6 +82,19 @@ impl GpHom {
     /// No training samples, a configuration out of range, a training mean rate of 0, or a
     /// kernel matrix that is not positive definite.
     pub fn fit(train_samples: &RateSamples, config: &GpHomConfig) -> Result<Self, GpError> {
+        Self::fit_with_progress(train_samples, config, &NoProgress)
+    }
+
+    /// [`GpHom::fit`], reporting the stage `GP-Hom` with one step per training iteration to
+    /// `progress`. The result is the same.
+    ///
+    /// # Errors
+    /// As [`GpHom::fit`].
+    pub fn fit_with_progress(
+        train_samples: &RateSamples,
+        config: &GpHomConfig,
+        progress: &dyn Progress,
+    ) -> Result<Self, GpError> {
         let n = train_samples.len();
         if n == 0 || config.inducing == 0 || config.harmonics == 0 {
             return Err(GpError::InvalidInput(format!(
@@ -123,12 +138,14 @@ impl GpHom {
             seed: config.seed,
             ..TrainConfig::default()
         };
-        let trace = train(
+        progress.stage("GP-Hom", config.iterations as u64);
+        let trace = train_with_progress(
             &mut model,
             &x,
             train_samples.y(),
             &train_config,
             config.parallelism,
+            progress,
         )?;
         Ok(GpHom {
             model,

@@ -44,19 +44,29 @@
 //! durations), and the ground truth of §4.3.2 from all detections.
 //!
 //! [`disturbance`] is the service-disturbance benchmark of eq. (4.22): patrols planned on any
-//! model's predicted rates, and the people they pass.
+//! model's predicted rates, and the people they pass; [`disturbance_day`] its test day (patrol
+//! slots, every model's patrols and curves), [`planning`] the grids the robot drives on (over
+//! training cells or a whole map), [`atc`] the time axis of the bundled ATC grid, [`grids`]
+//! the cells and bins the command line works on (aligned cells, regions, detection bins).
 #![deny(missing_docs)]
 
 pub mod gp;
 
+pub mod atc;
 pub mod baselines;
 pub mod copa;
 pub mod disturbance;
+pub mod disturbance_day;
 pub mod extract;
 pub mod gphom;
+pub mod grids;
 pub mod init;
+pub mod planning;
 pub mod truth;
 pub mod whyte;
+
+#[cfg(test)]
+mod progress_tests;
 
 use std::collections::HashMap;
 

@@ -38,6 +38,8 @@
 //!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
 //! * [`activity`] — activity-rate grids: people per hour of observation at spatio-temporal
 //!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
+//! * [`rate_predictions`] — predicted rates with their standard deviation, CSV
+//!   `x1,x2,t,mean,std` ([`rate_predictions::write_rate_predictions`]).
 //! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
 //!   bundled ATC day), returned in time order.
 //! * [`robot_paths`] — patrol loops of simulated robots, CSV `path,x,y,stop_s`
@@ -53,8 +55,10 @@
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
-//!   ([`NavMapError`]) name the file, line and key. [`frame_list`] — the `<time> <map.yaml>`
-//!   lists of maps that occupancy grids are built from ([`read_frame_list`]).
+//!   ([`NavMapError`]) name the file, line and key. A map's obstacles for sight lines
+//!   ([`OccupancyMap::obstacle_grid`]) and for path planners, unknown cells blocking
+//!   ([`OccupancyMap::planning_obstacles`]). [`frame_list`] — the `<time> <map.yaml>` lists of
+//!   maps that occupancy grids are built from ([`read_frame_list`]).
 //! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
 //!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
 //!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
@@ -64,7 +68,9 @@
 //!   both node forms, subtrees, `<TreeNodesModel>`; errors ([`BtXmlError`]) name the file,
 //!   line, column and attribute. [`bt_log`] — Groot2 `.btlog` execution logs from recorded
 //!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
-//!   `chronomap bt run` ([`read_bt_script`]).
+//!   `chronomap bt run` ([`read_bt_script`]); [`sbt_params`] — leaf parameters of a stochastic
+//!   behavior tree for `chronomap bt analyse` ([`read_leaf_params`]); [`monitor_faults`] —
+//!   faults injected into the monitoring simulation ([`read_fault_file`]).
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
@@ -92,12 +98,20 @@ pub mod frame_list;
 pub mod grid_file;
 pub mod matrix;
 pub mod model_file;
+#[cfg(feature = "bt")]
+pub mod monitor_faults;
 #[cfg(feature = "navmap")]
 pub mod navmap;
+#[cfg(feature = "navmap")]
+mod navmap_obstacles;
 #[cfg(feature = "psbt")]
 pub mod psbt_xml;
 #[cfg(feature = "activity")]
+pub mod rate_predictions;
+#[cfg(feature = "activity")]
 pub mod robot_paths;
+#[cfg(feature = "bt")]
+pub mod sbt_params;
 #[cfg(feature = "activity")]
 pub mod scenarios;
 pub mod text;
@@ -132,6 +146,8 @@ pub use model_file::{
 };
 #[cfg(feature = "models")]
 pub use model_file::{decode_any_model, read_any_model, write_any_model};
+#[cfg(feature = "bt")]
+pub use monitor_faults::{FaultFileError, read_fault_file};
 #[cfg(feature = "navmap")]
 pub use navmap::{
     LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,
@@ -140,6 +156,8 @@ pub use navmap::{
 };
 #[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
+#[cfg(feature = "bt")]
+pub use sbt_params::{SbtParamsError, read_leaf_params};
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,

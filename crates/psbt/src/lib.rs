@@ -57,14 +57,21 @@
 //! `3^n` candidates cost `O(3^n K)` instead of `3^n` dense chains. The straightforward
 //! reference (one dense generator per tree, [`chronomap_bt::sbt::dense`]) is
 //! [`Candidates::reference_values`]; the tests assert both agree.
+//!
+//! # Evaluation (§5.4.4)
+//! [`world::grid_poisson_from_tracks`] learns the grid Poisson model of eq. 5.7 from
+//! pedestrian tracks over a map; [`eval`] plans every strategy from one help location;
+//! [`compare`] runs Fig. 5.11's comparison over many random help locations and summarises it.
 #![deny(missing_docs)]
 
 pub mod actions;
+pub mod compare;
 pub mod eval;
 pub mod field;
 pub mod path;
 pub mod places;
 mod synth;
+pub mod world;
 
 pub use field::{GammaPrior, GridPoisson, GridSpec, RateField, copa_field};
 pub use places::TspConfig;

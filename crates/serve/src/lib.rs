@@ -1,33 +1,22 @@
-//! The chronomap world-model service and its client.
+//! The chronomap world-model service.
 //!
 //! Many processes of a robot add observations and ask for predictions while the robot runs
 //! for months; the service keeps every model durable across crashes and restarts:
 //!
-//! * [`api`]: the wire protocol (the operations of the original FreMEn server as JSON).
+//! * [`api`]: the wire protocol (the operations of the original FreMEn server as JSON), shared
+//!   with the typed client of `chronomap-client` (re-exported from there, so both sides use
+//!   the same types).
 //! * [`registry`]: the models held, and the one function that changes them.
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
-//!   in an embedded redb file or in PostgreSQL.
+//!   in an embedded redb file or in PostgreSQL (feature `postgres`, on by default).
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
 //! * [`maps`]: topological maps and occupancy grids served read-only beside the models.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
-//! * [`client`]: a typed client.
 //!
-//! # Example
-//! ```no_run
-//! # async fn example() -> Result<(), chronomap_serve::client::ClientError> {
-//! use chronomap_serve::client::Client;
-//!
-//! let client = Client::new("http://127.0.0.1:8470", Some("TOKEN".into()))?;
-//! // The lab door was closed at night and open in the day; create the model on first use.
-//! client.add("lab-door", &[0.0, 43200.0], &[false, true], Some("fremen:2")).await?;
-//! let p = client.predict("lab-door", &[86400.0 + 43200.0], None).await?;
-//! println!("p(open at noon tomorrow) = {:.2}", p.values[0]);
-//! # Ok(())
-//! # }
-//! ```
+//! The server does not compile an HTTP client: processes that only talk to a service depend on
+//! `chronomap-client`, which does not compile this crate.
 
-pub mod api;
-pub mod client;
+pub use chronomap_client::api;
 pub mod log;
 pub mod maps;
 pub mod registry;

@@ -3,11 +3,13 @@
 //! replays the log after the checkpoint.
 //!
 //! Two backends implement [`Store`]: [`RedbStore`], an embedded file (the default), and
-//! [`PostgresStore`], a PostgreSQL database.
+//! `PostgresStore`, a PostgreSQL database (feature `postgres`, on by default).
 
+#[cfg(feature = "postgres")]
 mod postgres;
 mod redb_store;
 
+#[cfg(feature = "postgres")]
 pub use postgres::PostgresStore;
 pub use redb_store::RedbStore;
 

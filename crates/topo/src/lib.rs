@@ -5,7 +5,9 @@
 //! duration model per edge, learned from traversal attempts; [`ltl`] — co-safe LTL tasks over
 //! node names and their automata ([`automaton`]); [`mdp`] — the Navigation MDP at a time `t`,
 //! its product with a task automaton, and the solver of `Pmax` and expected time; [`plan`] —
-//! all of it together: the policy for a task started now, and "now or later?".
+//! all of it together: the policy for a task started now, and "now or later?"; [`report`] —
+//! what front ends report of them: fit summaries (Table II), merged test maps, per-edge
+//! scores, routes and the now-or-later table (Table III).
 #![deny(missing_docs)]
 
 pub mod automaton;
@@ -14,5 +16,6 @@ pub mod ltl;
 pub mod map;
 pub mod mdp;
 pub mod plan;
+pub mod report;
 
 pub use map::TopoMap;

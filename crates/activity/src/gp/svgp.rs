@@ -20,6 +20,7 @@ use super::kernel::{
 };
 use super::quad::HeteroGaussian;
 use chronomap_core::par::Parallelism;
+use chronomap_core::progress::{NoProgress, Progress};
 use chronomap_core::rng::Xoshiro256StarStar;
 
 /// Errors of the GP module.
@@ -949,6 +950,21 @@ pub fn train<M: SvgpModel>(
     config: &TrainConfig,
     par: Parallelism,
 ) -> Result<Vec<f64>, GpError> {
+    train_with_progress(model, x, y, config, par, &NoProgress)
+}
+
+/// [`train`], reporting one step to `progress` per iteration (the caller names the stage).
+///
+/// # Errors
+/// As [`train`].
+pub fn train_with_progress<M: SvgpModel>(
+    model: &mut M,
+    x: &[Point],
+    y: &[f64],
+    config: &TrainConfig,
+    par: Parallelism,
+    progress: &dyn Progress,
+) -> Result<Vec<f64>, GpError> {
     model.check_training_data(x, y)?;
     if x.is_empty() {
         return Err(GpError::InvalidInput("no training data".into()));
@@ -985,6 +1001,7 @@ pub fn train<M: SvgpModel>(
         let mut p = model.hyperparameters(config.train_inducing);
         adam.ascend(&mut p, &grad);
         model.set_hyperparameters(&p, config.train_inducing);
+        progress.advance(1);
     }
     Ok(trace)
 }

@@ -114,6 +114,18 @@ impl FaultKind {
     }
 }
 
+impl FaultKind {
+    /// The targets a fault of this kind needs one of: a node of [`NODES`] (node crash), a
+    /// topic of [`TOPICS`] (slow topic); empty for the kinds that take no target.
+    pub fn targets(self) -> &'static [&'static str] {
+        match self {
+            FaultKind::NodeCrash => &NODES,
+            FaultKind::TopicSlow => &TOPICS,
+            _ => &[],
+        }
+    }
+}
+
 impl std::str::FromStr for FaultKind {
     type Err = String;
 
@@ -146,6 +158,24 @@ pub struct Fault {
     pub lasts: Duration,
 }
 
+impl Fault {
+    /// How long a CPU overload lasts unless a fault says otherwise.
+    pub const DEFAULT_LASTS: Duration = Duration::from_secs(120);
+
+    /// A fault of `kind` starting `at`, without a target, with no forced failures and the
+    /// default length ([`Fault::DEFAULT_LASTS`]). Set `target` for the kinds that need one
+    /// ([`FaultKind::targets`]).
+    pub fn new(at: Duration, kind: FaultKind) -> Fault {
+        Fault {
+            at,
+            kind,
+            target: String::new(),
+            fails: 0,
+            lasts: Fault::DEFAULT_LASTS,
+        }
+    }
+}
+
 mod secs {
     use serde::{Deserialize, Deserializer, Serializer};
     use std::time::Duration;
@@ -158,120 +188,6 @@ mod secs {
         let v = f64::deserialize(d)?;
         Duration::try_from_secs_f64(v).map_err(serde::de::Error::custom)
     }
-}
-
-/// A fault-file error: the line (1-based), the field and what is wrong.
-#[derive(Debug, Error, PartialEq)]
-#[error("line {line}: {field}: {message}")]
-pub struct FaultFileError {
-    /// The line.
-    pub line: usize,
-    /// The field (`time`, `kind`, `target`, `fails`, `for`).
-    pub field: &'static str,
-    /// The problem.
-    pub message: String,
-}
-
-fn parse_time(text: &str) -> Option<Duration> {
-    let parts: Vec<&str> = text.split(':').collect();
-    if parts.len() > 3 {
-        return None;
-    }
-    let mut total = 0.0f64;
-    for (i, p) in parts.iter().enumerate() {
-        let v: f64 = p.parse().ok()?;
-        if !v.is_finite()
-            || v < 0.0
-            || (i + 1 < parts.len() && v.fract() != 0.0)
-            || (i > 0 && v >= 60.0)
-        {
-            return None;
-        }
-        total = total * 60.0 + v;
-    }
-    Duration::try_from_secs_f64(total).ok()
-}
-
-/// Reads a fault file: one fault a line, `TIME KIND [TARGET] [fails=N] [for=SECONDS]`, where
-/// TIME is seconds or `h:mm:ss` / `m:ss`, KIND one of [`FaultKind::ALL`] (`node_crash` needs a
-/// node of [`NODES`], `topic_slow` a topic of [`TOPICS`]), `fails=N` makes the first N
-/// recoveries on it fail, `for=SECONDS` sets a CPU overload's length. `#` starts a comment.
-///
-/// # Errors
-/// [`FaultFileError`] naming the line and the field.
-pub fn parse_faults(text: &str) -> Result<Vec<Fault>, FaultFileError> {
-    let mut faults = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let content = raw.split('#').next().unwrap_or("").trim();
-        if content.is_empty() {
-            continue;
-        }
-        let err = |field: &'static str, message: String| FaultFileError {
-            line,
-            field,
-            message,
-        };
-        let mut words = content.split_whitespace();
-        let time = words.next().unwrap_or("");
-        let at = parse_time(time).ok_or_else(|| {
-            err(
-                "time",
-                format!("{time:?} is not a time (seconds or h:mm:ss)"),
-            )
-        })?;
-        let kind_word = words
-            .next()
-            .ok_or_else(|| err("kind", "missing fault kind".into()))?;
-        let kind: FaultKind = kind_word.parse().map_err(|m| err("kind", m))?;
-        let mut fault = Fault {
-            at,
-            kind,
-            target: String::new(),
-            fails: 0,
-            lasts: Duration::from_secs(120),
-        };
-        for word in words {
-            if let Some(v) = word.strip_prefix("fails=") {
-                fault.fails = v
-                    .parse()
-                    .map_err(|_| err("fails", format!("{v:?} is not a count")))?;
-            } else if let Some(v) = word.strip_prefix("for=") {
-                fault.lasts = parse_time(v)
-                    .filter(|d| !d.is_zero())
-                    .ok_or_else(|| err("for", format!("{v:?} is not a positive duration")))?;
-            } else if fault.target.is_empty() && !word.contains('=') {
-                fault.target = word.to_owned();
-            } else {
-                return Err(err("target", format!("unexpected {word:?}")));
-            }
-        }
-        let targets: &[&str] = match kind {
-            FaultKind::NodeCrash => &NODES,
-            FaultKind::TopicSlow => &TOPICS,
-            _ => &[],
-        };
-        if targets.is_empty() {
-            if !fault.target.is_empty() {
-                return Err(err(
-                    "target",
-                    format!("{} takes no target (got {:?})", kind.as_str(), fault.target),
-                ));
-            }
-        } else if !targets.contains(&fault.target.as_str()) {
-            return Err(err(
-                "target",
-                format!(
-                    "{} needs one of {} (got {:?})",
-                    kind.as_str(),
-                    targets.join(", "),
-                    fault.target
-                ),
-            ));
-        }
-        faults.push(fault);
-    }
-    Ok(faults)
 }
 
 /// Random faults: a Poisson process per kind at [`FaultKind::default_rate_per_hour`] over
@@ -297,7 +213,7 @@ pub fn random_faults(seed: u64, duration: Duration) -> Vec<Fault> {
                 kind,
                 target: target.to_owned(),
                 fails: 0,
-                lasts: Duration::from_secs(120),
+                lasts: Fault::DEFAULT_LASTS,
             });
         }
     }

@@ -4,9 +4,14 @@ fn s(x: u64) -> Duration {
     Duration::from_secs(x)
 }
 
-/// A scenario with certain recoveries (p = 1) unless a fault says `fails=N`.
-fn run(seconds: u64, faults: &str) -> SimReport {
-    let mut config = SimConfig::new(s(seconds), 7, parse_faults(faults).unwrap());
+/// A fault at `at` seconds.
+fn f(at: u64, kind: FaultKind) -> Fault {
+    Fault::new(s(at), kind)
+}
+
+/// A scenario with certain recoveries (p = 1) unless a fault has `fails > 0`.
+fn run(seconds: u64, faults: Vec<Fault>) -> SimReport {
+    let mut config = SimConfig::new(s(seconds), 7, faults);
     config.p_fix = Some(1.0);
     simulate(&config, &arbiter_document()).unwrap()
 }
@@ -32,7 +37,13 @@ fn rows(report: &SimReport) -> Vec<(u64, u64, &str, Outcome, bool)> {
 fn a_failed_first_recovery_escalates_and_counts_as_failure() {
     // Localization lost at 100 s: the status monitor is in error at once; the slow rotation
     // (20 s) does not fix it, so the fallback restarts the localization at 120 s (30 s).
-    let r = run(300, "100 localization_lost fails=1\n");
+    let r = run(
+        300,
+        vec![Fault {
+            fails: 1,
+            ..f(100, FaultKind::LocalizationLost)
+        }],
+    );
     assert_eq!(
         rows(&r),
         vec![
@@ -54,7 +65,13 @@ fn a_failed_first_recovery_escalates_and_counts_as_failure() {
 fn a_recovery_repeated_30_s_later_counts_the_first_as_failure() {
     // Both wait-and-retry runs fix their fault, but the fault is back 30 s after the first:
     // §5.3.2 counts the first as a failure.
-    let r = run(300, "100 navigation_failure\n130 navigation_failure\n");
+    let r = run(
+        300,
+        vec![
+            f(100, FaultKind::NavigationFailure),
+            f(130, FaultKind::NavigationFailure),
+        ],
+    );
     assert_eq!(
         rows(&r),
         vec![
@@ -65,13 +82,25 @@ fn a_recovery_repeated_30_s_later_counts_the_first_as_failure() {
     assert_eq!(r.reactions[0].count, 2);
     assert_eq!(r.reactions[0].successes, 1);
     // 70 s later instead: both succeed.
-    let r = run(300, "100 navigation_failure\n170 navigation_failure\n");
+    let r = run(
+        300,
+        vec![
+            f(100, FaultKind::NavigationFailure),
+            f(170, FaultKind::NavigationFailure),
+        ],
+    );
     assert!(r.interventions.iter().all(|i| i.success));
 }
 
 #[test]
 fn navigation_escalates_to_the_supervisor_in_table_order() {
-    let r = run(400, "100 navigation_failure fails=2\n");
+    let r = run(
+        400,
+        vec![Fault {
+            fails: 2,
+            ..f(100, FaultKind::NavigationFailure)
+        }],
+    );
     assert_eq!(
         rows(&r),
         vec![
@@ -91,7 +120,16 @@ fn a_higher_priority_monitor_halts_a_running_recovery() {
     // The camera node crashes at 105 s while the robot rotates (100-120 s). Its last heartbeat
     // is at 104 s; the age exceeds 4 s at 109 s: the node monitor has priority, the rotation is
     // halted. After the restart (10 s) the localization recovery starts over.
-    let r = run(300, "100 localization_lost\n105 node_crash camera\n");
+    let r = run(
+        300,
+        vec![
+            f(100, FaultKind::LocalizationLost),
+            Fault {
+                target: "camera".into(),
+                ..f(105, FaultKind::NodeCrash)
+            },
+        ],
+    );
     assert_eq!(
         rows(&r),
         vec![
@@ -106,7 +144,13 @@ fn a_higher_priority_monitor_halts_a_running_recovery() {
 #[test]
 fn simultaneous_errors_are_recovered_by_priority() {
     // Navigation comes before localization in the arbiter.
-    let r = run(300, "100 localization_lost\n100 navigation_failure\n");
+    let r = run(
+        300,
+        vec![
+            f(100, FaultKind::LocalizationLost),
+            f(100, FaultKind::NavigationFailure),
+        ],
+    );
     assert_eq!(
         rows(&r),
         vec![
@@ -121,7 +165,10 @@ fn simultaneous_errors_are_recovered_by_priority() {
     let mut config = SimConfig::new(
         s(300),
         7,
-        parse_faults("100 localization_lost\n100 navigation_failure\n").unwrap(),
+        vec![
+            f(100, FaultKind::LocalizationLost),
+            f(100, FaultKind::NavigationFailure),
+        ],
     );
     config.p_fix = Some(1.0);
     let r = simulate(&config, &doc).unwrap();
@@ -138,7 +185,17 @@ fn simultaneous_errors_are_recovered_by_priority() {
 fn resources_send_one_message_per_episode_without_blocking() {
     let r = run(
         300,
-        "100 cpu_overload for=30\n110 cpu_overload\n200 cpu_overload for=10\n",
+        vec![
+            Fault {
+                lasts: s(30),
+                ..f(100, FaultKind::CpuOverload)
+            },
+            f(110, FaultKind::CpuOverload),
+            Fault {
+                lasts: s(10),
+                ..f(200, FaultKind::CpuOverload)
+            },
+        ],
     );
     assert!(r.interventions.is_empty());
     let times: Vec<f64> = r.messages.iter().map(|m| m.0).collect();
@@ -151,7 +208,7 @@ fn resources_send_one_message_per_episode_without_blocking() {
 #[test]
 fn an_unnoticed_fault_ends_with_an_unrequested_intervention() {
     // Stuck from 100 s; last motion at 99 s; the supervisor comes 600 s later.
-    let r = run(1000, "100 stuck\n");
+    let r = run(1000, vec![f(100, FaultKind::Stuck)]);
     assert!(r.interventions.is_empty());
     assert_eq!(r.unrequested, vec![699.0]);
     let h = |x: f64| x / 3600.0;
@@ -179,21 +236,16 @@ fn random_runs_are_deterministic_per_seed() {
 }
 
 #[test]
-fn bad_fault_files_name_the_line_and_field() {
-    let e = |text: &str| parse_faults(text).unwrap_err();
-    assert_eq!(e("# c\n\nx node_crash camera").line, 3);
-    assert_eq!(e("x node_crash camera").field, "time");
-    assert_eq!(e("1:70:00 stuck").field, "time");
-    assert_eq!(e("10 meltdown").field, "kind");
-    assert_eq!(e("10").field, "kind");
-    assert_eq!(e("10 node_crash").field, "target");
-    assert_eq!(e("10 node_crash lidar").field, "target");
-    assert_eq!(e("10 stuck camera").field, "target");
-    assert_eq!(e("10 stuck fails=x").field, "fails");
-    assert_eq!(e("10 cpu_overload for=0").field, "for");
-    let f = parse_faults("1:00:05 topic_slow /scan fails=2 # comment\n").unwrap();
-    assert_eq!(f[0].at, s(3605));
-    assert_eq!((f[0].target.as_str(), f[0].fails), ("/scan", 2));
+fn faults_built_in_code_have_the_defaults_of_a_fault_file() {
+    let fault = f(3605, FaultKind::TopicSlow);
+    assert_eq!((fault.at, fault.fails, fault.lasts), (s(3605), 0, s(120)));
+    assert!(fault.target.is_empty());
+    assert_eq!(FaultKind::TopicSlow.targets(), ["/scan"]);
+    assert_eq!(
+        FaultKind::NodeCrash.targets(),
+        ["localization", "move_base", "camera"]
+    );
+    assert!(FaultKind::Stuck.targets().is_empty());
 }
 
 #[test]

@@ -1,12 +1,12 @@
-//! The wire protocol: request and response bodies of every endpoint, shared by the server and
-//! the [client](crate::client).
+//! The wire protocol: request and response bodies of every endpoint, shared by the server
+//! (`chronomap-serve`, which describes them in its OpenAPI document with the `openapi`
+//! feature) and the typed [`Client`](crate::Client) (the `http` feature).
 //!
 //! The operations are those users of the original FreMEn server know (`add`, `addvalues`,
 //! `predict`, `forecast`, `entropy`, `forecastEntropy`, `evaluate`, `detect`, `remove`, `view`,
 //! `list`), as JSON over HTTP. Times are seconds (unix time for real robots), `f64`.
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 /// Longest model id, in bytes of UTF-8. The original server's buffer held 100 bytes and its
 /// check allowed 1000; here the bound is checked, documented and the same everywhere.
@@ -17,7 +17,8 @@ pub const MAX_ID_BYTES: usize = 256;
 pub const DEFAULT_MODEL: &str = "fremen:2";
 
 /// Every error: a machine-readable kind and a sentence for people.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ErrorBody {
     /// `bad_request`, `unauthorized`, `not_found`, `conflict`, `payload_too_large`,
     /// `unavailable` or `internal`.
@@ -27,7 +28,8 @@ pub struct ErrorBody {
 }
 
 /// Creates a model (`PUT /v1/models/{id}`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CreateRequest {
     /// Model spec (`fremen:K`, `persistence:K`, `hist:N[:PERIOD]`, `pergam:K[:PERIOD]`,
@@ -41,7 +43,8 @@ pub struct CreateRequest {
 }
 
 /// Binary observations of one state (`POST /v1/add`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AddRequest {
     /// Model id.
@@ -57,7 +60,8 @@ pub struct AddRequest {
 
 /// Observations with values of one state (`POST /v1/addvalues`), or one batch of
 /// [`ObservationsRequest`].
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AddValuesRequest {
     /// Model id.
@@ -73,7 +77,8 @@ pub struct AddValuesRequest {
 
 /// Observations of many states in one durable commit (`POST /v1/observations`): all batches
 /// are accepted or none is.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ObservationsRequest {
     /// One batch per model.
@@ -81,7 +86,8 @@ pub struct ObservationsRequest {
 }
 
 /// What a write did, returned once it is durable.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct WriteAck {
     /// Observations added.
     pub observations: u64,
@@ -90,7 +96,8 @@ pub struct WriteAck {
 }
 
 /// Predictions of one model at many times (`POST /v1/predict`, `POST /v1/entropy`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct PredictRequest {
     /// Model id.
@@ -103,7 +110,8 @@ pub struct PredictRequest {
 }
 
 /// Answer to [`PredictRequest`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct PredictResponse {
     /// `p(t)` in `[0, 1]` for `predict`, binary entropy in bits for `entropy`.
     pub values: Vec<f64>,
@@ -113,7 +121,8 @@ pub struct PredictResponse {
 }
 
 /// Predictions of many models at one time (`POST /v1/forecast`, `POST /v1/forecastEntropy`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ForecastRequest {
     /// Model ids.
@@ -129,14 +138,16 @@ pub struct ForecastRequest {
 }
 
 /// Answer to [`ForecastRequest`]: one value per id, in the order of `ids`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ForecastResponse {
     /// `p(t)` or entropies (bits).
     pub values: Vec<f64>,
 }
 
 /// Errors of a model per order on given data (`POST /v1/evaluate`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct EvaluateRequest {
     /// Model id.
@@ -151,7 +162,8 @@ pub struct EvaluateRequest {
 }
 
 /// Answer to [`EvaluateRequest`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct EvaluateResponse {
     /// The orders evaluated (`[null]`-free: models without an order give one entry, 0).
     pub orders: Vec<usize>,
@@ -167,7 +179,8 @@ pub struct EvaluateResponse {
 }
 
 /// Anomaly detection on given data (`POST /v1/detect`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DetectRequest {
     /// Model id.
@@ -184,7 +197,8 @@ pub struct DetectRequest {
 }
 
 /// One anomalous observation.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Anomaly {
     /// Its time.
     pub time: f64,
@@ -195,14 +209,16 @@ pub struct Anomaly {
 }
 
 /// Answer to [`DetectRequest`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct DetectResponse {
     /// The anomalies, in the order given.
     pub anomalies: Vec<Anomaly>,
 }
 
 /// A periodic component of a spectral model (seed 001 eq. 2).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Component {
     /// Period (s).
     pub period_secs: f64,
@@ -213,7 +229,8 @@ pub struct Component {
 }
 
 /// A model's description (`GET /v1/models/{id}`, and the entries of `list`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ModelInfo {
     /// Model id.
     pub id: String,
@@ -237,14 +254,16 @@ pub struct ModelInfo {
 }
 
 /// All models (`GET /v1/models`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ListResponse {
     /// By id.
     pub models: Vec<ModelInfo>,
 }
 
 /// Every observation a model holds, from the durable log (`GET /v1/models/{id}/observations`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ObservationsResponse {
     /// Times (s).
     pub times: Vec<f64>,
@@ -253,7 +272,8 @@ pub struct ObservationsResponse {
 }
 
 /// Service health (`GET /v1/health`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Health {
     /// `ok`.
     pub status: String,
@@ -265,4 +285,46 @@ pub struct Health {
     pub seq: u64,
     /// Whether writes need a bearer token.
     pub auth: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn requests_have_the_documented_json_shape() {
+        let request = AddValuesRequest {
+            id: "door".into(),
+            times: vec![0.0, 60.0],
+            values: vec![1.0, 0.5],
+            model: Some(DEFAULT_MODEL.into()),
+        };
+        assert_eq!(
+            serde_json::to_string(&request).unwrap(),
+            r#"{"id":"door","times":[0.0,60.0],"values":[1.0,0.5],"model":"fremen:2"}"#
+        );
+        // Optional fields may be left out; unknown ones are refused, naming them.
+        let create: CreateRequest = serde_json::from_str("{}").unwrap();
+        assert_eq!(create, CreateRequest::default());
+        let error = serde_json::from_str::<CreateRequest>(r#"{"modle":"stm"}"#).unwrap_err();
+        assert!(
+            error.to_string().contains("unknown field `modle`"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn responses_read_back_what_the_server_writes() {
+        let ack: WriteAck = serde_json::from_str(r#"{"observations":3,"seq":17}"#).unwrap();
+        assert_eq!(
+            ack,
+            WriteAck {
+                observations: 3,
+                seq: 17
+            }
+        );
+        let error: ErrorBody =
+            serde_json::from_str(r#"{"error":"not_found","reason":"no model \"x\""}"#).unwrap();
+        assert_eq!(error.reason, "no model \"x\"");
+    }
 }

@@ -1,5 +1,5 @@
-//! A typed client of the service: one method per endpoint, the service's JSON errors as
-//! [`ClientError::Api`].
+//! The typed HTTP client of the service (reqwest): one method per endpoint, the service's JSON
+//! errors as [`ClientError::Api`].
 
 pub use reqwest::{Method, StatusCode};
 use serde::Serialize;
@@ -281,7 +281,7 @@ impl Client {
 }
 
 /// `/v1/models/{id}{suffix}` with the id percent-encoded.
-fn model_path(id: &str, suffix: &str) -> String {
+pub(crate) fn model_path(id: &str, suffix: &str) -> String {
     let mut path = String::from("/v1/models/");
     for byte in id.bytes() {
         if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
@@ -292,4 +292,64 @@ fn model_path(id: &str, suffix: &str) -> String {
     }
     path.push_str(suffix);
     path
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn model_ids_are_percent_encoded_in_paths() {
+        assert_eq!(model_path("lab-door", ""), "/v1/models/lab-door");
+        assert_eq!(
+            model_path("kitchen door/2", "/observations"),
+            "/v1/models/kitchen%20door%2F2/observations"
+        );
+        // UTF-8 bytes one by one: "é" is C3 A9.
+        assert_eq!(model_path("café", ""), "/v1/models/caf%C3%A9");
+        assert_eq!(model_path("a.b_c~d", ""), "/v1/models/a.b_c~d");
+    }
+
+    #[test]
+    fn only_http_addresses_make_a_client() {
+        let error = Client::new("https://robot:8470", None).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "service address \"https://robot:8470\" is not an http:// URL"
+        );
+        assert_eq!(error.status(), None);
+        let client = Client::new("http://127.0.0.1:8470/", Some("t".into())).unwrap();
+        assert_eq!(client.base, "http://127.0.0.1:8470");
+    }
+
+    #[test]
+    fn api_errors_show_status_and_reason() {
+        let error = ClientError::Api {
+            status: StatusCode::NOT_FOUND,
+            body: ErrorBody {
+                error: "not_found".into(),
+                reason: "no model \"door\"".into(),
+            },
+        };
+        assert_eq!(error.to_string(), "404 Not Found: no model \"door\"");
+        assert_eq!(error.status(), Some(StatusCode::NOT_FOUND));
+    }
+
+    #[tokio::test]
+    async fn a_refused_connection_is_a_transport_error_naming_the_endpoint() {
+        // A loopback port that was free a moment ago: nothing listens there now.
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let base = format!("http://127.0.0.1:{port}");
+        let client = Client::new(&base, None).unwrap();
+        match client.health().await {
+            Err(ClientError::Transport(text)) => {
+                assert!(text.starts_with(&format!("{base}/v1/health: ")), "{text}");
+            }
+            other => panic!("expected a transport error, got {other:?}"),
+        }
+    }
 }
