@@ -75,22 +75,9 @@ pub enum DisturbanceError {
     /// A parameter is out of range (a grid size, cell size, speed, radius, `ρ`, ...).
     #[error("invalid configuration: {0}")]
     Config(String),
-    /// A waypoint lies outside the planning grid.
-    #[error("waypoint ({}, {}) lies outside the planning grid", .at[0], .at[1])]
-    WaypointOutside {
-        /// The waypoint.
-        at: [f64; 2],
-    },
-    /// A waypoint's cell is blocked.
-    #[error(
-        "waypoint ({}, {}) is in a blocked cell (an obstacle within the robot's clearance, or \
-         a cell without training data)",
-        .at[0], .at[1]
-    )]
-    WaypointBlocked {
-        /// The waypoint.
-        at: [f64; 2],
-    },
+    /// The planning grid refused its size or a waypoint (outside it, or in a blocked cell).
+    #[error(transparent)]
+    Grid(#[from] PlanningGridError),
     /// No path joins two consecutive waypoints.
     #[error("no path through free cells from ({}, {}) to ({}, {})", .from[0], .from[1], .to[0], .to[1])]
     Unreachable {
@@ -139,18 +126,6 @@ pub enum DisturbanceError {
         /// Number of encounter counts.
         encounters: usize,
     },
-}
-
-impl From<PlanningGridError> for DisturbanceError {
-    /// The planning grid's errors are the benchmark's: a bad grid is a bad configuration.
-    fn from(error: PlanningGridError) -> Self {
-        match error {
-            PlanningGridError::WaypointOutside { at } => DisturbanceError::WaypointOutside { at },
-            PlanningGridError::WaypointBlocked { at } => DisturbanceError::WaypointBlocked { at },
-            PlanningGridError::Config(reason) => DisturbanceError::Config(reason),
-            other => DisturbanceError::Config(other.to_string()),
-        }
-    }
 }
 
 /// A place a patrol visits.
@@ -225,7 +200,7 @@ pub struct Patrol {
 ///
 /// # Errors
 /// [`DisturbanceError::Config`] for fewer than two waypoints or `weights` of the wrong length,
-/// [`DisturbanceError::WaypointBlocked`] for a blocked waypoint cell,
+/// [`PlanningGridError::WaypointBlocked`] for a blocked waypoint cell,
 /// [`DisturbanceError::Unreachable`] if a leg has no path.
 pub fn plan_patrol(
     grid: &PlanningGrid,
@@ -246,9 +221,8 @@ pub fn plan_patrol(
         )));
     }
     if let Some(&blocked) = waypoints.iter().find(|&&w| !grid.is_free(w)) {
-        return Err(DisturbanceError::WaypointBlocked {
-            at: grid.centre(blocked),
-        });
+        let at = grid.centre(blocked);
+        return Err(PlanningGridError::WaypointBlocked { at }.into());
     }
     let mut cells = vec![waypoints[0]];
     let mut cost = 0.0;
@@ -731,12 +705,12 @@ mod tests {
             })
         );
         assert_eq!(
-            split.waypoint([1.5, 1.5]).map_err(DisturbanceError::from),
-            Err(DisturbanceError::WaypointBlocked { at: [1.5, 1.5] })
+            split.waypoint([1.5, 1.5]),
+            Err(PlanningGridError::WaypointBlocked { at: [1.5, 1.5] })
         );
         assert_eq!(
-            split.waypoint([9.0, 0.0]).map_err(DisturbanceError::from),
-            Err(DisturbanceError::WaypointOutside { at: [9.0, 0.0] })
+            split.waypoint([9.0, 0.0]),
+            Err(PlanningGridError::WaypointOutside { at: [9.0, 0.0] })
         );
         assert!(plan_patrol(&split, &ones, &[cell(&split, 0, 0)]).is_err());
     }
