@@ -3,54 +3,17 @@
 //! training, 2 of test), the JSON shape of issue 8, and errors naming file, line and column.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
+use crate::common::{chronomap, close, data, error, stdout, tmp, write};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
 fn atc() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz")
-        .display()
-        .to_string()
+    data("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz")
 }
 
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
-fn close(value: &Value, expected: f64, tolerance: f64) {
-    let v = value
-        .as_f64()
-        .unwrap_or_else(|| panic!("not a number: {value}"));
-    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
-}
-
+/// A file of the module's tests (`target/tmp/activity_cli/NAME`).
 fn scratch(name: &str, text: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_cli");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
+    write(&tmp("activity_cli"), name, text)
 }
 
 #[test]

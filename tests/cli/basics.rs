@@ -1,34 +1,16 @@
 //! The `chronomap` binary end to end: the evaluation call acceptance checks make, model
 //! files, and clear errors for bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
+use crate::common::{chronomap, data, scratch};
 
 fn greg(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/door_greg_2016")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    data(format!("door_greg_2016/{name}"))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path.display().to_string()
+    crate::common::write(dir, name, text).display().to_string()
 }
 
 #[test]

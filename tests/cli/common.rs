@@ -1,57 +1,24 @@
-//! Helpers shared by the command-line tests of the activity maps: run the binary, read its
-//! output, find bundled data.
+//! Helpers shared by the command-line tests: chronomap-testutil's, with the `chronomap` binary
+//! and the scratch directory of this test binary.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use serde_json::Value;
+pub use chronomap_testutil::{
+    assert_close as close, data, error, json, repo, shared_dir, stdout, usage_error, write,
+};
 
 /// Runs `chronomap` with `args`.
 pub fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
+    chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)
 }
 
-/// A path inside the repository.
-pub fn repo(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(path)
-        .display()
-        .to_string()
+/// A fresh scratch directory for one test (`target/tmp/TEST`).
+pub fn scratch(test: &str) -> PathBuf {
+    chronomap_testutil::scratch!(test)
 }
 
-/// The stdout of a run that must succeed.
-pub fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-pub fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
-/// Asserts that `value` is a number within `tolerance` of `expected`.
-pub fn close(value: &Value, expected: f64, tolerance: f64) {
-    let v = value
-        .as_f64()
-        .unwrap_or_else(|| panic!("not a number: {value}"));
-    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
-}
-
-/// The error of a run that must be refused as a usage error (exit code 2) without a panic.
-pub fn usage_error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
+/// A directory the tests of one module share (`target/tmp/NAME`, not emptied).
+pub fn tmp(name: &str) -> PathBuf {
+    shared_dir(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name))
 }

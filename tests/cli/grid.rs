@@ -2,24 +2,10 @@
 //! maps that our map reader (Nav2 semantics) reads back, and clear errors for bad frames.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+use crate::common::{chronomap, scratch};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
-
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// A 4×3 map: a wall column (x = 0), a door (cell 5) closed from 18:00 to 8:00, an unseen
 /// corner (cell 11), the rest free.

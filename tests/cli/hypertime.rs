@@ -2,20 +2,13 @@
 //! robot's velocity through the Witham lab door. The numbers asserted are the ones measured
 //! and reported in docs/hypertime.md.
 
-use std::path::PathBuf;
-
 use chronomap_core::TemporalModel;
 use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
 use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs, read_test_set};
 use chronomap_models::AnyModel;
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
 use chronomap_models::spec::{FitOptions, parse_model_list};
-
-fn data(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(path)
-}
+use chronomap_testutil::data_path as data;
 
 fn greg_training() -> TimeSeries {
     read_pairs(data("door_greg_2016/training_data.txt.xz")).unwrap()

@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use common::{chronomap, close, error, repo, stdout, usage_error};
+use common::{chronomap, close, error, repo, scratch, stdout, usage_error};
 use serde_json::Value;
 
 fn tracks(hours: &[u32]) -> String {
@@ -208,13 +208,6 @@ fn small_copa_model(dir: &std::path::Path) -> String {
         &model,
     ]));
     model
-}
-
-fn scratch(test: &str) -> std::path::PathBuf {
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// `--activity MODEL.cmcopa`: the synthesis runs on the saved CoPA-Map's field. 14:30 JST on

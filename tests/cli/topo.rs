@@ -2,51 +2,17 @@
 //! (seed 003): the evaluation JSON the acceptance check reads, the planner's outputs, and clear
 //! errors for bad input (malformed LTL, unknown nodes, empty edge files, negative durations).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
+use crate::common::{chronomap, data, error, scratch, stdout};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
 fn edges() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/witham_topological_nav/edges")
-        .display()
-        .to_string()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    data("witham_topological_nav/edges")
 }
 
 fn path(dir: &Path, name: &str) -> String {
     dir.join(name).display().to_string()
-}
-
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
 }
 
 /// Fits the full data once per test (0.05 s) into `dir/witham.cmt`.
