@@ -9,7 +9,7 @@ use chronomap_testutil::data_path;
 fn rooms() -> Vec<TimeSeries> {
     (0..10)
         .map(|r| {
-            let path = data_path(format!("aruba_rooms_1min/presence_minutes_{r}.txt.xz"));
+            let path = data_path(&format!("aruba_rooms_1min/presence_minutes_{r}.txt.xz"));
             read_pairs(path).unwrap()
         })
         .collect()

@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::common::{chronomap, data, scratch};
 
 fn greg(name: &str) -> String {
-    data(format!("door_greg_2016/{name}"))
+    data(&format!("door_greg_2016/{name}"))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {

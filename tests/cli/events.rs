@@ -8,7 +8,7 @@ use crate::common::{chronomap, close, error, stdout};
 use serde_json::Value;
 
 fn data(relative: &str) -> String {
-    crate::common::data(format!("lincoln_pedestrians_2017/{relative}"))
+    crate::common::data(&format!("lincoln_pedestrians_2017/{relative}"))
 }
 
 fn whytes() -> String {

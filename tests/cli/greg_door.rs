@@ -14,7 +14,7 @@ use chronomap_models::eval::{TestSet, evaluate};
 use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
 
 fn data(name: &str) -> PathBuf {
-    chronomap_testutil::data_path(format!("door_greg_2016/{name}"))
+    chronomap_testutil::data_path(&format!("door_greg_2016/{name}"))
 }
 
 fn training() -> TimeSeries {

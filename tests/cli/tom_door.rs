@@ -11,7 +11,7 @@ use chronomap_io::{decode_any_model, encode_model, read_pairs, read_test_set};
 use chronomap_models::AnyModel;
 
 fn data(name: &str) -> PathBuf {
-    chronomap_testutil::data_path(format!("door_tom_2013/{name}"))
+    chronomap_testutil::data_path(&format!("door_tom_2013/{name}"))
 }
 
 #[test]

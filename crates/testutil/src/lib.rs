@@ -36,22 +36,22 @@ fn root() -> &'static Path {
 }
 
 /// A path inside the repository, `relative` to its root.
-pub fn repo_path(relative: impl AsRef<Path>) -> PathBuf {
+pub fn repo_path(relative: &str) -> PathBuf {
     root().join(relative)
 }
 
 /// [`repo_path`] as text, for a command's arguments.
-pub fn repo(relative: impl AsRef<Path>) -> String {
+pub fn repo(relative: &str) -> String {
     repo_path(relative).display().to_string()
 }
 
 /// A path inside the bundled data, `relative` to `data/`.
-pub fn data_path(relative: impl AsRef<Path>) -> PathBuf {
+pub fn data_path(relative: &str) -> PathBuf {
     root().join("data").join(relative)
 }
 
 /// [`data_path`] as text, for a command's arguments.
-pub fn data(relative: impl AsRef<Path>) -> String {
+pub fn data(relative: &str) -> String {
     data_path(relative).display().to_string()
 }
 

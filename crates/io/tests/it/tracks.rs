@@ -3,7 +3,7 @@
 use chronomap_io::{read_track_files, read_tracks};
 
 fn data(name: &str) -> String {
-    chronomap_testutil::data(format!("atc_20121024_1hz/{name}"))
+    chronomap_testutil::data(&format!("atc_20121024_1hz/{name}"))
 }
 
 #[test]
