@@ -5,7 +5,7 @@
 
 use std::process::Output;
 
-use crate::common::{chronomap, data, tmp, write};
+use crate::common::{chronomap, data, stdout, tmp, write};
 use serde_json::Value;
 
 /// A file of the module's tests (`target/tmp/activity_disturbance_cli/NAME`).
@@ -57,11 +57,7 @@ fn curve(model: &Value) -> Vec<u64> {
 fn atc_hallway_two_hours_measured_encounters() {
     let scenarios = data("atc_20121024_1hz/disturbance_scenarios.csv");
     let out = hallway(&scenarios, &["--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     // 13:00 .. 14:45 JST, four patrols an hour; the test day is t = 120 + hour after 09:00.
     assert_eq!(json["n_nav"], 8);

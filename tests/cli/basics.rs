@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::common::{chronomap, data, scratch};
+use crate::common::{chronomap, data, scratch, stdout};
 
 fn greg(name: &str) -> String {
     data(&format!("door_greg_2016/{name}"))
@@ -37,11 +37,7 @@ fn eval_json_has_the_documented_shape_and_values() {
         "mean,fremen:4",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let models = json["models"].as_array().unwrap();
     assert_eq!(models.len(), 2);
@@ -76,11 +72,7 @@ fn eval_prints_tables_and_significance() {
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let out = chronomap(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("Brier"), "{text}");
     assert!(text.contains("Binary error"), "{text}");
@@ -149,11 +141,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
         "-o",
         &model,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
 
     // Monday 2016-03-21 13:00 UTC (door often open) and 03:00 (closed).
     let out = chronomap(&["predict", &model, "--at", "1458565200", "1458529200"]);
@@ -188,11 +176,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
 fn demo_runs_on_bundled_data_and_writes_plots() {
     let dir = scratch("demo");
     let out = chronomap(&["demo", "--out", &dir.display().to_string()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     // The original FreMEn figures appear beside ours (fremen:4: 0.0670 both).
     let fremen4 = text

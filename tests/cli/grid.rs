@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{chronomap, scratch};
+use crate::common::{chronomap, scratch, stdout};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
 
@@ -63,11 +63,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         "--order",
         "4",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let GridFile::State(state) = read_grid_file(&grid).unwrap() else {
         panic!("not a learning state")
     };
@@ -88,11 +84,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
             "--order",
             "4",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        stdout(&out);
         let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
         assert!(yaml.starts_with("# map predicted by chronomap"), "{yaml}");
         assert!(yaml.contains(&format!("t = {t}")), "{yaml}");
@@ -118,11 +110,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         "--mode",
         "scale",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     assert!(base.with_extension("png").exists());
     let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
     assert!(yaml.contains("mode: scale"), "{yaml}");
@@ -135,11 +123,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
     );
     let png = dir.join("maps.png");
     let out = chronomap(&["grid", "plot", &grid, "-o", &png.display().to_string()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     assert!(std::fs::metadata(&png).unwrap().len() > 1000);
     let _ = MapMode::Trinary;
 }
@@ -243,11 +227,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         "-o",
         &out_path,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     assert!(matches!(
         read_grid_file(&out_path).unwrap(),
         GridFile::Lossy(_)
@@ -268,11 +248,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         "-o",
         &office,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(
         text.contains("static (order 0)") && text.contains("FreMEn auto"),

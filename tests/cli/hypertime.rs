@@ -4,40 +4,12 @@
 
 use chronomap_core::TemporalModel;
 use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
-use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs, read_test_set};
+use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs};
 use chronomap_models::AnyModel;
-use chronomap_models::eval::{EvalReport, TestSet, evaluate};
-use chronomap_models::spec::{FitOptions, parse_model_list};
+use chronomap_models::eval::EvalReport;
 use chronomap_testutil::data_path as data;
 
-fn greg_training() -> TimeSeries {
-    read_pairs(data("door_greg_2016/training_data.txt.xz")).unwrap()
-}
-
-fn greg_tests() -> Vec<TimeSeries> {
-    (1..=5)
-        .map(|i| {
-            read_test_set(
-                data(&format!("door_greg_2016/test_times_{i}.txt.xz")),
-                data(&format!("door_greg_2016/test_data_{i}.txt.xz")),
-            )
-            .unwrap()
-        })
-        .collect()
-}
-
-fn run(specs: &str, train: &TimeSeries, tests: &[TimeSeries]) -> EvalReport {
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
-    evaluate(
-        &parse_model_list(specs).unwrap(),
-        &train.times,
-        &train.values,
-        &sets,
-        &FitOptions::default(),
-        |_| {},
-    )
-    .unwrap()
-}
+use crate::common::{evaluate_specs_on as run, greg_tests, greg_training, stdout};
 
 fn mean_mse(report: &EvalReport, spec: &str) -> f64 {
     report
@@ -186,11 +158,7 @@ fn feature_visibility_needs_time() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["features"], 111);
     assert_eq!(

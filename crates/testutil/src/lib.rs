@@ -117,6 +117,40 @@ pub fn assert_close(value: &Value, expected: f64, tolerance: f64) {
     assert!(close(v, expected, tolerance), "{v} != {expected}");
 }
 
+/// The number at `path` (keys from the top) in `value`.
+///
+/// # Panics
+/// If there is none.
+pub fn number_at(value: &Value, path: &[&str]) -> f64 {
+    path.iter()
+        .fold(value, |v, key| &v[*key])
+        .as_f64()
+        .unwrap_or_else(|| panic!("{path:?} missing in {value}"))
+}
+
+/// [`number_at`], which must be a positive finite number.
+///
+/// # Panics
+/// If it is not.
+pub fn positive_at(value: &Value, path: &[&str]) -> f64 {
+    let number = number_at(value, path);
+    assert!(number > 0.0 && number.is_finite(), "{path:?} = {number}");
+    number
+}
+
+/// The strings of a JSON array.
+///
+/// # Panics
+/// If `value` is not an array of strings.
+pub fn strings(value: &Value) -> Vec<&str> {
+    value
+        .as_array()
+        .unwrap_or_else(|| panic!("not an array: {value}"))
+        .iter()
+        .map(|v| v.as_str().unwrap_or_else(|| panic!("not a string: {v}")))
+        .collect()
+}
+
 /// Runs the binary `bin` with `args` and waits for it.
 ///
 /// # Panics
