@@ -21,7 +21,7 @@ use statrs::function::gamma::ln_gamma;
 use super::kernel::{ActivityKernel, Kernel, Point};
 use super::svgp::{
     BatchLik, GpError, LatentGp, Marginals, Prediction, SvgpModel, Variational, check_data,
-    flatten, pack_lower, unpack_lower, with_step_halving,
+    flatten, pack_lower, svgp_model, unpack_lower, with_step_halving,
 };
 use chronomap_core::par::Parallelism;
 
@@ -333,29 +333,4 @@ impl PoissonSvgp {
     }
 }
 
-impl SvgpModel for PoissonSvgp {
-    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
-        check_rates(x, y)
-    }
-
-    fn train_iteration(
-        &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        rho: f64,
-        with_inducing: bool,
-        par: Parallelism,
-    ) -> Result<(f64, Vec<f64>), GpError> {
-        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
-        Ok((elbo, grad.flatten(with_inducing)))
-    }
-
-    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        PoissonSvgp::hyperparameters(self, with_inducing)
-    }
-
-    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
-        PoissonSvgp::set_hyperparameters(self, p, with_inducing);
-    }
-}
+svgp_model!(PoissonSvgp, check_rates);

@@ -945,32 +945,41 @@ pub trait SvgpModel {
     fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool);
 }
 
-impl SvgpModel for HeteroSvgp {
-    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
-        check_data(x, y)
-    }
+/// Implements [`SvgpModel`] for a model with inherent `train_step`, `hyperparameters` and
+/// `set_hyperparameters` and a gradient with `flatten`, whose training data `$check` checks.
+macro_rules! svgp_model {
+    ($model:ty, $check:path) => {
+        impl SvgpModel for $model {
+            fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
+                $check(x, y)
+            }
 
-    fn train_iteration(
-        &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        rho: f64,
-        with_inducing: bool,
-        par: Parallelism,
-    ) -> Result<(f64, Vec<f64>), GpError> {
-        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
-        Ok((elbo, grad.flatten(with_inducing)))
-    }
+            fn train_iteration(
+                &mut self,
+                x: &[Point],
+                y: &[f64],
+                scale: f64,
+                rho: f64,
+                with_inducing: bool,
+                par: Parallelism,
+            ) -> Result<(f64, Vec<f64>), GpError> {
+                let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
+                Ok((elbo, grad.flatten(with_inducing)))
+            }
 
-    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        HeteroSvgp::hyperparameters(self, with_inducing)
-    }
+            fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
+                <$model>::hyperparameters(self, with_inducing)
+            }
 
-    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
-        HeteroSvgp::set_hyperparameters(self, p, with_inducing);
-    }
+            fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
+                <$model>::set_hyperparameters(self, p, with_inducing);
+            }
+        }
+    };
 }
+pub(super) use svgp_model;
+
+svgp_model!(HeteroSvgp, check_data);
 
 /// Trains `model` on `(x, y)` by alternating a natural-gradient step on its `q(v)` and an
 /// Adam step on the hyperparameters (and inducing inputs) on the same minibatch (seed 002
