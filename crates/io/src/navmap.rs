@@ -163,7 +163,7 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::yaml::{self, Yaml};
+use crate::yaml::{self, Prefix, Yaml};
 
 /// Cell value of a free cell.
 pub const FREE: i8 = 0;
@@ -605,19 +605,6 @@ pub struct NavMapError {
     file: Option<String>,
     line: Option<u64>,
     kind: NavMapErrorKind,
-}
-
-struct Prefix<'a>(Option<&'a str>, Option<u64>);
-
-impl fmt::Display for Prefix<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.0, self.1) {
-            (Some(file), Some(line)) => write!(f, "{file}:{line}: "),
-            (Some(file), None) => write!(f, "{file}: "),
-            (None, Some(line)) => write!(f, "line {line}: "),
-            (None, None) => Ok(()),
-        }
-    }
 }
 
 impl NavMapError {

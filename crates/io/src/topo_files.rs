@@ -138,7 +138,6 @@
 
 use std::collections::HashSet;
 use std::f64::consts::PI;
-use std::fmt;
 use std::fs;
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
@@ -152,7 +151,7 @@ use thiserror::Error;
 use crate::text::{
     DataError, DataErrorKind, TimeSeries, decompressing_reader, open_data_file, read_timed_lines,
 };
-use crate::yaml::{self, Yaml};
+use crate::yaml::{self, Prefix, Yaml};
 
 // ---------------------------------------------------------------------------------------------
 // Edge files
@@ -689,19 +688,6 @@ pub struct TopoFileError {
     file: Option<String>,
     line: Option<u64>,
     kind: TopoFileErrorKind,
-}
-
-struct Prefix<'a>(Option<&'a str>, Option<u64>);
-
-impl fmt::Display for Prefix<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.0, self.1) {
-            (Some(file), Some(line)) => write!(f, "{file}:{line}: "),
-            (Some(file), None) => write!(f, "{file}: "),
-            (None, Some(line)) => write!(f, "line {line}: "),
-            (None, None) => Ok(()),
-        }
-    }
 }
 
 impl TopoFileError {

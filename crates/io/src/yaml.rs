@@ -128,6 +128,21 @@ impl fmt::Display for Listed<'_> {
     }
 }
 
+/// The place of an error in a YAML file, as its message starts: `file:line: `, `file: `,
+/// `line N: ` or nothing.
+pub(crate) struct Prefix<'a>(pub(crate) Option<&'a str>, pub(crate) Option<u64>);
+
+impl fmt::Display for Prefix<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (self.0, self.1) {
+            (Some(file), Some(line)) => write!(f, "{file}:{line}: "),
+            (Some(file), None) => write!(f, "{file}: "),
+            (None, Some(line)) => write!(f, "line {line}: "),
+            (None, None) => Ok(()),
+        }
+    }
+}
+
 /// Why a YAML text could not be read: the parser's message in file terms, and its line
 /// when the parser knows it.
 pub(crate) struct YamlError {
