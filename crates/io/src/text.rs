@@ -82,6 +82,18 @@ impl TimeSeries {
         self.times.len()
     }
 
+    /// The observations with `from <= t < to`, in order.
+    pub fn between(&self, from: f64, to: f64) -> TimeSeries {
+        let (times, values) = self
+            .times
+            .iter()
+            .zip(&self.values)
+            .filter(|&(&t, _)| t >= from && t < to)
+            .map(|(&t, &v)| (t, v))
+            .unzip();
+        TimeSeries { times, values }
+    }
+
     #[cfg(feature = "models")]
     /// The series as a test set of [`chronomap_models::eval`].
     pub fn as_test_set(&self) -> chronomap_models::eval::TestSet<'_> {

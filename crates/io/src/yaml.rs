@@ -128,6 +128,26 @@ impl fmt::Display for Listed<'_> {
     }
 }
 
+/// `text` as a double-quoted YAML scalar, escaping quotes, backslashes and control
+/// characters, for the writers of both formats.
+pub(crate) fn double_quoted(text: &str) -> String {
+    let mut quoted = String::with_capacity(text.len() + 2);
+    quoted.push('"');
+    for c in text.chars() {
+        match c {
+            '"' => quoted.push_str("\\\""),
+            '\\' => quoted.push_str("\\\\"),
+            '\n' => quoted.push_str("\\n"),
+            '\t' => quoted.push_str("\\t"),
+            '\r' => quoted.push_str("\\r"),
+            c if c.is_control() => quoted.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => quoted.push(c),
+        }
+    }
+    quoted.push('"');
+    quoted
+}
+
 /// The place of an error in a YAML file, as its message starts: `file:line: `, `file: `,
 /// `line N: ` or nothing.
 pub(crate) struct Prefix<'a>(pub(crate) Option<&'a str>, pub(crate) Option<u64>);
