@@ -4,7 +4,7 @@
 
 use chronomap_core::TemporalModel;
 use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
-use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs};
+use chronomap_io::{decode_any_model, encode_model, read_pairs};
 use chronomap_models::AnyModel;
 use chronomap_models::eval::EvalReport;
 use chronomap_testutil::data_path as data;
@@ -98,16 +98,7 @@ fn labdoor_velocity_hypertime_equals_the_mean() {
         "witham_topological_nav/labdoor_velocity/training_data.txt.xz",
     ))
     .unwrap();
-    let part = |from: f64, to: f64| {
-        let (times, values) = all
-            .times
-            .iter()
-            .zip(&all.values)
-            .filter(|&(&t, _)| t >= from && t < to)
-            .map(|(&t, &v)| (t, v))
-            .unzip();
-        TimeSeries { times, values }
-    };
+    let part = |from: f64, to: f64| all.between(from, to);
     let (split1, split2) = (1_408_492_800.0, 1_409_097_600.0); // 2014-08-20, 2014-08-27
     let train = part(f64::NEG_INFINITY, split1);
     let tests = [part(split1, split2), part(split2, f64::INFINITY)];

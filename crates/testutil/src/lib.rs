@@ -106,6 +106,15 @@ pub fn close(a: f64, b: f64, tolerance: f64) -> bool {
     (a - b).abs() <= tolerance
 }
 
+/// Whether `hits` successes in `n` Monte Carlo runs agree with the probability `p`: the
+/// frequency within five binomial standard deviations `5 √(p (1 − p) / n)` of `p` (plus
+/// `1e-12`, for `p` of 0 or 1). Returns the frequency for the message of a failed check.
+pub fn monte_carlo_agrees(hits: usize, n: usize, p: f64) -> (bool, f64) {
+    let frequency = hits as f64 / n as f64;
+    let sigma = (p * (1.0 - p) / n as f64).sqrt();
+    ((frequency - p).abs() <= 5.0 * sigma + 1e-12, frequency)
+}
+
 /// Asserts that `value` is a number within `tolerance` of `expected`.
 ///
 /// # Panics
