@@ -8,7 +8,7 @@
 //!   and [`repo`] / [`data`], the same as text for a command's arguments.
 //! * **Scratch directories** under cargo's temporary directory for integration tests
 //!   (`target/tmp`): [`scratch!`] (emptied for one test), [`fresh_dir`], [`shared_dir`] (kept,
-//!   for the tests of one module that write files of different names) and [`write`].
+//!   for the tests of one module that write files of different names) and [`write()`].
 //! * **Numbers**: [`close`], and [`assert_close`] for a number of a JSON document.
 //! * **Running a binary**: [`run`] with the path cargo gives an integration test
 //!   (`env!("CARGO_BIN_EXE_chronomap")`, which exists only when the test is compiled), then
