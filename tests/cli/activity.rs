@@ -2,76 +2,56 @@
 //! chapter 4): the measured scores of the baselines on a chronological split (8 days of
 //! training, 2 of test), the JSON shape of issue 8, and errors naming file, line and column.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
+use crate::common::{chronomap, close, data, error, json, stdout, tmp, write};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
 fn atc() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz")
-        .display()
-        .to_string()
+    data("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz")
 }
 
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
-fn close(value: &Value, expected: f64, tolerance: f64) {
-    let v = value
-        .as_f64()
-        .unwrap_or_else(|| panic!("not a number: {value}"));
-    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
-}
-
+/// A file of the module's tests (`target/tmp/activity_cli/NAME`).
 fn scratch(name: &str, text: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_cli");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
+    write(&tmp("activity_cli"), name, text)
+}
+
+/// `chronomap activity eval ARGS`.
+fn eval(args: &[&str]) -> Output {
+    chronomap(&[&["activity", "eval"], args].concat())
+}
+
+/// The JSON of `activity eval ARGS --json` on the files `train` and `test`.
+fn eval_files(train: &Path, test: &Path, args: &[&str]) -> Value {
+    let files = [
+        "--train",
+        train.to_str().unwrap(),
+        "--test",
+        test.to_str().unwrap(),
+    ];
+    json(&eval(&[&files, args, &["--json"]].concat()))
+}
+
+/// `activity eval` of the bundled ATC grid split at t = 96 with `flags` (split at white
+/// space): the stdout of a run that must succeed.
+fn atc_eval(flags: &str) -> String {
+    let train = atc();
+    let mut args = vec!["--train", &train, "--split-at", "96"];
+    args.extend(flags.split_whitespace());
+    stdout(&eval(&args))
+}
+
+/// The error of `activity eval --train TRAIN ARGS`, which must fail.
+fn eval_error(train: &str, args: &[&str]) -> String {
+    error(&eval(&[&["--train", train], args].concat()))
 }
 
 #[test]
 fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
     // A tiny GP-Hom (20 inducing points, 20 iterations): its scores are checked at the
     // settings of `copa_map_beats_every_baseline_on_the_later_days`.
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        &atc(),
-        "--split-at",
-        "96",
-        "--inducing",
-        "20",
-        "--iterations",
-        "20",
-        "--model",
-        "auto",
-        "--json",
-    ]));
+    let text = atc_eval("--inducing 20 --iterations 20 --model auto --json");
     let json: Value = serde_json::from_str(&text).expect("one JSON object");
     assert_eq!(json["train"]["samples"], 61_131);
     assert_eq!(json["test"]["samples"], 15_325);
@@ -80,22 +60,24 @@ fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
     let b = &json["baselines"];
     // Measured: on the last two days every baseline is poor (NRMSE > 2); the temporal
     // Fr-AAM is best, the per-cell mean beats the global mean only slightly.
-    close(&b["global_mean"]["nrmse"], 2.18116, 1e-4);
-    close(&b["global_mean"]["chi2"], 476_455.5, 1.0);
-    close(&b["ml"]["nrmse"], 2.15099, 1e-4);
-    close(&b["ml"]["chi2"], 346_923.2, 1.0);
-    close(&b["fr_aam"]["nrmse"], 2.10227, 1e-4);
-    close(&b["fr_aam"]["chi2"], 268_615.3, 1.0);
-    // The log-scale per-cell mean follows the typical hour, not the glimpses that dominate
-    // robot-sampled test rates: here it is no better than the global mean.
-    close(&b["ml_log"]["nrmse"], 2.18193, 1e-4);
-    close(&b["ml_log"]["chi2"], 305_379.4, 1.0);
-    // WHyTe (periods 12, 6 and 4 h, 32 components, chosen on the training times t >= 77):
-    // between Fr-AAM and ML in NRMSE, but its smooth rates miss the busiest cells, so its
-    // chi2 is nearly the global mean's. EM runs deterministically; the tolerances leave room
-    // for another libm's last bits.
-    close(&b["whyte"]["nrmse"], 2.11119, 1e-4);
-    close(&b["whyte"]["chi2"], 409_188.1, 50.0);
+    // (baseline, NRMSE, chi2, chi2 tolerance); every NRMSE within 1e-4.
+    let measured = [
+        ("global_mean", 2.18116, 476_455.5, 1.0),
+        ("ml", 2.15099, 346_923.2, 1.0),
+        ("fr_aam", 2.10227, 268_615.3, 1.0),
+        // The log-scale per-cell mean follows the typical hour, not the glimpses that
+        // dominate robot-sampled test rates: here it is no better than the global mean.
+        ("ml_log", 2.18193, 305_379.4, 1.0),
+        // WHyTe (periods 12, 6 and 4 h, 32 components, chosen on the training times
+        // t >= 77): between Fr-AAM and ML in NRMSE, but its smooth rates miss the busiest
+        // cells, so its chi2 is nearly the global mean's. EM runs deterministically; the
+        // tolerances leave room for another libm's last bits.
+        ("whyte", 2.11119, 409_188.1, 50.0),
+    ];
+    for (name, nrmse, chi2, chi2_tolerance) in measured {
+        close(&b[name]["nrmse"], nrmse, 1e-4);
+        close(&b[name]["chi2"], chi2, chi2_tolerance);
+    }
     for baseline in ["global_mean", "ml", "ml_log", "fr_aam", "gp_hom", "whyte"] {
         assert!(b[baseline]["nrmse"].is_f64(), "{baseline}: {text}");
         assert!(b[baseline]["train_seconds"].as_f64().unwrap() >= 0.0);
@@ -104,21 +86,14 @@ fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
     // wins, so the top-level scores are the global mean's, not the test's best.
     assert_eq!(json["model"], "global_mean");
     close(&json["selected_by"]["holdout_from_t"], 77.0, 0.0);
-    close(
-        &json["selected_by"]["scores"]["global_mean"]["nrmse"],
-        1.81434,
-        1e-4,
-    );
-    close(
-        &json["selected_by"]["scores"]["fr_aam"]["nrmse"],
-        1.95707,
-        1e-4,
-    );
-    close(
-        &json["selected_by"]["scores"]["ml_log"]["nrmse"],
-        1.88103,
-        1e-4,
-    );
+    let held_out = &json["selected_by"]["scores"];
+    for (name, nrmse) in [
+        ("global_mean", 1.81434),
+        ("fr_aam", 1.95707),
+        ("ml_log", 1.88103),
+    ] {
+        close(&held_out[name]["nrmse"], nrmse, 1e-4);
+    }
     // GP-Hom and WHyTe are too slow to be tried by `auto`.
     assert!(json["selected_by"]["scores"].get("gp_hom").is_none());
     assert!(json["selected_by"]["scores"].get("whyte").is_none());
@@ -129,20 +104,7 @@ fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
 
 #[test]
 fn chosen_model_gives_the_top_level_scores_and_the_table_names_it() {
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        &atc(),
-        "--split-at",
-        "96",
-        "--model",
-        "fr-aam",
-        "--inducing",
-        "20",
-        "--iterations",
-        "20",
-    ]));
+    let text = atc_eval("--model fr-aam --inducing 20 --iterations 20");
     assert!(text.contains("61131 samples (t < 96), 652 cells"), "{text}");
     assert!(text.contains("fr_aam       2.1023  268615.3"), "{text}");
     assert!(text.contains("\ngp_hom  "), "{text}");
@@ -159,18 +121,7 @@ fn train_and_test_files_are_scored_as_given() {
         "x1,x2,t,y\n0.25,0.25,0,10\n0.25,0.25,1,10\n0.75,0.25,0,1e-06\n0.75,0.25,1,2\n",
     );
     let test = scratch("test.csv", "x1,x2,t,y\n0.25,0.25,2,10\n0.75,0.25,2,1\n");
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        train.to_str().unwrap(),
-        "--test",
-        test.to_str().unwrap(),
-        "--model",
-        "ml",
-        "--json",
-    ]));
-    let json: Value = serde_json::from_str(&text).unwrap();
+    let json = eval_files(&train, &test, &["--model", "ml"]);
     // ML predicts 10 and ~1: errors 0 and ~0; mean truth 5.5.
     close(&json["nrmse"], 0.0, 1e-6);
     // Global mean 5.5: errors 4.5 and -4.5, NRMSE sqrt(2 · 4.5² / (5.5² · 2)) = 4.5 / 5.5.
@@ -184,20 +135,7 @@ fn train_and_test_files_are_scored_as_given() {
     assert!(json["split_at"].is_null());
     // GP-Hom on four samples uses four inducing points; as the top-level model it is the
     // table's fit, not a second one.
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        train.to_str().unwrap(),
-        "--test",
-        test.to_str().unwrap(),
-        "--model",
-        "gp-hom",
-        "--iterations",
-        "50",
-        "--json",
-    ]));
-    let json: Value = serde_json::from_str(&text).unwrap();
+    let json = eval_files(&train, &test, &["--model", "gp-hom", "--iterations", "50"]);
     assert_eq!(json["model"], "gp_hom");
     assert_eq!(json["nrmse"], json["baselines"]["gp_hom"]["nrmse"]);
     assert_eq!(json["chi2"], json["baselines"]["gp_hom"]["chi2"]);
@@ -205,93 +143,44 @@ fn train_and_test_files_are_scored_as_given() {
     // between the exact per-cell mean and the global mean (4.5 / 5.5).
     close(&json["nrmse"], 0.1979, 0.005);
     // WHyTe fits four samples too, and as the top-level model it is the table's fit.
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        train.to_str().unwrap(),
-        "--test",
-        test.to_str().unwrap(),
-        "--model",
-        "whyte",
-        "--json",
-    ]));
-    let json: Value = serde_json::from_str(&text).unwrap();
+    let json = eval_files(&train, &test, &["--model", "whyte"]);
     assert_eq!(json["model"], "whyte");
     assert_eq!(json["nrmse"], json["baselines"]["whyte"]["nrmse"]);
-    assert!(json["nrmse"].as_f64().unwrap() < 4.5 / 5.5, "{text}");
+    assert!(json["nrmse"].as_f64().unwrap() < 4.5 / 5.5, "{json}");
 }
 
 #[test]
 fn bad_input_is_an_error_naming_file_line_and_column() {
-    let bad_rate = scratch("negative.csv", "x1,x2,t,y\n0,0,0,1\n0,0,1,-3\n");
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        bad_rate.to_str().unwrap(),
-        "--split-at",
-        "1",
-    ]));
-    assert!(
-        err.contains("negative.csv:3: y: \"-3\" is negative"),
-        "{err}"
-    );
+    // (training file, its text, the start of the message).
+    let bad_training = [
+        (
+            "negative.csv",
+            "x1,x2,t,y\n0,0,0,1\n0,0,1,-3\n",
+            ":3: y: \"-3\" is negative",
+        ),
+        (
+            "header.csv",
+            "x,y,t,rate\n0,0,0,1\n",
+            ":1: expected the header `x1,x2,t,y`",
+        ),
+        ("short.csv", "x1,x2,t,y\n0,0,0,1\n0,0\n", ":3: t: missing"),
+    ];
+    for (name, text, message) in bad_training {
+        let train = scratch(name, text);
+        let err = eval_error(train.to_str().unwrap(), &["--split-at", "1"]);
+        assert!(err.contains(&format!("{name}{message}")), "{err}");
+    }
     let nan = scratch("nan.csv", "x1,x2,t,y\n0,NaN,0,1\n");
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        &atc(),
-        "--test",
-        nan.to_str().unwrap(),
-    ]));
+    let err = eval_error(&atc(), &["--test", nan.to_str().unwrap()]);
     assert!(
         err.contains("nan.csv:2: x2: \"NaN\" is not a finite number"),
         "{err}"
     );
-    let header = scratch("header.csv", "x,y,t,rate\n0,0,0,1\n");
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        header.to_str().unwrap(),
-        "--split-at",
-        "1",
-    ]));
-    assert!(
-        err.contains("header.csv:1: expected the header `x1,x2,t,y`"),
-        "{err}"
-    );
-    let short = scratch("short.csv", "x1,x2,t,y\n0,0,0,1\n0,0\n");
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        short.to_str().unwrap(),
-        "--split-at",
-        "1",
-    ]));
-    assert!(err.contains("short.csv:3: t: missing"), "{err}");
     // A split that leaves nothing to test on.
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        &atc(),
-        "--split-at",
-        "500",
-    ]));
+    let err = eval_error(&atc(), &["--split-at", "500"]);
     assert!(err.contains("no sample has t >= 500"), "{err}");
     // A missing file names itself.
-    let err = error(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        "no-such-grid.csv",
-        "--split-at",
-        "1",
-    ]));
+    let err = eval_error("no-such-grid.csv", &["--split-at", "1"]);
     assert!(err.contains("no-such-grid.csv"), "{err}");
 }
 
@@ -300,21 +189,7 @@ fn copa_map_beats_every_baseline_on_the_later_days() {
     // A small CoPA-Map and GP-Hom (100 inducing points, 150 iterations) to keep the test
     // short; with the defaults (200, 300) CoPA-Map reaches NRMSE 2.028 in about 45 s of a
     // release build, GP-Hom 2.317.
-    let text = stdout(&chronomap(&[
-        "activity",
-        "eval",
-        "--train",
-        &atc(),
-        "--split-at",
-        "96",
-        "--model",
-        "copa",
-        "--inducing",
-        "100",
-        "--iterations",
-        "150",
-        "--json",
-    ]));
+    let text = atc_eval("--model copa --inducing 100 --iterations 150 --json");
     let json: Value = serde_json::from_str(&text).expect("one JSON object");
     assert_eq!(json["model"], "copa");
     assert_eq!(json["copa_init"]["mode"], "day");

@@ -3,32 +3,15 @@
 //! hours of tracks (13:00–15:00 JST) and the cheap models keep it fast; the measured
 //! encounters are asserted.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
+use crate::common::{chronomap, data, stdout, tmp, write};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn data(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(path)
-        .display()
-        .to_string()
-}
-
+/// A file of the module's tests (`target/tmp/activity_disturbance_cli/NAME`).
 fn scratch(name: &str, text: &str) -> String {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_disturbance_cli");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path.display().to_string()
+    let dir = tmp("activity_disturbance_cli");
+    write(&dir, name, text).display().to_string()
 }
 
 /// The benchmark on the hallway scenario with two hours of tracks, plus `extra` flags.
@@ -74,11 +57,7 @@ fn curve(model: &Value) -> Vec<u64> {
 fn atc_hallway_two_hours_measured_encounters() {
     let scenarios = data("atc_20121024_1hz/disturbance_scenarios.csv");
     let out = hallway(&scenarios, &["--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     // 13:00 .. 14:45 JST, four patrols an hour; the test day is t = 120 + hour after 09:00.
     assert_eq!(json["n_nav"], 8);

@@ -4,8 +4,8 @@
 //! the same hour; and errors naming the file and line of a bad robot path.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
+use crate::common::{chronomap, error, json, repo, tmp};
 use chronomap_io::read_rate_grid;
 use serde_json::Value;
 
@@ -20,41 +20,9 @@ const DURATION: f64 = 1_132_028.0;
 const TRUTH_COUNT: u64 = 11_511;
 const TRUTH_ZERO: usize = 190;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn repo(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(path)
-        .display()
-        .to_string()
-}
-
+/// A file of the module's tests (`target/tmp/activity_extract/NAME`).
 fn scratch(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_extract");
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-fn json(out: &Output) -> Value {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
+    tmp("activity_extract").join(name)
 }
 
 /// `activity extract` of the 10:00 file (bin 1 from 09:00 JST) with the bundled map and paths,

@@ -6,7 +6,7 @@ use crate::common;
 
 use std::path::PathBuf;
 
-use common::{chronomap, error, repo, stdout, usage_error};
+use common::{chronomap, error, fit_small_copa, repo, stdout, usage_error};
 
 #[test]
 fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
@@ -14,19 +14,7 @@ fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = |name: &str| dir.join(name).display().to_string();
     let (model, csv, png) = (path("atc.cmcopa"), path("atc.csv"), path("atc.png"));
-    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
-    let text = stdout(&chronomap(&[
-        "activity",
-        "fit",
-        "--train",
-        &grid,
-        "--inducing",
-        "30",
-        "--iterations",
-        "20",
-        "-o",
-        &model,
-    ]));
+    let text = fit_small_copa(&model);
     assert!(
         text.contains("on 76456 samples, 652 cells; periods"),
         "{text}"

@@ -1,17 +1,15 @@
 //! The CASAS Aruba apartment as a 10-cell symbolic map through the grid container: trained on
 //! twelve weeks, it must predict the four held-back weeks better than a static map.
 
-use std::path::PathBuf;
-
 use chronomap_core::FremenConfig;
 use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
 use chronomap_io::{TimeSeries, read_pairs};
+use chronomap_testutil::data_path;
 
 fn rooms() -> Vec<TimeSeries> {
     (0..10)
         .map(|r| {
-            let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join(format!("data/aruba_rooms_1min/presence_minutes_{r}.txt.xz"));
+            let path = data_path(&format!("aruba_rooms_1min/presence_minutes_{r}.txt.xz"));
             read_pairs(path).unwrap()
         })
         .collect()

@@ -1,52 +1,26 @@
 //! The `chronomap` binary end to end: the evaluation call acceptance checks make, model
 //! files, and clear errors for bad input.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
+use crate::common::{chronomap, data, scratch, stdout};
 
 fn greg(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/door_greg_2016")
-        .join(name)
-        .display()
-        .to_string()
+    data(&format!("door_greg_2016/{name}"))
 }
 
 /// The JSON of a run that must succeed.
 fn json_of(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
+    crate::common::json(out)
 }
 
 fn tom(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/door_tom_2013/sec")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    data(&format!("door_tom_2013/sec/{name}"))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path.display().to_string()
+    crate::common::write(dir, name, text).display().to_string()
 }
 
 #[test]
@@ -73,11 +47,7 @@ fn eval_json_has_the_documented_shape_and_values() {
         "mean,fremen:4",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let models = json["models"].as_array().unwrap();
     assert_eq!(models.len(), 2);
@@ -112,11 +82,7 @@ fn eval_prints_tables_and_significance() {
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let out = chronomap(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("Brier"), "{text}");
     assert!(text.contains("Binary error"), "{text}");
@@ -185,11 +151,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
         "-o",
         &model,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
 
     // Monday 2016-03-21 13:00 UTC (door often open) and 03:00 (closed).
     let out = chronomap(&["predict", &model, "--at", "1458565200", "1458529200"]);
@@ -293,11 +255,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
 fn demo_runs_on_bundled_data_and_writes_plots() {
     let dir = scratch("demo");
     let out = chronomap(&["demo", "-o", &dir.display().to_string()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     // The original FreMEn figures appear beside ours (fremen:4: 0.0670 both).
     let fremen4 = text

@@ -4,19 +4,17 @@
 //! command, never by a test.)
 
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
 use std::process::Command;
 
-use serde_json::Value;
+use crate::common::{json, number_at, positive_at, repo_path, strings};
 
 /// Training samples of `data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz`.
 const ATC_GRID_SAMPLES: u64 = 76_456;
 
 /// Data rows of a track file (plain, .xz or .gz): lines that are neither blank nor comments.
 fn rows(path: &str) -> u64 {
-    let reader =
-        chronomap_io::text::open_data_file(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(path))
-            .unwrap_or_else(|e| panic!("{path}: {e}"));
+    let reader = chronomap_io::text::open_data_file(repo_path(path))
+        .unwrap_or_else(|e| panic!("{path}: {e}"));
     BufReader::new(reader)
         .lines()
         .map(|line| line.unwrap_or_else(|e| panic!("{path}: {e}")))
@@ -34,33 +32,14 @@ fn bench_activity_quick_processes_every_detection_and_reports_positive_timings()
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("run chronomap");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
-    let number = |path: &[&str]| {
-        path.iter()
-            .fold(&report, |v, key| &v[*key])
-            .as_f64()
-            .unwrap_or_else(|| panic!("{path:?} missing in {report}"))
-    };
-    let positive = |path: &[&str]| {
-        let value = number(path);
-        assert!(value > 0.0 && value.is_finite(), "{path:?} = {value}");
-        value
-    };
+    let report = json(&out);
+    let number = |path: &[&str]| number_at(&report, path);
+    let positive = |path: &[&str]| positive_at(&report, path);
     assert_eq!(report["quick"], true);
 
     // Extraction: one hour of tracks, every row of its file read and binned.
     let extraction = &report["extraction"];
-    let files: Vec<&str> = extraction["track_files"]
-        .as_array()
-        .expect("track_files")
-        .iter()
-        .map(|f| f.as_str().expect("a path"))
-        .collect();
+    let files = strings(&extraction["track_files"]);
     assert_eq!(files, ["data/atc_20121024_1hz/atc-1024-10_train.csv.xz"]);
     let detections: u64 = files.iter().map(|f| rows(f)).sum();
     assert_eq!(extraction["detections"].as_u64(), Some(detections));

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use serde_json::Value;
+use crate::common::{json, positive_at};
 
 #[test]
 fn bench_serve_reports_latencies_throughput_and_baselines() {
@@ -39,21 +39,8 @@ fn bench_serve_reports_latencies_throughput_and_baselines() {
         .arg(&data)
         .output()
         .expect("run chronomap");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
-    let positive = |path: &[&str]| {
-        let value = path
-            .iter()
-            .fold(&report, |v, key| &v[*key])
-            .as_f64()
-            .unwrap_or_else(|| panic!("{path:?} missing in {report}"));
-        assert!(value > 0.0 && value.is_finite(), "{path:?} = {value}");
-        value
-    };
+    let report = json(&out);
+    let positive = |path: &[&str]| positive_at(&report, path);
 
     assert_eq!(report["models"], 5);
     assert_eq!(positive(&["preload", "observations"]), 3000.0);

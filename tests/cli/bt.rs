@@ -4,16 +4,7 @@
 
 use crate::common;
 
-use std::path::PathBuf;
-
-use common::{chronomap, close, error, repo, stdout};
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::{chronomap, close, error, repo, scratch, stdout};
 
 #[test]
 fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {

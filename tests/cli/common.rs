@@ -1,57 +1,83 @@
-//! Helpers shared by the command-line tests of the activity maps: run the binary, read its
-//! output, find bundled data.
+//! Helpers shared by the command-line tests: chronomap-testutil's, with the `chronomap` binary
+//! and the scratch directory of this test binary.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use serde_json::Value;
+use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use chronomap_models::eval::{EvalReport, TestSet, evaluate};
+use chronomap_models::spec::{FitOptions, parse_model_list};
+
+pub use chronomap_testutil::{
+    assert_close as close, data, error, json, number_at, positive_at, repo, repo_path, shared_dir,
+    stdout, strings, usage_error, write,
+};
 
 /// Runs `chronomap` with `args`.
 pub fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
+    chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)
 }
 
-/// A path inside the repository.
-pub fn repo(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(path)
-        .display()
-        .to_string()
+/// A fresh scratch directory for one test (`target/tmp/TEST`).
+pub fn scratch(test: &str) -> PathBuf {
+    chronomap_testutil::scratch!(test)
 }
 
-/// The stdout of a run that must succeed.
-pub fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+/// A directory the tests of one module share (`target/tmp/NAME`, not emptied).
+pub fn tmp(name: &str) -> PathBuf {
+    shared_dir(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name))
 }
 
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-pub fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
+/// `chronomap activity fit` of a small CoPA-Map (30 inducing points, 20 iterations: about
+/// 2 s) on the bundled ATC grid, saved to `model`: its stdout.
+pub fn fit_small_copa(model: &str) -> String {
+    let grid = data("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    stdout(&chronomap(&[
+        "activity",
+        "fit",
+        "--train",
+        &grid,
+        "--inducing",
+        "30",
+        "--iterations",
+        "20",
+        "-o",
+        model,
+    ]))
 }
 
-/// Asserts that `value` is a number within `tolerance` of `expected`.
-pub fn close(value: &Value, expected: f64, tolerance: f64) {
-    let v = value
-        .as_f64()
-        .unwrap_or_else(|| panic!("not a number: {value}"));
-    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
+/// The training data of the bundled greg door (Lincoln, 2016).
+pub fn greg_training() -> TimeSeries {
+    read_pairs(chronomap_testutil::data_path(
+        "door_greg_2016/training_data.txt.xz",
+    ))
+    .unwrap()
 }
 
-/// The error of a run that must be refused as a usage error (exit code 2) without a panic.
-pub fn usage_error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
+/// The five test weeks of the bundled greg door.
+pub fn greg_tests() -> Vec<TimeSeries> {
+    let file = |name: String| chronomap_testutil::data_path(&format!("door_greg_2016/{name}"));
+    (1..=5)
+        .map(|i| {
+            let (times, values) = (
+                format!("test_times_{i}.txt.xz"),
+                format!("test_data_{i}.txt.xz"),
+            );
+            read_test_set(file(times), file(values)).unwrap()
+        })
+        .collect()
+}
+
+/// Every model of the list `specs` fitted on `train` and scored on `tests`.
+pub fn evaluate_specs_on(specs: &str, train: &TimeSeries, tests: &[TimeSeries]) -> EvalReport {
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
+    evaluate(
+        &parse_model_list(specs).unwrap(),
+        &train.times,
+        &train.values,
+        &sets,
+        &FitOptions::default(),
+        |_| {},
+    )
+    .unwrap()
 }

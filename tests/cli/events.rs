@@ -3,51 +3,16 @@
 //! errors naming file, line and field for bad event files.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
+use crate::common::{chronomap, close, error, stdout};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
 fn data(relative: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/lincoln_pedestrians_2017")
-        .join(relative)
-        .display()
-        .to_string()
+    crate::common::data(&format!("lincoln_pedestrians_2017/{relative}"))
 }
 
 fn whytes() -> String {
     data("whytes/wednesday_thursday_days_nights_only_ones.txt.xz")
-}
-
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
-fn close(value: &Value, expected: f64, tolerance: f64) {
-    let v = value
-        .as_f64()
-        .unwrap_or_else(|| panic!("not a number: {value}"));
-    assert!((v - expected).abs() <= tolerance, "{v} != {expected}");
 }
 
 #[test]

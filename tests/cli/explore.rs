@@ -1,31 +1,11 @@
 //! `chronomap explore` (seed 000) end to end on the bundled Aruba and Brayford data.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn data(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(name)
-        .display()
-        .to_string()
-}
+use crate::common::{chronomap, data, json};
 
 fn results(out: &Output) -> Vec<(String, String, f64)> {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    json["results"]
+    json(out)["results"]
         .as_array()
         .unwrap()
         .iter()

@@ -1,39 +1,16 @@
 //! The greg door dataset (Lincoln, 2016): chronomap against the original FreMEn code's
 //! published figures, and the model contract on real data.
 
-use std::path::PathBuf;
-
 use chronomap_core::conformance::check_temporal_model;
 use chronomap_core::{
     FremenModel, HistogramModel, MarkovModel, MeanModel, PergamModel, PersistenceModel,
     TemporalModel,
 };
-use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs, read_test_set};
+use chronomap_io::{decode_any_model, encode_model};
 use chronomap_models::AnyModel;
-use chronomap_models::eval::{TestSet, evaluate};
-use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
+use chronomap_models::spec::{FitOptions, ModelSpec};
 
-fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/door_greg_2016")
-        .join(name)
-}
-
-fn training() -> TimeSeries {
-    read_pairs(data("training_data.txt.xz")).unwrap()
-}
-
-fn tests() -> Vec<TimeSeries> {
-    (1..=5)
-        .map(|i| {
-            read_test_set(
-                data(&format!("test_times_{i}.txt.xz")),
-                data(&format!("test_data_{i}.txt.xz")),
-            )
-            .unwrap()
-        })
-        .collect()
-}
+use crate::common::{evaluate_specs_on, greg_tests as tests, greg_training as training};
 
 /// Mean squared error per test week 1..5 of the original FreMEn C++ code (data README).
 const ORIGINAL: [(&str, [f64; 5], f64); 3] = [
@@ -43,19 +20,7 @@ const ORIGINAL: [(&str, [f64; 5], f64); 3] = [
 ];
 
 fn evaluate_specs(specs: &str) -> Vec<(String, Vec<f64>, f64)> {
-    let train = training();
-    let tests = tests();
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
-    let report = evaluate(
-        &parse_model_list(specs).unwrap(),
-        &train.times,
-        &train.values,
-        &sets,
-        &FitOptions::default(),
-        |_| {},
-    )
-    .unwrap();
-    report
+    evaluate_specs_on(specs, &training(), &tests())
         .models
         .iter()
         .map(|m| (m.spec.to_string(), m.mses(), m.mean_mse()))

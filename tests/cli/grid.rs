@@ -2,24 +2,10 @@
 //! maps that our map reader (Nav2 semantics) reads back, and clear errors for bad frames.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+use crate::common::{chronomap, scratch, stdout};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
-
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// A 4×3 map: a wall column (x = 0), a door (cell 5) closed from 18:00 to 8:00, an unseen
 /// corner (cell 11), the rest free.
@@ -77,11 +63,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         "--order",
         "4",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let GridFile::State(state) = read_grid_file(&grid).unwrap() else {
         panic!("not a learning state")
     };
@@ -103,11 +85,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
             "--order",
             "4",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        stdout(&out);
         let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
         assert!(yaml.starts_with("# map predicted by chronomap"), "{yaml}");
         assert!(yaml.contains(&format!("t = {t}")), "{yaml}");
@@ -134,11 +112,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
         "scale",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     assert!(base.with_extension("png").exists());
     let yaml = std::fs::read_to_string(base.with_extension("yaml")).unwrap();
     assert!(yaml.contains("mode: scale"), "{yaml}");
@@ -309,11 +283,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         "-o",
         &out_path,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     assert!(matches!(
         read_grid_file(&out_path).unwrap(),
         GridFile::Lossy(_)
@@ -335,11 +305,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
         &office,
     ];
     let out = chronomap(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(
         text.contains("static (order 0)") && text.contains("FreMEn auto"),

@@ -2,49 +2,14 @@
 //! robot's velocity through the Witham lab door. The numbers asserted are the ones measured
 //! and reported in docs/hypertime.md.
 
-use std::path::PathBuf;
-
 use chronomap_core::TemporalModel;
 use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
-use chronomap_io::{TimeSeries, decode_any_model, encode_model, read_pairs, read_test_set};
+use chronomap_io::{decode_any_model, encode_model, read_pairs};
 use chronomap_models::AnyModel;
-use chronomap_models::eval::{EvalReport, TestSet, evaluate};
-use chronomap_models::spec::{FitOptions, parse_model_list};
+use chronomap_models::eval::EvalReport;
+use chronomap_testutil::data_path as data;
 
-fn data(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data")
-        .join(path)
-}
-
-fn greg_training() -> TimeSeries {
-    read_pairs(data("door_greg_2016/training_data.txt.xz")).unwrap()
-}
-
-fn greg_tests() -> Vec<TimeSeries> {
-    (1..=5)
-        .map(|i| {
-            read_test_set(
-                data(&format!("door_greg_2016/test_times_{i}.txt.xz")),
-                data(&format!("door_greg_2016/test_data_{i}.txt.xz")),
-            )
-            .unwrap()
-        })
-        .collect()
-}
-
-fn run(specs: &str, train: &TimeSeries, tests: &[TimeSeries]) -> EvalReport {
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
-    evaluate(
-        &parse_model_list(specs).unwrap(),
-        &train.times,
-        &train.values,
-        &sets,
-        &FitOptions::default(),
-        |_| {},
-    )
-    .unwrap()
-}
+use crate::common::{evaluate_specs_on as run, greg_tests, greg_training, stdout};
 
 fn mean_mse(report: &EvalReport, spec: &str) -> f64 {
     report
@@ -133,16 +98,7 @@ fn labdoor_velocity_hypertime_equals_the_mean() {
         "witham_topological_nav/labdoor_velocity/training_data.txt.xz",
     ))
     .unwrap();
-    let part = |from: f64, to: f64| {
-        let (times, values) = all
-            .times
-            .iter()
-            .zip(&all.values)
-            .filter(|&(&t, _)| t >= from && t < to)
-            .map(|(&t, &v)| (t, v))
-            .unzip();
-        TimeSeries { times, values }
-    };
+    let part = |from: f64, to: f64| all.between(from, to);
     let (split1, split2) = (1_408_492_800.0, 1_409_097_600.0); // 2014-08-20, 2014-08-27
     let train = part(f64::NEG_INFINITY, split1);
     let tests = [part(split1, split2), part(split2, f64::INFINITY)];
@@ -193,11 +149,7 @@ fn feature_visibility_needs_time() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["features"], 111);
     assert_eq!(

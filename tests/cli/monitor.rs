@@ -5,19 +5,10 @@
 
 use crate::common;
 
-use std::path::PathBuf;
-
 use chronomap_bt::Registry;
 use chronomap_bt::monitor::sim::arbiter_document;
-use common::{chronomap, error, repo, stdout};
+use common::{chronomap, error, repo, scratch, stdout};
 use serde_json::Value;
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// `monitor sim` on the bundled half-hour fault scenario, every recovery certain: its stdout.
 fn scenario_output(extra: &[&str]) -> String {

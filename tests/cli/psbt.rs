@@ -3,8 +3,13 @@
 
 use crate::common;
 
-use common::{chronomap, close, error, repo, stdout, usage_error};
+use common::{
+    chronomap, close, error, fit_small_copa, repo, scratch, stdout, strings, usage_error,
+};
 use serde_json::Value;
+
+/// The quiet south-west of the lower hall.
+const SOUTH_WEST: &str = "21.25,-18.25";
 
 fn tracks(hours: &[u32]) -> String {
     hours
@@ -14,22 +19,27 @@ fn tracks(hours: &[u32]) -> String {
         .join(",")
 }
 
-fn synth(from: &str, extra: &[&str]) -> std::process::Output {
+/// `chronomap psbt` on the bundled ATC map with the activity model or tracks `activity`, help
+/// requested at `from` (`x,y`) at `time`, plus `extra` flags.
+fn psbt(activity: &str, from: &str, time: &str, extra: &[&str]) -> std::process::Output {
     let map = repo("data/atc_copa_map_grid/atc_map.yaml");
-    let activity = tracks(&[13, 14]);
     let from = format!("--from={from}");
-    let mut args = vec![
+    let args = [
         "psbt",
         "--map",
         &map,
         "--activity",
-        &activity,
+        activity,
         &from,
         "--time",
-        "2012-10-24T05:30Z",
+        time,
     ];
-    args.extend_from_slice(extra);
-    chronomap(&args)
+    chronomap(&[&args[..], extra].concat())
+}
+
+/// [`psbt`] on the tracks of 13:00-15:00 JST, help requested at 14:30 JST.
+fn synth(from: &str, extra: &[&str]) -> std::process::Output {
+    psbt(&tracks(&[13, 14]), from, "2012-10-24T05:30Z", extra)
 }
 
 /// In the quiet south-west of the lower hall (21.25, −18.25), the tree skips three places and
@@ -46,12 +56,7 @@ fn synthesis_json_has_the_tree_and_measured_values() {
     assert!(xml.contains("<TreeNodesModel>"));
     close(&v["p_success"], 0.9557, 0.002);
     close(&v["expected_time_s"], 21.4, 0.5);
-    let choices: Vec<&str> = v["choices"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c.as_str().unwrap())
-        .collect();
+    let choices = strings(&v["choices"]);
     assert_eq!(
         choices,
         [
@@ -195,26 +200,8 @@ fn eval_compares_every_method() {
 /// `activity fit` saves it.
 fn small_copa_model(dir: &std::path::Path) -> String {
     let model = dir.join("atc_small.cmcopa").display().to_string();
-    stdout(&chronomap(&[
-        "activity",
-        "fit",
-        "--train",
-        &repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"),
-        "--inducing",
-        "30",
-        "--iterations",
-        "20",
-        "-o",
-        &model,
-    ]));
+    fit_small_copa(&model);
     model
-}
-
-fn scratch(test: &str) -> std::path::PathBuf {
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// `--activity MODEL.cmcopa`: the synthesis runs on the saved CoPA-Map's field. 14:30 JST on
@@ -226,19 +213,13 @@ fn synthesis_from_a_saved_copa_map() {
     let model = small_copa_model(&dir);
     let map = repo("data/atc_copa_map_grid/atc_map.yaml");
     let run = |extra: &[&str]| {
-        let mut args = vec![
-            "psbt",
-            "--map",
-            &map,
-            "--activity",
+        let out = psbt(
             &model,
-            "--from=21.25,-18.25",
-            "--time",
+            SOUTH_WEST,
             "2012-10-24T05:30Z",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        serde_json::from_str::<Value>(&stdout(&chronomap(&args))).unwrap()
+            &[&["--json"], extra].concat(),
+        );
+        serde_json::from_str::<Value>(&stdout(&out)).unwrap()
     };
     let json = run(&[]);
     close(&json["model_t"], 5.5, 1e-9);
@@ -257,16 +238,7 @@ fn synthesis_from_a_saved_copa_map() {
 
     // Errors: a night hour without --model-t, a file that is not a model, a model mixed
     // with tracks, and `psbt eval`, which needs tracks.
-    let night = error(&chronomap(&[
-        "psbt",
-        "--map",
-        &map,
-        "--activity",
-        &model,
-        "--from=21.25,-18.25",
-        "--time",
-        "2012-10-24T14:00Z",
-    ]));
+    let night = error(&psbt(&model, SOUTH_WEST, "2012-10-24T14:00Z", &[]));
     assert!(
         night.contains("outside 09:00-21:00 JST") && night.contains("--model-t"),
         "{night}"
@@ -274,31 +246,13 @@ fn synthesis_from_a_saved_copa_map() {
     let fake = dir.join("fake.cmcopa");
     std::fs::write(&fake, "t,person,x,y\n").unwrap();
     let fake = fake.display().to_string();
-    let err = error(&chronomap(&[
-        "psbt",
-        "--map",
-        &map,
-        "--activity",
-        &fake,
-        "--from=21.25,-18.25",
-        "--time",
-        "0",
-    ]));
+    let err = error(&psbt(&fake, SOUTH_WEST, "0", &[]));
     assert!(
         err.contains("fake.cmcopa") && err.contains("not a chronomap model file"),
         "{err}"
     );
     let mixed = format!("{model},{}", tracks(&[13]));
-    let err = error(&chronomap(&[
-        "psbt",
-        "--map",
-        &map,
-        "--activity",
-        &mixed,
-        "--from=21.25,-18.25",
-        "--time",
-        "0",
-    ]));
+    let err = error(&psbt(&mixed, SOUTH_WEST, "0", &[]));
     assert!(err.contains("not both (1 of 2 files are models)"), "{err}");
     let err = error(&chronomap(&[
         "psbt",

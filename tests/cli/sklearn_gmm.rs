@@ -21,6 +21,8 @@ use chronomap_hypertime::mixture::{
 };
 use serde_json::{Value, json};
 
+use crate::common::scratch;
+
 /// Relative tolerance of every comparison.
 const TOLERANCE: f64 = 1e-8;
 
@@ -284,13 +286,6 @@ fn cases() -> Vec<Case> {
 }
 
 /// A fresh scratch directory under the target directory (the pattern of every CLI test).
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// Runs `sklearn_gmm.py` on the case files; returns its JSON output (file name -> result).
 fn run_sklearn(python: &str, files: &[PathBuf]) -> Value {
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/oracle/sklearn_gmm.py");

@@ -18,6 +18,8 @@ use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn, restricted
 use chronomap_topo::plan::{Task, plan_full};
 use serde_json::{Value, json};
 
+use crate::common::scratch;
+
 /// 2014-09-04 00:00 UTC, the day after the last attempt in the data.
 const DAY: f64 = 1_409_788_800.0;
 
@@ -58,13 +60,6 @@ struct Ours {
 }
 
 /// A fresh scratch directory under the target directory (the pattern of every CLI test).
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// Plans every case, writes its files and `expected.json` into `dir`; returns our values by
 /// case name (`reach_00`, ...) and the file names.
 fn write_cases(models: &EdgeModels, dir: &Path) -> (BTreeMap<String, Ours>, Vec<PathBuf>) {

@@ -11,9 +11,7 @@ use chronomap_io::{decode_any_model, encode_model, read_pairs, read_test_set};
 use chronomap_models::AnyModel;
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/door_tom_2013")
-        .join(name)
+    chronomap_testutil::data_path(&format!("door_tom_2013/{name}"))
 }
 
 #[test]

@@ -2,51 +2,29 @@
 //! (seed 003): the evaluation JSON the acceptance check reads, the planner's outputs, and clear
 //! errors for bad input (malformed LTL, unknown nodes, empty edge files, negative durations).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
+use crate::common::{chronomap, data, error, scratch, stdout, strings};
 use serde_json::Value;
 
-fn chronomap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(args)
-        .output()
-        .expect("run chronomap")
-}
-
 fn edges() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/witham_topological_nav/edges")
-        .display()
-        .to_string()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    data("witham_topological_nav/edges")
 }
 
 fn path(dir: &Path, name: &str) -> String {
     dir.join(name).display().to_string()
 }
 
-fn stdout(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The error of a run that must fail at run time (exit code 1) without a panic.
-fn error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "accepted: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
+/// `chronomap plan` of `task` from the Station on `model`, with `flags`: its stdout.
+fn run_plan(model: &str, task: &str, flags: &[&str]) -> String {
+    let args = [
+        &[
+            "plan", "--model", model, "--from", "Station", "--task", task,
+        ],
+        flags,
+    ]
+    .concat();
+    stdout(&chronomap(&args))
 }
 
 /// Fits the full data once per test (0.05 s) into `dir/witham.cmt`.
@@ -120,25 +98,13 @@ fn eval_of_a_chronological_split_prints_the_documented_json_and_beats_the_static
 fn plan_at_a_time_and_the_day_table_cross_the_lab_door() {
     let dir = scratch("plan");
     let model = fit(&dir, &["--success-order", "1"]);
-    let out = stdout(&chronomap(&[
-        "plan",
-        "--model",
+    let out = run_plan(
         &model,
-        "--from",
-        "Station",
-        "--task",
         "F Kitchen",
-        "--time",
-        "2014-09-04T14:00Z",
-        "--json",
-    ]));
+        &["--time", "2014-09-04T14:00Z", "--json"],
+    );
     let plan: Value = serde_json::from_str(out.trim()).unwrap();
-    let route: Vec<&str> = plan["route"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e.as_str().unwrap())
-        .collect();
+    let route = strings(&plan["route"]);
     // The lab's only way out is the door.
     assert!(route.contains(&"LabDoor1_LabDoor2"), "{plan}");
     assert!(route.last().unwrap().ends_with("_Kitchen"), "{plan}");
@@ -154,23 +120,19 @@ fn plan_at_a_time_and_the_day_table_cross_the_lab_door() {
 
     // The day table: night is hopeless, the afternoon is the time to go.
     let png = path(&dir, "table.png");
-    let out = stdout(&chronomap(&[
-        "plan",
-        "--model",
-        &model,
-        "--from",
-        "Station",
-        "--task",
-        "F Kitchen",
+    let day_table = [
         "--day-table",
         "--week-of",
         "2014-09-05",
         "--days",
         "3",
         "--json",
-        "--plot",
-        &png,
-    ]));
+    ];
+    let out = run_plan(
+        &model,
+        "F Kitchen",
+        &[&day_table[..], &["--plot", &png]].concat(),
+    );
     let table: Value = serde_json::from_str(out.trim()).unwrap();
     let plans = table["plans"].as_array().unwrap();
     assert_eq!(plans.len(), 72);
@@ -186,21 +148,12 @@ fn plan_at_a_time_and_the_day_table_cross_the_lab_door() {
 
     // Exports for Storm.
     let (prism, drn) = (path(&dir, "w.nm"), path(&dir, "w.drn"));
-    stdout(&chronomap(&[
-        "plan",
-        "--model",
+    let exports = ["--prism", &prism, "--drn", &drn];
+    run_plan(
         &model,
-        "--from",
-        "Station",
-        "--task",
         "!Printer U Kitchen",
-        "--time",
-        "2014-09-04T14:00Z",
-        "--prism",
-        &prism,
-        "--drn",
-        &drn,
-    ]));
+        &[&["--time", "2014-09-04T14:00Z"], &exports[..]].concat(),
+    );
     let prism_text = std::fs::read_to_string(&prism).unwrap();
     assert!(
         prism_text.contains("[LabDoor1_LabDoor2] (waypoint="),

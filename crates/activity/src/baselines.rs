@@ -52,9 +52,35 @@ impl RatePredictor for GlobalMean {
 /// The maximum-likelihood model of §4.3.2: the mean of the observed rates of each cell,
 /// constant over time. A cell never seen in training gets the global mean.
 #[derive(Clone, Debug, PartialEq)]
-pub struct CellMean {
+pub struct CellMean(CellRates);
+
+/// One constant rate per cell seen in training, and `fallback` for every other cell: the
+/// per-cell models [`CellMean`] and [`CellLogMean`].
+#[derive(Clone, Debug, PartialEq)]
+struct CellRates {
     rates: HashMap<CellKey, f64>,
     fallback: f64,
+}
+
+impl CellRates {
+    /// `rate(y, idx)` of the training rates `y[i]` of each cell (`idx` its samples).
+    fn fit(train: &RateSamples, fallback: f64, rate: impl Fn(&[f64], &[usize]) -> f64) -> Self {
+        let y = train.y();
+        let rates = train
+            .cells()
+            .into_iter()
+            .map(|(key, idx)| (key, rate(y, &idx)))
+            .collect();
+        CellRates { rates, fallback }
+    }
+
+    fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
+        self.rates.get(&CellKey::of(x)).copied()
+    }
+
+    fn predict(&self, x: [f64; 2]) -> f64 {
+        self.cell_rate(x).unwrap_or(self.fallback)
+    }
 }
 
 impl CellMean {
@@ -64,26 +90,20 @@ impl CellMean {
     /// [`ActivityError::Empty`] without training samples.
     pub fn fit(train: &RateSamples) -> Result<Self, ActivityError> {
         let fallback = GlobalMean::fit(train)?.rate;
-        let y = train.y();
-        let rates = train
-            .cells()
-            .into_iter()
-            .map(|(key, idx)| {
-                let sum: f64 = idx.iter().map(|&i| y[i]).sum();
-                (key, sum / idx.len() as f64)
-            })
-            .collect();
-        Ok(CellMean { rates, fallback })
+        Ok(CellMean(CellRates::fit(train, fallback, |y, idx| {
+            let sum: f64 = idx.iter().map(|&i| y[i]).sum();
+            sum / idx.len() as f64
+        })))
     }
 
     /// The rate of the cell centred at `x`, if it was seen in training.
     pub fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
-        self.rates.get(&CellKey::of(x)).copied()
+        self.0.cell_rate(x)
     }
 
     /// Number of cells seen in training.
     pub fn cell_count(&self) -> usize {
-        self.rates.len()
+        self.0.rates.len()
     }
 }
 
@@ -93,7 +113,7 @@ impl RatePredictor for CellMean {
     }
 
     fn predict(&self, x: [f64; 2], _t: f64) -> f64 {
-        self.cell_rate(x).unwrap_or(self.fallback)
+        self.0.predict(x)
     }
 }
 
@@ -108,10 +128,7 @@ impl RatePredictor for CellMean {
 /// on the held-out day 2012-10-24), the weaker against robot-sampled test rates (2.182 vs
 /// 2.151 on the grid's last two days).
 #[derive(Clone, Debug, PartialEq)]
-pub struct CellLogMean {
-    rates: HashMap<CellKey, f64>,
-    fallback: f64,
-}
+pub struct CellLogMean(CellRates);
 
 /// `exp(mean ln(1 + y)) − 1` of the rates `y[i]` for `i` in `idx`.
 fn log_mean(y: &[f64], idx: impl ExactSizeIterator<Item = usize>) -> f64 {
@@ -130,17 +147,14 @@ impl CellLogMean {
         }
         let y = train.y();
         let fallback = log_mean(y, 0..y.len());
-        let rates = train
-            .cells()
-            .into_iter()
-            .map(|(key, idx)| (key, log_mean(y, idx.iter().copied())))
-            .collect();
-        Ok(CellLogMean { rates, fallback })
+        Ok(CellLogMean(CellRates::fit(train, fallback, |y, idx| {
+            log_mean(y, idx.iter().copied())
+        })))
     }
 
     /// The rate of the cell centred at `x`, if it was seen in training.
     pub fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
-        self.rates.get(&CellKey::of(x)).copied()
+        self.0.cell_rate(x)
     }
 }
 
@@ -150,7 +164,7 @@ impl RatePredictor for CellLogMean {
     }
 
     fn predict(&self, x: [f64; 2], _t: f64) -> f64 {
-        self.cell_rate(x).unwrap_or(self.fallback)
+        self.0.predict(x)
     }
 }
 

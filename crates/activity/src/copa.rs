@@ -166,18 +166,13 @@ impl CopaMap {
         progress: &dyn Progress,
     ) -> Result<Self, GpError> {
         let n = train_samples.len();
-        if config.inducing == 0 || n < config.inducing || config.harmonics == 0 {
-            return Err(GpError::InvalidInput(format!(
-                "{n} training samples for {} inducing points and {} periodic components",
-                config.inducing, config.harmonics
-            )));
-        }
-        if !(config.day_period.is_finite() && config.day_period > 0.0) {
-            return Err(GpError::InvalidInput(format!(
-                "day period {} is not a positive time",
-                config.day_period
-            )));
-        }
+        check_fit(
+            n,
+            config.inducing,
+            config.inducing,
+            config.harmonics,
+            config.day_period,
+        )?;
         let ys: Vec<f64> = train_samples
             .y()
             .iter()
@@ -211,25 +206,14 @@ impl CopaMap {
                     period: period / scaling.time_scale,
                 })
                 .collect(),
-            _ => (1..=config.harmonics)
-                .map(|h| PeriodicComponent {
-                    variance: 0.5 / h as f64,
-                    lengthscale: 0.4,
-                    period: config.day_period / scaling.time_scale / h as f64,
-                })
-                .collect(),
+            _ => day_harmonics(config.day_period / scaling.time_scale, config.harmonics),
         };
         let mut model = HeteroSvgp::new(
             ActivityKernel::new(0.3, [0.05, 0.05], &components),
             RbfKernel::new(0.5, [0.05, 0.05, 0.05]),
             z,
         );
-        let train_config = TrainConfig {
-            iterations: config.iterations,
-            batch_size: config.batch_size.min(n),
-            seed: config.seed,
-            ..TrainConfig::default()
-        };
+        let train_config = fit_training(config.iterations, config.batch_size, n, config.seed);
         progress.stage("CoPA-Map", config.iterations as u64);
         let trace = train_with_progress(
             &mut model,
@@ -261,11 +245,9 @@ impl CopaMap {
         points: &[([f64; 2], f64)],
         par: Parallelism,
     ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
-        let x: Vec<Point> = points
-            .iter()
-            .map(|&(p, t)| self.scaling.apply(p, t))
-            .collect();
-        let prediction = self.model.predict(&x, par)?;
+        let prediction = self
+            .model
+            .predict(&self.scaling.apply_points(points), par)?;
         let (mean, std) = prediction
             .mean
             .iter()
@@ -322,13 +304,7 @@ impl CopaMap {
 
     /// The fitted periods, in units of `t`.
     pub fn periods(&self) -> Vec<f64> {
-        self.model
-            .f
-            .kernel
-            .components()
-            .iter()
-            .map(|c| c.period * self.scaling.time_scale)
-            .collect()
+        self.scaling.periods(&self.model.f.kernel)
     }
 }
 
@@ -374,6 +350,20 @@ impl InputScaling {
             .collect()
     }
 
+    /// Every point `(x, t)`, scaled.
+    pub(crate) fn apply_points(&self, points: &[([f64; 2], f64)]) -> Vec<Point> {
+        points.iter().map(|&(p, t)| self.apply(p, t)).collect()
+    }
+
+    /// The periods of a kernel fitted on scaled inputs, in units of `t`.
+    pub(crate) fn periods(&self, kernel: &ActivityKernel) -> Vec<f64> {
+        kernel
+            .components()
+            .iter()
+            .map(|c| c.period * self.time_scale)
+            .collect()
+    }
+
     /// One input, scaled.
     pub(crate) fn apply(&self, p: [f64; 2], t: f64) -> Point {
         [
@@ -384,20 +374,86 @@ impl InputScaling {
     }
 }
 
+/// What [`CopaMap::fit`] and [`GpHom::fit`](super::GpHom::fit) require: at least
+/// `min_samples` samples, inducing points, periodic components and a positive day period.
+pub(crate) fn check_fit(
+    n: usize,
+    min_samples: usize,
+    inducing: usize,
+    harmonics: usize,
+    day_period: f64,
+) -> Result<(), GpError> {
+    if n < min_samples || inducing == 0 || harmonics == 0 {
+        return Err(GpError::InvalidInput(format!(
+            "{n} training samples for {inducing} inducing points and {harmonics} periodic \
+             components"
+        )));
+    }
+    if !(day_period.is_finite() && day_period > 0.0) {
+        return Err(GpError::InvalidInput(format!(
+            "day period {day_period} is not a positive time"
+        )));
+    }
+    Ok(())
+}
+
+/// The initial periodic components of the day (`day` in scaled time) and its first
+/// `harmonics − 1` harmonics `day / h`, variances `0.5 / h` (§4.2.4, [`PeriodInitMode::Day`]).
+pub(crate) fn day_harmonics(day: f64, harmonics: usize) -> Vec<PeriodicComponent> {
+    (1..=harmonics)
+        .map(|h| PeriodicComponent {
+            variance: 0.5 / h as f64,
+            lengthscale: 0.4,
+            period: day / h as f64,
+        })
+        .collect()
+}
+
+/// The training settings of a fit: `iterations`, minibatches of `batch_size` (at most the `n`
+/// samples) and `seed`, the rest [`TrainConfig::default`].
+pub(crate) fn fit_training(
+    iterations: usize,
+    batch_size: usize,
+    n: usize,
+    seed: u64,
+) -> TrainConfig {
+    TrainConfig {
+        iterations,
+        batch_size: batch_size.min(n),
+        seed,
+        ..TrainConfig::default()
+    }
+}
+
+/// [`RatePredictor::predict`] of a model that predicts many points at once.
+pub(crate) fn predict_one(
+    predict: impl FnOnce(&[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>), GpError>,
+    x: [f64; 2],
+    t: f64,
+) -> f64 {
+    predict(&[(x, t)]).map_or(f64::NAN, |(mean, _)| mean[0])
+}
+
+/// [`RatePredictor::predict_samples`] of a model that predicts many points at once (`NaN`
+/// everywhere if it fails).
+pub(crate) fn predict_all(
+    predict: impl FnOnce(&[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>), GpError>,
+    at: &RateSamples,
+) -> Vec<f64> {
+    let points: Vec<([f64; 2], f64)> = at.x().iter().copied().zip(at.t().iter().copied()).collect();
+    predict(&points).map_or_else(|_| vec![f64::NAN; points.len()], |(mean, _)| mean)
+}
+
 impl RatePredictor for CopaMap {
     fn name(&self) -> &str {
         "copa"
     }
 
     fn predict(&self, x: [f64; 2], t: f64) -> f64 {
-        self.predict_with_std(&[(x, t)], Parallelism::Sequential)
-            .map_or(f64::NAN, |(mean, _)| mean[0])
+        predict_one(|p| self.predict_with_std(p, Parallelism::Sequential), x, t)
     }
 
     fn predict_samples(&self, at: &RateSamples) -> Vec<f64> {
-        let points: Vec<([f64; 2], f64)> =
-            at.x().iter().copied().zip(at.t().iter().copied()).collect();
-        self.predict_with_std(&points, Parallelism::Sequential)
-            .map_or_else(|_| vec![f64::NAN; points.len()], |(mean, _)| mean)
+        predict_all(|p| self.predict_with_std(p, Parallelism::Sequential), at)
     }
 }

@@ -60,14 +60,13 @@
 //!   (earlier first): the Occupancy Map baseline, whose every patrol costs the same, serves
 //!   in time order.
 
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::HashMap;
 
 use thiserror::Error;
 
 use super::{RatePredictor, RateSamples};
 use chronomap_hypertime::events::{Event, Window};
-pub use chronomap_spatial::ObstacleGrid;
-use chronomap_spatial::queue::MinCost;
+pub use chronomap_spatial::{ObstacleGrid, PlanningGrid, PlanningGridError};
 
 /// Why the benchmark could not run.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -76,22 +75,9 @@ pub enum DisturbanceError {
     /// A parameter is out of range (a grid size, cell size, speed, radius, `ρ`, ...).
     #[error("invalid configuration: {0}")]
     Config(String),
-    /// A waypoint lies outside the planning grid.
-    #[error("waypoint ({}, {}) lies outside the planning grid", .at[0], .at[1])]
-    WaypointOutside {
-        /// The waypoint.
-        at: [f64; 2],
-    },
-    /// A waypoint's cell is blocked.
-    #[error(
-        "waypoint ({}, {}) is in a blocked cell (an obstacle within the robot's clearance, or \
-         a cell without training data)",
-        .at[0], .at[1]
-    )]
-    WaypointBlocked {
-        /// The waypoint.
-        at: [f64; 2],
-    },
+    /// The planning grid refused its size or a waypoint (outside it, or in a blocked cell).
+    #[error(transparent)]
+    Grid(#[from] PlanningGridError),
     /// No path joins two consecutive waypoints.
     #[error("no path through free cells from ({}, {}) to ({}, {})", .from[0], .from[1], .to[0], .to[1])]
     Unreachable {
@@ -160,177 +146,6 @@ pub struct Scenario {
     pub waypoints: Vec<Waypoint>,
 }
 
-/// The cells a robot may drive through: `cols × rows` square cells of `cell` metres, cell
-/// (0, 0) with its lower-left corner at `origin`, indexed `row · cols + column` from the
-/// bottom up.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlanningGrid {
-    origin: [f64; 2],
-    cell: f64,
-    cols: usize,
-    rows: usize,
-    free: Vec<bool>,
-}
-
-impl PlanningGrid {
-    /// A grid of free cells.
-    ///
-    /// # Errors
-    /// [`DisturbanceError::Config`] for no cells, a cell size that is not a positive number or
-    /// a non-finite origin.
-    pub fn new(
-        origin: [f64; 2],
-        cell: f64,
-        cols: usize,
-        rows: usize,
-    ) -> Result<Self, DisturbanceError> {
-        check_positive("the cell size", cell)?;
-        let Some(cells) = cols.checked_mul(rows).filter(|&n| n > 0) else {
-            return Err(DisturbanceError::Config(format!(
-                "a planning grid of {cols} x {rows} cells"
-            )));
-        };
-        if !(origin[0].is_finite() && origin[1].is_finite()) {
-            return Err(DisturbanceError::Config(
-                "the grid origin is not finite".into(),
-            ));
-        }
-        Ok(PlanningGrid {
-            origin,
-            cell,
-            cols,
-            rows,
-            free: vec![true; cells],
-        })
-    }
-
-    /// Blocks every cell whose centre has an obstacle pixel within `clearance` metres (the
-    /// robot's radius): the robot's centre then keeps that distance at every cell centre. On
-    /// the straight step between two neighbouring centres it may come closer by up to half a
-    /// cell diagonal (`0.35 · cell`).
-    pub fn block_obstacles(&mut self, obstacles: &ObstacleGrid, clearance: f64) {
-        let blocked: Vec<usize> = (0..self.free.len())
-            .filter(|&i| self.free[i] && obstacles.obstacle_within(self.centre(i), clearance))
-            .collect();
-        for index in blocked {
-            self.free[index] = false;
-        }
-    }
-
-    /// Blocks every free cell whose centre `keep` rejects.
-    pub fn keep_only(&mut self, mut keep: impl FnMut([f64; 2]) -> bool) {
-        let rejected: Vec<usize> = (0..self.free.len())
-            .filter(|&i| self.free[i] && !keep(self.centre(i)))
-            .collect();
-        for index in rejected {
-            self.free[index] = false;
-        }
-    }
-
-    /// Number of cells (free or not).
-    pub fn len(&self) -> usize {
-        self.free.len()
-    }
-
-    /// Whether the grid has no cells (never: [`PlanningGrid::new`] refuses that).
-    pub fn is_empty(&self) -> bool {
-        self.free.is_empty()
-    }
-
-    /// Cells along x.
-    pub fn cols(&self) -> usize {
-        self.cols
-    }
-
-    /// Cells along y.
-    pub fn rows(&self) -> usize {
-        self.rows
-    }
-
-    /// The cell size in metres.
-    pub fn cell_size(&self) -> f64 {
-        self.cell
-    }
-
-    /// The lower-left corner of cell (0, 0).
-    pub fn origin(&self) -> [f64; 2] {
-        self.origin
-    }
-
-    /// Whether the robot may drive through cell `index` (false for indices beyond the grid).
-    pub fn is_free(&self, index: usize) -> bool {
-        self.free.get(index).copied().unwrap_or(false)
-    }
-
-    /// Number of free cells.
-    pub fn free_count(&self) -> usize {
-        self.free.iter().filter(|&&f| f).count()
-    }
-
-    /// The centre of cell `index`: `origin + (column + ½, row + ½) · cell`.
-    pub fn centre(&self, index: usize) -> [f64; 2] {
-        let (row, column) = (index / self.cols, index % self.cols);
-        [
-            self.origin[0] + (column as f64 + 0.5) * self.cell,
-            self.origin[1] + (row as f64 + 0.5) * self.cell,
-        ]
-    }
-
-    /// The cell containing `p` (cells are closed below, open above), if any.
-    pub fn cell_at(&self, p: [f64; 2]) -> Option<usize> {
-        let column = ((p[0] - self.origin[0]) / self.cell).floor();
-        let row = ((p[1] - self.origin[1]) / self.cell).floor();
-        (column >= 0.0 && row >= 0.0 && column < self.cols as f64 && row < self.rows as f64)
-            .then(|| row as usize * self.cols + column as usize)
-    }
-
-    /// The free cell of a waypoint.
-    ///
-    /// # Errors
-    /// [`DisturbanceError::WaypointOutside`] or [`DisturbanceError::WaypointBlocked`].
-    pub fn waypoint(&self, at: [f64; 2]) -> Result<usize, DisturbanceError> {
-        let index = self
-            .cell_at(at)
-            .ok_or(DisturbanceError::WaypointOutside { at })?;
-        if !self.free[index] {
-            return Err(DisturbanceError::WaypointBlocked { at });
-        }
-        Ok(index)
-    }
-
-    /// The free neighbours of cell `index` in its Moore neighbourhood with the step lengths;
-    /// a diagonal neighbour only if both cells beside the diagonal are free.
-    pub fn neighbours(&self, index: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
-        let (row, column) = ((index / self.cols) as isize, (index % self.cols) as isize);
-        const STEPS: [(isize, isize); 8] = [
-            (1, 0),
-            (-1, 0),
-            (0, 1),
-            (0, -1),
-            (1, 1),
-            (1, -1),
-            (-1, 1),
-            (-1, -1),
-        ];
-        let at = move |dc: isize, dr: isize| -> Option<usize> {
-            let (c, r) = (column + dc, row + dr);
-            (c >= 0 && r >= 0 && (c as usize) < self.cols && (r as usize) < self.rows)
-                .then(|| r as usize * self.cols + c as usize)
-                .filter(|&i| self.free[i])
-        };
-        STEPS.into_iter().filter_map(move |(dc, dr)| {
-            let to = at(dc, dr)?;
-            if dc != 0 && dr != 0 {
-                at(dc, 0)?;
-                at(0, dr)?;
-                Some((to, self.cell * std::f64::consts::SQRT_2))
-            } else {
-                Some((to, self.cell))
-            }
-        })
-    }
-}
-
 fn check_positive(what: &str, value: f64) -> Result<(), DisturbanceError> {
     if value.is_finite() && value > 0.0 {
         Ok(())
@@ -351,7 +166,7 @@ pub struct GridPath {
 }
 
 /// The least-cost path from cell `from` to cell `to` (Dijkstra on the Moore graph of free
-/// cells, [module docs](self)): entering cell `v` from its neighbour `u` costs
+/// cells, [module docs](self); [`PlanningGrid::shortest_path`] with weights): entering cell `v` from its neighbour `u` costs
 /// `|u − v| · weights[v]`. Among equally cheap paths the first one found wins (neighbours are
 /// visited in a fixed order), so the result is deterministic. `None` if either cell is blocked
 /// or no path joins them.
@@ -364,46 +179,8 @@ pub fn shortest_path(
     from: usize,
     to: usize,
 ) -> Option<GridPath> {
-    if !grid.is_free(from) || !grid.is_free(to) || weights.len() != grid.len() {
-        return None;
-    }
-    let mut best = vec![f64::INFINITY; grid.len()];
-    let mut previous = vec![usize::MAX; grid.len()];
-    let mut done = vec![false; grid.len()];
-    let mut queue = BinaryHeap::new();
-    best[from] = 0.0;
-    queue.push(MinCost(0.0, from));
-    while let Some(MinCost(cost, cell)) = queue.pop() {
-        if done[cell] {
-            continue;
-        }
-        done[cell] = true;
-        if cell == to {
-            break;
-        }
-        for (next, step) in grid.neighbours(cell) {
-            let candidate = cost + step * weights[next];
-            if !done[next] && candidate < best[next] {
-                best[next] = candidate;
-                previous[next] = cell;
-                queue.push(MinCost(candidate, next));
-            }
-        }
-    }
-    if !done[to] {
-        return None;
-    }
-    let mut cells = vec![to];
-    while let Some(&last) = cells.last()
-        && last != from
-    {
-        cells.push(previous[last]);
-    }
-    cells.reverse();
-    Some(GridPath {
-        cells,
-        cost: best[to],
-    })
+    let (cells, cost) = grid.shortest_path(Some(weights), from, to)?;
+    Some(GridPath { cells, cost })
 }
 
 /// A planned patrol through waypoints.
@@ -423,7 +200,7 @@ pub struct Patrol {
 ///
 /// # Errors
 /// [`DisturbanceError::Config`] for fewer than two waypoints or `weights` of the wrong length,
-/// [`DisturbanceError::WaypointBlocked`] for a blocked waypoint cell,
+/// [`PlanningGridError::WaypointBlocked`] for a blocked waypoint cell,
 /// [`DisturbanceError::Unreachable`] if a leg has no path.
 pub fn plan_patrol(
     grid: &PlanningGrid,
@@ -444,9 +221,8 @@ pub fn plan_patrol(
         )));
     }
     if let Some(&blocked) = waypoints.iter().find(|&&w| !grid.is_free(w)) {
-        return Err(DisturbanceError::WaypointBlocked {
-            at: grid.centre(blocked),
-        });
+        let at = grid.centre(blocked);
+        return Err(PlanningGridError::WaypointBlocked { at }.into());
     }
     let mut cells = vec![waypoints[0]];
     let mut cost = 0.0;
@@ -930,11 +706,11 @@ mod tests {
         );
         assert_eq!(
             split.waypoint([1.5, 1.5]),
-            Err(DisturbanceError::WaypointBlocked { at: [1.5, 1.5] })
+            Err(PlanningGridError::WaypointBlocked { at: [1.5, 1.5] })
         );
         assert_eq!(
             split.waypoint([9.0, 0.0]),
-            Err(DisturbanceError::WaypointOutside { at: [9.0, 0.0] })
+            Err(PlanningGridError::WaypointOutside { at: [9.0, 0.0] })
         );
         assert!(plan_patrol(&split, &ones, &[cell(&split, 0, 0)]).is_err());
     }

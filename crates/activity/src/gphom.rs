@@ -12,13 +12,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::copa::InputScaling;
+use super::copa::{InputScaling, check_fit, day_harmonics, fit_training, predict_all, predict_one};
 use super::init::inducing_points;
 use super::{RatePredictor, RateSamples};
-use crate::gp::{
-    ActivityKernel, GpError, PeriodicComponent, Point, PoissonSvgp, TrainConfig,
-    train_with_progress,
-};
+use crate::gp::{ActivityKernel, GpError, Point, PoissonSvgp, train_with_progress};
 use chronomap_core::par::Parallelism;
 use chronomap_core::progress::{NoProgress, Progress};
 
@@ -96,18 +93,7 @@ impl GpHom {
         progress: &dyn Progress,
     ) -> Result<Self, GpError> {
         let n = train_samples.len();
-        if n == 0 || config.inducing == 0 || config.harmonics == 0 {
-            return Err(GpError::InvalidInput(format!(
-                "{n} training samples for {} inducing points and {} periodic components",
-                config.inducing, config.harmonics
-            )));
-        }
-        if !(config.day_period.is_finite() && config.day_period > 0.0) {
-            return Err(GpError::InvalidInput(format!(
-                "day period {} is not a positive time",
-                config.day_period
-            )));
-        }
+        check_fit(n, 1, config.inducing, config.harmonics, config.day_period)?;
         let mean_rate = train_samples.mean_rate();
         if mean_rate <= 0.0 {
             return Err(GpError::InvalidInput(
@@ -118,26 +104,14 @@ impl GpHom {
         let x = scaling.apply_all(train_samples);
         let z = inducing_points(&x, None, config.inducing.min(distinct(&x)), config.seed)
             .map_err(|e| GpError::InvalidInput(e.to_string()))?;
-        let day = config.day_period / scaling.time_scale;
-        let components: Vec<PeriodicComponent> = (1..=config.harmonics)
-            .map(|h| PeriodicComponent {
-                variance: 0.5 / h as f64,
-                lengthscale: 0.4,
-                period: day / h as f64,
-            })
-            .collect();
+        let components = day_harmonics(config.day_period / scaling.time_scale, config.harmonics);
         // Log rates: a prior spread of about e^{±1} around the mean rate.
         let mut model = PoissonSvgp::new(
             ActivityKernel::new(1.0, [0.05, 0.05], &components),
             z,
             mean_rate.ln(),
         );
-        let train_config = TrainConfig {
-            iterations: config.iterations,
-            batch_size: config.batch_size.min(n),
-            seed: config.seed,
-            ..TrainConfig::default()
-        };
+        let train_config = fit_training(config.iterations, config.batch_size, n, config.seed);
         progress.stage("GP-Hom", config.iterations as u64);
         let trace = train_with_progress(
             &mut model,
@@ -163,23 +137,15 @@ impl GpHom {
         points: &[([f64; 2], f64)],
         par: Parallelism,
     ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
-        let x: Vec<Point> = points
-            .iter()
-            .map(|&(p, t)| self.scaling.apply(p, t))
-            .collect();
-        let prediction = self.model.predict(&x, par)?;
+        let prediction = self
+            .model
+            .predict(&self.scaling.apply_points(points), par)?;
         Ok((prediction.mean, prediction.std))
     }
 
     /// The fitted periods, in units of `t`.
     pub fn periods(&self) -> Vec<f64> {
-        self.model
-            .f
-            .kernel
-            .components()
-            .iter()
-            .map(|c| c.period * self.scaling.time_scale)
-            .collect()
+        self.scaling.periods(&self.model.f.kernel)
     }
 
     /// The fitted model (in scaled inputs).
@@ -194,15 +160,11 @@ impl RatePredictor for GpHom {
     }
 
     fn predict(&self, x: [f64; 2], t: f64) -> f64 {
-        self.predict_with_std(&[(x, t)], Parallelism::Sequential)
-            .map_or(f64::NAN, |(mean, _)| mean[0])
+        predict_one(|p| self.predict_with_std(p, Parallelism::Sequential), x, t)
     }
 
     fn predict_samples(&self, at: &RateSamples) -> Vec<f64> {
-        let points: Vec<([f64; 2], f64)> =
-            at.x().iter().copied().zip(at.t().iter().copied()).collect();
-        self.predict_with_std(&points, Parallelism::Sequential)
-            .map_or_else(|_| vec![f64::NAN; points.len()], |(mean, _)| mean)
+        predict_all(|p| self.predict_with_std(p, Parallelism::Sequential), at)
     }
 }
 

@@ -46,7 +46,7 @@ struct Harness {
 
 impl Harness {
     fn new(root: NodeDef) -> Harness {
-        Harness::from_doc(&BtDocument::single(TreeDef::new("Main", root)))
+        Harness::from_doc(&one_tree(root))
     }
 
     fn from_doc(doc: &BtDocument) -> Harness {
@@ -72,6 +72,43 @@ impl Harness {
     }
 }
 
+/// One tick of a trace test: the outcomes set before it, then the root's status and the trace
+/// of the tick.
+type Step<'a> = (&'a [(&'a str, Status)], Status, &'a str);
+
+impl Harness {
+    /// Ticks once per step and checks each tick's status and trace.
+    #[track_caller]
+    fn steps(&mut self, steps: &[Step<'_>]) {
+        for (k, &(outcomes, status, trace)) in steps.iter().enumerate() {
+            assert_eq!(
+                self.tick(outcomes),
+                (status, trace.to_owned()),
+                "tick {}",
+                k + 1
+            );
+        }
+    }
+}
+
+/// Runs `steps` on a fresh tree of `root` ([`Harness::steps`]).
+#[track_caller]
+fn check(root: NodeDef, steps: &[Step<'_>]) {
+    Harness::new(root).steps(steps);
+}
+
+/// The one-tree document of `root`.
+fn one_tree(root: NodeDef) -> BtDocument {
+    BtDocument::single(TreeDef::new("Main", root))
+}
+
+/// A tree of `root` whose leaves follow scripted outcomes.
+fn scripted(root: NodeDef) -> (Tree, ScriptedOutcomes) {
+    let doc = one_tree(root);
+    let (registry, outcomes) = scripted_registry(&doc).unwrap();
+    (Tree::new(&doc, &registry).unwrap(), outcomes)
+}
+
 fn leaf(name: &str) -> NodeDef {
     NodeDef::action(name)
 }
@@ -80,102 +117,104 @@ fn cond(name: &str) -> NodeDef {
     NodeDef::condition(name)
 }
 
+/// `node` named `name` over `children`.
+fn named<const N: usize>(node: NodeDef, name: &str, children: [NodeDef; N]) -> NodeDef {
+    children.into_iter().fold(node.named(name), NodeDef::child)
+}
+
+/// The control node `id` named `name` over `children`.
+fn control<const N: usize>(id: &str, name: &str, children: [NodeDef; N]) -> NodeDef {
+    named(NodeDef::control(id), name, children)
+}
+
+/// The decorator `id` named `name` with the attribute `port = value` over the leaf A.
+fn decorator(id: &str, name: &str, port: &str, value: &str) -> NodeDef {
+    NodeDef::decorator(id)
+        .named(name)
+        .port(port, value)
+        .child(leaf("A"))
+}
+
 // -----------------------------------------------------------------------------------------
 // Sequences
 
 #[test]
 fn sequence_resumes_at_the_running_child_and_resets_all_on_failure() {
-    let mut h = Harness::new(
-        NodeDef::control("Sequence")
-            .named("seq")
-            .child(leaf("A"))
-            .child(leaf("B"))
-            .child(leaf("C")),
-    );
-    assert_eq!(
-        h.tick(&[("A", S), ("B", R)]),
-        (R, "seq:I>R A:I>S B:I>R".into())
-    );
-    // A is not ticked again: the sequence resumes at B.
-    assert_eq!(h.tick(&[("B", S), ("C", R)]), (R, "B:R>S C:I>R".into()));
-    assert_eq!(
-        h.tick(&[("C", F)]),
-        (F, "C:R>F A:S>I B:S>I C:F>I seq:R>F seq:F>I".into())
-    );
-    // After the failure the sequence starts over at A.
-    assert_eq!(
-        h.tick(&[("C", S)]),
-        (
-            S,
-            "seq:I>R A:I>S B:I>S C:I>S A:S>I B:S>I C:S>I seq:R>S seq:S>I".into()
-        )
+    check(
+        control("Sequence", "seq", [leaf("A"), leaf("B"), leaf("C")]),
+        &[
+            (&[("A", S), ("B", R)], R, "seq:I>R A:I>S B:I>R"),
+            // A is not ticked again: the sequence resumes at B.
+            (&[("B", S), ("C", R)], R, "B:R>S C:I>R"),
+            (&[("C", F)], F, "C:R>F A:S>I B:S>I C:F>I seq:R>F seq:F>I"),
+            // After the failure the sequence starts over at A.
+            (
+                &[("C", S)],
+                S,
+                "seq:I>R A:I>S B:I>S C:I>S A:S>I B:S>I C:S>I seq:R>S seq:S>I",
+            ),
+        ],
     );
 }
 
 #[test]
 fn sequence_with_memory_retries_the_failed_child_without_ticking_earlier_ones() {
-    let mut h = Harness::new(
-        NodeDef::control("SequenceWithMemory")
-            .named("swm")
-            .child(leaf("A"))
-            .child(leaf("B"))
-            .child(leaf("C")),
+    check(
+        control(
+            "SequenceWithMemory",
+            "swm",
+            [leaf("A"), leaf("B"), leaf("C")],
+        ),
+        &[
+            // B fails: only B (and C) are reset, A keeps its success and the index stays at B.
+            (
+                &[("A", S), ("B", F)],
+                F,
+                "swm:I>R A:I>S B:I>F B:F>I swm:R>F swm:F>I",
+            ),
+            (
+                &[("B", S), ("C", S)],
+                S,
+                "swm:I>R B:I>S C:I>S A:S>I B:S>I C:S>I swm:R>S swm:S>I",
+            ),
+            // Completed: the next run starts at A.
+            (&[("A", R)], R, "swm:I>R A:I>R"),
+        ],
     );
-    // B fails: only B (and C) are reset, A keeps its success and the index stays at B.
-    assert_eq!(
-        h.tick(&[("A", S), ("B", F)]),
-        (F, "swm:I>R A:I>S B:I>F B:F>I swm:R>F swm:F>I".into())
-    );
-    assert_eq!(
-        h.tick(&[("B", S), ("C", S)]),
-        (
-            S,
-            "swm:I>R B:I>S C:I>S A:S>I B:S>I C:S>I swm:R>S swm:S>I".into()
-        )
-    );
-    // Completed: the next run starts at A.
-    assert_eq!(h.tick(&[("A", R)]), (R, "swm:I>R A:I>R".into()));
 }
 
 #[test]
 fn reactive_sequence_reticks_conditions_and_halts_the_running_child_when_one_fails() {
-    let mut h = Harness::new(
-        NodeDef::control("ReactiveSequence")
-            .named("rs")
-            .child(cond("K"))
-            .child(leaf("A"))
-            .child(leaf("B")),
-    );
-    // B running: every other child is reset to idle.
-    assert_eq!(
-        h.tick(&[("K", S), ("A", S), ("B", R)]),
-        (R, "rs:I>R K:I>S A:I>S B:I>R K:S>I A:S>I".into())
-    );
-    // K and A are ticked again on every tick.
-    assert_eq!(h.tick(&[]), (R, "K:I>S A:I>S K:S>I A:S>I".into()));
-    // K fails on tick 3: B is halted (R>I) on that tick.
-    assert_eq!(
-        h.tick(&[("K", F)]),
-        (F, "K:I>F K:F>I B:R>I rs:R>F rs:F>I".into())
+    check(
+        control("ReactiveSequence", "rs", [cond("K"), leaf("A"), leaf("B")]),
+        &[
+            // B running: every other child is reset to idle.
+            (
+                &[("K", S), ("A", S), ("B", R)],
+                R,
+                "rs:I>R K:I>S A:I>S B:I>R K:S>I A:S>I",
+            ),
+            // K and A are ticked again on every tick.
+            (&[], R, "K:I>S A:I>S K:S>I A:S>I"),
+            // K fails on tick 3: B is halted (R>I) on that tick.
+            (&[("K", F)], F, "K:I>F K:F>I B:R>I rs:R>F rs:F>I"),
+        ],
     );
 }
 
 #[test]
 fn reactive_sequence_halts_a_later_running_child_when_an_earlier_one_runs() {
-    let mut h = Harness::new(
-        NodeDef::control("ReactiveSequence")
-            .named("rs")
-            .child(leaf("A"))
-            .child(leaf("B")),
-    );
-    assert_eq!(
-        h.tick(&[("A", S), ("B", R)]),
-        (R, "rs:I>R A:I>S B:I>R A:S>I".into())
-    );
-    assert_eq!(h.tick(&[("A", R)]), (R, "A:I>R B:R>I".into()));
-    assert_eq!(
-        h.tick(&[("A", S), ("B", S)]),
-        (S, "A:R>S B:I>S A:S>I B:S>I rs:R>S rs:S>I".into())
+    check(
+        control("ReactiveSequence", "rs", [leaf("A"), leaf("B")]),
+        &[
+            (&[("A", S), ("B", R)], R, "rs:I>R A:I>S B:I>R A:S>I"),
+            (&[("A", R)], R, "A:I>R B:R>I"),
+            (
+                &[("A", S), ("B", S)],
+                S,
+                "A:R>S B:I>S A:S>I B:S>I rs:R>S rs:S>I",
+            ),
+        ],
     );
 }
 
@@ -184,45 +223,32 @@ fn reactive_sequence_halts_a_later_running_child_when_an_earlier_one_runs() {
 
 #[test]
 fn fallback_resumes_at_the_running_child_and_resets_all_on_success() {
-    let mut h = Harness::new(
-        NodeDef::control("Fallback")
-            .named("fb")
-            .child(cond("K"))
-            .child(leaf("A")),
-    );
-    assert_eq!(
-        h.tick(&[("K", F), ("A", R)]),
-        (R, "fb:I>R K:I>F A:I>R".into())
-    );
-    // K is not ticked again while A runs (only the reactive fallback would).
-    assert_eq!(h.tick(&[("K", S)]), (R, "".into()));
-    assert_eq!(
-        h.tick(&[("A", S)]),
-        (S, "A:R>S K:F>I A:S>I fb:R>S fb:S>I".into())
-    );
-    // All fail: failure, all reset.
-    assert_eq!(
-        h.tick(&[("K", F), ("A", F)]),
-        (F, "fb:I>R K:I>F A:I>F K:F>I A:F>I fb:R>F fb:F>I".into())
+    check(
+        control("Fallback", "fb", [cond("K"), leaf("A")]),
+        &[
+            (&[("K", F), ("A", R)], R, "fb:I>R K:I>F A:I>R"),
+            // K is not ticked again while A runs (only the reactive fallback would).
+            (&[("K", S)], R, ""),
+            (&[("A", S)], S, "A:R>S K:F>I A:S>I fb:R>S fb:S>I"),
+            // All fail: failure, all reset.
+            (
+                &[("K", F), ("A", F)],
+                F,
+                "fb:I>R K:I>F A:I>F K:F>I A:F>I fb:R>F fb:F>I",
+            ),
+        ],
     );
 }
 
 #[test]
 fn reactive_fallback_halts_the_running_child_when_an_earlier_one_succeeds() {
-    let mut h = Harness::new(
-        NodeDef::control("ReactiveFallback")
-            .named("rf")
-            .child(cond("K"))
-            .child(leaf("A")),
-    );
-    assert_eq!(
-        h.tick(&[("K", F), ("A", R)]),
-        (R, "rf:I>R K:I>F A:I>R K:F>I".into())
-    );
-    assert_eq!(h.tick(&[]), (R, "K:I>F K:F>I".into()));
-    assert_eq!(
-        h.tick(&[("K", S)]),
-        (S, "K:I>S K:S>I A:R>I rf:R>S rf:S>I".into())
+    check(
+        control("ReactiveFallback", "rf", [cond("K"), leaf("A")]),
+        &[
+            (&[("K", F), ("A", R)], R, "rf:I>R K:I>F A:I>R K:F>I"),
+            (&[], R, "K:I>F K:F>I"),
+            (&[("K", S)], S, "K:I>S K:S>I A:R>I rf:R>S rf:S>I"),
+        ],
     );
 }
 
@@ -245,59 +271,61 @@ fn parallel(success: Option<&str>, failure: Option<&str>, n: usize) -> NodeDef {
 
 #[test]
 fn parallel_defaults_need_all_successes_and_do_not_retick_completed_children() {
-    let mut h = Harness::new(parallel(None, None, 3));
-    assert_eq!(
-        h.tick(&[("A", S), ("B", R), ("C", R)]),
-        (R, "par:I>R A:I>S B:I>R C:I>R".into())
-    );
-    assert_eq!(h.tick(&[("B", S), ("A", F)]), (R, "B:R>S".into()));
-    assert_eq!(
-        h.tick(&[("C", S)]),
-        (S, "C:R>S A:S>I B:S>I C:S>I par:R>S par:S>I".into())
+    check(
+        parallel(None, None, 3),
+        &[
+            (
+                &[("A", S), ("B", R), ("C", R)],
+                R,
+                "par:I>R A:I>S B:I>R C:I>R",
+            ),
+            (&[("B", S), ("A", F)], R, "B:R>S"),
+            (&[("C", S)], S, "C:R>S A:S>I B:S>I C:S>I par:R>S par:S>I"),
+        ],
     );
 }
 
 #[test]
 fn parallel_fails_as_soon_as_success_is_out_of_reach_without_ticking_later_children() {
     // Default success_count = -1 (all 3): one failure makes success impossible.
-    let mut h = Harness::new(parallel(None, None, 3));
-    assert_eq!(
-        h.tick(&[("A", F), ("B", S), ("C", S)]),
-        (F, "par:I>R A:I>F A:F>I par:R>F par:F>I".into())
-    );
+    let steps: &[Step<'_>] = &[(
+        &[("A", F), ("B", S), ("C", S)],
+        F,
+        "par:I>R A:I>F A:F>I par:R>F par:F>I",
+    )];
+    check(parallel(None, None, 3), steps);
 }
 
 #[test]
 fn parallel_negative_success_threshold_counts_from_the_number_of_children() {
     // -2 with 3 children: 3 - 2 + 1 = 2 successes; C is never ticked.
-    let mut h = Harness::new(parallel(Some("-2"), None, 3));
-    assert_eq!(
-        h.tick(&[("A", S), ("B", S), ("C", R)]),
-        (S, "par:I>R A:I>S B:I>S A:S>I B:S>I par:R>S par:S>I".into())
-    );
+    let tick = [("A", S), ("B", S), ("C", R)];
+    let trace = "par:I>R A:I>S B:I>S A:S>I B:S>I par:R>S par:S>I";
+    check(parallel(Some("-2"), None, 3), &[(&tick, S, trace)]);
 }
 
 #[test]
 fn parallel_success_threshold_halts_the_children_still_running() {
-    let mut h = Harness::new(parallel(Some("1"), None, 2));
-    assert_eq!(
-        h.tick(&[("A", R), ("B", S)]),
-        (S, "par:I>R A:I>R B:I>S A:R>I B:S>I par:R>S par:S>I".into())
+    let trace = "par:I>R A:I>R B:I>S A:R>I B:S>I par:R>S par:S>I";
+    check(
+        parallel(Some("1"), None, 2),
+        &[(&[("A", R), ("B", S)], S, trace)],
     );
 }
 
 #[test]
 fn parallel_failure_threshold_is_reached_by_equality() {
     let mut h = Harness::new(parallel(Some("1"), Some("2"), 3));
+    let tick = h.tick(&[("A", F), ("B", F), ("C", R)]);
     assert_eq!(
-        h.tick(&[("A", F), ("B", F), ("C", R)]),
+        tick,
         (F, "par:I>R A:I>F B:I>F A:F>I B:F>I par:R>F par:F>I".into())
     );
 }
 
 #[test]
 fn parallel_thresholds_above_the_number_of_children_are_errors() {
-    let doc = BtDocument::single(TreeDef::new("Main", parallel(Some("3"), None, 2)));
+    let doc = one_tree(parallel(Some("3"), None, 2));
     let (registry, _) = scripted_registry(&doc).unwrap();
     let err = Tree::new(&doc, &registry).unwrap_err();
     assert_eq!(err.attribute(), Some("success_count"));
@@ -313,9 +341,7 @@ fn parallel_thresholds_above_the_number_of_children_are_errors() {
         "{err}"
     );
     // Through the blackboard, the same check happens at the tick.
-    let doc = BtDocument::single(TreeDef::new("Main", parallel(Some("{n}"), None, 2)));
-    let (registry, outcomes) = scripted_registry(&doc).unwrap();
-    let mut tree = Tree::new(&doc, &registry).unwrap();
+    let (mut tree, outcomes) = scripted(parallel(Some("{n}"), None, 2));
     tree.blackboard_mut().set("n", 5i64).unwrap();
     outcomes.set("A", S);
     let err = tree.tick_once(Duration::ZERO).unwrap_err();
@@ -331,68 +357,59 @@ fn parallel_thresholds_above_the_number_of_children_are_errors() {
 
 #[test]
 fn inverter_and_forcing_decorators_map_completed_results_and_pass_running() {
-    let mut h = Harness::new(
-        NodeDef::control("Sequence")
-            .named("seq")
-            .child(NodeDef::decorator("Inverter").named("inv").child(leaf("A")))
-            .child(
-                NodeDef::decorator("ForceSuccess")
-                    .named("fs")
-                    .child(leaf("B")),
-            )
-            .child(
-                NodeDef::decorator("ForceFailure")
-                    .named("ff")
-                    .child(leaf("C")),
+    let inv = named(NodeDef::decorator("Inverter"), "inv", [leaf("A")]);
+    let fs = named(NodeDef::decorator("ForceSuccess"), "fs", [leaf("B")]);
+    let ff = named(NodeDef::decorator("ForceFailure"), "ff", [leaf("C")]);
+    check(
+        control("Sequence", "seq", [inv, fs, ff]),
+        &[
+            (&[("A", R)], R, "seq:I>R inv:I>R A:I>R"),
+            (
+                &[("A", F), ("B", F), ("C", S)],
+                F,
+                "A:R>F A:F>I inv:R>S fs:I>R B:I>F B:F>I fs:R>S ff:I>R C:I>S C:S>I ff:R>F \
+                 inv:S>I fs:S>I ff:F>I seq:R>F seq:F>I",
             ),
-    );
-    assert_eq!(h.tick(&[("A", R)]), (R, "seq:I>R inv:I>R A:I>R".into()));
-    assert_eq!(
-        h.tick(&[("A", F), ("B", F), ("C", S)]),
-        (
-            F,
-            "A:R>F A:F>I inv:R>S fs:I>R B:I>F B:F>I fs:R>S ff:I>R C:I>S C:S>I ff:R>F \
-             inv:S>I fs:S>I ff:F>I seq:R>F seq:F>I"
-                .into()
-        )
+        ],
     );
 }
 
 fn retry(attempts: &str) -> NodeDef {
-    NodeDef::decorator("RetryUntilSuccessful")
-        .named("retry")
-        .port("num_attempts", attempts)
-        .child(leaf("A"))
+    decorator("RetryUntilSuccessful", "retry", "num_attempts", attempts)
 }
 
 #[test]
 fn retry_counts_attempts_and_yields_a_tick_between_synchronous_failures() {
-    let mut h = Harness::new(retry("3"));
-    assert_eq!(h.tick(&[("A", F)]), (R, "retry:I>R A:I>F A:F>I".into()));
-    assert_eq!(h.tick(&[]), (R, "A:I>F A:F>I".into()));
-    assert_eq!(h.tick(&[]), (F, "A:I>F A:F>I retry:R>F retry:F>I".into()));
-    // A success on the second attempt ends the loop; the count starts over afterwards.
-    assert_eq!(h.tick(&[]), (R, "retry:I>R A:I>F A:F>I".into()));
-    assert_eq!(
-        h.tick(&[("A", S)]),
-        (S, "A:I>S A:S>I retry:R>S retry:S>I".into())
+    check(
+        retry("3"),
+        &[
+            (&[("A", F)], R, "retry:I>R A:I>F A:F>I"),
+            (&[], R, "A:I>F A:F>I"),
+            (&[], F, "A:I>F A:F>I retry:R>F retry:F>I"),
+            // A success on the second attempt ends the loop; the count starts over afterwards.
+            (&[], R, "retry:I>R A:I>F A:F>I"),
+            (&[("A", S)], S, "A:I>S A:S>I retry:R>S retry:S>I"),
+        ],
     );
 }
 
 #[test]
 fn retry_retries_at_once_a_child_that_failed_after_running() {
-    let mut h = Harness::new(retry("3"));
-    assert_eq!(h.tick(&[("A", R)]), (R, "retry:I>R A:I>R".into()));
-    // Failed from RUNNING: tried again within the same tick (fails again from IDLE: yields).
-    assert_eq!(h.tick(&[("A", F)]), (R, "A:R>F A:F>I A:I>F A:F>I".into()));
-    assert_eq!(h.tick(&[]), (F, "A:I>F A:F>I retry:R>F retry:F>I".into()));
+    check(
+        retry("3"),
+        &[
+            (&[("A", R)], R, "retry:I>R A:I>R"),
+            // Failed from RUNNING: tried again within the same tick (fails again from IDLE:
+            // yields).
+            (&[("A", F)], R, "A:R>F A:F>I A:I>F A:F>I"),
+            (&[], F, "A:I>F A:F>I retry:R>F retry:F>I"),
+        ],
+    );
 }
 
 #[test]
 fn tick_once_follows_the_wake_up_so_all_attempts_happen_in_one_call() {
-    let doc = BtDocument::single(TreeDef::new("Main", retry("4")));
-    let (registry, outcomes) = scripted_registry(&doc).unwrap();
-    let mut tree = Tree::new(&doc, &registry).unwrap();
+    let (mut tree, outcomes) = scripted(retry("4"));
     tree.set_recording(true);
     outcomes.set("A", F);
     assert_eq!(tree.tick_once(Duration::ZERO).unwrap(), F);
@@ -406,58 +423,58 @@ fn tick_once_follows_the_wake_up_so_all_attempts_happen_in_one_call() {
 
 #[test]
 fn retry_with_minus_one_never_gives_up_and_zero_attempts_fail_at_once() {
-    let mut h = Harness::new(retry("-1"));
-    h.tick(&[("A", F)]);
-    for _ in 0..20 {
-        assert_eq!(h.tick(&[]).0, R);
-    }
-    let mut h = Harness::new(retry("0"));
-    assert_eq!(
-        h.tick(&[("A", S)]),
-        (F, "retry:I>R retry:R>F retry:F>I".into())
+    keeps_running(retry("-1"), ("A", F), 20);
+    check(
+        retry("0"),
+        &[(&[("A", S)], F, "retry:I>R retry:R>F retry:F>I")],
     );
 }
 
 #[test]
 fn repeat_counts_cycles_and_a_failure_restarts_the_count() {
-    let mut h = Harness::new(
-        NodeDef::decorator("Repeat")
-            .named("rep")
-            .port("num_cycles", "3")
-            .child(leaf("A")),
+    check(
+        decorator("Repeat", "rep", "num_cycles", "3"),
+        &[
+            (&[("A", S)], R, "rep:I>R A:I>S A:S>I"),
+            (&[("A", F)], F, "A:I>F A:F>I rep:R>F rep:F>I"),
+            (&[("A", S)], R, "rep:I>R A:I>S A:S>I"),
+            (&[], R, "A:I>S A:S>I"),
+            (&[], S, "A:I>S A:S>I rep:R>S rep:S>I"),
+        ],
     );
-    assert_eq!(h.tick(&[("A", S)]), (R, "rep:I>R A:I>S A:S>I".into()));
-    assert_eq!(
-        h.tick(&[("A", F)]),
-        (F, "A:I>F A:F>I rep:R>F rep:F>I".into())
-    );
-    assert_eq!(h.tick(&[("A", S)]), (R, "rep:I>R A:I>S A:S>I".into()));
-    assert_eq!(h.tick(&[]), (R, "A:I>S A:S>I".into()));
-    assert_eq!(h.tick(&[]), (S, "A:I>S A:S>I rep:R>S rep:S>I".into()));
+}
+
+/// Ticks a tree of `root` once with the leaf outcome `first`, then `ticks` more times: the root
+/// must run on each of them.
+#[track_caller]
+fn keeps_running(root: NodeDef, first: (&str, Status), ticks: usize) {
+    let mut h = Harness::new(root);
+    h.tick(&[first]);
+    for _ in 0..ticks {
+        assert_eq!(h.tick(&[]).0, R);
+    }
 }
 
 fn timeout(msec: &str) -> NodeDef {
-    NodeDef::decorator("Timeout")
-        .named("to")
-        .port("msec", msec)
-        .child(leaf("A"))
+    decorator("Timeout", "to", "msec", msec)
 }
 
 #[test]
 fn timeout_halts_the_running_child_at_the_first_tick_after_the_deadline() {
-    let mut h = Harness::new(timeout("250"));
-    assert_eq!(h.tick(&[("A", R)]), (R, "to:I>R A:I>R".into())); // 0 ms
-    assert_eq!(h.tick(&[]), (R, "".into())); // 100 ms
-    assert_eq!(h.tick(&[]), (R, "".into())); // 200 ms
-    let (status, trace) = h.tick(&[]); // 300 ms >= 250 ms
-    assert_eq!((status, trace.as_str()), (F, "A:R>I to:R>F to:F>I"));
+    check(
+        timeout("250"),
+        &[
+            (&[("A", R)], R, "to:I>R A:I>R"), // 0 ms
+            (&[], R, ""),                     // 100 ms
+            (&[], R, ""),                     // 200 ms
+            (&[], F, "A:R>I to:R>F to:F>I"),  // 300 ms >= 250 ms
+        ],
+    );
 }
 
 #[test]
 fn timeout_deadline_is_inclusive_and_restarts_with_each_execution() {
-    let doc = BtDocument::single(TreeDef::new("Main", timeout("250")));
-    let (registry, outcomes) = scripted_registry(&doc).unwrap();
-    let mut tree = Tree::new(&doc, &registry).unwrap();
+    let (mut tree, outcomes) = scripted(timeout("250"));
     tree.set_recording(true);
     let ms = Duration::from_millis;
     outcomes.set("A", R);
@@ -478,11 +495,7 @@ fn timeout_deadline_is_inclusive_and_restarts_with_each_execution() {
 
 #[test]
 fn timeout_of_zero_never_expires() {
-    let mut h = Harness::new(timeout("0"));
-    h.tick(&[("A", R)]);
-    for _ in 0..50 {
-        assert_eq!(h.tick(&[]).0, R);
-    }
+    keeps_running(timeout("0"), ("A", R), 50);
 }
 
 // -----------------------------------------------------------------------------------------
@@ -559,6 +572,13 @@ fn subtree_ticks_its_tree_and_resets_it_when_done() {
     );
 }
 
+/// The built-in `SetBlackboard` leaf writing `value` to `key`.
+fn set_blackboard(value: &str, key: &str) -> NodeDef {
+    NodeDef::action("SetBlackboard")
+        .port("value", value)
+        .port("output_key", key)
+}
+
 /// A document whose subtree reads `{input}` and writes `{out}`.
 fn port_doc(subtree: NodeDef) -> (BtDocument, Registry) {
     let mut registry = Registry::new();
@@ -580,11 +600,7 @@ fn port_doc(subtree: NodeDef) -> (BtDocument, Registry) {
             TreeDef::new(
                 "Main",
                 NodeDef::control("Sequence")
-                    .child(
-                        NodeDef::action("SetBlackboard")
-                            .port("value", "42")
-                            .port("output_key", "answer"),
-                    )
+                    .child(set_blackboard("42", "answer"))
                     .child(subtree),
             ),
             TreeDef::new(
@@ -796,16 +812,8 @@ fn built_in_leaves_set_blackboard_and_sleep_with_the_injected_clock() {
     let doc = BtDocument::single(TreeDef::new(
         "Main",
         NodeDef::control("Sequence")
-            .child(
-                NodeDef::action("SetBlackboard")
-                    .port("value", "on")
-                    .port("output_key", "mode"),
-            )
-            .child(
-                NodeDef::action("SetBlackboard")
-                    .port("value", "{mode}")
-                    .port("output_key", "@copy"),
-            )
+            .child(set_blackboard("on", "mode"))
+            .child(set_blackboard("{mode}", "@copy"))
             .child(NodeDef::action("Sleep").port("msec", "300"))
             .child(NodeDef::action("AlwaysSuccess")),
     ));
@@ -818,7 +826,7 @@ fn built_in_leaves_set_blackboard_and_sleep_with_the_injected_clock() {
     );
     assert_eq!(tree.tick_once(ms(1299)).unwrap(), R);
     assert_eq!(tree.tick_once(ms(1300)).unwrap(), S);
-    let doc = BtDocument::single(TreeDef::new("Main", NodeDef::action("AlwaysFailure")));
+    let doc = one_tree(NodeDef::action("AlwaysFailure"));
     let mut tree = Tree::new(&doc, &Registry::new()).unwrap();
     assert_eq!(tree.tick_once(ms(0)).unwrap(), F);
 }
@@ -845,7 +853,7 @@ fn leaves_that_break_the_rules_make_the_tick_fail_with_the_node_named() {
         } else {
             NodeCategory::Action
         };
-        let doc = BtDocument::single(TreeDef::new("Main", NodeDef::new(category, id)));
+        let doc = one_tree(NodeDef::new(category, id));
         let mut tree = Tree::new(&doc, &registry).unwrap();
         let err = tree.tick_once(Duration::ZERO).unwrap_err();
         assert_eq!(err.to_string(), message);
@@ -854,7 +862,7 @@ fn leaves_that_break_the_rules_make_the_tick_fail_with_the_node_named() {
 
 #[test]
 fn ticks_must_not_go_back_in_time() {
-    let doc = BtDocument::single(TreeDef::new("Main", NodeDef::action("AlwaysSuccess")));
+    let doc = one_tree(NodeDef::action("AlwaysSuccess"));
     let mut tree = Tree::new(&doc, &Registry::new()).unwrap();
     tree.tick_once(Duration::from_secs(5)).unwrap();
     tree.tick_once(Duration::from_secs(5)).unwrap();
@@ -869,7 +877,7 @@ fn ticks_must_not_go_back_in_time() {
 // Validation
 
 fn invalid(root: NodeDef) -> DefinitionError {
-    let doc = BtDocument::single(TreeDef::new("Main", root));
+    let doc = one_tree(root);
     validate(&doc, &Registry::new()).unwrap_err()
 }
 
@@ -1003,14 +1011,14 @@ fn validation_checks_trees_subtrees_and_output_ports() {
     );
     assert_eq!(e.location().unwrap().tree, "B");
 
-    let doc = BtDocument::single(TreeDef::new("Main", NodeDef::subtree("Missing")));
+    let doc = one_tree(NodeDef::subtree("Missing"));
     let e = validate(&doc, &registry).unwrap_err();
     assert_eq!(
         e.to_string(),
         "tree \"Main\", root node: there is no <BehaviorTree ID=\"Missing\">"
     );
 
-    let mut doc = BtDocument::single(TreeDef::new("Main", NodeDef::action("AlwaysSuccess")));
+    let mut doc = one_tree(NodeDef::action("AlwaysSuccess"));
     doc.main_tree = Some("Other".into());
     let e = validate(&doc, &registry).unwrap_err();
     assert_eq!(e.attribute(), Some("main_tree_to_execute"));
@@ -1032,7 +1040,7 @@ fn validation_checks_trees_subtrees_and_output_ports() {
 
 #[test]
 fn declared_but_unregistered_leaves_validate_but_cannot_be_instantiated() {
-    let mut doc = BtDocument::single(TreeDef::new("Main", NodeDef::action("OpenDoor")));
+    let mut doc = one_tree(NodeDef::action("OpenDoor"));
     doc.node_models
         .push(NodeModel::new(NodeCategory::Action, "OpenDoor"));
     let registry = Registry::new();
@@ -1071,16 +1079,18 @@ fn registry_refuses_built_in_duplicate_and_non_leaf_ids() {
 // -----------------------------------------------------------------------------------------
 // Scripts
 
-#[test]
-fn scripts_run_until_the_root_completes_and_report_unused_ticks() {
-    let doc = BtDocument::single(TreeDef::new(
-        "Main",
+/// `Sequence(BatteryOk, Patrol)` with scripted leaves.
+fn patrol() -> (Tree, ScriptedOutcomes) {
+    scripted(
         NodeDef::control("Sequence")
             .child(cond("BatteryOk"))
             .child(leaf("Patrol")),
-    ));
-    let (registry, outcomes) = scripted_registry(&doc).unwrap();
-    let mut tree = Tree::new(&doc, &registry).unwrap();
+    )
+}
+
+#[test]
+fn scripts_run_until_the_root_completes_and_report_unused_ticks() {
+    let (mut tree, outcomes) = patrol();
     let script = Script {
         ticks: vec![
             ScriptTick::new(1)
@@ -1103,14 +1113,7 @@ fn scripts_run_until_the_root_completes_and_report_unused_ticks() {
 
 #[test]
 fn scripts_are_checked_before_anything_runs() {
-    let doc = BtDocument::single(TreeDef::new(
-        "Main",
-        NodeDef::control("Sequence")
-            .child(cond("BatteryOk"))
-            .child(leaf("Patrol")),
-    ));
-    let (registry, outcomes) = scripted_registry(&doc).unwrap();
-    let mut tree = Tree::new(&doc, &registry).unwrap();
+    let (mut tree, outcomes) = patrol();
     let run = |tree: &mut Tree, ticks: Vec<ScriptTick>| {
         run_script(
             tree,

@@ -44,7 +44,7 @@ mod training;
 
 pub use baselines::{CellFremen, CellHistogram, GlobalMean, StaticMap};
 pub use experiment::{
-    EventModelBuilder, EventScore, FremenBuilder, GlobalMeanBuilder, HistogramBuilder,
+    Built, EventModelBuilder, EventScore, FremenBuilder, GlobalMeanBuilder, HistogramBuilder,
     StaticBuilder, default_builders, run_experiment, run_experiment_reporting,
 };
 pub use training::{EventError, Holdout, TrainingData, Window, observed_windows};

@@ -96,33 +96,44 @@ impl HypertimeConfig {
     }
 
     fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |name: &'static str, value: String, expected: &'static str| {
-            Err(ConfigError::OutOfRange {
-                name,
-                value,
-                expected,
-            })
-        };
-        // The checks of every spectral model's candidate periods.
-        chronomap_core::periods::PeriodSet::from_periods(self.candidate_periods.clone())?;
+        check_candidate_periods(&self.candidate_periods)?;
         if let Clustering::Em(Components::Fixed(0)) = self.clustering {
-            return bad("components", "0".into(), "at least 1");
+            return out_of_range("components", "0".into(), "at least 1");
         }
         if self.max_components == 0 {
-            return bad("max_components", "0".into(), "at least 1");
+            return out_of_range("max_components", "0".into(), "at least 1");
         }
         if !(self.holdout > 0.0 && self.holdout < 1.0) {
-            return bad(
+            return out_of_range(
                 "holdout",
                 self.holdout.to_string(),
                 "a fraction strictly between 0 and 1",
             );
         }
         if self.starts == 0 {
-            return bad("starts", "0".into(), "at least 1");
+            return out_of_range("starts", "0".into(), "at least 1");
         }
         Ok(())
     }
+}
+
+/// A setting of a hypertime model out of its range.
+pub(crate) fn out_of_range(
+    name: &'static str,
+    value: String,
+    expected: &'static str,
+) -> Result<(), ConfigError> {
+    Err(ConfigError::OutOfRange {
+        name,
+        value,
+        expected,
+    })
+}
+
+/// The checks of every spectral model's candidate periods.
+pub(crate) fn check_candidate_periods(periods: &[f64]) -> Result<(), ConfigError> {
+    chronomap_core::periods::PeriodSet::from_periods(periods.to_vec())?;
+    Ok(())
 }
 
 /// The hypertime vector of `t` (eqs. 1, 8): `cos(2πt/T)`, `sin(2πt/T)` for every period `T`,

@@ -48,7 +48,7 @@ use chronomap_activity::RateSamples;
 use chronomap_activity::extract::Extraction;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
     parse_non_negative, parse_rate, quote, required,
 };
 
@@ -164,7 +164,7 @@ pub fn read_rate_grid_from(name: &str, reader: impl Read) -> Result<RateGrid, Da
         };
         let mut fields = Fields::new(line);
         let mut next = |field| -> Result<f64, DataErrorKind> {
-            parse_coordinate(required(fields.next(), field, expected)?, field)
+            parse_finite(required(fields.next(), field, expected)?, field)
         };
         let x1 = next(Field::X1)?;
         let x2 = next(Field::X2)?;
@@ -174,7 +174,7 @@ pub fn read_rate_grid_from(name: &str, reader: impl Read) -> Result<RateGrid, Da
             let count_text = required(fields.next(), Field::Count, expected)?;
             let count = parse_non_negative(count_text, Field::Count)?;
             let duration_text = required(fields.next(), Field::ObservedDuration, expected)?;
-            let duration = parse_coordinate(duration_text, Field::ObservedDuration)?;
+            let duration = parse_finite(duration_text, Field::ObservedDuration)?;
             if duration <= 0.0 {
                 return Err(DataErrorKind::NotPositive {
                     field: Field::ObservedDuration,

@@ -45,8 +45,8 @@ use std::path::Path;
 use chronomap_hypertime::events::Event;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
-    parse_number, parse_time, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
+    parse_time, quote, required,
 };
 
 /// What an event line must look like.
@@ -141,8 +141,8 @@ pub fn read_events_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
                         ),
                     });
                 }
-                let min = parse_range_bound(all[0], field)?;
-                let max = parse_range_bound(all[1], field)?;
+                let min = parse_finite(all[0], field)?;
+                let max = parse_finite(all[1], field)?;
                 if min > max {
                     return Err(DataErrorKind::EmptyRange { field, min, max });
                 }
@@ -156,9 +156,9 @@ pub fn read_events_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
                 let t_text = required(fields.next(), Field::Time, EXPECTED)?;
                 let t = parse_time(t_text, previous, events.len())?;
                 let x_text = required(fields.next(), Field::X, EXPECTED)?;
-                let x = parse_coordinate(x_text, Field::X)?;
+                let x = parse_finite(x_text, Field::X)?;
                 let y_text = required(fields.next(), Field::Y, EXPECTED)?;
-                let y = parse_coordinate(y_text, Field::Y)?;
+                let y = parse_finite(y_text, Field::Y)?;
                 if let Some(ranges) = ranges {
                     for ((value, text), (field, &(min, max))) in
                         [(t, t_text), (x, x_text), (y, y_text)]
@@ -192,16 +192,4 @@ pub fn read_events_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
         return Err(DataError::new(name, None, kind));
     }
     Ok(events)
-}
-
-/// One bound of a header range: a finite number.
-fn parse_range_bound(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
-    let value = parse_number(text, field)?;
-    if !value.is_finite() {
-        return Err(DataErrorKind::NonFinite {
-            field,
-            text: quote(text),
-        });
-    }
-    Ok(value)
 }

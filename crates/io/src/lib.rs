@@ -119,6 +119,8 @@ pub mod text;
 pub mod topo_files;
 #[cfg(feature = "activity")]
 pub mod tracks;
+#[cfg(any(feature = "navmap", feature = "topo"))]
+mod yaml;
 
 #[cfg(feature = "activity")]
 pub use activity::{

@@ -161,9 +161,9 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
-use serde_saphyr::Spanned;
 use thiserror::Error;
+
+use crate::yaml::{self, Prefix, Yaml};
 
 /// Cell value of a free cell.
 pub const FREE: i8 = 0;
@@ -607,19 +607,6 @@ pub struct NavMapError {
     kind: NavMapErrorKind,
 }
 
-struct Prefix<'a>(Option<&'a str>, Option<u64>);
-
-impl fmt::Display for Prefix<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.0, self.1) {
-            (Some(file), Some(line)) => write!(f, "{file}:{line}: "),
-            (Some(file), None) => write!(f, "{file}: "),
-            (None, Some(line)) => write!(f, "line {line}: "),
-            (None, None) => Ok(()),
-        }
-    }
-}
-
 impl NavMapError {
     fn new(kind: NavMapErrorKind) -> Self {
         NavMapError {
@@ -956,21 +943,7 @@ fn yaml_string(text: &str) -> String {
     if plain && text.parse::<f64>().is_err() {
         return text.to_owned();
     }
-    let mut quoted = String::with_capacity(text.len() + 2);
-    quoted.push('"');
-    for c in text.chars() {
-        match c {
-            '"' => quoted.push_str("\\\""),
-            '\\' => quoted.push_str("\\\\"),
-            '\n' => quoted.push_str("\\n"),
-            '\t' => quoted.push_str("\\t"),
-            '\r' => quoted.push_str("\\r"),
-            c if c.is_control() => quoted.push_str(&format!("\\u{:04x}", u32::from(c))),
-            c => quoted.push(c),
-        }
-    }
-    quoted.push('"');
-    quoted
+    yaml::double_quoted(text)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1055,50 +1028,51 @@ const KEYS: [&str; 7] = [
 /// [`MissingKey`](NavMapErrorKind::MissingKey) or
 /// [`InvalidValue`](NavMapErrorKind::InvalidValue) (with the line of the value).
 pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapError> {
-    let options = serde_saphyr::options! {
-        non_finite_float_policy: serde_saphyr::NonFiniteFloatPolicy::PassThrough,
-        with_snippet: false,
-    };
-    let raw: RawYaml = serde_saphyr::from_slice_with_options(text, options).map_err(|e| {
-        let line = e.location().map_or(0, |l| l.line());
+    let root = yaml::parse(text, false).map_err(|e| {
         NavMapError::at(
             name,
-            line,
+            e.line.unwrap_or(0),
+            NavMapErrorKind::Yaml { message: e.message },
+        )
+    })?;
+    let raw = RawYaml::of(&root.value).ok_or_else(|| {
+        NavMapError::at(
+            name,
+            root.referenced.line(),
             NavMapErrorKind::Yaml {
-                message: yaml_message(&e),
+                message: "the top level is not a mapping of keys to values".to_owned(),
             },
         )
     })?;
     let value = |key: &'static str| {
         let index = KEYS.iter().position(|k| *k == key).expect("a known key");
-        match &raw.values[index] {
-            Some((line, node)) => Ok((*line, node)),
+        match raw.values[index] {
+            Some((line, node)) => Ok((line, node)),
             None => Err(NavMapError::in_file(
                 name,
                 NavMapErrorKind::MissingKey { key },
             )),
         }
     };
-    let invalid = |key: &'static str, line: u64, node: &Node, expected: &'static str| {
+    let invalid = |key: &'static str, line: u64, node: &Yaml, expected: &'static str| {
         NavMapError::at(
             name,
             line,
             NavMapErrorKind::InvalidValue {
                 key,
-                value: shorten(&node.to_string()),
+                value: shorten(&node.listed().to_string()),
                 expected,
             },
         )
     };
     let number = |key: &'static str| {
         let (line, node) = value(key)?;
-        node.as_number()
-            .ok_or_else(|| invalid(key, line, node, "a finite number"))
+        as_number(node).ok_or_else(|| invalid(key, line, node, "a finite number"))
     };
 
     let (line, node) = value("image")?;
     let image = match node {
-        Node::Str(s) if !s.is_empty() => s.clone(),
+        Yaml::Str(s) if !s.is_empty() => s.clone(),
         _ => return Err(invalid("image", line, node, "a file name")),
     };
     let resolution = number("resolution")?;
@@ -1109,12 +1083,11 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
     let (line, node) = value("origin")?;
     const ORIGIN: &str = "a list of exactly 3 numbers [x, y, yaw]";
     let origin = match node {
-        Node::Seq(items) if items.len() == 3 => {
+        Yaml::Seq(items) if items.len() == 3 => {
             let mut origin = [0.0; 3];
             for (slot, item) in origin.iter_mut().zip(items) {
-                *slot = item
-                    .as_number()
-                    .ok_or_else(|| invalid("origin", line, node, ORIGIN))?;
+                *slot =
+                    as_number(&item.value).ok_or_else(|| invalid("origin", line, node, ORIGIN))?;
             }
             origin
         }
@@ -1122,9 +1095,9 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
     };
     let (line, node) = value("negate")?;
     let negate = match node {
-        Node::Bool(b) => *b,
-        Node::Int(i) => *i != 0,
-        Node::Str(s) => match s.trim() {
+        Yaml::Bool(b) => *b,
+        Yaml::Int(i) => *i != 0,
+        Yaml::Str(s) => match s.trim() {
             "true" => true,
             "false" => false,
             t => t
@@ -1139,7 +1112,7 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
     let mode = match value("mode") {
         Err(_) => MapMode::Trinary,
         Ok((line, node)) => match node {
-            Node::Str(s) => MapMode::from_name(s),
+            Yaml::Str(s) => MapMode::from_name(s),
             _ => None,
         }
         .ok_or_else(|| invalid("mode", line, node, "trinary, scale or raw"))?,
@@ -1155,172 +1128,41 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
     })
 }
 
-/// The parser's message, without its location (the error has the line) and in map terms.
-fn yaml_message(error: &serde_saphyr::Error) -> String {
-    let mut message = error.without_snippet().to_string();
-    if let Some(at) = message.rfind(" at line ") {
-        message.truncate(at);
-    }
-    if let Some(rest) = message.strip_prefix("duplicate mapping key: ") {
-        let key = rest.split(',').next().unwrap_or(rest);
-        format!("the key `{key}` appears twice")
-    } else if message.starts_with("multiple YAML documents") {
-        "several YAML documents (a map file has one)".to_owned()
-    } else if message == "expected mapping start" || message.starts_with("invalid type") {
-        "the top level is not a mapping of keys to values".to_owned()
-    } else {
-        message
-    }
-}
-
-/// A YAML value, as far as map files need it.
-#[derive(Debug)]
-enum Node {
-    Null,
-    Bool(bool),
-    Int(i128),
-    Float(f64),
-    Str(String),
-    Seq(Vec<Node>),
-    Map,
-}
-
-impl Node {
-    /// A finite number: a YAML number or a string holding one (yaml-cpp converts both).
-    fn as_number(&self) -> Option<f64> {
-        let number = match self {
-            Node::Int(i) => *i as f64,
-            Node::Float(f) => *f,
-            Node::Str(s) => s.trim().parse().ok()?,
-            _ => return None,
-        };
-        number.is_finite().then_some(number)
-    }
-}
-
-impl fmt::Display for Node {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Node::Null => f.write_str("null"),
-            Node::Bool(b) => write!(f, "{b}"),
-            Node::Int(i) => write!(f, "{i}"),
-            Node::Float(x) => write!(f, "{x:?}"),
-            Node::Str(s) => write!(f, "{s:?}"),
-            Node::Seq(items) => {
-                f.write_str("[")?;
-                for (i, item) in items.iter().enumerate() {
-                    if i > 0 {
-                        f.write_str(", ")?;
-                    }
-                    write!(f, "{item}")?;
-                }
-                f.write_str("]")
-            }
-            Node::Map => f.write_str("{...}"),
-        }
-    }
-}
-
-impl<'de> Deserialize<'de> for Node {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct NodeVisitor;
-        impl<'de> Visitor<'de> for NodeVisitor {
-            type Value = Node;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("any YAML value")
-            }
-            fn visit_bool<E>(self, v: bool) -> Result<Node, E> {
-                Ok(Node::Bool(v))
-            }
-            fn visit_i64<E>(self, v: i64) -> Result<Node, E> {
-                Ok(Node::Int(v.into()))
-            }
-            fn visit_u64<E>(self, v: u64) -> Result<Node, E> {
-                Ok(Node::Int(v.into()))
-            }
-            fn visit_i128<E>(self, v: i128) -> Result<Node, E> {
-                Ok(Node::Int(v))
-            }
-            fn visit_u128<E>(self, v: u128) -> Result<Node, E> {
-                Ok(Node::Float(v as f64))
-            }
-            fn visit_f64<E>(self, v: f64) -> Result<Node, E> {
-                Ok(Node::Float(v))
-            }
-            fn visit_str<E>(self, v: &str) -> Result<Node, E> {
-                Ok(Node::Str(v.to_owned()))
-            }
-            fn visit_bytes<E>(self, v: &[u8]) -> Result<Node, E> {
-                Ok(Node::Str(String::from_utf8_lossy(v).into_owned()))
-            }
-            fn visit_unit<E>(self) -> Result<Node, E> {
-                Ok(Node::Null)
-            }
-            fn visit_none<E>(self) -> Result<Node, E> {
-                Ok(Node::Null)
-            }
-            fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Node, D::Error> {
-                Node::deserialize(d)
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Node, A::Error> {
-                let mut items = Vec::new();
-                while let Some(item) = seq.next_element()? {
-                    items.push(item);
-                }
-                Ok(Node::Seq(items))
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Node, A::Error> {
-                while map.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
-                Ok(Node::Map)
-            }
-        }
-        deserializer.deserialize_any(NodeVisitor)
-    }
+/// A finite number: a YAML number or a string holding one (yaml-cpp converts both).
+fn as_number(node: &Yaml) -> Option<f64> {
+    let number = match node {
+        Yaml::Int(i) => *i as f64,
+        Yaml::Float(f) => *f,
+        Yaml::Str(s) => s.trim().parse().ok()?,
+        _ => return None,
+    };
+    number.is_finite().then_some(number)
 }
 
 /// The known keys of a map YAML file with the line and value of each one present.
 #[derive(Default)]
-struct RawYaml {
-    values: [Option<(u64, Node)>; KEYS.len()],
+struct RawYaml<'a> {
+    values: [Option<(u64, &'a Yaml)>; KEYS.len()],
 }
 
-impl<'de> Deserialize<'de> for RawYaml {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct RawVisitor;
-        impl<'de> Visitor<'de> for RawVisitor {
-            type Value = RawYaml;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("a mapping of map_server keys")
-            }
-            // An empty file (or one with only comments) is an empty mapping: every required
-            // key is then reported missing.
-            fn visit_unit<E>(self) -> Result<RawYaml, E> {
-                Ok(RawYaml::default())
-            }
-            fn visit_none<E>(self) -> Result<RawYaml, E> {
-                Ok(RawYaml::default())
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<RawYaml, A::Error> {
-                let mut raw = RawYaml::default();
-                while let Some(key) = map.next_key::<Node>()? {
-                    let index = match &key {
-                        Node::Str(s) => KEYS.iter().position(|k| k == s),
-                        _ => None,
-                    };
-                    match index {
-                        Some(i) => {
-                            let value: Spanned<Node> = map.next_value()?;
-                            raw.values[i] = Some((value.referenced.line(), value.value));
-                        }
-                        None => {
-                            map.next_value::<IgnoredAny>()?;
-                        }
+impl<'a> RawYaml<'a> {
+    /// The known keys of the top level, or `None` if it is not a mapping. An empty file (or
+    /// one with only comments) is an empty mapping: every required key is then reported
+    /// missing.
+    fn of(top: &'a Yaml) -> Option<Self> {
+        let mut raw = RawYaml::default();
+        match top {
+            Yaml::Null => {}
+            Yaml::Map(entries) => {
+                for (key, value) in entries {
+                    if let Some(i) = KEYS.iter().position(|k| k == key) {
+                        raw.values[i] = Some((value.referenced.line(), &value.value));
                     }
                 }
-                Ok(raw)
             }
+            _ => return None,
         }
-        deserializer.deserialize_map(RawVisitor)
+        Some(raw)
     }
 }
 

@@ -48,8 +48,8 @@ use std::path::Path;
 use chronomap_activity::extract::{RobotPath, Waypoint};
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
-    parse_non_negative, quote, required,
+    DataError, DataErrorKind, Field, Fields, check_header, for_each_data_line, open_data_file,
+    parse_finite, parse_non_negative, quote, required,
 };
 
 /// What a waypoint line must look like.
@@ -106,15 +106,7 @@ pub fn read_robot_paths_from(
     let mut header_seen = false;
     for_each_data_line(name, reader, |line_number, line| {
         if !header_seen {
-            let fields: Vec<&[u8]> = Fields::new(line).collect();
-            if fields.len() != 4 || fields.iter().zip(HEADER).any(|(f, h)| *f != h.as_bytes()) {
-                return Err(DataErrorKind::BadHeader {
-                    reason: format!(
-                        "expected the header `path,x,y,stop_s`, found {:?}",
-                        quote(line)
-                    ),
-                });
-            }
+            check_header(line, &HEADER)?;
             header_seen = true;
             return Ok(());
         }
@@ -130,8 +122,8 @@ pub fn read_robot_paths_from(
             });
         }
         let path_name = String::from_utf8_lossy(path_text).into_owned();
-        let x = parse_coordinate(required(fields.next(), Field::X, EXPECTED)?, Field::X)?;
-        let y = parse_coordinate(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
+        let x = parse_finite(required(fields.next(), Field::X, EXPECTED)?, Field::X)?;
+        let y = parse_finite(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
         let stop =
             parse_non_negative(required(fields.next(), Field::Stop, EXPECTED)?, Field::Stop)?;
         if let Some(extra) = fields.next() {

@@ -43,8 +43,8 @@ use std::path::Path;
 use chronomap_activity::disturbance::{Scenario, Waypoint};
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
-    quote, required,
+    DataError, DataErrorKind, Field, Fields, check_header, for_each_data_line, open_data_file,
+    parse_finite, quote, required,
 };
 
 /// What a data line must look like.
@@ -89,23 +89,15 @@ pub fn read_scenarios_from(name: &str, reader: impl Read) -> Result<Vec<Scenario
     let mut short: Option<DataError> = None;
     for_each_data_line(name, reader, |line_number, line| {
         if !header_seen {
-            let fields: Vec<&[u8]> = Fields::new(line).collect();
-            if fields.len() != 4 || fields.iter().zip(HEADER).any(|(f, h)| *f != h.as_bytes()) {
-                return Err(DataErrorKind::BadHeader {
-                    reason: format!(
-                        "expected the header `scenario,waypoint,x,y`, found {:?}",
-                        quote(line)
-                    ),
-                });
-            }
+            check_header(line, &HEADER)?;
             header_seen = true;
             return Ok(());
         }
         let mut fields = Fields::new(line);
         let scenario = parse_name(fields.next(), "scenario")?;
         let label = parse_name(fields.next(), "waypoint")?;
-        let x = parse_coordinate(required(fields.next(), Field::X, EXPECTED)?, Field::X)?;
-        let y = parse_coordinate(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
+        let x = parse_finite(required(fields.next(), Field::X, EXPECTED)?, Field::X)?;
+        let y = parse_finite(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
                 text: quote(extra),

@@ -82,6 +82,18 @@ impl TimeSeries {
         self.times.len()
     }
 
+    /// The observations with `from <= t < to`, in order.
+    pub fn between(&self, from: f64, to: f64) -> TimeSeries {
+        let (times, values) = self
+            .times
+            .iter()
+            .zip(&self.values)
+            .filter(|&(&t, _)| t >= from && t < to)
+            .map(|(&t, &v)| (t, v))
+            .unzip();
+        TimeSeries { times, values }
+    }
+
     #[cfg(feature = "models")]
     /// The series as a test set of [`chronomap_models::eval`].
     pub fn as_test_set(&self) -> chronomap_models::eval::TestSet<'_> {
@@ -648,13 +660,13 @@ pub fn read_column_from(
             Field::Duration => parse_duration(text)?,
             Field::Success => f64::from(u8::from(parse_success(text)?)),
             Field::X | Field::Y | Field::X1 | Field::X2 | Field::BinTime | Field::Heading => {
-                parse_coordinate(text, field)?
+                parse_finite(text, field)?
             }
             Field::Rate | Field::Speed | Field::Count | Field::Stop => {
                 parse_non_negative(text, field)?
             }
             Field::ObservedDuration => {
-                let duration = parse_coordinate(text, field)?;
+                let duration = parse_finite(text, field)?;
                 if duration <= 0.0 {
                     return Err(DataErrorKind::NotPositive {
                         field,
@@ -896,7 +908,7 @@ pub(crate) fn parse_rate(text: &[u8]) -> Result<f64, DataErrorKind> {
 
 /// A finite number `>= 0` (rates, speeds).
 pub(crate) fn parse_non_negative(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
-    let value = parse_coordinate(text, field)?;
+    let value = parse_finite(text, field)?;
     if value < 0.0 {
         return Err(DataErrorKind::Negative {
             field,
@@ -975,8 +987,8 @@ fn parse_value(text: &[u8], index: usize) -> Result<f64, DataErrorKind> {
     Ok(value)
 }
 
-/// A coordinate in metres: any finite number.
-pub(crate) fn parse_coordinate(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
+/// A coordinate in metres, or any other finite number.
+pub(crate) fn parse_finite(text: &[u8], field: Field) -> Result<f64, DataErrorKind> {
     let value = parse_number(text, field)?;
     if !value.is_finite() {
         return Err(DataErrorKind::NonFinite {
@@ -985,6 +997,21 @@ pub(crate) fn parse_coordinate(text: &[u8], field: Field) -> Result<f64, DataErr
         });
     }
     Ok(value)
+}
+
+/// Checks the header line of a CSV file whose fields must be `header`, in that order.
+pub(crate) fn check_header(line: &[u8], header: &[&str]) -> Result<(), DataErrorKind> {
+    let fields: Vec<&[u8]> = Fields::new(line).collect();
+    if fields.len() != header.len() || fields.iter().zip(header).any(|(f, h)| *f != h.as_bytes()) {
+        return Err(DataErrorKind::BadHeader {
+            reason: format!(
+                "expected the header `{}`, found {:?}",
+                header.join(","),
+                quote(line)
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// A duration in seconds: finite and `>= 0` (`-0` is read as `0`).

@@ -138,14 +138,12 @@
 
 use std::collections::HashSet;
 use std::f64::consts::PI;
-use std::fmt;
 use std::fs;
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use chronomap_topo::map::{TopoError, TopoMap};
-use serde::de::{Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde_json::{Value, json};
 use serde_saphyr::Spanned;
 use thiserror::Error;
@@ -153,6 +151,7 @@ use thiserror::Error;
 use crate::text::{
     DataError, DataErrorKind, TimeSeries, decompressing_reader, open_data_file, read_timed_lines,
 };
+use crate::yaml::{self, Prefix, Yaml};
 
 // ---------------------------------------------------------------------------------------------
 // Edge files
@@ -691,19 +690,6 @@ pub struct TopoFileError {
     kind: TopoFileErrorKind,
 }
 
-struct Prefix<'a>(Option<&'a str>, Option<u64>);
-
-impl fmt::Display for Prefix<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.0, self.1) {
-            (Some(file), Some(line)) => write!(f, "{file}:{line}: "),
-            (Some(file), None) => write!(f, "{file}: "),
-            (None, Some(line)) => write!(f, "line {line}: "),
-            (None, None) => Ok(()),
-        }
-    }
-}
-
 impl TopoFileError {
     fn new(file: Option<&str>, line: Option<u64>, kind: TopoFileErrorKind) -> Self {
         TopoFileError {
@@ -899,24 +885,13 @@ pub fn read_tmap2(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
 pub fn decode_tmap2(name: &str, text: &[u8]) -> Result<Tmap2, TopoFileError> {
     // Only `true`/`false` are booleans: with YAML 1.1's `y`/`n`, the key `y` of a position
     // would be read as `true` (PyYAML does not treat `y`/`n` as booleans either).
-    // Non-finite numbers reach the reader, which names their key. Nesting depth is limited by
-    // serde-saphyr's default budget (64 levels), which keeps the recursive reader safe.
-    let options = serde_saphyr::options! {
-        strict_booleans: true,
-        non_finite_float_policy: serde_saphyr::NonFiniteFloatPolicy::PassThrough,
-        with_snippet: false,
-    };
-    let root: Spanned<Yaml> =
-        serde_saphyr::from_slice_with_options(text, options).map_err(|e| {
-            let line = e.location().map(|l| l.line());
-            TopoFileError::new(
-                Some(name),
-                line,
-                TopoFileErrorKind::Yaml {
-                    message: yaml_message(&e),
-                },
-            )
-        })?;
+    let root = yaml::parse(text, true).map_err(|e| {
+        TopoFileError::new(
+            Some(name),
+            e.line,
+            TopoFileErrorKind::Yaml { message: e.message },
+        )
+    })?;
     let root = Cursor {
         file: name,
         path: String::new(),
@@ -1080,96 +1055,6 @@ fn parse_node(entry: &Cursor<'_>) -> Result<ParsedNode, TopoFileError> {
     })
 }
 
-/// A YAML value with the locations of its parts.
-#[derive(Debug)]
-enum Yaml {
-    Null,
-    Bool(bool),
-    Int(i128),
-    Float(f64),
-    Str(String),
-    Seq(Vec<Spanned<Yaml>>),
-    Map(Vec<(String, Spanned<Yaml>)>),
-}
-
-impl<'de> Deserialize<'de> for Yaml {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct YamlVisitor;
-        impl<'de> Visitor<'de> for YamlVisitor {
-            type Value = Yaml;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("any YAML value")
-            }
-            fn visit_bool<E>(self, v: bool) -> Result<Yaml, E> {
-                Ok(Yaml::Bool(v))
-            }
-            fn visit_i64<E>(self, v: i64) -> Result<Yaml, E> {
-                Ok(Yaml::Int(v.into()))
-            }
-            fn visit_u64<E>(self, v: u64) -> Result<Yaml, E> {
-                Ok(Yaml::Int(v.into()))
-            }
-            fn visit_i128<E>(self, v: i128) -> Result<Yaml, E> {
-                Ok(Yaml::Int(v))
-            }
-            fn visit_u128<E>(self, v: u128) -> Result<Yaml, E> {
-                Ok(i128::try_from(v).map_or(Yaml::Float(v as f64), Yaml::Int))
-            }
-            fn visit_f64<E>(self, v: f64) -> Result<Yaml, E> {
-                Ok(Yaml::Float(v))
-            }
-            fn visit_str<E>(self, v: &str) -> Result<Yaml, E> {
-                Ok(Yaml::Str(v.to_owned()))
-            }
-            fn visit_bytes<E>(self, v: &[u8]) -> Result<Yaml, E> {
-                Ok(Yaml::Str(String::from_utf8_lossy(v).into_owned()))
-            }
-            fn visit_unit<E>(self) -> Result<Yaml, E> {
-                Ok(Yaml::Null)
-            }
-            fn visit_none<E>(self) -> Result<Yaml, E> {
-                Ok(Yaml::Null)
-            }
-            fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Yaml, D::Error> {
-                Yaml::deserialize(d)
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Yaml, A::Error> {
-                let mut items = Vec::new();
-                while let Some(item) = seq.next_element()? {
-                    items.push(item);
-                }
-                Ok(Yaml::Seq(items))
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Yaml, A::Error> {
-                let mut entries = Vec::new();
-                while let Some(key) = map.next_key::<Yaml>()? {
-                    let key = match key {
-                        Yaml::Str(s) => s,
-                        other => other.to_string(),
-                    };
-                    entries.push((key, map.next_value()?));
-                }
-                Ok(Yaml::Map(entries))
-            }
-        }
-        deserializer.deserialize_any(YamlVisitor)
-    }
-}
-
-impl fmt::Display for Yaml {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Yaml::Null => f.write_str("null"),
-            Yaml::Bool(b) => write!(f, "{b}"),
-            Yaml::Int(i) => write!(f, "{i}"),
-            Yaml::Float(x) => write!(f, "{x:?}"),
-            Yaml::Str(s) => write!(f, "{s:?}"),
-            Yaml::Seq(_) => f.write_str("[...]"),
-            Yaml::Map(_) => f.write_str("{...}"),
-        }
-    }
-}
-
 /// A YAML value being read, with its file and key path for errors.
 struct Cursor<'a> {
     file: &'a str,
@@ -1285,24 +1170,6 @@ impl<'a> Cursor<'a> {
         } else {
             Err(self.invalid("a finite number"))
         }
-    }
-}
-
-/// The parser's message without its location (the error has the line).
-fn yaml_message(error: &serde_saphyr::Error) -> String {
-    let mut message = error.without_snippet().to_string();
-    if let Some(at) = message.rfind(" at line ") {
-        message.truncate(at);
-    }
-    if let Some(rest) = message.strip_prefix("duplicate mapping key: ") {
-        let key = rest.split(',').next().unwrap_or(rest);
-        format!("the key `{key}` appears twice")
-    } else if message.starts_with("multiple YAML documents") {
-        "several YAML documents (a map file has one)".to_owned()
-    } else if message.starts_with("budget breached: Depth") {
-        "collections nested too deeply".to_owned()
-    } else {
-        message
     }
 }
 
@@ -1447,21 +1314,7 @@ fn yaml_scalar(text: &str) -> String {
     if plain {
         return text.to_owned();
     }
-    let mut quoted = String::with_capacity(text.len() + 2);
-    quoted.push('"');
-    for c in text.chars() {
-        match c {
-            '"' => quoted.push_str("\\\""),
-            '\\' => quoted.push_str("\\\\"),
-            '\n' => quoted.push_str("\\n"),
-            '\t' => quoted.push_str("\\t"),
-            '\r' => quoted.push_str("\\r"),
-            c if c.is_control() => quoted.push_str(&format!("\\u{:04x}", u32::from(c))),
-            c => quoted.push(c),
-        }
-    }
-    quoted.push('"');
-    quoted
+    yaml::double_quoted(text)
 }
 
 /// `%d-%m-%Y_%H-%M-%S` of a unix time (UTC).

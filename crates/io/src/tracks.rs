@@ -43,7 +43,7 @@ use chronomap_activity::truth::TrackPoint;
 use chronomap_hypertime::events::Event;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_coordinate,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
     parse_non_negative, parse_person, quote, required,
 };
 
@@ -131,17 +131,17 @@ pub fn read_track_points_from(name: &str, reader: impl Read) -> Result<Vec<Track
         let mut fields = Fields::new(line);
         let mut next = |field| required(fields.next(), field, EXPECTED);
         let t_text = next(Field::Time)?;
-        let t = parse_coordinate(t_text, Field::Time)?;
+        let t = parse_finite(t_text, Field::Time)?;
         if t < 0.0 {
             return Err(DataErrorKind::NegativeTime {
                 text: quote(t_text),
             });
         }
         let person = parse_person(next(Field::Person)?)?;
-        let x = parse_coordinate(next(Field::X)?, Field::X)?;
-        let y = parse_coordinate(next(Field::Y)?, Field::Y)?;
+        let x = parse_finite(next(Field::X)?, Field::X)?;
+        let y = parse_finite(next(Field::Y)?, Field::Y)?;
         parse_non_negative(next(Field::Speed)?, Field::Speed)?;
-        parse_coordinate(next(Field::Heading)?, Field::Heading)?;
+        parse_finite(next(Field::Heading)?, Field::Heading)?;
         if let Some(extra) = fields.next() {
             return Err(DataErrorKind::ExtraField {
                 text: quote(extra),

@@ -12,17 +12,11 @@ use chronomap_plot::{
     HEATMAP_NO_VALUE, Heatmap, HeatmapLayout, Panel, PlotErrorKind, Series, SeriesStyle,
     SpectrumBar, heatmap_colour, render_heatmap_png, render_panels_png, render_spectrum_png,
 };
+use chronomap_testutil::{data_path as data, shared_dir};
 
-fn data(relative: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data")
-        .join(relative)
-}
-
+/// Where a test's PNG goes: `target/tmp/chronomap-io-plots/NAME` (kept, to be looked at).
 fn out(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("chronomap-io-plots");
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    shared_dir(Path::new(env!("CARGO_TARGET_TMPDIR")).join("chronomap-io-plots")).join(name)
 }
 
 fn assert_png(path: &Path, min_bytes: u64) {

@@ -4,9 +4,9 @@
 //! planned for, which the planning model has not seen).
 
 use super::{Method, PsbtConfig, PsbtError, RateField, SearchContext};
-use chronomap_activity::disturbance::PlanningGrid;
 use chronomap_core::Parallelism;
 use chronomap_core::rng::Xoshiro256StarStar;
+use chronomap_spatial::PlanningGrid;
 
 /// What one strategy's plan achieves from one help location.
 #[derive(Clone, Debug, PartialEq)]

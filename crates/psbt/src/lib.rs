@@ -3,7 +3,7 @@
 //! someone within a look-ahead time, from a model of human activity `λ(x, t)`.
 //!
 //! ```
-//! use chronomap_activity::disturbance::PlanningGrid;
+//! use chronomap_spatial::PlanningGrid;
 //! use chronomap_psbt::{GammaPrior, GridPoisson, GridSpec, PsbtConfig, synthesize, Step};
 //! use chronomap_core::Parallelism;
 //!
@@ -81,8 +81,8 @@ pub use synth::{
 
 use thiserror::Error;
 
-use chronomap_activity::disturbance::PlanningGrid;
 use chronomap_bt::sbt::{Action, Chain, Means, SbtError, Target, add_scaled};
+use chronomap_spatial::PlanningGrid;
 use path::CellPath;
 
 /// Why a person search could not be planned.
@@ -125,7 +125,7 @@ pub enum PsbtError {
     Sbt(#[from] SbtError),
     /// The planning grid could not be built.
     #[error(transparent)]
-    Grid(#[from] chronomap_activity::disturbance::DisturbanceError),
+    Grid(#[from] chronomap_spatial::PlanningGridError),
 }
 
 /// Parameters of the person search; the defaults are those of §5.4.4.

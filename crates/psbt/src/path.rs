@@ -1,12 +1,10 @@
 //! Geometric search paths `𝔾`, `l_sp` of eq. 5.13: A* on the 8-connected planning grid (the
-//! [`PlanningGrid`] of the disturbance benchmark, whose Dijkstra is the oracle of the tests),
-//! and a bounded Dijkstra tree from the help location, which gives every place's path and
-//! distance back to it in one pass.
+//! [`PlanningGrid`] of the disturbance benchmark, whose weighted Dijkstra is the oracle of the
+//! tests), and a bounded Dijkstra tree from the help location, which gives every place's path
+//! and distance back to it in one pass. Both are `chronomap_spatial`'s one least-cost search.
 
-use std::collections::BinaryHeap;
-
-use chronomap_activity::disturbance::PlanningGrid;
-use chronomap_spatial::queue::MinCost;
+use chronomap_spatial::PlanningGrid;
+use chronomap_spatial::search::ShortestPaths;
 
 /// A path through free cells and its length in metres (centre to centre).
 #[derive(Clone, Debug, PartialEq)]
@@ -29,125 +27,52 @@ impl CellPath {
     }
 }
 
-/// The octile distance between two cells: the shortest 8-connected path without obstacles,
-/// a consistent A* heuristic.
-fn octile(grid: &PlanningGrid, a: usize, b: usize) -> f64 {
-    let cols = grid.cols();
-    let dx = (a % cols).abs_diff(b % cols) as f64;
-    let dy = (a / cols).abs_diff(b / cols) as f64;
-    grid.cell_size() * (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy))
-}
-
 /// The shortest path from cell `from` to cell `to` through free cells (8-connected, no
-/// corner cutting, steps of `cell` and `cell·√2`), by A* with the octile heuristic. `None`
-/// if either cell is blocked or they are not connected.
+/// corner cutting, steps of `cell` and `cell·√2`), by A* with the octile heuristic
+/// ([`PlanningGrid::shortest_path`] without weights). `None` if either cell is blocked or they
+/// are not connected.
 ///
 /// # Complexity
 /// `O(E log E)` for the `E` cells expanded, at most the free cells of the grid.
 pub fn astar(grid: &PlanningGrid, from: usize, to: usize) -> Option<CellPath> {
-    if !grid.is_free(from) || !grid.is_free(to) {
-        return None;
-    }
-    let mut best = vec![f64::INFINITY; grid.len()];
-    let mut previous = vec![usize::MAX; grid.len()];
-    let mut done = vec![false; grid.len()];
-    let mut queue = BinaryHeap::new();
-    best[from] = 0.0;
-    queue.push(MinCost(octile(grid, from, to), from));
-    while let Some(MinCost(_, cell)) = queue.pop() {
-        if done[cell] {
-            continue;
-        }
-        done[cell] = true;
-        if cell == to {
-            break;
-        }
-        for (next, step) in grid.neighbours(cell) {
-            let g = best[cell] + step;
-            if !done[next] && g < best[next] {
-                best[next] = g;
-                previous[next] = cell;
-                queue.push(MinCost(g + octile(grid, next, to), next));
-            }
-        }
-    }
-    done[to].then(|| trace(&previous, from, to, best[to]))
-}
-
-fn trace(previous: &[usize], from: usize, to: usize, length: f64) -> CellPath {
-    let mut cells = vec![to];
-    while let Some(&last) = cells.last()
-        && last != from
-    {
-        cells.push(previous[last]);
-    }
-    cells.reverse();
-    CellPath { cells, length }
+    let (cells, length) = grid.shortest_path(None, from, to)?;
+    Some(CellPath { cells, length })
 }
 
 /// Shortest distances from one cell to every free cell within a bound, and the tree of
-/// shortest paths (Dijkstra, the same moves as [`astar`]).
+/// shortest paths (Dijkstra, the same moves as [`astar`]: [`PlanningGrid::paths_within`]).
 #[derive(Clone, Debug)]
-pub struct DistanceTree {
-    source: usize,
-    distance: Vec<f64>,
-    previous: Vec<usize>,
-}
+pub struct DistanceTree(ShortestPaths);
 
 impl DistanceTree {
     /// Dijkstra from `source`, settling the cells up to `max_distance` metres away.
     /// Returns `None` if `source` is blocked.
     pub fn new(grid: &PlanningGrid, source: usize, max_distance: f64) -> Option<Self> {
-        if !grid.is_free(source) {
-            return None;
-        }
-        let mut distance = vec![f64::INFINITY; grid.len()];
-        let mut previous = vec![usize::MAX; grid.len()];
-        let mut done = vec![false; grid.len()];
-        let mut queue = BinaryHeap::new();
-        distance[source] = 0.0;
-        queue.push(MinCost(0.0, source));
-        while let Some(MinCost(d, cell)) = queue.pop() {
-            if done[cell] {
-                continue;
-            }
-            done[cell] = true;
-            for (next, step) in grid.neighbours(cell) {
-                let candidate = d + step;
-                if candidate <= max_distance && !done[next] && candidate < distance[next] {
-                    distance[next] = candidate;
-                    previous[next] = cell;
-                    queue.push(MinCost(candidate, next));
-                }
-            }
-        }
-        Some(DistanceTree {
-            source,
-            distance,
-            previous,
-        })
+        grid.paths_within(source, max_distance).map(DistanceTree)
     }
 
     /// The source cell.
     pub fn source(&self) -> usize {
-        self.source
+        self.0.source()
     }
 
     /// Distance in metres to `cell` (infinite beyond the bound or unreachable).
     pub fn distance(&self, cell: usize) -> f64 {
-        self.distance.get(cell).copied().unwrap_or(f64::INFINITY)
+        self.0.cost(cell)
     }
 
     /// The cells within the bound, the source included, in index order.
     pub fn reached(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.distance.len()).filter(|&i| self.distance[i].is_finite())
+        self.0.reached()
     }
 
     /// The shortest path from the source to `cell`, if it is within the bound.
     pub fn path_to(&self, cell: usize) -> Option<CellPath> {
-        let d = self.distance(cell);
-        d.is_finite()
-            .then(|| trace(&self.previous, self.source, cell, d))
+        let cells = self.0.path_to(cell)?;
+        Some(CellPath {
+            cells,
+            length: self.distance(cell),
+        })
     }
 }
 

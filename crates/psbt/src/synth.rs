@@ -8,11 +8,11 @@ use super::actions::{MIN_RATE, SearchAction, WaitAction, move_to};
 use super::path::{CellPath, DistanceTree, astar, sample_cells};
 use super::places::{open_tsp, sample_places, sample_uniform};
 use super::{PersonSearchTree, Phase, PsbtConfig, PsbtError, RateField, Step, phase_chain};
-use chronomap_activity::disturbance::PlanningGrid;
 use chronomap_bt::sbt::dense::DenseGenerator;
 use chronomap_bt::sbt::{Action, SbtError, poisson_survival, poisson_truncation};
 use chronomap_core::Parallelism;
 use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
+use chronomap_spatial::PlanningGrid;
 
 /// Paths between the start (node 0) and the places (nodes `1..`), all pairs; `None` on the
 /// diagonal.

@@ -10,10 +10,7 @@ use chronomap_activity::truth::TrackPoint;
 use chronomap_bt::sbt::Node;
 use chronomap_core::Parallelism;
 use chronomap_core::rng::Xoshiro256StarStar;
-
-fn close(a: f64, b: f64, tol: f64) -> bool {
-    (a - b).abs() <= tol
-}
+use chronomap_testutil::{close, monte_carlo_agrees};
 
 /// Eqs. 5.9–5.12 by hand: `μ_w = 0.05/s`, `p'_s = 0.9` → `T' = ln 10 / 0.05 = 46.0517 s`.
 #[test]
@@ -284,13 +281,8 @@ fn phase_chain_semantics() {
         }
     }
     for (o, h) in exact.iter().zip(hits) {
-        let p = h as f64 / n as f64;
-        let sigma = (o.p_success * (1.0 - o.p_success) / n as f64).sqrt();
-        assert!(
-            (p - o.p_success).abs() <= 5.0 * sigma + 1e-12,
-            "{p} vs {}",
-            o.p_success
-        );
+        let (agrees, p) = monte_carlo_agrees(h, n, o.p_success);
+        assert!(agrees, "{p} vs {}", o.p_success);
     }
 }
 
@@ -416,21 +408,25 @@ fn one_hour_model(
     model
 }
 
+/// PSBT on the corridor from `from` at model time `t`, with the default settings and `seed`,
+/// on one thread.
+fn corridor_synthesis(
+    grid: &PlanningGrid,
+    model: &GridPoisson,
+    from: [f64; 2],
+    t: f64,
+    seed: u64,
+) -> Result<Synthesis, PsbtError> {
+    let config = PsbtConfig::default();
+    synthesize(grid, model, from, t, &config, seed, Parallelism::Sequential)
+}
+
 #[test]
 fn a_busy_place_beats_waiting_at_an_empty_start() {
     let (grid, model) = corridor();
     let config = PsbtConfig::default();
     let from = [1.25, 1.25];
-    let psbt = synthesize(
-        &grid,
-        &model,
-        from,
-        10.0,
-        &config,
-        4,
-        Parallelism::Sequential,
-    )
-    .unwrap();
+    let psbt = corridor_synthesis(&grid, &model, from, 10.0, 4).unwrap();
     let w = baseline(&grid, &model, from, 10.0, &config, Method::W, 4).unwrap();
     let pp = baseline(&grid, &model, from, 10.0, &config, Method::Pp, 4).unwrap();
     let gm = baseline(&grid, &model, from, 10.0, &config, Method::Gm, 4).unwrap();
@@ -470,16 +466,7 @@ fn waiting_at_a_busy_start_is_kept() {
     let (grid, model) = corridor();
     let config = PsbtConfig::default();
     let from = [27.25, 1.25];
-    let psbt = synthesize(
-        &grid,
-        &model,
-        from,
-        10.0,
-        &config,
-        9,
-        Parallelism::Sequential,
-    )
-    .unwrap();
+    let psbt = corridor_synthesis(&grid, &model, from, 10.0, 9).unwrap();
     let w = baseline(&grid, &model, from, 10.0, &config, Method::W, 9).unwrap();
     assert!(psbt.p_success >= w.p_success);
     assert!(w.p_success > 0.85);
@@ -496,28 +483,10 @@ fn waiting_at_a_busy_start_is_kept() {
 fn bad_starts_and_settings_are_errors() {
     let (mut grid, model) = corridor();
     let config = PsbtConfig::default();
-    let err = synthesize(
-        &grid,
-        &model,
-        [-5.0, 1.0],
-        0.0,
-        &config,
-        0,
-        Parallelism::Sequential,
-    )
-    .unwrap_err();
+    let err = corridor_synthesis(&grid, &model, [-5.0, 1.0], 0.0, 0).unwrap_err();
     assert_eq!(err, PsbtError::StartOutside { at: [-5.0, 1.0] });
     grid.keep_only(|c| c[0] > 1.0);
-    let err = synthesize(
-        &grid,
-        &model,
-        [0.75, 1.0],
-        0.0,
-        &config,
-        0,
-        Parallelism::Sequential,
-    )
-    .unwrap_err();
+    let err = corridor_synthesis(&grid, &model, [0.75, 1.0], 0.0, 0).unwrap_err();
     assert_eq!(err, PsbtError::StartBlocked { at: [0.75, 1.0] });
     let bad = PsbtConfig {
         places: 20,

@@ -1,10 +1,15 @@
 //! # chronomap-spatial
 //!
 //! The spatial pieces every map-based domain of chronomap shares: occupancy of a 2-D map as
-//! an obstacle grid with ray casting, and the least-cost-first queue of the grid searches.
+//! an obstacle grid with ray casting, the planning grid a robot drives on, and the one
+//! least-cost search (Dijkstra, or A* with a heuristic) over them with its least-cost-first
+//! queue.
 #![deny(missing_docs)]
 
 pub mod obstacle;
+pub mod planning;
 pub mod queue;
+pub mod search;
 
 pub use obstacle::{ObstacleGrid, ObstacleGridError};
+pub use planning::{PlanningGrid, PlanningGridError};

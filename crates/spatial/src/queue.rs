@@ -1,4 +1,4 @@
-//! The entry of the least-cost-first queues of the grid searches (Dijkstra in
+//! The entry of the least-cost-first queue of the grid searches ([`crate::search`]: Dijkstra in
 //! `chronomap-activity`'s service disturbance, A* in `chronomap-psbt`).
 
 use std::cmp::Ordering;

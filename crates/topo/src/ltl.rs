@@ -279,8 +279,8 @@ fn caret(formula: &str, position: usize) -> String {
     format!("{}\n{indent}^", formula[start..end].trim_end_matches('\r'))
 }
 
-/// Whether `name` is an identifier atom `[A-Za-z_][A-Za-z0-9_]*`.
-fn is_identifier(name: &str) -> bool {
+/// Whether `name` is an identifier atom `[A-Za-z_][A-Za-z0-9_]*` (also PRISM's identifiers).
+pub(crate) fn is_identifier(name: &str) -> bool {
     let mut chars = name.chars();
     chars
         .next()

@@ -20,8 +20,8 @@ use statrs::function::gamma::ln_gamma;
 
 use super::kernel::{ActivityKernel, Kernel, Point};
 use super::svgp::{
-    GpError, LatentGp, Marginals, Prediction, SvgpModel, Variational, check_data, pack_lower,
-    unpack_lower, with_step_halving,
+    BatchLik, GpError, LatentGp, Marginals, Prediction, SvgpModel, Variational, check_data,
+    flatten, pack_lower, svgp_model, unpack_lower, with_step_halving,
 };
 use chronomap_core::par::Parallelism;
 
@@ -141,20 +141,12 @@ pub struct PoissonElboGrad {
 impl PoissonElboGrad {
     /// The gradient flattened in the order of [`PoissonSvgp::hyperparameters`].
     pub fn flatten(&self, with_inducing: bool) -> Vec<f64> {
-        let mut p = self.d_kernel.clone();
-        p.push(self.d_mean);
-        if with_inducing {
-            p.extend(self.d_z.iter().flatten());
-        }
-        p
+        flatten(
+            &[&self.d_kernel, &[self.d_mean]],
+            &[&self.d_z],
+            with_inducing,
+        )
     }
-}
-
-/// Per-point likelihood gradients and the summed expected log-likelihood of a batch.
-struct BatchLik {
-    ell: f64,
-    dm: Vec<f64>,
-    dv: Vec<f64>,
 }
 
 /// [`check_data`] and rates `y ≥ 0`.
@@ -180,21 +172,22 @@ impl PoissonSvgp {
         }
     }
 
-    fn batch_lik(&self, y: &[f64], marg: &Marginals, scale: f64) -> BatchLik {
-        let n = y.len();
-        let mut out = BatchLik {
-            ell: 0.0,
-            dm: vec![0.0; n],
-            dv: vec![0.0; n],
-        };
-        for (i, &yi) in y.iter().enumerate() {
-            let e = expected_poisson_log_lik(yi, self.mean + marg.mean[i], marg.var[i]);
-            out.ell += e.value;
-            out.dm[i] = scale * e.d_m;
-            out.dv[i] = scale * e.d_v;
-        }
-        out.ell *= scale;
-        out
+    /// The marginals of `f` on a checked batch.
+    fn marginals(&self, x: &[Point], y: &[f64], par: Parallelism) -> Result<Marginals, GpError> {
+        check_rates(x, y)?;
+        self.f.marginals(x, self.jitter, par)
+    }
+
+    /// The ELBO of eq. 4.12 from the batch likelihood: minus the KL term.
+    fn elbo_of(&self, lik: &BatchLik<1>) -> f64 {
+        lik.ell - self.f.q.kl()
+    }
+
+    fn batch_lik(&self, y: &[f64], marg: &Marginals, scale: f64) -> BatchLik<1> {
+        BatchLik::new(y.len(), scale, |i| {
+            let e = expected_poisson_log_lik(y[i], self.mean + marg.mean[i], marg.var[i]);
+            (e.value, [e.d_m], [e.d_v])
+        })
     }
 
     /// The ELBO (seed 002 eq. 4.12 with the one latent function of GP-Hom) estimated on the
@@ -211,9 +204,8 @@ impl PoissonSvgp {
         scale: f64,
         par: Parallelism,
     ) -> Result<f64, GpError> {
-        check_rates(x, y)?;
-        let marg = self.f.marginals(x, self.jitter, par)?;
-        Ok(self.batch_lik(y, &marg, scale).ell - self.f.q.kl())
+        let marg = self.marginals(x, y, par)?;
+        Ok(self.elbo_of(&self.batch_lik(y, &marg, scale)))
     }
 
     /// [`PoissonSvgp::elbo`] and its exact gradient with respect to the kernel
@@ -228,8 +220,7 @@ impl PoissonSvgp {
         scale: f64,
         par: Parallelism,
     ) -> Result<PoissonElboGrad, GpError> {
-        check_rates(x, y)?;
-        let marg = self.f.marginals(x, self.jitter, par)?;
+        let marg = self.marginals(x, y, par)?;
         Ok(self.grad_from(x, y, scale, &marg, par))
     }
 
@@ -243,17 +234,17 @@ impl PoissonSvgp {
     ) -> PoissonElboGrad {
         let lik = self.batch_lik(y, marg, scale);
         let mut out = PoissonElboGrad {
-            elbo: lik.ell - self.f.q.kl(),
+            elbo: self.elbo_of(&lik),
             d_kernel: vec![0.0; self.f.kernel.params().len()],
             // m_i = c + a_iᵀμ: ∂/∂c = Σ_i ∂/∂m_i.
-            d_mean: lik.dm.iter().sum(),
+            d_mean: lik.dm[0].iter().sum(),
             d_z: vec![[0.0; 3]; self.f.z.len()],
         };
         self.f.marginals_backward(
             x,
             marg,
-            &lik.dm,
-            &lik.dv,
+            &lik.dm[0],
+            &lik.dv[0],
             &mut out.d_kernel,
             &mut out.d_z,
             par,
@@ -277,12 +268,11 @@ impl PoissonSvgp {
         rho: f64,
         par: Parallelism,
     ) -> Result<(f64, PoissonElboGrad), GpError> {
-        check_rates(x, y)?;
-        let marg = self.f.marginals(x, self.jitter, par)?;
+        let marg = self.marginals(x, y, par)?;
         let lik = self.batch_lik(y, &marg, scale);
-        let elbo = lik.ell - self.f.q.kl();
+        let elbo = self.elbo_of(&lik);
         self.f.q = with_step_halving(rho, |rho| {
-            self.f.natgrad_update(&marg, &lik.dm, &lik.dv, rho)
+            self.f.natgrad_update(&marg, &lik.dm[0], &lik.dv[0], rho)
         })?;
         let marg = self.f.refresh(marg);
         Ok((elbo, self.grad_from(x, y, scale, &marg, par)))
@@ -318,12 +308,11 @@ impl PoissonSvgp {
     /// All hyperparameters trained by Adam, flattened: the `k_f` log-parameters, `c`, then (if
     /// `with_inducing`) `Z` row by row.
     pub fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        let mut p = self.f.kernel.params().to_vec();
-        p.push(self.mean);
-        if with_inducing {
-            p.extend(self.f.z.iter().flatten());
-        }
-        p
+        flatten(
+            &[self.f.kernel.params(), &[self.mean]],
+            &[&self.f.z],
+            with_inducing,
+        )
     }
 
     /// Inverse of [`PoissonSvgp::hyperparameters`].
@@ -344,29 +333,4 @@ impl PoissonSvgp {
     }
 }
 
-impl SvgpModel for PoissonSvgp {
-    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
-        check_rates(x, y)
-    }
-
-    fn train_iteration(
-        &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        rho: f64,
-        with_inducing: bool,
-        par: Parallelism,
-    ) -> Result<(f64, Vec<f64>), GpError> {
-        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
-        Ok((elbo, grad.flatten(with_inducing)))
-    }
-
-    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        PoissonSvgp::hyperparameters(self, with_inducing)
-    }
-
-    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
-        PoissonSvgp::set_hyperparameters(self, p, with_inducing);
-    }
-}
+svgp_model!(PoissonSvgp, check_rates);

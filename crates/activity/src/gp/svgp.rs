@@ -527,13 +527,56 @@ pub struct Prediction {
     pub std: Vec<f64>,
 }
 
-/// Per-point likelihood gradients and the summed expected log-likelihood of a batch.
-struct BatchLik {
-    ell: f64,
-    dmf: Vec<f64>,
-    dvf: Vec<f64>,
-    dmg: Vec<f64>,
-    dvg: Vec<f64>,
+/// The likelihood term of the ELBO on a batch (the first term of seed 002 eq. 4.12) for a
+/// model of `L` latent GPs: `scale · Σ_i E_{q}[ln p(y_i | ·)]` and its per-point gradients
+/// with respect to the marginal mean `m_{l,i}` and variance `v_{l,i}` of every latent GP `l`,
+/// scaled the same way. The one batch likelihood of [`HeteroSvgp`] (`L = 2`: `f`, `g`) and
+/// [`PoissonSvgp`](super::PoissonSvgp) (`L = 1`).
+pub(super) struct BatchLik<const L: usize> {
+    /// `scale · Σ_i E_i`.
+    pub(super) ell: f64,
+    /// `scale · ∂E_i/∂m_{l,i}`, indexed `[l][i]`.
+    pub(super) dm: [Vec<f64>; L],
+    /// `scale · ∂E_i/∂v_{l,i}`, indexed `[l][i]`.
+    pub(super) dv: [Vec<f64>; L],
+}
+
+impl<const L: usize> BatchLik<L> {
+    /// The batch likelihood of `n` points from `point(i) = (E_i, [∂E_i/∂m_l], [∂E_i/∂v_l])`.
+    pub(super) fn new(
+        n: usize,
+        scale: f64,
+        mut point: impl FnMut(usize) -> (f64, [f64; L], [f64; L]),
+    ) -> Self {
+        let mut out = BatchLik {
+            ell: 0.0,
+            dm: std::array::from_fn(|_| vec![0.0; n]),
+            dv: std::array::from_fn(|_| vec![0.0; n]),
+        };
+        for i in 0..n {
+            let (value, dm, dv) = point(i);
+            out.ell += value;
+            for l in 0..L {
+                out.dm[l][i] = scale * dm[l];
+                out.dv[l][i] = scale * dv[l];
+            }
+        }
+        out.ell *= scale;
+        out
+    }
+}
+
+/// Hyperparameters, or their gradient, flattened in the order Adam sees them: the `parts`
+/// (kernel log-parameters, a prior mean, ...) in turn, then, if `with_inducing`, the inducing
+/// inputs of every latent GP row by row.
+pub(super) fn flatten(parts: &[&[f64]], inducing: &[&[Point]], with_inducing: bool) -> Vec<f64> {
+    let mut p: Vec<f64> = parts.concat();
+    if with_inducing {
+        for z in inducing {
+            p.extend(z.iter().flatten());
+        }
+    }
+    p
 }
 
 pub(super) fn check_data(x: &[Point], y: &[f64]) -> Result<(), GpError> {
@@ -568,27 +611,31 @@ impl HeteroSvgp {
         }
     }
 
-    fn batch_lik(&self, y: &[f64], mf: &Marginals, mg: &Marginals, scale: f64) -> BatchLik {
-        let n = y.len();
-        let mut out = BatchLik {
-            ell: 0.0,
-            dmf: vec![0.0; n],
-            dvf: vec![0.0; n],
-            dmg: vec![0.0; n],
-            dvg: vec![0.0; n],
-        };
-        for (i, &yi) in y.iter().enumerate() {
+    /// The marginals of `f` and `g` on a checked batch.
+    fn marginals(
+        &self,
+        x: &[Point],
+        y: &[f64],
+        par: Parallelism,
+    ) -> Result<(Marginals, Marginals), GpError> {
+        check_data(x, y)?;
+        let mf = self.f.marginals(x, self.jitter, par)?;
+        let mg = self.g.marginals(x, self.jitter, par)?;
+        Ok((mf, mg))
+    }
+
+    /// The ELBO of eq. 4.12 from the batch likelihood: minus both KL terms.
+    fn elbo_of(&self, lik: &BatchLik<2>) -> f64 {
+        lik.ell - self.f.q.kl() - self.g.q.kl()
+    }
+
+    fn batch_lik(&self, y: &[f64], mf: &Marginals, mg: &Marginals, scale: f64) -> BatchLik<2> {
+        BatchLik::new(y.len(), scale, |i| {
             let e = self
                 .likelihood
-                .expected_log_lik(yi, mf.mean[i], mf.var[i], mg.mean[i], mg.var[i]);
-            out.ell += e.value;
-            out.dmf[i] = scale * e.d_mf;
-            out.dvf[i] = scale * e.d_vf;
-            out.dmg[i] = scale * e.d_mg;
-            out.dvg[i] = scale * e.d_vg;
-        }
-        out.ell *= scale;
-        out
+                .expected_log_lik(y[i], mf.mean[i], mf.var[i], mg.mean[i], mg.var[i]);
+            (e.value, [e.d_mf, e.d_mg], [e.d_vf, e.d_vg])
+        })
     }
 
     /// The ELBO (seed 002 eq. 4.12) estimated on the batch `(x, y)`: the expected
@@ -601,11 +648,9 @@ impl HeteroSvgp {
         scale: f64,
         par: Parallelism,
     ) -> Result<f64, GpError> {
-        check_data(x, y)?;
-        let mf = self.f.marginals(x, self.jitter, par)?;
-        let mg = self.g.marginals(x, self.jitter, par)?;
+        let (mf, mg) = self.marginals(x, y, par)?;
         let lik = self.batch_lik(y, &mf, &mg, scale);
-        Ok(lik.ell - self.f.q.kl() - self.g.q.kl())
+        Ok(self.elbo_of(&lik))
     }
 
     /// [`HeteroSvgp::elbo`] and its exact gradient with respect to both kernels'
@@ -617,9 +662,7 @@ impl HeteroSvgp {
         scale: f64,
         par: Parallelism,
     ) -> Result<ElboGrad, GpError> {
-        check_data(x, y)?;
-        let mf = self.f.marginals(x, self.jitter, par)?;
-        let mg = self.g.marginals(x, self.jitter, par)?;
+        let (mf, mg) = self.marginals(x, y, par)?;
         Ok(self.grad_from(x, y, scale, &mf, &mg, par))
     }
 
@@ -635,7 +678,7 @@ impl HeteroSvgp {
     ) -> ElboGrad {
         let lik = self.batch_lik(y, mf, mg, scale);
         let mut out = ElboGrad {
-            elbo: lik.ell - self.f.q.kl() - self.g.q.kl(),
+            elbo: self.elbo_of(&lik),
             d_kernel_f: vec![0.0; self.f.kernel.params().len()],
             d_kernel_g: vec![0.0; self.g.kernel.params().len()],
             d_z_f: vec![[0.0; 3]; self.f.z.len()],
@@ -644,8 +687,8 @@ impl HeteroSvgp {
         self.f.marginals_backward(
             x,
             mf,
-            &lik.dmf,
-            &lik.dvf,
+            &lik.dm[0],
+            &lik.dv[0],
             &mut out.d_kernel_f,
             &mut out.d_z_f,
             par,
@@ -653,8 +696,8 @@ impl HeteroSvgp {
         self.g.marginals_backward(
             x,
             mg,
-            &lik.dmg,
-            &lik.dvg,
+            &lik.dm[1],
+            &lik.dv[1],
             &mut out.d_kernel_g,
             &mut out.d_z_g,
             par,
@@ -674,13 +717,11 @@ impl HeteroSvgp {
         rho: f64,
         par: Parallelism,
     ) -> Result<f64, GpError> {
-        check_data(x, y)?;
-        let mf = self.f.marginals(x, self.jitter, par)?;
-        let mg = self.g.marginals(x, self.jitter, par)?;
+        let (mf, mg) = self.marginals(x, y, par)?;
         let lik = self.batch_lik(y, &mf, &mg, scale);
-        let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
-        let qf = self.f.natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)?;
-        let qg = self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?;
+        let elbo = self.elbo_of(&lik);
+        let qf = self.f.natgrad_update(&mf, &lik.dm[0], &lik.dv[0], rho)?;
+        let qg = self.g.natgrad_update(&mg, &lik.dm[1], &lik.dv[1], rho)?;
         self.f.q = qf;
         self.g.q = qg;
         Ok(elbo)
@@ -698,14 +739,12 @@ impl HeteroSvgp {
         rho: f64,
         par: Parallelism,
     ) -> Result<(f64, ElboGrad), GpError> {
-        check_data(x, y)?;
-        let mf = self.f.marginals(x, self.jitter, par)?;
-        let mg = self.g.marginals(x, self.jitter, par)?;
+        let (mf, mg) = self.marginals(x, y, par)?;
         let lik = self.batch_lik(y, &mf, &mg, scale);
-        let elbo = lik.ell - self.f.q.kl() - self.g.q.kl();
+        let elbo = self.elbo_of(&lik);
         let (qf, qg) = with_step_halving(rho, |rho| {
-            let qf = self.f.natgrad_update(&mf, &lik.dmf, &lik.dvf, rho)?;
-            Ok((qf, self.g.natgrad_update(&mg, &lik.dmg, &lik.dvg, rho)?))
+            let qf = self.f.natgrad_update(&mf, &lik.dm[0], &lik.dv[0], rho)?;
+            Ok((qf, self.g.natgrad_update(&mg, &lik.dm[1], &lik.dv[1], rho)?))
         })?;
         self.f.q = qf;
         self.g.q = qg;
@@ -738,13 +777,11 @@ impl HeteroSvgp {
     /// All hyperparameters trained by Adam, flattened: `k_f` log-parameters, `k_g`
     /// log-parameters, then (if `with_inducing`) `Z_f` and `Z_g` row by row.
     pub fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        let mut p = self.f.kernel.params().to_vec();
-        p.extend_from_slice(self.g.kernel.params());
-        if with_inducing {
-            p.extend(self.f.z.iter().flatten());
-            p.extend(self.g.z.iter().flatten());
-        }
-        p
+        flatten(
+            &[self.f.kernel.params(), self.g.kernel.params()],
+            &[&self.f.z, &self.g.z],
+            with_inducing,
+        )
     }
 
     /// Inverse of [`HeteroSvgp::hyperparameters`].
@@ -766,13 +803,11 @@ impl HeteroSvgp {
 impl ElboGrad {
     /// The gradient flattened in the order of [`HeteroSvgp::hyperparameters`].
     pub fn flatten(&self, with_inducing: bool) -> Vec<f64> {
-        let mut p = self.d_kernel_f.clone();
-        p.extend_from_slice(&self.d_kernel_g);
-        if with_inducing {
-            p.extend(self.d_z_f.iter().flatten());
-            p.extend(self.d_z_g.iter().flatten());
-        }
-        p
+        flatten(
+            &[&self.d_kernel_f, &self.d_kernel_g],
+            &[&self.d_z_f, &self.d_z_g],
+            with_inducing,
+        )
     }
 }
 
@@ -911,32 +946,41 @@ pub trait SvgpModel {
     fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool);
 }
 
-impl SvgpModel for HeteroSvgp {
-    fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
-        check_data(x, y)
-    }
+/// Implements [`SvgpModel`] for a model with inherent `train_step`, `hyperparameters` and
+/// `set_hyperparameters` and a gradient with `flatten`, whose training data `$check` checks.
+macro_rules! svgp_model {
+    ($model:ty, $check:path) => {
+        impl SvgpModel for $model {
+            fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError> {
+                $check(x, y)
+            }
 
-    fn train_iteration(
-        &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        rho: f64,
-        with_inducing: bool,
-        par: Parallelism,
-    ) -> Result<(f64, Vec<f64>), GpError> {
-        let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
-        Ok((elbo, grad.flatten(with_inducing)))
-    }
+            fn train_iteration(
+                &mut self,
+                x: &[Point],
+                y: &[f64],
+                scale: f64,
+                rho: f64,
+                with_inducing: bool,
+                par: Parallelism,
+            ) -> Result<(f64, Vec<f64>), GpError> {
+                let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
+                Ok((elbo, grad.flatten(with_inducing)))
+            }
 
-    fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
-        HeteroSvgp::hyperparameters(self, with_inducing)
-    }
+            fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
+                <$model>::hyperparameters(self, with_inducing)
+            }
 
-    fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
-        HeteroSvgp::set_hyperparameters(self, p, with_inducing);
-    }
+            fn set_hyperparameters(&mut self, p: &[f64], with_inducing: bool) {
+                <$model>::set_hyperparameters(self, p, with_inducing);
+            }
+        }
+    };
 }
+pub(super) use svgp_model;
+
+svgp_model!(HeteroSvgp, check_data);
 
 /// Trains `model` on `(x, y)` by alternating a natural-gradient step on its `q(v)` and an
 /// Adam step on the hyperparameters (and inducing inputs) on the same minibatch (seed 002

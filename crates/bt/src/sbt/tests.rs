@@ -4,6 +4,7 @@ use super::dense::DenseGenerator;
 use super::simulate::{Run, run};
 use super::*;
 use chronomap_rng::Xoshiro256StarStar;
+use chronomap_testutil::monte_carlo_agrees;
 
 const TOL: f64 = 1e-13;
 
@@ -189,13 +190,8 @@ fn monte_carlo_agrees_with_the_chain() {
         let runs: Vec<Run> = (0..n).map(|_| run(tree, &mut rng)).collect();
         for (o, &t) in exact.iter().zip(&times) {
             let hits = runs.iter().filter(|r| r.success && r.duration <= t).count();
-            let p_hat = hits as f64 / n as f64;
-            let sigma = (o.p_success * (1.0 - o.p_success) / n as f64).sqrt();
-            assert!(
-                (p_hat - o.p_success).abs() <= 5.0 * sigma + 1e-12,
-                "t={t}: MC {p_hat} vs chain {}",
-                o.p_success
-            );
+            let (agrees, p_hat) = monte_carlo_agrees(hits, n, o.p_success);
+            assert!(agrees, "t={t}: MC {p_hat} vs chain {}", o.p_success);
         }
         let successes: Vec<f64> = runs
             .iter()

@@ -10,6 +10,9 @@ use super::baselines::{CellFremen, CellHistogram, GlobalMean, StaticMap};
 use super::training::{EventError, Holdout, TrainingData, check_events};
 use super::{Event, EventGrid, EventIntensity, SpatialGrid};
 
+/// What [`EventModelBuilder::build`] gives: a fitted model, or why it could not be fitted.
+pub type Built = Result<Box<dyn EventIntensity>, EventError>;
+
 /// Fits one kind of event model; the experiment calls it once per cell size and bin length.
 ///
 /// This is the extension point of the experiment: a new model (such as the Warped Hypertime
@@ -25,12 +28,7 @@ pub trait EventModelBuilder: Send + Sync {
     ///
     /// # Errors
     /// If the model cannot be fitted.
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        space: SpatialGrid,
-        bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, EventError>;
+    fn build(&self, train: &TrainingData<'_>, space: SpatialGrid, bin_secs: f64) -> Built;
 }
 
 /// Builds [`StaticMap`]s.
@@ -42,12 +40,7 @@ impl EventModelBuilder for StaticBuilder {
         "static".into()
     }
 
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        space: SpatialGrid,
-        _bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, EventError> {
+    fn build(&self, train: &TrainingData<'_>, space: SpatialGrid, _bin_secs: f64) -> Built {
         Ok(Box::new(StaticMap::fit(train, space)))
     }
 }
@@ -61,12 +54,7 @@ impl EventModelBuilder for GlobalMeanBuilder {
         "mean".into()
     }
 
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        space: SpatialGrid,
-        _bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, EventError> {
+    fn build(&self, train: &TrainingData<'_>, space: SpatialGrid, _bin_secs: f64) -> Built {
         Ok(Box::new(GlobalMean::fit(train, space)))
     }
 }
@@ -93,27 +81,11 @@ impl EventModelBuilder for HistogramBuilder {
         "hist".into()
     }
 
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        space: SpatialGrid,
-        bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, EventError> {
-        let first = *self.candidates.first().ok_or(EventError::OutOfRange {
-            name: "histogram candidates",
-            value: 0.0,
-            expected: "at least one number of intervals",
+    fn build(&self, train: &TrainingData<'_>, space: SpatialGrid, bin_secs: f64) -> Built {
+        let none = ("histogram candidates", "at least one number of intervals");
+        let chosen = choose_on_holdout(train, space, bin_secs, &self.candidates, none, |h, n| {
+            Ok(holdout_error(h, &CellHistogram::fit(&h.fit, space, n)?))
         })?;
-        let chosen = match train.holdout(space, bin_secs) {
-            Some(h) => {
-                let mut errors = Vec::with_capacity(self.candidates.len());
-                for &n in &self.candidates {
-                    errors.push(holdout_error(&h, &CellHistogram::fit(&h.fit, space, n)?));
-                }
-                self.candidates[argmin(&errors)]
-            }
-            None => first,
-        };
         Ok(Box::new(CellHistogram::fit(train, space, chosen)?))
     }
 }
@@ -140,29 +112,18 @@ impl EventModelBuilder for FremenBuilder {
         "fremen".into()
     }
 
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        space: SpatialGrid,
-        bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, EventError> {
-        let first = *self.orders.first().ok_or(EventError::OutOfRange {
-            name: "FreMEn orders",
-            value: 0.0,
-            expected: "at least one order",
-        })?;
-        let chosen = match train.holdout(space, bin_secs) {
-            Some(h) => {
-                let mut model = CellFremen::fit(&h.fit, space, bin_secs, first)?;
-                let mut errors = Vec::with_capacity(self.orders.len());
-                for &order in &self.orders {
-                    model.set_order(order);
-                    errors.push(holdout_error(&h, &model));
-                }
-                self.orders[argmin(&errors)]
+    fn build(&self, train: &TrainingData<'_>, space: SpatialGrid, bin_secs: f64) -> Built {
+        // One fit of the hold-out's first part: the orders share its spectra.
+        let mut fitted: Option<CellFremen> = None;
+        let none = ("FreMEn orders", "at least one order");
+        let chosen = choose_on_holdout(train, space, bin_secs, &self.orders, none, |h, order| {
+            if fitted.is_none() {
+                fitted = Some(CellFremen::fit(&h.fit, space, bin_secs, self.orders[0])?);
             }
-            None => first,
-        };
+            let model = fitted.as_mut().expect("fitted above");
+            model.set_order(order);
+            Ok(holdout_error(h, model))
+        })?;
         Ok(Box::new(CellFremen::fit(train, space, bin_secs, chosen)?))
     }
 }
@@ -175,6 +136,32 @@ pub fn default_builders() -> Vec<Box<dyn EventModelBuilder>> {
         Box::new(HistogramBuilder::default()),
         Box::new(FremenBuilder::default()),
     ]
+}
+
+/// The candidate of least [`holdout_error`] (`error(holdout, candidate)`) on the
+/// chronological hold-out of `train`, or the first candidate without a hold-out. `none` names
+/// the candidates and what they need for the error of an empty list.
+fn choose_on_holdout(
+    train: &TrainingData<'_>,
+    space: SpatialGrid,
+    bin_secs: f64,
+    candidates: &[usize],
+    none: (&'static str, &'static str),
+    mut error: impl FnMut(&Holdout<'_>, usize) -> Result<f64, EventError>,
+) -> Result<usize, EventError> {
+    let &first = candidates.first().ok_or(EventError::OutOfRange {
+        name: none.0,
+        value: 0.0,
+        expected: none.1,
+    })?;
+    let Some(h) = train.holdout(space, bin_secs) else {
+        return Ok(first);
+    };
+    let mut errors = Vec::with_capacity(candidates.len());
+    for &candidate in candidates {
+        errors.push(error(&h, candidate)?);
+    }
+    Ok(candidates[argmin(&errors)])
 }
 
 /// Mean squared error per cell of `model` on the held-out counts.

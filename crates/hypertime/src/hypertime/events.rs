@@ -17,7 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Components, project, strongest_period};
+use super::{Components, check_candidate_periods, out_of_range, project, strongest_period};
 use crate::events::{Event, EventGrid, EventIntensity, Holdout, SpatialGrid, TrainingData};
 use crate::mixture::{EmConfig, EmInit, GaussianMixture, MixtureError, fit_em};
 use chronomap_core::error::{BuildError, ConfigError};
@@ -65,17 +65,9 @@ impl Default for EventModelConfig {
 
 impl EventModelConfig {
     fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |name: &'static str, value: String, expected: &'static str| {
-            Err(ConfigError::OutOfRange {
-                name,
-                value,
-                expected,
-            })
-        };
-        // The checks of every spectral model's candidate periods.
-        chronomap_core::periods::PeriodSet::from_periods(self.candidate_periods.clone())?;
+        check_candidate_periods(&self.candidate_periods)?;
         if self.components == Components::Fixed(0) || self.max_components == 0 {
-            return bad("components", "0".into(), "at least 1");
+            return out_of_range("components", "0".into(), "at least 1");
         }
         for (name, v) in [
             ("residual_bin_secs", self.residual_bin_secs),
@@ -83,11 +75,11 @@ impl EventModelConfig {
             ("check_bin_secs", self.check_bin_secs),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return bad(name, v.to_string(), "a positive number");
+                return out_of_range(name, v.to_string(), "a positive number");
             }
         }
         if self.starts == 0 {
-            return bad("starts", "0".into(), "at least 1");
+            return out_of_range("starts", "0".into(), "at least 1");
         }
         Ok(())
     }
@@ -479,12 +471,7 @@ impl crate::events::EventModelBuilder for HypertimeEventsBuilder {
         "hyt-em".into()
     }
 
-    fn build(
-        &self,
-        train: &TrainingData<'_>,
-        _space: SpatialGrid,
-        _bin_secs: f64,
-    ) -> Result<Box<dyn EventIntensity>, crate::events::EventError> {
+    fn build(&self, train: &TrainingData<'_>, _: SpatialGrid, _: f64) -> crate::events::Built {
         // The key: every event and window, bit for bit.
         let key: Vec<u64> = train
             .events()

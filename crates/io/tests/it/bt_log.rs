@@ -13,11 +13,7 @@ use chronomap_io::bt_log::{
 use chronomap_io::bt_script::{BtScriptErrorKind, parse_bt_script, read_bt_script};
 use chronomap_io::bt_xml::{encode_tree_xml, read_bt_xml};
 
-fn example(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/bt")
-        .join(name)
-}
+use crate::common::bt_example as example;
 
 /// Runs door.xml through door.script: the tree and every transition.
 fn door_run() -> (Tree, Vec<Transition>, Vec<Status>) {

@@ -2,8 +2,6 @@
 //! round-trip through the canonical writer, and bad files give errors that name the line,
 //! column and attribute.
 
-use std::path::PathBuf;
-
 use chronomap_bt::{
     BtDocument, DefinitionErrorKind, NodeCategory, NodeDef, PortDirection, Registry, Tree,
 };
@@ -11,11 +9,7 @@ use chronomap_io::bt_xml::{
     BtXmlError, BtXmlErrorKind, encode_bt_xml, encode_tree_xml, parse_bt_xml, read_bt_xml,
 };
 
-fn example(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/bt")
-        .join(name)
-}
+use crate::common::bt_example as example;
 
 fn load(name: &str) -> BtDocument {
     read_bt_xml(example(name), &Registry::new())

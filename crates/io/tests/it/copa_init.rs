@@ -3,14 +3,12 @@
 //! asserted are the ones measured with the defaults (Λ = 10, ψ_max = 10, σ²_max = 0.95, 5 m ×
 //! 5 m × 1 h regions, candidate periods 2 ..= 84 h in steps of 0.05).
 
-use std::path::PathBuf;
-
 use chronomap_activity::{RateSamples, SpectralInitConfig, initial_periods};
 use chronomap_io::read_rate_samples;
+use chronomap_testutil::data_path;
 
 fn atc_training() -> RateSamples {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    let path = data_path("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
     read_rate_samples(path).unwrap().split_at(96.0).0
 }
 

@@ -10,9 +10,7 @@ use chronomap_io::events::{read_event_files, read_events, read_events_from};
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 
 fn data(relative: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/lincoln_pedestrians_2017")
-        .join(relative)
+    chronomap_testutil::data_path("lincoln_pedestrians_2017").join(relative)
 }
 
 fn err(text: &str) -> DataError {
@@ -21,10 +19,7 @@ fn err(text: &str) -> DataError {
 
 /// Checks line, field and the whole message of an error about `people.txt`.
 fn check(err: &DataError, line: Option<usize>, field: Option<Field>, message: &str) {
-    assert_eq!(err.name(), "people.txt", "{err}");
-    assert_eq!(err.line(), line, "{err}");
-    assert_eq!(err.field(), field, "{err}");
-    assert_eq!(err.to_string(), message);
+    crate::common::check(err, "people.txt", line, field, message);
 }
 
 #[test]

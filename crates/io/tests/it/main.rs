@@ -1,6 +1,8 @@
 //! The tests of chronomap-io on the bundled real files and on hostile input, one module per
 //! format, in one test binary.
 
+mod common;
+
 mod bt_log;
 mod bt_xml;
 mod copa_init;

@@ -1,13 +1,10 @@
 //! State matrices: the bundled Brayford feature week and clear errors for bad lines.
 
-use std::path::Path;
-
 use chronomap_io::{read_state_matrix, read_state_matrix_from};
 
 #[test]
 fn the_brayford_feature_week() {
-    let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/brayford_week/features_0.txt.xz");
+    let path = chronomap_testutil::data_path("brayford_week/features_0.txt.xz");
     let rows = read_state_matrix(path).unwrap();
     assert_eq!((rows.len(), rows[0].len()), (10_080, 111));
     // Every slot is written on 10 identical lines.

@@ -13,15 +13,11 @@ use chronomap_io::navmap::{
     decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, format_g, image_path,
     load_map, read_map_yaml, save_map,
 };
+use chronomap_testutil::write;
 
 /// A fresh scratch folder for one test.
 fn scratch(test: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("chronomap-io-navmap")
-        .join(test);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
+    chronomap_testutil::scratch!("chronomap-io-navmap", test)
 }
 
 /// The hand-made 4 x 3 map (row 0 at the bottom) with free, occupied, unknown, out-of-range
@@ -49,12 +45,6 @@ origin: [-1.5, 2.25, 0]
 negate: 0
 occupied_thresh: 0.65
 free_thresh: 0.25";
-
-fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-    let path = dir.join(name);
-    fs::write(&path, bytes).unwrap();
-    path
-}
 
 fn metadata(mode: MapMode, occupied_thresh: f64, free_thresh: f64) -> MapMetadata {
     MapMetadata {

@@ -1,30 +1,17 @@
 //! Dataset readers: every kind of bad input is reported with file, line and field, and every
 //! bundled data file reads with its documented number of lines.
 
+use crate::common::check;
+use chronomap_testutil::data_path as data;
 use std::io::Write;
-use std::path::PathBuf;
 
 use chronomap_io::text::{
     DataError, DataErrorKind, Field, read_column, read_column_from, read_pairs, read_pairs_from,
     read_test_set, read_test_set_from,
 };
 
-fn data(relative: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data")
-        .join(relative)
-}
-
 fn pairs_err(text: &str) -> DataError {
     read_pairs_from("pairs.txt", text.as_bytes()).expect_err(text)
-}
-
-/// Checks name, line, field and the beginning of the message of an error.
-fn check(err: &DataError, name: &str, line: Option<usize>, field: Option<Field>, message: &str) {
-    assert_eq!(err.name(), name, "{err}");
-    assert_eq!(err.line(), line, "{err}");
-    assert_eq!(err.field(), field, "{err}");
-    assert_eq!(err.to_string(), message);
 }
 
 #[test]

@@ -5,7 +5,7 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::fs;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
@@ -16,18 +16,16 @@ use chronomap_io::topo_files::{
 use chronomap_topo::map::{TopoError, TopoMap};
 use serde_json::Value;
 
+use crate::common::check;
+use chronomap_testutil::data_path;
+
 fn witham_edges() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/witham_topological_nav/edges")
+    data_path("witham_topological_nav/edges")
 }
 
 /// A fresh scratch folder for one test.
 fn scratch(test: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("chronomap-io-topo")
-        .join(test);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
+    chronomap_testutil::scratch!("chronomap-io-topo", test)
 }
 
 /// A folder with the given files.
@@ -37,14 +35,6 @@ fn folder(test: &str, files: &[(&str, &str)]) -> PathBuf {
         fs::write(dir.join(name), text).unwrap();
     }
     dir
-}
-
-/// Checks name, line, field and the whole message of an error.
-fn check(err: &DataError, name: &str, line: Option<usize>, field: Option<Field>, message: &str) {
-    assert_eq!(err.name(), name, "{err}");
-    assert_eq!(err.line(), line, "{err}");
-    assert_eq!(err.field(), field, "{err}");
-    assert_eq!(err.to_string(), message);
 }
 
 fn edge_err(text: &str) -> DataError {
@@ -1119,7 +1109,7 @@ fn witham_split_writes_directories_that_read_back_exactly() {
 
 #[test]
 fn edge_files_in_memory_read_as_the_directory() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/witham_topological_nav/edges");
+    let dir = witham_edges();
     let from_dir = read_edge_directory(&dir).unwrap();
     let mut contents: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
         .unwrap()

@@ -3,10 +3,7 @@
 use chronomap_io::{read_track_files, read_tracks};
 
 fn data(name: &str) -> String {
-    format!(
-        "{}/../../data/atc_20121024_1hz/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    )
+    chronomap_testutil::data(&format!("atc_20121024_1hz/{name}"))
 }
 
 #[test]

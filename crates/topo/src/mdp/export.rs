@@ -4,6 +4,8 @@
 use std::fmt::Write;
 
 use super::{MdpError, NavigationMdp, Solution, SparseMdp};
+// PRISM's identifiers are LTL's atoms: `[A-Za-z_][A-Za-z0-9_]*`.
+use crate::ltl::is_identifier;
 
 /// A number as the shortest decimal that reads back to the same `f64` (no exponent, always
 /// with a decimal point, as PRISM and Storm both parse it).
@@ -14,15 +16,6 @@ fn number(x: f64) -> String {
     } else {
         s + ".0"
     }
-}
-
-/// Whether `name` is a PRISM identifier: `[A-Za-z_][A-Za-z0-9_]*`.
-fn is_identifier(name: &str) -> bool {
-    let mut chars = name.chars();
-    chars
-        .next()
-        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 /// PRISM's keywords (language and property operators).

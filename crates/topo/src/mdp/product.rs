@@ -96,17 +96,11 @@ pub(super) fn build(
     let dead_end = |s: usize| nav.actions(s).is_empty();
 
     let mut product = ProductMdp {
-        mdp: SparseMdp {
-            initial: 0,
-            goal: Vec::new(),
-            action_names: nav.edges().iter().map(|e| e.id.clone()).collect(),
-            state_start: vec![0],
-            choice_action: Vec::new(),
-            choice_cost: Vec::new(),
-            choice_start: vec![0],
-            target: Vec::new(),
-            prob: Vec::new(),
-        },
+        mdp: SparseMdp::without_choices(
+            0,
+            Vec::new(),
+            nav.edges().iter().map(|e| e.id.clone()).collect(),
+        ),
         states: Vec::new(),
         index: HashMap::new(),
     };

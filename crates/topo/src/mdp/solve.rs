@@ -80,6 +80,25 @@ pub struct Solution {
     pub iterations: Iterations,
 }
 
+/// Counts one more sweep of a value iteration, or fails with [`MdpError::NotConverged`] once
+/// `options.max_iterations` sweeps left it changing by `change`.
+fn next_sweep(
+    count: &mut usize,
+    options: &SolverOptions,
+    what: &'static str,
+    change: f64,
+) -> Result<(), MdpError> {
+    if *count == options.max_iterations {
+        return Err(MdpError::NotConverged {
+            what,
+            iterations: *count,
+            change,
+        });
+    }
+    *count += 1;
+    Ok(())
+}
+
 /// Solves `mdp`: `Pmax`, the expected cost among `Pmax`-optimal choices, and the policy.
 ///
 /// # Errors
@@ -113,14 +132,12 @@ pub fn solve(mdp: &SparseMdp, options: &SolverOptions) -> Result<Solution, MdpEr
     let mut x: Vec<f64> = goal.iter().map(|&g| f64::from(u8::from(g))).collect();
     let mut change = f64::INFINITY;
     while !order.is_empty() && change >= tol {
-        if iterations.pmax == options.max_iterations {
-            return Err(MdpError::NotConverged {
-                what: "Pmax value iteration",
-                iterations: iterations.pmax,
-                change,
-            });
-        }
-        iterations.pmax += 1;
+        next_sweep(
+            &mut iterations.pmax,
+            options,
+            "Pmax value iteration",
+            change,
+        )?;
         change = 0.0;
         for &s in &order {
             let best = mdp
@@ -262,14 +279,12 @@ pub fn solve(mdp: &SparseMdp, options: &SolverOptions) -> Result<Solution, MdpEr
         .collect();
     let mut change = f64::INFINITY;
     while classes.len() > 0 && change >= tol {
-        if iterations.cost == options.max_iterations {
-            return Err(MdpError::NotConverged {
-                what: "expected cost value iteration",
-                iterations: iterations.cost,
-                change,
-            });
-        }
-        iterations.cost += 1;
+        next_sweep(
+            &mut iterations.cost,
+            options,
+            "expected cost value iteration",
+            change,
+        )?;
         change = 0.0;
         for k in 0..classes.len() {
             let members = classes.members(k);

@@ -65,17 +65,7 @@ impl SparseMdp {
                 states: n,
             });
         }
-        let mut mdp = SparseMdp {
-            initial,
-            goal,
-            action_names,
-            state_start: vec![0],
-            choice_action: Vec::new(),
-            choice_cost: Vec::new(),
-            choice_start: vec![0],
-            target: Vec::new(),
-            prob: Vec::new(),
-        };
+        let mut mdp = SparseMdp::without_choices(initial, goal, action_names);
         for (state, row) in choices.into_iter().enumerate() {
             for (choice, c) in row.into_iter().enumerate() {
                 if c.action >= mdp.action_names.len() {
@@ -122,6 +112,26 @@ impl SparseMdp {
             mdp.end_state();
         }
         Ok(mdp)
+    }
+
+    /// An MDP of no state yet, to be built with [`SparseMdp::push_choice`] and
+    /// [`SparseMdp::end_state`].
+    pub(crate) fn without_choices(
+        initial: usize,
+        goal: Vec<bool>,
+        action_names: Vec<String>,
+    ) -> SparseMdp {
+        SparseMdp {
+            initial,
+            goal,
+            action_names,
+            state_start: vec![0],
+            choice_action: Vec::new(),
+            choice_cost: Vec::new(),
+            choice_start: vec![0],
+            target: Vec::new(),
+            prob: Vec::new(),
+        }
     }
 
     /// Appends a choice to the state being built (no checks).
@@ -251,17 +261,8 @@ impl SparseMdp {
                 found: keep.len(),
             });
         }
-        let mut out = SparseMdp {
-            initial: self.initial,
-            goal: self.goal.clone(),
-            action_names: self.action_names.clone(),
-            state_start: vec![0],
-            choice_action: Vec::new(),
-            choice_cost: Vec::new(),
-            choice_start: vec![0],
-            target: Vec::new(),
-            prob: Vec::new(),
-        };
+        let mut out =
+            SparseMdp::without_choices(self.initial, self.goal.clone(), self.action_names.clone());
         let mut outcomes = Vec::new();
         for s in 0..self.state_count() {
             for c in self.choices(s).filter(|&c| keep[c]) {
