@@ -1,8 +1,9 @@
 //! Helpers shared by the command-line tests: chronomap-testutil's, with the `chronomap` binary
 //! and the scratch directory of this test binary.
 
+use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::Output;
+use std::process::{Command, Output, Stdio};
 
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
@@ -16,6 +17,29 @@ pub use chronomap_testutil::{
 /// Runs `chronomap` with `args`.
 pub fn chronomap(args: &[&str]) -> Output {
     chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)
+}
+
+/// Runs `chronomap` with `args` into a pipe that is closed after the first `lines` lines of its
+/// stdout (0: before anything is read): those lines and the stderr, after checking that the run
+/// still ended with exit code 0 and no panic.
+pub fn closed_pipe(args: &[&str], lines: usize) -> (String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut read = String::new();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    for _ in 0..lines {
+        stdout.read_line(&mut read).unwrap();
+    }
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    (read, err)
 }
 
 /// A fresh scratch directory for one test (`target/tmp/TEST`).
