@@ -4,14 +4,11 @@
 
 use crate::common;
 
-use std::path::PathBuf;
-
-use common::{chronomap, error, fit_small_copa, repo, stdout, usage_error};
+use common::{chronomap, error, fit_small_copa, repo, stdout, tmp, usage_error};
 
 #[test]
 fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_model");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("activity_model");
     let path = |name: &str| dir.join(name).display().to_string();
     let (model, csv, png) = (path("atc.cmcopa"), path("atc.csv"), path("atc.png"));
     let text = fit_small_copa(&model);
@@ -61,8 +58,7 @@ fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
 
 #[test]
 fn predict_writes_with_the_new_spellings_prints_json_and_survives_a_closed_pipe() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_model_json");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("activity_model_json");
     let path = |name: &str| dir.join(name).display().to_string();
     let model = path("tiny.cmcopa");
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");

@@ -52,6 +52,58 @@ pub fn tmp(name: &str) -> PathBuf {
     shared_dir(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name))
 }
 
+/// The Python interpreter of an oracle, named by the environment variable `CHRONOMAP_{NAME}_PYTHON`
+/// (`STORM`, `SKLEARN`). Without it: `None`, after saying on stderr that `test` skips its
+/// comparison with `oracle` and how to `enable` it; a failure instead when
+/// `CHRONOMAP_REQUIRE_{NAME}=1` (as in CI).
+pub fn oracle_python(name: &str, test: &str, oracle: &str, enable: &str) -> Option<String> {
+    let var = format!("CHRONOMAP_{name}_PYTHON");
+    let require = format!("CHRONOMAP_REQUIRE_{name}");
+    if let Ok(python) = std::env::var(&var) {
+        return Some(python);
+    }
+    assert!(
+        std::env::var(&require).as_deref() != Ok("1"),
+        "{require}=1 but {var} is not set: {enable}"
+    );
+    eprintln!("{test}: {oracle} comparison SKIPPED: {enable}");
+    None
+}
+
+/// Runs the oracle script `tests/oracle/SCRIPT` with `python` (named by `var`) and `args`;
+/// prints how long it took (after `label`) and the last line of its stderr. Its JSON output.
+pub fn run_oracle(
+    python: &str,
+    var: &str,
+    script: &str,
+    args: &[&std::ffi::OsStr],
+    label: &str,
+) -> serde_json::Value {
+    let started = std::time::Instant::now();
+    let output = Command::new(python)
+        .arg(
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/oracle")
+                .join(script),
+        )
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {python} ({var}): {e}"));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    println!(
+        "{label}: {:.1} s; {}",
+        started.elapsed().as_secs_f64(),
+        stderr.lines().last().unwrap_or("")
+    );
+    assert!(
+        output.status.success(),
+        "{script} failed ({}):\n{stderr}",
+        output.status
+    );
+    serde_json::from_slice(&output.stdout)
+        .unwrap_or_else(|e| panic!("{script} printed no JSON ({e}):\n{stderr}"))
+}
+
 /// `chronomap activity fit` of a small CoPA-Map (30 inducing points, 20 iterations: about
 /// 2 s) on the bundled ATC grid, saved to `model`: its stdout.
 pub fn fit_small_copa(model: &str) -> String {
