@@ -57,6 +57,21 @@ pub fn print_json(value: &impl Serialize) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Prints a benchmark's result: with `json`, as one line of JSON (a log of runs keeps one run a
+/// line), else as the text `text` writes.
+pub fn print_bench<T: Serialize>(
+    json: bool,
+    bench: &T,
+    text: impl FnOnce(&T) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    if json {
+        crate::outln!("{}", serde_json::to_value(bench)?)?;
+        Ok(())
+    } else {
+        text(bench)
+    }
+}
+
 /// Flags that contradict each other or a value clap could not check: exit code 2, like
 /// clap's own usage errors.
 #[derive(Debug)]

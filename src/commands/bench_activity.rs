@@ -19,6 +19,7 @@ use super::bench_plan::StageLog;
 use crate::cli::BenchActivityArgs;
 use crate::format::Table;
 use crate::outln;
+use crate::output::print_bench;
 
 /// The bundled tracks of 2012-10-24 (one file per hour).
 const TRACK_DIR: &str = "data/atc_20121024_1hz";
@@ -119,12 +120,7 @@ pub fn activity(args: &BenchActivityArgs) -> Result<()> {
         &StageLog,
     )?;
     let bench = ActivityBench::new(&config, extraction, copa);
-    if args.json {
-        outln!("{}", serde_json::to_value(&bench)?)?;
-    } else {
-        print_table(&bench)?;
-    }
-    Ok(())
+    print_bench(args.json, &bench, print_table)
 }
 
 fn print_table(b: &ActivityBench) -> Result<()> {

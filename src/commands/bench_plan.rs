@@ -8,6 +8,7 @@ use chronomap_core::progress::Progress;
 
 use crate::cli::BenchPlanArgs;
 use crate::outln;
+use crate::output::print_bench;
 
 /// The stages of a benchmark, one line each on stderr (`name...`), shown whatever stderr is:
 /// a benchmark's log says what ran when.
@@ -29,12 +30,7 @@ pub fn plan(args: &BenchPlanArgs) -> Result<()> {
         },
         &StageLog,
     )?;
-    if args.json {
-        outln!("{}", serde_json::to_value(&bench)?)?;
-    } else {
-        print(&bench)?;
-    }
-    Ok(())
+    print_bench(args.json, &bench, print)
 }
 
 fn print(b: &PlanBench) -> Result<()> {

@@ -8,6 +8,7 @@ use chronomap_bench::psbt::{PsbtBench, PsbtBenchConfig};
 use super::psbt::{fit_model, load_world};
 use crate::cli::BenchPsbtArgs;
 use crate::outln;
+use crate::output::print_bench;
 
 pub fn psbt(args: &BenchPsbtArgs) -> Result<()> {
     let world = load_world(&args.map, &args.activity, 0.5, 0.3)?;
@@ -23,12 +24,7 @@ pub fn psbt(args: &BenchPsbtArgs) -> Result<()> {
             reference_sample: args.reference_sample,
         },
     )?;
-    if args.json {
-        outln!("{}", serde_json::to_value(&bench)?)?;
-    } else {
-        print(&bench)?;
-    }
-    Ok(())
+    print_bench(args.json, &bench, print)
 }
 
 fn print(b: &PsbtBench) -> Result<()> {

@@ -8,6 +8,7 @@ use chronomap_bench::serve::{ServeBench, ServeBenchConfig, ServeBenchError, WARM
 use crate::cli::BenchServeArgs;
 use crate::format::Table;
 use crate::outln;
+use crate::output::print_bench;
 
 pub fn serve(args: &BenchServeArgs) -> Result<()> {
     let config = ServeBenchConfig {
@@ -32,12 +33,7 @@ pub fn serve(args: &BenchServeArgs) -> Result<()> {
         None => crate::bundled::GREG_TRAINING.pairs()?,
     };
     let bench = chronomap_bench::serve::run(&config, train).map_err(flag_error)?;
-    if args.json {
-        outln!("{}", serde_json::to_value(&bench)?)?;
-    } else {
-        print(&config, &bench)?;
-    }
-    Ok(())
+    print_bench(args.json, &bench, |b| print(&config, b))
 }
 
 /// The library's error, naming the flag of a bad field (`--batch-ids` for `batch_ids`).

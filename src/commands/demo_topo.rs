@@ -8,9 +8,9 @@ use anyhow::{Result, anyhow};
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
 
 use super::demo::indent;
-use super::topo::DayTable;
+use super::topo::{DayTable, score_table};
 use crate::bundled;
-use crate::format::{Table, time};
+use crate::format::time;
 use crate::outln;
 use crate::output::ProgressBar;
 
@@ -59,30 +59,16 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
         time(SPLIT),
         test.total_attempts()
     )?;
-    let mut table = Table::new([
-        "protocol",
-        "success Brier",
-        "static Brier",
-        "ratio",
-        "duration MSE (s²)",
+    let table = score_table(
         "static (s²)",
-    ]);
-    for (name, score) in [
-        (
-            "online: models learn each attempt after predicting it",
-            &online,
-        ),
-        ("frozen: models as trained", &frozen),
-    ] {
-        table.row([
-            name.to_string(),
-            format!("{:.4}", score.success_brier),
-            format!("{:.4}", score.static_success_brier),
-            format!("{:.2}", score.success_brier / score.static_success_brier),
-            format!("{:.2}", score.duration_mse),
-            format!("{:.2}", score.static_duration_mse),
-        ]);
-    }
+        [
+            (
+                "online: models learn each attempt after predicting it".to_string(),
+                &online,
+            ),
+            ("frozen: models as trained".to_string(), &frozen),
+        ],
+    );
     outln!("{}", indent(&table.render()))?;
     outln!(
         "\n   Online, the per-edge models beat the static per-edge rates by far: persistence (seed \

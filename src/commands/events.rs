@@ -43,15 +43,33 @@ fn file_list(paths: &[PathBuf]) -> String {
         .join(",")
 }
 
+/// The training events of `files` (`--train`) before `before` (`--train-before`), with the
+/// list of the files' names; an error saying there are no `what` if none is left.
+fn read_training_events(
+    files: &[PathBuf],
+    before: Option<f64>,
+    what: &str,
+) -> Result<(String, Vec<Event>)> {
+    let names = file_list(files);
+    let mut events = read_event_files(files).context("cannot read the training events")?;
+    if let Some(before) = before {
+        events.retain(|e| e.t < before);
+    }
+    if events.is_empty() {
+        bail!("{names}: no {what} (before --train-before?)");
+    }
+    Ok((names, events))
+}
+
+/// ` WORD TIME` for a time bound that was given (`--train-before`, `--test-from`), else nothing.
+fn bound(word: &str, t: Option<f64>) -> String {
+    t.map(|t| format!(" {word} {}", time(t)))
+        .unwrap_or_default()
+}
+
 pub fn eval(args: &EventsEvalArgs) -> Result<()> {
-    let train_names = file_list(&args.train);
-    let mut train = read_event_files(&args.train).context("cannot read the training events")?;
-    if let Some(before) = args.train_before {
-        train.retain(|e| e.t < before);
-    }
-    if train.is_empty() {
-        bail!("{train_names}: no training detections (before --train-before?)");
-    }
+    let (train_names, train) =
+        read_training_events(&args.train, args.train_before, "training detections")?;
     let test_name = args.test.display().to_string();
     let mut test = read_events(&args.test).context("cannot read the test events")?;
     if let Some(from) = args.test_from {
@@ -110,10 +128,7 @@ pub fn eval(args: &EventsEvalArgs) -> Result<()> {
         }));
     }
 
-    let before = args
-        .train_before
-        .map(|t| format!(" before {}", time(t)))
-        .unwrap_or_default();
+    let before = bound("before", args.train_before);
     outln!(
         "training: {train_names}{before}: {} detections in {} window(s) of observation, {} observed",
         train.len(),
@@ -123,10 +138,7 @@ pub fn eval(args: &EventsEvalArgs) -> Result<()> {
     for w in training.windows() {
         outln!("  {} .. {}", time(w.start), time(w.end))?;
     }
-    let from = args
-        .test_from
-        .map(|t| format!(" from {}", time(t)))
-        .unwrap_or_default();
+    let from = bound("from", args.test_from);
     outln!(
         "test: {test_name}{from}: {} detections, {} .. {}{}",
         test.len(),
@@ -211,14 +223,7 @@ fn score_json(r: &EventScore) -> Value {
 
 /// `chronomap hypertime`: fit the Warped Hypertime event intensity and draw it.
 pub fn hypertime(args: &HypertimeArgs) -> Result<()> {
-    let names = file_list(&args.train);
-    let mut events = read_event_files(&args.train).context("cannot read the training events")?;
-    if let Some(before) = args.train_before {
-        events.retain(|e| e.t < before);
-    }
-    if events.is_empty() {
-        bail!("{names}: no detections (before --train-before?)");
-    }
+    let (names, events) = read_training_events(&args.train, args.train_before, "detections")?;
     let train =
         TrainingData::from_events(&events, args.gap).map_err(|e| anyhow!("{names}: {e}"))?;
     let config = EventModelConfig {

@@ -140,6 +140,33 @@ fn score_json(score: &EdgeEvaluation) -> Value {
     })
 }
 
+/// Success Brier score and duration MSE of each labelled evaluation against the static per-edge
+/// rates (seed 003 §V-A); `static_mse` heads the static duration column.
+pub(super) fn score_table<'a>(
+    static_mse: &str,
+    scores: impl IntoIterator<Item = (String, &'a EdgeEvaluation)>,
+) -> Table {
+    let mut table = Table::new([
+        "protocol",
+        "success Brier",
+        "static Brier",
+        "ratio",
+        "duration MSE (s²)",
+        static_mse,
+    ]);
+    for (label, s) in scores {
+        table.row([
+            label,
+            format!("{:.4}", s.success_brier),
+            format!("{:.4}", s.static_success_brier),
+            format!("{:.2}", s.success_brier / s.static_success_brier),
+            format!("{:.2}", s.duration_mse),
+            format!("{:.2}", s.static_duration_mse),
+        ]);
+    }
+    table
+}
+
 pub fn eval(args: &TopoEvalArgs) -> Result<()> {
     if args.train == args.test {
         return Err(usage(format!(
@@ -213,28 +240,20 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
         args.test.display(),
         models.map().edges().len()
     )?;
-    let mut table = Table::new([
-        "protocol",
-        "success Brier",
-        "static Brier",
-        "ratio",
-        "duration MSE (s²)",
+    let label = |p: Protocol| {
+        if p == protocol {
+            format!("{} *", p.name())
+        } else {
+            p.name().to_string()
+        }
+    };
+    let table = score_table(
         "static MSE (s²)",
-    ]);
-    for (p, s) in [(Protocol::Online, &online), (Protocol::Frozen, &frozen)] {
-        table.row([
-            if p == protocol {
-                format!("{} *", p.name())
-            } else {
-                p.name().to_string()
-            },
-            format!("{:.4}", s.success_brier),
-            format!("{:.4}", s.static_success_brier),
-            format!("{:.2}", s.success_brier / s.static_success_brier),
-            format!("{:.2}", s.duration_mse),
-            format!("{:.2}", s.static_duration_mse),
-        ]);
-    }
+        [
+            (label(Protocol::Online), &online),
+            (label(Protocol::Frozen), &frozen),
+        ],
+    );
     outln!("{}", table.render())?;
     outln!(
         "(* the protocol asked for; ratio < 1: the per-edge models beat the static per-edge rates; durations of the {} successful attempts, models as fitted)",

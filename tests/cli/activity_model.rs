@@ -4,14 +4,11 @@
 
 use crate::common;
 
-use std::path::PathBuf;
-
-use common::{chronomap, error, fit_small_copa, repo, stdout, usage_error};
+use common::{chronomap, error, fit_small_copa, repo, stdout, tmp, usage_error};
 
 #[test]
 fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_model");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("activity_model");
     let path = |name: &str| dir.join(name).display().to_string();
     let (model, csv, png) = (path("atc.cmcopa"), path("atc.csv"), path("atc.png"));
     let text = fit_small_copa(&model);
@@ -61,11 +58,7 @@ fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
 
 #[test]
 fn predict_writes_with_the_new_spellings_prints_json_and_survives_a_closed_pipe() {
-    use std::io::{BufRead, BufReader};
-    use std::process::Stdio;
-
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_model_json");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("activity_model_json");
     let path = |name: &str| dir.join(name).display().to_string();
     let model = path("tiny.cmcopa");
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
@@ -125,26 +118,16 @@ fn predict_writes_with_the_new_spellings_prints_json_and_survives_a_closed_pipe(
     assert!(err.contains("--t inf"), "{err}");
 
     // 4 × 2401 rows of CSV (about 400 KB) into a pipe closed after the header.
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args([
+    let (header, _) = common::closed_pipe(
+        &[
             "activity",
             "predict",
             "--model",
             &model,
             "--t",
             "120,121,122,123",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut header = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut header)
-        .unwrap();
+        ],
+        1,
+    );
     assert_eq!(header, "x1,x2,t,mean,std\n");
-    let out = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
 }

@@ -5,43 +5,59 @@
 
 use crate::common;
 
-use std::path::PathBuf;
+use std::process::Output;
 
-use common::{chronomap, close, repo, stdout};
+use common::{chronomap, close, repo, stdout, tmp};
 use serde_json::Value;
+
+/// The bundled ATC tracks of 2012-10-24 at `hour`.
+fn tracks(hour: u32) -> String {
+    repo(&format!(
+        "data/atc_20121024_1hz/atc-1024-{hour}_train.csv.xz"
+    ))
+}
+
+/// `chronomap activity truth` of the track files `tracks` in the cells of the bundled training
+/// grid from `t0`, with `flags`.
+fn truth(tracks: &[&str], t0: &str, flags: &[&str]) -> Output {
+    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    let cells = ["--cells", &grid, "--t0", t0];
+    chronomap(
+        &[
+            &["activity", "truth", "--tracks"][..],
+            tracks,
+            &cells,
+            flags,
+        ]
+        .concat(),
+    )
+}
 
 #[test]
 fn the_atc_day_is_a_test_day_on_which_copa_map_beats_the_baselines() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_truth");
-    std::fs::create_dir_all(&dir).unwrap();
-    let truth = dir.join("atc_20121024_truth.csv");
+    let truth_file = tmp("activity_truth").join("atc_20121024_truth.csv");
     let hours = [9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20];
-    let tracks: Vec<String> = hours
-        .iter()
-        .map(|h| repo(&format!("data/atc_20121024_1hz/atc-1024-{h}_train.csv.xz")))
-        .collect();
+    let tracks: Vec<String> = hours.into_iter().map(tracks).collect();
+    let tracks: Vec<&str> = tracks.iter().map(String::as_str).collect();
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
-    let mut args = vec!["activity", "truth", "--tracks"];
-    args.extend(tracks.iter().map(String::as_str));
-    let truth_arg = truth.display().to_string();
-    args.extend([
-        "--cells",
-        &grid,
-        "--t0",
+    let truth_arg = truth_file.display().to_string();
+    let text = stdout(&truth(
+        &tracks,
         "1351036800",
-        "--bins",
-        "1,2,4,5,6,7,8,9,10",
-        "--t-offset",
-        "120",
-        "-o",
-        &truth_arg,
-    ]);
-    let text = stdout(&chronomap(&args));
+        &[
+            "--bins",
+            "1,2,4,5,6,7,8,9,10",
+            "--t-offset",
+            "120",
+            "-o",
+            &truth_arg,
+        ],
+    ));
     assert!(
         text.contains("5868 samples (652 cells × 9 bins) from 554969 detections; mean 21.805"),
         "{text}"
     );
-    let written = std::fs::read_to_string(&truth).unwrap();
+    let written = std::fs::read_to_string(&truth_file).unwrap();
     assert!(
         written.starts_with("x1,x2,t,y\n3.75,-1.25,121,3\n"),
         "{written:.60}"
@@ -90,58 +106,39 @@ fn the_atc_day_is_a_test_day_on_which_copa_map_beats_the_baselines() {
 
 #[test]
 fn truth_prints_its_summary_as_json_and_takes_comma_separated_tracks() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("activity_truth_json");
-    std::fs::create_dir_all(&dir).unwrap();
-    let truth = dir.join("truth.csv").display().to_string();
-    let tracks = [10, 11]
-        .map(|h| repo(&format!("data/atc_20121024_1hz/atc-1024-{h}_train.csv.xz")))
-        .join(",");
-    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
-    let text = stdout(&chronomap(&[
-        "activity",
-        "truth",
-        "--tracks",
-        &tracks,
-        "--cells",
-        &grid,
-        "--t0",
+    let file = tmp("activity_truth_json").join("truth.csv");
+    let file = file.display().to_string();
+    let tracks = [10, 11].map(tracks).join(",");
+    let text = stdout(&truth(
+        &[&tracks],
         "2012-10-24T09:00+09:00",
-        "--bins",
-        "1",
-        "--bins",
-        "2",
-        "--t-offset",
-        "120",
-        "-o",
-        &truth,
-        "--json",
-    ]));
+        &[
+            "--bins",
+            "1",
+            "--bins",
+            "2",
+            "--t-offset",
+            "120",
+            "-o",
+            &file,
+            "--json",
+        ],
+    ));
     let v: Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["samples"], 1304);
     assert_eq!(v["cells"], 652);
     assert_eq!(v["bins"], serde_json::json!([1, 2]));
     // The file holds what the summary says.
-    let written = chronomap_io::read_rate_samples(&truth).unwrap();
+    let written = chronomap_io::read_rate_samples(&file).unwrap();
     assert_eq!(written.len(), 1304);
     assert_eq!(written.t()[0], 121.0);
     close(&v["mean_rate_per_hour"], written.mean_rate(), 1e-12);
     // A cell size the grid's cells are not aligned to names the file and the flag.
-    let err = common::error(&chronomap(&[
-        "activity",
-        "truth",
-        "--tracks",
-        &tracks,
-        "--cells",
-        &grid,
-        "--t0",
+    let err = common::error(&truth(
+        &[&tracks],
         "1351036800",
-        "--bins",
-        "1",
-        "--cell",
-        "0.3",
-        "-o",
-        &truth,
-    ]));
+        &["--bins", "1", "--cell", "0.3", "-o", &file],
+    ));
     assert!(
         err.contains("grid_atc_50cm_60min_train_xy.csv.xz: cell centre"),
         "{err}"

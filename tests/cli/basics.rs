@@ -2,9 +2,9 @@
 //! files, and clear errors for bad input.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use crate::common::{chronomap, data, scratch, stdout};
+use crate::common::{chronomap, closed_pipe, data, scratch, stdout};
 
 fn greg(name: &str) -> String {
     data(&format!("door_greg_2016/{name}"))
@@ -23,18 +23,33 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     crate::common::write(dir, name, text).display().to_string()
 }
 
+/// Test set `i` of a bundled door (`greg` or `tom`) as `--test` takes it: `TIMES,VALUES`.
+fn test_set(door: fn(&str) -> String, i: usize) -> String {
+    format!(
+        "{},{}",
+        door(&format!("test_times_{i}.txt.xz")),
+        door(&format!("test_data_{i}.txt.xz"))
+    )
+}
+
+/// `chronomap fit` of `spec` on the greg door's training data into `dir/name`: its path.
+fn fit_greg(dir: &Path, name: &str, spec: &str) -> String {
+    let model = dir.join(name).display().to_string();
+    stdout(&chronomap(&[
+        "fit",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--model",
+        spec,
+        "-o",
+        &model,
+    ]));
+    model
+}
+
 #[test]
 fn eval_json_has_the_documented_shape_and_values() {
-    let test1 = format!(
-        "{},{}",
-        greg("test_times_1.txt.xz"),
-        greg("test_data_1.txt.xz")
-    );
-    let test2 = format!(
-        "{},{}",
-        greg("test_times_2.txt.xz"),
-        greg("test_data_2.txt.xz")
-    );
+    let (test1, test2) = (test_set(greg, 1), test_set(greg, 2));
     let out = chronomap(&[
         "eval",
         "--train",
@@ -74,11 +89,7 @@ fn eval_prints_tables_and_significance() {
     ];
     for i in 1..=5 {
         args.push("--test".into());
-        args.push(format!(
-            "{},{}",
-            greg(&format!("test_times_{i}.txt.xz")),
-            greg(&format!("test_data_{i}.txt.xz"))
-        ));
+        args.push(test_set(greg, i));
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let out = chronomap(&args);
@@ -141,17 +152,7 @@ fn bad_input_is_named_by_file_and_line() {
 #[test]
 fn fit_predict_inspect_and_damaged_model_files() {
     let dir = scratch("model_files");
-    let model = dir.join("door.cmm").display().to_string();
-    let out = chronomap(&[
-        "fit",
-        "--train",
-        &greg("training_data.txt.xz"),
-        "--model",
-        "fremen:4",
-        "-o",
-        &model,
-    ]);
-    stdout(&out);
+    let model = fit_greg(&dir, "door.cmm", "fremen:4");
 
     // Monday 2016-03-21 13:00 UTC (door often open) and 03:00 (closed).
     let out = chronomap(&["predict", &model, "--at", "1458565200", "1458529200"]);
@@ -290,22 +291,8 @@ fn demo_runs_on_bundled_data_and_writes_plots() {
 #[test]
 fn anomalies_and_compress_print_the_same_numbers_as_json() {
     let dir = scratch("anomalies_compress");
-    let model = dir.join("door.cmm").display().to_string();
-    let out = chronomap(&[
-        "fit",
-        "--train",
-        &greg("training_data.txt.xz"),
-        "--model",
-        "fremen:4",
-        "-o",
-        &model,
-    ]);
-    assert!(out.status.success());
-    let test = format!(
-        "{},{}",
-        greg("test_times_1.txt.xz"),
-        greg("test_data_1.txt.xz")
-    );
+    let model = fit_greg(&dir, "door.cmm", "fremen:4");
+    let test = test_set(greg, 1);
     let args = ["anomalies", &model, "--test", &test, "--confidence", "0.7"];
     let out = chronomap(&args);
     assert!(out.status.success());
@@ -335,16 +322,7 @@ fn anomalies_and_compress_print_the_same_numbers_as_json() {
     }
 
     // The door week of the FreMEn paper at one second, order 5.
-    let series = format!(
-        "{},{}",
-        tom("test_times_0.txt.xz"),
-        tom("test_data_0.txt.xz")
-    );
-    let day8 = format!(
-        "{},{}",
-        tom("test_times_1.txt.xz"),
-        tom("test_data_1.txt.xz")
-    );
+    let (series, day8) = (test_set(tom, 0), test_set(tom, 1));
     let args = [
         "compress", "--series", &series, "--order", "5", "--test", &day8,
     ];
@@ -390,37 +368,15 @@ fn anomalies_and_compress_print_the_same_numbers_as_json() {
 
 #[test]
 fn a_closed_pipe_ends_the_output_quietly() {
-    use std::io::{BufRead, BufReader};
-    use std::process::Stdio;
-
     let dir = scratch("closed_pipe");
-    let model = dir.join("door.cmm").display().to_string();
-    let out = chronomap(&[
-        "fit",
-        "--train",
-        &greg("training_data.txt.xz"),
-        "--model",
-        "fremen:4",
-        "-o",
-        &model,
-    ]);
-    assert!(out.status.success());
+    let model = fit_greg(&dir, "door.cmm", "fremen:4");
     // 604,800 predictions (about 15 MB): far more than a pipe holds. Read one line, close.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args(["predict", &model, "--times", &tom("test_times_0.txt.xz")])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
+    let (first, err) = closed_pipe(
+        &["predict", &model, "--times", &tom("test_times_0.txt.xz")],
+        1,
+    );
     assert_eq!(first, "# time\tp\tentropy_bits\n");
-    let out = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{err}");
-    assert!(!err.contains("panicked") && !err.contains("error"), "{err}");
+    assert!(!err.contains("error"), "{err}");
     // Text and JSON to a pipe that is closed before anything is written.
     for args in [
         &["inspect", &model, "--spectrum"][..],
@@ -433,37 +389,15 @@ fn a_closed_pipe_ends_the_output_quietly() {
             "--json",
         ],
     ] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        drop(child.stdout.take());
-        let out = child.wait_with_output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
-        assert!(
-            !err.contains("panicked") && !err.contains("error"),
-            "{args:?}: {err}"
-        );
+        let (_, err) = closed_pipe(args, 0);
+        assert!(!err.contains("error"), "{args:?}: {err}");
     }
 }
 
 #[test]
 fn runtime_errors_exit_1_and_usage_errors_exit_2() {
     let dir = scratch("exit_codes");
-    let mean = dir.join("mean.cmm").display().to_string();
-    let out = chronomap(&[
-        "fit",
-        "--train",
-        &greg("training_data.txt.xz"),
-        "--model",
-        "mean",
-        "-o",
-        &mean,
-    ]);
-    assert!(out.status.success());
+    let mean = fit_greg(&dir, "mean.cmm", "mean");
     let code = |args: &[&str]| {
         let out = chronomap(args);
         let err = String::from_utf8_lossy(&out.stderr).into_owned();

@@ -213,54 +213,42 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     ]));
     assert!(err.contains("missing.xml: cannot read:"), "{err}");
 
-    let script = dir.join("typo.script");
-    std::fs::write(
-        &script,
-        "tick 1: IsDoorClosed=success\ntick 2: PickLok=failure\n",
-    )
-    .unwrap();
-    let script = script.display().to_string();
+    // Scripts that do not fit the tree, and a log file of the wrong kind.
     let door = repo("tests/data/bt/door.xml");
-    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
-    assert!(
-        err.contains("typo.script: tick 2: the tree has no leaf named \"PickLok\" (its leaves: IsDoorClosed, OpenDoor, PassThroughDoor, PickLock, SmashDoor)"),
-        "{err}"
-    );
-
-    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=maybe\n").unwrap();
-    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
-    assert!(
-        err.contains("typo.script:1: outcome of \"IsDoorClosed\": \"maybe\""),
-        "{err}"
-    );
-
-    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=failure\n").unwrap();
-    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
-    assert!(
-        err.contains("tick 1: node 11 (PassThroughDoor): ticked, but the script has given no outcome for \"PassThroughDoor\" yet"),
-        "{err}"
-    );
-
-    std::fs::write(dir.join("typo.script"), "tick 1: IsDoorClosed=running\n").unwrap();
-    let err = error(&chronomap(&["bt", "run", &door, "--script", &script]));
-    assert!(
-        err.contains("\"IsDoorClosed\" is a condition and cannot return RUNNING"),
-        "{err}"
-    );
-
-    std::fs::write(
-        dir.join("typo.script"),
-        "tick 1: IsDoorClosed=failure, PassThroughDoor=success\n",
-    )
-    .unwrap();
+    let script = dir.join("typo.script").display().to_string();
     let log = dir.join("door.log").display().to_string();
-    let err = error(&chronomap(&[
-        "bt", "run", &door, "--script", &script, "--btlog", &log,
-    ]));
-    assert!(
-        err.contains("door.log: the file name must end in .btlog"),
-        "{err}"
-    );
+    for (text, flags, says) in [
+        (
+            "tick 1: IsDoorClosed=success\ntick 2: PickLok=failure\n",
+            &[][..],
+            "typo.script: tick 2: the tree has no leaf named \"PickLok\" (its leaves: IsDoorClosed, OpenDoor, PassThroughDoor, PickLock, SmashDoor)",
+        ),
+        (
+            "tick 1: IsDoorClosed=maybe\n",
+            &[],
+            "typo.script:1: outcome of \"IsDoorClosed\": \"maybe\"",
+        ),
+        (
+            "tick 1: IsDoorClosed=failure\n",
+            &[],
+            "tick 1: node 11 (PassThroughDoor): ticked, but the script has given no outcome for \"PassThroughDoor\" yet",
+        ),
+        (
+            "tick 1: IsDoorClosed=running\n",
+            &[],
+            "\"IsDoorClosed\" is a condition and cannot return RUNNING",
+        ),
+        (
+            "tick 1: IsDoorClosed=failure, PassThroughDoor=success\n",
+            &["--btlog", &log],
+            "door.log: the file name must end in .btlog",
+        ),
+    ] {
+        std::fs::write(&script, text).unwrap();
+        let args = [&["bt", "run", &door, "--script", &script][..], flags].concat();
+        let err = error(&chronomap(&args));
+        assert!(err.contains(says), "{text}: {err}");
+    }
 }
 
 /// `bt analyse` on the door tree with tests/data/bt/door_sbt.csv. Hand computation: the
@@ -356,65 +344,39 @@ fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
 #[test]
 fn analyse_names_the_line_of_an_unsupported_node_and_bad_parameters() {
     let params = repo("tests/data/bt/door_sbt.csv");
-    let err = error(&chronomap(&[
-        "bt",
-        "analyse",
-        &repo("tests/data/bt/parallel.xml"),
-        "--params",
-        &params,
-    ]));
-    assert!(
-        err.contains("parallel.xml:7:5: Timeout is not supported by the stochastic analysis"),
-        "{err}"
-    );
-    let err = error(&chronomap(&[
-        "bt",
-        "analyse",
-        &repo("tests/data/bt/monitor.xml"),
-        "--params",
-        &params,
-    ]));
-    assert!(
-        err.contains("monitor.xml:") && err.contains("is not supported"),
-        "{err}"
-    );
+    for (tree, says) in [
+        (
+            "parallel.xml",
+            &["parallel.xml:7:5: Timeout is not supported by the stochastic analysis"][..],
+        ),
+        ("monitor.xml", &["monitor.xml:", "is not supported"]),
+    ] {
+        let tree = repo(&format!("tests/data/bt/{tree}"));
+        let err = error(&chronomap(&["bt", "analyse", &tree, "--params", &params]));
+        assert!(says.iter().all(|s| err.contains(s)), "{says:?}: {err}");
+    }
 
     let dir = scratch("bt_analyse_bad");
-    let bad = dir.join("bad.csv");
-    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.5,0.2,0.5\n").unwrap();
+    let bad = dir.join("bad.csv").display().to_string();
     let door = repo("tests/data/bt/door.xml");
-    let err = error(&chronomap(&[
-        "bt",
-        "analyse",
-        &door,
-        "--params",
-        &bad.display().to_string(),
-    ]));
-    assert!(
-        err.contains("bad.csv:2: field p_f: p_s + p_f = 0.9"),
-        "{err}"
-    );
-    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,fast,0.5\n").unwrap();
-    let err = error(&chronomap(&[
-        "bt",
-        "analyse",
-        &door,
-        "--params",
-        &bad.display().to_string(),
-    ]));
-    assert!(err.contains("bad.csv:2: field mu: \"fast\""), "{err}");
-    std::fs::write(&bad, "node,p_s,p_f,mu,nu\nOpenDoor,0.4,0.6,0.2,0.5\n").unwrap();
-    let err = error(&chronomap(&[
-        "bt",
-        "analyse",
-        &door,
-        "--params",
-        &bad.display().to_string(),
-    ]));
-    assert!(
-        err.contains("door.xml:") && err.contains("no parameters for Condition \"IsDoorClosed\""),
-        "{err}"
-    );
+    for (row, says) in [
+        (
+            "OpenDoor,0.4,0.5,0.2,0.5",
+            &["bad.csv:2: field p_f: p_s + p_f = 0.9"][..],
+        ),
+        (
+            "OpenDoor,0.4,0.6,fast,0.5",
+            &["bad.csv:2: field mu: \"fast\""],
+        ),
+        (
+            "OpenDoor,0.4,0.6,0.2,0.5",
+            &["door.xml:", "no parameters for Condition \"IsDoorClosed\""],
+        ),
+    ] {
+        std::fs::write(&bad, format!("node,p_s,p_f,mu,nu\n{row}\n")).unwrap();
+        let err = error(&chronomap(&["bt", "analyse", &door, "--params", &bad]));
+        assert!(says.iter().all(|s| err.contains(s)), "{row}: {err}");
+    }
 }
 
 #[test]

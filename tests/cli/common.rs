@@ -1,8 +1,9 @@
 //! Helpers shared by the command-line tests: chronomap-testutil's, with the `chronomap` binary
 //! and the scratch directory of this test binary.
 
+use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::Output;
+use std::process::{Command, Output, Stdio};
 
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
@@ -18,6 +19,29 @@ pub fn chronomap(args: &[&str]) -> Output {
     chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)
 }
 
+/// Runs `chronomap` with `args` into a pipe that is closed after the first `lines` lines of its
+/// stdout (0: before anything is read): those lines and the stderr, after checking that the run
+/// still ended with exit code 0 and no panic.
+pub fn closed_pipe(args: &[&str], lines: usize) -> (String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut read = String::new();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    for _ in 0..lines {
+        stdout.read_line(&mut read).unwrap();
+    }
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    (read, err)
+}
+
 /// A fresh scratch directory for one test (`target/tmp/TEST`).
 pub fn scratch(test: &str) -> PathBuf {
     chronomap_testutil::scratch!(test)
@@ -26,6 +50,58 @@ pub fn scratch(test: &str) -> PathBuf {
 /// A directory the tests of one module share (`target/tmp/NAME`, not emptied).
 pub fn tmp(name: &str) -> PathBuf {
     shared_dir(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name))
+}
+
+/// The Python interpreter of an oracle, named by the environment variable `CHRONOMAP_{NAME}_PYTHON`
+/// (`STORM`, `SKLEARN`). Without it: `None`, after saying on stderr that `test` skips its
+/// comparison with `oracle` and how to `enable` it; a failure instead when
+/// `CHRONOMAP_REQUIRE_{NAME}=1` (as in CI).
+pub fn oracle_python(name: &str, test: &str, oracle: &str, enable: &str) -> Option<String> {
+    let var = format!("CHRONOMAP_{name}_PYTHON");
+    let require = format!("CHRONOMAP_REQUIRE_{name}");
+    if let Ok(python) = std::env::var(&var) {
+        return Some(python);
+    }
+    assert!(
+        std::env::var(&require).as_deref() != Ok("1"),
+        "{require}=1 but {var} is not set: {enable}"
+    );
+    eprintln!("{test}: {oracle} comparison SKIPPED: {enable}");
+    None
+}
+
+/// Runs the oracle script `tests/oracle/SCRIPT` with `python` (named by `var`) and `args`;
+/// prints how long it took (after `label`) and the last line of its stderr. Its JSON output.
+pub fn run_oracle(
+    python: &str,
+    var: &str,
+    script: &str,
+    args: &[&std::ffi::OsStr],
+    label: &str,
+) -> serde_json::Value {
+    let started = std::time::Instant::now();
+    let output = Command::new(python)
+        .arg(
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/oracle")
+                .join(script),
+        )
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {python} ({var}): {e}"));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    println!(
+        "{label}: {:.1} s; {}",
+        started.elapsed().as_secs_f64(),
+        stderr.lines().last().unwrap_or("")
+    );
+    assert!(
+        output.status.success(),
+        "{script} failed ({}):\n{stderr}",
+        output.status
+    );
+    serde_json::from_slice(&output.stdout)
+        .unwrap_or_else(|e| panic!("{script} printed no JSON ({e}):\n{stderr}"))
 }
 
 /// `chronomap activity fit` of a small CoPA-Map (30 inducing points, 20 iterations: about

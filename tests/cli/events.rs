@@ -2,9 +2,7 @@
 //! the measured numbers of both documented splits, the JSON shape the docs describe, and
 //! errors naming file, line and field for bad event files.
 
-use std::path::PathBuf;
-
-use crate::common::{chronomap, close, error, stdout};
+use crate::common::{chronomap, close, error, scratch, stdout, tmp};
 use serde_json::Value;
 
 fn data(relative: &str) -> String {
@@ -152,9 +150,7 @@ fn wednesday_to_thursday_table_with_a_time_split_of_one_file() {
 
 #[test]
 fn bad_event_files_name_file_line_and_field() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("events_cli_bad_input");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("events_cli_bad_input");
     let good = dir.join("good.txt");
     std::fs::write(&good, "100 0 0\n200 1 1\n").unwrap();
     let good = good.display().to_string();
@@ -228,8 +224,7 @@ fn help_shows_the_documented_commands() {
 /// the maps as a PNG.
 #[test]
 fn hypertime_finds_the_afternoon_and_draws_it() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("hypertime_cli");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("hypertime_cli");
     let png = dir.join("maps.png").display().to_string();
     let text = stdout(&chronomap(&[
         "hypertime",

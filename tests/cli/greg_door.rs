@@ -75,43 +75,47 @@ fn every_model_keeps_the_contract_on_real_data() {
     check_temporal_model(|| PergamModel::with_components(2).unwrap(), t, v);
 }
 
+/// One model of every kind, `fremen` the FreMEn one.
+fn every_kind(fremen: &str) -> [ModelSpec; 6] {
+    [
+        "mean",
+        "hist:24",
+        fremen,
+        "persistence:2",
+        "stm",
+        "pergam:2",
+    ]
+    .map(|s| s.parse().unwrap())
+}
+
+/// `spec` fitted on `times` and `values` with the default options.
+fn fit(spec: &ModelSpec, times: &[f64], values: &[f64]) -> AnyModel {
+    spec.fit(times, values, &FitOptions::default())
+        .unwrap()
+        .model
+}
+
+/// Whether two models predict the same bits at every time of `times`.
+fn same_predictions(a: &AnyModel, b: &AnyModel, times: &[f64]) -> bool {
+    let (a, b) = (a.predict_many(times), b.predict_many(times));
+    a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 #[test]
 fn daily_chunks_give_the_same_models_as_one_batch() {
     let train = training();
     let week = &tests()[0];
-    for spec in [
-        "mean",
-        "hist:24",
-        "fremen:4",
-        "persistence:2",
-        "stm",
-        "pergam:2",
-    ] {
-        let spec: ModelSpec = spec.parse().unwrap();
-        let batch = spec
-            .fit(&train.times, &train.values, &FitOptions::default())
-            .unwrap()
-            .model;
-        let mut chunked = spec
-            .fit(
-                &train.times[..1],
-                &train.values[..1],
-                &FitOptions::default(),
-            )
-            .unwrap()
-            .model;
+    for spec in every_kind("fremen:4") {
+        let batch = fit(&spec, &train.times, &train.values);
+        let mut chunked = fit(&spec, &train.times[..1], &train.values[..1]);
         for (t, v) in train.times[1..]
             .chunks(1440)
             .zip(train.values[1..].chunks(1440))
         {
             chunked.observe(t, v).unwrap();
         }
-        let (a, b) = (
-            batch.predict_many(&week.times),
-            chunked.predict_many(&week.times),
-        );
         assert!(
-            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            same_predictions(&batch, &chunked, &week.times),
             "{spec}: chunked and batch models differ"
         );
     }
@@ -121,30 +125,12 @@ fn daily_chunks_give_the_same_models_as_one_batch() {
 fn every_model_survives_save_and_load_bit_identically() {
     let train = training();
     let week = &tests()[0];
-    for spec in [
-        "mean",
-        "hist:24",
-        "fremen:auto",
-        "persistence:2",
-        "stm",
-        "pergam:2",
-    ] {
-        let spec: ModelSpec = spec.parse().unwrap();
-        let model = spec
-            .fit(&train.times, &train.values, &FitOptions::default())
-            .unwrap()
-            .model;
+    for spec in every_kind("fremen:auto") {
+        let model = fit(&spec, &train.times, &train.values);
         let bytes = encode_model(model.kind(), &model).unwrap();
         let loaded: AnyModel = decode_any_model(&bytes).unwrap();
         assert_eq!(loaded.spec(), model.spec());
-        let (a, b) = (
-            model.predict_many(&week.times),
-            loaded.predict_many(&week.times),
-        );
-        assert!(
-            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
-            "{spec}"
-        );
+        assert!(same_predictions(&model, &loaded, &week.times), "{spec}");
         // A model whose header names another kind is refused, not misread.
         let other = if model.kind() == "mean" {
             "hist"

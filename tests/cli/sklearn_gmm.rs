@@ -11,8 +11,8 @@
 //! the test checks our own fits only and says how to enable the comparison, unless
 //! `CHRONOMAP_REQUIRE_SKLEARN=1`, when it fails.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 use chronomap_core::rng::Xoshiro256StarStar;
@@ -21,7 +21,7 @@ use chronomap_hypertime::mixture::{
 };
 use serde_json::{Value, json};
 
-use crate::common::scratch;
+use crate::common::{oracle_python, run_oracle, scratch};
 
 /// Relative tolerance of every comparison.
 const TOLERANCE: f64 = 1e-8;
@@ -180,32 +180,41 @@ fn kmeans_mixture(
     mixture_of_clusters(data, dim, weights, &fit.labels, k, reg).unwrap()
 }
 
+/// A case on the rows `(dim, data, weights)` with the EM settings `(reg_covar, tol, max_iter)`,
+/// started from the `k` clusters of our k-means (regularised by `reg_covar` too).
+fn kmeans_case(
+    name: &'static str,
+    (dim, data, weights): (usize, Vec<f64>, Option<Vec<f64>>),
+    k: usize,
+    (reg_covar, tol, max_iter): (f64, f64, usize),
+) -> Case {
+    Case {
+        name,
+        dim,
+        initial: kmeans_mixture(&data, dim, weights.as_deref(), k, reg_covar),
+        data,
+        weights,
+        reg_covar,
+        tol,
+        max_iter,
+    }
+}
+
 fn cases() -> Vec<Case> {
-    let mut cases = Vec::new();
-
-    let data = blobs(1, 900, 2, 3, 4.0);
-    cases.push(Case {
-        name: "blobs_2d",
-        dim: 2,
-        initial: kmeans_mixture(&data, 2, None, 3, 1e-6),
-        data,
-        weights: None,
-        reg_covar: 1e-6,
-        tol: 1e-3,
-        max_iter: 100,
-    });
-
-    let data = hypertime_week(5);
-    cases.push(Case {
-        name: "hypertime_week",
-        dim: 5,
-        initial: kmeans_mixture(&data, 5, None, 4, 1e-6),
-        data,
-        weights: None,
-        reg_covar: 1e-6,
-        tol: 1e-6,
-        max_iter: 300,
-    });
+    let mut cases = vec![
+        kmeans_case(
+            "blobs_2d",
+            (2, blobs(1, 900, 2, 3, 4.0), None),
+            3,
+            (1e-6, 1e-3, 100),
+        ),
+        kmeans_case(
+            "hypertime_week",
+            (5, hypertime_week(5), None),
+            4,
+            (1e-6, 1e-6, 300),
+        ),
+    ];
 
     // The daily part of the hypertime data aggregated: every (10-minute slot, class) once,
     // weighted by how often it was observed.
@@ -222,17 +231,12 @@ fn cases() -> Vec<Case> {
             }
         }
     }
-    let data: Vec<f64> = unique.concat();
-    cases.push(Case {
-        name: "hypertime_daily_weighted",
-        dim: 3,
-        initial: kmeans_mixture(&data, 3, Some(&counts), 3, 1e-4),
-        data,
-        weights: Some(counts),
-        reg_covar: 1e-4,
-        tol: 1e-6,
-        max_iter: 500,
-    });
+    cases.push(kmeans_case(
+        "hypertime_daily_weighted",
+        (3, unique.concat(), Some(counts)),
+        3,
+        (1e-4, 1e-6, 500),
+    ));
 
     // Points on a circle (hours of the day, many duplicates) from a poor start: a long run.
     let mut rng = Xoshiro256StarStar::seed_from_u64(11);
@@ -259,17 +263,12 @@ fn cases() -> Vec<Case> {
         max_iter: 500,
     });
 
-    let data = blobs(2, 700, 4, 3, 1.5);
-    cases.push(Case {
-        name: "max_iter_4d",
-        dim: 4,
-        initial: kmeans_mixture(&data, 4, None, 3, 1e-3),
-        data,
-        weights: None,
-        reg_covar: 1e-3,
-        tol: 1e-12,
-        max_iter: 4,
-    });
+    cases.push(kmeans_case(
+        "max_iter_4d",
+        (4, blobs(2, 700, 4, 3, 1.5), None),
+        3,
+        (1e-3, 1e-12, 4),
+    ));
 
     let data = blobs(3, 400, 1, 2, 3.0);
     cases.push(Case {
@@ -285,29 +284,16 @@ fn cases() -> Vec<Case> {
     cases
 }
 
-/// A fresh scratch directory under the target directory (the pattern of every CLI test).
 /// Runs `sklearn_gmm.py` on the case files; returns its JSON output (file name -> result).
 fn run_sklearn(python: &str, files: &[PathBuf]) -> Value {
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/oracle/sklearn_gmm.py");
-    let started = Instant::now();
-    let output = Command::new(python)
-        .arg(&script)
-        .args(files)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {python} (CHRONOMAP_SKLEARN_PYTHON): {e}"));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    println!(
-        "sklearn_gmm.py: {:.1} s; {}",
-        started.elapsed().as_secs_f64(),
-        stderr.lines().last().unwrap_or("")
-    );
-    assert!(
-        output.status.success(),
-        "sklearn_gmm.py failed ({}):\n{stderr}",
-        output.status
-    );
-    serde_json::from_slice(&output.stdout)
-        .unwrap_or_else(|e| panic!("sklearn_gmm.py printed no JSON ({e}):\n{stderr}"))
+    let args: Vec<&OsStr> = files.iter().map(|f| f.as_os_str()).collect();
+    run_oracle(
+        python,
+        "CHRONOMAP_SKLEARN_PYTHON",
+        "sklearn_gmm.py",
+        &args,
+        "sklearn_gmm.py",
+    )
 }
 
 /// Flattens a JSON array of arrays of numbers.
@@ -409,15 +395,10 @@ fn fit_em_from_follows_scikit_learns_trajectory() {
     }
     assert_eq!(fits[4].iterations, 4, "max_iter_4d stops at max_iter");
 
-    let Ok(python) = std::env::var("CHRONOMAP_SKLEARN_PYTHON") else {
-        let enable = "set CHRONOMAP_SKLEARN_PYTHON to a Python with scikit-learn \
-                      (python3 -m venv sk-venv && sk-venv/bin/pip install scikit-learn==1.9.1), \
-                      see tests/oracle/README.md";
-        assert!(
-            std::env::var("CHRONOMAP_REQUIRE_SKLEARN").as_deref() != Ok("1"),
-            "CHRONOMAP_REQUIRE_SKLEARN=1 but CHRONOMAP_SKLEARN_PYTHON is not set: {enable}"
-        );
-        eprintln!("sklearn_gmm: scikit-learn comparison SKIPPED: {enable}");
+    let enable = "set CHRONOMAP_SKLEARN_PYTHON to a Python with scikit-learn \
+                  (python3 -m venv sk-venv && sk-venv/bin/pip install scikit-learn==1.9.1), \
+                  see tests/oracle/README.md";
+    let Some(python) = oracle_python("SKLEARN", "sklearn_gmm", "scikit-learn", enable) else {
         return;
     };
     let dir = scratch("sklearn_gmm");

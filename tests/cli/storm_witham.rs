@@ -9,8 +9,8 @@
 //! enable the comparison, unless `CHRONOMAP_REQUIRE_STORM=1`, when it fails.
 
 use std::collections::BTreeMap;
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
@@ -18,7 +18,7 @@ use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn, restricted
 use chronomap_topo::plan::{Task, plan_full};
 use serde_json::{Value, json};
 
-use crate::common::scratch;
+use crate::common::{oracle_python, run_oracle, scratch};
 
 /// 2014-09-04 00:00 UTC, the day after the last attempt in the data.
 const DAY: f64 = 1_409_788_800.0;
@@ -59,7 +59,6 @@ struct Ours {
     property: String,
 }
 
-/// A fresh scratch directory under the target directory (the pattern of every CLI test).
 /// Plans every case, writes its files and `expected.json` into `dir`; returns our values by
 /// case name (`reach_00`, ...) and the file names.
 fn write_cases(models: &EdgeModels, dir: &Path) -> (BTreeMap<String, Ours>, Vec<PathBuf>) {
@@ -206,32 +205,18 @@ fn compare(ours: &BTreeMap<String, Ours>, storm: &Value) -> BTreeMap<String, Agr
 
 /// Runs `storm_check.py` on every file; returns its JSON output.
 fn run_storm(python: &str, dir: &Path, files: &[PathBuf]) -> Value {
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/oracle/storm_check.py");
-    let started = Instant::now();
-    let output = Command::new(python)
-        .arg(&script)
-        .arg("--expect")
-        .arg(dir.join("expected.json"))
-        .arg("--tol")
-        .arg(TOLERANCE.to_string())
-        .args(files)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {python} (CHRONOMAP_STORM_PYTHON): {e}"));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    println!(
-        "storm_check.py on {} files: {:.1} s; {}",
-        files.len(),
-        started.elapsed().as_secs_f64(),
-        stderr.lines().last().unwrap_or("")
-    );
-    assert!(
-        output.status.success(),
-        "storm_check.py failed ({}):\n{stderr}",
-        output.status
-    );
-    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| {
-        panic!("storm_check.py printed no JSON ({e}):\n{stderr}");
-    })
+    let (expect, tol) = (dir.join("expected.json"), TOLERANCE.to_string());
+    let mut args: Vec<&OsStr> = vec!["--expect".as_ref(), expect.as_ref(), "--tol".as_ref()];
+    args.push(tol.as_ref());
+    args.extend(files.iter().map(|f| f.as_os_str()));
+    let label = format!("storm_check.py on {} files", files.len());
+    run_oracle(
+        python,
+        "CHRONOMAP_STORM_PYTHON",
+        "storm_check.py",
+        &args,
+        &label,
+    )
 }
 
 #[test]
@@ -269,15 +254,10 @@ fn witham_pmax_and_expected_times_equal_storms_for_every_hour() {
         "avoiding the printer changes Pmax by > 0.01 at only {constrained_hours} hours"
     );
 
-    let Ok(python) = std::env::var("CHRONOMAP_STORM_PYTHON") else {
-        let enable = "set CHRONOMAP_STORM_PYTHON to a Python with stormpy 2.0 \
-                      (python3 -m venv storm-venv && storm-venv/bin/pip install stormpy==2.0.0), \
-                      see tests/oracle/README.md";
-        assert!(
-            std::env::var("CHRONOMAP_REQUIRE_STORM").as_deref() != Ok("1"),
-            "CHRONOMAP_REQUIRE_STORM=1 but CHRONOMAP_STORM_PYTHON is not set: {enable}"
-        );
-        eprintln!("storm_witham: Storm comparison SKIPPED: {enable}");
+    let enable = "set CHRONOMAP_STORM_PYTHON to a Python with stormpy 2.0 \
+                  (python3 -m venv storm-venv && storm-venv/bin/pip install stormpy==2.0.0), \
+                  see tests/oracle/README.md";
+    let Some(python) = oracle_python("STORM", "storm_witham", "Storm", enable) else {
         return;
     };
     let storm = run_storm(&python, &dir, &files);

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::common::{chronomap, data, error, scratch, stdout, strings};
+use crate::common::{chronomap, closed_pipe, data, error, scratch, stdout, strings};
 use serde_json::Value;
 
 fn edges() -> String {
@@ -15,25 +15,40 @@ fn path(dir: &Path, name: &str) -> String {
     dir.join(name).display().to_string()
 }
 
-/// `chronomap plan` of `task` from the Station on `model`, with `flags`: its stdout.
-fn run_plan(model: &str, task: &str, flags: &[&str]) -> String {
-    let args = [
-        &[
-            "plan", "--model", model, "--from", "Station", "--task", task,
-        ],
+/// The arguments of `chronomap plan` of `task` from `from` on `model`, with `flags`.
+fn plan_args<'a>(model: &'a str, from: &'a str, task: &'a str, flags: &[&'a str]) -> Vec<&'a str> {
+    [
+        &["plan", "--model", model, "--from", from, "--task", task],
         flags,
     ]
-    .concat();
-    stdout(&chronomap(&args))
+    .concat()
+}
+
+/// `chronomap plan` of `task` from the Station on `model`, with `flags`: its stdout.
+fn run_plan(model: &str, task: &str, flags: &[&str]) -> String {
+    stdout(&chronomap(&plan_args(model, "Station", task, flags)))
+}
+
+/// `chronomap topo fit` of the edge files in `edges`, written with `output` (`-o`, `--output`
+/// or `--out`) to `model`, with `extra` flags.
+fn topo_fit(edges: &str, output: &str, model: &str, extra: &[&str]) -> std::process::Output {
+    chronomap(&[&["topo", "fit", "--edges", edges, output, model], extra].concat())
+}
+
+/// `chronomap topo split` of the bundled edges `at` a time into `before` and `after`, with
+/// `extra` flags.
+fn split(at: &str, before: &str, after: &str, extra: &[&str]) -> std::process::Output {
+    let edges = edges();
+    let args = [
+        "topo", "split", "--edges", &edges, "--at", at, "--before", before, "--after", after,
+    ];
+    chronomap(&[&args[..], extra].concat())
 }
 
 /// Fits the full data once per test (0.05 s) into `dir/witham.cmt`.
 fn fit(dir: &Path, extra: &[&str]) -> String {
     let model = path(dir, "witham.cmt");
-    let edges = edges();
-    let mut args = vec!["topo", "fit", "--edges", &edges, "-o", &model];
-    args.extend_from_slice(extra);
-    let text = stdout(&chronomap(&args));
+    let text = stdout(&topo_fit(&edges(), "-o", &model, extra));
     assert!(
         text.contains("18 nodes, 61 edges, 25316 attempts"),
         "{text}"
@@ -45,18 +60,7 @@ fn fit(dir: &Path, extra: &[&str]) -> String {
 fn eval_of_a_chronological_split_prints_the_documented_json_and_beats_the_static_rates() {
     let dir = scratch("topo_eval");
     let (before, after) = (path(&dir, "before"), path(&dir, "after"));
-    let text = stdout(&chronomap(&[
-        "topo",
-        "split",
-        "--edges",
-        &edges(),
-        "--at",
-        "2014-08-20",
-        "--before",
-        &before,
-        "--after",
-        &after,
-    ]));
+    let text = stdout(&split("2014-08-20", &before, &after, &[]));
     assert!(text.contains("11282 attempts"), "{text}");
     assert!(text.contains("14034 attempts"), "{text}");
 
@@ -202,17 +206,12 @@ fn bad_input_gets_clear_errors() {
     let dir = scratch("topo_bad_input");
     let model = fit(&dir, &[]);
     let plan = |task: &str, from: &str| {
-        chronomap(&[
-            "plan",
-            "--model",
+        chronomap(&plan_args(
             &model,
-            "--from",
             from,
-            "--task",
             task,
-            "--time",
-            "2014-09-04T10:00Z",
-        ])
+            &["--time", "2014-09-04T10:00Z"],
+        ))
     };
     // Malformed LTL: the error points at the position with a caret.
     let err = error(&plan("F (Kitchen & ", "Station"));
@@ -247,14 +246,12 @@ fn bad_input_gets_clear_errors() {
         std::fs::write(edges.join(name), content).unwrap();
         std::fs::write(edges.join("B_A.data"), "1404836670 6.5 1\n").unwrap();
         let out_model = path(&dir, &format!("bad{i}.cmt"));
-        let err = error(&chronomap(&[
-            "topo",
-            "fit",
-            "--edges",
+        let err = error(&topo_fit(
             &edges.display().to_string(),
             "-o",
             &out_model,
-        ]));
+            &[],
+        ));
         assert!(err.contains(expected), "case {i}: {err}");
         assert!(
             !Path::new(&out_model).exists(),
@@ -262,15 +259,12 @@ fn bad_input_gets_clear_errors() {
         );
     }
     // A duration names its field.
-    let edges = dir.join("edges1");
-    let err = error(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &edges.display().to_string(),
+    let err = error(&topo_fit(
+        &path(&dir, "edges1"),
         "-o",
         &path(&dir, "x.cmt"),
-    ]));
+        &[],
+    ));
     assert!(err.contains("duration"), "{err}");
 }
 
@@ -279,19 +273,7 @@ fn split_prints_json_and_flags_that_contradict_exit_2() {
     use crate::common::usage_error;
     let dir = scratch("topo_split_json");
     let (before, after) = (path(&dir, "before"), path(&dir, "after"));
-    let out = stdout(&chronomap(&[
-        "topo",
-        "split",
-        "--edges",
-        &edges(),
-        "--at",
-        "1408492800",
-        "--before",
-        &before,
-        "--after",
-        &after,
-        "--json",
-    ]));
+    let out = stdout(&split("1408492800", &before, &after, &["--json"]));
     let v: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["at"], 1_408_492_800.0);
     assert_eq!(v["utc"], "2014-08-20 00:00 UTC");
@@ -301,18 +283,7 @@ fn split_prints_json_and_flags_that_contradict_exit_2() {
     assert_eq!(v["after"]["edge_files"], 56);
 
     // Contradictions are usage errors (exit 2), before anything is read or written.
-    let err = usage_error(&chronomap(&[
-        "topo",
-        "split",
-        "--edges",
-        &edges(),
-        "--at",
-        "1408492800",
-        "--before",
-        &before,
-        "--after",
-        &before,
-    ]));
+    let err = usage_error(&split("1408492800", &before, &before, &[]));
     assert!(
         err.contains("--before and --after are the same directory"),
         "{err}"
@@ -322,19 +293,7 @@ fn split_prints_json_and_flags_that_contradict_exit_2() {
     ]));
     assert!(err.contains("same directory"), "{err}");
     let model = fit(&dir, &[]);
-    let plan = |extra: &[&str]| {
-        let mut args = vec![
-            "plan",
-            "--model",
-            &model,
-            "--from",
-            "Station",
-            "--task",
-            "F Kitchen",
-        ];
-        args.extend_from_slice(extra);
-        chronomap(&args)
-    };
+    let plan = |extra: &[&str]| chronomap(&plan_args(&model, "Station", "F Kitchen", extra));
     let err = usage_error(&plan(&["--day-table", "--prism", "w.nm"]));
     assert!(err.contains("--time"), "{err}");
     let err = usage_error(&plan(&[
@@ -345,35 +304,19 @@ fn split_prints_json_and_flags_that_contradict_exit_2() {
     ]));
     assert!(err.contains("--week-of"), "{err}");
     // A bad task is a failure at run time (exit 1), not a usage error.
-    error(&chronomap(&[
-        "plan",
-        "--model",
+    error(&chronomap(&plan_args(
         &model,
-        "--from",
         "Station",
-        "--task",
         "G Kitchen",
-        "--time",
-        "2014-09-04T14:00Z",
-    ]));
+        &["--time", "2014-09-04T14:00Z"],
+    )));
 }
 
 #[test]
 fn fit_writes_with_output_or_the_old_out_and_a_closed_pipe_ends_quietly() {
-    use std::io::{BufRead, BufReader};
-    use std::process::Stdio;
-
     let dir = scratch("topo_fit_output");
     let (new, old) = (path(&dir, "new.cmt"), path(&dir, "old.cmt"));
-    let text = stdout(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &edges(),
-        "--output",
-        &new,
-        "--json",
-    ]));
+    let text = stdout(&topo_fit(&edges(), "--output", &new, &["--json"]));
     let v: Value = serde_json::from_str(&text).unwrap();
     assert_eq!(
         (v["nodes"].as_u64(), v["edges"].as_u64()),
@@ -385,43 +328,22 @@ fn fit_writes_with_output_or_the_old_out_and_a_closed_pipe_ends_quietly() {
         v["success_orders"],
         serde_json::json!([11, 30, 5, 1, 1, 13])
     );
-    stdout(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &edges(),
-        "--out",
-        &old,
-    ]));
+    stdout(&topo_fit(&edges(), "--out", &old, &[]));
     assert_eq!(std::fs::read(&new).unwrap(), std::fs::read(&old).unwrap());
 
     // A table of 288 start times by 28 days (about 90 KB, more than a pipe holds) into a pipe
     // that is closed after the first line.
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args([
-            "plan",
-            "--model",
+    let (first, _) = closed_pipe(
+        &plan_args(
             &new,
-            "--from",
             "Station",
-            "--task",
             "F Kitchen",
-        ])
-        .args(["--day-table", "--days", "28", "--step-mins", "5"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
+            &["--day-table", "--days", "28", "--step-mins", "5"],
+        ),
+        1,
+    );
     assert!(
         first.starts_with("task \"F Kitchen\" from Station"),
         "{first}"
     );
-    let out = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
 }
