@@ -597,14 +597,7 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), ModelFileError> {
 
 /// Header or payload excerpt for an error message (lossy UTF-8, shortened if long).
 fn quote(bytes: &[u8]) -> String {
-    let text = String::from_utf8_lossy(bytes);
-    if text.chars().count() <= MAX_HEADER_LEN {
-        text.into_owned()
-    } else {
-        let mut short: String = text.chars().take(MAX_HEADER_LEN).collect();
-        short.push('…');
-        short
-    }
+    crate::text::shorten(&String::from_utf8_lossy(bytes), MAX_HEADER_LEN)
 }
 
 #[cfg(test)]
