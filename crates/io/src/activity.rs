@@ -295,6 +295,7 @@ pub fn write_rate_samples(path: impl AsRef<Path>, samples: &RateSamples) -> Resu
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn error(text: &str) -> DataError {
         read_rate_samples_from("grid.csv", text.as_bytes()).unwrap_err()
@@ -362,13 +363,7 @@ mod tests {
                 "unexpected extra field \"7\"",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = error(text);
-            assert_eq!(err.name(), "grid.csv");
-            assert_eq!(err.line(), Some(line), "{err}");
-            assert_eq!(err.field(), field, "{err}");
-            assert!(err.to_string().contains(message), "{err}");
-        }
+        assert_errors("grid.csv", read_rate_samples_from, &cases);
     }
 
     #[test]

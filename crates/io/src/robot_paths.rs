@@ -158,6 +158,7 @@ pub fn read_robot_paths_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn read(text: &str) -> Result<Vec<NamedRobotPath>, DataError> {
         read_robot_paths_from("paths.csv", text.as_bytes(), 0.5)
@@ -251,13 +252,11 @@ mod tests {
                 "path \"b\": invalid robot path: a loop takes 0 s",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = read(text).unwrap_err();
-            assert_eq!(err.name(), "paths.csv");
-            assert_eq!(err.line(), Some(line), "{err}");
-            assert_eq!(err.field(), field, "{err}");
-            assert!(err.to_string().contains(message), "{err}");
-        }
+        assert_errors(
+            "paths.csv",
+            |name, text| read_robot_paths_from(name, text, 0.5),
+            &cases,
+        );
         assert!(matches!(read("").unwrap_err().kind(), DataErrorKind::Empty));
         assert_eq!(
             read("path,x,y,stop_s\n").unwrap_err().to_string(),

@@ -1138,6 +1138,29 @@ pub(crate) fn shorten(text: &str, max: usize) -> String {
     }
 }
 
+/// Helpers for the tests of the readers built on this module.
+#[cfg(all(test, feature = "activity"))]
+pub(crate) mod test_support {
+    use super::{DataError, Field};
+
+    /// Checks every `(text, line, field, message)` of `cases`: `read(name, text)` fails naming
+    /// the file `name`, the 1-based `line` and `field`, with a message that contains `message`.
+    pub(crate) fn assert_errors<'a, T: std::fmt::Debug>(
+        name: &str,
+        read: impl Fn(&str, &'a [u8]) -> Result<T, DataError>,
+        cases: &[(&'a str, usize, Option<Field>, &str)],
+    ) {
+        for &(text, line, field, message) in cases {
+            let err = read(name, text.as_bytes()).unwrap_err();
+            assert_eq!(err.name(), name, "{text}");
+            assert_eq!(err.line(), Some(line), "{text}: {err}");
+            assert_eq!(err.field(), field, "{text}: {err}");
+            assert!(err.to_string().contains(message), "{text}: {err}");
+            assert!(err.to_string().starts_with(&format!("{name}:")), "{err}");
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

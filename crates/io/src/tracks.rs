@@ -142,6 +142,7 @@ pub fn read_track_points_from(name: &str, reader: impl Read) -> Result<Vec<Track
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn error(text: &str) -> DataError {
         read_tracks_from("atc.csv", text.as_bytes()).unwrap_err()
@@ -192,13 +193,7 @@ mod tests {
                 "y: \"inf\" is not a finite number",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = error(text);
-            assert_eq!(err.line(), Some(line), "{text}");
-            assert_eq!(err.field(), field, "{text}");
-            assert!(err.to_string().contains(message), "{text}: {err}");
-            assert!(err.to_string().starts_with("atc.csv:"), "{err}");
-        }
+        assert_errors("atc.csv", read_tracks_from, &cases);
         assert!(matches!(error("# nothing\n").kind(), DataErrorKind::Empty));
     }
 }
