@@ -48,8 +48,8 @@ use chronomap_activity::RateSamples;
 use chronomap_activity::extract::Extraction;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
-    parse_non_negative, parse_rate, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, parse_finite, parse_non_negative,
+    parse_rate, quote, read_data_file, required, write_data_file,
 };
 
 /// What a data line must look like.
@@ -119,9 +119,7 @@ pub fn read_rate_samples_from(name: &str, reader: impl Read) -> Result<RateSampl
 /// As [`read_rate_samples`]; in the extended layout also a negative or non-finite count or a
 /// duration that is not positive.
 pub fn read_rate_grid(path: impl AsRef<Path>) -> Result<RateGrid, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_rate_grid_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_rate_grid_from)
 }
 
 /// Reads an activity-rate grid (uncompressed text, either layout) from `reader`; `name` is
@@ -185,12 +183,7 @@ pub fn read_rate_grid_from(name: &str, reader: impl Read) -> Result<RateGrid, Da
         } else {
             None
         };
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected,
-            });
-        }
+        fields.finish(expected)?;
         grid.samples
             .push([x1, x2], t, y)
             .expect("every value was checked above");
@@ -262,18 +255,10 @@ pub fn write_rate_grid(
     extraction: &Extraction,
     zero_rate: f64,
 ) -> Result<(), DataError> {
-    let path = path.as_ref();
-    crate::atomic::write_atomically(path, format_rate_grid(extraction, zero_rate).as_bytes())
-        .map_err(|failure| {
-            DataError::new(
-                path.display().to_string(),
-                None,
-                DataErrorKind::Io {
-                    action: failure.action,
-                    io: failure.io,
-                },
-            )
-        })
+    write_data_file(
+        path.as_ref(),
+        format_rate_grid(extraction, zero_rate).as_bytes(),
+    )
 }
 
 /// The text of an activity-rate grid: the header `x1,x2,t,y` and one line per sample, numbers
@@ -304,22 +289,13 @@ pub fn encode_rate_samples(samples: &RateSamples) -> String {
 /// # Errors
 /// A [`DataError`] naming `path` if it cannot be written.
 pub fn write_rate_samples(path: impl AsRef<Path>, samples: &RateSamples) -> Result<(), DataError> {
-    let path = path.as_ref();
-    crate::atomic::write_atomically(path, encode_rate_samples(samples).as_bytes()).map_err(|f| {
-        DataError::new(
-            path.display().to_string(),
-            None,
-            DataErrorKind::Io {
-                action: f.action,
-                io: f.io,
-            },
-        )
-    })
+    write_data_file(path.as_ref(), encode_rate_samples(samples).as_bytes())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn error(text: &str) -> DataError {
         read_rate_samples_from("grid.csv", text.as_bytes()).unwrap_err()
@@ -387,13 +363,7 @@ mod tests {
                 "unexpected extra field \"7\"",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = error(text);
-            assert_eq!(err.name(), "grid.csv");
-            assert_eq!(err.line(), Some(line), "{err}");
-            assert_eq!(err.field(), field, "{err}");
-            assert!(err.to_string().contains(message), "{err}");
-        }
+        assert_errors("grid.csv", read_rate_samples_from, &cases);
     }
 
     #[test]

@@ -31,13 +31,14 @@
 //! # Ok::<(), chronomap_io::bt_script::BtScriptError>(())
 //! ```
 
-use std::fmt;
 use std::io;
 use std::path::Path;
 
 use chronomap_bt::Status;
 use chronomap_bt::script::{Script, ScriptTick};
 use thiserror::Error;
+
+use crate::line_error::{LineError, LineErrorKind, content_lines, parse_text_file};
 
 /// What is wrong with a script line (the part of a [`BtScriptError`] after `file:line:`).
 #[derive(Debug, Error)]
@@ -89,52 +90,16 @@ pub enum BtScriptErrorKind {
 }
 
 /// Why a script could not be read: the file, the 1-based line and the problem.
-#[derive(Debug, Error)]
-pub struct BtScriptError {
-    file: String,
-    line: Option<usize>,
-    kind: BtScriptErrorKind,
-}
+pub type BtScriptError = LineError<BtScriptErrorKind>;
 
-impl fmt::Display for BtScriptError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.line {
-            Some(line) => write!(f, "{}:{line}: {}", self.file, self.kind),
-            None => write!(f, "{}: {}", self.file, self.kind),
-        }
-    }
-}
-
-impl BtScriptError {
-    /// The file.
-    pub fn file(&self) -> &str {
-        &self.file
-    }
-
-    /// The 1-based line, if the problem is on one.
-    pub fn line(&self) -> Option<usize> {
-        self.line
-    }
-
-    /// What is wrong.
-    pub fn kind(&self) -> &BtScriptErrorKind {
-        &self.kind
-    }
-}
+impl LineErrorKind for BtScriptErrorKind {}
 
 /// Reads a script file.
 ///
 /// # Errors
 /// A [`BtScriptError`] naming the file and line.
 pub fn read_bt_script(path: impl AsRef<Path>) -> Result<Script, BtScriptError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|io| BtScriptError {
-        file: name.clone(),
-        line: None,
-        kind: BtScriptErrorKind::Io(io),
-    })?;
-    parse_bt_script(&name, &text)
+    parse_text_file(path.as_ref(), BtScriptErrorKind::Io, parse_bt_script)
 }
 
 /// Reads script text; `name` is used in messages.
@@ -145,17 +110,8 @@ pub fn read_bt_script(path: impl AsRef<Path>) -> Result<Script, BtScriptError> {
 pub fn parse_bt_script(name: &str, text: &str) -> Result<Script, BtScriptError> {
     let mut script = Script::default();
     let mut previous = (0u64, 0usize);
-    for (index, raw) in text.lines().enumerate() {
-        let line = index + 1;
-        let error = |kind| BtScriptError {
-            file: name.to_owned(),
-            line: Some(line),
-            kind,
-        };
-        let content = raw.split('#').next().unwrap_or("").trim();
-        if content.is_empty() {
-            continue;
-        }
+    for (line, content) in content_lines(text) {
+        let error = |kind| BtScriptError::new(name, Some(line), kind);
         let tick = parse_line(content).map_err(error)?;
         if tick.tick <= previous.0 {
             return Err(error(BtScriptErrorKind::Order {

@@ -45,8 +45,8 @@ use std::path::Path;
 use chronomap_hypertime::events::Event;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
-    parse_time, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, parse_finite, parse_time, quote,
+    read_data_file, read_merged, required,
 };
 
 /// What an event line must look like.
@@ -64,9 +64,7 @@ const EXPECTED: &str = "expected at least three fields: t x y";
 /// A [`DataError`] naming `path` if the file cannot be read, has no event, or a line is not an
 /// event satisfying the rules of the [module docs](self).
 pub fn read_events(path: impl AsRef<Path>) -> Result<Vec<Event>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_events_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_events_from)
 }
 
 /// Reads several event files and merges them in time order (a stable merge: events of equal
@@ -76,12 +74,7 @@ pub fn read_events(path: impl AsRef<Path>) -> Result<Vec<Event>, DataError> {
 /// # Errors
 /// The first error of [`read_events`].
 pub fn read_event_files(paths: &[impl AsRef<Path>]) -> Result<Vec<Event>, DataError> {
-    let mut all = Vec::new();
-    for path in paths {
-        all.extend(read_events(path)?);
-    }
-    all.sort_by(|a, b| a.t.total_cmp(&b.t));
-    Ok(all)
+    read_merged(paths, |path| read_events(path), |e| e.t)
 }
 
 /// Where the reader is in a file.

@@ -33,8 +33,7 @@ use thiserror::Error;
 
 use crate::navmap::{LoadSemantics, NavMapError, OccupancyMap, load_map};
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_time, quote,
-    required,
+    DataError, Field, Fields, for_each_data_line, open_data_file, parse_time, required,
 };
 
 /// What a line of a frame list must look like (quoted in errors).
@@ -80,12 +79,7 @@ pub fn read_frame_list_from(name: &str, reader: impl Read) -> Result<Vec<Frame>,
         let previous = frames.last().map(|f| (f.time, f.line));
         let time = parse_time(time_text, previous, frames.len())?;
         let map = required(fields.next(), Field::MapFile, FRAME_LINE)?;
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected: FRAME_LINE,
-            });
-        }
+        fields.finish(FRAME_LINE)?;
         frames.push(Frame {
             time,
             map: PathBuf::from(String::from_utf8_lossy(map).into_owned()),

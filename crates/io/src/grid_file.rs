@@ -7,8 +7,7 @@ use chronomap_grid::{FittedGrid, FremenGrid, LosslessGrid};
 use serde::{Deserialize, Serialize};
 
 use crate::model_file::{
-    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
-    write_model_file,
+    CheckedPayload, ModelFileError, decode_checked, encode_model, read_checked, write_model_file,
 };
 
 /// What a grid file holds.
@@ -31,8 +30,16 @@ impl GridFile {
             GridFile::Lossless(_) => "grid-lossless",
         }
     }
+}
 
-    fn is_consistent(&self) -> bool {
+impl CheckedPayload for GridFile {
+    const NOUN: &'static str = "";
+
+    fn payload_kind(&self) -> &str {
+        self.kind()
+    }
+
+    fn invariants_hold(&self) -> bool {
         match self {
             GridFile::State(g) => g.is_consistent(),
             GridFile::Lossy(g) => g.is_consistent(),
@@ -52,11 +59,10 @@ pub fn encode_grid(grid: &GridFile) -> Result<Vec<u8>, ModelFileError> {
 /// Decodes a grid file, checking the kind and the grid's invariants.
 ///
 /// # Errors
-/// As [`decode_model`], or [`ModelFileErrorKind::Inconsistent`].
+/// As [`decode_model`](crate::model_file::decode_model), or
+/// [`Inconsistent`](crate::model_file::ModelFileErrorKind::Inconsistent).
 pub fn decode_grid(bytes: &[u8]) -> Result<GridFile, ModelFileError> {
-    let (kind, grid): (String, GridFile) = decode_model(bytes)?;
-    check(&kind, &grid)?;
-    Ok(grid)
+    decode_checked(bytes)
 }
 
 /// Writes a grid file atomically.
@@ -70,27 +76,8 @@ pub fn write_grid_file(path: impl AsRef<Path>, grid: &GridFile) -> Result<(), Mo
 /// Reads a grid file, checking version, checksum, kind and invariants.
 ///
 /// # Errors
-/// As [`read_model_file`], or [`ModelFileErrorKind::Inconsistent`]; errors name the path.
+/// As [`read_model_file`](crate::model_file::read_model_file), or
+/// [`Inconsistent`](crate::model_file::ModelFileErrorKind::Inconsistent); errors name the path.
 pub fn read_grid_file(path: impl AsRef<Path>) -> Result<GridFile, ModelFileError> {
-    let path = path.as_ref();
-    let (kind, grid): (String, GridFile) = read_model_file(path)?;
-    check(&kind, &grid).map_err(|e| e.in_file(path))?;
-    Ok(grid)
-}
-
-fn check(kind: &str, grid: &GridFile) -> Result<(), ModelFileError> {
-    if kind != grid.kind() {
-        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
-            reason: format!(
-                "the header says {kind:?} but the payload is a {:?}",
-                grid.kind()
-            ),
-        }));
-    }
-    if !grid.is_consistent() {
-        return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
-            reason: format!("the {kind} breaks its invariants"),
-        }));
-    }
-    Ok(())
+    read_checked(path.as_ref())
 }

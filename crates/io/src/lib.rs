@@ -70,7 +70,8 @@
 //!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
 //!   `chronomap bt run` ([`read_bt_script`]); [`sbt_params`] — leaf parameters of a stochastic
 //!   behavior tree for `chronomap bt analyse` ([`read_leaf_params`]); [`monitor_faults`] —
-//!   faults injected into the monitoring simulation ([`read_fault_file`]).
+//!   faults injected into the monitoring simulation ([`read_fault_file`]); the errors of
+//!   these three ([`line_error::LineError`]) name the file and line.
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
@@ -96,6 +97,8 @@ pub mod events;
 pub mod frame_list;
 #[cfg(feature = "grid")]
 pub mod grid_file;
+#[cfg(feature = "bt")]
+pub mod line_error;
 pub mod matrix;
 pub mod model_file;
 #[cfg(feature = "bt")]

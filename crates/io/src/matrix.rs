@@ -4,7 +4,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::text::{DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file};
+use crate::text::{DataError, DataErrorKind, Field, Fields, for_each_data_line, read_data_file};
 
 /// What a line must look like (quoted in errors).
 const MATRIX_LINE: &str = "one 0 or 1 per state, the same number on every line";
@@ -15,9 +15,7 @@ const MATRIX_LINE: &str = "one 0 or 1 per state, the same number on every line";
 /// A [`DataError`] naming the file, line and field: a field that is not `0` or `1`, a line with
 /// fewer or more fields than the first, no data line.
 pub fn read_state_matrix(path: impl AsRef<Path>) -> Result<Vec<Vec<f64>>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_state_matrix_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_state_matrix_from)
 }
 
 /// As [`read_state_matrix`] from a reader of plain text (`name` is used in errors; wrap

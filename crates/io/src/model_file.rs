@@ -363,10 +363,7 @@ pub fn write_any_model(path: impl AsRef<Path>, model: &AnyModel) -> Result<(), M
 /// # Errors
 /// As [`read_model_file`], or [`ModelFileErrorKind::Inconsistent`].
 pub fn read_any_model(path: impl AsRef<Path>) -> Result<AnyModel, ModelFileError> {
-    let path = path.as_ref();
-    let (kind, model): (String, AnyModel) = read_model_file(path)?;
-    check_any_model(&kind, &model).map_err(|e| e.in_file(path))?;
-    Ok(model)
+    read_checked(path.as_ref())
 }
 
 #[cfg(feature = "models")]
@@ -376,9 +373,7 @@ pub fn read_any_model(path: impl AsRef<Path>) -> Result<AnyModel, ModelFileError
 /// # Errors
 /// As [`decode_model`], or [`ModelFileErrorKind::Inconsistent`].
 pub fn decode_any_model(bytes: &[u8]) -> Result<AnyModel, ModelFileError> {
-    let (kind, model): (String, AnyModel) = decode_model(bytes)?;
-    check_any_model(&kind, &model)?;
-    Ok(model)
+    decode_checked(bytes)
 }
 
 #[cfg(feature = "topo")]
@@ -436,19 +431,64 @@ pub fn decode_edge_models(
     Ok(models)
 }
 
+/// A payload that names its own kind and can check its invariants: what [`read_checked`] and
+/// [`decode_checked`] compare with the header and verify, so that a file crafted by hand cannot
+/// make later code panic.
+#[cfg(any(feature = "models", feature = "grid"))]
+pub(crate) trait CheckedPayload: DeserializeOwned {
+    /// What follows the kind in messages (`" model"`, or nothing).
+    const NOUN: &'static str;
+
+    /// The kind of this payload.
+    fn payload_kind(&self) -> &str;
+
+    /// Whether its invariants hold.
+    fn invariants_hold(&self) -> bool;
+}
+
 #[cfg(feature = "models")]
-fn check_any_model(kind: &str, model: &AnyModel) -> Result<(), ModelFileError> {
-    if kind != model.kind() {
+impl CheckedPayload for AnyModel {
+    const NOUN: &'static str = " model";
+
+    fn payload_kind(&self) -> &str {
+        self.kind()
+    }
+
+    fn invariants_hold(&self) -> bool {
+        self.is_consistent()
+    }
+}
+
+/// [`read_model_file`], then the checks of [`CheckedPayload`]; errors name `path`.
+#[cfg(any(feature = "models", feature = "grid"))]
+pub(crate) fn read_checked<T: CheckedPayload>(path: &Path) -> Result<T, ModelFileError> {
+    let (kind, payload): (String, T) = read_model_file(path)?;
+    check_payload(&kind, &payload).map_err(|e| e.in_file(path))?;
+    Ok(payload)
+}
+
+/// [`decode_model`], then the checks of [`CheckedPayload`].
+#[cfg(any(feature = "models", feature = "grid"))]
+pub(crate) fn decode_checked<T: CheckedPayload>(bytes: &[u8]) -> Result<T, ModelFileError> {
+    let (kind, payload): (String, T) = decode_model(bytes)?;
+    check_payload(&kind, &payload)?;
+    Ok(payload)
+}
+
+#[cfg(any(feature = "models", feature = "grid"))]
+fn check_payload<T: CheckedPayload>(kind: &str, payload: &T) -> Result<(), ModelFileError> {
+    let noun = T::NOUN;
+    if kind != payload.payload_kind() {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
             reason: format!(
-                "the header says {kind:?} but the payload is a {:?} model",
-                model.kind()
+                "the header says {kind:?} but the payload is a {:?}{noun}",
+                payload.payload_kind()
             ),
         }));
     }
-    if !model.is_consistent() {
+    if !payload.invariants_hold() {
         return Err(ModelFileError::new(ModelFileErrorKind::Inconsistent {
-            reason: format!("the {kind} model breaks its invariants"),
+            reason: format!("the {kind}{noun} breaks its invariants"),
         }));
     }
     Ok(())
@@ -597,14 +637,7 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), ModelFileError> {
 
 /// Header or payload excerpt for an error message (lossy UTF-8, shortened if long).
 fn quote(bytes: &[u8]) -> String {
-    let text = String::from_utf8_lossy(bytes);
-    if text.chars().count() <= MAX_HEADER_LEN {
-        text.into_owned()
-    } else {
-        let mut short: String = text.chars().take(MAX_HEADER_LEN).collect();
-        short.push('…');
-        short
-    }
+    crate::text::shorten(&String::from_utf8_lossy(bytes), MAX_HEADER_LEN)
 }
 
 #[cfg(test)]

@@ -33,13 +33,14 @@
 //! # Ok::<(), chronomap_io::monitor_faults::FaultFileError>(())
 //! ```
 
-use std::fmt;
 use std::io;
 use std::path::Path;
 use std::time::Duration;
 
 use chronomap_bt::monitor::sim::{Fault, FaultKind};
 use thiserror::Error;
+
+use crate::line_error::{LineError, LineErrorKind, content_lines, parse_text_file};
 
 /// What is wrong with a fault file (the part of a [`FaultFileError`] after `file:line:`).
 #[derive(Debug, Error)]
@@ -59,41 +60,14 @@ pub enum FaultFileErrorKind {
 }
 
 /// Why a fault file could not be read: the file, the 1-based line and the problem.
-#[derive(Debug, Error)]
-pub struct FaultFileError {
-    file: String,
-    line: Option<usize>,
-    kind: FaultFileErrorKind,
-}
+pub type FaultFileError = LineError<FaultFileErrorKind>;
 
-impl fmt::Display for FaultFileError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.line {
-            Some(line) => write!(f, "{}:{line}: {}", self.file, self.kind),
-            None => write!(f, "{}: {}", self.file, self.kind),
-        }
-    }
-}
+impl LineErrorKind for FaultFileErrorKind {}
 
 impl FaultFileError {
-    /// The file.
-    pub fn file(&self) -> &str {
-        &self.file
-    }
-
-    /// The 1-based line, if the problem is on one.
-    pub fn line(&self) -> Option<usize> {
-        self.line
-    }
-
-    /// What is wrong.
-    pub fn kind(&self) -> &FaultFileErrorKind {
-        &self.kind
-    }
-
     /// The field at fault (`time`, `kind`, `target`, `fails`, `for`), if any.
     pub fn field(&self) -> Option<&'static str> {
-        match self.kind {
+        match self.kind() {
             FaultFileErrorKind::Field { field, .. } => Some(field),
             FaultFileErrorKind::Io(_) => None,
         }
@@ -105,14 +79,7 @@ impl FaultFileError {
 /// # Errors
 /// A [`FaultFileError`] naming the file, and the line and field at fault.
 pub fn read_fault_file(path: impl AsRef<Path>) -> Result<Vec<Fault>, FaultFileError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|io| FaultFileError {
-        file: name.clone(),
-        line: None,
-        kind: FaultFileErrorKind::Io(io),
-    })?;
-    parse_faults(&name, &text)
+    parse_text_file(path.as_ref(), FaultFileErrorKind::Io, parse_faults)
 }
 
 /// A time of a fault file: seconds, `m:ss` or `h:mm:ss`.
@@ -143,16 +110,13 @@ fn parse_time(text: &str) -> Option<Duration> {
 /// missing, unknown or unexpected target, a bad count or length.
 pub fn parse_faults(name: &str, text: &str) -> Result<Vec<Fault>, FaultFileError> {
     let mut faults = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let content = raw.split('#').next().unwrap_or("").trim();
-        if content.is_empty() {
-            continue;
-        }
-        let err = |field: &'static str, message: String| FaultFileError {
-            file: name.to_owned(),
-            line: Some(line),
-            kind: FaultFileErrorKind::Field { field, message },
+    for (line, content) in content_lines(text) {
+        let err = |field: &'static str, message: String| {
+            FaultFileError::new(
+                name,
+                Some(line),
+                FaultFileErrorKind::Field { field, message },
+            )
         };
         let mut words = content.split_whitespace();
         let time = words.next().unwrap_or("");
@@ -247,16 +211,5 @@ mod tests {
         assert_eq!(f[0].at, Duration::from_millis(150_500));
         assert_eq!((f[0].kind, f[0].lasts), (FaultKind::CpuOverload, s(90)));
         assert_eq!((f[1].at, f[1].lasts), (s(90), Fault::DEFAULT_LASTS));
-    }
-
-    #[test]
-    fn a_missing_file_names_itself() {
-        let err = read_fault_file("no-such-faults.txt").unwrap_err();
-        assert!(matches!(err.kind(), FaultFileErrorKind::Io(_)));
-        assert!(
-            err.to_string()
-                .starts_with("no-such-faults.txt: cannot read: "),
-            "{err}"
-        );
     }
 }

@@ -1168,13 +1168,7 @@ impl<'a> RawYaml<'a> {
 
 /// Text for an error message, shortened to [`MAX_QUOTED_CHARS`] characters.
 fn shorten(text: &str) -> String {
-    if text.chars().count() <= MAX_QUOTED_CHARS {
-        text.to_owned()
-    } else {
-        let mut short: String = text.chars().take(MAX_QUOTED_CHARS).collect();
-        short.push('…');
-        short
-    }
+    crate::text::shorten(text, MAX_QUOTED_CHARS)
 }
 
 /// Decodes a map image (PGM/PPM or PNG bytes) into cells, with the mode, thresholds,

@@ -13,7 +13,7 @@
 use std::fmt::Write;
 use std::path::Path;
 
-use crate::text::{DataError, DataErrorKind};
+use crate::text::{DataError, write_data_file};
 
 /// The header of the file.
 pub const HEADER: &str = "x1,x2,t,mean,std";
@@ -50,17 +50,7 @@ pub fn write_rate_predictions(
     path: impl AsRef<Path>,
     rows: &[RatePrediction],
 ) -> Result<(), DataError> {
-    let path = path.as_ref();
-    crate::atomic::write_atomically(path, encode_rate_predictions(rows).as_bytes()).map_err(|f| {
-        DataError::new(
-            path.display().to_string(),
-            None,
-            DataErrorKind::Io {
-                action: f.action,
-                io: f.io,
-            },
-        )
-    })
+    write_data_file(path.as_ref(), encode_rate_predictions(rows).as_bytes())
 }
 
 #[cfg(test)]

@@ -48,8 +48,8 @@ use std::path::Path;
 use chronomap_activity::extract::{RobotPath, Waypoint};
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, check_header, for_each_data_line, open_data_file,
-    parse_finite, parse_non_negative, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_csv_row, is_name, parse_finite,
+    parse_non_negative, quote, read_data_file, required,
 };
 
 /// What a waypoint line must look like.
@@ -87,9 +87,9 @@ pub fn read_robot_paths(
     path: impl AsRef<Path>,
     speed: f64,
 ) -> Result<Vec<NamedRobotPath>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_robot_paths_from(&name, open_data_file(path)?, speed)
+    read_data_file(path.as_ref(), |name, reader| {
+        read_robot_paths_from(name, reader, speed)
+    })
 }
 
 /// Reads robot paths (uncompressed text) from `reader`; `name` is used in errors.
@@ -103,19 +103,10 @@ pub fn read_robot_paths_from(
 ) -> Result<Vec<NamedRobotPath>, DataError> {
     // (name, first line, waypoints) of every path in file order.
     let mut groups: Vec<(String, usize, Vec<Waypoint>)> = Vec::new();
-    let mut header_seen = false;
-    for_each_data_line(name, reader, |line_number, line| {
-        if !header_seen {
-            check_header(line, &HEADER)?;
-            header_seen = true;
-            return Ok(());
-        }
+    for_each_csv_row(name, reader, &HEADER, "waypoint", |line_number, line| {
         let mut fields = Fields::new(line);
         let path_text = required(fields.next(), Field::PathName, EXPECTED)?;
-        let valid = path_text
-            .iter()
-            .all(|&b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
-        if !valid {
+        if !is_name(path_text) {
             return Err(DataErrorKind::BadName {
                 field: Field::PathName,
                 text: quote(path_text),
@@ -126,12 +117,7 @@ pub fn read_robot_paths_from(
         let y = parse_finite(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
         let stop =
             parse_non_negative(required(fields.next(), Field::Stop, EXPECTED)?, Field::Stop)?;
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected: EXPECTED,
-            });
-        }
+        fields.finish(EXPECTED)?;
         let waypoint = Waypoint::new([x, y], stop + 0.0);
         match groups.last_mut() {
             Some((last, _, waypoints)) if *last == path_name => waypoints.push(waypoint),
@@ -147,12 +133,6 @@ pub fn read_robot_paths_from(
         }
         Ok(())
     })?;
-    if groups.is_empty() {
-        let kind = DataErrorKind::BadHeader {
-            reason: "a header `path,x,y,stop_s` without any waypoint after it".into(),
-        };
-        return Err(DataError::new(name, None, kind));
-    }
     groups
         .into_iter()
         .map(|(path_name, line, waypoints)| {
@@ -178,6 +158,7 @@ pub fn read_robot_paths_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn read(text: &str) -> Result<Vec<NamedRobotPath>, DataError> {
         read_robot_paths_from("paths.csv", text.as_bytes(), 0.5)
@@ -271,13 +252,11 @@ mod tests {
                 "path \"b\": invalid robot path: a loop takes 0 s",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = read(text).unwrap_err();
-            assert_eq!(err.name(), "paths.csv");
-            assert_eq!(err.line(), Some(line), "{err}");
-            assert_eq!(err.field(), field, "{err}");
-            assert!(err.to_string().contains(message), "{err}");
-        }
+        assert_errors(
+            "paths.csv",
+            |name, text| read_robot_paths_from(name, text, 0.5),
+            &cases,
+        );
         assert!(matches!(read("").unwrap_err().kind(), DataErrorKind::Empty));
         assert_eq!(
             read("path,x,y,stop_s\n").unwrap_err().to_string(),

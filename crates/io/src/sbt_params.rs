@@ -29,12 +29,13 @@
 //! ```
 
 use std::collections::BTreeMap;
-use std::fmt;
 use std::io;
 use std::path::Path;
 
 use chronomap_bt::sbt::LeafParams;
 use thiserror::Error;
+
+use crate::line_error::{LineError, LineErrorKind, parse_text_file};
 
 /// The columns, in order.
 pub const HEADER: [&str; 5] = ["node", "p_s", "p_f", "mu", "nu"];
@@ -96,38 +97,15 @@ pub enum SbtParamsErrorKind {
 }
 
 /// Why a parameters file could not be read: the file, the 1-based line and the problem.
-#[derive(Debug, Error)]
-pub struct SbtParamsError {
-    file: String,
-    line: Option<usize>,
-    kind: SbtParamsErrorKind,
-}
+pub type SbtParamsError = LineError<SbtParamsErrorKind>;
 
-impl fmt::Display for SbtParamsError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.line, &self.kind) {
-            // As before the move: "cannot read FILE: reason".
-            (_, SbtParamsErrorKind::Io(io)) => write!(f, "cannot read {}: {io}", self.file),
-            (Some(line), kind) => write!(f, "{}:{line}: {kind}", self.file),
-            (None, kind) => write!(f, "{}: {kind}", self.file),
+impl LineErrorKind for SbtParamsErrorKind {
+    // As before the move: "cannot read FILE: reason".
+    fn cannot_read(&self) -> Option<&io::Error> {
+        match self {
+            SbtParamsErrorKind::Io(io) => Some(io),
+            _ => None,
         }
-    }
-}
-
-impl SbtParamsError {
-    /// The file.
-    pub fn file(&self) -> &str {
-        &self.file
-    }
-
-    /// The 1-based line, if the problem is on one.
-    pub fn line(&self) -> Option<usize> {
-        self.line
-    }
-
-    /// What is wrong.
-    pub fn kind(&self) -> &SbtParamsErrorKind {
-        &self.kind
     }
 }
 
@@ -138,14 +116,7 @@ impl SbtParamsError {
 pub fn read_leaf_params(
     path: impl AsRef<Path>,
 ) -> Result<BTreeMap<String, LeafParams>, SbtParamsError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|io| SbtParamsError {
-        file: name.clone(),
-        line: None,
-        kind: SbtParamsErrorKind::Io(io),
-    })?;
-    parse_leaf_params(&name, &text)
+    parse_text_file(path.as_ref(), SbtParamsErrorKind::Io, parse_leaf_params)
 }
 
 /// Reads the text of a parameters file (see the [module docs](self)); `name` is used in
@@ -159,11 +130,7 @@ pub fn parse_leaf_params(
     name: &str,
     text: &str,
 ) -> Result<BTreeMap<String, LeafParams>, SbtParamsError> {
-    let error = |line: Option<usize>, kind| SbtParamsError {
-        file: name.to_owned(),
-        line,
-        kind,
-    };
+    let error = |line: Option<usize>, kind| SbtParamsError::new(name, line, kind);
     let mut rows = text
         .lines()
         .enumerate()
@@ -262,45 +229,32 @@ mod tests {
             error("node,p_s\n"),
             "p.csv:1: header \"node,p_s\": expected node,p_s,p_f,mu,nu"
         );
-        let header = "node,p_s,p_f,mu,nu\n";
-        assert_eq!(
-            error(&format!("{header}A,0.5\n")),
-            "p.csv:2: 2 fields, expected 5 (node,p_s,p_f,mu,nu)"
-        );
-        assert_eq!(
-            error(&format!("{header},0.5,,,\n")),
-            "p.csv:2: field node: empty"
-        );
-        assert_eq!(
-            error(&format!("{header}A,,,,\n")),
-            "p.csv:2: field p_s: empty"
-        );
-        assert_eq!(
-            error(&format!("{header}A,0.5,,fast,1\n")),
-            "p.csv:2: field mu: \"fast\" is not a finite number"
-        );
-        assert_eq!(
-            error(&format!("{header}A,0.5,,inf,1\n")),
-            "p.csv:2: field mu: \"inf\" is not a finite number"
-        );
-        assert_eq!(
-            error(&format!("{header}A,0.5,,1,\n")),
-            "p.csv:2: give both mu and nu (action) or neither (condition)"
-        );
-        assert_eq!(
-            error(&format!("{header}A,0.5,,,\n# again\nA,0.6,,,\n")),
-            "p.csv:4: field node: \"A\" appears twice"
-        );
-    }
-
-    #[test]
-    fn a_missing_file_names_itself() {
-        let err = read_leaf_params("no-such-params.csv").unwrap_err();
-        assert!(matches!(err.kind(), SbtParamsErrorKind::Io(_)));
-        assert!(
-            err.to_string()
-                .starts_with("cannot read no-such-params.csv: "),
-            "{err}"
-        );
+        let rows = [
+            (
+                "A,0.5",
+                "p.csv:2: 2 fields, expected 5 (node,p_s,p_f,mu,nu)",
+            ),
+            (",0.5,,,", "p.csv:2: field node: empty"),
+            ("A,,,,", "p.csv:2: field p_s: empty"),
+            (
+                "A,0.5,,fast,1",
+                "p.csv:2: field mu: \"fast\" is not a finite number",
+            ),
+            (
+                "A,0.5,,inf,1",
+                "p.csv:2: field mu: \"inf\" is not a finite number",
+            ),
+            (
+                "A,0.5,,1,",
+                "p.csv:2: give both mu and nu (action) or neither (condition)",
+            ),
+            (
+                "A,0.5,,,\n# again\nA,0.6,,,",
+                "p.csv:4: field node: \"A\" appears twice",
+            ),
+        ];
+        for (rows, message) in rows {
+            assert_eq!(error(&format!("node,p_s,p_f,mu,nu\n{rows}\n")), message);
+        }
     }
 }

@@ -43,8 +43,8 @@ use std::path::Path;
 use chronomap_activity::disturbance::{Scenario, Waypoint};
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, check_header, for_each_data_line, open_data_file,
-    parse_finite, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_csv_row, is_name, parse_finite, quote,
+    read_data_file, required,
 };
 
 /// What a data line must look like.
@@ -60,9 +60,7 @@ const HEADER: [&str; 4] = ["scenario", "waypoint", "x", "y"];
 /// A [`DataError`] naming `path` if the file cannot be read, lacks the header, has no
 /// waypoint, or breaks the rules of the [module docs](self).
 pub fn read_scenarios(path: impl AsRef<Path>) -> Result<Vec<Scenario>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_scenarios_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_scenarios_from)
 }
 
 /// Reads scenarios (uncompressed text) from `reader`; `name` is used in errors.
@@ -73,7 +71,6 @@ pub fn read_scenarios_from(name: &str, reader: impl Read) -> Result<Vec<Scenario
     let mut scenarios: Vec<Scenario> = Vec::new();
     // The first line of the scenario being read, to name it if it ends with one waypoint.
     let mut first_line = 0usize;
-    let mut header_seen = false;
     let too_short = |scenario: &Scenario, line: usize| {
         DataError::new(
             name,
@@ -87,23 +84,13 @@ pub fn read_scenarios_from(name: &str, reader: impl Read) -> Result<Vec<Scenario
         )
     };
     let mut short: Option<DataError> = None;
-    for_each_data_line(name, reader, |line_number, line| {
-        if !header_seen {
-            check_header(line, &HEADER)?;
-            header_seen = true;
-            return Ok(());
-        }
+    for_each_csv_row(name, reader, &HEADER, "waypoint", |line_number, line| {
         let mut fields = Fields::new(line);
         let scenario = parse_name(fields.next(), "scenario")?;
         let label = parse_name(fields.next(), "waypoint")?;
         let x = parse_finite(required(fields.next(), Field::X, EXPECTED)?, Field::X)?;
         let y = parse_finite(required(fields.next(), Field::Y, EXPECTED)?, Field::Y)?;
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected: EXPECTED,
-            });
-        }
+        fields.finish(EXPECTED)?;
         let waypoint = Waypoint { label, at: [x, y] };
         match scenarios.last_mut() {
             Some(current) if current.name == scenario => {
@@ -145,18 +132,8 @@ pub fn read_scenarios_from(name: &str, reader: impl Read) -> Result<Vec<Scenario
         return Err(error);
     }
     match scenarios.last() {
-        None => {
-            let kind = if header_seen {
-                DataErrorKind::BadHeader {
-                    reason: "a header `scenario,waypoint,x,y` without any waypoint after it".into(),
-                }
-            } else {
-                DataErrorKind::Empty
-            };
-            Err(DataError::new(name, None, kind))
-        }
         Some(last) if last.waypoints.len() < 2 => Err(too_short(last, first_line)),
-        Some(_) => Ok(scenarios),
+        _ => Ok(scenarios),
     }
 }
 
@@ -168,10 +145,7 @@ fn parse_name(text: Option<&[u8]>, column: &str) -> Result<String, DataErrorKind
             reason: format!("{column}: missing ({EXPECTED})"),
         });
     }
-    if !text
-        .iter()
-        .all(|&b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
-    {
+    if !is_name(text) {
         return Err(DataErrorKind::Scenario {
             reason: format!(
                 "{column}: {:?} is not a name (ASCII letters, digits, _ and - only)",

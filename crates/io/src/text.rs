@@ -505,9 +505,7 @@ impl DataError {
 /// `time value` with a time and a value satisfying the
 /// [observation contract](chronomap_core::observe).
 pub fn read_pairs(path: impl AsRef<Path>) -> Result<TimeSeries, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_pairs_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_pairs_from)
 }
 
 /// Reads `time value` lines (uncompressed text) from `reader`; `name` is used in errors.
@@ -582,12 +580,7 @@ pub(crate) fn read_timed_lines<T>(
         let time_text = fields.next_text(Field::Time)?;
         let time = parse_time(time_text, previous, times.len())?;
         let record = rest(&mut fields)?;
-        if let Some(extra) = fields.fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected,
-            });
-        }
+        fields.fields.finish(expected)?;
         times.push(time);
         records.push(record);
         previous = Some((time, line_number));
@@ -607,9 +600,9 @@ pub(crate) fn read_timed_lines<T>(
 /// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
 /// exactly one number satisfying the contract.
 pub fn read_column(path: impl AsRef<Path>, field: Field) -> Result<Vec<f64>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_column_from(&name, open_data_file(path)?, field)
+    read_data_file(path.as_ref(), |name, reader| {
+        read_column_from(name, reader, field)
+    })
 }
 
 /// Reads one number per line (uncompressed text) from `reader`; `name` is used in errors.
@@ -678,12 +671,7 @@ pub fn read_column_from(
             Field::PathName | Field::MapFile => parse_number(text, field)?,
             Field::Person => parse_person(text)? as f64,
         };
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected,
-            });
-        }
+        fields.finish(expected)?;
         numbers.push(number);
         previous = Some((number, line_number));
         Ok(())
@@ -770,6 +758,50 @@ pub fn open_data_file(path: impl AsRef<Path>) -> Result<Box<dyn Read + Send>, Da
     Ok(decompressing_reader(&path.to_string_lossy(), file))
 }
 
+/// Reads the data file `path` ([`open_data_file`]: plain, `.xz` or `.gz`) with `read`, which
+/// gets the name of the file for its errors and the decompressed text.
+pub(crate) fn read_data_file<T>(
+    path: &Path,
+    read: impl FnOnce(&str, Box<dyn Read + Send>) -> Result<T, DataError>,
+) -> Result<T, DataError> {
+    read(&path.display().to_string(), open_data_file(path)?)
+}
+
+/// Reads every file of `paths` with `read` and merges their records in the order of `time`
+/// (a stable sort: records of equal times keep the order of the files).
+#[cfg(feature = "hypertime")]
+pub(crate) fn read_merged<T>(
+    paths: &[impl AsRef<Path>],
+    read: impl Fn(&Path) -> Result<Vec<T>, DataError>,
+    time: impl Fn(&T) -> f64,
+) -> Result<Vec<T>, DataError> {
+    let mut all = Vec::new();
+    for path in paths {
+        all.extend(read(path.as_ref())?);
+    }
+    all.sort_by(|a, b| time(a).total_cmp(&time(b)));
+    Ok(all)
+}
+
+/// Writes `bytes` to `path` atomically (a temporary file renamed over the target: a crash
+/// never leaves half a file).
+///
+/// # Errors
+/// [`DataErrorKind::Io`] naming `path` if it cannot be written.
+#[cfg(feature = "activity")]
+pub(crate) fn write_data_file(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
+    crate::atomic::write_atomically(path, bytes).map_err(|failure| {
+        DataError::new(
+            path.display().to_string(),
+            None,
+            DataErrorKind::Io {
+                action: failure.action,
+                io: failure.io,
+            },
+        )
+    })
+}
+
 /// Wraps `reader` in a decompressor chosen by the extension of `name`: `.xz` and `.gz` are
 /// decompressed on the fly, anything else is read as it is (used for embedded data).
 pub fn decompressing_reader<'a>(
@@ -847,6 +879,42 @@ pub(crate) fn for_each_data_line(
     Ok(data_lines)
 }
 
+/// As [`for_each_data_line`] for a CSV file whose first data line is the header `header`
+/// ([`check_header`]): `handle` gets the data lines after it. `row` names what a data line
+/// holds, for the error of a header without any line after it.
+#[cfg(feature = "activity")]
+pub(crate) fn for_each_csv_row(
+    name: &str,
+    reader: impl Read,
+    header: &[&str],
+    row: &str,
+    mut handle: impl FnMut(usize, &[u8]) -> Result<(), DataErrorKind>,
+) -> Result<(), DataError> {
+    let mut header_seen = false;
+    let lines = for_each_data_line(name, reader, |line_number, line| {
+        if header_seen {
+            handle(line_number, line)
+        } else {
+            header_seen = true;
+            check_header(line, header)
+        }
+    })?;
+    if lines == 1 {
+        let kind = DataErrorKind::BadHeader {
+            reason: format!("a header `{}` without any {row} after it", header.join(",")),
+        };
+        return Err(DataError::new(name, None, kind));
+    }
+    Ok(())
+}
+
+/// Whether `text` is a name: ASCII letters, digits, `_` and `-` only.
+#[cfg(feature = "activity")]
+pub(crate) fn is_name(text: &[u8]) -> bool {
+    text.iter()
+        .all(|&b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
 /// Fields of a trimmed line: separated by whitespace, or by one comma with optional whitespace
 /// around it. An empty field (`1,,2`, a leading or trailing comma) is returned as `b""`.
 pub(crate) struct Fields<'a> {
@@ -859,6 +927,18 @@ impl<'a> Fields<'a> {
         Fields {
             rest: line,
             first: true,
+        }
+    }
+
+    /// Checks that no field is left: the first one left over is a
+    /// [`DataErrorKind::ExtraField`] error; `expected` describes a line.
+    pub(crate) fn finish(mut self, expected: &'static str) -> Result<(), DataErrorKind> {
+        match self.next() {
+            Some(extra) => Err(DataErrorKind::ExtraField {
+                text: quote(extra),
+                expected,
+            }),
+            None => Ok(()),
         }
     }
 }
@@ -1000,7 +1080,8 @@ pub(crate) fn parse_finite(text: &[u8], field: Field) -> Result<f64, DataErrorKi
 }
 
 /// Checks the header line of a CSV file whose fields must be `header`, in that order.
-pub(crate) fn check_header(line: &[u8], header: &[&str]) -> Result<(), DataErrorKind> {
+#[cfg(feature = "activity")]
+fn check_header(line: &[u8], header: &[&str]) -> Result<(), DataErrorKind> {
     let fields: Vec<&[u8]> = Fields::new(line).collect();
     if fields.len() != header.len() || fields.iter().zip(header).any(|(f, h)| *f != h.as_bytes()) {
         return Err(DataErrorKind::BadHeader {
@@ -1043,13 +1124,40 @@ fn parse_success(text: &[u8]) -> Result<bool, DataErrorKind> {
 
 /// The offending text for an error message (lossy UTF-8, shortened if long).
 pub(crate) fn quote(text: &[u8]) -> String {
-    let text = String::from_utf8_lossy(text);
-    if text.chars().count() <= MAX_QUOTED_CHARS {
-        text.into_owned()
+    shorten(&String::from_utf8_lossy(text), MAX_QUOTED_CHARS)
+}
+
+/// `text` for an error message: its first `max` characters and `…` if it is longer.
+pub(crate) fn shorten(text: &str, max: usize) -> String {
+    if text.chars().count() <= max {
+        text.to_owned()
     } else {
-        let mut short: String = text.chars().take(MAX_QUOTED_CHARS).collect();
+        let mut short: String = text.chars().take(max).collect();
         short.push('…');
         short
+    }
+}
+
+/// Helpers for the tests of the readers built on this module.
+#[cfg(all(test, feature = "activity"))]
+pub(crate) mod test_support {
+    use super::{DataError, Field};
+
+    /// Checks every `(text, line, field, message)` of `cases`: `read(name, text)` fails naming
+    /// the file `name`, the 1-based `line` and `field`, with a message that contains `message`.
+    pub(crate) fn assert_errors<'a, T: std::fmt::Debug>(
+        name: &str,
+        read: impl Fn(&str, &'a [u8]) -> Result<T, DataError>,
+        cases: &[(&'a str, usize, Option<Field>, &str)],
+    ) {
+        for &(text, line, field, message) in cases {
+            let err = read(name, text.as_bytes()).unwrap_err();
+            assert_eq!(err.name(), name, "{text}");
+            assert_eq!(err.line(), Some(line), "{text}: {err}");
+            assert_eq!(err.field(), field, "{text}: {err}");
+            assert!(err.to_string().contains(message), "{text}: {err}");
+            assert!(err.to_string().starts_with(&format!("{name}:")), "{err}");
+        }
     }
 }
 

@@ -149,7 +149,7 @@ use serde_saphyr::Spanned;
 use thiserror::Error;
 
 use crate::text::{
-    DataError, DataErrorKind, TimeSeries, decompressing_reader, open_data_file, read_timed_lines,
+    DataError, DataErrorKind, TimeSeries, decompressing_reader, read_data_file, read_timed_lines,
 };
 use crate::yaml::{self, Prefix, Yaml};
 
@@ -269,9 +269,7 @@ const EDGE_LINE: &str = "expected three fields: time duration success";
 /// not finite or earlier than the previous one, a duration that is negative or not finite, a
 /// success that is not `0` or `1`, a missing or extra field.
 pub fn read_edge_file(path: impl AsRef<Path>) -> Result<Vec<EdgeAttempt>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_edge_file_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_edge_file_from)
 }
 
 /// Reads the lines of an edge file (uncompressed text) from `reader`; `name` is used in

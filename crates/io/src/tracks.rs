@@ -43,8 +43,8 @@ use chronomap_activity::truth::TrackPoint;
 use chronomap_hypertime::events::Event;
 
 use crate::text::{
-    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_finite,
-    parse_non_negative, parse_person, quote, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, parse_finite, parse_non_negative,
+    parse_person, quote, read_data_file, read_merged, required,
 };
 
 /// What a track line must look like.
@@ -63,9 +63,7 @@ const EXPECTED: &str = "expected six fields: t,person,x,y,speed,heading";
 /// A [`DataError`] naming `path` if the file cannot be read, has no detection, or a line
 /// breaks the rules of the [module docs](self).
 pub fn read_tracks(path: impl AsRef<Path>) -> Result<Vec<Event>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_tracks_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_tracks_from)
 }
 
 /// Reads several track files and merges their detections in time order (stable: equal times
@@ -74,12 +72,7 @@ pub fn read_tracks(path: impl AsRef<Path>) -> Result<Vec<Event>, DataError> {
 /// # Errors
 /// The first error of [`read_tracks`].
 pub fn read_track_files(paths: &[impl AsRef<Path>]) -> Result<Vec<Event>, DataError> {
-    let mut all = Vec::new();
-    for path in paths {
-        all.extend(read_tracks(path)?);
-    }
-    all.sort_by(|a, b| a.t.total_cmp(&b.t));
-    Ok(all)
+    read_merged(paths, |path| read_tracks(path), |e| e.t)
 }
 
 /// Reads pedestrian tracks (uncompressed text) from `reader`; `name` is used in errors.
@@ -103,9 +96,7 @@ pub fn read_tracks_from(name: &str, reader: impl Read) -> Result<Vec<Event>, Dat
 /// # Errors
 /// As [`read_tracks`].
 pub fn read_track_points(path: impl AsRef<Path>) -> Result<Vec<TrackPoint>, DataError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    read_track_points_from(&name, open_data_file(path)?)
+    read_data_file(path.as_ref(), read_track_points_from)
 }
 
 /// As [`read_track_files`], keeping the person ids.
@@ -113,12 +104,7 @@ pub fn read_track_points(path: impl AsRef<Path>) -> Result<Vec<TrackPoint>, Data
 /// # Errors
 /// The first error of [`read_track_points`].
 pub fn read_track_point_files(paths: &[impl AsRef<Path>]) -> Result<Vec<TrackPoint>, DataError> {
-    let mut all = Vec::new();
-    for path in paths {
-        all.extend(read_track_points(path)?);
-    }
-    all.sort_by(|a, b| a.t.total_cmp(&b.t));
-    Ok(all)
+    read_merged(paths, |path| read_track_points(path), |p| p.t)
 }
 
 /// As [`read_tracks_from`], keeping the person ids.
@@ -142,12 +128,7 @@ pub fn read_track_points_from(name: &str, reader: impl Read) -> Result<Vec<Track
         let y = parse_finite(next(Field::Y)?, Field::Y)?;
         parse_non_negative(next(Field::Speed)?, Field::Speed)?;
         parse_finite(next(Field::Heading)?, Field::Heading)?;
-        if let Some(extra) = fields.next() {
-            return Err(DataErrorKind::ExtraField {
-                text: quote(extra),
-                expected: EXPECTED,
-            });
-        }
+        fields.finish(EXPECTED)?;
         events.push(TrackPoint { t, person, x, y });
         Ok(())
     })?;
@@ -161,6 +142,7 @@ pub fn read_track_points_from(name: &str, reader: impl Read) -> Result<Vec<Track
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::text::test_support::assert_errors;
 
     fn error(text: &str) -> DataError {
         read_tracks_from("atc.csv", text.as_bytes()).unwrap_err()
@@ -211,13 +193,7 @@ mod tests {
                 "y: \"inf\" is not a finite number",
             ),
         ];
-        for (text, line, field, message) in cases {
-            let err = error(text);
-            assert_eq!(err.line(), Some(line), "{text}");
-            assert_eq!(err.field(), field, "{text}");
-            assert!(err.to_string().contains(message), "{text}: {err}");
-            assert!(err.to_string().starts_with("atc.csv:"), "{err}");
-        }
+        assert_errors("atc.csv", read_tracks_from, &cases);
         assert!(matches!(error("# nothing\n").kind(), DataErrorKind::Empty));
     }
 }

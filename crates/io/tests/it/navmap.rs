@@ -9,7 +9,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use chronomap_io::navmap::{
-    LoadSemantics, MapMetadata, MapMode, NavMapErrorKind, OccupancyMap, SaveOptions,
+    LoadSemantics, MapMetadata, MapMode, NavMapErrorKind, OccupancyMap, SaveOptions, SavedMap,
     decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, format_g, image_path,
     load_map, read_map_yaml, save_map,
 };
@@ -45,6 +45,19 @@ origin: [-1.5, 2.25, 0]
 negate: 0
 occupied_thresh: 0.65
 free_thresh: 0.25";
+
+/// Saves [`four_by_three`] as `office` in `dir`.
+fn save_office(dir: &Path, options: &SaveOptions) -> SavedMap {
+    save_map(&dir.join("office"), &four_by_three(), options).unwrap()
+}
+
+/// Checks that the map saved as `yaml` loads as `expected` with both semantics.
+fn assert_loads_as(yaml: &Path, expected: &[i8]) {
+    for semantics in [LoadSemantics::Nav2, LoadSemantics::Ros1] {
+        let data = load_map(yaml, semantics).unwrap().data;
+        assert_eq!(data, expected, "{semantics:?}");
+    }
+}
 
 fn metadata(mode: MapMode, occupied_thresh: f64, free_thresh: f64) -> MapMetadata {
     MapMetadata {
@@ -88,12 +101,7 @@ fn png_bytes(
 #[test]
 fn trinary_save_matches_map_saver_byte_for_byte() {
     let dir = scratch("trinary_bytes");
-    let saved = save_map(
-        &dir.join("office"),
-        &four_by_three(),
-        &SaveOptions::default(),
-    )
-    .unwrap();
+    let saved = save_office(&dir, &SaveOptions::default());
     assert_eq!(saved.yaml, dir.join("office.yaml"));
     assert_eq!(saved.image, dir.join("office.pgm"));
 
@@ -106,12 +114,7 @@ fn trinary_save_matches_map_saver_byte_for_byte() {
     assert_eq!(fs::read_to_string(&saved.yaml).unwrap(), OFFICE_YAML);
 
     // Saving again replaces both files and leaves no temporary file behind.
-    save_map(
-        &dir.join("office"),
-        &four_by_three(),
-        &SaveOptions::default(),
-    )
-    .unwrap();
+    save_office(&dir, &SaveOptions::default());
     let mut names: Vec<String> = fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
@@ -142,7 +145,7 @@ fn scale_save_is_grey_alpha_png_with_graphicsmagick_levels() {
         mode: MapMode::Scale,
         ..SaveOptions::default()
     };
-    let saved = save_map(&dir.join("office"), &four_by_three(), &scale).unwrap();
+    let saved = save_office(&dir, &scale);
     assert_eq!(saved.image, dir.join("office.png"));
     assert_eq!(
         fs::read_to_string(&saved.yaml).unwrap(),
@@ -251,7 +254,7 @@ fn trinary_round_trip_keeps_free_occupied_and_unknown_with_free_thresh_0_196() {
         free_thresh: 0.196,
         ..SaveOptions::default()
     };
-    let saved = save_map(&dir.join("office"), &four_by_three(), &options).unwrap();
+    let saved = save_office(&dir, &options);
     // Saved: v <= 20 free (254), v >= 65 occupied (0), the rest 205.
     #[rustfmt::skip]
     let expected = [
@@ -273,26 +276,14 @@ fn default_free_thresh_0_25_loads_unknown_cells_back_as_free() {
     // The unknown grey 205 is p = 50/255 = 0.196 <= 0.25: map_saver's default thresholds turn
     // unknown space into free space on reload (with either semantics).
     let dir = scratch("trinary_default_thresholds");
-    let saved = save_map(
-        &dir.join("office"),
-        &four_by_three(),
-        &SaveOptions::default(),
-    )
-    .unwrap();
+    let saved = save_office(&dir, &SaveOptions::default());
     #[rustfmt::skip]
     let expected = [
         0, 0, 0, 100,
         0, 0, 0, 100,
         0, 100, 0, 0,
     ];
-    assert_eq!(
-        load_map(&saved.yaml, LoadSemantics::Nav2).unwrap().data,
-        expected
-    );
-    assert_eq!(
-        load_map(&saved.yaml, LoadSemantics::Ros1).unwrap().data,
-        expected
-    );
+    assert_loads_as(&saved.yaml, &expected);
 }
 
 #[test]
@@ -360,15 +351,8 @@ fn raw_round_trip_is_exact() {
         .iter()
         .map(|&v| if (0..=100).contains(&v) { v } else { -1 })
         .collect();
-    assert_eq!(
-        load_map(&saved.yaml, LoadSemantics::Nav2).unwrap().data,
-        expected
-    );
     // ROS 1 reads the unknown byte 255 as -1 too (it wraps instead of clamping).
-    assert_eq!(
-        load_map(&saved.yaml, LoadSemantics::Ros1).unwrap().data,
-        expected
-    );
+    assert_loads_as(&saved.yaml, &expected);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -780,14 +764,6 @@ fn malformed_pgm_files_are_rejected_with_the_file_name() {
     };
 
     let err = load(b"P5\n4 3\n255\n\x00\x01\x02\x03\x04\x05\x06");
-    assert!(matches!(
-        err.kind(),
-        NavMapErrorKind::TruncatedImage {
-            expected: 12,
-            actual: 7,
-            unit: "bytes"
-        }
-    ));
     assert_eq!(
         err.to_string(),
         format!(
@@ -795,84 +771,86 @@ fn malformed_pgm_files_are_rejected_with_the_file_name() {
             image.display()
         )
     );
-    let err = load(b"P5\n2 1\n255\n\x00\x01\x02");
-    assert!(
-        matches!(
-            err.kind(),
-            NavMapErrorKind::TrailingData {
-                expected: 2,
-                actual: 3,
-                ..
-            }
+    // (image, whether its error is of the right kind)
+    type IsExpected = fn(&NavMapErrorKind) -> bool;
+    let kinds: [(&[u8], IsExpected); 7] = [
+        (b"P5\n4 3\n255\n\x00\x01\x02\x03\x04\x05\x06", |kind| {
+            matches!(
+                kind,
+                NavMapErrorKind::TruncatedImage {
+                    expected: 12,
+                    actual: 7,
+                    unit: "bytes"
+                }
+            )
+        }),
+        (b"P5\n2 1\n255\n\x00\x01\x02", |kind| {
+            matches!(
+                kind,
+                NavMapErrorKind::TrailingData {
+                    expected: 2,
+                    actual: 3,
+                    ..
+                }
+            )
+        }),
+        (b"P5\n4 3\n255", |kind| {
+            matches!(kind, NavMapErrorKind::TruncatedImage { actual: 0, .. })
+        }),
+        (b"P5\n0 3\n255\n", |kind| {
+            matches!(
+                kind,
+                NavMapErrorKind::ImageSize {
+                    width: 0,
+                    height: 3,
+                    ..
+                }
+            )
+        }),
+        (b"P2\n2 2\n255\n1 2 3\n", |kind| {
+            matches!(
+                kind,
+                NavMapErrorKind::TruncatedImage {
+                    expected: 4,
+                    actual: 3,
+                    unit: "samples"
+                }
+            )
+        }),
+        (b"P5 100000 100000 255\n", |kind| {
+            matches!(kind, NavMapErrorKind::ImageSize { .. })
+        }),
+        (b"", |kind| matches!(kind, NavMapErrorKind::EmptyImage)),
+    ];
+    for (bytes, is_expected) in kinds {
+        let err = load(bytes);
+        assert!(is_expected(err.kind()), "{err}");
+    }
+    // (image, the end of its message)
+    let ends: [(&[u8], &str); 2] = [
+        (
+            b"P5\n4",
+            "malformed PGM image: the header ends before the height",
         ),
-        "{err}"
-    );
-    let err = load(b"P5\n4 3\n255");
-    assert!(
-        matches!(
-            err.kind(),
-            NavMapErrorKind::TruncatedImage { actual: 0, .. }
+        (
+            b"P5\n99999999999 1 255\n",
+            "malformed PGM image: width: 99999999999 is too large",
         ),
-        "{err}"
-    );
-    let err = load(b"P5\n4");
-    assert!(
-        err.to_string()
-            .ends_with("malformed PGM image: the header ends before the height"),
-        "{err}"
-    );
-    let err = load(b"P5\n4x3 255\n");
-    assert!(
-        err.to_string().contains("width: \"4x3\" is not a number"),
-        "{err}"
-    );
-    let err = load(b"P5\n2 1\n0\n\x00\x00");
-    assert!(
-        err.to_string().contains("maxval 0 is not in 1..=65535"),
-        "{err}"
-    );
-    let err = load(b"P5\n0 3\n255\n");
-    assert!(
-        matches!(
-            err.kind(),
-            NavMapErrorKind::ImageSize {
-                width: 0,
-                height: 3,
-                ..
-            }
-        ),
-        "{err}"
-    );
-    let err = load(b"P5\n2 1\n15\n\x00\x10");
-    assert!(
-        err.to_string().contains("sample 16 of pixel (1, 0)"),
-        "{err}"
-    );
-    let err = load(b"P2\n2 2\n255\n1 2 3\n");
-    assert!(
-        matches!(
-            err.kind(),
-            NavMapErrorKind::TruncatedImage {
-                expected: 4,
-                actual: 3,
-                unit: "samples"
-            }
-        ),
-        "{err}"
-    );
-    let err = load(b"P5 100000 100000 255\n");
-    assert!(
-        matches!(err.kind(), NavMapErrorKind::ImageSize { .. }),
-        "{err}"
-    );
-    let err = load(b"P5\n99999999999 1 255\n");
-    assert!(
-        err.to_string()
-            .ends_with("malformed PGM image: width: 99999999999 is too large"),
-        "{err}"
-    );
-    let err = load(b"");
-    assert!(matches!(err.kind(), NavMapErrorKind::EmptyImage), "{err}");
+    ];
+    for (bytes, end) in ends {
+        let err = load(bytes);
+        assert!(err.to_string().ends_with(end), "{err}");
+    }
+    // (image, a part of its message)
+    let parts: [(&[u8], &str); 3] = [
+        (b"P5\n4x3 255\n", "width: \"4x3\" is not a number"),
+        (b"P5\n2 1\n0\n\x00\x00", "maxval 0 is not in 1..=65535"),
+        (b"P5\n2 1\n15\n\x00\x10", "sample 16 of pixel (1, 0)"),
+    ];
+    for (bytes, part) in parts {
+        let err = load(bytes);
+        assert!(err.to_string().contains(part), "{err}");
+    }
 }
 
 #[test]
