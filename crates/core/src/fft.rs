@@ -452,14 +452,7 @@ impl FftFremen {
         max_order: usize,
         config: FftFremenConfig,
     ) -> Result<(usize, Vec<f64>), BuildError> {
-        if !(holdout > 0.0 && holdout < 1.0) {
-            return Err(ConfigError::OutOfRange {
-                name: "holdout",
-                value: holdout.to_string(),
-                expected: "a fraction strictly between 0 and 1",
-            }
-            .into());
-        }
+        crate::select::check_holdout(holdout)?;
         let n = samples.len() as u64;
         let split = ((n as f64) * (1.0 - holdout)).round() as u64;
         if split < 2 || n - split < 2 {
