@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{CellState, FremenGrid, GridError, GridGeometry, NONE};
 use chronomap_core::crossings::threshold_toggles;
-use chronomap_core::fft::{ones_in, xor_edges};
+use chronomap_core::fft::{from_gaps, ones_in, to_gaps, xor_edges};
 use chronomap_core::model::{Ordered, saturate};
 use chronomap_core::observe::ObservedSpan;
 use chronomap_core::periods::{PeriodSet, cycle_fraction};
@@ -573,35 +573,25 @@ impl From<Vec<u64>> for Toggles {
 
 impl Serialize for Toggles {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let mut previous = 0;
-        let gaps: Vec<u64> = self
-            .0
-            .iter()
-            .map(|&p| {
-                let g = p - previous;
-                previous = p;
-                g
-            })
-            .collect();
-        gaps.serialize(serializer)
+        to_gaps(&self.0).serialize(serializer)
     }
 }
 
 impl<'de> Deserialize<'de> for Toggles {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let gaps = Vec::<u64>::deserialize(deserializer)?;
-        let mut position = 0u64;
-        let mut out = Vec::with_capacity(gaps.len());
-        for (i, g) in gaps.into_iter().enumerate() {
-            if i > 0 && g == 0 {
-                return Err(serde::de::Error::custom("toggle positions must increase"));
-            }
-            position = position
-                .checked_add(g)
-                .ok_or_else(|| serde::de::Error::custom("toggle position overflows"))?;
-            out.push(position);
+        // A zero gap after the first repeats a position; an overflow before it is reported first.
+        let repeat = gaps
+            .iter()
+            .skip(1)
+            .position(|&g| g == 0)
+            .map_or(gaps.len(), |i| i + 1);
+        let positions = from_gaps(&gaps[..repeat])
+            .ok_or_else(|| serde::de::Error::custom("toggle position overflows"))?;
+        if repeat < gaps.len() {
+            return Err(serde::de::Error::custom("toggle positions must increase"));
         }
-        Ok(Toggles(out))
+        Ok(Toggles(positions))
     }
 }
 
