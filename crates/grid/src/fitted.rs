@@ -196,6 +196,15 @@ impl FittedGrid {
         &self.cells
     }
 
+    /// The position in [`FittedGrid::cells`] of each cell with a model, by cell index.
+    fn cell_positions(&self) -> std::collections::HashMap<u32, usize> {
+        self.cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.cell, i))
+            .collect()
+    }
+
     /// All components, referenced by [`FittedCell::start`].
     pub fn components(&self) -> &[CompactComponent] {
         &self.components
@@ -382,12 +391,7 @@ impl FremenGrid {
     ) -> Result<EstimationError, GridError> {
         self.require_history("an estimation error")?;
         let to = to.min(self.frames);
-        let index: std::collections::HashMap<u32, usize> = fitted
-            .cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c.cell, i))
-            .collect();
+        let index = fitted.cell_positions();
         let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> = self
             .slots
             .par_iter()
@@ -469,12 +473,7 @@ impl FremenGrid {
         let full = self.fitted(OrderChoice::Fixed(0));
         let history = self.grid_history(&full)?;
         let mut orders = vec![0u8; self.geometry.cells()];
-        let index_of: std::collections::HashMap<u32, usize> = candidate
-            .cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c.cell, i))
-            .collect();
+        let index_of = candidate.cell_positions();
         let chosen: Vec<(usize, u8)> = full
             .cells
             .par_iter()
