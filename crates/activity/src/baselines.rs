@@ -9,6 +9,7 @@
 use std::collections::HashMap;
 
 use super::gphom::{GpHom, GpHomConfig};
+use super::init::check_dwell;
 use super::whyte::{Whyte, WhyteConfig};
 use super::{ActivityError, CellKey, RatePredictor, RateSamples, Scores, score};
 use chronomap_core::progress::{NoProgress, Progress};
@@ -96,24 +97,9 @@ impl CellMean {
         })))
     }
 
-    /// The rate of the cell centred at `x`, if it was seen in training.
-    pub fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
-        self.0.cell_rate(x)
-    }
-
     /// Number of cells seen in training.
     pub fn cell_count(&self) -> usize {
         self.0.rates.len()
-    }
-}
-
-impl RatePredictor for CellMean {
-    fn name(&self) -> &str {
-        "ml"
-    }
-
-    fn predict(&self, x: [f64; 2], _t: f64) -> f64 {
-        self.0.predict(x)
     }
 }
 
@@ -151,22 +137,33 @@ impl CellLogMean {
             log_mean(y, idx.iter().copied())
         })))
     }
-
-    /// The rate of the cell centred at `x`, if it was seen in training.
-    pub fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
-        self.0.cell_rate(x)
-    }
 }
 
-impl RatePredictor for CellLogMean {
-    fn name(&self) -> &str {
-        "ml_log"
-    }
+/// What the per-cell models over [`CellRates`] share: the lookup of a cell's rate and the
+/// prediction, constant over time, under the model's name.
+macro_rules! per_cell_model {
+    ($model:ty, $name:literal) => {
+        impl $model {
+            /// The rate of the cell centred at `x`, if it was seen in training.
+            pub fn cell_rate(&self, x: [f64; 2]) -> Option<f64> {
+                self.0.cell_rate(x)
+            }
+        }
 
-    fn predict(&self, x: [f64; 2], _t: f64) -> f64 {
-        self.0.predict(x)
-    }
+        impl RatePredictor for $model {
+            fn name(&self) -> &str {
+                $name
+            }
+
+            fn predict(&self, x: [f64; 2], _t: f64) -> f64 {
+                self.0.predict(x)
+            }
+        }
+    };
 }
+
+per_cell_model!(CellMean, "ml");
+per_cell_model!(CellLogMean, "ml_log");
 
 /// Parameters of [`FrAam`].
 #[derive(Clone, Debug, PartialEq)]
@@ -314,23 +311,7 @@ impl FrAam {
         if train.is_empty() {
             return Err(ActivityError::Empty);
         }
-        if dwell.len() != train.len() {
-            return Err(ActivityError::LengthMismatch {
-                predictions: dwell.len(),
-                truth: train.len(),
-            });
-        }
-        if let Some((index, &value)) = dwell
-            .iter()
-            .enumerate()
-            .find(|(_, d)| !(d.is_finite() && **d > 0.0))
-        {
-            return Err(ActivityError::NonFinite {
-                index,
-                field: "dwell",
-                value,
-            });
-        }
+        check_dwell(dwell, train.len())?;
         let (t, y) = (train.t(), train.y());
         let all: Vec<usize> = (0..train.len()).collect();
         let fallback = gamma_rate(&all, y, dwell, config);

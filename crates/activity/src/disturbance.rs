@@ -147,13 +147,7 @@ pub struct Scenario {
 }
 
 fn check_positive(what: &str, value: f64) -> Result<(), DisturbanceError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(())
-    } else {
-        Err(DisturbanceError::Config(format!(
-            "{what} {value} is not a positive number"
-        )))
-    }
+    chronomap_core::error::check_positive(what, value).map_err(DisturbanceError::Config)
 }
 
 /// A path through the planning grid and its cost.
@@ -499,13 +493,7 @@ impl DisturbanceConfig {
         check_positive("the speed", self.speed)?;
         check_positive("the encounter radius", self.radius)?;
         check_positive("the patrol slot", self.max_duration)?;
-        if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
-            return Err(DisturbanceError::Config(format!(
-                "epsilon {} is not a positive number",
-                self.epsilon
-            )));
-        }
-        Ok(())
+        check_positive("epsilon", self.epsilon)
     }
 }
 

@@ -59,6 +59,7 @@ use std::collections::HashMap;
 use thiserror::Error;
 
 use super::RateSamples;
+use chronomap_core::error::check_positive;
 use chronomap_core::progress::{NoProgress, Progress};
 use chronomap_hypertime::events::Event;
 pub use chronomap_spatial::ObstacleGrid;
@@ -315,15 +316,7 @@ impl Default for ExtractConfig {
 impl ExtractConfig {
     /// Steps per bin.
     fn steps(&self) -> Result<usize, ExtractError> {
-        let positive = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ExtractError::Config(format!(
-                    "{name} {v} is not a positive number"
-                )))
-            }
-        };
+        let positive = |name: &str, v: f64| check_positive(name, v).map_err(ExtractError::Config);
         positive("field-of-view radius", self.fov_radius)?;
         positive("cell size", self.cell_size)?;
         positive("bin length", self.bin_seconds)?;
@@ -553,18 +546,18 @@ pub fn visible_cells(
 }
 
 fn check_detections(detections: &[Event]) -> Result<(), ExtractError> {
-    for (index, d) in detections.iter().enumerate() {
-        for (field, value) in [("t", d.t), ("x", d.x), ("y", d.y)] {
-            if !value.is_finite() {
-                return Err(ExtractError::NonFinite {
-                    index,
-                    field,
-                    value,
-                });
-            }
-        }
+    match detections
+        .iter()
+        .enumerate()
+        .find_map(|(index, d)| Some((index, d.non_finite()?)))
+    {
+        Some((index, (field, value))) => Err(ExtractError::NonFinite {
+            index,
+            field,
+            value,
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Sorted distinct bins.

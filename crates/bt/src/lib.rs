@@ -60,6 +60,17 @@
 //! [`Duration`]: std::time::Duration
 #![deny(missing_docs)]
 
+/// `Display` of a type with a name method (`$name(self) -> &'static str`): writes that name.
+macro_rules! display_by_name {
+    ($ty:ty, $name:ident) => {
+        impl std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.$name())
+            }
+        }
+    };
+}
+
 pub mod monitor;
 pub mod sbt;
 
@@ -138,11 +149,7 @@ impl Status {
     }
 }
 
-impl std::fmt::Display for Status {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+display_by_name!(Status, as_str);
 
 impl std::str::FromStr for Status {
     type Err = String;

@@ -76,11 +76,7 @@ impl NodeCategory {
     }
 }
 
-impl fmt::Display for NodeCategory {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.tag())
-    }
-}
+display_by_name!(NodeCategory, tag);
 
 /// Which way a port passes values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -89,11 +89,7 @@ impl MonitorState {
     }
 }
 
-impl std::fmt::Display for MonitorState {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+display_by_name!(MonitorState, as_str);
 
 /// A tolerance band with a warning and an error range on each side (§5.3.1: "an individual
 /// warning and error range"; Table 5.1: "not in tolerance band"). A value `v` is

@@ -517,9 +517,9 @@ impl Tree {
         let status = match self.nodes[i].kind {
             Kind::Leaf => self.tick_leaf(i)?,
             Kind::Builtin(kind) => match kind {
-                BuiltinKind::Sequence => self.tick_sequence(i, false)?,
-                BuiltinKind::SequenceWithMemory => self.tick_sequence(i, true)?,
-                BuiltinKind::Fallback => self.tick_fallback(i)?,
+                BuiltinKind::Sequence => self.tick_in_order(i, true, false)?,
+                BuiltinKind::SequenceWithMemory => self.tick_in_order(i, true, true)?,
+                BuiltinKind::Fallback => self.tick_in_order(i, false, false)?,
                 BuiltinKind::ReactiveSequence => self.tick_reactive(i, true)?,
                 BuiltinKind::ReactiveFallback => self.tick_reactive(i, false)?,
                 BuiltinKind::Parallel => self.tick_parallel(i)?,
@@ -548,8 +548,16 @@ impl Tree {
         }
     }
 
-    /// `SequenceNode::tick` and `SequenceWithMemory::tick`.
-    fn tick_sequence(&mut self, i: usize, with_memory: bool) -> Result<Status, TickError> {
+    /// `SequenceNode::tick` and `SequenceWithMemory::tick` (`sequence`) and
+    /// `FallbackNode::tick`: the children in order from the current one, until one returns
+    /// the status that stops the node ([`stop_and_otherwise`]).
+    fn tick_in_order(
+        &mut self,
+        i: usize,
+        sequence: bool,
+        with_memory: bool,
+    ) -> Result<Status, TickError> {
+        let (stop, otherwise) = stop_and_otherwise(sequence);
         self.set_status(i, Status::Running);
         let n = self.nodes[i].children.len();
         while self.nodes[i].index < n {
@@ -557,7 +565,8 @@ impl Tree {
             let child = self.nodes[i].children[current];
             match self.execute_tick(child)? {
                 Status::Running => return Ok(Status::Running),
-                Status::Failure => {
+                Status::Idle => unreachable!("executed ticks never return IDLE"),
+                status if status == stop => {
                     if with_memory {
                         // "DO NOT reset current_child_idx_ on failure"
                         for k in current..n {
@@ -568,46 +577,19 @@ impl Tree {
                         self.reset_children(i);
                         self.nodes[i].index = 0;
                     }
-                    return Ok(Status::Failure);
+                    return Ok(stop);
                 }
-                Status::Success => self.nodes[i].index += 1,
-                Status::Idle => unreachable!("executed ticks never return IDLE"),
+                _ => self.nodes[i].index += 1,
             }
         }
         self.reset_children(i);
         self.nodes[i].index = 0;
-        Ok(Status::Success)
-    }
-
-    /// `FallbackNode::tick`.
-    fn tick_fallback(&mut self, i: usize) -> Result<Status, TickError> {
-        self.set_status(i, Status::Running);
-        let n = self.nodes[i].children.len();
-        while self.nodes[i].index < n {
-            let child = self.nodes[i].children[self.nodes[i].index];
-            match self.execute_tick(child)? {
-                Status::Running => return Ok(Status::Running),
-                Status::Success => {
-                    self.reset_children(i);
-                    self.nodes[i].index = 0;
-                    return Ok(Status::Success);
-                }
-                Status::Failure => self.nodes[i].index += 1,
-                Status::Idle => unreachable!("executed ticks never return IDLE"),
-            }
-        }
-        self.reset_children(i);
-        self.nodes[i].index = 0;
-        Ok(Status::Failure)
+        Ok(otherwise)
     }
 
     /// `ReactiveSequence::tick` (`sequence`) and `ReactiveFallback::tick`.
     fn tick_reactive(&mut self, i: usize, sequence: bool) -> Result<Status, TickError> {
-        let (stop, otherwise) = if sequence {
-            (Status::Failure, Status::Success)
-        } else {
-            (Status::Success, Status::Failure)
-        };
+        let (stop, otherwise) = stop_and_otherwise(sequence);
         self.set_status(i, Status::Running);
         let n = self.nodes[i].children.len();
         for k in 0..n {
@@ -802,6 +784,16 @@ impl Tree {
             self.halt_child(child);
         }
         Ok(status)
+    }
+}
+
+/// The status that stops a sequence (`Failure`) or a fallback (`Success`) before its last
+/// child, and the one it returns when no child does.
+fn stop_and_otherwise(sequence: bool) -> (Status, Status) {
+    if sequence {
+        (Status::Failure, Status::Success)
+    } else {
+        (Status::Success, Status::Failure)
     }
 }
 

@@ -66,15 +66,13 @@ pub fn detect_anomalies<M: TemporalModel + ?Sized>(
 mod tests {
     use super::*;
     use crate::FremenModel;
+    use crate::testdata::quarter_hours;
 
     #[test]
     fn a_visitor_at_midnight_is_anomalous() {
         // Door open 9:00-17:00 for two weeks; then someone opens it at 0:30.
-        let times: Vec<f64> = (0..14 * 96).map(|i| 900.0 * i as f64).collect();
-        let values: Vec<f64> = times
-            .iter()
-            .map(|t| f64::from(u8::from((9.0..17.0).contains(&((t % 86_400.0) / 3600.0)))))
-            .collect();
+        let (times, values) =
+            quarter_hours(14, |t| (9.0..17.0).contains(&((t % 86_400.0) / 3600.0)));
         let mut model = FremenModel::with_order(6);
         model.observe(&times, &values).unwrap();
         let day = 15.0 * 86_400.0;

@@ -40,26 +40,27 @@ where
         .chain([last, last + 1.0, last + 3600.0])
         .collect();
     let reference: Vec<u64> = probes.iter().map(|&t| batch.predict(t).to_bits()).collect();
+    // `model` (after `what`) has the one-batch model's span and predicts bit for bit as it
+    // does at every probe.
+    let same_as_batch = |model: &M, what: &str| {
+        assert_eq!(model.span(), batch.span(), "{what}: the span differs");
+        for (&t, &bits) in probes.iter().zip(&reference) {
+            assert_eq!(
+                model.predict(t).to_bits(),
+                bits,
+                "{what}: predict({t}) = {} but one batch gives {}",
+                model.predict(t),
+                f64::from_bits(bits)
+            );
+        }
+    };
 
     for chunk in [1usize, 2, 7, times.len() / 3] {
         let mut chunked = make();
         for (t, v) in times.chunks(chunk).zip(values.chunks(chunk)) {
             chunked.observe(t, v).expect("valid chunk rejected");
         }
-        assert_eq!(
-            chunked.span(),
-            batch.span(),
-            "span differs with chunks of {chunk}"
-        );
-        for (&t, &bits) in probes.iter().zip(&reference) {
-            assert_eq!(
-                chunked.predict(t).to_bits(),
-                bits,
-                "chunks of {chunk}: predict({t}) = {} but one batch gives {}",
-                chunked.predict(t),
-                f64::from_bits(bits)
-            );
-        }
+        same_as_batch(&chunked, &format!("chunks of {chunk}"));
     }
 
     let many = batch.predict_many(&probes);
@@ -95,17 +96,6 @@ where
             model.observe(t, v).is_err(),
             "bad batch {t:?} {v:?} accepted"
         );
-        assert_eq!(
-            model.span(),
-            batch.span(),
-            "rejected batch changed the span"
-        );
-        for (&probe, &bits) in probes.iter().zip(&reference) {
-            assert_eq!(
-                model.predict(probe).to_bits(),
-                bits,
-                "rejected batch {t:?} changed predict({probe})"
-            );
-        }
+        same_as_batch(&model, &format!("after the rejected batch {t:?}"));
     }
 }

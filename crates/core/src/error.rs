@@ -173,3 +173,17 @@ impl BuildError {
         }
     }
 }
+
+/// Checks a setting that must be a positive finite number. The error is the message
+/// `"{what} {value} is not a positive number"`, for the caller to wrap in its own
+/// configuration error.
+///
+/// # Errors
+/// The message for a value that is not finite or not above 0.
+pub fn check_positive(what: &str, value: f64) -> Result<(), String> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{what} {value} is not a positive number"))
+    }
+}

@@ -452,14 +452,7 @@ impl FftFremen {
         max_order: usize,
         config: FftFremenConfig,
     ) -> Result<(usize, Vec<f64>), BuildError> {
-        if !(holdout > 0.0 && holdout < 1.0) {
-            return Err(ConfigError::OutOfRange {
-                name: "holdout",
-                value: holdout.to_string(),
-                expected: "a fraction strictly between 0 and 1",
-            }
-            .into());
-        }
+        crate::select::check_holdout(holdout)?;
         let n = samples.len() as u64;
         let split = ((n as f64) * (1.0 - holdout)).round() as u64;
         if split < 2 || n - split < 2 {
@@ -787,34 +780,43 @@ pub fn run_length_spectrum(edges: &[u64], n: u64, max_bin: u64) -> Vec<Complex64
         .collect()
 }
 
-/// Serialises sorted positions as gaps (small numbers, compact as varints).
+/// Sorted positions as gaps: the first position, then each one's distance to the one before
+/// (small numbers, compact as varints in model files).
+pub fn to_gaps(positions: &[u64]) -> Vec<u64> {
+    let mut previous = 0;
+    positions
+        .iter()
+        .map(|&p| {
+            let gap = p - previous;
+            previous = p;
+            gap
+        })
+        .collect()
+}
+
+/// The positions of `gaps` ([`to_gaps`] reversed); `None` if one overflows `u64`.
+pub fn from_gaps(gaps: &[u64]) -> Option<Vec<u64>> {
+    let mut position = 0u64;
+    gaps.iter()
+        .map(|&g| {
+            position = position.checked_add(g)?;
+            Some(position)
+        })
+        .collect()
+}
+
+/// Serialises sorted positions as gaps ([`to_gaps`]).
 mod delta_encoding {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     pub fn serialize<S: Serializer>(positions: &[u64], serializer: S) -> Result<S::Ok, S::Error> {
-        let mut previous = 0;
-        let gaps: Vec<u64> = positions
-            .iter()
-            .map(|&p| {
-                let gap = p - previous;
-                previous = p;
-                gap
-            })
-            .collect();
-        gaps.serialize(serializer)
+        super::to_gaps(positions).serialize(serializer)
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<u64>, D::Error> {
         let gaps = Vec::<u64>::deserialize(deserializer)?;
-        let mut position = 0u64;
-        gaps.iter()
-            .map(|&g| {
-                position = position
-                    .checked_add(g)
-                    .ok_or_else(|| serde::de::Error::custom("outlier position overflows"))?;
-                Ok(position)
-            })
-            .collect()
+        super::from_gaps(&gaps)
+            .ok_or_else(|| serde::de::Error::custom("outlier position overflows"))
     }
 }
 

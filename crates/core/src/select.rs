@@ -81,20 +81,30 @@ pub fn select_order_online<M: TemporalModel + Ordered>(
     })
 }
 
+/// Checks a held-back fraction (seed 001 §IV-B: the orders are chosen on the most recent part
+/// of the data): it must lie strictly between 0 and 1.
+///
+/// # Errors
+/// [`ConfigError::OutOfRange`] naming `holdout` otherwise.
+pub fn check_holdout(fraction: f64) -> Result<(), ConfigError> {
+    if fraction > 0.0 && fraction < 1.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::OutOfRange {
+            name: "holdout",
+            value: fraction.to_string(),
+            expected: "a fraction strictly between 0 and 1",
+        })
+    }
+}
+
 /// Index of the first observation of the most recent `fraction` of the time spanned by
 /// `times` (sorted): the split between training and held-back data.
 ///
 /// # Errors
 /// If `fraction` is not strictly between 0 and 1, or either side would be empty.
 pub fn holdout_split(times: &[f64], fraction: f64) -> Result<usize, BuildError> {
-    if !(fraction > 0.0 && fraction < 1.0) {
-        return Err(ConfigError::OutOfRange {
-            name: "holdout",
-            value: fraction.to_string(),
-            expected: "a fraction strictly between 0 and 1",
-        }
-        .into());
-    }
+    check_holdout(fraction)?;
     let (Some(&first), Some(&last)) = (times.first(), times.last()) else {
         return Err(BuildError::NotEnoughData("no observations".into()));
     };
@@ -145,19 +155,16 @@ pub fn fit_with_order_selection<M: TemporalModel + Ordered>(
 mod tests {
     use super::*;
     use crate::FremenModel;
+    use crate::testdata::quarter_hours;
 
     #[test]
     fn picks_the_order_that_predicts_and_keeps_every_observation() {
         // Weekday door (daily + weekly structure) over four weeks, sampled every 15 min.
-        let times: Vec<f64> = (0..28 * 96).map(|i| 900.0 * i as f64).collect();
-        let values: Vec<f64> = times
-            .iter()
-            .map(|t| {
-                let weekday = ((t / 86_400.0) as u64 % 7) < 5;
-                let hour = (t % 86_400.0) / 3600.0;
-                f64::from(u8::from(weekday && (9.0..17.0).contains(&hour)))
-            })
-            .collect();
+        let (times, values) = quarter_hours(28, |t| {
+            let weekday = ((t / 86_400.0) as u64 % 7) < 5;
+            let hour = (t % 86_400.0) / 3600.0;
+            weekday && (9.0..17.0).contains(&hour)
+        });
         let (model, selection) = fit_with_order_selection(
             FremenModel::with_order(0),
             &times,

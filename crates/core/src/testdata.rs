@@ -21,3 +21,10 @@ pub(crate) fn door_weeks() -> (Vec<f64>, Vec<f64>) {
     }
     (times, values)
 }
+
+/// A binary series sampled every 15 minutes for `days` days from time 0: 1 where `on(t)`.
+pub(crate) fn quarter_hours(days: u32, on: impl Fn(f64) -> bool) -> (Vec<f64>, Vec<f64>) {
+    let times: Vec<f64> = (0..days * 96).map(|i| 900.0 * f64::from(i)).collect();
+    let values = times.iter().map(|&t| f64::from(u8::from(on(t)))).collect();
+    (times, values)
+}

@@ -238,16 +238,14 @@ mod tests {
 
     #[test]
     fn formats_known_times() {
-        assert_eq!(format_time(1_451_865_600.0), "2016-01-04 00:00 UTC");
-        assert_eq!(
-            format_time(1_458_518_400.0 + 3600.0 * 13.5),
-            "2016-03-21 13:30 UTC"
-        );
-        assert_eq!(
-            format_time(951_782_400.0 - 1.0),
-            "day 11016 23:59 (+951782399 s)"
-        );
-        assert_eq!(format_time(1_000_000_000.0), "2001-09-09 01:46 UTC");
+        for (t, text) in [
+            (1_451_865_600.0, "2016-01-04 00:00 UTC"),
+            (1_458_518_400.0 + 3600.0 * 13.5, "2016-03-21 13:30 UTC"),
+            (951_782_400.0 - 1.0, "day 11016 23:59 (+951782399 s)"),
+            (1_000_000_000.0, "2001-09-09 01:46 UTC"),
+        ] {
+            assert_eq!(format_time(t), text, "{t}");
+        }
         assert_eq!(format_time(691_200.0), "day 9 00:00 (+691200 s)");
         assert_eq!(format_time(59.9), "day 1 00:00 (+59.9 s)");
     }

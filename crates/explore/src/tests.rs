@@ -1,6 +1,16 @@
 use super::*;
 use chronomap_core::{FremenModel, MeanModel};
 
+/// One state per location, observed every minute from time 0; the locations are named `a`,
+/// `b`, `c`, … in order.
+fn minute_world(truth: Vec<Vec<u8>>) -> World {
+    let names = (b'a'..)
+        .take(truth.len())
+        .map(|c| char::from(c).to_string())
+        .collect();
+    World::one_state_per_location(0.0, 60.0, truth, names)
+}
+
 fn planner(strategy: Strategy, ratio: f64) -> Planner {
     Planner {
         strategy,
@@ -93,12 +103,7 @@ fn random_and_monte_carlo_respect_the_ratio_on_average() {
 #[test]
 fn novelty_values_a_location_that_surprised_the_long_term_model() {
     // Location 0's state was always 0 for a week; location 1's always 1.
-    let world = World::one_state_per_location(
-        0.0,
-        60.0,
-        vec![vec![0; 20_160], vec![1; 20_160]],
-        vec!["a".into(), "b".into()],
-    );
+    let world = minute_world(vec![vec![0; 20_160], vec![1; 20_160]]);
     let mut long_term: Vec<Box<dyn DailyModel>> = Vec::new();
     for state in 0..2u8 {
         let mut m = FremenModel::with_order(2);
@@ -129,12 +134,7 @@ fn model_error_of_eq_2_on_a_known_world() {
     // always 1, state 1 always 0. With e = 1/144 the robot observes one slot a day (round
     // robin: location 0 on day 1, location 1 on day 2). Day 1: state 0 was observed, so its mean
     // model says 1 (all right); state 1 has no data, p = 0.5, estimated 0 (right): error 0.
-    let world = World::one_state_per_location(
-        0.0,
-        60.0,
-        vec![vec![1; 2880], vec![0; 2880]],
-        vec!["a".into(), "b".into()],
-    );
+    let world = minute_world(vec![vec![1; 2880], vec![0; 2880]]);
     let config = ExploreConfig {
         ratio: 1.0 / 144.0,
         ..ExploreConfig::default()
@@ -146,12 +146,7 @@ fn model_error_of_eq_2_on_a_known_world() {
     // Flip state 1 to always 1: on day 1 it is unobserved and estimated 0 (p = 0.5 is not
     // > 0.5) — wrong at all 1440 steps of 2 × 1440 state-steps: 50 %. Day 2 it is observed
     // for 10 minutes and its mean model says 1: right.
-    let world = World::one_state_per_location(
-        0.0,
-        60.0,
-        vec![vec![1; 2880], vec![1; 2880]],
-        vec!["a".into(), "b".into()],
-    );
+    let world = minute_world(vec![vec![1; 2880], vec![1; 2880]]);
     let result = explore(&world, Strategy::RoundRobin, mean, &config).unwrap();
     assert_eq!(result.daily_error_percent, vec![50.0, 0.0]);
     assert_eq!(result.error_percent, 25.0);
@@ -166,8 +161,7 @@ fn runs_are_repeatable_and_bad_parameters_are_errors() {
                 .collect()
         })
         .collect();
-    let world =
-        World::one_state_per_location(0.0, 60.0, truth, vec!["a".into(), "b".into(), "c".into()]);
+    let world = minute_world(truth);
     let fremen: &dyn Fn() -> Box<dyn DailyModel> =
         &|| Box::new(AutoOrder::new(FremenModel::with_order(0)));
     let config = ExploreConfig {

@@ -379,32 +379,18 @@ mod tests {
     #[test]
     fn a_partitioned_grid_does_not_depend_on_the_tasks() {
         let geometry = GridGeometry::planar(300, 1, 0.1, [0.0, 0.0]).unwrap();
-        let config = GridConfig {
-            keep_history: true,
-            ..GridConfig::default()
+        let config = crate::tests::with_history();
+        // Each of `tasks` tasks streams all 500 frames of its cells.
+        let build = |parallelism, tasks: u64| {
+            let count = Count(AtomicU64::new(0));
+            let built =
+                build_partitioned(&Hashed, geometry, &config, &[250, 400], parallelism, &count)
+                    .unwrap();
+            assert_eq!(count.0.load(Ordering::Relaxed), tasks * 500);
+            built
         };
-        let count = Count(AtomicU64::new(0));
-        let one = build_partitioned(
-            &Hashed,
-            geometry,
-            &config,
-            &[250, 400],
-            Parallelism::Sequential,
-            &count,
-        )
-        .unwrap();
-        assert_eq!(count.0.load(Ordering::Relaxed), 500);
-        let count = Count(AtomicU64::new(0));
-        let three = build_partitioned(
-            &Hashed,
-            geometry,
-            &config,
-            &[250, 400],
-            Parallelism::Rayon(3),
-            &count,
-        )
-        .unwrap();
-        assert_eq!(count.0.load(Ordering::Relaxed), 3 * 500);
+        let one = build(Parallelism::Sequential, 1);
+        let three = build(Parallelism::Rayon(3), 3);
         assert_eq!(three.grid.frames(), 500);
         assert_eq!(three.grid.dynamic_cells(), one.grid.dynamic_cells());
         assert_eq!(one.grid.dynamic_cells(), 60);

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{CellState, FremenGrid, GridError, GridGeometry, NONE};
 use chronomap_core::crossings::threshold_toggles;
-use chronomap_core::fft::{ones_in, xor_edges};
+use chronomap_core::fft::{from_gaps, ones_in, to_gaps, xor_edges};
 use chronomap_core::model::{Ordered, saturate};
 use chronomap_core::observe::ObservedSpan;
 use chronomap_core::periods::{PeriodSet, cycle_fraction};
@@ -194,6 +194,15 @@ impl FittedGrid {
     /// The cells with a model.
     pub fn cells(&self) -> &[FittedCell] {
         &self.cells
+    }
+
+    /// The position in [`FittedGrid::cells`] of each cell with a model, by cell index.
+    fn cell_positions(&self) -> std::collections::HashMap<u32, usize> {
+        self.cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.cell, i))
+            .collect()
     }
 
     /// All components, referenced by [`FittedCell::start`].
@@ -382,12 +391,7 @@ impl FremenGrid {
     ) -> Result<EstimationError, GridError> {
         self.require_history("an estimation error")?;
         let to = to.min(self.frames);
-        let index: std::collections::HashMap<u32, usize> = fitted
-            .cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c.cell, i))
-            .collect();
+        let index = fitted.cell_positions();
         let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> = self
             .slots
             .par_iter()
@@ -469,12 +473,7 @@ impl FremenGrid {
         let full = self.fitted(OrderChoice::Fixed(0));
         let history = self.grid_history(&full)?;
         let mut orders = vec![0u8; self.geometry.cells()];
-        let index_of: std::collections::HashMap<u32, usize> = candidate
-            .cells
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c.cell, i))
-            .collect();
+        let index_of = candidate.cell_positions();
         let chosen: Vec<(usize, u8)> = full
             .cells
             .par_iter()
@@ -573,35 +572,25 @@ impl From<Vec<u64>> for Toggles {
 
 impl Serialize for Toggles {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let mut previous = 0;
-        let gaps: Vec<u64> = self
-            .0
-            .iter()
-            .map(|&p| {
-                let g = p - previous;
-                previous = p;
-                g
-            })
-            .collect();
-        gaps.serialize(serializer)
+        to_gaps(&self.0).serialize(serializer)
     }
 }
 
 impl<'de> Deserialize<'de> for Toggles {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let gaps = Vec::<u64>::deserialize(deserializer)?;
-        let mut position = 0u64;
-        let mut out = Vec::with_capacity(gaps.len());
-        for (i, g) in gaps.into_iter().enumerate() {
-            if i > 0 && g == 0 {
-                return Err(serde::de::Error::custom("toggle positions must increase"));
-            }
-            position = position
-                .checked_add(g)
-                .ok_or_else(|| serde::de::Error::custom("toggle position overflows"))?;
-            out.push(position);
+        // A zero gap after the first repeats a position; an overflow before it is reported first.
+        let repeat = gaps
+            .iter()
+            .skip(1)
+            .position(|&g| g == 0)
+            .map_or(gaps.len(), |i| i + 1);
+        let positions = from_gaps(&gaps[..repeat])
+            .ok_or_else(|| serde::de::Error::custom("toggle position overflows"))?;
+        if repeat < gaps.len() {
+            return Err(serde::de::Error::custom("toggle positions must increase"));
         }
-        Ok(Toggles(out))
+        Ok(Toggles(positions))
     }
 }
 

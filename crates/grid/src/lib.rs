@@ -478,21 +478,9 @@ impl FremenGrid {
     ) -> Result<(), GridError> {
         self.check_frame_time(time)?;
         let words = self.geometry.words();
-        if occupied.len() != words {
-            return Err(GridError::FrameLength {
-                what: "the occupancy bit frame",
-                expected: words,
-                found: occupied.len(),
-            });
-        }
+        check_length("the occupancy bit frame", words, occupied.len())?;
         if let Some(known) = known {
-            if known.len() != words {
-                return Err(GridError::FrameLength {
-                    what: "the known-cell mask",
-                    expected: words,
-                    found: known.len(),
-                });
-            }
+            check_length("the known-cell mask", words, known.len())?;
             let cells = self.geometry.cells();
             let any = known
                 .iter()
@@ -528,13 +516,7 @@ impl FremenGrid {
     pub fn observe_occupancy(&mut self, time: f64, data: &[i8]) -> Result<(), GridError> {
         self.check_frame_time(time)?;
         let cells = self.geometry.cells();
-        if data.len() != cells {
-            return Err(GridError::FrameLength {
-                what: "the occupancy frame",
-                expected: cells,
-                found: data.len(),
-            });
-        }
+        check_length("the occupancy frame", cells, data.len())?;
         if let Some(cell) = data.iter().position(|&v| !(-1..=100).contains(&v)) {
             return Err(GridError::CellValue {
                 cell,
@@ -738,14 +720,38 @@ impl FremenGrid {
         previous_time: Option<f64>,
     ) {
         let slot = self.ensure_slot(cell);
+        self.run_edge(slot, old, frame, true);
+        if old == CellState::Unknown {
+            let s = &mut self.slots[slot];
+            if s.first.is_nan() {
+                s.first = time;
+            }
+        }
+        self.run_edge(slot, new, frame, false);
+        if new == CellState::Unknown
+            && let Some(previous) = previous_time
+        {
+            let s = &mut self.slots[slot];
+            s.last = s.last.max(previous);
+        }
+        if self.config.keep_history {
+            self.slots[slot].history.push((frame << 2) | new as u64);
+        }
+    }
+
+    /// One end of a run of `state` in `slot` at `frame`: adds (`close`, the run ends) or
+    /// subtracts (it begins) the prefix sums and the frame index to those of the state, so
+    /// that a closed run contributes the sums of exactly its own frames. Free and fractional
+    /// states keep no run sums.
+    fn run_edge(&mut self, slot: usize, state: CellState, frame: u64, close: bool) {
         let k = self.prefix.len();
-        let f = frame as i64;
-        match old {
+        let f = if close { frame as i64 } else { -(frame as i64) };
+        match state {
             CellState::Occupied => {
                 add_rows(
                     &mut self.occupied_pool[slot * k..(slot + 1) * k],
                     &self.prefix,
-                    true,
+                    close,
                 );
                 self.slots[slot].ones += f;
             }
@@ -754,42 +760,11 @@ impl FremenGrid {
                 add_rows(
                     &mut self.unknown_pool[u * k..(u + 1) * k],
                     &self.prefix,
-                    true,
+                    close,
                 );
-                let s = &mut self.slots[slot];
-                s.unknown_frames += f;
-                if s.first.is_nan() {
-                    s.first = time;
-                }
+                self.slots[slot].unknown_frames += f;
             }
             CellState::Free | CellState::Fraction => {}
-        }
-        match new {
-            CellState::Occupied => {
-                add_rows(
-                    &mut self.occupied_pool[slot * k..(slot + 1) * k],
-                    &self.prefix,
-                    false,
-                );
-                self.slots[slot].ones -= f;
-            }
-            CellState::Unknown => {
-                let u = self.ensure_unknown(slot);
-                add_rows(
-                    &mut self.unknown_pool[u * k..(u + 1) * k],
-                    &self.prefix,
-                    false,
-                );
-                let s = &mut self.slots[slot];
-                s.unknown_frames -= f;
-                if let Some(previous) = previous_time {
-                    s.last = s.last.max(previous);
-                }
-            }
-            CellState::Free | CellState::Fraction => {}
-        }
-        if self.config.keep_history {
-            self.slots[slot].history.push((frame << 2) | new as u64);
         }
     }
 
@@ -1071,6 +1046,19 @@ fn period_sums(weighted: [i128; 2], unweighted: [i128; 2]) -> PeriodSums {
         weighted_im: ExactSum::from_units(weighted[1]),
         unweighted_re: ExactSum::from_units(unweighted[0]),
         unweighted_im: ExactSum::from_units(unweighted[1]),
+    }
+}
+
+/// [`GridError::FrameLength`] for `what` unless it has the `expected` number of elements.
+fn check_length(what: &'static str, expected: usize, found: usize) -> Result<(), GridError> {
+    if found == expected {
+        Ok(())
+    } else {
+        Err(GridError::FrameLength {
+            what,
+            expected,
+            found,
+        })
     }
 }
 

@@ -275,33 +275,46 @@ fn lossless_grids_reconstruct_every_frame() {
         assert_eq!(states, expected, "frame {frame}");
     }
     // Fractional frames cannot be stored losslessly.
-    let (fractional, _) = build(
-        geometry,
-        GridConfig {
-            keep_history: true,
-            ..GridConfig::default()
-        },
-        &scenario(90, 50, false, 1),
-    );
+    let (fractional, _) = build(geometry, with_history(), &scenario(90, 50, false, 1));
     assert!(fractional.lossless(OrderChoice::Fixed(1)).is_err());
+}
+
+/// The default configuration, keeping every frame (for estimation errors and lossless grids).
+pub(crate) fn with_history() -> GridConfig {
+    GridConfig {
+        keep_history: true,
+        ..GridConfig::default()
+    }
+}
+
+/// An empty `width × 1` strip of 1 m cells that keeps its history.
+fn history_strip(width: u32) -> FremenGrid {
+    let geometry = GridGeometry::planar(width, 1, 1.0, [0.0, 0.0]).unwrap();
+    FremenGrid::new(geometry, with_history()).unwrap()
+}
+
+/// Observes the hourly frames `hours`: frame `h`, taken at `3600 h` s, is `frame(h)`.
+fn observe_hours(
+    grid: &mut FremenGrid,
+    hours: std::ops::Range<u32>,
+    mut frame: impl FnMut(u32) -> Vec<i8>,
+) {
+    for h in hours {
+        grid.observe_occupancy(3600.0 * f64::from(h), &frame(h))
+            .unwrap();
+    }
 }
 
 #[test]
 fn estimation_error_counts_mispredicted_states_of_changing_cells() {
     // One cell occupied 8:00-18:00 every day, one constant, one never seen; hourly frames for
     // four weeks. Order 0 (the majority state, free) is wrong 10/24 of the time.
-    let geometry = GridGeometry::planar(3, 1, 1.0, [0.0, 0.0]).unwrap();
-    let config = GridConfig {
-        keep_history: true,
-        ..GridConfig::default()
-    };
-    let mut grid = FremenGrid::new(geometry, config).unwrap();
-    for h in 0..28 * 24 {
+    let mut grid = history_strip(3);
+    observe_hours(&mut grid, 0..28 * 24, |h| {
         let hour = h % 24;
         let door = if (8..18).contains(&hour) { 100 } else { 0 };
-        grid.observe_occupancy(3600.0 * h as f64, &[door, 100, -1])
-            .unwrap();
-    }
+        vec![door, 100, -1]
+    });
     let frames = grid.frames();
     let static_error = grid
         .estimation_error(&grid.fitted(OrderChoice::Fixed(0)), 0, frames)
@@ -319,25 +332,18 @@ fn estimation_error_counts_mispredicted_states_of_changing_cells() {
 
 #[test]
 fn per_cell_orders_are_chosen_on_held_back_frames() {
-    let geometry = GridGeometry::planar(2, 1, 1.0, [0.0, 0.0]).unwrap();
-    let config = GridConfig {
-        keep_history: true,
-        ..GridConfig::default()
-    };
-    let mut grid = FremenGrid::new(geometry, config).unwrap();
-    let mut trained = None;
+    let mut grid = history_strip(2);
     let mut rng = Rng(9);
-    for h in 0..28 * 24 {
-        if h == 21 * 24 {
-            trained = Some(grid.clone());
-        }
+    let mut frame = |h: u32| {
         let daily = if (8..18).contains(&(h % 24)) { 100 } else { 0 };
         // Cell 1 is noise around a low mean: no periodic component predicts it.
         let noise = if rng.below(5) == 0 { 100 } else { 0 };
-        grid.observe_occupancy(3600.0 * h as f64, &[daily, noise])
-            .unwrap();
-    }
-    let orders = grid.select_cell_orders(&trained.unwrap(), 5).unwrap();
+        vec![daily, noise]
+    };
+    observe_hours(&mut grid, 0..21 * 24, &mut frame);
+    let trained = grid.clone();
+    observe_hours(&mut grid, 21 * 24..28 * 24, &mut frame);
+    let orders = grid.select_cell_orders(&trained, 5).unwrap();
     assert!(orders[0] >= 1, "{orders:?}");
     assert_eq!(orders[1], 0, "{orders:?}");
 }

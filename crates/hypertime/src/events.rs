@@ -62,6 +62,15 @@ pub struct Event {
     pub y: f64,
 }
 
+impl Event {
+    /// The first coordinate (`"t"`, `"x"`, `"y"`) that is not finite, and its value.
+    pub fn non_finite(&self) -> Option<(&'static str, f64)> {
+        [("t", self.t), ("x", self.x), ("y", self.y)]
+            .into_iter()
+            .find(|(_, value)| !value.is_finite())
+    }
+}
+
 /// A regular grid of `nt` time bins × `ny` rows × `nx` columns of square cells.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EventGrid {

@@ -103,13 +103,7 @@ impl HypertimeConfig {
         if self.max_components == 0 {
             return out_of_range("max_components", "0".into(), "at least 1");
         }
-        if !(self.holdout > 0.0 && self.holdout < 1.0) {
-            return out_of_range(
-                "holdout",
-                self.holdout.to_string(),
-                "a fraction strictly between 0 and 1",
-            );
-        }
+        chronomap_core::select::check_holdout(self.holdout)?;
         if self.starts == 0 {
             return out_of_range("starts", "0".into(), "at least 1");
         }

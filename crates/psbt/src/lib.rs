@@ -82,6 +82,7 @@ pub use synth::{
 use thiserror::Error;
 
 use chronomap_bt::sbt::{Action, Chain, Means, SbtError, Target, add_scaled};
+use chronomap_core::error::check_positive;
 use chronomap_spatial::PlanningGrid;
 use path::CellPath;
 
@@ -189,15 +190,7 @@ impl PsbtConfig {
     /// [`PsbtError::Config`] naming the first parameter out of range (the places must be
     /// `≤ 16`: the candidates grow as `3^{n_pl}`).
     pub fn validate(&self) -> Result<(), PsbtError> {
-        let positive = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(PsbtError::Config(format!(
-                    "{name} {v} is not a positive number"
-                )))
-            }
-        };
+        let positive = |name: &str, v: f64| check_positive(name, v).map_err(PsbtError::Config);
         positive("the detection radius", self.detection_radius_m)?;
         positive("the time step", self.time_step_s)?;
         positive("l_fail", self.fail_distance_m)?;

@@ -582,22 +582,26 @@ impl Parser<'_> {
 
     /// `and ('|' and)*`.
     fn or(&mut self) -> Result<Parsed, LtlError> {
-        let mut left = self.and()?;
-        while self.peek().tok == Tok::Or {
-            let op = self.bump();
-            let right = self.and()?;
-            left = self.binary_node(op.start, Ltl::Or, left, right)?;
-        }
-        Ok(left)
+        self.left_associative(Tok::Or, Ltl::Or, Self::and)
     }
 
     /// `until ('&' until)*`.
     fn and(&mut self) -> Result<Parsed, LtlError> {
-        let mut left = self.until()?;
-        while self.peek().tok == Tok::And {
-            let op = self.bump();
-            let right = self.until()?;
-            left = self.binary_node(op.start, Ltl::And, left, right)?;
+        self.left_associative(Tok::And, Ltl::And, Self::until)
+    }
+
+    /// `operand (op operand)*`, grouped from the left.
+    fn left_associative(
+        &mut self,
+        op: Tok,
+        build: fn(Box<Ltl>, Box<Ltl>) -> Ltl,
+        operand: fn(&mut Self) -> Result<Parsed, LtlError>,
+    ) -> Result<Parsed, LtlError> {
+        let mut left = operand(self)?;
+        while self.peek().tok == op {
+            let token = self.bump();
+            let right = operand(self)?;
+            left = self.binary_node(token.start, build, left, right)?;
         }
         Ok(left)
     }

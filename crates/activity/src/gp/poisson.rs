@@ -233,23 +233,16 @@ impl PoissonSvgp {
         par: Parallelism,
     ) -> PoissonElboGrad {
         let lik = self.batch_lik(y, marg, scale);
-        let mut out = PoissonElboGrad {
+        let (d_kernel, d_z) = self
+            .f
+            .marginals_backward(x, marg, &lik.dm[0], &lik.dv[0], par);
+        PoissonElboGrad {
             elbo: self.elbo_of(&lik),
-            d_kernel: vec![0.0; self.f.kernel.params().len()],
+            d_kernel,
             // m_i = c + a_iᵀμ: ∂/∂c = Σ_i ∂/∂m_i.
             d_mean: lik.dm[0].iter().sum(),
-            d_z: vec![[0.0; 3]; self.f.z.len()],
-        };
-        self.f.marginals_backward(
-            x,
-            marg,
-            &lik.dm[0],
-            &lik.dv[0],
-            &mut out.d_kernel,
-            &mut out.d_z,
-            par,
-        );
-        out
+            d_z,
+        }
     }
 
     /// One training iteration on the batch `(x, y)`: a natural-gradient step of size `rho` on

@@ -258,20 +258,19 @@ impl<K: Kernel> LatentGp<K> {
         self.with_q(marg.l, marg.a)
     }
 
-    /// Adds to `dtheta` (kernel log-parameters) and `dz` (inducing inputs) the gradient of
-    /// `Σ_i dm_i m_i + dv_i Σ_ii` through the marginals (reverse mode through `A = L⁻¹K(Z,X)`
-    /// and the Cholesky factor `L`, Murray 2016: `K̄ = L⁻ᵀ Φ(Lᵀ L̄) L⁻¹`).
-    #[allow(clippy::too_many_arguments)]
+    /// The gradient of `Σ_i dm_i m_i + dv_i Σ_ii` through the marginals with respect to the
+    /// kernel log-parameters and the inducing inputs, in that order (reverse mode through
+    /// `A = L⁻¹K(Z,X)` and the Cholesky factor `L`, Murray 2016: `K̄ = L⁻ᵀ Φ(Lᵀ L̄) L⁻¹`).
     pub fn marginals_backward(
         &self,
         x: &[Point],
         marg: &Marginals,
         dm: &[f64],
         dv: &[f64],
-        dtheta: &mut [f64],
-        dz: &mut [Point],
         par: Parallelism,
-    ) {
+    ) -> (Vec<f64>, Vec<Point>) {
+        let mut dtheta = vec![0.0; self.kernel.params().len()];
+        let mut dz = vec![[0.0; 3]; self.z.len()];
         let (m, b) = (self.z.len(), x.len());
         // Ā = μ dmᵀ + 2 (S − I) A diag(dv), with (S − I) A = L_S (L_Sᵀ A) − A.
         let s_a = mm(self.q.chol.as_ref(), marg.sa.as_ref());
@@ -302,18 +301,26 @@ impl<K: Kernel> LatentGp<K> {
         let mut t = phi.transpose().to_owned();
         solve_lt(&marg.l, &mut t);
         let kzz_bar = t.transpose().to_owned();
-        gram_grad(&self.kernel, &self.z, kzz_bar.as_ref(), dtheta, dz, par);
+        gram_grad(
+            &self.kernel,
+            &self.z,
+            kzz_bar.as_ref(),
+            &mut dtheta,
+            &mut dz,
+            par,
+        );
         cross_grad(
             &self.kernel,
             &self.z,
             x,
             kzx_bar.as_ref(),
-            dtheta,
-            Some(dz),
+            &mut dtheta,
+            Some(&mut dz),
             None,
             par,
         );
-        diag_grad(&self.kernel, dv, dtheta);
+        diag_grad(&self.kernel, dv, &mut dtheta);
+        (dtheta, dz)
     }
 
     /// One natural-gradient step of size `rho` on `q(v)` (Salimbeni et al. 2018), given the
@@ -677,32 +684,19 @@ impl HeteroSvgp {
         par: Parallelism,
     ) -> ElboGrad {
         let lik = self.batch_lik(y, mf, mg, scale);
-        let mut out = ElboGrad {
+        let (d_kernel_f, d_z_f) = self
+            .f
+            .marginals_backward(x, mf, &lik.dm[0], &lik.dv[0], par);
+        let (d_kernel_g, d_z_g) = self
+            .g
+            .marginals_backward(x, mg, &lik.dm[1], &lik.dv[1], par);
+        ElboGrad {
             elbo: self.elbo_of(&lik),
-            d_kernel_f: vec![0.0; self.f.kernel.params().len()],
-            d_kernel_g: vec![0.0; self.g.kernel.params().len()],
-            d_z_f: vec![[0.0; 3]; self.f.z.len()],
-            d_z_g: vec![[0.0; 3]; self.g.z.len()],
-        };
-        self.f.marginals_backward(
-            x,
-            mf,
-            &lik.dm[0],
-            &lik.dv[0],
-            &mut out.d_kernel_f,
-            &mut out.d_z_f,
-            par,
-        );
-        self.g.marginals_backward(
-            x,
-            mg,
-            &lik.dm[1],
-            &lik.dv[1],
-            &mut out.d_kernel_g,
-            &mut out.d_z_g,
-            par,
-        );
-        out
+            d_kernel_f,
+            d_kernel_g,
+            d_z_f,
+            d_z_g,
+        }
     }
 
     /// One natural-gradient step of size `rho` on `q(v_f)` and `q(v_g)` with the batch

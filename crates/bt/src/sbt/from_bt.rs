@@ -314,6 +314,7 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
+    use crate::sbt::tests::{check, expo, hypo};
     use crate::{Registry, Status, Tree, TreeDef};
     use chronomap_rng::Xoshiro256StarStar;
 
@@ -351,26 +352,13 @@ mod tests {
             ("Wait".to_owned(), action(0.1, 1.0, 1.0)),
         ]);
         let tree = from_bt(&doc, "Main", &params).unwrap();
-        let chain = tree.chain().unwrap();
-        let hypo =
-            |a: f64, b: f64, t: f64| 1.0 - (b * (-a * t).exp() - a * (-b * t).exp()) / (b - a);
-        let times = [0.0, 10.0, 60.0, 200.0, 1000.0];
-        let got = chain.transient(&times, 1e-13).unwrap();
-        for (o, &t) in got.iter().zip(&times) {
-            let s = p1 * (1.0 - (-m1 * t).exp()) + (1.0 - p1) * p2 * hypo(n1, m2, t);
-            let f = (1.0 - p1) * (1.0 - p2) * hypo(n1, n2, t);
-            assert!(
-                (o.p_success - s).abs() < 1e-11,
-                "t={t}: {} vs {s}",
-                o.p_success
-            );
-            assert!(
-                (o.p_failure - f).abs() < 1e-11,
-                "t={t}: {} vs {f}",
-                o.p_failure
-            );
-        }
-        let means = chain.means();
+        check(&tree, &[0.0, 10.0, 60.0, 200.0, 1000.0], |t| {
+            (
+                p1 * expo(m1, t) + (1.0 - p1) * p2 * hypo(n1, m2, t),
+                (1.0 - p1) * (1.0 - p2) * hypo(n1, n2, t),
+            )
+        });
+        let means = tree.chain().unwrap().means();
         assert!((means.p_success - (p1 + (1.0 - p1) * p2)).abs() < 1e-12);
         // E[T | F] = 1/ν1 + 1/ν2 (both failed).
         assert!((means.time_to_failure.unwrap() - (40.0 + 100.0)).abs() < 1e-9);

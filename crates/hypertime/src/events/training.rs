@@ -264,14 +264,12 @@ impl<'a> TrainingData<'a> {
 pub(crate) fn check_events(events: &[Event], ordered: bool) -> Result<(), EventError> {
     let mut previous = f64::NEG_INFINITY;
     for (index, e) in events.iter().enumerate() {
-        for (field, value) in [("t", e.t), ("x", e.x), ("y", e.y)] {
-            if !value.is_finite() {
-                return Err(EventError::NonFinite {
-                    index,
-                    field,
-                    value,
-                });
-            }
+        if let Some((field, value)) = e.non_finite() {
+            return Err(EventError::NonFinite {
+                index,
+                field,
+                value,
+            });
         }
         if ordered && e.t < previous {
             return Err(EventError::TimeNotIncreasing {
