@@ -62,7 +62,7 @@ fn ordered3(a: &str, b: &str, c: &str) -> Dfa {
     }
 }
 
-/// `F a | F b` (seed 003 Table III: `F v1 ∨ F v14`).
+/// `F a | F b` ([Fentanes 2015] Table III: `F v1 ∨ F v14`).
 fn either(a: &str, b: &str) -> Dfa {
     Dfa {
         atoms: vec![a.into(), b.into()],

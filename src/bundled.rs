@@ -101,7 +101,7 @@ pub fn test_set((times, values): &(Bundled, Bundled)) -> Result<TimeSeries> {
     )?)
 }
 
-/// The Witham Wharf edge-traversal files (seed 003; `data/witham_topological_nav/edges`).
+/// The Witham Wharf edge-traversal files ([Fentanes 2015]; `data/witham_topological_nav/edges`).
 pub const WITHAM_EDGES: [Bundled; 61] = [
     bundled!("witham_topological_nav/edges/Aisle1_Aisle2.data.xz"),
     bundled!("witham_topological_nav/edges/Aisle1_Ramp2.data.xz"),

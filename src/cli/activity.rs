@@ -225,7 +225,7 @@ pub enum ActivityModel {
     /// GP-Hom: a log-Gaussian Cox process, CoPA-Map's kernel with a Poisson likelihood
     /// (§4.3.2); trained with --inducing and --iterations.
     GpHom,
-    /// WHyTe (Warped Hypertime, seed 004): a Gaussian mixture of people over space and the
+    /// WHyTe (Warped Hypertime, [Krajník 2019]): a Gaussian mixture of people over space and the
     /// circles of the periods found in its error (day/1 .. day/6 of --period), divided by the
     /// same mixture weighted by observation time; periods and components (4, 8, 16, 32)
     /// chosen on a hold-out of the last 20 % of the training times.
@@ -309,7 +309,7 @@ pub struct ActivityExtractArgs {
 pub enum CopaInit {
     /// The day (`--period`) and its first harmonic.
     Day,
-    /// Algorithm 4.1 (seed 002 §4.2.4): periods and variances from a NUDFT of sampled regions.
+    /// Algorithm 4.1 ([Stüde 2024] §4.2.4): periods and variances from a NUDFT of sampled regions.
     Spectral,
 }
 

@@ -6,11 +6,11 @@ use super::*;
 /// `chronomap bench ...`.
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
-    /// The 4-D office grid of seed 001 §VI (213,000 cells x 17,280 frames/day x 112 days),
+    /// The 4-D office grid of [Krajník 2017] §VI (213,000 cells x 17,280 frames/day x 112 days),
     /// streamed from the synthetic generator into FreMEn grids, against a bare scan of the same
     /// frames.
     Grid(BenchGridArgs),
-    /// Planning on the Witham map (seed 003 §V), 24 hours x 3 tasks, end to end, against
+    /// Planning on the Witham map ([Fentanes 2015] §V), 24 hours x 3 tasks, end to end, against
     /// Storm (stormpy) on the same cases in the same run.
     #[command(after_help = BENCH_PLAN_HELP)]
     Plan(BenchPlanArgs),
@@ -20,7 +20,7 @@ pub enum BenchCommand {
     #[cfg(feature = "serve")]
     #[command(after_help = BENCH_SERVE_HELP)]
     Serve(BenchServeArgs),
-    /// CoPA-Map's activity pipeline (seed 002 chapter 4) on the bundled ATC data: training-data
+    /// CoPA-Map's activity pipeline ([Stüde 2024] chapter 4) on the bundled ATC data: training-data
     /// extraction (§4.2.2) against a bare binning pass over the same detections, and CoPA-Map
     /// training (eqs. 4.12–4.16) against the bare faer matrix products of its iterations.
     #[command(after_help = BENCH_ACTIVITY_HELP)]

@@ -45,7 +45,7 @@ pub(super) const BT_HELP_ANALYSE: &str = "\
 Example:
   chronomap bt analyse tests/data/bt/door.xml --params tests/data/bt/door_sbt.csv --t-max 120
 
-Seed 002 §5.2.2: every action ends in success with probability p_s after an Exp(mu) time,
+[Stüde 2024] §5.2.2: every action ends in success with probability p_s after an Exp(mu) time,
 else in failure after an Exp(nu) time; a condition holds with probability p_s and takes no
 time. The parameters file is CSV with a header, one row per leaf (instance name, or ID for
 every instance of it); conditions leave mu and nu empty, p_f is optional (= 1 - p_s):
@@ -132,7 +132,7 @@ or h:mm:ss, KIND node_crash (TARGET localization, move_base or camera), topic_sl
 cpu_overload, localization_lost, navigation_failure or stuck; fails=N makes the first N
 recoveries on it fail, for= sets a CPU overload's length (120 s). Without --faults, faults are
 drawn at random from the seed. A recovery counts as successful if no recovery of the same
-category starts within one minute (seed 002 §5.3.2); TSL is the time between supervisor
+category starts within one minute ([Stüde 2024] §5.3.2); TSL is the time between supervisor
 interventions the robot did not request.";
 
 /// `chronomap monitor ...`.

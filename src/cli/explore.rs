@@ -40,10 +40,10 @@ pub struct ExploreArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Also draw the exploration-ratio sweep (seed 000 Fig. 5) into this PNG.
+    /// Also draw the exploration-ratio sweep ([Santos 2017] Fig. 5) into this PNG.
     #[arg(long, alias = "sweep")]
     pub plot_sweep: Option<PathBuf>,
-    /// Also draw the behaviour of the first days (seed 000 Fig. 6) into this PNG.
+    /// Also draw the behaviour of the first days ([Santos 2017] Fig. 6) into this PNG.
     #[arg(long, alias = "behaviour")]
     pub plot_behaviour: Option<PathBuf>,
 }

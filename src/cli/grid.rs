@@ -7,7 +7,7 @@ use super::*;
 #[derive(Debug, Subcommand)]
 pub enum GridCommand {
     /// Build a grid from frames (ROS/Nav2 maps, per-cell series, or the synthetic office) and
-    /// save it; optionally report the estimation errors of seed 001 §VI.
+    /// save it; optionally report the estimation errors of [Krajník 2017] §VI.
     #[command(after_help = GRID_BUILD_HELP)]
     Build(GridBuildArgs),
     /// Predict the map at a time and write it as a ROS map_server / Nav2 map (YAML + image).
@@ -90,7 +90,7 @@ pub struct GridBuildArgs {
     /// Candidate periods of every cell's FreMEn model.
     #[arg(long, default_value = "week", value_parser = parse_periods)]
     pub periods: PeriodSet,
-    /// Report the estimation and prediction errors of seed 001 §VI for static, orders 1-5 and
+    /// Report the estimation and prediction errors of [Krajník 2017] §VI for static, orders 1-5 and
     /// auto, with the lossy and lossless file sizes.
     #[arg(long)]
     pub errors: bool,

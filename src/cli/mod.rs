@@ -91,20 +91,20 @@ pub enum Command {
     /// Benchmarks at paper scale, timed against a baseline in the same run.
     #[command(subcommand)]
     Bench(BenchCommand),
-    /// Lifelong spatio-temporal exploration (seed 000): every strategy with every temporal
+    /// Lifelong spatio-temporal exploration ([Santos 2017]): every strategy with every temporal
     /// model on a real dataset, beside the paper's table.
     #[command(after_help = EXPLORE_HELP)]
     Explore(ExploreArgs),
     /// Topological maps whose edges know time: fit, evaluate and inspect the models of
-    /// navigation success and duration (seed 003).
+    /// navigation success and duration ([Fentanes 2015]).
     #[command(subcommand)]
     Topo(TopoCommand),
     /// Now or later? Plan a co-safe LTL task on a topological map for a time, or for every
-    /// hour of a week (seed 003 §V, Table III).
+    /// hour of a week ([Fentanes 2015] §V, Table III).
     #[command(after_help = PLAN_HELP)]
     Plan(PlanArgs),
     /// Events in space and time (people detected by a robot): score models of how many
-    /// happen in each cell and time bin (seed 004 §V-D).
+    /// happen in each cell and time bin ([Krajník 2019] §V-D).
     #[command(subcommand)]
     Events(EventsCommand),
     /// Maps of human activity over space and time (CoPA-Map, dissertation chapter 4): score
@@ -120,12 +120,12 @@ pub enum Command {
         subcommand_negates_reqs = true
     )]
     Psbt(PsbtArgs),
-    /// Warped Hypertime for 2-D events (seed 004): fit the intensity of detections over space
+    /// Warped Hypertime for 2-D events ([Krajník 2019]): fit the intensity of detections over space
     /// and time, print the periodicities found, draw the predicted density at chosen times.
     #[command(after_help = HYPERTIME_HELP)]
     Hypertime(HypertimeArgs),
     /// Which features will be visible? Pick the n most likely at every test slot and count the
-    /// visible ones (seed 001 §VII Table I, seed 004 §V-B).
+    /// visible ones ([Krajník 2017] §VII Table I, [Krajník 2019] §V-B).
     #[command(after_help = FEATURES_HELP)]
     Features(FeaturesArgs),
     /// Run the world-model service: an HTTP/JSON API over durable models (add observations,
@@ -137,10 +137,10 @@ pub enum Command {
     #[cfg(feature = "serve")]
     Client(ClientArgs),
     /// Behavior trees in BehaviorTree.CPP 4 XML: check a file, or tick a tree whose leaves
-    /// follow a script (seed 002 §5.2-5.3).
+    /// follow a script ([Stüde 2024] §5.2-5.3).
     #[command(subcommand)]
     Bt(BtCommand),
-    /// System monitoring of seed 002 §5.3: a fault-injection simulation of monitors feeding a
+    /// System monitoring of [Stüde 2024] §5.3: a fault-injection simulation of monitors feeding a
     /// behavior-tree arbiter that blocks the patrol and runs the recoveries of Table 5.1.
     #[command(subcommand)]
     Monitor(MonitorCommand),

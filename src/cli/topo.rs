@@ -74,7 +74,7 @@ pub struct EdgeModelFlags {
     /// Largest FreMEn order tried per edge.
     #[arg(long, default_value_t = 10)]
     pub max_order: usize,
-    /// Fix the order of every success model instead of choosing it per edge (seed 003:
+    /// Fix the order of every success model instead of choosing it per edge ([Fentanes 2015]:
     /// "typically, m = 2").
     #[arg(long)]
     pub success_order: Option<usize>,

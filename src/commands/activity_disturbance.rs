@@ -1,5 +1,5 @@
 //! `chronomap activity disturbance`: the service-disturbance benchmark of CoPA-Map
-//! (dissertation chapter 4, seed 002 eq. 4.22, §4.3.2 and §4.3.5): patrols planned on every
+//! (dissertation chapter 4, [Stüde 2024] eq. 4.22, §4.3.2 and §4.3.5): patrols planned on every
 //! model's predicted rates of people, driven through a test day of pedestrian tracks.
 
 use std::path::Path;

@@ -1,4 +1,4 @@
-//! `chronomap activity fit|predict`: CoPA-Map (seed 002 §4.2) trained once, saved as a model
+//! `chronomap activity fit|predict`: CoPA-Map ([Stüde 2024] §4.2) trained once, saved as a model
 //! file, and queried for maps of the predicted rate of people and its uncertainty.
 
 use std::time::Instant;

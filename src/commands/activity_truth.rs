@@ -1,4 +1,4 @@
-//! `chronomap activity truth`: the ground truth of §4.3.2 (seed 002) from pedestrian tracks —
+//! `chronomap activity truth`: the ground truth of §4.3.2 ([Stüde 2024]) from pedestrian tracks —
 //! distinct people per cell and time bin, counted over whole bins — in the cells of a
 //! training grid, written as an `x1,x2,t,y` grid for `chronomap activity eval --test`.
 

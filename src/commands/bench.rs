@@ -1,4 +1,4 @@
-//! `chronomap bench grid`: the paper-scale 4-D grid workload of seed 001 §VI, timed against a
+//! `chronomap bench grid`: the paper-scale 4-D grid workload of [Krajník 2017] §VI, timed against a
 //! bare scan of the same frames in the same run (`chronomap_bench::grid`).
 
 use anyhow::Result;
@@ -61,5 +61,5 @@ fn print_text(r: &GridBench) -> std::io::Result<()> {
         r.peak_rss_mb
             .map_or("unknown".into(), |p| format!("{p:.0} MB"))
     )?;
-    outln!("(seed 001 §VI: 4e11 cell observations in < 1 h on an i7-4500U)")
+    outln!("([Krajník 2017] §VI: 4e11 cell observations in < 1 h on an i7-4500U)")
 }

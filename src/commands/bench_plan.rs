@@ -1,4 +1,4 @@
-//! `chronomap bench plan`: planning on the Witham map end to end (seed 003 §V), against Storm
+//! `chronomap bench plan`: planning on the Witham map end to end ([Fentanes 2015] §V), against Storm
 //! on the same 72 cases (24 hours × 3 tasks) in the same run — [`chronomap_bench::plan`]
 //! measures, this prints.
 

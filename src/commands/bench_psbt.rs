@@ -1,4 +1,4 @@
-//! `chronomap bench psbt`: person search tree synthesis (seed 002 §5.4.3) for 6 and 10 places
+//! `chronomap bench psbt`: person search tree synthesis ([Stüde 2024] §5.4.3) for 6 and 10 places
 //! on the bundled ATC day, against the dense reference and a per-tree solve in the same run —
 //! [`chronomap_bench::psbt`] measures, this loads the world as `chronomap psbt` does and prints.
 

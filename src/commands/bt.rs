@@ -1,5 +1,5 @@
 //! `chronomap bt check`, `chronomap bt run` and `chronomap bt analyse`: BehaviorTree.CPP 4 XML
-//! trees (seed 002 §5.2–5.3) checked and printed, ticked with leaves that follow a script of
+//! trees ([Stüde 2024] §5.2–5.3) checked and printed, ticked with leaves that follow a script of
 //! outcomes, or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4).
 
 use std::time::Duration;

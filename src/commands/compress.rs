@@ -1,5 +1,5 @@
 //! `chronomap compress`: FFT FreMEn with the outlier set on a uniformly sampled binary series
-//! (seed 001 §III-B, §IV-A, §IV-C).
+//! ([Krajník 2017] §III-B, §IV-A, §IV-C).
 
 use std::time::Instant;
 

@@ -84,7 +84,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .map(bundled::test_set)
         .collect::<Result<_>>()?;
     outln!(
-        "\n2. The door of the FreMEn paper (seed 001 §V), 2013: trained on one week at one minute, \
+        "\n2. The door of the FreMEn paper ([Krajník 2017] §V), 2013: trained on one week at one minute, \
          tested on days 8, 9 and 13 (door closed all day).\n"
     )?;
     let tom_specs =
@@ -109,7 +109,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let day8 = bundled::test_set(&bundled::TOM_SECONDS_DAY8)?;
     let (start, step, samples) = uniform_binary_samples(&week.times, &week.values)?;
     outln!(
-        "\n3. FFT FreMEn with outlier set (seed 001 §III-B) on the same door at one second: {} samples.\n",
+        "\n3. FFT FreMEn with outlier set ([Krajník 2017] §III-B) on the same door at one second: {} samples.\n",
         samples.len()
     )?;
     let mut table = Table::new([

@@ -22,7 +22,7 @@ use crate::output::ProgressBar;
 
 /// Prints section 4 of the demo; writes maps into `out` if given. Returns the files written.
 pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
-    outln!("\n4. Occupancy grids (seed 001 §VI, §VIII): one FreMEn model per cell.\n")?;
+    outln!("\n4. Occupancy grids ([Krajník 2017] §VI, §VIII): one FreMEn model per cell.\n")?;
     let rooms: Vec<TimeSeries> = bundled::ARUBA_ROOMS
         .iter()
         .map(|r| r.pairs())
@@ -97,7 +97,7 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     let fremen_error = office_grid.estimation_error(&fitted, 0, frames)?;
     drop(bar);
     outln!(
-        "\n   b) The synthetic office of seed 001 §VI (chronomap-synth: {cells} cells of 10 cm, a frame every 5 s) \
+        "\n   b) The synthetic office of [Krajník 2017] §VI (chronomap-synth: {cells} cells of 10 cm, a frame every 5 s) \
          for {days} days: {:.2e} cell observations in {:.2} s; over the {} cells that changed, a static map \
          mis-estimates {:.2} % of the states, FreMEn order 4 {:.2} % (the paper: ~6 % and 3-4 %).",
         cells as f64 * frames as f64,

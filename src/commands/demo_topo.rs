@@ -1,4 +1,4 @@
-//! The topological part of `chronomap demo` (seed 003): edge models of the Witham Wharf
+//! The topological part of `chronomap demo` ([Fentanes 2015]): edge models of the Witham Wharf
 //! deployment, their score on the later weeks, and a now-or-later table through the lab door.
 
 use std::path::Path;
@@ -21,7 +21,7 @@ const SPLIT: f64 = 1_408_492_800.0;
 /// written.
 pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     outln!(
-        "\n5. Now or later? Navigation on a topological map whose edges know time (seed 003).\n"
+        "\n5. Now or later? Navigation on a topological map whose edges know time ([Fentanes 2015]).\n"
     )?;
     // Success: FreMEn of order 1 with persistence (the daily rhythm of the doors plus the
     // memory of the last attempts); durations: FreMEn with automatic order.

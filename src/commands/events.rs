@@ -1,4 +1,4 @@
-//! `chronomap events eval`: the experiment of seed 004 §V-D on event files (people detected
+//! `chronomap events eval`: the experiment of [Krajník 2019] §V-D on event files (people detected
 //! by a robot): MSE per cell of every model's expected counts on a spatio-temporal grid of
 //! the test day, its reduction against the static map and a paired t-test.
 
@@ -24,7 +24,7 @@ use crate::{out, outln};
 
 /// The models of the tables, in order: static map, global mean, `Hist_n`, FreMEn per cell.
 ///
-/// Extension point: a new event model (such as the Warped Hypertime event model of seed 004)
+/// Extension point: a new event model (such as the Warped Hypertime event model of [Krajník 2019])
 /// is one more [`EventModelBuilder`] pushed here; the experiment, the tables and the JSON pick
 /// it up. Builders choose their parameters on the training data only.
 fn model_builders() -> Vec<Box<dyn EventModelBuilder>> {

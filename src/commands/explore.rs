@@ -1,5 +1,5 @@
 //! `chronomap explore`: lifelong spatio-temporal exploration on a real dataset, every strategy
-//! with every temporal model, beside the paper's table (seed 000 §7).
+//! with every temporal model, beside the paper's table ([Santos 2017] §7).
 
 use std::path::Path;
 
@@ -121,7 +121,7 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
     Ok(())
 }
 
-/// Seed 000 Fig. 5 ([`exploration_sweep`]) drawn into `path`.
+/// [Santos 2017] Fig. 5 ([`exploration_sweep`]) drawn into `path`.
 pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
     let curves = {
         let bar = ProgressBar::new();
@@ -146,7 +146,7 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
         * 1.1;
     let panel = Panel {
         title: format!(
-            "Model error after two weeks of exploration by exploration ratio (seed 000 Fig. 5, mean of {SWEEP_SEEDS} seeds)"
+            "Model error after two weeks of exploration by exploration ratio ([Santos 2017] Fig. 5, mean of {SWEEP_SEEDS} seeds)"
         ),
         x_label: "exploration ratio e".into(),
         y_label: "model error [%]".into(),
@@ -157,7 +157,7 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Seed 000 Fig. 6: the truth, the model, the expected information and the visits of three
+/// [Santos 2017] Fig. 6: the truth, the model, the expected information and the visits of three
 /// areas over the first four days of FreMEn with the Monte-Carlo strategy.
 pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()> {
     let days = 4usize;

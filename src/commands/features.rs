@@ -1,4 +1,4 @@
-//! `chronomap features`: which features will be visible (seed 001 §VII Table I, seed 004 §V-B).
+//! `chronomap features`: which features will be visible ([Krajník 2017] §VII Table I, [Krajník 2019] §V-B).
 
 use anyhow::{Context, Result};
 use chronomap_core::Parallelism;

@@ -1,5 +1,5 @@
 //! `chronomap grid build | predict | stats | plot`: spatio-temporal occupancy grids and the
-//! time-specific maps they predict (seed 001 §VI, §VIII).
+//! time-specific maps they predict ([Krajník 2017] §VI, §VIII).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -147,7 +147,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     Ok(())
 }
 
-/// The rows of the error table of seed 001 §VI with the sizes of their files.
+/// The rows of the error table of [Krajník 2017] §VI with the sizes of their files.
 struct ErrorTable {
     rows: Vec<(OrderErrors, usize, usize)>,
     observations: f64,
@@ -240,14 +240,14 @@ fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
         .last()
         .map_or(0, |r| r.0.estimation.changed_cells);
     outln!(
-        "\nErrors over the {changed} cells that changed (seed 001 §VI: mean over those cells of the fraction of \
+        "\nErrors over the {changed} cells that changed ([Krajník 2017] §VI: mean over those cells of the fraction of \
          wrongly estimated states). Estimation: models built on all {frames} frames. Prediction: models \
          built on the first {split} frames, tested on the {} after them.",
         frames - split
     )?;
     outln!("{}", table.render())?;
     outln!(
-        "(seed 001 §VI: static ~6 %, lossy FreMEn 3-4 %, lossless 1:250; computed in {:.1} s)\n",
+        "([Krajník 2017] §VI: static ~6 %, lossy FreMEn 3-4 %, lossless 1:250; computed in {:.1} s)\n",
         errors.seconds
     )?;
     Ok(())

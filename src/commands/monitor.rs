@@ -1,4 +1,4 @@
-//! `chronomap monitor sim`: the fault-injection simulation of the system monitoring of seed 002
+//! `chronomap monitor sim`: the fault-injection simulation of the system monitoring of [Stüde 2024]
 //! §5.3 (`chronomap_bt::monitor::sim`), printed as the intervention table and the metrics of
 //! Tables 5.2 and 5.3.
 

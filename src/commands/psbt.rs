@@ -1,4 +1,4 @@
-//! `chronomap psbt`: the person search behavior tree of seed 002 §5.4, synthesised from a
+//! `chronomap psbt`: the person search behavior tree of [Stüde 2024] §5.4, synthesised from a
 //! grid Poisson model (eq. 5.7) learned from pedestrian tracks, or from a saved CoPA-Map; `chronomap psbt eval`: the
 //! model-based comparison of §5.4.4 (Fig. 5.11).
 

@@ -1,5 +1,5 @@
 //! `chronomap topo fit|eval|split|predict` and `chronomap plan`: topological maps whose edges
-//! know time, and the now-or-later planner (seed 003). The summaries, merges, protocols,
+//! know time, and the now-or-later planner ([Fentanes 2015]). The summaries, merges, protocols,
 //! routes and tables are computed by `chronomap_topo::report`; this file reads, prints and
 //! writes.
 
@@ -125,7 +125,7 @@ pub fn fit(args: &TopoFitArgs) -> Result<()> {
     ));
     outln!("{}", table.render())?;
     outln!(
-        "(seed 003 Table II, open-plan site: success 0.14 with orders 35/18/4/5; time 1.88 s with 24/19/10/9)"
+        "([Fentanes 2015] Table II, open-plan site: success 0.14 with orders 35/18/4/5; time 1.88 s with 24/19/10/9)"
     )?;
     outln!("fitted in {seconds:.2} s; wrote {}", args.output.display())?;
     Ok(())
@@ -141,7 +141,7 @@ fn score_json(score: &EdgeEvaluation) -> Value {
 }
 
 /// Success Brier score and duration MSE of each labelled evaluation against the static per-edge
-/// rates (seed 003 §V-A); `static_mse` heads the static duration column.
+/// rates ([Fentanes 2015] §V-A); `static_mse` heads the static duration column.
 pub(super) fn score_table<'a>(
     static_mse: &str,
     scores: impl IntoIterator<Item = (String, &'a EdgeEvaluation)>,
@@ -400,7 +400,7 @@ fn day_label(t: f64) -> String {
     format!("{} {month_day}", WEEKDAYS[weekday(t)])
 }
 
-/// A now-or-later table ([`WeekTable`], seed 003 Table III) with the names it is printed
+/// A now-or-later table ([`WeekTable`], [Fentanes 2015] Table III) with the names it is printed
 /// with, as `plan --day-table` and the demo show it.
 pub(super) struct DayTable<'a> {
     map: &'a TopoMap,

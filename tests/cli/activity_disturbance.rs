@@ -1,5 +1,5 @@
 //! `chronomap activity disturbance` end to end: the service-disturbance benchmark of CoPA-Map
-//! (seed 002 eq. 4.22, §4.3.5) on the bundled ATC grid, map and tracks of 2012-10-24. Two
+//! ([Stüde 2024] eq. 4.22, §4.3.5) on the bundled ATC grid, map and tracks of 2012-10-24. Two
 //! hours of tracks (13:00–15:00 JST) and the cheap models keep it fast; the measured
 //! encounters are asserted.
 

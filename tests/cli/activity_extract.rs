@@ -1,4 +1,4 @@
-//! `chronomap activity extract` end to end on the bundled ATC day (seed 002 §4.2.2, §4.3.2):
+//! `chronomap activity extract` end to end on the bundled ATC day ([Stüde 2024] §4.2.2, §4.3.2):
 //! one hour of the real tracks seen by the bundled patrol robots on the real map, with the
 //! measured numbers of samples, cells, observed duration and detections; the ground truth of
 //! the same hour; and errors naming the file and line of a bad robot path.

@@ -1,5 +1,5 @@
 //! A held-out day for CoPA-Map: `chronomap activity truth` turns the bundled ATC tracks of
-//! 2012-10-24 into the ground truth of seed 002 §4.3.2 (distinct people per cell and hour, over
+//! 2012-10-24 into the ground truth of [Stüde 2024] §4.3.2 (distinct people per cell and hour, over
 //! whole hours) in the cells of the bundled training grid, and `chronomap activity eval` scores
 //! the models trained on the grid's ten days against it.
 

@@ -1,4 +1,4 @@
-//! `chronomap events eval` end to end on the bundled Lincoln pedestrian data (seed 004 §V-D):
+//! `chronomap events eval` end to end on the bundled Lincoln pedestrian data ([Krajník 2019] §V-D):
 //! the measured numbers of both documented splits, the JSON shape the docs describe, and
 //! errors naming file, line and field for bad event files.
 
@@ -97,7 +97,7 @@ fn wednesday_and_thursday_to_friday_json_has_the_documented_shape_and_numbers() 
     close(&results[2]["reduction_pct"], 45.30, 0.005);
     assert_eq!(models[3], "fremen:4");
     close(&results[3]["reduction_pct"], 24.24, 0.005);
-    // Warped Hypertime (seed 004): 2 components and the 12-hour periodicity, chosen on the
+    // Warped Hypertime ([Krajník 2019]): 2 components and the 12-hour periodicity, chosen on the
     // Thursday held out of the training days; better than the static map, worse than the
     // per-cell temporal models here.
     assert_eq!(models[4], "hyt-em:2@12h");

@@ -1,4 +1,4 @@
-//! `chronomap explore` (seed 000) end to end on the bundled Aruba and Brayford data.
+//! `chronomap explore` ([Santos 2017]) end to end on the bundled Aruba and Brayford data.
 
 use std::process::Output;
 
@@ -34,7 +34,7 @@ fn aruba_at_half_exploration_information_gain_with_fremen_beats_uninformed_stati
     let results = results(&out);
     assert_eq!(results.len(), 20);
     let error = |s: &str, m: &str| results.iter().find(|r| r.0 == s && r.1 == m).unwrap().2;
-    // Seed 000 Table 1: novelty + FreMEn 5.7 %, static models with uninformed strategies 8.5-9.7 %.
+    // [Santos 2017] Table 1: novelty + FreMEn 5.7 %, static models with uninformed strategies 8.5-9.7 %.
     let best = results.iter().map(|r| r.2).fold(f64::INFINITY, f64::min);
     assert!(best <= 6.0, "best combination {best:.2} %");
     // The best uninformed strategy with a static model is still clearly worse.

@@ -347,7 +347,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
             assert!(line.contains(&percent), "{key} {percent}: {line}");
         }
         // Predictions and errors do not depend on the threads; the static error of the
-        // office is about 6 % (seed 001 §VI).
+        // office is about 6 % ([Krajník 2017] §VI).
         if row["order"] == 0 {
             let e = row["estimation_error"].as_f64().unwrap();
             assert!((0.04..0.08).contains(&e), "{e}");

@@ -1,4 +1,4 @@
-//! Warped Hypertime (seed 004) on real data: the greg door beside FreMEn with t-tests, and the
+//! Warped Hypertime ([Krajník 2019]) on real data: the greg door beside FreMEn with t-tests, and the
 //! robot's velocity through the Witham lab door. The numbers asserted are the ones measured
 //! and reported in docs/hypertime.md.
 
@@ -20,7 +20,7 @@ fn mean_mse(report: &EvalReport, spec: &str) -> f64 {
         .mean_mse()
 }
 
-/// Seed 004 §V-A claims that both hypertime models beat FreMEn on this door. Measured here:
+/// [Krajník 2019] §V-A claims that both hypertime models beat FreMEn on this door. Measured here:
 /// they equal it (0.0669 and 0.0670 against FreMEn order 4's 0.0670, the original code's
 /// figure), and no difference between them and FreMEn is significant (paired t-test over the
 /// five test weeks); all beat the mean.
@@ -88,7 +88,7 @@ fn greg_door_periodicities_and_model_files() {
     assert!(p > 0.0 && p < 1.0, "{p}");
 }
 
-/// Robot velocity through LabDoor1 -> LabDoor2 (m/s; seed 004 §V-C): trained before
+/// Robot velocity through LabDoor1 -> LabDoor2 (m/s; [Krajník 2019] §V-C): trained before
 /// 2014-08-20, tested on the week after and the rest. Nothing periodic survives the hold-out:
 /// the hypertime models fall back to the mean and equal it, while the periodic histograms
 /// and FreMEn of order 2 are worse. (The paper reports hypertime best on its data.)
@@ -124,7 +124,7 @@ fn labdoor_velocity_hypertime_equals_the_mean() {
     assert!(v > 0.0 && v < 0.05, "{v}");
 }
 
-/// Feature visibility at one Brayford place (seed 001 §VII Table I protocol, seed 004 §V-B):
+/// Feature visibility at one Brayford place ([Krajník 2017] §VII Table I protocol, [Krajník 2019] §V-B):
 /// trained on 6 days, the 5 features each model picks per 10-minute slot of day 7. Measured:
 /// mean 39.9 %, FreMEn order 2 85.7 %, HyT-KM 85.0 % of them visible (`chronomap features`;
 /// docs/hypertime.md).

@@ -1,4 +1,4 @@
-//! `chronomap monitor sim` (seed 002 §5.3): the hand-written fault scenario of
+//! `chronomap monitor sim` ([Stüde 2024] §5.3): the hand-written fault scenario of
 //! tests/data/monitor/faults.txt with known recovery order and one-minute-rule successes, the
 //! arbiter loaded from XML behaving as the built-in one, seeded random runs, and exit code 1
 //! with located messages for bad input.

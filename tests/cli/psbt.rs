@@ -1,4 +1,4 @@
-//! `chronomap psbt` and `chronomap psbt eval` on the bundled ATC day (seed 002 §5.4): the JSON
+//! `chronomap psbt` and `chronomap psbt eval` on the bundled ATC day ([Stüde 2024] §5.4): the JSON
 //! shape, measured values, determinism for a seed, and clear errors.
 
 use crate::common;

@@ -3,7 +3,7 @@
 //! `GaussianMixture(covariance_type="full")` trajectory: the same iteration count and
 //! convergence, and weights, means and covariances equal to 1e-8 (relative), on blobs, on
 //! hypertime data (minutes of a week as cos/sin of the daily and weekly periods plus a noisy
-//! 0/1 class column, seed 004 §III), on integer-weighted rows (scikit-learn gets the rows
+//! 0/1 class column, [Krajník 2019] §III), on integer-weighted rows (scikit-learn gets the rows
 //! repeated), on points on a circle and on a run stopped by `max_iter`.
 //!
 //! scikit-learn runs when `CHRONOMAP_SKLEARN_PYTHON` names a Python interpreter that imports

@@ -1,5 +1,5 @@
 //! `chronomap topo` and `chronomap plan` end to end on the bundled Witham Wharf edge files
-//! (seed 003): the evaluation JSON the acceptance check reads, the planner's outputs, and clear
+//! ([Fentanes 2015]): the evaluation JSON the acceptance check reads, the planner's outputs, and clear
 //! errors for bad input (malformed LTL, unknown nodes, empty edge files, negative durations).
 
 use std::path::Path;
@@ -81,7 +81,7 @@ fn eval_of_a_chronological_split_prints_the_documented_json_and_beats_the_static
     assert_eq!(report["protocol"], "online");
     let brier = report["success_brier"].as_f64().unwrap();
     let static_brier = report["static_success_brier"].as_f64().unwrap();
-    // Measured: 0.0342 against 0.1297 (persistence, seed 001 eqs. 12-13, carries the
+    // Measured: 0.0342 against 0.1297 (persistence, [Krajník 2017] eqs. 12-13, carries the
     // retry bursts of the later weeks).
     assert!((brier - 0.0342).abs() < 0.002, "{report}");
     assert!((static_brier - 0.1297).abs() < 0.002, "{report}");

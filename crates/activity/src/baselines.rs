@@ -1,7 +1,7 @@
 //! The baselines of §4.3.2 (dissertation chapter 4): a global mean, the maximum-likelihood
 //! per-cell mean ("ML"), the per-cell Poisson-spectral FreMEn model ("Fr-AAM",
 //! Jovan et al. 2016) and, by name, the log-Gaussian Cox process GP-Hom ([`super::GpHom`]) and
-//! Warped Hypertime ([`super::Whyte`], "WHyTe", seed 004; the dissertation scores it in the
+//! Warped Hypertime ([`super::Whyte`], "WHyTe", [Krajník 2019]; the dissertation scores it in the
 //! service-disturbance benchmark only, here it predicts rates as every other model).
 //! One more is ours: the per-cell mean on the log scale ([`CellLogMean`], "ML-log"), the
 //! robust per-cell estimate that the reference GP on ln(1 + rate) also leans on.

@@ -1,4 +1,4 @@
-//! CoPA-Map as a [`RatePredictor`]: the heteroscedastic SVGP of [`crate::gp`] (seed 002
+//! CoPA-Map as a [`RatePredictor`]: the heteroscedastic SVGP of [`crate::gp`] ([Stüde 2024]
 //! eqs. 4.7–4.16) with the input and output scaling of the original implementation.
 //!
 //! * Space is scaled onto `[0, 1]` with one scale for both axes (distances keep their ratio),
@@ -32,7 +32,7 @@ use chronomap_core::progress::{NoProgress, Progress};
 /// 150 iterations.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum PeriodInitMode {
-    /// Algorithm 4.1 (seed 002 §4.2.4): periods and variances from the spectra of sampled
+    /// Algorithm 4.1 ([Stüde 2024] §4.2.4): periods and variances from the spectra of sampled
     /// regions ([`initial_periods`]); the day and its harmonics if it finds none.
     Spectral,
     /// The day (`day_period`) and its `harmonics − 1` first harmonics, variances `0.5 / h`.

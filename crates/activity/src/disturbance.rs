@@ -1,4 +1,4 @@
-//! The service-disturbance benchmark of CoPA-Map (dissertation chapter 4, seed 002 §4.3.2
+//! The service-disturbance benchmark of CoPA-Map (dissertation chapter 4, [Stüde 2024] §4.3.2
 //! eq. 4.22 and §4.3.5): a robot patrols waypoints `A → B → C → D` on paths planned from an
 //! activity model, and every person detection within 1 m of it while it drives is an
 //! encounter. A model is better the fewer encounters its cheapest patrols cause.

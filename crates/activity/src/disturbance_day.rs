@@ -1,4 +1,4 @@
-//! One test day of the service-disturbance benchmark (dissertation chapter 4, seed 002 §4.3.5,
+//! One test day of the service-disturbance benchmark (dissertation chapter 4, [Stüde 2024] §4.3.5,
 //! eq. 4.22): when the patrols start, which model time each is planned for, and every model's
 //! patrols and `E(ρ)` curve in one scenario ([`crate::disturbance`] plans and drives them).
 //!

@@ -1,4 +1,4 @@
-//! Training data of CoPA-Map from pedestrian detections (seed 002 §4.2.2): a simulated robot
+//! Training data of CoPA-Map from pedestrian detections ([Stüde 2024] §4.2.2): a simulated robot
 //! drives along [`RobotPath`]s, sees a disc of radius `r` pruned at the obstacles of an
 //! [`ObstacleGrid`] by ray casting, and every spatio-temporal cell `S_i` (square of side `r_s`,
 //! time bin of length `τ`) it saw becomes one sample of eq. (4.5), `x_i = (x₁, x₂, t)` (the cell

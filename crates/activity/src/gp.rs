@@ -1,9 +1,9 @@
-//! CoPA-Map (seed 002 ch. 4): a heteroscedastic sparse variational Gaussian process of a human
+//! CoPA-Map ([Stüde 2024] ch. 4): a heteroscedastic sparse variational Gaussian process of a human
 //! activity rate over space × time.
 //!
 //! `y ~ N(f(x), ζ(g(x))²)` with `x = (x1, x2, t)`, `ζ` = softplus (the noise *standard
 //! deviation*, as in the original GPflow code), `f ~ GP(0, k_f)` with the spatio-temporal
-//! product kernel [`ActivityKernel`] (seed 002 eqs. 4.8–4.10) and `g ~ GP(0, k_g)` with an
+//! product kernel [`ActivityKernel`] ([Stüde 2024] eqs. 4.8–4.10) and `g ~ GP(0, k_g)` with an
 //! [`RbfKernel`] (eq. 4.11). Both latent GPs are whitened SVGPs (eqs. 4.12–4.16) trained by
 //! alternating natural-gradient steps on `q(u)` and Adam steps on the kernel
 //! log-parameters and inducing inputs ([`train`]); the expected log-likelihood is closed

@@ -1,4 +1,4 @@
-//! GP-Hom (seed 002 §4.3.2) as a [`RatePredictor`]: "the same modules as CoPA-Map but
+//! GP-Hom ([Stüde 2024] §4.3.2) as a [`RatePredictor`]: "the same modules as CoPA-Map but
 //! realized as a log-Gaussian Cox process", i.e. the Poisson SVGP [`PoissonSvgp`] with one
 //! latent log rate, CoPA-Map's kernel and CoPA-Map's fitting ([`super::copa`]):
 //!

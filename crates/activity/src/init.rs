@@ -1,4 +1,4 @@
-//! CoPA-Map's initial hyperparameters, seed 002 §4.2.4: the periods and variances of the
+//! CoPA-Map's initial hyperparameters, [Stüde 2024] §4.2.4: the periods and variances of the
 //! temporal kernel (eq. 4.10) from a frequency analysis of sampled regions (Algorithm 4.1,
 //! eqs. 4.17–4.18), and the inducing points from k-means of the inputs weighted by their
 //! observation durations.
@@ -41,7 +41,7 @@ const TAG_ROULETTE: u64 = 0x524f_554c_4554;
 /// Most candidate periods [`SpectralInitConfig`] accepts (bounds the cost of the NUDFT).
 pub const MAX_CANDIDATES: usize = 100_000;
 
-/// Parameters of Algorithm 4.1 ([`initial_periods`]); the defaults are those of seed 002 §4.3
+/// Parameters of Algorithm 4.1 ([`initial_periods`]); the defaults are those of [Stüde 2024] §4.3
 /// in the units of the bundled ATC grid (metres; `t` in hours, 12 recorded hours a day).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SpectralInitConfig {
@@ -279,7 +279,7 @@ pub fn roulette_wheel(weights: &[f64], count: usize, rng: &mut Xoshiro256StarSta
 }
 
 /// The non-uniform discrete Fourier transform of eq. (4.17) at candidate periods `o_k`:
-/// `ξ_k = Σ_j y_j exp(−i 2π t_j / o_k)` (the seed's `2π/(T o_k)` with the periods in units
+/// `ξ_k = Σ_j y_j exp(−i 2π t_j / o_k)` (the dissertation's `2π/(T o_k)` with the periods in units
 /// of `t`, i.e. `T = 1`).
 pub fn nudft(times: &[f64], values: &[f64], periods: &[f64]) -> Vec<Complex64> {
     periods
@@ -309,7 +309,7 @@ pub fn spectral_peaks(magnitudes: &[f64]) -> Vec<usize> {
 /// A signal reconstructed from a few Fourier components, eq. (4.18):
 /// `ŷ(t) = mean + Σ_u amplitude_u cos(2π t / period_u + phase_u)`.
 ///
-/// The seed writes `|ξ_0| + Σ |ξ_u| cos(2π t/o_u + arg ξ_u)` with the raw sums `ξ` of
+/// The dissertation writes `|ξ_0| + Σ |ξ_u| cos(2π t/o_u + arg ξ_u)` with the raw sums `ξ` of
 /// eq. (4.17). As a Fourier series of a real signal of `J` samples that is
 /// `|ξ_0| / J + Σ (2 |ξ_u| / J) cos(…)`: `ξ_0 = Σ y_j = J · mean`, and a cosine of amplitude
 /// `a` and phase `φ` sampled evenly over whole cycles has `ξ = (J a / 2) e^{iφ}` (the other

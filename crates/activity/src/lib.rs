@@ -34,7 +34,7 @@
 //! eq. (4.20) ([`nrmse`]) and the χ²-distance of eq. (4.21) ([`chi2_distance`]). The baselines
 //! of §4.3.2 are in [`baselines`]: [`GlobalMean`], the maximum-likelihood per-cell mean
 //! [`CellMean`] ("ML"), the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM") and the
-//! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]); Warped Hypertime (seed 004) is
+//! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]); Warped Hypertime ([Krajník 2019]) is
 //! [`Whyte`] ("WHyTe", in [`whyte`]): a mixture of people over warped space-time divided by one
 //! of observation. CoPA-Map is [`CopaMap`].
 //!

@@ -1,5 +1,5 @@
 //! The planning grids of the benchmarks that drive a robot among people: over the cells of an
-//! activity grid (the service-disturbance benchmark, seed 002 §4.3.5), and over a whole map
+//! activity grid (the service-disturbance benchmark, [Stüde 2024] §4.3.5), and over a whole map
 //! (the person search of §5.4).
 //!
 //! ```

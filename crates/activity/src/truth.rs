@@ -1,4 +1,4 @@
-//! Ground truth for activity models (seed 002 §4.3.2): how many people were in each cell
+//! Ground truth for activity models ([Stüde 2024] §4.3.2): how many people were in each cell
 //! during each time bin, counted over the whole bin (`Δ_i = τ`, no field of view, no
 //! occupancy map), in the cells a model was trained on.
 //!

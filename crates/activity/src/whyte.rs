@@ -1,8 +1,8 @@
-//! WHyTe (Warped Hypertime, seed 004; Vintr et al. 2019) as a baseline of the CoPA-Map
-//! comparison (seed 002 §4.3.2): rates of people from two Gaussian mixtures over warped
+//! WHyTe (Warped Hypertime, [Krajník 2019]; Vintr et al. 2019) as a baseline of the CoPA-Map
+//! comparison ([Stüde 2024] §4.3.2): rates of people from two Gaussian mixtures over warped
 //! space-time.
 //!
-//! # Warping (seed 004 eqs. 1, 8)
+//! # Warping ([Krajník 2019] eqs. 1, 8)
 //! A sample at the cell centre `x = [x1, x2]` and time `t` becomes the vector
 //!
 //! `w(x, t) = [(x1 − x̄1)/s, (x2 − x̄2)/s, cos(2πt/T₁), sin(2πt/T₁), …, sin(2πt/T_p)]`
@@ -18,7 +18,7 @@
 //! before EM (at most cells × bins-per-day points), which is exact for weighted EM and makes the
 //! fits fast.
 //!
-//! # The rate: a ratio of two mixtures (seed 004 eq. 2)
+//! # The rate: a ratio of two mixtures ([Krajník 2019] eq. 2)
 //! Sample `i` is `Δ_i` hours of observation (1 for the `x1,x2,t,y` grid files, see
 //! [`Whyte::fit_with_dwell`]) during which `c_i = y_i Δ_i` people were seen; `C = Σ c_i`,
 //! `D = Σ Δ_i`. People seen near `w` are `C·f_c(w)` and hours spent looking near `w` are
@@ -29,7 +29,7 @@
 //!
 //! (with unit dwell times `C / D = Σ y_i / N`, the global mean rate). This is a mixture-based
 //! regression: the numerator alone is what the original WHyTe models (the density of
-//! detections; seed 002 §4.3.2 notes that it "directly incorporates the detections without
+//! detections; [Stüde 2024] §4.3.2 notes that it "directly incorporates the detections without
 //! accounting for varying observation times"); dividing by the density of observation corrects
 //! for where and when the robot looked, so a place seen often is not mistaken for a busy one.
 //! `C / D` plays the part of eq. (3)'s scaling: `∫ rate · D f_Δ = C`, the people observed.
@@ -58,7 +58,7 @@
 //! `f_Δ(w) < ε · f̄_Δ`, with `f̄_Δ` the `Δ`-weighted mean of `f_Δ` at the training points and
 //! `ε` = [`WhyteConfig::min_relative_density`], the prediction is the global rate `C / D`.
 //!
-//! # Periodicities and components (seed 004 §III-B, eq. 7)
+//! # Periodicities and components ([Krajník 2019] §III-B, eq. 7)
 //! As WHyTe: start without periodicity (space only), predict the training samples and form the
 //! error series of eq. (5) per time bin,
 //!
@@ -545,7 +545,7 @@ impl Training<'_> {
         (times, errors, weights)
     }
 
-    /// Seed 004 §III-B with `k` components: periods added while the hold-out error falls.
+    /// [Krajník 2019] §III-B with `k` components: periods added while the hold-out error falls.
     fn grow(
         &self,
         fit_idx: &[usize],

@@ -1,4 +1,4 @@
-//! The two performance goals of CoPA-Map's activity pipeline (seed 002 chapter 4), each timed
+//! The two performance goals of CoPA-Map's activity pipeline ([Stüde 2024] chapter 4), each timed
 //! against a baseline in the same run.
 //!
 //! * **Training-data extraction** (§4.2.2, [`chronomap_activity::extract::extract`]): patrol

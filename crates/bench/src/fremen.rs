@@ -1,4 +1,4 @@
-//! The FreMEn benchmarks (seed 001): FFT FreMEn model build (§III-B), FreMEn observe and
+//! The FreMEn benchmarks ([Krajník 2017]): FFT FreMEn model build (§III-B), FreMEn observe and
 //! predict throughput, each against the textbook transform or evaluation of
 //! `chronomap_core::naive` in the same run.
 //!
@@ -127,7 +127,7 @@ pub struct FftBench {
 }
 
 /// FFT FreMEn model build on the tom door week at 2 Hz (1,209,600 samples), the setting of
-/// seed 001 §V ("3.7 ms on an i7 with FFTW"). Every build is checked to reconstruct its input
+/// [Krajník 2017] §V ("3.7 ms on an i7 with FFTW"). Every build is checked to reconstruct its input
 /// bit for bit before it is timed.
 ///
 /// # Errors

@@ -1,4 +1,4 @@
-//! `chronomap bench grid`: the paper-scale 4-D office grid of seed 001 §VI (213,000 cells, a
+//! `chronomap bench grid`: the paper-scale 4-D office grid of [Krajník 2017] §VI (213,000 cells, a
 //! frame every 5 s for 112 days: 4·10¹¹ cell observations) streamed from the synthetic
 //! generator into FreMEn grids, timed against a bare scan of the same frames in the same run.
 //!

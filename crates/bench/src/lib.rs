@@ -7,15 +7,15 @@
 //! `chronomap bench plan|serve|activity|psbt` and the `chronomap-bench` binary of this crate
 //! (the FreMEn benchmarks).
 //!
-//! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict (seed 001) against the textbook
+//! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict ([Krajník 2017]) against the textbook
 //!   transforms of `chronomap_core::naive`.
-//! * [`grid`]: the occupancy-grid build at paper scale (seed 001 §VI) against a bare scan of
+//! * [`grid`]: the occupancy-grid build at paper scale ([Krajník 2017] §VI) against a bare scan of
 //!   the same frames.
-//! * [`plan`]: planning on the Witham map (seed 003 §V) against Storm on the same cases.
+//! * [`plan`]: planning on the Witham map ([Fentanes 2015] §V) against Storm on the same cases.
 //! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
-//! * [`activity`]: CoPA-Map's training-data extraction and training (seed 002 chapter 4)
+//! * [`activity`]: CoPA-Map's training-data extraction and training ([Stüde 2024] chapter 4)
 //!   against bare scans and bare matrix products.
-//! * [`psbt`]: person search tree synthesis (seed 002 §5.4.3) against the dense reference and
+//! * [`psbt`]: person search tree synthesis ([Stüde 2024] §5.4.3) against the dense reference and
 //!   a per-tree solve.
 //!
 //! Benchmarks are an edge of the workspace: they read clocks and files. The algorithms they

@@ -70,7 +70,7 @@ fn main() -> ExitCode {
 
 fn print_fft(b: &fremen::FftBench) {
     println!(
-        "## FFT FreMEn build (seed 001 §III-B) — tom door week at 2 Hz, {} samples, {} changes\n",
+        "## FFT FreMEn build ([Krajník 2017] §III-B) — tom door week at 2 Hz, {} samples, {} changes\n",
         b.samples, b.changes
     );
     println!(

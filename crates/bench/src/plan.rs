@@ -1,4 +1,4 @@
-//! Planning on the Witham map end to end (seed 003 §V), against Storm on the same 72 cases
+//! Planning on the Witham map end to end ([Fentanes 2015] §V), against Storm on the same 72 cases
 //! (24 hours × 3 tasks) in the same run.
 //!
 //! chronomap's time per case: parse the task and build its automaton, predict every edge at

@@ -1,4 +1,4 @@
-//! Person search tree synthesis (seed 002 §5.4.3) for 6 and 10 places, timed against the
+//! Person search tree synthesis ([Stüde 2024] §5.4.3) for 6 and 10 places, timed against the
 //! straightforward reference (one dense generator per candidate tree, dense uniformisation:
 //! `Candidates::reference_value`) and a naive per-tree sparse solve
 //! (`Candidates::per_tree_value`), in the same run.

@@ -282,7 +282,7 @@ pub enum TickErrorKind {
     /// IDLE").
     #[error("the leaf returned IDLE")]
     ReturnedIdle,
-    /// A condition returned `Running` (conditions cannot, seed 002 §5.2.1).
+    /// A condition returned `Running` (conditions cannot, [Stüde 2024] §5.2.1).
     #[error("a condition returned RUNNING (conditions return SUCCESS or FAILURE)")]
     ConditionRunning,
     /// A `Parallel` threshold larger than its number of children.

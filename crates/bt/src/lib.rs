@@ -1,5 +1,5 @@
 //! Behavior trees with the semantics of BehaviorTree.CPP 4: the task-switching formalism of the
-//! executive system of dissertation seed 002 (§5.2.1, Algorithms 5.1 and 5.2) and of its
+//! executive system of [Stüde 2024] (§5.2.1, Algorithms 5.1 and 5.2) and of its
 //! monitoring arbiter (§5.3, Table 5.1), as Nav2 and many ROS robots run them.
 //!
 //! A tree is first a plain, reusable description — a [`BtDocument`] of [`TreeDef`]s made of
@@ -108,7 +108,7 @@ use serde::{Deserialize, Serialize};
 pub enum Status {
     /// Not ticked since it was last reset or halted.
     Idle = 0,
-    /// Execution ongoing (seed 002 §5.2.1: *R*).
+    /// Execution ongoing ([Stüde 2024] §5.2.1: *R*).
     Running = 1,
     /// Goal achieved (*S*).
     Success = 2,

@@ -3,7 +3,7 @@
 //! (port manifests) of BehaviorTree.CPP's `<TreeNodesModel>`.
 //!
 //! This is what `chronomap-io` reads from and writes to BehaviorTree.CPP 4 XML, and what
-//! analyses of trees (stochastic behavior trees of seed 002 §5.2.2, person search of §5.4) walk.
+//! analyses of trees (stochastic behavior trees of [Stüde 2024] §5.2.2, person search of §5.4) walk.
 //! Attribute values are kept as written (`"3"`, `"{goal}"`, `"{=}"`); they are interpreted
 //! when a [`Tree`](super::Tree) is instantiated and ticked.
 
@@ -18,7 +18,7 @@ use super::error::DefinitionError;
 pub enum NodeCategory {
     /// A leaf that acts; may return running.
     Action,
-    /// A leaf that checks; returns success or failure only (seed 002 §5.2.1).
+    /// A leaf that checks; returns success or failure only ([Stüde 2024] §5.2.1).
     Condition,
     /// A node with one or more children and a rule to tick them (sequence, fallback, parallel).
     Control,

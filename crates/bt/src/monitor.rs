@@ -1,4 +1,4 @@
-//! System monitoring of dissertation seed 002 §5.3.1 (Fig. 5.5, 5.6, Table 5.1) and its
+//! System monitoring of [Stüde 2024] §5.3.1 (Fig. 5.5, 5.6, Table 5.1) and its
 //! evaluation metrics of §5.3.2 (Table 5.3, TSL of Table 5.2).
 //!
 //! * [`Monitor`]: a named signal with a warning and an error range ([`Band`]), evaluated from
@@ -329,7 +329,7 @@ impl Monitor {
     }
 }
 
-/// The recovery categories of seed 002 Table 5.3 ("Type"); §5.3.2 judges success within a
+/// The recovery categories of [Stüde 2024] Table 5.3 ("Type"); §5.3.2 judges success within a
 /// category.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub enum Category {
@@ -376,7 +376,7 @@ pub struct Recovery {
 /// localization monitors), each monitor's reactions in escalation order. Table 5.1's
 /// localization steps 2 ("restart localization") and 3 ("slow rotate") are one reaction, as
 /// Table 5.3 counts them ("restart localization & rotate again"). Durations are assumptions
-/// (the seed gives none except "usually takes less than a minute" for a supervisor); fix
+/// (the dissertation gives none except "usually takes less than a minute" for a supervisor); fix
 /// probabilities default to the success rates of Table 5.3.
 pub const RECOVERIES: [Recovery; 8] = [
     Recovery {
@@ -462,7 +462,7 @@ pub fn recovery(leaf: &str) -> Option<&'static Recovery> {
 /// same category needs to be performed within one minute".
 pub const SUCCESS_WINDOW: Duration = Duration::from_secs(60);
 
-/// Judges recoveries by the rule of seed 002 §5.3.2 (after \[HBJ+17\]): the recovery started at
+/// Judges recoveries by the rule of [Stüde 2024] §5.3.2 (after \[HBJ+17\]): the recovery started at
 /// `starts[i].0` in category `starts[i].1` succeeded iff no other recovery of the same category
 /// starts in `(t_i, t_i + window]`. Recoveries are judged from their start times; a recovery
 /// with less than `window` left before `end` and no later one of its category counts as a
@@ -479,10 +479,10 @@ pub fn judge_interventions(starts: &[(Duration, Category)], window: Duration) ->
         .collect()
 }
 
-/// Total system lifetime (TSL) of seed 002 §5.3.2: "the time interval between interventions by
+/// Total system lifetime (TSL) of [Stüde 2024] §5.3.2: "the time interval between interventions by
 /// supervisors that were not explicitly requested by the robot". The intervals are those
 /// between consecutive points of `start, interventions…, end` (the first and last intervals
-/// are censored by the evaluation period): the seed's 4 interventions in 12 days give 5
+/// are censored by the evaluation period): the dissertation's 4 interventions in 12 days give 5
 /// intervals, whose mean of at most 288 h / 5 = 57.6 h matches its mean TSL of 56.7 h
 /// (Table 5.2). Returns the intervals; interventions outside `[start, end]` are ignored.
 pub fn tsl(start: Duration, end: Duration, interventions: &[Duration]) -> Vec<Duration> {

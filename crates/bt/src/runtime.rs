@@ -12,7 +12,7 @@
 //!
 //! | node | rule |
 //! |---|---|
-//! | `Sequence` | ticks children from the current one; running: returns running and resumes at that child next tick (earlier children are *not* re-ticked); failure: resets all children, restarts at the first child next time, returns failure; all succeed: resets them, success. (Seed 002 Algorithm 5.1 with memory of the running child.) |
+//! | `Sequence` | ticks children from the current one; running: returns running and resumes at that child next tick (earlier children are *not* re-ticked); failure: resets all children, restarts at the first child next time, returns failure; all succeed: resets them, success. ([Stüde 2024] Algorithm 5.1 with memory of the running child.) |
 //! | `SequenceWithMemory` | as `Sequence`, but on failure only the failed and later children are reset and the index is kept: the next tick retries the failed child. Halting keeps the index too (BehaviorTree.CPP leaves `current_child_idx_ = 0` commented out in `halt()`). |
 //! | `ReactiveSequence` | ticks all children from the first every tick; a running child halts every *other* child (later ones that were running, earlier ones are reset to idle) and returns running; a failure resets all children (halting a running later one) and returns failure; all succeed: success. |
 //! | `Fallback` | mirror of `Sequence` (Algorithm 5.2): resumes at the running child; success resets all and returns success; all fail: failure. |

@@ -1,4 +1,4 @@
-//! Stochastic behavior trees (seed 002 §5.2.2, after Colledanchise, Marzinotto and Ögren,
+//! Stochastic behavior trees ([Stüde 2024] §5.2.2, after Colledanchise, Marzinotto and Ögren,
 //! ICRA 2014): actions and conditions with success/failure probabilities and exponentially
 //! distributed durations, composed by Sequence and Fallback nodes, analysed through the
 //! continuous-time Markov chain of the tree's execution.
@@ -43,7 +43,7 @@
 //! # Analysis
 //! * **Eq. 5.2** `π̇ = Qπ`: the generator `Q` is constant here (the tuples do not change while
 //!   the tree runs; the person search of `chronomap-psbt` evaluates its rates at the time help
-//!   is requested, as eqs. 5.9 and 5.14 do). The seed calls the chain a DTMC; it is a
+//!   is requested, as eqs. 5.9 and 5.14 do). The dissertation calls the chain a DTMC; it is a
 //!   continuous-time chain with generator `Q`.
 //! * **Eq. 5.1** `p_{s,T}(t)`, `p_{f,T}(t)`: [`Chain::transient`] by uniformisation
 //!   (`P = I + Q/Λ` with `Λ` the largest exit rate, `π(t) = Σ_k Pois(k; Λt) π₀Pᵏ`), truncated

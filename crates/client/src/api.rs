@@ -216,7 +216,7 @@ pub struct DetectResponse {
     pub anomalies: Vec<Anomaly>,
 }
 
-/// A periodic component of a spectral model (seed 001 eq. 2).
+/// A periodic component of a spectral model ([Krajník 2017] eq. 2).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Component {

@@ -1,4 +1,4 @@
-//! Anomaly detection at a confidence level (seed 001 §V).
+//! Anomaly detection at a confidence level ([Krajník 2017] §V).
 
 use crate::error::ConfigError;
 use crate::model::TemporalModel;
@@ -16,7 +16,7 @@ pub struct Anomaly {
     pub predicted: f64,
 }
 
-/// Observations that are anomalous at confidence `c` (seed 001 §V): with the prediction at
+/// Observations that are anomalous at confidence `c` ([Krajník 2017] §V): with the prediction at
 /// confidence `s(t, c) = p(t) ≥ c` (eq. (9)), a measurement `s^m(t)` is anomalous if
 /// `s^m(t) < s(t, c)` — the state is 0 although the model was sure at level `c` that it is
 /// 1 — or `s^m(t) > s(t, 1 − c)` — it is 1 although `p(t) < 1 − c`.

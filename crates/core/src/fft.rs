@@ -1,12 +1,12 @@
 //! FFT FreMEn: the spectral model of a *uniformly sampled* binary state, with the outlier
-//! set that makes it lossless (seed 001 §III-B, §IV).
+//! set that makes it lossless ([Krajník 2017] §III-B, §IV).
 //!
 //! # Model
 //! A binary series `s(n)`, `n = 0..N`, sampled every `step` seconds from `start`, is
 //! represented by two finite sets:
 //!
 //! * `P` — the mean `α_0` and the `l` DFT coefficients `X_k = Σ_n s(n) e^{-j2πkn/N}` of largest
-//!   magnitude (seed 001 eq. (1)–(2)), giving
+//!   magnitude ([Krajník 2017] eq. (1)–(2)), giving
 //!   `p(n) = α_0 + Σ_{k∈P} 2|X_k|/N · cos(2πkn/N + arg X_k)` (eq. (10));
 //! * `O` — the outlier set: the samples where the thresholded prediction
 //!   `s'(n) = p(n) ≥ 0.5` differs from `s(n)`, Δ-encoded as the sorted positions where the
@@ -162,7 +162,7 @@ impl FftFremen {
         })
     }
 
-    /// Builds the model of a series of 0/1 samples (seed 001 §III-B).
+    /// Builds the model of a series of 0/1 samples ([Krajník 2017] §III-B).
     ///
     /// # Errors
     /// Invalid `start`/`step`, a sample other than 0 or 1 (with its index), an empty series
@@ -391,7 +391,7 @@ impl FftFremen {
         self.len += 1;
     }
 
-    /// Model update (seed 001 §III-B-3): reconstructs the whole series, recomputes the spectrum
+    /// Model update ([Krajník 2017] §III-B-3): reconstructs the whole series, recomputes the spectrum
     /// over it, keeps the `order` strongest components and rebuilds the outlier set. Lossless:
     /// the series represented is unchanged.
     pub fn update(&mut self) {
@@ -424,7 +424,7 @@ impl FftFremen {
         ones_in(&self.outliers, a, b) as f64 / (b - a) as f64
     }
 
-    /// The lossy model: the same spectrum without the outlier set (seed 001 §IV-C). It
+    /// The lossy model: the same spectrum without the outlier set ([Krajník 2017] §IV-C). It
     /// predicts identically but no longer reconstructs the series exactly.
     pub fn without_outliers(&self) -> Self {
         FftFremen {
@@ -438,7 +438,7 @@ impl FftFremen {
         self.error_between(0, self.model_len)
     }
 
-    /// Chooses the order by prediction error (seed 001 §IV-A/B): builds the spectrum on the
+    /// Chooses the order by prediction error ([Krajník 2017] §IV-A/B): builds the spectrum on the
     /// first `1 − holdout` of the series, predicts the rest with orders `0..=max_order`, and
     /// returns the order with the fewest mispredicted samples with all the errors (eq. (15)).
     /// `config.order` is ignored.

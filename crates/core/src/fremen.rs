@@ -1,6 +1,6 @@
 //! FreMEn: Frequency Map Enhancement of one state from irregular observations.
 //!
-//! # Model (seed 001 §III-B/C, seed 000 §4.1)
+//! # Model ([Krajník 2017] §III-B/C, [Santos 2017] §4.1)
 //! The probability that the state is 1 at time `t` is a mean plus the `m` strongest
 //! periodic components of the observed signal's spectrum over a fixed set Ω of candidate
 //! periods `T_k` (`ω_k = 2π / T_k`):
@@ -9,15 +9,15 @@
 //! p(t) = ς( μ + Σ_{l=1..m} 2|γ_l| cos(ω_l t + arg γ_l) )
 //! ```
 //!
-//! (seed 000 eq. (4); seed 001 eq. (10) with `α_l = 2|γ_l|`), where `ς` saturates to
-//! `[0, 1]` (seed 001 eq. (2)). The coefficients are the centred non-uniform spectrum
-//! `γ_k = (1/n) Σ (s_i − μ) e^{-jω_k t_i}` (seed 001 eq. (11), seed 000 eq. (3)),
+//! ([Santos 2017] eq. (4); [Krajník 2017] eq. (10) with `α_l = 2|γ_l|`), where `ς` saturates to
+//! `[0, 1]` ([Krajník 2017] eq. (2)). The coefficients are the centred non-uniform spectrum
+//! `γ_k = (1/n) Σ (s_i − μ) e^{-jω_k t_i}` ([Krajník 2017] eq. (11), [Santos 2017] eq. (3)),
 //! accumulated exactly by [`SpectralSums`]: the mean is
 //! removed with its *final* value, not a running one, so the model does not depend on how
 //! the observations were batched (the original FreMEn server does).
 //!
 //! The order `m` (number of components used) is a query-time choice: all coefficients are
-//! kept, so changing the order or selecting it on held-back data (seed 001 §IV-B, see
+//! kept, so changing the order or selecting it on held-back data ([Krajník 2017] §IV-B, see
 //! [`crate::select`]) loses nothing.
 
 use std::f64::consts::TAU;

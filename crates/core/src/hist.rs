@@ -11,7 +11,7 @@ use crate::periods::{WEEK, cycle_fraction};
 /// Largest number of bins a histogram may have.
 pub const MAX_BINS: usize = 1 << 20;
 
-/// Periodic histogram (the "Hist"/"Interval" baseline of seed 004 and the original
+/// Periodic histogram (the "Hist"/"Interval" baseline of [Krajník 2019] and the original
 /// benchmarks): the period (default one week) is cut into `bins` equal bins and the
 /// prediction at `t` is the mean of the observations that fell into the bin of
 /// `t mod period`.

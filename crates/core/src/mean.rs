@@ -7,7 +7,7 @@ use crate::exact::ExactSum;
 use crate::model::TemporalModel;
 use crate::observe::ObservedSpan;
 
-/// Long-term memory (seed 000 §4.3.1): "the probability of a given state simply as the
+/// Long-term memory ([Santos 2017] §4.3.1): "the probability of a given state simply as the
 /// arithmetic mean of all its past observations". Equal to FreMEn of order 0; the baseline
 /// every temporal model must beat.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

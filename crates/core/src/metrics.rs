@@ -42,7 +42,7 @@ pub fn binary_error(predictions: &[f64], observations: &[f64]) -> f64 {
     })
 }
 
-/// Mean absolute error `mean(|p − s|)` (the reconstruction criterion of seed 003 eq. (3)).
+/// Mean absolute error `mean(|p − s|)` (the reconstruction criterion of [Fentanes 2015] eq. (3)).
 ///
 /// # Panics
 /// If the slices differ in length.
@@ -134,7 +134,7 @@ pub fn paired_t_test(a: &[f64], b: &[f64]) -> Option<PairedTTest> {
     })
 }
 
-/// The compression ratio of eq. (16) of seed 001 (FreMEn, §IV-C): `r = m·n / z` for `m`
+/// The compression ratio of eq. (16) of [Krajník 2017] (FreMEn, §IV-C): `r = m·n / z` for `m`
 /// observations of `n` binary states stored in a file of `z` bits (`bytes` bytes). A grid
 /// of `c` cells observed in `f` frames is `m·n = c·f` cell observations.
 ///

@@ -100,7 +100,7 @@ pub fn binary_entropy(p: f64) -> f64 {
     -p * p.log2() - (1.0 - p) * (1.0 - p).log2()
 }
 
-/// Saturation `ς(x) = min(max(x, 0), 1)` of seed 001 eq. (2): keeps a prediction a probability.
+/// Saturation `ς(x) = min(max(x, 0), 1)` of [Krajník 2017] eq. (2): keeps a prediction a probability.
 #[inline]
 pub fn saturate(x: f64) -> f64 {
     x.clamp(0.0, 1.0)

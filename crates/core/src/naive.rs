@@ -50,7 +50,7 @@ pub fn naive_dft(signal: &[f64], bins: usize) -> Vec<Complex64> {
 }
 
 /// FreMEn prediction evaluated directly from a spectrum, for oracle comparisons:
-/// `p(t) = ς(μ + Σ_{k ∈ chosen} 2|γ_k| cos(ω_k t + arg γ_k))` (seed 000 eq. (4)).
+/// `p(t) = ς(μ + Σ_{k ∈ chosen} 2|γ_k| cos(ω_k t + arg γ_k))` ([Santos 2017] eq. (4)).
 pub fn naive_fremen_predict(
     mean: f64,
     gammas: &[Complex64],

@@ -1,6 +1,6 @@
 //! PerGaM: a periodic Gaussian mixture over the time of day, fitted by EM on the circle.
 //!
-//! # Model (seed 000 §4.3.2, eqs. (7)–(9))
+//! # Model ([Santos 2017] §4.3.2, eqs. (7)–(9))
 //! A Gaussian mixture approximates a function as a weighted sum of Gaussians (eq. (7)). To
 //! make it periodic with a period `P` known a priori (one day by default), the observations
 //! are first folded onto one period (eq. (8)): the period is cut into `B` bins (default 1440,

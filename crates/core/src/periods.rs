@@ -1,4 +1,4 @@
-//! Candidate periods of the spectral models (the set Ω of seed 001 §III-C).
+//! Candidate periods of the spectral models (the set Ω of [Krajník 2017] §III-C).
 
 use std::f64::consts::TAU;
 use std::fmt;
@@ -52,7 +52,7 @@ impl PeriodSet {
     }
 
     /// One (Julian) year divided by 1..=1095: periods from a year down to 8 hours
-    /// (about the 1000-component set of seed 001 §VII-B).
+    /// (about the 1000-component set of [Krajník 2017] §VII-B).
     pub fn year_harmonics() -> Self {
         PeriodSet::Harmonics {
             base_secs: YEAR,

@@ -1,6 +1,6 @@
 //! FreMEn with persistence: periodic long-term memory plus short-term persistence.
 //!
-//! # Model (seed 001 §III-D, eqs. (12)–(13))
+//! # Model ([Krajník 2017] §III-D, eqs. (12)–(13))
 //! A [`FremenModel`] predicts the periodic, long-term behaviour `p(t)` of a state; the
 //! persistence model adds the expectation that a state seen recently has not changed yet.
 //! Its one parameter is the persistence `τ`, the mean time between changes, estimated as
@@ -19,7 +19,7 @@
 //! ```
 //!
 //! Close to the last observation (`|t − t_l| ≪ τ`) the model repeats it; far from it
-//! (`|t − t_l| ≫ τ`) it is FreMEn. The seed writes `t_l − t` for future times; queries before
+//! (`|t − t_l| ≫ τ`) it is FreMEn. The paper writes `t_l − t` for future times; queries before
 //! `t_l` use `|t − t_l|` so that `w ≤ 1` everywhere.
 //!
 //! Until a pair of observations with `t > t_l` differ, `τ^{-1} = 0` (the state has never been

@@ -1,4 +1,4 @@
-//! Order selection on held-back data (seed 001 §IV-B, seed 000 §4.1.3).
+//! Order selection on held-back data ([Krajník 2017] §IV-B, [Santos 2017] §4.1.3).
 //!
 //! "To select the proper value of the model order l, we evaluate the model's predictive
 //! capability for different values of l, choose the order l' with the lowest prediction
@@ -19,9 +19,9 @@ pub enum Criterion {
     /// that are rarely 1. The default.
     #[default]
     Brier,
-    /// Mean absolute error (seed 003 eq. (3)).
+    /// Mean absolute error ([Fentanes 2015] eq. (3)).
     AbsoluteError,
-    /// Fraction of wrongly predicted binary states (seed 001 eq. (14); seed 000 eq. (2)).
+    /// Fraction of wrongly predicted binary states ([Krajník 2017] eq. (14); [Santos 2017] eq. (2)).
     BinaryError,
 }
 
@@ -47,7 +47,7 @@ pub struct OrderSelection {
     pub held_back: usize,
 }
 
-/// Online order selection (seed 001 §IV-B): evaluates orders `0..=max_order` of `model` on
+/// Online order selection ([Krajník 2017] §IV-B): evaluates orders `0..=max_order` of `model` on
 /// observations it has not seen, sets the order with the lowest error (the smallest such
 /// order on ties), then adds the observations to the model.
 ///
@@ -81,7 +81,7 @@ pub fn select_order_online<M: TemporalModel + Ordered>(
     })
 }
 
-/// Checks a held-back fraction (seed 001 §IV-B: the orders are chosen on the most recent part
+/// Checks a held-back fraction ([Krajník 2017] §IV-B: the orders are chosen on the most recent part
 /// of the data): it must lie strictly between 0 and 1.
 ///
 /// # Errors

@@ -1,6 +1,6 @@
 //! Exact incremental spectra of irregularly sampled states over a fixed set of periods.
 //!
-//! This is the non-uniform Fourier transform of FreMEn (seed 001 eq. (11), seed 000
+//! This is the non-uniform Fourier transform of FreMEn ([Krajník 2017] eq. (11), [Santos 2017]
 //! eq. (3)), kept in the form that removes the mean *exactly*: instead of the running
 //! update `γ_k ← (n γ_k + (s − γ_0) e^{-jω_k t}) / (n+1)`, which centres every term on the
 //! mean known at the time it arrived, we keep
@@ -180,7 +180,7 @@ impl SpectralSums {
     }
 
     /// The centred spectrum `γ_k = (S_k − μ E_k) / n`, one coefficient per candidate period
-    /// (seed 000 eq. (3)–(4) with the exact final mean). Empty accumulators give zeros.
+    /// ([Santos 2017] eq. (3)–(4) with the exact final mean). Empty accumulators give zeros.
     pub fn coefficients(&self) -> Vec<Complex64> {
         let Some(mean) = self.mean() else {
             return vec![Complex64::new(0.0, 0.0); self.per_period.len()];

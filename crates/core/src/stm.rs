@@ -1,6 +1,6 @@
 //! Short-term memory: a two-state continuous-time Markov chain.
 //!
-//! # Model (seed 000 §4.2, eqs. (5)–(6))
+//! # Model ([Santos 2017] §4.2, eqs. (5)–(6))
 //! The state switches from 0 to 1 with rate `α` and from 1 to 0 with rate `β` (per second):
 //!
 //! ```text
@@ -14,14 +14,14 @@
 //! ```
 //!
 //! Right after an observation the model predicts what was seen; far from it, the stationary
-//! probability `π`. The seed writes `t − T` for future times; queries before `T` use
+//! probability `π`. The paper writes `t − T` for future times; queries before `T` use
 //! `|t − T|`, which is exact for a stationary two-state chain: every two-state chain satisfies
 //! detailed balance (`π_0 α = π_1 β`), so it is time-reversible and the state a time `d`
 //! *before* an observation has the same conditional law as the state a time `d` after it.
 //!
 //! # Estimation
 //! The rates are "inversely proportional to the average time that an observed state remains
-//! at 0 or 1" (seed 000 §4.2). For every pair of consecutive observations `(t', s')`,
+//! at 0 or 1" ([Santos 2017] §4.2). For every pair of consecutive observations `(t', s')`,
 //! `(t, s)` with `dt = t − t' > 0` the model assumes the state `s'` held during `dt` and
 //! accumulates
 //!

@@ -1,5 +1,5 @@
-//! Which features will the robot see? The localisation protocol of seed 001 §VII (Table I) and
-//! seed 004 §V-B: at every test time, pick the `n` features a model predicts most likely to be
+//! Which features will the robot see? The localisation protocol of [Krajník 2017] §VII (Table I) and
+//! [Krajník 2019] §V-B: at every test time, pick the `n` features a model predicts most likely to be
 //! visible, and count how many of them are actually visible then.
 
 /// The fraction of picked features that are visible: at every test slot `s`, the `n` features

@@ -1,6 +1,6 @@
-//! Lifelong spatio-temporal exploration: where and when to observe (seed 000 §3, §5, §7).
+//! Lifelong spatio-temporal exploration: where and when to observe ([Santos 2017] §3, §5, §7).
 //!
-//! # Problem (seed 000 §3.1)
+//! # Problem ([Santos 2017] §3.1)
 //! A world of `n` binary states `s_i(t)` is observed through *locations* (sets of states seen
 //! together). Each day, at midnight, the robot schedules the next day's time slots (10 minutes
 //! by default): a slot is spent observing one location, or on other tasks; a fraction `e` (the
@@ -25,7 +25,7 @@
 //! Slots planned for other tasks stay so, which keeps the exploration ratio.
 //!
 //! Any [`TemporalModel`] plugs in through [`DailyModel`]; [`AutoOrder`] adds the daily order
-//! selection of seed 000 §4.1.3 to an [`Ordered`] model. [`table`] runs the experiments of §7:
+//! selection of [Santos 2017] §4.1.3 to an [`Ordered`] model. [`table`] runs the experiments of §7:
 //! every strategy with every model, and the sweep over exploration ratios.
 #![deny(missing_docs)]
 
@@ -173,7 +173,7 @@ impl<M: TemporalModel> DailyModel for M {
 }
 
 /// A model whose order is chosen every day on the day's observations before they are added
-/// (seed 000 §4.1.3: "initially m equals 0 and is increased only after the robot obtains enough
+/// ([Santos 2017] §4.1.3: "initially m equals 0 and is increased only after the robot obtains enough
 /// data to verify the prediction accuracy").
 ///
 /// The paper compares orders by the model error of eq. (2) on the last day; [`AutoOrder::new`]
@@ -221,7 +221,7 @@ impl<M: TemporalModel + Ordered> DailyModel for AutoOrder<M> {
     }
 }
 
-/// An exploration strategy (seed 000 §5).
+/// An exploration strategy ([Santos 2017] §5).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Strategy {
     /// Visits the locations in turn, exploring in a fraction `e` of evenly spread slots.

@@ -1,4 +1,4 @@
-//! The experiments of seed 000 §7 over a recorded world: every strategy with every temporal
+//! The experiments of [Santos 2017] §7 over a recorded world: every strategy with every temporal
 //! model (Tables 1 and 2), the model error against the exploration ratio (Fig. 5), and the
 //! locations that Fig. 6 shows.
 //!
@@ -35,7 +35,7 @@ use crate::{
     AutoOrder, DailyModel, ExploreConfig, ExploreError, ExploreResult, Strategy, World, explore,
 };
 
-/// The temporal models of seed 000 §4 as its tables name them.
+/// The temporal models of [Santos 2017] §4 as its tables name them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum ModelKind {
     /// SM: short-term memory (a continuous-time Markov chain, §4.1.1).
@@ -108,7 +108,7 @@ pub fn row_title(strategy: Strategy) -> &'static str {
     }
 }
 
-/// Seed 000 Table 1 (Aruba, symbolic map), model error in percent: rows Round Robin, Random,
+/// [Santos 2017] Table 1 (Aruba, symbolic map), model error in percent: rows Round Robin, Random,
 /// Greedy, Monte-Carlo, Novelty ([`Strategy::all`]); columns SM, LM, FT, GM
 /// ([`ModelKind::ALL`]).
 pub const PAPER_TABLE_1_ARUBA: [[f64; 4]; 5] = [
@@ -119,7 +119,7 @@ pub const PAPER_TABLE_1_ARUBA: [[f64; 4]; 5] = [
     [8.5, 8.9, 5.7, 6.1],
 ];
 
-/// Seed 000 Table 2 (Brayford, people presence), laid out as [`PAPER_TABLE_1_ARUBA`].
+/// [Santos 2017] Table 2 (Brayford, people presence), laid out as [`PAPER_TABLE_1_ARUBA`].
 pub const PAPER_TABLE_2_BRAYFORD: [[f64; 4]; 5] = [
     [23.7, 23.7, 16.3, 20.2],
     [23.7, 23.8, 23.0, 23.8],
@@ -140,7 +140,7 @@ pub struct TableEntry {
 }
 
 /// Runs every strategy of [`Strategy::all`] with every model of [`ModelKind::ALL`] on `world`
-/// (seed 000 Tables 1 and 2), as tasks of `parallelism`; reports one step per run to
+/// ([Santos 2017] Tables 1 and 2), as tasks of `parallelism`; reports one step per run to
 /// `progress`. Entries come strategy by strategy, models in column order; they do not depend
 /// on `parallelism` (every run has its own seeded randomness).
 ///
@@ -172,7 +172,7 @@ pub fn explore_table(
     }
 }
 
-/// Exploration ratios of the sweep of seed 000 Fig. 5.
+/// Exploration ratios of the sweep of [Santos 2017] Fig. 5.
 pub const SWEEP_RATIOS: [f64; 7] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9];
 
 /// Runs (seeds `seed..seed + SWEEP_SEEDS`) averaged per point of the sweep: the random
@@ -193,7 +193,7 @@ pub struct SweepCurve {
     pub points: Vec<(f64, f64)>,
 }
 
-/// Seed 000 Fig. 5: the model error of FreMEn with each strategy after two weeks, against the
+/// [Santos 2017] Fig. 5: the model error of FreMEn with each strategy after two weeks, against the
 /// exploration ratio, with the static model (the mean, round robin) for reference; each point
 /// the mean of [`SWEEP_SEEDS`] runs. Reports one step per run to `progress`.
 ///
@@ -251,7 +251,7 @@ pub fn exploration_sweep(
 }
 
 /// The `n` locations whose first state is occupied most often over the whole world, busiest
-/// first (ties in location order): the areas seed 000 Fig. 6 shows.
+/// first (ties in location order): the areas [Santos 2017] Fig. 6 shows.
 pub fn busiest_locations(world: &World, n: usize) -> Vec<usize> {
     let mut locations: Vec<usize> = (0..world.locations.len()).collect();
     locations.sort_by_key(|&l| {

@@ -1,8 +1,8 @@
 //! Building grids from whole sequences of frames: one frame at a time with the snapshots that
-//! a chronological hold-out needs (seed 001 §IV-B, §VI), or from a source that streams any
+//! a chronological hold-out needs ([Krajník 2017] §IV-B, §VI), or from a source that streams any
 //! range of cells on its own, split over tasks and [concatenated](FremenGrid::concat).
 //!
-//! The hold-out of seed 001 §VI keeps the most recent fraction of the frames back: orders are
+//! The hold-out of [Krajník 2017] §VI keeps the most recent fraction of the frames back: orders are
 //! chosen on it (§IV-B) and prediction errors measured on it. Choosing the orders of the model
 //! whose prediction error is measured must not see those frames either, so two snapshots are
 //! taken: the grid before the *inner* split (to choose the orders of the trained model) and

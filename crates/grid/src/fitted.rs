@@ -1,5 +1,5 @@
 //! Fitted grids: the compact ("lossy") model of every cell for prediction and storage, and the
-//! lossless model that adds per-cell outlier sets (seed 001 §III-B, §IV-C, §VI).
+//! lossless model that adds per-cell outlier sets ([Krajník 2017] §III-B, §IV-C, §VI).
 
 use std::f64::consts::TAU;
 
@@ -56,7 +56,7 @@ pub struct FittedCell {
 }
 
 /// The compact model of a whole grid: constant cells as bits, every other cell as its mean and
-/// strongest components in single precision — the "lossy" representation of seed 001 §VI. It
+/// strongest components in single precision — the "lossy" representation of [Krajník 2017] §VI. It
 /// predicts the map at any time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FittedGrid {
@@ -73,7 +73,7 @@ pub struct FittedGrid {
 }
 
 impl FremenGrid {
-    /// The compact model of every cell with the given orders (seed 001 eq. (10) per cell).
+    /// The compact model of every cell with the given orders ([Krajník 2017] eq. (10) per cell).
     pub fn fitted(&self, orders: OrderChoice) -> FittedGrid {
         let fits: Vec<(FittedCell, Vec<CompactComponent>)> = self
             .slots
@@ -376,7 +376,7 @@ impl FremenGrid {
         Ok((occ, unk))
     }
 
-    /// Estimation error of seed 001 §VI: for every cell whose observed state changed at least
+    /// Estimation error of [Krajník 2017] §VI: for every cell whose observed state changed at least
     /// once, the fraction of its observed frames where `s'(t) = p(t) ≥ 0.5` of the fitted model
     /// differs from the observed state (eq. (14)), averaged over those cells. Frames in
     /// `[from, to)` only (e.g. held-back days for a prediction error).
@@ -449,7 +449,7 @@ impl FremenGrid {
     }
 
     /// Chooses each cell's order (0..=`max_order`) by its prediction error on frames
-    /// `[split, frames)` (seed 001 §IV-B), predicting them with `trained` — the same grid
+    /// `[split, frames)` ([Krajník 2017] §IV-B), predicting them with `trained` — the same grid
     /// as it was at frame `split` (a clone taken then) — and returns the orders by cell.
     ///
     /// # Errors
@@ -547,7 +547,7 @@ fn intersection(a: &[u64], b: &[u64], lo: u64, hi: u64) -> u64 {
     (ones_in(a, lo, hi) + ones_in(b, lo, hi) - ones_in(&xor_edges(a, b), lo, hi)) / 2
 }
 
-/// The estimation error of seed 001 §VI.
+/// The estimation error of [Krajník 2017] §VI.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EstimationError {
     /// Cells whose observed state changed at least once in the range.

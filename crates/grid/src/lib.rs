@@ -1,5 +1,5 @@
 //! Spatio-temporal occupancy grids: a FreMEn model in every cell, at office scale
-//! (seed 001 §III-C, §VI, §VIII).
+//! ([Krajník 2017] §III-C, §VI, §VIII).
 //!
 //! # Model
 //! Every cell of a 2-D or 3-D grid is a [`FremenModel`] of its occupancy: the grid observes
@@ -30,7 +30,7 @@
 //!
 //! [`build`] builds grids from sequences of frames (with the snapshots of a chronological
 //! hold-out) and from sources that stream parts of the cells on separate threads; [`report`]
-//! computes the error table of seed 001 §VI and other views of a built grid.
+//! computes the error table of [Krajník 2017] §VI and other views of a built grid.
 #![deny(missing_docs)]
 
 pub mod build;

@@ -1,4 +1,4 @@
-//! What a grid's models are worth: the error table of seed 001 §VI (estimation and prediction
+//! What a grid's models are worth: the error table of [Krajník 2017] §VI (estimation and prediction
 //! errors of the static map, fixed orders and per-cell orders), scores of predicted frames
 //! against observed states, and the views of a fitted grid that maps and reports show.
 
@@ -14,11 +14,11 @@ use crate::{EstimationError, FittedGrid, FremenGrid, GridError, GridGeometry, Or
 pub enum RowOrders {
     /// Every cell with this order (0: the static map).
     Fixed(usize),
-    /// Each cell with the order that predicts its held-back frames best (seed 001 §IV-B).
+    /// Each cell with the order that predicts its held-back frames best ([Krajník 2017] §IV-B).
     PerCell,
 }
 
-/// One row of the error table of seed 001 §VI.
+/// One row of the error table of [Krajník 2017] §VI.
 #[derive(Clone, Debug)]
 pub struct OrderErrors {
     /// The orders of the row.
@@ -34,7 +34,7 @@ pub struct OrderErrors {
     pub prediction: EstimationError,
 }
 
-/// The error table of seed 001 §VI for orders `0..=max_order` and per-cell orders: the
+/// The error table of [Krajník 2017] §VI for orders `0..=max_order` and per-cell orders: the
 /// estimation error (eq. (14)) over all frames of models built on all of them, and the
 /// prediction error on the frames `[split, frames)` of models built before `split`.
 ///

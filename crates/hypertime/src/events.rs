@@ -1,5 +1,5 @@
 //! Events in space and time (people detected at `(t, x, y)`): counts on a spatio-temporal grid
-//! and models that predict them (seed 004 §V-D).
+//! and models that predict them ([Krajník 2019] §V-D).
 //!
 //! A model of events is anything that predicts the expected number of events in every cell of
 //! an [`EventGrid`] ([`EventIntensity`]); the experiment counts the test events on the same
@@ -32,7 +32,7 @@
 //! * Baselines: [`StaticMap`], [`GlobalMean`], [`CellHistogram`], [`CellFremen`]; builders
 //!   that choose their parameters on a chronological hold-out of the training data
 //!   ([`EventModelBuilder`], [`default_builders`]).
-//! * [`run_experiment`] — the experiment of seed 004 §V-D: MSE per cell of every model against
+//! * [`run_experiment`] — the experiment of [Krajník 2019] §V-D: MSE per cell of every model against
 //!   the test counts, its reduction against the static map and a paired t-test.
 //! * [`density`] — maps of the expected events per m² per hour at given times, and the
 //!   extent of a set of events.

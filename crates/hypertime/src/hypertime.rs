@@ -1,7 +1,7 @@
-//! Warped Hypertime (seed 004): time projected onto circles, one pair of dimensions per
+//! Warped Hypertime ([Krajník 2019]): time projected onto circles, one pair of dimensions per
 //! periodicity, and the result clustered into a Gaussian mixture.
 //!
-//! The method of seed 004 §III-B, for a state over time (a door, a robot's velocity):
+//! The method of [Krajník 2019] §III-B, for a state over time (a door, a robot's velocity):
 //! 1. *initialisation*: no periodicity, the vectors hold only the value (or nothing);
 //! 2. *spatio-temporal clustering*: a Gaussian mixture over the vectors (eq. 2; HyT-EM:
 //!    EM with `k` components, HyT-KM: k-means-initialised EM with `k` chosen by eq. 9);
@@ -167,7 +167,7 @@ enum Fitted {
     Continuous { joint: GaussianMixture },
 }
 
-/// A state over time modelled by Warped Hypertime (seed 004); a [`TemporalModel`].
+/// A state over time modelled by Warped Hypertime ([Krajník 2019]); a [`TemporalModel`].
 ///
 /// The model keeps its observations: every [`observe`](TemporalModel::observe) refits it on
 /// all of them (a batch method — the periodicities and clusters are chosen anew), so

@@ -1,7 +1,7 @@
 //! Gaussian mixtures fitted by expectation–maximisation, and k-means: the clustering stage of
-//! Warped Hypertime (seed 004 §III-C eq. 2, §IV: HyT-EM and HyT-KM).
+//! Warped Hypertime ([Krajník 2019] §III-C eq. 2, §IV: HyT-EM and HyT-KM).
 //!
-//! Seed 004 §IV reports that clustering the sparse hypertime space is the hard part: EM "sometimes
+//! [Krajník 2019] §IV reports that clustering the sparse hypertime space is the hard part: EM "sometimes
 //! exhibited numerical instabilities", detected "through eigenvalue analysis of the covariance
 //! matrices", fixed by restarts or diagonal covariances. Here EM is made robust by construction:
 //! responsibilities in the log domain (log-sum-exp), a ridge `regularization` added to every
@@ -10,7 +10,7 @@
 //! restarts from a new seeded initialisation, and after [`NUMERICAL_RESTARTS`] failures falls
 //! back to diagonal covariances), empty components re-seeded at the worst-explained point.
 //!
-//! Every EM iteration is the standard pair (Dempster, Laird & Rubin 1977) for seed 004 eq. 2,
+//! Every EM iteration is the standard pair (Dempster, Laird & Rubin 1977) for [Krajník 2019] eq. 2,
 //! `p(x) = Σ_c w_c N(x; μ_c, Σ_c)`: the E-step `r_ic = w_c N(x_i; μ_c, Σ_c) / p(x_i)`, the
 //! M-step `n_c = Σ_i v_i r_ic`, `w_c = n_c / Σ n`, `μ_c = Σ_i v_i r_ic x_i / n_c`,
 //! `Σ_c = Σ_i v_i r_ic (x_i − μ_c)(x_i − μ_c)ᵀ / n_c + λI` (`v_i` the row weights, `λ` the
@@ -92,7 +92,7 @@ pub enum MixtureError {
     InvalidConfig(String),
 }
 
-/// A mixture of `k` multivariate normal densities in `dim` dimensions (seed 004 eq. 2).
+/// A mixture of `k` multivariate normal densities in `dim` dimensions ([Krajník 2019] eq. 2).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GaussianMixture {
     dim: usize,
@@ -194,7 +194,7 @@ impl GaussianMixture {
     }
 
     /// A mixture from normalised weights, means, covariances and their lower Cholesky
-    /// factors (seed 004 eq. 2): computes the log-normalisers.
+    /// factors ([Krajník 2019] eq. 2): computes the log-normalisers.
     fn from_factors(
         dim: usize,
         weights: Vec<f64>,
@@ -459,7 +459,7 @@ impl GaussianMixture {
 /// How EM starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum EmInit {
-    /// k-means++ seeding, then k-means, then covariances of the hard clusters (HyT-KM, seed 004
+    /// k-means++ seeding, then k-means, then covariances of the hard clusters (HyT-KM, [Krajník 2019]
     /// §IV; scikit-learn's default `init_params="kmeans"` is similar).
     KMeans,
     /// k-means++ seeding only (means), equal weights, and every covariance the weighted
@@ -526,7 +526,7 @@ pub struct EmFit {
     pub diagonal: bool,
 }
 
-/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM (seed 004 eq. 2;
+/// Fits a Gaussian mixture to `data` (`n × dim`, optional weights) by EM ([Krajník 2019] eq. 2;
 /// HyT-EM of §IV).
 ///
 /// `starts` independent starts, each from its own seeded initialisation; the start with the
@@ -689,7 +689,7 @@ pub fn kmeans(
 
 /// The mixture of hard clusters: weights = cluster weight shares, means and (regularised)
 /// covariances of each cluster's rows (HyT-KM: "calculates the covariance matrices of the
-/// clusters", seed 004 §IV). Empty clusters are dropped.
+/// clusters", [Krajník 2019] §IV). Empty clusters are dropped.
 ///
 /// # Errors
 /// As [`fit_em`]; [`MixtureError::DimensionMismatch`] for a label `>= k`.

@@ -1,4 +1,4 @@
-//! How small a model file makes a series: FFT FreMEn with its outlier set (seed 001 §III-B,
+//! How small a model file makes a series: FFT FreMEn with its outlier set ([Krajník 2017] §III-B,
 //! §IV-C) encoded as the model files of [`crate::model_file`], with and without the outlier
 //! set, and the compression ratios of eq. (16).
 //!

@@ -1,5 +1,5 @@
 //! Loaders of whole datasets from a directory, for experiments that span several files
-//! (exploration of the Aruba apartment and the Brayford office, seed 000 §6). Each loader takes
+//! (exploration of the Aruba apartment and the Brayford office, [Santos 2017] §6). Each loader takes
 //! a directory so that the same command runs on any period published in the same format.
 
 use std::path::{Path, PathBuf};
@@ -58,7 +58,7 @@ fn binary(values: &[f64], file: &Path) -> Result<Vec<u8>, DatasetError> {
     }
 }
 
-/// The CASAS Aruba apartment (seed 000 §6.1): `presence_minutes_R.txt` (`t value` lines, one
+/// The CASAS Aruba apartment ([Santos 2017] §6.1): `presence_minutes_R.txt` (`t value` lines, one
 /// file per area R = 0, 1, …, the same times in every file, one step per minute). Every area
 /// is its own location.
 ///
@@ -103,7 +103,7 @@ pub fn load_aruba(dir: &Path) -> Result<World, DatasetError> {
     Ok(World::one_state_per_location(times[0], step, truth, names))
 }
 
-/// The Brayford office (seed 000 §6.2): `presence_L.txt` (one 0/1 value per line, line k is
+/// The Brayford office ([Santos 2017] §6.2): `presence_L.txt` (one 0/1 value per line, line k is
 /// the k-th 10-minute slot of the week from its start, taken as time 0), one file per place.
 ///
 /// # Errors

@@ -15,7 +15,7 @@ use crate::model_file::{
 pub enum GridFile {
     /// Everything needed to continue learning (exact accumulators of every changing cell).
     State(Box<FremenGrid>),
-    /// The compact model: predicts maps, cannot learn further (seed 001 §VI "lossy").
+    /// The compact model: predicts maps, cannot learn further ([Krajník 2017] §VI "lossy").
     Lossy(Box<FittedGrid>),
     /// The compact model and the outlier sets that reproduce every frame (§VI "lossless").
     Lossless(Box<LosslessGrid>),

@@ -51,7 +51,7 @@
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
 //!   [`ModelFileError`]. [`compression`] — the sizes and compression ratios of FFT FreMEn
-//!   model files (seed 001 eq. (16)).
+//!   model files ([Krajník 2017] eq. (16)).
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors

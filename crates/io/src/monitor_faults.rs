@@ -1,5 +1,5 @@
 //! Fault files for `chronomap monitor sim`: the faults injected into the monitoring
-//! simulation of seed 002 §5.3 ([`chronomap_bt::monitor::sim`]), one a line.
+//! simulation of [Stüde 2024] §5.3 ([`chronomap_bt::monitor::sim`]), one a line.
 //!
 //! ```text
 //! # faults.txt

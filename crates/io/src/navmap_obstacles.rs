@@ -4,7 +4,7 @@
 //! [`OccupancyMap::obstacle_grid`] is the map as the sight lines of training-sample extraction
 //! see it (unknown cells do not block sight, the resolution is the shortest decimal of the
 //! `f32`); [`OccupancyMap::planning_obstacles`] is the map as the path planners of the
-//! service-disturbance benchmark (seed 002 §4.3.5) and of the person search (§5.4) see it:
+//! service-disturbance benchmark ([Stüde 2024] §4.3.5) and of the person search (§5.4) see it:
 //! unknown cells block too, and the resolution is the `f32` widened exactly
 //! (`f64::from(0.05f32)` = 0.05000000074505806), as those benchmarks measured their numbers
 //! with.

@@ -1,4 +1,4 @@
-//! A synthesised person search tree ([`chronomap_psbt`], seed 002 Fig. 5.9) as a
+//! A synthesised person search tree ([`chronomap_psbt`], [Stüde 2024] Fig. 5.9) as a
 //! BehaviorTree.CPP v4 document: `Sequence(Fallback(actions…), MoveTo x₀)`, written by the
 //! canonical writer of [`crate::bt_xml`] with a `<TreeNodesModel>` of its three actions, so
 //! that the file is self-describing (Groot2 shows the ports) and reads back with

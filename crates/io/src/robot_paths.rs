@@ -1,5 +1,5 @@
 //! Readers of robot path files: the patrol loops of simulated robots that collect CoPA-Map's
-//! training data (seed 002 §4.2.2, §4.3.1), such as `data/atc_20121024_1hz/robot_paths.csv`
+//! training data ([Stüde 2024] §4.2.2, §4.3.1), such as `data/atc_20121024_1hz/robot_paths.csv`
 //! (see `data/README.md`).
 //!
 //! ```

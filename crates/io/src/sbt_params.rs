@@ -1,4 +1,4 @@
-//! Leaf parameters of a stochastic behavior tree (seed 002 §5.2.2) for `chronomap bt
+//! Leaf parameters of a stochastic behavior tree ([Stüde 2024] §5.2.2) for `chronomap bt
 //! analyse`: a CSV `node,p_s,p_f,mu,nu` read into the [`LeafParams`] of
 //! [`chronomap_bt::sbt::from_bt()`].
 //!

@@ -1,5 +1,5 @@
 //! Readers of navigation-scenario files: named patrols through waypoints for the
-//! service-disturbance benchmark of CoPA-Map (seed 002 §4.3.5, see
+//! service-disturbance benchmark of CoPA-Map ([Stüde 2024] §4.3.5, see
 //! [`chronomap_activity::disturbance`]), such as the *hallway* and *shops* scenarios in
 //! `data/atc_20121024_1hz/disturbance_scenarios.csv` (see `data/README.md`).
 //!

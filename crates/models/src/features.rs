@@ -1,5 +1,5 @@
-//! Which features will be visible? The localisation experiment of seed 001 §VII (Table I) and
-//! seed 004 §V-B over any model spec: every model is fitted per feature on the first days of
+//! Which features will be visible? The localisation experiment of [Krajník 2017] §VII (Table I) and
+//! [Krajník 2019] §V-B over any model spec: every model is fitted per feature on the first days of
 //! a state matrix, and at every later slot the `n` features it predicts most likely visible
 //! are picked; the score is the share of them that were visible
 //! ([`reobservation_rate`]).

@@ -6,12 +6,12 @@
 //!
 //! | spec | model |
 //! |---|---|
-//! | `mean` | [`MeanModel`], long-term memory (seed 000 §4.3.1) |
+//! | `mean` | [`MeanModel`], long-term memory ([Santos 2017] §4.3.1) |
 //! | `hist:N[:PERIOD]` | [`HistogramModel`], N bins over PERIOD s (default one week) |
 //! | `fremen:K`, `fremen:auto` | [`FremenModel`] of order K, or K chosen on held-back data |
-//! | `persistence[:K\|:auto]` | [`PersistenceModel`], FreMEn + persistence (seed 001 eq. (12)–(13)) |
-//! | `stm` | [`MarkovModel`], short-term memory (seed 000 eq. (5)–(6)) |
-//! | `pergam:K[:PERIOD]`, `pergam:auto` | [`PergamModel`], periodic Gaussian mixture (seed 000 eq. (7)–(9)) |
+//! | `persistence[:K\|:auto]` | [`PersistenceModel`], FreMEn + persistence ([Krajník 2017] eq. (12)–(13)) |
+//! | `stm` | [`MarkovModel`], short-term memory ([Santos 2017] eq. (5)–(6)) |
+//! | `pergam:K[:PERIOD]`, `pergam:auto` | [`PergamModel`], periodic Gaussian mixture ([Santos 2017] eq. (7)–(9)) |
 //! | `fft:L`, `fft:auto` | [`FftFremen`], FFT FreMEn with outlier set (uniformly sampled binary data only) |
 //! | `auto` | the candidate with the lowest error on held-back data, refitted on everything |
 
@@ -86,7 +86,7 @@ pub enum ModelSpec {
     /// `auto`.
     Auto,
     #[cfg(feature = "hypertime")]
-    /// `hyt-em:K` / `hyt-em:auto`: Warped Hypertime with EM clustering (seed 004, HyT-EM_k).
+    /// `hyt-em:K` / `hyt-em:auto`: Warped Hypertime with EM clustering ([Krajník 2019], HyT-EM_k).
     HypertimeEm(OrderSpec),
     #[cfg(feature = "hypertime")]
     /// `hyt-km`: Warped Hypertime with k-means-initialised clustering, `k` by eq. 9 (HyT-KM).
@@ -312,7 +312,7 @@ pub enum Selection {
     },
     #[cfg(feature = "hypertime")]
     /// The periodicities and components of a Warped Hypertime model, chosen on the most
-    /// recent part of the training data (seed 004 §III-B).
+    /// recent part of the training data ([Krajník 2019] §III-B).
     Hypertime {
         /// Periods found, in the order found (seconds).
         periods: Vec<f64>,

@@ -1,5 +1,5 @@
 //! Chronological splits of one series into a training part and later test parts (the
-//! protocol of the deployed FreMEn tools and of seed 004 §V-C: train on what came before a
+//! protocol of the deployed FreMEn tools and of [Krajník 2019] §V-C: train on what came before a
 //! time, test on each following interval).
 //!
 //! ```

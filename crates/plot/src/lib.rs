@@ -1006,7 +1006,7 @@ fn render_maps(
 /// A labelled grid of values in `[0, 1]` with an optional short text per cell, drawn by
 /// [`render_heatmap_png`].
 ///
-/// Typical use: the "now or later?" table of a navigation planner (seed 003 Table III): one
+/// Typical use: the "now or later?" table of a navigation planner ([Fentanes 2015] Table III): one
 /// row per start time, one column per day, the value the maximum probability of completing the
 /// task when starting then, the text a code for the first action (explained in `legend`).
 #[derive(Clone, Debug, Default, PartialEq)]

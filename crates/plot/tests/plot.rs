@@ -389,7 +389,7 @@ fn heat_map_cells_have_the_colours_of_the_colour_map() {
     );
 }
 
-/// A "now or later?" table like seed 003 Table III: 24 start times × 7 days, the maximum
+/// A "now or later?" table like [Fentanes 2015] Table III: 24 start times × 7 days, the maximum
 /// probability of completing the task and a code for the first edge.
 fn week_table() -> Heatmap {
     let days = ["Mon", "Tue", "Wed", "Thu", "Fri", "Sat", "Sun"];

@@ -77,7 +77,7 @@ impl Default for GammaPrior {
 /// The grid model of eq. 5.7: `λ(x, t) ≈ Σ_ij λ_ijτ 1_ijτ(x)`, a homogeneous Poisson process
 /// per cell and time interval. `λ_ijτ` is the posterior mean `α/β` of a Gamma prior updated with
 /// the people counted in the cell (`α += c`) and the seconds it was observed (`β += Δ`) in the
-/// interval (\[LDA11\] in the seed). An interval in which a cell was never observed (e.g. an hour after the
+/// interval (\[LDA11\] in the dissertation). An interval in which a cell was never observed (e.g. an hour after the
 /// training data) uses the cell's pooled posterior over all intervals; outside the grid the
 /// rate is 0 (the grid covers the environment).
 #[derive(Clone, Debug, PartialEq)]
@@ -297,7 +297,7 @@ impl RateField for GridPoisson {
     }
 }
 
-/// The activity of a fitted CoPA-Map (seed 002 §4.2) as a [`RateField`] for the person search
+/// The activity of a fitted CoPA-Map ([Stüde 2024] §4.2) as a [`RateField`] for the person search
 /// (§5.4.1): the grid model of eq. 5.7 whose cells are those the model was trained on, each
 /// with the model's predicted rate at its centre at the model time `model_t`.
 ///

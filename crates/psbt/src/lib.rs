@@ -1,4 +1,4 @@
-//! The person search behavior tree, PSBT (seed 002 §5.4): when a robot needs a person's help,
+//! The person search behavior tree, PSBT ([Stüde 2024] §5.4): when a robot needs a person's help,
 //! synthesise the stochastic behavior tree of searching and waiting that most likely finds
 //! someone within a look-ahead time, from a model of human activity `λ(x, t)`.
 //!
@@ -148,14 +148,14 @@ pub struct PsbtConfig {
     /// Look-ahead time `t_max` in seconds (200).
     pub horizon_s: f64,
     /// Places lie at most this path distance from the help location (50 m: the robot can go
-    /// there and back within `t_max` at `v̄_sp`). The seed bounds the distance without a value.
+    /// there and back within `t_max` at `v̄_sp`). The dissertation bounds the distance without a value.
     pub max_distance_m: f64,
     /// `n_λ` of the GC baseline (50).
     pub close_maxima: usize,
     /// Whether the first places are the targets of the greedy baselines GM and GC (the cell
     /// of highest rate, and the nearest of the `n_λ` highest), the others sampled `∝` rate
     /// (true). Then PSBT's candidates contain the GM, GC and W trees, so PSBT is at least as
-    /// good as each of them at `t_max` under the planning model, as the seed argues for W
+    /// good as each of them at `t_max` under the planning model, as the dissertation argues for W
     /// alone. `false` samples all `n_pl` places, as §5.4.3 does.
     pub include_maxima: bool,
     /// Truncation error allowed in the uniformisation (1e-10).

@@ -175,7 +175,7 @@ pub fn open_tsp(cost: &[Vec<f64>], config: &TspConfig, rng: &mut Xoshiro256StarS
     }
 }
 
-/// The open tour from node 0 through nodes `1..=n` by a genetic algorithm (\[Dav10\] in the seed): order
+/// The open tour from node 0 through nodes `1..=n` by a genetic algorithm (\[Dav10\] in the dissertation): order
 /// crossover of two tournament-selected parents, segment-reversal mutation, the best tour kept
 /// (elitism); the initial population holds the nearest-neighbour tour and random ones. The
 /// best tour is then improved by 2-opt and or-opt moves until none helps. Deterministic for a

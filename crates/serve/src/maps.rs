@@ -1,5 +1,5 @@
 //! Spatial containers served read-only beside the models: topological maps whose edges know
-//! time (seed 003) and occupancy grids (seed 001 §VI), loaded from their model files at start.
+//! time ([Fentanes 2015]) and occupancy grids ([Krajník 2017] §VI), loaded from their model files at start.
 //!
 //! * `POST /v1/topo/{name}/predict {time}`: every edge's success probability and expected
 //!   duration at `time`.
@@ -218,7 +218,7 @@ pub(crate) async fn topo_predict(
     Ok(Json(EdgesResponse { edges }))
 }
 
-/// Now or later: the best plan for a co-safe LTL task at each start time (seed 003 §V).
+/// Now or later: the best plan for a co-safe LTL task at each start time ([Fentanes 2015] §V).
 #[utoipa::path(post, path = "/v1/topo/{name}/plan", request_body = PlanRequest,
     params(("name" = String, Path, description = "map name")),
     responses((status = 200, body = PlanResponse), (status = 400, body = crate::api::ErrorBody),

@@ -1,7 +1,7 @@
 //! Where a robot may drive: a grid of square cells over a region of the map, each free or
 //! blocked, whose free cells form the 8-connected (Moore) graph that the
 //! [least-cost search](crate::search) plans on. Used by the service-disturbance benchmark of
-//! CoPA-Map (seed 002 §4.3.5) and the person search of PSBT (seed 002 §5.4, eq. 5.13).
+//! CoPA-Map ([Stüde 2024] §4.3.5) and the person search of PSBT ([Stüde 2024] §5.4, eq. 5.13).
 
 use thiserror::Error;
 

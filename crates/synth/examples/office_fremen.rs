@@ -1,4 +1,4 @@
-//! FreMEn against the static model on the synthetic office (seed 001 §VI, Fig. 8).
+//! FreMEn against the static model on the synthetic office ([Krajník 2017] §VI, Fig. 8).
 //!
 //! ```text
 //! cargo run --release -p chronomap-synth --example office_fremen -- [cells] [days] [seed]

@@ -5,7 +5,7 @@
 //! draw comes from the configuration's seed through [`rng`] (the PRNG of chronomap-core).
 //!
 //! * [`office`] — a 4-D occupancy grid of an office at the scale of the FreMEn paper
-//!   (seed 001 §VI: 213,000 cells, a frame every 5 s, 112 days), streamed frame by frame
+//!   ([Krajník 2017] §VI: 213,000 cells, a frame every 5 s, 112 days), streamed frame by frame
 //!   so that the ~51 GB of frame bits never exist in memory at once.
 //! * [`stats`] — per-cell statistics of a streamed range (the static model's error).
 //! * [`office_grid`] — the office as a `chronomap-grid` grid: its geometry and its streams as

@@ -2,7 +2,7 @@
 //! grid with known ground truth, generated from a seed and streamed frame by frame.
 //!
 //! # Why
-//! The large spatio-temporal experiment of FreMEn (seed 001 §VI) observed ~213,000 cells of
+//! The large spatio-temporal experiment of FreMEn ([Krajník 2017] §VI) observed ~213,000 cells of
 //! an office every 5 s (17,280 frames a day) for 112 days: 4·10¹¹ cell observations. No such
 //! data set is public. This module generates one with the same shape — by default the same
 //! size — whose generating process is known, so that throughput can be measured at paper
@@ -76,7 +76,7 @@
 //!
 //! The numbers above are calibrated so that the static model (each cell predicted by its
 //! majority state over the whole workload) mis-estimates about 6 % of the frames of the cells
-//! that changed at least once, as in seed 001 §VI; the crate's tests check 5.5–6.5 % on a
+//! that changed at least once, as in [Krajník 2017] §VI; the crate's tests check 5.5–6.5 % on a
 //! grid of 32,000 cells. At the default size (seed 0) it is 5.95 %: periodic cells (static
 //! error 14.3 % each on average) contribute 3.6 points, persistent cells (25 %) 2.3, noise
 //! cells (0.2 %) 0.1; over seeds 0–7 it ranges from 5.95 to 6.08 %. There are 7.3 change
@@ -111,7 +111,7 @@ pub const MAX_CELLS: usize = 1 << 28;
 /// Smallest frame interval supported, in seconds.
 pub const MIN_FRAME_SECS: f64 = 1e-3;
 
-/// Parameters of an [`OfficeWorkload`]. The defaults are the office of seed 001 §VI.
+/// Parameters of an [`OfficeWorkload`]. The defaults are the office of [Krajník 2017] §VI.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OfficeConfig {
     /// Number of grid cells (default 213,000), 1 to [`MAX_CELLS`].

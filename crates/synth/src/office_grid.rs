@@ -1,6 +1,6 @@
 //! The synthetic office as a [`chronomap_grid`] occupancy grid: its geometry, and its frame
 //! streams as a [`PartitionedFrames`] source, so that
-//! [`build_partitioned`](chronomap_grid::build::build_partitioned) builds the grid of seed 001
+//! [`build_partitioned`](chronomap_grid::build::build_partitioned) builds the grid of [Krajník 2017]
 //! §VI on several threads.
 //!
 //! ```
@@ -28,7 +28,7 @@ use chronomap_grid::{GridError, GridGeometry};
 use crate::error::SynthError;
 use crate::office::{FrameStream, OfficeConfig, OfficeWorkload};
 
-/// Edge length of a cell of the office in metres (10 cm, seed 001 §VI).
+/// Edge length of a cell of the office in metres (10 cm, [Krajník 2017] §VI).
 pub const CELL_METRES: f64 = 0.1;
 
 /// The office of [`OfficeConfig::default`] with `cells` cells, `days` days and `seed`.
@@ -45,7 +45,7 @@ pub fn office(cells: usize, days: u32, seed: u64) -> Result<OfficeWorkload, Synt
 }
 
 /// Geometry of an office of `cells` cells of 10 cm: the paper's 213,000 cells as a
-/// 71 × 60 × 50 block (7.1 m × 6 m × 5 m, seed 001 §VI); any other number as the most square
+/// 71 × 60 × 50 block (7.1 m × 6 m × 5 m, [Krajník 2017] §VI); any other number as the most square
 /// 2-D grid `width × height` with `width · height = cells` and `height <= width`.
 ///
 /// # Errors

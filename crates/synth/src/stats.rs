@@ -1,6 +1,6 @@
 //! Per-cell statistics of a streamed range over a whole workload: how often each cell is
 //! occupied and how often it changes, and from those the error of the static model (each
-//! cell predicted by its majority state), the baseline of seed 001 §VI.
+//! cell predicted by its majority state), the baseline of [Krajník 2017] §VI.
 
 use std::ops::Range;
 
@@ -76,7 +76,7 @@ impl RangeSummary {
     }
 
     /// The static model's error averaged over the cells that changed at least once (the
-    /// measure of seed 001 §VI); `None` if no cell changed.
+    /// measure of [Krajník 2017] §VI); `None` if no cell changed.
     pub fn static_error_on_changed(&self) -> Option<f64> {
         let (sum, count) = self
             .changes

@@ -1,14 +1,14 @@
 //! Temporal models of the edges of a topological map: when a navigation action succeeds and
-//! how long it takes (seed 003 §III–IV).
+//! how long it takes ([Fentanes 2015] §III–IV).
 //!
 //! Each edge gets two models: the probability that a traversal succeeds, `p_e(t)`, from all its
 //! attempts, and the duration of successful traversals, from those. Both are FreMEn models
-//! (seed 003 eqs. (1)–(2)) whose order is chosen per edge on the most recent part of its history
+//! ([Fentanes 2015] eqs. (1)–(2)) whose order is chosen per edge on the most recent part of its history
 //! (a chronological hold-out, scored like eq. (3); order 0 is the static mean, so an edge whose
 //! outcomes are not periodic falls back to a static model). Durations are not in `[0, 1]`: they
 //! are modelled as fractions of the edge's longest training duration, and scaled back.
 //!
-//! Success models also carry FreMEn's persistence term (seed 001 §III-D, eqs. (12)–(13)): the
+//! Success models also carry FreMEn's persistence term ([Krajník 2017] §III-D, eqs. (12)–(13)): the
 //! outcome of the latest attempt persists for a while. On the Witham Wharf data this is what
 //! predicts later weeks: a closed door makes the robot fail again and again for hours, at times
 //! of day that change from week to week (see `topo eval` in the README for the numbers). A model
@@ -52,13 +52,13 @@ pub struct EdgeModelConfig {
     pub floor: f64,
     /// Fit periodic (FreMEn) models; `false` = static means only.
     pub periodic: bool,
-    /// Add the persistence of the latest outcome to success models (seed 001 eqs. (12)–(13)).
+    /// Add the persistence of the latest outcome to success models ([Krajník 2017] eqs. (12)–(13)).
     pub persistence: bool,
     /// Fraction of each edge's time span held back to choose the orders.
     pub holdout: f64,
     /// Largest order tried.
     pub max_order: usize,
-    /// The order of every success model (`None`: chosen per edge on the hold-out). Seed 003:
+    /// The order of every success model (`None`: chosen per edge on the hold-out). [Fentanes 2015]:
     /// "typically, m = 2".
     pub success_order: Option<usize>,
     /// Duration of edges that have never succeeded (seconds); `None`: the median over edges.
@@ -200,7 +200,7 @@ fn fit_series(
 impl EdgeModels {
     /// Fits the models of every edge of `map` from `attempts[e]` (in time order per edge).
     /// Success probabilities are chosen by the Brier score on the held-back attempts, durations
-    /// by the absolute error (seed 003 eq. (3)), which is robust to the long tail of durations.
+    /// by the absolute error ([Fentanes 2015] eq. (3)), which is robust to the long tail of durations.
     ///
     /// # Errors
     /// `attempts` not one list per edge, or attempts violating the observation contract (times
@@ -393,7 +393,7 @@ impl EdgeModels {
     /// Scores the models, frozen as fitted, on later attempts (`test[e]` for edge `e`): the Brier
     /// score of the success probabilities over all attempts, the mean squared error of the expected durations
     /// over the successful ones, and the same for the static per-edge means, the baseline the
-    /// periodic models must beat (seed 003 §VI).
+    /// periodic models must beat ([Fentanes 2015] §VI).
     ///
     /// # Errors
     /// `test` not one list per edge.

@@ -1,5 +1,5 @@
 //! Co-safe linear temporal logic: the task language of a robot on a topological map
-//! (seed 003 §V). `F Kitchen` ("go to the kitchen"), `F (Kitchen & F Office)` ("the kitchen,
+//! ([Fentanes 2015] §V). `F Kitchen` ("go to the kitchen"), `F (Kitchen & F Office)` ("the kitchen,
 //! then the office"), `!Corridor U Lab` ("reach the lab without passing the corridor").
 //!
 //! * [`parse`] reads a formula in PRISM-like syntax into an [`Ltl`] syntax tree;

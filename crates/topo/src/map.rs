@@ -1,5 +1,5 @@
 //! Topological maps: named places and the directed edges (navigation actions) between them
-//! (seed 003 §III: `T = ⟨V, E, …⟩`).
+//! ([Fentanes 2015] §III: `T = ⟨V, E, …⟩`).
 
 use std::collections::HashMap;
 

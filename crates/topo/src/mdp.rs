@@ -1,8 +1,8 @@
-//! Navigation MDPs at a time `t` (seed 003 §V), their product with a task automaton, and the
+//! Navigation MDPs at a time `t` ([Fentanes 2015] §V), their product with a task automaton, and the
 //! solvers that turn them into policies: maximum probability of fulfilling the task, then the
 //! least expected time among the policies that achieve it.
 //!
-//! # The Navigation MDP at time `t` (seed 003 §V)
+//! # The Navigation MDP at time `t` ([Fentanes 2015] §V)
 //! A topological map `T = ⟨V, E, …⟩` and, per edge `e`, the predicted probability `p_e(t)` that
 //! navigating it succeeds and its expected duration give [`NavigationMdp`]
 //! `M_t = ⟨S, s̄, A, δ⟩`: states `S = V ∪ {s_f}` (the nodes plus the *dump* state `s_f`
@@ -232,7 +232,7 @@ pub enum MdpError {
     InvalidFormula(String),
 }
 
-/// The Navigation MDP at time `t` of seed 003 §V: nodes of a topological map plus the failure
+/// The Navigation MDP at time `t` of [Fentanes 2015] §V: nodes of a topological map plus the failure
 /// sink `s_f`, the edges as actions, succeeding with `p_e(t)` and costing their duration.
 ///
 /// State `i < node_count()` is node `i` of the map; state [`sink`](Self::sink)` = node_count()`
@@ -250,7 +250,7 @@ pub struct NavigationMdp {
 
 impl NavigationMdp {
     /// The Navigation MDP `M_t` of `map` with `success[e] = p_e(t)` and `duration[e]` (seconds)
-    /// for every edge `e` of the map (seed 003 §V, `δ(v_i, e, v_j) = p_e(t)`,
+    /// for every edge `e` of the map ([Fentanes 2015] §V, `δ(v_i, e, v_j) = p_e(t)`,
     /// `δ(v_i, e, s_f) = 1 − p_e(t)`).
     ///
     /// # Errors

@@ -1,11 +1,11 @@
 //! "Now or later?": plan a co-safe navigation task at any time from the edge models
-//! (seed 003 §V–VI).
+//! ([Fentanes 2015] §V–VI).
 //!
 //! At time `t` the edge models give every edge's success probability `p_e(t)` and expected
 //! duration; these make the Navigation MDP `M_t` ([`crate::mdp::NavigationMdp`]), whose product
 //! with the task's automaton is solved for the maximum probability of fulfilling the task and
 //! the least expected time among the policies achieving it. Doing this for many times of day
-//! gives the table of seed 003 Table III: when to start, and which way to go.
+//! gives the table of [Fentanes 2015] Table III: when to start, and which way to go.
 //!
 //! ```
 //! use chronomap_topo::edges::{Attempt, EdgeModelConfig, EdgeModels};
@@ -135,7 +135,7 @@ pub struct Planned {
     pub plan: PlanAt,
 }
 
-/// Builds and solves the Navigation MDP at `time` (seed 003 §V) for `task` from node `start`.
+/// Builds and solves the Navigation MDP at `time` ([Fentanes 2015] §V) for `task` from node `start`.
 ///
 /// # Errors
 /// [`PlanError::Mdp`] if the models' predictions make an invalid MDP (they cannot, unless a
@@ -179,7 +179,7 @@ pub fn plan_at(
     Ok(plan_full(models, start, task, time, options)?.plan)
 }
 
-/// "Now or later?": the plan at each of `times` (seed 003 Table III).
+/// "Now or later?": the plan at each of `times` ([Fentanes 2015] Table III).
 ///
 /// # Errors
 /// As [`plan_full`].

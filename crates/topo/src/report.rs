@@ -1,8 +1,8 @@
 //! What the command line reports about edge models and plans, computed here so that every
 //! front end reports the same: how well the fitted edge models reconstruct their training
-//! attempts (seed 003 Table II), a test map merged into a training map, the evaluation
+//! attempts ([Fentanes 2015] Table II), a test map merged into a training map, the evaluation
 //! protocols per map and per edge, the route a plan takes when every edge succeeds, and the
-//! now-or-later table (seed 003 Table III).
+//! now-or-later table ([Fentanes 2015] Table III).
 
 use thiserror::Error;
 
@@ -16,7 +16,7 @@ use chronomap_core::progress::Progress;
 /// Attempts per edge, in the edge order of a map.
 pub type AttemptsPerEdge = Vec<Vec<Attempt>>;
 
-/// The order of each edge's models and their mean reconstruction errors (seed 003 Table II).
+/// The order of each edge's models and their mean reconstruction errors ([Fentanes 2015] Table II).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitSummary {
     /// Edges per bucket of the success model's order: static rate (few attempts), orders 0,
@@ -25,7 +25,7 @@ pub struct FitSummary {
     /// The same for the duration models.
     pub duration_orders: [usize; 6],
     /// Mean over the edges with attempts of the mean absolute error of the success
-    /// probability at each attempt (seed 003 eq. 3 divided by `n`).
+    /// probability at each attempt ([Fentanes 2015] eq. 3 divided by `n`).
     pub success_error: f64,
     /// Mean over the edges with successful attempts of the mean absolute error of the
     /// expected duration (seconds).
@@ -51,7 +51,7 @@ pub fn fit_summary(models: &EdgeModels, attempts: &[Vec<Attempt>]) -> FitSummary
         s.success_orders[bucket(model.success_model().and_then(|m| m.order()))] += 1;
         s.duration_orders[bucket(model.duration_model().and_then(|m| m.order()))] += 1;
         if !list.is_empty() {
-            // Seed 003 eq. (3) divided by n: the mean absolute reconstruction error.
+            // [Fentanes 2015] eq. (3) divided by n: the mean absolute reconstruction error.
             let error: f64 = list
                 .iter()
                 .map(|a| {
@@ -233,7 +233,7 @@ pub fn success_route(planned: &Planned, map: &TopoMap) -> Vec<usize> {
     route
 }
 
-/// A now-or-later table (seed 003 Table III): the plans of `days` days × [`WeekTable::per_day`]
+/// A now-or-later table ([Fentanes 2015] Table III): the plans of `days` days × [`WeekTable::per_day`]
 /// start times, `step_mins` apart from midnight UTC of the first day.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WeekTable {

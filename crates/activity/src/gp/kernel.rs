@@ -1,4 +1,4 @@
-//! Covariance functions over spatio-temporal inputs `x = (x1, x2, t)` (seed 002 §4.2.3),
+//! Covariance functions over spatio-temporal inputs `x = (x1, x2, t)` ([Stüde 2024] §4.2.3),
 //! their Gram matrices, and their gradients with respect to the log-hyperparameters and to
 //! the inputs (for moving inducing points).
 //!
@@ -32,7 +32,7 @@ pub trait Kernel: Sync {
     fn diag_grad(&self, dtheta: &mut [f64]);
 }
 
-/// Matérn-5/2 correlation of seed 002 eq. (4.9) (without the variance) at `d = x − x'`:
+/// Matérn-5/2 correlation of [Stüde 2024] eq. (4.9) (without the variance) at `d = x − x'`:
 /// returns `(m, ∂m/∂ln l, ∂m/∂d)`.
 fn matern52(d: f64, l: f64) -> (f64, f64, f64) {
     let a = 5f64.sqrt() * d.abs() / l;
@@ -43,16 +43,16 @@ fn matern52(d: f64, l: f64) -> (f64, f64, f64) {
     (m, dlog_l, dd)
 }
 
-/// The covariance `k_f` of the activity rate, seed 002 eq. (4.8): a spatial Matérn-5/2 part
+/// The covariance `k_f` of the activity rate, [Stüde 2024] eq. (4.8): a spatial Matérn-5/2 part
 /// (eq. 4.9) over `x1` and `x2` times a sum of periodic components over `t` (eq. 4.10).
 ///
 /// `k_f(x, x') = σ_s² · m(|Δx1|/l_1) · m(|Δx2|/l_2) · Σ_i σ_i² exp(−½ sin²(π Δt/γ_i) / l_{t,i}²)`
 ///
-/// The seed writes one `k_s` per spatial dimension, each with its own variance; the two
+/// The dissertation writes one `k_s` per spatial dimension, each with its own variance; the two
 /// variances multiply, so a single `σ_s²` is kept (as GPflow's one `Matern52` variance).
-/// Each dimension has its own length scale (set them equal for the seed's shared `l_s`).
+/// Each dimension has its own length scale (set them equal for the dissertation's shared `l_s`).
 /// The periodic argument is `π Δt / γ_i` as in GPflow's `Periodic` kernel, so that `γ_i` is
-/// the period (the seed's eq. 4.10 writes `γ_i⁻¹ Δt`, a period of `π γ_i`).
+/// the period (the dissertation's eq. 4.10 writes `γ_i⁻¹ Δt`, a period of `π γ_i`).
 ///
 /// Parameter layout (natural logs): `[σ_s², l_1, l_2]` then `[σ_i², l_{t,i}, γ_i]` for each
 /// periodic component `i`.
@@ -188,7 +188,7 @@ impl Kernel for ActivityKernel {
     }
 }
 
-/// The RBF (squared exponential) covariance `k_g` of the noise process, seed 002 eq. (4.11),
+/// The RBF (squared exponential) covariance `k_g` of the noise process, [Stüde 2024] eq. (4.11),
 /// with one length scale per input dimension:
 /// `k_g(x, x') = σ_g² exp(−½ Σ_d (Δx_d / l_d)²)`.
 ///

@@ -1,4 +1,4 @@
-//! GP-Hom, the homoscedastic baseline of seed 002 §4.3.2: a log-Gaussian Cox process with one
+//! GP-Hom, the homoscedastic baseline of [Stüde 2024] §4.3.2: a log-Gaussian Cox process with one
 //! latent function `f ~ GP(c, k_f)` (the kernel of CoPA-Map, [`ActivityKernel`], eqs.
 //! 4.8–4.10, and a constant prior mean `c`) and a Poisson likelihood with log link,
 //! `y ~ Poisson(exp f(x))`. The latent GP is the whitened SVGP of [`super::svgp`] (eqs.
@@ -37,7 +37,7 @@ pub struct ExpectedPoissonLogLik {
 }
 
 /// The expected log-likelihood of one rate `y ≥ 0` under the Poisson likelihood with log link
-/// (the first term of seed 002 eq. 4.12 for GP-Hom, §4.3.2), closed form:
+/// (the first term of [Stüde 2024] eq. 4.12 for GP-Hom, §4.3.2), closed form:
 /// `E[y f − eᶠ − ln Γ(y + 1)] = y m − exp(m + v/2) − ln Γ(y + 1)` for `f ~ N(m, v)`.
 pub fn expected_poisson_log_lik(y: f64, m: f64, v: f64) -> ExpectedPoissonLogLik {
     let rate = (m + 0.5 * v).exp();
@@ -108,7 +108,7 @@ impl TryFrom<SavedPoissonSvgp> for PoissonSvgp {
     }
 }
 
-/// The GP-Hom model of seed 002 §4.3.2: `y ~ Poisson(exp f(x))`, `f ~ GP(c, k_f)` with
+/// The GP-Hom model of [Stüde 2024] §4.3.2: `y ~ Poisson(exp f(x))`, `f ~ GP(c, k_f)` with
 /// CoPA-Map's kernel [`ActivityKernel`] (eqs. 4.8–4.10), approximated by one whitened SVGP
 /// (eqs. 4.12–4.14). The constant prior mean `c` of the log rate is a hyperparameter (trained
 /// by Adam with the kernel); a good start is the log of the mean training rate.
@@ -190,7 +190,7 @@ impl PoissonSvgp {
         })
     }
 
-    /// The ELBO (seed 002 eq. 4.12 with the one latent function of GP-Hom) estimated on the
+    /// The ELBO ([Stüde 2024] eq. 4.12 with the one latent function of GP-Hom) estimated on the
     /// batch `(x, y)`: the expected log-likelihood summed over the batch times `scale` (`n /
     /// |B|` for a minibatch of `n` points, `1` for the full data) minus `KL(q(u) ‖ p(u))`.
     ///

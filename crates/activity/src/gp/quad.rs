@@ -1,8 +1,8 @@
 //! Gauss–Hermite quadrature and the expected log-likelihood of the heteroscedastic Gaussian
-//! likelihood `y ~ N(f, ζ(g)²)`, `ζ` = softplus (seed 002 eq. 4.7 and the first term of the
+//! likelihood `y ~ N(f, ζ(g)²)`, `ζ` = softplus ([Stüde 2024] eq. 4.7 and the first term of the
 //! bound eq. 4.12).
 //!
-//! The seed writes the noise *variance* as `ζ(g)`; the original implementation (GPflow,
+//! The dissertation writes the noise *variance* as `ζ(g)`; the original implementation (GPflow,
 //! `tfp.distributions.Normal(f, softplus(g))`) uses `ζ(g)` as the *standard deviation*, and
 //! so does this module.
 
@@ -110,7 +110,7 @@ impl HeteroGaussian {
         self.nodes.len()
     }
 
-    /// `E_{q(f)q(g)}[ln N(y | f, ζ(g)²)]` and its gradient (seed 002 eq. 4.12, one term of the
+    /// `E_{q(f)q(g)}[ln N(y | f, ζ(g)²)]` and its gradient ([Stüde 2024] eq. 4.12, one term of the
     /// sum). The `f`-expectation is closed form,
     /// `E_f[ln N(y|f, s²)] = −½ ln(2π s²) − ((y − m_f)² + v_f)/(2 s²)`; the `g`-expectations
     /// `E[ln ζ(g)]` and `E[ζ(g)⁻²]` use the Gauss–Hermite rule with `g_k = m_g + √(2 v_g) x_k`.

@@ -1,5 +1,5 @@
 //! The whitened sparse variational GP with two latent functions `f` (activity rate) and `g`
-//! (noise), seed 002 eqs. (4.12)–(4.16), its natural-gradient and Adam updates, and
+//! (noise), [Stüde 2024] eqs. (4.12)–(4.16), its natural-gradient and Adam updates, and
 //! prediction.
 //!
 //! **Whitening.** Each latent GP has inducing values `u = L v` with `L Lᵀ = K(Z, Z) + jitter·I`
@@ -156,7 +156,7 @@ impl Variational {
     }
 
     /// `KL(N(μ, S) ‖ N(0, I)) = ½ (tr S + μᵀμ − M − ln|S|)`, which equals
-    /// `KL(q(u) ‖ p(u))` of seed 002 eq. (4.12) under whitening.
+    /// `KL(q(u) ‖ p(u))` of [Stüde 2024] eq. (4.12) under whitening.
     pub fn kl(&self) -> f64 {
         let m = self.len();
         let mut tr = 0.0;
@@ -188,9 +188,9 @@ pub struct LatentGp<K> {
 /// Marginals of one latent GP at a batch of inputs and the intermediates for gradients.
 #[derive(Clone, Debug)]
 pub struct Marginals {
-    /// Means `m_i`, seed 002 eq. (4.13)/(4.15).
+    /// Means `m_i`, [Stüde 2024] eq. (4.13)/(4.15).
     pub mean: Vec<f64>,
-    /// Variances `Σ_ii`, seed 002 eq. (4.14)/(4.16).
+    /// Variances `Σ_ii`, [Stüde 2024] eq. (4.14)/(4.16).
     pub var: Vec<f64>,
     /// `L = chol(K(Z, Z) + jitter·I)`.
     l: Mat<f64>,
@@ -211,7 +211,7 @@ impl<K: Kernel> LatentGp<K> {
         }
     }
 
-    /// The marginals `q(f_i) = N(m_i, Σ_ii)` at `x` (seed 002 eqs. 4.13–4.16, diagonal only,
+    /// The marginals `q(f_i) = N(m_i, Σ_ii)` at `x` ([Stüde 2024] eqs. 4.13–4.16, diagonal only,
     /// whitened): cost `O(B·M² + M³)`.
     pub fn marginals(
         &self,
@@ -490,7 +490,7 @@ impl TryFrom<SavedHeteroSvgp> for HeteroSvgp {
     }
 }
 
-/// The CoPA-Map model, seed 002 eq. (4.7): `y ~ N(f(x), ζ(g(x))²)` with `f ~ GP(0, k_f)`
+/// The CoPA-Map model, [Stüde 2024] eq. (4.7): `y ~ N(f(x), ζ(g(x))²)` with `f ~ GP(0, k_f)`
 /// ([`ActivityKernel`], eqs. 4.8–4.10) and `g ~ GP(0, k_g)` ([`RbfKernel`], eq. 4.11), each
 /// approximated by a whitened SVGP with its own inducing inputs.
 ///
@@ -534,7 +534,7 @@ pub struct Prediction {
     pub std: Vec<f64>,
 }
 
-/// The likelihood term of the ELBO on a batch (the first term of seed 002 eq. 4.12) for a
+/// The likelihood term of the ELBO on a batch (the first term of [Stüde 2024] eq. 4.12) for a
 /// model of `L` latent GPs: `scale · Σ_i E_{q}[ln p(y_i | ·)]` and its per-point gradients
 /// with respect to the marginal mean `m_{l,i}` and variance `v_{l,i}` of every latent GP `l`,
 /// scaled the same way. The one batch likelihood of [`HeteroSvgp`] (`L = 2`: `f`, `g`) and
@@ -645,7 +645,7 @@ impl HeteroSvgp {
         })
     }
 
-    /// The ELBO (seed 002 eq. 4.12) estimated on the batch `(x, y)`: the expected
+    /// The ELBO ([Stüde 2024] eq. 4.12) estimated on the batch `(x, y)`: the expected
     /// log-likelihood summed over the batch times `scale` (use `n / |B|` for a minibatch of a
     /// data set of `n` points, `1` for the full data) minus both KL terms.
     pub fn elbo(
@@ -747,7 +747,7 @@ impl HeteroSvgp {
         Ok((elbo, self.grad_from(x, y, scale, &mf, &mg, par)))
     }
 
-    /// Predictive mean and standard deviation of `y` at `x` (seed 002 eq. 4.19): mean `m_f`,
+    /// Predictive mean and standard deviation of `y` at `x` ([Stüde 2024] eq. 4.19): mean `m_f`,
     /// variance `Σ_f + E_{q(g)}[ζ(g)²]`. Works in chunks of 1024 points.
     pub fn predict(&self, x: &[Point], par: Parallelism) -> Result<Prediction, GpError> {
         let mut out = Prediction {
@@ -977,7 +977,7 @@ pub(super) use svgp_model;
 svgp_model!(HeteroSvgp, check_data);
 
 /// Trains `model` on `(x, y)` by alternating a natural-gradient step on its `q(v)` and an
-/// Adam step on the hyperparameters (and inducing inputs) on the same minibatch (seed 002
+/// Adam step on the hyperparameters (and inducing inputs) on the same minibatch ([Stüde 2024]
 /// §4.2.5). Returns the minibatch ELBO estimate (scaled by `n/|B|`) measured at the start of
 /// each iteration. A natural-gradient step that is not positive definite is retried with half
 /// the step size (up to 10 times) before the error is returned.

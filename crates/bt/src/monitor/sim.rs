@@ -1,4 +1,4 @@
-//! A deterministic fault-injection simulation of the monitoring system of seed 002 §5.3
+//! A deterministic fault-injection simulation of the monitoring system of [Stüde 2024] §5.3
 //! (Fig. 5.5): a robot patrols; faults are injected (a crashed node, a slow topic, CPU
 //! overload, localization lost, navigation failure, or a "stuck" fault no monitor sees); the
 //! [`Monitor`]s turn the simulated signals into states that are written to the blackboard of

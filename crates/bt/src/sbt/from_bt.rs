@@ -1,4 +1,4 @@
-//! A BehaviorTree.CPP tree ([`BtDocument`]) read as a stochastic behavior tree (seed 002
+//! A BehaviorTree.CPP tree ([`BtDocument`]) read as a stochastic behavior tree ([Stüde 2024]
 //! §5.2.2): every action leaf gets the tuple `⟨p_s, p_f, μ, ν⟩` and every condition
 //! `⟨p_s, p_f⟩` from a table of [`LeafParams`], and the control flow becomes a [`Node`].
 //!

@@ -1,4 +1,4 @@
-//! The baselines of the event experiment (seed 004 §V): a static map, the global mean, a
+//! The baselines of the event experiment ([Krajník 2019] §V): a static map, the global mean, a
 //! histogram of the time of day per cell (`Hist_n`) and FreMEn per cell.
 //!
 //! Every model is fitted on [`TrainingData`] for a [`SpatialGrid`] and predicts expected
@@ -29,7 +29,7 @@ fn constant_rates(space: &SpatialGrid, rates: &[f64], grid: &EventGrid) -> Vec<f
 }
 
 /// The static map: every cell's mean rate over the observed training time, the same at every
-/// time (the reference of seed 004 Fig. 5).
+/// time (the reference of [Krajník 2019] Fig. 5).
 #[derive(Clone, Debug, PartialEq)]
 pub struct StaticMap {
     space: SpatialGrid,
@@ -112,7 +112,7 @@ fn interval_of(t: f64, n: usize) -> usize {
     ((t / (DAY / n as f64)).floor() as i64).rem_euclid(n as i64) as usize
 }
 
-/// `Hist_n` of seed 004 §V per cell: the day is cut into `n` equal intervals and every cell
+/// `Hist_n` of [Krajník 2019] §V per cell: the day is cut into `n` equal intervals and every cell
 /// has one rate per interval (its events in that interval of every training day / the seconds
 /// of that interval observed). An interval never observed takes the cell's static rate.
 /// Expected counts integrate the piecewise constant rate over each bin exactly.
@@ -257,7 +257,7 @@ impl FremenCell {
     }
 }
 
-/// FreMEn per cell (seed 004 §V-D, as the original `CFremenGrid`): every cell's counts per
+/// FreMEn per cell ([Krajník 2019] §V-D, as the original `CFremenGrid`): every cell's counts per
 /// training bin, scaled into `[0, 1]` by the cell's largest count, are modelled by a
 /// [`FremenModel`] over the periods one day / k, k = 1..=24 ([`CellFremen::periods`]: with
 /// one or two days of data no longer period can be seen). Predictions are scaled back,

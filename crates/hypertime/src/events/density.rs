@@ -1,5 +1,5 @@
 //! Maps of the expected density of events at given times, and where events happened: what
-//! `chronomap hypertime` draws and reports (seed 004, Fig. 6 style maps of people).
+//! `chronomap hypertime` draws and reports ([Krajník 2019], Fig. 6 style maps of people).
 
 use serde::{Deserialize, Serialize};
 

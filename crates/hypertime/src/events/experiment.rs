@@ -1,4 +1,4 @@
-//! The experiment of seed 004 §V-D: fit every model on the training days, count the test
+//! The experiment of [Krajník 2019] §V-D: fit every model on the training days, count the test
 //! events on a spatio-temporal grid, and compare each model's expected counts with them.
 
 use rayon::prelude::*;

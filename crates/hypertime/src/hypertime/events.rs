@@ -1,8 +1,8 @@
-//! Warped Hypertime for events in the plane (seed 004 §V-D): a Gaussian mixture over
+//! Warped Hypertime for events in the plane ([Krajník 2019] §V-D): a Gaussian mixture over
 //! `[x, y, cos(2πt/T₁), sin(2πt/T₁), …]`, scaled into an intensity (events per m² per second),
 //! with the periodicities found in the error of the predicted number of events over time.
 //!
-//! The stages are those of [`super`] (seed 004 §III-B): cluster, estimate the error (eqs. 3–6),
+//! The stages are those of [`super`] ([Krajník 2019] §III-B): cluster, estimate the error (eqs. 3–6),
 //! find the strongest periodicity of the error series (eq. 7), extend (eq. 8), while the error
 //! on the held-back most recent part of the training data falls. The error series is the
 //! predicted minus the observed number of events per time bin of the training span; the

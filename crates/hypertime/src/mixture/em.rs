@@ -1,4 +1,4 @@
-//! Expectation–maximisation for Gaussian mixtures with full covariances (seed 004 eq. 2;
+//! Expectation–maximisation for Gaussian mixtures with full covariances ([Krajník 2019] eq. 2;
 //! Dempster, Laird & Rubin 1977), laid out like scikit-learn's `GaussianMixture` so that
 //! [`super::fit_em_from`] follows its trajectory: every iteration is an E-step on the current
 //! mixture (its mean log-likelihood is scikit-learn's `lower_bound_`) followed by an M-step,

@@ -1,5 +1,5 @@
 //! Weighted k-means: k-means++ seeding (Arthur & Vassilvitskii 2007, `D²·w` sampling) and
-//! Lloyd iterations; HyT-KM of seed 004 §IV clusters hypertime this way.
+//! Lloyd iterations; HyT-KM of [Krajník 2019] §IV clusters hypertime this way.
 //!
 //! A cluster left empty by an assignment takes the row farthest from its centre among
 //! clusters with more than one row, so every cluster keeps a row whenever there are at least

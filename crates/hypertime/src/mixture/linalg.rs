@@ -73,7 +73,7 @@ pub(super) fn symmetric_eigenvalues(a: &[f64], d: usize) -> Option<Vec<f64>> {
 
 /// The Cholesky factor of a covariance fitted by EM, or `None` when the covariance is not
 /// positive definite or is ill-conditioned (smallest/largest eigenvalue below
-/// [`MIN_CONDITION`]) — the numerical failure of seed 004 §IV, "detected through eigenvalue
+/// [`MIN_CONDITION`]) — the numerical failure of [Krajník 2019] §IV, "detected through eigenvalue
 /// analysis of the covariance matrices".
 pub(super) fn checked_cholesky(a: &[f64], d: usize) -> Option<Vec<f64>> {
     let l = cholesky(a, d)?;

@@ -1,4 +1,4 @@
-//! CoPA-Map's period initialisation (seed 002 §4.2.4, Algorithm 4.1) on the bundled ATC grid,
+//! CoPA-Map's period initialisation ([Stüde 2024] §4.2.4, Algorithm 4.1) on the bundled ATC grid,
 //! training days only (`t < 96`, as `chronomap activity eval --split-at 96`). The numbers
 //! asserted are the ones measured with the defaults (Λ = 10, ψ_max = 10, σ²_max = 0.95, 5 m ×
 //! 5 m × 1 h regions, candidate periods 2 ..= 84 h in steps of 0.05).
@@ -24,7 +24,7 @@ fn atc_series_have_the_day_and_half_day_but_the_clusters_merge_them() {
     assert_eq!(init.per_series.len(), 10);
     assert!(init.per_series.iter().all(|s| s.bins == 96));
     // Every series with a component has one within 0.2 h of the 12 h day; 7 of the 10 also
-    // have the 6 h half day (the seed's "two periods of twelve and six hours").
+    // have the 6 h half day (the dissertation's "two periods of twelve and six hours").
     let periodic: Vec<_> = init
         .per_series
         .iter()

@@ -345,7 +345,7 @@ fn periodic_and_noise_cells_follow_their_truth() {
 
 #[test]
 fn static_model_error_on_changed_cells_is_about_six_percent() {
-    // Seed 001 §VI: the static model mis-estimates ~6 % of the states of the cells that
+    // [Krajník 2017] §VI: the static model mis-estimates ~6 % of the states of the cells that
     // changed at least once. A grid of 32,000 cells has the per-cell statistics of the full
     // one (15 % of its cells, all 112 days); three seeds.
     for seed in 0..3 {

@@ -124,7 +124,7 @@ impl NavigationMdp {
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "// Navigation MDP at time t (seed 003 sec. V), STRANDS mdp_plan_exec layout: \
+            "// Navigation MDP at time t ([Fentanes 2015] sec. V), STRANDS mdp_plan_exec layout: \
              waypoint = node index, -1 = failure sink"
         );
         let _ = writeln!(out, "mdp\n\nmodule M");

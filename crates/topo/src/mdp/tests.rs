@@ -824,7 +824,7 @@ fn prism_export_uses_the_strands_layout() {
     );
     let nav = NavigationMdp::new(&m, &[0.93, 1.0, 0.0], &[12.4, 3.0, 0.5]).unwrap();
     let expected = "\
-// Navigation MDP at time t (seed 003 sec. V), STRANDS mdp_plan_exec layout: waypoint = node index, -1 = failure sink
+// Navigation MDP at time t ([Fentanes 2015] sec. V), STRANDS mdp_plan_exec layout: waypoint = node index, -1 = failure sink
 mdp
 
 module M
