@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Output;
 
-use crate::common::{chronomap, closed_pipe, data, scratch, stdout};
+use crate::common::{chronomap, closed_pipe, data, error, scratch, stdout};
 
 fn greg(name: &str) -> String {
     data(&format!("door_greg_2016/{name}"))
@@ -140,9 +140,7 @@ fn bad_input_is_named_by_file_and_line() {
     let train = write(&dir, "train.txt", "0 0\n60 1\n");
     let short = write(&dir, "short.txt", "0\n1\n");
     let test = format!("{good_times},{short}");
-    let out = chronomap(&["eval", "--train", &train, "--test", &test]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1));
+    let err = error(&chronomap(&["eval", "--train", &train, "--test", &test]));
     assert!(
         err.contains("short.txt") && err.contains("times.txt"),
         "{err}"
@@ -243,9 +241,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
     let last = bytes.len() - 1;
     bytes[last] ^= 0x55;
     std::fs::write(&model, &bytes).unwrap();
-    let out = chronomap(&["predict", &model, "--at", "0"]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = error(&chronomap(&["predict", &model, "--at", "0"]));
     assert!(
         err.contains("checksum") && err.contains("door.cmm"),
         "{err}"

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{chronomap, close, error, repo, scratch, stdout};
+use common::{chronomap, close, error, repo, scratch, stdout, write};
 
 #[test]
 fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {
@@ -127,13 +127,13 @@ wrote {log} (33 transitions of 11 nodes)
 #[test]
 fn run_reports_a_tree_still_running_and_unused_script_ticks() {
     let dir = scratch("bt_run_partial");
-    let script = dir.join("short.script");
-    std::fs::write(
-        &script,
+    let script = write(
+        &dir,
+        "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\ntick 3: PassThroughDoor=success\ntick 4:\ntick 6:\n",
     )
-    .unwrap();
-    let script = script.display().to_string();
+    .display()
+    .to_string();
     let door = repo("tests/data/bt/door.xml");
     let text = stdout(&chronomap(&[
         "bt",
@@ -153,11 +153,11 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
         "{text}"
     );
 
-    std::fs::write(
-        dir.join("short.script"),
+    write(
+        &dir,
+        "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\n",
-    )
-    .unwrap();
+    );
     let text = stdout(&chronomap(&["bt", "run", &door, "--script", &script]));
     assert!(
         text.ends_with("result: still RUNNING after tick 1 (0 ms)\n"),
@@ -168,13 +168,13 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
 #[test]
 fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     let dir = scratch("bt_errors");
-    let bad = dir.join("bad.xml");
-    std::fs::write(
-        &bad,
+    let bad = write(
+        &dir,
+        "bad.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"Main\">\n    <Repeat num_cycles=\"twice\">\n      <AlwaysSuccess/>\n    </Repeat>\n  </BehaviorTree>\n</root>\n",
     )
-    .unwrap();
-    let bad = bad.display().to_string();
+    .display()
+    .to_string();
     let err = error(&chronomap(&["bt", "check", &bad]));
     assert_eq!(
         err,
@@ -183,21 +183,20 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
         )
     );
 
-    let v3 = dir.join("v3.xml");
-    std::fs::write(&v3, "<root BTCPP_format=\"3\">\n</root>\n").unwrap();
+    let v3 = write(&dir, "v3.xml", "<root BTCPP_format=\"3\">\n</root>\n");
     let err = error(&chronomap(&["bt", "check", &v3.display().to_string()]));
     assert!(
         err.contains("v3.xml:1:7: attribute BTCPP_format=\"3\": only BehaviorTree.CPP format 4"),
         "{err}"
     );
 
-    let two = dir.join("two.xml");
-    std::fs::write(
-        &two,
+    let two = write(
+        &dir,
+        "two.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree>\n  <BehaviorTree ID=\"B\"><AlwaysFailure/></BehaviorTree>\n</root>\n",
     )
-    .unwrap();
-    let two = two.display().to_string();
+    .display()
+    .to_string();
     let err = error(&chronomap(&["bt", "check", &two]));
     assert!(
         err.contains("which tree? (use --tree): the document has several trees (A, B)"),
@@ -304,9 +303,9 @@ fn analyse_gives_the_hand_computed_probabilities_of_the_door_tree() {
 #[test]
 fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
     let dir = scratch("bt_analyse_fallback");
-    let xml = dir.join("search.xml");
-    std::fs::write(
-        &xml,
+    let xml = write(
+        &dir,
+        "search.xml",
         r#"<root BTCPP_format="4">
   <BehaviorTree ID="Search">
     <Fallback>
@@ -316,14 +315,12 @@ fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
   </BehaviorTree>
 </root>
 "#,
-    )
-    .unwrap();
-    let params = dir.join("search.csv");
-    std::fs::write(
-        &params,
+    );
+    let params = write(
+        &dir,
+        "search.csv",
         "node,p_s,p_f,mu,nu\nSearchCorridor,0.6,,0.05,0.025\nWaitAtDoor,0.9,0.1,0.02,0.01\n",
-    )
-    .unwrap();
+    );
     let (xml, params) = (xml.display().to_string(), params.display().to_string());
     let out = chronomap(&[
         "bt", "analyse", &xml, "--params", &params, "--t-max", "60", "--steps", "1", "--json",
