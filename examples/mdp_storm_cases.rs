@@ -15,10 +15,12 @@ use std::path::PathBuf;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_topo::automaton::Dfa;
 use chronomap_topo::map::TopoMap;
-use chronomap_topo::mdp::{
-    NavigationMdp, SolverOptions, prism_property, product_drn, restricted_drn,
-};
-use serde_json::{Value, json};
+use chronomap_topo::mdp::{NavigationMdp, SolverOptions, prism_property};
+use serde_json::Value;
+
+#[path = "../tests/cli/storm_case.rs"]
+mod storm_case;
+use storm_case::write_case;
 
 struct Case {
     name: &'static str,
@@ -256,41 +258,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let product = nav.product(start, &case.dfa)?;
         let sol = product.solve(&SolverOptions::default())?;
         let mdp = product.mdp();
-        let absorbing = (0..mdp.state_count())
-            .filter(|&s| mdp.choices(s).is_empty())
-            .count();
         let property = prism_property(case.ltl)?;
         let name = case.name;
-        std::fs::write(dir.join(format!("{name}.drn")), product_drn(mdp, &sol)?)?;
-        std::fs::write(
-            dir.join(format!("{name}.restricted.drn")),
-            restricted_drn(mdp, &sol)?,
+        write_case(
+            &dir,
+            name,
+            (&nav, start),
+            mdp,
+            &sol,
+            &property,
+            &mut expected,
         )?;
-        std::fs::write(dir.join(format!("{name}.nm")), nav.to_prism(start)?)?;
-        std::fs::write(dir.join(format!("{name}.props")), format!("{property}\n"))?;
-        expected.insert(
-            format!("{name}.drn"),
-            json!({
-                "states": mdp.state_count(),
-                "choices": mdp.choice_count() + absorbing,
-                "initial": 0,
-                "pmax": sol.pmax,
-                "pmax_initial": sol.pmax_initial,
-            }),
-        );
-        expected.insert(
-            format!("{name}.restricted.drn"),
-            json!({
-                "pmax": sol.pmax,
-                "rmin": sol.cost,
-                "pmax_initial": sol.pmax_initial,
-                "rmin_initial": sol.cost_initial,
-            }),
-        );
-        expected.insert(
-            format!("{name}.nm"),
-            json!({ "properties": { property.clone(): sol.pmax_initial } }),
-        );
         let policy: Vec<&str> = sol
             .policy
             .iter()
