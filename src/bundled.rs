@@ -81,6 +81,11 @@ pub fn test_set((times, values): &(Bundled, Bundled)) -> Result<TimeSeries> {
     )?)
 }
 
+/// Reads every test set of `sets`.
+pub fn test_sets(sets: &[(Bundled, Bundled)]) -> Result<Vec<TimeSeries>> {
+    sets.iter().map(test_set).collect()
+}
+
 /// The Witham Wharf edge-traversal files ([Fentanes 2015]; `data/witham_topological_nav/edges`).
 pub const WITHAM_EDGES: [Bundled; 61] = [
     bundled!("witham_topological_nav/edges/Aisle1_Aisle2.data.xz"),
