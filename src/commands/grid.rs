@@ -68,6 +68,18 @@ impl BuildJob<'_> {
     fn snapshot_at<'s>(&self, splits: &'s [u64; 2]) -> &'s [u64] {
         if self.snapshots { &splits[..] } else { &[] }
     }
+
+    /// The grid of `frames` frames that `next` observes in order, held back at `splits`.
+    fn read_frames(
+        &self,
+        geometry: GridGeometry,
+        frames: usize,
+        splits: &[u64; 2],
+        next: impl FnMut(usize, &mut FremenGrid) -> Result<()>,
+    ) -> Result<GridBuild> {
+        let at = self.snapshot_at(splits);
+        build_from_frames(geometry, self.config, frames, at, self.progress, next)
+    }
 }
 
 pub fn build(args: &GridBuildArgs) -> Result<()> {
@@ -334,24 +346,16 @@ fn build_from_map_list(list: &Path, job: &BuildJob) -> Result<Built> {
         [first.origin[0], first.origin[1]],
     )?;
     let splits = holdout_splits(frames.len() as u64, args.holdout);
-    let at = job.snapshot_at(&splits);
-    let build = build_from_frames(
-        geometry,
-        job.config,
-        frames.len(),
-        at,
-        job.progress,
-        |f, grid| {
-            let frame = &frames[f];
-            let map = if f == 0 {
-                first.clone()
-            } else {
-                load_frame_map(&name, frame, semantics, Some(&first))?
-            };
-            grid.observe_occupancy(frame.time, &map.data)
-                .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
-        },
-    )?;
+    let build = job.read_frames(geometry, frames.len(), &splits, |f, grid| {
+        let frame = &frames[f];
+        let map = if f == 0 {
+            first.clone()
+        } else {
+            load_frame_map(&name, frame, semantics, Some(&first))?
+        };
+        grid.observe_occupancy(frame.time, &map.data)
+            .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
+    })?;
     Ok(Built::new(build, splits, started, name))
 }
 
@@ -372,21 +376,13 @@ fn build_from_cell_series(files: &[PathBuf], job: &BuildJob) -> Result<Built> {
     }
     let geometry = GridGeometry::planar(series.len() as u32, 1, 1.0, [0.0, 0.0])?;
     let splits = holdout_splits(reference.len() as u64, job.args.holdout);
-    let at = job.snapshot_at(&splits);
-    let build = build_from_frames(
-        geometry,
-        job.config,
-        reference.len(),
-        at,
-        job.progress,
-        |f, grid| {
-            let frame: Vec<i8> = series
-                .iter()
-                .map(|s| occupancy_percent(s.values[f]))
-                .collect();
-            Ok::<_, anyhow::Error>(grid.observe_occupancy(reference.times[f], &frame)?)
-        },
-    )?;
+    let build = job.read_frames(geometry, reference.len(), &splits, |f, grid| {
+        let frame: Vec<i8> = series
+            .iter()
+            .map(|s| occupancy_percent(s.values[f]))
+            .collect();
+        Ok(grid.observe_occupancy(reference.times[f], &frame)?)
+    })?;
     let source = format!("{} cell series", files.len());
     Ok(Built::new(build, splits, started, source))
 }

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{chronomap, close, error, repo, scratch, stdout, write};
+use common::{chronomap, close, error, repo, scratch, stdout, write, write_arg};
 
 #[test]
 fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {
@@ -127,13 +127,11 @@ wrote {log} (33 transitions of 11 nodes)
 #[test]
 fn run_reports_a_tree_still_running_and_unused_script_ticks() {
     let dir = scratch("bt_run_partial");
-    let script = write(
+    let script = write_arg(
         &dir,
         "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\ntick 3: PassThroughDoor=success\ntick 4:\ntick 6:\n",
-    )
-    .display()
-    .to_string();
+    );
     let door = repo("tests/data/bt/door.xml");
     let text = stdout(&chronomap(&[
         "bt",
@@ -168,13 +166,11 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
 #[test]
 fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     let dir = scratch("bt_errors");
-    let bad = write(
+    let bad = write_arg(
         &dir,
         "bad.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"Main\">\n    <Repeat num_cycles=\"twice\">\n      <AlwaysSuccess/>\n    </Repeat>\n  </BehaviorTree>\n</root>\n",
-    )
-    .display()
-    .to_string();
+    );
     let err = error(&chronomap(&["bt", "check", &bad]));
     assert_eq!(
         err,
@@ -183,20 +179,18 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
         )
     );
 
-    let v3 = write(&dir, "v3.xml", "<root BTCPP_format=\"3\">\n</root>\n");
-    let err = error(&chronomap(&["bt", "check", &v3.display().to_string()]));
+    let v3 = write_arg(&dir, "v3.xml", "<root BTCPP_format=\"3\">\n</root>\n");
+    let err = error(&chronomap(&["bt", "check", &v3]));
     assert!(
         err.contains("v3.xml:1:7: attribute BTCPP_format=\"3\": only BehaviorTree.CPP format 4"),
         "{err}"
     );
 
-    let two = write(
+    let two = write_arg(
         &dir,
         "two.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree>\n  <BehaviorTree ID=\"B\"><AlwaysFailure/></BehaviorTree>\n</root>\n",
-    )
-    .display()
-    .to_string();
+    );
     let err = error(&chronomap(&["bt", "check", &two]));
     assert!(
         err.contains("which tree? (use --tree): the document has several trees (A, B)"),
@@ -303,7 +297,7 @@ fn analyse_gives_the_hand_computed_probabilities_of_the_door_tree() {
 #[test]
 fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
     let dir = scratch("bt_analyse_fallback");
-    let xml = write(
+    let xml = write_arg(
         &dir,
         "search.xml",
         r#"<root BTCPP_format="4">
@@ -316,12 +310,11 @@ fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
 </root>
 "#,
     );
-    let params = write(
+    let params = write_arg(
         &dir,
         "search.csv",
         "node,p_s,p_f,mu,nu\nSearchCorridor,0.6,,0.05,0.025\nWaitAtDoor,0.9,0.1,0.02,0.01\n",
     );
-    let (xml, params) = (xml.display().to_string(), params.display().to_string());
     let out = chronomap(&[
         "bt", "analyse", &xml, "--params", &params, "--t-max", "60", "--steps", "1", "--json",
     ]);
