@@ -13,9 +13,9 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_topo::automaton::Dfa;
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{NavigationMdp, SolverOptions, prism_property};
+use chronomap_topo::plan::Task;
 use serde_json::Value;
 
 #[path = "../tests/cli/storm_case.rs"]
@@ -28,60 +28,9 @@ struct Case {
     success: Vec<f64>,
     duration: Vec<f64>,
     start: &'static str,
-    /// The task as an automaton (letters: atoms in order, then "no atom") ...
-    dfa: Dfa,
-    /// ... and as co-safe LTL over node names, for PRISM.
+    /// The task in co-safe LTL over node names: its automaton for the product, and the
+    /// property for PRISM.
     ltl: &'static str,
-}
-
-/// `F a`.
-fn eventually(a: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into()],
-        initial: 0,
-        accepting: vec![false, true],
-        delta: vec![1, 0, 1, 1],
-    }
-}
-
-/// `F (a & F b)`.
-fn ordered(a: &str, b: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![1, 0, 0, 1, 2, 1, 2, 2, 2],
-    }
-}
-
-/// `F (a & F (b & F c))`.
-fn ordered3(a: &str, b: &str, c: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into(), c.into()],
-        initial: 0,
-        accepting: vec![false, false, false, true],
-        delta: vec![1, 0, 0, 0, 1, 2, 1, 1, 2, 2, 3, 2, 3, 3, 3, 3],
-    }
-}
-
-/// `F a | F b` ([Fentanes 2015] Table III: `F v1 ∨ F v14`).
-fn either(a: &str, b: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into()],
-        initial: 0,
-        accepting: vec![false, true],
-        delta: vec![1, 1, 0, 1, 1, 1],
-    }
-}
-
-/// `!x U y`.
-fn avoid_until(x: &str, y: &str) -> Dfa {
-    Dfa {
-        atoms: vec![x.into(), y.into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![1, 2, 0, 1, 1, 1, 2, 2, 2],
-    }
 }
 
 /// A 5-node office: a door Office→Lab open 20 % of the time, a longer safe corridor route,
@@ -158,22 +107,13 @@ fn random_map(seed: u64, n: u64, chords: usize) -> (TopoMap, Vec<f64>, Vec<f64>)
 }
 
 fn cases() -> Vec<Case> {
-    let case = |name, (map, success, duration), start, dfa, ltl| Case {
+    let case = |name, (map, success, duration), start, ltl| Case {
         name,
         map,
         success,
         duration,
         start,
-        dfa,
         ltl,
-    };
-    // F (!A & X !A): two consecutive letters other than A (a dead end reads its letter
-    // forever).
-    let twice_not_a = Dfa {
-        atoms: vec!["Lab".into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![0, 1, 0, 2, 2, 2],
     };
     let mut dead_end = TopoMap::new();
     for n in ["Lab", "D", "E"] {
@@ -183,62 +123,36 @@ fn cases() -> Vec<Case> {
     dead_end.add_edge("Lab_E", "Lab", "E").unwrap();
     dead_end.add_edge("E_Lab", "E", "Lab").unwrap();
     vec![
-        case(
-            "office_reach",
-            office(),
-            "Office",
-            eventually("Lab"),
-            "F Lab",
-        ),
-        case(
-            "office_ordered",
-            office(),
-            "Lab",
-            ordered("Hall", "Lab"),
-            "F (Hall & F Lab)",
-        ),
-        case(
-            "office_avoid",
-            office(),
-            "Office",
-            avoid_until("C1", "Lab"),
-            "!C1 U Lab",
-        ),
+        case("office_reach", office(), "Office", "F Lab"),
+        case("office_ordered", office(), "Lab", "F (Hall & F Lab)"),
+        case("office_avoid", office(), "Office", "!C1 U Lab"),
         // A node named like an operator is quoted in the formula.
-        case("tie", tie(), "S", eventually("G"), "F \"G\""),
+        case("tie", tie(), "S", "F \"G\""),
         case(
             "random_ordered",
             random_map(7, 12, 10),
             "W0",
-            ordered("W5", "W9"),
             "F (W5 & F W9)",
         ),
-        case(
-            "random_avoid",
-            random_map(11, 12, 10),
-            "W0",
-            avoid_until("W3", "W7"),
-            "!W3 U W7",
-        ),
+        case("random_avoid", random_map(11, 12, 10), "W0", "!W3 U W7"),
         case(
             "random40_ordered3",
             random_map(5, 40, 60),
             "W0",
-            ordered3("W5", "W20", "W33"),
             "F (W5 & F (W20 & F W33))",
         ),
+        // [Fentanes 2015] Table III: `F v1 ∨ F v14`.
         case(
             "random40_either",
             random_map(9, 40, 60),
             "W0",
-            either("W1", "W14"),
             "F W1 | F W14",
         ),
         case(
             "dead_end",
             (dead_end, vec![0.6, 0.5, 1.0], vec![3.0, 4.0, 0.0]),
             "Lab",
-            twice_not_a,
+            // Two consecutive letters other than Lab (a dead end reads its letter forever).
             "F (!Lab & X !Lab)",
         ),
     ]
@@ -255,7 +169,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for case in cases() {
         let nav = NavigationMdp::new(&case.map, &case.success, &case.duration)?;
         let start = case.map.node(case.start)?;
-        let product = nav.product(start, &case.dfa)?;
+        let task = Task::parse(case.ltl, &case.map)?;
+        let product = nav.product(start, task.dfa())?;
         let sol = product.solve(&SolverOptions::default())?;
         let mdp = product.mdp();
         let property = prism_property(case.ltl)?;

@@ -2,9 +2,20 @@
 //! printed structure with uids, the tick-by-tick trace of a scripted run, the Groot2 log it
 //! writes, and exit code 1 with located messages for bad files.
 
+use std::process::Output;
+
 use crate::common;
 
 use common::{chronomap, close, error, repo, scratch, stdout, write, write_arg};
+
+/// The script of a run of the door tree that succeeds at tick 5.
+const DOOR_SCRIPT: &str = "tests/data/bt/door.script";
+
+/// `chronomap bt run` of the door tree with `script` and `extra` flags.
+fn run_door(script: &str, extra: &[&str]) -> Output {
+    let door = repo("tests/data/bt/door.xml");
+    chronomap(&[&["bt", "run", &door, "--script", script][..], extra].concat())
+}
 
 #[test]
 fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {
@@ -61,15 +72,7 @@ fn check_can_print_another_tree_and_save_the_canonical_form() {
 fn run_prints_every_transition_of_every_tick_and_writes_a_btlog() {
     let dir = scratch("bt_run_door");
     let log = dir.join("door.btlog").display().to_string();
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &repo("tests/data/bt/door.xml"),
-        "--script",
-        &repo("tests/data/bt/door.script"),
-        "--btlog",
-        &log,
-    ]));
+    let text = stdout(&run_door(&repo(DOOR_SCRIPT), &["--btlog", &log]));
     let expected = format!(
         "\
 tick 1 @ 0 ms: RUNNING
@@ -132,16 +135,7 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
         "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\ntick 3: PassThroughDoor=success\ntick 4:\ntick 6:\n",
     );
-    let door = repo("tests/data/bt/door.xml");
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &door,
-        "--script",
-        &script,
-        "--tick-ms",
-        "250",
-    ]));
+    let text = stdout(&run_door(&script, &["--tick-ms", "250"]));
     assert!(text.starts_with("tick 1 @ 0 ms: RUNNING\n"), "{text}");
     assert!(text.contains("tick 3 @ 500 ms: SUCCESS\n"), "{text}");
     assert!(
@@ -156,7 +150,7 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
         "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\n",
     );
-    let text = stdout(&chronomap(&["bt", "run", &door, "--script", &script]));
+    let text = stdout(&run_door(&script, &[]));
     assert!(
         text.ends_with("result: still RUNNING after tick 1 (0 ms)\n"),
         "{text}"
@@ -207,7 +201,6 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     assert!(err.contains("missing.xml: cannot read:"), "{err}");
 
     // Scripts that do not fit the tree, and a log file of the wrong kind.
-    let door = repo("tests/data/bt/door.xml");
     let script = dir.join("typo.script").display().to_string();
     let log = dir.join("door.log").display().to_string();
     for (text, flags, says) in [
@@ -238,8 +231,7 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
         ),
     ] {
         std::fs::write(&script, text).unwrap();
-        let args = [&["bt", "run", &door, "--script", &script][..], flags].concat();
-        let err = error(&chronomap(&args));
+        let err = error(&run_door(&script, flags));
         assert!(err.contains(says), "{text}: {err}");
     }
 }
@@ -396,14 +388,7 @@ fn check_and_run_print_json_and_write_with_output() {
             .contains("<IsDoorClosed/>")
     );
 
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &door,
-        "--script",
-        &repo("tests/data/bt/door.script"),
-        "--json",
-    ]));
+    let text = stdout(&run_door(&repo(DOOR_SCRIPT), &["--json"]));
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["finished"], true);
     assert_eq!(v["status"], "SUCCESS");
