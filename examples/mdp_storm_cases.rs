@@ -33,26 +33,16 @@ struct Case {
     ltl: &'static str,
 }
 
-/// A 5-node office: a door Office→Lab open 20 % of the time, a longer safe corridor route,
-/// and a certain back-and-forth Office↔Hall (an end component).
-fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
+/// A map of `nodes` and `(id, from, to, success probability, duration)` edges, with the
+/// probabilities and durations of its edges.
+fn nav_map(
+    nodes: &[&str],
+    edges: &[(&str, &str, &str, f64, f64)],
+) -> (TopoMap, Vec<f64>, Vec<f64>) {
     let mut map = TopoMap::new();
-    for n in ["Office", "Hall", "Lab", "C1", "C2"] {
+    for n in nodes {
         map.add_node(n, None).unwrap();
     }
-    let edges = [
-        ("Office_Lab", "Office", "Lab", 0.2, 10.0),
-        ("Lab_Office", "Lab", "Office", 0.2, 10.0),
-        ("Office_C1", "Office", "C1", 0.98, 20.0),
-        ("C1_Office", "C1", "Office", 0.98, 20.0),
-        ("C1_C2", "C1", "C2", 0.97, 25.0),
-        ("C2_C1", "C2", "C1", 0.97, 25.0),
-        ("C2_Lab", "C2", "Lab", 0.99, 20.0),
-        ("Lab_C2", "Lab", "C2", 0.99, 20.0),
-        ("Office_Hall", "Office", "Hall", 1.0, 5.0),
-        ("Hall_Office", "Hall", "Office", 1.0, 5.0),
-        ("Hall_C2", "Hall", "C2", 0.5, 40.0),
-    ];
     for (id, from, to, _, _) in edges {
         map.add_edge(id, from, to).unwrap();
     }
@@ -61,16 +51,37 @@ fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
     (map, success, duration)
 }
 
+/// A 5-node office: a door Office→Lab open 20 % of the time, a longer safe corridor route,
+/// and a certain back-and-forth Office↔Hall (an end component).
+fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
+    nav_map(
+        &["Office", "Hall", "Lab", "C1", "C2"],
+        &[
+            ("Office_Lab", "Office", "Lab", 0.2, 10.0),
+            ("Lab_Office", "Lab", "Office", 0.2, 10.0),
+            ("Office_C1", "Office", "C1", 0.98, 20.0),
+            ("C1_Office", "C1", "Office", 0.98, 20.0),
+            ("C1_C2", "C1", "C2", 0.97, 25.0),
+            ("C2_C1", "C2", "C1", 0.97, 25.0),
+            ("C2_Lab", "C2", "Lab", 0.99, 20.0),
+            ("Lab_C2", "Lab", "C2", 0.99, 20.0),
+            ("Office_Hall", "Office", "Hall", 1.0, 5.0),
+            ("Hall_Office", "Hall", "Office", 1.0, 5.0),
+            ("Hall_C2", "Hall", "C2", 0.5, 40.0),
+        ],
+    )
+}
+
 /// Two routes of equal probability 0.81: direct (100 s, first in edge order) and via M.
 fn tie() -> (TopoMap, Vec<f64>, Vec<f64>) {
-    let mut map = TopoMap::new();
-    for n in ["S", "M", "G"] {
-        map.add_node(n, None).unwrap();
-    }
-    map.add_edge("S_G", "S", "G").unwrap();
-    map.add_edge("S_M", "S", "M").unwrap();
-    map.add_edge("M_G", "M", "G").unwrap();
-    (map, vec![0.81, 0.9, 0.9], vec![100.0, 30.0, 30.0])
+    nav_map(
+        &["S", "M", "G"],
+        &[
+            ("S_G", "S", "G", 0.81, 100.0),
+            ("S_M", "S", "M", 0.9, 30.0),
+            ("M_G", "M", "G", 0.9, 30.0),
+        ],
+    )
 }
 
 /// A random `n`-node map: a ring both ways plus random chords; some edges take no time.
@@ -115,13 +126,14 @@ fn cases() -> Vec<Case> {
         start,
         ltl,
     };
-    let mut dead_end = TopoMap::new();
-    for n in ["Lab", "D", "E"] {
-        dead_end.add_node(n, None).unwrap();
-    }
-    dead_end.add_edge("Lab_D", "Lab", "D").unwrap();
-    dead_end.add_edge("Lab_E", "Lab", "E").unwrap();
-    dead_end.add_edge("E_Lab", "E", "Lab").unwrap();
+    let dead_end = nav_map(
+        &["Lab", "D", "E"],
+        &[
+            ("Lab_D", "Lab", "D", 0.6, 3.0),
+            ("Lab_E", "Lab", "E", 0.5, 4.0),
+            ("E_Lab", "E", "Lab", 1.0, 0.0),
+        ],
+    );
     vec![
         case("office_reach", office(), "Office", "F Lab"),
         case("office_ordered", office(), "Lab", "F (Hall & F Lab)"),
@@ -150,7 +162,7 @@ fn cases() -> Vec<Case> {
         ),
         case(
             "dead_end",
-            (dead_end, vec![0.6, 0.5, 1.0], vec![3.0, 4.0, 0.0]),
+            dead_end,
             "Lab",
             // Two consecutive letters other than Lab (a dead end reads its letter forever).
             "F (!Lab & X !Lab)",
