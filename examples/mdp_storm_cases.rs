@@ -13,12 +13,14 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_topo::automaton::Dfa;
 use chronomap_topo::map::TopoMap;
-use chronomap_topo::mdp::{
-    NavigationMdp, SolverOptions, prism_property, product_drn, restricted_drn,
-};
-use serde_json::{Value, json};
+use chronomap_topo::mdp::{NavigationMdp, SolverOptions, prism_property};
+use chronomap_topo::plan::Task;
+use serde_json::Value;
+
+#[path = "../tests/cli/storm_case.rs"]
+mod storm_case;
+use storm_case::write_case;
 
 struct Case {
     name: &'static str,
@@ -26,82 +28,21 @@ struct Case {
     success: Vec<f64>,
     duration: Vec<f64>,
     start: &'static str,
-    /// The task as an automaton (letters: atoms in order, then "no atom") ...
-    dfa: Dfa,
-    /// ... and as co-safe LTL over node names, for PRISM.
+    /// The task in co-safe LTL over node names: its automaton for the product, and the
+    /// property for PRISM.
     ltl: &'static str,
 }
 
-/// `F a`.
-fn eventually(a: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into()],
-        initial: 0,
-        accepting: vec![false, true],
-        delta: vec![1, 0, 1, 1],
-    }
-}
-
-/// `F (a & F b)`.
-fn ordered(a: &str, b: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![1, 0, 0, 1, 2, 1, 2, 2, 2],
-    }
-}
-
-/// `F (a & F (b & F c))`.
-fn ordered3(a: &str, b: &str, c: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into(), c.into()],
-        initial: 0,
-        accepting: vec![false, false, false, true],
-        delta: vec![1, 0, 0, 0, 1, 2, 1, 1, 2, 2, 3, 2, 3, 3, 3, 3],
-    }
-}
-
-/// `F a | F b` ([Fentanes 2015] Table III: `F v1 ∨ F v14`).
-fn either(a: &str, b: &str) -> Dfa {
-    Dfa {
-        atoms: vec![a.into(), b.into()],
-        initial: 0,
-        accepting: vec![false, true],
-        delta: vec![1, 1, 0, 1, 1, 1],
-    }
-}
-
-/// `!x U y`.
-fn avoid_until(x: &str, y: &str) -> Dfa {
-    Dfa {
-        atoms: vec![x.into(), y.into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![1, 2, 0, 1, 1, 1, 2, 2, 2],
-    }
-}
-
-/// A 5-node office: a door Office→Lab open 20 % of the time, a longer safe corridor route,
-/// and a certain back-and-forth Office↔Hall (an end component).
-fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
+/// A map of `nodes` and `(id, from, to, success probability, duration)` edges, with the
+/// probabilities and durations of its edges.
+fn nav_map(
+    nodes: &[&str],
+    edges: &[(&str, &str, &str, f64, f64)],
+) -> (TopoMap, Vec<f64>, Vec<f64>) {
     let mut map = TopoMap::new();
-    for n in ["Office", "Hall", "Lab", "C1", "C2"] {
+    for n in nodes {
         map.add_node(n, None).unwrap();
     }
-    let edges = [
-        ("Office_Lab", "Office", "Lab", 0.2, 10.0),
-        ("Lab_Office", "Lab", "Office", 0.2, 10.0),
-        ("Office_C1", "Office", "C1", 0.98, 20.0),
-        ("C1_Office", "C1", "Office", 0.98, 20.0),
-        ("C1_C2", "C1", "C2", 0.97, 25.0),
-        ("C2_C1", "C2", "C1", 0.97, 25.0),
-        ("C2_Lab", "C2", "Lab", 0.99, 20.0),
-        ("Lab_C2", "Lab", "C2", 0.99, 20.0),
-        ("Office_Hall", "Office", "Hall", 1.0, 5.0),
-        ("Hall_Office", "Hall", "Office", 1.0, 5.0),
-        ("Hall_C2", "Hall", "C2", 0.5, 40.0),
-    ];
     for (id, from, to, _, _) in edges {
         map.add_edge(id, from, to).unwrap();
     }
@@ -110,16 +51,37 @@ fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
     (map, success, duration)
 }
 
+/// A 5-node office: a door Office→Lab open 20 % of the time, a longer safe corridor route,
+/// and a certain back-and-forth Office↔Hall (an end component).
+fn office() -> (TopoMap, Vec<f64>, Vec<f64>) {
+    nav_map(
+        &["Office", "Hall", "Lab", "C1", "C2"],
+        &[
+            ("Office_Lab", "Office", "Lab", 0.2, 10.0),
+            ("Lab_Office", "Lab", "Office", 0.2, 10.0),
+            ("Office_C1", "Office", "C1", 0.98, 20.0),
+            ("C1_Office", "C1", "Office", 0.98, 20.0),
+            ("C1_C2", "C1", "C2", 0.97, 25.0),
+            ("C2_C1", "C2", "C1", 0.97, 25.0),
+            ("C2_Lab", "C2", "Lab", 0.99, 20.0),
+            ("Lab_C2", "Lab", "C2", 0.99, 20.0),
+            ("Office_Hall", "Office", "Hall", 1.0, 5.0),
+            ("Hall_Office", "Hall", "Office", 1.0, 5.0),
+            ("Hall_C2", "Hall", "C2", 0.5, 40.0),
+        ],
+    )
+}
+
 /// Two routes of equal probability 0.81: direct (100 s, first in edge order) and via M.
 fn tie() -> (TopoMap, Vec<f64>, Vec<f64>) {
-    let mut map = TopoMap::new();
-    for n in ["S", "M", "G"] {
-        map.add_node(n, None).unwrap();
-    }
-    map.add_edge("S_G", "S", "G").unwrap();
-    map.add_edge("S_M", "S", "M").unwrap();
-    map.add_edge("M_G", "M", "G").unwrap();
-    (map, vec![0.81, 0.9, 0.9], vec![100.0, 30.0, 30.0])
+    nav_map(
+        &["S", "M", "G"],
+        &[
+            ("S_G", "S", "G", 0.81, 100.0),
+            ("S_M", "S", "M", 0.9, 30.0),
+            ("M_G", "M", "G", 0.9, 30.0),
+        ],
+    )
 }
 
 /// A random `n`-node map: a ring both ways plus random chords; some edges take no time.
@@ -156,87 +118,53 @@ fn random_map(seed: u64, n: u64, chords: usize) -> (TopoMap, Vec<f64>, Vec<f64>)
 }
 
 fn cases() -> Vec<Case> {
-    let case = |name, (map, success, duration), start, dfa, ltl| Case {
+    let case = |name, (map, success, duration), start, ltl| Case {
         name,
         map,
         success,
         duration,
         start,
-        dfa,
         ltl,
     };
-    // F (!A & X !A): two consecutive letters other than A (a dead end reads its letter
-    // forever).
-    let twice_not_a = Dfa {
-        atoms: vec!["Lab".into()],
-        initial: 0,
-        accepting: vec![false, false, true],
-        delta: vec![0, 1, 0, 2, 2, 2],
-    };
-    let mut dead_end = TopoMap::new();
-    for n in ["Lab", "D", "E"] {
-        dead_end.add_node(n, None).unwrap();
-    }
-    dead_end.add_edge("Lab_D", "Lab", "D").unwrap();
-    dead_end.add_edge("Lab_E", "Lab", "E").unwrap();
-    dead_end.add_edge("E_Lab", "E", "Lab").unwrap();
+    let dead_end = nav_map(
+        &["Lab", "D", "E"],
+        &[
+            ("Lab_D", "Lab", "D", 0.6, 3.0),
+            ("Lab_E", "Lab", "E", 0.5, 4.0),
+            ("E_Lab", "E", "Lab", 1.0, 0.0),
+        ],
+    );
     vec![
-        case(
-            "office_reach",
-            office(),
-            "Office",
-            eventually("Lab"),
-            "F Lab",
-        ),
-        case(
-            "office_ordered",
-            office(),
-            "Lab",
-            ordered("Hall", "Lab"),
-            "F (Hall & F Lab)",
-        ),
-        case(
-            "office_avoid",
-            office(),
-            "Office",
-            avoid_until("C1", "Lab"),
-            "!C1 U Lab",
-        ),
+        case("office_reach", office(), "Office", "F Lab"),
+        case("office_ordered", office(), "Lab", "F (Hall & F Lab)"),
+        case("office_avoid", office(), "Office", "!C1 U Lab"),
         // A node named like an operator is quoted in the formula.
-        case("tie", tie(), "S", eventually("G"), "F \"G\""),
+        case("tie", tie(), "S", "F \"G\""),
         case(
             "random_ordered",
             random_map(7, 12, 10),
             "W0",
-            ordered("W5", "W9"),
             "F (W5 & F W9)",
         ),
-        case(
-            "random_avoid",
-            random_map(11, 12, 10),
-            "W0",
-            avoid_until("W3", "W7"),
-            "!W3 U W7",
-        ),
+        case("random_avoid", random_map(11, 12, 10), "W0", "!W3 U W7"),
         case(
             "random40_ordered3",
             random_map(5, 40, 60),
             "W0",
-            ordered3("W5", "W20", "W33"),
             "F (W5 & F (W20 & F W33))",
         ),
+        // [Fentanes 2015] Table III: `F v1 ∨ F v14`.
         case(
             "random40_either",
             random_map(9, 40, 60),
             "W0",
-            either("W1", "W14"),
             "F W1 | F W14",
         ),
         case(
             "dead_end",
-            (dead_end, vec![0.6, 0.5, 1.0], vec![3.0, 4.0, 0.0]),
+            dead_end,
             "Lab",
-            twice_not_a,
+            // Two consecutive letters other than Lab (a dead end reads its letter forever).
             "F (!Lab & X !Lab)",
         ),
     ]
@@ -253,44 +181,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for case in cases() {
         let nav = NavigationMdp::new(&case.map, &case.success, &case.duration)?;
         let start = case.map.node(case.start)?;
-        let product = nav.product(start, &case.dfa)?;
+        let task = Task::parse(case.ltl, &case.map)?;
+        let product = nav.product(start, task.dfa())?;
         let sol = product.solve(&SolverOptions::default())?;
         let mdp = product.mdp();
-        let absorbing = (0..mdp.state_count())
-            .filter(|&s| mdp.choices(s).is_empty())
-            .count();
         let property = prism_property(case.ltl)?;
         let name = case.name;
-        std::fs::write(dir.join(format!("{name}.drn")), product_drn(mdp, &sol)?)?;
-        std::fs::write(
-            dir.join(format!("{name}.restricted.drn")),
-            restricted_drn(mdp, &sol)?,
+        write_case(
+            &dir,
+            name,
+            (&nav, start),
+            mdp,
+            &sol,
+            &property,
+            &mut expected,
         )?;
-        std::fs::write(dir.join(format!("{name}.nm")), nav.to_prism(start)?)?;
-        std::fs::write(dir.join(format!("{name}.props")), format!("{property}\n"))?;
-        expected.insert(
-            format!("{name}.drn"),
-            json!({
-                "states": mdp.state_count(),
-                "choices": mdp.choice_count() + absorbing,
-                "initial": 0,
-                "pmax": sol.pmax,
-                "pmax_initial": sol.pmax_initial,
-            }),
-        );
-        expected.insert(
-            format!("{name}.restricted.drn"),
-            json!({
-                "pmax": sol.pmax,
-                "rmin": sol.cost,
-                "pmax_initial": sol.pmax_initial,
-                "rmin_initial": sol.cost_initial,
-            }),
-        );
-        expected.insert(
-            format!("{name}.nm"),
-            json!({ "properties": { property.clone(): sol.pmax_initial } }),
-        );
         let policy: Vec<&str> = sol
             .policy
             .iter()

@@ -12,7 +12,7 @@ pub struct Bundled {
 }
 
 macro_rules! bundled {
-    ($path:literal) => {
+    ($path:expr) => {
         Bundled {
             name: $path,
             bytes: include_bytes!(concat!("../data/", $path)),
@@ -20,52 +20,32 @@ macro_rules! bundled {
     };
 }
 
+/// The test set `N` of `DIR`: (`DIR/test_times_N.txt.xz`, `DIR/test_data_N.txt.xz`).
+macro_rules! test_set {
+    ($dir:literal, $n:literal) => {
+        (
+            bundled!(concat!($dir, "/test_times_", $n, ".txt.xz")),
+            bundled!(concat!($dir, "/test_data_", $n, ".txt.xz")),
+        )
+    };
+}
+
 pub const GREG_TRAINING: Bundled = bundled!("door_greg_2016/training_data.txt.xz");
 pub const GREG_TESTS: [(Bundled, Bundled); 5] = [
-    (
-        bundled!("door_greg_2016/test_times_1.txt.xz"),
-        bundled!("door_greg_2016/test_data_1.txt.xz"),
-    ),
-    (
-        bundled!("door_greg_2016/test_times_2.txt.xz"),
-        bundled!("door_greg_2016/test_data_2.txt.xz"),
-    ),
-    (
-        bundled!("door_greg_2016/test_times_3.txt.xz"),
-        bundled!("door_greg_2016/test_data_3.txt.xz"),
-    ),
-    (
-        bundled!("door_greg_2016/test_times_4.txt.xz"),
-        bundled!("door_greg_2016/test_data_4.txt.xz"),
-    ),
-    (
-        bundled!("door_greg_2016/test_times_5.txt.xz"),
-        bundled!("door_greg_2016/test_data_5.txt.xz"),
-    ),
+    test_set!("door_greg_2016", 1),
+    test_set!("door_greg_2016", 2),
+    test_set!("door_greg_2016", 3),
+    test_set!("door_greg_2016", 4),
+    test_set!("door_greg_2016", 5),
 ];
 pub const TOM_TRAINING: Bundled = bundled!("door_tom_2013/min/training_data.txt.xz");
 pub const TOM_TESTS: [(Bundled, Bundled); 3] = [
-    (
-        bundled!("door_tom_2013/min/test_times_1.txt.xz"),
-        bundled!("door_tom_2013/min/test_data_1.txt.xz"),
-    ),
-    (
-        bundled!("door_tom_2013/min/test_times_2.txt.xz"),
-        bundled!("door_tom_2013/min/test_data_2.txt.xz"),
-    ),
-    (
-        bundled!("door_tom_2013/min/test_times_3.txt.xz"),
-        bundled!("door_tom_2013/min/test_data_3.txt.xz"),
-    ),
+    test_set!("door_tom_2013/min", 1),
+    test_set!("door_tom_2013/min", 2),
+    test_set!("door_tom_2013/min", 3),
 ];
-pub const TOM_SECONDS_WEEK: (Bundled, Bundled) = (
-    bundled!("door_tom_2013/sec/test_times_0.txt.xz"),
-    bundled!("door_tom_2013/sec/test_data_0.txt.xz"),
-);
-pub const TOM_SECONDS_DAY8: (Bundled, Bundled) = (
-    bundled!("door_tom_2013/sec/test_times_1.txt.xz"),
-    bundled!("door_tom_2013/sec/test_data_1.txt.xz"),
-);
+pub const TOM_SECONDS_WEEK: (Bundled, Bundled) = test_set!("door_tom_2013/sec", 0);
+pub const TOM_SECONDS_DAY8: (Bundled, Bundled) = test_set!("door_tom_2013/sec", 1);
 
 /// Presence of the Aruba resident in each of the 10 areas, one file per area.
 pub const ARUBA_ROOMS: [Bundled; 10] = [
@@ -99,6 +79,11 @@ pub fn test_set((times, values): &(Bundled, Bundled)) -> Result<TimeSeries> {
         values.name,
         decompressing_reader(values.name, values.bytes),
     )?)
+}
+
+/// Reads every test set of `sets`.
+pub fn test_sets(sets: &[(Bundled, Bundled)]) -> Result<Vec<TimeSeries>> {
+    sets.iter().map(test_set).collect()
 }
 
 /// The Witham Wharf edge-traversal files ([Fentanes 2015]; `data/witham_topological_nav/edges`).

@@ -116,13 +116,7 @@ pub enum GridOrder {
 }
 
 fn parse_grid_order(text: &str) -> Result<GridOrder, String> {
-    match text {
-        "auto" => Ok(GridOrder::Auto),
-        k => k
-            .parse()
-            .map(GridOrder::Fixed)
-            .map_err(|_| format!("{k:?} is not a whole number or 'auto'")),
-    }
+    parse_auto_or_whole(text, GridOrder::Auto, GridOrder::Fixed)
 }
 
 /// `--store` values.

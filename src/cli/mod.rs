@@ -249,6 +249,17 @@ fn parse_positive(text: &str) -> Result<f64, String> {
     }
 }
 
+/// `auto` or a whole number `k`: `auto`, or `fixed(k)`.
+fn parse_auto_or_whole<T>(text: &str, auto: T, fixed: fn(usize) -> T) -> Result<T, String> {
+    match text {
+        "auto" => Ok(auto),
+        k => k
+            .parse()
+            .map(fixed)
+            .map_err(|_| format!("{k:?} is not a whole number or 'auto'")),
+    }
+}
+
 fn parse_fraction(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(f) if f > 0.0 && f < 1.0 => Ok(f),

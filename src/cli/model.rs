@@ -182,13 +182,7 @@ pub enum CompressOrder {
 }
 
 fn parse_compress_order(text: &str) -> Result<CompressOrder, String> {
-    match text {
-        "auto" => Ok(CompressOrder::Auto),
-        k => k
-            .parse()
-            .map(CompressOrder::Fixed)
-            .map_err(|_| format!("{k:?} is not a whole number or 'auto'")),
-    }
+    parse_auto_or_whole(text, CompressOrder::Auto, CompressOrder::Fixed)
 }
 
 /// `chronomap compress --shortest-period`: seconds, or `none` (the whole spectrum).

@@ -45,10 +45,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     // 1. Greg's door.
     let train = bundled::GREG_TRAINING.pairs()?;
-    let tests: Vec<TimeSeries> = bundled::GREG_TESTS
-        .iter()
-        .map(bundled::test_set)
-        .collect::<Result<_>>()?;
+    let tests = bundled::test_sets(&bundled::GREG_TESTS)?;
     outln!(
         "1. An office door in Lincoln, 2016 (data/door_greg_2016): trained on {} minutes from {} to {}, \
          tested on the {} weeks that follow. The door is open {:.1} % of the time.\n",
@@ -79,10 +76,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 
     // 2. Tom's door, one week at one minute.
     let tom_train = bundled::TOM_TRAINING.pairs()?;
-    let tom_tests: Vec<TimeSeries> = bundled::TOM_TESTS
-        .iter()
-        .map(bundled::test_set)
-        .collect::<Result<_>>()?;
+    let tom_tests = bundled::test_sets(&bundled::TOM_TESTS)?;
     outln!(
         "\n2. The door of the FreMEn paper ([Krajník 2017] §V), 2013: trained on one week at one minute, \
          tested on days 8, 9 and 13 (door closed all day).\n"

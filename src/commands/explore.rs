@@ -180,37 +180,37 @@ pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()
     let day = |t: f64| (t - world.start) / 86_400.0;
     let steps = days * (86_400.0 / world.step_secs) as usize;
     let offset = |k: usize| 1.5 * (2 - k) as f64;
-    let truth = areas
-        .iter()
-        .enumerate()
-        .map(|(k, &l)| Series {
-            label: world.names[l].clone(),
-            points: (0..steps)
-                .map(|s| {
-                    (
-                        day(world.time(s)),
-                        offset(k) + f64::from(world.truth[world.locations[l][0]][s]),
-                    )
-                })
-                .collect(),
-            style: SeriesStyle::Step,
-        })
-        .collect();
-    let per_slot = |values: &dyn Fn(usize, usize) -> f64| -> Vec<Series> {
+    // One series per area, stacked by its rank `k`.
+    let per_area = |style: SeriesStyle, points: &dyn Fn(usize, usize) -> Vec<(f64, f64)>| {
         areas
             .iter()
             .enumerate()
             .map(|(k, &l)| Series {
                 label: world.names[l].clone(),
-                points: trace
-                    .slot_times
-                    .iter()
-                    .enumerate()
-                    .map(|(s, &t)| (day(t), offset(k) + values(l, s)))
-                    .collect(),
-                style: SeriesStyle::Step,
+                points: points(k, l),
+                style,
+            })
+            .collect::<Vec<_>>()
+    };
+    let truth = per_area(SeriesStyle::Step, &|k, l| {
+        (0..steps)
+            .map(|s| {
+                (
+                    day(world.time(s)),
+                    offset(k) + f64::from(world.truth[world.locations[l][0]][s]),
+                )
             })
             .collect()
+    });
+    let per_slot = |values: &dyn Fn(usize, usize) -> f64| {
+        per_area(SeriesStyle::Step, &|k, l| {
+            trace
+                .slot_times
+                .iter()
+                .enumerate()
+                .map(|(s, &t)| (day(t), offset(k) + values(l, s)))
+                .collect()
+        })
     };
     let probability = per_slot(&|l, s| trace.probability[world.locations[l][0]][s]);
     let top_info = areas
@@ -219,21 +219,15 @@ pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()
         .fold(0.0f64, f64::max)
         .max(1e-9);
     let information = per_slot(&|l, s| trace.information[l][s] / top_info);
-    let visits = areas
-        .iter()
-        .enumerate()
-        .map(|(k, &l)| Series {
-            label: world.names[l].clone(),
-            points: trace
-                .visits
-                .iter()
-                .zip(&trace.slot_times)
-                .filter(|(v, _)| **v == Some(l))
-                .map(|(_, &t)| (day(t), offset(k) + 0.5))
-                .collect(),
-            style: SeriesStyle::Dots,
-        })
-        .collect();
+    let visits = per_area(SeriesStyle::Dots, &|k, l| {
+        trace
+            .visits
+            .iter()
+            .zip(&trace.slot_times)
+            .filter(|(v, _)| **v == Some(l))
+            .map(|(_, &t)| (day(t), offset(k) + 0.5))
+            .collect()
+    });
     let panel = |title: &str, series: Vec<Series>, x_label: &str| Panel {
         title: title.into(),
         x_label: x_label.into(),

@@ -42,6 +42,46 @@ struct Built {
     source: String,
 }
 
+impl Built {
+    /// `build`, held back from the second of `splits`, built since `started` from `source`.
+    fn new(build: GridBuild, splits: [u64; 2], started: Instant, source: String) -> Self {
+        Self {
+            build,
+            split: splits[1],
+            seconds: started.elapsed().as_secs_f64(),
+            source,
+        }
+    }
+}
+
+/// What every source of frames builds with: the flags, the grid's configuration, whether to
+/// snapshot the grid at the hold-out splits (for the error table) and where to show progress.
+struct BuildJob<'a> {
+    args: &'a GridBuildArgs,
+    config: &'a GridConfig,
+    snapshots: bool,
+    progress: &'a dyn Progress,
+}
+
+impl BuildJob<'_> {
+    /// The frames to snapshot the grid after: `splits`, or none without `snapshots`.
+    fn snapshot_at<'s>(&self, splits: &'s [u64; 2]) -> &'s [u64] {
+        if self.snapshots { &splits[..] } else { &[] }
+    }
+
+    /// The grid of `frames` frames that `next` observes in order, held back at `splits`.
+    fn read_frames(
+        &self,
+        geometry: GridGeometry,
+        frames: usize,
+        splits: &[u64; 2],
+        next: impl FnMut(usize, &mut FremenGrid) -> Result<()>,
+    ) -> Result<GridBuild> {
+        let at = self.snapshot_at(splits);
+        build_from_frames(geometry, self.config, frames, at, self.progress, next)
+    }
+}
+
 pub fn build(args: &GridBuildArgs) -> Result<()> {
     let needs_history =
         args.errors || args.store == StoreArg::Lossless || args.order == GridOrder::Auto;
@@ -59,12 +99,18 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     };
     let built = {
         let bar = ProgressBar::new();
+        let job = BuildJob {
+            args,
+            config: &config,
+            snapshots: needs_history,
+            progress: &bar,
+        };
         if args.source.synthetic {
-            build_from_synthetic(args, &config, needs_history, &bar)?
+            build_from_synthetic(&job)?
         } else if let Some(list) = &args.source.frames {
-            build_from_map_list(list, args, &config, needs_history, &bar)?
+            build_from_map_list(list, &job)?
         } else {
-            build_from_cell_series(&args.source.cell_series, args, &config, needs_history, &bar)?
+            build_from_cell_series(&args.source.cell_series, &job)?
         }
     };
     let grid = &built.build.grid;
@@ -253,24 +299,24 @@ fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
     Ok(())
 }
 
-fn build_from_synthetic(
-    args: &GridBuildArgs,
-    config: &GridConfig,
-    snapshots: bool,
-    progress: &dyn Progress,
-) -> Result<Built> {
+fn build_from_synthetic(job: &BuildJob) -> Result<Built> {
+    let args = job.args;
     let workload = office(args.cells, args.days, args.seed)?;
     let geometry = workload.geometry()?;
     let frames = workload.frames();
     let splits = holdout_splits(frames, args.holdout);
-    let at = if snapshots {
-        splits.to_vec()
-    } else {
-        Vec::new()
-    };
+    let at = job.snapshot_at(&splits);
     let started = Instant::now();
-    let build =
-        |parallelism| build_partitioned(&workload, geometry, config, &at, parallelism, progress);
+    let build = |parallelism| {
+        build_partitioned(
+            &workload,
+            geometry,
+            job.config,
+            at,
+            parallelism,
+            job.progress,
+        )
+    };
     let build = match args.threads {
         None => build(Parallelism::Rayon(0))?,
         Some(threads) => rayon::ThreadPoolBuilder::new()
@@ -278,22 +324,13 @@ fn build_from_synthetic(
             .build()?
             .install(|| build(Parallelism::Rayon(0)))?,
     };
-    Ok(Built {
-        build,
-        split: splits[1],
-        seconds: started.elapsed().as_secs_f64(),
-        source: format!("synthetic office (seed {})", args.seed),
-    })
+    let source = format!("synthetic office (seed {})", args.seed);
+    Ok(Built::new(build, splits, started, source))
 }
 
-fn build_from_map_list(
-    list: &Path,
-    args: &GridBuildArgs,
-    config: &GridConfig,
-    snapshots: bool,
-    progress: &dyn Progress,
-) -> Result<Built> {
+fn build_from_map_list(list: &Path, job: &BuildJob) -> Result<Built> {
     let started = Instant::now();
+    let args = job.args;
     let name = list.display().to_string();
     let frames = read_frame_list(list)?;
     let semantics = if args.ros1 {
@@ -309,8 +346,7 @@ fn build_from_map_list(
         [first.origin[0], first.origin[1]],
     )?;
     let splits = holdout_splits(frames.len() as u64, args.holdout);
-    let at = if snapshots { &splits[..] } else { &[] };
-    let build = build_from_frames(geometry, config, frames.len(), at, progress, |f, grid| {
+    let build = job.read_frames(geometry, frames.len(), &splits, |f, grid| {
         let frame = &frames[f];
         let map = if f == 0 {
             first.clone()
@@ -320,21 +356,10 @@ fn build_from_map_list(
         grid.observe_occupancy(frame.time, &map.data)
             .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
     })?;
-    Ok(Built {
-        build,
-        split: splits[1],
-        seconds: started.elapsed().as_secs_f64(),
-        source: name,
-    })
+    Ok(Built::new(build, splits, started, name))
 }
 
-fn build_from_cell_series(
-    files: &[PathBuf],
-    args: &GridBuildArgs,
-    config: &GridConfig,
-    snapshots: bool,
-    progress: &dyn Progress,
-) -> Result<Built> {
+fn build_from_cell_series(files: &[PathBuf], job: &BuildJob) -> Result<Built> {
     let started = Instant::now();
     let series = files
         .iter()
@@ -350,28 +375,16 @@ fn build_from_cell_series(
         );
     }
     let geometry = GridGeometry::planar(series.len() as u32, 1, 1.0, [0.0, 0.0])?;
-    let splits = holdout_splits(reference.len() as u64, args.holdout);
-    let at = if snapshots { &splits[..] } else { &[] };
-    let build = build_from_frames(
-        geometry,
-        config,
-        reference.len(),
-        at,
-        progress,
-        |f, grid| {
-            let frame: Vec<i8> = series
-                .iter()
-                .map(|s| occupancy_percent(s.values[f]))
-                .collect();
-            Ok::<_, anyhow::Error>(grid.observe_occupancy(reference.times[f], &frame)?)
-        },
-    )?;
-    Ok(Built {
-        build,
-        split: splits[1],
-        seconds: started.elapsed().as_secs_f64(),
-        source: format!("{} cell series", files.len()),
-    })
+    let splits = holdout_splits(reference.len() as u64, job.args.holdout);
+    let build = job.read_frames(geometry, reference.len(), &splits, |f, grid| {
+        let frame: Vec<i8> = series
+            .iter()
+            .map(|s| occupancy_percent(s.values[f]))
+            .collect();
+        Ok(grid.observe_occupancy(reference.times[f], &frame)?)
+    })?;
+    let source = format!("{} cell series", files.len());
+    Ok(Built::new(build, splits, started, source))
 }
 
 /// The compact model in a grid file (learning-state files are fitted with `order`).

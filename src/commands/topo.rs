@@ -167,13 +167,25 @@ pub(super) fn score_table<'a>(
     table
 }
 
-pub fn eval(args: &TopoEvalArgs) -> Result<()> {
-    if args.train == args.test {
+/// A usage error (ending in `why`) when the two directories of `flags` are one.
+fn distinct_directories(flags: [&str; 2], dirs: [&Path; 2], why: &str) -> Result<()> {
+    if dirs[0] == dirs[1] {
         return Err(usage(format!(
-            "--train and --test are the same directory ({}): score on later attempts",
-            args.train.display()
+            "{} and {} are the same directory ({}){why}",
+            flags[0],
+            flags[1],
+            dirs[0].display()
         )));
     }
+    Ok(())
+}
+
+pub fn eval(args: &TopoEvalArgs) -> Result<()> {
+    distinct_directories(
+        ["--train", "--test"],
+        [&args.train, &args.test],
+        ": score on later attempts",
+    )?;
     let train = read_edge_directory(&args.train)?;
     let test = read_edge_directory(&args.test)?;
     if test.total_attempts() == 0 {
@@ -276,12 +288,7 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
 }
 
 pub fn split(args: &TopoSplitArgs) -> Result<()> {
-    if args.before == args.after {
-        return Err(usage(format!(
-            "--before and --after are the same directory ({})",
-            args.before.display()
-        )));
-    }
+    distinct_directories(["--before", "--after"], [&args.before, &args.after], "")?;
     let stats = read_edge_directory(&args.edges)?;
     let (before, after) = stats.split_at(args.at);
     if before.total_attempts() == 0 || after.total_attempts() == 0 {

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Output;
 
-use crate::common::{chronomap, closed_pipe, data, scratch, stdout};
+use crate::common::{chronomap, closed_pipe, data, error, scratch, stdout, write_arg};
 
 fn greg(name: &str) -> String {
     data(&format!("door_greg_2016/{name}"))
@@ -17,10 +17,6 @@ fn json_of(out: &Output) -> serde_json::Value {
 
 fn tom(name: &str) -> String {
     data(&format!("door_tom_2013/sec/{name}"))
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> String {
-    crate::common::write(dir, name, text).display().to_string()
 }
 
 /// Test set `i` of a bundled door (`greg` or `tom`) as `--test` takes it: `TIMES,VALUES`.
@@ -105,8 +101,8 @@ fn eval_prints_tables_and_significance() {
 #[test]
 fn bad_input_is_named_by_file_and_line() {
     let dir = scratch("bad_input");
-    let good_times = write(&dir, "times.txt", "0\n60\n120\n");
-    let good_values = write(&dir, "values.txt", "0\n1\n0\n");
+    let good_times = write_arg(&dir, "times.txt", "0\n60\n120\n");
+    let good_values = write_arg(&dir, "values.txt", "0\n1\n0\n");
     let cases = [
         ("nan.txt", "0 0\n60 nan\n", "nan.txt:2: value"),
         ("inf.txt", "0 0\ninf 1\n", "inf.txt:2: time"),
@@ -126,7 +122,7 @@ fn bad_input_is_named_by_file_and_line() {
         ("fields.txt", "0 0\n60\n", "fields.txt:2: value: missing"),
     ];
     for (name, content, expected) in cases {
-        let train = write(&dir, name, content);
+        let train = write_arg(&dir, name, content);
         let test = format!("{good_times},{good_values}");
         let out = chronomap(&[
             "eval", "--train", &train, "--test", &test, "--models", "mean",
@@ -137,12 +133,10 @@ fn bad_input_is_named_by_file_and_line() {
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
     // A test set whose two files differ in length.
-    let train = write(&dir, "train.txt", "0 0\n60 1\n");
-    let short = write(&dir, "short.txt", "0\n1\n");
+    let train = write_arg(&dir, "train.txt", "0 0\n60 1\n");
+    let short = write_arg(&dir, "short.txt", "0\n1\n");
     let test = format!("{good_times},{short}");
-    let out = chronomap(&["eval", "--train", &train, "--test", &test]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1));
+    let err = error(&chronomap(&["eval", "--train", &train, "--test", &test]));
     assert!(
         err.contains("short.txt") && err.contains("times.txt"),
         "{err}"
@@ -243,9 +237,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
     let last = bytes.len() - 1;
     bytes[last] ^= 0x55;
     std::fs::write(&model, &bytes).unwrap();
-    let out = chronomap(&["predict", &model, "--at", "0"]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = error(&chronomap(&["predict", &model, "--at", "0"]));
     assert!(
         err.contains("checksum") && err.contains("door.cmm"),
         "{err}"

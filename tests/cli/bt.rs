@@ -2,9 +2,20 @@
 //! printed structure with uids, the tick-by-tick trace of a scripted run, the Groot2 log it
 //! writes, and exit code 1 with located messages for bad files.
 
+use std::process::Output;
+
 use crate::common;
 
-use common::{chronomap, close, error, repo, scratch, stdout};
+use common::{chronomap, close, error, repo, scratch, stdout, write, write_arg};
+
+/// The script of a run of the door tree that succeeds at tick 5.
+const DOOR_SCRIPT: &str = "tests/data/bt/door.script";
+
+/// `chronomap bt run` of the door tree with `script` and `extra` flags.
+fn run_door(script: &str, extra: &[&str]) -> Output {
+    let door = repo("tests/data/bt/door.xml");
+    chronomap(&[&["bt", "run", &door, "--script", script][..], extra].concat())
+}
 
 #[test]
 fn check_prints_the_door_tree_with_uids_depth_first_through_the_subtree() {
@@ -61,15 +72,7 @@ fn check_can_print_another_tree_and_save_the_canonical_form() {
 fn run_prints_every_transition_of_every_tick_and_writes_a_btlog() {
     let dir = scratch("bt_run_door");
     let log = dir.join("door.btlog").display().to_string();
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &repo("tests/data/bt/door.xml"),
-        "--script",
-        &repo("tests/data/bt/door.script"),
-        "--btlog",
-        &log,
-    ]));
+    let text = stdout(&run_door(&repo(DOOR_SCRIPT), &["--btlog", &log]));
     let expected = format!(
         "\
 tick 1 @ 0 ms: RUNNING
@@ -127,23 +130,12 @@ wrote {log} (33 transitions of 11 nodes)
 #[test]
 fn run_reports_a_tree_still_running_and_unused_script_ticks() {
     let dir = scratch("bt_run_partial");
-    let script = dir.join("short.script");
-    std::fs::write(
-        &script,
+    let script = write_arg(
+        &dir,
+        "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\ntick 3: PassThroughDoor=success\ntick 4:\ntick 6:\n",
-    )
-    .unwrap();
-    let script = script.display().to_string();
-    let door = repo("tests/data/bt/door.xml");
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &door,
-        "--script",
-        &script,
-        "--tick-ms",
-        "250",
-    ]));
+    );
+    let text = stdout(&run_door(&script, &["--tick-ms", "250"]));
     assert!(text.starts_with("tick 1 @ 0 ms: RUNNING\n"), "{text}");
     assert!(text.contains("tick 3 @ 500 ms: SUCCESS\n"), "{text}");
     assert!(
@@ -153,12 +145,12 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
         "{text}"
     );
 
-    std::fs::write(
-        dir.join("short.script"),
+    write(
+        &dir,
+        "short.script",
         "tick 1: IsDoorClosed=failure, PassThroughDoor=running\n",
-    )
-    .unwrap();
-    let text = stdout(&chronomap(&["bt", "run", &door, "--script", &script]));
+    );
+    let text = stdout(&run_door(&script, &[]));
     assert!(
         text.ends_with("result: still RUNNING after tick 1 (0 ms)\n"),
         "{text}"
@@ -168,13 +160,11 @@ fn run_reports_a_tree_still_running_and_unused_script_ticks() {
 #[test]
 fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     let dir = scratch("bt_errors");
-    let bad = dir.join("bad.xml");
-    std::fs::write(
-        &bad,
+    let bad = write_arg(
+        &dir,
+        "bad.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"Main\">\n    <Repeat num_cycles=\"twice\">\n      <AlwaysSuccess/>\n    </Repeat>\n  </BehaviorTree>\n</root>\n",
-    )
-    .unwrap();
-    let bad = bad.display().to_string();
+    );
     let err = error(&chronomap(&["bt", "check", &bad]));
     assert_eq!(
         err,
@@ -183,21 +173,18 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
         )
     );
 
-    let v3 = dir.join("v3.xml");
-    std::fs::write(&v3, "<root BTCPP_format=\"3\">\n</root>\n").unwrap();
-    let err = error(&chronomap(&["bt", "check", &v3.display().to_string()]));
+    let v3 = write_arg(&dir, "v3.xml", "<root BTCPP_format=\"3\">\n</root>\n");
+    let err = error(&chronomap(&["bt", "check", &v3]));
     assert!(
         err.contains("v3.xml:1:7: attribute BTCPP_format=\"3\": only BehaviorTree.CPP format 4"),
         "{err}"
     );
 
-    let two = dir.join("two.xml");
-    std::fs::write(
-        &two,
+    let two = write_arg(
+        &dir,
+        "two.xml",
         "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree>\n  <BehaviorTree ID=\"B\"><AlwaysFailure/></BehaviorTree>\n</root>\n",
-    )
-    .unwrap();
-    let two = two.display().to_string();
+    );
     let err = error(&chronomap(&["bt", "check", &two]));
     assert!(
         err.contains("which tree? (use --tree): the document has several trees (A, B)"),
@@ -214,7 +201,6 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
     assert!(err.contains("missing.xml: cannot read:"), "{err}");
 
     // Scripts that do not fit the tree, and a log file of the wrong kind.
-    let door = repo("tests/data/bt/door.xml");
     let script = dir.join("typo.script").display().to_string();
     let log = dir.join("door.log").display().to_string();
     for (text, flags, says) in [
@@ -245,8 +231,7 @@ fn bad_files_and_scripts_exit_1_with_the_place_of_the_problem() {
         ),
     ] {
         std::fs::write(&script, text).unwrap();
-        let args = [&["bt", "run", &door, "--script", &script][..], flags].concat();
-        let err = error(&chronomap(&args));
+        let err = error(&run_door(&script, flags));
         assert!(err.contains(says), "{text}: {err}");
     }
 }
@@ -304,9 +289,9 @@ fn analyse_gives_the_hand_computed_probabilities_of_the_door_tree() {
 #[test]
 fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
     let dir = scratch("bt_analyse_fallback");
-    let xml = dir.join("search.xml");
-    std::fs::write(
-        &xml,
+    let xml = write_arg(
+        &dir,
+        "search.xml",
         r#"<root BTCPP_format="4">
   <BehaviorTree ID="Search">
     <Fallback>
@@ -316,15 +301,12 @@ fn analyse_follows_the_closed_form_of_a_fallback_of_two_actions() {
   </BehaviorTree>
 </root>
 "#,
-    )
-    .unwrap();
-    let params = dir.join("search.csv");
-    std::fs::write(
-        &params,
+    );
+    let params = write_arg(
+        &dir,
+        "search.csv",
         "node,p_s,p_f,mu,nu\nSearchCorridor,0.6,,0.05,0.025\nWaitAtDoor,0.9,0.1,0.02,0.01\n",
-    )
-    .unwrap();
-    let (xml, params) = (xml.display().to_string(), params.display().to_string());
+    );
     let out = chronomap(&[
         "bt", "analyse", &xml, "--params", &params, "--t-max", "60", "--steps", "1", "--json",
     ]);
@@ -406,14 +388,7 @@ fn check_and_run_print_json_and_write_with_output() {
             .contains("<IsDoorClosed/>")
     );
 
-    let text = stdout(&chronomap(&[
-        "bt",
-        "run",
-        &door,
-        "--script",
-        &repo("tests/data/bt/door.script"),
-        "--json",
-    ]));
+    let text = stdout(&run_door(&repo(DOOR_SCRIPT), &["--json"]));
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["finished"], true);
     assert_eq!(v["status"], "SUCCESS");

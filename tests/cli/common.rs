@@ -14,6 +14,11 @@ pub use chronomap_testutil::{
     stdout, strings, usage_error, write,
 };
 
+/// Writes `contents` to the file `name` in `dir`; its path as a command-line argument.
+pub fn write_arg(dir: &std::path::Path, name: &str, contents: impl AsRef<[u8]>) -> String {
+    write(dir, name, contents).display().to_string()
+}
+
 /// Runs `chronomap` with `args`.
 pub fn chronomap(args: &[&str]) -> Output {
     chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)

@@ -2,7 +2,7 @@
 //! the measured numbers of both documented splits, the JSON shape the docs describe, and
 //! errors naming file, line and field for bad event files.
 
-use crate::common::{chronomap, close, error, scratch, stdout, tmp};
+use crate::common::{chronomap, close, error, scratch, stdout, tmp, write_arg};
 use serde_json::Value;
 
 fn data(relative: &str) -> String {
@@ -151,12 +151,8 @@ fn wednesday_to_thursday_table_with_a_time_split_of_one_file() {
 #[test]
 fn bad_event_files_name_file_line_and_field() {
     let dir = scratch("events_cli_bad_input");
-    let good = dir.join("good.txt");
-    std::fs::write(&good, "100 0 0\n200 1 1\n").unwrap();
-    let good = good.display().to_string();
-    let later = dir.join("later.txt");
-    std::fs::write(&later, "1000 0 0\n1100 1 1\n").unwrap();
-    let later = later.display().to_string();
+    let good = write_arg(&dir, "good.txt", "100 0 0\n200 1 1\n");
+    let later = write_arg(&dir, "later.txt", "1000 0 0\n1100 1 1\n");
     let cases = [
         (
             "nan.txt",
@@ -180,9 +176,7 @@ fn bad_event_files_name_file_line_and_field() {
         ),
     ];
     for (name, text, message) in cases {
-        let path = dir.join(name);
-        std::fs::write(&path, text).unwrap();
-        let path = path.display().to_string();
+        let path = write_arg(&dir, name, text);
         // As training data (second of two files) ...
         let train = format!("{good},{path}");
         let err = error(&chronomap(&[

@@ -2,7 +2,7 @@
 
 use std::process::Output;
 
-use crate::common::{chronomap, data, json};
+use crate::common::{chronomap, data, error, json};
 
 fn results(out: &Output) -> Vec<(String, String, f64)> {
     json(out)["results"]
@@ -75,9 +75,13 @@ fn brayford_runs_and_is_repeatable() {
 
 #[test]
 fn bad_datasets_and_ratios_are_refused_clearly() {
-    let out = chronomap(&["explore", "--dataset", "aruba", "--data", "no/such/dir"]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = error(&chronomap(&[
+        "explore",
+        "--dataset",
+        "aruba",
+        "--data",
+        "no/such/dir",
+    ]));
     assert!(
         err.contains("no/such/dir") && err.contains("presence_minutes_0"),
         "{err}"

@@ -2,8 +2,9 @@
 //! maps that our map reader (Nav2 semantics) reads back, and clear errors for bad frames.
 
 use std::path::{Path, PathBuf};
+use std::process::Output;
 
-use crate::common::{chronomap, scratch, stdout};
+use crate::common::{chronomap, json, scratch, stdout};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
 
@@ -47,23 +48,24 @@ fn write_frames(dir: &Path) -> PathBuf {
     path
 }
 
+/// Runs `chronomap grid build --frames LIST -o OUTPUT EXTRA...`.
+fn build_from_frames(list: &Path, output: &str, extra: &[&str]) -> Output {
+    let list = list.display().to_string();
+    let args = [
+        &["grid", "build", "--frames", &list, "-o", output][..],
+        extra,
+    ]
+    .concat();
+    chronomap(&args)
+}
+
 #[test]
 fn predicted_maps_are_nav2_maps_that_read_back() {
     let dir = scratch("grid_predict");
     std::fs::create_dir_all(dir.join("maps")).unwrap();
     let list = write_frames(&dir);
     let grid = dir.join("door.cmg").display().to_string();
-    let out = chronomap(&[
-        "grid",
-        "build",
-        "--frames",
-        &list.display().to_string(),
-        "-o",
-        &grid,
-        "--order",
-        "4",
-    ]);
-    stdout(&out);
+    stdout(&build_from_frames(&list, &grid, &["--order", "4"]));
     let GridFile::State(state) = read_grid_file(&grid).unwrap() else {
         panic!("not a learning state")
     };
@@ -165,7 +167,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
     // Maps for two times given comma-separated; the old `-o` still names the picture.
     for flag in ["--plot", "-o"] {
         let png = dir.join(format!("maps{flag}.png"));
-        let out = chronomap(&[
+        stdout(&chronomap(&[
             "grid",
             "plot",
             &grid,
@@ -173,12 +175,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
             "1453680000,2016-01-25T13:00Z",
             flag,
             &png.display().to_string(),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        ]));
         assert!(std::fs::metadata(&png).unwrap().len() > 1000);
     }
     let _ = MapMode::Trinary;
@@ -241,14 +238,7 @@ fn bad_frames_give_clear_errors() {
         std::fs::create_dir_all(list_path.parent().unwrap()).unwrap();
         let list = list.replace("maps/", "../maps/");
         std::fs::write(&list_path, list).unwrap();
-        let out = chronomap(&[
-            "grid",
-            "build",
-            "--frames",
-            &list_path.display().to_string(),
-            "-o",
-            &dir.join("x.cmg").display().to_string(),
-        ]);
+        let out = build_from_frames(&list_path, &dir.join("x.cmg").display().to_string(), &[]);
         assert_eq!(out.status.code(), Some(1), "{name} accepted");
         let err = String::from_utf8_lossy(&out.stderr).to_lowercase();
         assert!(
@@ -318,13 +308,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
     // The same build on one thread, as JSON: the error table's numbers are the text's.
     let mut one_thread = args.to_vec();
     one_thread.extend(["--threads", "1", "--json"]);
-    let out = chronomap(&one_thread);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let json = json(&chronomap(&one_thread));
     assert_eq!(json["frames"], 14 * 17_280);
     assert_eq!(json["kind"], "grid-lossless");
     let errors = &json["errors"];

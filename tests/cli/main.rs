@@ -32,6 +32,7 @@ mod serve_crash;
 #[cfg(feature = "serve")]
 mod serve_security;
 mod sklearn_gmm;
+mod storm_case;
 mod storm_witham;
 mod tom_door;
 mod topo;

@@ -7,7 +7,7 @@ use crate::common;
 
 use chronomap_bt::Registry;
 use chronomap_bt::monitor::sim::arbiter_document;
-use common::{chronomap, error, repo, scratch, stdout};
+use common::{chronomap, error, repo, scratch, stdout, write_arg};
 use serde_json::Value;
 
 /// `monitor sim` on the bundled half-hour fault scenario, every recovery certain: its stdout.
@@ -128,9 +128,11 @@ fn random_runs_depend_on_the_seed_only() {
 #[test]
 fn bad_input_is_an_error_naming_the_place() {
     let dir = scratch("monitor_bad_input");
-    let bad = dir.join("faults.txt");
-    std::fs::write(&bad, "# ok\n10 node_crash camera\n20 node_crash lidar\n").unwrap();
-    let bad = bad.display().to_string();
+    let bad = write_arg(
+        &dir,
+        "faults.txt",
+        "# ok\n10 node_crash camera\n20 node_crash lidar\n",
+    );
     let err = error(&chronomap(&["monitor", "sim", "--faults", &bad]));
     assert!(err.contains("faults.txt:3: target:"), "{err}");
     assert!(err.contains("lidar"), "{err}");

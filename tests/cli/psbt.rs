@@ -4,7 +4,7 @@
 use crate::common;
 
 use common::{
-    chronomap, close, error, fit_small_copa, repo, scratch, stdout, strings, usage_error,
+    chronomap, close, error, fit_small_copa, repo, scratch, stdout, strings, usage_error, write_arg,
 };
 use serde_json::Value;
 
@@ -243,9 +243,7 @@ fn synthesis_from_a_saved_copa_map() {
         night.contains("outside 09:00-21:00 JST") && night.contains("--model-t"),
         "{night}"
     );
-    let fake = dir.join("fake.cmcopa");
-    std::fs::write(&fake, "t,person,x,y\n").unwrap();
-    let fake = fake.display().to_string();
+    let fake = write_arg(&dir, "fake.cmcopa", "t,person,x,y\n");
     let err = error(&psbt(&fake, SOUTH_WEST, "0", &[]));
     assert!(
         err.contains("fake.cmcopa") && err.contains("not a chronomap model file"),

@@ -2,6 +2,7 @@
 //! observations added through the command-line client predict exactly what the same model
 //! predicts when trained in one process, and the service documents every endpoint.
 
+use crate::common::{chronomap, repo, stdout};
 use crate::service;
 
 use std::process::Command;
@@ -360,23 +361,16 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     let data = scratch("serve_cli_maps");
     // The Witham Wharf deployment's edge models, fitted by the command line.
     let witham = data.join("witham.cmt");
-    let status = Command::new(env!("CARGO_BIN_EXE_chronomap"))
-        .args([
-            "topo",
-            "fit",
-            "--edges",
-            "data/witham_topological_nav/edges",
-            "-o",
-        ])
-        .arg(&witham)
-        .args(["--success-order", "1"])
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
-    );
+    stdout(&chronomap(&[
+        "topo",
+        "fit",
+        "--edges",
+        &repo("data/witham_topological_nav/edges"),
+        "-o",
+        &witham.display().to_string(),
+        "--success-order",
+        "1",
+    ]));
     // A small grid: a door cell open by day, a wall, a free cell; three days of frames.
     let geometry = GridGeometry::planar(3, 1, 0.5, [0.0, 0.0]).unwrap();
     let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();

@@ -238,18 +238,10 @@ fn sigkill_loses_no_acknowledged_observation_redb() {
 
 #[test]
 fn sigkill_loses_no_acknowledged_observation_postgres() {
-    let Some(config) = service::postgres() else {
+    let Some(backend) = service::postgres_backend("crash") else {
         return;
     };
-    let schema = format!(
-        "crash_{}_{}",
-        std::process::id(),
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .subsec_nanos()
-    );
-    crash_test("serve_crash_postgres", Backend::Postgres(config, schema));
+    crash_test("serve_crash_postgres", backend);
 }
 
 /// One service per schema: a second store on a schema that a live session holds is refused

@@ -173,16 +173,8 @@ fn bad_tokens_oversize_bodies_and_hostile_input_change_nothing_redb() {
 
 #[test]
 fn bad_tokens_oversize_bodies_and_hostile_input_change_nothing_postgres() {
-    let Some(config) = service::postgres() else {
+    let Some(backend) = service::postgres_backend("security") else {
         return;
     };
-    let schema = format!(
-        "security_{}_{}",
-        std::process::id(),
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .subsec_nanos()
-    );
-    security_test("serve_security_postgres", Backend::Postgres(config, schema));
+    security_test("serve_security_postgres", backend);
 }

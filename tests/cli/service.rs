@@ -45,6 +45,21 @@ pub fn postgres() -> Option<String> {
     }
 }
 
+/// A PostgreSQL backend on a schema of its own (`PREFIX_PID_NANOS`), so that runs at the same
+/// time do not share one; `None` (skipped) as [`postgres`] says.
+pub fn postgres_backend(prefix: &str) -> Option<Backend> {
+    let config = postgres()?;
+    let schema = format!(
+        "{prefix}_{}_{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .subsec_nanos()
+    );
+    Some(Backend::Postgres(config, schema))
+}
+
 /// A running `chronomap serve`.
 pub struct Server {
     pub child: Child,

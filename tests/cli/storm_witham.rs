@@ -14,11 +14,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
-use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn, restricted_drn};
+use chronomap_topo::mdp::{SolverOptions, prism_property};
 use chronomap_topo::plan::{Task, plan_full};
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::common::{oracle_python, run_oracle, scratch};
+use crate::storm_case::write_case;
 
 /// 2014-09-04 00:00 UTC, the day after the last attempt in the data.
 const DAY: f64 = 1_409_788_800.0;
@@ -80,46 +81,17 @@ fn write_cases(models: &EdgeModels, dir: &Path) -> (BTreeMap<String, Ours>, Vec<
             .unwrap();
             let (mdp, sol) = (planned.product.mdp(), &planned.solution);
             let name = format!("{prefix}_{hour:02}");
-            let absorbing = (0..mdp.state_count())
-                .filter(|&s| mdp.choices(s).is_empty())
-                .count();
-            let write = |file: String, contents: String| {
-                let path = dir.join(file);
-                std::fs::write(&path, contents).unwrap();
-                path
-            };
-            files.push(write(format!("{name}.drn"), product_drn(mdp, sol).unwrap()));
-            files.push(write(
-                format!("{name}.restricted.drn"),
-                restricted_drn(mdp, sol).unwrap(),
-            ));
-            files.push(write(
-                format!("{name}.nm"),
-                planned.mdp.to_prism(start).unwrap(),
-            ));
-            write(format!("{name}.props"), format!("{property}\n"));
-            expected.insert(
-                format!("{name}.drn"),
-                json!({
-                    "states": mdp.state_count(),
-                    "choices": mdp.choice_count() + absorbing,
-                    "initial": sol.initial,
-                    "pmax": sol.pmax,
-                    "pmax_initial": sol.pmax_initial,
-                }),
-            );
-            expected.insert(
-                format!("{name}.restricted.drn"),
-                json!({
-                    "pmax": sol.pmax,
-                    "rmin": sol.cost,
-                    "pmax_initial": sol.pmax_initial,
-                    "rmin_initial": sol.cost_initial,
-                }),
-            );
-            expected.insert(
-                format!("{name}.nm"),
-                json!({ "properties": { property.clone(): sol.pmax_initial } }),
+            files.extend(
+                write_case(
+                    dir,
+                    &name,
+                    (&planned.mdp, start),
+                    mdp,
+                    sol,
+                    &property,
+                    &mut expected,
+                )
+                .unwrap(),
             );
             ours.insert(
                 name,

@@ -14,14 +14,19 @@ fn data(name: &str) -> PathBuf {
     chronomap_testutil::data_path(&format!("door_tom_2013/{name}"))
 }
 
-#[test]
-fn fft_model_with_outlier_set_reconstructs_the_second_level_week_bit_exactly() {
+/// The one-second test week as uniform binary samples: (first time, step, samples).
+fn second_level_week() -> (f64, f64, Vec<u8>) {
     let week = read_test_set(
         data("sec/test_times_0.txt.xz"),
         data("sec/test_data_0.txt.xz"),
     )
     .unwrap();
-    let (start, step, samples) = uniform_binary_samples(&week.times, &week.values).unwrap();
+    uniform_binary_samples(&week.times, &week.values).unwrap()
+}
+
+#[test]
+fn fft_model_with_outlier_set_reconstructs_the_second_level_week_bit_exactly() {
+    let (start, step, samples) = second_level_week();
     assert_eq!(samples.len(), 604_800);
     for (order, shortest) in [
         (0, Some(7200.0)),
@@ -63,12 +68,7 @@ fn fft_model_with_outlier_set_reconstructs_the_second_level_week_bit_exactly() {
 
 #[test]
 fn run_length_and_fft_spectra_agree_on_the_real_week() {
-    let week = read_test_set(
-        data("sec/test_times_0.txt.xz"),
-        data("sec/test_data_0.txt.xz"),
-    )
-    .unwrap();
-    let (start, step, samples) = uniform_binary_samples(&week.times, &week.values).unwrap();
+    let (start, step, samples) = second_level_week();
     let config = FftFremenConfig::with_order(8);
     let a =
         FftFremen::build_with(start, step, &samples, config, SpectrumMethod::RunLength).unwrap();
