@@ -14,6 +14,19 @@ fn pairs_err(text: &str) -> DataError {
     read_pairs_from("pairs.txt", text.as_bytes()).expect_err(text)
 }
 
+/// Reads `text` as `pairs.txt`, checks that it fails with this line, field and whole
+/// message, and returns the error.
+fn pairs_rejected(
+    text: &str,
+    line: Option<usize>,
+    field: Option<Field>,
+    message: &str,
+) -> DataError {
+    let err = pairs_err(text);
+    check(&err, "pairs.txt", line, field, message);
+    err
+}
+
 #[test]
 fn reads_pairs_with_comments_blank_lines_commas_and_crlf() {
     let text = "\u{feff}# door\n\n0 0\r\n60\t1\n120,0.5\n  180 , 1  \n# end\n";
@@ -34,10 +47,8 @@ fn reads_pairs_with_comments_blank_lines_commas_and_crlf() {
 
 #[test]
 fn non_numeric_fields_name_line_field_and_text() {
-    let err = pairs_err("# header\n0 0\n\nabc 1\n");
-    check(
-        &err,
-        "pairs.txt",
+    let err = pairs_rejected(
+        "# header\n0 0\n\nabc 1\n",
         Some(4),
         Some(Field::Time),
         r#"pairs.txt:4: time: "abc" is not a number"#,
@@ -45,10 +56,8 @@ fn non_numeric_fields_name_line_field_and_text() {
     assert!(
         matches!(err.kind(), DataErrorKind::NotANumber { field: Field::Time, text } if text == "abc")
     );
-    let err = pairs_err("0 0\n1 open\n");
-    check(
-        &err,
-        "pairs.txt",
+    pairs_rejected(
+        "0 0\n1 open\n",
         Some(2),
         Some(Field::Value),
         r#"pairs.txt:2: value: "open" is not a number"#,
@@ -102,31 +111,27 @@ fn non_finite_and_negative_times_are_rejected() {
         );
         check(&err, "pairs.txt", Some(2), Some(field), message);
     }
-    let err = pairs_err("-1 0\n");
-    assert!(matches!(err.kind(), DataErrorKind::NegativeTime { .. }));
-    check(
-        &err,
-        "pairs.txt",
+    let err = pairs_rejected(
+        "-1 0\n",
         Some(1),
         Some(Field::Time),
         r#"pairs.txt:1: time: "-1" is negative (times are seconds >= 0)"#,
     );
+    assert!(matches!(err.kind(), DataErrorKind::NegativeTime { .. }));
 }
 
 #[test]
 fn times_going_backwards_name_both_lines() {
-    let err = pairs_err("10 0\n# x\n20 1\n\n15 0\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0
-    ));
-    check(
-        &err,
-        "pairs.txt",
+    let err = pairs_rejected(
+        "10 0\n# x\n20 1\n\n15 0\n",
         Some(5),
         Some(Field::Time),
         r#"pairs.txt:5: time: "15" is earlier than the time 20 on line 3 (times must not go backwards)"#,
     );
+    assert!(matches!(
+        err.kind(),
+        DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0
+    ));
     let err = read_column_from("times.txt", "3\n2\n".as_bytes(), Field::Time).unwrap_err();
     assert!(matches!(
         err.kind(),
@@ -138,60 +143,42 @@ fn times_going_backwards_name_both_lines() {
 #[test]
 fn values_outside_unit_interval_are_rejected() {
     for (text, shown) in [("0 1.5\n", "1.5"), ("0 -0.1\n", "-0.1"), ("0 2\n", "2")] {
-        let err = pairs_err(text);
-        assert!(matches!(err.kind(), DataErrorKind::ValueOutOfRange { .. }));
-        check(
-            &err,
-            "pairs.txt",
+        let err = pairs_rejected(
+            text,
             Some(1),
             Some(Field::Value),
             &format!("pairs.txt:1: value: {shown:?} is outside [0, 1]"),
         );
+        assert!(matches!(err.kind(), DataErrorKind::ValueOutOfRange { .. }));
     }
 }
 
 #[test]
 fn missing_and_extra_fields_are_rejected() {
-    let err = pairs_err("0 0\n60\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Value,
-            ..
-        }
-    ));
-    check(
-        &err,
-        "pairs.txt",
+    pairs_rejected(
+        "0 0\n60\n",
         Some(2),
         Some(Field::Value),
         "pairs.txt:2: value: missing (expected two fields: time value)",
     );
-    let err = pairs_err("0,,1\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Value,
-            ..
-        }
-    ));
-    let err = pairs_err(",1\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Time,
-            ..
-        }
-    ));
-    let err = pairs_err("0 0\n60 1 1\n");
-    assert!(matches!(err.kind(), DataErrorKind::ExtraField { text, .. } if text == "1"));
-    check(
-        &err,
-        "pairs.txt",
+    for (text, missing) in [
+        ("0 0\n60\n", Field::Value),
+        ("0,,1\n", Field::Value),
+        (",1\n", Field::Time),
+    ] {
+        let err = pairs_err(text);
+        assert!(
+            matches!(err.kind(), DataErrorKind::MissingField { field, .. } if *field == missing),
+            "{err}"
+        );
+    }
+    let err = pairs_rejected(
+        "0 0\n60 1 1\n",
         Some(2),
         None,
         r#"pairs.txt:2: unexpected extra field "1" (expected two fields: time value)"#,
     );
+    assert!(matches!(err.kind(), DataErrorKind::ExtraField { text, .. } if text == "1"));
     let err = read_column_from("v.txt", "0\n1 1\n".as_bytes(), Field::Value).unwrap_err();
     assert_eq!(
         err.to_string(),
@@ -202,15 +189,13 @@ fn missing_and_extra_fields_are_rejected() {
 #[test]
 fn empty_inputs_are_rejected() {
     for text in ["", "\n\n", "# only a comment\n  \n"] {
-        let err = pairs_err(text);
-        assert!(matches!(err.kind(), DataErrorKind::Empty));
-        check(
-            &err,
-            "pairs.txt",
+        let err = pairs_rejected(
+            text,
             None,
             None,
             "pairs.txt: no data lines (the input is empty or has only blank lines and # comments)",
         );
+        assert!(matches!(err.kind(), DataErrorKind::Empty));
         let err = read_column_from("c.txt", text.as_bytes(), Field::Time).unwrap_err();
         assert!(matches!(err.kind(), DataErrorKind::Empty));
     }
