@@ -45,23 +45,37 @@ fn reads_pairs_with_comments_blank_lines_commas_and_crlf() {
     );
 }
 
+/// A bad input of `pairs.txt`: the text, the line and field of the error, its whole message and
+/// a test of its kind.
+type BadPairs<'a> = (&'a str, usize, Field, &'a str, fn(&DataErrorKind) -> bool);
+
+/// Checks every row: reading the text as `pairs.txt` fails on that line and field with exactly
+/// that message and an error kind the test accepts.
+fn check_pairs_rows(rows: &[BadPairs<'_>]) {
+    for &(text, line, field, message, is_kind) in rows {
+        let err = pairs_rejected(text, Some(line), Some(field), message);
+        assert!(is_kind(err.kind()), "{err}");
+    }
+}
+
 #[test]
 fn non_numeric_fields_name_line_field_and_text() {
-    let err = pairs_rejected(
-        "# header\n0 0\n\nabc 1\n",
-        Some(4),
-        Some(Field::Time),
-        r#"pairs.txt:4: time: "abc" is not a number"#,
-    );
-    assert!(
-        matches!(err.kind(), DataErrorKind::NotANumber { field: Field::Time, text } if text == "abc")
-    );
-    pairs_rejected(
-        "0 0\n1 open\n",
-        Some(2),
-        Some(Field::Value),
-        r#"pairs.txt:2: value: "open" is not a number"#,
-    );
+    check_pairs_rows(&[
+        (
+            "# header\n0 0\n\nabc 1\n",
+            4,
+            Field::Time,
+            r#"pairs.txt:4: time: "abc" is not a number"#,
+            |k| matches!(k, DataErrorKind::NotANumber { field: Field::Time, text } if text == "abc"),
+        ),
+        (
+            "0 0\n1 open\n",
+            2,
+            Field::Value,
+            r#"pairs.txt:2: value: "open" is not a number"#,
+            |k| matches!(k, DataErrorKind::NotANumber { .. }),
+        ),
+    ]);
     // a header line is a non-numeric time
     let err = pairs_err("time,value\n0,1\n");
     assert!(matches!(
@@ -76,62 +90,62 @@ fn non_numeric_fields_name_line_field_and_text() {
 
 #[test]
 fn non_finite_and_negative_times_are_rejected() {
-    let cases = [
+    let non_finite = |k: &DataErrorKind| matches!(k, DataErrorKind::NonFinite { .. });
+    check_pairs_rows(&[
         (
             "0 0\nnan 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "nan" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\ninf 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "inf" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1e999 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "1e999" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1 NaN\n",
+            2,
             Field::Value,
             r#"pairs.txt:2: value: "NaN" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1 -inf\n",
+            2,
             Field::Value,
             r#"pairs.txt:2: value: "-inf" is not a finite number"#,
+            non_finite,
         ),
-    ];
-    for (text, field, message) in cases {
-        let err = pairs_err(text);
-        assert!(
-            matches!(err.kind(), DataErrorKind::NonFinite { .. }),
-            "{err}"
-        );
-        check(&err, "pairs.txt", Some(2), Some(field), message);
-    }
-    let err = pairs_rejected(
-        "-1 0\n",
-        Some(1),
-        Some(Field::Time),
-        r#"pairs.txt:1: time: "-1" is negative (times are seconds >= 0)"#,
-    );
-    assert!(matches!(err.kind(), DataErrorKind::NegativeTime { .. }));
+        (
+            "-1 0\n",
+            1,
+            Field::Time,
+            r#"pairs.txt:1: time: "-1" is negative (times are seconds >= 0)"#,
+            |k| matches!(k, DataErrorKind::NegativeTime { .. }),
+        ),
+    ]);
 }
 
 #[test]
 fn times_going_backwards_name_both_lines() {
-    let err = pairs_rejected(
+    check_pairs_rows(&[(
         "10 0\n# x\n20 1\n\n15 0\n",
-        Some(5),
-        Some(Field::Time),
+        5,
+        Field::Time,
         r#"pairs.txt:5: time: "15" is earlier than the time 20 on line 3 (times must not go backwards)"#,
-    );
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0
-    ));
+        |k| matches!(k, DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0),
+    )]);
     let err = read_column_from("times.txt", "3\n2\n".as_bytes(), Field::Time).unwrap_err();
     assert!(matches!(
         err.kind(),
@@ -155,12 +169,13 @@ fn values_outside_unit_interval_are_rejected() {
 
 #[test]
 fn missing_and_extra_fields_are_rejected() {
-    pairs_rejected(
+    check_pairs_rows(&[(
         "0 0\n60\n",
-        Some(2),
-        Some(Field::Value),
+        2,
+        Field::Value,
         "pairs.txt:2: value: missing (expected two fields: time value)",
-    );
+        |k| matches!(k, DataErrorKind::MissingField { .. }),
+    )]);
     for (text, missing) in [
         ("0 0\n60\n", Field::Value),
         ("0,,1\n", Field::Value),
@@ -280,21 +295,20 @@ fn plain_gzip_and_xz_files_read_the_same() {
     assert_eq!(read_pairs(&gz).unwrap(), expected);
 
     // a corrupt compressed file is a read error that names the file
-    let bad_xz = dir.join("bad.txt.xz");
-    std::fs::write(&bad_xz, b"\xFD7zXZ\0 definitely not xz").unwrap();
-    let err = read_pairs(&bad_xz).unwrap_err();
-    assert!(
-        matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
-        "{err}"
-    );
-    assert_eq!(err.name(), bad_xz.display().to_string());
-    let bad_gz = dir.join("bad.txt.gz");
-    std::fs::write(&bad_gz, b"not gzip at all").unwrap();
-    let err = read_pairs(&bad_gz).unwrap_err();
-    assert!(
-        matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
-        "{err}"
-    );
+    let corrupt: [(&str, &[u8]); 2] = [
+        ("bad.txt.xz", b"\xFD7zXZ\0 definitely not xz"),
+        ("bad.txt.gz", b"not gzip at all"),
+    ];
+    for (name, bytes) in corrupt {
+        let bad = dir.join(name);
+        std::fs::write(&bad, bytes).unwrap();
+        let err = read_pairs(&bad).unwrap_err();
+        assert!(
+            matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
+            "{err}"
+        );
+        assert_eq!(err.name(), bad.display().to_string());
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
