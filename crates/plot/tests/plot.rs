@@ -195,41 +195,37 @@ fn bad_input_gives_errors_naming_the_file() {
         }],
     };
 
-    let err = render_panels_png(&[], &path, 800, 400).unwrap_err();
-    assert!(matches!(err.kind(), PlotErrorKind::NoPanels));
+    // Renders `panels`, which must fail with an error of a kind `is_kind` accepts.
+    let panels_err = |panels: &[Panel], width, height, is_kind: fn(&PlotErrorKind) -> bool| {
+        let err = render_panels_png(panels, &path, width, height).unwrap_err();
+        assert!(is_kind(err.kind()), "{err}");
+        err
+    };
+
+    let err = panels_err(&[], 800, 400, |k| matches!(k, PlotErrorKind::NoPanels));
     assert_eq!(err.path(), path);
     assert_eq!(
         err.to_string(),
         format!("{}: nothing to plot: no panels", path.display())
     );
 
-    let err = render_panels_png(std::slice::from_ref(&panel), &path, 0, 400).unwrap_err();
-    assert!(
-        matches!(err.kind(), PlotErrorKind::InvalidSize { .. }),
-        "{err}"
-    );
-    let err = render_panels_png(&vec![panel.clone(); 10], &path, 800, 400).unwrap_err();
-    assert!(
-        matches!(err.kind(), PlotErrorKind::InvalidSize { .. }),
-        "{err}"
-    );
+    let invalid_size = |k: &PlotErrorKind| matches!(k, PlotErrorKind::InvalidSize { .. });
+    panels_err(std::slice::from_ref(&panel), 0, 400, invalid_size);
+    panels_err(&vec![panel.clone(); 10], 800, 400, invalid_size);
 
     let flat = Panel {
         y_range: (1.0, 1.0),
         ..panel.clone()
     };
-    let err = render_panels_png(&[flat], &path, 800, 400).unwrap_err();
-    assert!(
-        matches!(err.kind(), PlotErrorKind::InvalidYRange { panel: 0, .. }),
-        "{err}"
-    );
+    panels_err(&[flat], 800, 400, |k| {
+        matches!(k, PlotErrorKind::InvalidYRange { panel: 0, .. })
+    });
 
     let empty = Panel {
         series: vec![],
         ..panel.clone()
     };
-    let err = render_panels_png(&[empty], &path, 800, 400).unwrap_err();
-    assert!(matches!(err.kind(), PlotErrorKind::NoData), "{err}");
+    panels_err(&[empty], 800, 400, |k| matches!(k, PlotErrorKind::NoData));
 
     let err = render_spectrum_png("s", &[], &path, 800, 400).unwrap_err();
     assert!(matches!(err.kind(), PlotErrorKind::NoData), "{err}");
@@ -326,10 +322,21 @@ fn small_heatmap() -> Heatmap {
     }
 }
 
+/// Renders `map` as `name` and checks that the image has the size of the map's layout;
+/// returns the layout, the file and the image.
+fn render_heatmap(map: &Heatmap, name: &str) -> (HeatmapLayout, PathBuf, Decoded) {
+    let layout = map.layout().unwrap();
+    let path = out(name);
+    render_heatmap_png(map, &path).unwrap();
+    let image = Decoded::read(&path);
+    assert_eq!((image.width, image.height), (layout.width, layout.height));
+    (layout, path, image)
+}
+
 #[test]
 fn heat_map_cells_have_the_colours_of_the_colour_map() {
     let map = small_heatmap();
-    let layout = map.layout().unwrap();
+    let (layout, _, image) = render_heatmap(&map, "heatmap_small.png");
     // 90-pixel cells (the minimum: "0.25 ab" is narrower), 26-pixel rows; 2 rows are shorter
     // than the colour bar (120 pixels + 34 for the "no value" swatch), which sets the height:
     // top margin 14 + title 34 + column title 24 + column labels 24 = grid top 96, + 154,
@@ -338,11 +345,6 @@ fn heat_map_cells_have_the_colours_of_the_colour_map() {
     assert_eq!(layout.grid_top, 96);
     assert_eq!(layout.height, 322);
     assert_eq!(layout.bar_left, layout.grid_left + 3 * 90 + 24);
-
-    let path = out("heatmap_small.png");
-    render_heatmap_png(&map, &path).unwrap();
-    let image = Decoded::read(&path);
-    assert_eq!((image.width, image.height), (layout.width, layout.height));
 
     let zero = image.at(background_of(&layout, 0, 0));
     let one = image.at(background_of(&layout, 0, 1));
@@ -438,16 +440,12 @@ fn week_table() -> Heatmap {
 #[test]
 fn a_week_of_now_or_later_renders() {
     let map = week_table();
-    let layout = map.layout().unwrap();
+    let (layout, path, image) = render_heatmap(&map, "heatmap_week.png");
     assert_eq!((layout.cell_width, layout.cell_height), (90, 26));
     assert_eq!(layout.grid_top, 96);
     // grid 24 × 26 = 624, + gap 16 + 4 legend lines of 21 + margin 14
     assert_eq!(layout.height, 96 + 624 + 16 + 4 * 21 + 14);
-    let path = out("heatmap_week.png");
-    render_heatmap_png(&map, &path).unwrap();
     assert_png(&path, 20_000);
-    let image = Decoded::read(&path);
-    assert_eq!((image.width, image.height), (layout.width, layout.height));
     assert_eq!(
         image.at(background_of(&layout, 0, 6)),
         rgb(HEATMAP_NO_VALUE)
@@ -462,8 +460,10 @@ fn a_week_of_now_or_later_renders() {
 fn bad_heat_maps_give_errors_naming_the_file() {
     let path = out("never_written_heatmap.png");
     let good = small_heatmap();
-    let check = |map: &Heatmap| {
+    // Renders `map`, which must fail naming the file with an error of a kind `is_kind` accepts.
+    let check = |map: &Heatmap, is_kind: fn(&PlotErrorKind) -> bool| {
         let err = render_heatmap_png(map, &path).unwrap_err();
+        assert!(is_kind(err.kind()), "{err}");
         assert_eq!(err.path(), path);
         assert!(
             err.to_string().starts_with(&path.display().to_string()),
@@ -478,17 +478,15 @@ fn bad_heat_maps_give_errors_naming_the_file() {
         cell_text: vec![],
         ..good.clone()
     };
-    let err = check(&no_rows);
-    assert!(
+    let err = check(&no_rows, |k| {
         matches!(
-            err.kind(),
+            k,
             PlotErrorKind::EmptyGrid {
                 rows: 0,
                 columns: 3
             }
-        ),
-        "{err}"
-    );
+        )
+    });
     assert_eq!(
         err.to_string(),
         format!(
@@ -500,26 +498,22 @@ fn bad_heat_maps_give_errors_naming_the_file() {
         columns: vec![],
         ..no_rows.clone()
     };
-    let err = check(&no_columns);
-    assert!(
-        matches!(err.kind(), PlotErrorKind::EmptyGrid { columns: 0, .. }),
-        "{err}"
-    );
+    check(&no_columns, |k| {
+        matches!(k, PlotErrorKind::EmptyGrid { columns: 0, .. })
+    });
 
     let mut short = good.clone();
     short.values.pop();
-    let err = check(&short);
-    assert!(
+    let err = check(&short, |k| {
         matches!(
-            err.kind(),
+            k,
             PlotErrorKind::ValueCount {
                 rows: 2,
                 columns: 3,
                 found: 5
             }
-        ),
-        "{err}"
-    );
+        )
+    });
     assert!(
         err.to_string()
             .ends_with("the heat map has 5 values for 2 rows × 3 columns")
@@ -527,11 +521,9 @@ fn bad_heat_maps_give_errors_naming_the_file() {
 
     let mut texts = good.clone();
     texts.cell_text.push("x".into());
-    let err = check(&texts);
-    assert!(
-        matches!(err.kind(), PlotErrorKind::CellTextCount { found: 7, .. }),
-        "{err}"
-    );
+    check(&texts, |k| {
+        matches!(k, PlotErrorKind::CellTextCount { found: 7, .. })
+    });
     let no_texts = Heatmap {
         cell_text: vec![],
         ..good.clone()
@@ -541,7 +533,7 @@ fn bad_heat_maps_give_errors_naming_the_file() {
     for bad in [1.5, -0.01, f64::INFINITY, f64::NEG_INFINITY] {
         let mut map = good.clone();
         map.values[4] = bad;
-        let err = check(&map);
+        let err = check(&map, |k| matches!(k, PlotErrorKind::ValueOutOfRange { .. }));
         match err.kind() {
             PlotErrorKind::ValueOutOfRange {
                 row: 1,
@@ -573,10 +565,9 @@ fn bad_heat_maps_give_errors_naming_the_file() {
         cell_text: vec![],
         ..good.clone()
     };
-    let err = check(&tall);
-    assert!(
-        matches!(err.kind(), PlotErrorKind::InvalidSize { height, .. } if *height > 8192),
-        "{err}"
+    check(
+        &tall,
+        |k| matches!(k, PlotErrorKind::InvalidSize { height, .. } if *height > 8192),
     );
     assert!(!path.exists());
 

@@ -431,7 +431,7 @@ async fn create(
     let config = ModelConfig::parse(request.model.as_deref(), request.range)
         .map_err(ApiError::bad_request)?;
     Ok(Json(
-        submit(&state, vec![WriteOp::Create { id, config }]).await?,
+        submit(&state, vec![WriteOp::create(id, config)]).await?,
     ))
 }
 
@@ -460,7 +460,7 @@ async fn remove(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<WriteAck>, ApiError> {
     let id = path_id(path)?;
-    Ok(Json(submit(&state, vec![WriteOp::Remove { id }]).await?))
+    Ok(Json(submit(&state, vec![WriteOp::remove(id)]).await?))
 }
 
 /// Every observation the model holds, read back from the durable log.
@@ -509,12 +509,8 @@ async fn add(
         .iter()
         .map(|&s| f64::from(u8::from(s)))
         .collect();
-    let op = WriteOp::Observe {
-        create: create_config(request.model.as_deref())?,
-        id: request.id,
-        times: request.times,
-        values,
-    };
+    let create = create_config(request.model.as_deref())?;
+    let op = WriteOp::observe(request.id, request.times, values, create);
     Ok(Json(submit(&state, vec![op]).await?))
 }
 
@@ -535,12 +531,13 @@ async fn addvalues(
 
 fn values_op(request: AddValuesRequest, field: &str) -> Result<WriteOp, ApiError> {
     checked_id(&request.id, field)?;
-    Ok(WriteOp::Observe {
-        create: create_config(request.model.as_deref())?,
-        id: request.id,
-        times: request.times,
-        values: request.values,
-    })
+    let create = create_config(request.model.as_deref())?;
+    Ok(WriteOp::observe(
+        request.id,
+        request.times,
+        request.values,
+        create,
+    ))
 }
 
 /// Adds observations of many states in one durable commit: all batches or none.

@@ -19,32 +19,47 @@ use crate::log::{LogRecord, decode_group, encode_group};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, apply_to};
 use crate::store::{Store, StoreError, decode_snapshot, encode_snapshot};
 
-/// One change a request asks for.
+/// One change a request asks for: a log record, and for observations of a model that may not
+/// exist yet, the configuration to create it with.
 #[derive(Clone, Debug)]
-pub enum WriteOp {
+pub struct WriteOp {
+    /// The change. A [`LogRecord::Create`] is no change if the model exists with the same
+    /// configuration.
+    pub record: LogRecord,
+    /// With a [`LogRecord::Observe`]: configuration of the model to create if missing.
+    pub create: Option<ModelConfig>,
+}
+
+impl WriteOp {
     /// Create a model (no change if it exists with the same configuration).
-    Create {
-        /// Model id.
+    pub fn create(id: String, config: ModelConfig) -> Self {
+        WriteOp {
+            record: LogRecord::Create { id, config },
+            create: None,
+        }
+    }
+
+    /// Add observations (values as given), creating the model with `create` if it does not
+    /// exist.
+    pub fn observe(
         id: String,
-        /// Configuration.
-        config: ModelConfig,
-    },
-    /// Add observations, creating the model with `create` if it does not exist.
-    Observe {
-        /// Model id.
-        id: String,
-        /// Times (s).
         times: Vec<f64>,
-        /// Values as given.
         values: Vec<f64>,
-        /// Configuration of the model to create if missing.
         create: Option<ModelConfig>,
-    },
+    ) -> Self {
+        WriteOp {
+            record: LogRecord::Observe { id, times, values },
+            create,
+        }
+    }
+
     /// Remove a model.
-    Remove {
-        /// Model id.
-        id: String,
-    },
+    pub fn remove(id: String) -> Self {
+        WriteOp {
+            record: LogRecord::Remove { id },
+            create: None,
+        }
+    }
 }
 
 /// Why a write was not made.
@@ -182,11 +197,15 @@ pub fn run(
     let mut checkpoints = Checkpoints::new(policy);
     while let Some(first) = commands.blocking_recv() {
         let mut group = vec![first];
-        let mut pending: usize = group[0].ops.iter().map(op_observations).sum();
+        let mut pending: usize = group[0].ops.iter().map(|op| op.record.observations()).sum();
         while pending < MAX_GROUP_OBSERVATIONS {
             match commands.try_recv() {
                 Ok(command) => {
-                    pending += command.ops.iter().map(op_observations).sum::<usize>();
+                    pending += command
+                        .ops
+                        .iter()
+                        .map(|op| op.record.observations())
+                        .sum::<usize>();
                     group.push(command);
                 }
                 Err(_) => break,
@@ -205,13 +224,6 @@ pub fn run(
     }
     if failed.is_none() {
         checkpoints.maybe_write(&shared, true);
-    }
-}
-
-fn op_observations(op: &WriteOp) -> usize {
-    match op {
-        WriteOp::Observe { times, .. } => times.len(),
-        _ => 0,
     }
 }
 
@@ -295,12 +307,8 @@ fn stage(
     records: &mut Vec<LogRecord>,
 ) -> Result<u64, ApplyError> {
     let mut observations = 0;
-    for op in ops {
-        let id = match &op {
-            WriteOp::Create { id, .. } | WriteOp::Observe { id, .. } | WriteOp::Remove { id } => {
-                id.clone()
-            }
-        };
+    for WriteOp { record, create } in ops {
+        let id = record.id().to_owned();
         let slot = scratch
             .entry(id.clone())
             .or_insert_with(|| match staged.get(&id) {
@@ -312,35 +320,23 @@ fn stage(
             records.push(record);
             Ok::<(), ApplyError>(())
         };
-        match op {
-            WriteOp::Create { id, config } => {
-                if slot.as_ref().is_some_and(|e| e.config == config) {
+        match &record {
+            LogRecord::Create { config, .. } => {
+                if slot.as_ref().is_some_and(|e| e.config == *config) {
                     continue;
                 }
-                push(LogRecord::Create { id, config }, slot)?;
             }
-            WriteOp::Observe {
-                id,
-                times,
-                values,
-                create,
-            } => {
+            LogRecord::Observe { .. } => {
                 if slot.is_none()
                     && let Some(config) = create
                 {
-                    push(
-                        LogRecord::Create {
-                            id: id.clone(),
-                            config,
-                        },
-                        slot,
-                    )?;
+                    push(LogRecord::Create { id, config }, slot)?;
                 }
-                observations += times.len() as u64;
-                push(LogRecord::Observe { id, times, values }, slot)?;
             }
-            WriteOp::Remove { id } => push(LogRecord::Remove { id }, slot)?,
+            LogRecord::Remove { .. } => {}
         }
+        observations += record.observations() as u64;
+        push(record, slot)?;
     }
     Ok(observations)
 }
@@ -430,12 +426,7 @@ mod tests {
             .iter()
             .map(|t| f64::from(u8::from((t % 86_400.0) > 30_000.0)))
             .collect();
-        WriteOp::Observe {
-            id: id.into(),
-            times,
-            values,
-            create: Some(config("fremen:2")),
-        }
+        WriteOp::observe(id.into(), times, values, Some(config("fremen:2")))
     }
 
     /// Runs a writer over `store`, sends every request of `requests` as one channel burst
@@ -483,7 +474,7 @@ mod tests {
             // Valid for "b", then a time before a's last one: nothing of it may stay.
             vec![observe("b", 0.0, 5), observe("a", 100.0, 3)],
             vec![observe("b", 0.0, 7)],
-            vec![WriteOp::Remove { id: "nope".into() }],
+            vec![WriteOp::remove("nope".into())],
         ];
         let (outcomes, shared) =
             run_writer(Arc::clone(&store), requests, CheckpointPolicy::default());
@@ -523,11 +514,8 @@ mod tests {
                         observe("lab", t0, 15),
                         observe("door", t0 + 40.0 * 600.0, 9),
                     ],
-                    vec![WriteOp::Remove { id: "lab".into() }],
-                    vec![WriteOp::Create {
-                        id: "lab".into(),
-                        config: config("hist:24"),
-                    }],
+                    vec![WriteOp::remove("lab".into())],
+                    vec![WriteOp::create("lab".into(), config("hist:24"))],
                     vec![observe("lab", t0 + 1.0, 30)],
                 ];
                 let (outcomes, shared) = run_writer(Arc::clone(&store), requests, policy);

@@ -56,6 +56,17 @@ fn wrap(body: &str) -> String {
     )
 }
 
+/// Checks every `(body, needle, attribute, ending)` row: the tree of [`wrap`]`(body)` is
+/// rejected at `needle`, naming `attribute`, with a message that ends with `ending`.
+fn check_wrapped_rows(rows: &[(&str, &str, Option<&str>, &str)]) {
+    for &(body, needle, attribute, ending) in rows {
+        let text = wrap(body);
+        let e = error(&text);
+        assert_at(&e, &text, needle, attribute);
+        assert!(e.to_string().ends_with(ending), "{e}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The bundled trees
 
@@ -407,13 +418,32 @@ fn unknown_node_ids_are_located() {
 
 #[test]
 fn missing_required_attributes_and_bad_numbers_are_located() {
-    let text = wrap("    <Repeat>\n      <AlwaysSuccess/>\n    </Repeat>");
-    let e = error(&text);
-    assert_at(&e, &text, "<Repeat>", Some("num_cycles"));
-    assert!(
-        e.to_string()
-            .ends_with("\"Repeat\" needs the attribute \"num_cycles\"")
-    );
+    check_wrapped_rows(&[
+        (
+            "    <Repeat>\n      <AlwaysSuccess/>\n    </Repeat>",
+            "<Repeat>",
+            Some("num_cycles"),
+            "\"Repeat\" needs the attribute \"num_cycles\"",
+        ),
+        (
+            "    <Parallel success_count=\"3\">\n      <AlwaysSuccess/>\n      <AlwaysSuccess/>\n    </Parallel>",
+            "success_count=",
+            Some("success_count"),
+            "Parallel success_count=\"3\" needs 3 children but it has 2",
+        ),
+        (
+            "    <Repeat num_cycle=\"3\">\n      <AlwaysSuccess/>\n    </Repeat>",
+            "num_cycle=",
+            Some("num_cycle"),
+            "\"Repeat\" has no port \"num_cycle\" (its ports: num_cycles)",
+        ),
+        (
+            "    <Sequence>\n      <Action name=\"x\"/>\n    </Sequence>",
+            "<Action",
+            Some("ID"),
+            "<Action> needs the attribute \"ID\"",
+        ),
+    ]);
 
     let text = wrap(
         "    <RetryUntilSuccessful num_attempts=\"three\">\n      <AlwaysSuccess/>\n    </RetryUntilSuccessful>",
@@ -427,61 +457,27 @@ fn missing_required_attributes_and_bad_numbers_are_located() {
 
     let text = wrap("    <Timeout msec=\"1.5\">\n      <AlwaysSuccess/>\n    </Timeout>");
     assert_at(&error(&text), &text, "msec=", Some("msec"));
-
-    let text = wrap(
-        "    <Parallel success_count=\"3\">\n      <AlwaysSuccess/>\n      <AlwaysSuccess/>\n    </Parallel>",
-    );
-    let e = error(&text);
-    assert_at(&e, &text, "success_count=", Some("success_count"));
-    assert!(
-        e.to_string()
-            .ends_with("Parallel success_count=\"3\" needs 3 children but it has 2"),
-        "{e}"
-    );
-
-    let text = wrap("    <Repeat num_cycle=\"3\">\n      <AlwaysSuccess/>\n    </Repeat>");
-    let e = error(&text);
-    assert_at(&e, &text, "num_cycle=", Some("num_cycle"));
-    assert!(
-        e.to_string()
-            .ends_with("\"Repeat\" has no port \"num_cycle\" (its ports: num_cycles)"),
-        "{e}"
-    );
-
-    let text = wrap("    <Sequence>\n      <Action name=\"x\"/>\n    </Sequence>");
-    let e = error(&text);
-    assert_at(&e, &text, "<Action", Some("ID"));
-    assert!(
-        e.to_string()
-            .ends_with("<Action> needs the attribute \"ID\"")
-    );
 }
 
 #[test]
 fn wrong_child_counts_are_located() {
-    let text = wrap(
-        "    <Sequence>\n      <Inverter>\n        <AlwaysSuccess/>\n        <AlwaysFailure/>\n      </Inverter>\n    </Sequence>",
-    );
-    let e = error(&text);
-    assert_at(&e, &text, "<Inverter>", None);
-    assert!(
-        e.to_string()
-            .ends_with("Decorator \"Inverter\" needs exactly 1 child, found 2")
-    );
+    check_wrapped_rows(&[
+        (
+            "    <Sequence>\n      <Inverter>\n        <AlwaysSuccess/>\n        <AlwaysFailure/>\n      </Inverter>\n    </Sequence>",
+            "<Inverter>",
+            None,
+            "Decorator \"Inverter\" needs exactly 1 child, found 2",
+        ),
+        (
+            "    <Sequence>\n      <AlwaysSuccess>\n        <AlwaysFailure/>\n      </AlwaysSuccess>\n    </Sequence>",
+            "<AlwaysSuccess>",
+            None,
+            "Action \"AlwaysSuccess\" needs no children, found 1",
+        ),
+    ]);
 
     let text = wrap("    <Fallback/>");
     assert_at(&error(&text), &text, "<Fallback/>", None);
-
-    let text = wrap(
-        "    <Sequence>\n      <AlwaysSuccess>\n        <AlwaysFailure/>\n      </AlwaysSuccess>\n    </Sequence>",
-    );
-    let e = error(&text);
-    assert_at(&e, &text, "<AlwaysSuccess>", None);
-    assert!(
-        e.to_string()
-            .ends_with("Action \"AlwaysSuccess\" needs no children, found 1"),
-        "{e}"
-    );
 }
 
 #[test]

@@ -22,6 +22,14 @@ fn check(err: &DataError, line: Option<usize>, field: Option<Field>, message: &s
     crate::common::check(err, "people.txt", line, field, message);
 }
 
+/// Checks every `(text, line, field, message)` row: reading `text` fails on that line and
+/// field with exactly that message.
+fn check_rows(rows: &[(&str, usize, Field, &str)]) {
+    for &(text, line, field, message) in rows {
+        check(&err(text), Some(line), Some(field), message);
+    }
+}
+
 #[test]
 fn reads_events_with_extra_fields_comments_commas_and_equal_times() {
     let text = "# t x y weight\n\n10 1.5 -2 1.0000\r\n10,2,3\n11 0 0 7.9 1.1 WP4\n";
@@ -50,36 +58,38 @@ fn reads_events_with_extra_fields_comments_commas_and_equal_times() {
 
 #[test]
 fn nan_inf_and_non_numeric_fields_name_line_and_field() {
-    check(
-        &err("1 0 0\n2 nan 0\n"),
-        Some(2),
-        Some(Field::X),
-        r#"people.txt:2: x: "nan" is not a finite number"#,
-    );
-    check(
-        &err("1 0 0\n2 0 -inf\n"),
-        Some(2),
-        Some(Field::Y),
-        r#"people.txt:2: y: "-inf" is not a finite number"#,
-    );
-    check(
-        &err("NaN 0 0\n"),
-        Some(1),
-        Some(Field::Time),
-        r#"people.txt:1: time: "NaN" is not a finite number"#,
-    );
-    check(
-        &err("1 0 0\n\n2 0 north\n"),
-        Some(3),
-        Some(Field::Y),
-        r#"people.txt:3: y: "north" is not a number"#,
-    );
-    check(
-        &err("1e400 0 0\n"),
-        Some(1),
-        Some(Field::Time),
-        r#"people.txt:1: time: "1e400" is not a finite number"#,
-    );
+    check_rows(&[
+        (
+            "1 0 0\n2 nan 0\n",
+            2,
+            Field::X,
+            r#"people.txt:2: x: "nan" is not a finite number"#,
+        ),
+        (
+            "1 0 0\n2 0 -inf\n",
+            2,
+            Field::Y,
+            r#"people.txt:2: y: "-inf" is not a finite number"#,
+        ),
+        (
+            "NaN 0 0\n",
+            1,
+            Field::Time,
+            r#"people.txt:1: time: "NaN" is not a finite number"#,
+        ),
+        (
+            "1 0 0\n\n2 0 north\n",
+            3,
+            Field::Y,
+            r#"people.txt:3: y: "north" is not a number"#,
+        ),
+        (
+            "1e400 0 0\n",
+            1,
+            Field::Time,
+            r#"people.txt:1: time: "1e400" is not a finite number"#,
+        ),
+    ]);
 }
 
 #[test]
@@ -108,18 +118,20 @@ fn negative_and_backwards_times_are_rejected() {
 
 #[test]
 fn missing_fields_are_named() {
-    check(
-        &err("1 0 0\n2 0\n"),
-        Some(2),
-        Some(Field::Y),
-        "people.txt:2: y: missing (expected at least three fields: t x y)",
-    );
-    check(
-        &err("1 0 0\n2,,3\n"),
-        Some(2),
-        Some(Field::X),
-        "people.txt:2: x: missing (expected at least three fields: t x y)",
-    );
+    check_rows(&[
+        (
+            "1 0 0\n2 0\n",
+            2,
+            Field::Y,
+            "people.txt:2: y: missing (expected at least three fields: t x y)",
+        ),
+        (
+            "1 0 0\n2,,3\n",
+            2,
+            Field::X,
+            "people.txt:2: x: missing (expected at least three fields: t x y)",
+        ),
+    ]);
     // A first line of two fields starts a range header; if the next line is an event, the
     // message says both what was expected and what was probably meant.
     let e = err("0 1\n2 0 0\n");
@@ -138,24 +150,26 @@ fn range_headers_are_read_and_checked() {
     let text = "0 100\n-8 12\n-3 17\n1 0 0\n50 2.5 -1.9\n99 0 0\n";
     let events = read_events_from("people.txt", text.as_bytes()).unwrap();
     assert_eq!(events.len(), 3);
-    check(
-        &err("0 100\n-8 12\n-3 17\n101 0 0\n"),
-        Some(4),
-        Some(Field::Time),
-        r#"people.txt:4: time: "101" is outside the range 0 .. 100 of the header"#,
-    );
-    check(
-        &err("0 100\n12 -8\n-3 17\n1 0 0\n"),
-        Some(2),
-        Some(Field::X),
-        "people.txt:2: x: the range 12 .. -8 of the header is empty (min must not exceed max)",
-    );
-    check(
-        &err("0 100\n-8 12\n-3 x\n1 0 0\n"),
-        Some(3),
-        Some(Field::Y),
-        r#"people.txt:3: y: "x" is not a number"#,
-    );
+    check_rows(&[
+        (
+            "0 100\n-8 12\n-3 17\n101 0 0\n",
+            4,
+            Field::Time,
+            r#"people.txt:4: time: "101" is outside the range 0 .. 100 of the header"#,
+        ),
+        (
+            "0 100\n12 -8\n-3 17\n1 0 0\n",
+            2,
+            Field::X,
+            "people.txt:2: x: the range 12 .. -8 of the header is empty (min must not exceed max)",
+        ),
+        (
+            "0 100\n-8 12\n-3 x\n1 0 0\n",
+            3,
+            Field::Y,
+            r#"people.txt:3: y: "x" is not a number"#,
+        ),
+    ]);
     let e = err("0 100\n-8 12\n-3 17\n");
     assert!(matches!(e.kind(), DataErrorKind::BadHeader { .. }), "{e}");
 }

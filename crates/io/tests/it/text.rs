@@ -14,6 +14,19 @@ fn pairs_err(text: &str) -> DataError {
     read_pairs_from("pairs.txt", text.as_bytes()).expect_err(text)
 }
 
+/// Reads `text` as `pairs.txt`, checks that it fails with this line, field and whole
+/// message, and returns the error.
+fn pairs_rejected(
+    text: &str,
+    line: Option<usize>,
+    field: Option<Field>,
+    message: &str,
+) -> DataError {
+    let err = pairs_err(text);
+    check(&err, "pairs.txt", line, field, message);
+    err
+}
+
 #[test]
 fn reads_pairs_with_comments_blank_lines_commas_and_crlf() {
     let text = "\u{feff}# door\n\n0 0\r\n60\t1\n120,0.5\n  180 , 1  \n# end\n";
@@ -32,27 +45,37 @@ fn reads_pairs_with_comments_blank_lines_commas_and_crlf() {
     );
 }
 
+/// A bad input of `pairs.txt`: the text, the line and field of the error, its whole message and
+/// a test of its kind.
+type BadPairs<'a> = (&'a str, usize, Field, &'a str, fn(&DataErrorKind) -> bool);
+
+/// Checks every row: reading the text as `pairs.txt` fails on that line and field with exactly
+/// that message and an error kind the test accepts.
+fn check_pairs_rows(rows: &[BadPairs<'_>]) {
+    for &(text, line, field, message, is_kind) in rows {
+        let err = pairs_rejected(text, Some(line), Some(field), message);
+        assert!(is_kind(err.kind()), "{err}");
+    }
+}
+
 #[test]
 fn non_numeric_fields_name_line_field_and_text() {
-    let err = pairs_err("# header\n0 0\n\nabc 1\n");
-    check(
-        &err,
-        "pairs.txt",
-        Some(4),
-        Some(Field::Time),
-        r#"pairs.txt:4: time: "abc" is not a number"#,
-    );
-    assert!(
-        matches!(err.kind(), DataErrorKind::NotANumber { field: Field::Time, text } if text == "abc")
-    );
-    let err = pairs_err("0 0\n1 open\n");
-    check(
-        &err,
-        "pairs.txt",
-        Some(2),
-        Some(Field::Value),
-        r#"pairs.txt:2: value: "open" is not a number"#,
-    );
+    check_pairs_rows(&[
+        (
+            "# header\n0 0\n\nabc 1\n",
+            4,
+            Field::Time,
+            r#"pairs.txt:4: time: "abc" is not a number"#,
+            |k| matches!(k, DataErrorKind::NotANumber { field: Field::Time, text } if text == "abc"),
+        ),
+        (
+            "0 0\n1 open\n",
+            2,
+            Field::Value,
+            r#"pairs.txt:2: value: "open" is not a number"#,
+            |k| matches!(k, DataErrorKind::NotANumber { .. }),
+        ),
+    ]);
     // a header line is a non-numeric time
     let err = pairs_err("time,value\n0,1\n");
     assert!(matches!(
@@ -67,66 +90,62 @@ fn non_numeric_fields_name_line_field_and_text() {
 
 #[test]
 fn non_finite_and_negative_times_are_rejected() {
-    let cases = [
+    let non_finite = |k: &DataErrorKind| matches!(k, DataErrorKind::NonFinite { .. });
+    check_pairs_rows(&[
         (
             "0 0\nnan 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "nan" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\ninf 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "inf" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1e999 0\n",
+            2,
             Field::Time,
             r#"pairs.txt:2: time: "1e999" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1 NaN\n",
+            2,
             Field::Value,
             r#"pairs.txt:2: value: "NaN" is not a finite number"#,
+            non_finite,
         ),
         (
             "0 0\n1 -inf\n",
+            2,
             Field::Value,
             r#"pairs.txt:2: value: "-inf" is not a finite number"#,
+            non_finite,
         ),
-    ];
-    for (text, field, message) in cases {
-        let err = pairs_err(text);
-        assert!(
-            matches!(err.kind(), DataErrorKind::NonFinite { .. }),
-            "{err}"
-        );
-        check(&err, "pairs.txt", Some(2), Some(field), message);
-    }
-    let err = pairs_err("-1 0\n");
-    assert!(matches!(err.kind(), DataErrorKind::NegativeTime { .. }));
-    check(
-        &err,
-        "pairs.txt",
-        Some(1),
-        Some(Field::Time),
-        r#"pairs.txt:1: time: "-1" is negative (times are seconds >= 0)"#,
-    );
+        (
+            "-1 0\n",
+            1,
+            Field::Time,
+            r#"pairs.txt:1: time: "-1" is negative (times are seconds >= 0)"#,
+            |k| matches!(k, DataErrorKind::NegativeTime { .. }),
+        ),
+    ]);
 }
 
 #[test]
 fn times_going_backwards_name_both_lines() {
-    let err = pairs_err("10 0\n# x\n20 1\n\n15 0\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0
-    ));
-    check(
-        &err,
-        "pairs.txt",
-        Some(5),
-        Some(Field::Time),
+    check_pairs_rows(&[(
+        "10 0\n# x\n20 1\n\n15 0\n",
+        5,
+        Field::Time,
         r#"pairs.txt:5: time: "15" is earlier than the time 20 on line 3 (times must not go backwards)"#,
-    );
+        |k| matches!(k, DataErrorKind::TimeNotIncreasing { previous, previous_line: 3, .. } if *previous == 20.0),
+    )]);
     let err = read_column_from("times.txt", "3\n2\n".as_bytes(), Field::Time).unwrap_err();
     assert!(matches!(
         err.kind(),
@@ -138,60 +157,43 @@ fn times_going_backwards_name_both_lines() {
 #[test]
 fn values_outside_unit_interval_are_rejected() {
     for (text, shown) in [("0 1.5\n", "1.5"), ("0 -0.1\n", "-0.1"), ("0 2\n", "2")] {
-        let err = pairs_err(text);
-        assert!(matches!(err.kind(), DataErrorKind::ValueOutOfRange { .. }));
-        check(
-            &err,
-            "pairs.txt",
+        let err = pairs_rejected(
+            text,
             Some(1),
             Some(Field::Value),
             &format!("pairs.txt:1: value: {shown:?} is outside [0, 1]"),
         );
+        assert!(matches!(err.kind(), DataErrorKind::ValueOutOfRange { .. }));
     }
 }
 
 #[test]
 fn missing_and_extra_fields_are_rejected() {
-    let err = pairs_err("0 0\n60\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Value,
-            ..
-        }
-    ));
-    check(
-        &err,
-        "pairs.txt",
-        Some(2),
-        Some(Field::Value),
+    check_pairs_rows(&[(
+        "0 0\n60\n",
+        2,
+        Field::Value,
         "pairs.txt:2: value: missing (expected two fields: time value)",
-    );
-    let err = pairs_err("0,,1\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Value,
-            ..
-        }
-    ));
-    let err = pairs_err(",1\n");
-    assert!(matches!(
-        err.kind(),
-        DataErrorKind::MissingField {
-            field: Field::Time,
-            ..
-        }
-    ));
-    let err = pairs_err("0 0\n60 1 1\n");
-    assert!(matches!(err.kind(), DataErrorKind::ExtraField { text, .. } if text == "1"));
-    check(
-        &err,
-        "pairs.txt",
+        |k| matches!(k, DataErrorKind::MissingField { .. }),
+    )]);
+    for (text, missing) in [
+        ("0 0\n60\n", Field::Value),
+        ("0,,1\n", Field::Value),
+        (",1\n", Field::Time),
+    ] {
+        let err = pairs_err(text);
+        assert!(
+            matches!(err.kind(), DataErrorKind::MissingField { field, .. } if *field == missing),
+            "{err}"
+        );
+    }
+    let err = pairs_rejected(
+        "0 0\n60 1 1\n",
         Some(2),
         None,
         r#"pairs.txt:2: unexpected extra field "1" (expected two fields: time value)"#,
     );
+    assert!(matches!(err.kind(), DataErrorKind::ExtraField { text, .. } if text == "1"));
     let err = read_column_from("v.txt", "0\n1 1\n".as_bytes(), Field::Value).unwrap_err();
     assert_eq!(
         err.to_string(),
@@ -202,15 +204,13 @@ fn missing_and_extra_fields_are_rejected() {
 #[test]
 fn empty_inputs_are_rejected() {
     for text in ["", "\n\n", "# only a comment\n  \n"] {
-        let err = pairs_err(text);
-        assert!(matches!(err.kind(), DataErrorKind::Empty));
-        check(
-            &err,
-            "pairs.txt",
+        let err = pairs_rejected(
+            text,
             None,
             None,
             "pairs.txt: no data lines (the input is empty or has only blank lines and # comments)",
         );
+        assert!(matches!(err.kind(), DataErrorKind::Empty));
         let err = read_column_from("c.txt", text.as_bytes(), Field::Time).unwrap_err();
         assert!(matches!(err.kind(), DataErrorKind::Empty));
     }
@@ -295,21 +295,20 @@ fn plain_gzip_and_xz_files_read_the_same() {
     assert_eq!(read_pairs(&gz).unwrap(), expected);
 
     // a corrupt compressed file is a read error that names the file
-    let bad_xz = dir.join("bad.txt.xz");
-    std::fs::write(&bad_xz, b"\xFD7zXZ\0 definitely not xz").unwrap();
-    let err = read_pairs(&bad_xz).unwrap_err();
-    assert!(
-        matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
-        "{err}"
-    );
-    assert_eq!(err.name(), bad_xz.display().to_string());
-    let bad_gz = dir.join("bad.txt.gz");
-    std::fs::write(&bad_gz, b"not gzip at all").unwrap();
-    let err = read_pairs(&bad_gz).unwrap_err();
-    assert!(
-        matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
-        "{err}"
-    );
+    let corrupt: [(&str, &[u8]); 2] = [
+        ("bad.txt.xz", b"\xFD7zXZ\0 definitely not xz"),
+        ("bad.txt.gz", b"not gzip at all"),
+    ];
+    for (name, bytes) in corrupt {
+        let bad = dir.join(name);
+        std::fs::write(&bad, bytes).unwrap();
+        let err = read_pairs(&bad).unwrap_err();
+        assert!(
+            matches!(err.kind(), DataErrorKind::Io { action: "read", .. }),
+            "{err}"
+        );
+        assert_eq!(err.name(), bad.display().to_string());
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -5,7 +5,7 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::fs;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
@@ -39,6 +39,28 @@ fn folder(test: &str, files: &[(&str, &str)]) -> PathBuf {
 
 fn edge_err(text: &str) -> DataError {
     read_edge_file_from("A_B.data", text.as_bytes()).expect_err(text)
+}
+
+/// Checks every `(text, line, field, message)` row: reading `text` as `A_B.data` fails on that
+/// line and field with exactly that message.
+fn check_edge_rows(rows: &[(&str, usize, Option<Field>, &str)]) {
+    for &(text, line, field, message) in rows {
+        check(&edge_err(text), "A_B.data", Some(line), field, message);
+    }
+}
+
+/// Checks that `err` names `file` of `dir`, the line and the field, and that its message is
+/// the file's path followed by `rest`.
+fn check_in_dir(
+    err: &DataError,
+    dir: &Path,
+    file: &str,
+    line: Option<usize>,
+    field: Option<Field>,
+    rest: &str,
+) {
+    let path = dir.join(file).display().to_string();
+    check(err, &path, line, field, &format!("{path}{rest}"));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -241,34 +263,32 @@ fn negative_durations_name_file_line_and_field() {
 
 #[test]
 fn non_numeric_and_non_finite_fields_name_the_field() {
-    check(
-        &edge_err("10 5 1\nnoon 5 1\n"),
-        "A_B.data",
-        Some(2),
-        Some(Field::Time),
-        r#"A_B.data:2: time: "noon" is not a number"#,
-    );
-    check(
-        &edge_err("10 5s 1\n"),
-        "A_B.data",
-        Some(1),
-        Some(Field::Duration),
-        r#"A_B.data:1: duration: "5s" is not a number"#,
-    );
-    check(
-        &edge_err("10 inf 1\n"),
-        "A_B.data",
-        Some(1),
-        Some(Field::Duration),
-        r#"A_B.data:1: duration: "inf" is not a finite number"#,
-    );
-    check(
-        &edge_err("-10 5 1\n"),
-        "A_B.data",
-        Some(1),
-        Some(Field::Time),
-        r#"A_B.data:1: time: "-10" is negative (times are seconds >= 0)"#,
-    );
+    check_edge_rows(&[
+        (
+            "10 5 1\nnoon 5 1\n",
+            2,
+            Some(Field::Time),
+            r#"A_B.data:2: time: "noon" is not a number"#,
+        ),
+        (
+            "10 5s 1\n",
+            1,
+            Some(Field::Duration),
+            r#"A_B.data:1: duration: "5s" is not a number"#,
+        ),
+        (
+            "10 inf 1\n",
+            1,
+            Some(Field::Duration),
+            r#"A_B.data:1: duration: "inf" is not a finite number"#,
+        ),
+        (
+            "-10 5 1\n",
+            1,
+            Some(Field::Time),
+            r#"A_B.data:1: time: "-10" is negative (times are seconds >= 0)"#,
+        ),
+    ]);
 }
 
 #[test]
@@ -313,27 +333,26 @@ fn times_going_backwards_are_errors() {
 
 #[test]
 fn missing_and_extra_fields_are_errors() {
-    check(
-        &edge_err("10 5\n"),
-        "A_B.data",
-        Some(1),
-        Some(Field::Success),
-        "A_B.data:1: success: missing (expected three fields: time duration success)",
-    );
-    check(
-        &edge_err("10\n"),
-        "A_B.data",
-        Some(1),
-        Some(Field::Duration),
-        "A_B.data:1: duration: missing (expected three fields: time duration success)",
-    );
-    check(
-        &edge_err("10 5 1 extra\n"),
-        "A_B.data",
-        Some(1),
-        None,
-        r#"A_B.data:1: unexpected extra field "extra" (expected three fields: time duration success)"#,
-    );
+    check_edge_rows(&[
+        (
+            "10 5\n",
+            1,
+            Some(Field::Success),
+            "A_B.data:1: success: missing (expected three fields: time duration success)",
+        ),
+        (
+            "10\n",
+            1,
+            Some(Field::Duration),
+            "A_B.data:1: duration: missing (expected three fields: time duration success)",
+        ),
+        (
+            "10 5 1 extra\n",
+            1,
+            None,
+            r#"A_B.data:1: unexpected extra field "extra" (expected three fields: time duration success)"#,
+        ),
+    ]);
 }
 
 #[test]
@@ -381,15 +400,13 @@ fn file_names_that_do_not_split_into_two_nodes_are_errors() {
         &[("A_B.data", "1 1 1\n"), ("Kitchen.data", "1 1 1\n")],
     );
     let err = read_edge_directory(&dir).unwrap_err();
-    check(
+    check_in_dir(
         &err,
-        &dir.join("Kitchen.data").display().to_string(),
+        &dir,
+        "Kitchen.data",
         None,
         None,
-        &format!(
-            "{}: edge file name \"Kitchen\" does not name an edge <From>_<To>: it has no underscore",
-            dir.join("Kitchen.data").display()
-        ),
+        ": edge file name \"Kitchen\" does not name an edge <From>_<To>: it has no underscore",
     );
     assert!(matches!(err.kind(), DataErrorKind::EdgeFileName { stem, .. } if stem == "Kitchen"));
 
@@ -471,15 +488,13 @@ fn a_bad_line_in_a_directory_names_its_file() {
         &[("A_B.data", "1 1 1\n"), ("B_A.data", "1 1 1\n2 -3 1\n")],
     );
     let err = read_edge_directory(&dir).unwrap_err();
-    check(
+    check_in_dir(
         &err,
-        &dir.join("B_A.data").display().to_string(),
+        &dir,
+        "B_A.data",
         Some(2),
         Some(Field::Duration),
-        &format!(
-            "{}:2: duration: \"-3\" is negative (durations are seconds >= 0)",
-            dir.join("B_A.data").display()
-        ),
+        r#":2: duration: "-3" is negative (durations are seconds >= 0)"#,
     );
     let dir = folder("empty_file", &[("A_B.data", "")]);
     let err = read_edge_directory(&dir).unwrap_err();
