@@ -312,17 +312,22 @@ impl FrAam {
             return Err(ActivityError::Empty);
         }
         check_dwell(dwell, train.len())?;
-        let (t, y) = (train.t(), train.y());
+        let (t, omegas) = (train.t(), config.omegas());
+        let fitter = Fitter {
+            t,
+            y: train.y(),
+            dwell,
+            omegas: &omegas,
+            config,
+        };
         let all: Vec<usize> = (0..train.len()).collect();
-        let fallback = gamma_rate(&all, y, dwell, config);
-        let omegas = config.omegas();
+        let fallback = fitter.gamma_rate(&all);
         let cells = train
             .cells()
             .into_iter()
             .map(|(key, mut idx)| {
                 idx.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
-                let cell = fit_cell(&idx, t, y, dwell, &omegas, config);
-                (key, cell)
+                (key, fitter.fit_cell(&idx))
             })
             .collect();
         Ok(FrAam { cells, fallback })
@@ -362,141 +367,137 @@ impl RatePredictor for FrAam {
     }
 }
 
-/// `(Σ y_i Δ_i + α) / (Σ Δ_i + β)` over `idx`.
-fn gamma_rate(idx: &[usize], y: &[f64], dwell: &[f64], config: &FrAamConfig) -> f64 {
-    let counts: f64 = idx.iter().map(|&i| y[i] * dwell[i]).sum();
-    let time: f64 = idx.iter().map(|&i| dwell[i]).sum();
-    (counts + config.prior_count) / (time + config.prior_duration)
+/// What every cell of an Fr-AAM fit shares (§4.3.2, Jovan et al. 2016): the times, rates and
+/// dwell times of all training samples (a cell is a list of their indices), the candidate
+/// angular frequencies and the settings.
+struct Fitter<'a> {
+    t: &'a [f64],
+    y: &'a [f64],
+    dwell: &'a [f64],
+    omegas: &'a [f64],
+    config: &'a FrAamConfig,
 }
 
-/// The additional-amplitude iteration: `order` steps, each the candidate frequency of the
-/// largest weighted amplitude of the residual, subtracted from it. Returns
-/// `(candidate index, γ)` per step (a frequency may repeat).
-fn aam_steps(
-    idx: &[usize],
-    t: &[f64],
-    y: &[f64],
-    dwell: &[f64],
-    rate: f64,
-    omegas: &[f64],
-    order: usize,
-) -> Vec<(usize, f64, f64)> {
-    let mut residual: Vec<f64> = idx.iter().map(|&i| y[i] - rate).collect();
-    let weight: f64 = idx.iter().map(|&i| dwell[i]).sum();
-    let mut steps = Vec::with_capacity(order);
-    for _ in 0..order {
-        let mut best: Option<(usize, f64, f64, f64)> = None;
-        for (k, &omega) in omegas.iter().enumerate() {
-            let (mut re, mut im) = (0.0, 0.0);
-            for (j, &i) in idx.iter().enumerate() {
-                let (s, c) = (omega * t[i]).sin_cos();
-                re += dwell[i] * residual[j] * c;
-                im -= dwell[i] * residual[j] * s;
-            }
-            let (re, im) = (re / weight, im / weight);
-            let power = re * re + im * im;
-            if best.is_none_or(|b| power > b.3) {
-                best = Some((k, re, im, power));
-            }
-        }
-        let Some((k, re, im, power)) = best else {
-            break;
-        };
-        if power == 0.0 {
-            break;
-        }
-        let component = FrAamComponent {
-            period: std::f64::consts::TAU / omegas[k],
-            re,
-            im,
-        };
-        for (j, &i) in idx.iter().enumerate() {
-            residual[j] -= component.at(t[i]);
-        }
-        steps.push((k, re, im));
+impl Fitter<'_> {
+    /// `(Σ y_i Δ_i + α) / (Σ Δ_i + β)` over `idx`.
+    fn gamma_rate(&self, idx: &[usize]) -> f64 {
+        let (y, dwell) = (self.y, self.dwell);
+        let counts: f64 = idx.iter().map(|&i| y[i] * dwell[i]).sum();
+        let time: f64 = idx.iter().map(|&i| dwell[i]).sum();
+        (counts + self.config.prior_count) / (time + self.config.prior_duration)
     }
-    steps
-}
 
-fn fit_cell(
-    idx: &[usize],
-    t: &[f64],
-    y: &[f64],
-    dwell: &[f64],
-    omegas: &[f64],
-    config: &FrAamConfig,
-) -> FrAamCell {
-    let order = if idx.len() < config.folds || config.max_order == 0 {
-        0
-    } else {
-        cross_validated_order(idx, t, y, dwell, omegas, config)
-    };
-    let rate = gamma_rate(idx, y, dwell, config);
-    let mut components: Vec<(usize, FrAamComponent)> = Vec::new();
-    for (k, re, im) in aam_steps(idx, t, y, dwell, rate, omegas, order) {
-        if let Some((_, c)) = components.iter_mut().find(|(j, _)| *j == k) {
-            c.re += re;
-            c.im += im;
-        } else {
-            let period = std::f64::consts::TAU / omegas[k];
-            components.push((k, FrAamComponent { period, re, im }));
-        }
-    }
-    FrAamCell {
-        rate,
-        components: components.into_iter().map(|(_, c)| c).collect(),
-    }
-}
-
-/// The number of components with the least dwell-weighted squared error on held-out
-/// contiguous folds (the smallest such number on ties).
-fn cross_validated_order(
-    idx: &[usize],
-    t: &[f64],
-    y: &[f64],
-    dwell: &[f64],
-    omegas: &[f64],
-    config: &FrAamConfig,
-) -> usize {
-    let n = idx.len();
-    let mut errors = vec![0.0; config.max_order + 1];
-    for fold in 0..config.folds {
-        let (lo, hi) = (fold * n / config.folds, (fold + 1) * n / config.folds);
-        let train: Vec<usize> = idx[..lo].iter().chain(&idx[hi..]).copied().collect();
-        let held = &idx[lo..hi];
-        let rate = gamma_rate(&train, y, dwell, config);
-        let steps = aam_steps(&train, t, y, dwell, rate, omegas, config.max_order);
-        let mut prediction: Vec<f64> = vec![rate; held.len()];
-        for (order, error) in errors.iter_mut().enumerate() {
-            if order > 0 {
-                let Some(&(k, re, im)) = steps.get(order - 1) else {
-                    // The iteration stopped early: higher orders equal this one.
-                    *error = f64::INFINITY;
-                    continue;
-                };
-                let c = FrAamComponent {
-                    period: std::f64::consts::TAU / omegas[k],
-                    re,
-                    im,
-                };
-                for (p, &i) in prediction.iter_mut().zip(held) {
-                    *p += c.at(t[i]);
+    /// The additional-amplitude iteration: `order` steps, each the candidate frequency of the
+    /// largest weighted amplitude of the residual, subtracted from it. Returns
+    /// `(candidate index, γ)` per step (a frequency may repeat).
+    fn aam_steps(&self, idx: &[usize], rate: f64, order: usize) -> Vec<(usize, f64, f64)> {
+        let (t, y, dwell, omegas) = (self.t, self.y, self.dwell, self.omegas);
+        let mut residual: Vec<f64> = idx.iter().map(|&i| y[i] - rate).collect();
+        let weight: f64 = idx.iter().map(|&i| dwell[i]).sum();
+        let mut steps = Vec::with_capacity(order);
+        for _ in 0..order {
+            let mut best: Option<(usize, f64, f64, f64)> = None;
+            for (k, &omega) in omegas.iter().enumerate() {
+                let (mut re, mut im) = (0.0, 0.0);
+                for (j, &i) in idx.iter().enumerate() {
+                    let (s, c) = (omega * t[i]).sin_cos();
+                    re += dwell[i] * residual[j] * c;
+                    im -= dwell[i] * residual[j] * s;
+                }
+                let (re, im) = (re / weight, im / weight);
+                let power = re * re + im * im;
+                if best.is_none_or(|b| power > b.3) {
+                    best = Some((k, re, im, power));
                 }
             }
-            *error += prediction
-                .iter()
-                .zip(held)
-                .map(|(p, &i)| dwell[i] * (p.max(0.0) - y[i]).powi(2))
-                .sum::<f64>();
+            let Some((k, re, im, power)) = best else {
+                break;
+            };
+            if power == 0.0 {
+                break;
+            }
+            let component = FrAamComponent {
+                period: std::f64::consts::TAU / omegas[k],
+                re,
+                im,
+            };
+            for (j, &i) in idx.iter().enumerate() {
+                residual[j] -= component.at(t[i]);
+            }
+            steps.push((k, re, im));
+        }
+        steps
+    }
+
+    /// The model of the cell of the samples `idx` (in time order).
+    fn fit_cell(&self, idx: &[usize]) -> FrAamCell {
+        let config = self.config;
+        let order = if idx.len() < config.folds || config.max_order == 0 {
+            0
+        } else {
+            self.cross_validated_order(idx)
+        };
+        let rate = self.gamma_rate(idx);
+        let mut components: Vec<(usize, FrAamComponent)> = Vec::new();
+        for (k, re, im) in self.aam_steps(idx, rate, order) {
+            if let Some((_, c)) = components.iter_mut().find(|(j, _)| *j == k) {
+                c.re += re;
+                c.im += im;
+            } else {
+                let period = std::f64::consts::TAU / self.omegas[k];
+                components.push((k, FrAamComponent { period, re, im }));
+            }
+        }
+        FrAamCell {
+            rate,
+            components: components.into_iter().map(|(_, c)| c).collect(),
         }
     }
-    let mut best = 0;
-    for (order, &e) in errors.iter().enumerate() {
-        if e < errors[best] {
-            best = order;
+
+    /// The number of components with the least dwell-weighted squared error on held-out
+    /// contiguous folds (the smallest such number on ties).
+    fn cross_validated_order(&self, idx: &[usize]) -> usize {
+        let (t, y, dwell, config) = (self.t, self.y, self.dwell, self.config);
+        let n = idx.len();
+        let mut errors = vec![0.0; config.max_order + 1];
+        for fold in 0..config.folds {
+            let (lo, hi) = (fold * n / config.folds, (fold + 1) * n / config.folds);
+            let train: Vec<usize> = idx[..lo].iter().chain(&idx[hi..]).copied().collect();
+            let held = &idx[lo..hi];
+            let rate = self.gamma_rate(&train);
+            let steps = self.aam_steps(&train, rate, config.max_order);
+            let mut prediction: Vec<f64> = vec![rate; held.len()];
+            for (order, error) in errors.iter_mut().enumerate() {
+                if order > 0 {
+                    let Some(&(k, re, im)) = steps.get(order - 1) else {
+                        // The iteration stopped early: higher orders equal this one.
+                        *error = f64::INFINITY;
+                        continue;
+                    };
+                    let c = FrAamComponent {
+                        period: std::f64::consts::TAU / self.omegas[k],
+                        re,
+                        im,
+                    };
+                    for (p, &i) in prediction.iter_mut().zip(held) {
+                        *p += c.at(t[i]);
+                    }
+                }
+                *error += prediction
+                    .iter()
+                    .zip(held)
+                    .map(|(p, &i)| dwell[i] * (p.max(0.0) - y[i]).powi(2))
+                    .sum::<f64>();
+            }
         }
+        let mut best = 0;
+        for (order, &e) in errors.iter().enumerate() {
+            if e < errors[best] {
+                best = order;
+            }
+        }
+        best
     }
-    best
 }
 
 /// The baselines by name, for choosing one at run time.
@@ -780,24 +781,15 @@ mod tests {
     #[test]
     fn fr_aam_rejects_bad_configs() {
         let s = samples(&[([0.0, 0.0], 0.0, 1.0)]);
-        for config in [
-            FrAamConfig {
-                period: 0.0,
-                ..FrAamConfig::default()
-            },
-            FrAamConfig {
-                harmonics: 0,
-                ..FrAamConfig::default()
-            },
-            FrAamConfig {
-                folds: 1,
-                ..FrAamConfig::default()
-            },
-            FrAamConfig {
-                prior_duration: 0.0,
-                ..FrAamConfig::default()
-            },
-        ] {
+        let bad: [fn(&mut FrAamConfig); 4] = [
+            |c| c.period = 0.0,
+            |c| c.harmonics = 0,
+            |c| c.folds = 1,
+            |c| c.prior_duration = 0.0,
+        ];
+        for edit in bad {
+            let mut config = FrAamConfig::default();
+            edit(&mut config);
             assert!(matches!(
                 FrAam::fit(&s, &config),
                 Err(ActivityError::Config(_))

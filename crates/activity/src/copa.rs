@@ -425,35 +425,31 @@ pub(crate) fn fit_training(
     }
 }
 
-/// [`RatePredictor::predict`] of a model that predicts many points at once.
-pub(crate) fn predict_one(
-    predict: impl FnOnce(&[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>), GpError>,
-    x: [f64; 2],
-    t: f64,
-) -> f64 {
-    predict(&[(x, t)]).map_or(f64::NAN, |(mean, _)| mean[0])
+/// Implements [`RatePredictor`], named `$name`, for a GP model whose inherent
+/// `predict_with_std(points, par)` predicts many points at once: on one thread, `NaN` where
+/// the prediction fails (for one point, or everywhere for a batch). `RatePredictor`,
+/// `RateSamples` and `Parallelism` must be in scope.
+macro_rules! gp_rate_predictor {
+    ($model:ty, $name:literal) => {
+        impl RatePredictor for $model {
+            fn name(&self) -> &str {
+                $name
+            }
+
+            fn predict(&self, x: [f64; 2], t: f64) -> f64 {
+                self.predict_with_std(&[(x, t)], Parallelism::Sequential)
+                    .map_or(f64::NAN, |(mean, _)| mean[0])
+            }
+
+            fn predict_samples(&self, at: &RateSamples) -> Vec<f64> {
+                let points: Vec<([f64; 2], f64)> =
+                    at.x().iter().copied().zip(at.t().iter().copied()).collect();
+                self.predict_with_std(&points, Parallelism::Sequential)
+                    .map_or_else(|_| vec![f64::NAN; points.len()], |(mean, _)| mean)
+            }
+        }
+    };
 }
+pub(crate) use gp_rate_predictor;
 
-/// [`RatePredictor::predict_samples`] of a model that predicts many points at once (`NaN`
-/// everywhere if it fails).
-pub(crate) fn predict_all(
-    predict: impl FnOnce(&[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>), GpError>,
-    at: &RateSamples,
-) -> Vec<f64> {
-    let points: Vec<([f64; 2], f64)> = at.x().iter().copied().zip(at.t().iter().copied()).collect();
-    predict(&points).map_or_else(|_| vec![f64::NAN; points.len()], |(mean, _)| mean)
-}
-
-impl RatePredictor for CopaMap {
-    fn name(&self) -> &str {
-        "copa"
-    }
-
-    fn predict(&self, x: [f64; 2], t: f64) -> f64 {
-        predict_one(|p| self.predict_with_std(p, Parallelism::Sequential), x, t)
-    }
-
-    fn predict_samples(&self, at: &RateSamples) -> Vec<f64> {
-        predict_all(|p| self.predict_with_std(p, Parallelism::Sequential), at)
-    }
-}
+gp_rate_predictor!(CopaMap, "copa");

@@ -763,8 +763,14 @@ mod tests {
         ObstacleGrid::free(200, 200, 0.05, [0.0, 0.0]).unwrap()
     }
 
+    /// A valid loop through `(position, stop seconds)` waypoints at `speed` m/s.
+    fn robot_path(waypoints: &[([f64; 2], f64)], speed: f64) -> RobotPath {
+        let waypoints = waypoints.iter().map(|&(at, stop)| Waypoint::new(at, stop));
+        RobotPath::new(waypoints.collect(), speed).unwrap()
+    }
+
     fn standing(at: [f64; 2]) -> RobotPath {
-        RobotPath::new(vec![Waypoint::new(at, 10.0)], 0.5).unwrap()
+        robot_path(&[(at, 10.0)], 0.5)
     }
 
     fn event(t: f64, x: f64, y: f64) -> Event {
@@ -829,14 +835,7 @@ mod tests {
     #[test]
     fn path_poses_loop_with_stops() {
         // 0 → (4, 0), stop 2 s at both ends, 2 m/s: stop 2, drive 2, stop 2, drive 2.
-        let p = RobotPath::new(
-            vec![
-                Waypoint::new([0.0, 0.0], 2.0),
-                Waypoint::new([4.0, 0.0], 2.0),
-            ],
-            2.0,
-        )
-        .unwrap();
+        let p = robot_path(&[([0.0, 0.0], 2.0), ([4.0, 0.0], 2.0)], 2.0);
         assert_eq!((p.period(), p.length()), (8.0, 8.0));
         assert_eq!(p.pose_at(1.0), [0.0, 0.0]);
         assert_eq!(p.pose_at(3.0), [2.0, 0.0]);
@@ -850,24 +849,10 @@ mod tests {
         assert!(RobotPath::new(vec![Waypoint::new([0.0, 0.0], 1.0)], 0.0).is_err());
         let mut g = room();
         g.block_rectangle([2.0, -1.0], [2.1, 1.0]);
-        let through = RobotPath::new(
-            vec![
-                Waypoint::new([1.0, 0.5], 0.0),
-                Waypoint::new([4.0, 0.5], 0.0),
-            ],
-            0.5,
-        )
-        .unwrap();
+        let through = robot_path(&[([1.0, 0.5], 0.0), ([4.0, 0.5], 0.0)], 0.5);
         let (at, outside) = through.first_blocked(&g, 0.025).unwrap();
         assert!(!outside && (2.0..=2.1).contains(&at[0]), "{at:?}");
-        let off = RobotPath::new(
-            vec![
-                Waypoint::new([1.0, 0.5], 0.0),
-                Waypoint::new([1.0, -0.5], 0.0),
-            ],
-            0.5,
-        )
-        .unwrap();
+        let off = robot_path(&[([1.0, 0.5], 0.0), ([1.0, -0.5], 0.0)], 0.5);
         assert!(off.first_blocked(&g, 0.025).unwrap().1);
     }
 
@@ -914,14 +899,7 @@ mod tests {
         // forward and once back. With r = 0.5 m the pose 1.525 + k sees exactly the cells
         // centred at x ∈ {1.25 + k, 1.75 + k}, y ∈ {4.75, 5.25} (0.32 to 0.39 m away; the next
         // ones are 0.73 m away), so the 32 cells x 1.25 .. 8.75 are each seen for 2 s a loop.
-        let path = RobotPath::new(
-            vec![
-                Waypoint::new([1.025, 5.025], 0.0),
-                Waypoint::new([9.025, 5.025], 0.0),
-            ],
-            1.0,
-        )
-        .unwrap();
+        let path = robot_path(&[([1.025, 5.025], 0.0), ([9.025, 5.025], 0.0)], 1.0);
         assert_eq!(path.period(), 16.0);
         let config = ExtractConfig {
             fov_radius: 0.5,

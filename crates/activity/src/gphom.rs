@@ -12,7 +12,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::copa::{InputScaling, check_fit, day_harmonics, fit_training, predict_all, predict_one};
+use super::copa::{InputScaling, check_fit, day_harmonics, fit_training, gp_rate_predictor};
 use super::init::inducing_points;
 use super::{RatePredictor, RateSamples};
 use crate::gp::{ActivityKernel, GpError, Point, PoissonSvgp, train_with_progress};
@@ -154,19 +154,7 @@ impl GpHom {
     }
 }
 
-impl RatePredictor for GpHom {
-    fn name(&self) -> &str {
-        "gp_hom"
-    }
-
-    fn predict(&self, x: [f64; 2], t: f64) -> f64 {
-        predict_one(|p| self.predict_with_std(p, Parallelism::Sequential), x, t)
-    }
-
-    fn predict_samples(&self, at: &RateSamples) -> Vec<f64> {
-        predict_all(|p| self.predict_with_std(p, Parallelism::Sequential), at)
-    }
-}
+gp_rate_predictor!(GpHom, "gp_hom");
 
 #[cfg(test)]
 mod tests {

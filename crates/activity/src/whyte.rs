@@ -101,7 +101,7 @@ use super::init::check_dwell;
 use super::{ActivityError, CellKey, RatePredictor, RateSamples};
 use chronomap_core::par::Parallelism;
 use chronomap_hypertime::hypertime::{project, strongest_period};
-use chronomap_hypertime::mixture::{EmConfig, EmInit, GaussianMixture, MixtureError, fit_em};
+use chronomap_hypertime::mixture::{EmConfig, EmInit, GaussianMixture, fit_em_at_most};
 
 /// How [`Whyte`] is fitted.
 #[derive(Clone, Debug, PartialEq)]
@@ -430,31 +430,24 @@ fn fit_mixture(
     config: &WhyteConfig,
     periods: usize,
 ) -> Result<GaussianMixture, ActivityError> {
-    let mut k = components;
-    loop {
-        let em = EmConfig {
-            components: k,
-            max_iterations: config.max_iterations,
-            tolerance: config.tolerance,
-            regularization: config.regularization,
-            relative_regularization: true,
-            starts: config.starts,
-            init: EmInit::KMeansPlusPlus,
-            seed: chronomap_core::rng::derive_seed(
-                config.seed,
-                0x0057_4879_5465,
-                periods as u64,
-                k as u64,
-            ),
-        };
-        match fit_em(data, dim, Some(weights), &em) {
-            Ok(fit) => return Ok(fit.mixture),
-            Err(MixtureError::TooFewPoints { points, .. }) if points >= 1 && k > 1 => {
-                k = points.min(k - 1);
-            }
-            Err(e) => return Err(ActivityError::Config(format!("WHyTe mixture: {e}"))),
-        }
-    }
+    let em = |k: usize| EmConfig {
+        components: k,
+        max_iterations: config.max_iterations,
+        tolerance: config.tolerance,
+        regularization: config.regularization,
+        relative_regularization: true,
+        starts: config.starts,
+        init: EmInit::KMeansPlusPlus,
+        seed: chronomap_core::rng::derive_seed(
+            config.seed,
+            0x0057_4879_5465,
+            periods as u64,
+            k as u64,
+        ),
+    };
+    fit_em_at_most(data, dim, Some(weights), components, em)
+        .map(|fit| fit.mixture)
+        .map_err(|e| ActivityError::Config(format!("WHyTe mixture: {e}")))
 }
 
 /// WHyTe as a [`RatePredictor`]: the ratio of a mixture of people to a mixture of

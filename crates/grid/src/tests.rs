@@ -179,12 +179,8 @@ fn every_cell_equals_cell_by_cell_fremen_exactly() {
 #[test]
 fn predicted_maps_equal_the_cell_models() {
     let geometry = GridGeometry::planar(9, 8, 0.05, [0.0, 0.0]).unwrap();
-    let config = GridConfig {
-        fremen: FremenConfig::with_order(3),
-        keep_history: false,
-    };
     let inputs = scenario(geometry.cells(), 200, false, 11);
-    let (grid, models) = build(geometry, config, &inputs);
+    let (grid, models) = build(geometry, of_order(3, false), &inputs);
     let t = 1_461_000_000.0;
     let map = grid.predict_map(t);
     for (c, model) in models.iter().enumerate() {
@@ -234,12 +230,8 @@ fn grids_built_on_parts_concatenate_to_the_whole() {
 #[test]
 fn lossless_grids_reconstruct_every_frame() {
     let geometry = GridGeometry::planar(10, 9, 0.1, [0.0, 0.0]).unwrap();
-    let config = GridConfig {
-        fremen: FremenConfig::with_order(2),
-        keep_history: true,
-    };
     let inputs = scenario(geometry.cells(), 250, true, 5);
-    let (grid, _) = build(geometry, config, &inputs);
+    let (grid, _) = build(geometry, of_order(2, true), &inputs);
     // Constant cells (classes 0 and 1) cost no per-cell storage; changing ones do.
     for c in 0..geometry.cells() {
         let constant = c % 9 <= 1;
@@ -277,6 +269,14 @@ fn lossless_grids_reconstruct_every_frame() {
     // Fractional frames cannot be stored losslessly.
     let (fractional, _) = build(geometry, with_history(), &scenario(90, 50, false, 1));
     assert!(fractional.lossless(OrderChoice::Fixed(1)).is_err());
+}
+
+/// Cell models of FreMEn order `order`, keeping every frame or not.
+fn of_order(order: usize, keep_history: bool) -> GridConfig {
+    GridConfig {
+        fremen: FremenConfig::with_order(order),
+        keep_history,
+    }
 }
 
 /// The default configuration, keeping every frame (for estimation errors and lossless grids).

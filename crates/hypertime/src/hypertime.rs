@@ -34,7 +34,7 @@ pub mod events;
 
 use serde::{Deserialize, Serialize};
 
-use crate::mixture::{EmConfig, EmInit, GaussianMixture, fit_em};
+use crate::mixture::{EmConfig, EmInit, GaussianMixture, fit_em_at_most};
 use chronomap_core::error::{BuildError, ConfigError, ObservationError};
 use chronomap_core::model::TemporalModel;
 use chronomap_core::observe::{ObservedSpan, validate};
@@ -253,16 +253,11 @@ fn fit_mixture(
     config: &HypertimeConfig,
     stage: u64,
 ) -> Result<GaussianMixture, BuildError> {
-    let mut k = components;
-    loop {
-        match fit_em(data, dim, Some(weights), &em_config(config, k, stage)) {
-            Ok(fit) => return Ok(fit.mixture),
-            Err(crate::mixture::MixtureError::TooFewPoints { points, .. }) if points >= 1 => {
-                k = points.min(k - 1).max(1);
-            }
-            Err(e) => return Err(BuildError::NotEnoughData(e.to_string())),
-        }
-    }
+    fit_em_at_most(data, dim, Some(weights), components, |k| {
+        em_config(config, k, stage)
+    })
+    .map(|fit| fit.mixture)
+    .map_err(|e| BuildError::NotEnoughData(e.to_string()))
 }
 
 impl Fitted {

@@ -553,6 +553,30 @@ pub fn fit_em(
     Ok(em::fit(&rows, config))
 }
 
+/// [`fit_em`] with at most `components` components ([Krajník 2019] eq. 2 with fewer Gaussians
+/// where the data have fewer distinct points): when only `p ≥ 1` distinct rows carry weight,
+/// fits `p` components instead. `config(k)` is the EM configuration for `k` components.
+///
+/// # Errors
+/// As [`fit_em`]; [`MixtureError::TooFewPoints`] only when no row carries weight.
+pub fn fit_em_at_most(
+    data: &[f64],
+    dim: usize,
+    weights: Option<&[f64]>,
+    components: usize,
+    config: impl Fn(usize) -> EmConfig,
+) -> Result<EmFit, MixtureError> {
+    let mut k = components;
+    loop {
+        match fit_em(data, dim, weights, &config(k)) {
+            Err(MixtureError::TooFewPoints { points, .. }) if points >= 1 && points < k => {
+                k = points;
+            }
+            result => return result,
+        }
+    }
+}
+
 /// EM from a given initial mixture (one start, no random choices): what scikit-learn's
 /// `GaussianMixture(means_init=…, weights_init=…, precisions_init=…)` does, for oracle tests.
 ///

@@ -421,13 +421,26 @@ fn corridor_synthesis(
     synthesize(grid, model, from, t, &config, seed, Parallelism::Sequential)
 }
 
+/// PSBT and the W baseline (waiting at the start) on the corridor from `from` at model time
+/// 10 s, with the default settings and `seed`.
+fn psbt_and_waiting(
+    grid: &PlanningGrid,
+    model: &GridPoisson,
+    from: [f64; 2],
+    seed: u64,
+) -> (Synthesis, Plan) {
+    let psbt = corridor_synthesis(grid, model, from, 10.0, seed).unwrap();
+    let config = PsbtConfig::default();
+    let w = baseline(grid, model, from, 10.0, &config, Method::W, seed).unwrap();
+    (psbt, w)
+}
+
 #[test]
 fn a_busy_place_beats_waiting_at_an_empty_start() {
     let (grid, model) = corridor();
     let config = PsbtConfig::default();
     let from = [1.25, 1.25];
-    let psbt = corridor_synthesis(&grid, &model, from, 10.0, 4).unwrap();
-    let w = baseline(&grid, &model, from, 10.0, &config, Method::W, 4).unwrap();
+    let (psbt, w) = psbt_and_waiting(&grid, &model, from, 4);
     let pp = baseline(&grid, &model, from, 10.0, &config, Method::Pp, 4).unwrap();
     let gm = baseline(&grid, &model, from, 10.0, &config, Method::Gm, 4).unwrap();
     // Six places do not fit 2 m apart into the busy 6 x 3 m: fewer were sampled.
@@ -464,10 +477,8 @@ fn a_busy_place_beats_waiting_at_an_empty_start() {
 #[test]
 fn waiting_at_a_busy_start_is_kept() {
     let (grid, model) = corridor();
-    let config = PsbtConfig::default();
     let from = [27.25, 1.25];
-    let psbt = corridor_synthesis(&grid, &model, from, 10.0, 9).unwrap();
-    let w = baseline(&grid, &model, from, 10.0, &config, Method::W, 9).unwrap();
+    let (psbt, w) = psbt_and_waiting(&grid, &model, from, 9);
     assert!(psbt.p_success >= w.p_success);
     assert!(w.p_success > 0.85);
     // The first action is a wait at x0, or a search ending within r_D of it.

@@ -903,20 +903,24 @@ impl Arena {
     }
 
     fn and(&mut self, a: Id, b: Id) -> Id {
-        match (a, b) {
-            (FALSE, _) | (_, FALSE) => FALSE,
-            (TRUE, x) | (x, TRUE) => x,
-            (a, b) if a == b => a,
-            (a, b) => self.intern(Node::And(a.min(b), a.max(b))),
-        }
+        self.junction(a, b, FALSE, TRUE, Node::And)
     }
 
     fn or(&mut self, a: Id, b: Id) -> Id {
-        match (a, b) {
-            (TRUE, _) | (_, TRUE) => TRUE,
-            (FALSE, x) | (x, FALSE) => x,
-            (a, b) if a == b => a,
-            (a, b) => self.intern(Node::Or(a.min(b), a.max(b))),
+        self.junction(a, b, TRUE, FALSE, Node::Or)
+    }
+
+    /// `a ∘ b` for the commutative, idempotent `node` with absorbing element `zero` and
+    /// neutral element `one`, operands ordered so that `a ∘ b` and `b ∘ a` share one id.
+    fn junction(&mut self, a: Id, b: Id, zero: Id, one: Id, node: fn(Id, Id) -> Node) -> Id {
+        if a == zero || b == zero {
+            zero
+        } else if a == one {
+            b
+        } else if b == one || a == b {
+            a
+        } else {
+            self.intern(node(a.min(b), a.max(b)))
         }
     }
 

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Components, check_candidate_periods, out_of_range, project, strongest_period};
 use crate::events::{Event, EventGrid, EventIntensity, Holdout, SpatialGrid, TrainingData};
-use crate::mixture::{EmConfig, EmInit, GaussianMixture, MixtureError, fit_em};
+use crate::mixture::{EmConfig, EmInit, GaussianMixture, fit_em_at_most};
 use chronomap_core::error::{BuildError, ConfigError};
 use chronomap_core::periods::DAY;
 
@@ -189,28 +189,22 @@ impl HypertimeEvents {
         });
         let (data, weights) = merged_points(events, periods, day_aligned);
         let dim = 2 + 2 * periods.len();
-        let mut k = k;
-        let mixture = loop {
-            let em = EmConfig {
-                components: k,
-                starts: config.starts,
-                init: EmInit::KMeansPlusPlus,
-                seed: chronomap_core::rng::derive_seed(
-                    config.seed,
-                    0x4556,
-                    periods.len() as u64,
-                    k as u64,
-                ),
-                ..EmConfig::default()
-            };
-            match fit_em(&data, dim, Some(&weights), &em) {
-                Ok(fit) => break fit.mixture,
-                Err(MixtureError::TooFewPoints { points, .. }) if points >= 1 && k > 1 => {
-                    k = points.min(k - 1);
-                }
-                Err(e) => return Err(BuildError::NotEnoughData(e.to_string())),
-            }
+        let em = |k: usize| EmConfig {
+            components: k,
+            starts: config.starts,
+            init: EmInit::KMeansPlusPlus,
+            seed: chronomap_core::rng::derive_seed(
+                config.seed,
+                0x4556,
+                periods.len() as u64,
+                k as u64,
+            ),
+            ..EmConfig::default()
         };
+        let mixture = fit_em_at_most(&data, dim, Some(&weights), k, em)
+            .map_err(|e| BuildError::NotEnoughData(e.to_string()))?
+            .mixture;
+        let k = mixture.components();
         let time_dims: Vec<usize> = (2..dim).collect();
         let time_marginal = (!periods.is_empty()).then(|| mixture.marginal(&time_dims));
         let mut model = HypertimeEvents {

@@ -114,13 +114,20 @@ pub(crate) fn sccs(mdp: &SparseMdp, active: &[bool], edge_ok: &[bool]) -> Vec<us
         if !active[root] || index[root] != NONE {
             continue;
         }
-        index[root] = next_index;
-        low[root] = next_index;
-        next_index += 1;
-        stack.push(root);
-        on_stack[root] = true;
-        calls.push((root, successors(root).collect(), 0));
-        while let Some(frame) = calls.last_mut() {
+        // A state reached for the first time: numbered and pushed at the top of the loop.
+        let mut discovered = Some(root);
+        loop {
+            if let Some(v) = discovered.take() {
+                index[v] = next_index;
+                low[v] = next_index;
+                next_index += 1;
+                stack.push(v);
+                on_stack[v] = true;
+                calls.push((v, successors(v).collect(), 0));
+            }
+            let Some(frame) = calls.last_mut() else {
+                break;
+            };
             let v = frame.0;
             if frame.2 < frame.1.len() {
                 let w = frame.1[frame.2];
@@ -129,12 +136,7 @@ pub(crate) fn sccs(mdp: &SparseMdp, active: &[bool], edge_ok: &[bool]) -> Vec<us
                     continue;
                 }
                 if index[w] == NONE {
-                    index[w] = next_index;
-                    low[w] = next_index;
-                    next_index += 1;
-                    stack.push(w);
-                    on_stack[w] = true;
-                    calls.push((w, successors(w).collect(), 0));
+                    discovered = Some(w);
                 } else if on_stack[w] {
                     low[v] = low[v].min(index[w]);
                 }
