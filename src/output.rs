@@ -10,8 +10,6 @@
 //! * [`ProgressBar`] draws a bar on stderr for work that takes more than a few seconds; it is
 //!   hidden when stderr is not a terminal and with `--quiet`.
 
-#![allow(dead_code)] // until every command reports through it
-
 use std::fmt;
 use std::io::{self, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -110,12 +108,7 @@ impl ProgressBar {
         } else {
             indicatif::ProgressBar::new(0)
         };
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{msg:>24} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})",
-            )
-            .expect("a valid template"),
-        );
+        bar.set_style(style(0));
         bar.enable_steady_tick(Duration::from_millis(200));
         ProgressBar(bar)
     }
@@ -128,6 +121,17 @@ impl ProgressBar {
     }
 }
 
+/// The bar of a stage of `total` steps; a stage of unknown length (`total` 0) shows a
+/// spinner and the elapsed time instead of "0/0".
+fn style(total: u64) -> indicatif::ProgressStyle {
+    let template = if total == 0 {
+        "{msg:>24} [{elapsed_precise}] {spinner}"
+    } else {
+        "{msg:>24} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})"
+    };
+    indicatif::ProgressStyle::with_template(template).expect("a valid template")
+}
+
 impl Default for ProgressBar {
     fn default() -> Self {
         Self::new()
@@ -136,6 +140,7 @@ impl Default for ProgressBar {
 
 impl Progress for ProgressBar {
     fn stage(&self, name: &str, total: u64) {
+        self.0.set_style(style(total));
         self.0.set_message(name.to_string());
         self.0.set_length(total);
         self.0.set_position(0);

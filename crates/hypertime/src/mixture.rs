@@ -15,7 +15,7 @@
 //! M-step `n_c = Σ_i v_i r_ic`, `w_c = n_c / Σ n`, `μ_c = Σ_i v_i r_ic x_i / n_c`,
 //! `Σ_c = Σ_i v_i r_ic (x_i − μ_c)(x_i − μ_c)ᵀ / n_c + λI` (`v_i` the row weights, `λ` the
 //! ridge), in the order and with the conventions of scikit-learn's `GaussianMixture`, whose
-//! trajectory [`fit_em_from`] reproduces (to ~1e-14 in `tests/sklearn_gmm.rs`). With the ridge
+//! trajectory [`fit_em_from`] reproduces (to ~1e-14 in `tests/cli/sklearn_gmm.rs`). With the ridge
 //! the M-step maximises a penalised expected log-likelihood, so the likelihood is
 //! non-decreasing only up to terms of the order of `λ` (invisible at the default relative
 //! `1e-6`; about 1e-6 with an absolute `λ = 1e-4` on a 0/1 column, as in scikit-learn).
