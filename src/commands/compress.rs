@@ -54,14 +54,9 @@ pub fn run(args: &CompressArgs) -> Result<()> {
             };
             let (best, errors) = FftFremen::select_order(&samples, step, 0.25, 20, config)?;
             if !args.json {
-                let listed: Vec<String> = errors
-                    .iter()
-                    .enumerate()
-                    .map(|(k, e)| format!("{k}:{e:.4}"))
-                    .collect();
                 outln!(
                     "order {best} chosen by prediction error on the last 25 % (eq. 15; by order {})",
-                    listed.join(" ")
+                    super::errors_by_order(&errors)
                 )?;
             }
             order_errors = Some(errors);
