@@ -85,8 +85,8 @@ pub struct GridBuildArgs {
     pub store: StoreArg,
     /// Order of the stored compact model: a number, or `auto` (chosen per cell on the held-back
     /// frames).
-    #[arg(long, default_value = "2", value_parser = parse_grid_order)]
-    pub order: GridOrder,
+    #[arg(long, default_value = "2", value_parser = parse_order)]
+    pub order: OrderArg,
     /// Candidate periods of every cell's FreMEn model.
     #[arg(long, default_value = "week", value_parser = parse_periods)]
     pub periods: PeriodSet,
@@ -104,19 +104,6 @@ pub struct GridBuildArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-}
-
-/// `--order` of `grid build`: a number or `auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GridOrder {
-    /// Every cell with this order.
-    Fixed(usize),
-    /// Each cell's order chosen on the held-back frames.
-    Auto,
-}
-
-fn parse_grid_order(text: &str) -> Result<GridOrder, String> {
-    parse_auto_or_whole(text, GridOrder::Auto, GridOrder::Fixed)
 }
 
 /// `--store` values.

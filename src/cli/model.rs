@@ -172,19 +172,6 @@ fn parse_confidence(text: &str) -> Result<f64, String> {
     }
 }
 
-/// `chronomap compress --order`: a number of components, or `auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CompressOrder {
-    /// This many spectral components.
-    Fixed(usize),
-    /// Chosen by prediction error on the last 25 % (eq. 15).
-    Auto,
-}
-
-fn parse_compress_order(text: &str) -> Result<CompressOrder, String> {
-    parse_auto_or_whole(text, CompressOrder::Auto, CompressOrder::Fixed)
-}
-
 /// `chronomap compress --shortest-period`: seconds, or `none` (the whole spectrum).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShortestPeriod(pub Option<f64>);
@@ -209,8 +196,8 @@ pub struct CompressArgs {
     #[arg(long, value_parser = parse_series_source)]
     pub series: SeriesSource,
     /// Number of spectral components, or `auto` (chosen by prediction error on the last 25 %).
-    #[arg(long, default_value = "auto", value_parser = parse_compress_order)]
-    pub order: CompressOrder,
+    #[arg(long, default_value = "auto", value_parser = parse_order)]
+    pub order: OrderArg,
     /// Shortest period considered, in seconds (`none`: the whole spectrum up to Nyquist).
     #[arg(long, default_value = "7200", value_parser = parse_shortest_period)]
     pub shortest_period: ShortestPeriod,
@@ -241,7 +228,7 @@ mod tests {
         else {
             panic!("compress does not parse")
         };
-        assert_eq!(c.order, CompressOrder::Auto);
+        assert_eq!(c.order, OrderArg::Auto);
         assert_eq!(c.shortest_period, ShortestPeriod(Some(7200.0)));
         let Ok(Command::Compress(c)) = parse(&[
             "chronomap",
@@ -257,7 +244,7 @@ mod tests {
         };
         assert_eq!(
             (c.order, c.shortest_period),
-            (CompressOrder::Fixed(5), ShortestPeriod(None))
+            (OrderArg::Fixed(5), ShortestPeriod(None))
         );
         // One list syntax: comma-separated, space-separated or repeated, in order.
         for at in [

@@ -13,7 +13,7 @@ use serde_json::json;
 
 use super::model::fft_components_json;
 use super::{data_error, fft_components_table, read_series, source_name};
-use crate::cli::{CompressArgs, CompressOrder};
+use crate::cli::{CompressArgs, OrderArg};
 use crate::format::{duration, time};
 use crate::outln;
 use crate::output::print_json;
@@ -47,27 +47,22 @@ pub fn run(args: &CompressArgs) -> Result<()> {
     let shortest_period_secs = args.shortest_period.0;
     let mut order_errors = None;
     let order = match args.order {
-        CompressOrder::Auto => {
+        OrderArg::Auto => {
             let config = FftFremenConfig {
                 order: 0,
                 shortest_period_secs,
             };
             let (best, errors) = FftFremen::select_order(&samples, step, 0.25, 20, config)?;
             if !args.json {
-                let listed: Vec<String> = errors
-                    .iter()
-                    .enumerate()
-                    .map(|(k, e)| format!("{k}:{e:.4}"))
-                    .collect();
                 outln!(
                     "order {best} chosen by prediction error on the last 25 % (eq. 15; by order {})",
-                    listed.join(" ")
+                    super::errors_by_order(&errors)
                 )?;
             }
             order_errors = Some(errors);
             best
         }
-        CompressOrder::Fixed(k) => k,
+        OrderArg::Fixed(k) => k,
     };
     let config = FftFremenConfig {
         order,

@@ -23,7 +23,7 @@ use chronomap_synth::office_grid::office;
 use serde_json::{Value, json};
 
 use crate::cli::{
-    GridBuildArgs, GridOrder, GridPlotArgs, GridPredictArgs, GridStatsArgs, Layers, MapModeArg,
+    GridBuildArgs, GridPlotArgs, GridPredictArgs, GridStatsArgs, Layers, MapModeArg, OrderArg,
     StoreArg,
 };
 use crate::format::{Table, duration, time};
@@ -84,12 +84,12 @@ impl BuildJob<'_> {
 
 pub fn build(args: &GridBuildArgs) -> Result<()> {
     let needs_history =
-        args.errors || args.store == StoreArg::Lossless || args.order == GridOrder::Auto;
+        args.errors || args.store == StoreArg::Lossless || args.order == OrderArg::Auto;
     let fremen = FremenConfig {
         periods: args.periods.clone(),
         order: match args.order {
-            GridOrder::Fixed(k) => k,
-            GridOrder::Auto => 2,
+            OrderArg::Fixed(k) => k,
+            OrderArg::Auto => 2,
         },
         ..FremenConfig::default()
     };
@@ -139,8 +139,8 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
         )?;
     }
     let choice = match args.order {
-        GridOrder::Fixed(k) => OrderChoice::Fixed(k),
-        GridOrder::Auto => {
+        OrderArg::Fixed(k) => OrderChoice::Fixed(k),
+        OrderArg::Auto => {
             let trained = built
                 .build
                 .snapshots

@@ -129,23 +129,25 @@ fn fft_components_table(m: &chronomap_core::FftFremen) -> crate::format::Table {
     table
 }
 
+/// The held-out error of each candidate order, `ORDER:ERROR` from order 0 up, space-separated.
+fn errors_by_order(errors: &[f64]) -> String {
+    errors
+        .iter()
+        .enumerate()
+        .map(|(k, e)| format!("{k}:{e:.4}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// One line saying how a model's order or family was chosen.
 fn describe_selection(selection: &Selection) -> String {
     match selection {
-        Selection::Order(s) => {
-            let errors: Vec<String> = s
-                .errors
-                .iter()
-                .enumerate()
-                .map(|(k, e)| format!("{k}:{e:.4}"))
-                .collect();
-            format!(
-                "order {} chosen on {} held-back observations (error by order {})",
-                s.order,
-                s.held_back,
-                errors.join(" ")
-            )
-        }
+        Selection::Order(s) => format!(
+            "order {} chosen on {} held-back observations (error by order {})",
+            s.order,
+            s.held_back,
+            errors_by_order(&s.errors)
+        ),
         Selection::Model {
             chosen,
             errors,

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use crate::common::{chronomap, error, json, repo, tmp};
+use crate::common::{assert_mentions, chronomap, error, json, repo, tmp};
 use chronomap_io::read_rate_grid;
 use serde_json::Value;
 
@@ -127,15 +127,12 @@ fn bad_robot_paths_name_the_file_and_line() {
         "path,x,y,stop_s\nok,6.5,0.5,10\nwall,16,-10.25,0\nwall,16.8,-7.5,0\n",
         &[],
     );
-    assert!(
-        err.contains("paths.csv:3: path \"wall\" passes (") && err.contains("an obstacle of"),
-        "{err}"
+    assert_mentions(
+        &err,
+        &["paths.csv:3: path \"wall\" passes (", "an obstacle of"],
     );
     let err = run("path,x,y,stop_s\nfar,500,0,10\n", &[]);
-    assert!(
-        err.contains("paths.csv:2: path \"far\"") && err.contains("outside the map"),
-        "{err}"
-    );
+    assert_mentions(&err, &["paths.csv:2: path \"far\"", "outside the map"]);
     let err = run("path,x,y,stop_s\nok,6.5,0.5,-1\n", &[]);
     assert!(
         err.contains("paths.csv:2: stop_s: \"-1\" is negative"),

@@ -4,7 +4,9 @@
 use std::path::Path;
 use std::process::Output;
 
-use crate::common::{chronomap, closed_pipe, data, error, scratch, stdout, write_arg};
+use crate::common::{
+    assert_mentions, chronomap, closed_pipe, data, error, scratch, stdout, write_arg,
+};
 
 fn greg(name: &str) -> String {
     data(&format!("door_greg_2016/{name}"))
@@ -137,10 +139,7 @@ fn bad_input_is_named_by_file_and_line() {
     let short = write_arg(&dir, "short.txt", "0\n1\n");
     let test = format!("{good_times},{short}");
     let err = error(&chronomap(&["eval", "--train", &train, "--test", &test]));
-    assert!(
-        err.contains("short.txt") && err.contains("times.txt"),
-        "{err}"
-    );
+    assert_mentions(&err, &["short.txt", "times.txt"]);
 }
 
 #[test]
@@ -185,7 +184,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
 
     let out = chronomap(&["inspect", &model]);
     let text = String::from_utf8(out.stdout).unwrap();
-    assert!(text.contains("fremen:4") && text.contains("24 h"), "{text}");
+    assert_mentions(&text, &["fremen:4", "24 h"]);
     // As JSON: the four components in use, the daily one among them, and the mean shown.
     let json = json_of(&chronomap(&["inspect", &model, "--json"]));
     assert_eq!(
@@ -238,10 +237,7 @@ fn fit_predict_inspect_and_damaged_model_files() {
     bytes[last] ^= 0x55;
     std::fs::write(&model, &bytes).unwrap();
     let err = error(&chronomap(&["predict", &model, "--at", "0"]));
-    assert!(
-        err.contains("checksum") && err.contains("door.cmm"),
-        "{err}"
-    );
+    assert_mentions(&err, &["checksum", "door.cmm"]);
 }
 
 #[test]
@@ -262,10 +258,7 @@ fn demo_runs_on_bundled_data_and_writes_plots() {
         .lines()
         .find(|l| l.trim_start().starts_with("online:"))
         .unwrap();
-    assert!(
-        online.contains("0.0336") && online.contains("0.1297"),
-        "{online}"
-    );
+    assert_mentions(online, &["0.0336", "0.1297"]);
     for png in [
         "tom_door_week.png",
         "tom_door_spectrum.png",

@@ -19,6 +19,14 @@ pub fn write_arg(dir: &std::path::Path, name: &str, contents: impl AsRef<[u8]>) 
     write(dir, name, contents).display().to_string()
 }
 
+/// Asserts that `text` contains every one of `parts`, showing the text if not.
+#[track_caller]
+pub fn assert_mentions(text: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(text.contains(part), "{part:?} is missing from: {text}");
+    }
+}
+
 /// Runs `chronomap` with `args`.
 pub fn chronomap(args: &[&str]) -> Output {
     chronomap_testutil::run(env!("CARGO_BIN_EXE_chronomap"), args)

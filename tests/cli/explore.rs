@@ -2,7 +2,7 @@
 
 use std::process::Output;
 
-use crate::common::{chronomap, data, error, json};
+use crate::common::{assert_mentions, chronomap, data, error, json};
 
 fn results(out: &Output) -> Vec<(String, String, f64)> {
     json(out)["results"]
@@ -82,10 +82,7 @@ fn bad_datasets_and_ratios_are_refused_clearly() {
         "--data",
         "no/such/dir",
     ]));
-    assert!(
-        err.contains("no/such/dir") && err.contains("presence_minutes_0"),
-        "{err}"
-    );
+    assert_mentions(&err, &["no/such/dir", "presence_minutes_0"]);
     let out = chronomap(&[
         "explore",
         "--dataset",

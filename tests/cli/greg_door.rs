@@ -6,7 +6,7 @@ use chronomap_core::{
     FremenModel, HistogramModel, MarkovModel, MeanModel, PergamModel, PersistenceModel,
     TemporalModel,
 };
-use chronomap_io::{decode_any_model, encode_model};
+use chronomap_io::{TimeSeries, decode_any_model, encode_model};
 use chronomap_models::AnyModel;
 use chronomap_models::spec::{FitOptions, ModelSpec};
 
@@ -75,9 +75,12 @@ fn every_model_keeps_the_contract_on_real_data() {
     check_temporal_model(|| PergamModel::with_components(2).unwrap(), t, v);
 }
 
-/// One model of every kind, `fremen` the FreMEn one.
-fn every_kind(fremen: &str) -> [ModelSpec; 6] {
-    [
+/// One model of every kind (`fremen` the FreMEn one) fitted on the training data, with the
+/// training data and the times of the first test week.
+fn fit_every_kind(fremen: &str) -> (TimeSeries, Vec<f64>, Vec<(ModelSpec, AnyModel)>) {
+    let train = training();
+    let week = tests().swap_remove(0).times;
+    let fitted = [
         "mean",
         "hist:24",
         fremen,
@@ -85,7 +88,12 @@ fn every_kind(fremen: &str) -> [ModelSpec; 6] {
         "stm",
         "pergam:2",
     ]
-    .map(|s| s.parse().unwrap())
+    .map(|s| {
+        let spec: ModelSpec = s.parse().unwrap();
+        let model = fit(&spec, &train.times, &train.values);
+        (spec, model)
+    });
+    (train, week, fitted.into())
 }
 
 /// `spec` fitted on `times` and `values` with the default options.
@@ -103,10 +111,8 @@ fn same_predictions(a: &AnyModel, b: &AnyModel, times: &[f64]) -> bool {
 
 #[test]
 fn daily_chunks_give_the_same_models_as_one_batch() {
-    let train = training();
-    let week = &tests()[0];
-    for spec in every_kind("fremen:4") {
-        let batch = fit(&spec, &train.times, &train.values);
+    let (train, week, fitted) = fit_every_kind("fremen:4");
+    for (spec, batch) in fitted {
         let mut chunked = fit(&spec, &train.times[..1], &train.values[..1]);
         for (t, v) in train.times[1..]
             .chunks(1440)
@@ -115,7 +121,7 @@ fn daily_chunks_give_the_same_models_as_one_batch() {
             chunked.observe(t, v).unwrap();
         }
         assert!(
-            same_predictions(&batch, &chunked, &week.times),
+            same_predictions(&batch, &chunked, &week),
             "{spec}: chunked and batch models differ"
         );
     }
@@ -123,14 +129,12 @@ fn daily_chunks_give_the_same_models_as_one_batch() {
 
 #[test]
 fn every_model_survives_save_and_load_bit_identically() {
-    let train = training();
-    let week = &tests()[0];
-    for spec in every_kind("fremen:auto") {
-        let model = fit(&spec, &train.times, &train.values);
+    let (_, week, fitted) = fit_every_kind("fremen:auto");
+    for (spec, model) in fitted {
         let bytes = encode_model(model.kind(), &model).unwrap();
         let loaded: AnyModel = decode_any_model(&bytes).unwrap();
         assert_eq!(loaded.spec(), model.spec());
-        assert!(same_predictions(&model, &loaded, &week.times), "{spec}");
+        assert!(same_predictions(&model, &loaded, &week), "{spec}");
         // A model whose header names another kind is refused, not misread.
         let other = if model.kind() == "mean" {
             "hist"

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use crate::common::{chronomap, json, scratch, stdout};
+use crate::common::{assert_mentions, chronomap, json, scratch, stdout};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
 
@@ -139,10 +139,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
 
     let out = chronomap(&["grid", "stats", &grid]);
     let text = String::from_utf8(out.stdout).unwrap();
-    assert!(
-        text.contains("336") && text.contains("compression"),
-        "{text}"
-    );
+    assert_mentions(&text, &["336", "compression"]);
     let out = chronomap(&["grid", "stats", &grid, "--json"]);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["kind"], "grid-state");
@@ -297,10 +294,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
     let out = chronomap(&args);
     stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
-    assert!(
-        text.contains("static (order 0)") && text.contains("FreMEn auto"),
-        "{text}"
-    );
+    assert_mentions(&text, &["static (order 0)", "FreMEn auto"]);
     let GridFile::Lossless(lossless) = read_grid_file(&office).unwrap() else {
         panic!("not lossless")
     };

@@ -4,7 +4,8 @@
 use crate::common;
 
 use common::{
-    chronomap, close, error, fit_small_copa, repo, scratch, stdout, strings, usage_error, write_arg,
+    assert_mentions, chronomap, close, error, fit_small_copa, repo, scratch, stdout, strings,
+    usage_error, write_arg,
 };
 use serde_json::Value;
 
@@ -239,16 +240,10 @@ fn synthesis_from_a_saved_copa_map() {
     // Errors: a night hour without --model-t, a file that is not a model, a model mixed
     // with tracks, and `psbt eval`, which needs tracks.
     let night = error(&psbt(&model, SOUTH_WEST, "2012-10-24T14:00Z", &[]));
-    assert!(
-        night.contains("outside 09:00-21:00 JST") && night.contains("--model-t"),
-        "{night}"
-    );
+    assert_mentions(&night, &["outside 09:00-21:00 JST", "--model-t"]);
     let fake = write_arg(&dir, "fake.cmcopa", "t,person,x,y\n");
     let err = error(&psbt(&fake, SOUTH_WEST, "0", &[]));
-    assert!(
-        err.contains("fake.cmcopa") && err.contains("not a chronomap model file"),
-        "{err}"
-    );
+    assert_mentions(&err, &["fake.cmcopa", "not a chronomap model file"]);
     let mixed = format!("{model},{}", tracks(&[13]));
     let err = error(&psbt(&mixed, SOUTH_WEST, "0", &[]));
     assert!(err.contains("not both (1 of 2 files are models)"), "{err}");
@@ -274,7 +269,7 @@ fn synthesis_without_a_map_is_a_usage_error_and_bad_values_a_failure() {
         "--time",
         "2012-10-24T05:30Z",
     ]));
-    assert!(err.contains("--map") && err.contains("--activity"), "{err}");
+    assert_mentions(&err, &["--map", "--activity"]);
     // A time that is neither seconds nor ISO 8601 is refused by the parser (exit 2)...
     let map = repo("data/atc_copa_map_grid/atc_map.yaml");
     let activity = tracks(&[13]);

@@ -231,18 +231,12 @@ fn crash_test(name: &str, backend: Backend) {
     assert!(unacknowledged >= 1, "no kill hit a request in flight");
 }
 
-#[test]
-fn sigkill_loses_no_acknowledged_observation_redb() {
-    crash_test("serve_crash_redb", Backend::Redb);
-}
-
-#[test]
-fn sigkill_loses_no_acknowledged_observation_postgres() {
-    let Some(backend) = service::postgres_backend("crash") else {
-        return;
-    };
-    crash_test("serve_crash_postgres", backend);
-}
+service::on_each_backend!(
+    crash_test,
+    "crash",
+    sigkill_loses_no_acknowledged_observation_redb,
+    sigkill_loses_no_acknowledged_observation_postgres
+);
 
 /// One service per schema: a second store on a schema that a live session holds is refused
 /// with a message that says so, and gets the schema once the first is gone (as a restarted

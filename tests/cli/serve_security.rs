@@ -166,15 +166,9 @@ fn security_test(name: &str, backend: Backend) {
     );
 }
 
-#[test]
-fn bad_tokens_oversize_bodies_and_hostile_input_change_nothing_redb() {
-    security_test("serve_security_redb", Backend::Redb);
-}
-
-#[test]
-fn bad_tokens_oversize_bodies_and_hostile_input_change_nothing_postgres() {
-    let Some(backend) = service::postgres_backend("security") else {
-        return;
-    };
-    security_test("serve_security_postgres", backend);
-}
+service::on_each_backend!(
+    security_test,
+    "security",
+    bad_tokens_oversize_bodies_and_hostile_input_change_nothing_redb,
+    bad_tokens_oversize_bodies_and_hostile_input_change_nothing_postgres
+);

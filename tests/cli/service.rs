@@ -60,6 +60,29 @@ pub fn postgres_backend(prefix: &str) -> Option<Backend> {
     Some(Backend::Postgres(config, schema))
 }
 
+/// The two tests of one service test `fn(name, Backend)`: `$redb` on redb, always, and
+/// `$postgres` on a schema of its own (prefix `$prefix`), skipped as [`postgres_backend`] says.
+/// The scratch names are `serve_PREFIX_redb` and `serve_PREFIX_postgres`.
+macro_rules! on_each_backend {
+    ($test:ident, $prefix:literal, $redb:ident, $postgres:ident) => {
+        #[test]
+        fn $redb() {
+            $test(
+                concat!("serve_", $prefix, "_redb"),
+                $crate::service::Backend::Redb,
+            );
+        }
+
+        #[test]
+        fn $postgres() {
+            if let Some(backend) = $crate::service::postgres_backend($prefix) {
+                $test(concat!("serve_", $prefix, "_postgres"), backend);
+            }
+        }
+    };
+}
+pub(crate) use on_each_backend;
+
 /// A running `chronomap serve`.
 pub struct Server {
     pub child: Child,
