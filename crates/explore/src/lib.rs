@@ -263,12 +263,17 @@ impl Strategy {
 
     /// Short name (`round-robin`, `random`, `greedy`, `monte-carlo`, `novelty`).
     pub fn name(&self) -> &'static str {
+        self.labels().0
+    }
+
+    /// The short name and the row title of [Santos 2017]'s tables ([`table::row_title`]).
+    pub(crate) fn labels(&self) -> (&'static str, &'static str) {
         match self {
-            Strategy::RoundRobin => "round-robin",
-            Strategy::Random => "random",
-            Strategy::Greedy => "greedy",
-            Strategy::MonteCarlo { .. } => "monte-carlo",
-            Strategy::Novelty { .. } => "novelty",
+            Strategy::RoundRobin => ("round-robin", "Round Robin"),
+            Strategy::Random => ("random", "Random"),
+            Strategy::Greedy => ("greedy", "Greedy"),
+            Strategy::MonteCarlo { .. } => ("monte-carlo", "Monte-Carlo"),
+            Strategy::Novelty { .. } => ("novelty", "Novelty-driven"),
         }
     }
 }

@@ -99,13 +99,7 @@ impl ModelKind {
 /// Row title of the paper's tables: `Round Robin`, `Random`, `Greedy`, `Monte-Carlo`,
 /// `Novelty-driven`.
 pub fn row_title(strategy: Strategy) -> &'static str {
-    match strategy {
-        Strategy::RoundRobin => "Round Robin",
-        Strategy::Random => "Random",
-        Strategy::Greedy => "Greedy",
-        Strategy::MonteCarlo { .. } => "Monte-Carlo",
-        Strategy::Novelty { .. } => "Novelty-driven",
-    }
+    strategy.labels().1
 }
 
 /// [Santos 2017] Table 1 (Aruba, symbolic map), model error in percent: rows Round Robin, Random,

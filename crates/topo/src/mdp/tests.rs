@@ -67,6 +67,39 @@ fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0)
 }
 
+/// A slowly leaking loop: 0 stays with 0.999, reaches the goal 1 with 0.001 (Pmax = 1).
+fn leaky_loop() -> SparseMdp {
+    SparseMdp::new(
+        0,
+        vec![false, true],
+        vec!["a".into()],
+        vec![
+            vec![Choice {
+                action: 0,
+                cost: 1.0,
+                outcomes: vec![(0, 0.999), (1, 0.001)],
+            }],
+            vec![],
+        ],
+    )
+    .unwrap()
+}
+
+/// `F G` from S on a direct edge S_G (`success`, `duration`) and a detour S_M, M_G (0.9, 30 s
+/// each).
+fn direct_or_detour(success: f64, duration: f64) -> (NavigationMdp, ProductMdp, Solution) {
+    solve_nav(
+        &["S", "M", "G"],
+        &[
+            ("S_G", "S", "G", success, duration),
+            ("S_M", "S", "M", 0.9, 30.0),
+            ("M_G", "M", "G", 0.9, 30.0),
+        ],
+        "S",
+        &eventually("G"),
+    )
+}
+
 #[test]
 fn navigation_mdp_follows_seed_003_definition() {
     let m = map(&["A", "B"], &[("A_B", "A", "B"), ("B_A", "B", "A")]);
@@ -114,16 +147,7 @@ fn chain_with_one_risky_edge_has_pmax_p() {
 
 #[test]
 fn a_long_safe_route_beats_a_short_risky_one() {
-    let (nav, _, sol) = solve_nav(
-        &["S", "M", "G"],
-        &[
-            ("S_G", "S", "G", 0.5, 10.0),
-            ("S_M", "S", "M", 0.9, 30.0),
-            ("M_G", "M", "G", 0.9, 30.0),
-        ],
-        "S",
-        &eventually("G"),
-    );
+    let (nav, _, sol) = direct_or_detour(0.5, 10.0);
     assert!(close(sol.pmax_initial, 0.81), "{}", sol.pmax_initial);
     assert_eq!(sol.policy[0], Some(edge_of(&nav, "S_M")));
     // 30 s, then 30 s more if S_M succeeded.
@@ -141,16 +165,7 @@ fn a_long_safe_route_beats_a_short_risky_one() {
 fn a_tie_in_probability_goes_to_the_cheaper_route() {
     // The direct edge comes first in edge order but takes 100 s; the detour has the same
     // probability 0.9 · 0.9 = 0.81 and takes 30 + 0.9 · 30 = 57 s in expectation.
-    let (nav, _, sol) = solve_nav(
-        &["S", "M", "G"],
-        &[
-            ("S_G", "S", "G", 0.81, 100.0),
-            ("S_M", "S", "M", 0.9, 30.0),
-            ("M_G", "M", "G", 0.9, 30.0),
-        ],
-        "S",
-        &eventually("G"),
-    );
+    let (nav, _, sol) = direct_or_detour(0.81, 100.0);
     assert!(close(sol.pmax_initial, 0.81));
     assert!(
         sol.optimal[0] && sol.optimal[1],
@@ -272,32 +287,25 @@ fn ordered_visit_product_is_hand_computed() {
 #[test]
 fn avoid_until_blocks_the_forbidden_node() {
     // !X U G: the direct route passes X; the long route avoids it.
-    let (nav, _, sol) = solve_nav(
-        &["S", "X", "Y", "G"],
-        &[
-            ("S_X", "S", "X", 1.0, 5.0),
-            ("X_G", "X", "G", 1.0, 5.0),
-            ("S_Y", "S", "Y", 0.7, 20.0),
-            ("Y_G", "Y", "G", 0.9, 20.0),
-        ],
-        "S",
-        &avoid_until("X", "G"),
-    );
+    let solve_from_s = |dfa: &Dfa| {
+        solve_nav(
+            &["S", "X", "Y", "G"],
+            &[
+                ("S_X", "S", "X", 1.0, 5.0),
+                ("X_G", "X", "G", 1.0, 5.0),
+                ("S_Y", "S", "Y", 0.7, 20.0),
+                ("Y_G", "Y", "G", 0.9, 20.0),
+            ],
+            "S",
+            dfa,
+        )
+    };
+    let (nav, _, sol) = solve_from_s(&avoid_until("X", "G"));
     assert!(close(sol.pmax_initial, 0.63));
     assert_eq!(sol.policy[0], Some(edge_of(&nav, "S_Y")));
     assert!(close(sol.cost_initial, 20.0 + 0.7 * 20.0));
     // With F G instead, the certain route through X wins.
-    let (nav, _, sol) = solve_nav(
-        &["S", "X", "Y", "G"],
-        &[
-            ("S_X", "S", "X", 1.0, 5.0),
-            ("X_G", "X", "G", 1.0, 5.0),
-            ("S_Y", "S", "Y", 0.7, 20.0),
-            ("Y_G", "Y", "G", 0.9, 20.0),
-        ],
-        "S",
-        &eventually("G"),
-    );
+    let (nav, _, sol) = solve_from_s(&eventually("G"));
     assert_eq!(sol.pmax_initial, 1.0);
     assert_eq!(sol.policy[0], Some(edge_of(&nav, "S_X")));
     assert!(close(sol.cost_initial, 10.0));
@@ -775,21 +783,7 @@ fn bad_sparse_mdps_are_rejected() {
 
 #[test]
 fn the_iteration_cap_is_an_error() {
-    // A slowly leaking loop: 0 stays with 0.999, reaches the goal with 0.001.
-    let mdp = SparseMdp::new(
-        0,
-        vec![false, true],
-        vec!["a".into()],
-        vec![
-            vec![Choice {
-                action: 0,
-                cost: 1.0,
-                outcomes: vec![(0, 0.999), (1, 0.001)],
-            }],
-            vec![],
-        ],
-    )
-    .unwrap();
+    let mdp = leaky_loop();
     let options = SolverOptions {
         max_iterations: 10,
         ..SolverOptions::default()
@@ -897,16 +891,7 @@ fn prism_property_quotes_node_names() {
 
 #[test]
 fn drn_export_is_storm_s_explicit_format() {
-    let (_, product, sol) = solve_nav(
-        &["S", "M", "G"],
-        &[
-            ("S_G", "S", "G", 0.5, 10.0),
-            ("S_M", "S", "M", 0.9, 30.0),
-            ("M_G", "M", "G", 0.9, 30.0),
-        ],
-        "S",
-        &eventually("G"),
-    );
+    let (_, product, sol) = direct_or_detour(0.5, 10.0);
     // Product states: 0 = (S,0), 1 = (G,1) goal, 2 = (sink,0), 3 = (M,0).
     let header = |choices: usize| {
         format!(
@@ -961,20 +946,7 @@ fn a_failed_optimistic_guess_falls_back_to_an_honest_gap() {
     // iteration from below stops at about 0.002; the guess 0.0025 is not inductive
     // (B(u) = 0.001 + 0.999 u > u), so the interval iteration from 1 takes over, and the
     // reported upper bound and gap are honest.
-    let mdp = SparseMdp::new(
-        0,
-        vec![false, true],
-        vec!["a".into()],
-        vec![
-            vec![Choice {
-                action: 0,
-                cost: 1.0,
-                outcomes: vec![(0, 0.999), (1, 0.001)],
-            }],
-            vec![],
-        ],
-    )
-    .unwrap();
+    let mdp = leaky_loop();
     let options = SolverOptions {
         tolerance: 1e-3,
         ..SolverOptions::default()
