@@ -71,8 +71,8 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     );
     outln!("{}", indent(&table.render()))?;
     outln!(
-        "\n   Online, the per-edge models beat the static per-edge rates by far: persistence (seed \
-         001 eq. 12-13)\n   carries the robot's retry bursts. Frozen for weeks, the daily rhythm \
+        "\n   Online, the per-edge models beat the static per-edge rates by far: persistence (\
+         [Krajník 2017] eq. 12-13)\n   carries the robot's retry bursts. Frozen for weeks, the daily rhythm \
          alone does not transfer."
     )?;
 
