@@ -1,5 +1,5 @@
-//! `chronomap bench activity`: the two performance goals of CoPA-Map's activity pipeline (
-//! [Stüde 2024] chapter 4) on the bundled ATC data, each timed against a baseline in the same run —
+//! `chronomap bench activity`: the two performance goals of CoPA-Map's activity pipeline
+//! ([Stüde 2024] chapter 4) on the bundled ATC data, each timed against a baseline in the same run —
 //! [`chronomap_bench::activity`] measures; this reads the data with `activity extract`'s setup
 //! (the bundled patrol robots on the real map over the tracks of 2012-10-24: the whole day, one
 //! hour with `--quick`) and prints.
