@@ -12,12 +12,11 @@ use std::time::Instant;
 
 use chronomap_core::fft::{FftFremen, FftFremenConfig, SpectrumMethod, edges_of};
 use chronomap_core::naive::{naive_dft, naive_fremen_predict, naive_spectrum};
-use chronomap_core::{
-    BuildError, FremenModel, ObservationError, Ordered, Parallelism, TemporalModel,
-};
-use chronomap_io::{DataError, TimeSeries, read_pairs, read_test_set};
+use chronomap_core::{FremenModel, Ordered, Parallelism, TemporalModel};
+use chronomap_io::{TimeSeries, read_pairs, read_test_set};
 use serde::Serialize;
-use thiserror::Error;
+
+use crate::BenchError;
 
 /// What the FreMEn benchmarks read and how long they run.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,41 +25,6 @@ pub struct FremenConfig {
     pub data: PathBuf,
     /// Fewer repetitions and smaller inputs, for a short run.
     pub quick: bool,
-}
-
-/// Why a FreMEn benchmark could not run.
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum FremenBenchError {
-    /// A data file could not be read.
-    #[error(transparent)]
-    Data(#[from] DataError),
-    /// The data are not a valid series for the model.
-    #[error(transparent)]
-    Observation(#[from] ObservationError),
-    /// A model could not be built from the data.
-    #[error(transparent)]
-    Build(#[from] BuildError),
-    /// An FFT FreMEn build did not reconstruct its input bit for bit.
-    #[error("the FFT FreMEn build of order {order} ({method}) is not lossless")]
-    NotLossless {
-        /// The model order.
-        order: usize,
-        /// How the spectrum was computed.
-        method: &'static str,
-    },
-    /// The training file holds no observation.
-    #[error("{file}: no observation")]
-    Empty {
-        /// The file below `data/`.
-        file: &'static str,
-    },
-    /// A component of a trained model has a period outside the model's candidate set.
-    #[error("a component of period {period_secs} s is not among the candidate periods")]
-    UnknownPeriod {
-        /// The component's period.
-        period_secs: f64,
-    },
 }
 
 /// The tom door week at 1 Hz below `data/`.
@@ -132,7 +96,7 @@ pub struct FftBench {
 ///
 /// # Errors
 /// A data file that cannot be read, a build that fails or is not lossless.
-pub fn fft(config: &FremenConfig) -> Result<FftBench, FremenBenchError> {
+pub fn fft(config: &FremenConfig) -> Result<FftBench, BenchError> {
     let week = read_test_set(config.data.join(TOM_WEEK.0), config.data.join(TOM_WEEK.1))?;
     // The paper subsampled the 30 Hz camera stream to 2 Hz; the published data are at 1 Hz,
     // so each second is repeated twice to get the paper's 1,209,600 samples.
@@ -151,7 +115,7 @@ pub fn fft(config: &FremenConfig) -> Result<FftBench, FremenBenchError> {
         let fft_config = FftFremenConfig::with_order(order);
         let model = FftFremen::build(0.0, 0.5, &samples, fft_config)?;
         if model.reconstruct() != samples {
-            return Err(FremenBenchError::NotLossless {
+            return Err(BenchError::NotLossless {
                 order,
                 method: "run-length spectrum",
             });
@@ -174,7 +138,7 @@ pub fn fft(config: &FremenConfig) -> Result<FftBench, FremenBenchError> {
     };
     let full_model = FftFremen::build_with(0.0, 0.5, &samples, full, SpectrumMethod::Fft)?;
     if full_model.reconstruct() != samples {
-        return Err(FremenBenchError::NotLossless {
+        return Err(BenchError::NotLossless {
             order: 5,
             method: "whole spectrum by real FFT",
         });
@@ -203,10 +167,10 @@ pub fn fft(config: &FremenConfig) -> Result<FftBench, FremenBenchError> {
 }
 
 /// Greg door training data (10 weeks at 1 min) tiled `copies` times.
-fn greg_series(config: &FremenConfig, copies: usize) -> Result<TimeSeries, FremenBenchError> {
+fn greg_series(config: &FremenConfig, copies: usize) -> Result<TimeSeries, BenchError> {
     let train = read_pairs(config.data.join(GREG_TRAINING))?;
     let (Some(&first), Some(&last)) = (train.times.first(), train.times.last()) else {
-        return Err(FremenBenchError::Empty {
+        return Err(BenchError::Empty {
             file: GREG_TRAINING,
         });
     };
@@ -259,7 +223,7 @@ pub struct ObserveBench {
 ///
 /// # Errors
 /// The training data cannot be read or observed.
-pub fn observe(config: &FremenConfig) -> Result<ObserveBench, FremenBenchError> {
+pub fn observe(config: &FremenConfig) -> Result<ObserveBench, BenchError> {
     let series = greg_series(config, if config.quick { 2 } else { 10 })?;
     let n = series.times.len();
     let periods = FremenModel::with_order(0).config().periods.periods();
@@ -344,10 +308,10 @@ pub struct PredictBench {
 ///
 /// # Errors
 /// The training data cannot be read or observed.
-pub fn predict(config: &FremenConfig) -> Result<PredictBench, FremenBenchError> {
+pub fn predict(config: &FremenConfig) -> Result<PredictBench, BenchError> {
     let train = read_pairs(config.data.join(GREG_TRAINING))?;
     let Some(&last) = train.times.last() else {
-        return Err(FremenBenchError::Empty {
+        return Err(BenchError::Empty {
             file: GREG_TRAINING,
         });
     };
@@ -368,11 +332,12 @@ pub fn predict(config: &FremenConfig) -> Result<PredictBench, FremenBenchError> 
             .components()
             .iter()
             .map(|c| {
-                periods.iter().position(|&p| p == c.period_secs).ok_or(
-                    FremenBenchError::UnknownPeriod {
+                periods
+                    .iter()
+                    .position(|&p| p == c.period_secs)
+                    .ok_or(BenchError::UnknownPeriod {
                         period_secs: c.period_secs,
-                    },
-                )
+                    })
             })
             .collect::<Result<Vec<usize>, _>>()?;
         assert_eq!(

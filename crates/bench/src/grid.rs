@@ -12,19 +12,19 @@
 //! assert_eq!(result.frames, 17_280);
 //! assert_eq!(result.cell_observations, 640 * 17_280);
 //! assert!(result.changed_bits > 0 && result.changing_cells > 0);
-//! # Ok::<(), chronomap_bench::grid::GridBenchError>(())
+//! # Ok::<(), chronomap_bench::BenchError>(())
 //! ```
 
 use std::time::Instant;
 
 use chronomap_core::Parallelism;
 use chronomap_core::progress::Progress;
-use chronomap_grid::build::{PartitionError, bare_scan, build_partitioned};
-use chronomap_grid::{GridConfig, GridError};
-use chronomap_synth::SynthError;
+use chronomap_grid::GridConfig;
+use chronomap_grid::build::{bare_scan, build_partitioned};
 use chronomap_synth::office_grid::office;
 use serde::Serialize;
-use thiserror::Error;
+
+use crate::BenchError;
 
 /// The workload of the grid benchmark.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,21 +78,6 @@ pub struct GridBench {
     pub periods: usize,
 }
 
-/// Why the grid benchmark could not run.
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum GridBenchError {
-    /// The office cannot be generated with this configuration.
-    #[error(transparent)]
-    Office(#[from] SynthError),
-    /// The grid cannot be built.
-    #[error(transparent)]
-    Grid(#[from] GridError),
-    /// A part of the office cannot be streamed or built.
-    #[error(transparent)]
-    Build(#[from] PartitionError),
-}
-
 /// Runs the bare scan, then builds the grid (the default [`GridConfig`]: one week of
 /// candidate periods, exact sums), both split into the tasks of `parallelism`; reports both
 /// stages to `progress`.
@@ -103,7 +88,7 @@ pub fn bench_grid(
     config: &GridBenchConfig,
     parallelism: Parallelism,
     progress: &dyn Progress,
-) -> Result<GridBench, GridBenchError> {
+) -> Result<GridBench, BenchError> {
     let workload = office(config.cells, config.days, config.seed)?;
     let geometry = workload.geometry()?;
     let frames = workload.frames();

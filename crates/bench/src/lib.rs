@@ -25,12 +25,15 @@
 #![deny(missing_docs)]
 
 pub mod activity;
+mod error;
 pub mod fremen;
 pub mod grid;
 pub mod plan;
 pub mod psbt;
 #[cfg(feature = "serve")]
 pub mod serve;
+
+pub use error::BenchError;
 
 /// The median of `values`: the middle one, or the mean of the middle two for an even count
 /// (NaN for none).

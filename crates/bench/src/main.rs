@@ -47,7 +47,7 @@ fn main() -> ExitCode {
         data: Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data"),
         quick,
     };
-    let result = (|| -> Result<(), fremen::FremenBenchError> {
+    let result = (|| -> Result<(), chronomap_bench::BenchError> {
         if matches!(which, "all" | "fft") {
             print_fft(&fremen::fft(&config)?);
         }

@@ -13,18 +13,14 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-use chronomap_core::BuildError;
 use chronomap_core::progress::Progress;
-use chronomap_io::DataError;
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
-use chronomap_topo::map::TopoError;
-use chronomap_topo::mdp::{MdpError, SolverOptions, prism_property, product_drn, restricted_drn};
-use chronomap_topo::plan::{PlanError, Planned, Task, plan_full};
+use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn, restricted_drn};
+use chronomap_topo::plan::{Planned, Task, plan_full};
 use serde::Serialize;
 use serde_json::Value;
-use thiserror::Error;
 
-use crate::median;
+use crate::{BenchError, median};
 
 /// 2014-09-04 00:00 UTC, the day after the last attempt of the Witham data.
 pub const DAY: f64 = 1_409_788_800.0;
@@ -53,68 +49,8 @@ pub struct PlanConfig {
     pub exact: bool,
 }
 
-/// Why the planning benchmark could not run.
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum PlanBenchError {
-    /// The edge files could not be read.
-    #[error("cannot read the Witham edges in {}", dir.display())]
-    Edges {
-        /// The directory.
-        dir: PathBuf,
-        /// What went wrong (boxed: a data error is large).
-        source: Box<DataError>,
-    },
-    /// The model of an edge could not be fitted.
-    #[error("edge {edge}: {source}")]
-    Fit {
-        /// The edge.
-        edge: String,
-        /// What went wrong.
-        source: BuildError,
-    },
-    /// A task could not be planned.
-    #[error(transparent)]
-    Plan(#[from] PlanError),
-    /// A start node is not on the map.
-    #[error(transparent)]
-    Node(#[from] TopoError),
-    /// A case could not be exported for Storm.
-    #[error(transparent)]
-    Export(#[from] MdpError),
-    /// A file or directory for Storm could not be written.
-    #[error("cannot write {}", path.display())]
-    Write {
-        /// The file or directory.
-        path: PathBuf,
-        /// What went wrong.
-        source: std::io::Error,
-    },
-    /// The Python interpreter could not be started.
-    #[error("cannot run {}", python.display())]
-    StormStart {
-        /// The interpreter.
-        python: PathBuf,
-        /// What went wrong.
-        source: std::io::Error,
-    },
-    /// The timing script failed.
-    #[error("{} storm_time.py failed ({status}):\n{stderr}", python.display())]
-    StormFailed {
-        /// The interpreter.
-        python: PathBuf,
-        /// How the process ended.
-        status: String,
-        /// What it wrote on stderr.
-        stderr: String,
-    },
-    /// The timing script's output is not JSON.
-    #[error("storm_time.py output")]
-    StormOutput(#[source] serde_json::Error),
-}
-
 /// One sweep: every task at every hour, from the task's text to the solution.
-fn sweep(models: &EdgeModels) -> Result<Vec<(String, Planned)>, PlanBenchError> {
+fn sweep(models: &EdgeModels) -> Result<Vec<(String, Planned)>, BenchError> {
     let options = SolverOptions::default();
     let mut cases = Vec::with_capacity(TASKS.len() * 24);
     for (t, (start, text)) in TASKS.iter().enumerate() {
@@ -138,7 +74,7 @@ fn sweep(models: &EdgeModels) -> Result<Vec<(String, Planned)>, PlanBenchError> 
 struct TempDir(PathBuf);
 
 impl TempDir {
-    fn new() -> Result<Self, PlanBenchError> {
+    fn new() -> Result<Self, BenchError> {
         let nanos = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos());
@@ -146,7 +82,7 @@ impl TempDir {
             "chronomap-bench-plan-{}-{nanos}",
             std::process::id()
         ));
-        std::fs::create_dir_all(&dir).map_err(|source| PlanBenchError::Write {
+        std::fs::create_dir_all(&dir).map_err(|source| BenchError::Write {
             path: dir.clone(),
             source,
         })?;
@@ -160,8 +96,8 @@ impl Drop for TempDir {
     }
 }
 
-fn write(path: PathBuf, contents: impl AsRef<[u8]>) -> Result<(), PlanBenchError> {
-    std::fs::write(&path, contents).map_err(|source| PlanBenchError::Write { path, source })
+fn write(path: PathBuf, contents: impl AsRef<[u8]>) -> Result<(), BenchError> {
+    std::fs::write(&path, contents).map_err(|source| BenchError::Write { path, source })
 }
 
 /// Writes every case for Storm (PRISM + property, product and restricted DRN) and the script;
@@ -170,7 +106,7 @@ fn write_cases(
     dir: &Path,
     models: &EdgeModels,
     cases: &[(String, Planned)],
-) -> Result<Vec<PathBuf>, PlanBenchError> {
+) -> Result<Vec<PathBuf>, BenchError> {
     let mut files = Vec::with_capacity(cases.len());
     for (i, (name, planned)) in cases.iter().enumerate() {
         let (start, text) = TASKS[i / 24];
@@ -200,7 +136,7 @@ fn run_storm(
     models: &EdgeModels,
     cases: &[(String, Planned)],
     progress: &dyn Progress,
-) -> Result<(Value, f64), PlanBenchError> {
+) -> Result<(Value, f64), BenchError> {
     let dir = TempDir::new()?;
     let files = write_cases(&dir.0, models, cases)?;
     let mut command = Command::new(python);
@@ -214,21 +150,19 @@ fn run_storm(
     }
     progress.stage(&format!("timing Storm on {} cases", files.len()), 0);
     let started = Instant::now();
-    let output = command
-        .output()
-        .map_err(|source| PlanBenchError::StormStart {
-            python: python.to_path_buf(),
-            source,
-        })?;
+    let output = command.output().map_err(|source| BenchError::StormStart {
+        python: python.to_path_buf(),
+        source,
+    })?;
     let wall = started.elapsed().as_secs_f64();
     if !output.status.success() {
-        return Err(PlanBenchError::StormFailed {
+        return Err(BenchError::StormFailed {
             python: python.to_path_buf(),
             status: output.status.to_string(),
             stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
         });
     }
-    let value = serde_json::from_slice(&output.stdout).map_err(PlanBenchError::StormOutput)?;
+    let value = serde_json::from_slice(&output.stdout).map_err(BenchError::StormOutput)?;
     Ok((value, wall))
 }
 
@@ -299,13 +233,12 @@ pub struct PlanBench {
 /// # Errors
 /// The edge files cannot be read or fitted, a case cannot be planned or exported, or Storm
 /// fails.
-pub fn run(config: &PlanConfig, progress: &dyn Progress) -> Result<PlanBench, PlanBenchError> {
-    let stats = chronomap_io::read_edge_directory(&config.edges).map_err(|source| {
-        PlanBenchError::Edges {
+pub fn run(config: &PlanConfig, progress: &dyn Progress) -> Result<PlanBench, BenchError> {
+    let stats =
+        chronomap_io::read_edge_directory(&config.edges).map_err(|source| BenchError::Edges {
             dir: config.edges.clone(),
             source: Box::new(source),
-        }
-    })?;
+        })?;
     let (nodes, edges, attempts) = (
         stats.map.nodes().len(),
         stats.map.edges().len(),
@@ -313,7 +246,7 @@ pub fn run(config: &PlanConfig, progress: &dyn Progress) -> Result<PlanBench, Pl
     );
     let started = Instant::now();
     let models = EdgeModels::fit(stats.map, &stats.attempts, EdgeModelConfig::default())
-        .map_err(|(edge, source)| PlanBenchError::Fit { edge, source })?;
+        .map_err(|(edge, source)| BenchError::Fit { edge, source })?;
     let fit_seconds = started.elapsed().as_secs_f64();
 
     let cases = sweep(&models)?; // warm-up, and the cases exported for Storm

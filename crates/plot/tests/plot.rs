@@ -322,28 +322,30 @@ fn small_heatmap() -> Heatmap {
     }
 }
 
-/// Renders `map` as `name` and checks that the image has the size of the map's layout;
-/// returns the layout, the file and the image.
-fn render_heatmap(map: &Heatmap, name: &str) -> (HeatmapLayout, PathBuf, Decoded) {
+/// Renders `map` as `name` and checks that the image has the size of the map's layout, that
+/// the layout has 90 × 26-pixel cells below a grid top at 96 (both test tables have the same
+/// titles and widest cell text) and that it is `height` pixels high; returns the layout, the
+/// file and the image.
+fn render_heatmap(map: &Heatmap, name: &str, height: u32) -> (HeatmapLayout, PathBuf, Decoded) {
     let layout = map.layout().unwrap();
     let path = out(name);
     render_heatmap_png(map, &path).unwrap();
     let image = Decoded::read(&path);
     assert_eq!((image.width, image.height), (layout.width, layout.height));
+    assert_eq!((layout.cell_width, layout.cell_height), (90, 26));
+    assert_eq!(layout.grid_top, 96);
+    assert_eq!(layout.height, height);
     (layout, path, image)
 }
 
 #[test]
 fn heat_map_cells_have_the_colours_of_the_colour_map() {
     let map = small_heatmap();
-    let (layout, _, image) = render_heatmap(&map, "heatmap_small.png");
     // 90-pixel cells (the minimum: "0.25 ab" is narrower), 26-pixel rows; 2 rows are shorter
     // than the colour bar (120 pixels + 34 for the "no value" swatch), which sets the height:
     // top margin 14 + title 34 + column title 24 + column labels 24 = grid top 96, + 154,
     // + gap 16 + 2 legend lines of 21 + bottom margin 14 = 322.
-    assert_eq!((layout.cell_width, layout.cell_height), (90, 26));
-    assert_eq!(layout.grid_top, 96);
-    assert_eq!(layout.height, 322);
+    let (layout, _, image) = render_heatmap(&map, "heatmap_small.png", 322);
     assert_eq!(layout.bar_left, layout.grid_left + 3 * 90 + 24);
 
     let zero = image.at(background_of(&layout, 0, 0));
@@ -440,11 +442,9 @@ fn week_table() -> Heatmap {
 #[test]
 fn a_week_of_now_or_later_renders() {
     let map = week_table();
-    let (layout, path, image) = render_heatmap(&map, "heatmap_week.png");
-    assert_eq!((layout.cell_width, layout.cell_height), (90, 26));
-    assert_eq!(layout.grid_top, 96);
     // grid 24 × 26 = 624, + gap 16 + 4 legend lines of 21 + margin 14
-    assert_eq!(layout.height, 96 + 624 + 16 + 4 * 21 + 14);
+    let height = 96 + 624 + 16 + 4 * 21 + 14;
+    let (layout, path, image) = render_heatmap(&map, "heatmap_week.png", height);
     assert_png(&path, 20_000);
     assert_eq!(
         image.at(background_of(&layout, 0, 6)),
