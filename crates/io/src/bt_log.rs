@@ -358,7 +358,7 @@ pub fn decode_btlog(bytes: &[u8]) -> Result<BtLog, BtLogError> {
 /// [`BtLogErrorKind::Io`] if it cannot be read; as [`decode_btlog`].
 pub fn read_btlog(path: impl AsRef<Path>) -> Result<BtLog, BtLogError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path)
+    let bytes = crate::bounded::read(path)
         .map_err(|io| BtLogError::new(BtLogErrorKind::Io { action: "read", io }).in_file(path))?;
     decode_btlog(&bytes).map_err(|e| e.in_file(path))
 }

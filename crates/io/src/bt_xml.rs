@@ -295,7 +295,7 @@ impl BtXmlError {
 pub fn read_bt_xml(path: impl AsRef<Path>, registry: &Registry) -> Result<BtXml, BtXmlError> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|io| {
+    let text = crate::bounded::read_to_string(path).map_err(|io| {
         let mut e = BtXmlError::new(None, BtXmlErrorKind::Io { action: "read", io });
         e.file = Some(name.clone());
         e

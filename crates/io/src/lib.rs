@@ -81,6 +81,8 @@
 #[cfg(feature = "activity")]
 pub mod activity;
 mod atomic;
+mod bounded;
+pub use bounded::MAX_FILE_BYTES;
 #[cfg(feature = "bt")]
 pub mod bt_log;
 #[cfg(feature = "bt")]

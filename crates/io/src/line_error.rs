@@ -69,7 +69,8 @@ pub(crate) fn parse_text_file<T, K>(
     parse: impl FnOnce(&str, &str) -> Result<T, LineError<K>>,
 ) -> Result<T, LineError<K>> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| LineError::new(&name, None, io(e)))?;
+    let text =
+        crate::bounded::read_to_string(path).map_err(|e| LineError::new(&name, None, io(e)))?;
     parse(&name, &text)
 }
 

@@ -38,7 +38,6 @@
 //! flushed to disk, then renamed over the target, so a crash never leaves a half-written model.
 
 use std::fmt;
-use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
@@ -342,7 +341,7 @@ pub fn read_model_file<T: DeserializeOwned>(
     path: impl AsRef<Path>,
 ) -> Result<(String, T), ModelFileError> {
     let path = path.as_ref();
-    let bytes = fs::read(path)
+    let bytes = crate::bounded::read(path)
         .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
     decode_model(&bytes).map_err(|e| e.in_file(path))
 }
@@ -404,7 +403,7 @@ pub fn read_edge_models(
     path: impl AsRef<Path>,
 ) -> Result<chronomap_topo::edges::EdgeModels, ModelFileError> {
     let path = path.as_ref();
-    let bytes = fs::read(path)
+    let bytes = crate::bounded::read(path)
         .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
     decode_edge_models(&bytes).map_err(|e| e.in_file(path))
 }

@@ -157,7 +157,6 @@
 //! `≤ 20` as free) to keep unknown cells unknown.
 
 use std::fmt;
-use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
@@ -967,7 +966,7 @@ pub fn load_map(yaml: &Path, semantics: LoadSemantics) -> Result<OccupancyMap, N
     let metadata = read_map_yaml(yaml)?;
     let image = image_path(yaml, &metadata.image);
     let image_name = image.display().to_string();
-    let bytes = fs::read(&image).map_err(|io| {
+    let bytes = crate::bounded::read(&image).map_err(|io| {
         NavMapError::in_file(
             &image_name,
             NavMapErrorKind::ImageUnreadable {
@@ -986,7 +985,7 @@ pub fn load_map(yaml: &Path, semantics: LoadSemantics) -> Result<OccupancyMap, N
 /// `path`.
 pub fn read_map_yaml(path: &Path) -> Result<MapMetadata, NavMapError> {
     let name = path.display().to_string();
-    let bytes = fs::read(path)
+    let bytes = crate::bounded::read(path)
         .map_err(|io| NavMapError::in_file(&name, NavMapErrorKind::Io { action: "read", io }))?;
     decode_map_yaml(&name, &bytes)
 }

@@ -849,9 +849,7 @@ pub fn read_tmap2(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
         )
     };
     let file = fs::File::open(path).map_err(read_error)?;
-    let mut bytes = Vec::new();
-    decompressing_reader(&name, file)
-        .read_to_end(&mut bytes)
+    let bytes = crate::bounded::read_to_end_bounded(decompressing_reader(&name, file))
         .map_err(read_error)?;
     Ok(decode_tmap2(&name, &bytes)?.map)
 }

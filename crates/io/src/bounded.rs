@@ -1,0 +1,59 @@
+//! Whole-file reads with a size limit, so that a wrong path (`/dev/zero`, a disk image, a FIFO
+//! that never ends) is an error naming the file instead of unbounded memory and time.
+
+use std::io::{self, Read};
+use std::path::Path;
+
+/// The most bytes a whole-file reader of this crate takes (1 GiB): far above any model, map,
+/// tree or log chronomap writes, and still a bounded allocation.
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
+/// Reads `reader` to its end, or fails with [`io::ErrorKind::InvalidData`] once it yields more
+/// than [`MAX_FILE_BYTES`].
+pub(crate) fn read_to_end_bounded(reader: impl Read) -> io::Result<Vec<u8>> {
+    read_at_most(reader, MAX_FILE_BYTES)
+}
+
+/// Reads `reader` to its end if it yields at most `max` bytes.
+fn read_at_most(reader: impl Read, max: u64) -> io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    reader.take(max + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("larger than {max} bytes (is this the right file?)"),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// [`std::fs::read`] with the [`MAX_FILE_BYTES`] limit.
+pub(crate) fn read(path: &Path) -> io::Result<Vec<u8>> {
+    read_to_end_bounded(std::fs::File::open(path)?)
+}
+
+/// [`std::fs::read_to_string`] with the [`MAX_FILE_BYTES`] limit.
+pub(crate) fn read_to_string(path: &Path) -> io::Result<String> {
+    String::from_utf8(read(path)?).map_err(|_| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            "stream did not contain valid UTF-8",
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_endless_reader_stops_at_the_limit() {
+        let err = read_to_end_bounded(io::repeat(0)).unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::InvalidData);
+        assert_eq!(
+            err.to_string(),
+            "larger than 1073741824 bytes (is this the right file?)"
+        );
+        assert_eq!(read_to_end_bounded(&b"abc"[..]).unwrap(), b"abc");
+    }
+}
