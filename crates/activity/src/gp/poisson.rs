@@ -20,8 +20,8 @@ use statrs::function::gamma::ln_gamma;
 
 use super::kernel::{ActivityKernel, Kernel, Point};
 use super::svgp::{
-    BatchLik, GpError, LatentGp, Marginals, Prediction, SvgpModel, Variational, check_data,
-    flatten, pack_lower, svgp_model, unpack_lower, with_step_halving,
+    Batch, BatchLik, GpError, LatentGp, Marginals, Prediction, SvgpModel, TrainConfig, check_data,
+    check_saved, flatten, pack_lower, predict_in_chunks, svgp_model, with_step_halving,
 };
 use chronomap_core::par::Parallelism;
 
@@ -72,36 +72,33 @@ impl From<PoissonSvgp> for SavedPoissonSvgp {
     }
 }
 
+impl SavedPoissonSvgp {
+    /// Finite values, a kernel of a valid length and one `q(v)` mean per inducing input.
+    fn is_consistent(&self) -> bool {
+        let all_finite = self
+            .kernel
+            .iter()
+            .chain(self.z.iter().flatten())
+            .chain(&self.q_mean)
+            .chain(&self.q_chol)
+            .chain([&self.mean, &self.jitter])
+            .all(|v| v.is_finite());
+        all_finite
+            && self.kernel.len() >= 3
+            && (self.kernel.len() - 3).is_multiple_of(3)
+            && self.z.len() == self.q_mean.len()
+            && self.jitter >= 0.0
+    }
+}
+
 impl TryFrom<SavedPoissonSvgp> for PoissonSvgp {
     type Error = GpError;
     fn try_from(s: SavedPoissonSvgp) -> Result<Self, GpError> {
-        let all_finite = s
-            .kernel
-            .iter()
-            .chain(s.z.iter().flatten())
-            .chain(&s.q_mean)
-            .chain(&s.q_chol)
-            .chain([&s.mean, &s.jitter])
-            .all(|v| v.is_finite());
-        let ok = all_finite
-            && s.kernel.len() >= 3
-            && (s.kernel.len() - 3).is_multiple_of(3)
-            && s.z.len() == s.q_mean.len()
-            && s.jitter >= 0.0;
-        if !ok {
-            return Err(GpError::InvalidInput("inconsistent saved model".into()));
-        }
+        check_saved(s.is_consistent())?;
         let mut kernel = ActivityKernel::new(1.0, [1.0, 1.0], &[]);
         kernel.set_params(&s.kernel);
         Ok(PoissonSvgp {
-            f: LatentGp {
-                kernel,
-                q: Variational {
-                    chol: unpack_lower(&s.q_chol, s.z.len())?,
-                    mean: s.q_mean,
-                },
-                z: s.z,
-            },
+            f: LatentGp::restore(kernel, s.z, s.q_mean, &s.q_chol)?,
             mean: s.mean,
             jitter: s.jitter,
         })
@@ -173,9 +170,9 @@ impl PoissonSvgp {
     }
 
     /// The marginals of `f` on a checked batch.
-    fn marginals(&self, x: &[Point], y: &[f64], par: Parallelism) -> Result<Marginals, GpError> {
-        check_rates(x, y)?;
-        self.f.marginals(x, self.jitter, par)
+    fn marginals(&self, batch: &Batch<'_>, par: Parallelism) -> Result<Marginals, GpError> {
+        check_rates(batch.x, batch.y)?;
+        self.f.marginals(batch.x, self.jitter, par)
     }
 
     /// The ELBO of eq. 4.12 from the batch likelihood: minus the KL term.
@@ -183,29 +180,24 @@ impl PoissonSvgp {
         lik.ell - self.f.q.kl()
     }
 
-    fn batch_lik(&self, y: &[f64], marg: &Marginals, scale: f64) -> BatchLik<1> {
-        BatchLik::new(y.len(), scale, |i| {
+    fn batch_lik(&self, batch: &Batch<'_>, marg: &Marginals) -> BatchLik<1> {
+        let y = batch.y;
+        BatchLik::new(batch, |i| {
             let e = expected_poisson_log_lik(y[i], self.mean + marg.mean[i], marg.var[i]);
             (e.value, [e.d_m], [e.d_v])
         })
     }
 
-    /// The ELBO ([Stüde 2024] eq. 4.12 with the one latent function of GP-Hom) estimated on the
-    /// batch `(x, y)`: the expected log-likelihood summed over the batch times `scale` (`n /
-    /// |B|` for a minibatch of `n` points, `1` for the full data) minus `KL(q(u) ‖ p(u))`.
+    /// The ELBO ([Stüde 2024] eq. 4.12 with the one latent function of GP-Hom) estimated on
+    /// `batch`: the expected log-likelihood summed over the batch times its `scale` minus
+    /// `KL(q(u) ‖ p(u))`.
     ///
     /// # Errors
     /// Inconsistent or non-finite data, negative rates, or a `K(Z, Z)` that is not positive
     /// definite.
-    pub fn elbo(
-        &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        par: Parallelism,
-    ) -> Result<f64, GpError> {
-        let marg = self.marginals(x, y, par)?;
-        Ok(self.elbo_of(&self.batch_lik(y, &marg, scale)))
+    pub fn elbo(&self, batch: &Batch<'_>, par: Parallelism) -> Result<f64, GpError> {
+        let marg = self.marginals(batch, par)?;
+        Ok(self.elbo_of(&self.batch_lik(batch, &marg)))
     }
 
     /// [`PoissonSvgp::elbo`] and its exact gradient with respect to the kernel
@@ -215,27 +207,18 @@ impl PoissonSvgp {
     /// As [`PoissonSvgp::elbo`].
     pub fn elbo_grad(
         &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
+        batch: &Batch<'_>,
         par: Parallelism,
     ) -> Result<PoissonElboGrad, GpError> {
-        let marg = self.marginals(x, y, par)?;
-        Ok(self.grad_from(x, y, scale, &marg, par))
+        let marg = self.marginals(batch, par)?;
+        Ok(self.grad_from(batch, &marg, par))
     }
 
-    fn grad_from(
-        &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        marg: &Marginals,
-        par: Parallelism,
-    ) -> PoissonElboGrad {
-        let lik = self.batch_lik(y, marg, scale);
+    fn grad_from(&self, batch: &Batch<'_>, marg: &Marginals, par: Parallelism) -> PoissonElboGrad {
+        let lik = self.batch_lik(batch, marg);
         let (d_kernel, d_z) = self
             .f
-            .marginals_backward(x, marg, &lik.dm[0], &lik.dv[0], par);
+            .marginals_backward(batch.x, marg, &lik.dm[0], &lik.dv[0], par);
         PoissonElboGrad {
             elbo: self.elbo_of(&lik),
             d_kernel,
@@ -245,7 +228,7 @@ impl PoissonSvgp {
         }
     }
 
-    /// One training iteration on the batch `(x, y)`: a natural-gradient step of size `rho` on
+    /// One training iteration on `batch`: a natural-gradient step of size `rho` on
     /// `q(v)` (halved up to 10 times while the new precision is not positive definite), then
     /// the ELBO gradient at the new `q`, reusing the kernel matrices of the step. Returns the
     /// ELBO estimate before the step and that gradient.
@@ -255,20 +238,18 @@ impl PoissonSvgp {
     /// `exp(m + v/2)` that overflows).
     pub fn train_step(
         &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
+        batch: &Batch<'_>,
         rho: f64,
         par: Parallelism,
     ) -> Result<(f64, PoissonElboGrad), GpError> {
-        let marg = self.marginals(x, y, par)?;
-        let lik = self.batch_lik(y, &marg, scale);
+        let marg = self.marginals(batch, par)?;
+        let lik = self.batch_lik(batch, &marg);
         let elbo = self.elbo_of(&lik);
         self.f.q = with_step_halving(rho, |rho| {
             self.f.natgrad_update(&marg, &lik.dm[0], &lik.dv[0], rho)
         })?;
         let marg = self.f.refresh(marg);
-        Ok((elbo, self.grad_from(x, y, scale, &marg, par)))
+        Ok((elbo, self.grad_from(batch, &marg, par)))
     }
 
     /// Predicted rate at `x`: the mean `E[exp f] = exp(c + m + v/2)` and the standard deviation
@@ -283,19 +264,15 @@ impl PoissonSvgp {
                 "non-finite value at row {i}"
             )));
         }
-        let mut out = Prediction {
-            mean: Vec::with_capacity(x.len()),
-            std: Vec::with_capacity(x.len()),
-        };
-        for chunk in x.chunks(1024) {
+        predict_in_chunks(x, |chunk, out| {
             let marg = self.f.marginals(chunk, self.jitter, par)?;
             for (m, v) in marg.mean.iter().zip(&marg.var) {
                 let rate = (self.mean + m + 0.5 * v).exp();
                 out.mean.push(rate);
                 out.std.push(v.exp_m1().sqrt() * rate);
             }
-        }
-        Ok(out)
+            Ok(())
+        })
     }
 
     /// All hyperparameters trained by Adam, flattened: the `k_f` log-parameters, `c`, then (if

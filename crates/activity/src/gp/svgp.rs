@@ -200,6 +200,26 @@ pub struct Marginals {
     sa: Mat<f64>,
 }
 
+impl<K> LatentGp<K> {
+    /// A latent GP restored from its saved parts: inducing inputs `z` and `q(v)` with mean
+    /// `q_mean` and the lower Cholesky factor packed row by row in `q_chol`.
+    pub(super) fn restore(
+        kernel: K,
+        z: Vec<Point>,
+        q_mean: Vec<f64>,
+        q_chol: &[f64],
+    ) -> Result<Self, GpError> {
+        Ok(LatentGp {
+            kernel,
+            q: Variational {
+                chol: unpack_lower(q_chol, z.len())?,
+                mean: q_mean,
+            },
+            z,
+        })
+    }
+}
+
 impl<K: Kernel> LatentGp<K> {
     /// A latent GP with the prior `q(v) = N(0, I)`.
     pub fn new(kernel: K, z: Vec<Point>) -> Self {
@@ -437,53 +457,53 @@ impl From<HeteroSvgp> for SavedHeteroSvgp {
     }
 }
 
+impl SavedHeteroSvgp {
+    /// Finite values, kernels of valid lengths and one `q(v)` mean per inducing input.
+    fn is_consistent(&self) -> bool {
+        let all_finite = self
+            .kernel_f
+            .iter()
+            .chain(&self.kernel_g)
+            .chain(self.z_f.iter().flatten())
+            .chain(self.z_g.iter().flatten())
+            .chain(&self.q_mean_f)
+            .chain(&self.q_mean_g)
+            .chain(&self.q_chol_f)
+            .chain(&self.q_chol_g)
+            .all(|v| v.is_finite());
+        all_finite
+            && self.kernel_f.len() >= 3
+            && (self.kernel_f.len() - 3).is_multiple_of(3)
+            && self.kernel_g.len() == 4
+            && self.z_f.len() == self.q_mean_f.len()
+            && self.z_g.len() == self.q_mean_g.len()
+            && self.jitter >= 0.0
+            && (1..=200).contains(&self.quadrature_nodes)
+    }
+}
+
+/// `Ok` for a saved model that [`is_consistent`](SavedHeteroSvgp::is_consistent), else the
+/// error of one whose parts do not fit together.
+pub(super) fn check_saved(consistent: bool) -> Result<(), GpError> {
+    if consistent {
+        Ok(())
+    } else {
+        Err(GpError::InvalidInput("inconsistent saved model".into()))
+    }
+}
+
 impl TryFrom<SavedHeteroSvgp> for HeteroSvgp {
     type Error = GpError;
     fn try_from(s: SavedHeteroSvgp) -> Result<Self, GpError> {
-        let all_finite = s
-            .kernel_f
-            .iter()
-            .chain(&s.kernel_g)
-            .chain(s.z_f.iter().flatten())
-            .chain(s.z_g.iter().flatten())
-            .chain(&s.q_mean_f)
-            .chain(&s.q_mean_g)
-            .chain(&s.q_chol_f)
-            .chain(&s.q_chol_g)
-            .all(|v| v.is_finite());
-        let ok = all_finite
-            && s.kernel_f.len() >= 3
-            && (s.kernel_f.len() - 3).is_multiple_of(3)
-            && s.kernel_g.len() == 4
-            && s.z_f.len() == s.q_mean_f.len()
-            && s.z_g.len() == s.q_mean_g.len()
-            && s.jitter >= 0.0
-            && (1..=200).contains(&s.quadrature_nodes);
-        if !ok {
-            return Err(GpError::InvalidInput("inconsistent saved model".into()));
-        }
+        check_saved(s.is_consistent())?;
         let mut kf = ActivityKernel::new(1.0, [1.0, 1.0], &[]);
         let mut kg = RbfKernel::new(1.0, [1.0; 3]);
         // ActivityKernel::new with no components has 3 parameters; grow to the saved length.
         kf.set_params(&s.kernel_f);
         kg.params_mut().copy_from_slice(&s.kernel_g);
         Ok(HeteroSvgp {
-            f: LatentGp {
-                kernel: kf,
-                q: Variational {
-                    chol: unpack_lower(&s.q_chol_f, s.z_f.len())?,
-                    mean: s.q_mean_f,
-                },
-                z: s.z_f,
-            },
-            g: LatentGp {
-                kernel: kg,
-                q: Variational {
-                    chol: unpack_lower(&s.q_chol_g, s.z_g.len())?,
-                    mean: s.q_mean_g,
-                },
-                z: s.z_g,
-            },
+            f: LatentGp::restore(kf, s.z_f, s.q_mean_f, &s.q_chol_f)?,
+            g: LatentGp::restore(kg, s.z_g, s.q_mean_g, &s.q_chol_g)?,
             likelihood: HeteroGaussian::new(s.quadrature_nodes),
             jitter: s.jitter,
         })
@@ -534,6 +554,19 @@ pub struct Prediction {
     pub std: Vec<f64>,
 }
 
+/// A batch of training data `(x, y)` and the factor `scale` by which its expected
+/// log-likelihood enters the ELBO estimate ([Stüde 2024] eq. 4.12): `n / |B|` for a minibatch
+/// of a data set of `n` points, `1` for the full data.
+#[derive(Clone, Copy, Debug)]
+pub struct Batch<'a> {
+    /// The inputs.
+    pub x: &'a [Point],
+    /// The targets.
+    pub y: &'a [f64],
+    /// The factor of the expected log-likelihood.
+    pub scale: f64,
+}
+
 /// The likelihood term of the ELBO on a batch (the first term of [Stüde 2024] eq. 4.12) for a
 /// model of `L` latent GPs: `scale · Σ_i E_{q}[ln p(y_i | ·)]` and its per-point gradients
 /// with respect to the marginal mean `m_{l,i}` and variance `v_{l,i}` of every latent GP `l`,
@@ -549,12 +582,12 @@ pub(super) struct BatchLik<const L: usize> {
 }
 
 impl<const L: usize> BatchLik<L> {
-    /// The batch likelihood of `n` points from `point(i) = (E_i, [∂E_i/∂m_l], [∂E_i/∂v_l])`.
+    /// The likelihood of `batch` from `point(i) = (E_i, [∂E_i/∂m_l], [∂E_i/∂v_l])`.
     pub(super) fn new(
-        n: usize,
-        scale: f64,
+        batch: &Batch<'_>,
         mut point: impl FnMut(usize) -> (f64, [f64; L], [f64; L]),
     ) -> Self {
+        let (n, scale) = (batch.y.len(), batch.scale);
         let mut out = BatchLik {
             ell: 0.0,
             dm: std::array::from_fn(|_| vec![0.0; n]),
@@ -571,6 +604,22 @@ impl<const L: usize> BatchLik<L> {
         out.ell *= scale;
         out
     }
+}
+
+/// The [`Prediction`] at `x`, built in chunks of 1024 points (bounding the size of the
+/// marginals): `push(chunk, out)` appends the predictions of one chunk to `out`.
+pub(super) fn predict_in_chunks(
+    x: &[Point],
+    mut push: impl FnMut(&[Point], &mut Prediction) -> Result<(), GpError>,
+) -> Result<Prediction, GpError> {
+    let mut out = Prediction {
+        mean: Vec::with_capacity(x.len()),
+        std: Vec::with_capacity(x.len()),
+    };
+    for chunk in x.chunks(1024) {
+        push(chunk, &mut out)?;
+    }
+    Ok(out)
 }
 
 /// Hyperparameters, or their gradient, flattened in the order Adam sees them: the `parts`
@@ -621,13 +670,12 @@ impl HeteroSvgp {
     /// The marginals of `f` and `g` on a checked batch.
     fn marginals(
         &self,
-        x: &[Point],
-        y: &[f64],
+        batch: &Batch<'_>,
         par: Parallelism,
     ) -> Result<(Marginals, Marginals), GpError> {
-        check_data(x, y)?;
-        let mf = self.f.marginals(x, self.jitter, par)?;
-        let mg = self.g.marginals(x, self.jitter, par)?;
+        check_data(batch.x, batch.y)?;
+        let mf = self.f.marginals(batch.x, self.jitter, par)?;
+        let mg = self.g.marginals(batch.x, self.jitter, par)?;
         Ok((mf, mg))
     }
 
@@ -636,8 +684,9 @@ impl HeteroSvgp {
         lik.ell - self.f.q.kl() - self.g.q.kl()
     }
 
-    fn batch_lik(&self, y: &[f64], mf: &Marginals, mg: &Marginals, scale: f64) -> BatchLik<2> {
-        BatchLik::new(y.len(), scale, |i| {
+    fn batch_lik(&self, batch: &Batch<'_>, mf: &Marginals, mg: &Marginals) -> BatchLik<2> {
+        let y = batch.y;
+        BatchLik::new(batch, |i| {
             let e = self
                 .likelihood
                 .expected_log_lik(y[i], mf.mean[i], mf.var[i], mg.mean[i], mg.var[i]);
@@ -645,45 +694,31 @@ impl HeteroSvgp {
         })
     }
 
-    /// The ELBO ([Stüde 2024] eq. 4.12) estimated on the batch `(x, y)`: the expected
-    /// log-likelihood summed over the batch times `scale` (use `n / |B|` for a minibatch of a
-    /// data set of `n` points, `1` for the full data) minus both KL terms.
-    pub fn elbo(
-        &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        par: Parallelism,
-    ) -> Result<f64, GpError> {
-        let (mf, mg) = self.marginals(x, y, par)?;
-        let lik = self.batch_lik(y, &mf, &mg, scale);
+    /// The ELBO ([Stüde 2024] eq. 4.12) estimated on `batch`: the expected log-likelihood
+    /// summed over the batch times its `scale` minus both KL terms.
+    pub fn elbo(&self, batch: &Batch<'_>, par: Parallelism) -> Result<f64, GpError> {
+        let (mf, mg) = self.marginals(batch, par)?;
+        let lik = self.batch_lik(batch, &mf, &mg);
         Ok(self.elbo_of(&lik))
     }
 
     /// [`HeteroSvgp::elbo`] and its exact gradient with respect to both kernels'
     /// log-parameters and both sets of inducing inputs (with `q(v)` held fixed).
-    pub fn elbo_grad(
-        &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        par: Parallelism,
-    ) -> Result<ElboGrad, GpError> {
-        let (mf, mg) = self.marginals(x, y, par)?;
-        Ok(self.grad_from(x, y, scale, &mf, &mg, par))
+    pub fn elbo_grad(&self, batch: &Batch<'_>, par: Parallelism) -> Result<ElboGrad, GpError> {
+        let (mf, mg) = self.marginals(batch, par)?;
+        Ok(self.grad_from(batch, &mf, &mg, par))
     }
 
     /// [`HeteroSvgp::elbo_grad`] from already computed marginals.
     fn grad_from(
         &self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
+        batch: &Batch<'_>,
         mf: &Marginals,
         mg: &Marginals,
         par: Parallelism,
     ) -> ElboGrad {
-        let lik = self.batch_lik(y, mf, mg, scale);
+        let lik = self.batch_lik(batch, mf, mg);
+        let x = batch.x;
         let (d_kernel_f, d_z_f) = self
             .f
             .marginals_backward(x, mf, &lik.dm[0], &lik.dv[0], par);
@@ -699,20 +734,18 @@ impl HeteroSvgp {
         }
     }
 
-    /// One natural-gradient step of size `rho` on `q(v_f)` and `q(v_g)` with the batch
-    /// `(x, y)` scaled by `scale` (both use the marginals before the step, as GPflow's
-    /// `NaturalGradient` does). Returns the ELBO estimate before the step. If a step is not
-    /// positive definite, neither `q` changes and the error is returned.
+    /// One natural-gradient step of size `rho` on `q(v_f)` and `q(v_g)` with `batch` (both
+    /// use the marginals before the step, as GPflow's `NaturalGradient` does). Returns the
+    /// ELBO estimate before the step. If a step is not positive definite, neither `q` changes
+    /// and the error is returned.
     pub fn natgrad_step(
         &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
+        batch: &Batch<'_>,
         rho: f64,
         par: Parallelism,
     ) -> Result<f64, GpError> {
-        let (mf, mg) = self.marginals(x, y, par)?;
-        let lik = self.batch_lik(y, &mf, &mg, scale);
+        let (mf, mg) = self.marginals(batch, par)?;
+        let lik = self.batch_lik(batch, &mf, &mg);
         let elbo = self.elbo_of(&lik);
         let qf = self.f.natgrad_update(&mf, &lik.dm[0], &lik.dv[0], rho)?;
         let qg = self.g.natgrad_update(&mg, &lik.dm[1], &lik.dv[1], rho)?;
@@ -721,20 +754,18 @@ impl HeteroSvgp {
         Ok(elbo)
     }
 
-    /// One training iteration on the batch `(x, y)`: a natural-gradient step of size `rho` on
-    /// both `q` (halved up to 10 times while the new precision is not positive definite),
-    /// then the ELBO gradient for the hyperparameters at the new `q`, reusing the kernel
-    /// matrices of the step. Returns the ELBO estimate before the step and that gradient.
+    /// One training iteration on `batch`: a natural-gradient step of size `rho` on both `q`
+    /// (halved up to 10 times while the new precision is not positive definite), then the
+    /// ELBO gradient for the hyperparameters at the new `q`, reusing the kernel matrices of
+    /// the step. Returns the ELBO estimate before the step and that gradient.
     pub fn train_step(
         &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
+        batch: &Batch<'_>,
         rho: f64,
         par: Parallelism,
     ) -> Result<(f64, ElboGrad), GpError> {
-        let (mf, mg) = self.marginals(x, y, par)?;
-        let lik = self.batch_lik(y, &mf, &mg, scale);
+        let (mf, mg) = self.marginals(batch, par)?;
+        let lik = self.batch_lik(batch, &mf, &mg);
         let elbo = self.elbo_of(&lik);
         let (qf, qg) = with_step_halving(rho, |rho| {
             let qf = self.f.natgrad_update(&mf, &lik.dm[0], &lik.dv[0], rho)?;
@@ -744,17 +775,13 @@ impl HeteroSvgp {
         self.g.q = qg;
         let mf = self.f.refresh(mf);
         let mg = self.g.refresh(mg);
-        Ok((elbo, self.grad_from(x, y, scale, &mf, &mg, par)))
+        Ok((elbo, self.grad_from(batch, &mf, &mg, par)))
     }
 
     /// Predictive mean and standard deviation of `y` at `x` ([Stüde 2024] eq. 4.19): mean `m_f`,
     /// variance `Σ_f + E_{q(g)}[ζ(g)²]`. Works in chunks of 1024 points.
     pub fn predict(&self, x: &[Point], par: Parallelism) -> Result<Prediction, GpError> {
-        let mut out = Prediction {
-            mean: Vec::with_capacity(x.len()),
-            std: Vec::with_capacity(x.len()),
-        };
-        for chunk in x.chunks(1024) {
+        predict_in_chunks(x, |chunk, out| {
             let mf = self.f.marginals(chunk, self.jitter, par)?;
             let mg = self.g.marginals(chunk, self.jitter, par)?;
             for i in 0..chunk.len() {
@@ -764,8 +791,8 @@ impl HeteroSvgp {
                     .expected_noise_variance(mg.mean[i], mg.var[i]);
                 out.std.push((mf.var[i] + noise).sqrt());
             }
-        }
-        Ok(out)
+            Ok(())
+        })
     }
 
     /// All hyperparameters trained by Adam, flattened: `k_f` log-parameters, `k_g`
@@ -915,21 +942,18 @@ pub trait SvgpModel {
     /// [`GpError::InvalidInput`] naming the first offending row.
     fn check_training_data(&self, x: &[Point], y: &[f64]) -> Result<(), GpError>;
 
-    /// One training iteration on the batch `(x, y)` scaled by `scale`: a natural-gradient
-    /// step of size `rho` on every `q(v)` (halved while not positive definite), then the ELBO
-    /// gradient at the new `q` flattened in the order of
-    /// [`SvgpModel::hyperparameters`]`(with_inducing)`. Returns the ELBO estimate before the
-    /// step and that gradient.
+    /// One training iteration of [`train`] on `batch`: a natural-gradient step of size
+    /// `config.natgrad_step` on every `q(v)` (halved while not positive definite), then the
+    /// ELBO gradient at the new `q` flattened in the order of
+    /// [`SvgpModel::hyperparameters`]`(config.train_inducing)`. Returns the ELBO estimate
+    /// before the step and that gradient.
     ///
     /// # Errors
     /// As the model's `train_step`.
     fn train_iteration(
         &mut self,
-        x: &[Point],
-        y: &[f64],
-        scale: f64,
-        rho: f64,
-        with_inducing: bool,
+        batch: &Batch<'_>,
+        config: &TrainConfig,
         par: Parallelism,
     ) -> Result<(f64, Vec<f64>), GpError>;
 
@@ -951,15 +975,12 @@ macro_rules! svgp_model {
 
             fn train_iteration(
                 &mut self,
-                x: &[Point],
-                y: &[f64],
-                scale: f64,
-                rho: f64,
-                with_inducing: bool,
+                batch: &Batch<'_>,
+                config: &TrainConfig,
                 par: Parallelism,
             ) -> Result<(f64, Vec<f64>), GpError> {
-                let (elbo, grad) = self.train_step(x, y, scale, rho, par)?;
-                Ok((elbo, grad.flatten(with_inducing)))
+                let (elbo, grad) = self.train_step(batch, config.natgrad_step, par)?;
+                Ok((elbo, grad.flatten(config.train_inducing)))
             }
 
             fn hyperparameters(&self, with_inducing: bool) -> Vec<f64> {
@@ -1027,14 +1048,12 @@ pub fn train_with_progress<M: SvgpModel>(
             bx.push(x[i]);
             by.push(y[i]);
         }
-        let (elbo, grad) = model.train_iteration(
-            &bx,
-            &by,
+        let batch = Batch {
+            x: &bx,
+            y: &by,
             scale,
-            config.natgrad_step,
-            config.train_inducing,
-            par,
-        )?;
+        };
+        let (elbo, grad) = model.train_iteration(&batch, config, par)?;
         trace.push(elbo);
         let mut p = model.hyperparameters(config.train_inducing);
         adam.ascend(&mut p, &grad);

@@ -10,6 +10,11 @@ use chronomap_core::rng::Xoshiro256StarStar;
 
 const SEQ: Parallelism = Parallelism::Sequential;
 
+/// The batch `(x, y)` whose expected log-likelihood is scaled by `scale`.
+fn batch<'a>(x: &'a [Point], y: &'a [f64], scale: f64) -> Batch<'a> {
+    Batch { x, y, scale }
+}
+
 /// A uniform input of `[0, 1]² × [0, t_max]`.
 fn random_input(rng: &mut Xoshiro256StarStar, t_max: f64) -> Point {
     [
@@ -550,8 +555,8 @@ fn elbo_gradient_matches_finite_differences() {
     model.f.q = random_q(&mut rng, 6);
     model.g.q = random_q(&mut rng, 6);
     let scale = 2.5;
-    let elbo = |m: &HeteroSvgp| m.elbo(&x, &y, scale, SEQ).unwrap();
-    let grad = model.elbo_grad(&x, &y, scale, SEQ).unwrap();
+    let elbo = |m: &HeteroSvgp| m.elbo(&batch(&x, &y, scale), SEQ).unwrap();
+    let grad = model.elbo_grad(&batch(&x, &y, scale), SEQ).unwrap();
     assert!(rel(grad.elbo, elbo(&model), 0.0) < 1e-14);
     check_elbo_gradient(&model, &grad.flatten(true), elbo);
 }
@@ -617,7 +622,7 @@ fn training_increases_the_elbo_and_learns_the_noise() {
         ..long_training(4)
     };
     check_training(&mut model, (&x, &y), &config, 100.0, |m| {
-        m.elbo(&x, &y, 1.0, SEQ).unwrap()
+        m.elbo(&batch(&x, &y, 1.0), SEQ).unwrap()
     });
     // Heteroscedasticity: predicted std is larger where the noise is (x1 > 0.5).
     let quiet: Vec<Point> = (0..20).map(|i| [0.2, 0.5, i as f64 * 3.0]).collect();
@@ -666,18 +671,18 @@ fn adam_minimises_a_quadratic() {
 fn invalid_inputs_are_rejected() {
     let model = small_model(vec![[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]);
     assert!(matches!(
-        model.elbo(&[[0.0; 3]], &[1.0, 2.0], 1.0, SEQ),
+        model.elbo(&batch(&[[0.0; 3]], &[1.0, 2.0], 1.0), SEQ),
         Err(GpError::InvalidInput(_))
     ));
     assert!(matches!(
-        model.elbo(&[[0.0, f64::NAN, 0.0]], &[1.0], 1.0, SEQ),
+        model.elbo(&batch(&[[0.0, f64::NAN, 0.0]], &[1.0], 1.0), SEQ),
         Err(GpError::InvalidInput(_))
     ));
     // Duplicate inducing inputs with no jitter: K(Z, Z) is singular.
     let mut m = small_model(vec![[0.5; 3], [0.5; 3]]);
     m.jitter = 0.0;
     assert!(matches!(
-        m.elbo(&[[0.0; 3]], &[1.0], 1.0, SEQ),
+        m.elbo(&batch(&[[0.0; 3]], &[1.0], 1.0), SEQ),
         Err(GpError::NotPositiveDefinite { .. })
     ));
 }
@@ -704,9 +709,9 @@ fn train_step_reuses_kernel_matrices_without_changing_results() {
     let mut rng = Xoshiro256StarStar::seed_from_u64(3);
     a.f.q = random_q(&mut rng, 10);
     let mut b = a.clone();
-    let (elbo_a, grad_a) = a.train_step(&x, &y, 2.0, 0.3, SEQ).unwrap();
-    let elbo_b = b.natgrad_step(&x, &y, 2.0, 0.3, SEQ).unwrap();
-    let grad_b = b.elbo_grad(&x, &y, 2.0, SEQ).unwrap();
+    let (elbo_a, grad_a) = a.train_step(&batch(&x, &y, 2.0), 0.3, SEQ).unwrap();
+    let elbo_b = b.natgrad_step(&batch(&x, &y, 2.0), 0.3, SEQ).unwrap();
+    let grad_b = b.elbo_grad(&batch(&x, &y, 2.0), SEQ).unwrap();
     assert_eq!(elbo_a, elbo_b);
     assert_eq!(a, b);
     assert_eq!(grad_a, grad_b);
@@ -786,8 +791,8 @@ fn poisson_elbo_gradient_matches_finite_differences() {
     let mut model = poisson_model(random_points(&mut rng, 6));
     model.f.q = random_q(&mut rng, 6);
     let scale = 2.5;
-    let elbo = |m: &PoissonSvgp| m.elbo(&x, &y, scale, SEQ).unwrap();
-    let grad = model.elbo_grad(&x, &y, scale, SEQ).unwrap();
+    let elbo = |m: &PoissonSvgp| m.elbo(&batch(&x, &y, scale), SEQ).unwrap();
+    let grad = model.elbo_grad(&batch(&x, &y, scale), SEQ).unwrap();
     assert!(rel(grad.elbo, elbo(&model), 0.0) < 1e-14);
     // 6 kernel log-parameters, the mean c, 6 × 3 inducing coordinates.
     assert_eq!(check_elbo_gradient(&model, &grad.flatten(true), elbo), 25);
@@ -799,7 +804,7 @@ fn poisson_training_increases_the_elbo_and_recovers_the_rate() {
     let mut model = poisson_model(inducing(&x, 20));
     // Measured: −1792 → −1136.
     check_training(&mut model, (&x, &y), &long_training(4), 500.0, |m| {
-        m.elbo(&x, &y, 1.0, SEQ).unwrap()
+        m.elbo(&batch(&x, &y, 1.0), SEQ).unwrap()
     });
     // The predicted mean rate follows the true rate along a day at x1 = 0.8.
     let day: Vec<Point> = (0..24).map(|h| [0.8, 0.5, 24.0 + h as f64]).collect();
