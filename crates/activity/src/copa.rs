@@ -17,8 +17,8 @@ use serde::{Deserialize, Serialize};
 use super::init::{PeriodInit, SpectralInitConfig, inducing_points, initial_periods};
 use super::{RatePredictor, RateSamples};
 use crate::gp::{
-    ActivityKernel, GpError, HeteroSvgp, PeriodicComponent, Point, RbfKernel, TrainConfig,
-    train_with_progress,
+    ActivityKernel, GpError, HeteroSvgp, PeriodicComponent, Point, Prediction, RbfKernel,
+    TrainConfig, train_with_progress,
 };
 use chronomap_core::par::Parallelism;
 use chronomap_core::progress::{NoProgress, Progress};
@@ -234,21 +234,10 @@ impl CopaMap {
         })
     }
 
-    /// Predicted rate (≥ 0) and its standard deviation at many points: with
-    /// [`RateScale::Rate`] the predictive mean of eq. (4.19) (negative means set to 0), with
-    /// [`RateScale::Log1p`] the predictive median `exp(m) − 1`.
-    ///
-    /// # Errors
-    /// Non-finite inputs.
-    pub fn predict_with_std(
-        &self,
-        points: &[([f64; 2], f64)],
-        par: Parallelism,
-    ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
-        let prediction = self
-            .model
-            .predict(&self.scaling.apply_points(points), par)?;
-        let (mean, std) = prediction
+    /// The rates and their standard deviations of `predict_with_std` from the GP's prediction
+    /// in scaled units.
+    fn rates(&self, prediction: Prediction) -> (Vec<f64>, Vec<f64>) {
+        prediction
             .mean
             .iter()
             .zip(&prediction.std)
@@ -263,8 +252,7 @@ impl CopaMap {
                     ),
                 }
             })
-            .unzip();
-        Ok((mean, std))
+            .unzip()
     }
 
     /// The square of the plane the model was trained on: `[x_min, y_min, x_max, y_max]` with
@@ -425,12 +413,31 @@ pub(crate) fn fit_training(
     }
 }
 
-/// Implements [`RatePredictor`], named `$name`, for a GP model whose inherent
-/// `predict_with_std(points, par)` predicts many points at once: on one thread, `NaN` where
-/// the prediction fails (for one point, or everywhere for a batch). `RatePredictor`,
-/// `RateSamples` and `Parallelism` must be in scope.
+/// Gives a GP model (fields `model`, the GP, and `scaling`, its [`InputScaling`]) the inherent
+/// `predict_with_std(points, par)`, documented by `$doc`: the GP's prediction at the scaled
+/// points, turned into rates by the model's `rates`. Implements [`RatePredictor`], named
+/// `$name`, on it: on one thread, `NaN` where the prediction fails (for one point, or
+/// everywhere for a batch). `RatePredictor`, `RateSamples`, `GpError` and `Parallelism` must be
+/// in scope.
 macro_rules! gp_rate_predictor {
-    ($model:ty, $name:literal) => {
+    ($model:ty, $name:literal, $(#[$doc:meta])*) => {
+        impl $model {
+            $(#[$doc])*
+            ///
+            /// # Errors
+            /// Non-finite inputs.
+            pub fn predict_with_std(
+                &self,
+                points: &[([f64; 2], f64)],
+                par: Parallelism,
+            ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
+                let prediction = self
+                    .model
+                    .predict(&self.scaling.apply_points(points), par)?;
+                Ok(self.rates(prediction))
+            }
+        }
+
         impl RatePredictor for $model {
             fn name(&self) -> &str {
                 $name
@@ -452,4 +459,10 @@ macro_rules! gp_rate_predictor {
 }
 pub(crate) use gp_rate_predictor;
 
-gp_rate_predictor!(CopaMap, "copa");
+gp_rate_predictor!(
+    CopaMap,
+    "copa",
+    /// Predicted rate (≥ 0) and its standard deviation at many points: with
+    /// [`RateScale::Rate`] the predictive mean of eq. (4.19) (negative means set to 0), with
+    /// [`RateScale::Log1p`] the predictive median `exp(m) − 1`.
+);

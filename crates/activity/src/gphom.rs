@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::copa::{InputScaling, check_fit, day_harmonics, fit_training, gp_rate_predictor};
 use super::init::inducing_points;
 use super::{RatePredictor, RateSamples};
-use crate::gp::{ActivityKernel, GpError, Point, PoissonSvgp, train_with_progress};
+use crate::gp::{ActivityKernel, GpError, Point, PoissonSvgp, Prediction, train_with_progress};
 use chronomap_core::par::Parallelism;
 use chronomap_core::progress::{NoProgress, Progress};
 
@@ -128,19 +128,10 @@ impl GpHom {
         })
     }
 
-    /// Mean and standard deviation of the rate at many points (see [`PoissonSvgp::predict`]).
-    ///
-    /// # Errors
-    /// Non-finite inputs.
-    pub fn predict_with_std(
-        &self,
-        points: &[([f64; 2], f64)],
-        par: Parallelism,
-    ) -> Result<(Vec<f64>, Vec<f64>), GpError> {
-        let prediction = self
-            .model
-            .predict(&self.scaling.apply_points(points), par)?;
-        Ok((prediction.mean, prediction.std))
+    /// The rates and their standard deviations of `predict_with_std`: the GP's prediction as
+    /// it is (it is a rate already).
+    fn rates(&self, prediction: Prediction) -> (Vec<f64>, Vec<f64>) {
+        (prediction.mean, prediction.std)
     }
 
     /// The fitted periods, in units of `t`.
@@ -154,7 +145,11 @@ impl GpHom {
     }
 }
 
-gp_rate_predictor!(GpHom, "gp_hom");
+gp_rate_predictor!(
+    GpHom,
+    "gp_hom",
+    /// Mean and standard deviation of the rate at many points (see [`PoissonSvgp::predict`]).
+);
 
 #[cfg(test)]
 mod tests {
