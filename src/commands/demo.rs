@@ -383,13 +383,6 @@ fn observed_and_predicted(
 
 fn spectrum_bars(model: &FremenModel) -> Vec<SpectrumBar> {
     let used: Vec<f64> = model.components().iter().map(|c| c.period_secs).collect();
-    model
-        .spectrum()
-        .iter()
-        .map(|c| SpectrumBar {
-            period_hours: c.period_secs / 3600.0,
-            amplitude: c.amplitude,
-            chosen: used.contains(&c.period_secs),
-        })
-        .collect()
+    let spectrum = model.spectrum();
+    SpectrumBar::from_spectrum(spectrum.iter().map(|c| (c.period_secs, c.amplitude)), &used)
 }

@@ -105,6 +105,24 @@ pub struct SpectrumBar {
     pub chosen: bool,
 }
 
+impl SpectrumBar {
+    /// The bars of a spectrum of `(period in seconds, amplitude)` components; those whose
+    /// period is one of `chosen_secs` are chosen.
+    pub fn from_spectrum(
+        spectrum: impl IntoIterator<Item = (f64, f64)>,
+        chosen_secs: &[f64],
+    ) -> Vec<SpectrumBar> {
+        spectrum
+            .into_iter()
+            .map(|(period_secs, amplitude)| SpectrumBar {
+                period_hours: period_secs / 3600.0,
+                amplitude,
+                chosen: chosen_secs.contains(&period_secs),
+            })
+            .collect()
+    }
+}
+
 /// What went wrong while plotting.
 #[derive(Debug, Error)]
 #[non_exhaustive]

@@ -115,15 +115,11 @@ fn spectrum_of_a_trained_model_renders() {
     let models = greg_models();
     let (_, model) = &models[2];
     let chosen: Vec<f64> = model.components().iter().map(|c| c.period_secs).collect();
-    let bars: Vec<SpectrumBar> = model
-        .spectrum()
-        .iter()
-        .map(|c| SpectrumBar {
-            period_hours: c.period_secs / 3600.0,
-            amplitude: c.amplitude,
-            chosen: chosen.contains(&c.period_secs),
-        })
-        .collect();
+    let spectrum = model.spectrum();
+    let bars = SpectrumBar::from_spectrum(
+        spectrum.iter().map(|c| (c.period_secs, c.amplitude)),
+        &chosen,
+    );
     assert_eq!(bars.iter().filter(|b| b.chosen).count(), 4);
     let path = out("greg_spectrum.png");
     render_spectrum_png(
