@@ -76,7 +76,7 @@ pub mod world;
 pub use field::{GammaPrior, GridPoisson, GridSpec, RateField, copa_field};
 pub use places::TspConfig;
 pub use synth::{
-    Candidates, Choice, DiscCache, Method, Plan, SearchContext, Synthesis, baseline, synthesize,
+    Candidates, Choice, DiscCache, Method, Plan, SearchContext, Synthesis, synthesize,
 };
 
 use thiserror::Error;

@@ -989,19 +989,3 @@ pub fn synthesize<F: RateField + ?Sized>(
 ) -> Result<Synthesis, PsbtError> {
     SearchContext::new(grid, field, from, t, config)?.plan(Method::Psbt, seed, parallelism)
 }
-
-/// Plans one of the baselines of §5.4.4 (or PSBT) from `from` at time `t`.
-///
-/// # Errors
-/// As [`synthesize`].
-pub fn baseline<F: RateField + ?Sized>(
-    grid: &PlanningGrid,
-    field: &F,
-    from: [f64; 2],
-    t: f64,
-    config: &PsbtConfig,
-    method: Method,
-    seed: u64,
-) -> Result<Plan, PsbtError> {
-    SearchContext::new(grid, field, from, t, config)?.plan(method, seed, Parallelism::Sequential)
-}

@@ -421,6 +421,21 @@ fn corridor_synthesis(
     synthesize(grid, model, from, t, &config, seed, Parallelism::Sequential)
 }
 
+/// The plan of `method` (on one thread) from `from` at model time 10 s.
+fn plan_at_10s(
+    grid: &PlanningGrid,
+    model: &GridPoisson,
+    from: [f64; 2],
+    config: &PsbtConfig,
+    method: Method,
+    seed: u64,
+) -> Plan {
+    SearchContext::new(grid, model, from, 10.0, config)
+        .unwrap()
+        .plan(method, seed, Parallelism::Sequential)
+        .unwrap()
+}
+
 /// PSBT and the W baseline (waiting at the start) on the corridor from `from` at model time
 /// 10 s, with the default settings and `seed`.
 fn psbt_and_waiting(
@@ -431,7 +446,7 @@ fn psbt_and_waiting(
 ) -> (Synthesis, Plan) {
     let psbt = corridor_synthesis(grid, model, from, 10.0, seed).unwrap();
     let config = PsbtConfig::default();
-    let w = baseline(grid, model, from, 10.0, &config, Method::W, seed).unwrap();
+    let w = plan_at_10s(grid, model, from, &config, Method::W, seed);
     (psbt, w)
 }
 
@@ -441,8 +456,8 @@ fn a_busy_place_beats_waiting_at_an_empty_start() {
     let config = PsbtConfig::default();
     let from = [1.25, 1.25];
     let (psbt, w) = psbt_and_waiting(&grid, &model, from, 4);
-    let pp = baseline(&grid, &model, from, 10.0, &config, Method::Pp, 4).unwrap();
-    let gm = baseline(&grid, &model, from, 10.0, &config, Method::Gm, 4).unwrap();
+    let pp = plan_at_10s(&grid, &model, from, &config, Method::Pp, 4);
+    let gm = plan_at_10s(&grid, &model, from, &config, Method::Gm, 4);
     // Six places do not fit 2 m apart into the busy 6 x 3 m: fewer were sampled.
     assert!(psbt.places.len() >= 3);
     assert_eq!(psbt.candidates, 3usize.pow(psbt.places.len() as u32) + 1);
@@ -647,7 +662,7 @@ fn psbt_is_never_below_the_baselines_it_contains() {
                 continue; // a start walled in: places unreachable
             };
             for method in [Method::Gm, Method::Gc, Method::W, Method::Pp] {
-                let other = baseline(&grid, &model, from, 10.0, &config, method, seed).unwrap();
+                let other = plan_at_10s(&grid, &model, from, &config, method, seed);
                 assert!(
                     psbt.p_success >= other.p_success - 1e-9,
                     "case {case} start {start}: PSBT {} < {method:?} {}",
