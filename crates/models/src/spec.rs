@@ -156,20 +156,24 @@ impl FromStr for ModelSpec {
                 },
             }
         };
-        let max_parts = |n: usize| {
-            if parts.len() > n {
-                Err(error(format!("too many ':' fields for {}", parts[0])))
-            } else {
-                Ok(())
-            }
+        // The most ':'-separated fields of each model, checked before any field is parsed.
+        let max_parts = match parts[0] {
+            "mean" | "stm" | "auto" => 1,
+            "fremen" | "persistence" | "fft" => 2,
+            "hist" | "pergam" => 3,
+            #[cfg(feature = "hypertime")]
+            "hyt-km" => 1,
+            #[cfg(feature = "hypertime")]
+            "hyt-em" => 2,
+            // Unknown, or a model of a missing feature: reported below.
+            _ => usize::MAX,
         };
+        if parts.len() > max_parts {
+            return Err(error(format!("too many ':' fields for {}", parts[0])));
+        }
         let spec = match parts[0] {
-            "mean" => {
-                max_parts(1)?;
-                ModelSpec::Mean
-            }
+            "mean" => ModelSpec::Mean,
             "hist" => {
-                max_parts(3)?;
                 let bins = match parts.get(1) {
                     None => 24,
                     Some(n) => n
@@ -183,20 +187,10 @@ impl FromStr for ModelSpec {
                     period_secs: period(2, WEEK)?,
                 }
             }
-            "fremen" => {
-                max_parts(2)?;
-                ModelSpec::Fremen(order(1, OrderSpec::Auto)?)
-            }
-            "persistence" => {
-                max_parts(2)?;
-                ModelSpec::Persistence(order(1, OrderSpec::Auto)?)
-            }
-            "stm" => {
-                max_parts(1)?;
-                ModelSpec::Markov
-            }
+            "fremen" => ModelSpec::Fremen(order(1, OrderSpec::Auto)?),
+            "persistence" => ModelSpec::Persistence(order(1, OrderSpec::Auto)?),
+            "stm" => ModelSpec::Markov,
             "pergam" => {
-                max_parts(3)?;
                 let components = order(1, OrderSpec::Fixed(2))?;
                 if let OrderSpec::Fixed(k) = components
                     && !(1..=chronomap_core::pergam::MAX_COMPONENTS).contains(&k)
@@ -208,17 +202,10 @@ impl FromStr for ModelSpec {
                     period_secs: period(2, DAY)?,
                 }
             }
-            "fft" => {
-                max_parts(2)?;
-                ModelSpec::Fft(order(1, OrderSpec::Auto)?)
-            }
-            "auto" => {
-                max_parts(1)?;
-                ModelSpec::Auto
-            }
+            "fft" => ModelSpec::Fft(order(1, OrderSpec::Auto)?),
+            "auto" => ModelSpec::Auto,
             #[cfg(feature = "hypertime")]
             "hyt-em" => {
-                max_parts(2)?;
                 let components = order(1, OrderSpec::Auto)?;
                 if components == OrderSpec::Fixed(0) {
                     return Err(error("0 components; use 1 or more, or auto".into()));
@@ -226,10 +213,7 @@ impl FromStr for ModelSpec {
                 ModelSpec::HypertimeEm(components)
             }
             #[cfg(feature = "hypertime")]
-            "hyt-km" => {
-                max_parts(1)?;
-                ModelSpec::HypertimeKm
-            }
+            "hyt-km" => ModelSpec::HypertimeKm,
             #[cfg(not(feature = "hypertime"))]
             "hyt-em" | "hyt-km" => {
                 return Err(error(
@@ -371,6 +355,11 @@ impl ModelSpec {
             order,
             ..FremenConfig::default()
         };
+        let training = Training {
+            times,
+            values,
+            options,
+        };
         let fixed = |model: AnyModel| Fitted {
             model,
             selection: None,
@@ -386,24 +375,19 @@ impl ModelSpec {
                 m.observe(times, values)?;
                 fixed(AnyModel::Histogram(m))
             }
-            ModelSpec::Fremen(order) => fit_ordered(
-                FremenModel::new(fremen_config(0))?,
-                order,
-                times,
-                values,
-                options,
-                |m, t, v| m.observe_par(t, v, options.parallelism),
-                AnyModel::Fremen,
-            )?,
-            ModelSpec::Persistence(order) => fit_ordered(
-                PersistenceModel::new(fremen_config(0))?,
-                order,
-                times,
-                values,
-                options,
-                |m, t, v| m.observe_par(t, v, options.parallelism),
-                AnyModel::Persistence,
-            )?,
+            ModelSpec::Fremen(order) => {
+                let model = FremenModel::new(fremen_config(0))?;
+                training.fit_ordered(model, order, FremenModel::observe_par, AnyModel::Fremen)?
+            }
+            ModelSpec::Persistence(order) => {
+                let model = PersistenceModel::new(fremen_config(0))?;
+                training.fit_ordered(
+                    model,
+                    order,
+                    PersistenceModel::observe_par,
+                    AnyModel::Persistence,
+                )?
+            }
             ModelSpec::Markov => {
                 let mut m = MarkovModel::new();
                 m.observe(times, values)?;
@@ -487,41 +471,58 @@ fn fit_hypertime(
     })
 }
 
-/// A model of fixed order observing everything, or one whose order is chosen on the most
-/// recent `options.holdout` of the data.
-fn fit_ordered<M: TemporalModel + Ordered>(
-    mut model: M,
-    order: OrderSpec,
-    times: &[f64],
-    values: &[f64],
-    options: &FitOptions,
-    observe: impl FnOnce(&mut M, &[f64], &[f64]) -> Result<(), ObservationError>,
-    wrap: fn(M) -> AnyModel,
-) -> Result<Fitted, BuildError> {
-    Ok(match order {
-        OrderSpec::Fixed(k) => {
-            model.set_order(k);
-            observe(&mut model, times, values)?;
-            Fitted {
-                model: wrap(model),
-                selection: None,
+/// An `observe_par` method (of [`FremenModel`] or [`PersistenceModel`]): observes `times`,
+/// `values` splitting the work as the [`Parallelism`] says.
+type ObservePar<M> = fn(&mut M, &[f64], &[f64], Parallelism) -> Result<(), ObservationError>;
+
+/// The training data of [`ModelSpec::fit`] and its options.
+struct Training<'a> {
+    times: &'a [f64],
+    values: &'a [f64],
+    options: &'a FitOptions,
+}
+
+impl Training<'_> {
+    /// A model of fixed order observing everything with `observe_par` (on
+    /// `options.parallelism`), or one whose order is chosen on the most recent
+    /// `options.holdout` of the data.
+    fn fit_ordered<M: TemporalModel + Ordered>(
+        &self,
+        mut model: M,
+        order: OrderSpec,
+        observe_par: ObservePar<M>,
+        wrap: fn(M) -> AnyModel,
+    ) -> Result<Fitted, BuildError> {
+        let Training {
+            times,
+            values,
+            options,
+        } = self;
+        Ok(match order {
+            OrderSpec::Fixed(k) => {
+                model.set_order(k);
+                observe_par(&mut model, times, values, options.parallelism)?;
+                Fitted {
+                    model: wrap(model),
+                    selection: None,
+                }
             }
-        }
-        OrderSpec::Auto => {
-            let (model, selection) = fit_with_order_selection(
-                model,
-                times,
-                values,
-                options.holdout,
-                options.max_order,
-                options.criterion,
-            )?;
-            Fitted {
-                model: wrap(model),
-                selection: Some(Selection::Order(selection)),
+            OrderSpec::Auto => {
+                let (model, selection) = fit_with_order_selection(
+                    model,
+                    times,
+                    values,
+                    options.holdout,
+                    options.max_order,
+                    options.criterion,
+                )?;
+                Fitted {
+                    model: wrap(model),
+                    selection: Some(Selection::Order(selection)),
+                }
             }
-        }
-    })
+        })
+    }
 }
 
 /// `fft:L`: the data must be a uniformly sampled binary series.
