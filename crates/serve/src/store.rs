@@ -41,6 +41,17 @@ pub struct Recovered {
     pub last_seq: u64,
 }
 
+/// What one checkpoint writes ([`Store::checkpoint`]), atomically.
+#[derive(Clone, Copy, Debug)]
+pub struct Checkpoint<'a> {
+    /// The log position the snapshots cover.
+    pub seq: u64,
+    /// New or changed snapshots (id, encoded entry).
+    pub snapshots: &'a [(String, Vec<u8>)],
+    /// The ids whose snapshots are deleted.
+    pub removed: &'a [String],
+}
+
 /// What [`Store::scan`] calls with each commit group: its log position and bytes.
 pub type Visit<'a> = dyn FnMut(u64, &[u8]) -> Result<(), StoreError> + 'a;
 
@@ -63,17 +74,12 @@ pub trait Store: Send + Sync {
     /// The group may or may not be durable; the caller must stop writing.
     fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError>;
 
-    /// Records that the snapshots cover the log up to `seq`: writes `snapshots`, deletes those
-    /// of `removed` ids, atomically.
+    /// Records that the snapshots cover the log up to `checkpoint.seq`: writes its
+    /// `snapshots`, deletes those of its `removed` ids, atomically.
     ///
     /// # Errors
     /// The store cannot be written; the previous checkpoint stays valid.
-    fn checkpoint(
-        &self,
-        seq: u64,
-        snapshots: &[(String, Vec<u8>)],
-        removed: &[String],
-    ) -> Result<(), StoreError>;
+    fn checkpoint(&self, checkpoint: &Checkpoint<'_>) -> Result<(), StoreError>;
 
     /// Calls `visit` with every commit group from position `from` on, in order.
     ///

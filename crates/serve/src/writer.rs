@@ -17,7 +17,7 @@ use tokio::sync::{mpsc, oneshot};
 
 use crate::log::{LogRecord, decode_group, encode_group};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, apply_to};
-use crate::store::{Store, StoreError, decode_snapshot, encode_snapshot};
+use crate::store::{Checkpoint, Store, StoreError, decode_snapshot, encode_snapshot};
 
 /// One change a request asks for: a log record, and for observations of a model that may not
 /// exist yet, the configuration to create it with.
@@ -389,7 +389,12 @@ impl Checkpoints {
             (shared.seq.load(Ordering::Acquire), snapshots)
         };
         let removed: Vec<String> = self.removed.iter().cloned().collect();
-        match shared.store.checkpoint(seq, &snapshots, &removed) {
+        let checkpoint = Checkpoint {
+            seq,
+            snapshots: &snapshots,
+            removed: &removed,
+        };
+        match shared.store.checkpoint(&checkpoint) {
             Ok(()) => {
                 self.dirty.clear();
                 self.removed.clear();
@@ -551,8 +556,13 @@ mod tests {
                 model: config("fremen:2").empty_model().unwrap(),
             });
             *snapshot.last_mut().unwrap() ^= 0x40;
+            let snapshots = [("door".into(), snapshot)];
             store
-                .checkpoint(0, &[("door".into(), snapshot)], &[])
+                .checkpoint(&Checkpoint {
+                    seq: 0,
+                    snapshots: &snapshots,
+                    removed: &[],
+                })
                 .unwrap();
         }
         let store: Arc<dyn Store> = Arc::new(RedbStore::open(&path).unwrap());
@@ -561,7 +571,13 @@ mod tests {
             error.contains("snapshot of \"door\"") && error.contains("checksum"),
             "{error}"
         );
-        store.checkpoint(0, &[], &["door".into()]).unwrap();
+        store
+            .checkpoint(&Checkpoint {
+                seq: 0,
+                snapshots: &[],
+                removed: &["door".into()],
+            })
+            .unwrap();
         store.append(2, b"CMLOG\x001\nxxxx garbage").unwrap();
         let error = recover(store).err().unwrap();
         assert!(

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use tokio::runtime::Runtime;
 use tokio_postgres::{Client, NoTls};
 
-use super::{Recovered, Store, StoreError, Visit};
+use super::{Checkpoint, Recovered, Store, StoreError, Visit};
 
 /// How long [`PostgresStore::connect`] waits for another session to give up the schema.
 const OWNER_WAIT: Duration = Duration::from_secs(15);
@@ -192,13 +192,8 @@ impl Store for PostgresStore {
         })
     }
 
-    fn checkpoint(
-        &self,
-        seq: u64,
-        snapshots: &[(String, Vec<u8>)],
-        removed: &[String],
-    ) -> Result<(), StoreError> {
-        let seq = self.seq_param(seq)?;
+    fn checkpoint(&self, checkpoint: &Checkpoint<'_>) -> Result<(), StoreError> {
+        let seq = self.seq_param(checkpoint.seq)?;
         let s = &self.schema;
         let mut client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
@@ -210,12 +205,12 @@ impl Store for PostgresStore {
                 ))
                 .await
                 .map_err(|e| self.error(e))?;
-            for (id, bytes) in snapshots {
+            for (id, bytes) in checkpoint.snapshots {
                 txn.execute(&upsert, &[id, bytes])
                     .await
                     .map_err(|e| self.error(e))?;
             }
-            for id in removed {
+            for id in checkpoint.removed {
                 txn.execute(&format!("DELETE FROM {s}.snapshots WHERE id = $1"), &[id])
                     .await
                     .map_err(|e| self.error(e))?;

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use redb::{Database, ReadableDatabase, ReadableTable, TableDefinition};
 
-use super::{Recovered, Store, StoreError, Visit};
+use super::{Checkpoint, Recovered, Store, StoreError, Visit};
 
 const LOG: TableDefinition<u64, &[u8]> = TableDefinition::new("log");
 const SNAPSHOTS: TableDefinition<&str, &[u8]> = TableDefinition::new("snapshots");
@@ -86,25 +86,21 @@ impl Store for RedbStore {
         txn.commit().map_err(|e| self.error(e))
     }
 
-    fn checkpoint(
-        &self,
-        seq: u64,
-        snapshots: &[(String, Vec<u8>)],
-        removed: &[String],
-    ) -> Result<(), StoreError> {
+    fn checkpoint(&self, checkpoint: &Checkpoint<'_>) -> Result<(), StoreError> {
         let txn = self.db.begin_write().map_err(|e| self.error(e))?;
         {
             let mut table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
-            for (id, bytes) in snapshots {
+            for (id, bytes) in checkpoint.snapshots {
                 table
                     .insert(id.as_str(), bytes.as_slice())
                     .map_err(|e| self.error(e))?;
             }
-            for id in removed {
+            for id in checkpoint.removed {
                 table.remove(id.as_str()).map_err(|e| self.error(e))?;
             }
             let mut meta = txn.open_table(META).map_err(|e| self.error(e))?;
-            meta.insert(CHECKPOINT, seq).map_err(|e| self.error(e))?;
+            meta.insert(CHECKPOINT, checkpoint.seq)
+                .map_err(|e| self.error(e))?;
         }
         txn.commit().map_err(|e| self.error(e))
     }
