@@ -10,6 +10,8 @@
 //! mean (two passes, no `E[xxᵀ] − μμᵀ` cancellation), `n_c = Σ_i r_ic + 10ε` as scikit-learn,
 //! every factor checked ([`linalg::checked_cholesky`]), empty components re-seeded.
 
+use std::ops::Range;
+
 use super::kmeans;
 use super::linalg;
 use super::rows::Rows;
@@ -240,23 +242,20 @@ fn ordered_sum(parts: impl IntoIterator<Item = f64>) -> f64 {
 pub(super) fn mean_log_likelihood(rows: &Rows<'_>, mix: &GaussianMixture) -> f64 {
     let kernel = Kernel::new(mix);
     let parts = rows.map_chunks(|start, len| {
-        specialise!(rows.dim, log_likelihood_rows(rows, &kernel, start, len))
+        specialise!(
+            rows.dim,
+            log_likelihood_rows(rows, &kernel, start..start + len)
+        )
     });
     ordered_sum(parts) / rows.total
 }
 
-/// `Σ w_i ln p(x_i)` over rows `start..start + len`.
+/// `Σ w_i ln p(x_i)` over the rows `chunk`.
 #[inline(always)]
-fn log_likelihood_rows(
-    d: usize,
-    rows: &Rows<'_>,
-    kernel: &Kernel<'_>,
-    start: usize,
-    len: usize,
-) -> f64 {
+fn log_likelihood_rows(d: usize, rows: &Rows<'_>, kernel: &Kernel<'_>, chunk: Range<usize>) -> f64 {
     let (mut lp, mut z) = (vec![0.0; kernel.mix.components()], vec![0.0; d]);
     let mut sum = 0.0;
-    for i in start..start + len {
+    for i in chunk {
         let w = rows.weight(i);
         if w == 0.0 {
             continue;
