@@ -3,22 +3,19 @@
 
 use std::time::Instant;
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Result, anyhow};
 use chronomap_activity::grids::RegionGrid;
 use chronomap_activity::{CopaConfig, CopaMap, RateScale};
 use chronomap_core::Parallelism;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::rate_predictions::{RatePrediction, write_rate_predictions};
-use chronomap_io::{read_model_file, read_rate_samples, write_model_file};
+use chronomap_io::{read_rate_samples, write_copa_map};
 use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::json;
 
 use crate::cli::{ActivityFitArgs, ActivityPredictArgs, CopaScale};
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
-
-/// The kind written into CoPA-Map model files.
-pub(super) const KIND: &str = "copa-map";
 
 /// Largest grid `predict` evaluates (cells × times), to keep a mistyped `--cell` from running
 /// for hours.
@@ -46,7 +43,7 @@ pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     let model = CopaMap::fit_with_progress(&train, &config, &ProgressBar::new())
         .map_err(|e| anyhow!("{name}: CoPA-Map: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();
-    write_model_file(&args.output, KIND, &model)?;
+    write_copa_map(&args.output, &model)?;
     let final_elbo = model.trace.last().copied().unwrap_or(f64::NAN);
     if args.json {
         return print_json(&json!({
@@ -178,15 +175,9 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     Ok(())
 }
 
-/// Reads a CoPA-Map model file (kind [`KIND`]) and checks the model.
+/// Reads a CoPA-Map model file and checks the model.
 pub(super) fn read_copa_map(path: &std::path::Path) -> Result<CopaMap> {
-    let name = path.display().to_string();
-    let (kind, model): (String, CopaMap) = read_model_file(path)?;
-    if kind != KIND {
-        bail!("{name}: a model of kind {kind:?}, not a CoPA-Map ({KIND:?})");
-    }
-    model.check().map_err(|e| anyhow!("{name}: {e}"))?;
-    Ok(model)
+    Ok(chronomap_io::read_copa_map(path)?)
 }
 
 /// The predicted mean and standard deviation at every time, each scaled to its largest value

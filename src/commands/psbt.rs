@@ -7,12 +7,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::disturbance::PlanningGrid;
-use chronomap_activity::planning::{map_grid, map_size};
 use chronomap_activity::truth::TrackPoint;
 use chronomap_core::Parallelism;
-use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::psbt_xml::psbt_to_xml;
-use chronomap_io::read_track_point_files;
+use chronomap_io::{load_planning_grid, read_track_point_files};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use chronomap_psbt::compare::{Comparison, MethodSummary, compare};
 use chronomap_psbt::world::grid_poisson_from_tracks;
@@ -57,14 +55,8 @@ fn planning_grid(
     planning_cell: f64,
     clearance: f64,
 ) -> Result<(PlanningGrid, [f64; 2], [f64; 2])> {
-    let map_name = map.display().to_string();
-    let occupancy = load_map(map, LoadSemantics::Nav2)?;
-    let obstacles = occupancy
-        .planning_obstacles(OCCUPIED_PERCENT)
-        .map_err(|e| anyhow!("{map_name}: {e}"))?;
-    let grid =
-        map_grid(&obstacles, planning_cell, clearance).map_err(|e| anyhow!("{map_name}: {e}"))?;
-    Ok((grid, obstacles.origin(), map_size(&obstacles)))
+    let planning = load_planning_grid(map, OCCUPIED_PERCENT, planning_cell, clearance)?;
+    Ok((planning.grid, planning.origin, planning.size))
 }
 
 /// Whether `--activity` names a saved model rather than tracks: one file that starts with the

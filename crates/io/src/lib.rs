@@ -129,8 +129,9 @@ mod yaml;
 
 #[cfg(feature = "activity")]
 pub use activity::{
-    RateGrid, encode_rate_samples, format_rate_grid, read_rate_grid, read_rate_grid_from,
-    read_rate_samples, read_rate_samples_from, write_rate_grid, write_rate_samples,
+    COPA_MAP_KIND, RateGrid, encode_rate_samples, format_rate_grid, read_copa_map, read_rate_grid,
+    read_rate_grid_from, read_rate_samples, read_rate_samples_from, write_copa_map,
+    write_rate_grid, write_rate_samples,
 };
 #[cfg(feature = "bt")]
 pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
@@ -161,6 +162,8 @@ pub use navmap::{
     SavedMap, decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map,
     read_map_yaml, save_map,
 };
+#[cfg(all(feature = "navmap", feature = "activity"))]
+pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, load_planning_grid};
 #[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 #[cfg(feature = "bt")]
