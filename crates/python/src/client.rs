@@ -1,0 +1,288 @@
+//! `chronomap.Client`: blocking calls to a running world-model service (`chronomap serve`)
+//! through the async [`chronomap_client::Client`], driven by a current-thread tokio runtime
+//! owned by each Python client, without the GIL while waiting.
+//!
+//! The service's errors are `chronomap.ServiceError` (a `RuntimeError`) with its message and
+//! the `status` and `kind` of the answer; no answer at all (refused, reset) is a
+//! `ConnectionError`.
+
+use std::future::Future;
+
+use chronomap_client::api::{ForecastRequest, ModelInfo, WriteAck};
+use chronomap_client::{Client, ClientError};
+use pyo3::exceptions::{PyConnectionError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyFloat, PyInt, PyList};
+
+use crate::arrays::{f64_array, to_numpy};
+
+pyo3::create_exception!(
+    chronomap,
+    ServiceError,
+    PyRuntimeError,
+    "The service answered with an error: `str(e)` is its status and message (`404 Not Found: \
+     no model \"door\"`), `e.status` the HTTP status (int), `e.kind` its kind (`not_found`, \
+     `bad_request`, `unauthorized`, ...) and `e.reason` its message."
+);
+
+/// A client error as a Python exception.
+fn client_error(py: Python<'_>, error: ClientError) -> PyErr {
+    match error {
+        ClientError::Api { status, body } => {
+            let err = ServiceError::new_err(format!("{status}: {}", body.reason));
+            let value = err.value(py);
+            // Attributes for programs; a failure to set them leaves the message.
+            let _ = value.setattr("status", status.as_u16());
+            let _ = value.setattr("kind", body.error);
+            let _ = value.setattr("reason", body.reason);
+            err
+        }
+        ClientError::Transport(text) => PyConnectionError::new_err(text),
+    }
+}
+
+/// A client of a chronomap world-model service ([Krajník 2017]: the FreMEn server's operations
+/// as JSON over HTTP).
+///
+/// `Client(url="http://127.0.0.1:8470", token=None)`: `token` is the bearer token writes need
+/// (the contents of the service's token file; `chronomap serve` prints where it is). Every
+/// method blocks until the service answers and releases the GIL meanwhile. Times are float64
+/// seconds (unix time), arrays go in and come out as numpy arrays.
+#[pyclass(name = "Client", module = "chronomap", frozen)]
+pub struct PyClient {
+    client: Client,
+    runtime: tokio::runtime::Runtime,
+    url: String,
+}
+
+impl PyClient {
+    /// Runs `call` to completion without the GIL.
+    fn block<'a, T: Send, F>(&'a self, py: Python<'_>, call: F) -> PyResult<T>
+    where
+        F: Future<Output = Result<T, ClientError>> + Send + 'a,
+    {
+        py.detach(|| self.runtime.block_on(call))
+            .map_err(|e| client_error(py, e))
+    }
+}
+
+/// The JSON text of an answer as Python objects (dicts, lists, numbers, strings).
+fn from_json(py: Python<'_>, text: serde_json::Result<String>) -> PyResult<Bound<'_, PyAny>> {
+    let text = text.map_err(|e| PyValueError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+fn ack<'py>(py: Python<'py>, ack: &WriteAck) -> PyResult<Bound<'py, PyAny>> {
+    from_json(py, serde_json::to_string(ack))
+}
+
+fn info<'py>(py: Python<'py>, info: &ModelInfo) -> PyResult<Bound<'py, PyAny>> {
+    from_json(py, serde_json::to_string(info))
+}
+
+/// Times from Python: one number (`scalar = true`) or an array.
+fn times_arg(times: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, bool)> {
+    if times.is_instance_of::<PyFloat>() || times.is_instance_of::<PyInt>() {
+        return Ok((vec![times.extract()?], true));
+    }
+    Ok((f64_array(times, "times")?.as_slice().to_vec(), false))
+}
+
+/// Values as the service answered, shaped as the times were asked (a float or an array).
+fn values_out<'py>(py: Python<'py>, values: Vec<f64>, scalar: bool) -> PyResult<Bound<'py, PyAny>> {
+    if scalar {
+        let v = values.first().copied().ok_or_else(|| {
+            PyValueError::new_err("the service answered with no value for one time")
+        })?;
+        return Ok(PyFloat::new(py, v).into_any());
+    }
+    Ok(to_numpy(py, values).into_any())
+}
+
+#[pymethods]
+impl PyClient {
+    #[new]
+    #[pyo3(signature = (url = "http://127.0.0.1:8470", token = None))]
+    fn py_new(url: &str, token: Option<String>) -> PyResult<Self> {
+        let client = Client::new(url, token).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| PyRuntimeError::new_err(format!("cannot start the async runtime: {e}")))?;
+        Ok(PyClient {
+            client,
+            runtime,
+            url: url.trim_end_matches('/').to_owned(),
+        })
+    }
+
+    /// The service's health: a dict with `status` (`ok`), `models`, `store`, `seq` (last
+    /// committed log position) and `auth` (whether writes need a token).
+    fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let health = self.block(py, self.client.health())?;
+        from_json(py, serde_json::to_string(&health))
+    }
+
+    /// All models: a list of dicts (`id`, `model` spec, `observations`, `first_time`,
+    /// `last_time`, ...), by id.
+    fn list<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let list = self.block(py, self.client.list())?;
+        from_json(py, serde_json::to_string(&list.models))
+    }
+
+    /// A model's description: a dict with `id`, `model`, `observations`, `first_time`,
+    /// `last_time` and, for spectral models, `mean` and `components` (`period_secs`,
+    /// `amplitude`, `phase`).
+    fn view<'py>(&self, py: Python<'py>, id: &str) -> PyResult<Bound<'py, PyAny>> {
+        let view = self.block(py, self.client.view(id))?;
+        info(py, &view)
+    }
+
+    /// Creates model `id` with spec `model` (`fremen:K`, `persistence:K`, `hist:N[:PERIOD]`,
+    /// `pergam:K[:PERIOD]`, `stm`, `mean`); `range=(lo, hi)` for continuous values. Returns
+    /// the write's acknowledgement (`observations`, `seq`), sent once it is durable.
+    #[pyo3(signature = (id, model = "fremen:2", *, range = None))]
+    fn create<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+        model: &str,
+        range: Option<(f64, f64)>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let range = range.map(|(lo, hi)| [lo, hi]);
+        let done = self.block(py, self.client.create(id, Some(model), range))?;
+        ack(py, &done)
+    }
+
+    /// Removes model `id`.
+    fn remove<'py>(&self, py: Python<'py>, id: &str) -> PyResult<Bound<'py, PyAny>> {
+        let done = self.block(py, self.client.remove(id))?;
+        ack(py, &done)
+    }
+
+    /// Adds observations to model `id`: `times` (float64 seconds, not going backwards, not
+    /// before the model's last observation) and `values` (in [0, 1], 0/1 for binary states,
+    /// or in the model's `range`), in one request; `model` is the spec to create the model with
+    /// if it does not exist (else the service answers 404). Returns the acknowledgement
+    /// (`observations` added, `seq`), sent once the observations are durable. The service
+    /// checks them and names the element at fault (`ServiceError`).
+    #[pyo3(signature = (id, times, values, *, model = None))]
+    fn add<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+        times: &Bound<'py, PyAny>,
+        values: &Bound<'py, PyAny>,
+        model: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let times = f64_array(times, "times")?;
+        let values = f64_array(values, "values")?;
+        let (t, v) = (times.as_slice(), values.as_slice());
+        if t.len() != v.len() {
+            return Err(PyValueError::new_err(format!(
+                "{} times but {} values",
+                t.len(),
+                v.len()
+            )));
+        }
+        let done = self.block(py, self.client.add_values(id, t, v, model))?;
+        ack(py, &done)
+    }
+
+    /// p(t) of model `id` at `times` (an array, or one number): a float64 array, or a float.
+    /// `order` predicts with another order (models with one).
+    #[pyo3(signature = (id, times, *, order = None))]
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+        times: &Bound<'py, PyAny>,
+        order: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (times, scalar) = times_arg(times)?;
+        let answer = self.block(py, self.client.predict(id, &times, order))?;
+        values_out(py, answer.values, scalar)
+    }
+
+    /// The binary entropy (bits) of model `id`'s p(t) at `times` (an array or one number).
+    #[pyo3(signature = (id, times, *, order = None))]
+    fn entropy<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+        times: &Bound<'py, PyAny>,
+        order: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (times, scalar) = times_arg(times)?;
+        let answer = self.block(py, self.client.entropy(id, &times, order))?;
+        values_out(py, answer.values, scalar)
+    }
+
+    /// p(t) of the models `ids` (a list of ids) at one `time`: a float64 array in the order of
+    /// `ids`. `order` predicts every model with that order.
+    #[pyo3(signature = (ids, time, *, order = None))]
+    fn forecast<'py>(
+        &self,
+        py: Python<'py>,
+        ids: &Bound<'py, PyAny>,
+        time: f64,
+        order: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if ids.is_instance_of::<pyo3::types::PyString>() {
+            return Err(PyTypeError::new_err(
+                "ids: expected a list of model ids, got one str (write [id])",
+            ));
+        }
+        let ids: Vec<String> = ids.extract().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "ids: expected a list of model ids (str), got {}",
+                crate::arrays::type_name(ids)
+            ))
+        })?;
+        let request = ForecastRequest {
+            ids,
+            time,
+            order,
+            orders: None,
+        };
+        let answer = self.block(py, self.client.forecast(&request))?;
+        Ok(to_numpy(py, answer.values).into_any())
+    }
+
+    /// Every observation model `id` holds, from the service's durable log: `(times, values)`,
+    /// two float64 arrays.
+    fn observations<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let answer = self.block(py, self.client.observations(id))?;
+        Ok((
+            to_numpy(py, answer.times).into_any(),
+            to_numpy(py, answer.values).into_any(),
+        ))
+    }
+
+    /// The ids of all models (a list of str).
+    fn ids<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = self.block(py, self.client.list())?;
+        PyList::new(py, list.models.into_iter().map(|m| m.id))
+    }
+
+    /// The service's address.
+    #[getter]
+    fn url(&self) -> &str {
+        &self.url
+    }
+
+    fn __repr__(&self) -> String {
+        format!("<chronomap.Client {}>", self.url)
+    }
+}
+
+/// Registers this module's classes and functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyClient>()?;
+    m.add("ServiceError", m.py().get_type::<ServiceError>())?;
+    Ok(())
+}

@@ -1,0 +1,359 @@
+//! Topological maps whose edges know time, and the now-or-later planner ([Fentanes 2015]):
+//! `chronomap.EdgeModels` over [`chronomap_topo::edges::EdgeModels`], the edge files of
+//! [`chronomap_io::topo_files`] and the edge-model files of [`chronomap_io::model_file`].
+
+use std::path::{Path, PathBuf};
+
+use chronomap_io::{read_edge_directory, read_edge_models, write_edge_models};
+use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
+use chronomap_topo::mdp::SolverOptions;
+use chronomap_topo::plan::{Task, now_or_later, plan_full};
+use chronomap_topo::report::success_route;
+use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{f64_array, to_numpy};
+use crate::errors;
+
+/// Checks a time argument.
+fn check_time(name: &str, time: f64) -> PyResult<()> {
+    if time.is_finite() {
+        Ok(())
+    } else {
+        Err(PyValueError::new_err(format!(
+            "{name}: {time} is not a finite number"
+        )))
+    }
+}
+
+/// Checks that `value` is a probability, as `chronomap topo fit --prior/--floor` do.
+fn probability(name: &str, value: f64) -> PyResult<f64> {
+    if (0.0..=1.0).contains(&value) {
+        Ok(value)
+    } else {
+        Err(PyValueError::new_err(format!(
+            "{name}: {value} is not a probability in [0, 1]"
+        )))
+    }
+}
+
+/// The success and duration models of every edge of a topological map ([Fentanes 2015] §IV):
+/// p_e(t), the probability that traversing edge e started at t succeeds, and its expected
+/// duration, each a FreMEn model (with persistence) learnt from the robot's attempts.
+///
+/// Fit them with `EdgeModels.fit(edges_dir)` from a directory of edge files (what `chronomap
+/// topo fit` reads), or read an edge-model file with `chronomap.load_edge_models(path)`.
+/// `predict(t)` gives every edge's prediction (`chronomap topo predict`), `plan(start, task, t)`
+/// the now-or-later plan of a co-safe LTL task (`chronomap plan --time`).
+#[pyclass(name = "EdgeModels", module = "chronomap", frozen)]
+pub struct PyEdgeModels {
+    models: EdgeModels,
+}
+
+impl PyEdgeModels {
+    fn start_and_task(&self, start: &str, task: &str) -> PyResult<(usize, Task)> {
+        let map = self.models.map();
+        let start = map
+            .node(start)
+            .map_err(|e| PyValueError::new_err(format!("start: {e}")))?;
+        let task =
+            Task::parse(task, map).map_err(|e| PyValueError::new_err(format!("task: {e}")))?;
+        Ok((start, task))
+    }
+}
+
+#[pymethods]
+impl PyEdgeModels {
+    /// `EdgeModels.fit(edges, *, static=False, persistence=True, min_attempts=10, prior=0.9,
+    /// prior_attempts=2.0, floor=0.05, max_order=10, success_order=None, holdout=0.25)`
+    ///
+    /// Fits the models of every edge from `edges`, a directory of edge files
+    /// `<From>_<To>.data` (plain, .xz or .gz; lines `t duration_s success(0|1)`), exactly as
+    /// `chronomap topo fit --edges` does with the same options: `static` keeps static per-edge
+    /// models only, `persistence=False` drops the persistence term, edges with fewer than
+    /// `min_attempts` attempts use their shrunk success rate, `prior` / `prior_attempts` are the
+    /// prior success probability and its weight, `floor` the lowest success probability,
+    /// `max_order` the largest FreMEn order tried, `success_order` a fixed order for every
+    /// success model ([Fentanes 2015]: "typically, m = 2"), `holdout` the most recent fraction of
+    /// each edge's history held back to choose orders.
+    #[staticmethod]
+    #[pyo3(signature = (edges, *, r#static = false, persistence = true, min_attempts = 10, prior = 0.9, prior_attempts = 2.0, floor = 0.05, max_order = 10, success_order = None, holdout = 0.25))]
+    #[allow(clippy::too_many_arguments)]
+    fn fit(
+        py: Python<'_>,
+        edges: PathBuf,
+        r#static: bool,
+        persistence: bool,
+        min_attempts: usize,
+        prior: f64,
+        prior_attempts: f64,
+        floor: f64,
+        max_order: usize,
+        success_order: Option<usize>,
+        holdout: f64,
+    ) -> PyResult<Self> {
+        if !(prior_attempts.is_finite() && prior_attempts >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "prior_attempts: {prior_attempts} is not a finite number >= 0"
+            )));
+        }
+        if !(holdout > 0.0 && holdout < 1.0) {
+            return Err(PyValueError::new_err(format!(
+                "holdout: {holdout} is not a number strictly between 0 and 1"
+            )));
+        }
+        let config = EdgeModelConfig {
+            min_attempts,
+            prior_success: probability("prior", prior)?,
+            prior_attempts,
+            floor: probability("floor", floor)?,
+            periodic: !r#static,
+            persistence,
+            holdout,
+            max_order,
+            success_order,
+            default_duration_secs: None,
+        };
+        let stats = py
+            .detach(|| read_edge_directory(&edges))
+            .map_err(|e| errors::data(&e))?;
+        let models = py
+            .detach(|| EdgeModels::fit(stats.map, &stats.attempts, config))
+            .map_err(|(edge, error)| {
+                let at = error
+                    .observation_index()
+                    .map(|i| format!(": attempt {}", i + 1))
+                    .unwrap_or_default();
+                PyValueError::new_err(format!(
+                    "{}{at}: {error}",
+                    Path::new(&edges).join(format!("{edge}.data")).display()
+                ))
+            })?;
+        Ok(PyEdgeModels { models })
+    }
+
+    /// Every edge's prediction at `time` (seconds), as `chronomap topo predict --json` gives it:
+    /// a dict with `edge`, `from`, `to` (lists of names, in edge order) and the arrays
+    /// `success_probability`, `uncertainty` (sd of the Beta posterior),
+    /// `static_success_probability`, `duration_secs` (expected duration of a successful
+    /// traversal) and `attempts`.
+    fn predict<'py>(&self, py: Python<'py>, time: f64) -> PyResult<Bound<'py, PyDict>> {
+        check_time("time", time)?;
+        let models = &self.models;
+        let map = models.map();
+        let (success, duration) = py.detach(|| models.at(time));
+        let n = map.edges().len();
+        let dict = PyDict::new(py);
+        let edges = map.edges();
+        dict.set_item(
+            "edge",
+            edges.iter().map(|e| e.id.clone()).collect::<Vec<_>>(),
+        )?;
+        dict.set_item(
+            "from",
+            edges
+                .iter()
+                .map(|e| map.nodes()[e.from].name.clone())
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item(
+            "to",
+            edges
+                .iter()
+                .map(|e| map.nodes()[e.to].name.clone())
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item("success_probability", to_numpy(py, success))?;
+        dict.set_item(
+            "uncertainty",
+            to_numpy(
+                py,
+                (0..n)
+                    .map(|e| models.success_uncertainty(e, time))
+                    .collect(),
+            ),
+        )?;
+        dict.set_item(
+            "static_success_probability",
+            to_numpy(
+                py,
+                (0..n)
+                    .map(|e| models.static_success_probability(e))
+                    .collect(),
+            ),
+        )?;
+        dict.set_item("duration_secs", to_numpy(py, duration))?;
+        dict.set_item(
+            "attempts",
+            PyArray1::from_vec(py, (0..n).map(|e| models.edge(e).attempts as i64).collect()),
+        )?;
+        Ok(dict)
+    }
+
+    /// The now-or-later plan of `task` (co-safe LTL over node names: `"F Kitchen"`,
+    /// `"F (Printer & F Kitchen)"`, `"!Ramp1 U Kitchen"`) from node `start` at `time` (seconds)
+    /// ([Fentanes 2015] §V): the Navigation MDP at that time, its product with the task's
+    /// automaton, solved. A dict with what `chronomap plan --time --json` prints: `task`,
+    /// `from`, `time`, `pmax` (maximum probability of fulfilling the task), `expected_secs`
+    /// (expected time until done or failed, following the policy), `first_edge` (the edge to
+    /// take now, None if the task holds already or cannot be fulfilled), `route` (the edges
+    /// taken if every edge succeeds), `route_success_probabilities` and `product_states`.
+    fn plan<'py>(
+        &self,
+        py: Python<'py>,
+        start: &str,
+        task: &str,
+        time: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        check_time("time", time)?;
+        let (start_node, parsed) = self.start_and_task(start, task)?;
+        let models = &self.models;
+        let map = models.map();
+        let planned = py
+            .detach(|| plan_full(models, start_node, &parsed, time, &SolverOptions::default()))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let route = success_route(&planned, map);
+        let plan = &planned.plan;
+        let dict = PyDict::new(py);
+        dict.set_item("task", task)?;
+        dict.set_item("from", start)?;
+        dict.set_item("time", time)?;
+        dict.set_item("pmax", plan.pmax)?;
+        dict.set_item("expected_secs", plan.expected_secs)?;
+        dict.set_item(
+            "first_edge",
+            plan.first_edge.map(|e| map.edges()[e].id.clone()),
+        )?;
+        dict.set_item(
+            "route",
+            route
+                .iter()
+                .map(|&e| map.edges()[e].id.clone())
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item(
+            "route_success_probabilities",
+            route
+                .iter()
+                .map(|&e| models.success_probability(e, time))
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item("product_states", planned.product.states().len())?;
+        Ok(dict)
+    }
+
+    /// "Now or later?" ([Fentanes 2015] Table III): the plan of `task` from `start` at each of
+    /// `times` (float64 seconds). A dict with the arrays `time`, `pmax`, `expected_secs` and the
+    /// list `first_edge` (edge ids or None), as `chronomap plan --day-table --json` gives per
+    /// start time.
+    fn now_or_later<'py>(
+        &self,
+        py: Python<'py>,
+        start: &str,
+        task: &str,
+        times: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let times = f64_array(times, "times")?;
+        let times = times.as_slice();
+        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "times[{i}]: {} is not a finite number",
+                times[i]
+            )));
+        }
+        let (start_node, parsed) = self.start_and_task(start, task)?;
+        let models = &self.models;
+        let plans = py
+            .detach(|| {
+                now_or_later(
+                    models,
+                    start_node,
+                    &parsed,
+                    times,
+                    &SolverOptions::default(),
+                )
+            })
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let edges = models.map().edges();
+        let dict = PyDict::new(py);
+        dict.set_item("time", to_numpy(py, times.to_vec()))?;
+        dict.set_item("pmax", to_numpy(py, plans.iter().map(|p| p.pmax).collect()))?;
+        dict.set_item(
+            "expected_secs",
+            to_numpy(py, plans.iter().map(|p| p.expected_secs).collect()),
+        )?;
+        dict.set_item(
+            "first_edge",
+            plans
+                .iter()
+                .map(|p| p.first_edge.map(|e| edges[e].id.clone()))
+                .collect::<Vec<_>>(),
+        )?;
+        Ok(dict)
+    }
+
+    /// Writes the models to `path` (versioned, checksummed, atomic): the file `chronomap topo
+    /// fit -o` writes and `chronomap topo predict`, `chronomap plan` and `chronomap serve --topo`
+    /// read.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| write_edge_models(&path, &self.models))
+            .map_err(|e| errors::model_file(&e))
+    }
+
+    /// The node names, in map order.
+    #[getter]
+    fn nodes(&self) -> Vec<String> {
+        self.models
+            .map()
+            .nodes()
+            .iter()
+            .map(|n| n.name.clone())
+            .collect()
+    }
+
+    /// The edge ids (`From_To`), in map order (the order of `predict`'s arrays).
+    #[getter]
+    fn edges(&self) -> Vec<String> {
+        self.models
+            .map()
+            .edges()
+            .iter()
+            .map(|e| e.id.clone())
+            .collect()
+    }
+
+    /// Time of the latest attempt the models learnt from, or None.
+    #[getter]
+    fn last_time(&self) -> Option<f64> {
+        self.models.last_time()
+    }
+
+    fn __repr__(&self) -> String {
+        let map = self.models.map();
+        format!(
+            "<chronomap.EdgeModels {} nodes, {} edges>",
+            map.nodes().len(),
+            map.edges().len()
+        )
+    }
+}
+
+/// `load_edge_models(path)`: an edge-model file written by `chronomap topo fit` or
+/// `EdgeModels.save`, checked (version, checksum, invariants). A missing file is a
+/// `FileNotFoundError`, a damaged or foreign one a `ValueError`; both name the file.
+#[pyfunction]
+fn load_edge_models(py: Python<'_>, path: PathBuf) -> PyResult<PyEdgeModels> {
+    let models = py
+        .detach(|| read_edge_models(&path))
+        .map_err(|e| errors::model_file(&e))?;
+    Ok(PyEdgeModels { models })
+}
+
+/// Registers this module's classes and functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyEdgeModels>()?;
+    m.add_function(wrap_pyfunction!(load_edge_models, m)?)?;
+    Ok(())
+}

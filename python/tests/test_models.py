@@ -1,0 +1,229 @@
+"""Temporal models through Python give the command line's numbers, bit for bit, on the bundled
+greg door (the FreMEn benchmark of [Krajník 2017] §VI-B)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import chronomap
+
+GREG = "data/door_greg_2016"
+
+
+@pytest.fixture(scope="module")
+def greg(repo):
+    train = chronomap.read_pairs(repo / GREG / "training_data.txt.xz")
+    tests = [
+        chronomap.read_test_set(repo / GREG / f"test_times_{i}.txt.xz",
+                                repo / GREG / f"test_data_{i}.txt.xz")
+        for i in range(1, 6)
+    ]
+    return train, tests
+
+
+def test_reading_the_bundled_files(greg):
+    (times, values), tests = greg
+    assert times.dtype == np.float64 and values.dtype == np.float64
+    assert len(times) == 96480 and len(tests) == 5
+    assert np.all(np.diff(times) > 0)
+    assert set(np.unique(values)) == {0.0, 1.0}
+
+
+def test_evaluate_gives_the_published_brier_scores(greg):
+    train, tests = greg
+    table = chronomap.evaluate(train, tests, ["fremen:0", "fremen:2", "fremen:4"])
+    # [Krajník 2017] Table II, greg door: FreMEn orders 0, 2, 4 (the README's table).
+    assert [round(x, 4) for x in table["mean_mse"]] == [0.0807, 0.0701, 0.0670]
+    assert list(table["model"]) == ["fremen:0", "fremen:2", "fremen:4"]
+    assert list(table["fitted"]) == ["fremen:0", "fremen:2", "fremen:4"]
+
+
+def test_evaluate_equals_the_command_line_bit_for_bit(greg, repo, cli):
+    train, tests = greg
+    specs = ["mean", "hist:24", "fremen:0", "fremen:2", "fremen:4", "fremen:auto", "auto"]
+    table = chronomap.evaluate(train, tests, specs)
+    argv = ["eval", "--train", f"{GREG}/training_data.txt.xz", "--models", ",".join(specs)]
+    for i in range(1, 6):
+        argv += ["--test", f"{GREG}/test_times_{i}.txt.xz,{GREG}/test_data_{i}.txt.xz"]
+    expected = cli(*argv, json_output=True)
+    assert [m["name"] for m in expected["models"]] == specs
+    for row, model in enumerate(expected["models"]):
+        assert table["fitted"][row] == model["fitted"]
+        for i, test in enumerate(model["tests"]):
+            assert table[f"mse_{i + 1}"][row] == test["mse"]  # exactly, not approximately
+            assert table[f"binary_error_{i + 1}"][row] == test["binary_error"]
+        assert table["mean_mse"][row] == model["mean_mse"]
+        assert table["mean_binary_error"][row] == model["mean_binary_error"]
+
+
+def test_evaluate_as_a_data_frame(greg):
+    pd = pytest.importorskip("pandas")
+    train, tests = greg
+    frame = chronomap.evaluate(train, tests[:2], ["fremen:2", "mean"], as_frame=True)
+    assert isinstance(frame, pd.DataFrame)
+    assert list(frame.columns) == ["model", "fitted", "mse_1", "mse_2", "mean_mse",
+                                   "binary_error_1", "binary_error_2", "mean_binary_error"]
+    assert frame.loc[0, "mean_mse"] == pytest.approx((frame.loc[0, "mse_1"]
+                                                      + frame.loc[0, "mse_2"]) / 2, rel=1e-15)
+
+
+@pytest.mark.parametrize("spec", ["fremen:2", "fremen:auto", "hist:24", "pergam:2", "stm",
+                                  "persistence:2", "auto"])
+def test_a_model_saved_in_python_predicts_the_same_in_the_cli(greg, tmp_path, cli, spec):
+    (times, values), tests = greg
+    model = chronomap.model(spec).observe(times, values)
+    path = tmp_path / "door.cmm"
+    model.save(path)
+    at = tests[0][0][::97]
+    times_file = tmp_path / "times.txt"
+    np.savetxt(times_file, at, fmt="%.17g")
+    out = cli("predict", path, "--times", times_file, json_output=True)
+    assert out["spec"] == model.fitted
+    assert np.array_equal(np.array([r["p"] for r in out["predictions"]]), model.predict(at))
+
+
+def test_a_model_fitted_by_the_cli_loads_in_python(greg, repo, tmp_path, cli):
+    (times, values), tests = greg
+    path = tmp_path / "cli.cmm"
+    fitted = cli("fit", "--train", f"{GREG}/training_data.txt.xz", "--model", "fremen:auto",
+                 "-o", path, json_output=True)
+    loaded = chronomap.load(path)
+    assert isinstance(loaded, chronomap.Fremen)
+    assert loaded.fitted == fitted["fitted"] and loaded.observations == len(times)
+    # The same order chosen on the same held-back quarter, and the same predictions.
+    mine = chronomap.Fremen().observe(times, values)
+    assert mine.fitted == loaded.fitted
+    at = tests[2][0]
+    assert np.array_equal(mine.predict(at), loaded.predict(at))
+    assert mine.selection["Order"]["order"] == loaded.order
+
+
+def test_typed_classes_match_their_specs(greg):
+    (times, values), tests = greg
+    at = tests[1][0][:500]
+    pairs = [
+        (chronomap.Fremen(order=4), "fremen:4"),
+        (chronomap.Fremen(), "fremen:auto"),
+        (chronomap.Mean(), "mean"),
+        (chronomap.Hist(bins=168), "hist:168"),
+        (chronomap.Persistence(order=2), "persistence:2"),
+        (chronomap.Stm(), "stm"),
+        (chronomap.PerGaM(components=2), "pergam:2"),
+    ]
+    for typed, spec in pairs:
+        assert typed.spec == spec
+        generic = chronomap.model(spec)
+        assert type(generic) is type(typed)
+        typed.observe(times, values)
+        generic.observe(times, values)
+        assert np.array_equal(typed.predict(at), generic.predict(at)), spec
+
+
+def test_observing_in_batches_equals_one_batch(greg):
+    (times, values), tests = greg
+    whole = chronomap.Fremen(order=3).observe(times, values)
+    parts = chronomap.Fremen(order=3)
+    for chunk in np.array_split(np.arange(len(times)), 7):
+        parts.observe(times[chunk], values[chunk])
+    at = tests[0][0]
+    assert parts.observations == whole.observations
+    np.testing.assert_allclose(parts.predict(at), whole.predict(at), rtol=0, atol=1e-12)
+
+
+def test_predict_entropy_and_scalars():
+    t = np.arange(0, 14 * 86400, 600.0)
+    hour = (t % 86400) / 3600
+    door = chronomap.Fremen(order=2).observe(t, ((hour >= 8) & (hour < 18)).astype(float))
+    noon, night = 15 * 86400 + 12 * 3600.0, 15 * 86400 + 2 * 3600.0
+    p = door.predict(np.array([noon, night]))
+    assert p.shape == (2,) and p.dtype == np.float64
+    assert p[0] > 0.8 and p[1] < 0.2
+    assert isinstance(door.predict(noon), float) and door.predict(noon) == p[0]
+    # Saturated predictions are certain; a state observed as 0.7 by day is not.
+    assert np.array_equal(door.entropy(np.array([noon, night])), np.where((p == 0) | (p == 1), 0.0, door.entropy(np.array([noon, night]))))
+    soft = chronomap.Fremen(order=2).observe(t, np.where((hour >= 8) & (hour < 18), 0.7, 0.2))
+    q = soft.predict(np.array([noon, night]))
+    assert 0 < q.min() and q.max() < 1
+    np.testing.assert_allclose(soft.entropy(np.array([noon, night])),
+                               -q * np.log2(q) - (1 - q) * np.log2(1 - q), rtol=1e-14)
+    # Python ints and lists are numbers too.
+    assert door.predict(int(noon)) == p[0]
+    assert np.array_equal(door.predict([noon, night]), p)
+    # An unobserved model knows nothing.
+    assert chronomap.Fremen(order=2).predict(noon) == 0.5
+    assert chronomap.Fremen(order=2).entropy(noon) == 1.0
+
+
+def test_components_reconstruct_the_prediction():
+    t = np.arange(0, 21 * 86400, 900.0)
+    hour = (t % 86400) / 3600
+    values = ((hour >= 9) & (hour < 17)).astype(float)
+    door = chronomap.Fremen(order=3).observe(t, values)
+    c = door.components
+    assert c["period"].shape == (3,) and c["period"][0] == 86400.0
+    at = np.linspace(22 * 86400, 23 * 86400, 97)
+    rebuilt = c["mean"][0] + sum(
+        2 * a * np.cos(2 * np.pi * at / T + phi)
+        for T, a, phi in zip(c["period"], c["amplitude"], c["phase"]))
+    np.testing.assert_allclose(door.predict(at), np.clip(rebuilt, 0, 1), atol=1e-9)
+    assert chronomap.Mean().observe(t, values).components == {}
+
+
+def test_changing_the_order_without_re_observing(greg):
+    (times, values), tests = greg
+    door = chronomap.Fremen(order=4).observe(times, values)
+    door.order = 2
+    assert door.order == 2 and door.fitted == "fremen:2"
+    at = tests[0][0]
+    np.testing.assert_array_equal(door.predict(at),
+                                  chronomap.Fremen(order=2).observe(times, values).predict(at))
+    with pytest.raises(TypeError, match="a mean model has no order to change"):
+        chronomap.Mean().observe(times, values).order = 3
+
+
+def test_anomalies_match_the_cli(greg, repo, tmp_path, cli):
+    (times, values), tests = greg
+    model = chronomap.Fremen(order=2).observe(times, values)
+    path = tmp_path / "door.cmm"
+    model.save(path)
+    found = model.anomalies(*tests[0], confidence=0.75)
+    out = cli("anomalies", path, "--test", f"{GREG}/test_times_1.txt.xz,{GREG}/test_data_1.txt.xz",
+              "--confidence", "0.75", json_output=True)
+    assert len(found["time"]) == len(out["anomalies"]) > 0
+    assert np.array_equal(found["time"], [a["time"] for a in out["anomalies"]])
+    assert np.array_equal(found["p"], [a["p"] for a in out["anomalies"]])
+    assert np.array_equal(tests[0][0][found["index"]], found["time"])
+
+
+def test_hypertime_model_round_trips(tmp_path):
+    t = np.arange(0, 10 * 86400, 1200.0)
+    hour = (t % 86400) / 3600
+    values = ((hour >= 7) & (hour < 19)).astype(float)
+    model = chronomap.Hypertime(components=2).observe(t, values)
+    assert isinstance(model, chronomap.Hypertime) and model.kind == "hyt-em"
+    assert 86400.0 in set(np.round(model.components["period"]))
+    model.save(tmp_path / "h.cmm")
+    back = chronomap.load(tmp_path / "h.cmm")
+    at = np.arange(11 * 86400, 12 * 86400, 3600.0)
+    assert np.array_equal(back.predict(at), model.predict(at))
+    assert back.predict(11 * 86400 + 12 * 3600) > 0.7
+
+
+def test_pickle_and_bytes_round_trip(greg, tmp_path):
+    import pickle
+
+    (times, values), tests = greg
+    model = chronomap.Fremen().observe(times, values)
+    back = pickle.loads(pickle.dumps(model))
+    assert type(back) is chronomap.Fremen and back.fitted == model.fitted
+    at = tests[4][0]
+    assert np.array_equal(back.predict(at), model.predict(at))
+    path = tmp_path / "door.cmm"
+    model.save(path)
+    assert path.read_bytes() == model.to_bytes()       # the same file, byte for byte
+    assert np.array_equal(chronomap.loads(path.read_bytes()).predict(at), model.predict(at))
+    with pytest.raises(ValueError, match="checksum mismatch"):
+        damaged = bytearray(model.to_bytes())
+        damaged[-1] ^= 1
+        chronomap.loads(bytes(damaged))

@@ -1,0 +1,121 @@
+"""chronomap.EdgeModels against `chronomap topo fit | predict` and `chronomap plan` on the
+bundled Witham Wharf edge traversals (STRANDS, summer 2014)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from chronomap.topo import EdgeModels, load_edge_models
+
+EDGES = "data/witham_topological_nav/edges"
+# 2014-09-04 (the day after the data) at 03:00, 10:00 and 14:00 UTC, and a week later at 16:30.
+TIMES = [1409799600.0, 1409824800.0, 1409839200.0, 1410453000.0]
+TASKS = [("Station", "F Kitchen"), ("Station", "F (Printer & F Kitchen)"),
+         ("Station", "!Ramp1 U Kitchen"), ("Kitchen", "F Station")]
+
+
+@pytest.fixture(scope="module")
+def fitted(repo, cli, tmp_path_factory):
+    """The models fitted in Python and by `chronomap topo fit` (as in the README), both saved."""
+    folder = tmp_path_factory.mktemp("witham")
+    cli_file = folder / "cli.cmt"
+    cli("topo", "fit", "--edges", repo / EDGES, "-o", cli_file, "--success-order", "1")
+    models = EdgeModels.fit(repo / EDGES, success_order=1)
+    py_file = folder / "python.cmt"
+    models.save(py_file)
+    return models, py_file, cli_file
+
+
+def test_fit_gives_the_models_topo_fit_writes(fitted):
+    models, py_file, cli_file = fitted
+    assert len(models.nodes) == 18 and len(models.edges) == 61
+    assert "LabDoor1_LabDoor2" in models.edges
+    assert py_file.read_bytes() == cli_file.read_bytes()
+    assert models.last_time == pytest.approx(1409788722.0, abs=86400)
+
+
+@pytest.mark.parametrize("time", TIMES)
+def test_predict_agrees_with_topo_predict(fitted, cli, time):
+    models, py_file, cli_file = fitted
+    mine = models.predict(time)
+    for source in (py_file, cli_file):
+        theirs = cli("topo", "predict", source, "--time", time, json_output=True)["edges"]
+        assert mine["edge"] == [e["edge"] for e in theirs] == models.edges
+        assert mine["from"] == [e["from"] for e in theirs]
+        assert mine["to"] == [e["to"] for e in theirs]
+        for key in ("success_probability", "uncertainty", "static_success_probability",
+                    "duration_secs", "attempts"):
+            np.testing.assert_array_equal(mine[key], [e[key] for e in theirs], err_msg=key)
+    # The door edge changes over the day; most edges hardly do.
+    door = models.edges.index("LabDoor1_LabDoor2")
+    assert 0.05 <= mine["success_probability"][door] < 0.9
+
+
+@pytest.mark.parametrize("time", TIMES)
+@pytest.mark.parametrize(("start", "task"), TASKS)
+def test_plan_agrees_with_chronomap_plan(fitted, cli, start, task, time):
+    models, py_file, _ = fitted
+    mine = models.plan(start, task, time)
+    theirs = cli("plan", "--model", py_file, "--from", start, "--task", task, "--time", time,
+                 json_output=True)
+    for key in ("task", "from", "time", "pmax", "expected_secs", "first_edge", "route",
+                "route_success_probabilities", "product_states"):
+        assert mine[key] == theirs[key], key
+    assert 0.0 <= mine["pmax"] <= 1.0
+
+
+def test_now_or_later_agrees_with_the_day_table(fitted, cli):
+    models, py_file, _ = fitted
+    table = cli("plan", "--model", py_file, "--from", "Station", "--task", "F Kitchen",
+                "--day-table", "--days", "1", "--step-mins", "120", json_output=True)
+    times = np.array([p["time"] for p in table["plans"]])
+    mine = models.now_or_later("Station", "F Kitchen", times)
+    np.testing.assert_array_equal(mine["time"], times)
+    np.testing.assert_array_equal(mine["pmax"], [p["pmax"] for p in table["plans"]])
+    np.testing.assert_array_equal(mine["expected_secs"], [p["expected_secs"] for p in table["plans"]])
+    assert mine["first_edge"] == [p["first_edge"] for p in table["plans"]]
+    assert len(set(np.round(mine["pmax"], 6))) > 1  # it does depend on the time
+
+
+def test_a_model_file_of_the_cli_loads(fitted):
+    models, _, cli_file = fitted
+    loaded = load_edge_models(cli_file)
+    assert loaded.edges == models.edges and loaded.nodes == models.nodes
+    for t in TIMES:
+        np.testing.assert_array_equal(loaded.predict(t)["success_probability"],
+                                      models.predict(t)["success_probability"])
+        assert loaded.plan("Station", "F Kitchen", t) == models.plan("Station", "F Kitchen", t)
+
+
+def test_bad_input(fitted, tmp_path, repo):
+    models, py_file, _ = fitted
+    with pytest.raises(ValueError, match=r'start: unknown node "Statoin" \(did you mean "Station"\?\)'):
+        models.plan("Statoin", "F Kitchen", TIMES[0])
+    with pytest.raises(ValueError, match=r'task: .*"Kitchn"'):
+        models.plan("Station", "F Kitchn", TIMES[0])
+    with pytest.raises(ValueError, match="task: "):
+        models.plan("Station", "F (Kitchen", TIMES[0])
+    with pytest.raises(ValueError, match="time: nan is not a finite number|time: NaN is not a finite number"):
+        models.predict(float("nan"))
+    with pytest.raises(ValueError, match=r"times\[1\]: inf is not a finite number"):
+        models.now_or_later("Station", "F Kitchen", [TIMES[0], float("inf")])
+    with pytest.raises(ValueError, match=r"prior: 1.5 is not a probability in \[0, 1\]"):
+        EdgeModels.fit(repo / EDGES, prior=1.5)
+    with pytest.raises(ValueError, match="holdout: 1 is not a number strictly between 0 and 1"):
+        EdgeModels.fit(repo / EDGES, holdout=1.0)
+    with pytest.raises(FileNotFoundError, match="no-such-edges"):
+        EdgeModels.fit(tmp_path / "no-such-edges")
+    with pytest.raises(FileNotFoundError, match="missing.cmt"):
+        load_edge_models(tmp_path / "missing.cmt")
+    data = bytearray(py_file.read_bytes())
+    data[len(data) // 2] ^= 0x55
+    damaged = tmp_path / "damaged.cmt"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="damaged.cmt"):
+        load_edge_models(damaged)
+    edges = tmp_path / "edges"
+    edges.mkdir()
+    (edges / "A_B.data").write_text("100 5 1\n200 nan 1\n")
+    with pytest.raises(ValueError, match=r"A_B.data"):
+        EdgeModels.fit(edges)
