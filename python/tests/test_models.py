@@ -3,6 +3,8 @@ greg door (the FreMEn benchmark of [Krajník 2017] §VI-B)."""
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 
@@ -211,8 +213,6 @@ def test_hypertime_model_round_trips(tmp_path):
 
 
 def test_pickle_and_bytes_round_trip(greg, tmp_path):
-    import pickle
-
     (times, values), tests = greg
     model = chronomap.Fremen().observe(times, values)
     back = pickle.loads(pickle.dumps(model))
@@ -227,3 +227,43 @@ def test_pickle_and_bytes_round_trip(greg, tmp_path):
         damaged = bytearray(model.to_bytes())
         damaged[-1] ^= 1
         chronomap.loads(bytes(damaged))
+
+
+def _ticks_while(call):
+    """How often Python code in this thread ran while `call` ran in another."""
+    import threading
+
+    started, done = threading.Event(), threading.Event()
+
+    def work():
+        started.set()
+        call()
+        done.set()
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    started.wait()
+    ticks = 0
+    while not done.is_set():
+        ticks += 1
+    worker.join()
+    return ticks
+
+
+def test_long_calls_release_the_gil(greg):
+    import sys
+    import threading
+
+    (times, values), _ = greg
+    door = chronomap.Fremen(order=4).observe(times, values)
+    many = np.linspace(times[-1], times[-1] + 365 * 86400, 3_000_000)
+    # Ticks of this loop in one switch interval: what a call that holds the GIL lets through.
+    stop = threading.Timer(0.1, lambda: None)
+    calibration = _ticks_while(lambda: stop.run())
+    per_interval = calibration / 0.1 * sys.getswitchinterval()
+    ticks = _ticks_while(lambda: door.predict(many))
+    assert ticks > 20 * per_interval, (ticks, per_interval)   # about 100 intervals here
+    # A call known to hold the GIL (pickling a long list) lets through a few intervals.
+    data = list(range(3_000_000))
+    held = _ticks_while(lambda: pickle.dumps(data))
+    assert held < 20 * per_interval, (held, per_interval)

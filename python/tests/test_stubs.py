@@ -59,3 +59,10 @@ def test_every_runtime_method_has_a_stub():
 def test_docstrings():
     for name in chronomap.__all__:
         assert getattr(chronomap, name).__doc__, f"{name} has no docstring"
+
+
+def test_sources_parse_as_python_3_9():
+    # The wheel is abi3 for CPython >= 3.9 (pyproject.toml): the package's own Python must
+    # not use newer syntax (CI runs 3.11; docs/python.md says how 3.9 and 3.13 were tried).
+    for path in sorted(PACKAGE.glob("*.py")) + sorted((PACKAGE.parent / "tests").glob("*.py")):
+        ast.parse(path.read_text(), filename=str(path), feature_version=(3, 9))

@@ -292,6 +292,43 @@ pub fn write_rate_samples(path: impl AsRef<Path>, samples: &RateSamples) -> Resu
     write_data_file(path.as_ref(), encode_rate_samples(samples).as_bytes())
 }
 
+/// The kind of CoPA-Map model files (`chronomap activity fit -o`).
+pub const COPA_MAP_KIND: &str = "copa-map";
+
+/// Writes a fitted CoPA-Map as a model file of kind [`COPA_MAP_KIND`], atomically.
+///
+/// # Errors
+/// As [`crate::write_model_file`].
+pub fn write_copa_map(
+    path: impl AsRef<Path>,
+    model: &chronomap_activity::CopaMap,
+) -> Result<(), crate::ModelFileError> {
+    crate::write_model_file(path, COPA_MAP_KIND, model)
+}
+
+/// Reads a file written by [`write_copa_map`], checking its kind and the model's invariants.
+///
+/// # Errors
+/// As [`crate::read_model_file`], or [`crate::ModelFileErrorKind::Inconsistent`] for a model
+/// of another kind or one whose invariants do not hold.
+pub fn read_copa_map(
+    path: impl AsRef<Path>,
+) -> Result<chronomap_activity::CopaMap, crate::ModelFileError> {
+    use crate::model_file::{ModelFileError, ModelFileErrorKind};
+    let path = path.as_ref();
+    let (kind, model): (String, chronomap_activity::CopaMap) = crate::read_model_file(path)?;
+    let inconsistent = |reason: String| {
+        ModelFileError::new(ModelFileErrorKind::Inconsistent { reason }).in_file(path)
+    };
+    if kind != COPA_MAP_KIND {
+        return Err(inconsistent(format!(
+            "a model of kind {kind:?}, not a CoPA-Map ({COPA_MAP_KIND:?})"
+        )));
+    }
+    model.check().map_err(|e| inconsistent(e.to_string()))?;
+    Ok(model)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -432,41 +469,4 @@ mod tests {
             "grid.csv: a header `x1,x2,t,y` without any sample after it"
         );
     }
-}
-
-/// The kind of CoPA-Map model files (`chronomap activity fit -o`).
-pub const COPA_MAP_KIND: &str = "copa-map";
-
-/// Writes a fitted CoPA-Map as a model file of kind [`COPA_MAP_KIND`], atomically.
-///
-/// # Errors
-/// As [`crate::write_model_file`].
-pub fn write_copa_map(
-    path: impl AsRef<Path>,
-    model: &chronomap_activity::CopaMap,
-) -> Result<(), crate::ModelFileError> {
-    crate::write_model_file(path, COPA_MAP_KIND, model)
-}
-
-/// Reads a file written by [`write_copa_map`], checking its kind and the model's invariants.
-///
-/// # Errors
-/// As [`crate::read_model_file`], or [`crate::ModelFileErrorKind::Inconsistent`] for a model
-/// of another kind or one whose invariants do not hold.
-pub fn read_copa_map(
-    path: impl AsRef<Path>,
-) -> Result<chronomap_activity::CopaMap, crate::ModelFileError> {
-    use crate::model_file::{ModelFileError, ModelFileErrorKind};
-    let path = path.as_ref();
-    let (kind, model): (String, chronomap_activity::CopaMap) = crate::read_model_file(path)?;
-    let inconsistent = |reason: String| {
-        ModelFileError::new(ModelFileErrorKind::Inconsistent { reason }).in_file(path)
-    };
-    if kind != COPA_MAP_KIND {
-        return Err(inconsistent(format!(
-            "a model of kind {kind:?}, not a CoPA-Map ({COPA_MAP_KIND:?})"
-        )));
-    }
-    model.check().map_err(|e| inconsistent(e.to_string()))?;
-    Ok(model)
 }

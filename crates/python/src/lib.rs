@@ -3,7 +3,7 @@
 //! The `chronomap._native` extension module behind the `chronomap` Python package
 //! (`python/`, built by maturin: `pip install ./python`). It only translates: numpy arrays to
 //! slices and back, Python arguments to the specs and settings of the Rust crates, Rust errors
-//! to Python exceptions ([`errors`]). Every algorithm lives in the crates it calls.
+//! to Python exceptions (module `errors`). Every algorithm lives in the crates it calls.
 //!
 //! Long computations run without the GIL ([`Python::detach`]); a Ctrl-C during one is seen
 //! when it returns (Rust code does not poll Python's signal handlers).
