@@ -38,7 +38,8 @@ class EdgeModels:
         """The plan of a co-safe LTL ``task`` from node ``start`` at ``time``, as
         ``chronomap plan --time --json``: ``pmax``, ``expected_secs``, ``first_edge``,
         ``route``, ``route_success_probabilities``, ``product_states``, ``task``, ``from``,
-        ``time``."""
+        ``time``; and ``policy``: for every undecided product state its ``node``,
+        ``automaton_state``, the ``edge`` to take and its ``pmax``."""
     def now_or_later(self, start: str, task: str, times: npt.ArrayLike) -> Dict[str, Any]:
         """The plan at each of ``times``: arrays ``time``, ``pmax``, ``expected_secs`` and the
         list ``first_edge``."""

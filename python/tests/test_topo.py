@@ -63,6 +63,15 @@ def test_plan_agrees_with_chronomap_plan(fitted, cli, start, task, time):
                 "route_success_probabilities", "product_states"):
         assert mine[key] == theirs[key], key
     assert 0.0 <= mine["pmax"] <= 1.0
+    # The whole policy agrees with its summary: at the start, it takes the first edge with Pmax.
+    policy = mine["policy"]
+    assert len(policy["node"]) == len(policy["edge"]) == len(policy["pmax"]) <= mine["product_states"]
+    if mine["first_edge"] is not None:
+        at_start = [i for i, n in enumerate(policy["node"]) if n == start]
+        assert mine["first_edge"] in [policy["edge"][i] for i in at_start]
+        assert mine["pmax"] in [policy["pmax"][i] for i in at_start]
+        # Following the policy along the route visits only edges it prescribes.
+        assert set(mine["route"]) <= set(policy["edge"])
 
 
 def test_now_or_later_agrees_with_the_day_table(fitted, cli):
@@ -85,7 +94,11 @@ def test_a_model_file_of_the_cli_loads(fitted):
     for t in TIMES:
         np.testing.assert_array_equal(loaded.predict(t)["success_probability"],
                                       models.predict(t)["success_probability"])
-        assert loaded.plan("Station", "F Kitchen", t) == models.plan("Station", "F Kitchen", t)
+        theirs, mine = loaded.plan("Station", "F Kitchen", t), models.plan("Station", "F Kitchen", t)
+        their_policy, my_policy = theirs.pop("policy"), mine.pop("policy")
+        assert theirs == mine
+        for key in ("node", "automaton_state", "edge", "pmax"):
+            assert np.array_equal(their_policy[key], my_policy[key]), key
 
 
 def test_bad_input(fitted, tmp_path, repo):

@@ -199,7 +199,9 @@ impl PyEdgeModels {
     /// `from`, `time`, `pmax` (maximum probability of fulfilling the task), `expected_secs`
     /// (expected time until done or failed, following the policy), `first_edge` (the edge to
     /// take now, None if the task holds already or cannot be fulfilled), `route` (the edges
-    /// taken if every edge succeeds), `route_success_probabilities` and `product_states`.
+    /// taken if every edge succeeds), `route_success_probabilities` and `product_states`;
+    /// and `policy`, the whole policy: for every undecided state of the product MDP, its
+    /// `node`, `automaton_state`, the `edge` to take and the state's `pmax` (lists/arrays).
     fn plan<'py>(
         &self,
         py: Python<'py>,
@@ -241,6 +243,23 @@ impl PyEdgeModels {
                 .collect::<Vec<_>>(),
         )?;
         dict.set_item("product_states", planned.product.states().len())?;
+        // The policy: the edge to take in every undecided state of the product (node,
+        // automaton state), with that state's Pmax.
+        let (mut nodes, mut dfa_states, mut edges, mut pmax) = (vec![], vec![], vec![], vec![]);
+        for (s, state) in planned.product.states().iter().enumerate() {
+            if let (Some(node), Some(edge)) = (state.node, planned.solution.policy[s]) {
+                nodes.push(map.nodes()[node].name.clone());
+                dfa_states.push(state.dfa_state as i64);
+                edges.push(map.edges()[edge].id.clone());
+                pmax.push(planned.solution.pmax[s]);
+            }
+        }
+        let policy = PyDict::new(py);
+        policy.set_item("node", nodes)?;
+        policy.set_item("automaton_state", numpy::PyArray1::from_vec(py, dfa_states))?;
+        policy.set_item("edge", edges)?;
+        policy.set_item("pmax", to_numpy(py, pmax))?;
+        dict.set_item("policy", policy)?;
         Ok(dict)
     }
 
