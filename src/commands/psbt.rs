@@ -141,15 +141,7 @@ pub fn run(args: &PsbtArgs) -> Result<()> {
 fn describe(choices: &Option<Vec<Choice>>) -> Value {
     match choices {
         None => json!("wait at the start (W)"),
-        Some(c) => json!(
-            c.iter()
-                .map(|c| match c {
-                    Choice::Skip => "skip",
-                    Choice::Search => "search",
-                    Choice::SearchWait => "search+wait",
-                })
-                .collect::<Vec<_>>()
-        ),
+        Some(c) => json!(c.iter().map(|c| c.name()).collect::<Vec<_>>()),
     }
 }
 

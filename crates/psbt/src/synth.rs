@@ -87,6 +87,17 @@ pub enum Choice {
     SearchWait,
 }
 
+impl Choice {
+    /// The choice as reports name it: `skip`, `search`, `search+wait`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Choice::Skip => "skip",
+            Choice::Search => "search",
+            Choice::SearchWait => "search+wait",
+        }
+    }
+}
+
 /// The `3^n + 1` candidate trees over `n` ordered places (Fig. 5.9): node 0 is the help
 /// location, nodes `1..=n` the places in visiting order. Candidate `i < 3^n` chooses
 /// `Choice` digit `⌊i / 3^{j−1}⌋ mod 3` (0 skip, 1 search, 2 search and wait) at place `j`;

@@ -504,6 +504,22 @@ fn typed(spec: ModelSpec, options: FitOptions) -> PyResult<PyClassInitializer<Py
     )?))
 }
 
+/// A model of the FreMEn family from the arguments its Python constructor takes.
+fn ordered(
+    spec: fn(OrderSpec) -> ModelSpec,
+    order: Option<&Bound<'_, PyAny>>,
+    periods: &str,
+    holdout: f64,
+    max_order: usize,
+    criterion: &str,
+) -> PyResult<PyClassInitializer<PyTemporalModel>> {
+    let order = order.map_or(Ok(OrderSpec::Auto), |o| order_spec(o, "order"))?;
+    typed(
+        spec(order),
+        fit_options(periods, holdout, max_order, criterion)?,
+    )
+}
+
 /// An order argument: an int or the string "auto".
 fn order_spec(order: &Bound<'_, PyAny>, name: &str) -> PyResult<OrderSpec> {
     if order.is_instance_of::<PyString>() {
@@ -612,9 +628,15 @@ impl PyFremen {
         max_order: usize,
         criterion: &str,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let order = order.map_or(Ok(OrderSpec::Auto), |o| order_spec(o, "order"))?;
-        let options = fit_options(periods, holdout, max_order, criterion)?;
-        Ok(typed(ModelSpec::Fremen(order), options)?.add_subclass(PyFremen))
+        Ok(ordered(
+            ModelSpec::Fremen,
+            order,
+            periods,
+            holdout,
+            max_order,
+            criterion,
+        )?
+        .add_subclass(PyFremen))
     }
 }
 
@@ -630,9 +652,15 @@ impl PyPersistence {
         max_order: usize,
         criterion: &str,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let order = order.map_or(Ok(OrderSpec::Auto), |o| order_spec(o, "order"))?;
-        let options = fit_options(periods, holdout, max_order, criterion)?;
-        Ok(typed(ModelSpec::Persistence(order), options)?.add_subclass(PyPersistence))
+        Ok(ordered(
+            ModelSpec::Persistence,
+            order,
+            periods,
+            holdout,
+            max_order,
+            criterion,
+        )?
+        .add_subclass(PyPersistence))
     }
 }
 

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use chronomap_core::Parallelism;
-use chronomap_psbt::{Choice, PsbtConfig, copa_field, synthesize};
+use chronomap_psbt::{PsbtConfig, copa_field, synthesize};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -131,15 +131,10 @@ fn psbt_synthesize<'py>(
         "places",
         PyArray1::from_vec(py, flat).reshape([plan.places.len(), 2])?,
     )?;
-    let choices = plan.choices.as_ref().map(|c| {
-        c.iter()
-            .map(|c| match c {
-                Choice::Skip => "skip",
-                Choice::Search => "search",
-                Choice::SearchWait => "search+wait",
-            })
-            .collect::<Vec<_>>()
-    });
+    let choices = plan
+        .choices
+        .as_ref()
+        .map(|c| c.iter().map(|c| c.name()).collect::<Vec<_>>());
     match choices {
         Some(c) => dict.set_item("choices", PyList::new(py, c)?)?,
         None => dict.set_item("choices", "wait at the start (W)")?,
