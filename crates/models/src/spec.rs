@@ -736,9 +736,144 @@ impl AnyModel {
     }
 }
 
+/// Why a spec cannot learn online ([`ModelSpec::online_model`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OnlineError {
+    /// An order or number of components chosen on held-back data (`fremen:auto`, ...).
+    #[error(
+        "`{spec}`: learning online needs a fixed {what}; choose one offline (`chronomap eval`, \
+         or the error per order of the service's `evaluate`)"
+    )]
+    AutoOrder {
+        /// The spec as written.
+        spec: String,
+        /// `"order"` or `"number of components"`.
+        what: &'static str,
+    },
+    /// A model fitted on a whole series (`auto`, `fft`, hypertime).
+    #[error(
+        "`{spec}` is fitted offline on a whole series (`chronomap fit`); models that learn online \
+         are fremen:K, persistence:K, hist:N[:PERIOD], pergam:K[:PERIOD], stm, mean"
+    )]
+    Offline {
+        /// The spec as written.
+        spec: String,
+    },
+    /// An order above the largest the model's periods allow (it would be clamped silently).
+    #[error("`{spec}`: order {order} is above the largest order {max}")]
+    OrderTooLarge {
+        /// The spec as written.
+        spec: String,
+        /// The order asked for.
+        order: usize,
+        /// The largest order.
+        max: usize,
+    },
+    /// The model's parameters are invalid.
+    #[error("`{spec}`: {source}")]
+    Config {
+        /// The spec as written.
+        spec: String,
+        /// Why.
+        source: ConfigError,
+    },
+}
+
+impl ModelSpec {
+    /// The model this spec describes having seen nothing, for learning online: observation by
+    /// observation, where every chunking gives the model a single batch would (the service and
+    /// the ROS 2 node learn this way). FreMEn-family orders use the default periods (one week
+    /// / 1..=84), as [`FitOptions::default`] does.
+    ///
+    /// # Errors
+    /// Orders chosen on held-back data (`fremen:auto`), models fitted offline on a whole series
+    /// (`auto`, `fft`, hypertime), and orders above the largest one.
+    pub fn online_model(&self) -> Result<AnyModel, OnlineError> {
+        let spec = || self.to_string();
+        let fixed = |order: &OrderSpec, what: &'static str| match order {
+            OrderSpec::Fixed(k) => Ok(*k),
+            OrderSpec::Auto => Err(OnlineError::AutoOrder { spec: spec(), what }),
+        };
+        let config = |source: ConfigError| OnlineError::Config {
+            spec: spec(),
+            source,
+        };
+        let model = match self {
+            ModelSpec::Mean => AnyModel::Mean(MeanModel::new()),
+            ModelSpec::Histogram { bins, period_secs } => {
+                AnyModel::Histogram(HistogramModel::new(*bins, *period_secs).map_err(config)?)
+            }
+            ModelSpec::Fremen(order) => AnyModel::Fremen(
+                FremenModel::new(FremenConfig::with_order(fixed(order, "order")?))
+                    .map_err(config)?,
+            ),
+            ModelSpec::Persistence(order) => AnyModel::Persistence(
+                PersistenceModel::new(FremenConfig::with_order(fixed(order, "order")?))
+                    .map_err(config)?,
+            ),
+            ModelSpec::Markov => AnyModel::Markov(MarkovModel::new()),
+            ModelSpec::Pergam {
+                components,
+                period_secs,
+            } => AnyModel::Pergam(
+                PergamModel::new(PergamConfig {
+                    components: fixed(components, "number of components")?,
+                    period_secs: *period_secs,
+                    ..PergamConfig::default()
+                })
+                .map_err(config)?,
+            ),
+            _ => return Err(OnlineError::Offline { spec: spec() }),
+        };
+        // A too-large order would silently be clamped; say so instead (the original FreMEn
+        // server refused orders above its number of periodicities too).
+        let max = match &model {
+            AnyModel::Fremen(m) => Some(m.max_order()),
+            AnyModel::Persistence(m) => Some(m.max_order()),
+            _ => None,
+        };
+        if let (
+            Some(max),
+            ModelSpec::Fremen(OrderSpec::Fixed(k)) | ModelSpec::Persistence(OrderSpec::Fixed(k)),
+        ) = (max, self)
+            && (*k > max || model.order() != Some(*k))
+        {
+            return Err(OnlineError::OrderTooLarge {
+                spec: spec(),
+                order: *k,
+                max,
+            });
+        }
+        Ok(model)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn online_models_are_empty_and_offline_specs_are_refused_by_name() {
+        let door: ModelSpec = "fremen:2".parse().unwrap();
+        let model = door.online_model().unwrap();
+        assert_eq!(model.spec(), door);
+        assert_eq!(model.span().count, 0);
+        assert_eq!(model.predict(0.0), 0.5);
+        for (text, part) in [
+            ("fremen:auto", "needs a fixed order"),
+            ("pergam:auto", "needs a fixed number of components"),
+            ("auto", "fitted offline"),
+            ("fft:3", "fitted offline"),
+            ("fremen:85", "order 85 is above the largest order 84"),
+        ] {
+            let spec: ModelSpec = text.parse().unwrap();
+            let error = spec.online_model().unwrap_err().to_string();
+            assert!(
+                error.contains(part) && error.contains(text),
+                "{text}: {error}"
+            );
+        }
+    }
 
     #[test]
     fn specs_round_trip_through_text() {

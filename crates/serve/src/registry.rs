@@ -5,11 +5,7 @@
 
 use std::collections::HashMap;
 
-use chronomap_core::{
-    FremenConfig, FremenModel, HistogramModel, MarkovModel, MeanModel, ObservationError, Ordered,
-    PergamConfig, PergamModel, PersistenceModel, TemporalModel,
-};
-use chronomap_models::spec::OrderSpec;
+use chronomap_core::{ObservationError, Ordered, TemporalModel};
 use chronomap_models::{AnyModel, ModelSpec};
 use serde::{Deserialize, Serialize};
 
@@ -70,64 +66,9 @@ impl ModelConfig {
     }
 }
 
-/// An empty model of an online-trainable spec.
+/// An empty model of an online-trainable spec ([`ModelSpec::online_model`]).
 fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
-    let fixed = |order: &OrderSpec, what: &str| match order {
-        OrderSpec::Fixed(k) => Ok(*k),
-        OrderSpec::Auto => Err(format!(
-            "`{spec}`: the service needs a fixed {what}; choose one with `evaluate` \
-             (errors per order) and ask for other orders per request"
-        )),
-    };
-    let config_error = |e: chronomap_core::ConfigError| format!("`{spec}`: {e}");
-    let model = match spec {
-        ModelSpec::Mean => AnyModel::Mean(MeanModel::new()),
-        ModelSpec::Histogram { bins, period_secs } => {
-            AnyModel::Histogram(HistogramModel::new(*bins, *period_secs).map_err(config_error)?)
-        }
-        ModelSpec::Fremen(order) => AnyModel::Fremen(
-            FremenModel::new(FremenConfig::with_order(fixed(order, "order")?))
-                .map_err(config_error)?,
-        ),
-        ModelSpec::Persistence(order) => AnyModel::Persistence(
-            PersistenceModel::new(FremenConfig::with_order(fixed(order, "order")?))
-                .map_err(config_error)?,
-        ),
-        ModelSpec::Markov => AnyModel::Markov(MarkovModel::new()),
-        ModelSpec::Pergam {
-            components,
-            period_secs,
-        } => AnyModel::Pergam(
-            PergamModel::new(PergamConfig {
-                components: fixed(components, "number of components")?,
-                period_secs: *period_secs,
-                ..PergamConfig::default()
-            })
-            .map_err(config_error)?,
-        ),
-        ModelSpec::Fft(_)
-        | ModelSpec::Auto
-        | ModelSpec::HypertimeEm(_)
-        | ModelSpec::HypertimeKm => {
-            return Err(format!(
-                "`{spec}` is fitted offline on a whole series (`chronomap fit`); the service \
-                 serves models that learn online: fremen:K, persistence:K, hist:N[:PERIOD], \
-                 pergam:K[:PERIOD], stm, mean"
-            ));
-        }
-    };
-    // A too-large order would silently be clamped; say so instead (the original server
-    // refused orders above its number of periodicities too).
-    if let (Some(order), Some(max)) = (model.order(), max_order(&model))
-        && let ModelSpec::Fremen(OrderSpec::Fixed(k)) | ModelSpec::Persistence(OrderSpec::Fixed(k)) =
-            spec
-        && (*k > max || order != *k)
-    {
-        return Err(format!(
-            "`{spec}`: order {k} is above the largest order {max}"
-        ));
-    }
-    Ok(model)
+    spec.online_model().map_err(|e| e.to_string())
 }
 
 /// Checks a model id: 1 to [`MAX_ID_BYTES`] bytes of UTF-8 without control characters.
