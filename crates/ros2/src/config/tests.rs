@@ -1,0 +1,342 @@
+use super::*;
+
+fn parse(text: &str) -> Result<NodeConfig, ConfigError> {
+    NodeConfig::parse(Path::new("cfg/node.yaml"), text.as_bytes(), None)
+}
+
+fn error(text: &str) -> String {
+    match parse(text) {
+        Ok(_) => panic!("accepted: {text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+const FULL: &str = "\
+/robot1/chronomap:
+  ros__parameters:
+    use_sim_time: true
+    publish_period: 2
+    map_period: 10.0
+    horizon: 600
+    save_dir: state
+    save_period: 30
+    record_observations: true
+    max_map_cells: 1000000
+    states:
+      door:
+        topic: /door
+        type: std_msgs/msg/Bool
+        model: fremen:3
+      light:
+        topic: sensors/light
+        type: std_msgs/Float32
+        model: hist:24
+        reliability: best_effort
+        depth: 5
+        probability_topic: ~/light_p
+    maps:
+      office:
+        topic: /observed_map
+        periods: day
+        order: 1
+        values: probability
+        filter_type: 1
+        filter_base: 100
+        filter_multiplier: -1
+    people:
+      lobby:
+        topic: /people
+        width: 40
+        height: 30
+        resolution: 0.5
+        origin: [-10, -7.5]
+        bin: 900
+        mask_topic: \"\"
+        filter_info_topic: \"\"
+    edges:
+      models: witham.cmt
+      geojson: out/route.geojson
+";
+
+#[test]
+fn a_full_file_is_read_with_its_defaults_resolved() {
+    let c = parse(FULL).unwrap();
+    assert_eq!(
+        (c.namespace.as_str(), c.node_name.as_str()),
+        ("/robot1", "chronomap")
+    );
+    assert_eq!(c.fully_qualified_name(), "/robot1/chronomap");
+    assert!(c.use_sim_time && c.record_observations);
+    assert_eq!(
+        (c.publish_period, c.map_period, c.horizon, c.save_period),
+        (2.0, 10.0, 600.0, 30.0)
+    );
+    assert_eq!(c.save_dir.as_deref(), Some(Path::new("cfg/state")));
+    assert_eq!(c.max_map_cells, 1_000_000);
+    // states in name order
+    let light = &c.states[1];
+    assert_eq!(light.topic, "/robot1/sensors/light");
+    assert_eq!(light.message, StateType::Float32);
+    assert_eq!(light.model.to_string(), "hist:24");
+    assert_eq!(
+        light.qos,
+        InputQos {
+            reliability: Reliability::BestEffort,
+            depth: 5,
+            transient_local: false
+        }
+    );
+    assert_eq!(light.probability_topic, "/robot1/chronomap/light_p");
+    assert_eq!(light.entropy_topic, "/robot1/chronomap/light/entropy");
+    let door = &c.states[0];
+    assert_eq!(door.model.to_string(), "fremen:3");
+    assert_eq!(door.qos.reliability, Reliability::Reliable);
+    let office = &c.grids[0];
+    assert_eq!(office.source, GridSource::Map);
+    assert_eq!(
+        (office.fremen.order, office.values),
+        (1, MapValues::Probability)
+    );
+    assert_eq!(office.fremen.periods, "day".parse::<PeriodSet>().unwrap());
+    assert!(!office.qos.transient_local);
+    assert_eq!(
+        office.predicted_topic,
+        "/robot1/chronomap/office/predicted_map"
+    );
+    let filter = office.filter.as_ref().unwrap();
+    assert_eq!(filter.mask_topic, "/robot1/chronomap/office/mask");
+    assert_eq!(filter.info_topic, "/robot1/chronomap/office/filter_info");
+    assert_eq!(
+        (filter.filter_type, filter.base, filter.multiplier),
+        (1, 100.0, -1.0)
+    );
+    let lobby = &c.grids[1];
+    assert_eq!(
+        lobby.source,
+        GridSource::People {
+            width: 40,
+            height: 30,
+            resolution: 0.5,
+            origin: [-10.0, -7.5],
+            bin_secs: 900.0
+        }
+    );
+    assert_eq!(lobby.values, MapValues::Probability);
+    assert!(lobby.filter.is_none());
+    assert_eq!(lobby.fremen.order, 2);
+    let edges = c.edges.as_ref().unwrap();
+    assert_eq!(edges.models, Path::new("cfg/witham.cmt"));
+    assert_eq!(edges.geojson, Path::new("cfg/out/route.geojson"));
+    assert_eq!(edges.period, 60.0);
+    let inputs: Vec<String> = c.inputs().into_iter().map(|i| i.0).collect();
+    assert_eq!(
+        inputs,
+        [
+            "/clock",
+            "/door",
+            "/robot1/sensors/light",
+            "/observed_map",
+            "/people"
+        ]
+    );
+    assert_eq!(c.outputs().len(), 4 + 3 + 1);
+}
+
+#[test]
+fn minimal_files_get_the_documented_defaults() {
+    let c = parse("chronomap:\n  ros__parameters:\n    maps:\n      office: {topic: map_in}\n")
+        .unwrap();
+    assert!(!c.use_sim_time);
+    assert_eq!(
+        (c.publish_period, c.map_period, c.horizon, c.save_period),
+        (1.0, 30.0, 0.0, 300.0)
+    );
+    assert_eq!(c.max_map_cells, DEFAULT_MAX_MAP_CELLS);
+    let g = &c.grids[0];
+    assert_eq!(g.topic, "/map_in");
+    assert_eq!(g.frame_id, "map");
+    assert_eq!((g.fremen.order, g.values), (2, MapValues::Trinary));
+    assert_eq!(g.fremen.periods, PeriodSet::default());
+    assert_eq!(
+        g.qos,
+        InputQos {
+            reliability: Reliability::Reliable,
+            depth: 10,
+            transient_local: false
+        }
+    );
+    let f = g.filter.as_ref().unwrap();
+    assert_eq!((f.filter_type, f.base, f.multiplier), (0, 0.0, 1.0));
+    assert_eq!(g.predicted_topic, "/chronomap/office/predicted_map");
+    // A `/**` entry takes the name given, or chronomap.
+    let any =
+        "/**:\n  ros__parameters:\n    states:\n      d: {topic: d, type: std_msgs/msg/Float64}\n";
+    let c = NodeConfig::parse(Path::new("n.yaml"), any.as_bytes(), Some("walle")).unwrap();
+    assert_eq!(c.fully_qualified_name(), "/walle");
+    assert_eq!(c.states[0].model.to_string(), "fremen:2");
+    assert_eq!(parse(any).unwrap().fully_qualified_name(), "/chronomap");
+}
+
+#[test]
+fn errors_name_the_file_the_line_and_the_parameter() {
+    let base = "chronomap:\n  ros__parameters:\n";
+    let cases: &[(&str, &str)] = &[
+        (
+            "    horizon: -1\n",
+            "cfg/node.yaml:3: horizon: -1 is not a finite number of seconds >= 0",
+        ),
+        (
+            "    publish_period: 0\n",
+            "cfg/node.yaml:3: publish_period: 0 is not a finite number of seconds > 0",
+        ),
+        (
+            "    colour: red\n",
+            "cfg/node.yaml:3: unknown field `colour`",
+        ),
+        ("    use_sim_time: yes\n", "cfg/node.yaml:3: "),
+        (
+            "    states:\n      door: {topic: /door, type: nav_msgs/msg/OccupancyGrid}\n",
+            "cfg/node.yaml:4: states.door.type: \"nav_msgs/OccupancyGrid\" is not a state type",
+        ),
+        (
+            "    states:\n      door: {type: std_msgs/msg/Bool}\n",
+            "cfg/node.yaml:4: states.door.topic: missing (required)",
+        ),
+        (
+            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fft:3\n",
+            "cfg/node.yaml:7: states.door.model: `fft:3` is fitted offline",
+        ),
+        (
+            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fremen:x\n",
+            "cfg/node.yaml:7: states.door.model: cannot parse model \"fremen:x\"",
+        ),
+        (
+            "    states:\n      door: {topic: /a//b, type: std_msgs/msg/Bool}\n",
+            "cfg/node.yaml:4: states.door.topic: \"/a//b\" is not a valid topic name: empty token",
+        ),
+        (
+            "    states:\n      door: {topic: /1door, type: std_msgs/msg/Bool}\n",
+            "states.door.topic: \"/1door\" is not a valid topic name",
+        ),
+        (
+            "    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, reliability: sometimes}\n",
+            "states.door.reliability: \"sometimes\" is not reliable or best_effort",
+        ),
+        (
+            "    states:\n      my-door: {topic: /door, type: std_msgs/msg/Bool}\n",
+            "cfg/node.yaml:4: states.my-door: the name \"my-door\" is not a ROS name token",
+        ),
+        (
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n      b: {topic: /x, type: std_msgs/msg/Bool}\n",
+            "cfg/node.yaml: states.b.topic: /x is also the topic of states.a.topic",
+        ),
+        (
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool, probability_topic: /y}\n    maps:\n      m: {topic: /y}\n",
+            "maps.m.topic: /y is also a topic the node publishes",
+        ),
+        (
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n    maps:\n      a: {topic: /y}\n",
+            "cfg/node.yaml:6: maps.a: the name is used by states.a too",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, order: 85}\n",
+            "cfg/node.yaml:4: maps.m.order: order 85 is above the largest order 84",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, width: 3}\n",
+            "cfg/node.yaml:4: maps.m.width: only people grids have this key",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, values: fuzzy}\n",
+            "maps.m.values: \"fuzzy\" is not trinary, scale or probability",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, mask_topic: \"\"}\n",
+            "maps.m.mask_topic: mask_topic and filter_info_topic are disabled",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, filter_type: 7}\n",
+            "maps.m.filter_type: 7 is not a Nav2 filter type",
+        ),
+        (
+            "    people:\n      p: {topic: /p, width: 10, height: 10}\n",
+            "cfg/node.yaml:4: people.p.resolution: missing (required)",
+        ),
+        (
+            "    people:\n      p: {topic: /p, width: 100000, height: 100000, resolution: 1}\n",
+            "people.p.width: 100000 x 100000 = 10000000000 cells is above max_map_cells (16777216)",
+        ),
+        (
+            "    people:\n      p: {topic: /p, width: 10, height: 10, resolution: 1, origin: [1]}\n",
+            "people.p.origin: [1.0] is not [x, y]",
+        ),
+        (
+            "    record_observations: true\n    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n",
+            "cfg/node.yaml:3: record_observations: needs save_dir",
+        ),
+        (
+            "    edges:\n      models: a.cmt\n",
+            "cfg/node.yaml:4: edges.geojson: missing (required)",
+        ),
+        ("    max_map_cells: 0\n", "max_map_cells: 0 is not in 1..="),
+        ("    horizon: 1\n", "cfg/node.yaml: nothing to do"),
+    ];
+    for (body, expected) in cases {
+        let message = error(&format!("{base}{body}"));
+        assert!(
+            message.contains(expected),
+            "{body}\n{message}\nexpected {expected}"
+        );
+    }
+}
+
+#[test]
+fn node_entries_are_chosen_by_name() {
+    let two = "a:\n  ros__parameters:\n    horizon: 1\nb:\n  ros__parameters:\n    states:\n      d: {topic: d, type: std_msgs/msg/Bool}\n";
+    assert!(error(two).contains("entries for several nodes (a, b): choose one with --node-name"));
+    let b = NodeConfig::parse(Path::new("n.yaml"), two.as_bytes(), Some("b")).unwrap();
+    assert_eq!(b.node_name, "b");
+    let missing = NodeConfig::parse(Path::new("n.yaml"), two.as_bytes(), Some("c")).unwrap_err();
+    assert_eq!(
+        missing.to_string(),
+        "n.yaml: no parameters for node \"c\" (entries: a, b)"
+    );
+    assert!(error("").contains("no node entry"));
+    assert!(error("chronomap: {}\n").contains("missing field `ros__parameters`"));
+    assert!(error("bad name:\n  ros__parameters: {}\n").contains("is not a valid node name"));
+    let twice = error("a:\n  ros__parameters: {}\na:\n  ros__parameters: {}\n");
+    assert!(twice.contains("the key `a` appears twice"), "{twice}");
+}
+
+#[test]
+fn topics_resolve_as_ros_2_resolves_them() {
+    assert_eq!(resolve_topic("/a/b", "/ns", "/ns/n").unwrap(), "/a/b");
+    assert_eq!(resolve_topic("a/b", "/ns", "/ns/n").unwrap(), "/ns/a/b");
+    assert_eq!(resolve_topic("a", "/", "/n").unwrap(), "/a");
+    assert_eq!(resolve_topic("~/a", "/ns", "/ns/n").unwrap(), "/ns/n/a");
+    for bad in ["", "~", "/", "a/", "a b", "{x}", "/a__b", "~a"] {
+        assert!(resolve_topic(bad, "/", "/n").is_err(), "{bad:?}");
+    }
+}
+
+#[test]
+fn files_that_are_not_parameter_files_are_refused_by_name() {
+    let dir = chronomap_testutil::fresh_dir(
+        std::env::temp_dir().join(format!("chronomap-ros2-config-{}", std::process::id())),
+    );
+    let missing = NodeConfig::read(&dir.join("none.yaml"), None).unwrap_err();
+    assert!(
+        missing
+            .to_string()
+            .starts_with(&format!("{}: cannot read", dir.join("none.yaml").display()))
+    );
+    let big =
+        chronomap_testutil::write(&dir, "big.yaml", vec![b'#'; (MAX_FILE_BYTES + 1) as usize]);
+    assert!(
+        NodeConfig::read(&big, None)
+            .unwrap_err()
+            .to_string()
+            .contains("larger than 1048576 bytes")
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,383 @@
+//! The ROS 2 messages the node reads and writes, declared as serde structs in the field order
+//! of their `.msg` definitions: that order is their CDR encoding (XCDR1, as `rmw_fastrtps`
+//! and RustDDS write it). Only the types the node uses are declared; `nav2_msgs` is not needed
+//! on the robot's side to run the node.
+//!
+//! | type | definition |
+//! |---|---|
+//! | `builtin_interfaces/msg/Time` | `int32 sec`, `uint32 nanosec` |
+//! | `std_msgs/msg/Header` | `Time stamp`, `string frame_id` |
+//! | `std_msgs/msg/Bool`, `Float32`, `Float64` | `bool data`, `float32 data`, `float64 data` |
+//! | `rosgraph_msgs/msg/Clock` | `Time clock` |
+//! | `geometry_msgs/msg/Point`, `Quaternion`, `Pose` | `float64 x, y, z`; `float64 x, y, z, w`; `Point position`, `Quaternion orientation` |
+//! | `geometry_msgs/msg/PoseArray` | `Header header`, `Pose[] poses` |
+//! | `nav_msgs/msg/MapMetaData` | `Time map_load_time`, `float32 resolution`, `uint32 width`, `uint32 height`, `Pose origin` |
+//! | `nav_msgs/msg/OccupancyGrid` | `Header header`, `MapMetaData info`, `int8[] data` |
+//! | `nav2_msgs/msg/CostmapFilterInfo` | `Header header`, `uint8 type`, `string filter_mask_topic`, `float32 base`, `float32 multiplier` |
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+/// A message type by package and name, as ROS writes it (`std_msgs/msg/Bool`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TypeName {
+    /// The package (`std_msgs`).
+    pub package: &'static str,
+    /// The type (`Bool`).
+    pub name: &'static str,
+}
+
+impl TypeName {
+    /// The name DDS announces for this type (`std_msgs::msg::dds_::Bool_`), which rmw
+    /// implementations compare when they match endpoints.
+    pub fn dds(&self) -> String {
+        format!("{}::msg::dds_::{}_", self.package, self.name)
+    }
+}
+
+impl fmt::Display for TypeName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/msg/{}", self.package, self.name)
+    }
+}
+
+/// The ROS name of a DDS type name (`std_msgs::msg::dds_::Bool_` → `std_msgs/msg/Bool`); other
+/// names are returned as they are.
+pub fn ros_type_of_dds(dds: &str) -> String {
+    match dds.split_once("::msg::dds_::") {
+        Some((package, name)) => {
+            format!("{package}/msg/{}", name.strip_suffix('_').unwrap_or(name))
+        }
+        None => dds.to_string(),
+    }
+}
+
+/// A message type with its ROS name.
+pub trait Message: Serialize + for<'de> Deserialize<'de> + 'static {
+    /// Its name.
+    const TYPE: TypeName;
+}
+
+macro_rules! message {
+    ($type:ident, $package:literal, $name:literal) => {
+        impl Message for $type {
+            const TYPE: TypeName = TypeName {
+                package: $package,
+                name: $name,
+            };
+        }
+    };
+}
+
+/// `builtin_interfaces/msg/Time`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Time {
+    /// Seconds (unix time on robots, simulated time with `use_sim_time`).
+    pub sec: i32,
+    /// Nanoseconds within the second, `0..1_000_000_000`.
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// Seconds as chronomap's models take them: `sec + nanosec / 10⁹` (exact for whole
+    /// seconds; otherwise the `f64` nearest to that sum of two exact `f64`s).
+    pub fn seconds(&self) -> f64 {
+        f64::from(self.sec) + f64::from(self.nanosec) / 1e9
+    }
+
+    /// The stamp of `seconds`, rounded to the nanosecond and saturated at the range of
+    /// `int32` seconds (`NaN` gives zero).
+    pub fn from_seconds(seconds: f64) -> Time {
+        if seconds.is_nan() {
+            return Time::default();
+        }
+        let whole = seconds.floor();
+        if whole < f64::from(i32::MIN) {
+            return Time {
+                sec: i32::MIN,
+                nanosec: 0,
+            };
+        }
+        if whole > f64::from(i32::MAX) {
+            return Time {
+                sec: i32::MAX,
+                nanosec: 999_999_999,
+            };
+        }
+        let mut sec = whole as i64;
+        let mut nanosec = ((seconds - whole) * 1e9).round() as i64;
+        if nanosec >= 1_000_000_000 {
+            sec += 1;
+            nanosec -= 1_000_000_000;
+        }
+        match i32::try_from(sec) {
+            Ok(sec) => Time {
+                sec,
+                nanosec: nanosec as u32,
+            },
+            Err(_) => Time {
+                sec: i32::MAX,
+                nanosec: 999_999_999,
+            },
+        }
+    }
+}
+
+/// `std_msgs/msg/Header`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// When the data were made (a map: when it was predicted or observed).
+    pub stamp: Time,
+    /// The frame the data are in (`map`, REP 105).
+    pub frame_id: String,
+}
+
+/// `std_msgs/msg/Bool`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Bool {
+    /// The state.
+    pub data: bool,
+}
+message!(Bool, "std_msgs", "Bool");
+
+/// `std_msgs/msg/Float32`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Float32 {
+    /// The value.
+    pub data: f32,
+}
+message!(Float32, "std_msgs", "Float32");
+
+/// `std_msgs/msg/Float64`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Float64 {
+    /// The value.
+    pub data: f64,
+}
+message!(Float64, "std_msgs", "Float64");
+
+/// `rosgraph_msgs/msg/Clock`: the simulated time on `/clock`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Clock {
+    /// The time.
+    pub clock: Time,
+}
+message!(Clock, "rosgraph_msgs", "Clock");
+
+/// `geometry_msgs/msg/Point`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point {
+    /// Metres.
+    pub x: f64,
+    /// Metres.
+    pub y: f64,
+    /// Metres.
+    pub z: f64,
+}
+
+/// `geometry_msgs/msg/Quaternion`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Quaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+
+impl Default for Quaternion {
+    /// The identity (no rotation).
+    fn default() -> Self {
+        Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }
+    }
+}
+
+/// `geometry_msgs/msg/Pose`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Position.
+    pub position: Point,
+    /// Orientation.
+    pub orientation: Quaternion,
+}
+
+/// `geometry_msgs/msg/PoseArray`: people detected at one time.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseArray {
+    /// Time and frame of the poses.
+    pub header: Header,
+    /// The poses.
+    pub poses: Vec<Pose>,
+}
+message!(PoseArray, "geometry_msgs", "PoseArray");
+
+/// `nav_msgs/msg/MapMetaData`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapMetaData {
+    /// When the map was loaded (made).
+    pub map_load_time: Time,
+    /// Metres per cell.
+    pub resolution: f32,
+    /// Cells per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Pose of the corner of cell (0, 0) in the header's frame.
+    pub origin: Pose,
+}
+
+/// `nav_msgs/msg/OccupancyGrid`: row-major cells, row 0 at the bottom, `0..=100` percent or
+/// `-1` unknown.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    /// Time and frame.
+    pub header: Header,
+    /// Size, resolution and origin.
+    pub info: MapMetaData,
+    /// The cells.
+    pub data: Vec<i8>,
+}
+message!(OccupancyGrid, "nav_msgs", "OccupancyGrid");
+
+/// `nav2_msgs/msg/CostmapFilterInfo`: which mask a Nav2 costmap filter reads and how its values
+/// become costs or speed limits (`filter value = base + multiplier · mask value`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CostmapFilterInfo {
+    /// Time and frame of the mask.
+    pub header: Header,
+    /// Filter type: 0 keepout (or preferred lanes), 1 speed limit in percent, 2 speed limit in
+    /// m/s, 3 binary (Nav2's `costmap_filters` constants).
+    #[serde(rename = "type")]
+    pub filter_type: u8,
+    /// The mask's topic.
+    pub filter_mask_topic: String,
+    /// `base` of the filter value.
+    pub base: f32,
+    /// `multiplier` of the filter value.
+    pub multiplier: f32,
+}
+message!(CostmapFilterInfo, "nav2_msgs", "CostmapFilterInfo");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ros2_client::dds::rustdds::serialization::{from_bytes, to_vec};
+
+    type Le = byteorder::LittleEndian;
+
+    #[test]
+    fn type_names_are_those_rmw_announces() {
+        assert_eq!(Bool::TYPE.dds(), "std_msgs::msg::dds_::Bool_");
+        assert_eq!(
+            OccupancyGrid::TYPE.to_string(),
+            "nav_msgs/msg/OccupancyGrid"
+        );
+        assert_eq!(
+            ros_type_of_dds("nav2_msgs::msg::dds_::CostmapFilterInfo_"),
+            "nav2_msgs/msg/CostmapFilterInfo"
+        );
+        assert_eq!(ros_type_of_dds("Weird"), "Weird");
+    }
+
+    #[test]
+    fn times_convert_to_seconds_and_back() {
+        let t = Time {
+            sec: 1_458_565_200,
+            nanosec: 0,
+        };
+        assert_eq!(t.seconds(), 1_458_565_200.0);
+        assert_eq!(Time::from_seconds(1_458_565_200.0), t);
+        assert_eq!(
+            Time::from_seconds(12.5),
+            Time {
+                sec: 12,
+                nanosec: 500_000_000
+            }
+        );
+        assert_eq!(
+            Time::from_seconds(-0.25),
+            Time {
+                sec: -1,
+                nanosec: 750_000_000
+            }
+        );
+        assert_eq!(Time::from_seconds(1e12).sec, i32::MAX);
+        assert_eq!(Time::from_seconds(f64::NAN), Time::default());
+        // 0.9999999999 rounds up into the next second.
+        assert_eq!(
+            Time::from_seconds(4.999_999_999_9),
+            Time { sec: 5, nanosec: 0 }
+        );
+    }
+
+    /// The CDR bytes of a filter info message, laid out by hand from XCDR1's alignment
+    /// rules (every primitive aligned to its size from the start of the payload).
+    #[test]
+    fn costmap_filter_info_has_the_cdr_layout_of_its_definition() {
+        let info = CostmapFilterInfo {
+            header: Header {
+                stamp: Time { sec: 7, nanosec: 9 },
+                frame_id: "map".into(),
+            },
+            filter_type: 1,
+            filter_mask_topic: "/m".into(),
+            base: 100.0,
+            multiplier: -1.0,
+        };
+        let bytes = to_vec::<_, Le>(&info).unwrap();
+        let mut expected = Vec::new();
+        expected.extend(7i32.to_le_bytes());
+        expected.extend(9u32.to_le_bytes());
+        expected.extend(4u32.to_le_bytes()); // "map\0"
+        expected.extend(b"map\0");
+        expected.push(1); // type
+        expected.extend([0, 0, 0]); // align to 4
+        expected.extend(3u32.to_le_bytes()); // "/m\0"
+        expected.extend(b"/m\0");
+        expected.push(0); // align to 4
+        expected.extend(100f32.to_le_bytes());
+        expected.extend((-1f32).to_le_bytes());
+        assert_eq!(bytes, expected);
+        let (back, used) = from_bytes::<CostmapFilterInfo, Le>(&bytes).unwrap();
+        assert_eq!((back, used), (info, bytes.len()));
+    }
+
+    #[test]
+    fn occupancy_grids_round_trip() {
+        let grid = OccupancyGrid {
+            header: Header {
+                stamp: Time { sec: 1, nanosec: 2 },
+                frame_id: "map".into(),
+            },
+            info: MapMetaData {
+                map_load_time: Time { sec: 3, nanosec: 4 },
+                resolution: 0.05,
+                width: 2,
+                height: 2,
+                origin: Pose {
+                    position: Point {
+                        x: -1.0,
+                        y: 2.0,
+                        z: 0.0,
+                    },
+                    orientation: Quaternion::default(),
+                },
+            },
+            data: vec![0, 100, -1, 42],
+        };
+        let bytes = to_vec::<_, Le>(&grid).unwrap();
+        // header 4+4+4+4 ("map\0"), load time 8, resolution 4, width 4, height 4, then the
+        // pose's doubles aligned to 8 (offset 36 -> 40), 7 doubles, length 4, 4 bytes.
+        assert_eq!(bytes.len(), 40 + 56 + 4 + 4);
+        assert_eq!(from_bytes::<OccupancyGrid, Le>(&bytes).unwrap().0, grid);
+    }
+}

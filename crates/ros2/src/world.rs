@@ -1,0 +1,851 @@
+//! What the node knows, without any middleware: the models of the configured states, grids
+//! and edges, how messages become observations, how predictions become messages, and saving
+//! and restoring. The node ([`crate::node`]) only moves messages and keeps time; everything
+//! here is deterministic and tested without DDS.
+//!
+//! * **States** learn one observation per message, at the node's time of receipt, with the
+//!   model of their spec ([`chronomap_models::ModelSpec::online_model`]): after the same observations it is
+//!   bit for bit the model `chronomap fit` makes.
+//! * **Maps** learn every `nav_msgs/OccupancyGrid` as a frame of a [`FremenGrid`] at its
+//!   `header.stamp`, exactly as `chronomap grid build --frames` learns map files
+//!   ([`FremenGrid::observe_occupancy`], [Krajník 2017] §VI).
+//! * **People** ([`GridSource::People`]) cut time into bins; a bin in which at least one
+//!   `PoseArray` arrived becomes one frame at the bin's middle, with every cell free except
+//!   the cells someone was detected in (occupied). The grid's FreMEn cells then predict the
+//!   probability that someone is in a cell during a bin, as [Krajník 2017] §VI models
+//!   dynamic cells; it is published like a map.
+//! * **Predicted maps** are the map `chronomap grid predict` computes, with cells as
+//!   `nav2_map_server` publishes the map files it writes ([`MapValues`]).
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use chronomap_core::{ObservationError, TemporalModel};
+use chronomap_grid::report::project_layers;
+use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
+use chronomap_io::navmap::{
+    LoadSemantics, MapMetadata, MapMode, OccupancyMap, SaveOptions, decode_map_image,
+    decode_map_yaml, encode_map_image, encode_map_yaml,
+};
+use chronomap_io::{
+    GridFile, ModelFileError, TopoFileError, read_any_model, read_edge_models, read_grid_file,
+    write_any_model, write_grid_file, write_route_geojson,
+};
+use chronomap_models::AnyModel;
+use chronomap_topo::edges::EdgeModels;
+use thiserror::Error;
+
+use crate::config::{GridEntry, GridSource, MapValues, NodeConfig, StateConfig};
+use crate::msgs::{
+    CostmapFilterInfo, Header, MapMetaData, OccupancyGrid, Point, Pose, PoseArray, Quaternion, Time,
+};
+
+/// Free threshold of the maps `chronomap grid predict` writes (ROS 1 map_saver's, so that the
+/// unknown grey stays unknown).
+const FREE_THRESH: f64 = 0.196;
+/// Occupied threshold of those maps (map_saver's).
+const OCCUPIED_THRESH: f64 = 0.65;
+
+/// Why a message was not learned (the node logs it and goes on).
+#[derive(Debug, Error)]
+pub enum LearnError {
+    /// A state outside [0, 1] or not a number.
+    #[error("value {0} is not in [0, 1]")]
+    Value(f64),
+    /// The observation contract (times in order, ...).
+    #[error(transparent)]
+    Observation(#[from] ObservationError),
+    /// A map larger than `max_map_cells`.
+    #[error("{width} x {height} cells is more than max_map_cells ({max})")]
+    TooLarge {
+        /// Cells per row.
+        width: u32,
+        /// Rows.
+        height: u32,
+        /// The limit.
+        max: u64,
+    },
+    /// `data` does not hold `width · height` cells.
+    #[error("width {width} x height {height} is {cells} cells but data holds {found} values")]
+    DataLength {
+        /// Cells per row.
+        width: u32,
+        /// Rows.
+        height: u32,
+        /// `width · height`.
+        cells: u64,
+        /// `data.len()`.
+        found: usize,
+    },
+    /// A map whose size, resolution or origin differs from the grid's.
+    #[error("the map is {found}, but this grid is {expected} (fixed by its first map)")]
+    Geometry {
+        /// The grid's geometry.
+        expected: String,
+        /// The message's.
+        found: String,
+    },
+    /// A map with a rotated origin.
+    #[error("the map's origin is rotated (orientation {0:?}); only unrotated maps are learned")]
+    Rotated([f64; 4]),
+    /// A message in another frame.
+    #[error(
+        "frame_id {found:?} is not the configured {expected:?} (poses and maps are not transformed)"
+    )]
+    Frame {
+        /// The configured frame.
+        expected: String,
+        /// The message's.
+        found: String,
+    },
+    /// A map or detection from before what was learned.
+    #[error(
+        "stamp {stamp} is not after the last learned {what} at {last} (already learned, or from the past)"
+    )]
+    Stale {
+        /// The message's stamp, seconds.
+        stamp: f64,
+        /// The last learned time.
+        last: f64,
+        /// `frame` or `bin`.
+        what: &'static str,
+    },
+    /// What the grid refused.
+    #[error(transparent)]
+    Grid(#[from] GridError),
+}
+
+/// Why models could not be restored or saved.
+#[derive(Debug, Error)]
+pub enum StoreError {
+    /// A saved model or grid file that cannot be read.
+    #[error(transparent)]
+    File(#[from] ModelFileError),
+    /// A saved file made for another configuration.
+    #[error("{file}: {reason}; move the file away to start this model afresh")]
+    Mismatch {
+        /// The file.
+        file: String,
+        /// What differs.
+        reason: String,
+    },
+    /// A file or folder that cannot be written.
+    #[error("{path}: cannot {action}: {source}")]
+    Io {
+        /// The path.
+        path: String,
+        /// What was being done.
+        action: &'static str,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The edge models or the route graph.
+    #[error(transparent)]
+    Topo(#[from] TopoFileError),
+    /// A route graph that cannot be made from the edge models.
+    #[error("{0}")]
+    Route(String),
+}
+
+/// A state and what it learned.
+struct StateSlot {
+    model: AnyModel,
+    learned: u64,
+    record: Option<BufWriter<File>>,
+}
+
+/// A grid and what it learned.
+struct GridSlot {
+    grid: Option<FremenGrid>,
+    /// People: the bin being filled.
+    open: Option<OpenBin>,
+    frames: u64,
+}
+
+/// A people bin that is still open.
+struct OpenBin {
+    index: i64,
+    occupied: Vec<bool>,
+    messages: u64,
+}
+
+/// Counts of one input since the node started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Learned {
+    /// Observations (states) or frames (maps, people bins) learned.
+    pub observations: u64,
+    /// Total after restoring (states: the model's count; grids: frames).
+    pub total: u64,
+}
+
+/// The predicted map of a grid and its mask.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridPrediction {
+    /// The predicted map.
+    pub map: OccupancyGrid,
+    /// The costmap-filter mask (scale semantics), if the grid has a filter.
+    pub mask: Option<OccupancyGrid>,
+}
+
+/// Cell value tables `value + 1 → published value` for values −1..=100.
+struct ValueTables {
+    trinary: [i8; 102],
+    scale: [i8; 102],
+}
+
+impl ValueTables {
+    /// What `nav2_map_server` publishes for each cell value of a map that `chronomap grid
+    /// predict` writes in `mode`: found by writing all 102 values as one map and loading it,
+    /// with the functions that write and load the files.
+    fn new() -> Self {
+        let table = |mode: MapMode| -> [i8; 102] {
+            let mut map = OccupancyMap::new(102, 1, 0.05, [0.0, 0.0, 0.0]);
+            map.data = (-1..=100).collect();
+            let options = SaveOptions {
+                mode,
+                free_thresh: FREE_THRESH,
+                occupied_thresh: OCCUPIED_THRESH,
+                ..SaveOptions::default()
+            };
+            let image = encode_map_image(&map, &options).expect("valid thresholds");
+            let name = format!("table.{}", mode.image_extension());
+            let yaml = encode_map_yaml(&name, &map, &options).expect("valid thresholds");
+            let metadata: MapMetadata =
+                decode_map_yaml("table.yaml", yaml.as_bytes()).expect("a map file we wrote");
+            let loaded = decode_map_image(&name, &image, &metadata, LoadSemantics::Nav2)
+                .expect("an image we wrote");
+            loaded.data.try_into().expect("102 cells")
+        };
+        ValueTables {
+            trinary: table(MapMode::Trinary),
+            scale: table(MapMode::Scale),
+        }
+    }
+
+    fn convert(&self, values: MapValues, data: &mut [i8]) {
+        let table = match values {
+            MapValues::Probability => return,
+            MapValues::Trinary => &self.trinary,
+            MapValues::Scale => &self.scale,
+        };
+        for v in data {
+            *v = table[(*v as i16 + 1) as usize];
+        }
+    }
+}
+
+/// Everything the node learns and predicts (see the [module docs](self)).
+pub struct World {
+    config: NodeConfig,
+    states: Vec<StateSlot>,
+    grids: Vec<GridSlot>,
+    edges: Option<EdgeModels>,
+    tables: ValueTables,
+}
+
+impl World {
+    /// Empty models for `config`, or the models saved in its `save_dir`, and the edge models.
+    ///
+    /// # Errors
+    /// A saved file that cannot be read or was made for another configuration, unreadable
+    /// edge models, or a record file that cannot be opened.
+    pub fn new(config: NodeConfig) -> Result<World, StoreError> {
+        let mut states = Vec::new();
+        for s in &config.states {
+            let model = match config.save_dir.as_ref().map(|d| state_file(d, s)) {
+                Some(file) if file.exists() => restore_state(&file, s)?,
+                _ => s.empty_model(),
+            };
+            let record = match (&config.save_dir, config.record_observations) {
+                (Some(dir), true) => Some(open_record(&record_file(dir, s))?),
+                _ => None,
+            };
+            states.push(StateSlot {
+                model,
+                learned: 0,
+                record,
+            });
+        }
+        let mut grids = Vec::new();
+        for g in &config.grids {
+            let grid = match config.save_dir.as_ref().map(|d| grid_file(d, g)) {
+                Some(file) if file.exists() => Some(restore_grid(&file, g)?),
+                _ => match &g.source {
+                    GridSource::Map => None,
+                    GridSource::People {
+                        width,
+                        height,
+                        resolution,
+                        origin,
+                        ..
+                    } => Some(
+                        FremenGrid::new(
+                            GridGeometry::planar(*width, *height, *resolution, *origin)
+                                .map_err(|e| mismatch(&config.file, &g.name, e))?,
+                            grid_config(g),
+                        )
+                        .map_err(|e| mismatch(&config.file, &g.name, e))?,
+                    ),
+                },
+            };
+            grids.push(GridSlot {
+                grid,
+                open: None,
+                frames: 0,
+            });
+        }
+        let edges = match &config.edges {
+            Some(e) => Some(read_edge_models(&e.models)?),
+            None => None,
+        };
+        Ok(World {
+            config,
+            states,
+            grids,
+            edges,
+            tables: ValueTables::new(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &NodeConfig {
+        &self.config
+    }
+
+    /// Learns `value` of state `index` observed at `time` (the node's time of receipt).
+    ///
+    /// # Errors
+    /// A value outside [0, 1] or a time before the state's last observation; nothing is
+    /// learned then.
+    pub fn observe_state(&mut self, index: usize, time: f64, value: f64) -> Result<(), LearnError> {
+        if !(0.0..=1.0).contains(&value) {
+            return Err(LearnError::Value(value));
+        }
+        let slot = &mut self.states[index];
+        slot.model.observe(&[time], &[value])?;
+        slot.learned += 1;
+        if let Some(record) = &mut slot.record {
+            // `{}` writes the shortest text that reads back as the same f64.
+            if let Err(e) = writeln!(record, "{time} {value}") {
+                log::error!(
+                    "states.{}: cannot append to the observation record: {e}; recording stops",
+                    self.config.states[index].name
+                );
+                slot.record = None;
+            }
+        }
+        Ok(())
+    }
+
+    /// Learns the map `msg` of grid `index` (a [`GridSource::Map`]) as a frame at its stamp.
+    ///
+    /// # Errors
+    /// A map above `max_map_cells`, with data of the wrong length, in another frame, rotated,
+    /// of another geometry than the first, not after the last learned frame, or with cell
+    /// values outside −1..=100; nothing is learned then.
+    ///
+    /// # Panics
+    /// If grid `index` is not a map grid.
+    pub fn observe_map(&mut self, index: usize, msg: &OccupancyGrid) -> Result<(), LearnError> {
+        let entry = &self.config.grids[index];
+        assert!(
+            entry.source == GridSource::Map,
+            "grid {index} is not a map grid"
+        );
+        let info = &msg.info;
+        let cells = u64::from(info.width) * u64::from(info.height);
+        if cells > self.config.max_map_cells {
+            return Err(LearnError::TooLarge {
+                width: info.width,
+                height: info.height,
+                max: self.config.max_map_cells,
+            });
+        }
+        if cells != msg.data.len() as u64 {
+            return Err(LearnError::DataLength {
+                width: info.width,
+                height: info.height,
+                cells,
+                found: msg.data.len(),
+            });
+        }
+        check_frame(entry, &msg.header)?;
+        let o = &info.origin.orientation;
+        if (o.x, o.y, o.z, o.w) != (0.0, 0.0, 0.0, 1.0) {
+            return Err(LearnError::Rotated([o.x, o.y, o.z, o.w]));
+        }
+        let geometry = GridGeometry::planar(
+            info.width,
+            info.height,
+            f64::from(info.resolution),
+            [info.origin.position.x, info.origin.position.y],
+        )?;
+        let stamp = msg.header.stamp.seconds();
+        let slot = &mut self.grids[index];
+        let grid = match &mut slot.grid {
+            Some(grid) => {
+                if *grid.geometry() != geometry {
+                    return Err(LearnError::Geometry {
+                        expected: describe(grid.geometry()),
+                        found: describe(&geometry),
+                    });
+                }
+                if let Some(last) = grid.frame_span().last_time()
+                    && stamp <= last
+                {
+                    return Err(LearnError::Stale {
+                        stamp,
+                        last,
+                        what: "frame",
+                    });
+                }
+                grid
+            }
+            None => slot
+                .grid
+                .insert(FremenGrid::new(geometry, grid_config(entry))?),
+        };
+        grid.observe_occupancy(stamp, &msg.data)?;
+        slot.frames += 1;
+        Ok(())
+    }
+
+    /// Adds the detections `msg` to grid `index` (a [`GridSource::People`]); closes the open
+    /// bin first if `msg` belongs to a later one. Poses outside the grid are ignored.
+    ///
+    /// # Errors
+    /// A message in another frame or from a bin that is already learned or closed.
+    ///
+    /// # Panics
+    /// If grid `index` is not a people grid.
+    pub fn observe_people(&mut self, index: usize, msg: &PoseArray) -> Result<(), LearnError> {
+        let entry = &self.config.grids[index];
+        let GridSource::People { bin_secs, .. } = entry.source else {
+            panic!("grid {index} is not a people grid");
+        };
+        check_frame(entry, &msg.header)?;
+        let stamp = msg.header.stamp.seconds();
+        if !(stamp.is_finite() && stamp >= 0.0) {
+            return Err(ObservationError::NegativeTime {
+                index: 0,
+                time: stamp,
+            }
+            .into());
+        }
+        let bin = (stamp / bin_secs).floor() as i64;
+        if let Some(open) = &self.grids[index].open
+            && bin > open.index
+        {
+            self.close_bin(index)?;
+        }
+        let slot = &mut self.grids[index];
+        let grid = slot
+            .grid
+            .as_ref()
+            .expect("people grids exist from the start");
+        let geometry = *grid.geometry();
+        let middle = bin_middle(bin, bin_secs);
+        match &slot.open {
+            Some(open) if bin < open.index => {
+                return Err(LearnError::Stale {
+                    stamp,
+                    last: bin_middle(open.index, bin_secs),
+                    what: "bin",
+                });
+            }
+            None => {
+                if let Some(last) = grid.frame_span().last_time()
+                    && middle <= last
+                {
+                    return Err(LearnError::Stale {
+                        stamp,
+                        last,
+                        what: "bin",
+                    });
+                }
+                slot.open = Some(OpenBin {
+                    index: bin,
+                    occupied: vec![false; geometry.cells()],
+                    messages: 0,
+                });
+            }
+            Some(_) => {}
+        }
+        let open = slot.open.as_mut().expect("opened above");
+        open.messages += 1;
+        for pose in &msg.poses {
+            if let Some(cell) = cell_of(&geometry, &pose.position) {
+                open.occupied[cell] = true;
+            }
+        }
+        Ok(())
+    }
+
+    /// Closes people bins that ended at least one bin before `now` (late messages of a bin
+    /// are still taken during the next one).
+    ///
+    /// # Errors
+    /// As [`FremenGrid::observe_occupancy`].
+    pub fn close_stale_bins(&mut self, now: f64) -> Result<(), LearnError> {
+        for index in 0..self.grids.len() {
+            if let GridSource::People { bin_secs, .. } = self.config.grids[index].source
+                && let Some(open) = &self.grids[index].open
+                && now >= (open.index + 2) as f64 * bin_secs
+            {
+                self.close_bin(index)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Learns the open bin of people grid `index` as a frame.
+    fn close_bin(&mut self, index: usize) -> Result<(), LearnError> {
+        let GridSource::People { bin_secs, .. } = self.config.grids[index].source else {
+            return Ok(());
+        };
+        let slot = &mut self.grids[index];
+        let Some(open) = slot.open.take() else {
+            return Ok(());
+        };
+        let frame: Vec<i8> = open
+            .occupied
+            .iter()
+            .map(|&o| if o { 100 } else { 0 })
+            .collect();
+        let grid = slot
+            .grid
+            .as_mut()
+            .expect("people grids exist from the start");
+        grid.observe_occupancy(bin_middle(open.index, bin_secs), &frame)?;
+        slot.frames += 1;
+        Ok(())
+    }
+
+    /// What state `index` and grid entries learned: `(states, grids)` in configuration order.
+    pub fn learned(&self) -> (Vec<Learned>, Vec<Learned>) {
+        let states = self
+            .states
+            .iter()
+            .map(|s| Learned {
+                observations: s.learned,
+                total: s.model.span().count,
+            })
+            .collect();
+        let grids = self
+            .grids
+            .iter()
+            .map(|g| Learned {
+                observations: g.frames,
+                total: g.grid.as_ref().map_or(0, FremenGrid::frames),
+            })
+            .collect();
+        (states, grids)
+    }
+
+    /// The model of state `index`.
+    pub fn state_model(&self, index: usize) -> &AnyModel {
+        &self.states[index].model
+    }
+
+    /// The grid of entry `index`, once it has one.
+    pub fn grid(&self, index: usize) -> Option<&FremenGrid> {
+        self.grids[index].grid.as_ref()
+    }
+
+    /// Probability and entropy (bits) of state `index` at `time`.
+    pub fn predict_state(&self, index: usize, time: f64) -> (f64, f64) {
+        let model = &self.states[index].model;
+        (model.predict(time), model.entropy(time))
+    }
+
+    /// The predicted map of grid `index` at `time` (and its mask), stamped `stamp`; `None`
+    /// before the grid's first map.
+    pub fn predict_grid(&self, index: usize, time: f64, stamp: Time) -> Option<GridPrediction> {
+        let entry = &self.config.grids[index];
+        let grid = self.grids[index].grid.as_ref()?;
+        let g = *grid.geometry();
+        let fitted = grid.fitted(OrderChoice::Fixed(entry.fremen.order));
+        let values = project_layers(&g, &fitted.predict(time), 0..g.depth);
+        let probabilities = OccupancyMap::from_probabilities(
+            g.width,
+            g.height,
+            g.resolution as f32,
+            [g.origin[0], g.origin[1], 0.0],
+            &values,
+        )
+        .data;
+        let message = |data: Vec<i8>| OccupancyGrid {
+            header: Header {
+                stamp,
+                frame_id: entry.frame_id.clone(),
+            },
+            info: MapMetaData {
+                map_load_time: stamp,
+                resolution: g.resolution as f32,
+                width: g.width,
+                height: g.height,
+                origin: Pose {
+                    position: Point {
+                        x: g.origin[0],
+                        y: g.origin[1],
+                        z: 0.0,
+                    },
+                    orientation: Quaternion::default(),
+                },
+            },
+            data,
+        };
+        let mask = entry.filter.as_ref().map(|_| {
+            let mut data = probabilities.clone();
+            self.tables.convert(MapValues::Scale, &mut data);
+            message(data)
+        });
+        let mut data = probabilities;
+        self.tables.convert(entry.values, &mut data);
+        Some(GridPrediction {
+            map: message(data),
+            mask,
+        })
+    }
+
+    /// The filter info of grid `index`, if it has a filter.
+    pub fn filter_info(&self, index: usize, stamp: Time) -> Option<CostmapFilterInfo> {
+        let entry = &self.config.grids[index];
+        entry.filter.as_ref().map(|f| CostmapFilterInfo {
+            header: Header {
+                stamp,
+                frame_id: entry.frame_id.clone(),
+            },
+            filter_type: f.filter_type,
+            filter_mask_topic: f.mask_topic.clone(),
+            base: f.base,
+            multiplier: f.multiplier,
+        })
+    }
+
+    /// Rewrites the route graph with the edges' success probabilities and expected durations
+    /// at `time` (atomically), as `chronomap topo predict --geojson` writes it; `false` without
+    /// edges.
+    ///
+    /// # Errors
+    /// A graph that cannot be written.
+    pub fn write_route_graph(&self, time: f64) -> Result<bool, StoreError> {
+        let (Some(models), Some(config)) = (&self.edges, &self.config.edges) else {
+            return Ok(false);
+        };
+        let (success, duration) = models.at(time);
+        let metadata: Vec<(f64, f64)> = success.into_iter().zip(duration).collect();
+        write_route_geojson(&config.geojson, models.map(), &metadata)?;
+        Ok(true)
+    }
+
+    /// Saves every model and grid into `save_dir` (each file atomically) and flushes the
+    /// observation records; nothing without `save_dir`. With `finish`, open people bins are
+    /// learned first (at shutdown).
+    ///
+    /// # Errors
+    /// A folder or file that cannot be written (the others are still saved).
+    pub fn save(&mut self, finish: bool) -> Result<(), StoreError> {
+        if finish {
+            for index in 0..self.grids.len() {
+                if let Err(e) = self.close_bin(index) {
+                    log::error!("{}: the last bin: {e}", self.config.grids[index].name);
+                }
+            }
+        }
+        let Some(dir) = self.config.save_dir.clone() else {
+            return Ok(());
+        };
+        let mut first_error = None;
+        for (s, slot) in self.config.states.iter().zip(&mut self.states) {
+            let file = state_file(&dir, s);
+            let result = make_parent(&file)
+                .and_then(|()| write_any_model(&file, &slot.model).map_err(StoreError::from));
+            let flushed = match &mut slot.record {
+                Some(record) => record
+                    .flush()
+                    .and_then(|()| record.get_ref().sync_data())
+                    .map_err(|source| StoreError::Io {
+                        path: record_file(&dir, s).display().to_string(),
+                        action: "write",
+                        source,
+                    }),
+                None => Ok(()),
+            };
+            for r in [result, flushed] {
+                if let Err(e) = r {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        for (g, slot) in self.config.grids.iter().zip(&self.grids) {
+            let Some(grid) = &slot.grid else {
+                continue;
+            };
+            let file = grid_file(&dir, g);
+            let result = make_parent(&file).and_then(|()| {
+                write_grid_file(&file, &GridFile::State(Box::new(grid.clone())))
+                    .map_err(StoreError::from)
+            });
+            if let Err(e) = result {
+                first_error.get_or_insert(e);
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+}
+
+/// `dir/states/NAME.cmm`.
+pub fn state_file(dir: &Path, state: &StateConfig) -> PathBuf {
+    dir.join("states").join(format!("{}.cmm", state.name))
+}
+
+/// `dir/states/NAME.txt`: the learned observations as `t value` lines.
+pub fn record_file(dir: &Path, state: &StateConfig) -> PathBuf {
+    dir.join("states").join(format!("{}.txt", state.name))
+}
+
+/// `dir/maps/NAME.cmg` or `dir/people/NAME.cmg`.
+pub fn grid_file(dir: &Path, grid: &GridEntry) -> PathBuf {
+    dir.join(grid.section()).join(format!("{}.cmg", grid.name))
+}
+
+fn make_parent(file: &Path) -> Result<(), StoreError> {
+    let parent = file.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|source| StoreError::Io {
+        path: parent.display().to_string(),
+        action: "create the folder",
+        source,
+    })
+}
+
+fn open_record(file: &Path) -> Result<BufWriter<File>, StoreError> {
+    make_parent(file)?;
+    OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(file)
+        .map(BufWriter::new)
+        .map_err(|source| StoreError::Io {
+            path: file.display().to_string(),
+            action: "open for appending",
+            source,
+        })
+}
+
+fn mismatch(file: &Path, name: &str, reason: impl std::fmt::Display) -> StoreError {
+    StoreError::Mismatch {
+        file: file.display().to_string(),
+        reason: format!("{name}: {reason}"),
+    }
+}
+
+fn restore_state(file: &Path, state: &StateConfig) -> Result<AnyModel, StoreError> {
+    let model = read_any_model(file)?;
+    if model.spec() != state.model {
+        return Err(StoreError::Mismatch {
+            file: file.display().to_string(),
+            reason: format!(
+                "it holds a `{}` model, but states.{}.model is `{}`",
+                model.spec(),
+                state.name,
+                state.model
+            ),
+        });
+    }
+    Ok(model)
+}
+
+fn restore_grid(file: &Path, entry: &GridEntry) -> Result<FremenGrid, StoreError> {
+    let name = file.display().to_string();
+    let grid = match read_grid_file(file)? {
+        GridFile::State(grid) => *grid,
+        other => {
+            return Err(StoreError::Mismatch {
+                file: name,
+                reason: format!("it holds a {} grid, not a learning state", other.kind()),
+            });
+        }
+    };
+    let section = entry.section();
+    if grid.config().fremen != entry.fremen {
+        return Err(StoreError::Mismatch {
+            file: name,
+            reason: format!(
+                "its cells have periods {} and order {}, but {section}.{} says periods {} and order {}",
+                grid.config().fremen.periods,
+                grid.config().fremen.order,
+                entry.name,
+                entry.fremen.periods,
+                entry.fremen.order
+            ),
+        });
+    }
+    if let GridSource::People {
+        width,
+        height,
+        resolution,
+        origin,
+        ..
+    } = &entry.source
+    {
+        let configured = GridGeometry::planar(*width, *height, *resolution, *origin)
+            .map_err(|e| mismatch(file, &entry.name, e))?;
+        if *grid.geometry() != configured {
+            return Err(StoreError::Mismatch {
+                file: name,
+                reason: format!(
+                    "it is {}, but {section}.{} is {}",
+                    describe(grid.geometry()),
+                    entry.name,
+                    describe(&configured)
+                ),
+            });
+        }
+    }
+    Ok(grid)
+}
+
+/// The grid configuration of `chronomap grid build` with `--order` and `--periods` as
+/// configured: no history kept.
+fn grid_config(entry: &GridEntry) -> GridConfig {
+    GridConfig {
+        fremen: entry.fremen.clone(),
+        keep_history: false,
+    }
+}
+
+fn check_frame(entry: &GridEntry, header: &Header) -> Result<(), LearnError> {
+    if header.frame_id == entry.frame_id {
+        Ok(())
+    } else {
+        Err(LearnError::Frame {
+            expected: entry.frame_id.clone(),
+            found: header.frame_id.clone(),
+        })
+    }
+}
+
+fn describe(g: &GridGeometry) -> String {
+    format!(
+        "{} x {} cells of {} m at ({}, {})",
+        g.width, g.height, g.resolution, g.origin[0], g.origin[1]
+    )
+}
+
+/// The middle of bin `index` of `bin_secs` seconds.
+fn bin_middle(index: i64, bin_secs: f64) -> f64 {
+    (index as f64 + 0.5) * bin_secs
+}
+
+/// The cell of a 2-D grid a position falls in.
+fn cell_of(g: &GridGeometry, p: &Point) -> Option<usize> {
+    let x = ((p.x - g.origin[0]) / g.resolution).floor();
+    let y = ((p.y - g.origin[1]) / g.resolution).floor();
+    let inside = x >= 0.0 && y >= 0.0 && x < f64::from(g.width) && y < f64::from(g.height);
+    inside.then(|| y as usize * g.width as usize + x as usize)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,355 @@
+use std::path::Path;
+
+use chronomap_core::TemporalModel;
+use chronomap_grid::CellState;
+use chronomap_io::navmap::{load_map, save_map};
+use chronomap_io::read_pairs;
+use chronomap_models::spec::FitOptions;
+
+use super::*;
+use crate::msgs::Time;
+
+/// A scratch folder for one test, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!(
+            "chronomap-ros2-world-{test}-{}",
+            std::process::id()
+        ));
+        Scratch(chronomap_testutil::fresh_dir(dir))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn config(dir: &Path, params: &str) -> NodeConfig {
+    let text = format!("chronomap:\n  ros__parameters:\n{params}");
+    NodeConfig::parse(&dir.join("node.yaml"), text.as_bytes(), None).unwrap()
+}
+
+const DOOR: &str =
+    "    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n";
+
+fn map_message(stamp: i32, frame: &str, width: u32, height: u32, data: Vec<i8>) -> OccupancyGrid {
+    OccupancyGrid {
+        header: Header {
+            stamp: Time {
+                sec: stamp,
+                nanosec: 0,
+            },
+            frame_id: frame.into(),
+        },
+        info: MapMetaData {
+            map_load_time: Time::default(),
+            resolution: 0.25,
+            width,
+            height,
+            origin: Pose {
+                position: Point {
+                    x: -1.0,
+                    y: 0.5,
+                    z: 0.0,
+                },
+                orientation: Quaternion::default(),
+            },
+        },
+        data,
+    }
+}
+
+/// A 6 x 4 map at hour `h`: a door (cell 9) closed at night, a wall, a cell that fades, one
+/// never seen.
+fn office_frame(h: i32) -> Vec<i8> {
+    let mut data = vec![0i8; 24];
+    data[0] = 100;
+    data[9] = if (8..18).contains(&(h % 24)) { 0 } else { 100 };
+    data[14] = (h % 5 * 20) as i8;
+    data[23] = -1;
+    data
+}
+
+#[test]
+fn a_state_learned_message_by_message_is_the_model_fit_makes() {
+    let dir = Scratch::new("state");
+    let params = format!("    save_dir: saved\n    record_observations: true\n{DOOR}");
+    let mut world = World::new(config(&dir.0, &params)).unwrap();
+    let door = read_pairs(chronomap_testutil::data_path(
+        "door_greg_2016/training_data.txt.xz",
+    ))
+    .unwrap();
+    let n = 3000;
+    for (&t, &v) in door.times[..n].iter().zip(&door.values[..n]) {
+        world.observe_state(0, t, v).unwrap();
+    }
+    let fitted = "fremen:2"
+        .parse::<chronomap_models::ModelSpec>()
+        .unwrap()
+        .fit(&door.times[..n], &door.values[..n], &FitOptions::default())
+        .unwrap()
+        .model;
+    for t in [door.times[n], door.times[n] + 3600.0, 1_458_565_200.0] {
+        let (p, h) = world.predict_state(0, t);
+        assert_eq!(p.to_bits(), fitted.predict(t).to_bits(), "{t}");
+        assert_eq!(h.to_bits(), fitted.entropy(t).to_bits(), "{t}");
+    }
+    // Refused: out of range, NaN, earlier than the last observation; nothing changes.
+    let last = door.times[n - 1];
+    for (t, v, part) in [
+        (last + 1.0, 1.5, "value 1.5 is not in [0, 1]"),
+        (last + 1.0, f64::NAN, "value NaN is not in [0, 1]"),
+        (last - 1.0, 1.0, "is earlier than the previous observation"),
+    ] {
+        let e = world.observe_state(0, t, v).unwrap_err().to_string();
+        assert!(e.contains(part), "{e}");
+    }
+    assert_eq!(world.learned().0[0].observations, n as u64);
+    // Saved and restored: the same model; the record holds what was learned.
+    world.save(true).unwrap();
+    let restored = World::new(config(&dir.0, &params)).unwrap();
+    let t = 1_458_565_200.0;
+    assert_eq!(
+        restored.predict_state(0, t).0.to_bits(),
+        world.predict_state(0, t).0.to_bits()
+    );
+    assert_eq!(restored.learned().0[0].total, n as u64);
+    let record = read_pairs(dir.0.join("saved/states/door.txt")).unwrap();
+    assert_eq!(record.times, door.times[..n]);
+    assert_eq!(record.values, door.values[..n]);
+    // A saved model of another spec is not silently replaced.
+    let other = "    save_dir: saved\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:3}\n";
+    let e = World::new(config(&dir.0, other)).err().unwrap().to_string();
+    assert!(
+        e.contains("door.cmm: it holds a `fremen:2` model, but states.door.model is `fremen:3`; move the file away"),
+        "{e}"
+    );
+}
+
+#[test]
+fn predicted_maps_are_what_map_server_loads_from_grid_predicts_files() {
+    let dir = Scratch::new("maps");
+    let params = "    maps:\n      office: {topic: /m, order: 2}\n      raw: {topic: /r, values: probability}\n      scaled: {topic: /s, values: scale}\n";
+    let mut world = World::new(config(&dir.0, params)).unwrap();
+    assert!(world.predict_grid(0, 0.0, Time::default()).is_none());
+    let mut reference = FremenGrid::new(
+        GridGeometry::planar(6, 4, 0.25, [-1.0, 0.5]).unwrap(),
+        world.config().grids[0].fremen.clone().into_grid(),
+    )
+    .unwrap();
+    for h in 0..24 * 9 {
+        let msg = map_message(3600 * h, "map", 6, 4, office_frame(h));
+        for index in 0..3 {
+            world.observe_map(index, &msg).unwrap();
+        }
+        reference
+            .observe_occupancy(f64::from(3600 * h), &msg.data)
+            .unwrap();
+    }
+    let stamp = Time {
+        sec: 123,
+        nanosec: 4,
+    };
+    for hour in [3.0, 12.0, 20.5] {
+        let t = 9.0 * 86400.0 + hour * 3600.0;
+        let fitted = reference.fitted(OrderChoice::Fixed(2));
+        let map =
+            OccupancyMap::from_probabilities(6, 4, 0.25, [-1.0, 0.5, 0.0], &fitted.predict(t));
+        let raw = world.predict_grid(1, t, stamp).unwrap();
+        assert_eq!(raw.map.data, map.data, "probability values at {hour} h");
+        assert!(map.data.iter().any(|&v| v > 0 && v < 100), "{:?}", map.data);
+        assert_eq!(map.data[23], -1);
+        // The files `grid predict` writes, loaded as nav2_map_server loads them.
+        for (mode, index) in [(MapMode::Trinary, 0), (MapMode::Scale, 2)] {
+            let options = SaveOptions {
+                mode,
+                free_thresh: FREE_THRESH,
+                ..SaveOptions::default()
+            };
+            let saved = save_map(&dir.0.join(format!("m{index}")), &map, &options).unwrap();
+            let loaded = load_map(&saved.yaml, LoadSemantics::Nav2).unwrap();
+            let predicted = world.predict_grid(index, t, stamp).unwrap();
+            assert_eq!(predicted.map.data, loaded.data, "{mode} at {hour} h");
+            let scale = if mode == MapMode::Scale {
+                loaded.data.clone()
+            } else {
+                predicted.mask.as_ref().unwrap().data.clone()
+            };
+            assert_eq!(predicted.mask.unwrap().data, scale, "mask at {hour} h");
+            let m = predicted.map;
+            assert_eq!((m.header.stamp, m.header.frame_id.as_str()), (stamp, "map"));
+            assert_eq!(
+                (m.info.width, m.info.height, m.info.resolution),
+                (6, 4, 0.25)
+            );
+            assert_eq!(
+                (m.info.origin.position.x, m.info.origin.position.y),
+                (-1.0, 0.5)
+            );
+        }
+    }
+    // The trinary map really is trinary and differs from the mask.
+    let p = world
+        .predict_grid(0, 9.0 * 86400.0 + 3.0 * 3600.0, stamp)
+        .unwrap();
+    assert!(p.map.data.iter().all(|v| [-1, 0, 100].contains(v)));
+    assert_ne!(Some(p.map.data), p.mask.map(|m| m.data));
+    let info = world.filter_info(0, stamp).unwrap();
+    assert_eq!(info.filter_mask_topic, "/chronomap/office/mask");
+    assert_eq!(
+        (info.filter_type, info.base, info.multiplier),
+        (0, 0.0, 1.0)
+    );
+}
+
+trait IntoGrid {
+    fn into_grid(self) -> GridConfig;
+}
+
+impl IntoGrid for chronomap_core::FremenConfig {
+    fn into_grid(self) -> GridConfig {
+        GridConfig {
+            fremen: self,
+            keep_history: false,
+        }
+    }
+}
+
+#[test]
+fn bad_maps_are_refused_with_reasons_and_change_nothing() {
+    let dir = Scratch::new("bad-maps");
+    let params = "    max_map_cells: 100\n    maps:\n      office: {topic: /m}\n";
+    let mut world = World::new(config(&dir.0, params)).unwrap();
+    world
+        .observe_map(0, &map_message(100, "map", 6, 4, office_frame(0)))
+        .unwrap();
+    let mut rotated = map_message(200, "map", 6, 4, office_frame(1));
+    rotated.info.origin.orientation.z = 1.0;
+    rotated.info.origin.orientation.w = 0.0;
+    let mut moved = map_message(200, "map", 6, 4, office_frame(1));
+    moved.info.origin.position.x = 3.0;
+    let mut bad_value = office_frame(1);
+    bad_value[5] = 101;
+    let cases = [
+        (
+            map_message(200, "map", 20, 20, vec![0; 400]),
+            "20 x 20 cells is more than max_map_cells (100)",
+        ),
+        (
+            map_message(200, "map", 6, 4, vec![0; 23]),
+            "width 6 x height 4 is 24 cells but data holds 23 values",
+        ),
+        (
+            map_message(200, "odom", 6, 4, office_frame(1)),
+            "frame_id \"odom\" is not the configured \"map\"",
+        ),
+        (rotated, "the map's origin is rotated"),
+        (
+            moved,
+            "the map is 6 x 4 cells of 0.25 m at (3, 0.5), but this grid is 6 x 4 cells of 0.25 m at (-1, 0.5)",
+        ),
+        (
+            map_message(5, "map", 6, 3, office_frame(1)[..18].to_vec()),
+            "the map is 6 x 3 cells",
+        ),
+        (
+            map_message(100, "map", 6, 4, office_frame(1)),
+            "stamp 100 is not after the last learned frame at 100",
+        ),
+        (
+            map_message(200, "map", 6, 4, bad_value),
+            "cell 5: occupancy 101 is not -1 (unknown) or 0..=100",
+        ),
+    ];
+    for (msg, part) in cases {
+        let e = world.observe_map(0, &msg).unwrap_err().to_string();
+        assert!(e.contains(part), "{e}\nexpected {part}");
+    }
+    assert_eq!(world.grid(0).unwrap().frames(), 1);
+    assert_eq!(world.learned().1[0].observations, 1);
+}
+
+#[test]
+fn people_become_one_frame_per_bin_with_the_cells_someone_was_in() {
+    let dir = Scratch::new("people");
+    let params = "    save_dir: saved\n    people:\n      lobby: {topic: /p, width: 4, height: 2, resolution: 1.0, origin: [10, 20], bin: 100}\n";
+    let mut world = World::new(config(&dir.0, params)).unwrap();
+    let people = |t: f64, xy: &[(f64, f64)]| PoseArray {
+        header: Header {
+            stamp: Time::from_seconds(t),
+            frame_id: "map".into(),
+        },
+        poses: xy
+            .iter()
+            .map(|&(x, y)| Pose {
+                position: Point { x, y, z: 0.0 },
+                orientation: Quaternion::default(),
+            })
+            .collect(),
+    };
+    // Bin 1 (100..200): cells 1 and 6; a pose outside the grid is ignored.
+    world
+        .observe_people(0, &people(110.0, &[(11.5, 20.5)]))
+        .unwrap();
+    world
+        .observe_people(0, &people(190.0, &[(12.2, 21.9), (30.0, 20.0)]))
+        .unwrap();
+    assert_eq!(world.grid(0).unwrap().frames(), 0);
+    // Bin 3 closes bin 1 as a frame at 150; bin 2 saw no message: no frame.
+    world.observe_people(0, &people(350.0, &[])).unwrap();
+    let grid = world.grid(0).unwrap();
+    assert_eq!(grid.frames(), 1);
+    assert_eq!(grid.frame_span().last, 150.0);
+    let states: Vec<CellState> = (0..8).map(|c| grid.cell_state(c)).collect();
+    use CellState::{Free, Occupied};
+    assert_eq!(
+        states,
+        [Free, Occupied, Free, Free, Free, Free, Occupied, Free]
+    );
+    // Late messages of a closed bin are refused.
+    let e = world.observe_people(0, &people(199.0, &[])).unwrap_err();
+    assert!(
+        e.to_string().contains("not after the last learned bin"),
+        "{e}"
+    );
+    let e = world.observe_people(0, &people(350.0, &[])).map(|_| ());
+    assert!(e.is_ok());
+    // Bin 3 stays open during bin 4 and closes at 500.
+    world.close_stale_bins(499.0).unwrap();
+    assert_eq!(world.grid(0).unwrap().frames(), 1);
+    world.close_stale_bins(500.0).unwrap();
+    let grid = world.grid(0).unwrap();
+    assert_eq!((grid.frames(), grid.frame_span().last), (2, 350.0));
+    assert_eq!(grid.cell_state(1), Free);
+    // The predicted people map: probabilities, -1 nowhere (every cell was observed).
+    let p = world.predict_grid(0, 1000.0, Time::default()).unwrap();
+    assert!(p.map.data.iter().all(|v| (0..=100).contains(v)));
+    let cell = grid.cell_model(1).unwrap();
+    assert_eq!(
+        f64::from(p.map.data[1]),
+        (100.0 * cell.predict(1000.0) as f32).round() as f64
+    );
+    assert!(p.map.data[1] > 0 && p.map.data[0] == 0, "{:?}", p.map.data);
+    // The open bin is learned at shutdown and restored.
+    world
+        .observe_people(0, &people(610.0, &[(13.0, 21.0)]))
+        .unwrap();
+    world.save(true).unwrap();
+    let restored = World::new(config(&dir.0, params)).unwrap();
+    let grid = restored.grid(0).unwrap();
+    assert_eq!((grid.frames(), grid.frame_span().last), (3, 650.0));
+    assert_eq!(grid.cell_state(7), Occupied);
+    let other = params.replace("width: 4", "width: 5");
+    let e = World::new(config(&dir.0, &other))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("it is 4 x 2 cells of 1 m at (10, 20), but people.lobby is 5 x 2"),
+        "{e}"
+    );
+}
