@@ -626,7 +626,12 @@ pub fn run(mut world: World, domain_id: u16, stop: &AtomicBool) -> Result<Summar
                 }
             }
             pending = waiting;
-            let oldest = pending.front().map_or(cutoff, |p| p.received.min(cutoff));
+            // Pending states of several topics are not in receive order among each other.
+            let oldest = pending
+                .iter()
+                .map(|p| p.received)
+                .min()
+                .map_or(cutoff, |r| r.min(cutoff));
             clock.forget_before(oldest);
         }
         for (index, g) in grids.iter().enumerate() {
@@ -764,4 +769,82 @@ pub fn run(mut world: World, domain_id: u16, stop: &AtomicBool) -> Result<Summar
             .collect(),
         save_error,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_state_gets_the_last_clock_received_before_it() {
+        let mut clock = SimClock::default();
+        assert_eq!(clock.at(5), None);
+        clock.push(10, 100.0);
+        clock.push(30, 300.0);
+        clock.push(20, 200.0); // stored in receive order
+        assert_eq!(
+            [clock.at(5), clock.at(10), clock.at(25), clock.at(99)],
+            [None, Some(100.0), Some(200.0), Some(300.0)]
+        );
+        // Forgetting keeps what a message received at or after 25 needs.
+        clock.forget_before(25);
+        assert_eq!(clock.history.len(), 2);
+        assert_eq!([clock.at(25), clock.at(30)], [Some(200.0), Some(300.0)]);
+        assert_eq!(clock.at(0), Some(100.0));
+        clock.forget_before(1000);
+        assert_eq!((clock.history.len(), clock.at(1000)), (1, Some(300.0)));
+    }
+
+    #[test]
+    fn schedules_run_once_per_period_and_at_once_after_the_clock_went_back() {
+        let mut s = Schedule::default();
+        let due: Vec<bool> = [0.0, 0.5, 1.0, 1.2, 2.5, 2.9, 3.5, 0.1, 0.2]
+            .iter()
+            .map(|&t| s.due(t, 1.0))
+            .collect();
+        assert_eq!(
+            due,
+            [true, false, true, false, true, false, true, true, false]
+        );
+    }
+
+    #[test]
+    fn throttles_show_five_errors_then_summaries() {
+        let mut t = Throttle::default();
+        for _ in 0..8 {
+            t.error("/x", || "bad".into());
+        }
+        // Five shown, the sixth starts a summary period, the last two wait for the next one.
+        assert_eq!((t.total, t.shown, t.suppressed), (8, 5, 2));
+        assert!(t.last_summary.is_some());
+    }
+
+    #[test]
+    fn publishers_of_another_type_on_an_input_topic_are_refused_once_logged() {
+        let mut check = WriterCheck {
+            inputs: HashMap::from([(
+                "rt/window".to_string(),
+                Input {
+                    topic: "/window".into(),
+                    expected: Bool::TYPE,
+                    parameter: "states.window.type".into(),
+                },
+            )]),
+            reported: HashSet::new(),
+            wrong: HashSet::new(),
+            right: HashSet::new(),
+            last: None,
+        };
+        let (a, b) = (GUID::from_bytes([1; 16]), GUID::from_bytes([2; 16]));
+        let grid = "nav_msgs::msg::dds_::OccupancyGrid_";
+        assert!(!check.judge(a, "rt/window", grid));
+        assert!(!check.judge(a, "rt/window", grid));
+        assert_eq!(check.reported.len(), 1);
+        assert!(check.judge(b, "rt/window", "std_msgs::msg::dds_::Bool_"));
+        assert!(
+            check.judge(a, "rt/other", grid),
+            "topics the node does not read"
+        );
+        assert!(check.wrong.contains(&a) && check.right.contains(&b));
+    }
 }
