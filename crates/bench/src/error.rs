@@ -107,6 +107,25 @@ pub enum BenchError {
         /// What it wrote on stderr.
         stderr: String,
     },
+    /// A bag could not be read.
+    #[error(transparent)]
+    Bag(#[from] chronomap_rosbag::BagError),
+    /// A bag has no such topic, or one chronomap does not ingest.
+    #[error("{bag}: {problem}")]
+    Topic {
+        /// The bag.
+        bag: String,
+        /// What is wrong with the topic.
+        problem: String,
+    },
+    /// A file could not be read.
+    #[error("cannot read {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        source: std::io::Error,
+    },
     /// The timing script's output is not JSON.
     #[error("storm_time.py output")]
     StormOutput(#[source] serde_json::Error),

@@ -11,6 +11,7 @@
 //!   transforms of `chronomap_core::naive`.
 //! * [`grid`]: the occupancy-grid build at paper scale ([Krajník 2017] §VI) against a bare scan of
 //!   the same frames.
+//! * [`ingest`]: reading ROS 2 bags (`chronomap ingest`) against a bare read of the same file.
 //! * [`plan`]: planning on the Witham map ([Fentanes 2015] §V) against Storm on the same cases.
 //! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
 //! * [`activity`]: CoPA-Map's training-data extraction and training ([Stüde 2024] chapter 4)
@@ -28,6 +29,7 @@ pub mod activity;
 mod error;
 pub mod fremen;
 pub mod grid;
+pub mod ingest;
 pub mod plan;
 pub mod psbt;
 #[cfg(feature = "serve")]
