@@ -42,10 +42,12 @@ pub fn period(secs: f64) -> String {
     }
 }
 
-/// A plain-text table with right-aligned numeric columns.
+/// A plain-text table: the first column left-aligned, the others right-aligned (numbers)
+/// unless marked with [`Table::left`].
 pub struct Table {
     header: Vec<String>,
     rows: Vec<Vec<String>>,
+    left: Vec<usize>,
 }
 
 impl Table {
@@ -53,7 +55,14 @@ impl Table {
         Table {
             header: header.into_iter().map(Into::into).collect(),
             rows: Vec::new(),
+            left: vec![0],
         }
+    }
+
+    /// Left-aligns the columns `columns` too (text rather than numbers).
+    pub fn left(mut self, columns: &[usize]) -> Self {
+        self.left.extend_from_slice(columns);
+        self
     }
 
     pub fn row(&mut self, cells: impl IntoIterator<Item = impl Into<String>>) {
@@ -78,7 +87,7 @@ impl Table {
                 .iter()
                 .enumerate()
                 .map(|(c, s)| {
-                    if c == 0 {
+                    if self.left.contains(&c) {
                         format!("{s:<w$}", w = width[c])
                     } else {
                         format!("{s:>w$}", w = width[c])

@@ -77,17 +77,78 @@ pub fn build_from_frames<E: From<GridError>>(
     progress: &dyn Progress,
     mut next: impl FnMut(usize, &mut FremenGrid) -> Result<(), E>,
 ) -> Result<GridBuild, E> {
-    let mut grid = FremenGrid::new(geometry, config.clone())?;
-    let mut snapshots = Vec::new();
+    let mut builder = GridBuilder::new(geometry, config, snapshot_at)?;
     progress.stage("reading frames", frames as u64);
     for f in 0..frames {
-        if snapshot_at.contains(&(f as u64)) {
-            snapshots.push(grid.clone());
-        }
-        next(f, &mut grid)?;
+        next(f, builder.next_frame())?;
         progress.advance(1);
     }
-    Ok(GridBuild { grid, snapshots })
+    Ok(builder.finish())
+}
+
+/// The push side of [`build_from_frames`], for sources that hand out frames one at a time
+/// (a bag read as a stream): [`GridBuilder::next_frame`] gives the grid to observe the next
+/// frame into, after a snapshot if that frame is in `snapshot_at`.
+///
+/// ```
+/// use chronomap_grid::{GridConfig, GridGeometry, build::GridBuilder};
+///
+/// let geometry = GridGeometry::planar(2, 1, 0.5, [0.0, 0.0])?;
+/// let mut builder = GridBuilder::new(geometry, &GridConfig::default(), &[1])?;
+/// for (t, frame) in [(0.0, [0i8, 100]), (60.0, [100, 100])] {
+///     builder.next_frame().observe_occupancy(t, &frame)?;
+/// }
+/// let build = builder.finish();
+/// assert_eq!((build.grid.frames(), build.snapshots[0].frames()), (2, 1));
+/// # Ok::<(), chronomap_grid::GridError>(())
+/// ```
+#[derive(Debug)]
+pub struct GridBuilder {
+    grid: FremenGrid,
+    snapshots: Vec<FremenGrid>,
+    snapshot_at: Vec<u64>,
+    frame: u64,
+}
+
+impl GridBuilder {
+    /// An empty grid of `geometry` that will be snapshot before each frame of `snapshot_at`.
+    ///
+    /// # Errors
+    /// An invalid geometry or configuration.
+    pub fn new(
+        geometry: GridGeometry,
+        config: &GridConfig,
+        snapshot_at: &[u64],
+    ) -> Result<Self, GridError> {
+        Ok(GridBuilder {
+            grid: FremenGrid::new(geometry, config.clone())?,
+            snapshots: Vec::new(),
+            snapshot_at: snapshot_at.to_vec(),
+            frame: 0,
+        })
+    }
+
+    /// The grid to observe the next frame into.
+    pub fn next_frame(&mut self) -> &mut FremenGrid {
+        if self.snapshot_at.contains(&self.frame) {
+            self.snapshots.push(self.grid.clone());
+        }
+        self.frame += 1;
+        &mut self.grid
+    }
+
+    /// Frames handed out so far.
+    pub fn frames(&self) -> u64 {
+        self.frame
+    }
+
+    /// The grid and its snapshots.
+    pub fn finish(self) -> GridBuild {
+        GridBuild {
+            grid: self.grid,
+            snapshots: self.snapshots,
+        }
+    }
 }
 
 /// Bit-packed frames of a range of cells in time order, as [`FremenGrid::observe_bits`] takes

@@ -77,6 +77,35 @@ pub fn read_event_files(paths: &[impl AsRef<Path>]) -> Result<Vec<Event>, DataEr
     read_merged(paths, |path| read_events(path), |e| e.t)
 }
 
+/// Events as an event file: one `t x y` line each, every number written as the shortest text
+/// that reads back to the same `f64`, so that [`read_events_from`] returns them unchanged.
+///
+/// ```
+/// use chronomap_hypertime::events::Event;
+/// use chronomap_io::events::{encode_events, read_events_from};
+///
+/// let events = [Event { t: 1495617883.77, x: 16.4862, y: -1.0019 }];
+/// let text = encode_events(&events);
+/// assert_eq!(text, "# t x y\n1495617883.77 16.4862 -1.0019\n");
+/// assert_eq!(read_events_from("e.txt", text.as_bytes())?, events);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+pub fn encode_events(events: &[Event]) -> String {
+    let mut text = String::from("# t x y\n");
+    for e in events {
+        text.push_str(&format!("{} {} {}\n", e.t, e.x, e.y));
+    }
+    text
+}
+
+/// Writes [`encode_events`] to `path` atomically (a crash never leaves half a file).
+///
+/// # Errors
+/// A [`DataError`] naming `path` if it cannot be written.
+pub fn write_events(path: impl AsRef<Path>, events: &[Event]) -> Result<(), DataError> {
+    crate::text::write_data_file(path.as_ref(), encode_events(events).as_bytes())
+}
+
 /// Where the reader is in a file.
 enum State {
     /// Before the first data line.

@@ -140,7 +140,7 @@ pub use bt_script::{BtScriptError, read_bt_script};
 #[cfg(feature = "bt")]
 pub use bt_xml::{BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml, write_bt_xml};
 #[cfg(feature = "hypertime")]
-pub use events::{read_event_files, read_events, read_events_from};
+pub use events::{read_event_files, read_events, read_events_from, write_events};
 #[cfg(feature = "navmap")]
 pub use frame_list::{Frame, FrameMapError, load_frame_map, read_frame_list, read_frame_list_from};
 #[cfg(feature = "grid")]
@@ -171,6 +171,7 @@ pub use sbt_params::{SbtParamsError, read_leaf_params};
 pub use text::{
     DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
+    write_data_file,
 };
 #[cfg(feature = "topo")]
 pub use topo_files::{

@@ -788,8 +788,7 @@ pub(crate) fn read_merged<T>(
 ///
 /// # Errors
 /// [`DataErrorKind::Io`] naming `path` if it cannot be written.
-#[cfg(feature = "activity")]
-pub(crate) fn write_data_file(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
+pub fn write_data_file(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
     crate::atomic::write_atomically(path, bytes).map_err(|failure| {
         DataError::new(
             path.display().to_string(),

@@ -107,6 +107,50 @@ pub fn read_track_point_files(paths: &[impl AsRef<Path>]) -> Result<Vec<TrackPoi
     read_merged(paths, |path| read_track_points(path), |p| p.t)
 }
 
+/// One line of a track file: a detection of a person, with its speed and heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackRow {
+    /// When and where, and who.
+    pub point: TrackPoint,
+    /// Speed (m/s, `>= 0`).
+    pub speed: f64,
+    /// Heading (rad).
+    pub heading: f64,
+}
+
+/// Rows as a track file (the [format](self#format) the readers take), every number written as
+/// the shortest text that reads back to the same `f64`.
+///
+/// ```
+/// use chronomap_activity::truth::TrackPoint;
+/// use chronomap_io::tracks::{TrackRow, encode_tracks, read_track_points_from};
+///
+/// let point = TrackPoint { t: 1351040400.9, person: 9551000, x: -22.17, y: 2.54 };
+/// let text = encode_tracks(&[TrackRow { point, speed: 0.78, heading: 1.97 }]);
+/// assert_eq!(text, "1351040400.9,9551000,-22.17,2.54,0.78,1.97\n");
+/// assert_eq!(read_track_points_from("t.csv", text.as_bytes())?, [point]);
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+pub fn encode_tracks(rows: &[TrackRow]) -> String {
+    let mut text = String::new();
+    for r in rows {
+        let p = r.point;
+        text.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            p.t, p.person, p.x, p.y, r.speed, r.heading
+        ));
+    }
+    text
+}
+
+/// Writes [`encode_tracks`] to `path` atomically.
+///
+/// # Errors
+/// A [`DataError`] naming `path` if it cannot be written.
+pub fn write_tracks(path: impl AsRef<Path>, rows: &[TrackRow]) -> Result<(), DataError> {
+    crate::text::write_data_file(path.as_ref(), encode_tracks(rows).as_bytes())
+}
+
 /// As [`read_tracks_from`], keeping the person ids.
 ///
 /// # Errors
