@@ -29,6 +29,36 @@ pub enum BenchCommand {
     /// day, against the dense-generator reference and a per-tree solve in the same run.
     #[command(after_help = BENCH_PSBT_HELP)]
     Psbt(BenchPsbtArgs),
+    /// Bag ingestion (`chronomap ingest`): messages/s and MB/s of reading, decoding and taking out
+    /// the records of a rosbag2 MCAP bag, against a bare read of the same file in the same run.
+    #[command(after_help = BENCH_INGEST_HELP)]
+    Ingest(BenchIngestArgs),
+}
+
+pub(super) const BENCH_INGEST_HELP: &str = "\
+Without --bag: the greg door training data written as a bag of 96,480 std_msgs/msg/Bool
+messages in zstd chunks (as `ros2 bag record` writes them, into a temporary file), and the
+bundled Málaga laser bag's /scan.
+
+Examples:
+  chronomap bench ingest --json
+  chronomap bench ingest --bag my_bag --topic /map --repeats 3";
+
+/// `chronomap bench ingest`.
+#[derive(Debug, Args)]
+pub struct BenchIngestArgs {
+    /// A bag to time (repeatable, each with a --topic; a folder needs its metadata.yaml).
+    #[arg(long, requires = "topic")]
+    pub bag: Vec<PathBuf>,
+    /// The topic of each --bag, in order.
+    #[arg(long)]
+    pub topic: Vec<String>,
+    /// Timed runs of each pass (the median is reported).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: u32,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub(super) const BENCH_PSBT_HELP: &str = "\

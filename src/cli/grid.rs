@@ -25,6 +25,7 @@ pub(super) const GRID_BUILD_HELP: &str = "\
 Examples:
   chronomap grid build --synthetic --days 14 --cells 32000 -o office.cmg --errors
   chronomap grid build --frames frames.txt -o corridor.cmg   # lines: <unix time> <map.yaml>
+  chronomap grid build --bag maps_bag --topic /map -o corridor.cmg   # nav_msgs/msg/OccupancyGrid
   chronomap grid build --cell-series data/aruba_rooms_1min/presence_minutes_0.txt.xz,... -o flat.cmg --json";
 
 pub(super) const GRID_PREDICT_HELP: &str = "\
@@ -56,6 +57,10 @@ pub struct GridSource {
     /// or repeated.
     #[arg(long, value_delimiter = ',')]
     pub cell_series: Vec<PathBuf>,
+    /// A ROS 2 bag (rosbag2 folder or .mcap file) whose --topic carries
+    /// nav_msgs/msg/OccupancyGrid maps, one frame each.
+    #[arg(long, requires = "topic")]
+    pub bag: Option<PathBuf>,
 }
 
 /// `chronomap grid build`.
@@ -64,6 +69,12 @@ pub struct GridBuildArgs {
     /// The frames.
     #[command(flatten)]
     pub source: GridSource,
+    /// With --bag: the topic of the maps.
+    #[arg(long, requires = "bag")]
+    pub topic: Option<String>,
+    /// With --bag: where a map's time comes from (header.stamp by default).
+    #[arg(long, value_enum, default_value_t = TimeArg::Auto, requires = "bag")]
+    pub time: TimeArg,
     /// Synthetic office: number of cells.
     #[arg(long, default_value_t = 213_000)]
     pub cells: usize,

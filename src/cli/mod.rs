@@ -14,8 +14,11 @@ mod bt;
 mod events;
 mod explore;
 mod grid;
+mod ingest;
 mod model;
 mod psbt;
+#[cfg(feature = "ros2")]
+mod ros2;
 #[cfg(feature = "serve")]
 mod serve;
 mod topo;
@@ -26,8 +29,11 @@ pub use bt::*;
 pub use events::*;
 pub use explore::*;
 pub use grid::*;
+pub use ingest::*;
 pub use model::*;
 pub use psbt::*;
+#[cfg(feature = "ros2")]
+pub use ros2::*;
 #[cfg(feature = "serve")]
 pub use serve::*;
 pub use topo::*;
@@ -85,6 +91,10 @@ pub enum Command {
     /// (lossless), and report errors and compression ratios (FreMEn paper §III-B, §IV).
     #[command(after_help = COMPRESS_HELP)]
     Compress(CompressArgs),
+    /// Learn from a ROS 2 bag (rosbag2, MCAP): list its topics, or turn one into a model
+    /// (door states), a grid (occupancy maps), events (people), scans or poses.
+    #[command(after_help = INGEST_HELP)]
+    Ingest(IngestArgs),
     /// Spatio-temporal occupancy grids: build from frames, predict maps Nav2 can load.
     #[command(subcommand)]
     Grid(GridCommand),
@@ -136,6 +146,11 @@ pub enum Command {
     /// Talk to a running service: add observations, predict, forecast, view, list, remove.
     #[cfg(feature = "serve")]
     Client(ClientArgs),
+    /// Run as a ROS 2 node: learn states, maps and people from topics online, publish
+    /// predicted maps, Nav2 costmap-filter masks and predictions; rewrite a Nav2 route graph.
+    #[cfg(feature = "ros2")]
+    #[command(after_help = ROS2_HELP)]
+    Ros2(Ros2Args),
     /// Behavior trees in BehaviorTree.CPP 4 XML: check a file, or tick a tree whose leaves
     /// follow a script ([Stüde 2024] §5.2-5.3).
     #[command(subcommand)]

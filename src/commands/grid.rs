@@ -9,7 +9,7 @@ use chronomap_core::metrics::compression_ratio;
 use chronomap_core::progress::Progress;
 use chronomap_core::{FremenConfig, Parallelism};
 use chronomap_grid::build::{
-    GridBuild, build_from_frames, build_partitioned, holdout_splits, occupancy_percent,
+    GridBuild, GridBuilder, build_from_frames, build_partitioned, holdout_splits, occupancy_percent,
 };
 use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
@@ -19,6 +19,7 @@ use chronomap_io::{
     write_grid_file,
 };
 use chronomap_plot::{MapImage, render_maps_png};
+use chronomap_rosbag::{Bag, MapFrame};
 use chronomap_synth::office_grid::office;
 use serde_json::{Value, json};
 
@@ -109,6 +110,8 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
             build_from_synthetic(&job)?
         } else if let Some(list) = &args.source.frames {
             build_from_map_list(list, &job)?
+        } else if let Some(bag) = &args.source.bag {
+            build_from_bag(bag, &job)?
         } else {
             build_from_cell_series(&args.source.cell_series, &job)?
         }
@@ -357,6 +360,78 @@ fn build_from_map_list(list: &Path, job: &BuildJob) -> Result<Built> {
             .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
     })?;
     Ok(Built::new(build, splits, started, name))
+}
+
+/// Frames from the `nav_msgs/msg/OccupancyGrid` messages of a bag's topic, observed as
+/// `build_from_map_list` observes map files. With snapshots, a first pass counts the maps to
+/// place the hold-out splits.
+fn build_from_bag(bag: &Path, job: &BuildJob) -> Result<Built> {
+    let started = Instant::now();
+    let args = job.args;
+    let topic = args
+        .topic
+        .as_deref()
+        .ok_or_else(|| usage("--bag needs --topic"))?;
+    let bag = Bag::open(bag)?;
+    let count = if job.snapshots {
+        bag.count_messages(topic, job.progress)?
+    } else {
+        0
+    };
+    let splits = holdout_splits(count, args.holdout);
+    let at = job.snapshot_at(&splits);
+    let mut builder: Option<(GridBuilder, MapFrame)> = None;
+    bag.for_each_map(topic, args.time.into(), job.progress, |frame| {
+        let (builder, first) = match &mut builder {
+            Some(b) => b,
+            None => {
+                let geometry = GridGeometry::planar(
+                    frame.width,
+                    frame.height,
+                    f64::from(frame.resolution),
+                    [frame.origin[0], frame.origin[1]],
+                )
+                .map_err(|e| e.to_string())?;
+                let new = GridBuilder::new(geometry, job.config, at).map_err(|e| e.to_string())?;
+                let first = MapFrame {
+                    data: Vec::new(),
+                    ..frame.clone()
+                };
+                builder.insert((new, first))
+            }
+        };
+        if (frame.width, frame.height, frame.resolution, frame.origin)
+            != (first.width, first.height, first.resolution, first.origin)
+        {
+            return Err(format!(
+                "the map is {}x{} cells of {} m at {:?}, but the first map is {}x{} of {} m at {:?} \
+                 (a grid needs maps of one geometry)",
+                frame.width,
+                frame.height,
+                frame.resolution,
+                frame.origin,
+                first.width,
+                first.height,
+                first.resolution,
+                first.origin
+            ));
+        }
+        builder
+            .next_frame()
+            .observe_occupancy(frame.time, &frame.data)
+            .map_err(|e| e.to_string())
+    })?;
+    let Some((builder, _)) = builder else {
+        return Err(anyhow!("{}: topic {topic} has no map", bag.name()));
+    };
+    let frames = builder.frames();
+    let splits = if job.snapshots {
+        splits
+    } else {
+        holdout_splits(frames, args.holdout)
+    };
+    let source = format!("{} {topic}", bag.name());
+    Ok(Built::new(builder.finish(), splits, started, source))
 }
 
 fn build_from_cell_series(files: &[PathBuf], job: &BuildJob) -> Result<Built> {

@@ -7,6 +7,7 @@ mod activity_model;
 mod activity_truth;
 mod bench;
 mod bench_activity;
+mod bench_ingest;
 mod bench_plan;
 mod bench_psbt;
 #[cfg(feature = "serve")]
@@ -21,9 +22,12 @@ mod events;
 mod explore;
 mod features;
 mod grid;
+mod ingest;
 mod model;
 mod monitor;
 mod psbt;
+#[cfg(feature = "ros2")]
+mod ros2;
 #[cfg(feature = "serve")]
 mod serve;
 mod topo;
@@ -48,6 +52,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Inspect(args) => model::inspect(&args),
         Command::Anomalies(args) => model::anomalies(&args),
         Command::Compress(args) => compress::run(&args),
+        Command::Ingest(args) => ingest::run(&args),
         Command::Grid(GridCommand::Build(args)) => grid::build(&args),
         Command::Grid(GridCommand::Predict(args)) => grid::predict(&args),
         Command::Grid(GridCommand::Stats(args)) => grid::stats(&args),
@@ -58,6 +63,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
         Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
+        Command::Bench(BenchCommand::Ingest(args)) => bench_ingest::ingest(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
@@ -78,6 +84,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Serve(args) => serve::serve(&args),
         #[cfg(feature = "serve")]
         Command::Client(args) => serve::client(&args),
+        #[cfg(feature = "ros2")]
+        Command::Ros2(args) => ros2::run(&args),
         Command::Bt(BtCommand::Check(args)) => bt::check(&args),
         Command::Bt(BtCommand::Run(args)) => bt::run(&args),
         Command::Bt(BtCommand::Analyse(args)) => bt::analyse(&args),

@@ -1,58 +1,83 @@
 //! `chronomap fit`, `predict`, `inspect` and `anomalies`: working with saved models.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use anyhow::{Context, Result};
 use chronomap_core::anomaly::detect_anomalies;
 use chronomap_core::{FremenModel, FrequencyComponent, Ordered, TemporalModel, binary_entropy};
-use chronomap_io::{Field, read_column, read_pairs, write_any_model};
+use chronomap_io::{Field, TimeSeries, read_column, read_pairs, write_any_model};
 use chronomap_models::AnyModel;
+use chronomap_models::spec::ModelSpec;
 use serde_json::{Value, json};
 
 use super::{data_error, describe_selection, fft_components_table, load_model, read_series};
-use crate::cli::{AnomaliesArgs, FitArgs, InspectArgs, PredictArgs};
+use crate::cli::{AnomaliesArgs, FitArgs, FitFlags, InspectArgs, PredictArgs};
 use crate::format::{Table, duration, period, time};
 use crate::output::{print_json, usage};
 use crate::{out, outln};
 
 pub fn fit(args: &FitArgs) -> Result<()> {
     let train = read_pairs(&args.train)?;
-    let fitted = args
-        .model
-        .fit(&train.times, &train.values, &args.fit.options())
-        .map_err(|e| data_error(&args.train.display().to_string(), e))
-        .with_context(|| format!("cannot fit {}", args.model))?;
-    write_any_model(&args.output, &fitted.model)?;
-    let size = std::fs::metadata(&args.output)
-        .map(|m| m.len())
-        .unwrap_or(0);
+    let name = args.train.display().to_string();
+    let training = Training {
+        json: json!({ "file": name, "observations": train.len() }),
+        name,
+        series: train,
+    };
+    fit_and_save(&training, &args.model, &args.fit, &args.output, args.json)
+}
+
+/// Observations to fit a model on, and how to name them.
+pub struct Training {
+    /// The file (or bag and topic) they came from, for messages.
+    pub name: String,
+    /// What `--json` says about them (`"train"`).
+    pub json: Value,
+    /// The observations.
+    pub series: TimeSeries,
+}
+
+/// Fits `model` on `training` with `fit`'s options, writes the model file and reports, as
+/// `chronomap fit` does (also for `chronomap ingest`: the same bits from a bag).
+pub fn fit_and_save(
+    training: &Training,
+    model: &ModelSpec,
+    fit: &FitFlags,
+    output: &Path,
+    json: bool,
+) -> Result<()> {
+    let train = &training.series;
+    let fitted = model
+        .fit(&train.times, &train.values, &fit.options())
+        .map_err(|e| data_error(&training.name, e))
+        .with_context(|| format!("cannot fit {model}"))?;
+    write_any_model(output, &fitted.model)?;
+    let size = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
     let selection = fitted.selection.as_ref().map(describe_selection);
-    if args.json {
+    if json {
         return print_json(&json!({
-            "train": {
-                "file": args.train.display().to_string(),
-                "observations": train.len(),
-            },
-            "model": args.model.to_string(),
+            "train": training.json,
+            "model": model.to_string(),
             "fitted": fitted.model.spec().to_string(),
             "kind": fitted.model.kind(),
             "order": fitted.model.order(),
             "selection": selection,
-            "output": args.output.display().to_string(),
+            "output": output.display().to_string(),
             "bytes": size,
         }));
     }
     outln!(
         "fitted {} as {} on {} observations of {}",
-        args.model,
+        model,
         fitted.model.spec(),
         train.len(),
-        args.train.display()
+        training.name
     )?;
     if let Some(selection) = selection {
         outln!("{selection}")?;
     }
-    outln!("wrote {} ({size} bytes)", args.output.display())?;
+    outln!("wrote {} ({size} bytes)", output.display())?;
     Ok(())
 }
 

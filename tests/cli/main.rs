@@ -22,9 +22,12 @@ mod explore;
 mod greg_door;
 mod grid;
 mod hypertime;
+mod ingest;
 mod monitor;
 mod psbt;
 mod readme;
+#[cfg(feature = "ros2")]
+mod ros2_node;
 #[cfg(feature = "serve")]
 mod serve;
 #[cfg(feature = "serve")]
