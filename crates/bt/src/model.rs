@@ -299,6 +299,11 @@ pub struct NodeDef {
     /// `_autoremap="true"` of a `SubTree`: keys not remapped explicitly are shared with the
     /// parent's blackboard under the same name.
     pub autoremap: bool,
+    /// Pre- and post-condition scripts of BehaviorTree.CPP's scripting language (`_skipIf`,
+    /// `_successIf`, `_failureIf`, `_while`, `_onSuccess`, `_onFailure`, `_onHalted`, `_post`):
+    /// the attribute name and the script as written, in document order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scripts: Vec<(String, String)>,
     /// The children, in tick order.
     pub children: Vec<NodeDef>,
 }
@@ -312,8 +317,16 @@ impl NodeDef {
             name: None,
             ports: Vec::new(),
             autoremap: false,
+            scripts: Vec::new(),
             children: Vec::new(),
         }
+    }
+
+    /// With a pre- or post-condition script (`_skipIf`, `_onSuccess`, …; see
+    /// [`NodeDef::scripts`]).
+    pub fn script(mut self, attribute: &str, code: &str) -> NodeDef {
+        self.scripts.push((attribute.to_owned(), code.to_owned()));
+        self
     }
 
     /// An action leaf.
