@@ -39,6 +39,10 @@ pub enum Value {
     Double(f64),
     /// Text (also every literal port value before it is converted).
     Str(String),
+    /// A list of values: BehaviorTree.CPP's `SharedQueue<T>` (`std::deque` behind a shared
+    /// pointer) that the `Loop*` nodes pop from. Its text is the items separated by `;`, and
+    /// text such as `"1;2;3"` converts to a list as `convertFromString<SharedQueue<T>>` does.
+    List(Vec<Value>),
 }
 
 impl Value {
@@ -49,6 +53,7 @@ impl Value {
             Value::Int(_) => "int",
             Value::Double(_) => "double",
             Value::Str(_) => "string",
+            Value::List(_) => "list",
         }
     }
 }
@@ -61,6 +66,15 @@ impl fmt::Display for Value {
             Value::Int(i) => write!(f, "{i}"),
             Value::Double(x) => write!(f, "{x}"),
             Value::Str(s) => f.write_str(s),
+            Value::List(items) => {
+                for (k, item) in items.iter().enumerate() {
+                    if k > 0 {
+                        f.write_str(";")?;
+                    }
+                    write!(f, "{item}")?;
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -98,6 +112,12 @@ impl From<&str> for Value {
 impl From<String> for Value {
     fn from(s: String) -> Value {
         Value::Str(s)
+    }
+}
+
+impl From<Vec<Value>> for Value {
+    fn from(items: Vec<Value>) -> Value {
+        Value::List(items)
     }
 }
 
@@ -149,7 +169,7 @@ impl FromValue for bool {
             Value::Bool(b) => Some(*b),
             Value::Int(0) => Some(false),
             Value::Int(1) => Some(true),
-            Value::Int(_) | Value::Double(_) => None,
+            Value::Int(_) | Value::Double(_) | Value::List(_) => None,
             Value::Str(s) => parse_bool(s),
         }
     }
@@ -163,6 +183,7 @@ impl FromValue for i64 {
             Value::Int(i) => Some(*i),
             Value::Double(x) => int_of_double(*x),
             Value::Str(s) => s.parse().ok(),
+            Value::List(_) => None,
         }
     }
 }
@@ -181,7 +202,7 @@ impl FromValue for f64 {
     const EXPECTED: &'static str = "a number";
     fn from_value(value: &Value) -> Option<f64> {
         match value {
-            Value::Bool(_) => None,
+            Value::Bool(_) | Value::List(_) => None,
             Value::Int(i) => double_of_int(*i),
             Value::Double(x) => Some(*x),
             Value::Str(s) => s.parse().ok(),
@@ -193,6 +214,20 @@ impl FromValue for String {
     const EXPECTED: &'static str = "text";
     fn from_value(value: &Value) -> Option<String> {
         Some(value.to_string())
+    }
+}
+
+impl FromValue for Vec<Value> {
+    const EXPECTED: &'static str = "a list (items separated by ';')";
+    /// A list as it is; text split at `;` (BehaviorTree.CPP's `convertFromString` of a
+    /// `SharedQueue`: empty text is an empty list); a single other value is a list of one.
+    fn from_value(value: &Value) -> Option<Vec<Value>> {
+        Some(match value {
+            Value::List(items) => items.clone(),
+            Value::Str(s) if s.is_empty() => Vec::new(),
+            Value::Str(s) => s.split(';').map(|t| Value::Str(t.to_owned())).collect(),
+            other => vec![other.clone()],
+        })
     }
 }
 
@@ -236,7 +271,15 @@ struct Scope {
     parent: Option<ScopeId>,
     remap: BTreeMap<String, String>,
     autoremap: bool,
-    entries: BTreeMap<String, Value>,
+    entries: BTreeMap<String, Entry>,
+}
+
+/// A value and its sequence number (BehaviorTree.CPP 4.5's `Entry::sequence_id`: 1 when the
+/// entry is created, incremented by every write).
+#[derive(Clone, Debug)]
+struct Entry {
+    value: Value,
+    sequence_id: u64,
 }
 
 /// The blackboard of a tree: a root scope and one scope per subtree instance.
@@ -314,7 +357,26 @@ impl Blackboard {
     /// The value of `key` seen from `scope`, if it exists.
     pub fn get_in(&self, scope: ScopeId, key: &str) -> Option<&Value> {
         let (at, key) = self.resolve(scope, key).ok()?;
-        self.scopes[at.0].entries.get(&key)
+        self.scopes[at.0].entries.get(&key).map(|e| &e.value)
+    }
+
+    /// The sequence number of the entry `key` seen from `scope`, if it exists: 1 after it was
+    /// created, incremented by every write (BehaviorTree.CPP 4.5's `Entry::sequence_id`, which
+    /// `SkipUnlessUpdated` and `WasEntryUpdated` compare).
+    pub fn sequence_id_in(&self, scope: ScopeId, key: &str) -> Option<u64> {
+        let (at, key) = self.resolve(scope, key).ok()?;
+        self.scopes[at.0].entries.get(&key).map(|e| e.sequence_id)
+    }
+
+    /// Removes the entry `key` of `scope` itself (BehaviorTree.CPP's `Blackboard::unset`, which
+    /// does not follow remappings; a key starting with `@` is removed from the root scope).
+    /// Returns whether there was such an entry.
+    pub fn unset_in(&mut self, scope: ScopeId, key: &str) -> bool {
+        let (scope, key) = match key.strip_prefix('@') {
+            Some(rest) => (self.root(), rest),
+            None => (scope, key),
+        };
+        self.scopes[scope.0].entries.remove(key).is_some()
     }
 
     /// The value of `key` in the root scope.
@@ -349,10 +411,17 @@ impl Blackboard {
                     .entries
                     .get_mut(&key)
                     .expect("resolved entries exist");
-                *entry = converted(&key, entry, value)?;
+                entry.value = converted(&key, &entry.value, value)?;
+                entry.sequence_id += 1;
             }
             Err((at, key)) => {
-                self.scopes[at.0].entries.insert(key, value);
+                self.scopes[at.0].entries.insert(
+                    key,
+                    Entry {
+                        value,
+                        sequence_id: 1,
+                    },
+                );
             }
         }
         Ok(())
@@ -369,7 +438,9 @@ impl Blackboard {
     /// Writes `value` to the scope's own entry `key`, ignoring remapping (how a `SubTree`
     /// attribute with a literal value sets the subtree's key).
     pub fn set_local(&mut self, scope: ScopeId, key: &str, value: Value) {
-        self.scopes[scope.0].entries.insert(key.to_owned(), value);
+        let entries = &mut self.scopes[scope.0].entries;
+        let sequence_id = entries.get(key).map_or(1, |e| e.sequence_id + 1);
+        entries.insert(key.to_owned(), Entry { value, sequence_id });
     }
 
     /// The scope's own entries, by key.
@@ -377,7 +448,7 @@ impl Blackboard {
         self.scopes[scope.0]
             .entries
             .iter()
-            .map(|(k, v)| (k.as_str(), v))
+            .map(|(k, e)| (k.as_str(), &e.value))
     }
 }
 
@@ -388,6 +459,10 @@ fn converted(key: &str, old: &Value, new: Value) -> Result<Value, BlackboardErro
         return Ok(new);
     }
     let kept = match old {
+        Value::List(_) => match &new {
+            Value::Str(_) => Vec::<Value>::from_value(&new).map(Value::List),
+            _ => None,
+        },
         Value::Bool(_) => bool::from_value(&new).map(Value::Bool),
         Value::Int(_) => match &new {
             Value::Str(_) | Value::Double(_) => i64::from_value(&new).map(Value::Int),

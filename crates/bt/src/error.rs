@@ -144,6 +144,37 @@ pub enum DefinitionErrorKind {
     /// More nodes than 16-bit uids can number.
     #[error("the tree has more than 65535 nodes (uids are 16-bit, as in Groot2 logs)")]
     TooManyNodes,
+    /// The tree (with its subtrees expanded) nests deeper than [`MAX_DEPTH`] levels.
+    ///
+    /// [`MAX_DEPTH`]: super::runtime::MAX_DEPTH
+    #[error("tree nesting deeper than {max} levels")]
+    TooDeep {
+        /// The limit.
+        max: usize,
+    },
+    /// A script (a `Script`'s `code`, a `Precondition`'s `if`, a pre- or post-condition
+    /// attribute such as `_skipIf`) that does not parse, or an unknown `_` attribute.
+    #[error("attribute {attribute}=\"{code}\" of \"{id}\": {message}")]
+    BadScript {
+        /// The ID.
+        id: String,
+        /// The attribute (`code`, `if`, `_skipIf`, …).
+        attribute: String,
+        /// The script as written.
+        code: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A node whose number of children its ID does not allow (`IfThenElse`: 2 or 3).
+    #[error("\"{id}\" needs {expected}, found {found}")]
+    WrongChildren {
+        /// The ID.
+        id: String,
+        /// What is needed (`"2 or 3 children"`).
+        expected: String,
+        /// The number of children found.
+        found: usize,
+    },
     /// A leaf that is known (declared) but has no implementation in the registry.
     #[error("no implementation is registered for {category} \"{id}\"")]
     NotImplemented {
@@ -297,6 +328,19 @@ pub enum TickErrorKind {
         /// The number of children.
         children: usize,
     },
+    /// A script failed while it ran (unknown variable, type mismatch, …).
+    #[error("script {attribute}=\"{code}\": {error}")]
+    Script {
+        /// The attribute holding the script (`code`, `_skipIf`, …).
+        attribute: String,
+        /// The script.
+        code: String,
+        /// What went wrong.
+        error: super::scripting::ScriptError,
+    },
+    /// A custom control or decorator failed (its own message).
+    #[error("{0}")]
+    Node(String),
     /// The tick time is earlier than the previous one.
     #[error("time went backwards: tick at {now:?} after a tick at {previous:?}")]
     ClockWentBackwards {

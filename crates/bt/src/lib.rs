@@ -36,22 +36,42 @@
 //! ```
 //!
 //! ## What is implemented
-//! * Statuses [`Status`]: idle, running, success, failure (BehaviorTree.CPP's codes 0–3;
-//!   `SKIPPED` needs scripted pre-conditions, which are not supported).
-//! * Control nodes `Sequence`, `ReactiveSequence`, `SequenceWithMemory`, `Fallback`,
-//!   `ReactiveFallback`, `Parallel` (`success_count`, `failure_count`, negative = "all");
-//!   decorators `Inverter`, `RetryUntilSuccessful` (`num_attempts`), `Repeat` (`num_cycles`),
-//!   `Timeout` (`msec`), `ForceSuccess`, `ForceFailure`; `SubTree` with port remapping and
-//!   `_autoremap`; built-in leaves `AlwaysSuccess`, `AlwaysFailure`, `SetBlackboard`,
-//!   `Sleep`. The exact rules, with the BehaviorTree.CPP 4 functions they follow, are in
+//! * Statuses [`Status`]: idle, running, success, failure, skipped (BehaviorTree.CPP's codes
+//!   0–4).
+//! * Every built-in node of BehaviorTree.CPP 4's factory (except the few in
+//!   [`UNSUPPORTED_BUILTINS`]): control nodes `Sequence`, `ReactiveSequence`,
+//!   `SequenceWithMemory` (`SequenceStar`), `AsyncSequence`, `Fallback`, `ReactiveFallback`,
+//!   `AsyncFallback`, `Parallel` (`success_count`, `failure_count`, negative = "all"),
+//!   `ParallelAll` (`max_failures`), `IfThenElse`, `WhileDoElse`, `Switch2` … `Switch6`,
+//!   `TryCatch` (`catch_on_halt`); decorators `Inverter`, `RetryUntilSuccessful`
+//!   (`num_attempts`; also spelled `RetryUntilSuccesful`), `Repeat` (`num_cycles`), `Timeout`
+//!   (`msec`), `Delay` (`delay_msec`), `ForceSuccess`, `ForceFailure`,
+//!   `KeepRunningUntilFailure`, `LoopInt`/`LoopDouble`/`LoopString`/`LoopBool` (`queue`,
+//!   `value`, `if_empty`), `Precondition` (`if`, `else`), `RunOnce` (`then_skip`),
+//!   `SkipUnlessUpdated`, `WaitValueUpdate` (`entry`); `SubTree` with port remapping and
+//!   `_autoremap`; leaves `AlwaysSuccess`, `AlwaysFailure`, `SetBlackboard`, `Sleep`,
+//!   `Script`, `ScriptCondition` (`code`), `WasEntryUpdated` (`entry`), `UnsetBlackboard`
+//!   (`key`). The exact rules, with the BehaviorTree.CPP 4 functions they follow, are in
 //!   [`runtime`].
-//! * User leaves (actions and conditions) registered by ID in a [`Registry`]: closures or
-//!   [`LeafNode`] trait objects with a halt hook; actions may return running across ticks.
-//! * A typed [`Blackboard`] ([`Value`]: bool, i64, f64, string; literal port strings are parsed
-//!   as BehaviorTree.CPP's `convertFromString` does), input/output ports, `{key}` references,
-//!   `{=}`, `@key` for the root blackboard, subtree remapping.
+//! * BehaviorTree.CPP's scripting language ([`scripting`]): parsed when a tree is
+//!   instantiated, run by `Script`, `ScriptCondition`, `Precondition` and the pre- and
+//!   post-condition attributes of every node (`_failureIf`, `_successIf`, `_skipIf`, `_while`,
+//!   `_onSuccess`, `_onFailure`, `_onHalted`, `_post`: [`NodeDef::scripts`]), with enum values
+//!   registered by name ([`Registry::register_enum`]).
+//! * User nodes registered by ID in a [`Registry`]: leaves (actions and conditions) as
+//!   closures or [`LeafNode`] trait objects with a halt hook (actions may return running
+//!   across ticks); custom control nodes and decorators as [`ControlNode`] trait objects that
+//!   tick and halt their children through a [`ControlContext`]; stubs of declared but
+//!   unimplemented nodes ([`Registry::register_stub`], [`StubPolicy`]).
+//! * A typed [`Blackboard`] ([`Value`]: bool, i64, f64, string, list; literal port strings are
+//!   parsed as BehaviorTree.CPP's `convertFromString` does), input/output ports, `{key}`
+//!   references, `{=}`, `@key` for the root blackboard, subtree remapping, entry sequence
+//!   numbers (for `SkipUnlessUpdated` and `WasEntryUpdated`).
 //! * Time is injected: every tick gets `now` from the caller (a [`Duration`] since an origin the
-//!   caller chooses), so `Timeout` and `Sleep` are deterministic; nothing here reads a clock.
+//!   caller chooses), so `Timeout`, `Delay` and `Sleep` are deterministic; nothing here reads
+//!   a clock.
+//! * Bounded: trees nest at most [`MAX_DEPTH`] levels, scripts [`scripting::MAX_NESTING`];
+//!   instantiation is iterative and linear in the number of nodes.
 //! * Every status change can be recorded as a [`Transition`] (time, uid, previous and new
 //!   status), the content of a Groot2 `.btlog` file (written by `chronomap-io`).
 //! * [`script`]: leaves whose outcomes a script gives tick by tick, for `chronomap bt run` and
@@ -81,6 +101,7 @@ pub mod model;
 pub mod registry;
 pub mod runtime;
 pub mod script;
+pub mod scripting;
 #[cfg(test)]
 mod tests;
 mod validate;
@@ -93,9 +114,11 @@ pub use model::{
     TreeDef, blackboard_pointer,
 };
 pub use registry::{
-    LeafContext, LeafError, LeafNode, Manifest, ManifestSource, Registry, RegistryError,
+    ControlContext, ControlNode, LeafContext, LeafError, LeafNode, Manifest, ManifestSource,
+    Registry, RegistryError, StubPolicy,
 };
-pub use runtime::{Node, SubtreeInstance, Transition, Tree};
+pub use runtime::{MAX_DEPTH, Node, SubtreeInstance, Transition, Tree};
+pub use scripting::{Program, ScriptError};
 pub use validate::validate;
 
 use serde::{Deserialize, Serialize};
@@ -103,7 +126,7 @@ use serde::{Deserialize, Serialize};
 /// The status of a node: what a tick returns, and what a node is between ticks.
 ///
 /// The discriminants are BehaviorTree.CPP's `NodeStatus` codes (`IDLE = 0`, `RUNNING = 1`,
-/// `SUCCESS = 2`, `FAILURE = 3`), which Groot2 `.btlog` files store.
+/// `SUCCESS = 2`, `FAILURE = 3`, `SKIPPED = 4`), which Groot2 `.btlog` files store.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Status {
     /// Not ticked since it was last reset or halted.
@@ -114,21 +137,26 @@ pub enum Status {
     Success = 2,
     /// Failed (*F*).
     Failure = 3,
+    /// Not executed because a pre-condition (`_skipIf`, `_while`) said so, or every child was
+    /// skipped (BehaviorTree.CPP 4's `SKIPPED`). Like `Idle`, a skipped node is not active: it
+    /// starts afresh (pre-conditions are checked again) the next time it is ticked.
+    Skipped = 4,
 }
 
 impl Status {
-    /// The BehaviorTree.CPP code (0–3).
+    /// The BehaviorTree.CPP code (0–4).
     pub fn code(self) -> u8 {
         self as u8
     }
 
-    /// The status of a BehaviorTree.CPP code (0–3); `None` for others (4 is `SKIPPED`).
+    /// The status of a BehaviorTree.CPP code (0–4); `None` for others.
     pub fn from_code(code: u8) -> Option<Status> {
         match code {
             0 => Some(Status::Idle),
             1 => Some(Status::Running),
             2 => Some(Status::Success),
             3 => Some(Status::Failure),
+            4 => Some(Status::Skipped),
             _ => None,
         }
     }
@@ -138,6 +166,11 @@ impl Status {
         matches!(self, Status::Success | Status::Failure)
     }
 
+    /// Neither idle nor skipped (BehaviorTree.CPP's `isStatusActive`).
+    pub fn is_active(self) -> bool {
+        !matches!(self, Status::Idle | Status::Skipped)
+    }
+
     /// The upper-case name BehaviorTree.CPP prints (`RUNNING`).
     pub fn as_str(self) -> &'static str {
         match self {
@@ -145,6 +178,7 @@ impl Status {
             Status::Running => "RUNNING",
             Status::Success => "SUCCESS",
             Status::Failure => "FAILURE",
+            Status::Skipped => "SKIPPED",
         }
     }
 }
@@ -154,15 +188,16 @@ display_by_name!(Status, as_str);
 impl std::str::FromStr for Status {
     type Err = String;
 
-    /// `idle`, `running`, `success`, `failure` in any case.
+    /// `idle`, `running`, `success`, `failure`, `skipped` in any case.
     fn from_str(s: &str) -> Result<Status, String> {
         match s.to_ascii_lowercase().as_str() {
             "idle" => Ok(Status::Idle),
             "running" => Ok(Status::Running),
             "success" => Ok(Status::Success),
             "failure" => Ok(Status::Failure),
+            "skipped" => Ok(Status::Skipped),
             _ => Err(format!(
-                "{s:?} is not a status (expected success, failure, running or idle)"
+                "{s:?} is not a status (expected success, failure, running, skipped or idle)"
             )),
         }
     }

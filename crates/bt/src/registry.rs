@@ -7,6 +7,76 @@
 //! BehaviorTree.CPP's `StatefulActionNode::onStart`) or continuing (`Running`, `onRunning`);
 //! [`LeafNode::halt`] is called when a running leaf is halted (`onHalted`). Stateless leaves
 //! are plain closures ([`Registry::register_action_fn`], [`Registry::register_condition_fn`]).
+//!
+//! Custom control nodes and decorators (BehaviorTree.CPP's `registerNodeType` of a
+//! `ControlNode` or `DecoratorNode` subclass) implement [`ControlNode`] and tick and halt their
+//! children through a [`ControlContext`] ([`Registry::register_control`]). Nodes declared but
+//! not implemented can be stubbed ([`Registry::register_stub`]). Enum values for scripts are
+//! registered by name ([`Registry::register_enum`]).
+//!
+//! ```
+//! use std::time::Duration;
+//! use chronomap_bt::{
+//!     BtDocument, ControlContext, ControlNode, NodeCategory, NodeDef, NodeModel, PortSpec,
+//!     Registry, Status, TickError, Tree, TreeDef,
+//! };
+//!
+//! /// Ticks its children from the last to the first, as a sequence (without memory).
+//! struct BackwardSequence;
+//!
+//! impl ControlNode for BackwardSequence {
+//!     fn tick(&mut self, ctx: &mut ControlContext<'_>) -> Result<Status, TickError> {
+//!         for k in (0..ctx.child_count()).rev() {
+//!             match ctx.tick_child(k)? {
+//!                 Status::Success | Status::Skipped => {}
+//!                 Status::Running => return Ok(Status::Running),
+//!                 other => {
+//!                     ctx.reset_children();
+//!                     return Ok(other);
+//!                 }
+//!             }
+//!         }
+//!         ctx.reset_children();
+//!         Ok(Status::Success)
+//!     }
+//! }
+//!
+//! /// Inverts its child's result when `invert` is true.
+//! struct MaybeInvert;
+//!
+//! impl ControlNode for MaybeInvert {
+//!     fn tick(&mut self, ctx: &mut ControlContext<'_>) -> Result<Status, TickError> {
+//!         let invert: bool = ctx.input("invert")?;
+//!         Ok(match ctx.tick_child(0)? {
+//!             Status::Success if invert => Status::Failure,
+//!             Status::Failure if invert => Status::Success,
+//!             other => other,
+//!         })
+//!     }
+//! }
+//!
+//! let mut registry = Registry::new();
+//! registry.register_control(NodeModel::new(NodeCategory::Control, "BackwardSequence"), || {
+//!     Box::new(BackwardSequence)
+//! })?;
+//! registry.register_control(
+//!     NodeModel::new(NodeCategory::Decorator, "MaybeInvert")
+//!         .port(PortSpec::input("invert").typed("bool")),
+//!     || Box::new(MaybeInvert),
+//! )?;
+//! let root = NodeDef::control("BackwardSequence")
+//!     .child(NodeDef::action("AlwaysFailure"))
+//!     .child(
+//!         NodeDef::decorator("MaybeInvert")
+//!             .port("invert", "true")
+//!             .child(NodeDef::action("AlwaysFailure")),
+//!     );
+//! let doc = BtDocument::single(TreeDef::new("Main", root));
+//! let mut tree = Tree::new(&doc, &registry)?;
+//! // The inverted failure succeeds, then the first child fails.
+//! assert_eq!(tree.tick_once(Duration::ZERO)?, Status::Failure);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -19,8 +89,9 @@ use super::blackboard::{Blackboard, FromValue, ScopeId, Value};
 use super::builtin::{
     BUILTIN_LEAVES, BuiltinKind, UNSUPPORTED_BUILTINS, builtin_model, is_builtin,
 };
-use super::error::{DefinitionErrorKind, PortError};
+use super::error::{DefinitionErrorKind, PortError, TickError, TickErrorKind};
 use super::model::{NodeCategory, NodeModel, PortSpec, blackboard_pointer};
+use super::runtime::Tree;
 
 /// An error returned by a leaf: a message of its own, or a port problem.
 #[derive(Debug, Error)]
@@ -224,8 +295,9 @@ pub enum RegistryError {
         /// The ID.
         id: String,
     },
-    /// Only actions and conditions can be registered.
-    #[error("\"{id}\" is a {category}; only actions and conditions can be registered")]
+    /// The registration function does not take this category (leaves with `register*`,
+    /// controls and decorators with `register_control`; `SubTree`s are never registered).
+    #[error("\"{id}\" is a {category}, which this registration function does not take")]
     NotALeaf {
         /// The ID.
         id: String,
@@ -235,14 +307,186 @@ pub enum RegistryError {
     /// An empty ID.
     #[error("an empty ID cannot be registered")]
     EmptyId,
+    /// A condition stub cannot return running.
+    #[error("\"{id}\" is a condition; a stub of a condition cannot return RUNNING")]
+    RunningCondition {
+        /// The ID.
+        id: String,
+    },
 }
 
 type Factory = Arc<dyn Fn() -> Box<dyn LeafNode> + Send + Sync>;
+type ControlFactory = Arc<dyn Fn() -> Box<dyn ControlNode> + Send + Sync>;
+
+#[derive(Clone)]
+enum Implementation {
+    Leaf(Factory),
+    Control(ControlFactory),
+    Builtin(BuiltinKind),
+}
 
 struct Entry {
     model: NodeModel,
     check_ports: bool,
-    factory: Factory,
+    implementation: Implementation,
+}
+
+/// A new instance of a registered node.
+pub(crate) enum Instance {
+    Leaf(Box<dyn LeafNode>),
+    Control(Box<dyn ControlNode>),
+    Builtin(BuiltinKind),
+}
+
+/// What a stub registered with [`Registry::register_stub`] returns, for leaves. Stubs of
+/// controls behave as a `Sequence` and stubs of decorators pass their child's status through,
+/// whatever the policy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StubPolicy {
+    /// Succeeds at every tick.
+    Success,
+    /// Fails at every tick.
+    Failure,
+    /// Returns running for `n` ticks, then succeeds (and starts over after that or after a
+    /// halt); `Running(0)` is `Success`. Actions only.
+    Running(u32),
+}
+
+/// A custom control node or decorator (BehaviorTree.CPP's `ControlNode` and `DecoratorNode`
+/// subclasses): a fresh instance per node, made by the factory given to
+/// [`Registry::register_control`], which ticks and halts its children through a
+/// [`ControlContext`]. A decorator is a control node with exactly one child (index 0).
+///
+/// As in BehaviorTree.CPP, the node is set running before [`ControlNode::tick`] is called
+/// and its status becomes what `tick` returns; a node that completes should reset its children
+/// ([`ControlContext::reset_children`]) so that they start afresh next time. Pre- and
+/// post-condition attributes (`_skipIf`, `_onSuccess`, …) are handled by the runtime around
+/// `tick`, as for every node.
+pub trait ControlNode: Send {
+    /// One tick: returns `Running`, `Success`, `Failure` or `Skipped` (not `Idle`).
+    ///
+    /// # Errors
+    /// A child's [`TickError`] (pass it on with `?`), or the node's own
+    /// ([`ControlContext::error`]).
+    fn tick(&mut self, ctx: &mut ControlContext<'_>) -> Result<Status, TickError>;
+
+    /// Called when the node is halted (BehaviorTree.CPP's `halt()`). The default resets every
+    /// child ([`ControlContext::reset_children`]: running children are halted), as
+    /// `ControlNode::halt` does; the runtime resets the children again afterwards in case an
+    /// implementation forgets.
+    fn halt(&mut self, ctx: &mut ControlContext<'_>) {
+        ctx.reset_children();
+    }
+}
+
+/// What a [`ControlNode`] sees: its identity, previous status, the time, its ports, and its
+/// children, which it can tick and halt.
+pub struct ControlContext<'a> {
+    pub(crate) tree: &'a mut Tree,
+    pub(crate) index: usize,
+    pub(crate) previous: Status,
+}
+
+impl ControlContext<'_> {
+    /// The node's uid.
+    pub fn uid(&self) -> u16 {
+        self.tree.nodes()[self.index].uid()
+    }
+
+    /// The instance name.
+    pub fn name(&self) -> &str {
+        self.tree.nodes()[self.index].name()
+    }
+
+    /// The status before this tick (`Idle` when starting, `Running` when continuing); during
+    /// [`ControlNode::halt`], the status being halted.
+    pub fn status(&self) -> Status {
+        self.previous
+    }
+
+    /// The time of the tick.
+    pub fn now(&self) -> Duration {
+        self.tree.now()
+    }
+
+    /// The number of children.
+    pub fn child_count(&self) -> usize {
+        self.tree.nodes()[self.index].children().len()
+    }
+
+    /// The status of child `k` (`Idle` for a `k` out of range).
+    pub fn child_status(&self, k: usize) -> Status {
+        self.child(k)
+            .map_or(Status::Idle, |c| self.tree.nodes()[c].status())
+    }
+
+    fn child(&self, k: usize) -> Option<usize> {
+        self.tree.nodes()[self.index].children().get(k).copied()
+    }
+
+    /// Ticks child `k` (its pre- and post-conditions included) and returns its status.
+    ///
+    /// # Errors
+    /// The child's [`TickError`]; an error of this node if there is no child `k`.
+    pub fn tick_child(&mut self, k: usize) -> Result<Status, TickError> {
+        let child = self.child(k).ok_or_else(|| {
+            self.error(format!(
+                "has no child {k} (it has {} children)",
+                self.child_count()
+            ))
+        })?;
+        self.tree.execute_tick(child)
+    }
+
+    /// Resets child `k`: halts it if it is running, then sets it idle (BehaviorTree.CPP's
+    /// `haltChild`). Nothing happens for a `k` out of range.
+    pub fn halt_child(&mut self, k: usize) {
+        if let Some(child) = self.child(k) {
+            self.tree.halt_child(child);
+        }
+    }
+
+    /// Resets every child (BehaviorTree.CPP's `resetChildren`).
+    pub fn reset_children(&mut self) {
+        self.tree.reset_children(self.index);
+    }
+
+    /// Reads an input port as `T` (a literal is parsed, a `{key}` read from the blackboard).
+    ///
+    /// # Errors
+    /// A [`TickError`] of this node naming the port.
+    pub fn input<T: FromValue>(&self, port: &str) -> Result<T, TickError> {
+        self.tree.port(self.index, port)
+    }
+
+    /// Writes an output port (its attribute must be a `{key}`).
+    ///
+    /// # Errors
+    /// A [`TickError`] of this node naming the port.
+    pub fn set_output(&mut self, port: &str, value: impl Into<Value>) -> Result<(), TickError> {
+        self.tree.set_port(self.index, port, value.into())
+    }
+
+    /// The blackboard.
+    pub fn blackboard(&self) -> &Blackboard {
+        self.tree.blackboard()
+    }
+
+    /// The blackboard, writable.
+    pub fn blackboard_mut(&mut self) -> &mut Blackboard {
+        self.tree.blackboard_mut()
+    }
+
+    /// The blackboard scope of this node.
+    pub fn scope(&self) -> ScopeId {
+        self.tree.nodes()[self.index].scope()
+    }
+
+    /// An error of this node with a message, to return from [`ControlNode::tick`].
+    pub fn error(&self, message: impl Into<String>) -> TickError {
+        self.tree
+            .node_error(self.index, TickErrorKind::Node(message.into()))
+    }
 }
 
 /// Where the category and ports of an ID come from.
@@ -268,11 +512,13 @@ pub struct Manifest {
     pub source: ManifestSource,
 }
 
-/// Leaf implementations by ID. [`Registry::new`] holds the built-in leaves `AlwaysSuccess`,
-/// `AlwaysFailure`, `SetBlackboard` and `Sleep`; controls, decorators and `SubTree` are part of
-/// the runtime and are always known.
+/// Node implementations by ID. [`Registry::new`] holds the built-in leaves `AlwaysSuccess`,
+/// `AlwaysFailure`, `SetBlackboard` and `Sleep`; the built-in controls, decorators, scripting
+/// nodes and `SubTree` are part of the runtime and are always known. Users add leaves, custom
+/// controls and decorators, stubs, and enum values for scripts.
 pub struct Registry {
     leaves: BTreeMap<String, Entry>,
+    enums: BTreeMap<String, i64>,
 }
 
 impl Default for Registry {
@@ -284,7 +530,8 @@ impl Default for Registry {
 impl std::fmt::Debug for Registry {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Registry")
-            .field("leaves", &self.leaves.keys().collect::<Vec<_>>())
+            .field("nodes", &self.leaves.keys().collect::<Vec<_>>())
+            .field("enums", &self.enums)
             .finish()
     }
 }
@@ -294,6 +541,7 @@ impl Registry {
     pub fn new() -> Registry {
         let mut registry = Registry {
             leaves: BTreeMap::new(),
+            enums: BTreeMap::new(),
         };
         for id in BUILTIN_LEAVES {
             let model = builtin_model(id).expect("built-in leaves have models");
@@ -309,7 +557,7 @@ impl Registry {
                 Entry {
                     model,
                     check_ports: true,
-                    factory,
+                    implementation: Implementation::Leaf(factory),
                 },
             );
         }
@@ -322,10 +570,26 @@ impl Registry {
         check_ports: bool,
         factory: Factory,
     ) -> Result<(), RegistryError> {
+        self.insert_implementation(model, check_ports, Implementation::Leaf(factory))
+    }
+
+    fn insert_implementation(
+        &mut self,
+        model: NodeModel,
+        check_ports: bool,
+        implementation: Implementation,
+    ) -> Result<(), RegistryError> {
         if model.id.is_empty() {
             return Err(RegistryError::EmptyId);
         }
-        if !model.category.is_leaf() {
+        let fits = match &implementation {
+            Implementation::Leaf(_) => model.category.is_leaf(),
+            Implementation::Control(_) | Implementation::Builtin(_) => matches!(
+                model.category,
+                NodeCategory::Control | NodeCategory::Decorator
+            ),
+        };
+        if !fits {
             return Err(RegistryError::NotALeaf {
                 id: model.id,
                 category: model.category,
@@ -342,10 +606,81 @@ impl Registry {
             Entry {
                 model,
                 check_ports,
-                factory,
+                implementation,
             },
         );
         Ok(())
+    }
+
+    /// Registers a custom control node (category [`NodeCategory::Control`]) or decorator
+    /// ([`NodeCategory::Decorator`]) with its model; `factory` makes one instance per node.
+    /// Attributes that are not among the model's ports are rejected when a tree is validated.
+    /// See [`ControlNode`] and the example in the [module documentation](self).
+    ///
+    /// # Errors
+    /// [`RegistryError`] for a duplicate, built-in or empty ID, or another category.
+    pub fn register_control<F>(&mut self, model: NodeModel, factory: F) -> Result<(), RegistryError>
+    where
+        F: Fn() -> Box<dyn ControlNode> + Send + Sync + 'static,
+    {
+        self.insert_implementation(model, true, Implementation::Control(Arc::new(factory)))
+    }
+
+    /// Registers a stand-in for a node that is declared but not implemented (the ports of
+    /// `model` are accepted and not used): an action or condition returns what `policy` says
+    /// ([`StubPolicy`]); a control node behaves as a `Sequence` (its children are ticked in
+    /// order, with memory of the running one) and a decorator passes its child's status
+    /// through, whatever `policy` is.
+    ///
+    /// # Errors
+    /// [`RegistryError`] for a duplicate, built-in or empty ID, a `SubTree` model, or a
+    /// condition with [`StubPolicy::Running`] (conditions cannot return running).
+    pub fn register_stub(
+        &mut self,
+        model: NodeModel,
+        policy: StubPolicy,
+    ) -> Result<(), RegistryError> {
+        match model.category {
+            NodeCategory::Control => self.insert_implementation(
+                model,
+                true,
+                Implementation::Builtin(BuiltinKind::Sequence),
+            ),
+            NodeCategory::Decorator => self.insert_implementation(
+                model,
+                true,
+                Implementation::Builtin(BuiltinKind::PassThrough),
+            ),
+            NodeCategory::Condition if matches!(policy, StubPolicy::Running(n) if n > 0) => {
+                Err(RegistryError::RunningCondition { id: model.id })
+            }
+            NodeCategory::SubTree => Err(RegistryError::NotALeaf {
+                id: model.id,
+                category: model.category,
+            }),
+            _ => self.insert(
+                model,
+                true,
+                Arc::new(move || {
+                    Box::new(Stub {
+                        policy,
+                        remaining: 0,
+                    })
+                }),
+            ),
+        }
+    }
+
+    /// Registers an enum value for scripts (BehaviorTree.CPP's `registerScriptingEnum`): the
+    /// name reads as the integer in every script, before blackboard keys, and compares equal
+    /// to it in `Switch` cases. Registering a name again replaces its value.
+    pub fn register_enum(&mut self, name: &str, value: i64) {
+        self.enums.insert(name.to_owned(), value);
+    }
+
+    /// The registered enum values, by name.
+    pub fn enums(&self) -> &BTreeMap<String, i64> {
+        &self.enums
     }
 
     /// Registers a leaf with a model (category action or condition, ID, ports). Attributes
@@ -416,17 +751,17 @@ impl Registry {
         })
     }
 
-    /// Whether a leaf `id` is registered (built-in leaves included).
+    /// Whether a node `id` is registered (built-in leaves included).
     pub fn contains(&self, id: &str) -> bool {
         self.leaves.contains_key(id)
     }
 
-    /// The model of the registered leaf `id`.
+    /// The model of the registered node `id`.
     pub fn model(&self, id: &str) -> Option<&NodeModel> {
         self.leaves.get(id).map(|e| &e.model)
     }
 
-    /// The IDs of the registered leaves (built-in leaves included), sorted.
+    /// The IDs of the registered nodes (built-in leaves included), sorted.
     pub fn ids(&self) -> impl Iterator<Item = &str> {
         self.leaves.keys().map(String::as_str)
     }
@@ -481,9 +816,13 @@ impl Registry {
         Err(DefinitionErrorKind::UnknownNode { id: id.to_owned() })
     }
 
-    /// A new instance of the leaf `id`, if registered.
-    pub(crate) fn instantiate(&self, id: &str) -> Option<Box<dyn LeafNode>> {
-        self.leaves.get(id).map(|e| (e.factory)())
+    /// A new instance of the node `id`, if registered.
+    pub(crate) fn instantiate(&self, id: &str) -> Option<Instance> {
+        self.leaves.get(id).map(|e| match &e.implementation {
+            Implementation::Leaf(factory) => Instance::Leaf(factory()),
+            Implementation::Control(factory) => Instance::Control(factory()),
+            Implementation::Builtin(kind) => Instance::Builtin(*kind),
+        })
     }
 }
 
@@ -496,6 +835,36 @@ struct FnLeaf {
 impl LeafNode for FnLeaf {
     fn tick(&mut self, ctx: &mut LeafContext<'_>) -> Result<Status, LeafError> {
         (self.tick)(ctx)
+    }
+}
+
+/// A leaf of [`Registry::register_stub`].
+struct Stub {
+    policy: StubPolicy,
+    remaining: u32,
+}
+
+impl LeafNode for Stub {
+    fn tick(&mut self, ctx: &mut LeafContext<'_>) -> Result<Status, LeafError> {
+        Ok(match self.policy {
+            StubPolicy::Success => Status::Success,
+            StubPolicy::Failure => Status::Failure,
+            StubPolicy::Running(n) => {
+                if ctx.status() != Status::Running {
+                    self.remaining = n;
+                }
+                if self.remaining == 0 {
+                    Status::Success
+                } else {
+                    self.remaining -= 1;
+                    Status::Running
+                }
+            }
+        })
+    }
+
+    fn halt(&mut self, _: &mut LeafContext<'_>) {
+        self.remaining = 0;
     }
 }
 

@@ -371,7 +371,7 @@ fn check(tree: &Tree, script: &Script, period: Duration) -> Result<(), ScriptErr
             let allowed = match status {
                 Status::Success | Status::Failure => true,
                 Status::Running => !condition,
-                Status::Idle => false,
+                Status::Idle | Status::Skipped => false,
             };
             if !allowed {
                 return Err(ScriptError::BadOutcome {

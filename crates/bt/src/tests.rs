@@ -16,6 +16,7 @@ const I: Status = Status::Idle;
 const R: Status = Status::Running;
 const S: Status = Status::Success;
 const F: Status = Status::Failure;
+const K: Status = Status::Skipped;
 
 fn letter(s: Status) -> char {
     match s {
@@ -23,6 +24,7 @@ fn letter(s: Status) -> char {
         Status::Running => 'R',
         Status::Success => 'S',
         Status::Failure => 'F',
+        Status::Skipped => 'K',
     }
 }
 
@@ -422,12 +424,11 @@ fn tick_once_follows_the_wake_up_so_all_attempts_happen_in_one_call() {
 }
 
 #[test]
-fn retry_with_minus_one_never_gives_up_and_zero_attempts_fail_at_once() {
+fn retry_with_minus_one_never_gives_up_and_zero_attempts_are_skipped() {
     keeps_running(retry("-1"), ("A", F), 20);
-    check(
-        retry("0"),
-        &[(&[("A", S)], F, "retry:I>R retry:R>F retry:F>I")],
-    );
+    // BehaviorTree.CPP 4.6: no attempt means no child was ticked, so `all_skipped_` stays
+    // true and the decorator returns SKIPPED.
+    check(retry("0"), &[(&[("A", S)], K, "retry:I>R retry:R>K")]);
 }
 
 #[test]
@@ -897,11 +898,11 @@ fn validation_names_the_node_and_the_attribute() {
             .starts_with("tree \"Main\", node at child path 0: unknown node ID \"Fly\"")
     );
 
-    let e = invalid(NodeDef::control("IfThenElse").child(NodeDef::action("AlwaysSuccess")));
+    let e = invalid(NodeDef::decorator("EntryUpdated").child(NodeDef::action("AlwaysSuccess")));
     assert_eq!(
         *e.kind(),
         DefinitionErrorKind::UnsupportedNode {
-            id: "IfThenElse".into()
+            id: "EntryUpdated".into()
         }
     );
 
