@@ -1,12 +1,53 @@
 //! Checks of a tree description against what is known about its node IDs.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 
 use super::error::{DefinitionError, DefinitionErrorKind as K};
 use super::model::{
     BtDocument, NodeCategory, NodeDef, NodeLocation, PortDirection, blackboard_pointer,
 };
-use super::registry::Registry;
+use super::registry::{Manifest, ManifestSource, Registry};
+
+/// Built-in ports with a range narrower than their type: (node, port, least value, what is
+/// expected). BehaviorTree.CPP: -1 means "without limit" for the loop counts.
+const PORT_RANGES: &[(&str, &str, i64, &str)] = &[
+    (
+        "RetryUntilSuccessful",
+        "num_attempts",
+        -1,
+        "an integer of at least -1 (-1: without limit)",
+    ),
+    (
+        "Repeat",
+        "num_cycles",
+        -1,
+        "an integer of at least -1 (-1: without limit)",
+    ),
+    ("Timeout", "msec", 0, "a non-negative integer"),
+    ("Delay", "delay_msec", 0, "a non-negative integer"),
+    ("Sleep", "msec", 0, "a non-negative integer"),
+];
+
+/// What a document's IDs are resolved with: the registry, and the document's models and tree
+/// IDs by ID (so that checking a node does not search lists).
+struct Known<'d> {
+    registry: &'d Registry,
+    declared: HashMap<&'d str, &'d super::model::NodeModel>,
+    trees: HashSet<&'d str>,
+}
+
+impl Known<'_> {
+    /// [`Registry::lookup`] with the document's models, without searching them.
+    fn lookup(&self, id: &str) -> Result<Manifest, K> {
+        match self.registry.lookup(id, &[]) {
+            Ok(manifest) => Ok(manifest),
+            Err(kind) => match self.declared.get(id) {
+                Some(model) => self.registry.lookup(id, std::slice::from_ref(*model)),
+                None => Err(kind),
+            },
+        }
+    }
+}
 
 /// Checks a document: at least one tree, unique tree IDs, `main_tree_to_execute` and every
 /// `SubTree` naming a tree, no recursive subtrees, and for every node: a known ID of the
@@ -39,15 +80,31 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
     if doc.main_tree.is_some() {
         doc.main_tree_id()?;
     }
+    let mut declared = HashMap::new();
+    for model in &doc.node_models {
+        declared.entry(model.id.as_str()).or_insert(model);
+    }
+    let known = Known {
+        registry,
+        declared,
+        trees: doc.trees.iter().map(|t| t.id.as_str()).collect(),
+    };
     for tree in &doc.trees {
         let mut result = Ok(());
         tree.root.walk(&mut |path, node| {
             if result.is_ok() {
-                let location = NodeLocation {
-                    tree: tree.id.clone(),
-                    path: path.to_vec(),
-                };
-                result = check_node(doc, registry, location, node);
+                result = check_node(&known, node).map_err(|failure| {
+                    let (kind, attribute) = *failure;
+                    let location = NodeLocation {
+                        tree: tree.id.clone(),
+                        path: path.to_vec(),
+                    };
+                    let error = DefinitionError::at(location, kind);
+                    match attribute {
+                        Some(a) => error.with_attribute(&a),
+                        None => error,
+                    }
+                });
             }
         });
         result?;
@@ -55,19 +112,10 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
     check_recursion(doc)
 }
 
-fn check_node(
-    doc: &BtDocument,
-    registry: &Registry,
-    location: NodeLocation,
-    node: &NodeDef,
-) -> Result<(), DefinitionError> {
-    let fail = |kind: K, attribute: Option<&str>| {
-        let error = DefinitionError::at(location.clone(), kind);
-        Err(match attribute {
-            Some(a) => error.with_attribute(a),
-            None => error,
-        })
-    };
+/// Checks one node; the error's kind and attribute.
+fn check_node(known: &Known<'_>, node: &NodeDef) -> Result<(), Box<(K, Option<String>)>> {
+    let fail =
+        |kind: K, attribute: Option<&str>| Err(Box::new((kind, attribute.map(str::to_owned))));
     if !node.category.allows_children(node.children.len()) {
         return fail(
             K::ChildCount {
@@ -79,7 +127,7 @@ fn check_node(
         );
     }
     if node.category == NodeCategory::SubTree {
-        if doc.tree(&node.id).is_none() {
+        if !known.trees.contains(node.id.as_str()) {
             return fail(
                 K::UnknownTree {
                     id: node.id.clone(),
@@ -89,7 +137,7 @@ fn check_node(
         }
         return Ok(());
     }
-    let manifest = match registry.lookup(&node.id, &doc.node_models) {
+    let manifest = match known.lookup(&node.id) {
         Ok(m) => m,
         Err(kind) => return fail(kind, Some("ID")),
     };
@@ -104,8 +152,22 @@ fn check_node(
         );
     }
     if let Some(specs) = &manifest.ports {
+        // Indexed when a search per attribute would be slow (many ports and attributes).
+        let index: Option<HashMap<&str, usize>> =
+            (specs.len() * node.ports.len() > 64).then(|| {
+                specs
+                    .iter()
+                    .enumerate()
+                    .rev()
+                    .map(|(i, s)| (s.name.as_str(), i))
+                    .collect()
+            });
+        let find = |name: &str| match &index {
+            Some(index) => index.get(name).map(|&i| &specs[i]),
+            None => specs.iter().find(|s| s.name == name),
+        };
         for (name, value) in &node.ports {
-            let Some(spec) = specs.iter().find(|s| &s.name == name) else {
+            let Some(spec) = find(name) else {
                 return fail(
                     K::UnknownPort {
                         id: node.id.clone(),
@@ -140,9 +202,31 @@ fn check_node(
                     Some(name.as_str()),
                 );
             }
+            if manifest.source == ManifestSource::Builtin
+                && let Some(&(_, _, least, expected)) = PORT_RANGES
+                    .iter()
+                    .find(|(id, port, _, _)| *id == node.id && port == name)
+                && value.trim().parse::<i64>().is_ok_and(|v| v < least)
+            {
+                return fail(
+                    K::BadValue {
+                        id: node.id.clone(),
+                        port: name.clone(),
+                        value: value.clone(),
+                        expected: expected.to_owned(),
+                    },
+                    Some(name.as_str()),
+                );
+            }
         }
+        let given: Option<HashSet<&str>> =
+            (node.ports.len() > 8).then(|| node.ports.iter().map(|(n, _)| n.as_str()).collect());
         for spec in specs.iter().filter(|s| s.required) {
-            if node.port_value(&spec.name).is_none() {
+            let present = match &given {
+                Some(given) => given.contains(spec.name.as_str()),
+                None => node.port_value(&spec.name).is_some(),
+            };
+            if !present {
                 return fail(
                     K::MissingPort {
                         id: node.id.clone(),

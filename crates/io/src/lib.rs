@@ -138,7 +138,10 @@ pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
 #[cfg(feature = "bt")]
 pub use bt_script::{BtScriptError, read_bt_script};
 #[cfg(feature = "bt")]
-pub use bt_xml::{BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml, write_bt_xml};
+pub use bt_xml::{
+    BtNodeModels, BtReadOptions, BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml,
+    read_bt_xml_with, read_node_models, write_bt_xml,
+};
 #[cfg(feature = "hypertime")]
 pub use events::{read_event_files, read_events, read_events_from, write_events};
 #[cfg(feature = "navmap")]

@@ -406,11 +406,11 @@ fn unknown_node_ids_are_located() {
     let e = error(&text);
     assert_at(&e, &text, "ID=\"Selector\"", Some("ID"));
 
-    let text = wrap("    <IfThenElse>\n      <AlwaysSuccess/>\n    </IfThenElse>");
+    let text = wrap("    <EntryUpdated>\n      <AlwaysSuccess/>\n    </EntryUpdated>");
     let e = error(&text);
     assert!(
         e.to_string().ends_with(
-            "\"IfThenElse\" is a BehaviorTree.CPP node that chronomap does not implement"
+            "\"EntryUpdated\" is a BehaviorTree.CPP node that chronomap does not implement"
         ),
         "{e}"
     );
@@ -517,7 +517,8 @@ fn format_versions_other_than_4_and_structure_errors_are_located() {
 
     let text = "<root BTCPP_format=\"4\">\n  <include path=\"other.xml\"/>\n</root>";
     let e = error(text);
-    assert_at(&e, text, "<include", None);
+    assert_at(&e, text, "path=", Some("path"));
+    assert!(e.to_string().contains("no directory"), "{e}");
 
     let text = "<root BTCPP_format=\"4\">\n  <BehaviourTree ID=\"A\"/>\n</root>";
     assert_at(&error(text), text, "<BehaviourTree", None);
@@ -528,11 +529,6 @@ fn format_versions_other_than_4_and_structure_errors_are_located() {
             .to_string()
             .starts_with("t.xml:1:1: the root element is <bt>")
     );
-
-    let text = wrap("    <AlwaysSuccess _skipIf=\"battery &lt; 10\"/>");
-    let e = error(&text);
-    assert_at(&e, &text, "_skipIf", Some("_skipIf"));
-    assert!(e.to_string().contains("scripting"));
 
     let text = wrap("    <Sequence _autoremap=\"true\"><AlwaysSuccess/></Sequence>");
     assert_at(&error(&text), &text, "_autoremap", Some("_autoremap"));
@@ -608,4 +604,555 @@ fn documents_that_xml_cannot_express_are_refused_by_the_writer() {
         .unwrap()
         .document;
     assert_eq!(again.trees, doc.trees);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scripting attributes, includes, node models from other files, limits
+
+use chronomap_io::bt_xml::{
+    BtReadOptions, parse_bt_xml_in, parse_node_models, read_bt_xml_with, read_node_models,
+};
+
+fn scratch(test: &str) -> std::path::PathBuf {
+    chronomap_testutil::scratch!("chronomap-io-bt-xml", test)
+}
+
+fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
+    let path = dir.join(name);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn scripting_attributes_are_kept_in_document_order_and_written_back() {
+    let text = wrap(
+        r#"    <Sequence _while="battery &gt; 20">
+      <AlwaysSuccess _skipIf="done" name="a" _onSuccess="count += 1" _post="n := 0"/>
+      <AlwaysFailure _failureIf="x == 1" _onFailure="failed := true" _onHalted="h := 1" _successIf="y"/>
+    </Sequence>"#,
+    );
+    let doc = parse_bt_xml("t.xml", &text, &Registry::new())
+        .unwrap()
+        .document;
+    let root = &doc.trees[0].root;
+    assert_eq!(
+        root.scripts,
+        [("_while".to_owned(), "battery > 20".to_owned())]
+    );
+    let a = &root.children[0];
+    assert_eq!(
+        a.scripts,
+        [
+            ("_skipIf".to_owned(), "done".to_owned()),
+            ("_onSuccess".to_owned(), "count += 1".to_owned()),
+            ("_post".to_owned(), "n := 0".to_owned()),
+        ]
+    );
+    assert!(a.ports.is_empty());
+    assert_eq!(root.children[1].scripts.len(), 4);
+    let saved = encode_bt_xml(&doc).unwrap();
+    assert!(
+        saved.contains(
+            r#"<AlwaysSuccess name="a" _skipIf="done" _onSuccess="count += 1" _post="n := 0"/>"#
+        ),
+        "{saved}"
+    );
+    let again = parse_bt_xml("s.xml", &saved, &Registry::new()).unwrap();
+    assert_eq!(again.document, doc);
+
+    let bad = BtDocument::single(chronomap_bt::TreeDef::new(
+        "Main",
+        NodeDef::action("AlwaysSuccess").script("_before", "x"),
+    ));
+    assert!(matches!(
+        encode_bt_xml(&bad).unwrap_err().kind(),
+        BtXmlErrorKind::Unwritable { .. }
+    ));
+}
+
+#[test]
+fn includes_are_relative_to_the_including_file_and_merge_trees_and_models() {
+    let dir = scratch("includes");
+    write(
+        &dir,
+        "main.xml",
+        r#"<root BTCPP_format="4" main_tree_to_execute="Main">
+  <include path="sub/patrol.xml"/>
+  <BehaviorTree ID="Main">
+    <Sequence>
+      <SubTree ID="Patrol"/>
+      <SubTree ID="Dock"/>
+    </Sequence>
+  </BehaviorTree>
+</root>"#,
+    );
+    write(
+        &dir,
+        "sub/patrol.xml",
+        r#"<root BTCPP_format="4" main_tree_to_execute="Patrol">
+  <include path="../dock.xml"/>
+  <BehaviorTree ID="Patrol">
+    <GoTo where="kitchen"/>
+  </BehaviorTree>
+  <TreeNodesModel>
+    <Action ID="GoTo"><input_port name="where"/></Action>
+  </TreeNodesModel>
+</root>"#,
+    );
+    write(
+        &dir,
+        "dock.xml",
+        r#"<root BTCPP_format="4">
+  <include path="sub/patrol.xml"/>
+  <BehaviorTree ID="Dock">
+    <GoTo where="dock"/>
+  </BehaviorTree>
+</root>"#,
+    );
+    // dock.xml includes patrol.xml again: that is a cycle (patrol -> dock -> patrol).
+    let e = read_bt_xml(dir.join("main.xml"), &Registry::new()).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        matches!(e.kind(), BtXmlErrorKind::IncludeCycle { .. }),
+        "{e}"
+    );
+    assert!(text.contains("dock.xml:2:12: "), "{e}");
+    assert!(
+        text.contains("makes an include cycle: ") && text.matches("patrol.xml").count() >= 3,
+        "{e}"
+    );
+
+    // Without the cycle: Main from main.xml, Patrol and Dock from the includes; GoTo resolves
+    // in every file with the model declared in sub/patrol.xml.
+    write(
+        &dir,
+        "dock.xml",
+        r#"<root BTCPP_format="4">
+  <BehaviorTree ID="Dock">
+    <GoTo where="dock"/>
+  </BehaviorTree>
+</root>"#,
+    );
+    let read = read_bt_xml(dir.join("main.xml"), &Registry::new()).unwrap();
+    let ids: Vec<&str> = read.document.trees.iter().map(|t| t.id.as_str()).collect();
+    assert_eq!(ids, ["Main", "Patrol", "Dock"]);
+    assert_eq!(read.document.main_tree.as_deref(), Some("Main"));
+    assert_eq!(read.files.len(), 3);
+    assert!(read.file_of("Dock").unwrap().ends_with("dock.xml"));
+    let location = chronomap_bt::NodeLocation {
+        tree: "Dock".to_owned(),
+        path: vec![],
+    };
+    let (file, line, column) = read.locate(&location).unwrap();
+    assert!(file.ends_with("dock.xml"));
+    assert_eq!((line, column), (3, 5));
+
+    // An error inside an included file names that file.
+    write(
+        &dir,
+        "dock.xml",
+        "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"Dock\">\n    <GoTo wher=\"dock\"/>\n  </BehaviorTree>\n</root>",
+    );
+    let e = read_bt_xml(dir.join("main.xml"), &Registry::new()).unwrap_err();
+    assert!(e.file().unwrap().ends_with("dock.xml"), "{e}");
+    assert_eq!(
+        (e.line(), e.column(), e.attribute()),
+        (Some(3), Some(11), Some("wher"))
+    );
+
+    // A missing file names the including file and line; ros_pkg is refused.
+    write(
+        &dir,
+        "missing.xml",
+        "<root BTCPP_format=\"4\">\n  <include path=\"nowhere.xml\"/>\n</root>",
+    );
+    let e = read_bt_xml(dir.join("missing.xml"), &Registry::new()).unwrap_err();
+    assert!(e.file().unwrap().ends_with("missing.xml"), "{e}");
+    assert_eq!(e.line(), Some(2));
+    assert!(e.to_string().contains("cannot read"), "{e}");
+    write(
+        &dir,
+        "ros.xml",
+        "<root BTCPP_format=\"4\">\n  <include ros_pkg=\"nav2_bt_navigator\" path=\"behavior_trees/x.xml\"/>\n</root>",
+    );
+    let e = read_bt_xml(dir.join("ros.xml"), &Registry::new()).unwrap_err();
+    assert_eq!(e.attribute(), Some("ros_pkg"));
+    assert!(
+        e.to_string().contains("give the file's path instead"),
+        "{e}"
+    );
+
+    // Text with a directory resolves includes like a file there.
+    let text = "<root BTCPP_format=\"4\" main_tree_to_execute=\"T\">\n  <include path=\"dock.xml\"/>\n  <BehaviorTree ID=\"T\"><AlwaysSuccess/></BehaviorTree>\n</root>";
+    write(
+        &dir,
+        "dock.xml",
+        "<root BTCPP_format=\"4\"><BehaviorTree ID=\"Dock\"><AlwaysSuccess/></BehaviorTree></root>",
+    );
+    let read = parse_bt_xml_in(
+        "t.xml",
+        text,
+        &dir,
+        &Registry::new(),
+        &BtReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(read.document.trees.len(), 2);
+}
+
+#[test]
+fn a_file_included_twice_is_read_once_and_limits_are_errors() {
+    let dir = scratch("include_limits");
+    write(
+        &dir,
+        "a.xml",
+        "<root BTCPP_format=\"4\" main_tree_to_execute=\"A\">\n  <include path=\"b.xml\"/>\n  <include path=\"c.xml\"/>\n  <BehaviorTree ID=\"A\"><Sequence><SubTree ID=\"B\"/><SubTree ID=\"C\"/></Sequence></BehaviorTree>\n</root>",
+    );
+    write(
+        &dir,
+        "b.xml",
+        "<root BTCPP_format=\"4\">\n  <include path=\"d.xml\"/>\n  <BehaviorTree ID=\"B\"><SubTree ID=\"D\"/></BehaviorTree>\n</root>",
+    );
+    write(
+        &dir,
+        "c.xml",
+        "<root BTCPP_format=\"4\">\n  <include path=\"./d.xml\"/>\n  <BehaviorTree ID=\"C\"><SubTree ID=\"D\"/></BehaviorTree>\n</root>",
+    );
+    write(
+        &dir,
+        "d.xml",
+        "<root BTCPP_format=\"4\"><BehaviorTree ID=\"D\"><AlwaysSuccess/></BehaviorTree></root>",
+    );
+    let read = read_bt_xml(dir.join("a.xml"), &Registry::new()).unwrap();
+    let ids: Vec<&str> = read.document.trees.iter().map(|t| t.id.as_str()).collect();
+    assert_eq!(ids, ["A", "B", "D", "C"]);
+
+    let options = BtReadOptions {
+        max_files: 2,
+        ..BtReadOptions::default()
+    };
+    let e = read_bt_xml_with(dir.join("a.xml"), &Registry::new(), &options).unwrap_err();
+    assert!(
+        matches!(e.kind(), BtXmlErrorKind::TooManyFiles { limit: 2 }),
+        "{e}"
+    );
+    let options = BtReadOptions {
+        max_bytes: 300,
+        ..BtReadOptions::default()
+    };
+    let e = read_bt_xml_with(dir.join("a.xml"), &Registry::new(), &options).unwrap_err();
+    assert!(
+        matches!(e.kind(), BtXmlErrorKind::TooManyBytes { limit: 300 }),
+        "{e}"
+    );
+
+    // Two files with one tree ID: the second names the first.
+    write(
+        &dir,
+        "d.xml",
+        "<root BTCPP_format=\"4\"><BehaviorTree ID=\"B\"><AlwaysSuccess/></BehaviorTree></root>",
+    );
+    let e = read_bt_xml(dir.join("a.xml"), &Registry::new()).unwrap_err();
+    assert!(e.to_string().contains("b.xml:3:3)"), "{e}");
+}
+
+#[cfg(unix)]
+#[test]
+fn endless_and_huge_inputs_are_bounded() {
+    let e = read_bt_xml("/dev/zero", &Registry::new()).unwrap_err();
+    assert!(
+        matches!(e.kind(), BtXmlErrorKind::TooManyBytes { .. }),
+        "{e}"
+    );
+}
+
+/// `levels` nested `Inverter`s around a leaf, one per line.
+fn nested(levels: usize) -> String {
+    let mut text = String::from("<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"Deep\">\n");
+    for _ in 0..levels {
+        text.push_str("<Inverter>\n");
+    }
+    text.push_str("<AlwaysSuccess/>\n");
+    for _ in 0..levels {
+        text.push_str("</Inverter>\n");
+    }
+    text.push_str("</BehaviorTree>\n</root>\n");
+    text
+}
+
+#[test]
+fn nesting_is_bounded_with_an_error_at_the_first_node_too_deep() {
+    // 999 decorators and a leaf: 1000 levels.
+    let doc = parse_bt_xml("ok.xml", &nested(999), &Registry::new()).unwrap();
+    assert_eq!(subtree_depth(&doc.document.trees[0].root), 1000);
+    let e = parse_bt_xml("deep.xml", &nested(10_000), &Registry::new()).unwrap_err();
+    assert!(
+        matches!(e.kind(), BtXmlErrorKind::TooDeep { limit: 1000 }),
+        "{e}"
+    );
+    // Line 3 holds level 1.
+    assert_eq!((e.line(), e.column()), (Some(1003), Some(1)), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "deep.xml:1003:1: nodes nested deeper than 1000 levels (a limit of this reader)"
+    );
+}
+
+fn subtree_depth(node: &NodeDef) -> usize {
+    let mut depth = 0;
+    let mut level = vec![node];
+    while !level.is_empty() {
+        depth += 1;
+        level = level.iter().flat_map(|n| n.children.iter()).collect();
+    }
+    depth
+}
+
+#[test]
+fn dtds_entities_and_namespaces_are_refused() {
+    let laughs = r#"<?xml version="1.0"?>
+<!DOCTYPE lolz [
+ <!ENTITY lol "lol">
+ <!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">
+ <!ENTITY lol3 "&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;">
+]>
+<root BTCPP_format="4"><BehaviorTree ID="A"><Action ID="Say" text="&lol3;"/></BehaviorTree></root>"#;
+    let e = error(laughs);
+    assert!(matches!(e.kind(), BtXmlErrorKind::Dtd), "{e}");
+    assert_eq!((e.line(), e.column()), (Some(2), Some(1)));
+
+    let text = "<root BTCPP_format=\"4\" xmlns:bt=\"urn:bt\">\n  <BehaviorTree ID=\"A\">\n    <bt:Sequence><AlwaysSuccess/></bt:Sequence>\n  </BehaviorTree>\n</root>";
+    let e = error(text);
+    assert_at(&e, text, "<bt:Sequence", None);
+    assert!(e.to_string().contains("namespace \"urn:bt\""), "{e}");
+    let text = "<root BTCPP_format=\"4\" xmlns=\"urn:bt\">\n</root>";
+    assert!(matches!(
+        error(text).kind(),
+        BtXmlErrorKind::Namespace { .. }
+    ));
+    let text = wrap("    <bt:Sequence><AlwaysSuccess/></bt:Sequence>");
+    assert!(matches!(error(&text).kind(), BtXmlErrorKind::Xml { .. }));
+    let text = "<root BTCPP_format=\"4\" xmlns:x=\"urn:x\">\n  <BehaviorTree ID=\"A\">\n    <AlwaysSuccess x:note=\"1\"/>\n  </BehaviorTree>\n</root>";
+    let e = error(text);
+    assert_at(&e, text, "x:note", Some("note"));
+}
+
+#[test]
+fn out_of_range_counts_and_times_are_refused_with_the_port_named() {
+    check_wrapped_rows(&[
+        (
+            "    <RetryUntilSuccessful num_attempts=\"-5\">\n      <AlwaysSuccess/>\n    </RetryUntilSuccessful>",
+            "num_attempts=",
+            Some("num_attempts"),
+            "(expected an integer of at least -1 (-1: without limit))",
+        ),
+        (
+            "    <Repeat num_cycles=\"-3\">\n      <AlwaysSuccess/>\n    </Repeat>",
+            "num_cycles=",
+            Some("num_cycles"),
+            "(expected an integer of at least -1 (-1: without limit))",
+        ),
+        (
+            "    <Timeout msec=\"-1\">\n      <AlwaysSuccess/>\n    </Timeout>",
+            "msec=",
+            Some("msec"),
+            "(expected a non-negative integer)",
+        ),
+        (
+            "    <Sleep msec=\"-1\"/>",
+            "msec=",
+            Some("msec"),
+            "(expected a non-negative integer)",
+        ),
+    ]);
+    // -1 means without limit; a {key} is checked when ticked.
+    let ok = wrap(
+        "    <Sequence>\n      <Repeat num_cycles=\"-1\"><AlwaysSuccess/></Repeat>\n      <RetryUntilSuccessful num_attempts=\"{n}\"><AlwaysSuccess/></RetryUntilSuccessful>\n    </Sequence>",
+    );
+    parse_bt_xml("t.xml", &ok, &Registry::new()).unwrap();
+}
+
+fn nav2_models() -> Vec<chronomap_bt::NodeModel> {
+    read_node_models(example("nav2/nav2_tree_nodes.xml"))
+        .unwrap()
+        .models
+}
+
+#[test]
+fn node_models_from_another_file_check_custom_controls_decorators_and_leaves() {
+    let loaded = read_node_models(example("nav2/nav2_tree_nodes.xml")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let models = loaded.models;
+    assert!(models.len() > 80, "{}", models.len());
+    let find = |id: &str| models.iter().find(|m| m.id == id).unwrap();
+    assert_eq!(find("PipelineSequence").category, NodeCategory::Control);
+    assert_eq!(find("RateController").category, NodeCategory::Decorator);
+    assert_eq!(
+        find("PersistentSequence").ports[0].direction,
+        PortDirection::InOut,
+        "bidirectional_port"
+    );
+    let options = BtReadOptions::with_node_models(models.clone());
+    let read = |body: &str| {
+        parse_bt_xml_in(
+            "t.xml",
+            &wrap(body),
+            std::path::Path::new("."),
+            &Registry::new(),
+            &options,
+        )
+    };
+    let ok = read(
+        "    <PipelineSequence>\n      <RateController hz=\"1.0\">\n        <ComputePathToPose goal=\"{goal}\" path=\"{path}\"/>\n      </RateController>\n      <FollowPath path=\"{path}\"/>\n    </PipelineSequence>",
+    )
+    .unwrap();
+    // Only the models used join the document (and so the saved file's TreeNodesModel).
+    let used: Vec<&str> = ok
+        .document
+        .node_models
+        .iter()
+        .map(|m| m.id.as_str())
+        .collect();
+    assert_eq!(
+        used,
+        [
+            "PipelineSequence",
+            "RateController",
+            "ComputePathToPose",
+            "FollowPath"
+        ]
+    );
+    let saved = encode_bt_xml(&ok.document).unwrap();
+    assert!(
+        saved.contains("<input_port name=\"hz\" type=\"double\" default=\"10.0\">"),
+        "{saved}"
+    );
+    // The saved file loads without the models file.
+    parse_bt_xml("s.xml", &saved, &Registry::new()).unwrap();
+
+    let rows: [(&str, &str); 5] = [
+        (
+            "    <RateController hz=\"1.0\">\n      <Wait/>\n      <Wait/>\n    </RateController>",
+            "Decorator \"RateController\" needs exactly 1 child, found 2",
+        ),
+        (
+            "    <RecoveryNode/>",
+            "Control \"RecoveryNode\" needs at least 1 child, found 0",
+        ),
+        (
+            "    <RateController hz=\"fast\">\n      <Wait/>\n    </RateController>",
+            "attribute hz=\"fast\" of \"RateController\" is invalid (expected a number)",
+        ),
+        (
+            "    <RecoveryNode retries=\"3\">\n      <Wait/>\n    </RecoveryNode>",
+            "\"RecoveryNode\" has no port \"retries\" (its ports: number_of_retries)",
+        ),
+        (
+            "    <Spin spin_distance=\"1.57\"/>",
+            "\"Spin\" has no port \"spin_distance\"",
+        ),
+    ];
+    for (body, message) in rows {
+        let e = read(body).unwrap_err();
+        assert!(e.to_string().contains(message), "{e}");
+    }
+    // Explicit-form custom nodes use the models too (no inferred model).
+    let explicit = read("    <Control ID=\"RoundRobin\" wrap_around=\"maybe\">\n      <Action ID=\"Wait\"/>\n    </Control>")
+        .unwrap_err();
+    assert_eq!(explicit.attribute(), Some("wrap_around"));
+    // Without the models the compact custom nodes are unknown.
+    let e = parse_bt_xml(
+        "t.xml",
+        &wrap("    <PipelineSequence>\n      <Wait/>\n    </PipelineSequence>"),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("unknown node ID \"PipelineSequence\""),
+        "{e}"
+    );
+    // A file's own declaration wins over the models file.
+    let own = format!(
+        "{}  <TreeNodesModel>\n    <Action ID=\"Spin\"><input_port name=\"angle\"/></Action>\n  </TreeNodesModel>\n</root>\n",
+        wrap("    <Spin angle=\"3\"/>")
+            .trim_end()
+            .strip_suffix("</root>")
+            .unwrap()
+    );
+    parse_bt_xml_in(
+        "t.xml",
+        &own,
+        std::path::Path::new("."),
+        &Registry::new(),
+        &options,
+    )
+    .unwrap();
+    let _ = nav2_models;
+}
+
+#[test]
+fn node_model_files_skip_trees_and_refuse_includes() {
+    let loaded = parse_node_models(
+        "m.xml",
+        "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree>\n  <TreeNodesModel><Action ID=\"Go\"/></TreeNodesModel>\n</root>",
+    )
+    .unwrap();
+    assert_eq!(loaded.models.len(), 1);
+    assert_eq!(loaded.warnings.len(), 1);
+    assert!(loaded.warnings[0].starts_with("m.xml:2:3: skipped <BehaviorTree>"));
+    assert!(parse_node_models("m.xml", "<root><include path=\"x.xml\"/></root>").is_err());
+    assert!(parse_node_models("m.xml", "<nodes/>").is_err());
+}
+
+#[test]
+fn a_tree_id_written_as_a_node_tag_gets_a_hint() {
+    let text = "<root BTCPP_format=\"4\" main_tree_to_execute=\"Main\">\n  <BehaviorTree ID=\"Main\">\n    <Sequence>\n      <Talk/>\n    </Sequence>\n  </BehaviorTree>\n  <BehaviorTree ID=\"Talk\"><AlwaysSuccess/></BehaviorTree>\n</root>";
+    let e = error(text);
+    assert_at(&e, text, "<Talk/>", None);
+    assert!(
+        e.to_string().ends_with("write <SubTree ID=\"Talk\"/>"),
+        "{e}"
+    );
+}
+
+/// `count` siblings in one `Sequence`, optionally all on one line.
+fn siblings(count: usize, one_line: bool) -> String {
+    let sep = if one_line { "" } else { "\n" };
+    let mut text = String::from("<root BTCPP_format=\"4\"><BehaviorTree ID=\"Wide\"><Sequence>");
+    for i in 0..count {
+        let _ = std::fmt::Write::write_fmt(
+            &mut text,
+            format_args!("{sep}<Action ID=\"Leaf{}\" n=\"{i}\"/>", i % 1000),
+        );
+    }
+    text.push_str("</Sequence></BehaviorTree></root>");
+    text
+}
+
+#[test]
+fn wide_trees_and_many_attributes_read_in_linear_time() {
+    // Quadratic reading took minutes here; linear reading takes well under a second each.
+    for one_line in [false, true] {
+        let text = siblings(100_000, one_line);
+        let read = parse_bt_xml("wide.xml", &text, &Registry::new()).unwrap();
+        assert_eq!(read.document.trees[0].root.children.len(), 100_000);
+        assert_eq!(read.document.node_models.len(), 1000);
+        let last = chronomap_bt::NodeLocation {
+            tree: "Wide".to_owned(),
+            path: vec![99_999],
+        };
+        let (line, _) = read.position(&last).unwrap();
+        assert_eq!(line, if one_line { 1 } else { 100_001 });
+    }
+    let mut text =
+        String::from("<root BTCPP_format=\"4\"><BehaviorTree ID=\"A\"><Action ID=\"Big\"");
+    for i in 0..5_000 {
+        let _ = std::fmt::Write::write_fmt(&mut text, format_args!(" p{i}=\"{i}\""));
+    }
+    text.push_str("/></BehaviorTree></root>");
+    let read = parse_bt_xml("big.xml", &text, &Registry::new()).unwrap();
+    assert_eq!(read.document.trees[0].root.ports.len(), 5_000);
+    assert_eq!(read.document.node_models[0].ports.len(), 5_000);
 }
