@@ -154,15 +154,13 @@ pub enum DefinitionErrorKind {
     },
     /// A script (a `Script`'s `code`, a `Precondition`'s `if`, a pre- or post-condition
     /// attribute such as `_skipIf`) that does not parse, or an unknown `_` attribute.
-    #[error("attribute {attribute}=\"{code}\" of \"{id}\": {message}")]
+    #[error("attribute {attribute} of \"{id}\": {message}")]
     BadScript {
         /// The ID.
         id: String,
         /// The attribute (`code`, `if`, `_skipIf`, …).
         attribute: String,
-        /// The script as written.
-        code: String,
-        /// What is wrong.
+        /// The script as written (quoted) and what is wrong with it.
         message: String,
     },
     /// A node whose number of children its ID does not allow (`IfThenElse`: 2 or 3).

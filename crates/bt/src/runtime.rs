@@ -24,8 +24,8 @@
 //! Sequences and fallbacks (with or without memory, asynchronous) go past a skipped child;
 //! reactive ones too, resetting it so that it can be skipped again. A control node all of
 //! whose children were skipped in its execution returns skipped, and so do `Parallel` and
-//! `ParallelAll` when every child was skipped in a tick (a `Parallel` with a negative
-//! `success_count` also counts skipped children towards it). Decorators pass a skipped child
+//! `ParallelAll` when every child was skipped in a tick (but a `Parallel` with a negative
+//! `success_count` counts skipped children as successes, so it succeeds then). Decorators pass a skipped child
 //! through (`RetryUntilSuccessful` and `Repeat` reset it and keep their counters;
 //! `KeepRunningUntilFailure` returns running). A skipped node is not active: its next tick
 //! starts afresh.
@@ -2077,8 +2077,7 @@ fn bad_script(
         DefinitionErrorKind::BadScript {
             id: def.id.clone(),
             attribute: attribute.to_owned(),
-            code: code.to_owned(),
-            message,
+            message: format!("{code:?}: {message}"),
         },
     )
     .with_attribute(attribute)

@@ -1,0 +1,222 @@
+//! Bounds: deep trees are refused before anything recurses, the deepest allowed tree ticks and
+//! halts without overflowing the stack, wide trees instantiate in linear time, out-of-range
+//! ports and bad scripts are definition errors naming the node and the attribute.
+
+use std::time::{Duration, Instant};
+
+use chronomap_bt::{
+    BtDocument, DefinitionErrorKind, MAX_DEPTH, NodeDef, Registry, Status, Tree, TreeDef,
+};
+
+fn doc(root: NodeDef) -> BtDocument {
+    BtDocument::single(TreeDef::new("Main", root))
+}
+
+/// `levels` nodes: a chain of inverters around `AlwaysSuccess`.
+fn inverter_chain(levels: usize) -> NodeDef {
+    let mut node = NodeDef::action("AlwaysSuccess");
+    for _ in 1..levels {
+        node = NodeDef::decorator("Inverter").child(node);
+    }
+    node
+}
+
+#[test]
+fn a_chain_of_10000_inverters_is_refused_not_a_stack_overflow() {
+    let e = Tree::new(&doc(inverter_chain(10_000)), &Registry::new()).unwrap_err();
+    assert_eq!(*e.kind(), DefinitionErrorKind::TooDeep { max: MAX_DEPTH });
+    let text = e.to_string();
+    assert!(
+        text.contains("tree nesting deeper than 1000 levels"),
+        "{text}"
+    );
+    assert_eq!(e.location().unwrap().path.len(), MAX_DEPTH);
+    // The description is dropped iteratively enough for this depth (NodeDef's own Drop).
+}
+
+#[test]
+fn the_deepest_allowed_tree_ticks_and_halts() {
+    // MAX_DEPTH levels: 999 inverters (an odd number: failure) around AlwaysSuccess.
+    let mut tree = Tree::new(&doc(inverter_chain(MAX_DEPTH)), &Registry::new()).unwrap();
+    assert_eq!(tree.tick_once(Duration::ZERO).unwrap(), Status::Failure);
+    tree.halt(Duration::ZERO);
+    assert!(Tree::new(&doc(inverter_chain(MAX_DEPTH + 1)), &Registry::new()).is_err());
+}
+
+#[test]
+fn subtrees_count_towards_the_depth() {
+    // Each tree is shallow, but nesting them through SubTree nodes exceeds the limit.
+    let mut trees = Vec::new();
+    let per_tree = 100;
+    let count = MAX_DEPTH / per_tree + 1;
+    for k in 0..count {
+        let mut node = if k + 1 == count {
+            NodeDef::action("AlwaysSuccess")
+        } else {
+            NodeDef::subtree(&format!("T{}", k + 1))
+        };
+        for _ in 1..per_tree {
+            node = NodeDef::decorator("ForceSuccess").child(node);
+        }
+        trees.push(TreeDef::new(&format!("T{k}"), node));
+    }
+    let doc = BtDocument {
+        main_tree: Some("T0".into()),
+        trees,
+        node_models: Vec::new(),
+    };
+    let e = Tree::new(&doc, &Registry::new()).unwrap_err();
+    assert_eq!(*e.kind(), DefinitionErrorKind::TooDeep { max: MAX_DEPTH });
+}
+
+#[test]
+fn wide_trees_instantiate_and_tick_in_linear_time() {
+    // uids are 16-bit (Groot2), so 65 000 siblings is about the widest tree there is.
+    let n = 65_000;
+    let mut root = NodeDef::control("Sequence");
+    root.children = (0..n).map(|_| NodeDef::action("AlwaysSuccess")).collect();
+    let doc = doc(root);
+    let start = Instant::now();
+    let mut tree = Tree::new(&doc, &Registry::new()).unwrap();
+    assert_eq!(tree.tick_once(Duration::ZERO).unwrap(), Status::Success);
+    let elapsed = start.elapsed();
+    // Generous: a quadratic scan of siblings would take minutes; linear takes milliseconds
+    // in release and well under a second in a debug build.
+    assert!(elapsed < Duration::from_secs(20), "{elapsed:?}");
+
+    let mut root = NodeDef::control("Sequence");
+    root.children = (0..100_000)
+        .map(|_| NodeDef::action("AlwaysSuccess"))
+        .collect();
+    let e = Tree::new(
+        &BtDocument::single(TreeDef::new("Main", root)),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert_eq!(*e.kind(), DefinitionErrorKind::TooManyNodes);
+}
+
+#[track_caller]
+fn refused(root: NodeDef, attribute: &str) -> String {
+    let e = Tree::new(&doc(root), &Registry::new()).unwrap_err();
+    assert_eq!(e.attribute(), Some(attribute), "{e}");
+    e.to_string()
+}
+
+#[test]
+fn out_of_range_ports_are_refused_with_the_port_named() {
+    let child = || NodeDef::action("AlwaysSuccess");
+    let text = refused(
+        NodeDef::decorator("RetryUntilSuccessful")
+            .port("num_attempts", "-5")
+            .child(child()),
+        "num_attempts",
+    );
+    assert!(text.contains("num_attempts"), "{text}");
+    refused(
+        NodeDef::decorator("Repeat")
+            .port("num_cycles", "-3")
+            .child(child()),
+        "num_cycles",
+    );
+    refused(
+        NodeDef::decorator("Timeout")
+            .port("msec", "-1")
+            .child(child()),
+        "msec",
+    );
+    refused(
+        NodeDef::decorator("Delay")
+            .port("delay_msec", "-10")
+            .child(child()),
+        "delay_msec",
+    );
+    refused(NodeDef::action("Sleep").port("msec", "-1"), "msec");
+    refused(
+        NodeDef::control("ParallelAll")
+            .port("max_failures", "3")
+            .child(child())
+            .child(child()),
+        "max_failures",
+    );
+    refused(
+        NodeDef::decorator("LoopInt")
+            .port("queue", "1;2")
+            .port("if_empty", "MAYBE")
+            .child(child()),
+        "if_empty",
+    );
+    // -1 is "forever" and stays allowed.
+    assert!(
+        Tree::new(
+            &doc(NodeDef::decorator("Repeat")
+                .port("num_cycles", "-1")
+                .child(child())),
+            &Registry::new()
+        )
+        .is_ok()
+    );
+}
+
+#[test]
+fn wrong_numbers_of_children_are_refused() {
+    let leaf = || NodeDef::action("AlwaysSuccess");
+    for (id, children) in [
+        ("IfThenElse", 1),
+        ("IfThenElse", 4),
+        ("WhileDoElse", 1),
+        ("Switch2", 2),
+        ("TryCatch", 1),
+    ] {
+        let mut node = NodeDef::control(id);
+        node.children = (0..children).map(|_| leaf()).collect();
+        let e = Tree::new(&doc(node), &Registry::new()).unwrap_err();
+        assert!(
+            matches!(e.kind(), DefinitionErrorKind::WrongChildren { .. }),
+            "{id} with {children}: {e}"
+        );
+    }
+}
+
+#[test]
+fn script_syntax_errors_name_the_node_and_the_attribute() {
+    let e = Tree::new(
+        &doc(NodeDef::action("Script")
+            .named("init")
+            .port("code", "A := ")),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert_eq!(e.attribute(), Some("code"));
+    assert!(
+        matches!(e.kind(), DefinitionErrorKind::BadScript { .. }),
+        "{e}"
+    );
+
+    let e = Tree::new(
+        &doc(NodeDef::action("AlwaysSuccess").script("_skipIf", "A ==")),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert_eq!(e.attribute(), Some("_skipIf"));
+    let text = e.to_string();
+    assert!(
+        text.contains("AlwaysSuccess") && text.contains("syntax error"),
+        "{text}"
+    );
+
+    let e = Tree::new(
+        &doc(NodeDef::action("AlwaysSuccess").script("_onStart", "A := 1")),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert_eq!(e.attribute(), Some("_onStart"));
+
+    let deep = format!("{}1{}", "(".repeat(5000), ")".repeat(5000));
+    let e = Tree::new(
+        &doc(NodeDef::condition("ScriptCondition").port("code", &deep)),
+        &Registry::new(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("nested deeper"), "{e}");
+}
