@@ -58,7 +58,7 @@
 //! | `WasEntryUpdated` | success if `entry` was written since the node last looked. |
 //! | `UnsetBlackboard` | removes the entry `key` of the node's scope; success. |
 //! | `SubTree` | ticks the root of its tree in its own blackboard scope; a completed child is reset. |
-//! | custom controls and decorators | their [`ControlNode`](super::ControlNode) implementation; stubs ([`Registry::register_stub`]) of controls are `Sequence`s and of decorators pass their child's status through. |
+//! | custom controls and decorators | their [`ControlNode`] implementation; stubs ([`Registry::register_stub`](super::Registry::register_stub)) of controls are `Sequence`s and of decorators pass their child's status through. |
 //!
 //! [`Tree::tick_once`] is `Tree::tickOnce` (ticks the root again while it is running and a
 //! node asked for a wake-up, so a retry of a failing synchronous action finishes within one
@@ -83,7 +83,7 @@
 //! (idle, or running for a control node that set itself running), the node's status here is
 //! [`Status::Skipped`], which is recorded in transitions (Groot2 code 4) and counts as idle.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::fmt;
 use std::sync::Arc;
 use std::time::Duration;
@@ -95,7 +95,7 @@ use super::blackboard::{Blackboard, FromValue, ScopeId, Value};
 use super::builtin::{BuiltinKind, LoopType, builtin_model};
 use super::error::{DefinitionError, DefinitionErrorKind, PortError, TickError, TickErrorKind};
 use super::model::{
-    BtDocument, NodeCategory, NodeDef, NodeLocation, NodeModel, blackboard_pointer,
+    BtDocument, NodeCategory, NodeDef, NodeLocation, NodeModel, TreeDef, blackboard_pointer,
 };
 use super::registry::{
     ControlContext, ControlNode, Instance, LeafContext, LeafNode, Registry, port_attribute,
@@ -381,7 +381,12 @@ impl Tree {
             scope,
         });
         let mut builder = Builder {
-            doc,
+            trees: doc.trees.iter().map(|t| (t.id.as_str(), t)).collect(),
+            models: doc.node_models.iter().fold(HashMap::new(), |mut map, m| {
+                // The first model of an ID counts, as with `BtDocument::node_model`.
+                map.entry(m.id.as_str()).or_insert(m);
+                map
+            }),
             registry,
             tree,
         };
@@ -1670,9 +1675,11 @@ fn stop_and_otherwise(sequence: bool) -> (Status, Status) {
     }
 }
 
-/// Builds the node arena from a description, iteratively in depth-first pre-order.
+/// Builds the node arena from a description, iteratively in depth-first pre-order. Trees and
+/// models are looked up by ID in maps, so that building is linear in the number of nodes.
 struct Builder<'a> {
-    doc: &'a BtDocument,
+    trees: HashMap<&'a str, &'a TreeDef>,
+    models: HashMap<&'a str, &'a NodeModel>,
     registry: &'a Registry,
     tree: Tree,
 }
@@ -1741,8 +1748,7 @@ impl<'a> Builder<'a> {
         index: usize,
     ) -> Result<Pending<'a>, DefinitionError> {
         let def = pending.def;
-        let doc: &'a BtDocument = self.doc;
-        let subtree = doc.tree(&def.id).ok_or_else(|| {
+        let subtree: &'a TreeDef = self.trees.get(def.id.as_str()).copied().ok_or_else(|| {
             DefinitionError::at(
                 pending.location.clone(),
                 DefinitionErrorKind::UnknownTree { id: def.id.clone() },
@@ -1811,7 +1817,7 @@ impl<'a> Builder<'a> {
         let (kind, model) = if def.category == NodeCategory::SubTree {
             (
                 Kind::Builtin(BuiltinKind::SubTree),
-                self.doc.node_model(&def.id).cloned(),
+                self.models.get(def.id.as_str()).map(|m| (*m).clone()),
             )
         } else if let Some(kind) = BuiltinKind::of(&def.id) {
             (Kind::Builtin(kind), builtin_model(&def.id))
@@ -1819,7 +1825,7 @@ impl<'a> Builder<'a> {
             let model = self
                 .registry
                 .model(&def.id)
-                .or_else(|| self.doc.node_model(&def.id))
+                .or_else(|| self.models.get(def.id.as_str()).copied())
                 .cloned();
             let instance = self.registry.instantiate(&def.id).ok_or_else(|| {
                 DefinitionError::at(
