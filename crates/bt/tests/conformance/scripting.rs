@@ -632,3 +632,28 @@ fn subtree__subtree_plus_autoremap_scripts() {
     let e = run.tree.tick_once(run.now).unwrap_err();
     assert!(e.to_string().contains("variable not found: msg"), "{e}");
 }
+
+#[test]
+fn skipping_logic__skipped_is_recorded_with_code_4() {
+    // Groot2 logs (FileLogger2) store SKIPPED as 4; a skipped node's transition is recorded
+    // and it starts afresh at the next tick.
+    let fx = Fixture::new();
+    let mut run = fx.run(&main_tree(
+        r#"<Sequence><TestA _skipIf="skip"/><TestB/></Sequence>"#,
+    ));
+    run.tree.set_recording(true);
+    run.set("skip", true);
+    assert_eq!(run.tick(), S);
+    let skipped: Vec<_> = run
+        .tree
+        .transitions()
+        .iter()
+        .filter(|t| t.to == K)
+        .collect();
+    assert_eq!(skipped.len(), 1);
+    assert_eq!((skipped[0].uid, skipped[0].to.code()), (2, 4));
+    assert_eq!(run.status_of("TestA"), Status::Idle);
+    run.set("skip", false);
+    assert_eq!(run.tick(), S);
+    assert_eq!(fx.counts(), [1, 2, 0, 0]);
+}
