@@ -4,17 +4,26 @@
 use super::*;
 
 pub(super) const BT_HELP_CHECK: &str = "\
-Example:
+Examples:
   chronomap bt check tests/data/bt/door.xml
+  chronomap bt check tests/data/bt/nav2/follow_point.xml --nodes tests/data/bt/nav2/nav2_tree_nodes.xml
 
-Reads BehaviorTree.CPP 4 XML (<root BTCPP_format=\"4\">): built-in controls and decorators,
-<SubTree>, and leaves declared in <TreeNodesModel> or written as <Action ID=\"...\"/> /
-<Condition ID=\"...\"/>. Prints the tree to execute with the uids that `bt run` and .btlog files
-use (depth first, subtrees expanded). Errors name the file, line, column and attribute.";
+Reads BehaviorTree.CPP 4 XML (<root BTCPP_format=\"4\">): built-in nodes, <SubTree>, scripting
+attributes (_skipIf, _onSuccess, ...), <include path=\"...\"/> (relative to the including file),
+and custom nodes declared in <TreeNodesModel>, in a --nodes file (such as Nav2's
+nav2_tree_nodes.xml) or written as <Action ID=\"...\"/> / <Condition ID=\"...\"/>. Declared
+custom controls and decorators are checked for their children and ports. Prints the tree to
+execute with the uids that `bt run` and .btlog files use (depth first, subtrees expanded).
+Errors name the file, line, column and attribute. With -o, the saved file's <TreeNodesModel>
+declares every custom node the trees use, so that Groot2 shows their ports.";
 
 pub(super) const BT_HELP_RUN: &str = "\
 Example:
   chronomap bt run tests/data/bt/door.xml --script tests/data/bt/door.script --btlog door.btlog
+
+Example with Nav2's nodes, stubs for leaves no script drives:
+  chronomap bt run tests/data/bt/nav2/follow_point.xml --nodes tests/data/bt/nav2/nav2_tree_nodes.xml \\
+    --stub-all SUCCESS --stub FollowPath=RUNNING:2 --ticks 10
 
 The script gives the outcome of leaves (by instance name: the name attribute, or the ID) per
 tick; an outcome holds until changed:
@@ -25,7 +34,16 @@ tick; an outcome holds until changed:
 Ticks run from 1 to the last tick of the script (one root tick each, as BehaviorTree.CPP's
 tickExactlyOnce) and stop when the root succeeds or fails. `@ MS` sets a tick's time in
 milliseconds; other ticks come --tick-ms after the previous one. The trace lists every status
-change of every tick; --btlog writes them as a Groot2 log (times from 0).";
+change of every tick; --btlog writes them as a Groot2 log (times from 0).
+
+Stubs stand in for nodes that are declared but not implemented (--stub ID=BEHAVIOUR, by node
+ID, repeatable): for actions and conditions SUCCESS, FAILURE or RUNNING:n (running n ticks, then
+success; actions only); for custom controls SEQUENCE (ticks its children as a Sequence), for
+decorators PASS (returns its child's status), and NAV2 for Nav2's PipelineSequence,
+RecoveryNode, RoundRobin, RateController and GoalUpdater, which run as Nav2 runs them (the
+default for those IDs when no --stub names them). --stub-all BEHAVIOUR stubs every leaf whose ID
+and instance names the script does not mention. Without --script the run takes --ticks ticks
+(default 100) and stops when the root completes.";
 
 /// `chronomap bt ...`.
 #[derive(Debug, Subcommand)]
@@ -81,6 +99,10 @@ pub struct BtAnalyseArgs {
     /// Draw p_s,T(t) and p_f,T(t) into a PNG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
+    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    #[arg(long = "nodes", value_name = "FILE")]
+    pub nodes: Vec<PathBuf>,
 }
 
 /// `chronomap bt check`.
@@ -98,6 +120,10 @@ pub struct BtCheckArgs {
     /// Print the tree as one JSON object (nodes depth first with uids, as in the table).
     #[arg(long)]
     pub json: bool,
+    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
+    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    #[arg(long = "nodes", value_name = "FILE")]
+    pub nodes: Vec<PathBuf>,
 }
 
 /// `chronomap bt run`.
@@ -107,7 +133,17 @@ pub struct BtRunArgs {
     pub file: PathBuf,
     /// The outcomes of the leaves, tick by tick (see below).
     #[arg(long)]
-    pub script: PathBuf,
+    pub script: Option<PathBuf>,
+    /// Ticks to run without a script (default 100).
+    #[arg(long, conflicts_with = "script", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub ticks: Option<u64>,
+    /// A stand-in for a declared node without implementation: ID=SUCCESS, FAILURE or RUNNING:n
+    /// (leaves), ID=SEQUENCE (controls), ID=PASS (decorators), ID=NAV2 (see below; repeatable).
+    #[arg(long = "stub", value_name = "ID=BEHAVIOUR", value_parser = parse_stub)]
+    pub stubs: Vec<StubSpec>,
+    /// Stub every leaf the script does not mention: SUCCESS, FAILURE or RUNNING:n.
+    #[arg(long, value_name = "BEHAVIOUR", value_parser = parse_leaf_stub)]
+    pub stub_all: Option<StubBehaviour>,
     /// The tree to run (default: main_tree_to_execute, or the only tree).
     #[arg(long)]
     pub tree: Option<String>,
@@ -120,6 +156,95 @@ pub struct BtRunArgs {
     /// Print the run as one JSON object (every tick with its transitions).
     #[arg(long)]
     pub json: bool,
+    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
+    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    #[arg(long = "nodes", value_name = "FILE")]
+    pub nodes: Vec<PathBuf>,
+}
+
+/// What a `--stub` makes of a node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StubBehaviour {
+    /// A leaf that succeeds.
+    Success,
+    /// A leaf that fails.
+    Failure,
+    /// An action that is running for n ticks, then succeeds.
+    Running(u32),
+    /// A control node that ticks its children as a `Sequence`.
+    Sequence,
+    /// A decorator that returns its child's status.
+    Pass,
+    /// Nav2's node of that ID, as chronomap emulates it.
+    Nav2,
+}
+
+impl StubBehaviour {
+    /// Whether this is for actions and conditions.
+    pub fn is_leaf(self) -> bool {
+        matches!(
+            self,
+            StubBehaviour::Success | StubBehaviour::Failure | StubBehaviour::Running(_)
+        )
+    }
+}
+
+/// `--stub ID=BEHAVIOUR`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StubSpec {
+    /// The node ID.
+    pub id: String,
+    /// What it does.
+    pub behaviour: StubBehaviour,
+}
+
+/// `SUCCESS`, `FAILURE`, `RUNNING:n`, `SEQUENCE`, `PASS` or `NAV2` (any case).
+fn parse_stub_behaviour(text: &str) -> Result<StubBehaviour, String> {
+    let upper = text.trim().to_ascii_uppercase();
+    Ok(match upper.as_str() {
+        "SUCCESS" => StubBehaviour::Success,
+        "FAILURE" => StubBehaviour::Failure,
+        "SEQUENCE" => StubBehaviour::Sequence,
+        "PASS" => StubBehaviour::Pass,
+        "NAV2" => StubBehaviour::Nav2,
+        other => match other.strip_prefix("RUNNING:") {
+            Some(n) => StubBehaviour::Running(n.trim().parse().map_err(|_| {
+                format!("{text:?}: RUNNING:n needs a number of ticks n (0 to 4294967295)")
+            })?),
+            None => {
+                return Err(format!(
+                    "{text:?}: expected SUCCESS, FAILURE or RUNNING:n (leaves), SEQUENCE \
+                     (controls), PASS (decorators) or NAV2"
+                ));
+            }
+        },
+    })
+}
+
+/// `--stub ID=BEHAVIOUR`.
+fn parse_stub(text: &str) -> Result<StubSpec, String> {
+    let (id, behaviour) = text
+        .split_once('=')
+        .ok_or_else(|| format!("{text:?}: expected ID=BEHAVIOUR, e.g. FollowPath=RUNNING:3"))?;
+    let id = id.trim();
+    if id.is_empty() {
+        return Err(format!("{text:?}: the node ID before '=' is empty"));
+    }
+    Ok(StubSpec {
+        id: id.to_owned(),
+        behaviour: parse_stub_behaviour(behaviour)?,
+    })
+}
+
+/// `--stub-all`: a leaf behaviour.
+fn parse_leaf_stub(text: &str) -> Result<StubBehaviour, String> {
+    let behaviour = parse_stub_behaviour(text)?;
+    if !behaviour.is_leaf() {
+        return Err(format!(
+            "{text:?}: --stub-all takes SUCCESS, FAILURE or RUNNING:n"
+        ));
+    }
+    Ok(behaviour)
 }
 
 pub(super) const MONITOR_HELP_SIM: &str = "\
@@ -173,6 +298,38 @@ pub struct MonitorSimArgs {
 mod tests {
     use super::*;
     use clap::CommandFactory;
+
+    #[test]
+    fn stub_specs_parse_and_bad_ones_are_usage_errors() {
+        assert_eq!(
+            parse_stub("FollowPath=running:3").unwrap(),
+            StubSpec {
+                id: "FollowPath".to_owned(),
+                behaviour: StubBehaviour::Running(3)
+            }
+        );
+        assert_eq!(
+            parse_stub(" Spin = FAILURE").unwrap().behaviour,
+            StubBehaviour::Failure
+        );
+        assert_eq!(
+            parse_stub("PipelineSequence=nav2").unwrap().behaviour,
+            StubBehaviour::Nav2
+        );
+        for bad in [
+            "FollowPath",
+            "=SUCCESS",
+            "X=RUNNING:",
+            "X=RUNNING:-1",
+            "X=maybe",
+        ] {
+            assert!(parse_stub(bad).is_err(), "{bad}");
+        }
+        assert!(parse_leaf_stub("SEQUENCE").is_err());
+        let err = Cli::try_parse_from(["chronomap", "bt", "run", "t.xml", "--stub", "X=maybe"])
+            .unwrap_err();
+        assert_eq!(err.exit_code(), 2);
+    }
 
     #[test]
     fn the_command_line_is_consistent() {

@@ -1,31 +1,57 @@
 //! `chronomap bt check`, `chronomap bt run` and `chronomap bt analyse`: BehaviorTree.CPP 4 XML
 //! trees ([Stüde 2024] §5.2–5.3) checked and printed, ticked with leaves that follow a script of
-//! outcomes, or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4).
+//! outcomes (or stubs), or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4).
 
+use std::collections::{BTreeMap, BTreeSet, HashSet};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow};
 use chronomap_bt::sbt;
-use chronomap_bt::script::{run_script, scripted_registry};
-use chronomap_bt::{BtDocument, NodeCategory, Registry, Status, Tree};
+use chronomap_bt::script::{Script, ScriptTick, ScriptedOutcomes, run_script, scripted_registry};
+use chronomap_bt::{
+    BtDocument, DefinitionErrorKind, ManifestSource, NodeCategory, NodeDef, NodeModel, Registry,
+    Status, StubPolicy, Tree, TreeDef,
+};
 use chronomap_io::{
-    BtXml, read_bt_script, read_bt_xml, read_leaf_params, write_bt_xml, write_btlog,
+    BtReadOptions, BtXml, read_bt_script, read_bt_xml_with, read_leaf_params, read_node_models,
+    write_bt_xml, write_btlog,
 };
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs};
+use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs, StubBehaviour, StubSpec};
 use crate::outln;
-use crate::output::print_json;
+use crate::output::{print_json, usage};
 
-/// Reads the file with the built-in nodes and the file's own node models, printing warnings.
-fn load(file: &std::path::Path) -> Result<BtDocument> {
-    Ok(load_xml(file)?.document)
-}
+#[path = "bt_nav2.rs"]
+mod nav2;
 
-fn load_xml(file: &std::path::Path) -> Result<BtXml> {
-    let xml = read_bt_xml(file, &Registry::new())?;
+/// Reads the file (and its includes) with the built-in nodes, the files' own node models and
+/// those of the `--nodes` files, printing warnings.
+fn load_xml(file: &Path, nodes: &[PathBuf]) -> Result<BtXml> {
+    let mut models: Vec<NodeModel> = Vec::new();
+    let mut seen = HashSet::new();
+    for path in nodes {
+        let read = read_node_models(path)?;
+        for warning in &read.warnings {
+            eprintln!("warning: {warning}");
+        }
+        for model in read.models {
+            if seen.insert(model.id.clone()) {
+                models.push(model);
+            } else {
+                eprintln!(
+                    "warning: {}: skipped a second model of \"{}\" (an earlier --nodes file has one)",
+                    path.display(),
+                    model.id
+                );
+            }
+        }
+    }
+    let options = BtReadOptions::with_node_models(models);
+    let xml = read_bt_xml_with(file, &Registry::new(), &options)?;
     for warning in &xml.warnings {
         eprintln!("warning: {warning}");
     }
@@ -33,45 +59,267 @@ fn load_xml(file: &std::path::Path) -> Result<BtXml> {
 }
 
 /// The tree to use: `--tree`, or the document's main tree.
-fn instantiate(
-    file: &std::path::Path,
-    doc: &BtDocument,
-    tree: Option<&str>,
-) -> Result<(Tree, chronomap_bt::script::ScriptedOutcomes)> {
-    let name = file.display();
-    let (registry, outcomes) =
-        scripted_registry(doc).with_context(|| format!("{name}: cannot implement the leaves"))?;
-    let main = match tree {
+fn main_tree(file: &Path, doc: &BtDocument, tree: Option<&str>) -> Result<String> {
+    Ok(match tree {
         Some(t) => t.to_owned(),
         None => doc
             .main_tree_id()
-            .with_context(|| format!("{name}: which tree? (use --tree)"))?
+            .with_context(|| format!("{}: which tree? (use --tree)", file.display()))?
             .to_owned(),
+    })
+}
+
+/// How the nodes without implementation are to be run.
+#[derive(Default)]
+struct Stubs<'a> {
+    /// `--stub`s.
+    specs: &'a [StubSpec],
+    /// `--stub-all`.
+    all: Option<StubBehaviour>,
+    /// Instance names the script gives outcomes to.
+    scripted_names: BTreeSet<String>,
+    /// Stub every unimplemented control as a Sequence and decorator as a pass-through
+    /// without asking (for `bt check`, which does not tick).
+    structure_only: bool,
+}
+
+/// A registry implementing every node of `doc`: leaves by the script (or stubs), custom
+/// controls and decorators by stubs or Nav2 emulations; notes on what was stubbed.
+fn implement(
+    doc: &BtDocument,
+    stubs: &Stubs<'_>,
+) -> Result<(Registry, ScriptedOutcomes, Vec<String>)> {
+    // The IDs used, their category, and the instance names of leaves.
+    let mut used: BTreeMap<String, (NodeCategory, BTreeSet<String>)> = BTreeMap::new();
+    for tree in &doc.trees {
+        tree.root.walk(&mut |_, node| {
+            if node.category != NodeCategory::SubTree {
+                used.entry(node.id.clone())
+                    .or_insert_with(|| (node.category, BTreeSet::new()))
+                    .1
+                    .insert(node.instance_name().to_owned());
+            }
+        });
+    }
+    let base = Registry::new();
+    let mut explicit: BTreeMap<&str, StubBehaviour> = BTreeMap::new();
+    for spec in stubs.specs {
+        let Some((category, _)) = used.get(&spec.id) else {
+            return Err(usage(format!(
+                "--stub {}=...: no node of the document has the ID \"{}\"",
+                spec.id, spec.id
+            )));
+        };
+        let implemented = match base.lookup(&spec.id, &[]) {
+            Ok(m) => m.source != ManifestSource::Declared,
+            Err(_) => false,
+        };
+        if implemented {
+            return Err(usage(format!(
+                "--stub {}=...: \"{}\" is implemented by chronomap; stubs are for declared nodes",
+                spec.id, spec.id
+            )));
+        }
+        let fits = match spec.behaviour {
+            StubBehaviour::Success | StubBehaviour::Failure => category.is_leaf(),
+            StubBehaviour::Running(_) => *category == NodeCategory::Action,
+            StubBehaviour::Sequence => *category == NodeCategory::Control,
+            StubBehaviour::Pass => *category == NodeCategory::Decorator,
+            StubBehaviour::Nav2 => nav2::is_emulated(&spec.id, *category),
+        };
+        if !fits {
+            let expected = match category {
+                NodeCategory::Action => "SUCCESS, FAILURE or RUNNING:n",
+                NodeCategory::Condition => "SUCCESS or FAILURE (conditions do not run)",
+                NodeCategory::Control if nav2::is_emulated(&spec.id, *category) => {
+                    "SEQUENCE or NAV2"
+                }
+                NodeCategory::Control => "SEQUENCE",
+                NodeCategory::Decorator if nav2::is_emulated(&spec.id, *category) => "PASS or NAV2",
+                _ => "PASS",
+            };
+            return Err(usage(format!(
+                "--stub {}={:?}: \"{}\" is a {category}; its stub is {expected}",
+                spec.id, spec.behaviour, spec.id
+            )));
+        }
+        explicit.insert(spec.id.as_str(), spec.behaviour);
+    }
+
+    // Leaves: stubbed, or driven by the script.
+    let mut stubbed_leaves: Vec<(String, NodeCategory, StubBehaviour)> = Vec::new();
+    let mut scripted = NodeDef::control("Sequence");
+    for (id, (category, names)) in &used {
+        if !category.is_leaf() || base.contains(id) {
+            continue;
+        }
+        let behaviour = explicit.get(id.as_str()).copied().or_else(|| {
+            let mentioned = stubs.scripted_names.contains(id)
+                || names.iter().any(|n| stubs.scripted_names.contains(n));
+            let running_condition = *category == NodeCategory::Condition
+                && matches!(stubs.all, Some(StubBehaviour::Running(_)));
+            stubs.all.filter(|_| !mentioned && !running_condition)
+        });
+        match behaviour {
+            Some(b) => stubbed_leaves.push((id.clone(), *category, b)),
+            None => scripted = scripted.child(NodeDef::new(*category, id)),
+        }
+    }
+    let leaves = BtDocument {
+        main_tree: None,
+        trees: vec![TreeDef::new("leaves", scripted)],
+        node_models: doc.node_models.clone(),
     };
-    let tree = Tree::with_main(doc, &main, &registry).with_context(|| name.to_string())?;
-    Ok((tree, outcomes))
+    let (mut registry, outcomes) =
+        scripted_registry(&leaves).context("cannot implement the leaves")?;
+    let model_of = |id: &str, category: NodeCategory| {
+        doc.node_model(id)
+            .filter(|m| m.category == category)
+            .cloned()
+            .unwrap_or_else(|| NodeModel::new(category, id))
+    };
+    let mut notes = Vec::new();
+    for (id, category, behaviour) in &stubbed_leaves {
+        let policy = match *behaviour {
+            StubBehaviour::Failure => StubPolicy::Failure,
+            StubBehaviour::Running(n) => StubPolicy::Running(n),
+            _ => StubPolicy::Success,
+        };
+        registry
+            .register_stub(model_of(id, *category), policy)
+            .with_context(|| format!("--stub {id}"))?;
+        notes.push(format!("{id}: {}", describe(*behaviour)));
+    }
+
+    // Custom controls and decorators that are declared but not implemented.
+    for (id, (category, _)) in &used {
+        if category.is_leaf() || registry.contains(id) {
+            continue;
+        }
+        match base.lookup(id, &doc.node_models) {
+            Ok(m) if m.source == ManifestSource::Declared => {}
+            _ => continue, // built in (or unknown: validation says so)
+        }
+        let model = model_of(id, *category);
+        let behaviour = match explicit.get(id.as_str()) {
+            Some(&b) => b,
+            None if nav2::is_emulated(id, *category) => StubBehaviour::Nav2,
+            None if stubs.structure_only => match category {
+                NodeCategory::Control => StubBehaviour::Sequence,
+                _ => StubBehaviour::Pass,
+            },
+            None => {
+                let suggestion = match category {
+                    NodeCategory::Control => "SEQUENCE",
+                    _ => "PASS",
+                };
+                return Err(usage(format!(
+                    "{category} \"{id}\" is declared but chronomap has no implementation of it: \
+                     give --stub {id}={suggestion}"
+                )));
+            }
+        };
+        match behaviour {
+            StubBehaviour::Nav2 => nav2::register(&mut registry, &model)?,
+            _ => registry.register_stub(model, StubPolicy::Success)?,
+        }
+        if !stubs.structure_only {
+            notes.push(format!("{id}: {}", describe(behaviour)));
+        }
+    }
+    Ok((registry, outcomes, notes))
+}
+
+fn describe(behaviour: StubBehaviour) -> String {
+    match behaviour {
+        StubBehaviour::Success => "stub, SUCCESS".to_owned(),
+        StubBehaviour::Failure => "stub, FAILURE".to_owned(),
+        StubBehaviour::Running(n) => format!("stub, RUNNING for {n} ticks, then SUCCESS"),
+        StubBehaviour::Sequence => "stub, ticks its children as a Sequence".to_owned(),
+        StubBehaviour::Pass => "stub, returns its child's status".to_owned(),
+        StubBehaviour::Nav2 => "Nav2's behaviour (chronomap's emulation)".to_owned(),
+    }
+}
+
+/// One node of the tree to execute, depth first with subtrees expanded (uids as in `Tree`).
+struct Flat<'d> {
+    uid: usize,
+    node: &'d NodeDef,
+    depth: usize,
+    children: Vec<usize>,
+}
+
+/// The most nodes `bt check` prints once subtrees are expanded.
+const MAX_PRINTED: usize = 2_000_000;
+
+/// The nodes of tree `id` depth first, subtrees expanded, without recursion.
+fn flatten<'d>(doc: &'d BtDocument, id: &str) -> Result<Vec<Flat<'d>>> {
+    let tree = doc
+        .tree(id)
+        .ok_or_else(|| anyhow!("there is no <BehaviorTree ID=\"{id}\">"))?;
+    let mut out: Vec<Flat<'d>> = Vec::new();
+    let mut stack: Vec<(&NodeDef, usize, Option<usize>)> = vec![(&tree.root, 0, None)];
+    while let Some((node, depth, parent)) = stack.pop() {
+        if out.len() == MAX_PRINTED {
+            anyhow::bail!("tree {id} has more than {MAX_PRINTED} nodes with its subtrees expanded");
+        }
+        let index = out.len();
+        out.push(Flat {
+            uid: index + 1,
+            node,
+            depth,
+            children: Vec::new(),
+        });
+        if let Some(p) = parent {
+            out[p].children.push(index + 1);
+        }
+        if node.category == NodeCategory::SubTree {
+            if let Some(sub) = doc.tree(&node.id) {
+                stack.push((&sub.root, depth + 1, Some(index)));
+            }
+        } else {
+            for child in node.children.iter().rev() {
+                stack.push((child, depth + 1, Some(index)));
+            }
+        }
+    }
+    Ok(out)
 }
 
 pub fn check(args: &BtCheckArgs) -> Result<()> {
-    let doc = load(&args.file)?;
-    let (tree, _) = instantiate(&args.file, &doc, args.tree.as_deref())?;
+    let doc = load_xml(&args.file, &args.nodes)?.document;
+    let main = main_tree(&args.file, &doc, args.tree.as_deref())?;
+    let name = args.file.display();
+    // Instantiating finds what only instantiation checks (children of IfThenElse, Switch…);
+    // custom controls and decorators stand in as stubs for that.
+    let stubs = Stubs {
+        structure_only: true,
+        ..Stubs::default()
+    };
+    let (registry, _, _) = implement(&doc, &stubs).with_context(|| name.to_string())?;
+    if let Err(e) = Tree::with_main(&doc, &main, &registry) {
+        if *e.kind() == DefinitionErrorKind::TooManyNodes {
+            eprintln!(
+                "warning: {name}: tree {main} has more than 65535 nodes: `bt run` and Groot2 \
+                 logs take at most 65535 (uids are 16-bit)"
+            );
+        } else {
+            return Err(anyhow!(e).context(name.to_string()));
+        }
+    }
+    let nodes = flatten(&doc, &main)?;
     let ids: Vec<&str> = doc.trees.iter().map(|t| t.id.as_str()).collect();
-    let leaves = tree
-        .nodes()
-        .iter()
-        .filter(|n| n.category().is_leaf())
-        .count();
+    let leaves = nodes.iter().filter(|n| n.node.category.is_leaf()).count();
     if let Some(path) = &args.output {
         write_bt_xml(path, &doc)?;
     }
     if args.json {
-        let mut nodes = Vec::new();
-        node_json(&tree, 0, 0, &mut nodes);
+        let nodes: Vec<Value> = nodes.iter().map(node_json).collect();
         return print_json(&json!({
             "file": args.file.display().to_string(),
             "format": 4,
             "trees": ids,
-            "tree": tree.subtrees()[0].tree_id,
+            "tree": main,
             "leaves": leaves,
             "nodes": nodes,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
@@ -83,12 +331,14 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
         ids.len(),
         if ids.len() == 1 { "" } else { "s" },
         ids.join(", "),
-        tree.subtrees()[0].tree_id,
-        tree.nodes().len(),
+        main,
+        nodes.len(),
         leaves
     )?;
     outln!(" uid  node")?;
-    print_node(&tree, 0, 0)?;
+    for flat in &nodes {
+        print_node(flat)?;
+    }
     if let Some(path) = &args.output {
         outln!(
             "wrote {} (canonical BehaviorTree.CPP 4 XML)",
@@ -98,56 +348,76 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_node(tree: &Tree, index: usize, depth: usize) -> Result<()> {
-    let node = &tree.nodes()[index];
-    let mut label = match node.category() {
-        NodeCategory::SubTree => format!("SubTree {}", node.id()),
-        _ => node.id().to_owned(),
+fn print_node(flat: &Flat<'_>) -> Result<()> {
+    let node = flat.node;
+    let mut label = match node.category {
+        NodeCategory::SubTree => format!("SubTree {}", node.id),
+        _ => node.id.clone(),
     };
-    if node.name() != node.id() {
-        label.push_str(&format!(" {:?}", node.name()));
+    if node.instance_name() != node.id {
+        label.push_str(&format!(" {:?}", node.instance_name()));
     }
-    if node.category().is_leaf() {
-        label.push_str(&format!(" ({})", node.category()));
+    if node.category.is_leaf() {
+        label.push_str(&format!(" ({})", node.category));
     }
-    for (port, value) in node.attributes() {
+    for (port, value) in node.ports.iter().chain(&node.scripts) {
         label.push_str(&format!(" {port}={value}"));
     }
-    outln!("{:>4}  {}{label}", node.uid(), "  ".repeat(depth))?;
-    for &child in node.children() {
-        print_node(tree, child, depth + 1)?;
-    }
+    outln!("{:>4}  {}{label}", flat.uid, "  ".repeat(flat.depth))?;
     Ok(())
 }
 
-/// The nodes depth first, as `bt check` prints them.
-fn node_json(tree: &Tree, index: usize, depth: usize, out: &mut Vec<Value>) {
-    let node = &tree.nodes()[index];
-    out.push(json!({
-        "uid": node.uid(),
-        "id": node.id(),
-        "name": node.name(),
-        "category": node.category().to_string(),
-        "depth": depth,
+/// A node as `bt check --json` prints it.
+fn node_json(flat: &Flat<'_>) -> Value {
+    let node = flat.node;
+    json!({
+        "uid": flat.uid,
+        "id": node.id,
+        "name": node.instance_name(),
+        "category": node.category.to_string(),
+        "depth": flat.depth,
         "attributes": node
-            .attributes()
+            .ports
             .iter()
+            .chain(&node.scripts)
             .map(|(k, v)| (k.clone(), json!(v)))
             .collect::<serde_json::Map<_, _>>(),
-        "children": node.children().iter().map(|&c| tree.nodes()[c].uid()).collect::<Vec<_>>(),
-    }));
-    for &child in node.children() {
-        node_json(tree, child, depth + 1, out);
-    }
+        "children": flat.children,
+    })
 }
 
 pub fn run(args: &BtRunArgs) -> Result<()> {
-    let doc = load(&args.file)?;
-    let script = read_bt_script(&args.script)?;
-    let (mut tree, outcomes) = instantiate(&args.file, &doc, args.tree.as_deref())?;
+    let doc = load_xml(&args.file, &args.nodes)?.document;
+    let script = match &args.script {
+        Some(path) => read_bt_script(path)?,
+        None => Script {
+            ticks: vec![ScriptTick::new(args.ticks.unwrap_or(100))],
+        },
+    };
+    let stubs = Stubs {
+        specs: &args.stubs,
+        all: args.stub_all,
+        scripted_names: script
+            .ticks
+            .iter()
+            .flat_map(|t| t.outcomes.iter().map(|(name, _)| name.clone()))
+            .collect(),
+        structure_only: false,
+    };
+    let name = args.file.display();
+    let (registry, outcomes, notes) = implement(&doc, &stubs).with_context(|| name.to_string())?;
+    let main = main_tree(&args.file, &doc, args.tree.as_deref())?;
+    let mut tree = Tree::with_main(&doc, &main, &registry).with_context(|| name.to_string())?;
+    for note in &notes {
+        eprintln!("note: {note}");
+    }
     let period = Duration::from_millis(args.tick_ms);
-    let run = run_script(&mut tree, &outcomes, &script, period)
-        .with_context(|| format!("{}", args.script.display()))?;
+    let script_name = args
+        .script
+        .as_ref()
+        .map_or_else(|| "the run".to_owned(), |p| p.display().to_string());
+    let run =
+        run_script(&mut tree, &outcomes, &script, period).with_context(|| script_name.clone())?;
     let transitions: Vec<_> = run
         .ticks
         .iter()
@@ -178,7 +448,8 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
             .collect();
         return print_json(&json!({
             "file": args.file.display().to_string(),
-            "script": args.script.display().to_string(),
+            "script": args.script.as_ref().map(|p| p.display().to_string()),
+            "stubs": notes,
             "tree": tree.subtrees()[0].tree_id,
             "finished": run.finished,
             "status": last.status.to_string(),
@@ -232,7 +503,7 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
             last.time.as_millis()
         )?;
     }
-    if !run.unused.is_empty() {
+    if args.script.is_some() && !run.unused.is_empty() {
         let unused: Vec<String> = run.unused.iter().map(u64::to_string).collect();
         outln!(
             "note: the tree finished before script tick{} {}",
@@ -278,7 +549,7 @@ struct CurvePoint {
 /// averaged rates of eqs. 5.3–5.4 ([`sbt::Chain::means`]).
 pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
     let file = args.file.display().to_string();
-    let xml = load_xml(&args.file)?;
+    let xml = load_xml(&args.file, &args.nodes)?;
     let params = read_leaf_params(&args.params)?;
     let doc = &xml.document;
     let tree_id = match &args.tree {
@@ -288,11 +559,10 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
             .with_context(|| format!("{file}: which tree? (use --tree)"))?
             .to_owned(),
     };
-    let tree =
-        sbt::from_bt(doc, &tree_id, &params).map_err(|e| match xml.position(&e.location) {
-            Some((line, column)) => anyhow!("{file}:{line}:{column}: {}", e.kind),
-            None => anyhow!("{file}: {e}"),
-        })?;
+    let tree = sbt::from_bt(doc, &tree_id, &params).map_err(|e| match xml.locate(&e.location) {
+        Some((at, line, column)) => anyhow!("{at}:{line}:{column}: {}", e.kind),
+        None => anyhow!("{file}: {e}"),
+    })?;
     let chain = tree.chain().with_context(|| file.clone())?;
     let means = chain.means();
     let t_max = match args.t_max {

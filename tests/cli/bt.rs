@@ -418,3 +418,427 @@ fn analyse_refuses_impossible_tables_as_usage_errors() {
         assert!(err.contains(flag), "{err}");
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Trees written by others: BehaviorTree.CPP's repository files, Nav2's navigators
+
+/// Each of BehaviorTree.CPP's XML files (tests/data/bt/btcpp, commit 879522c7) with the
+/// verdict BehaviorTree.CPP 4 gives: `None` loads, `Some(text)` is refused with that text.
+const BTCPP_VERDICTS: [(&str, Option<&str>); 18] = [
+    ("examples/test_files/Check.xml", None),
+    ("examples/test_files/log_test.xml", None),
+    (
+        "examples/test_files/subtree_test.xml",
+        Some(
+            "subtree_test.xml:8:13: <CheckStatus> names a <BehaviorTree> of the document, not a node type: write <SubTree ID=\"CheckStatus\"/>",
+        ),
+    ),
+    ("examples/test_files/subtrees/Talk.xml", None),
+    ("fuzzing/corpus/bt_corpus/corpus1.xml", None),
+    (
+        "fuzzing/corpus/bt_corpus/corpus2.xml",
+        Some("corpus2.xml:5:50: \"Timeout\" has no port \"timeout_ms\""),
+    ),
+    (
+        "fuzzing/corpus/bt_corpus/corpus3.xml",
+        Some("corpus3.xml:4:32: \"SetBlackboard\" has no port \"key\""),
+    ),
+    (
+        "fuzzing/corpus/bt_corpus/corpus4.xml",
+        Some("corpus4.xml:5:17: Decorator \"ForceSuccess\" needs exactly 1 child, found 0"),
+    ),
+    ("tests/trees/child/child/child_child_no_include.xml", None),
+    ("tests/trees/child/child_include_child.xml", None),
+    ("tests/trees/child/child_include_parent.xml", None),
+    ("tests/trees/child/child_include_sibling.xml", None),
+    ("tests/trees/child/child_no_include.xml", None),
+    ("tests/trees/parent_include_child.xml", None),
+    ("tests/trees/parent_include_child_include_child.xml", None),
+    ("tests/trees/parent_include_child_include_parent.xml", None),
+    ("tests/trees/parent_include_child_include_sibling.xml", None),
+    ("tests/trees/parent_no_include.xml", None),
+];
+
+#[test]
+fn btcpp_repository_files_get_the_verdicts_behaviortree_cpp_gives() {
+    let mut found = Vec::new();
+    collect_xml(&common::repo_path("tests/data/bt/btcpp"), &mut found);
+    assert_eq!(found.len(), BTCPP_VERDICTS.len(), "{found:?}");
+    for (file, verdict) in BTCPP_VERDICTS {
+        let path = repo(&format!("tests/data/bt/btcpp/{file}"));
+        // log_test.xml has two trees and no main_tree_to_execute: BT.CPP needs the ID too.
+        let tree: &[&str] = if file.ends_with("log_test.xml") {
+            &["--tree", "Main"]
+        } else {
+            &[]
+        };
+        let out = chronomap(&[&["bt", "check", &path][..], tree].concat());
+        match verdict {
+            None => {
+                let text = stdout(&out);
+                assert!(text.contains("BehaviorTree.CPP 4"), "{file}: {text}");
+            }
+            Some(message) => {
+                let err = error(&out);
+                assert!(err.contains(message), "{file}: {err}");
+            }
+        }
+    }
+    // The include chains resolve through child/, child/child/ and ../ and put every tree in.
+    let text = stdout(&chronomap(&[
+        "bt",
+        "check",
+        &repo("tests/data/bt/btcpp/tests/trees/parent_include_child_include_parent.xml"),
+    ]));
+    assert!(
+        text.contains(
+            "3 trees (ParentIncludeChildIncludeParent, ChildIncludeParent, ParentNoInclude)"
+        ),
+        "{text}"
+    );
+    assert!(
+        text.contains("   2    SubTree ChildIncludeParent\n   3      Sequence\n   4        SubTree ParentNoInclude\n"),
+        "{text}"
+    );
+}
+
+fn collect_xml(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            collect_xml(&path, out);
+        } else if path.extension().is_some_and(|e| e == "xml") {
+            out.push(path);
+        }
+    }
+}
+
+const NAV2_NODES: &str = "tests/data/bt/nav2/nav2_tree_nodes.xml";
+const NAV2_TREES: [&str; 3] = [
+    "navigate_to_pose_w_replanning_and_recovery.xml",
+    "navigate_through_poses_w_replanning_and_recovery.xml",
+    "follow_point.xml",
+];
+
+#[test]
+fn nav2_trees_check_with_nav2s_node_models_and_fail_clearly_without() {
+    let nodes = repo(NAV2_NODES);
+    for name in NAV2_TREES {
+        let file = repo(&format!("tests/data/bt/nav2/{name}"));
+        let out = chronomap(&["bt", "check", &file, "--nodes", &nodes]);
+        let text = stdout(&out);
+        assert!(
+            text.contains("BehaviorTree.CPP 4, 1 tree"),
+            "{name}: {text}"
+        );
+        assert!(
+            out.stderr.is_empty(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let err = error(&chronomap(&["bt", "check", &file]));
+        assert!(err.contains(": unknown node ID \""), "{name}: {err}");
+    }
+    let file = repo("tests/data/bt/nav2/navigate_to_pose_w_replanning_and_recovery.xml");
+    let text = stdout(&chronomap(&["bt", "check", &file, "--nodes", &nodes]));
+    assert!(
+        text.contains("   1  RecoveryNode \"NavigateRecovery\" number_of_retries=6\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("   2    PipelineSequence \"NavigateWithReplanning\"\n"),
+        "{text}"
+    );
+    assert!(text.contains("   5      RateController hz=1.0\n"), "{text}");
+
+    // A wrong port of a Nav2 decorator is located.
+    let dir = scratch("bt_nav2_bad");
+    let bad = std::fs::read_to_string(common::repo_path("tests/data/bt/nav2/follow_point.xml"))
+        .unwrap()
+        .replace("hz=\"1.0\"", "rate=\"1.0\"");
+    let bad = write_arg(&dir, "bad.xml", bad);
+    let err = error(&chronomap(&["bt", "check", &bad, "--nodes", &nodes]));
+    assert!(
+        err.contains("bad.xml:11:23: \"RateController\" has no port \"rate\" (its ports: hz)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn saved_files_declare_every_custom_node_used_for_groot2() {
+    let dir = scratch("bt_nav2_saved");
+    let saved = dir.join("saved.xml").display().to_string();
+    let file = repo("tests/data/bt/nav2/navigate_to_pose_w_replanning_and_recovery.xml");
+    stdout(&chronomap(&[
+        "bt",
+        "check",
+        &file,
+        "--nodes",
+        &repo(NAV2_NODES),
+        "-o",
+        &saved,
+    ]));
+    let xml = std::fs::read_to_string(&saved).unwrap();
+    for id in [
+        "RecoveryNode",
+        "PipelineSequence",
+        "ControllerSelector",
+        "PlannerSelector",
+        "RateController",
+        "ComputePathToPose",
+        "WouldAPlannerRecoveryHelp",
+        "ClearEntireCostmap",
+        "FollowPath",
+        "WouldAControllerRecoveryHelp",
+        "GoalUpdated",
+        "RoundRobin",
+        "Spin",
+        "Wait",
+        "BackUp",
+    ] {
+        assert!(xml.contains(&format!(" ID=\"{id}\"")), "{id}: {xml}");
+    }
+    assert!(
+        !xml.contains("ID=\"DriveOnHeading\""),
+        "only the models used"
+    );
+    assert!(xml.contains("<input_port name=\"number_of_retries\" type=\"int\" default=\"1\">"));
+    // The saved file checks without --nodes.
+    stdout(&chronomap(&["bt", "check", &saved]));
+}
+
+/// A Nav2-style tree: replanning under a RateController inside a PipelineSequence, following
+/// under KeepRunningUntilFailure, and a RecoveryNode that clears the costmap once.
+const RECOVERY_TREE: &str = r#"<root BTCPP_format="4" main_tree_to_execute="Nav">
+  <BehaviorTree ID="Nav">
+    <RecoveryNode number_of_retries="1" name="Navigate">
+      <PipelineSequence name="Pipeline">
+        <RateController hz="1.0">
+          <ComputePathToPose goal="{goal}" path="{path}"/>
+        </RateController>
+        <KeepRunningUntilFailure>
+          <FollowPath path="{path}"/>
+        </KeepRunningUntilFailure>
+      </PipelineSequence>
+      <ClearEntireCostmap service_name="local_costmap/clear_entirely_local_costmap"/>
+    </RecoveryNode>
+  </BehaviorTree>
+</root>
+"#;
+
+#[test]
+fn nav2_controls_run_with_the_statuses_nav2_gives() {
+    let dir = scratch("bt_nav2_run");
+    let tree = write_arg(&dir, "nav.xml", RECOVERY_TREE);
+    let script = write_arg(
+        &dir,
+        "nav.script",
+        "tick 1: ComputePathToPose=success, FollowPath=success, ClearEntireCostmap=success\ntick 4: FollowPath=failure\n",
+    );
+    let out = chronomap(&[
+        "bt",
+        "run",
+        &tree,
+        "--nodes",
+        &repo(NAV2_NODES),
+        "--script",
+        &script,
+        "--tick-ms",
+        "400",
+        "--json",
+    ]);
+    let run = common::json(&out);
+    let statuses: Vec<&str> = run["ticks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["status"].as_str().unwrap())
+        .collect();
+    // Ticks 1-3: the pipeline keeps FollowPath running (KeepRunningUntilFailure) while the
+    // RateController holds back replanning (400 ms < 1 s); tick 4 (1200 ms): replanning
+    // succeeds, FollowPath fails, the RecoveryNode clears the costmap and retries once in the
+    // same tick, which fails again: FAILURE.
+    assert_eq!(statuses, ["RUNNING", "RUNNING", "RUNNING", "FAILURE"]);
+    let to = |name: &str, status: &str| {
+        run["ticks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|t| t["transitions"].as_array().unwrap())
+            .filter(|t| t["name"] == name && t["to"] == status)
+            .count()
+    };
+    // The RateController ticks its child (and succeeds) at tick 1, at tick 4, and again in
+    // the retry after the recovery; ComputePathToPose stays SUCCESS from tick 1 on.
+    assert_eq!(
+        to("RateController", "SUCCESS"),
+        3,
+        "ticks 1, 4 and the retry"
+    );
+    assert_eq!(to("ComputePathToPose", "SUCCESS"), 1);
+    assert_eq!(to("ClearEntireCostmap", "SUCCESS"), 1);
+    assert_eq!(to("FollowPath", "FAILURE"), 2);
+    let notes = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        notes.contains("note: PipelineSequence: Nav2's behaviour (chronomap's emulation)"),
+        "{notes}"
+    );
+}
+
+#[test]
+fn stubs_run_trees_whose_leaves_nothing_implements() {
+    let file = repo("tests/data/bt/nav2/follow_point.xml");
+    let nodes = repo(NAV2_NODES);
+    let out = chronomap(&[
+        "bt",
+        "run",
+        &file,
+        "--nodes",
+        &nodes,
+        "--stub-all",
+        "SUCCESS",
+        "--stub",
+        "FollowPath=RUNNING:2",
+        "--ticks",
+        "25",
+        "--json",
+    ]);
+    let run = common::json(&out);
+    assert_eq!(run["status"], "RUNNING");
+    assert_eq!(run["last_tick"], 25);
+    // 1 Hz replanning at 100 ms ticks: the RateController ticks its child and succeeds at 0,
+    // 1000 and 2000 ms, and returns RUNNING in between.
+    let replans = run["ticks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|t| t["transitions"].as_array().unwrap())
+        .filter(|t| t["name"] == "RateController" && t["to"] == "SUCCESS")
+        .count();
+    assert_eq!(replans, 3);
+    let stubs = common::strings(&run["stubs"]);
+    assert!(
+        stubs.contains(&"FollowPath: stub, RUNNING for 2 ticks, then SUCCESS"),
+        "{stubs:?}"
+    );
+
+    // Bad stubs are usage errors (exit 2) that say what fits.
+    let navigate = repo("tests/data/bt/nav2/navigate_to_pose_w_replanning_and_recovery.xml");
+    for (stub, message) in [
+        ("FollowPath", "expected ID=BEHAVIOUR"),
+        (
+            "FollowPath=SOMETIMES",
+            "expected SUCCESS, FAILURE or RUNNING:n",
+        ),
+        (
+            "Nowhere=SUCCESS",
+            "no node of the document has the ID \"Nowhere\"",
+        ),
+        (
+            "RateController=SEQUENCE",
+            "is a Decorator; its stub is PASS or NAV2",
+        ),
+        (
+            "GoalUpdated=RUNNING:1",
+            "SUCCESS or FAILURE (conditions do not run)",
+        ),
+        ("Sequence=SEQUENCE", "is implemented by chronomap"),
+    ] {
+        let err = common::usage_error(&chronomap(&[
+            "bt",
+            "run",
+            &navigate,
+            "--nodes",
+            &nodes,
+            "--stub-all",
+            "SUCCESS",
+            "--stub",
+            stub,
+        ]));
+        assert!(err.contains(message), "{stub}: {err}");
+    }
+    // A declared control that nothing implements needs a stub.
+    let dir = scratch("bt_stub_needed");
+    let tree = write_arg(
+        &dir,
+        "single.xml",
+        "<root BTCPP_format=\"4\">\n  <BehaviorTree ID=\"A\">\n    <SingleTrigger><Wait/></SingleTrigger>\n  </BehaviorTree>\n</root>\n",
+    );
+    let err = common::usage_error(&chronomap(&[
+        "bt",
+        "run",
+        &tree,
+        "--nodes",
+        &nodes,
+        "--stub-all",
+        "SUCCESS",
+    ]));
+    assert!(err.contains("give --stub SingleTrigger=PASS"), "{err}");
+    let text = stdout(&chronomap(&[
+        "bt",
+        "run",
+        &tree,
+        "--nodes",
+        &nodes,
+        "--stub-all",
+        "SUCCESS",
+        "--stub",
+        "SingleTrigger=PASS",
+    ]));
+    assert!(
+        text.ends_with("result: SUCCESS at tick 1 (0 ms)\n"),
+        "{text}"
+    );
+}
+
+#[test]
+fn includes_cycles_deep_and_endless_files_are_refused_with_the_place() {
+    let dir = scratch("bt_include_cycle");
+    let a = write_arg(
+        &dir,
+        "a.xml",
+        "<root BTCPP_format=\"4\" main_tree_to_execute=\"A\">\n  <include path=\"b.xml\"/>\n  <BehaviorTree ID=\"A\"><SubTree ID=\"B\"/></BehaviorTree>\n</root>\n",
+    );
+    write(
+        &dir,
+        "b.xml",
+        "<root BTCPP_format=\"4\">\n  <include path=\"a.xml\"/>\n  <BehaviorTree ID=\"B\"><AlwaysSuccess/></BehaviorTree>\n</root>\n",
+    );
+    let err = error(&chronomap(&["bt", "check", &a]));
+    let b = dir.join("b.xml").display().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "error: {b}:2:12: <include path=\"a.xml\"> makes an include cycle: {a} -> {b} -> {a}\n"
+        )
+    );
+
+    let ros = write_arg(
+        &dir,
+        "ros.xml",
+        "<root BTCPP_format=\"4\">\n  <include ros_pkg=\"my_pkg\" path=\"trees/x.xml\"/>\n</root>\n",
+    );
+    let err = error(&chronomap(&["bt", "check", &ros]));
+    assert!(err.contains("ros.xml:2:12: <include ros_pkg=\"my_pkg\">: ROS packages are not resolved here; give the file's path instead"), "{err}");
+
+    let mut deep = String::from("<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"Deep\">\n");
+    deep.push_str(&"<Inverter>\n".repeat(10_000));
+    deep.push_str("<AlwaysSuccess/>\n");
+    deep.push_str(&"</Inverter>\n".repeat(10_000));
+    deep.push_str("</BehaviorTree>\n</root>\n");
+    let deep = write_arg(&dir, "deep.xml", deep);
+    let err = error(&chronomap(&["bt", "check", &deep]));
+    assert!(
+        err.contains("deep.xml:1003:1: nodes nested deeper than 1000 levels"),
+        "{err}"
+    );
+
+    #[cfg(unix)]
+    {
+        let err = error(&chronomap(&["bt", "check", "/dev/zero"]));
+        assert!(
+            err.contains("/dev/zero: the document's files are larger than"),
+            "{err}"
+        );
+    }
+}
