@@ -29,6 +29,11 @@ pub enum BenchCommand {
     /// day, against the dense-generator reference and a per-tree solve in the same run.
     #[command(after_help = BENCH_PSBT_HELP)]
     Psbt(BenchPsbtArgs),
+    /// Reading and checking BehaviorTree.CPP 4 XML (`chronomap bt check`) on generated trees:
+    /// 20,000 and 100,000 siblings, 100 trees 1,000 levels deep, 2,000 nodes of 50 attributes on
+    /// one line, against parsing the same text with roxmltree alone in the same run.
+    #[command(after_help = BENCH_BT_HELP)]
+    Bt(BenchBtArgs),
     /// Bag ingestion (`chronomap ingest`): messages/s and MB/s of reading, decoding and taking out
     /// the records of a rosbag2 MCAP bag, against a bare read of the same file in the same run.
     #[command(after_help = BENCH_INGEST_HELP)]
@@ -54,6 +59,22 @@ pub struct BenchIngestArgs {
     #[arg(long)]
     pub topic: Vec<String>,
     /// Timed runs of each pass (the median is reported).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: u32,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_BT_HELP: &str = "\
+Examples:
+  chronomap bench bt
+  chronomap bench bt --repeats 9 --json";
+
+/// `chronomap bench bt`.
+#[derive(Debug, Args)]
+pub struct BenchBtArgs {
+    /// Timed runs of each case (the median is reported).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeats: u32,
     /// Print one JSON object.

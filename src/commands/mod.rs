@@ -9,6 +9,7 @@ mod bench;
 mod bench_activity;
 mod bench_ingest;
 mod bench_plan;
+mod bench_bt;
 mod bench_psbt;
 #[cfg(feature = "serve")]
 mod bench_serve;
@@ -62,6 +63,7 @@ pub fn run(command: Command) -> Result<()> {
         #[cfg(feature = "serve")]
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
         Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
+        Command::Bench(BenchCommand::Bt(args)) => bench_bt::bt(&args),
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
         Command::Bench(BenchCommand::Ingest(args)) => bench_ingest::ingest(&args),
         Command::Explore(args) => explore::run(&args),

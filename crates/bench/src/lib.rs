@@ -16,6 +16,8 @@
 //! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
 //! * [`activity`]: CoPA-Map's training-data extraction and training ([Stüde 2024] chapter 4)
 //!   against bare scans and bare matrix products.
+//! * [`bt`]: reading and checking BehaviorTree.CPP 4 XML (100,000 siblings, deep nesting, many
+//!   attributes) against parsing the same text with roxmltree alone.
 //! * [`psbt`]: person search tree synthesis ([Stüde 2024] §5.4.3) against the dense reference and
 //!   a per-tree solve.
 //!
@@ -26,6 +28,7 @@
 #![deny(missing_docs)]
 
 pub mod activity;
+pub mod bt;
 mod error;
 pub mod fremen;
 pub mod grid;
