@@ -14,8 +14,8 @@ use chronomap_bt::{
     Status, StubPolicy, Tree, TreeDef,
 };
 use chronomap_io::{
-    BtReadOptions, BtXml, read_bt_script, read_bt_xml_with, read_leaf_params, read_node_models,
-    write_bt_xml, write_btlog,
+    BtReadOptions, BtXml, BtXmlErrorKind, read_bt_script, read_bt_xml_with, read_leaf_params,
+    read_node_models, write_bt_xml, write_btlog,
 };
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde::Serialize;
@@ -51,7 +51,20 @@ fn load_xml(file: &Path, nodes: &[PathBuf]) -> Result<BtXml> {
         }
     }
     let options = BtReadOptions::with_node_models(models);
-    let xml = read_bt_xml_with(file, &Registry::new(), &options)?;
+    let xml = read_bt_xml_with(file, &Registry::new(), &options).map_err(|e| {
+        let unknown = matches!(
+            e.kind(),
+            BtXmlErrorKind::Definition(DefinitionErrorKind::UnknownNode { .. })
+        );
+        if unknown && nodes.is_empty() {
+            anyhow!(
+                "{e}; node models declared in another file (such as Nav2's \
+                 nav2_tree_nodes.xml) count with --nodes FILE"
+            )
+        } else {
+            anyhow!(e)
+        }
+    })?;
     for warning in &xml.warnings {
         eprintln!("warning: {warning}");
     }

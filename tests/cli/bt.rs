@@ -538,6 +538,7 @@ fn nav2_trees_check_with_nav2s_node_models_and_fail_clearly_without() {
         );
         let err = error(&chronomap(&["bt", "check", &file]));
         assert!(err.contains(": unknown node ID \""), "{name}: {err}");
+        assert!(err.contains("count with --nodes FILE"), "{name}: {err}");
     }
     let file = repo("tests/data/bt/nav2/navigate_to_pose_w_replanning_and_recovery.xml");
     let text = stdout(&chronomap(&["bt", "check", &file, "--nodes", &nodes]));
