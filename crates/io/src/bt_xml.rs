@@ -73,8 +73,9 @@
 //! # Limits
 //! Reading takes time and memory in proportion to the size of the files, and
 //! [`BtReadOptions`] bounds that size: at most [`MAX_BYTES`] bytes in all files together,
-//! [`MAX_FILES`] included files, [`MAX_NODES`] XML nodes per file, nodes nested at most
-//! [`MAX_DEPTH`] levels deep; each limit is an error that says which. A document type
+//! [`MAX_FILES`] included files, [`MAX_NODES`] XML nodes per file, [`MAX_ATTRIBUTES`] attributes
+//! per element, nodes nested at most [`MAX_DEPTH`] levels deep; each limit is an error that
+//! says which. A document type
 //! declaration (`<!DOCTYPE …>`, and with it entity definitions that could expand without
 //! bound) and XML namespaces (`<bt:Sequence>`, `xmlns="…"`) have no place in
 //! BehaviorTree.CPP files and are refused.
@@ -125,6 +126,9 @@ pub const MAX_FILES: usize = 256;
 pub const MAX_BYTES: u64 = 64 << 20;
 /// The most XML nodes (elements, text, comments) of one file by default.
 pub const MAX_NODES: u32 = 4_000_000;
+/// The most attributes of one element by default (the XML parser checks them for duplicates
+/// pairwise, so this bounds its time).
+pub const MAX_ATTRIBUTES: usize = 10_000;
 
 /// How to read a document: node models from other files, and the limits of reading.
 #[derive(Clone, Debug)]
@@ -143,6 +147,8 @@ pub struct BtReadOptions {
     pub max_bytes: u64,
     /// The most XML nodes of one file ([`MAX_NODES`]).
     pub max_nodes: u32,
+    /// The most attributes of one element ([`MAX_ATTRIBUTES`]).
+    pub max_attributes: usize,
 }
 
 impl Default for BtReadOptions {
@@ -153,6 +159,7 @@ impl Default for BtReadOptions {
             max_files: MAX_FILES,
             max_bytes: MAX_BYTES,
             max_nodes: MAX_NODES,
+            max_attributes: MAX_ATTRIBUTES,
         }
     }
 }
@@ -341,6 +348,12 @@ pub enum BtXmlErrorKind {
     TooManyNodes {
         /// The limit.
         limit: u32,
+    },
+    /// An element with too many attributes.
+    #[error("an element with more than {limit} attributes (a limit of this reader)")]
+    TooManyAttributes {
+        /// The limit.
+        limit: usize,
     },
     /// Nodes nested too deep.
     #[error("nodes nested deeper than {limit} levels (a limit of this reader)")]
@@ -696,6 +709,18 @@ fn parse_document<'t>(
     text: &'t str,
     options: &BtReadOptions,
 ) -> Result<Document<'t>, BtXmlError> {
+    if let Some(offset) = crowded_element(text, options.max_attributes) {
+        let before = &text[..offset];
+        let line = before.matches('\n').count() + 1;
+        let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+        return Err(BtXmlError::new(
+            Some((line as u32, column as u32)),
+            BtXmlErrorKind::TooManyAttributes {
+                limit: options.max_attributes,
+            },
+        )
+        .in_file(name));
+    }
     let parsing = ParsingOptions {
         allow_dtd: false,
         nodes_limit: options.max_nodes,
@@ -729,6 +754,56 @@ fn parse_document<'t>(
         };
         BtXmlError::new(position, kind).in_file(name)
     })
+}
+
+/// The offset of the first start tag with more than `limit` attributes (counted as `=` outside
+/// quotes), in one pass over the text; comments, CDATA, processing instructions and
+/// declarations are skipped. Not-well-formed text is left to the parser.
+fn crowded_element(text: &str, limit: usize) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let skip_to = |from: usize, end: &str| {
+        text[from..]
+            .find(end)
+            .map_or(bytes.len(), |i| from + i + end.len())
+    };
+    let mut i = 0;
+    while let Some(found) = text[i..].find('<') {
+        let start = i + found;
+        let rest = &text[start..];
+        if rest.starts_with("<!--") {
+            i = skip_to(start + 4, "-->");
+        } else if rest.starts_with("<![CDATA[") {
+            i = skip_to(start + 9, "]]>");
+        } else if rest.starts_with("<?") {
+            i = skip_to(start + 2, "?>");
+        } else if rest.starts_with("<!") || rest.starts_with("</") {
+            i = skip_to(start + 2, ">");
+        } else {
+            let mut count = 0;
+            let mut quote = None;
+            let mut j = start + 1;
+            while j < bytes.len() {
+                let c = bytes[j];
+                match quote {
+                    Some(q) if c == q => quote = None,
+                    Some(_) => {}
+                    None if c == b'"' || c == b'\'' => quote = Some(c),
+                    None if c == b'=' => count += 1,
+                    None if c == b'>' || c == b'<' => break,
+                    None => {}
+                }
+                j += 1;
+            }
+            if count > limit {
+                return Some(start);
+            }
+            i = j;
+        }
+        if i >= bytes.len() {
+            break;
+        }
+    }
+    None
 }
 
 fn read_text(

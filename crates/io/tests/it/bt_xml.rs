@@ -1155,4 +1155,48 @@ fn wide_trees_and_many_attributes_read_in_linear_time() {
     let read = parse_bt_xml("big.xml", &text, &Registry::new()).unwrap();
     assert_eq!(read.document.trees[0].root.ports.len(), 5_000);
     assert_eq!(read.document.node_models[0].ports.len(), 5_000);
+    // The parser checks attributes pairwise for duplicates: beyond 10,000 on one element the
+    // file is refused before it is parsed.
+    let mut text = String::from(
+        "<root BTCPP_format=\"4\">\n<!-- a=1 b=2 -->\n<BehaviorTree ID=\"A\">\n  <Action ID=\"Big\"",
+    );
+    for i in 0..200_000 {
+        let _ = std::fmt::Write::write_fmt(&mut text, format_args!(" p{i}=\"a=b\""));
+    }
+    text.push_str("/></BehaviorTree></root>");
+    let e = parse_bt_xml("crowded.xml", &text, &Registry::new()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "crowded.xml:4:3: an element with more than 10000 attributes (a limit of this reader)"
+    );
+}
+
+#[test]
+fn script_nodes_and_conditions_read_in_compact_form_and_run() {
+    let text = wrap(
+        r#"    <Sequence>
+      <Script code="count := 0"/>
+      <ScriptCondition code="count == 0"/>
+      <AlwaysSuccess _skipIf="count &gt; 3" _onSuccess="count += 1"/>
+      <AlwaysFailure _skipIf="count == 1"/>
+    </Sequence>"#,
+    );
+    let doc = parse_bt_xml("t.xml", &text, &Registry::new())
+        .unwrap()
+        .document;
+    let children = &doc.trees[0].root.children;
+    assert_eq!(
+        (children[0].category, children[1].category),
+        (NodeCategory::Action, NodeCategory::Condition)
+    );
+    let mut tree = Tree::new(&doc, &Registry::new()).unwrap();
+    // The failure is skipped because _onSuccess counted the success.
+    assert_eq!(
+        tree.tick_once(std::time::Duration::ZERO).unwrap(),
+        chronomap_bt::Status::Success
+    );
+    assert_eq!(
+        tree.blackboard().get("count").map(ToString::to_string),
+        Some("1".to_owned())
+    );
 }
