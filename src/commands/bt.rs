@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow};
+use chronomap_bt::nav2;
 use chronomap_bt::sbt;
 use chronomap_bt::script::{Script, ScriptTick, ScriptedOutcomes, run_script, scripted_registry};
 use chronomap_bt::{
@@ -24,9 +25,6 @@ use serde_json::{Value, json};
 use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs, StubBehaviour, StubSpec};
 use crate::outln;
 use crate::output::{print_json, usage};
-
-#[path = "bt_nav2.rs"]
-mod nav2;
 
 /// Reads the file (and its includes) with the built-in nodes, the files' own node models and
 /// those of the `--nodes` files, printing warnings.

@@ -92,6 +92,7 @@ macro_rules! display_by_name {
 }
 
 pub mod monitor;
+pub mod nav2;
 pub mod sbt;
 
 pub mod blackboard;

@@ -1,11 +1,31 @@
-//! Nav2's custom control nodes and decorators as `chronomap bt run` emulates them, so that
-//! Nav2 navigator trees run with the statuses Nav2 gives: [`PipelineSequence`],
-//! [`RecoveryNode`], [`RoundRobin`], [`RateController`] and [`GoalUpdater`], written after
-//! Nav2's `nav2_behavior_tree` plugins (ros-navigation/navigation2, Apache-2.0; the behaviour,
-//! not the code). Each implements [`ControlNode`]; [`register`] adds the ones a document
-//! declares and uses.
+//! Nav2's custom control nodes and decorators, so that Nav2 navigator trees run with the
+//! statuses Nav2 gives: `PipelineSequence`, `RecoveryNode`, `RoundRobin`, `RateController` and
+//! `GoalUpdater`, written after the documented behaviour of Nav2's `nav2_behavior_tree`
+//! plugins (ros-navigation/navigation2, Apache-2.0; the behaviour, not the code). Each
+//! implements [`ControlNode`]; [`register`] adds one to a [`Registry`] under the model a
+//! document declares (Nav2's `nav2_tree_nodes.xml`), as `chronomap bt run` does for the IDs a
+//! tree uses.
+//!
+//! ```
+//! use std::time::Duration;
+//! use chronomap_bt::{BtDocument, NodeCategory, NodeDef, NodeModel, Registry, Status};
+//! use chronomap_bt::{Tree, TreeDef};
+//!
+//! let mut registry = Registry::new();
+//! let pipeline = NodeModel::new(NodeCategory::Control, "PipelineSequence");
+//! chronomap_bt::nav2::register(&mut registry, &pipeline)?;
+//! registry.register_action_fn("ComputePath", |_| Ok(Status::Success))?;
+//! registry.register_action_fn("FollowPath", |_| Ok(Status::Running))?;
+//! let root = NodeDef::control("PipelineSequence")
+//!     .child(NodeDef::action("ComputePath"))
+//!     .child(NodeDef::action("FollowPath"));
+//! let mut tree = Tree::new(&BtDocument::single(TreeDef::new("Main", root)), &registry)?;
+//! // The path is recomputed on every tick while the robot follows it.
+//! assert_eq!(tree.tick_exactly_once(Duration::ZERO)?, Status::Running);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
-use chronomap_bt::{
+use super::{
     ControlContext, ControlNode, NodeCategory, NodeModel, Registry, RegistryError, Status,
     TickError, Value,
 };
@@ -266,5 +286,154 @@ impl ControlNode for GoalUpdater {
             let _ = ctx.set_output("output_goal", goal);
         }
         ctx.tick_child(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::time::Duration;
+
+    use super::*;
+    use crate::{BtDocument, NodeDef, Tree, TreeDef};
+
+    /// A leaf whose outcome on tick `k` (the tick's time in ms) is `outcomes[k]` (the last one
+    /// after that), counting its ticks.
+    fn leaf(registry: &mut Registry, id: &str, outcomes: &'static [Status]) -> Arc<AtomicUsize> {
+        let ticks = Arc::new(AtomicUsize::new(0));
+        let counter = ticks.clone();
+        registry
+            .register_action_fn(id, move |ctx| {
+                counter.fetch_add(1, Ordering::SeqCst);
+                let k = ctx.now().as_millis() as usize;
+                Ok(outcomes[k.min(outcomes.len() - 1)])
+            })
+            .unwrap();
+        ticks
+    }
+
+    fn control(registry: &mut Registry, id: &str, category: NodeCategory) {
+        let model = NodeModel::new(category, id);
+        let model = match id {
+            "RecoveryNode" => model.port(
+                crate::PortSpec::input("number_of_retries")
+                    .typed("int")
+                    .with_default("1"),
+            ),
+            _ => model,
+        };
+        assert!(is_emulated(id, category));
+        register(registry, &model).unwrap();
+    }
+
+    fn tree(root: NodeDef, registry: &Registry) -> Tree {
+        Tree::new(&BtDocument::single(TreeDef::new("Main", root)), registry).unwrap()
+    }
+
+    fn tick(tree: &mut Tree, k: u64) -> Status {
+        tree.tick_exactly_once(Duration::from_millis(k)).unwrap()
+    }
+
+    #[test]
+    fn pipeline_sequence_reticks_earlier_children_and_lets_them_run_behind_the_furthest() {
+        use Status::{Running, Success};
+        let mut registry = Registry::new();
+        control(&mut registry, "PipelineSequence", NodeCategory::Control);
+        // A: running, success, running, ...; B: running on its first two ticks, then success.
+        let a = leaf(&mut registry, "A", &[Running, Success, Running]);
+        let b = leaf(&mut registry, "B", &[Running, Running, Running, Success]);
+        let root = NodeDef::control("PipelineSequence")
+            .child(NodeDef::action("A"))
+            .child(NodeDef::action("B"));
+        let mut t = tree(root, &registry);
+        // Tick 0: A runs, B is not reached.
+        assert_eq!(tick(&mut t, 0), Running);
+        assert_eq!((a.load(Ordering::SeqCst), b.load(Ordering::SeqCst)), (1, 0));
+        // Tick 1: A succeeds, B runs (the furthest child).
+        assert_eq!(tick(&mut t, 1), Running);
+        // Tick 2: A runs again, behind B, so B is ticked too and still runs.
+        assert_eq!(tick(&mut t, 2), Running);
+        assert_eq!((a.load(Ordering::SeqCst), b.load(Ordering::SeqCst)), (3, 2));
+        // Tick 3: A running, B succeeds: the last child's success ends the pipeline.
+        assert_eq!(tick(&mut t, 3), Success);
+    }
+
+    #[test]
+    fn pipeline_sequence_fails_on_any_failure() {
+        use Status::{Failure, Running, Success};
+        let mut registry = Registry::new();
+        control(&mut registry, "PipelineSequence", NodeCategory::Control);
+        leaf(&mut registry, "A", &[Success, Failure]);
+        let b = leaf(&mut registry, "B", &[Running]);
+        let root = NodeDef::control("PipelineSequence")
+            .child(NodeDef::action("A"))
+            .child(NodeDef::action("B"));
+        let mut t = tree(root, &registry);
+        assert_eq!(tick(&mut t, 0), Running);
+        assert_eq!(tick(&mut t, 1), Failure);
+        // B was running and is halted, not ticked again.
+        assert_eq!(b.load(Ordering::SeqCst), 1);
+    }
+
+    #[test]
+    fn recovery_node_runs_the_recovery_and_retries_within_the_tick() {
+        use Status::{Failure, Success};
+        let mut registry = Registry::new();
+        control(&mut registry, "RecoveryNode", NodeCategory::Control);
+        let main = leaf(&mut registry, "Navigate", &[Failure]);
+        let recovery = leaf(&mut registry, "Clear", &[Success]);
+        let root = NodeDef::control("RecoveryNode")
+            .port("number_of_retries", "2")
+            .child(NodeDef::action("Navigate"))
+            .child(NodeDef::action("Clear"));
+        let mut t = tree(root, &registry);
+        // Fail, recover, fail, recover, fail: two retries used, then failure, in one tick.
+        assert_eq!(tick(&mut t, 0), Failure);
+        assert_eq!(main.load(Ordering::SeqCst), 3);
+        assert_eq!(recovery.load(Ordering::SeqCst), 2);
+    }
+
+    #[test]
+    fn recovery_node_succeeds_when_the_retry_succeeds_and_fails_when_the_recovery_fails() {
+        use Status::{Failure, Success};
+        let mut registry = Registry::new();
+        control(&mut registry, "RecoveryNode", NodeCategory::Control);
+        leaf(&mut registry, "Navigate", &[Failure, Success]);
+        leaf(&mut registry, "Clear", &[Success]);
+        leaf(&mut registry, "Broken", &[Failure]);
+        let ok = NodeDef::control("RecoveryNode")
+            .child(NodeDef::action("Navigate"))
+            .child(NodeDef::action("Clear"));
+        let mut t = tree(ok, &registry);
+        // Tick 0: Navigate fails, Clear succeeds, Navigate (still tick 0) fails again: with
+        // one retry (the default) that is failure.
+        assert_eq!(tick(&mut t, 0), Failure);
+        // Tick 1: Navigate succeeds at once.
+        assert_eq!(tick(&mut t, 1), Success);
+        let broken = NodeDef::control("RecoveryNode")
+            .child(NodeDef::action("Navigate"))
+            .child(NodeDef::action("Broken"));
+        let mut t = tree(broken, &registry);
+        assert_eq!(tick(&mut t, 0), Failure);
+    }
+
+    #[test]
+    fn round_robin_moves_on_after_each_completion_and_fails_when_all_failed() {
+        use Status::{Failure, Success};
+        let mut registry = Registry::new();
+        control(&mut registry, "RoundRobin", NodeCategory::Control);
+        let a = leaf(&mut registry, "A", &[Failure]);
+        let b = leaf(&mut registry, "B", &[Success, Failure]);
+        let root = NodeDef::control("RoundRobin")
+            .child(NodeDef::action("A"))
+            .child(NodeDef::action("B"));
+        let mut t = tree(root, &registry);
+        // Tick 0: A fails, B succeeds: success, and the next tick starts after B, at A.
+        assert_eq!(tick(&mut t, 0), Success);
+        assert_eq!((a.load(Ordering::SeqCst), b.load(Ordering::SeqCst)), (1, 1));
+        // Tick 1: A fails, B fails: every child failed in turn.
+        assert_eq!(tick(&mut t, 1), Failure);
+        assert_eq!((a.load(Ordering::SeqCst), b.load(Ordering::SeqCst)), (2, 2));
     }
 }
