@@ -7,9 +7,9 @@ mod activity_model;
 mod activity_truth;
 mod bench;
 mod bench_activity;
+mod bench_bt;
 mod bench_ingest;
 mod bench_plan;
-mod bench_bt;
 mod bench_psbt;
 #[cfg(feature = "serve")]
 mod bench_serve;
