@@ -99,8 +99,8 @@ pub struct BtAnalyseArgs {
     /// Draw p_s,T(t) and p_f,T(t) into a PNG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
-    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    /// Node models of custom nodes from another file: a root element with a TreeNodesModel,
+    /// such as Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
     #[arg(long = "nodes", value_name = "FILE")]
     pub nodes: Vec<PathBuf>,
 }
@@ -120,8 +120,8 @@ pub struct BtCheckArgs {
     /// Print the tree as one JSON object (nodes depth first with uids, as in the table).
     #[arg(long)]
     pub json: bool,
-    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
-    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    /// Node models of custom nodes from another file: a root element with a TreeNodesModel,
+    /// such as Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
     #[arg(long = "nodes", value_name = "FILE")]
     pub nodes: Vec<PathBuf>,
 }
@@ -156,8 +156,8 @@ pub struct BtRunArgs {
     /// Print the run as one JSON object (every tick with its transitions).
     #[arg(long)]
     pub json: bool,
-    /// Node models of custom nodes from another file: a <root> with a <TreeNodesModel>, such as
-    /// Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
+    /// Node models of custom nodes from another file: a root element with a TreeNodesModel,
+    /// such as Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
     #[arg(long = "nodes", value_name = "FILE")]
     pub nodes: Vec<PathBuf>,
 }
