@@ -1026,6 +1026,17 @@ impl Tree {
     }
 
     /// `ParallelNode::tick`.
+    /// Gives a `Parallel`/`ParallelAll` node one "completed" flag per child, unless it has
+    /// them already (BehaviorTree.CPP's `completed_list_` is kept across ticks until reset).
+    fn start_parallel(&mut self, i: usize, n: usize) {
+        if self.nodes[i].parallel.completed.len() != n {
+            self.nodes[i].parallel = ParallelState {
+                completed: vec![false; n],
+                ..ParallelState::default()
+            };
+        }
+    }
+
     fn tick_parallel(&mut self, i: usize) -> Result<Status, TickError> {
         let success_threshold: i64 = self.port(i, "success_count")?;
         let failure_threshold: i64 = self.port(i, "failure_count")?;
@@ -1049,12 +1060,7 @@ impl Tree {
             }
         }
         self.set_status(i, Status::Running);
-        if self.nodes[i].parallel.completed.len() != n {
-            self.nodes[i].parallel = ParallelState {
-                completed: vec![false; n],
-                ..ParallelState::default()
-            };
-        }
+        self.start_parallel(i, n);
         let mut skipped = 0;
         for k in 0..n {
             if !self.nodes[i].parallel.completed[k] {
@@ -1116,12 +1122,7 @@ impl Tree {
             ));
         }
         self.set_status(i, Status::Running);
-        if self.nodes[i].parallel.completed.len() != n {
-            self.nodes[i].parallel = ParallelState {
-                completed: vec![false; n],
-                ..ParallelState::default()
-            };
-        }
+        self.start_parallel(i, n);
         let mut skipped = 0;
         let mut completed = 0;
         for k in 0..n {
