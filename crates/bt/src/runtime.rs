@@ -1851,45 +1851,17 @@ impl<'a> Builder<'a> {
             };
             (kind, model)
         };
-        // Ports as read: `{=}` is `{port}`, and absent ports take the model's default.
-        let mut ports: Vec<(String, String)> = def
-            .ports
-            .iter()
-            .map(|(name, value)| {
-                let value = if value.trim() == "{=}" {
-                    format!("{{{name}}}")
-                } else {
-                    value.clone()
-                };
-                (name.clone(), value)
-            })
-            .collect();
-        if let Some(model) = &model {
-            for spec in &model.ports {
-                if let Some(default) = &spec.default
-                    && def.port_value(&spec.name).is_none()
-                {
-                    ports.push((spec.name.clone(), default.clone()));
-                }
-            }
-            if !self.tree.models.contains_key(&model.id) {
-                self.tree.models.insert(model.id.clone(), model.clone());
-            }
+        let ports = ports_as_read(def, model.as_ref());
+        if let Some(model) = &model
+            && !self.tree.models.contains_key(&model.id)
+        {
+            self.tree.models.insert(model.id.clone(), model.clone());
         }
-        if let Kind::Builtin(kind) = kind {
-            check_builtin(def, kind, &ports, location)?;
-        }
-        if def.id == "Sleep" && def.category == NodeCategory::Action {
-            check_non_negative(def, &ports, "msec", location)?;
-        }
-        let conditions = compile_conditions(def, location)?;
-        let code = match kind {
-            Kind::Builtin(BuiltinKind::Script | BuiltinKind::ScriptCondition) => {
-                compile_port(def, &ports, "code", location)?
-            }
-            Kind::Builtin(BuiltinKind::Precondition) => compile_port(def, &ports, "if", location)?,
+        let builtin = match kind {
+            Kind::Builtin(kind) => Some(kind),
             _ => None,
         };
+        let (conditions, code) = compile_definition(def, builtin, &ports, location)?;
         let name = def.instance_name().to_owned();
         let path = match &def.name {
             Some(n) => format!("{}{n}", pending.prefix),
@@ -1971,6 +1943,77 @@ fn check_non_negative(
         ));
     }
     Ok(())
+}
+
+/// A node's ports as read: `{=}` is `{port}`, and absent ports take the model's default.
+fn ports_as_read(def: &NodeDef, model: Option<&NodeModel>) -> Vec<(String, String)> {
+    let mut ports: Vec<(String, String)> = def
+        .ports
+        .iter()
+        .map(|(name, value)| {
+            let value = if value.trim() == "{=}" {
+                format!("{{{name}}}")
+            } else {
+                value.clone()
+            };
+            (name.clone(), value)
+        })
+        .collect();
+    if let Some(model) = model {
+        for spec in &model.ports {
+            if let Some(default) = &spec.default
+                && def.port_value(&spec.name).is_none()
+            {
+                ports.push((spec.name.clone(), default.clone()));
+            }
+        }
+    }
+    ports
+}
+
+/// A node's parsed pre- and post-conditions, and its `code` or `if` script.
+type CompiledScripts = (Option<Arc<Conditions>>, Option<Arc<Compiled>>);
+
+/// The checks of one node that need no implementation: a built-in's port ranges and
+/// children, the scripts of its pre- and post-conditions and of a `Script`'s `code` or a
+/// `Precondition`'s `if`; gives the parsed scripts.
+fn compile_definition(
+    def: &NodeDef,
+    builtin: Option<BuiltinKind>,
+    ports: &[(String, String)],
+    location: &NodeLocation,
+) -> Result<CompiledScripts, DefinitionError> {
+    if let Some(kind) = builtin {
+        check_builtin(def, kind, ports, location)?;
+    }
+    if def.id == "Sleep" && def.category == NodeCategory::Action {
+        check_non_negative(def, ports, "msec", location)?;
+    }
+    let conditions = compile_conditions(def, location)?;
+    let code = match builtin {
+        Some(BuiltinKind::Script | BuiltinKind::ScriptCondition) => {
+            compile_port(def, ports, "code", location)?
+        }
+        Some(BuiltinKind::Precondition) => compile_port(def, ports, "if", location)?,
+        _ => None,
+    };
+    Ok((conditions, code))
+}
+
+/// [`compile_definition`] for [`validate`](super::validate): what instantiation would refuse
+/// in a node, found without instantiating it (so `chronomap bt check` reports it too).
+pub(crate) fn check_definition(
+    def: &NodeDef,
+    location: &NodeLocation,
+) -> Result<(), DefinitionError> {
+    let builtin = if def.category == NodeCategory::SubTree {
+        None
+    } else {
+        BuiltinKind::of(&def.id)
+    };
+    let model = builtin.and_then(|_| builtin_model(&def.id));
+    let ports = ports_as_read(def, model.as_ref());
+    compile_definition(def, builtin, &ports, location).map(|_| ())
 }
 
 /// Checks of built-in nodes that BehaviorTree.CPP makes only when ticking (or never): port

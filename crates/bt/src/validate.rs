@@ -7,6 +7,7 @@ use super::model::{
     BtDocument, NodeCategory, NodeDef, NodeLocation, PortDirection, blackboard_pointer,
 };
 use super::registry::{Manifest, ManifestSource, Registry};
+use super::runtime::check_definition;
 
 /// Built-in ports with a range narrower than their type: (node, port, least value, what is
 /// expected). BehaviorTree.CPP: -1 means "without limit" for the loop counts.
@@ -93,18 +94,21 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
         let mut result = Ok(());
         tree.root.walk(&mut |path, node| {
             if result.is_ok() {
-                result = check_node(&known, node).map_err(|failure| {
-                    let (kind, attribute) = *failure;
-                    let location = NodeLocation {
-                        tree: tree.id.clone(),
-                        path: path.to_vec(),
-                    };
-                    let error = DefinitionError::at(location, kind);
-                    match attribute {
-                        Some(a) => error.with_attribute(&a),
-                        None => error,
+                let location = NodeLocation {
+                    tree: tree.id.clone(),
+                    path: path.to_vec(),
+                };
+                result = match check_node(&known, node) {
+                    Ok(()) => check_definition(node, &location),
+                    Err(failure) => {
+                        let (kind, attribute) = *failure;
+                        let error = DefinitionError::at(location, kind);
+                        Err(match attribute {
+                            Some(a) => error.with_attribute(&a),
+                            None => error,
+                        })
                     }
-                });
+                };
             }
         });
         result?;

@@ -220,3 +220,40 @@ fn script_syntax_errors_name_the_node_and_the_attribute() {
     .unwrap_err();
     assert!(e.to_string().contains("nested deeper"), "{e}");
 }
+
+#[test]
+fn validation_alone_finds_what_instantiation_would_refuse() {
+    // `chronomap bt check` validates without instantiating: a script that does not parse, an
+    // unknown `_` attribute, a wrong number of children and an out-of-range built-in port are
+    // found there too, at the node and attribute concerned.
+    let registry = Registry::new();
+    let check = |root: NodeDef| {
+        chronomap_bt::validate(&doc(NodeDef::control("Sequence").child(root)), &registry)
+            .unwrap_err()
+    };
+    let e = check(NodeDef::action("AlwaysSuccess").script("_skipIf", "A :="));
+    assert!(
+        matches!(e.kind(), DefinitionErrorKind::BadScript { attribute, .. } if attribute == "_skipIf"),
+        "{e}"
+    );
+    assert_eq!(e.attribute(), Some("_skipIf"));
+    assert_eq!(e.location().map(|l| l.path.clone()), Some(vec![0]));
+    let e = check(NodeDef::action("Script").port("code", "x := (1 + "));
+    assert_eq!(e.attribute(), Some("code"), "{e}");
+    let e = check(NodeDef::action("AlwaysSuccess").script("_onTick", "x := 1"));
+    assert_eq!(e.attribute(), Some("_onTick"), "{e}");
+    let e = check(NodeDef::control("IfThenElse").child(NodeDef::action("AlwaysSuccess")));
+    assert!(
+        matches!(
+            e.kind(),
+            DefinitionErrorKind::WrongChildren { found: 1, .. }
+        ),
+        "{e}"
+    );
+    let e = check(
+        NodeDef::decorator("Delay")
+            .port("delay_msec", "-5")
+            .child(NodeDef::action("AlwaysSuccess")),
+    );
+    assert_eq!(e.attribute(), Some("delay_msec"), "{e}");
+}
