@@ -1423,16 +1423,26 @@ impl Tree {
             self.halt_child(child);
         }
         if self.nodes[i].child_halted {
-            let node = &mut self.nodes[i];
-            node.timer_started = false;
-            node.deadline = None;
+            self.stop_timer(i);
             return Ok(Status::Failure);
         }
+        self.tick_timed_child(i)
+    }
+
+    /// Forgets the timer of a `Timeout` or `Delay`.
+    fn stop_timer(&mut self, i: usize) {
+        let node = &mut self.nodes[i];
+        node.timer_started = false;
+        node.deadline = None;
+    }
+
+    /// Ticks the child of a `Timeout` or `Delay` once its time has come; a completed child
+    /// ends the timer and is reset.
+    fn tick_timed_child(&mut self, i: usize) -> Result<Status, TickError> {
+        let child = self.nodes[i].children[0];
         let status = self.execute_tick(child)?;
         if status.is_completed() {
-            let node = &mut self.nodes[i];
-            node.timer_started = false;
-            node.deadline = None;
+            self.stop_timer(i);
             self.halt_child(child);
         }
         Ok(status)
@@ -1450,15 +1460,7 @@ impl Tree {
         if self.nodes[i].deadline.is_some_and(|d| self.now < d) {
             return Ok(Status::Running);
         }
-        let child = self.nodes[i].children[0];
-        let status = self.execute_tick(child)?;
-        if status.is_completed() {
-            let node = &mut self.nodes[i];
-            node.timer_started = false;
-            node.deadline = None;
-            self.halt_child(child);
-        }
-        Ok(status)
+        self.tick_timed_child(i)
     }
 
     /// `KeepRunningUntilFailureNode::tick`.
