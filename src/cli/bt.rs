@@ -144,6 +144,10 @@ pub struct BtRunArgs {
     /// Stub every leaf the script does not mention: SUCCESS, FAILURE or RUNNING:n.
     #[arg(long, value_name = "BEHAVIOUR", value_parser = parse_leaf_stub)]
     pub stub_all: Option<StubBehaviour>,
+    /// An enum value for scripts and Switch cases, as BehaviorTree.CPP's
+    /// registerScriptingEnum: NAME=INTEGER, e.g. --enum RED=1 (repeatable).
+    #[arg(long = "enum", value_name = "NAME=VALUE", value_parser = parse_enum)]
+    pub enums: Vec<(String, i64)>,
     /// The tree to run (default: main_tree_to_execute, or the only tree).
     #[arg(long)]
     pub tree: Option<String>,
@@ -234,6 +238,31 @@ fn parse_stub(text: &str) -> Result<StubSpec, String> {
         id: id.to_owned(),
         behaviour: parse_stub_behaviour(behaviour)?,
     })
+}
+
+/// `--enum NAME=VALUE`: a name that scripts can use (letters, digits and `_`, not starting
+/// with a digit) and an integer.
+fn parse_enum(text: &str) -> Result<(String, i64), String> {
+    let (name, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("{text:?}: expected NAME=VALUE, e.g. RED=1"))?;
+    let name = name.trim();
+    let valid = name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !valid {
+        return Err(format!(
+            "{text:?}: {name:?} is not a name scripts can use (letters, digits and _, \
+             not starting with a digit)"
+        ));
+    }
+    let value = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?}: the value must be an integer"))?;
+    Ok((name.to_owned(), value))
 }
 
 /// `--stub-all`: a leaf behaviour.

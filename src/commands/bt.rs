@@ -12,7 +12,7 @@ use chronomap_bt::sbt;
 use chronomap_bt::script::{Script, ScriptTick, ScriptedOutcomes, run_script, scripted_registry};
 use chronomap_bt::{
     BtDocument, DefinitionErrorKind, ManifestSource, NodeCategory, NodeDef, NodeModel, Registry,
-    Status, StubPolicy, Tree, TreeDef,
+    Status, StubPolicy, Tree, TreeDef, is_builtin,
 };
 use chronomap_io::{
     BtReadOptions, BtXml, BtXmlErrorKind, read_bt_script, read_bt_xml_with, read_leaf_params,
@@ -161,7 +161,8 @@ fn implement(
     let mut stubbed_leaves: Vec<(String, NodeCategory, StubBehaviour)> = Vec::new();
     let mut scripted = NodeDef::control("Sequence");
     for (id, (category, names)) in &used {
-        if !category.is_leaf() || base.contains(id) {
+        // Built-in leaves (`Script`, `UnsetBlackboard`, ...) run as they are.
+        if !category.is_leaf() || base.contains(id) || is_builtin(id) {
             continue;
         }
         let behaviour = explicit.get(id.as_str()).copied().or_else(|| {
@@ -416,7 +417,11 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         structure_only: false,
     };
     let name = args.file.display();
-    let (registry, outcomes, notes) = implement(&doc, &stubs).with_context(|| name.to_string())?;
+    let (mut registry, outcomes, notes) =
+        implement(&doc, &stubs).with_context(|| name.to_string())?;
+    for (enum_name, value) in &args.enums {
+        registry.register_enum(enum_name, *value);
+    }
     let main = main_tree(&args.file, &doc, args.tree.as_deref())?;
     let mut tree = Tree::with_main(&doc, &main, &registry).with_context(|| name.to_string())?;
     for note in &notes {

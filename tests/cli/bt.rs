@@ -843,3 +843,47 @@ fn includes_cycles_deep_and_endless_files_are_refused_with_the_place() {
         );
     }
 }
+
+#[test]
+fn script_nodes_run_and_enums_come_from_the_command_line() {
+    // A Script sets an enum value that a Switch2 compares with its cases; BehaviorTree.CPP
+    // registers enums in C++ (registerScriptingEnum), chronomap with --enum NAME=VALUE.
+    let dir = scratch("bt_enums");
+    let tree = write_arg(
+        &dir,
+        "enum.xml",
+        r#"<root BTCPP_format="4">
+  <BehaviorTree ID="Main">
+    <Sequence>
+      <Script code="color := BLUE"/>
+      <Switch2 variable="{color}" case_1="RED" case_2="BLUE">
+        <AlwaysFailure name="red"/>
+        <AlwaysSuccess name="blue"/>
+        <AlwaysFailure name="other"/>
+      </Switch2>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"#,
+    );
+    let text = stdout(&chronomap(&[
+        "bt", "run", &tree, "--ticks", "1", "--enum", "RED=1", "--enum", "BLUE=2",
+    ]));
+    assert!(text.contains("blue"), "{text}");
+    assert!(!text.contains("red "), "{text}");
+    assert!(
+        text.ends_with("result: SUCCESS at tick 1 (0 ms)\n"),
+        "{text}"
+    );
+    // Without the enum the script names the unknown variable.
+    let err = error(&chronomap(&["bt", "run", &tree, "--ticks", "1"]));
+    assert!(
+        err.contains("Script") && err.contains("variable not found: BLUE"),
+        "{err}"
+    );
+    // A name scripts cannot use, or a value that is not an integer: usage errors.
+    for bad in ["1X=2", "RED=one", "RED"] {
+        let err = common::usage_error(&chronomap(&["bt", "run", &tree, "--enum", bad]));
+        assert!(err.contains("--enum"), "{bad}: {err}");
+    }
+}

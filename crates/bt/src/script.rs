@@ -38,6 +38,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use super::Status;
+use super::builtin::is_builtin;
 use super::error::TickError;
 use super::model::{BtDocument, NodeCategory};
 use super::registry::{LeafContext, LeafError, LeafNode, Registry, RegistryError};
@@ -147,7 +148,7 @@ pub fn scripted_registry(doc: &BtDocument) -> Result<(Registry, ScriptedOutcomes
     let mut leaves: BTreeMap<String, NodeCategory> = BTreeMap::new();
     for tree in &doc.trees {
         tree.root.walk(&mut |_, node| {
-            if node.category.is_leaf() && !registry.contains(&node.id) {
+            if node.category.is_leaf() && !registry.contains(&node.id) && !is_builtin(&node.id) {
                 leaves.entry(node.id.clone()).or_insert(node.category);
             }
         });
