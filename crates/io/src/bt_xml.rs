@@ -703,6 +703,18 @@ impl<'t> Source<'t> {
     }
 }
 
+/// The 1-based line and column (in characters) of a byte offset, for a single error before
+/// the document is parsed (a parsed file's positions come from [`Source::pos`]'s line index).
+fn line_column(text: &str, offset: usize) -> Pos {
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+    (
+        u32::try_from(line).unwrap_or(u32::MAX),
+        u32::try_from(column).unwrap_or(u32::MAX),
+    )
+}
+
 /// Parses one file's text.
 fn parse_document<'t>(
     name: &str,
@@ -710,11 +722,8 @@ fn parse_document<'t>(
     options: &BtReadOptions,
 ) -> Result<Document<'t>, BtXmlError> {
     if let Some(offset) = crowded_element(text, options.max_attributes) {
-        let before = &text[..offset];
-        let line = before.matches('\n').count() + 1;
-        let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
         return Err(BtXmlError::new(
-            Some((line as u32, column as u32)),
+            Some(line_column(text, offset)),
             BtXmlErrorKind::TooManyAttributes {
                 limit: options.max_attributes,
             },
@@ -743,12 +752,9 @@ fn parse_document<'t>(
             }
         };
         let position = match kind {
-            BtXmlErrorKind::Dtd => text.find("<!DOCTYPE").map(|offset| {
-                let before = &text[..offset];
-                let line = before.matches('\n').count() + 1;
-                let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
-                (line as u32, column as u32)
-            }),
+            BtXmlErrorKind::Dtd => text
+                .find("<!DOCTYPE")
+                .map(|offset| line_column(text, offset)),
             BtXmlErrorKind::TooManyNodes { .. } => None,
             _ => Some((p.row, p.col)),
         };
