@@ -6,7 +6,7 @@ use std::f64::consts::TAU;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{CellState, FremenGrid, GridError, GridGeometry, NONE};
+use super::{CellState, FremenGrid, GridError, GridGeometry, NONE, Slot};
 use chronomap_core::crossings::threshold_toggles;
 use chronomap_core::fft::{from_gaps, ones_in, to_gaps, xor_edges};
 use chronomap_core::model::{Ordered, saturate};
@@ -75,8 +75,29 @@ pub struct FittedGrid {
 impl FremenGrid {
     /// The compact model of every cell with the given orders ([Krajník 2017] eq. (10) per cell).
     pub fn fitted(&self, orders: OrderChoice) -> FittedGrid {
-        let fits: Vec<(FittedCell, Vec<CompactComponent>)> = self
-            .slots
+        self.fitted_slots(&orders, &self.slots)
+    }
+
+    /// Predicted occupancy probability of one cell at each of `times` with the configured
+    /// order: bit for bit the value [`FremenGrid::predict_map`] gives that cell (NaN if it was
+    /// never observed), without fitting the other cells.
+    ///
+    /// # Panics
+    /// If `cell` is out of range.
+    pub fn predict_cell(&self, cell: usize, times: &[f64]) -> Vec<f32> {
+        let slots = match self.slot_of[cell] {
+            NONE => &[][..],
+            slot => std::slice::from_ref(&self.slots[slot as usize]),
+        };
+        self.fitted_slots(&OrderChoice::Fixed(self.config.fremen.order), slots)
+            .predict_cell(cell, times)
+    }
+
+    /// The compact model of the cells of `slots` (all of the grid's, or some of them): the
+    /// others of the grid's slots are left without a model, so a [`FittedGrid`] of some slots
+    /// predicts those cells exactly as the [`FittedGrid`] of all slots does.
+    fn fitted_slots(&self, orders: &OrderChoice, slots: &[Slot]) -> FittedGrid {
+        let fits: Vec<(FittedCell, Vec<CompactComponent>)> = slots
             .par_iter()
             .filter_map(|slot| {
                 let cell = slot.cell as usize;
@@ -261,20 +282,48 @@ impl FittedGrid {
     /// Occupancy probability of every cell at `time` (NaN for cells never observed).
     pub fn predict(&self, time: f64) -> Vec<f32> {
         let cells = self.geometry.cells();
-        let mut map: Vec<f32> = (0..cells)
-            .map(|c| match self.constant_cell(c) {
-                CellState::Unknown => f32::NAN,
-                CellState::Occupied => 1.0,
-                _ => 0.0,
-            })
-            .collect();
-        let angles: Vec<f64> = (0..self.periods.len())
-            .map(|k| angle(&self.periods, k, time))
-            .collect();
+        let mut map: Vec<f32> = (0..cells).map(|c| self.constant_value(c)).collect();
+        let angles = self.angles(time);
         for cell in &self.cells {
-            map[cell.cell as usize] = saturate(self.value(cell, &angles)) as f32;
+            map[cell.cell as usize] = self.fitted_value(cell, &angles);
         }
         map
+    }
+
+    /// Occupancy probability of one cell at each of `times`: bit for bit the values
+    /// [`FittedGrid::predict`] gives that cell (NaN if it was never observed).
+    ///
+    /// # Panics
+    /// If `cell` is out of range.
+    pub fn predict_cell(&self, cell: usize, times: &[f64]) -> Vec<f32> {
+        match self.cells.iter().find(|c| c.cell as usize == cell) {
+            Some(fitted) => times
+                .iter()
+                .map(|&t| self.fitted_value(fitted, &self.angles(t)))
+                .collect(),
+            None => vec![self.constant_value(cell); times.len()],
+        }
+    }
+
+    /// The phase angle of every period at `time`.
+    fn angles(&self, time: f64) -> Vec<f64> {
+        (0..self.periods.len())
+            .map(|k| angle(&self.periods, k, time))
+            .collect()
+    }
+
+    /// The prediction of a cell without a model of its own.
+    fn constant_value(&self, cell: usize) -> f32 {
+        match self.constant_cell(cell) {
+            CellState::Unknown => f32::NAN,
+            CellState::Occupied => 1.0,
+            _ => 0.0,
+        }
+    }
+
+    /// The prediction of a fitted cell, given the angles of [`FittedGrid::angles`].
+    fn fitted_value(&self, cell: &FittedCell, angles: &[f64]) -> f32 {
+        saturate(self.value(cell, angles)) as f32
     }
 
     /// A `nav_msgs/OccupancyGrid`-style map of the prediction at `time`: −1 for cells never

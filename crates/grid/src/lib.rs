@@ -956,7 +956,7 @@ impl FremenGrid {
 
     /// Predicted occupancy probability of every cell at `time` with the configured order (NaN
     /// for cells never observed). For many predictions, [`FremenGrid::fitted`] once and predict
-    /// from the [`FittedGrid`].
+    /// from the [`FittedGrid`]; for one cell, [`FremenGrid::predict_cell`] gives the same bits.
     pub fn predict_map(&self, time: f64) -> Vec<f32> {
         self.fitted(OrderChoice::Fixed(self.config.fremen.order))
             .predict(time)

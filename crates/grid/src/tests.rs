@@ -196,6 +196,42 @@ fn predicted_maps_equal_the_cell_models() {
 }
 
 #[test]
+fn per_cell_predictions_equal_the_whole_map_bit_for_bit() {
+    // Unknown, constant, changing, fractional and sparsely observed cells.
+    let geometry = GridGeometry::planar(9, 8, 0.05, [0.0, 0.0]).unwrap();
+    let inputs = scenario(geometry.cells(), 200, false, 11);
+    let (grid, _) = build(geometry, of_order(3, false), &inputs);
+    let times = [1_461_000_000.0, 1_461_003_777.5, 0.0, -86_400.0, 1e12];
+    let maps: Vec<Vec<f32>> = times.iter().map(|&t| grid.predict_map(t)).collect();
+    let orders = OrderChoice::PerCell((0..geometry.cells()).map(|c| (c % 4) as u8).collect());
+    let fitted = grid.fitted(orders);
+    let fitted_maps: Vec<Vec<f32>> = times.iter().map(|&t| fitted.predict(t)).collect();
+    let bits = |v: &[f32]| v.iter().map(|p| p.to_bits()).collect::<Vec<_>>();
+    let (mut nan, mut modelled) = (0, 0);
+    for c in 0..geometry.cells() {
+        let whole: Vec<f32> = maps.iter().map(|m| m[c]).collect();
+        assert_eq!(
+            bits(&grid.predict_cell(c, &times)),
+            bits(&whole),
+            "cell {c}"
+        );
+        let whole: Vec<f32> = fitted_maps.iter().map(|m| m[c]).collect();
+        assert_eq!(
+            bits(&fitted.predict_cell(c, &times)),
+            bits(&whole),
+            "cell {c}"
+        );
+        nan += usize::from(whole[0].is_nan());
+        modelled += usize::from(grid.cell_changed(c));
+    }
+    assert!(
+        nan > 0 && modelled > 10,
+        "{nan} unknown, {modelled} changing cells"
+    );
+    assert!(grid.predict_cell(0, &[]).is_empty());
+}
+
+#[test]
 fn grids_built_on_parts_concatenate_to_the_whole() {
     let whole = GridGeometry::planar(141, 1, 1.0, [0.0, 0.0]).unwrap();
     let inputs = scenario(141, 120, true, 3);
