@@ -7,11 +7,13 @@
 //! its product with a task automaton, and the solver of `Pmax` and expected time; [`plan`] —
 //! all of it together: the policy for a task started now, and "now or later?"; [`report`] —
 //! what front ends report of them: fit summaries (Table II), merged test maps, per-edge
-//! scores, routes and the now-or-later table (Table III).
+//! scores, routes and the now-or-later table (Table III); [`layout`] — computed drawings of
+//! maps without node positions (stress majorization, Gansner et al. 2004).
 #![deny(missing_docs)]
 
 pub mod automaton;
 pub mod edges;
+pub mod layout;
 pub mod ltl;
 pub mod map;
 pub mod mdp;
