@@ -112,7 +112,7 @@
 //! double-quoted. Nodes without a pose get the synthetic layout of [`node_poses`] and
 //! `synthetic_pose: true` in their `properties`.
 //!
-//! # Nav2 route-server GeoJSON ([`write_route_geojson`])
+//! # Nav2 route-server GeoJSON ([`write_route_geojson`], [`read_route_geojson`])
 //! A `FeatureCollection` (with the `crs` member `urn:ogc:def:crs:EPSG::3857` that Nav2's
 //! example graphs carry, although coordinates are metres in the map frame) of:
 //! * one `Point` feature per node: properties `id` (the node index, `0..n`), `frame`
@@ -125,6 +125,24 @@
 //!   success_probability, abs_time_taken}` (probability in `[0, 1]`, seconds; Nav2's
 //!   `TimeScorer` reads `abs_time_taken`, `success_probability` is chronomap's own).
 //!
+//! **Reading** ([`decode_route_geojson`]) takes any `FeatureCollection` of this kind, such as
+//! Nav2's sample graphs whose features carry only ids. It uses only: the top-level `type`
+//! (`"FeatureCollection"`) and `features`; per feature `geometry.type` — `Point` is a node,
+//! `LineString` or `MultiLineString` an edge, anything else is an error — and `properties`.
+//! A node needs an integer `properties.id` (unique among nodes) and `geometry.coordinates`
+//! `[x, y]` (finite numbers; a third, `z`, is ignored): its pose is `[x, y, 0.0]`, or none if
+//! `properties.metadata.synthetic_position` is `true` (as written for nodes that had no pose).
+//! Its name is `properties.metadata.name` if that is a string, else the id in decimal (`"0"`,
+//! `"17"`). An edge needs integer `properties.startid` and `properties.endid`, the ids of
+//! nodes (in any order in the file: nodes need not come first); its geometry is not read. Its
+//! id is `properties.metadata.name` if that is a string, else `<from>_<to>` of the node names,
+//! or `<from>_<to>_<properties.id>` if another edge has (or names) that id, as parallel edges
+//! do. Nodes and edges are in file order; everything else (`crs`, `frame`, costs, other
+//! metadata, operations) is ignored, and writing then reading gives the same nodes, poses and
+//! edges. Errors ([`TopoFileError`]) name the file and the JSON path, e.g.
+//! `graph.geojson: features[3].properties.startid: no node with id 17`; a file that is not
+//! JSON, the line too.
+//!
 //! # Not verified
 //! These formats were written from the project's notes (`ecosystem.md` §2), not checked
 //! against the loaders themselves:
@@ -135,8 +153,11 @@
 //! * GeoJSON: the node property is `frame` (as in the notes; not `frameid`); that the route
 //!   server accepts node id 0, ignores the edge geometry, and keeps the extra metadata
 //!   members (`name`, `synthetic_position`, `success_probability`) as edge/node metadata.
+//!   The reader was tested on files this module writes and on a hand-written graph in the
+//!   style of Nav2's sample graphs (ids, `startid`/`endid`, `MultiLineString` edges), not on
+//!   Nav2's own files.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::f64::consts::PI;
 use std::fs;
 use std::io::{self, Read};
@@ -622,8 +643,8 @@ fn split_edge_stem<'a>(stem: &'a str, known: &HashSet<&str>) -> Result<(&'a str,
 // ---------------------------------------------------------------------------------------------
 // Errors of the map files
 
-/// What is wrong with a tmap2 file or with a map to write (the part of a [`TopoFileError`]
-/// after `file:line:`).
+/// What is wrong with a tmap2 or route GeoJSON file or with a map to write (the part of a
+/// [`TopoFileError`] after `file:line:`).
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum TopoFileErrorKind {
@@ -666,6 +687,21 @@ pub enum TopoFileErrorKind {
         /// What is wrong.
         error: TopoError,
     },
+    /// The file is not JSON, or its top level is not a JSON object.
+    #[error("not a Nav2 route GeoJSON file: {message}")]
+    Json {
+        /// What is wrong (with the column, when the parser knows it).
+        message: String,
+    },
+    /// A value contradicts another part of the file: a node id used twice, an edge from or
+    /// to a node id that no node has.
+    #[error("{key}: {reason}")]
+    Inconsistent {
+        /// The JSON path of the value, e.g. `features[3].properties.startid`.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// The map or the data given to a writer cannot be written.
     #[error("cannot write the map: {reason}")]
     InvalidInput {
@@ -675,7 +711,7 @@ pub enum TopoFileErrorKind {
 }
 
 /// Why a topological map file could not be read or written: the file (when there is one), the
-/// 1-based line (for YAML values) and the problem.
+/// 1-based line (for YAML values and JSON syntax errors) and the problem.
 ///
 /// Displays as `file:line: problem`, e.g.
 /// `map.tmap2.yaml:14: nodes[0].node.edges[0].node: unknown node "Kitchn" (did you mean
@@ -716,12 +752,14 @@ impl TopoFileError {
         self.line
     }
 
-    /// The key path concerned (e.g. `nodes[2].node.name`), if any.
+    /// The key path concerned (e.g. `nodes[2].node.name`, `features[3].properties.startid`),
+    /// if any.
     pub fn key(&self) -> Option<&str> {
         match &self.kind {
             TopoFileErrorKind::MissingKey { key }
             | TopoFileErrorKind::InvalidValue { key, .. }
-            | TopoFileErrorKind::Map { key, .. } => Some(key),
+            | TopoFileErrorKind::Map { key, .. }
+            | TopoFileErrorKind::Inconsistent { key, .. } => Some(key),
             _ => None,
         }
     }
@@ -1339,8 +1377,8 @@ fn format_last_updated(unix_secs: u64) -> String {
 // Nav2 route graph
 
 /// Writes `map` as a Nav2 route-server GeoJSON graph (atomically; see the
-/// [module docs](self#nav2-route-server-geojson-write_route_geojson)). `edge_metadata[i]` is
-/// `(success probability, time taken in seconds)` of `map.edges()[i]`.
+/// [module docs](self#nav2-route-server-geojson-write_route_geojson-read_route_geojson)).
+/// `edge_metadata[i]` is `(success probability, time taken in seconds)` of `map.edges()[i]`.
 ///
 /// # Errors
 /// As [`encode_route_geojson`], or [`TopoFileErrorKind::Io`] naming `path`.
@@ -1425,6 +1463,384 @@ pub fn encode_route_geojson(
         .map_err(|e| TopoFileError::invalid_input(format!("cannot encode as JSON: {e}")))?;
     text.push('\n');
     Ok(text)
+}
+
+/// Reads a Nav2 route-server GeoJSON graph (plain, `.xz` or `.gz`; see the
+/// [module docs](self#nav2-route-server-geojson-write_route_geojson-read_route_geojson)).
+/// At most [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES) are read (after decompression), and
+/// only a regular file (or a link to one): a directory, a device such as `/dev/zero` or a
+/// pipe is refused before reading.
+///
+/// # Errors
+/// [`TopoFileErrorKind::Io`] if it is not a regular file or cannot be read, else as
+/// [`decode_route_geojson`]; errors name `path`.
+pub fn read_route_geojson(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let read_error = |io| {
+        TopoFileError::new(
+            Some(&name),
+            None,
+            TopoFileErrorKind::Io { action: "read", io },
+        )
+    };
+    let not_regular = || {
+        read_error(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "it is not a regular file (a directory, a device or a pipe)",
+        ))
+    };
+    // Checked before opening (opening a pipe waits for a writer) and again on the open file.
+    if !fs::metadata(path).map_err(read_error)?.is_file() {
+        return Err(not_regular());
+    }
+    let file = fs::File::open(path).map_err(read_error)?;
+    if !file.metadata().map_err(read_error)?.is_file() {
+        return Err(not_regular());
+    }
+    let bytes = crate::bounded::read_to_end_bounded(decompressing_reader(&name, file))
+        .map_err(read_error)?;
+    decode_route_geojson(&name, &bytes)
+}
+
+/// Parses a Nav2 route-server GeoJSON graph from JSON text; `name` is used in errors (see the
+/// [module docs](self#nav2-route-server-geojson-write_route_geojson-read_route_geojson)).
+///
+/// ```
+/// use chronomap_io::topo_files::decode_route_geojson;
+///
+/// // As in Nav2's sample graphs: nodes and edges with ids only.
+/// let json = r#"{"type": "FeatureCollection", "features": [
+///   {"type": "Feature", "properties": {"id": 0}, "geometry": {"type": "Point", "coordinates": [0.0, 1.5]}},
+///   {"type": "Feature", "properties": {"id": 1}, "geometry": {"type": "Point", "coordinates": [4.0, 1.5]}},
+///   {"type": "Feature", "properties": {"id": 2, "startid": 0, "endid": 1},
+///    "geometry": {"type": "MultiLineString", "coordinates": [[[0.0, 1.5], [4.0, 1.5]]]}}
+/// ]}"#;
+/// let map = decode_route_geojson("graph.geojson", json.as_bytes())?;
+/// assert_eq!((map.nodes()[1].name.as_str(), map.nodes()[1].pose), ("1", Some([4.0, 1.5, 0.0])));
+/// assert_eq!((map.edges()[0].id.as_str(), map.edges()[0].to), ("0_1", 1));
+///
+/// let err = decode_route_geojson("graph.geojson", json.replace("\"endid\": 1", "\"endid\": 17").as_bytes())
+///     .unwrap_err();
+/// assert_eq!(err.to_string(), "graph.geojson: features[2].properties.endid: no node with id 17");
+/// # Ok::<(), chronomap_io::topo_files::TopoFileError>(())
+/// ```
+///
+/// # Errors
+/// [`TopoFileErrorKind::Json`] if the text is not JSON (with the line) or its top level is
+/// not an object; [`MissingKey`](TopoFileErrorKind::MissingKey) (`features`, a feature's
+/// `geometry`, `properties`, a node's `id` or `coordinates`, an edge's `startid` or `endid`);
+/// [`InvalidValue`](TopoFileErrorKind::InvalidValue) (a `type` other than
+/// `FeatureCollection`, an unknown geometry type, an id that is not an integer, a coordinate
+/// that is not a finite number); [`Inconsistent`](TopoFileErrorKind::Inconsistent) (a node id
+/// used twice, an edge to a node id that no node has); [`Map`](TopoFileErrorKind::Map) (an
+/// invalid or repeated node name or edge id). Each names `name` and the JSON path.
+pub fn decode_route_geojson(name: &str, text: &[u8]) -> Result<TopoMap, TopoFileError> {
+    let root: Value =
+        serde_json::from_slice(text).map_err(|error| json_syntax_error(name, text, &error))?;
+    let root = JsonCursor {
+        file: name,
+        path: String::new(),
+        value: &root,
+    };
+    if !root.value.is_object() {
+        return Err(TopoFileError::new(
+            Some(name),
+            None,
+            TopoFileErrorKind::Json {
+                message: format!(
+                    "the top level is {}, not a GeoJSON FeatureCollection object",
+                    json_kind(root.value)
+                ),
+            },
+        ));
+    }
+    let kind = root.require("type")?;
+    if kind.value.as_str() != Some("FeatureCollection") {
+        return Err(kind.invalid("\"FeatureCollection\""));
+    }
+    let (mut nodes, mut edges) = (Vec::new(), Vec::new());
+    for feature in root.require("features")?.items()? {
+        let geometry = feature.require("geometry")?;
+        let geometry_type = geometry.require("type")?;
+        match geometry_type.value.as_str() {
+            Some("Point") => nodes.push((feature, geometry)),
+            Some("LineString" | "MultiLineString") => edges.push(feature),
+            _ => {
+                return Err(geometry_type.invalid(r#""Point", "LineString" or "MultiLineString""#));
+            }
+        }
+    }
+
+    let mut map = TopoMap::new();
+    // Node id → (node index, path of the feature that has it).
+    let mut ids: HashMap<i128, (usize, String)> = HashMap::with_capacity(nodes.len());
+    for (feature, geometry) in &nodes {
+        let properties = feature.require("properties")?;
+        let id_field = properties.require("id")?;
+        let id = id_field.as_integer()?;
+        if let Some((_, other)) = ids.get(&id) {
+            return Err(
+                id_field.inconsistent(format!("node id {id} is used twice (also by {other})"))
+            );
+        }
+        let metadata = properties.optional_object("metadata")?;
+        let named = match &metadata {
+            Some(m) => m.get("name")?.filter(|n| n.value.is_string()),
+            None => None,
+        };
+        let synthetic = match &metadata {
+            Some(m) => m
+                .get("synthetic_position")?
+                .is_some_and(|s| s.value == &Value::Bool(true)),
+            None => false,
+        };
+        let coordinates = geometry.require("coordinates")?;
+        let position = coordinates.items()?;
+        if position.len() < 2 {
+            return Err(coordinates.invalid("a position [x, y]"));
+        }
+        let (x, y) = (position[0].as_number()?, position[1].as_number()?);
+        let pose = (!synthetic).then_some([x, y, 0.0]);
+        let added = match &named {
+            Some(n) => map
+                .add_node(n.value.as_str().unwrap_or_default(), pose)
+                .map_err(|e| n.map_error(e)),
+            None => map
+                .add_node(&id.to_string(), pose)
+                .map_err(|e| id_field.map_error(e)),
+        }?;
+        ids.insert(id, (added, feature.path.clone()));
+    }
+
+    // Edge ids given in the file, which generated ids must not take.
+    let mut given: HashSet<&str> = HashSet::new();
+    for feature in &edges {
+        if let Some(properties) = feature.value.get("properties")
+            && let Some(Value::String(id)) = properties.get("metadata").and_then(|m| m.get("name"))
+        {
+            given.insert(id);
+        }
+    }
+    let mut taken: HashSet<String> = HashSet::with_capacity(edges.len());
+    for feature in &edges {
+        let properties = feature.require("properties")?;
+        let end = |key: &str| -> Result<usize, TopoFileError> {
+            let field = properties.require(key)?;
+            let id = field.as_integer()?;
+            ids.get(&id)
+                .map(|&(index, _)| index)
+                .ok_or_else(|| field.inconsistent(format!("no node with id {id}")))
+        };
+        let (from, to) = (end("startid")?, end("endid")?);
+        let edge_number = match properties.get("id")? {
+            Some(field) if !field.value.is_null() => Some(field.as_integer()?),
+            _ => None,
+        };
+        let metadata = properties.optional_object("metadata")?;
+        let named = match &metadata {
+            Some(m) => m.get("name")?.filter(|n| n.value.is_string()),
+            None => None,
+        };
+        let (from_name, to_name) = (&map.nodes()[from].name, &map.nodes()[to].name);
+        let (id, place) = match &named {
+            Some(n) => (n.value.as_str().unwrap_or_default().to_owned(), n),
+            None => {
+                let plain = format!("{from_name}_{to_name}");
+                let id = match edge_number {
+                    Some(number) if taken.contains(&plain) || given.contains(plain.as_str()) => {
+                        format!("{plain}_{number}")
+                    }
+                    _ => plain,
+                };
+                (id, &properties)
+            }
+        };
+        let (from_name, to_name) = (from_name.clone(), to_name.clone());
+        map.add_edge(&id, &from_name, &to_name)
+            .map_err(|e| place.map_error(e))?;
+        taken.insert(id);
+    }
+    Ok(map)
+}
+
+/// A JSON syntax error in file terms: the parser's message, the line, and a hint for the
+/// non-finite numbers that JSON cannot hold (which Python's `json` writes as `NaN`).
+fn json_syntax_error(name: &str, text: &[u8], error: &serde_json::Error) -> TopoFileError {
+    let (line, column) = (error.line(), error.column());
+    let full = error.to_string();
+    let mut message = full
+        .strip_suffix(&format!(" at line {line} column {column}"))
+        .unwrap_or(&full)
+        .to_owned();
+    if line > 0 {
+        if column > 0 {
+            message.push_str(&format!(" (column {column})"));
+        }
+        let at = text
+            .split(|&b| b == b'\n')
+            .nth(line - 1)
+            .and_then(|l| l.get(column.saturating_sub(1)..))
+            .unwrap_or_default();
+        let not_finite = [&b"NaN"[..], b"Infinity", b"-Infinity"]
+            .iter()
+            .any(|token| at.starts_with(token));
+        if not_finite || message.starts_with("number out of range") {
+            message.push_str(": numbers must be finite (JSON has no NaN or Infinity)");
+        }
+    }
+    TopoFileError::new(
+        Some(name),
+        u64::try_from(line).ok(),
+        TopoFileErrorKind::Json { message },
+    )
+}
+
+/// "an array", "a string", … for errors.
+fn json_kind(value: &Value) -> &'static str {
+    match value {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
+}
+
+/// A JSON value being read, with its file and path (`features[3].properties.startid`) for
+/// errors.
+struct JsonCursor<'a> {
+    file: &'a str,
+    path: String,
+    value: &'a Value,
+}
+
+impl<'a> JsonCursor<'a> {
+    fn key(&self) -> String {
+        if self.path.is_empty() {
+            "(top level)".to_owned()
+        } else {
+            self.path.clone()
+        }
+    }
+
+    fn invalid(&self, expected: &'static str) -> TopoFileError {
+        let mut value = self.value.to_string();
+        if value.chars().count() > 40 {
+            value = value.chars().take(40).collect::<String>() + "…";
+        }
+        TopoFileError::new(
+            Some(self.file),
+            None,
+            TopoFileErrorKind::InvalidValue {
+                key: self.key(),
+                value,
+                expected,
+            },
+        )
+    }
+
+    fn inconsistent(&self, reason: String) -> TopoFileError {
+        TopoFileError::new(
+            Some(self.file),
+            None,
+            TopoFileErrorKind::Inconsistent {
+                key: self.key(),
+                reason,
+            },
+        )
+    }
+
+    fn map_error(&self, error: TopoError) -> TopoFileError {
+        TopoFileError::new(
+            Some(self.file),
+            None,
+            TopoFileErrorKind::Map {
+                key: self.key(),
+                error,
+            },
+        )
+    }
+
+    fn child_path(&self, key: &str) -> String {
+        if self.path.is_empty() {
+            key.to_owned()
+        } else {
+            format!("{}.{key}", self.path)
+        }
+    }
+
+    /// The value of `key`, if this is an object that has it.
+    fn get(&self, key: &str) -> Result<Option<JsonCursor<'a>>, TopoFileError> {
+        match self.value {
+            Value::Object(members) => Ok(members.get(key).map(|value| JsonCursor {
+                file: self.file,
+                path: self.child_path(key),
+                value,
+            })),
+            _ => Err(self.invalid("an object")),
+        }
+    }
+
+    /// The value of `key`, which must be present and not null.
+    fn require(&self, key: &str) -> Result<JsonCursor<'a>, TopoFileError> {
+        match self.get(key)? {
+            Some(c) if !c.value.is_null() => Ok(c),
+            _ => Err(TopoFileError::new(
+                Some(self.file),
+                None,
+                TopoFileErrorKind::MissingKey {
+                    key: self.child_path(key),
+                },
+            )),
+        }
+    }
+
+    /// The object at `key`, if present and not null.
+    fn optional_object(&self, key: &str) -> Result<Option<JsonCursor<'a>>, TopoFileError> {
+        match self.get(key)? {
+            Some(c) if c.value.is_null() => Ok(None),
+            Some(c) if !c.value.is_object() => Err(c.invalid("an object")),
+            other => Ok(other),
+        }
+    }
+
+    /// The items of an array.
+    fn items(&self) -> Result<Vec<JsonCursor<'a>>, TopoFileError> {
+        match self.value {
+            Value::Array(items) => Ok(items
+                .iter()
+                .enumerate()
+                .map(|(i, value)| JsonCursor {
+                    file: self.file,
+                    path: format!("{}[{i}]", self.path),
+                    value,
+                })
+                .collect()),
+            _ => Err(self.invalid("an array")),
+        }
+    }
+
+    /// An integer (written without a fraction or exponent).
+    fn as_integer(&self) -> Result<i128, TopoFileError> {
+        match self.value {
+            Value::Number(n) => n
+                .as_i64()
+                .map(i128::from)
+                .or_else(|| n.as_u64().map(i128::from))
+                .ok_or_else(|| self.invalid("an integer")),
+            _ => Err(self.invalid("an integer")),
+        }
+    }
+
+    /// A finite number.
+    fn as_number(&self) -> Result<f64, TopoFileError> {
+        self.value
+            .as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| self.invalid("a finite number"))
+    }
 }
 
 #[cfg(test)]
@@ -1533,5 +1949,289 @@ mod tests {
         assert!((poses[1].pose[0] - 13.0).abs() < 1e-12 && poses[1].pose[1].abs() < 1e-12);
         assert!((poses[3].pose[0] - 9.0).abs() < 1e-12);
         assert_eq!(node_poses(&map), poses);
+    }
+
+    /// A map with poses, one node without, names and ids as edge files and tmap2 have them.
+    fn posed_map() -> TopoMap {
+        let mut map = TopoMap::new();
+        map.add_node("LabDoor1", Some([1.25, -2.0, 0.0])).unwrap();
+        map.add_node("Lab-Door.2", Some([4.0e-3, 1.0e6, 0.0]))
+            .unwrap();
+        map.add_node("17", Some([0.1, 0.2, 0.0])).unwrap();
+        map.add_node("Kitchen", None).unwrap();
+        map.add_edge("LabDoor1_Lab-Door.2", "LabDoor1", "Lab-Door.2")
+            .unwrap();
+        map.add_edge("back", "Lab-Door.2", "LabDoor1").unwrap();
+        map.add_edge("17_Kitchen", "17", "Kitchen").unwrap();
+        map.add_edge("loop", "17", "17").unwrap();
+        map
+    }
+
+    #[test]
+    fn route_geojson_round_trips() {
+        let map = posed_map();
+        let metadata = vec![(0.5, 3.0); map.edges().len()];
+        let json = encode_route_geojson(&map, &metadata).unwrap();
+        let read = decode_route_geojson("map.geojson", json.as_bytes()).unwrap();
+        // Same nodes (names, poses bit for bit; the unposed node stays unposed) and edges.
+        assert_eq!(read.nodes(), map.nodes());
+        assert_eq!(read.edges(), map.edges());
+        // Yaw is not in the format: it reads back as 0.
+        let mut turned = TopoMap::new();
+        turned.add_node("A", Some([1.0, 2.0, 0.7])).unwrap();
+        let json = encode_route_geojson(&turned, &[]).unwrap();
+        let read = decode_route_geojson("t.geojson", json.as_bytes()).unwrap();
+        assert_eq!(read.nodes()[0].pose, Some([1.0, 2.0, 0.0]));
+        // An empty map.
+        let json = encode_route_geojson(&TopoMap::new(), &[]).unwrap();
+        assert_eq!(
+            decode_route_geojson("e.geojson", json.as_bytes()).unwrap(),
+            TopoMap::new()
+        );
+    }
+
+    /// A graph in the style of Nav2's sample graphs: ids only, an edge before the nodes it
+    /// joins, parallel edges, a `LineString`, a 3-D position and extra members.
+    const NAV2_STYLE: &str = r#"{
+  "type": "FeatureCollection",
+  "name": "graph",
+  "crs": { "type": "name", "properties": { "name": "urn:ogc:def:crs:EPSG::3857" } },
+  "features": [
+    { "type": "Feature", "properties": { "id": 10, "startid": 2, "endid": 0, "cost": 3.0 },
+      "geometry": { "type": "MultiLineString", "coordinates": [ [ [ 4.0, 0.0 ], [ 0.0, 0.0 ] ] ] } },
+    { "type": "Feature", "properties": { "id": 0, "frame": "map" },
+      "geometry": { "type": "Point", "coordinates": [ 0.0, 0.0 ] } },
+    { "type": "Feature", "properties": { "id": 1, "frame": "map" },
+      "geometry": { "type": "Point", "coordinates": [ 2.0, 0.5, 0.0 ] } },
+    { "type": "Feature", "properties": { "id": 2, "frame": "map", "metadata": {} },
+      "geometry": { "type": "Point", "coordinates": [ 4.0, 0.0 ] } },
+    { "type": "Feature", "properties": { "id": 11, "startid": 0, "endid": 1 },
+      "geometry": { "type": "MultiLineString", "coordinates": [ [ [ 0.0, 0.0 ], [ 2.0, 0.5 ] ] ] } },
+    { "type": "Feature", "properties": { "id": 12, "startid": 0, "endid": 1, "overridable": false },
+      "geometry": { "type": "LineString", "coordinates": [ [ 0.0, 0.0 ], [ 2.0, 0.5 ] ] } },
+    { "type": "Feature", "properties": { "id": 13, "startid": 1, "endid": 2, "metadata": { "name": 7 } },
+      "geometry": { "type": "MultiLineString", "coordinates": [ [ [ 2.0, 0.5 ], [ 4.0, 0.0 ] ] ] } }
+  ]
+}"#;
+
+    #[test]
+    fn reads_graphs_in_the_style_of_nav2() {
+        let map = decode_route_geojson("graph.geojson", NAV2_STYLE.as_bytes()).unwrap();
+        let nodes: Vec<(&str, Option<[f64; 3]>)> = map
+            .nodes()
+            .iter()
+            .map(|n| (n.name.as_str(), n.pose))
+            .collect();
+        assert_eq!(
+            nodes,
+            [
+                ("0", Some([0.0, 0.0, 0.0])),
+                ("1", Some([2.0, 0.5, 0.0])),
+                ("2", Some([4.0, 0.0, 0.0]))
+            ]
+        );
+        let edges: Vec<(&str, usize, usize)> = map
+            .edges()
+            .iter()
+            .map(|e| (e.id.as_str(), e.from, e.to))
+            .collect();
+        assert_eq!(
+            edges,
+            [
+                ("2_0", 2, 0),
+                ("0_1", 0, 1),
+                ("0_1_12", 0, 1),
+                ("1_2", 1, 2)
+            ]
+        );
+        // A generated id does not take one that a later edge names.
+        let named = NAV2_STYLE.replace(
+            r#""metadata": { "name": 7 }"#,
+            r#""metadata": { "name": "0_1" }"#,
+        );
+        let map = decode_route_geojson("graph.geojson", named.as_bytes()).unwrap();
+        let ids: Vec<&str> = map.edges().iter().map(|e| e.id.as_str()).collect();
+        assert_eq!(ids, ["2_0", "0_1_11", "0_1_12", "0_1"]);
+    }
+
+    fn route_error(text: &str) -> TopoFileError {
+        decode_route_geojson("g.geojson", text.as_bytes()).unwrap_err()
+    }
+
+    #[test]
+    fn route_geojson_errors_name_the_file_and_the_json_path() {
+        let cases = [
+            // Not a FeatureCollection.
+            (
+                NAV2_STYLE.replace(r#""type": "FeatureCollection""#, r#""type": "Feature""#),
+                r#"g.geojson: type: "Feature" is invalid (expected "FeatureCollection")"#,
+            ),
+            (
+                "[1, 2]".to_owned(),
+                "g.geojson: not a Nav2 route GeoJSON file: the top level is an array, not a \
+                 GeoJSON FeatureCollection object",
+            ),
+            (
+                r#"{"type": "FeatureCollection"}"#.to_owned(),
+                "g.geojson: missing required key `features`",
+            ),
+            // Unknown geometry type.
+            (
+                NAV2_STYLE.replace(r#""LineString""#, r#""Polygon""#),
+                r#"g.geojson: features[5].geometry.type: "Polygon" is invalid (expected "Point", "LineString" or "MultiLineString")"#,
+            ),
+            // Duplicate node ids.
+            (
+                NAV2_STYLE.replace(r#""id": 2, "frame""#, r#""id": 0, "frame""#),
+                "g.geojson: features[3].properties.id: node id 0 is used twice (also by \
+                 features[1])",
+            ),
+            // An edge to a node id that no node has.
+            (
+                NAV2_STYLE.replace(r#""startid": 1"#, r#""startid": 17"#),
+                "g.geojson: features[6].properties.startid: no node with id 17",
+            ),
+            (
+                NAV2_STYLE.replace(r#""endid": 0"#, r#""endid": "0""#),
+                r#"g.geojson: features[0].properties.endid: "0" is invalid (expected an integer)"#,
+            ),
+            (
+                NAV2_STYLE.replace(r#""id": 1, "frame""#, r#""id": 1.5, "frame""#),
+                "g.geojson: features[2].properties.id: 1.5 is invalid (expected an integer)",
+            ),
+            (
+                NAV2_STYLE.replace(r#""startid": 0, "endid": 1 }"#, r#""endid": 1 }"#),
+                "g.geojson: missing required key `features[4].properties.startid`",
+            ),
+            // Coordinates.
+            (
+                NAV2_STYLE.replace("[ 2.0, 0.5, 0.0 ]", r#"[ 2.0, "a" ]"#),
+                r#"g.geojson: features[2].geometry.coordinates[1]: "a" is invalid (expected a finite number)"#,
+            ),
+            (
+                NAV2_STYLE.replace("[ 2.0, 0.5, 0.0 ]", "[ 2.0 ]"),
+                "g.geojson: features[2].geometry.coordinates: [2.0] is invalid (expected a \
+                 position [x, y])",
+            ),
+            // Names the map refuses.
+            (
+                NAV2_STYLE.replace(r#""metadata": {}"#, r#""metadata": {"name": "Lab Door"}"#),
+                r#"g.geojson: features[3].properties.metadata.name: invalid name "Lab Door": names are non-empty and contain no whitespace"#,
+            ),
+            (
+                NAV2_STYLE.replace(r#""metadata": {}"#, r#""metadata": {"name": "1"}"#),
+                r#"g.geojson: features[3].properties.metadata.name: node "1" is defined twice"#,
+            ),
+            (
+                NAV2_STYLE.replace(r#""metadata": {}"#, r#""metadata": []"#),
+                "g.geojson: features[3].properties.metadata: [] is invalid (expected an object)",
+            ),
+        ];
+        for (text, expected) in cases {
+            assert_eq!(route_error(&text).to_string(), expected);
+        }
+        let err = route_error(&NAV2_STYLE.replace(r#""startid": 1"#, r#""startid": 17"#));
+        assert_eq!(err.key(), Some("features[6].properties.startid"));
+        assert_eq!((err.file(), err.line()), (Some("g.geojson"), None));
+        // Two edges that name the same id; parallel edges without ids.
+        let twice = NAV2_STYLE
+            .replace(r#""cost": 3.0"#, r#""metadata": {"name": "e"}"#)
+            .replace(r#""name": 7"#, r#""name": "e""#);
+        assert_eq!(
+            route_error(&twice).to_string(),
+            r#"g.geojson: features[6].properties.metadata.name: edge "e" is defined twice"#
+        );
+        let parallel = NAV2_STYLE.replace(r#""id": 12, "#, "");
+        assert_eq!(
+            route_error(&parallel).to_string(),
+            r#"g.geojson: features[5].properties: edge "0_1" is defined twice"#
+        );
+    }
+
+    #[test]
+    fn route_geojson_syntax_errors_have_the_line() {
+        // Non-finite coordinates cannot be JSON numbers: out of range, or NaN as Python writes.
+        let err = route_error(&NAV2_STYLE.replace("[ 2.0, 0.5, 0.0 ]", "[ 2.0, 1e400 ]"));
+        assert_eq!(
+            err.to_string(),
+            "g.geojson:11: not a Nav2 route GeoJSON file: number out of range (column 64): \
+             numbers must be finite (JSON has no NaN or Infinity)"
+        );
+        assert!(matches!(err.kind(), TopoFileErrorKind::Json { .. }));
+        let err = route_error(&NAV2_STYLE.replace("[ 2.0, 0.5, 0.0 ]", "[ 2.0, NaN ]"));
+        assert_eq!(
+            err.to_string(),
+            "g.geojson:11: not a Nav2 route GeoJSON file: expected value (column 60): numbers \
+             must be finite (JSON has no NaN or Infinity)"
+        );
+        let err = route_error("{\n  \"type\": \"FeatureCollection\",\n");
+        assert_eq!(
+            err.to_string(),
+            "g.geojson:3: not a Nav2 route GeoJSON file: EOF while parsing a value"
+        );
+        assert_eq!(err.line(), Some(3));
+        let deep = format!("{}{}", "[".repeat(200), "]".repeat(200));
+        assert!(
+            route_error(&deep)
+                .to_string()
+                .contains("recursion limit exceeded"),
+            "{}",
+            route_error(&deep)
+        );
+    }
+
+    #[test]
+    fn reads_route_geojson_files_and_refuses_other_kinds_of_file() {
+        let dir = chronomap_testutil::fresh_dir(
+            std::env::temp_dir().join(format!("chronomap-io-route-{}", std::process::id())),
+        );
+        let map = posed_map();
+        let metadata = vec![(1.0, 0.0); map.edges().len()];
+        let path = dir.join("map.geojson");
+        write_route_geojson(&path, &map, &metadata).unwrap();
+        assert_eq!(read_route_geojson(&path).unwrap(), map);
+        // Compressed.
+        let gz = dir.join("map.geojson.gz");
+        let mut encoder = flate2::write::GzEncoder::new(
+            fs::File::create(&gz).unwrap(),
+            flate2::Compression::fast(),
+        );
+        io::Write::write_all(&mut encoder, &fs::read(&path).unwrap()).unwrap();
+        encoder.finish().unwrap();
+        assert_eq!(read_route_geojson(&gz).unwrap(), map);
+        // Errors name the file.
+        let bad = dir.join("bad.geojson");
+        fs::write(&bad, "{\"type\": \"FeatureCollection\", \"features\": 3}").unwrap();
+        assert_eq!(
+            read_route_geojson(&bad).unwrap_err().to_string(),
+            format!(
+                "{}: features: 3 is invalid (expected an array)",
+                bad.display()
+            )
+        );
+        let err = read_route_geojson(&dir).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{}: cannot read: it is not a regular file (a directory, a device or a pipe)",
+                dir.display()
+            )
+        );
+        let missing = dir.join("none.geojson");
+        let err = read_route_geojson(&missing).unwrap_err();
+        assert!(matches!(
+            err.kind(),
+            TopoFileErrorKind::Io { action: "read", .. }
+        ));
+        assert_eq!(err.file(), Some(missing.display().to_string().as_str()));
+        #[cfg(unix)]
+        {
+            let err = read_route_geojson("/dev/zero").unwrap_err();
+            assert_eq!(
+                err.to_string(),
+                "/dev/zero: cannot read: it is not a regular file (a directory, a device or a pipe)"
+            );
+        }
+        let _ = fs::remove_dir_all(&dir);
     }
 }
