@@ -7,6 +7,8 @@ pub(super) const SERVE_HELP: &str = "\
 Examples:
   chronomap serve --data chronomap-data
   chronomap serve --data chronomap-data --topo witham=witham.cmt
+  chronomap serve --data chronomap-data --topo lab=lab.cmt --topo-layout lab=lab.yaml
+  chronomap serve --data chronomap-data --activity atc=atc.cmcopa --activity-map atc=atc_map.yaml
   chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
 
 Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN`; the token
@@ -51,10 +53,20 @@ pub struct ServeArgs {
     /// them by commas.
     #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub topo: Vec<(String, PathBuf)>,
+    /// Node positions of a --topo map as NAME=FILE: a tmap2 YAML or a Nav2 route GeoJSON
+    /// (.geojson, .json) placing every node.
+    #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
+    pub topo_layout: Vec<(String, PathBuf)>,
     /// Serve an occupancy grid file (from `chronomap grid build`) as NAME=FILE: predicted maps
     /// at /v1/grid/NAME/predict. Repeat the flag or separate them by commas.
     #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub grid: Vec<(String, PathBuf)>,
+    /// Serve a CoPA-Map (from `chronomap activity fit`) as NAME=FILE at /v1/activity/NAME/.
+    #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
+    pub activity: Vec<(String, PathBuf)>,
+    /// A Nav2 map (YAML) of an --activity model as NAME=MAP.yaml: cells on its walls are left out.
+    #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
+    pub activity_map: Vec<(String, PathBuf)>,
 }
 
 pub(super) fn parse_named_file(text: &str) -> Result<(String, PathBuf), String> {

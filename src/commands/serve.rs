@@ -1,18 +1,21 @@
 //! `chronomap serve` and `chronomap client`: flags to a store, a token and a service; the
 //! client subcommands print what the service answers.
 
+use std::collections::HashMap;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use chronomap_client::Client;
+use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
-use chronomap_serve::maps::Maps;
+use chronomap_serve::maps::{Maps, ServedActivity, ServedTopo};
 use chronomap_serve::store::{PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
+use chronomap_topo::map::TopoMap;
 use serde_json::json;
 
 use crate::cli::{ClientArgs, ClientCommand, ServeArgs};
@@ -24,6 +27,14 @@ const MIN_TOKEN_CHARS: usize = 16;
 
 /// `chronomap serve`.
 pub fn serve(args: &ServeArgs) -> Result<()> {
+    // Flags that contradict each other are refused before any file is opened.
+    let layouts = attached(&args.topo_layout, &args.topo, "--topo-layout", "--topo")?;
+    let activity_maps = attached(
+        &args.activity_map,
+        &args.activity,
+        "--activity-map",
+        "--activity",
+    )?;
     std::fs::create_dir_all(&args.data)
         .with_context(|| format!("cannot create the data directory {}", args.data.display()))?;
     let token_file = if args.no_token {
@@ -39,21 +50,11 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         .as_deref()
         .map(read_or_create_token)
         .transpose()?;
+    let maps = read_maps(args, &layouts, &activity_maps)?;
     let store: Arc<dyn Store> = match &args.postgres {
         Some(config) => Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
         None => Arc::new(RedbStore::open(args.data.join("chronomap.redb"))?),
     };
-    let mut maps = Maps::default();
-    for (name, path) in &args.topo {
-        let models = chronomap_io::model_file::read_edge_models(path)
-            .with_context(|| format!("--topo {name}"))?;
-        maps.topological.insert(name.clone(), models);
-    }
-    for (name, path) in &args.grid {
-        let grid = chronomap_io::grid_file::read_grid_file(path)
-            .with_context(|| format!("--grid {name}"))?;
-        maps.grids.insert(name.clone(), grid);
-    }
     let description = store.describe();
     let config = ServiceConfig {
         token,
@@ -91,6 +92,86 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             .run(listener, shutdown_signal())
             .await
             .context("the service failed")
+    })
+}
+
+/// The files of `extra` (`--topo-layout`, `--activity-map`) by the name of the map of `base`
+/// (`--topo`, `--activity`) they belong to.
+fn attached<'a>(
+    extra: &'a [(String, PathBuf)],
+    base: &[(String, PathBuf)],
+    extra_flag: &str,
+    base_flag: &str,
+) -> Result<HashMap<&'a str, &'a Path>> {
+    let mut by_name = HashMap::new();
+    for (name, path) in extra {
+        if !base.iter().any(|(n, _)| n == name) {
+            return Err(usage(format!(
+                "{extra_flag} {name}: no {base_flag} map is named {name:?}"
+            )));
+        }
+        if by_name.insert(name.as_str(), path.as_path()).is_some() {
+            return Err(usage(format!("{extra_flag} {name} is given twice")));
+        }
+    }
+    Ok(by_name)
+}
+
+/// Reads every map file the flags name, and lays out the topological maps.
+fn read_maps(
+    args: &ServeArgs,
+    layouts: &HashMap<&str, &Path>,
+    activity_maps: &HashMap<&str, &Path>,
+) -> Result<Maps> {
+    let mut maps = Maps::default();
+    for (name, path) in &args.topo {
+        let models = chronomap_io::model_file::read_edge_models(path)
+            .with_context(|| format!("--topo {name}"))?;
+        let served = match layouts.get(name.as_str()) {
+            Some(layout) => {
+                let context = || format!("--topo-layout {name}");
+                let map = read_layout(layout).with_context(context)?;
+                ServedTopo::with_layout(models, &layout.display().to_string(), &map)
+                    .with_context(context)?
+            }
+            None => ServedTopo::new(models),
+        };
+        maps.topological.insert(name.clone(), served);
+    }
+    for (name, path) in &args.grid {
+        let grid = chronomap_io::grid_file::read_grid_file(path)
+            .with_context(|| format!("--grid {name}"))?;
+        maps.grids.insert(name.clone(), grid);
+    }
+    for (name, path) in &args.activity {
+        let model =
+            chronomap_io::read_copa_map(path).with_context(|| format!("--activity {name}"))?;
+        let map = activity_maps
+            .get(name.as_str())
+            .map(|yaml| load_map(yaml, LoadSemantics::Nav2))
+            .transpose()
+            .with_context(|| format!("--activity-map {name}"))?;
+        maps.activity
+            .insert(name.clone(), ServedActivity::new(model, map));
+    }
+    Ok(maps)
+}
+
+/// The nodes (with positions) of a Nav2 route graph (`.geojson`, `.json`) or else of a tmap2
+/// map; either may be compressed (`.xz`, `.gz`).
+fn read_layout(path: &Path) -> Result<TopoMap> {
+    let extension = |p: &Path| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+    };
+    let kind = match extension(path).as_deref() {
+        Some("xz" | "gz") => path.file_stem().and_then(|s| extension(Path::new(s))),
+        other => other.map(str::to_owned),
+    };
+    Ok(match kind.as_deref() {
+        Some("geojson" | "json") => chronomap_io::topo_files::read_route_geojson(path)?,
+        _ => chronomap_io::topo_files::read_tmap2(path)?,
     })
 }
 

@@ -10,7 +10,8 @@
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
 //!   in an embedded redb file or in PostgreSQL (feature `postgres`, on by default).
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
-//! * [`maps`]: topological maps and occupancy grids served read-only beside the models.
+//! * [`maps`]: topological maps, occupancy grids and CoPA-Maps of people served read-only beside
+//!   the models.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
 //!
 //! The server does not compile an HTTP client: processes that only talk to a service depend on

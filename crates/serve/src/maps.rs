@@ -1,11 +1,19 @@
 //! Spatial containers served read-only beside the models: topological maps whose edges know
-//! time ([Fentanes 2015]) and occupancy grids ([Krajník 2017] §VI), loaded from their model files at start.
+//! time ([Fentanes 2015]), occupancy grids ([Krajník 2017] §VI) and maps of human activity
+//! (CoPA-Map, [Stüde 2024] §4.2), loaded from their model files at start.
 //!
+//! * `GET /v1/maps`: what is served.
+//! * `GET /v1/topo/{name}`: nodes with positions, edges and the models' time span.
 //! * `POST /v1/topo/{name}/predict {time}`: every edge's success probability and expected
 //!   duration at `time`.
 //! * `POST /v1/topo/{name}/plan {from, task, times}`: "now or later?" — for each start time the
 //!   maximum probability of fulfilling a co-safe LTL task, the expected time and the first edge.
+//! * `GET /v1/grid/{name}`: shape, placement and frames of a grid.
 //! * `POST /v1/grid/{name}/predict {time}`: the predicted occupancy probability of every cell.
+//! * `POST /v1/grid/{name}/cell {cell, times}`: one cell's occupancy probability at many times.
+//! * `GET /v1/activity/{name}`: a CoPA-Map's domain, periods and unit of time.
+//! * `POST /v1/activity/{name}/predict {t, cell?}`: mean and standard deviation of the rate
+//!   of people in every cell.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -15,9 +23,9 @@ use axum::extract::rejection::{BytesRejection, PathRejection};
 use axum::extract::{Path, State};
 use axum::routing::{get, post};
 use axum::{Json, Router};
+use chronomap_core::observe::ObservedSpan;
 use chronomap_grid::GridGeometry;
 use chronomap_io::grid_file::GridFile;
-use chronomap_topo::edges::EdgeModels;
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, now_or_later};
 use serde::{Deserialize, Serialize};
@@ -25,16 +33,30 @@ use utoipa::ToSchema;
 
 use crate::server::{ApiError, parse_body};
 
+mod activity;
+mod topo;
+
+pub use activity::{
+    ActivityError, ActivityGrid, DEFAULT_CELL, MAX_ACTIVITY_CELLS, ServedActivity, TIME_UNIT,
+    WALL_PERCENT,
+};
+pub use topo::{COMPUTED_EDGE_LENGTH, MissingPositions, PositionSource, ServedTopo, training_span};
+
 /// Most start times of one `plan` request.
 pub const MAX_PLAN_TIMES: usize = 1000;
+
+/// Most times of one `cell` request.
+pub const MAX_CELL_TIMES: usize = 10_000;
 
 /// The maps a service holds, by name.
 #[derive(Debug, Default)]
 pub struct Maps {
-    /// Topological maps with edge models.
-    pub topological: BTreeMap<String, EdgeModels>,
+    /// Topological maps with edge models and node positions.
+    pub topological: BTreeMap<String, ServedTopo>,
     /// Occupancy grids.
     pub grids: BTreeMap<String, GridFile>,
+    /// CoPA-Maps of the rate of people.
+    pub activity: BTreeMap<String, ServedActivity>,
 }
 
 /// A map in `GET /v1/maps`.
@@ -42,9 +64,9 @@ pub struct Maps {
 pub struct MapInfo {
     /// Name given at start.
     pub name: String,
-    /// `topological`, `grid-state`, `grid-lossy` or `grid-lossless`.
+    /// `topological`, `grid-state`, `grid-lossy`, `grid-lossless` or `activity`.
     pub kind: String,
-    /// Nodes (topological) or cells (grids).
+    /// Nodes (topological), cells (grids) or cells of [`DEFAULT_CELL`] metres (activity).
     pub size: u64,
     /// Edges of a topological map.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -133,13 +155,159 @@ pub struct GridResponse {
     pub values: Vec<f32>,
 }
 
+/// Answer of `GET /v1/grid/{name}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct GridInfo {
+    /// Name given at start.
+    pub name: String,
+    /// `grid-state`, `grid-lossy` or `grid-lossless` (as in `GET /v1/maps`).
+    pub kind: String,
+    /// Cells along x, y, z.
+    pub shape: [u32; 3],
+    /// Cell edge (m).
+    pub resolution: f64,
+    /// Lower corner of cell (0, 0, 0) (m).
+    pub origin: [f64; 3],
+    /// Frames (whole maps) the grid learned from.
+    pub frames: u64,
+    /// Time of the first frame (s); `null` without frames.
+    pub first_time: Option<f64>,
+    /// Time of the last frame (s); `null` without frames.
+    pub last_time: Option<f64>,
+}
+
+/// One cell at many times (`POST /v1/grid/{name}/cell`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CellRequest {
+    /// `[x, y]` (layer 0) or `[x, y, z]`: cell indices from 0.
+    pub cell: Vec<i64>,
+    /// Times (s), 1 to 10,000.
+    pub times: Vec<f64>,
+}
+
+/// Answer of `POST /v1/grid/{name}/cell`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CellResponse {
+    /// The cell `[x, y, z]`.
+    pub cell: [u32; 3],
+    /// Its centre, `origin + (cell + 0.5)·resolution` (m).
+    pub centre: [f64; 3],
+    /// Occupancy probability at each time: the single-precision value of
+    /// `POST /v1/grid/{name}/predict` for that cell and time, widened exactly to `f64`;
+    /// `null` for a cell never observed.
+    #[serde(deserialize_with = "nan_for_null")]
+    #[schema(value_type = Vec<Option<f64>>)]
+    pub values: Vec<f64>,
+}
+
+/// Reads `null` as NaN (how JSON carries the prediction of a cell never observed).
+fn nan_for_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    let values: Vec<Option<f64>> = Deserialize::deserialize(d)?;
+    Ok(values.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+}
+
+/// A node of `GET /v1/topo/{name}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TopoNode {
+    /// Node name.
+    pub name: String,
+    /// Position (m; in edge lengths for a computed layout).
+    pub x: f64,
+    /// Position (m; in edge lengths for a computed layout).
+    pub y: f64,
+}
+
+/// An edge of `GET /v1/topo/{name}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TopoEdge {
+    /// Edge id.
+    pub id: String,
+    /// Start node.
+    pub from: String,
+    /// End node.
+    pub to: String,
+}
+
+/// Answer of `GET /v1/topo/{name}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TopoInfo {
+    /// Name given at start.
+    pub name: String,
+    /// Where the positions come from: `file` (a `--topo-layout` file gave every node one;
+    /// metres), `model` (the edge models' own map has a pose for every node; metres) or
+    /// `computed` (stress majorization of hop distances, one edge length = 1; not metric).
+    pub positions: String,
+    /// The `--topo-layout` file, when it gave the positions.
+    pub layout_file: Option<String>,
+    /// Every node, in map order.
+    pub nodes: Vec<TopoNode>,
+    /// Every edge, in map order (as `POST /v1/topo/{name}/predict` lists them).
+    pub edges: Vec<TopoEdge>,
+    /// Earliest attempt any edge's models learned from (s); `null` if none.
+    pub first_time: Option<f64>,
+    /// Latest attempt of any edge (s); `null` if none.
+    pub last_time: Option<f64>,
+}
+
+/// Answer of `GET /v1/activity/{name}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ActivityInfo {
+    /// Name given at start.
+    pub name: String,
+    /// The training square `[x_min, y_min, x_max, y_max]` of the cell centres (m).
+    pub domain: [f64; 4],
+    /// The fitted periods, in units of `t`.
+    pub periods: Vec<f64>,
+    /// What `t` counts.
+    pub time_unit: String,
+    /// Side of a cell when a prediction asks for none (m).
+    pub default_cell: f64,
+    /// Whether cells on walls of a map (`--activity-map`) are left out.
+    pub masked_by_map: bool,
+}
+
+/// A time of a CoPA-Map (`POST /v1/activity/{name}/predict`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ActivityRequest {
+    /// Time, in the model's units (`time_unit` of `GET /v1/activity/{name}`).
+    pub t: f64,
+    /// Side of a cell (m); default 0.5.
+    #[serde(default)]
+    pub cell: Option<f64>,
+}
+
+/// Answer of `POST /v1/activity/{name}/predict`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ActivityResponse {
+    /// The time asked for.
+    pub t: f64,
+    /// Lower-left corner of cell (0, 0) (m).
+    pub origin: [f64; 2],
+    /// Side of a cell (m).
+    pub cell: f64,
+    /// Columns (along x) and rows (along y).
+    pub shape: [u32; 2],
+    /// Mean rate of cell `(col, row)` at `col + cols·row`, row 0 at the bottom; `null` on
+    /// walls of the map.
+    pub mean: Vec<Option<f64>>,
+    /// Standard deviation of the rate, likewise.
+    pub std: Vec<Option<f64>>,
+}
+
 /// The routes, with their state.
 pub fn router(maps: Arc<Maps>) -> Router {
     Router::new()
         .route("/v1/maps", get(list))
+        .route("/v1/topo/{name}", get(topo_info))
         .route("/v1/topo/{name}/predict", post(topo_predict))
         .route("/v1/topo/{name}/plan", post(topo_plan))
+        .route("/v1/grid/{name}", get(grid_info))
         .route("/v1/grid/{name}/predict", post(grid_predict))
+        .route("/v1/grid/{name}/cell", post(grid_cell))
+        .route("/v1/activity/{name}", get(activity_info))
+        .route("/v1/activity/{name}/predict", post(activity_predict))
         .with_state(maps)
 }
 
@@ -159,10 +327,22 @@ fn finite(time: f64, field: &str) -> Result<f64, ApiError> {
     }
 }
 
-fn topo<'a>(maps: &'a Maps, name: &str) -> Result<&'a EdgeModels, ApiError> {
+fn topo<'a>(maps: &'a Maps, name: &str) -> Result<&'a ServedTopo, ApiError> {
     maps.topological
         .get(name)
         .ok_or_else(|| ApiError::not_found(format!("no topological map named {name:?}")))
+}
+
+fn grid<'a>(maps: &'a Maps, name: &str) -> Result<&'a GridFile, ApiError> {
+    maps.grids
+        .get(name)
+        .ok_or_else(|| ApiError::not_found(format!("no grid named {name:?}")))
+}
+
+fn activity<'a>(maps: &'a Maps, name: &str) -> Result<&'a ServedActivity, ApiError> {
+    maps.activity
+        .get(name)
+        .ok_or_else(|| ApiError::not_found(format!("no activity map named {name:?}")))
 }
 
 /// The maps held.
@@ -174,8 +354,8 @@ pub(crate) async fn list(State(maps): State<Arc<Maps>>) -> Json<MapsResponse> {
         .map(|(name, m)| MapInfo {
             name: name.clone(),
             kind: "topological".into(),
-            size: m.map().nodes().len() as u64,
-            edges: Some(m.map().edges().len() as u64),
+            size: m.models().map().nodes().len() as u64,
+            edges: Some(m.models().map().edges().len() as u64),
         })
         .collect();
     list.extend(maps.grids.iter().map(|(name, g)| MapInfo {
@@ -184,7 +364,56 @@ pub(crate) async fn list(State(maps): State<Arc<Maps>>) -> Json<MapsResponse> {
         size: geometry(g).cells() as u64,
         edges: None,
     }));
+    list.extend(maps.activity.iter().map(|(name, a)| MapInfo {
+        name: name.clone(),
+        kind: "activity".into(),
+        size: a.region(DEFAULT_CELL).map_or(0, |g| g.len() as u64),
+        edges: None,
+    }));
     Json(MapsResponse { maps: list })
+}
+
+/// Nodes with their positions, edges, and the time span the edge models learned from.
+#[utoipa::path(get, path = "/v1/topo/{name}",
+    params(("name" = String, Path, description = "map name")),
+    responses((status = 200, body = TopoInfo), (status = 400, body = crate::api::ErrorBody),
+              (status = 404, body = crate::api::ErrorBody)))]
+pub(crate) async fn topo_info(
+    State(maps): State<Arc<Maps>>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<TopoInfo>, ApiError> {
+    let name = name(path)?;
+    let served = topo(&maps, &name)?;
+    let map = served.models().map();
+    let nodes = map
+        .nodes()
+        .iter()
+        .zip(served.positions())
+        .map(|(n, &[x, y])| TopoNode {
+            name: n.name.clone(),
+            x,
+            y,
+        })
+        .collect();
+    let edges = map
+        .edges()
+        .iter()
+        .map(|e| TopoEdge {
+            id: e.id.clone(),
+            from: map.nodes()[e.from].name.clone(),
+            to: map.nodes()[e.to].name.clone(),
+        })
+        .collect();
+    let (first_time, last_time) = served.span();
+    Ok(Json(TopoInfo {
+        name,
+        positions: served.source().as_str().into(),
+        layout_file: served.layout_file().map(str::to_owned),
+        nodes,
+        edges,
+        first_time,
+        last_time,
+    }))
 }
 
 /// Every edge's success probability and expected duration at a time.
@@ -200,7 +429,7 @@ pub(crate) async fn topo_predict(
     let name = name(path)?;
     let request: TimeRequest = parse_body(body)?;
     let time = finite(request.time, "time")?;
-    let models = topo(&maps, &name)?;
+    let models = topo(&maps, &name)?.models();
     let (success, duration) = models.at(time);
     let map = models.map();
     let edges = map
@@ -239,7 +468,7 @@ pub(crate) async fn topo_plan(
     for (i, &t) in request.times.iter().enumerate() {
         finite(t, &format!("times[{i}]"))?;
     }
-    let models = topo(&maps, &name)?;
+    let models = topo(&maps, &name)?.models();
     let start = models
         .map()
         .node(&request.from)
@@ -286,10 +515,7 @@ pub(crate) async fn grid_predict(
     let name = name(path)?;
     let request: TimeRequest = parse_body(body)?;
     let time = finite(request.time, "time")?;
-    let grid = maps
-        .grids
-        .get(&name)
-        .ok_or_else(|| ApiError::not_found(format!("no grid named {name:?}")))?;
+    let grid = grid(&maps, &name)?;
     let g = geometry(grid);
     let values = match grid {
         GridFile::State(g) => g.predict_map(time),
@@ -302,4 +528,176 @@ pub(crate) async fn grid_predict(
         origin: g.origin,
         values,
     }))
+}
+
+/// Count and times of the frames a grid learned from.
+fn frame_span(grid: &GridFile) -> ObservedSpan {
+    match grid {
+        GridFile::State(g) => g.frame_span(),
+        GridFile::Lossy(g) => g.frames(),
+        GridFile::Lossless(g) => g.fitted.frames(),
+    }
+}
+
+/// Shape, placement and frames of a grid.
+#[utoipa::path(get, path = "/v1/grid/{name}",
+    params(("name" = String, Path, description = "grid name")),
+    responses((status = 200, body = GridInfo), (status = 400, body = crate::api::ErrorBody),
+              (status = 404, body = crate::api::ErrorBody)))]
+pub(crate) async fn grid_info(
+    State(maps): State<Arc<Maps>>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<GridInfo>, ApiError> {
+    let name = name(path)?;
+    let grid = grid(&maps, &name)?;
+    let g = geometry(grid);
+    let span = frame_span(grid);
+    let known = span.count > 0;
+    Ok(Json(GridInfo {
+        name,
+        kind: grid.kind().into(),
+        shape: [g.width, g.height, g.depth],
+        resolution: g.resolution,
+        origin: g.origin,
+        frames: span.count,
+        first_time: known.then_some(span.first),
+        last_time: known.then_some(span.last),
+    }))
+}
+
+/// One cell's occupancy probability at many times: the values of `POST /v1/grid/{name}/predict`
+/// for that cell.
+#[utoipa::path(post, path = "/v1/grid/{name}/cell", request_body = CellRequest,
+    params(("name" = String, Path, description = "grid name")),
+    responses((status = 200, body = CellResponse), (status = 400, body = crate::api::ErrorBody),
+              (status = 404, body = crate::api::ErrorBody)))]
+pub(crate) async fn grid_cell(
+    State(maps): State<Arc<Maps>>,
+    path: Result<Path<String>, PathRejection>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<CellResponse>, ApiError> {
+    let name = name(path)?;
+    let request: CellRequest = parse_body(body)?;
+    if request.times.is_empty() || request.times.len() > MAX_CELL_TIMES {
+        return Err(ApiError::bad_request(format!(
+            "field `times`: give 1 to {MAX_CELL_TIMES} times, not {}",
+            request.times.len()
+        )));
+    }
+    for (i, &t) in request.times.iter().enumerate() {
+        finite(t, &format!("times[{i}]"))?;
+    }
+    let grid = grid(&maps, &name)?;
+    let g = geometry(grid);
+    let shape = [g.width, g.height, g.depth];
+    let cell = match request.cell[..] {
+        [x, y] => [x, y, 0],
+        [x, y, z] => [x, y, z],
+        _ => {
+            return Err(ApiError::bad_request(format!(
+                "field `cell`: give [x, y] or [x, y, z], not {} numbers",
+                request.cell.len()
+            )));
+        }
+    };
+    let outside = || {
+        ApiError::bad_request(format!(
+            "field `cell`: {:?} is outside the grid's shape {shape:?}",
+            request.cell
+        ))
+    };
+    let mut index = [0u32; 3];
+    for k in 0..3 {
+        index[k] = u32::try_from(cell[k])
+            .ok()
+            .filter(|&i| i < shape[k])
+            .ok_or_else(outside)?;
+    }
+    let [x, y, z] = index.map(|i| i as usize);
+    let flat = x + g.width as usize * (y + g.height as usize * z);
+    let values = match grid {
+        GridFile::State(g) => g.predict_cell(flat, &request.times),
+        GridFile::Lossy(g) => g.predict_cell(flat, &request.times),
+        GridFile::Lossless(g) => g.fitted.predict_cell(flat, &request.times),
+    };
+    Ok(Json(CellResponse {
+        cell: index,
+        centre: [0, 1, 2].map(|k| g.origin[k] + (f64::from(index[k]) + 0.5) * g.resolution),
+        values: values.into_iter().map(f64::from).collect(),
+    }))
+}
+
+/// Domain, periods and unit of time of a CoPA-Map.
+#[utoipa::path(get, path = "/v1/activity/{name}",
+    params(("name" = String, Path, description = "activity map name")),
+    responses((status = 200, body = ActivityInfo), (status = 400, body = crate::api::ErrorBody),
+              (status = 404, body = crate::api::ErrorBody)))]
+pub(crate) async fn activity_info(
+    State(maps): State<Arc<Maps>>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<ActivityInfo>, ApiError> {
+    let name = name(path)?;
+    let served = activity(&maps, &name)?;
+    Ok(Json(ActivityInfo {
+        name,
+        domain: served.model().domain(),
+        periods: served.model().periods(),
+        time_unit: TIME_UNIT.into(),
+        default_cell: DEFAULT_CELL,
+        masked_by_map: served.masked(),
+    }))
+}
+
+/// Mean and standard deviation of the rate of people in every cell over the training square
+/// at `t` (CoPA-Map, [Stüde 2024] §4.2): the values of `chronomap activity predict`.
+#[utoipa::path(post, path = "/v1/activity/{name}/predict", request_body = ActivityRequest,
+    params(("name" = String, Path, description = "activity map name")),
+    responses((status = 200, body = ActivityResponse), (status = 400, body = crate::api::ErrorBody),
+              (status = 404, body = crate::api::ErrorBody)))]
+pub(crate) async fn activity_predict(
+    State(maps): State<Arc<Maps>>,
+    path: Result<Path<String>, PathRejection>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<ActivityResponse>, ApiError> {
+    let name = name(path)?;
+    let request: ActivityRequest = parse_body(body)?;
+    activity(&maps, &name)?;
+    let cell = request.cell.unwrap_or(DEFAULT_CELL);
+    // A prediction over many cells takes a while: off the async threads.
+    let grid = tokio::task::spawn_blocking(move || {
+        activity(&maps, &name).map(|a| a.predict(request.t, cell))
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("the prediction failed: {e}")))??
+    .map_err(|e| match e {
+        ActivityError::Model(_) => ApiError::internal(e.to_string()),
+        _ => ApiError::bad_request(e.to_string()),
+    })?;
+    Ok(Json(ActivityResponse {
+        t: request.t,
+        origin: grid.origin,
+        cell: grid.cell,
+        shape: [grid.cols as u32, grid.rows as u32],
+        mean: grid.mean,
+        std: grid.std,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cell_never_observed_travels_as_null_and_comes_back_as_nan() {
+        let cell = CellResponse {
+            cell: [1, 2, 0],
+            centre: [0.15, 0.25, 0.05],
+            values: vec![0.25, f64::NAN],
+        };
+        let text = serde_json::to_string(&cell).unwrap();
+        assert!(text.ends_with(r#""values":[0.25,null]}"#), "{text}");
+        let back: CellResponse = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.values[0], 0.25);
+        assert!(back.values[1].is_nan());
+    }
 }

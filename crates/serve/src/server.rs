@@ -154,7 +154,9 @@ impl Service {
     paths(
         health, list, create, view, remove, observations, add, addvalues, add_batch, predict,
         entropy, forecast, forecast_entropy, evaluate, detect, crate::maps::list,
-        crate::maps::topo_predict, crate::maps::topo_plan, crate::maps::grid_predict
+        crate::maps::topo_info, crate::maps::topo_predict, crate::maps::topo_plan,
+        crate::maps::grid_info, crate::maps::grid_predict, crate::maps::grid_cell,
+        crate::maps::activity_info, crate::maps::activity_predict
     ),
     modifiers(&BearerAuth)
 )]
@@ -236,6 +238,10 @@ impl ApiError {
 
     pub(crate) fn not_found(reason: String) -> Self {
         ApiError::new(StatusCode::NOT_FOUND, "not_found", reason)
+    }
+
+    pub(crate) fn internal(reason: String) -> Self {
+        ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", reason)
     }
 
     fn unknown(id: &str) -> Self {
@@ -486,9 +492,7 @@ async fn observations(
     let (times, values) =
         tokio::task::spawn_blocking(move || writer::observations_of(&*store, &id))
             .await
-            .map_err(|e| {
-                ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", e.to_string())
-            })?
+            .map_err(|e| ApiError::internal(e.to_string()))?
             .map_err(|e| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", e))?;
     Ok(Json(ObservationsResponse { times, values }))
 }

@@ -1,0 +1,164 @@
+//! A CoPA-Map ([Stüde 2024] §4.2) as the service holds it, with the Nav2 map whose walls
+//! mask it, and its prediction over a grid of cells: the cells and values of
+//! `chronomap activity predict --model M --t T --cell C [--map MAP]`.
+
+use std::fmt;
+
+use chronomap_activity::CopaMap;
+use chronomap_activity::grids::RegionGrid;
+use chronomap_core::Parallelism;
+use chronomap_io::navmap::OccupancyMap;
+
+/// Side of a cell when a request gives none (m): the default of `chronomap activity predict`.
+pub const DEFAULT_CELL: f64 = 0.5;
+
+/// Most cells of one prediction.
+pub const MAX_ACTIVITY_CELLS: usize = 250_000;
+
+/// A predicted cell is masked when its centre lies on a map cell at least this occupied
+/// (percent), as `chronomap activity predict --map` leaves it out
+/// (`OccupancyMap::is_occupied_at`; unknown cells and centres outside the map are not masked).
+pub const WALL_PERCENT: i8 = 51;
+
+/// What `t` is, as `GET /v1/activity/{name}` says.
+pub const TIME_UNIT: &str = "time bins of the training grid (t = k is the bin [t0 + k·τ, \
+    t0 + (k+1)·τ) of chronomap activity extract; in the bundled ATC grid the hour of recording, \
+    12 a day from 09:00)";
+
+/// Why a prediction was refused; each names the request field at fault.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ActivityError {
+    /// `t` is not finite.
+    Time(f64),
+    /// `cell` is not a positive number of metres.
+    Cell(f64),
+    /// The cells of that size are too many.
+    TooManyCells {
+        /// The side asked for.
+        cell: f64,
+        /// Columns.
+        cols: usize,
+        /// Rows.
+        rows: usize,
+    },
+    /// The model cannot predict (a model file that passed its checks should not get here).
+    Model(String),
+}
+
+impl fmt::Display for ActivityError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ActivityError::Time(t) => write!(f, "field `t`: {t} is not a finite number"),
+            ActivityError::Cell(c) => {
+                write!(f, "field `cell`: {c} is not a positive number of metres")
+            }
+            ActivityError::TooManyCells { cell, cols, rows } => write!(
+                f,
+                "field `cell`: cells of {cell} m give {cols} × {rows} cells, more than \
+                 {MAX_ACTIVITY_CELLS}; ask for larger cells"
+            ),
+            ActivityError::Model(reason) => write!(f, "the model cannot predict: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for ActivityError {}
+
+/// The prediction over a grid of cells (row 0 at the bottom).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActivityGrid {
+    /// Lower-left corner of cell (0, 0) (m).
+    pub origin: [f64; 2],
+    /// Side of a cell (m).
+    pub cell: f64,
+    /// Columns (along x).
+    pub cols: usize,
+    /// Rows (along y).
+    pub rows: usize,
+    /// Mean rate of cell `(col, row)` at `col + cols·row`; `None` on walls.
+    pub mean: Vec<Option<f64>>,
+    /// Its standard deviation, likewise.
+    pub std: Vec<Option<f64>>,
+}
+
+/// A CoPA-Map served read-only.
+#[derive(Debug)]
+pub struct ServedActivity {
+    model: CopaMap,
+    map: Option<OccupancyMap>,
+}
+
+impl ServedActivity {
+    /// Serves `model`, masked by the walls of `map` if given.
+    pub fn new(model: CopaMap, map: Option<OccupancyMap>) -> Self {
+        ServedActivity { model, map }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &CopaMap {
+        &self.model
+    }
+
+    /// Whether a map masks the predictions.
+    pub fn masked(&self) -> bool {
+        self.map.is_some()
+    }
+
+    /// The cells of `cell` metres covering the training square, as `chronomap activity
+    /// predict` takes them by default (`RegionGrid::around_centres` of the model's domain).
+    ///
+    /// # Errors
+    /// [`ActivityError::Cell`] for a side that is not a positive number.
+    pub fn region(&self, cell: f64) -> Result<RegionGrid, ActivityError> {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(ActivityError::Cell(cell));
+        }
+        RegionGrid::around_centres(self.model.domain(), cell)
+            .map_err(|e| ActivityError::Model(format!("the model's domain {e}")))
+    }
+
+    /// Mean and standard deviation of the rate at `t` in every cell of `cell` metres over the
+    /// training square: the values `chronomap activity predict` computes for the same model,
+    /// `t` and cell (same cells, same call, bit for bit), with the cells its `--map` leaves
+    /// out as `None`. The library lists cells from the top row; here row 0 is the bottom one.
+    ///
+    /// # Errors
+    /// A non-finite `t`, a bad `cell`, more than [`MAX_ACTIVITY_CELLS`] cells.
+    pub fn predict(&self, t: f64, cell: f64) -> Result<ActivityGrid, ActivityError> {
+        if !t.is_finite() {
+            return Err(ActivityError::Time(t));
+        }
+        let grid = self.region(cell)?;
+        let (cols, rows) = (grid.cols, grid.rows);
+        if cols.saturating_mul(rows) > MAX_ACTIVITY_CELLS {
+            return Err(ActivityError::TooManyCells { cell, cols, rows });
+        }
+        let centres = grid.centres();
+        let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
+        let (mean, std) = self
+            .model
+            .predict_with_std(&points, Parallelism::Rayon(0))
+            .map_err(|e| ActivityError::Model(e.to_string()))?;
+        let shown = |i: usize| {
+            !self
+                .map
+                .as_ref()
+                .is_some_and(|m| m.is_occupied_at(centres[i], WALL_PERCENT))
+        };
+        // Row `r` from the bottom is row `rows - 1 - r` of the library's, from the top.
+        let from_bottom = |values: &[f64]| -> Vec<Option<f64>> {
+            (0..rows)
+                .flat_map(|r| (0..cols).map(move |c| c + cols * (rows - 1 - r)))
+                .map(|i| shown(i).then_some(values[i]))
+                .collect()
+        };
+        Ok(ActivityGrid {
+            origin: [grid.min[0], grid.max[1] - rows as f64 * grid.cell],
+            cell: grid.cell,
+            cols,
+            rows,
+            mean: from_bottom(&mean),
+            std: from_bottom(&std),
+        })
+    }
+}
