@@ -2,7 +2,7 @@
 //! observations added through the command-line client predict exactly what the same model
 //! predicts when trained in one process, and the service documents every endpoint.
 
-use crate::common::{chronomap, repo, stdout};
+use crate::common::{assert_mentions, chronomap, error, repo, stdout, usage_error};
 use crate::service;
 
 use std::process::Command;
@@ -159,9 +159,14 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
         ("/v1/evaluate", "post"),
         ("/v1/detect", "post"),
         ("/v1/maps", "get"),
+        ("/v1/topo/{name}", "get"),
         ("/v1/topo/{name}/predict", "post"),
         ("/v1/topo/{name}/plan", "post"),
+        ("/v1/grid/{name}", "get"),
         ("/v1/grid/{name}/predict", "post"),
+        ("/v1/grid/{name}/cell", "post"),
+        ("/v1/activity/{name}", "get"),
+        ("/v1/activity/{name}/predict", "post"),
     ];
     let paths = spec["paths"].as_object().unwrap();
     let documented: usize = paths.values().map(|p| p.as_object().unwrap().len()).sum();
@@ -353,8 +358,11 @@ fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
 
 #[test]
 fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
-    use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
-    use chronomap_serve::maps::{EdgesResponse, GridResponse, PlanResponse};
+    use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
+    use chronomap_io::grid_file::GridFile;
+    use chronomap_serve::maps::{
+        CellResponse, EdgesResponse, GridInfo, GridResponse, MapsResponse, PlanResponse, TopoInfo,
+    };
     use chronomap_topo::mdp::SolverOptions;
     use chronomap_topo::plan::{Task, plan_at};
 
@@ -381,14 +389,23 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
             .unwrap();
     }
     let grid_path = data.join("door.cmg");
+    chronomap_io::grid_file::write_grid_file(&grid_path, &GridFile::State(Box::new(grid.clone())))
+        .unwrap();
+    // The same grid as the compact model, with order 1 in the door cell.
+    let lossy = grid.fitted(OrderChoice::PerCell(vec![1, 0, 0]));
+    let lossy_path = data.join("door-lossy.cmg");
     chronomap_io::grid_file::write_grid_file(
-        &grid_path,
-        &chronomap_io::grid_file::GridFile::State(Box::new(grid.clone())),
+        &lossy_path,
+        &GridFile::Lossy(Box::new(lossy.clone())),
     )
     .unwrap();
 
     let topo_flag = format!("witham={}", witham.display());
-    let grid_flag = format!("door={}", grid_path.display());
+    let grid_flag = format!(
+        "door={},lossy={}",
+        grid_path.display(),
+        lossy_path.display()
+    );
     let server = start(
         &data,
         free_port(),
@@ -408,6 +425,12 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
                 body.to_string().into_bytes(),
                 None,
             ))
+            .unwrap();
+        (status.as_u16(), text)
+    };
+    let get = |path: &str| -> (u16, String) {
+        let (status, text) = runtime
+            .block_on(client.raw(chronomap_client::Method::GET, path, vec![], None))
             .unwrap();
         (status.as_u16(), text)
     };
@@ -476,6 +499,499 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     assert_eq!(served.values, grid.predict_map(t));
     let (status, _) = post("/v1/grid/nope/predict", serde_json::json!({ "time": t }));
     assert_eq!(status, 404);
+
+    let (status, text) = get("/v1/maps");
+    assert_eq!(status, 200, "{text}");
+    let kinds: Vec<(String, String, u64)> = serde_json::from_str::<MapsResponse>(&text)
+        .unwrap()
+        .maps
+        .into_iter()
+        .map(|m| (m.name, m.kind, m.size))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            ("witham".into(), "topological".into(), 18),
+            ("door".into(), "grid-state".into(), 3),
+            ("lossy".into(), "grid-lossy".into(), 3),
+        ]
+    );
+
+    // The map as a viewer draws it: the edge files carry no positions, so they are computed
+    // (once, at start) by the library's layout, one edge length apart.
+    let (status, text) = get("/v1/topo/witham");
+    assert_eq!(status, 200, "{text}");
+    let info: TopoInfo = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        (info.positions.as_str(), info.layout_file),
+        ("computed", None)
+    );
+    let layout = chronomap_topo::layout::stress_layout(models.map(), 1.0);
+    assert_eq!(info.nodes.len(), 18);
+    for ((node, served), xy) in models.map().nodes().iter().zip(&info.nodes).zip(&layout) {
+        assert_eq!((&served.name, [served.x, served.y]), (&node.name, *xy));
+    }
+    let served_edges: Vec<(&str, &str, &str)> = info
+        .edges
+        .iter()
+        .map(|e| (e.id.as_str(), e.from.as_str(), e.to.as_str()))
+        .collect();
+    let predicted_edges: Vec<(&str, &str, &str)> = edges
+        .edges
+        .iter()
+        .map(|e| (e.id.as_str(), e.from.as_str(), e.to.as_str()))
+        .collect();
+    assert_eq!(served_edges, predicted_edges);
+    assert_eq!(
+        (info.first_time, info.last_time),
+        chronomap_serve::maps::training_span(&models)
+    );
+    assert_eq!(info.last_time, models.last_time());
+    let first = info.first_time.unwrap();
+    assert!(first < info.last_time.unwrap() && first > 1.3e9, "{first}");
+
+    // The grids' shapes and frames, and single cells at many times: the served map's values.
+    let (status, text) = get("/v1/grid/door");
+    assert_eq!(status, 200, "{text}");
+    let info: GridInfo = serde_json::from_str(&text).unwrap();
+    let frames = (1_400_000_000.0, 1_400_000_000.0 + 143.0 * 1800.0);
+    assert_eq!(
+        (info.kind.as_str(), info.shape, info.resolution, info.origin),
+        ("grid-state", [3, 1, 1], 0.5, [0.0, 0.0, 0.0])
+    );
+    assert_eq!(
+        (info.frames, info.first_time, info.last_time),
+        (144, Some(frames.0), Some(frames.1))
+    );
+    let (status, text) = get("/v1/grid/lossy");
+    assert_eq!(status, 200, "{text}");
+    let info: GridInfo = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        (info.kind.as_str(), info.frames, info.last_time),
+        ("grid-lossy", 144, Some(frames.1))
+    );
+    let day: Vec<f64> = (0..48).map(|h| t + h as f64 * 1800.0).collect();
+    for (name, maps) in [
+        (
+            "door",
+            day.iter().map(|&t| grid.predict_map(t)).collect::<Vec<_>>(),
+        ),
+        ("lossy", day.iter().map(|&t| lossy.predict(t)).collect()),
+    ] {
+        for x in 0..3u32 {
+            let (status, text) = post(
+                &format!("/v1/grid/{name}/cell"),
+                serde_json::json!({ "cell": [x, 0], "times": day }),
+            );
+            assert_eq!(status, 200, "{text}");
+            let cell: CellResponse = serde_json::from_str(&text).unwrap();
+            assert_eq!(cell.cell, [x, 0, 0]);
+            assert_eq!(cell.centre, [0.25 + 0.5 * f64::from(x), 0.25, 0.25]);
+            let expected: Vec<f64> = maps.iter().map(|m| f64::from(m[x as usize])).collect();
+            assert_eq!(cell.values, expected, "{name} cell {x}");
+        }
+        // Bit for bit what /predict serves for the whole map.
+        let (_, text) = post(
+            &format!("/v1/grid/{name}/predict"),
+            serde_json::json!({ "time": day[7] }),
+        );
+        let whole: GridResponse = serde_json::from_str(&text).unwrap();
+        let (_, text) = post(
+            &format!("/v1/grid/{name}/cell"),
+            serde_json::json!({ "cell": [0, 0, 0], "times": [day[7]] }),
+        );
+        let cell: CellResponse = serde_json::from_str(&text).unwrap();
+        assert_eq!(cell.values, [f64::from(whole.values[0])]);
+    }
+    let door = post(
+        "/v1/grid/door/cell",
+        serde_json::json!({ "cell": [0, 0], "times": day }),
+    )
+    .1;
+    let door: CellResponse = serde_json::from_str(&door).unwrap();
+    // Open (free) at 14:00, closed at 04:00.
+    assert!(door.values[0] < 0.5 && door.values[28] > 0.5, "{door:?}");
+
+    // Bad requests name the field; unknown maps are 404.
+    let bad = |path: &str, body: serde_json::Value, status: u16, reason: &[&str]| {
+        let (got, text) = post(path, body);
+        assert_eq!(got, status, "{path}: {text}");
+        let body: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let kind = if status == 404 {
+            "not_found"
+        } else {
+            "bad_request"
+        };
+        assert_eq!(body["error"], kind, "{text}");
+        for part in reason {
+            assert!(body["reason"].as_str().unwrap().contains(part), "{text}");
+        }
+    };
+    let cell_path = "/v1/grid/door/cell";
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [3, 0], "times": [t] }),
+        400,
+        &["field `cell`", "[3, 0]", "shape [3, 1, 1]"],
+    );
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [0, 0, 1], "times": [t] }),
+        400,
+        &["field `cell`", "shape [3, 1, 1]"],
+    );
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [-1, 0], "times": [t] }),
+        400,
+        &["field `cell`"],
+    );
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [0], "times": [t] }),
+        400,
+        &["field `cell`", "[x, y] or [x, y, z]"],
+    );
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [0, 0], "times": vec![t; 10_001] }),
+        400,
+        &["field `times`", "1 to 10000 times, not 10001"],
+    );
+    bad(
+        cell_path,
+        serde_json::json!({ "cell": [0, 0], "times": [] }),
+        400,
+        &["field `times`"],
+    );
+    bad(
+        "/v1/grid/nope/cell",
+        serde_json::json!({ "cell": [0, 0], "times": [t] }),
+        404,
+        &["no grid named \"nope\""],
+    );
+    for path in ["/v1/grid/nope", "/v1/topo/nope", "/v1/activity/nope"] {
+        let (status, text) = get(path);
+        assert_eq!(status, 404, "{path}: {text}");
+        let body: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert!(
+            body["reason"].as_str().unwrap().ends_with("named \"nope\""),
+            "{text}"
+        );
+    }
+}
+
+#[test]
+fn laid_out_topological_maps_and_activity_maps_are_served_as_their_files_and_the_cli_say() {
+    use chronomap_activity::grids::RegionGrid;
+    use chronomap_serve::maps::{ActivityInfo, ActivityResponse, MapsResponse, TopoInfo};
+    use chronomap_topo::TopoMap;
+
+    let data = scratch("serve_cli_layout_activity");
+    let arg = |name: &str| data.join(name).display().to_string();
+    let witham = arg("witham.cmt");
+    stdout(&chronomap(&[
+        "topo",
+        "fit",
+        "--edges",
+        &repo("data/witham_topological_nav/edges"),
+        "-o",
+        &witham,
+        "--success-order",
+        "1",
+    ]));
+    let models = chronomap_io::model_file::read_edge_models(&witham).unwrap();
+    // A route graph placing every node (made-up poses), and one more node.
+    let mut placed = TopoMap::new();
+    let pose = |i: usize| [1.5 * i as f64 - 7.25, (i % 4) as f64 * 0.1 + 0.3, 0.0];
+    for (i, node) in models.map().nodes().iter().enumerate() {
+        placed.add_node(&node.name, Some(pose(i))).unwrap();
+    }
+    placed
+        .add_node("Elsewhere", Some([100.0, 100.0, 0.0]))
+        .unwrap();
+    for edge in models.map().edges() {
+        let name = |n: usize| models.map().nodes()[n].name.clone();
+        placed
+            .add_edge(&edge.id, &name(edge.from), &name(edge.to))
+            .unwrap();
+    }
+    let layout = arg("witham.geojson");
+    let metadata = vec![(0.5, 10.0); placed.edges().len()];
+    chronomap_io::topo_files::write_route_geojson(&layout, &placed, &metadata).unwrap();
+
+    // A CoPA-Map fitted cheaply on the bundled ATC grid, masked by the ATC map.
+    let model_path = arg("atc.cmcopa");
+    stdout(&chronomap(&[
+        "activity",
+        "fit",
+        "--train",
+        &repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"),
+        "--inducing",
+        "10",
+        "--iterations",
+        "3",
+        "-o",
+        &model_path,
+    ]));
+    let model = chronomap_io::read_copa_map(&model_path).unwrap();
+    let atc_map = repo("data/atc_copa_map_grid/atc_map.yaml");
+
+    let topo_flag = format!("witham={witham}");
+    let layout_flag = format!("witham={layout}");
+    let activity_flag = format!("atc={model_path}");
+    let activity_map_flag = format!("atc={atc_map}");
+    let server = start(
+        &data.join("store"),
+        free_port(),
+        &Backend::Redb,
+        &[
+            "--topo",
+            &topo_flag,
+            "--topo-layout",
+            &layout_flag,
+            "--activity",
+            &activity_flag,
+            "--activity-map",
+            &activity_map_flag,
+        ],
+    );
+    let client = Client::new(&server.url, None).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let call = |method: chronomap_client::Method, path: &str, body: Option<serde_json::Value>| {
+        let body = body.map_or_else(Vec::new, |b| b.to_string().into_bytes());
+        let (status, text) = runtime
+            .block_on(client.raw(method, path, body, None))
+            .unwrap();
+        (status.as_u16(), text)
+    };
+    let get = |path: &str| call(chronomap_client::Method::GET, path, None);
+    let post = |path: &str, body: serde_json::Value| {
+        call(chronomap_client::Method::POST, path, Some(body))
+    };
+
+    let (status, text) = get("/v1/topo/witham");
+    assert_eq!(status, 200, "{text}");
+    let info: TopoInfo = serde_json::from_str(&text).unwrap();
+    assert_eq!(info.positions, "file");
+    assert_eq!(info.layout_file.as_deref(), Some(layout.as_str()));
+    assert_eq!(info.nodes.len(), 18);
+    for (i, (node, served)) in models.map().nodes().iter().zip(&info.nodes).enumerate() {
+        assert_eq!(&served.name, &node.name);
+        assert_eq!(
+            [served.x, served.y],
+            [pose(i)[0], pose(i)[1]],
+            "{}",
+            node.name
+        );
+    }
+    assert_eq!(info.edges.len(), 61);
+
+    let (status, text) = get("/v1/maps");
+    assert_eq!(status, 200, "{text}");
+    let maps = serde_json::from_str::<MapsResponse>(&text).unwrap().maps;
+    assert_eq!(
+        (maps[1].name.as_str(), maps[1].kind.as_str(), maps[1].size),
+        ("atc", "activity", 49 * 49)
+    );
+
+    let (status, text) = get("/v1/activity/atc");
+    assert_eq!(status, 200, "{text}");
+    let info: ActivityInfo = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        (
+            info.domain,
+            info.periods,
+            info.default_cell,
+            info.masked_by_map
+        ),
+        (model.domain(), model.periods(), 0.5, true)
+    );
+    assert!(info.time_unit.contains("time bins"), "{}", info.time_unit);
+
+    // Every cell off the walls, bit for bit as `chronomap activity predict` writes it, and the
+    // walls the cells it leaves out; the default cell is the command's default.
+    for (t, cell, body) in [
+        (123.0, 0.5, serde_json::json!({ "t": 123 })),
+        (129.5, 1.5, serde_json::json!({ "t": 129.5, "cell": 1.5 })),
+    ] {
+        let (status, text) = post("/v1/activity/atc/predict", body);
+        assert_eq!(status, 200, "{text}");
+        let served: ActivityResponse = serde_json::from_str(&text).unwrap();
+        let csv = arg(&format!("atc_{t}.csv"));
+        stdout(&chronomap(&[
+            "activity",
+            "predict",
+            "--model",
+            &model_path,
+            "--t",
+            &t.to_string(),
+            "--cell",
+            &cell.to_string(),
+            "--map",
+            &atc_map,
+            "-o",
+            &csv,
+        ]));
+        let rows: Vec<Vec<f64>> = std::fs::read_to_string(&csv)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let grid = RegionGrid::around_centres(model.domain(), cell).unwrap();
+        let (cols, rows_n) = (grid.cols, grid.rows);
+        assert_eq!((served.t, served.cell), (t, cell));
+        assert_eq!(served.shape, [cols as u32, rows_n as u32]);
+        assert_eq!(
+            served.origin,
+            [grid.min[0], grid.max[1] - rows_n as f64 * cell]
+        );
+        assert_eq!(served.mean.len(), cols * rows_n);
+        // The command lists cells from the top row; the service from the bottom one.
+        let mut expected = rows.iter();
+        for (i, centre) in grid.centres().iter().enumerate() {
+            let (col, row) = (i % cols, rows_n - 1 - i / cols);
+            let at = col + cols * row;
+            let lower_left = [
+                served.origin[0] + col as f64 * cell,
+                served.origin[1] + row as f64 * cell,
+            ];
+            assert!((centre[0] - lower_left[0] - cell / 2.0).abs() < 1e-9);
+            assert!((centre[1] - lower_left[1] - cell / 2.0).abs() < 1e-9);
+            match (served.mean[at], served.std[at]) {
+                (Some(mean), Some(std)) => {
+                    let row = expected.next().expect("the command predicts this cell too");
+                    assert_eq!(row[..2], centre[..], "cell {i}");
+                    assert_eq!((row[2], row[3], row[4]), (t, mean, std), "cell {i}");
+                }
+                (None, None) => {}
+                other => panic!("cell {i}: {other:?}"),
+            }
+        }
+        assert!(expected.next().is_none(), "the command predicts more cells");
+        let masked = served.mean.iter().filter(|m| m.is_none()).count();
+        assert!(masked > 0 && masked < cols * rows_n / 2, "{masked}");
+    }
+
+    // Bad requests name the field; unknown maps are 404.
+    for (body, status, reason) in [
+        (
+            serde_json::json!({ "t": 1, "cell": 0.01 }),
+            400,
+            "more than 250000",
+        ),
+        (
+            serde_json::json!({ "t": 1, "cell": -1 }),
+            400,
+            "field `cell`",
+        ),
+        (
+            serde_json::json!({ "t": 1, "cell": 0 }),
+            400,
+            "field `cell`",
+        ),
+        (
+            serde_json::json!({ "t": 1, "cells": 1 }),
+            400,
+            "unknown field `cells`",
+        ),
+        (serde_json::json!({ "cell": 1 }), 400, "missing field `t`"),
+    ] {
+        let (got, text) = post("/v1/activity/atc/predict", body.clone());
+        assert_eq!(got, status, "{body}: {text}");
+        assert!(text.contains(reason), "{body}: {text}");
+    }
+    let (status, text) = post("/v1/activity/nope/predict", serde_json::json!({ "t": 1 }));
+    assert_eq!(status, 404, "{text}");
+    assert!(text.contains("no activity map named"), "{text}");
+}
+
+#[test]
+fn a_topo_layout_that_misses_nodes_or_names_no_topo_map_stops_the_start() {
+    let data = scratch("serve_cli_bad_layout");
+    let arg = |name: &str| data.join(name).display().to_string();
+    let witham = arg("witham.cmt");
+    stdout(&chronomap(&[
+        "topo",
+        "fit",
+        "--edges",
+        &repo("data/witham_topological_nav/edges"),
+        "-o",
+        &witham,
+    ]));
+    let models = chronomap_io::model_file::read_edge_models(&witham).unwrap();
+    // A tmap2 map of 3 of the 18 nodes: 15 have no position.
+    let mut partial = chronomap_topo::TopoMap::new();
+    for node in &models.map().nodes()[..3] {
+        partial.add_node(&node.name, Some([1.0, 2.0, 0.0])).unwrap();
+    }
+    let layout = arg("partial.yaml");
+    chronomap_io::topo_files::write_tmap2(&layout, &partial, "partial").unwrap();
+    let store = arg("store");
+    let serve = |extra: &[&str]| {
+        let mut args = vec!["serve", "--data", &store, "--listen", "127.0.0.1:0"];
+        args.extend(extra);
+        chronomap(&args)
+    };
+    let topo_flag = format!("witham={witham}");
+    let layout_flag = format!("witham={layout}");
+    let err = error(&serve(&[
+        "--topo",
+        &topo_flag,
+        "--topo-layout",
+        &layout_flag,
+    ]));
+    let named: Vec<&str> = models.map().nodes()[3..13]
+        .iter()
+        .map(|n| n.name.as_str())
+        .collect();
+    assert_mentions(
+        &err,
+        &[
+            "--topo-layout witham",
+            &format!("{layout}: no position for 15 of the 18 nodes of the map: "),
+            &format!("{} and 5 more", named.join(", ")),
+        ],
+    );
+
+    // A route graph of every node, but the first one's position is made up (synthetic).
+    let mut synthetic = chronomap_topo::TopoMap::new();
+    for (i, node) in models.map().nodes().iter().enumerate() {
+        let pose = (i > 0).then_some([i as f64, 0.0, 0.0]);
+        synthetic.add_node(&node.name, pose).unwrap();
+    }
+    let geojson = arg("synthetic.geojson");
+    chronomap_io::topo_files::write_route_geojson(&geojson, &synthetic, &[]).unwrap();
+    let geojson_flag = format!("witham={geojson}");
+    let err = error(&serve(&[
+        "--topo",
+        &topo_flag,
+        "--topo-layout",
+        &geojson_flag,
+    ]));
+    let first = &models.map().nodes()[0].name;
+    assert!(
+        err.contains(&format!(
+            "{geojson}: no position for 1 of the 18 nodes of the map: {first}\n"
+        )),
+        "{err}"
+    );
+
+    let other = format!("other={layout}");
+    let err = usage_error(&serve(&["--topo", &topo_flag, "--topo-layout", &other]));
+    assert!(
+        err.contains("--topo-layout other: no --topo map is named"),
+        "{err}"
+    );
+    let err = usage_error(&serve(&["--activity-map", &other]));
+    assert!(
+        err.contains("--activity-map other: no --activity map"),
+        "{err}"
+    );
 }
 
 #[test]
