@@ -811,6 +811,9 @@ fn laid_out_topological_maps_and_activity_maps_are_served_as_their_files_and_the
         (model.domain(), model.periods(), 0.5, true)
     );
     assert!(info.time_unit.contains("time bins"), "{}", info.time_unit);
+    // The ATC training grid: bins 0 .. 119 (ten days of twelve hours).
+    assert_eq!(info.t_range, [0.0, 119.0]);
+    assert_eq!(info.t_range, model.time_span());
 
     // Every cell off the walls, bit for bit as `chronomap activity predict` writes it, and the
     // walls the cells it leaves out; the default cell is the command's default.

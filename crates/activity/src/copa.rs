@@ -263,6 +263,13 @@ impl CopaMap {
         [x, y, x + s, y + s]
     }
 
+    /// The times the model was trained on, `[t_min, t_min + span]` in units of `t`: the span
+    /// is the training span, or one day period if the training was shorter.
+    pub fn time_span(&self) -> [f64; 2] {
+        let s = &self.scaling;
+        [s.time_origin, s.time_origin + s.time_scale]
+    }
+
     /// Checks what a model read from a file must satisfy beyond the shapes its deserialiser
     /// checks: finite scalings with positive scales and a finite standardisation.
     ///

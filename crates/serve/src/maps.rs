@@ -261,6 +261,8 @@ pub struct ActivityInfo {
     pub periods: Vec<f64>,
     /// What `t` counts.
     pub time_unit: String,
+    /// The training times `[t_min, t_max]` (units of `t`; at least one day period wide).
+    pub t_range: [f64; 2],
     /// Side of a cell when a prediction asks for none (m).
     pub default_cell: f64,
     /// Whether cells on walls of a map (`--activity-map`) are left out.
@@ -643,6 +645,7 @@ pub(crate) async fn activity_info(
         domain: served.model().domain(),
         periods: served.model().periods(),
         time_unit: TIME_UNIT.into(),
+        t_range: served.model().time_span(),
         default_cell: DEFAULT_CELL,
         masked_by_map: served.masked(),
     }))

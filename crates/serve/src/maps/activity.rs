@@ -22,8 +22,7 @@ pub const WALL_PERCENT: i8 = 51;
 
 /// What `t` is, as `GET /v1/activity/{name}` says.
 pub const TIME_UNIT: &str = "time bins of the training grid (t = k is the bin [t0 + k·τ, \
-    t0 + (k+1)·τ) of chronomap activity extract; in the bundled ATC grid the hour of recording, \
-    12 a day from 09:00)";
+    t0 + (k+1)·τ) of chronomap activity extract)";
 
 /// Why a prediction was refused; each names the request field at fault.
 #[derive(Clone, Debug, PartialEq)]
