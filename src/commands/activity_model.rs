@@ -21,8 +21,8 @@ use crate::{out, outln};
 /// for hours.
 const MAX_PREDICTIONS: usize = 20_000_000;
 
-/// A map cell blocks a predicted cell when it is more than this occupied (percent).
-const WALL_PERCENT: i8 = 51;
+// A map cell blocks a predicted cell when it is at least this occupied (percent).
+use chronomap_io::WALL_PERCENT;
 
 pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     let name = args.train.display().to_string();

@@ -166,7 +166,7 @@ pub use navmap::{
     read_map_yaml, save_map,
 };
 #[cfg(all(feature = "navmap", feature = "activity"))]
-pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, load_planning_grid};
+pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, WALL_PERCENT, load_planning_grid};
 #[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 #[cfg(feature = "bt")]

@@ -13,6 +13,11 @@ use chronomap_spatial::ObstacleGrid;
 
 use crate::navmap::{NavMapErrorKind, OccupancyMap};
 
+/// The occupancy (percent) from which a map cell is a wall for predictions drawn over the map:
+/// `chronomap activity predict --map` and the service's `--activity-map` leave out the cells
+/// whose centres lie on such a cell ([`OccupancyMap::is_occupied_at`]).
+pub const WALL_PERCENT: i8 = 51;
+
 impl OccupancyMap {
     /// The cells a path planner must avoid: at least `min_occupancy` percent occupied, or
     /// unknown (`-1`). Metres per cell are `f64::from(resolution)`.

@@ -18,7 +18,7 @@ pub const MAX_ACTIVITY_CELLS: usize = 250_000;
 /// A predicted cell is masked when its centre lies on a map cell at least this occupied
 /// (percent), as `chronomap activity predict --map` leaves it out
 /// (`OccupancyMap::is_occupied_at`; unknown cells and centres outside the map are not masked).
-pub const WALL_PERCENT: i8 = 51;
+pub use chronomap_io::WALL_PERCENT;
 
 /// What `t` is, as `GET /v1/activity/{name}` says.
 pub const TIME_UNIT: &str = "time bins of the training grid (t = k is the bin [t0 + k·τ, \
