@@ -27,9 +27,30 @@ fn read_at_most(reader: impl Read, max: u64) -> io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// [`std::fs::read`] with the [`MAX_FILE_BYTES`] limit.
+/// Opens `path` for reading if it is a regular file (or a link to one). A directory, a device
+/// such as `/dev/zero` or a pipe is refused with [`io::ErrorKind::InvalidInput`] before anything
+/// is read: checked before opening (opening a pipe waits for a writer) and again on the open
+/// file (the path may have changed in between).
+pub(crate) fn open_regular(path: &Path) -> io::Result<std::fs::File> {
+    let not_regular = || {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "it is not a regular file (a directory, a device or a pipe)",
+        )
+    };
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_regular());
+    }
+    let file = std::fs::File::open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    Ok(file)
+}
+
+/// [`std::fs::read`] of a regular file ([`open_regular`]) with the [`MAX_FILE_BYTES`] limit.
 pub(crate) fn read(path: &Path) -> io::Result<Vec<u8>> {
-    read_to_end_bounded(std::fs::File::open(path)?)
+    read_to_end_bounded(open_regular(path)?)
 }
 
 /// [`std::fs::read_to_string`] with the [`MAX_FILE_BYTES`] limit.
@@ -55,5 +76,22 @@ mod tests {
             "larger than 1073741824 bytes (is this the right file?)"
         );
         assert_eq!(read_to_end_bounded(&b"abc"[..]).unwrap(), b"abc");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_and_directories_are_refused_before_reading() {
+        for path in ["/dev/zero", "/dev/null", "/"] {
+            let err = read(Path::new(path)).unwrap_err();
+            assert_eq!(err.kind(), io::ErrorKind::InvalidInput, "{path}");
+            assert_eq!(
+                err.to_string(),
+                "it is not a regular file (a directory, a device or a pipe)"
+            );
+        }
+        let file = std::env::temp_dir().join(format!("bounded-{}.txt", std::process::id()));
+        std::fs::write(&file, "abc").unwrap();
+        assert_eq!(read(&file).unwrap(), b"abc");
+        std::fs::remove_file(&file).unwrap();
     }
 }

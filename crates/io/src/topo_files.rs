@@ -874,10 +874,17 @@ pub struct Tmap2 {
 /// [module docs](self#strands--lcas-tmap2-yaml-read_tmap2-write_tmap2)).
 ///
 /// # Errors
-/// [`TopoFileErrorKind::Io`] if it cannot be read, else as [`decode_tmap2`]; errors name
-/// `path`.
+/// [`TopoFileErrorKind::Io`] if it is not a regular file or cannot be read, else as
+/// [`decode_tmap2`]; errors name `path`.
 pub fn read_tmap2(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
-    let path = path.as_ref();
+    let (name, bytes) = read_map_file(path.as_ref())?;
+    Ok(decode_tmap2(&name, &bytes)?.map)
+}
+
+/// The bytes of a map file (decompressed), and its name for errors: at most
+/// [`MAX_FILE_BYTES`](crate::MAX_FILE_BYTES), and only from a regular file (a directory, a
+/// device such as `/dev/zero` or a pipe is refused before reading).
+fn read_map_file(path: &Path) -> Result<(String, Vec<u8>), TopoFileError> {
     let name = path.display().to_string();
     let read_error = |io| {
         TopoFileError::new(
@@ -886,10 +893,10 @@ pub fn read_tmap2(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
             TopoFileErrorKind::Io { action: "read", io },
         )
     };
-    let file = fs::File::open(path).map_err(read_error)?;
+    let file = crate::bounded::open_regular(path).map_err(read_error)?;
     let bytes = crate::bounded::read_to_end_bounded(decompressing_reader(&name, file))
         .map_err(read_error)?;
-    Ok(decode_tmap2(&name, &bytes)?.map)
+    Ok((name, bytes))
 }
 
 /// Parses a tmap2 map (or a STRANDS ROS 1 list of nodes) from YAML text; `name` is used in
@@ -1475,31 +1482,7 @@ pub fn encode_route_geojson(
 /// [`TopoFileErrorKind::Io`] if it is not a regular file or cannot be read, else as
 /// [`decode_route_geojson`]; errors name `path`.
 pub fn read_route_geojson(path: impl AsRef<Path>) -> Result<TopoMap, TopoFileError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let read_error = |io| {
-        TopoFileError::new(
-            Some(&name),
-            None,
-            TopoFileErrorKind::Io { action: "read", io },
-        )
-    };
-    let not_regular = || {
-        read_error(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            "it is not a regular file (a directory, a device or a pipe)",
-        ))
-    };
-    // Checked before opening (opening a pipe waits for a writer) and again on the open file.
-    if !fs::metadata(path).map_err(read_error)?.is_file() {
-        return Err(not_regular());
-    }
-    let file = fs::File::open(path).map_err(read_error)?;
-    if !file.metadata().map_err(read_error)?.is_file() {
-        return Err(not_regular());
-    }
-    let bytes = crate::bounded::read_to_end_bounded(decompressing_reader(&name, file))
-        .map_err(read_error)?;
+    let (name, bytes) = read_map_file(path.as_ref())?;
     decode_route_geojson(&name, &bytes)
 }
 
