@@ -103,6 +103,15 @@ def service():
     rooms = sorted((DATA / "aruba_rooms_1min").glob("presence_minutes_*.txt.xz"),
                    key=lambda p: int(re.search(r"_(\d+)\.txt", p.name).group(1)))
     run("grid", "build", "--cell-series", ",".join(map(str, rooms)), "-o", aruba, "-q")
+    # The same map with node positions from a Nav2 route-server GeoJSON file (made up here: the
+    # Witham data carry none), in a 6-column grid 3 m apart.
+    nodes = sorted({part for f in (DATA / "witham_topological_nav" / "edges").glob("*.data")
+                    for part in f.stem.split("_", 1)})
+    layout = work / "witham_layout.geojson"
+    layout.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"id": i, "metadata": {"name": name}},
+         "geometry": {"type": "Point", "coordinates": [3.0 * (i % 6), -3.0 * (i // 6)]}}
+        for i, name in enumerate(nodes)]}))
     office = work / "office.cmg"
     run("grid", "build", "--synthetic", "--cells", "20000", "--days", "14", "-o", office, "-q")
     atc = work / "atc.cmcopa"
@@ -110,7 +119,8 @@ def service():
         "--inducing", "60", "--iterations", "40", "-o", atc, "-q")
     process = subprocess.Popen(
         [str(BIN), "serve", "--data", str(work / "store"), "--listen", "127.0.0.1:0",
-         "--topo", f"witham={witham}", "--grid", f"aruba={aruba},office={office}",
+         "--topo", f"witham={witham},witham_laid_out={witham}",
+         "--topo-layout", f"witham_laid_out={layout}", "--grid", f"aruba={aruba},office={office}",
          "--activity", f"atc={atc}",
          "--activity-map", f"atc={DATA / 'atc_copa_map_grid' / 'atc_map.yaml'}"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -374,6 +384,30 @@ def test_topological_map_colours_edges_and_plans_now_or_later(page, service):
     assert page.data("plan-chart", "first") == [p["first_edge"] for p in plans]
     assert "Kitchen" in page.text("plan-summary")
     page.shot("viewer-topo.png")
+
+    # Positions from a layout file: drawn where the file puts them (x to the right, y up), with
+    # a metre scale bar.
+    page.set_value("topo-select", "witham_laid_out")
+    deadline = time.time() + 30
+    while "witham_layout.geojson" not in page.text("topo-positions"):
+        assert time.time() < deadline, page.text("topo-positions")
+        time.sleep(0.1)
+    page.ready("topo-map")
+    info = service.get("/v1/topo/witham_laid_out")
+    assert info["positions"] == "file"
+    drawn = page.driver.execute_script(
+        "return [...document.querySelectorAll('#topo-map circle')].map(c => [+c.getAttribute('cx'), +c.getAttribute('cy')])")
+    assert len(drawn) == len(info["nodes"]) == 18
+    (x0, y0), (x1, y1) = drawn[0], drawn[1]
+    scale = (x1 - x0) / (info["nodes"][1]["x"] - info["nodes"][0]["x"])
+    for (x, y), node in zip(drawn, info["nodes"]):
+        assert abs(x - x0 - scale * (node["x"] - info["nodes"][0]["x"])) < 1e-6
+        assert abs(y - y0 + scale * (node["y"] - info["nodes"][0]["y"])) < 1e-6
+    assert page.driver.execute_script(
+        "return [...document.querySelectorAll('#topo-map text')].some(t => / m$/.test(t.textContent))")
+    page.restart("topo-map")
+    page.set_value("topo-select", "witham")
+    page.ready("topo-map")
 
     # A misspelt node: the service's reason is shown, and the failed request is the only one.
     page.set_value("plan-task", "F Kitchn", "input")
