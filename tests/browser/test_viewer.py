@@ -105,8 +105,9 @@ def service():
     run("grid", "build", "--cell-series", ",".join(map(str, rooms)), "-o", aruba, "-q")
     # The same map with node positions from a Nav2 route-server GeoJSON file (made up here: the
     # Witham data carry none), in a 6-column grid 3 m apart.
-    nodes = sorted({part for f in (DATA / "witham_topological_nav" / "edges").glob("*.data")
-                    for part in f.stem.split("_", 1)})
+    nodes = sorted({part for f in (DATA / "witham_topological_nav" / "edges").glob("*.data.xz")
+                    for part in f.name.removesuffix(".data.xz").split("_", 1)})
+    assert len(nodes) == 18
     layout = work / "witham_layout.geojson"
     layout.write_text(json.dumps({"type": "FeatureCollection", "features": [
         {"type": "Feature", "properties": {"id": i, "metadata": {"name": name}},
