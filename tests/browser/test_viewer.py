@@ -115,13 +115,15 @@ def service():
         for i, name in enumerate(nodes)]}))
     office = work / "office.cmg"
     run("grid", "build", "--synthetic", "--cells", "20000", "--days", "14", "-o", office, "-q")
+    office3d = work / "office3d.cmg"
+    run("grid", "build", "--synthetic", "--days", "2", "-o", office3d, "-q")
     atc = work / "atc.cmcopa"
     run("activity", "fit", "--train", DATA / "atc_copa_map_grid" / "grid_atc_50cm_60min_train_xy.csv.xz",
         "--inducing", "60", "--iterations", "40", "-o", atc, "-q")
     process = subprocess.Popen(
         [str(BIN), "serve", "--data", str(work / "store"), "--listen", "127.0.0.1:0",
          "--topo", f"witham={witham},witham_laid_out={witham}",
-         "--topo-layout", f"witham_laid_out={layout}", "--grid", f"aruba={aruba},office={office}",
+         "--topo-layout", f"witham_laid_out={layout}", "--grid", f"aruba={aruba},office={office},office3d={office3d}",
          "--activity", f"atc={atc}",
          "--activity-map", f"atc={DATA / 'atc_copa_map_grid' / 'atc_map.yaml'}"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -208,6 +210,11 @@ def page(browser, service):
         def data(self, element_id, key):
             return json.loads(browser.execute_script(
                 "return document.getElementById(arguments[0]).dataset[arguments[1]]", element_id, key))
+
+        def data_or_none(self, element_id, key):
+            text = browser.execute_script(
+                "return document.getElementById(arguments[0]).dataset[arguments[1]]", element_id, key)
+            return None if text is None else json.loads(text)
 
         def text(self, element_id):
             return browser.execute_script("return document.getElementById(arguments[0]).textContent", element_id)
@@ -357,6 +364,24 @@ def test_grids_show_the_predicted_map_its_difference_and_a_cell(page, service):
     page.set_value("grid-time", "60", "input")
     page.ready("grid-map")
     page.shot("viewer-grid.png")
+
+    # A 3-D grid: one layer at a time.
+    page.restart("grid-map")
+    page.set_value("grid-select", "office3d")
+    deadline = time.time() + 60
+    while page.data_or_none("grid-map", "grid") != "office3d" or page.data_or_none("grid-map", "layer") != 0:
+        assert time.time() < deadline, "the 3-D grid was not drawn"
+        time.sleep(0.1)
+    page.ready("grid-map")
+    w, h, depth = service.get("/v1/grid/office3d")["shape"]
+    assert depth > 1 and page.driver.execute_script("return !document.getElementById('grid-layer-box').hidden")
+    page.restart("grid-map")
+    page.set_value("grid-layer", str(depth // 2))
+    page.ready("grid-map")
+    assert page.data("grid-map", "layer") == depth // 2
+    answer = service.post("/v1/grid/office3d/predict", {"time": page.data("grid-map", "time")})["values"]
+    z = depth // 2
+    assert page.data("grid-map", "values") == answer[z * w * h:(z + 1) * w * h]
 
 
 def test_topological_map_colours_edges_and_plans_now_or_later(page, service):
