@@ -63,6 +63,12 @@ impl ExactSum {
     pub fn to_f64(self) -> f64 {
         self.0 as f64 / SCALE
     }
+
+    /// Whether this can be a sum of `count` terms in `[-1, 1]` (`[0, 1]` if `nonnegative`):
+    /// the bound a sum read from a file must keep (each term rounds to at most `2^50` units).
+    pub fn fits_terms(self, count: u64, nonnegative: bool) -> bool {
+        self.0.unsigned_abs() <= u128::from(count) << 50 && (!nonnegative || self.0 >= 0)
+    }
 }
 
 impl std::ops::Add for ExactSum {

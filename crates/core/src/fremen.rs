@@ -193,6 +193,7 @@ impl FremenModel {
             && self.sums.periods() == &self.config.periods
             && self.sums.is_consistent()
             && self.sums.count() == self.span.count
+            && self.span.is_consistent()
     }
 
     /// The exact spectral accumulators.

@@ -97,7 +97,14 @@ impl HistogramModel {
             && self.sums.len() == self.counts.len()
             && self.period_secs.is_finite()
             && self.period_secs > 0.0
-            && self.counts.iter().sum::<u64>() == self.span.count
+            && self.counts.iter().try_fold(0u64, |a, &c| a.checked_add(c)) == Some(self.span.count)
+            && self.span.is_consistent()
+            && self
+                .sums
+                .iter()
+                .zip(&self.counts)
+                .all(|(s, &c)| s.fits_terms(c, true))
+            && self.sums.iter().map(|s| s.units()).sum::<i128>() == self.total.units()
     }
 }
 

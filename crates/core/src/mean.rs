@@ -22,6 +22,12 @@ impl MeanModel {
         MeanModel::default()
     }
 
+    /// Checks invariants (for models read from files): a valid span and a sum of as many
+    /// values in `[0, 1]` as were observed.
+    pub fn is_consistent(&self) -> bool {
+        self.span.is_consistent() && self.sum.fits_terms(self.span.count, true)
+    }
+
     /// Mean of the observations, `None` before the first.
     pub fn mean(&self) -> Option<f64> {
         (self.span.count > 0).then(|| self.sum.to_f64() / self.span.count as f64)

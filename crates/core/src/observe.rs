@@ -47,6 +47,14 @@ impl ObservedSpan {
         }
     }
 
+    /// Whether the span can be that of observations under the [contract](self) (for spans
+    /// read from files): finite times, and `0 <= first <= last` once something was observed.
+    pub fn is_consistent(&self) -> bool {
+        self.first.is_finite()
+            && self.last.is_finite()
+            && (self.count == 0 || (0.0 <= self.first && self.first <= self.last))
+    }
+
     /// Checks a batch against the [observation contract](self) given what was seen before.
     ///
     /// # Errors

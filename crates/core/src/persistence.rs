@@ -111,6 +111,17 @@ impl PersistenceModel {
         &self.fremen
     }
 
+    /// Checks invariants (for models read from files): a consistent FreMEn part, a last
+    /// value in `[0, 1]`, a finite, non-negative sum of rates over at most as many pairs as
+    /// observations.
+    pub fn is_consistent(&self) -> bool {
+        self.fremen.is_consistent()
+            && (0.0..=1.0).contains(&self.last_value)
+            && self.change_rate_sum.is_finite()
+            && self.change_rate_sum >= 0.0
+            && self.pairs <= self.fremen.span().count
+    }
+
     /// `τ^{-1}` of eq. (12), per second: the mean rate of change (0 before any change).
     pub fn inverse_persistence_per_sec(&self) -> f64 {
         if self.pairs == 0 {

@@ -124,9 +124,23 @@ impl SpectralSums {
         self.sum
     }
 
-    /// Checks invariants (for accumulators read from files).
+    /// Checks invariants (for accumulators read from files): every sum must be one of `count`
+    /// terms in range (values in `[0, 1]`, unit phasors).
     pub fn is_consistent(&self) -> bool {
-        self.periods.clone().validated().is_ok() && self.per_period.len() == self.periods.len()
+        let n = self.count;
+        self.periods.clone().validated().is_ok()
+            && self.per_period.len() == self.periods.len()
+            && self.sum.fits_terms(n, true)
+            && self.per_period.iter().all(|p| {
+                [
+                    p.weighted_re,
+                    p.weighted_im,
+                    p.unweighted_re,
+                    p.unweighted_im,
+                ]
+                .iter()
+                .all(|s| s.fits_terms(n, false))
+            })
     }
 
     /// Adds observations (values must already satisfy the observation contract: `|s| <= 1`).

@@ -80,6 +80,22 @@ impl MarkovModel {
         MarkovModel::default()
     }
 
+    /// Checks invariants (for models read from files): a valid span, a last value in
+    /// `[0, 1]`, finite non-negative dwell times, transition counts of at most one per
+    /// observation, finite rates.
+    pub fn is_consistent(&self) -> bool {
+        let count = self.span.count as f64;
+        self.span.is_consistent()
+            && (0.0..=1.0).contains(&self.last_value)
+            && [self.dwell0_secs, self.dwell1_secs]
+                .iter()
+                .all(|d| d.is_finite() && *d >= 0.0)
+            && [self.ups, self.downs]
+                .iter()
+                .all(|n| (0.0..=count).contains(n))
+            && (self.rate_up_per_sec() + self.rate_down_per_sec()).is_finite()
+    }
+
     /// Rate `α` of the 0 → 1 transition, per second (0 before any time was spent in state 0).
     pub fn rate_up_per_sec(&self) -> f64 {
         rate(self.ups, self.dwell0_secs)

@@ -695,6 +695,7 @@ impl LosslessGrid {
         self.outliers.len() == n
             && self.unknown.len() == n
             && self.fitted.is_consistent()
+            && self.frame_times.iter().all(|t| t.is_finite())
             && self.frame_times.windows(2).all(|w| w[0] <= w[1])
     }
 }
@@ -715,5 +716,15 @@ impl FittedGrid {
                 .components
                 .iter()
                 .all(|c| (c.period as usize) < self.periods.len())
+            && self.frames.is_consistent()
+            && self.periods.clone().validated().is_ok()
+            && self
+                .cells
+                .iter()
+                .all(|c| c.mean.is_finite() && (0.0..=1.0).contains(&c.mean))
+            && self
+                .components
+                .iter()
+                .all(|c| c.amplitude.is_finite() && c.phase.is_finite())
     }
 }

@@ -443,6 +443,10 @@ impl FremenGrid {
             && self.unknown_cells == popcount(&self.unknown)
             && self.fraction_cells == popcount(&self.fraction)
             && self.frame_span.count == self.frames
+            && self.frame_span.is_consistent()
+            && self.latest.is_none_or(f64::is_finite)
+            && self.frame_times.iter().all(|t| t.is_finite())
+            && self.frame_times.windows(2).all(|w| w[0] <= w[1])
     }
 
     /// Approximate heap memory used, in bytes.

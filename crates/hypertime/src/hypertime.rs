@@ -338,6 +338,33 @@ impl Fitted {
         }
     }
 
+    /// Whether the fit can predict with `periods` (for models read from files): a constant
+    /// in `[0, 1]`, or consistent mixtures over the hypertime vector of those periods with
+    /// finite, non-negative weights.
+    fn is_consistent(&self, periods: &[f64]) -> bool {
+        let dim = 2 * periods.len();
+        let mixture_ok = |m: &GaussianMixture, dim: usize| m.is_consistent() && m.dim() == dim;
+        match self {
+            Fitted::Constant(p) => (0.0..=1.0).contains(p),
+            Fitted::Binary {
+                positives,
+                negatives,
+                positive_weight,
+                negative_weight,
+                scale,
+            } => {
+                [*positive_weight, *negative_weight, *scale]
+                    .iter()
+                    .all(|v| v.is_finite() && *v >= 0.0)
+                    && positives
+                        .iter()
+                        .chain(negatives)
+                        .all(|m| mixture_ok(m, dim))
+            }
+            Fitted::Continuous { joint } => mixture_ok(joint, dim + 1),
+        }
+    }
+
     /// Mean and variance of the state at `t`.
     fn predict(&self, t: f64, periods: &[f64]) -> (f64, f64) {
         match self {
@@ -562,6 +589,7 @@ impl HypertimeModel {
                 .periods
                 .iter()
                 .all(|p| self.config.candidate_periods.contains(p))
+            && self.fitted.is_consistent(&self.periods)
     }
 
     /// Mean and variance of the state at `time` (for binary states `p` and `p(1 − p)`).

@@ -193,6 +193,31 @@ impl GaussianMixture {
         ))
     }
 
+    /// Checks invariants (for mixtures read from files): lengths that fit `k` components in
+    /// `dim` dimensions, finite numbers, weights `>= 0` and Cholesky factors with a positive
+    /// diagonal.
+    pub fn is_consistent(&self) -> bool {
+        let (dim, k) = (self.dim, self.weights.len());
+        let Some(d2) = dim.checked_mul(dim) else {
+            return false;
+        };
+        dim > 0
+            && k > 0
+            && Some(self.means.len()) == k.checked_mul(dim)
+            && Some(self.covariances.len()) == k.checked_mul(d2)
+            && self.cholesky.len() == self.covariances.len()
+            && self.log_normalisers.len() == k
+            && self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && self
+                .means
+                .iter()
+                .chain(&self.covariances)
+                .chain(&self.cholesky)
+                .chain(&self.log_normalisers)
+                .all(|v| v.is_finite())
+            && (0..k).all(|c| (0..dim).all(|a| self.cholesky[c * d2 + a * dim + a] > 0.0))
+    }
+
     /// A mixture from normalised weights, means, covariances and their lower Cholesky
     /// factors ([Krajník 2019] eq. 2): computes the log-normalisers.
     fn from_factors(

@@ -724,10 +724,11 @@ impl AnyModel {
     /// other versions or by hand).
     pub fn is_consistent(&self) -> bool {
         match self {
-            AnyModel::Mean(_) | AnyModel::Markov(_) => true,
+            AnyModel::Mean(m) => m.is_consistent(),
+            AnyModel::Markov(m) => m.is_consistent(),
             AnyModel::Histogram(m) => m.is_consistent(),
             AnyModel::Fremen(m) => m.is_consistent(),
-            AnyModel::Persistence(m) => m.fremen().is_consistent(),
+            AnyModel::Persistence(m) => m.is_consistent(),
             AnyModel::Pergam(m) => m.is_consistent(),
             AnyModel::Fft(m) => m.is_consistent(),
             #[cfg(feature = "hypertime")]

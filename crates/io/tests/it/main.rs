@@ -9,6 +9,7 @@ mod copa_init;
 mod events;
 mod matrix;
 mod model_file;
+mod model_invariants;
 mod navmap;
 mod text;
 mod topo_files;
