@@ -21,6 +21,7 @@ mod events;
 mod explore;
 mod greg_door;
 mod grid;
+mod hostile;
 mod hypertime;
 mod ingest;
 mod monitor;
