@@ -151,10 +151,7 @@ fn check(case: &Case, corpus: &Path, out: &Path) -> Option<String> {
     let stderr = String::from_utf8_lossy(&stderr_bytes).into_owned();
     let short = |s: &str| s.chars().take(600).collect::<String>();
     if stderr.contains("panicked") || status.code().is_none() {
-        return Some(format!(
-            "crashed ({status}): {}",
-            short(&stderr)
-        ));
+        return Some(format!("crashed ({status}): {}", short(&stderr)));
     }
     if status.code() != Some(case.exit) {
         return Some(format!(
