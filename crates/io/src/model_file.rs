@@ -381,14 +381,20 @@ pub const EDGE_MODELS_KIND: &str = "topo-edge-models";
 
 #[cfg(feature = "topo")]
 /// Writes the models of a topological map's edges (map included) as a model file of kind
-/// [`EDGE_MODELS_KIND`], atomically.
+/// [`EDGE_MODELS_KIND`], atomically, after the checks of [`read_edge_models`]: a file that
+/// would be refused when read is not written.
 ///
 /// # Errors
-/// As [`write_model_file`].
+/// As [`write_model_file`], or [`ModelFileErrorKind::Inconsistent`] naming `path` (nothing
+/// is written then).
 pub fn write_edge_models(
     path: impl AsRef<Path>,
     models: &chronomap_topo::edges::EdgeModels,
 ) -> Result<(), ModelFileError> {
+    let path = path.as_ref();
+    models
+        .check()
+        .map_err(|reason| ModelFileError::at(path, ModelFileErrorKind::Inconsistent { reason }))?;
     write_model_file(path, EDGE_MODELS_KIND, models)
 }
 

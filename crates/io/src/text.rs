@@ -266,6 +266,12 @@ pub enum DataErrorKind {
         /// The offending text.
         text: String,
     },
+    /// A duration is longer than [`MAX_DURATION_SECS`].
+    #[error("duration: {text:?} is longer than the longest duration 1e9 s (about 32 years)")]
+    DurationTooLong {
+        /// The offending text.
+        text: String,
+    },
     /// A flag (such as [`Field::Success`]) is neither `0` nor `1`.
     #[error("{field}: {text:?} is not 0 or 1")]
     NotZeroOrOne {
@@ -481,7 +487,9 @@ impl DataError {
             | DataErrorKind::BadName { field, .. }
             | DataErrorKind::NotPositive { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
-            DataErrorKind::NegativeDuration { .. } => Some(Field::Duration),
+            DataErrorKind::NegativeDuration { .. } | DataErrorKind::DurationTooLong { .. } => {
+                Some(Field::Duration)
+            }
             DataErrorKind::NegativeTime { .. } | DataErrorKind::TimeNotIncreasing { .. } => {
                 Some(Field::Time)
             }
@@ -537,7 +545,8 @@ impl<'a> LineFields<'a> {
         required(self.fields.next(), field, self.expected)
     }
 
-    /// The next field as a duration in seconds (finite, `>= 0`).
+    /// The next field as a duration in seconds (finite, `>= 0`, at most
+    /// [`MAX_DURATION_SECS`]).
     pub(crate) fn next_duration(&mut self) -> Result<f64, DataErrorKind> {
         parse_duration(self.next_text(Field::Duration)?)
     }
@@ -593,8 +602,8 @@ pub(crate) fn read_timed_lines<T>(
 /// (plain, `.xz` or `.gz`).
 ///
 /// The field decides which part of the [observation contract](chronomap_core::observe) is
-/// checked and what errors call the numbers. Durations ([`Field::Duration`]) must be finite
-/// and `>= 0`; success flags ([`Field::Success`]) exactly `0` or `1` (read as `0.0`, `1.0`).
+/// checked and what errors call the numbers. Durations ([`Field::Duration`]) must be finite,
+/// `>= 0` and at most [`MAX_DURATION_SECS`]; success flags ([`Field::Success`]) exactly `0` or `1` (read as `0.0`, `1.0`).
 ///
 /// # Errors
 /// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
@@ -1094,7 +1103,12 @@ fn check_header(line: &[u8], header: &[&str]) -> Result<(), DataErrorKind> {
     Ok(())
 }
 
-/// A duration in seconds: finite and `>= 0` (`-0` is read as `0`).
+/// The longest duration a file may give (seconds): 10^9 s, about 32 years. Any longer one is
+/// a unit error, and sums and means of durations up to it stay finite.
+pub const MAX_DURATION_SECS: f64 = 1e9;
+
+/// A duration in seconds: finite, `>= 0` and at most [`MAX_DURATION_SECS`] (`-0` is read as
+/// `0`).
 fn parse_duration(text: &[u8]) -> Result<f64, DataErrorKind> {
     let duration = parse_number(text, Field::Duration)?;
     if !duration.is_finite() {
@@ -1105,6 +1119,9 @@ fn parse_duration(text: &[u8]) -> Result<f64, DataErrorKind> {
     }
     if duration < 0.0 {
         return Err(DataErrorKind::NegativeDuration { text: quote(text) });
+    }
+    if duration > MAX_DURATION_SECS {
+        return Err(DataErrorKind::DurationTooLong { text: quote(text) });
     }
     Ok(duration + 0.0)
 }

@@ -258,8 +258,16 @@ impl EdgeModels {
             };
             let good: Vec<&Attempt> = list.iter().filter(|a| a.success).collect();
             let scale = good.iter().map(|a| a.duration_secs).fold(0.0f64, f64::max);
-            let mean_duration_secs = (!good.is_empty())
-                .then(|| good.iter().map(|a| a.duration_secs).sum::<f64>() / good.len() as f64);
+            // Σ d / n where Σ d overflows (durations near f64::MAX): a finite mean either way.
+            let mean_duration_secs = (!good.is_empty()).then(|| {
+                let n = good.len() as f64;
+                let sum = good.iter().map(|a| a.duration_secs).sum::<f64>();
+                if sum.is_finite() {
+                    sum / n
+                } else {
+                    good.iter().map(|a| a.duration_secs / n).sum::<f64>()
+                }
+            });
             let duration = if good.len() >= config.min_attempts && scale > 0.0 {
                 let t: Vec<f64> = good.iter().map(|a| a.time).collect();
                 let v: Vec<f64> = good.iter().map(|a| a.duration_secs / scale).collect();

@@ -1150,3 +1150,55 @@ fn edge_files_in_memory_read_as_the_directory() {
         .to_string();
     assert!(err.contains("embedded/A_B.data:1: duration"), "{err}");
 }
+
+#[test]
+fn edge_models_that_would_be_refused_when_read_are_not_written() {
+    use chronomap_io::model_file::{ModelFileErrorKind, write_edge_models};
+    use chronomap_topo::edges::{Attempt, EdgeModelConfig, EdgeModels};
+
+    let mut map = TopoMap::new();
+    map.add_node("A", None).unwrap();
+    map.add_node("B", None).unwrap();
+    map.add_edge("A_B", "A", "B").unwrap();
+    let attempts: Vec<Attempt> = (0..12)
+        .map(|i| Attempt {
+            time: 1_404_836_670.0 + 60.0 * f64::from(i),
+            duration_secs: 1.7e308,
+            success: true,
+        })
+        .collect();
+    // Durations that sum past f64::MAX still have a finite mean: the models are consistent.
+    let huge = EdgeModels::fit(map.clone(), &[attempts.clone()], EdgeModelConfig::default());
+    let huge = huge.unwrap();
+    let mean = huge.edge(0).mean_duration_secs().unwrap();
+    assert!((mean / 1.7e308 - 1.0).abs() < 1e-15, "{mean}");
+    assert_eq!(huge.check(), Ok(()));
+    // A prior success of 2 fits, but breaks what the reader checks: nothing is written.
+    let config = EdgeModelConfig {
+        prior_success: 2.0,
+        ..EdgeModelConfig::default()
+    };
+    let bad = EdgeModels::fit(map, &[attempts], config).unwrap();
+    let path = scratch("edge_models_unwritten").join("bad.cmt");
+    let err = write_edge_models(&path, &bad).unwrap_err();
+    assert!(
+        matches!(err.kind(), ModelFileErrorKind::Inconsistent { .. }),
+        "{err}"
+    );
+    assert_eq!(err.path(), Some(path.as_path()));
+    assert!(!path.exists());
+}
+
+#[test]
+fn durations_longer_than_the_limit_are_refused_on_their_line() {
+    let text = "10 5.0 1\n20 1.7e308 1\n";
+    let err = read_edge_file_from("A_B.data", text.as_bytes()).unwrap_err();
+    check(
+        &err,
+        "A_B.data",
+        Some(2),
+        Some(Field::Duration),
+        r#"A_B.data:2: duration: "1.7e308" is longer than the longest duration 1e9 s (about 32 years)"#,
+    );
+    assert!(read_edge_file_from("A_B.data", "10 1e9 1\n".as_bytes()).is_ok());
+}
