@@ -33,6 +33,14 @@ pub enum ObservationError {
         /// The offending time.
         time: f64,
     },
+    /// A time is after [`MAX_TIME_SECS`](crate::observe::MAX_TIME_SECS) (10^11 s).
+    #[error("time {time:e} s is after the largest time 1e11 s (about the year 5138)")]
+    TimeTooLarge {
+        /// Index in the batch.
+        index: usize,
+        /// The offending time.
+        time: f64,
+    },
     /// A time is earlier than the observation before it (observations must be in time order).
     #[error("time {time} is earlier than the previous observation at {previous}")]
     TimeNotIncreasing {
@@ -86,6 +94,7 @@ impl ObservationError {
             ObservationError::LengthMismatch { .. } => None,
             ObservationError::NonFiniteTime { index, .. }
             | ObservationError::NegativeTime { index, .. }
+            | ObservationError::TimeTooLarge { index, .. }
             | ObservationError::TimeNotIncreasing { index, .. }
             | ObservationError::NonFiniteValue { index, .. }
             | ObservationError::ValueOutOfRange { index, .. }
@@ -100,6 +109,7 @@ impl ObservationError {
             self,
             ObservationError::NonFiniteTime { .. }
                 | ObservationError::NegativeTime { .. }
+                | ObservationError::TimeTooLarge { .. }
                 | ObservationError::TimeNotIncreasing { .. }
                 | ObservationError::OffGrid { .. }
         )

@@ -4,7 +4,9 @@
 //!
 //! Every [`TemporalModel`](crate::TemporalModel) accepts observations `(t, s)` under one rule:
 //!
-//! * `t` is a finite number of seconds `>= 0` (unix time, or seconds from a dataset start);
+//! * `t` is a finite number of seconds `>= 0` (unix time, or seconds from a dataset start)
+//!   and at most [`MAX_TIME_SECS`] (10^11 s, about the year 5138: a time beyond it is a unit
+//!   error, and a model that observed 1.8e308 could never observe a later time);
 //! * times never go backwards: each time is `>=` the one before it, in the batch and across
 //!   batches. Equal times are allowed and count as separate observations (a state observed
 //!   twice at the same instant);
@@ -20,6 +22,10 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::ObservationError;
+
+/// Largest observation time (s) any model accepts: 10^11 s after the epoch, about the year
+/// 5138. Unix times in milliseconds (1.7·10^12) are refused instead of learned as seconds.
+pub const MAX_TIME_SECS: f64 = 1e11;
 
 /// Count and time span of the observations a model has seen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -117,14 +123,17 @@ pub fn validate(
 /// Checks one time against the contract.
 ///
 /// # Errors
-/// [`ObservationError::NonFiniteTime`], [`ObservationError::NegativeTime`] or
-/// [`ObservationError::TimeNotIncreasing`].
+/// [`ObservationError::NonFiniteTime`], [`ObservationError::NegativeTime`],
+/// [`ObservationError::TimeTooLarge`] or [`ObservationError::TimeNotIncreasing`].
 pub fn check_time(index: usize, time: f64, previous: Option<f64>) -> Result<(), ObservationError> {
     if !time.is_finite() {
         return Err(ObservationError::NonFiniteTime { index, time });
     }
     if time < 0.0 {
         return Err(ObservationError::NegativeTime { index, time });
+    }
+    if time > MAX_TIME_SECS {
+        return Err(ObservationError::TimeTooLarge { index, time });
     }
     if let Some(previous) = previous
         && time < previous
@@ -199,6 +208,14 @@ mod tests {
             err,
             ObservationError::NegativeTime { index: 1, .. }
         ));
+        // The largest time is accepted, anything later (1.797e308) is not.
+        assert!(validate(None, &[MAX_TIME_SECS], &[0.0]).is_ok());
+        let err = validate(None, &[0.0, 1.797e308], &[0.0, 0.0]).unwrap_err();
+        assert!(matches!(
+            err,
+            ObservationError::TimeTooLarge { index: 1, .. }
+        ));
+        assert!(err.is_about_time());
         let err = validate(None, &[0.0, 1.0], &[0.0, f64::INFINITY]).unwrap_err();
         assert!(matches!(
             err,
