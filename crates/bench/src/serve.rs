@@ -1299,7 +1299,7 @@ fn write_baselines(
             })
             .collect();
         encoded += records.iter().map(|r| r.observations() as u64).sum::<u64>();
-        groups.push((encode_group(&records), encoded));
+        groups.push((encode_group(groups.len() as u64 + 1, &records), encoded));
         if started.elapsed() > limit {
             break;
         }

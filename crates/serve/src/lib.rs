@@ -10,6 +10,8 @@
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
 //!   in an embedded redb file or in PostgreSQL (feature `postgres`, on by default).
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
+//! * [`check`]: every snapshot and log entry verified at start (`chronomap serve --check`), and
+//!   the salvage of what is intact in a damaged store (`--salvage`).
 //! * [`maps`]: topological maps, occupancy grids and CoPA-Maps of people served read-only beside
 //!   the models.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
@@ -18,6 +20,7 @@
 //! `chronomap-client`, which does not compile this crate.
 
 pub use chronomap_client::api;
+pub mod check;
 pub mod log;
 pub mod maps;
 pub mod registry;

@@ -3,13 +3,19 @@
 //! One log entry is one *commit group*: all the records the writer made durable in one
 //! transaction, with a format version and a CRC-32 over its payload, so that a torn or
 //! foreign entry is refused at recovery instead of silently changing a model.
+//!
+//! Format 2 (written since) also carries the entry's log position inside the checksum, so that
+//! an entry found in the raw bytes of a damaged store file knows where it belongs
+//! ([`scan_raw`]); format 1 entries (without it) are still read.
 
 use serde::{Deserialize, Serialize};
 
 use crate::registry::ModelConfig;
 
-/// Format of a commit group (first bytes of every log entry).
-const MAGIC: &[u8; 8] = b"CMLOG\x001\n";
+/// Format 1 of a commit group: magic, CRC-32 of the payload, payload.
+const MAGIC_1: &[u8; 8] = b"CMLOG\x001\n";
+/// Format 2: magic, CRC-32 of position and payload, position (u64 little-endian), payload.
+const MAGIC: &[u8; 8] = b"CMLOG\x002\n";
 
 /// One change of the service's state.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -59,11 +65,19 @@ impl LogRecord {
 /// Why a log entry cannot be read.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LogError {
-    /// Not a commit group of this version.
-    #[error("log entry {seq}: not a chronomap commit group of format 1")]
+    /// Not a commit group of a known format.
+    #[error("log entry {seq}: not a chronomap commit group of format 1 or 2")]
     Format {
         /// Log position.
         seq: u64,
+    },
+    /// An intact entry that says it belongs at another position.
+    #[error("log entry {seq}: holds the entry of position {stored}")]
+    Misplaced {
+        /// Log position.
+        seq: u64,
+        /// The position inside the entry.
+        stored: u64,
     },
     /// The checksum does not match.
     #[error("log entry {seq}: checksum mismatch (stored {stored:08x}, computed {computed:08x})")]
@@ -85,12 +99,16 @@ pub enum LogError {
     },
 }
 
-/// Encodes a commit group.
-pub fn encode_group(records: &[LogRecord]) -> Vec<u8> {
+/// Encodes a commit group for log position `seq` (format 2).
+pub fn encode_group(seq: u64, records: &[LogRecord]) -> Vec<u8> {
     let payload = postcard::to_allocvec(records).expect("log records always serialise");
-    let mut bytes = Vec::with_capacity(MAGIC.len() + 4 + payload.len());
+    let mut bytes = Vec::with_capacity(MAGIC.len() + 12 + payload.len());
     bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(&seq.to_le_bytes());
+    crc.update(&payload);
+    bytes.extend_from_slice(&crc.finalize().to_le_bytes());
+    bytes.extend_from_slice(&seq.to_le_bytes());
     bytes.extend_from_slice(&payload);
     bytes
 }
@@ -98,22 +116,40 @@ pub fn encode_group(records: &[LogRecord]) -> Vec<u8> {
 /// Decodes a commit group stored at log position `seq`.
 ///
 /// # Errors
-/// Wrong format, checksum mismatch or undecodable payload.
+/// Unknown format, checksum mismatch, an entry of another position, undecodable payload.
 pub fn decode_group(seq: u64, bytes: &[u8]) -> Result<Vec<LogRecord>, LogError> {
-    let header = MAGIC.len() + 4;
-    if bytes.len() < header || &bytes[..MAGIC.len()] != MAGIC {
-        return Err(LogError::Format { seq });
-    }
-    let stored = u32::from_le_bytes(bytes[MAGIC.len()..header].try_into().expect("4 bytes"));
-    let payload = &bytes[header..];
-    let computed = crc32fast::hash(payload);
-    if stored != computed {
+    let (stored_crc, computed, payload) = checked_parts(seq, bytes)?;
+    if stored_crc != computed {
         return Err(LogError::Checksum {
             seq,
-            stored,
+            stored: stored_crc,
             computed,
         });
     }
+    if bytes[..MAGIC.len()] == *MAGIC {
+        let stored = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
+        if stored != seq {
+            return Err(LogError::Misplaced { seq, stored });
+        }
+    }
+    decode_payload(seq, payload)
+}
+
+/// Stored and computed CRC-32 and the payload of an entry of a known format.
+fn checked_parts(seq: u64, bytes: &[u8]) -> Result<(u32, u32, &[u8]), LogError> {
+    let magic = bytes.get(..MAGIC.len()).ok_or(LogError::Format { seq })?;
+    let crc_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+    if magic == MAGIC_1 && bytes.len() >= 12 {
+        let payload = &bytes[12..];
+        Ok((crc_at(8), crc32fast::hash(payload), payload))
+    } else if magic == MAGIC && bytes.len() >= 20 {
+        Ok((crc_at(8), crc32fast::hash(&bytes[12..]), &bytes[20..]))
+    } else {
+        Err(LogError::Format { seq })
+    }
+}
+
+fn decode_payload(seq: u64, payload: &[u8]) -> Result<Vec<LogRecord>, LogError> {
     let (records, rest) =
         postcard::take_from_bytes::<Vec<LogRecord>>(payload).map_err(|e| LogError::Decode {
             seq,
@@ -126,6 +162,54 @@ pub fn decode_group(seq: u64, bytes: &[u8]) -> Result<Vec<LogRecord>, LogError> 
         });
     }
     Ok(records)
+}
+
+/// The model ids a damaged entry still names, read despite its checksum (a flipped byte in a
+/// time leaves the ids readable); empty when its payload does not decode. A damaged entry may
+/// have changed other models too.
+pub fn ids_of_damaged(bytes: &[u8]) -> Vec<String> {
+    let Ok((_, _, payload)) = checked_parts(0, bytes) else {
+        return Vec::new();
+    };
+    let Ok((records, _)) = postcard::take_from_bytes::<Vec<LogRecord>>(payload) else {
+        return Vec::new();
+    };
+    let mut ids: Vec<String> = records.iter().map(|r| r.id().to_owned()).collect();
+    ids.sort();
+    ids.dedup();
+    ids
+}
+
+/// Every intact format-2 commit group in raw bytes (a store file redb can no longer open):
+/// `(position, entry bytes)`, in the order found; copies may repeat (copy-on-write stores keep
+/// old pages), and a position may have two different intact entries (one of a transaction that
+/// never committed), which the caller must resolve.
+pub fn scan_raw(bytes: &[u8]) -> Vec<(u64, Vec<u8>)> {
+    let mut found = Vec::new();
+    let mut at = 0;
+    while let Some(offset) = find(&bytes[at..], MAGIC) {
+        let start = at + offset;
+        at = start + 1;
+        let Some(header) = bytes.get(start..start + 20) else {
+            break;
+        };
+        let stored_crc = u32::from_le_bytes(header[8..12].try_into().expect("4 bytes"));
+        let seq = u64::from_le_bytes(header[12..20].try_into().expect("8 bytes"));
+        let rest = &bytes[start + 20..];
+        let Ok((_, left)) = postcard::take_from_bytes::<Vec<LogRecord>>(rest) else {
+            continue;
+        };
+        let end = bytes.len() - left.len();
+        if crc32fast::hash(&bytes[start + 12..end]) == stored_crc {
+            found.push((seq, bytes[start..end].to_vec()));
+            at = end;
+        }
+    }
+    found
+}
+
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
 }
 
 #[cfg(test)]
@@ -150,13 +234,40 @@ mod tests {
 
     #[test]
     fn groups_round_trip() {
-        let bytes = encode_group(&group());
+        let bytes = encode_group(7, &group());
         assert_eq!(decode_group(7, &bytes).unwrap(), group());
+        // Format 1 (no position) is still read.
+        let payload = postcard::to_allocvec(&group()).unwrap();
+        let mut old = MAGIC_1.to_vec();
+        old.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+        old.extend_from_slice(&payload);
+        assert_eq!(decode_group(3, &old).unwrap(), group());
+    }
+
+    #[test]
+    fn raw_bytes_give_back_every_intact_group_with_its_position() {
+        let mut file = b"redb header and pages ...".to_vec();
+        file.extend(encode_group(1, &group()));
+        file.extend([0u8; 100]);
+        let mut damaged = encode_group(2, &group());
+        // A flipped bit in the time 2.5: the checksum fails, the ids still read.
+        let time = damaged
+            .windows(8)
+            .position(|w| w == 2.5f64.to_le_bytes())
+            .unwrap();
+        damaged[time] ^= 0x10;
+        assert_eq!(ids_of_damaged(&damaged), vec!["door".to_string()]);
+        file.extend(&damaged);
+        file.extend(encode_group(3, &group()[..1]));
+        let found = scan_raw(&file);
+        let positions: Vec<u64> = found.iter().map(|(seq, _)| *seq).collect();
+        assert_eq!(positions, vec![1, 3]);
+        assert_eq!(decode_group(3, &found[1].1).unwrap(), group()[..1]);
     }
 
     #[test]
     fn damaged_groups_are_refused() {
-        let bytes = encode_group(&group());
+        let bytes = encode_group(3, &group());
         let mut flipped = bytes.clone();
         *flipped.last_mut().unwrap() ^= 1;
         assert!(matches!(
@@ -167,8 +278,12 @@ mod tests {
             decode_group(4, &bytes[..10]),
             Err(LogError::Format { seq: 4 })
         );
+        assert_eq!(
+            decode_group(4, &bytes),
+            Err(LogError::Misplaced { seq: 4, stored: 3 })
+        );
         let mut other_version = bytes;
-        other_version[6] = b'2';
+        other_version[6] = b'3';
         assert_eq!(
             decode_group(5, &other_version),
             Err(LogError::Format { seq: 5 })

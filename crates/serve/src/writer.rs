@@ -17,7 +17,7 @@ use tokio::sync::{mpsc, oneshot};
 
 use crate::log::{LogRecord, decode_group, encode_group};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, apply_to};
-use crate::store::{Checkpoint, Store, StoreError, decode_snapshot, encode_snapshot};
+use crate::store::{Checkpoint, Store, StoreError, encode_snapshot};
 
 /// One change a request asks for: a log record, and for observations of a model that may not
 /// exist yet, the configuration to create it with.
@@ -116,35 +116,21 @@ pub struct Shared {
     pub seq: AtomicU64,
 }
 
-/// Loads the last checkpoint and replays the log after it.
+/// Loads the last checkpoint and replays the log after it, having verified every snapshot
+/// and every log entry ([`crate::check::verify`]).
 ///
 /// # Errors
-/// The store cannot be read, or a snapshot or log entry is damaged (the message names it).
+/// The store cannot be read, or a snapshot or log entry is damaged: the message names each
+/// (and the models a damaged entry still names) and says how to recover.
 pub fn recover(store: Arc<dyn Store>) -> Result<Shared, String> {
-    let recovered = store.recover().map_err(|e| e.to_string())?;
-    let mut registry = Registry::new();
-    for (id, bytes) in &recovered.snapshots {
-        registry.put(id.clone(), Some(decode_snapshot(id, bytes)?));
+    let verified = crate::check::verify(&*store)
+        .map_err(|e| format!("{e}\n{}", crate::check::RECOVERY_HINT))?;
+    if !verified.report.damage.is_empty() {
+        return Err(verified.report.failure());
     }
-    let mut last = recovered.checkpoint;
-    store
-        .scan(recovered.checkpoint + 1, &mut |seq, bytes| {
-            let fail = |reason: String| StoreError {
-                store: store.describe(),
-                reason,
-            };
-            for record in decode_group(seq, bytes).map_err(|e| fail(e.to_string()))? {
-                registry
-                    .apply(&record)
-                    .map_err(|e| fail(format!("log entry {seq} cannot be replayed: {e}")))?;
-            }
-            last = seq;
-            Ok(())
-        })
-        .map_err(|e| e.to_string())?;
     Ok(Shared {
-        registry: RwLock::new(registry),
-        seq: AtomicU64::new(last.max(recovered.last_seq)),
+        registry: RwLock::new(verified.registry),
+        seq: AtomicU64::new(verified.last_seq),
         store,
     })
 }
@@ -263,7 +249,7 @@ fn commit_group(
     let committed_seq = if records.is_empty() {
         seq
     } else {
-        let bytes = encode_group(&records);
+        let bytes = encode_group(seq + 1, &records);
         match shared.store.append(seq + 1, &bytes) {
             Ok(()) => {
                 let mut registry = shared.registry.write().expect("registry lock");

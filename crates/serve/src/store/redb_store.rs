@@ -18,15 +18,35 @@ pub struct RedbStore {
 }
 
 impl RedbStore {
-    /// Opens (or creates) the database at `path`.
+    /// Opens (or creates, readable by its owner only on unix: mode 0600) the database at
+    /// `path`.
     ///
     /// # Errors
-    /// The file cannot be opened, is not a redb database, or another process holds it.
+    /// The file cannot be opened, is not a redb database, or another process holds it; a
+    /// file redb finds corrupted says how to recover ([`crate::check::RECOVERY_HINT`]).
     pub fn open(path: impl AsRef<Path>) -> Result<Self, StoreError> {
         let path = path.as_ref().to_path_buf();
-        let db = Database::create(&path).map_err(|e| StoreError {
+        let fail = |reason: String| StoreError {
             store: path.display().to_string(),
-            reason: e.to_string(),
+            reason,
+        };
+        let mut options = std::fs::OpenOptions::new();
+        options.read(true).write(true).create(true).truncate(false);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+        options
+            .open(&path)
+            .map_err(|e| fail(format!("cannot open or create the file: {e}")))?;
+        let db = Database::create(&path).map_err(|e| match e {
+            redb::DatabaseError::Storage(redb::StorageError::Corrupted(_)) => fail(format!(
+                "the file is damaged and redb cannot repair it ({e}); nothing was changed.\n{}",
+                crate::check::RECOVERY_HINT
+            )),
+            redb::DatabaseError::DatabaseAlreadyOpen => fail(e.to_string()),
+            e => fail(format!(
+                "{e} (if the file is damaged: {})",
+                crate::check::RECOVERY_HINT
+            )),
         })?;
         let store = RedbStore { path, db };
         let txn = store.db.begin_write().map_err(|e| store.error(e))?;
@@ -37,6 +57,19 @@ impl RedbStore {
         }
         txn.commit().map_err(|e| store.error(e))?;
         Ok(store)
+    }
+
+    /// Checks every page checksum of the file (redb's own integrity check).
+    ///
+    /// # Errors
+    /// The check fails and redb cannot repair the file.
+    pub fn check_integrity(&mut self) -> Result<bool, StoreError> {
+        self.db.check_integrity().map_err(|e| self.error(e))
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     fn error(&self, e: impl std::fmt::Display) -> StoreError {

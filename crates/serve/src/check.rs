@@ -1,0 +1,411 @@
+//! Verifying a store and salvaging what is intact in a damaged one.
+//!
+//! [`verify`] reads everything a store holds: every snapshot (decoded and checked), every log
+//! entry from the first (its format, position and CRC-32, and its records), and replays the
+//! entries after the checkpoint onto the snapshots. The service runs it at every start and
+//! stops on any damage (a damaged entry behind the checkpoint would otherwise only show when
+//! the observations of a model are exported); `chronomap serve --check` prints its report.
+//!
+//! [`salvage`] rebuilds a store from every intact log entry — the log holds every change since
+//! the store was created, so the snapshots are not needed: entries are replayed from the first,
+//! a record that no longer applies (its model was created by a lost entry, or its times
+//! precede what the model has now) is dropped and reported by model, and the new store gets
+//! the kept records, renumbered without gaps, and a snapshot of every model.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use crate::log::{LogRecord, decode_group, encode_group, ids_of_damaged};
+use crate::registry::Registry;
+use crate::store::{Checkpoint, Store, StoreError, decode_snapshot, encode_snapshot};
+
+/// At most this many problems are listed in a message (all are counted).
+const LISTED: usize = 20;
+
+/// What [`verify`] found.
+#[derive(Debug, Default)]
+pub struct Report {
+    /// What and where the store is.
+    pub store: String,
+    /// The log position the snapshots cover.
+    pub checkpoint: u64,
+    /// Snapshots read.
+    pub snapshots: usize,
+    /// Log entries read.
+    pub entries: u64,
+    /// Last log position.
+    pub last_seq: u64,
+    /// Observations in the log.
+    pub observations: u64,
+    /// Every damaged snapshot or entry, one sentence each.
+    pub damage: Vec<String>,
+}
+
+impl Report {
+    /// The report as lines for people (`chronomap serve --check`).
+    pub fn text(&self, models: usize) -> String {
+        let mut text = String::new();
+        let _ = writeln!(text, "store: {}", self.store);
+        let _ = writeln!(
+            text,
+            "log: {} entries ({} observations), last position {}; checkpoint at {}, {} snapshots; {models} models",
+            self.entries, self.observations, self.last_seq, self.checkpoint, self.snapshots
+        );
+        if self.damage.is_empty() {
+            let _ = writeln!(text, "ok: every snapshot and log entry is intact");
+        } else {
+            let _ = writeln!(text, "damaged: {} problems", self.damage.len());
+            for line in self.damage.iter().take(LISTED) {
+                let _ = writeln!(text, "  {line}");
+            }
+            if self.damage.len() > LISTED {
+                let _ = writeln!(text, "  ... and {} more", self.damage.len() - LISTED);
+            }
+        }
+        text
+    }
+
+    /// Why the service does not start, and what to do.
+    pub fn failure(&self) -> String {
+        let mut text = format!(
+            "{}: the store is damaged ({} problems); nothing was changed:",
+            self.store,
+            self.damage.len()
+        );
+        for line in self.damage.iter().take(LISTED) {
+            let _ = write!(text, "\n  {line}");
+        }
+        if self.damage.len() > LISTED {
+            let _ = write!(text, "\n  ... and {} more", self.damage.len() - LISTED);
+        }
+        text.push('\n');
+        text.push_str(RECOVERY_HINT);
+        text
+    }
+}
+
+/// What to do with a damaged store (the flags of `chronomap serve`).
+pub const RECOVERY_HINT: &str = "To recover: `chronomap serve --check` (with the same --data and \
+     --postgres flags) lists the damage; `chronomap serve --salvage` rebuilds the store from every \
+     intact log entry and reports what was lost (the damaged redb file is kept beside it as \
+     chronomap.redb.damaged-TIME; with --postgres the salvaged store is written to the schema \
+     SCHEMA_salvaged). See docs/service.md, \"Security model\".";
+
+/// A verified store: its models, last position and the report.
+pub struct Verified {
+    /// The models after the checkpoint's snapshots and the replay (complete only without damage).
+    pub registry: Registry,
+    /// Last log position.
+    pub last_seq: u64,
+    /// What was found.
+    pub report: Report,
+}
+
+/// Reads and checks everything `store` holds (see the module documentation).
+///
+/// # Errors
+/// The store cannot be read at all (damage it can read past is in the report).
+pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
+    let recovered = store.recover()?;
+    let mut report = Report {
+        store: store.describe(),
+        checkpoint: recovered.checkpoint,
+        snapshots: recovered.snapshots.len(),
+        ..Report::default()
+    };
+    let mut registry = Registry::new();
+    for (id, bytes) in &recovered.snapshots {
+        match decode_snapshot(id, bytes) {
+            Ok(entry) => registry.put(id.clone(), Some(entry)),
+            Err(e) => report.damage.push(e),
+        }
+    }
+    let mut previous = 0;
+    let mut replaying = report.damage.is_empty();
+    let scanned = store.scan(1, &mut |seq, bytes| {
+        report.entries += 1;
+        if seq != previous + 1 {
+            report.damage.push(format!(
+                "log entries {}..={} are missing",
+                previous + 1,
+                seq - 1
+            ));
+            replaying &= seq <= recovered.checkpoint;
+        }
+        previous = seq;
+        match decode_group(seq, bytes) {
+            Ok(records) => {
+                report.observations += records.iter().map(|r| r.observations() as u64).sum::<u64>();
+                if seq > recovered.checkpoint && replaying {
+                    for record in &records {
+                        if let Err(e) = registry.apply(record) {
+                            report.damage.push(format!(
+                                "log entry {seq} cannot be replayed onto model {:?}: {e}",
+                                record.id()
+                            ));
+                            replaying = false;
+                            break;
+                        }
+                    }
+                }
+            }
+            Err(e) => {
+                report.damage.push(format!("{e}{}", naming(bytes)));
+                replaying &= seq <= recovered.checkpoint;
+            }
+        }
+        Ok(())
+    });
+    if let Err(e) = scanned {
+        report.damage.push(format!(
+            "the log cannot be read after position {previous}: {}",
+            e.reason
+        ));
+    }
+    report.last_seq = previous.max(recovered.last_seq);
+    if report.last_seq < recovered.checkpoint {
+        report.damage.push(format!(
+            "the checkpoint covers position {} but the log ends at {}",
+            recovered.checkpoint, report.last_seq
+        ));
+    }
+    Ok(Verified {
+        registry,
+        last_seq: report.last_seq,
+        report,
+    })
+}
+
+/// ` (it names the model "door")`, when a damaged entry still decodes.
+fn naming(bytes: &[u8]) -> String {
+    let ids = ids_of_damaged(bytes);
+    if ids.is_empty() {
+        return "; the models it changed cannot be read".into();
+    }
+    let list: Vec<String> = ids.iter().take(10).map(|id| format!("{id:?}")).collect();
+    format!(
+        "; it names the model{} {}{} (read despite the damage)",
+        if ids.len() == 1 { "" } else { "s" },
+        list.join(", "),
+        if ids.len() > 10 { ", ..." } else { "" }
+    )
+}
+
+/// The log entries a salvage reads: per position, the candidate entries (one from a readable
+/// store; copies found in the raw bytes of a file may add others).
+pub type Candidates = BTreeMap<u64, Vec<Vec<u8>>>;
+
+/// What [`salvage`] kept and lost.
+#[derive(Debug, Default)]
+pub struct SalvageReport {
+    /// Log entries written to the new store.
+    pub entries: u64,
+    /// Observations kept.
+    pub observations: u64,
+    /// Models in the new store.
+    pub models: usize,
+    /// Everything lost, one sentence each.
+    pub lost: Vec<String>,
+}
+
+impl SalvageReport {
+    /// The report as lines for people.
+    pub fn text(&self) -> String {
+        let mut text = format!(
+            "kept: {} models, {} observations in {} log entries\n",
+            self.models, self.observations, self.entries
+        );
+        if self.lost.is_empty() {
+            text.push_str("lost: nothing\n");
+        } else {
+            let _ = writeln!(text, "lost ({}):", self.lost.len());
+            for line in &self.lost {
+                let _ = writeln!(text, "  {line}");
+            }
+        }
+        text
+    }
+}
+
+/// Replays every intact entry of `candidates` from the first and writes what applies to the
+/// empty store `into` (see the module documentation).
+///
+/// # Errors
+/// `into` cannot be written.
+pub fn salvage(candidates: &Candidates, into: &dyn Store) -> Result<SalvageReport, StoreError> {
+    let mut report = SalvageReport::default();
+    let mut registry = Registry::new();
+    let mut previous = 0;
+    for (&seq, versions) in candidates {
+        if seq == previous + 2 {
+            report
+                .lost
+                .push(format!("log entry {}: no intact copy found", seq - 1));
+        } else if seq != previous + 1 {
+            report.lost.push(format!(
+                "log entries {}..={}: no intact copy found",
+                previous + 1,
+                seq - 1
+            ));
+        }
+        previous = seq;
+        let intact: Vec<Vec<LogRecord>> = versions
+            .iter()
+            .filter_map(|bytes| decode_group(seq, bytes).ok())
+            .collect();
+        let Some(first) = intact.first() else {
+            let bytes = versions.first().map_or(&[][..], Vec::as_slice);
+            let reason = decode_group(seq, bytes)
+                .err()
+                .map_or_else(|| "damaged".into(), |e| e.to_string());
+            report.lost.push(format!("{reason}{}", naming(bytes)));
+            continue;
+        };
+        // Two different intact entries at one position: one was written by a transaction
+        // that never committed. Keep the one that applies whole, else the first.
+        let records = if intact.len() > 1 {
+            let whole = intact.iter().find(|records| {
+                let mut trial = registry.clone();
+                records.iter().all(|r| trial.apply(r).is_ok())
+            });
+            report.lost.push(format!(
+                "log entry {seq}: {} different intact copies; kept the one that applies",
+                intact.len()
+            ));
+            whole.unwrap_or(first)
+        } else {
+            first
+        };
+        let mut kept = Vec::with_capacity(records.len());
+        for record in records {
+            match registry.apply(record) {
+                Ok(()) => kept.push(record.clone()),
+                Err(e) => report.lost.push(format!(
+                    "log entry {seq}, model {:?}: dropped a {} ({e})",
+                    record.id(),
+                    describe(record)
+                )),
+            }
+        }
+        if !kept.is_empty() {
+            report.entries += 1;
+            report.observations += kept.iter().map(|r| r.observations() as u64).sum::<u64>();
+            into.append(report.entries, &encode_group(report.entries, &kept))?;
+        }
+    }
+    let snapshots: Vec<(String, Vec<u8>)> = registry
+        .ids()
+        .into_iter()
+        .map(|id| {
+            let entry = registry.get(id).expect("listed id");
+            (id.to_owned(), encode_snapshot(entry))
+        })
+        .collect();
+    into.checkpoint(&Checkpoint {
+        seq: report.entries,
+        snapshots: &snapshots,
+        removed: &[],
+    })?;
+    report.models = registry.len();
+    Ok(report)
+}
+
+fn describe(record: &LogRecord) -> String {
+    match record {
+        LogRecord::Create { .. } => "creation".into(),
+        LogRecord::Observe { times, .. } => format!("batch of {} observations", times.len()),
+        LogRecord::Remove { .. } => "removal".into(),
+    }
+}
+
+/// The candidates of a readable store: every entry its log holds.
+///
+/// # Errors
+/// The log cannot be read from position `from` on; the entries read before are returned
+/// with the error, so that the caller can look for the rest elsewhere.
+pub fn candidates_of(store: &dyn Store) -> (Candidates, Option<StoreError>) {
+    let mut candidates = Candidates::new();
+    let scanned = store.scan(1, &mut |seq, bytes| {
+        candidates.entry(seq).or_default().push(bytes.to_vec());
+        Ok(())
+    });
+    (candidates, scanned.err())
+}
+
+/// Salvages the redb store file at `path` (see the module documentation): the entries come from
+/// the file as redb reads it, and — where redb cannot open the file, cannot read its log to the
+/// end, or an entry is damaged — from intact copies found in the raw bytes (format 2 entries
+/// carry their position). The damaged file is renamed to `NAME.damaged-UNIXTIME` beside it and
+/// the new store takes its place; returns the report and the kept file.
+///
+/// # Errors
+/// The file cannot be read, or the new store cannot be written (the old file is then where
+/// it was).
+pub fn salvage_redb(
+    path: &std::path::Path,
+) -> Result<(SalvageReport, std::path::PathBuf), StoreError> {
+    use crate::store::RedbStore;
+    let fail = |reason: String| StoreError {
+        store: path.display().to_string(),
+        reason,
+    };
+    let raw = std::fs::read(path).map_err(|e| fail(format!("cannot read the file: {e}")))?;
+    let mut copies: Candidates = Candidates::new();
+    for (seq, bytes) in crate::log::scan_raw(&raw) {
+        let versions = copies.entry(seq).or_default();
+        if !versions.contains(&bytes) {
+            versions.push(bytes);
+        }
+    }
+    drop(raw);
+    let mut notes = Vec::new();
+    let (mut candidates, unread) = match RedbStore::open(path) {
+        Ok(store) => candidates_of(&store),
+        Err(e) => (Candidates::new(), Some(e)),
+    };
+    for (seq, versions) in &mut candidates {
+        if versions.iter().all(|b| decode_group(*seq, b).is_err())
+            && let Some(others) = copies.get(seq)
+        {
+            versions.extend(others.iter().cloned());
+        }
+    }
+    if let Some(e) = unread {
+        let last = candidates.keys().last().copied().unwrap_or(0);
+        let found: Vec<_> = copies.range(last + 1..).collect();
+        notes.push(format!(
+            "redb could not read the log past position {last} ({}); {} later positions were \
+             found in the raw file (the last of them may be writes that never committed, so \
+             were never acknowledged)",
+            e.reason,
+            found.len()
+        ));
+        for (seq, versions) in found {
+            candidates.insert(*seq, versions.clone());
+        }
+    }
+    let name = path
+        .file_name()
+        .map_or_else(|| "store".into(), |n| n.to_string_lossy().into_owned());
+    let fresh = path.with_file_name(format!("{name}.salvage"));
+    let _ = std::fs::remove_file(&fresh);
+    let mut report = {
+        let store = RedbStore::open(&fresh)?;
+        salvage(&candidates, &store)?
+    };
+    let seconds = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let kept = path.with_file_name(format!("{name}.damaged-{seconds}"));
+    std::fs::rename(path, &kept)
+        .map_err(|e| fail(format!("cannot rename it to {}: {e}", kept.display())))?;
+    std::fs::rename(&fresh, path).map_err(|e| {
+        fail(format!(
+            "cannot move the salvaged store {} into place: {e}",
+            fresh.display()
+        ))
+    })?;
+    notes.append(&mut report.lost);
+    report.lost = notes;
+    Ok((report, kept))
+}
