@@ -11,10 +11,16 @@ Examples:
   chronomap serve --data chronomap-data --activity atc=atc.cmcopa --activity-map atc=atc_map.yaml
   chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
 
-Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN`; the token
-is read from --token-file (default DATA/token), which is created with a random token if it does not
-exist. Reads (predict, forecast, view, ...) need no token. Every acknowledged observation is durable:
-a restart (also after a crash or SIGKILL) restores every model exactly.";
+  chronomap serve --data chronomap-data --check      # verify the store, exit 0 or 1
+  chronomap serve --data chronomap-data --salvage    # rebuild a damaged store from what is intact
+
+Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN` and
+`Content-Type: application/json`; the token is read from --token-file (default DATA/token), which
+is created with a random token if it does not exist (it must be readable by its owner only and at
+least 32 characters long). Reads (predict, forecast, view, ...) need no token. Requests must name
+the service in `Host` by an IP address, localhost or an --allow-host name. Every acknowledged
+observation is durable: a restart (also after a crash or SIGKILL) restores every model exactly.
+Security model, timeouts and limits: docs/service.md.";
 
 /// `chronomap serve`.
 #[derive(Debug, Args)]
@@ -29,9 +35,34 @@ pub struct ServeArgs {
     /// default DATA/token.
     #[arg(long, conflicts_with = "no_token")]
     pub token_file: Option<PathBuf>,
-    /// Accept writes without a token (only sensible on a loopback address of a one-user machine).
+    /// Accept writes without a token (only on a loopback --listen address of a one-user
+    /// machine; refused with any other address).
     #[arg(long)]
     pub no_token: bool,
+    /// A host name requests may give in `Host` besides IP addresses and `localhost` (the DNS
+    /// rebinding defence refuses every other name with 421). Repeat the flag or separate
+    /// them by commas.
+    #[arg(long, value_delimiter = ',', value_parser = parse_host_name)]
+    pub allow_host: Vec<String>,
+    /// Seconds a connection may take to send a complete request head, counted from its opening
+    /// or its previous answer (slow headers and idle keep-alive connections are closed).
+    #[arg(long, default_value_t = 10.0, value_parser = parse_positive)]
+    pub header_timeout: f64,
+    /// Seconds a request body may take to arrive after its head (else 408).
+    #[arg(long, default_value_t = 60.0, value_parser = parse_positive)]
+    pub body_timeout: f64,
+    /// Connections open at once; one more is answered 503 and closed.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=65_536))]
+    pub max_connections: u32,
+    /// Verify the store (every snapshot and log entry, and redb's page checksums), print a
+    /// report and exit: 0 if intact, 1 if damaged. Serves nothing.
+    #[arg(long, conflicts_with = "salvage")]
+    pub check: bool,
+    /// Rebuild a damaged store from every intact log entry, report what was lost and exit. The
+    /// damaged redb file is kept as DATA/chronomap.redb.damaged-TIME; with --postgres the
+    /// result goes to the schema SCHEMA_salvaged. Serves nothing.
+    #[arg(long)]
+    pub salvage: bool,
     /// Keep the log and snapshots in PostgreSQL instead of DATA/chronomap.redb: a libpq
     /// connection string (`host=127.0.0.1 user=robot dbname=lab`) or postgresql:// URL.
     #[arg(long)]
@@ -67,6 +98,22 @@ pub struct ServeArgs {
     /// A Nav2 map (YAML) of an --activity model as NAME=MAP.yaml: cells on its walls are left out.
     #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub activity_map: Vec<(String, PathBuf)>,
+}
+
+fn parse_host_name(text: &str) -> Result<String, String> {
+    let name = text.trim().trim_end_matches('.').to_ascii_lowercase();
+    let ok = !name.is_empty()
+        && name.len() <= 253
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'.');
+    if ok {
+        Ok(name)
+    } else {
+        Err(format!(
+            "{text:?} is not a host name (letters, digits, '-' and '.')"
+        ))
+    }
 }
 
 pub(super) fn parse_named_file(text: &str) -> Result<(String, PathBuf), String> {
@@ -122,8 +169,8 @@ pub enum ClientCommand {
         /// Model spec (fremen:K, persistence:K, hist:N, pergam:K, stm, mean).
         #[arg(long, default_value = "fremen:2")]
         model: String,
-        /// Value range LO,HI of continuous states.
-        #[arg(long, value_delimiter = ',', num_args = 2)]
+        /// Value range LO,HI of continuous states (`--range 0,10` or `--range 0 10`).
+        #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_hyphen_values = true)]
         range: Option<Vec<f64>>,
     },
     /// Remove a model.

@@ -12,6 +12,7 @@ use chronomap_client::Client;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
 use chronomap_serve::maps::{Maps, ServedActivity, ServedTopo};
+use chronomap_serve::server::ConnectionLimits;
 use chronomap_serve::store::{PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
@@ -22,8 +23,9 @@ use crate::cli::{ClientArgs, ClientCommand, ServeArgs};
 use crate::outln;
 use crate::output::{print_json, usage};
 
-/// Shortest token accepted from a token file.
-const MIN_TOKEN_CHARS: usize = 16;
+/// Shortest token accepted from a token file: 32 characters (128 bits as hex; the tokens
+/// the service makes are 64 hex characters, 256 bits).
+const MIN_TOKEN_CHARS: usize = 32;
 
 /// `chronomap serve`.
 pub fn serve(args: &ServeArgs) -> Result<()> {
@@ -35,8 +37,18 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         "--activity-map",
         "--activity",
     )?;
-    std::fs::create_dir_all(&args.data)
-        .with_context(|| format!("cannot create the data directory {}", args.data.display()))?;
+    if args.no_token && !args.listen.ip().is_loopback() {
+        return Err(usage(format!(
+            "--no-token is refused with --listen {}: without a token anyone who can reach that \
+             address can change every model; listen on a loopback address (127.0.0.1, ::1) or \
+             use the token",
+            args.listen
+        )));
+    }
+    if args.check || args.salvage {
+        return check_or_salvage(args);
+    }
+    create_private_dir(&args.data)?;
     let token_file = if args.no_token {
         None
     } else {
@@ -64,6 +76,12 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             every: Duration::from_secs_f64(args.snapshot_secs),
         },
         maps: Arc::new(maps),
+        allowed_hosts: args.allow_host.clone(),
+        limits: ConnectionLimits {
+            header_timeout: Duration::from_secs_f64(args.header_timeout),
+            body_timeout: Duration::from_secs_f64(args.body_timeout),
+            max_connections: args.max_connections as usize,
+        },
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();
@@ -93,6 +111,115 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             .await
             .context("the service failed")
     })
+}
+
+/// The data directory, created readable by its owner only (mode 0700 on unix) if missing.
+fn create_private_dir(dir: &Path) -> Result<()> {
+    let mut builder = std::fs::DirBuilder::new();
+    builder.recursive(true);
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    builder
+        .create(dir)
+        .with_context(|| format!("cannot create the data directory {}", dir.display()))
+}
+
+/// `chronomap serve --check` and `--salvage`.
+fn check_or_salvage(args: &ServeArgs) -> Result<()> {
+    use chronomap_serve::check;
+    let redb_path = args.data.join("chronomap.redb");
+    if args.postgres.is_none() && !redb_path.exists() {
+        bail!("{}: no store to check or salvage", redb_path.display());
+    }
+    if args.salvage {
+        let (report, kept) = match &args.postgres {
+            None => {
+                let (report, kept) = check::salvage_redb(&redb_path)?;
+                (report, kept.display().to_string())
+            }
+            Some(config) => {
+                let source = PostgresStore::connect(config, &args.postgres_schema)?;
+                let target = format!("{}_salvaged", args.postgres_schema);
+                let into = PostgresStore::connect(config, &target)?;
+                let held = into.recover()?;
+                if held.last_seq > 0 || !held.snapshots.is_empty() {
+                    bail!(
+                        "postgres schema {target} already holds a store; drop it (DROP SCHEMA \
+                         {target} CASCADE) or salvage into another --postgres-schema"
+                    );
+                }
+                let (candidates, unread) = check::candidates_of(&source);
+                let mut report = check::salvage(&candidates, &into)?;
+                if let Some(e) = unread {
+                    report
+                        .lost
+                        .insert(0, format!("the log cannot be read to its end: {e}"));
+                }
+                (
+                    report,
+                    format!(
+                        "schema {} (unchanged); the salvaged store is the schema {target}: \
+                         serve it with --postgres-schema {target}",
+                        args.postgres_schema
+                    ),
+                )
+            }
+        };
+        outln!("{}", report.text().trim_end())?;
+        outln!("the damaged store is kept: {kept}")?;
+        return Ok(());
+    }
+    let (store, integrity): (Arc<dyn Store>, Option<String>) = match &args.postgres {
+        Some(config) => (
+            Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
+            None,
+        ),
+        None => {
+            let store = match RedbStore::open(&redb_path) {
+                Ok(store) => store,
+                Err(e) => {
+                    outln!("store: redb {}", redb_path.display())?;
+                    outln!("damaged: {}", e.reason)?;
+                    bail!("the store is damaged and cannot be opened");
+                }
+            };
+            // redb's page check may mark a file it cannot repair as needing repair: run it on
+            // a copy, so that --check changes nothing.
+            let copy = args.data.join("chronomap.redb.check");
+            let integrity = match std::fs::copy(&redb_path, &copy) {
+                Ok(_) => {
+                    let outcome = match RedbStore::open(&copy) {
+                        Ok(mut copied) => match copied.check_integrity() {
+                            Ok(true) => None,
+                            Ok(false) => {
+                                Some("redb found damaged pages (it can repair them)".to_owned())
+                            }
+                            Err(e) => Some(format!("redb's page checksums fail: {}", e.reason)),
+                        },
+                        Err(e) => Some(format!("redb's page checksums fail: {}", e.reason)),
+                    };
+                    let _ = std::fs::remove_file(&copy);
+                    outcome
+                }
+                Err(e) => Some(format!("cannot copy the file for redb's page check: {e}")),
+            };
+            (Arc::new(store), integrity)
+        }
+    };
+    let mut verified = check::verify(&*store)?;
+    verified.report.damage.extend(integrity);
+    outln!(
+        "{}",
+        verified.report.text(verified.registry.len()).trim_end()
+    )?;
+    if !verified.report.damage.is_empty() {
+        bail!(
+            "the store is damaged ({} problems); `chronomap serve --salvage` with the same flags \
+             rebuilds it from every intact log entry",
+            verified.report.damage.len()
+        );
+    }
+    Ok(())
 }
 
 /// The files of `extra` (`--topo-layout`, `--activity-map`) by the name of the map of `base`
@@ -198,14 +325,37 @@ async fn shutdown_signal() {
 }
 
 /// The token in `path`, or a new random one written there (readable by the owner only).
+/// An existing file must be readable by its owner only (as ssh requires of private keys) and
+/// hold at least [`MIN_TOKEN_CHARS`] visible ASCII characters.
 fn read_or_create_token(path: &Path) -> Result<String> {
     match std::fs::read_to_string(path) {
         Ok(text) => {
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let mode = std::fs::metadata(path)
+                    .with_context(|| format!("cannot read the token file {}", path.display()))?
+                    .permissions()
+                    .mode();
+                if mode & 0o077 != 0 {
+                    bail!(
+                        "{}: the token file is readable by others (mode {:04o}); anyone who \
+                         reads it can change every model. Run `chmod 600 {}`",
+                        path.display(),
+                        mode & 0o7777,
+                        path.display()
+                    );
+                }
+            }
             let token = text.trim().to_owned();
-            if token.chars().count() < MIN_TOKEN_CHARS || token.chars().any(char::is_whitespace) {
+            if token.chars().count() < MIN_TOKEN_CHARS
+                || !token.bytes().all(|b| b.is_ascii_graphic())
+            {
                 bail!(
-                    "{}: a token must be at least {MIN_TOKEN_CHARS} characters without spaces",
-                    path.display()
+                    "{}: a token must be at least {MIN_TOKEN_CHARS} visible ASCII characters \
+                     without spaces (this one has {}); delete the file to have a random one made",
+                    path.display(),
+                    token.chars().count()
                 );
             }
             Ok(token)
@@ -242,6 +392,14 @@ pub fn client(args: &ClientArgs) -> Result<()> {
             _ if !at.is_empty() => at.clone(),
             _ => return Err(usage("give --at TIMES or --from T --to T [--step S]")),
         }),
+        ClientCommand::Create {
+            range: Some(range), ..
+        } if range.len() != 2 => {
+            return Err(usage(format!(
+                "--range takes LO,HI (two numbers), not {} number",
+                range.len()
+            )));
+        }
         _ => None,
     };
     let token = args
@@ -287,6 +445,7 @@ async fn run_client(
         ClientCommand::View { id } => print_json(&client.view(id).await?)?,
         ClientCommand::Create { id, model, range } => {
             let range = range.as_ref().map(|r| [r[0], r[1]]);
+            // (two values: checked in client())
             let ack = client.create(id, Some(model), range).await?;
             if as_json {
                 return print_json(&json!({"id": id, "model": model, "seq": ack.seq}));
@@ -396,9 +555,15 @@ fn range_times(from: f64, to: f64, step: f64) -> Result<Vec<f64>> {
     if to < from {
         return Err(usage("--to is before --from"));
     }
-    let n = ((to - from) / step).floor() as usize + 1;
-    if n > 1_000_000 {
-        return Err(usage(format!("{n} times: choose a larger --step")));
+    // In floating point first: a cast would saturate (1e9 / 1e-300) and the + 1 wrap to 0.
+    let steps = ((to - from) / step).floor();
+    if !(steps.is_finite() && steps < 1_000_000.0) {
+        return Err(usage(format!(
+            "{:e} times from --from to --to every --step {step:e} s: at most 1,000,000; choose a \
+             larger --step",
+            steps + 1.0
+        )));
     }
+    let n = steps as usize + 1;
     Ok((0..n).map(|i| from + i as f64 * step).collect())
 }

@@ -34,6 +34,10 @@ mod serve;
 #[cfg(feature = "serve")]
 mod serve_crash;
 #[cfg(feature = "serve")]
+mod serve_damage;
+#[cfg(feature = "serve")]
+mod serve_network;
+#[cfg(feature = "serve")]
 mod serve_security;
 mod sklearn_gmm;
 mod storm_case;

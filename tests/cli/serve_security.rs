@@ -172,3 +172,215 @@ service::on_each_backend!(
     bad_tokens_oversize_bodies_and_hostile_input_change_nothing_redb,
     bad_tokens_oversize_bodies_and_hostile_input_change_nothing_postgres
 );
+
+/// Issue 22, defects 13 and 15: ids that display as other ids, times no later observation can
+/// follow, ranges of infinite width are refused with a 400 naming the field; none changes
+/// anything.
+#[test]
+fn invisible_ids_huge_times_and_infinite_ranges_are_refused() {
+    let data = scratch("serve_security_values");
+    let port = free_port();
+    let server = start(&data, port, &Backend::Redb, &[]);
+    let token = token(&data);
+    let client = Client::new(&server.url, Some(token.clone())).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let raw = |method: Method, path: &str, body: &str| {
+        runtime
+            .block_on(client.raw(method, path, body.as_bytes().to_vec(), Some(&token)))
+            .unwrap()
+    };
+    let refused: Vec<(Method, String, String, &str)> = vec![
+        (
+            Method::POST,
+            "/v1/add".into(),
+            "{\"id\":\"door\u{202E}rood\",\"times\":[1],\"states\":[true]}".into(),
+            "U+202E",
+        ),
+        (
+            Method::POST,
+            "/v1/add".into(),
+            "{\"id\":\"do\u{200B}or\",\"times\":[1],\"states\":[true]}".into(),
+            "U+200B",
+        ),
+        (
+            Method::POST,
+            "/v1/add".into(),
+            "{\"id\":\"\u{FEFF}door\",\"times\":[1],\"states\":[true]}".into(),
+            "U+FEFF",
+        ),
+        (
+            Method::PUT,
+            "/v1/models/door%E2%80%AErood".into(),
+            r#"{"model":"fremen:1"}"#.into(),
+            "U+202E",
+        ),
+        (
+            Method::POST,
+            "/v1/add".into(),
+            r#"{"id":"door","times":[1.797e308],"states":[true]}"#.into(),
+            "1e11",
+        ),
+        (
+            Method::POST,
+            "/v1/addvalues".into(),
+            r#"{"id":"door","times":[100000000001],"values":[1]}"#.into(),
+            "1e11",
+        ),
+        (
+            Method::PUT,
+            "/v1/models/level".into(),
+            r#"{"model":"fremen:1","range":[-1e308,1e308]}"#.into(),
+            "finite width",
+        ),
+    ];
+    runtime
+        .block_on(client.add("door", &[1.0, 2.0], &[true, false], Some("fremen:2")))
+        .unwrap();
+    for (method, path, body, needed) in &refused {
+        let (status, text) = raw(method.clone(), path, body);
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{path} {body}: {text}");
+        assert!(text.contains(needed), "{path} {body}: {text}");
+    }
+    let list = runtime.block_on(client.list()).unwrap();
+    assert_eq!(list.models.len(), 1);
+    assert_eq!(list.models[0].observations, 2);
+    // The largest time is accepted.
+    let (status, text) = raw(
+        Method::POST,
+        "/v1/add",
+        r#"{"id":"door","times":[100000000000],"states":[true]}"#,
+    );
+    assert_eq!(status, StatusCode::OK, "{text}");
+}
+
+/// Issue 22, defect 15: a token file others can read, or a short token, stops the start;
+/// a new data directory is 0700, the store and the token 0600, also under umask 000.
+#[cfg(unix)]
+#[test]
+fn token_files_must_be_private_and_long_and_new_files_are_private() {
+    use std::os::unix::fs::PermissionsExt;
+    let data = scratch("serve_security_files");
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let token_file = data.join("shared-token");
+    let strong = "a".repeat(64);
+    std::fs::write(&token_file, &strong).unwrap();
+    std::fs::set_permissions(&token_file, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let fresh = data.join("d");
+    let (code, _, stderr) = service::serve_once(&[
+        "--data".as_ref(),
+        fresh.as_os_str(),
+        "--token-file".as_ref(),
+        token_file.as_os_str(),
+        "--listen".as_ref(),
+        "127.0.0.1:0".as_ref(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("readable by others (mode 0644)"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("chmod 600 {}", token_file.display())),
+        "{stderr}"
+    );
+    std::fs::set_permissions(&token_file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    std::fs::write(&token_file, "0123456789abcdef").unwrap();
+    let (code, _, stderr) = service::serve_once(&[
+        "--data".as_ref(),
+        fresh.as_os_str(),
+        "--token-file".as_ref(),
+        token_file.as_os_str(),
+        "--listen".as_ref(),
+        "127.0.0.1:0".as_ref(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("at least 32"), "{stderr}");
+
+    // Under umask 000 the new directory and files are still private.
+    let port = free_port();
+    let fresh = data.join("new-data");
+    let mut child = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "umask 000; exec \"$0\" serve --data {} --listen 127.0.0.1:{port}",
+            fresh.display()
+        ))
+        .arg(env!("CARGO_BIN_EXE_chronomap"))
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let store = fresh.join("chronomap.redb");
+    let begin = std::time::Instant::now();
+    while !(store.exists() && fresh.join("token").exists())
+        && begin.elapsed() < std::time::Duration::from_secs(20)
+    {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(mode(&fresh), 0o700);
+    assert_eq!(mode(&store), 0o600);
+    assert_eq!(mode(&fresh.join("token")), 0o600);
+}
+
+/// Issue 22, defects 11 and 12: `client predict` ranges too fine for the 1,000,000 limit are
+/// refused before any request (the float → integer cast used to saturate and wrap), and
+/// `client create --range LO,HI` works as its help says.
+#[test]
+fn client_ranges_are_checked_and_create_takes_lo_comma_hi() {
+    let client = |url: &str, token: &std::path::Path, args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+            .args(["client", "--url", url, "--token-file"])
+            .arg(token)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let nowhere = std::path::Path::new("no-such-token");
+    for (from, to, step) in [
+        ("0", "1e9", "1e-300"),
+        ("0", "1e9", "1e-3"),
+        ("-1e300", "1e300", "1"),
+    ] {
+        let (from, to) = (format!("--from={from}"), format!("--to={to}"));
+        let output = client(
+            "http://127.0.0.1:9",
+            nowhere,
+            &["predict", "door", &from, &to, "--step", step],
+        );
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(
+            output.status.code(),
+            Some(2),
+            "{from} {to} {step}: {stderr}"
+        );
+        assert!(stderr.contains("at most 1,000,000"), "{stderr}");
+    }
+
+    let data = scratch("serve_security_client");
+    let port = free_port();
+    let server = start(&data, port, &Backend::Redb, &[]);
+    let token = data.join("token");
+    for (id, range) in [
+        ("level", vec!["--range", "0,10"]),
+        ("temp", vec!["--range", "-5,5"]),
+        ("depth", vec!["--range", "0", "10"]),
+    ] {
+        let mut args = vec!["create", id];
+        args.extend(range);
+        let output = client(&server.url, &token, &args);
+        assert!(
+            output.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    let output = client(&server.url, &token, &["create", "x", "--range", "5"]);
+    assert_eq!(output.status.code(), Some(2));
+    let output = client(&server.url, &token, &["--json", "view", "temp"]);
+    let view: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(view["range"], serde_json::json!([-5.0, 5.0]));
+}

@@ -146,3 +146,51 @@ pub fn token(data: &Path) -> String {
         .trim()
         .to_owned()
 }
+
+/// One raw HTTP/1.1 exchange on a fresh connection (for headers a client library sets itself,
+/// such as `Host`): sends `request` as written, reads the answer until the server closes.
+/// Returns the status, the head (lower case) and the body.
+pub fn raw_http(port: u16, request: &str) -> (u16, String, String) {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    stream.write_all(request.as_bytes()).unwrap();
+    let mut answer = Vec::new();
+    let _ = stream.read_to_end(&mut answer);
+    let answer = String::from_utf8_lossy(&answer).into_owned();
+    let (head, body) = answer.split_once("\r\n\r\n").unwrap_or((&answer, ""));
+    let status = head
+        .split(' ')
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no HTTP answer to {request:?}: {answer:?}"));
+    (status, head.to_ascii_lowercase(), body.to_owned())
+}
+
+/// `chronomap serve ARGS` run to its end (a start that must fail, `--check`, `--salvage`):
+/// exit code, stdout, stderr.
+pub fn serve_once(args: &[&std::ffi::OsStr]) -> (i32, String, String) {
+    let output = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .arg("serve")
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+impl Server {
+    /// SIGTERM and wait: the graceful stop (last checkpoint written).
+    pub fn stop(mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        self.child.wait().unwrap();
+    }
+}

@@ -32,10 +32,11 @@ impl ModelConfig {
         let spec: ModelSpec = text.parse().map_err(|e| format!("field `model`: {e}"))?;
         empty_model(&spec).map_err(|e| format!("field `model`: {e}"))?;
         if let Some([lo, hi]) = range
-            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+            && !(lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite())
         {
             return Err(format!(
-                "field `range`: [{lo}, {hi}] is not a finite interval with lo < hi"
+                "field `range`: [{lo:e}, {hi:e}] is not a finite interval with lo < hi \
+                 and a finite width hi - lo"
             ));
         }
         Ok(ModelConfig { spec, range })
@@ -71,7 +72,19 @@ fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
     spec.online_model().map_err(|e| e.to_string())
 }
 
-/// Checks a model id: 1 to [`MAX_ID_BYTES`] bytes of UTF-8 without control characters.
+/// Whether `c` is a Unicode format character (general category Cf: bidirectional controls
+/// such as U+202E, zero-width characters, the byte order mark, tags) or a line or paragraph
+/// separator: characters that make an id display as another one.
+fn is_invisible(c: char) -> bool {
+    matches!(c as u32,
+        0x00AD | 0x0600..=0x0605 | 0x061C | 0x06DD | 0x070F | 0x0890..=0x0891 | 0x08E2
+        | 0x180E | 0x200B..=0x200F | 0x2028..=0x202E | 0x2060..=0x2064 | 0x2066..=0x206F
+        | 0xFEFF | 0xFFF9..=0xFFFB | 0x110BD | 0x110CD | 0x13430..=0x1343F
+        | 0x1BCA0..=0x1BCA3 | 0x1D173..=0x1D17A | 0xE0001 | 0xE0020..=0xE007F)
+}
+
+/// Checks a model id: 1 to [`MAX_ID_BYTES`] bytes of UTF-8 without control characters,
+/// format characters (bidirectional controls, zero-width characters) or line separators.
 ///
 /// # Errors
 /// A sentence saying what is wrong.
@@ -88,6 +101,13 @@ pub fn check_id(id: &str) -> Result<(), String> {
     if let Some(c) = id.chars().find(|c| c.is_control()) {
         return Err(format!(
             "model id contains the control character U+{:04X}",
+            c as u32
+        ));
+    }
+    if let Some(c) = id.chars().find(|&c| is_invisible(c)) {
+        return Err(format!(
+            "model id contains the invisible format character U+{:04X} (bidirectional \
+             controls, zero-width characters and separators would let one id look like another)",
             c as u32
         ));
     }

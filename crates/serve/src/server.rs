@@ -3,9 +3,9 @@
 //! writes to the [`crate::writer`].
 
 use std::future::Future;
-use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
+use std::time::Duration;
 
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, PathRejection};
@@ -29,6 +29,29 @@ use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, Wr
 /// Largest request body by default (bytes): about a million observations in JSON.
 pub const DEFAULT_MAX_BODY_BYTES: usize = 32 << 20;
 
+/// How long connections may take, and how many may be open.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConnectionLimits {
+    /// A connection must send a complete request head within this time of opening or of its
+    /// previous answer; else it is closed. This bounds slow headers and idle keep-alive
+    /// connections alike (hyper's header-read timer runs while a connection waits for a head).
+    pub header_timeout: Duration,
+    /// A request body must arrive completely within this time of its head; else `408`.
+    pub body_timeout: Duration,
+    /// Connections open at once; one more is answered `503` and closed.
+    pub max_connections: usize,
+}
+
+impl Default for ConnectionLimits {
+    fn default() -> Self {
+        ConnectionLimits {
+            header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(60),
+            max_connections: 512,
+        }
+    }
+}
+
 /// How the service runs.
 #[derive(Clone, Debug)]
 pub struct ServiceConfig {
@@ -40,6 +63,10 @@ pub struct ServiceConfig {
     pub checkpoint: CheckpointPolicy,
     /// Topological maps and grids served read-only.
     pub maps: Arc<Maps>,
+    /// Host names (besides `localhost` and IP addresses) that requests may name in `Host`.
+    pub allowed_hosts: Vec<String>,
+    /// Timeouts and the connection limit.
+    pub limits: ConnectionLimits,
 }
 
 impl Default for ServiceConfig {
@@ -49,6 +76,8 @@ impl Default for ServiceConfig {
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             checkpoint: CheckpointPolicy::default(),
             maps: Arc::new(Maps::default()),
+            allowed_hosts: Vec::new(),
+            limits: ConnectionLimits::default(),
         }
     }
 }
@@ -58,6 +87,7 @@ pub struct Service {
     state: AppState,
     maps: Arc<Maps>,
     max_body_bytes: usize,
+    limits: ConnectionLimits,
     writer: std::thread::JoinHandle<()>,
 }
 
@@ -66,6 +96,9 @@ struct AppState {
     shared: Arc<Shared>,
     writes: mpsc::Sender<WriteCommand>,
     token: Option<Arc<str>>,
+    allowed_hosts: Arc<[String]>,
+    body_timeout: Duration,
+    max_body_bytes: usize,
 }
 
 impl Service {
@@ -89,9 +122,17 @@ impl Service {
                 shared,
                 writes,
                 token: config.token.map(Arc::from),
+                allowed_hosts: config
+                    .allowed_hosts
+                    .iter()
+                    .map(|h| h.to_ascii_lowercase())
+                    .collect(),
+                body_timeout: config.limits.body_timeout,
+                max_body_bytes: config.max_body_bytes,
             },
             maps: config.maps,
             max_body_bytes: config.max_body_bytes,
+            limits: config.limits,
             writer,
         })
     }
@@ -115,8 +156,9 @@ impl Service {
         )
     }
 
-    /// Serves on `listener` until `shutdown` completes, then finishes the writes in flight and
-    /// writes a last checkpoint.
+    /// Serves on `listener` until `shutdown` completes, then finishes the requests in flight
+    /// and the writes, and writes a last checkpoint. Connections follow the
+    /// [`ConnectionLimits`] of the configuration.
     ///
     /// # Errors
     /// The listener fails.
@@ -126,20 +168,84 @@ impl Service {
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> std::io::Result<()> {
         let app = self.router();
-        let Service { state, writer, .. } = self;
+        let Service {
+            state,
+            writer,
+            limits,
+            ..
+        } = self;
         drop(state);
-        axum::serve(
-            listener,
-            app.into_make_service_with_connect_info::<SocketAddr>(),
-        )
-        .with_graceful_shutdown(shutdown)
-        .await?;
+        serve_connections(listener, app, limits, shutdown).await;
         // The router (and every sender of writes) is gone: the writer drains and checkpoints.
         tokio::task::spawn_blocking(move || writer.join())
             .await
             .ok();
         Ok(())
     }
+}
+
+/// The accept loop: one task per connection (HTTP/1.1), at most `limits.max_connections` at
+/// once, the header-read timeout on hyper's timer; on `shutdown`, stops accepting, lets every
+/// connection finish its request in flight and returns when all are closed.
+async fn serve_connections(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    limits: ConnectionLimits,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    use hyper_util::service::TowerToHyperService;
+
+    let slots = Arc::new(tokio::sync::Semaphore::new(limits.max_connections));
+    let (stop, stopped) = tokio::sync::watch::channel(false);
+    let mut http = hyper::server::conn::http1::Builder::new();
+    http.timer(TokioTimer::new())
+        .header_read_timeout(limits.header_timeout)
+        .keep_alive(true);
+    let mut shutdown = std::pin::pin!(shutdown);
+    loop {
+        let (stream, _) = tokio::select! {
+            () = &mut shutdown => break,
+            accepted = listener.accept() => match accepted {
+                Ok(connection) => connection,
+                Err(_) => {
+                    // Out of file descriptors or a connection reset before accept: try again
+                    // shortly instead of spinning.
+                    tokio::time::sleep(Duration::from_millis(20)).await;
+                    continue;
+                }
+            },
+        };
+        let Ok(slot) = Arc::clone(&slots).try_acquire_owned() else {
+            let body = r#"{"error":"unavailable","reason":"too many open connections (--max-connections)"}"#;
+            let answer = format!(
+                "HTTP/1.1 503 Service Unavailable\r\ncontent-type: application/json\r\n\
+                 connection: close\r\ncontent-length: {}\r\n\r\n{body}",
+                body.len()
+            );
+            let _ = stream.try_write(answer.as_bytes());
+            continue;
+        };
+        let _ = stream.set_nodelay(true);
+        let connection =
+            http.serve_connection(TokioIo::new(stream), TowerToHyperService::new(app.clone()));
+        let mut stopped = stopped.clone();
+        tokio::spawn(async move {
+            let mut connection = std::pin::pin!(connection);
+            tokio::select! {
+                _ = connection.as_mut() => {}
+                _ = async { let _ = stopped.wait_for(|&s| s).await; } => {
+                    connection.as_mut().graceful_shutdown();
+                    let _ = connection.await;
+                }
+            }
+            drop(slot);
+        });
+    }
+    drop(listener);
+    let _ = stop.send(true);
+    let all = u32::try_from(limits.max_connections).unwrap_or(u32::MAX);
+    let _ = slots.acquire_many(all).await;
 }
 
 /// The OpenAPI 3.1 description, served at `/openapi.json`.
@@ -183,7 +289,9 @@ fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
         .route("/v1/add", post(add))
         .route("/v1/addvalues", post(addvalues))
         .route("/v1/observations", post(add_batch))
+        .route_layer(middleware::from_fn(require_json))
         .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
+    let outer = state.clone();
     Router::new()
         .route("/", get(web_page))
         .route("/openapi.json", get(openapi))
@@ -198,7 +306,7 @@ fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
         .route("/v1/evaluate", post(evaluate))
         .route("/v1/detect", post(detect))
         .merge(writes)
-        .with_state(state)
+        .with_state(state.clone())
         .merge(crate::maps::router(maps))
         .fallback(|| async { ApiError::not_found("no such endpoint; see /openapi.json".into()) })
         .method_not_allowed_fallback(|| async {
@@ -209,6 +317,8 @@ fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
             )
         })
         .layer(DefaultBodyLimit::max(max_body_bytes))
+        .layer(middleware::from_fn_with_state(outer.clone(), read_body))
+        .layer(middleware::from_fn_with_state(outer, check_host))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -283,13 +393,7 @@ pub(crate) fn parse_body<T: DeserializeOwned>(
 ) -> Result<T, ApiError> {
     let bytes = body.map_err(|rejection| {
         if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::new(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                "payload_too_large",
-                "the request body is larger than the service's limit (--max-body-bytes); \
-                 split it into several requests"
-                    .into(),
-            )
+            too_large_error()
         } else {
             ApiError::bad_request(format!("cannot read the request body: {rejection}"))
         }
@@ -314,33 +418,176 @@ fn model_entry<'a>(registry: &'a Registry, id: &str, field: &str) -> Result<&'a 
     registry.get(id).ok_or_else(|| ApiError::unknown(id))
 }
 
+/// The bearer token of an `Authorization` header: the scheme is case-insensitive (RFC 9110
+/// §11.1), so `Bearer`, `bearer` and `BEARER` all work.
+fn bearer(headers: &axum::http::HeaderMap) -> Option<&str> {
+    let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
+    let (scheme, token) = value.trim().split_once(' ')?;
+    scheme
+        .eq_ignore_ascii_case("bearer")
+        .then(|| token.trim_start())
+}
+
+/// Whether the request carries the service's token (always, without one).
+fn authorized(state: &AppState, headers: &axum::http::HeaderMap) -> bool {
+    state.token.as_ref().is_none_or(|token| {
+        bearer(headers).is_some_and(|g| constant_time_eq(g.as_bytes(), token.as_bytes()))
+    })
+}
+
 async fn require_token(
     State(state): State<AppState>,
     request: Request,
     next: Next,
 ) -> Result<Response, ApiError> {
-    if let Some(token) = &state.token {
+    if !authorized(&state, request.headers()) {
+        let reason = if bearer(request.headers()).is_none() {
+            "this endpoint changes models and needs `Authorization: Bearer TOKEN` \
+             (the token file was printed when the service started)"
+        } else {
+            "wrong bearer token"
+        };
+        return Err(ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "unauthorized",
+            reason.into(),
+        ));
+    }
+    Ok(next.run(request).await)
+}
+
+/// Writes with a body must say `Content-Type: application/json` (`415` otherwise): a page of
+/// another origin can send `text/plain` or form bodies without asking (no CORS preflight), but
+/// not JSON. `DELETE` takes no body and is always preflighted, so it needs none.
+async fn require_json(request: Request, next: Next) -> Result<Response, ApiError> {
+    if request.method() != axum::http::Method::DELETE {
         let given = request
             .headers()
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "));
-        let ok = given.is_some_and(|g| constant_time_eq(g.as_bytes(), token.as_bytes()));
-        if !ok {
-            let reason = if given.is_none() {
-                "this endpoint changes models and needs `Authorization: Bearer TOKEN` \
-                 (the token file was printed when the service started)"
-            } else {
-                "wrong bearer token"
-            };
+            .get(header::CONTENT_TYPE)
+            .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+        let json = given.as_deref().is_some_and(|v| {
+            v.split(';')
+                .next()
+                .is_some_and(|media| media.trim().eq_ignore_ascii_case("application/json"))
+        });
+        if !json {
             return Err(ApiError::new(
-                StatusCode::UNAUTHORIZED,
-                "unauthorized",
-                reason.into(),
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                "unsupported_media_type",
+                format!(
+                    "writes need `Content-Type: application/json` (got {})",
+                    given.map_or_else(|| "none".into(), |v| format!("{v:?}"))
+                ),
             ));
         }
     }
     Ok(next.run(request).await)
+}
+
+/// The host of a `Host` header value, lower case, without the port (`[::1]:8470` → `::1`).
+fn host_name(value: &str) -> &str {
+    if let Some(rest) = value.strip_prefix('[') {
+        return rest.split(']').next().unwrap_or(rest);
+    }
+    match value.rsplit_once(':') {
+        Some((host, port)) if port.bytes().all(|b| b.is_ascii_digit()) => host,
+        _ => value,
+    }
+}
+
+/// DNS rebinding defence: a request must name the service in `Host` by an IP address (a
+/// rebinding page's requests name the attacker's domain, never an address), `localhost`, or a
+/// name given with `--allow-host`; else `421`. Applies to every request, reads too.
+async fn check_host(
+    State(state): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, ApiError> {
+    let value = request
+        .headers()
+        .get(header::HOST)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).to_ascii_lowercase());
+    let Some(value) = value else {
+        return Err(ApiError::bad_request(
+            "the request has no `Host` header".into(),
+        ));
+    };
+    let host = host_name(value.trim()).trim_end_matches('.');
+    let allowed = host.parse::<std::net::IpAddr>().is_ok()
+        || host == "localhost"
+        || state.allowed_hosts.iter().any(|h| h == host);
+    if !allowed {
+        return Err(ApiError::new(
+            StatusCode::MISDIRECTED_REQUEST,
+            "misdirected",
+            format!(
+                "`Host: {value}` is not a name of this service (it answers to IP addresses, \
+                 `localhost` and the names given with --allow-host); a page that rebinds a \
+                 domain to this address must not reach it. Start the service with \
+                 `--allow-host {host}` if that name is yours"
+            ),
+        ));
+    }
+    Ok(next.run(request).await)
+}
+
+/// Reads the whole request body within `--body-timeout` (`408` and the connection closed
+/// otherwise) and at most `--max-body-bytes` of it (`413`), before any handler runs.
+async fn read_body(
+    State(state): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, Response> {
+    let (parts, body) = request.into_parts();
+    let limit = state.max_body_bytes;
+    let read = tokio::time::timeout(state.body_timeout, axum::body::to_bytes(body, limit)).await;
+    let bytes = match read {
+        Ok(Ok(bytes)) => bytes,
+        Ok(Err(_)) => {
+            let too_large = parts
+                .headers
+                .get(header::CONTENT_LENGTH)
+                .and_then(|v| v.to_str().ok()?.parse::<usize>().ok())
+                .is_none_or(|n| n > limit);
+            let mut response = if too_large {
+                too_large_error().into_response()
+            } else {
+                ApiError::bad_request("the request body ended early".into()).into_response()
+            };
+            response
+                .headers_mut()
+                .insert(header::CONNECTION, HeaderValue::from_static("close"));
+            return Err(response);
+        }
+        Err(_) => {
+            let mut response = ApiError::new(
+                StatusCode::REQUEST_TIMEOUT,
+                "request_timeout",
+                format!(
+                    "the request body did not arrive within {:.0} s (--body-timeout)",
+                    state.body_timeout.as_secs_f64()
+                ),
+            )
+            .into_response();
+            response
+                .headers_mut()
+                .insert(header::CONNECTION, HeaderValue::from_static("close"));
+            return Err(response);
+        }
+    };
+    Ok(next
+        .run(Request::from_parts(parts, axum::body::Body::from(bytes)))
+        .await)
+}
+
+fn too_large_error() -> ApiError {
+    ApiError::new(
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "payload_too_large",
+        "the request body is larger than the service's limit (--max-body-bytes); \
+         split it into several requests"
+            .into(),
+    )
 }
 
 /// Compares without stopping at the first difference (no timing hint about the token).
@@ -392,14 +639,21 @@ async fn openapi() -> Response {
         .into_response()
 }
 
-/// Service health.
+/// Service health. `store` is the kind of store (`redb`, `postgres`); with the bearer token
+/// (or on a service without one) it is the full description (file path or schema).
 #[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health)))]
-async fn health(State(state): State<AppState>) -> Json<Health> {
+async fn health(State(state): State<AppState>, headers: axum::http::HeaderMap) -> Json<Health> {
     let models = state.shared.registry.read().expect("registry lock").len() as u64;
+    let store = state.shared.store.describe();
+    let store = if authorized(&state, &headers) {
+        store
+    } else {
+        store.split(' ').next().unwrap_or("store").to_owned()
+    };
     Json(Health {
         status: "ok".into(),
         models,
-        store: state.shared.store.describe(),
+        store,
         seq: state.shared.seq.load(Ordering::Acquire),
         auth: state.token.is_some(),
     })
