@@ -11,6 +11,7 @@ mod matrix;
 mod model_file;
 mod model_invariants;
 mod navmap;
+mod properties;
 mod text;
 mod topo_files;
 mod tracks;

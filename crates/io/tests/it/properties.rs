@@ -1,0 +1,245 @@
+//! Property tests of every reader (proptest, seeded so that a failure reproduces): arbitrary
+//! bytes and mutations of real files are an `Err` or an `Ok`, never a panic, and what a writer
+//! writes, its reader reads back unchanged.
+//!
+//! The number of cases is small enough for CI (seconds); set `PROPTEST_CASES` for a deeper
+//! run, e.g. `PROPTEST_CASES=100000 cargo test -p chronomap-io --test it properties`.
+
+use chronomap_io::grid_file::{GridFile, decode_grid, encode_grid};
+use chronomap_io::model_file::{decode_any_model, encode_model};
+use chronomap_io::topo_files::{
+    decode_route_geojson, decode_tmap2, encode_edge_file, encode_route_geojson, encode_tmap2,
+    read_edge_file_from,
+};
+use chronomap_io::{decode_map_yaml, read_events_from, read_frame_list_from, read_pairs_from};
+use chronomap_testutil::repo_path;
+use chronomap_topo::TopoMap;
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngSeed};
+
+/// Cases per property: `PROPTEST_CASES` if set, else 256.
+fn config() -> Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(256);
+    Config {
+        cases,
+        rng_seed: RngSeed::Fixed(20_261_203),
+        failure_persistence: None,
+        ..Config::default()
+    }
+}
+
+/// Every reader of bytes, by name; each must return (not panic) on any input.
+fn readers() -> Vec<(&'static str, fn(&[u8]))> {
+    vec![
+        ("time series", |b| drop(read_pairs_from("x.txt", b))),
+        ("edge file", |b| drop(read_edge_file_from("x.data", b))),
+        ("events", |b| drop(read_events_from("x.txt", b))),
+        ("frame list", |b| {
+            drop(read_frame_list_from("frames.txt", b))
+        }),
+        ("map YAML", |b| drop(decode_map_yaml("map.yaml", b))),
+        ("tmap2", |b| drop(decode_tmap2("map.tmap2.yaml", b))),
+        ("route GeoJSON", |b| {
+            drop(decode_route_geojson("graph.geojson", b))
+        }),
+        ("model file", |b| drop(decode_any_model(b))),
+        ("grid file", |b| drop(decode_grid(b))),
+    ]
+}
+
+/// Real files of each format, to mutate.
+fn seeds() -> Vec<Vec<u8>> {
+    let mut seeds = vec![
+        b"1451865600 0\n1451865660 1\n1451865720 1\n".to_vec(),
+        b"1404836638 32.1 1\n1404836900 40.0 0\n".to_vec(),
+        b"1495618000.5 1.25 -3.5\n1495618001 2 3\n".to_vec(),
+        b"1451865600 map.yaml\n1451866200 map.yaml\n".to_vec(),
+        b"image: map.pgm\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: 0\n\
+          occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+            .to_vec(),
+    ];
+    let mut map = TopoMap::new();
+    map.add_node("Station", Some([0.0, 0.0, 0.0])).unwrap();
+    map.add_node("Kitchen", Some([4.0, 1.5, 1.0])).unwrap();
+    map.add_node("Lab", None).unwrap();
+    map.add_edge("Station_Kitchen", "Station", "Kitchen")
+        .unwrap();
+    map.add_edge("Kitchen_Lab", "Kitchen", "Lab").unwrap();
+    seeds.push(
+        encode_tmap2(&map, "witham", "01-01-2026_00-00-00")
+            .unwrap()
+            .into_bytes(),
+    );
+    seeds.push(
+        encode_route_geojson(&map, &[(0.9, 30.0), (0.5, 12.0)])
+            .unwrap()
+            .into_bytes(),
+    );
+    // A real model file and a real grid file.
+    seeds.push(std::fs::read(repo_path("tests/hostile/door.cmm")).unwrap());
+    let geometry = chronomap_grid::GridGeometry::planar(3, 2, 0.5, [0.0, 0.0]).unwrap();
+    let mut grid =
+        chronomap_grid::FremenGrid::new(geometry, chronomap_grid::GridConfig::default()).unwrap();
+    for k in 0..48u32 {
+        let open = if k % 24 < 12 { 0 } else { 100 };
+        grid.observe_occupancy(1e9 + 1800.0 * f64::from(k), &[open, 100, 0, 0, open, 100])
+            .unwrap();
+    }
+    seeds.push(encode_grid(&GridFile::State(Box::new(grid))).unwrap());
+    seeds
+}
+
+/// A mutation of `bytes`: flipped bits, overwritten, inserted or deleted bytes, a cut.
+fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
+    for &(at, kind, value) in edits {
+        if bytes.is_empty() {
+            bytes.push(value);
+            continue;
+        }
+        let at = at % bytes.len();
+        match kind % 5 {
+            0 => bytes[at] ^= 1 << (value % 8),
+            1 => bytes[at] = value,
+            2 => bytes.insert(at, value),
+            3 => {
+                bytes.remove(at);
+            }
+            _ => bytes.truncate(at),
+        }
+    }
+    bytes
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    #[test]
+    fn arbitrary_bytes_never_panic_a_reader(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        for (_, read) in readers() {
+            read(&bytes);
+        }
+    }
+
+    #[test]
+    fn mutated_real_files_never_panic_a_reader(
+        seed in 0usize..16,
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>(), any::<u8>()), 1..8),
+    ) {
+        let seeds = seeds();
+        let bytes = mutate(seeds[seed % seeds.len()].clone(), &edits);
+        for (_, read) in readers() {
+            read(&bytes);
+        }
+    }
+
+    #[test]
+    fn time_series_round_trip(
+        steps in proptest::collection::vec((0u32..100_000, 0.0f64..=1.0), 1..64),
+        start in 0u32..2_000_000_000,
+    ) {
+        let mut t = f64::from(start);
+        let mut text = String::new();
+        let mut expected = Vec::new();
+        for (dt, v) in steps {
+            t += f64::from(dt);
+            // Rust prints the shortest text that reads back as the same f64.
+            text.push_str(&format!("{t} {v}\n"));
+            expected.push((t, v));
+        }
+        let series = read_pairs_from("x.txt", text.as_bytes()).unwrap();
+        prop_assert_eq!(series.len(), expected.len());
+        for (i, (t, v)) in expected.into_iter().enumerate() {
+            prop_assert_eq!((series.times[i], series.values[i]), (t, v));
+        }
+    }
+
+    #[test]
+    fn edge_files_round_trip(
+        attempts in proptest::collection::vec((0u32..1_000_000, 0.0f64..1e6, any::<bool>()), 1..32),
+    ) {
+        let mut t = 1.4e9;
+        let rows: Vec<chronomap_io::topo_files::EdgeAttempt> = attempts
+            .into_iter()
+            .map(|(dt, duration, success)| {
+                t += f64::from(dt);
+                chronomap_io::topo_files::EdgeAttempt { time: t, duration_secs: duration, success }
+            })
+            .collect();
+        let read = read_edge_file_from("x.data", encode_edge_file(&rows).as_bytes()).unwrap();
+        prop_assert_eq!(read, rows);
+    }
+
+    #[test]
+    fn route_geojson_and_tmap2_round_trip(
+        poses in proptest::collection::vec((-1e4f64..1e4, -1e4f64..1e4), 1..12),
+        edges in proptest::collection::vec((any::<usize>(), any::<usize>()), 0..24),
+    ) {
+        let mut map = TopoMap::new();
+        for (i, &(x, y)) in poses.iter().enumerate() {
+            map.add_node(&format!("N{i}"), Some([x, y, 0.0])).unwrap();
+        }
+        let n = poses.len();
+        let mut added = std::collections::HashSet::new();
+        for (a, b) in edges {
+            let (a, b) = (a % n, b % n);
+            if a != b && added.insert((a, b)) {
+                map.add_edge(&format!("N{a}_N{b}"), &format!("N{a}"), &format!("N{b}")).unwrap();
+            }
+        }
+        let metadata = vec![(0.5, 10.0); map.edges().len()];
+        let json = encode_route_geojson(&map, &metadata).unwrap();
+        let from_json = decode_route_geojson("g.geojson", json.as_bytes()).unwrap();
+        let yaml = encode_tmap2(&map, "m", "01-01-2026_00-00-00").unwrap();
+        let from_yaml = decode_tmap2("m.tmap2.yaml", yaml.as_bytes()).unwrap().map;
+        for read in [&from_json, &from_yaml] {
+            prop_assert_eq!(read.nodes().len(), map.nodes().len());
+            for (a, b) in read.nodes().iter().zip(map.nodes()) {
+                prop_assert_eq!(&a.name, &b.name);
+                let (pa, pb) = (a.pose.unwrap(), b.pose.unwrap());
+                prop_assert_eq!([pa[0], pa[1]], [pb[0], pb[1]]);
+            }
+            // tmap2 keeps edges under their start node, so compare them as a set.
+            let ends = |m: &TopoMap| {
+                let mut e: Vec<_> = m.edges().iter().map(|e| (e.id.clone(), e.from, e.to)).collect();
+                e.sort();
+                e
+            };
+            prop_assert_eq!(ends(read), ends(&map));
+        }
+    }
+
+    #[test]
+    fn model_files_round_trip(
+        observations in proptest::collection::vec(any::<bool>(), 8..200),
+        order in 0usize..4,
+    ) {
+        use chronomap_core::{FremenConfig, FremenModel, TemporalModel};
+        let mut model = FremenModel::new(FremenConfig::with_order(order)).unwrap();
+        let times: Vec<f64> = (0..observations.len()).map(|k| 3600.0 * k as f64).collect();
+        let values: Vec<f64> = observations.iter().map(|&o| f64::from(u8::from(o))).collect();
+        model.observe(&times, &values).unwrap();
+        let any = chronomap_models::AnyModel::Fremen(model.clone());
+        let bytes = encode_model(any.kind(), &any).unwrap();
+        let read = decode_any_model(&bytes).unwrap();
+        let probe = [0.0, 1234.5, 86_400.0 * 3.5];
+        prop_assert_eq!(read.predict_many(&probe), model.predict_many(&probe));
+    }
+}
+
+#[test]
+fn every_seed_is_read_by_its_own_reader() {
+    // The mutation test starts from valid files: check that they are valid.
+    let seeds = seeds();
+    assert!(read_pairs_from("x.txt", &seeds[0][..]).is_ok());
+    assert!(read_edge_file_from("x.data", &seeds[1][..]).is_ok());
+    assert!(read_events_from("x.txt", &seeds[2][..]).is_ok());
+    assert!(read_frame_list_from("frames.txt", &seeds[3][..]).is_ok());
+    assert!(decode_map_yaml("map.yaml", &seeds[4]).is_ok());
+    assert!(decode_tmap2("m.yaml", &seeds[5]).is_ok());
+    assert!(decode_route_geojson("g.geojson", &seeds[6]).is_ok());
+    assert!(decode_any_model(&seeds[7]).is_ok());
+    assert!(decode_grid(&seeds[8]).is_ok());
+}
