@@ -1,0 +1,228 @@
+//! Property tests of the service's request decoding (proptest, seeded): whatever bytes or JSON
+//! a client sends to any endpoint, the answer is a `4xx` with a JSON error naming what was
+//! wrong, or a success — never a `5xx`, a panic or a change to a model it did not write; valid
+//! predictions answer one probability per time.
+//!
+//! `PROPTEST_CASES` sets the cases per property (default 128).
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::body::{Body, to_bytes};
+use axum::http::{Request, StatusCode};
+use chronomap_serve::store::RedbStore;
+use chronomap_serve::{Service, ServiceConfig};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngSeed};
+use tower::ServiceExt;
+
+const TOKEN: &str = "0123456789abcdef0123456789abcdef";
+
+/// Every endpoint that takes a body, and the two that take a path only.
+const ENDPOINTS: [(&str, &str); 14] = [
+    ("PUT", "/v1/models/door"),
+    ("POST", "/v1/add"),
+    ("POST", "/v1/addvalues"),
+    ("POST", "/v1/observations"),
+    ("POST", "/v1/predict"),
+    ("POST", "/v1/entropy"),
+    ("POST", "/v1/forecast"),
+    ("POST", "/v1/forecastEntropy"),
+    ("POST", "/v1/evaluate"),
+    ("POST", "/v1/detect"),
+    ("GET", "/v1/models/door"),
+    ("GET", "/v1/models/door/observations"),
+    ("DELETE", "/v1/models/nothing-here"),
+    ("POST", "/v1/maps"),
+];
+
+fn config() -> Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(128);
+    Config {
+        cases,
+        rng_seed: RngSeed::Fixed(20_261_203),
+        failure_persistence: None,
+        ..Config::default()
+    }
+}
+
+/// A service with one model, `door`, of a day of hourly observations; its router, and the
+/// runtime to drive it.
+struct Fixture {
+    router: Router,
+    runtime: tokio::runtime::Runtime,
+    _service: Service,
+    _dir: std::path::PathBuf,
+}
+
+fn fixture() -> Fixture {
+    let dir = std::env::temp_dir().join(format!(
+        "chronomap-serve-requests-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let store = Arc::new(RedbStore::open(dir.join("chronomap.redb")).unwrap());
+    let service = Service::start(
+        store,
+        ServiceConfig {
+            token: Some(TOKEN.into()),
+            ..ServiceConfig::default()
+        },
+    )
+    .unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let fixture = Fixture {
+        router: service.router(),
+        runtime,
+        _service: service,
+        _dir: dir,
+    };
+    let times: Vec<f64> = (0..24).map(|h| 1.7e9 + 3600.0 * f64::from(h)).collect();
+    let states: Vec<bool> = (0..24).map(|h| (8..18).contains(&h)).collect();
+    let body =
+        serde_json::json!({"id": "door", "model": "fremen:2", "times": times, "states": states});
+    let (status, text) = fixture.send("POST", "/v1/add", body.to_string().into_bytes());
+    assert_eq!(status, StatusCode::OK, "{text}");
+    fixture
+}
+
+impl Fixture {
+    fn send(&self, method: &str, path: &str, body: Vec<u8>) -> (StatusCode, String) {
+        let request = Request::builder()
+            .method(method)
+            .uri(path)
+            .header("host", "127.0.0.1")
+            .header("content-type", "application/json")
+            .header("authorization", format!("Bearer {TOKEN}"))
+            .body(Body::from(body))
+            .unwrap();
+        self.runtime.block_on(async {
+            let response = self.router.clone().oneshot(request).await.unwrap();
+            let status = response.status();
+            let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
+            (status, String::from_utf8_lossy(&bytes).into_owned())
+        })
+    }
+
+    fn door_prediction(&self) -> String {
+        let body = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]});
+        self.send("POST", "/v1/predict", body.to_string().into_bytes())
+            .1
+    }
+}
+
+/// JSON values of any shape, with the field names and numbers the API uses among them.
+fn json_value() -> impl Strategy<Value = serde_json::Value> {
+    use serde_json::Value;
+    let leaf = prop_oneof![
+        Just(Value::Null),
+        any::<bool>().prop_map(Value::Bool),
+        any::<f64>()
+            .prop_filter("finite", |f| f.is_finite())
+            .prop_map(|f| serde_json::json!(f)),
+        any::<i64>().prop_map(|i| serde_json::json!(i)),
+        prop_oneof![
+            Just("door".to_owned()),
+            Just("fremen:2".to_owned()),
+            Just(String::new()),
+            ".{0,12}",
+        ]
+        .prop_map(Value::String),
+    ];
+    leaf.prop_recursive(4, 48, 6, |inner| {
+        let key = prop_oneof![
+            Just("id".to_owned()),
+            Just("ids".to_owned()),
+            Just("times".to_owned()),
+            Just("values".to_owned()),
+            Just("states".to_owned()),
+            Just("time".to_owned()),
+            Just("model".to_owned()),
+            Just("range".to_owned()),
+            Just("order".to_owned()),
+            Just("confidence".to_owned()),
+            Just("batches".to_owned()),
+            "[a-z]{1,6}",
+        ];
+        prop_oneof![
+            proptest::collection::vec(inner.clone(), 0..6).prop_map(Value::Array),
+            proptest::collection::btree_map(key, inner, 0..6)
+                .prop_map(|m| Value::Object(m.into_iter().collect())),
+        ]
+    })
+}
+
+fn assert_answered(status: StatusCode, text: &str) -> Result<(), TestCaseError> {
+    prop_assert!(!status.is_server_error(), "answered {status}: {text}");
+    if status.is_client_error() {
+        let body: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+            TestCaseError::fail(format!("{status} without a JSON body ({e}): {text}"))
+        })?;
+        let reason = body["reason"].as_str().unwrap_or_default();
+        prop_assert!(!reason.is_empty(), "{status} without a reason: {text}");
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    #[test]
+    fn any_bytes_to_any_endpoint_get_a_client_error_or_an_answer(
+        endpoint in 0..ENDPOINTS.len(),
+        body in proptest::collection::vec(any::<u8>(), 0..256),
+    ) {
+        thread_local!(static FIXTURE: Fixture = fixture());
+        FIXTURE.with(|f| {
+            let before = f.door_prediction();
+            let (method, path) = ENDPOINTS[endpoint];
+            let (status, text) = f.send(method, path, body.clone());
+            assert_answered(status, &text)?;
+            // Bytes that are not JSON change nothing.
+            if serde_json::from_slice::<serde_json::Value>(&body).is_err() {
+                prop_assert_eq!(f.door_prediction(), before);
+            }
+            Ok(())
+        })?;
+    }
+
+    #[test]
+    fn any_json_to_any_endpoint_gets_a_client_error_or_an_answer(
+        endpoint in 0..ENDPOINTS.len(),
+        body in json_value(),
+    ) {
+        thread_local!(static FIXTURE: Fixture = fixture());
+        FIXTURE.with(|f| {
+            let (method, path) = ENDPOINTS[endpoint];
+            let (status, text) = f.send(method, path, body.to_string().into_bytes());
+            assert_answered(status, &text)
+        })?;
+    }
+
+    #[test]
+    fn valid_predictions_answer_one_probability_per_time(
+        times in proptest::collection::vec(0.0f64..1e11, 1..64),
+    ) {
+        thread_local!(static FIXTURE: Fixture = fixture());
+        FIXTURE.with(|f| {
+            let body = serde_json::json!({"id": "door", "times": times});
+            let (status, text) = f.send("POST", "/v1/predict", body.to_string().into_bytes());
+            prop_assert_eq!(status, StatusCode::OK, "{}", text);
+            let answer: serde_json::Value = serde_json::from_str(&text).unwrap();
+            let values = answer["values"].as_array().unwrap();
+            prop_assert_eq!(values.len(), times.len());
+            for v in values {
+                let p = v.as_f64().unwrap();
+                prop_assert!((0.0..=1.0).contains(&p), "{}", p);
+            }
+            Ok(())
+        })?;
+    }
+}
