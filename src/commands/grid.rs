@@ -15,8 +15,8 @@ use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layer
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, save_map};
 use chronomap_io::{
-    GridFile, encode_grid, load_frame_map, read_frame_list, read_grid_file, read_pairs,
-    write_grid_file,
+    GridFile, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
+    read_pairs, write_grid_file,
 };
 use chronomap_plot::{MapImage, render_maps_png};
 use chronomap_rosbag::{Bag, MapFrame};
@@ -354,7 +354,7 @@ fn build_from_map_list(list: &Path, job: &BuildJob) -> Result<Built> {
         let map = if f == 0 {
             first.clone()
         } else {
-            load_frame_map(&name, frame, semantics, Some(&first))?
+            load_next_frame_map(&name, frame, semantics, &frames[0], &first)?
         };
         grid.observe_occupancy(frame.time, &map.data)
             .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))

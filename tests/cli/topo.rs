@@ -227,7 +227,9 @@ fn bad_input_gets_clear_errors() {
     let err = error(&plan("F Kitchen", "Statoin"));
     assert_mentions(&err, &["--from", "Station"]);
 
-    // Edge files: empty, a negative duration, a success that is not 0/1, unordered times.
+    // Edge files: empty, a negative duration, a success that is not 0/1, durations too long,
+    // unordered times.
+    let huge = "1404836670 1.7e308 1\n".repeat(12);
     let cases = [
         ("A_B.data", "", "A_B.data"),
         (
@@ -236,6 +238,13 @@ fn bad_input_gets_clear_errors() {
             "A_B.data:2",
         ),
         ("A_B.data", "1404836670 6.5 2\n", "A_B.data:1"),
+        // Durations whose sum overflows: refused on their line (was: "time inf s", exit 0, and
+        // a model file that `topo predict` refused).
+        (
+            "A_B.data",
+            huge.as_str(),
+            "A_B.data:1: duration: \"1.7e308\" is longer than the longest duration 1e9 s",
+        ),
         (
             "A_B.data",
             "1404837464 6.5 1\n1404836670 6.5 1\n",

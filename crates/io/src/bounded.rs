@@ -48,6 +48,33 @@ pub(crate) fn open_regular(path: &Path) -> io::Result<std::fs::File> {
     Ok(file)
 }
 
+/// Opens `path` for streaming: a regular file or a pipe (`<(xz -dc …)`, `/dev/stdin`), not a
+/// directory or a device such as `/dev/zero`, which is refused with
+/// [`io::ErrorKind::InvalidInput`] before anything is read.
+pub(crate) fn open_stream(path: &Path) -> io::Result<std::fs::File> {
+    let streamable = |meta: &std::fs::Metadata| {
+        #[cfg(unix)]
+        let pipe = std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type());
+        #[cfg(not(unix))]
+        let pipe = false;
+        meta.is_file() || pipe
+    };
+    let refused = || {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "it is not a regular file or a pipe (a directory or a device)",
+        )
+    };
+    if !streamable(&std::fs::metadata(path)?) {
+        return Err(refused());
+    }
+    let file = std::fs::File::open(path)?;
+    if !streamable(&file.metadata()?) {
+        return Err(refused());
+    }
+    Ok(file)
+}
+
 /// [`std::fs::read`] of a regular file ([`open_regular`]) with the [`MAX_FILE_BYTES`] limit.
 pub(crate) fn read(path: &Path) -> io::Result<Vec<u8>> {
     read_to_end_bounded(open_regular(path)?)

@@ -33,7 +33,8 @@ use thiserror::Error;
 
 use crate::navmap::{LoadSemantics, NavMapError, OccupancyMap, load_map};
 use crate::text::{
-    DataError, Field, Fields, for_each_data_line, open_data_file, parse_time, required,
+    DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_time,
+    required, shorten,
 };
 
 /// What a line of a frame list must look like (quoted in errors).
@@ -80,6 +81,13 @@ pub fn read_frame_list_from(name: &str, reader: impl Read) -> Result<Vec<Frame>,
         let time = parse_time(time_text, previous, frames.len())?;
         let map = required(fields.next(), Field::MapFile, FRAME_LINE)?;
         fields.finish(FRAME_LINE)?;
+        if map.len() > MAX_MAP_PATH_BYTES {
+            return Err(DataErrorKind::FieldTooLong {
+                field: Field::MapFile,
+                text: shorten(&String::from_utf8_lossy(map), 40),
+                max: MAX_MAP_PATH_BYTES,
+            });
+        }
         frames.push(Frame {
             time,
             map: PathBuf::from(String::from_utf8_lossy(map).into_owned()),
@@ -124,7 +132,32 @@ pub enum FrameMapError {
         /// Height of the first map.
         first_height: u32,
     },
+    /// The map has the size of the first map but another resolution or origin: its cells are
+    /// elsewhere in the world, so they cannot be merged with the first map's.
+    #[error(
+        "{list}:{line}: {map} has {what} {value} but {first_map} has {first_value} (every \
+         frame must have the cells of the first one)"
+    )]
+    Geometry {
+        /// The frame list.
+        list: String,
+        /// The line of the frame.
+        line: usize,
+        /// The map's file.
+        map: String,
+        /// `"resolution"` or `"origin"`.
+        what: &'static str,
+        /// The map's value.
+        value: String,
+        /// The first map: its file, or `"the first map"` if not known.
+        first_map: String,
+        /// The first map's value.
+        first_value: String,
+    },
 }
+
+/// The longest map path a frame list may give, in bytes (the usual `PATH_MAX`).
+pub const MAX_MAP_PATH_BYTES: usize = 4096;
 
 /// Loads the map of `frame` of the list `list` with `semantics`, checking that it has the
 /// size of `first` (the list's first map) if given.
@@ -138,14 +171,45 @@ pub fn load_frame_map(
     semantics: LoadSemantics,
     first: Option<&OccupancyMap>,
 ) -> Result<OccupancyMap, FrameMapError> {
+    load(
+        list,
+        frame,
+        semantics,
+        first.map(|m| ("the first map".to_owned(), m)),
+    )
+}
+
+/// [`load_frame_map`] of a frame after the first, `first` (whose map is `first_map`): errors
+/// name both map files.
+///
+/// # Errors
+/// As [`load_frame_map`].
+pub fn load_next_frame_map(
+    list: &str,
+    frame: &Frame,
+    semantics: LoadSemantics,
+    first: &Frame,
+    first_map: &OccupancyMap,
+) -> Result<OccupancyMap, FrameMapError> {
+    let name = format!("{} (line {})", first.map.display(), first.line);
+    load(list, frame, semantics, Some((name, first_map)))
+}
+
+fn load(
+    list: &str,
+    frame: &Frame,
+    semantics: LoadSemantics,
+    first: Option<(String, &OccupancyMap)>,
+) -> Result<OccupancyMap, FrameMapError> {
     let map = load_map(&frame.map, semantics).map_err(|error| FrameMapError::Map {
         list: list.to_string(),
         line: frame.line,
         error: Box::new(error),
     })?;
-    if let Some(first) = first
-        && (map.width, map.height) != (first.width, first.height)
-    {
+    let Some((first_name, first)) = first else {
+        return Ok(map);
+    };
+    if (map.width, map.height) != (first.width, first.height) {
         return Err(FrameMapError::Size {
             list: list.to_string(),
             line: frame.line,
@@ -155,6 +219,29 @@ pub fn load_frame_map(
             first_width: first.width,
             first_height: first.height,
         });
+    }
+    let differs = |what, value: String, first_value: String| FrameMapError::Geometry {
+        list: list.to_string(),
+        line: frame.line,
+        map: frame.map.display().to_string(),
+        what,
+        value,
+        first_map: first_name.clone(),
+        first_value,
+    };
+    if map.resolution.to_bits() != first.resolution.to_bits() {
+        return Err(differs(
+            "resolution",
+            format!("{} m", map.resolution),
+            format!("{} m", first.resolution),
+        ));
+    }
+    if map.origin.map(f64::to_bits) != first.origin.map(f64::to_bits) {
+        return Err(differs(
+            "origin",
+            format!("{:?}", map.origin),
+            format!("{:?}", first.origin),
+        ));
     }
     Ok(map)
 }

@@ -145,7 +145,10 @@ pub use bt_xml::{
 #[cfg(feature = "hypertime")]
 pub use events::{read_event_files, read_events, read_events_from, write_events};
 #[cfg(feature = "navmap")]
-pub use frame_list::{Frame, FrameMapError, load_frame_map, read_frame_list, read_frame_list_from};
+pub use frame_list::{
+    Frame, FrameMapError, load_frame_map, load_next_frame_map, read_frame_list,
+    read_frame_list_from,
+};
 #[cfg(feature = "grid")]
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
 pub use matrix::{read_state_matrix, read_state_matrix_from};

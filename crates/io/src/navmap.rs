@@ -110,7 +110,8 @@
 //!
 //! Anything else (BMP, JPEG, GIF, TIFF, PBM bitmaps, PAM), which Nav2 would read through
 //! GraphicsMagick, is reported as an unsupported format: convert such maps to PGM or PNG.
-//! Images of more than [`MAX_IMAGE_BYTES`] decoded bytes are rejected.
+//! Images of more than [`MAX_MAP_CELLS`] pixels or [`MAX_IMAGE_BYTES`] decoded bytes are
+//! rejected, from their header, before anything is decoded.
 //!
 //! # Saving (Nav2 `map_saver`)
 //! [`save_map`] writes `<base>.pgm` (trinary and raw) or `<base>.png` (scale) and then
@@ -172,8 +173,16 @@ pub const OCCUPIED: i8 = 100;
 pub const UNKNOWN: i8 = -1;
 
 /// Largest decoded image accepted by the readers, in bytes (samples of all channels at their
-/// bit depth): 1 GiB, e.g. a 32 768 × 32 768 grey map.
+/// bit depth): 1 GiB, e.g. a 16 384 × 16 384 RGBA map.
 pub const MAX_IMAGE_BYTES: u64 = 1 << 30;
+
+/// Most pixels (cells) of a map image: 2^26 = 67 108 864, e.g. 8192 × 8192 cells (410 m square
+/// at 5 cm). Checked from the image header before anything is decoded, so a small file that
+/// announces a huge image (a 948 KB PNG of 30 000 × 30 000) costs neither memory nor time.
+pub const MAX_MAP_CELLS: u64 = 1 << 26;
+
+/// Longest image file name a map YAML may give, in bytes (the usual `PATH_MAX`).
+const MAX_IMAGE_NAME_BYTES: usize = 4096;
 
 /// Longest excerpt of file content quoted in an error message, in characters.
 const MAX_QUOTED_CHARS: usize = 40;
@@ -561,7 +570,8 @@ pub enum NavMapErrorKind {
         /// `"bytes"` or `"samples"`.
         unit: &'static str,
     },
-    /// The image is larger than [`MAX_IMAGE_BYTES`] once decoded, or empty.
+    /// The image has more than [`MAX_MAP_CELLS`] pixels, is larger than [`MAX_IMAGE_BYTES`]
+    /// once decoded, or is empty.
     #[error("image of {width} x {height} pixels is {reason}")]
     ImageSize {
         /// Width from the header.
@@ -1043,7 +1053,7 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
             },
         )
     })?;
-    let value = |key: &'static str| {
+    let value_of = |key: &'static str| {
         let index = KEYS.iter().position(|k| *k == key).expect("a known key");
         match raw.values[index] {
             Some((line, node)) => Ok((line, node)),
@@ -1053,6 +1063,7 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
             )),
         }
     };
+    let value = value_of;
     let invalid = |key: &'static str, line: u64, node: &Yaml, expected: &'static str| {
         NavMapError::at(
             name,
@@ -1071,6 +1082,14 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
 
     let (line, node) = value("image")?;
     let image = match node {
+        Yaml::Str(s) if s.len() > MAX_IMAGE_NAME_BYTES => {
+            return Err(invalid(
+                "image",
+                line,
+                node,
+                "a file name of at most 4096 bytes",
+            ));
+        }
         Yaml::Str(s) if !s.is_empty() => s.clone(),
         _ => return Err(invalid("image", line, node, "a file name")),
     };
@@ -1106,8 +1125,26 @@ pub fn decode_map_yaml(name: &str, text: &[u8]) -> Result<MapMetadata, NavMapErr
         },
         _ => return Err(invalid("negate", line, node, "0, 1, true or false")),
     };
-    let occupied_thresh = number("occupied_thresh")?;
-    let free_thresh = number("free_thresh")?;
+    let threshold = |key: &'static str| {
+        let value = number(key)?;
+        if (0.0..=1.0).contains(&value) {
+            Ok(value)
+        } else {
+            let (line, node) = value_of(key)?;
+            Err(invalid(key, line, node, "a number in [0, 1]"))
+        }
+    };
+    let occupied_thresh = threshold("occupied_thresh")?;
+    let free_thresh = threshold("free_thresh")?;
+    if occupied_thresh < free_thresh {
+        let (line, node) = value_of("occupied_thresh")?;
+        return Err(invalid(
+            "occupied_thresh",
+            line,
+            node,
+            "a number >= free_thresh (a cell cannot be both occupied and free)",
+        ));
+    }
     let mode = match value("mode") {
         Err(_) => MapMode::Trinary,
         Ok((line, node)) => match node {
@@ -1375,7 +1412,13 @@ fn checked_samples(
     if width == 0 || height == 0 {
         return Err(size_error("empty".to_owned()));
     }
-    let samples = u64::from(width) * u64::from(height) * channels as u64;
+    let cells = u64::from(width) * u64::from(height);
+    if cells > MAX_MAP_CELLS {
+        return Err(size_error(format!(
+            "too large ({cells} cells, at most {MAX_MAP_CELLS})"
+        )));
+    }
+    let samples = cells * channels as u64;
     let bytes = samples * bytes_per_sample as u64;
     if bytes > MAX_IMAGE_BYTES {
         return Err(size_error(format!(

@@ -46,7 +46,6 @@
 //! ```
 
 use std::fmt;
-use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
 
@@ -357,6 +356,16 @@ pub enum DataErrorKind {
         /// What is wrong, e.g. `waypoint: "A" appears twice in scenario "hallway"`.
         reason: String,
     },
+    /// A field is longer than its format allows (a map path of a frame list).
+    #[error("{field}: {text:?} is longer than {max} bytes")]
+    FieldTooLong {
+        /// The field.
+        field: Field,
+        /// The start of the offending text.
+        text: String,
+        /// The limit in bytes.
+        max: usize,
+    },
     /// A line is longer than [`MAX_LINE_BYTES`] (probably not a text file).
     #[error("line longer than {max} bytes (is this a text file?)")]
     LineTooLong {
@@ -486,6 +495,7 @@ impl DataError {
             | DataErrorKind::Negative { field, .. }
             | DataErrorKind::BadName { field, .. }
             | DataErrorKind::NotPositive { field, .. }
+            | DataErrorKind::FieldTooLong { field, .. }
             | DataErrorKind::Rejected { field, .. } => Some(field),
             DataErrorKind::NegativeDuration { .. } | DataErrorKind::DurationTooLong { .. } => {
                 Some(Field::Duration)
@@ -753,11 +763,12 @@ fn aligned(
 /// Opens a data file for reading, decompressing `.xz` and `.gz` files on the fly.
 ///
 /// # Errors
-/// [`DataErrorKind::Io`] naming `path` if the file cannot be opened. Errors in compressed data
-/// surface later, as read errors.
+/// [`DataErrorKind::Io`] naming `path` if the file cannot be opened or is a directory or a
+/// device (`/dev/zero` would never end; a pipe may). Errors in compressed data surface later,
+/// as read errors.
 pub fn open_data_file(path: impl AsRef<Path>) -> Result<Box<dyn Read + Send>, DataError> {
     let path = path.as_ref();
-    let file = File::open(path).map_err(|io| {
+    let file = crate::bounded::open_stream(path).map_err(|io| {
         DataError::new(
             path.display().to_string(),
             None,

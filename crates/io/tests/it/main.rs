@@ -7,6 +7,7 @@ mod bt_log;
 mod bt_xml;
 mod copa_init;
 mod events;
+mod hostile_maps;
 mod matrix;
 mod model_file;
 mod model_invariants;
