@@ -20,7 +20,7 @@ fn main() -> ExitCode {
         Err(error) => {
             let code = output::exit_code(&error);
             if code != 0 {
-                eprintln!("error: {error:#}");
+                errln!("error: {error:#}");
             }
             ExitCode::from(code)
         }

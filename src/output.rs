@@ -41,6 +41,19 @@ macro_rules! out {
     };
 }
 
+/// Writes a line to stderr (messages, warnings, the final error), ignoring a failed write:
+/// a closed stderr (`chronomap … 2>&1 | true`) has nowhere to report to, and `eprintln!` would
+/// panic there instead.
+#[macro_export]
+macro_rules! errln {
+    ($($arg:tt)*) => {{
+        let _ = ::std::io::Write::write_fmt(
+            &mut ::std::io::stderr().lock(),
+            format_args!("{}\n", format_args!($($arg)*)),
+        );
+    }};
+}
+
 /// Prints `value` as pretty JSON on stdout (the `--json` output of every command).
 ///
 /// The text is made first and written in one go: a closed pipe is then the `io::Error` that
@@ -155,6 +168,16 @@ impl Progress for ProgressBar {
 impl Drop for ProgressBar {
     fn drop(&mut self) {
         self.0.finish_and_clear();
+    }
+}
+
+/// `Ok(true)` if `result` failed only because stdout is a closed pipe: for commands whose
+/// main work (writing a file) must still happen after their first report lines were lost.
+pub fn closed_pipe(result: anyhow::Result<()>) -> anyhow::Result<bool> {
+    match result {
+        Ok(()) => Ok(false),
+        Err(error) if exit_code(&error) == 0 => Ok(true),
+        Err(error) => Err(error),
     }
 }
 

@@ -24,7 +24,7 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     let Some(first) = detections.first().map(|d| d.t) else {
         bail!("the track files have no detection");
     };
-    eprintln!(
+    crate::errln!(
         "read {} detections from {} files in {:.1} s",
         detections.len(),
         args.tracks.len(),

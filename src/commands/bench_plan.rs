@@ -16,7 +16,7 @@ pub(super) struct StageLog;
 
 impl Progress for StageLog {
     fn stage(&self, name: &str, _total: u64) {
-        eprintln!("{name}...");
+        crate::errln!("{name}...");
     }
 }
 

@@ -112,11 +112,11 @@ pub fn run(args: &ExploreArgs) -> Result<()> {
     }
     if let Some(path) = &args.plot_sweep {
         sweep(&world, args.seed, path)?;
-        eprintln!("wrote {}", path.display());
+        crate::errln!("wrote {}", path.display());
     }
     if let Some(path) = &args.plot_behaviour {
         behaviour(&world, args.ratio, args.seed, path)?;
-        eprintln!("wrote {}", path.display());
+        crate::errln!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -29,7 +29,7 @@ use crate::cli::{
 };
 use crate::format::{Table, duration, time};
 use crate::outln;
-use crate::output::{ProgressBar, print_json, usage};
+use crate::output::{ProgressBar, closed_pipe, print_json, usage};
 
 /// Largest order `auto` and the error table consider.
 const MAX_ORDER: usize = 5;
@@ -120,26 +120,37 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     let geometry = *grid.geometry();
     let span = grid.frame_span();
     let observations = geometry.cells() as f64 * grid.frames() as f64;
+    // A closed stdout must not keep the grid file from being written: reports before the
+    // write are dropped once the pipe is closed, and the command ends after the write.
+    let mut closed = false;
     if !args.json {
-        outln!(
-            "{}: {} frames from {} to {} ({}), {} cells ({}x{}x{} at {} m)",
-            built.source,
-            grid.frames(),
-            time(span.first),
-            time(span.last),
-            duration(span.duration()),
-            geometry.cells(),
-            geometry.width,
-            geometry.height,
-            geometry.depth,
-            geometry.resolution
+        closed |= closed_pipe(
+            outln!(
+                "{}: {} frames from {} to {} ({}), {} cells ({}x{}x{} at {} m)",
+                built.source,
+                grid.frames(),
+                time(span.first),
+                time(span.last),
+                duration(span.duration()),
+                geometry.cells(),
+                geometry.width,
+                geometry.height,
+                geometry.depth,
+                geometry.resolution
+            )
+            .map_err(Into::into),
         )?;
-        outln!(
-            "built in {:.2} s: {} cells changed or needed storage, grid memory {:.1} MB",
-            built.seconds,
-            grid.dynamic_cells(),
-            grid.memory_bytes() as f64 / 1048576.0
-        )?;
+        if !closed {
+            closed |= closed_pipe(
+                outln!(
+                    "built in {:.2} s: {} cells changed or needed storage, grid memory {:.1} MB",
+                    built.seconds,
+                    grid.dynamic_cells(),
+                    grid.memory_bytes() as f64 / 1048576.0
+                )
+                .map_err(Into::into),
+            )?;
+        }
     }
     let choice = match args.order {
         OrderArg::Fixed(k) => OrderChoice::Fixed(k),
@@ -154,8 +165,8 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     };
     let errors = if args.errors {
         let table = error_table(&built, observations)?;
-        if !args.json {
-            print_error_table(&built, &table)?;
+        if !(args.json || closed) {
+            closed |= closed_pipe(print_error_table(&built, &table))?;
         }
         Some(table)
     } else {
@@ -167,6 +178,9 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
         StoreArg::Lossless => GridFile::Lossless(Box::new(grid.lossless(choice)?)),
     };
     write_grid_file(&args.output, &file)?;
+    if closed {
+        return Ok(());
+    }
     let bytes = std::fs::metadata(&args.output)?.len() as usize;
     let ratio = compression_ratio(observations, bytes);
     if args.json {

@@ -27,7 +27,7 @@ fn arbiter(args: &MonitorSimArgs) -> Result<BtDocument> {
         document, warnings, ..
     } = read_bt_xml(file, &Registry::new())?;
     for warning in warnings {
-        eprintln!("warning: {warning}");
+        crate::errln!("warning: {warning}");
     }
     Ok(document)
 }

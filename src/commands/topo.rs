@@ -339,7 +339,7 @@ pub fn predict(args: &TopoPredictArgs) -> Result<()> {
             .zip(duration.iter().copied())
             .collect();
         write_route_geojson(path, models.map(), &metadata)?;
-        eprintln!("wrote {}", path.display());
+        crate::errln!("wrote {}", path.display());
     }
     if let Some(path) = &args.tmap2 {
         let name = path
@@ -347,7 +347,7 @@ pub fn predict(args: &TopoPredictArgs) -> Result<()> {
             .and_then(|s| s.to_str())
             .unwrap_or("chronomap");
         write_tmap2(path, models.map(), name)?;
-        eprintln!("wrote {}", path.display());
+        crate::errln!("wrote {}", path.display());
     }
     let map = models.map();
     if args.json {
@@ -597,12 +597,12 @@ fn plan_once(
         let props = path.with_extension("props");
         std::fs::write(&props, format!("{}\n", prism_property(task.text())?))
             .with_context(|| format!("cannot write {}", props.display()))?;
-        eprintln!("wrote {} and {}", path.display(), props.display());
+        crate::errln!("wrote {} and {}", path.display(), props.display());
     }
     if let Some(path) = &args.drn {
         let text = product_drn(planned.product.mdp(), &planned.solution)?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        eprintln!("wrote {}", path.display());
+        crate::errln!("wrote {}", path.display());
     }
     let route = success_route(&planned, map);
     let plan = &planned.plan;

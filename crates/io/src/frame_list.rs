@@ -134,25 +134,14 @@ pub enum FrameMapError {
     },
     /// The map has the size of the first map but another resolution or origin: its cells are
     /// elsewhere in the world, so they cannot be merged with the first map's.
-    #[error(
-        "{list}:{line}: {map} has {what} {value} but {first_map} has {first_value} (every \
-         frame must have the cells of the first one)"
-    )]
+    #[error("{list}:{line}: {reason} (every frame must have the cells of the first one)")]
     Geometry {
         /// The frame list.
         list: String,
         /// The line of the frame.
         line: usize,
-        /// The map's file.
-        map: String,
-        /// `"resolution"` or `"origin"`.
-        what: &'static str,
-        /// The map's value.
-        value: String,
-        /// The first map: its file, or `"the first map"` if not known.
-        first_map: String,
-        /// The first map's value.
-        first_value: String,
+        /// Both maps and their values: `MAP has resolution 0.1 m but FIRST has 0.05 m`.
+        reason: String,
     },
 }
 
@@ -220,14 +209,13 @@ fn load(
             first_height: first.height,
         });
     }
-    let differs = |what, value: String, first_value: String| FrameMapError::Geometry {
+    let differs = |what: &str, value: String, first_value: String| FrameMapError::Geometry {
         list: list.to_string(),
         line: frame.line,
-        map: frame.map.display().to_string(),
-        what,
-        value,
-        first_map: first_name.clone(),
-        first_value,
+        reason: format!(
+            "{} has {what} {value} but {first_name} has {first_value}",
+            frame.map.display()
+        ),
     };
     if map.resolution.to_bits() != first.resolution.to_bits() {
         return Err(differs(

@@ -1168,7 +1168,11 @@ fn edge_models_that_would_be_refused_when_read_are_not_written() {
         })
         .collect();
     // Durations that sum past f64::MAX still have a finite mean: the models are consistent.
-    let huge = EdgeModels::fit(map.clone(), &[attempts.clone()], EdgeModelConfig::default());
+    let huge = EdgeModels::fit(
+        map.clone(),
+        std::slice::from_ref(&attempts),
+        EdgeModelConfig::default(),
+    );
     let huge = huge.unwrap();
     let mean = huge.edge(0).mean_duration_secs().unwrap();
     assert!((mean / 1.7e308 - 1.0).abs() < 1e-15, "{mean}");
