@@ -71,9 +71,9 @@ fn parse_cases(text: &str) -> Vec<Case> {
 }
 
 /// Writes a generated input into `out`: `png W H NAME` (an all-zero 8-bit grey PNG, small
-/// when compressed but W × H bytes when decoded) or `line BYTES NAME` (one line of that many
-/// `x` and a newline).
-fn make(spec: &str, out: &Path) {
+/// when compressed but W × H bytes when decoded), `line BYTES NAME` (one line of that many
+/// `x` and a newline) or `copy NAME` (a file of the corpus, beside the generated ones).
+fn make(spec: &str, corpus: &Path, out: &Path) {
     let words: Vec<&str> = spec.split_whitespace().collect();
     match words.as_slice() {
         ["png", w, h, name] => {
@@ -91,6 +91,9 @@ fn make(spec: &str, out: &Path) {
             }
             stream.finish().unwrap();
         }
+        ["copy", name] => {
+            std::fs::copy(corpus.join(name), out.join(name)).unwrap();
+        }
         ["line", bytes, name] => {
             let mut text = vec![b'x'; bytes.parse().unwrap()];
             text.push(b'\n');
@@ -103,7 +106,7 @@ fn make(spec: &str, out: &Path) {
 /// Runs one case; returns what is wrong with its outcome, if anything.
 fn check(case: &Case, corpus: &Path, out: &Path) -> Option<String> {
     for spec in &case.make {
-        make(spec, out);
+        make(spec, corpus, out);
     }
     let out_text = out.display().to_string();
     let args: Vec<String> = case

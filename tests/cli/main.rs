@@ -23,6 +23,7 @@ mod explore;
 mod greg_door;
 mod grid;
 mod hostile;
+mod limits;
 mod hypertime;
 mod ingest;
 mod monitor;

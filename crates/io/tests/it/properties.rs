@@ -31,8 +31,11 @@ fn config() -> Config {
     }
 }
 
-/// Every reader of bytes, by name; each must return (not panic) on any input.
-fn readers() -> Vec<(&'static str, fn(&[u8]))> {
+/// A reader of bytes that drops what it read: it must return, not panic, on any input.
+type Reader = fn(&[u8]);
+
+/// Every reader of bytes, by name.
+fn readers() -> Vec<(&'static str, Reader)> {
     vec![
         ("time series", |b| drop(read_pairs_from("x.txt", b))),
         ("edge file", |b| drop(read_edge_file_from("x.data", b))),

@@ -1,0 +1,194 @@
+//! docs/limits.md states every input limit; this checks that each number there is the one in
+//! the code, so that the page cannot drift from what the readers do.
+
+/// Formats an integer with thousands separators, as docs/limits.md writes it.
+fn grouped(n: u128) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[test]
+fn every_limit_in_docs_limits_is_the_one_in_the_code() {
+    let doc = include_str!("../../docs/limits.md");
+    // (constant as the page names it, the module in its `where` column, value)
+    let mut limits: Vec<(&str, &str, u128)> = vec![
+        (
+            "MAX_FILE_BYTES",
+            "`chronomap_io`",
+            chronomap_io::MAX_FILE_BYTES.into(),
+        ),
+        (
+            "MAX_LINE_BYTES",
+            "chronomap_io::text",
+            chronomap_io::text::MAX_LINE_BYTES as u128,
+        ),
+        (
+            "MAX_IMAGE_BYTES",
+            "chronomap_io::navmap",
+            chronomap_io::navmap::MAX_IMAGE_BYTES.into(),
+        ),
+        (
+            "MAX_MAP_CELLS",
+            "chronomap_io::navmap",
+            chronomap_io::navmap::MAX_MAP_CELLS.into(),
+        ),
+        (
+            "MAX_KIND_LEN",
+            "chronomap_io::model_file",
+            chronomap_io::model_file::MAX_KIND_LEN as u128,
+        ),
+        (
+            "MAX_TIME_SECS",
+            "chronomap_core",
+            chronomap_core::observe::MAX_TIME_SECS as u128,
+        ),
+        (
+            "MAX_BYTES",
+            "chronomap_io::bt_xml",
+            chronomap_io::bt_xml::MAX_BYTES.into(),
+        ),
+        (
+            "MAX_FILES",
+            "chronomap_io::bt_xml",
+            chronomap_io::bt_xml::MAX_FILES as u128,
+        ),
+        (
+            "MAX_DEPTH",
+            "chronomap_io::bt_xml",
+            chronomap_io::bt_xml::MAX_DEPTH as u128,
+        ),
+        (
+            "MAX_NODES",
+            "chronomap_io::bt_xml",
+            chronomap_io::bt_xml::MAX_NODES.into(),
+        ),
+        (
+            "MAX_ATTRIBUTES",
+            "chronomap_io::bt_xml",
+            chronomap_io::bt_xml::MAX_ATTRIBUTES as u128,
+        ),
+        (
+            "MAX_DEPTH",
+            "chronomap_bt::runtime",
+            chronomap_bt::runtime::MAX_DEPTH as u128,
+        ),
+        (
+            "MAX_NESTING",
+            "chronomap_bt::scripting",
+            chronomap_bt::scripting::MAX_NESTING as u128,
+        ),
+        (
+            "MAX_DEPTH",
+            "chronomap_topo::ltl",
+            chronomap_topo::ltl::MAX_DEPTH as u128,
+        ),
+        (
+            "MAX_STATES",
+            "chronomap_topo::ltl",
+            chronomap_topo::ltl::MAX_STATES as u128,
+        ),
+        (
+            "MAX_CLAUSES",
+            "chronomap_topo::ltl",
+            chronomap_topo::ltl::MAX_CLAUSES as u128,
+        ),
+        (
+            "MAX_STRESS_NODES",
+            "chronomap_topo::layout",
+            chronomap_topo::layout::MAX_STRESS_NODES as u128,
+        ),
+        (
+            "MAX_PERIODS",
+            "chronomap_core::periods",
+            chronomap_core::periods::MAX_PERIODS as u128,
+        ),
+        (
+            "MAX_BINS",
+            "chronomap_core::hist",
+            chronomap_core::hist::MAX_BINS as u128,
+        ),
+        (
+            "MAX_COMPONENTS",
+            "chronomap_core::pergam",
+            chronomap_core::pergam::MAX_COMPONENTS as u128,
+        ),
+        (
+            "MAX_LEN",
+            "chronomap_core::fft",
+            chronomap_core::fft::MAX_LEN.into(),
+        ),
+        (
+            "MAX_CELLS",
+            "`chronomap_grid`",
+            chronomap_grid::MAX_CELLS as u128,
+        ),
+        (
+            "MAX_RECORD_BYTES",
+            "chronomap_rosbag::bag",
+            chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,
+        ),
+        (
+            "MAX_MAP_CELLS",
+            "chronomap_rosbag::records",
+            chronomap_rosbag::records::MAX_MAP_CELLS.into(),
+        ),
+        (
+            "MAX_DEPTH",
+            "chronomap_rosbag::msgdef",
+            chronomap_rosbag::msgdef::MAX_DEPTH as u128,
+        ),
+        (
+            "MAX_FIELDS",
+            "chronomap_rosbag::msgdef",
+            chronomap_rosbag::msgdef::MAX_FIELDS as u128,
+        ),
+    ];
+    #[cfg(feature = "serve")]
+    limits.extend([
+        (
+            "DEFAULT_MAX_BODY_BYTES",
+            "chronomap_serve::server",
+            chronomap_serve::server::DEFAULT_MAX_BODY_BYTES as u128,
+        ),
+        (
+            "MAX_ID_BYTES",
+            "chronomap_client::api",
+            chronomap_client::api::MAX_ID_BYTES as u128,
+        ),
+        (
+            "MAX_PLAN_TIMES",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_PLAN_TIMES as u128,
+        ),
+        (
+            "MAX_CELL_TIMES",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_CELL_TIMES as u128,
+        ),
+        (
+            "MAX_ACTIVITY_CELLS",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_ACTIVITY_CELLS as u128,
+        ),
+    ]);
+    for (name, module, value) in limits {
+        let row = doc
+            .lines()
+            .find(|l| l.starts_with(&format!("| `{name}`")) && l.contains(module))
+            .unwrap_or_else(|| panic!("docs/limits.md has no row for {name} in {module}"));
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert!(
+            cells[2].starts_with(&grouped(value)),
+            "docs/limits.md says {name} ({module}) is {:?}, the code {}",
+            cells[2],
+            grouped(value)
+        );
+    }
+}
