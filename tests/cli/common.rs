@@ -117,6 +117,15 @@ pub fn run_oracle(
         .unwrap_or_else(|e| panic!("{script} printed no JSON ({e}):\n{stderr}"))
 }
 
+/// `chronomap topo fit` of the bundled Witham Wharf edges into `model`, with `extra` flags:
+/// its stdout.
+pub fn fit_witham(model: &str, extra: &[&str]) -> String {
+    let edges = data("witham_topological_nav/edges");
+    let mut args = vec!["topo", "fit", "--edges", &edges, "-o", model];
+    args.extend_from_slice(extra);
+    stdout(&chronomap(&args))
+}
+
 /// `chronomap activity fit` of a small CoPA-Map (30 inducing points, 20 iterations: about
 /// 2 s) on the bundled ATC grid, saved to `model`: its stdout.
 pub fn fit_small_copa(model: &str) -> String {

@@ -2,7 +2,7 @@
 //! observations added through the command-line client predict exactly what the same model
 //! predicts when trained in one process, and the service documents every endpoint.
 
-use crate::common::{assert_mentions, chronomap, error, repo, stdout, usage_error};
+use crate::common::{assert_mentions, chronomap, error, fit_witham, repo, stdout, usage_error};
 use crate::service;
 
 use std::process::Command;
@@ -369,16 +369,7 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     let data = scratch("serve_cli_maps");
     // The Witham Wharf deployment's edge models, fitted by the command line.
     let witham = data.join("witham.cmt");
-    stdout(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &repo("data/witham_topological_nav/edges"),
-        "-o",
-        &witham.display().to_string(),
-        "--success-order",
-        "1",
-    ]));
+    fit_witham(&witham.display().to_string(), &["--success-order", "1"]);
     // A small grid: a door cell open by day, a wall, a free cell; three days of frames.
     let geometry = GridGeometry::planar(3, 1, 0.5, [0.0, 0.0]).unwrap();
     let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();
@@ -690,16 +681,7 @@ fn laid_out_topological_maps_and_activity_maps_are_served_as_their_files_and_the
     let data = scratch("serve_cli_layout_activity");
     let arg = |name: &str| data.join(name).display().to_string();
     let witham = arg("witham.cmt");
-    stdout(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &repo("data/witham_topological_nav/edges"),
-        "-o",
-        &witham,
-        "--success-order",
-        "1",
-    ]));
+    fit_witham(&witham, &["--success-order", "1"]);
     let models = chronomap_io::model_file::read_edge_models(&witham).unwrap();
     // A route graph placing every node (made-up poses), and one more node.
     let mut placed = TopoMap::new();
@@ -918,14 +900,7 @@ fn a_topo_layout_that_misses_nodes_or_names_no_topo_map_stops_the_start() {
     let data = scratch("serve_cli_bad_layout");
     let arg = |name: &str| data.join(name).display().to_string();
     let witham = arg("witham.cmt");
-    stdout(&chronomap(&[
-        "topo",
-        "fit",
-        "--edges",
-        &repo("data/witham_topological_nav/edges"),
-        "-o",
-        &witham,
-    ]));
+    fit_witham(&witham, &[]);
     let models = chronomap_io::model_file::read_edge_models(&witham).unwrap();
     // A tmap2 map of 3 of the 18 nodes: 15 have no position.
     let mut partial = chronomap_topo::TopoMap::new();
