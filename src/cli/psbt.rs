@@ -59,8 +59,9 @@ pub struct PsbtWorldArgs {
     /// The robot keeps this many metres from obstacles at every planning-cell centre.
     #[arg(long, default_value_t = 0.3, value_parser = parse_non_negative)]
     pub clearance: f64,
-    /// Number of places n_pl (at most 16).
-    #[arg(long, default_value_t = 6)]
+    /// Number of places n_pl (1 to 16).
+    #[arg(long, default_value_t = 6,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=16))]
     pub places: usize,
 }
 

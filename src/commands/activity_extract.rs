@@ -14,7 +14,12 @@ use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_rate_grid};
 use serde_json::json;
 
+use chronomap_core::num::{count_of, fmt_number};
+
 use crate::cli::ActivityExtractArgs;
+
+/// The most time bins `activity extract` counts from t0 over the detections (2^24).
+const MAX_BINS: usize = 1 << 24;
 use crate::outln;
 use crate::output::{print_json, usage};
 
@@ -31,6 +36,18 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     let t0 = args.t0.unwrap_or((first / args.bin).floor() * args.bin);
+    // Bin indices are counted from t0 over the detections: refuse a --bin (or --t0) that gives
+    // more than MAX_BINS of them instead of letting `as i64` saturate them into one.
+    let last = detections.iter().map(|d| d.t).fold(first, f64::max);
+    let span = (last.max(t0) - first.min(t0)) / args.bin;
+    if !t0.is_finite() || count_of(span.floor(), MAX_BINS).is_none() {
+        return Err(usage(format!(
+            "--bin {}: gives {} bins from t0 {} over the detections; at most {MAX_BINS}",
+            fmt_number(args.bin),
+            fmt_number(span.floor()),
+            fmt_number(t0)
+        )));
+    }
     let config = ExtractConfig {
         fov_radius: args.fov,
         cell_size: args.cell,

@@ -4,9 +4,10 @@
 use std::time::Instant;
 
 use anyhow::{Result, anyhow};
-use chronomap_activity::grids::RegionGrid;
+use chronomap_activity::grids::{GridError, RegionGrid};
 use chronomap_activity::{CopaConfig, CopaMap, RateScale};
 use chronomap_core::Parallelism;
+use chronomap_core::num::fmt_number;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::rate_predictions::{RatePrediction, write_rate_predictions};
 use chronomap_io::{read_rate_samples, write_copa_map};
@@ -78,8 +79,12 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     // An explicit region is checked before any file is read.
     let region = match &args.region {
         Some(r) => Some(
-            RegionGrid::new([r[0], r[1]], [r[2], r[3]], args.cell)
-                .map_err(|e| usage(format!("--region {e}")))?,
+            RegionGrid::new([r[0], r[1]], [r[2], r[3]], args.cell).map_err(|e| match e {
+                GridError::TooManyCells { cell, .. } => {
+                    usage(format!("--cell {}: {e}", fmt_number(cell)))
+                }
+                e => usage(format!("--region {e}")),
+            })?,
         ),
         None => None,
     };

@@ -3,13 +3,14 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, anyhow};
 use chronomap_core::Parallelism;
+use chronomap_core::num::count_of;
 use chronomap_explore::table::{
     ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, SWEEP_SEEDS, busiest_locations,
     exploration_sweep, explore_table, row_title,
 };
-use chronomap_explore::{ExploreConfig, Strategy, World, explore};
+use chronomap_explore::{ExploreConfig, MAX_STEPS_PER_DAY, Strategy, World, explore};
 use chronomap_io::datasets::{load_aruba, load_brayford};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde_json::json;
@@ -20,10 +21,15 @@ use crate::outln;
 use crate::output::{ProgressBar, print_json};
 
 fn load(args: &ExploreArgs) -> Result<World> {
-    Ok(match args.dataset {
+    let world = match args.dataset {
         DatasetArg::Aruba => load_aruba(&args.data)?,
         DatasetArg::Brayford => load_brayford(&args.data)?,
-    })
+    };
+    // Checked here to name the folder (e.g. a step too short to count the steps of a day).
+    world
+        .validate()
+        .map_err(|e| anyhow!("{}: {e}", args.data.display()))?;
+    Ok(world)
 }
 
 pub fn run(args: &ExploreArgs) -> Result<()> {
@@ -178,7 +184,10 @@ pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()
     // The three busiest areas (one state per location in these datasets).
     let areas = busiest_locations(world, 3);
     let day = |t: f64| (t - world.start) / 86_400.0;
-    let steps = days * (86_400.0 / world.step_secs) as usize;
+    // `explore` above validated the world: at most MAX_STEPS_PER_DAY steps a day.
+    let per_day = count_of((86_400.0 / world.step_secs).trunc(), MAX_STEPS_PER_DAY)
+        .ok_or_else(|| anyhow!("step {} s: too many steps a day", world.step_secs))?;
+    let steps = days * per_day;
     let offset = |k: usize| 1.5 * (2 - k) as f64;
     // One series per area, stacked by its rank `k`.
     let per_area = |style: SeriesStyle, points: &dyn Fn(usize, usize) -> Vec<(f64, f64)>| {

@@ -7,6 +7,7 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use chronomap_bt::monitor::sim::{SimConfig, SimReport, arbiter_document, random_faults, simulate};
 use chronomap_bt::{BtDocument, Registry};
+use chronomap_core::num::fmt_number;
 use chronomap_io::{BtXml, read_bt_xml};
 
 use crate::cli::MonitorSimArgs;
@@ -36,9 +37,10 @@ pub fn sim(args: &MonitorSimArgs) -> Result<()> {
     if !(args.hours.is_finite() && args.hours > 0.0 && args.hours <= 10_000.0) {
         bail!(
             "--hours {}: expected more than 0 and at most 10000",
-            args.hours
+            fmt_number(args.hours)
         );
     }
+    // Checked above: at most 10000 h, so the cast cannot saturate.
     let duration = Duration::from_secs((args.hours * 3600.0).round() as u64);
     let faults = match &args.faults {
         Some(file) => chronomap_io::read_fault_file(file)?,

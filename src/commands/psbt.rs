@@ -9,12 +9,13 @@ use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::disturbance::PlanningGrid;
 use chronomap_activity::truth::TrackPoint;
 use chronomap_core::Parallelism;
+use chronomap_core::num::fmt_number;
 use chronomap_io::psbt_xml::psbt_to_xml;
 use chronomap_io::{load_planning_grid, read_track_point_files};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use chronomap_psbt::compare::{Comparison, MethodSummary, compare};
 use chronomap_psbt::world::grid_poisson_from_tracks;
-use chronomap_psbt::{Choice, GridPoisson, PsbtConfig, copa_field, synthesize};
+use chronomap_psbt::{Choice, GridPoisson, PsbtConfig, PsbtError, copa_field, synthesize};
 use serde_json::{Value, json};
 
 use super::activity_disturbance::OCCUPIED_PERCENT;
@@ -114,20 +115,32 @@ pub(super) fn fit_model(
     interval: f64,
     keep: impl Fn(f64) -> bool,
 ) -> Result<Option<GridPoisson>> {
-    Ok(grid_poisson_from_tracks(
+    grid_poisson_from_tracks(
         &world.points,
         world.origin,
         world.size,
         cell,
         interval,
         keep,
-    )?)
+    )
+    .map_err(|e| match e {
+        // Too many cells or intervals: the flag's value is what is wrong (a usage error).
+        PsbtError::TooMany {
+            parameter, value, ..
+        } => usage(format!(
+            "--{parameter} {}: {e} (over the map and the tracked time)",
+            fmt_number(value)
+        )),
+        e => e.into(),
+    })
 }
 
 fn config_of(world: &PsbtWorldArgs) -> Result<PsbtConfig> {
     let mut config = PsbtConfig::default();
     config.places = world.places;
-    config.validate().context("--places")?;
+    config
+        .validate()
+        .map_err(|e| usage(format!("--places {}: {e}", world.places)))?;
     Ok(config)
 }
 
@@ -179,7 +192,13 @@ fn synth(args: &PsbtSynthArgs) -> Result<()> {
         args.seed,
         Parallelism::Sequential,
     )
-    .map_err(|e| anyhow!("--from {},{}: {e}", from[0], from[1]))?;
+    .map_err(|e| {
+        anyhow!(
+            "--from {},{}: {e}",
+            fmt_number(from[0]),
+            fmt_number(from[1])
+        )
+    })?;
     let synthesis_ms = started.elapsed().as_secs_f64() * 1e3;
     let xml = psbt_to_xml(&plan.tree);
     if args.json {

@@ -17,6 +17,7 @@ mod bench_activity;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
+mod casts;
 mod closed_pipes;
 mod events;
 mod explore;

@@ -127,8 +127,8 @@ fn bad_input_is_a_clear_error() {
     assert!(err.contains("is on an obstacle"), "{err}");
     let err = usage_error(&synth("10", &[]));
     assert!(err.contains("is not a point x,y"), "{err}");
-    let err = error(&synth("10,-3", &["--places", "20"]));
-    assert!(err.contains("at most 16"), "{err}");
+    let err = usage_error(&synth("10,-3", &["--places", "20"]));
+    assert!(err.contains("--places") && err.contains("1..=16"), "{err}");
     let dir = std::env::temp_dir().join(format!("chronomap-psbt-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.csv");

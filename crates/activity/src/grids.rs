@@ -18,6 +18,7 @@
 
 use std::collections::HashSet;
 
+use chronomap_core::num::{count_of, fmt_number};
 use chronomap_hypertime::events::Event;
 use thiserror::Error;
 
@@ -52,7 +53,23 @@ pub enum GridError {
     /// A cell side that is not a positive number.
     #[error("cell side {0} is not a positive number")]
     CellSize(f64),
+    /// A region and cell side that give more than [`MAX_REGION_CELLS`] cells.
+    #[error(
+        "cells of {} m over the region give {} x {} cells; at most {} in all",
+        fmt_number(.cell), fmt_number(.cols), fmt_number(.rows), MAX_REGION_CELLS
+    )]
+    TooManyCells {
+        /// The cell side.
+        cell: f64,
+        /// Cells along x1 (may be infinite).
+        cols: f64,
+        /// Cells along x2 (may be infinite).
+        rows: f64,
+    },
 }
+
+/// The most cells of a [`RegionGrid`] (2²⁸).
+pub const MAX_REGION_CELLS: usize = 1 << 28;
 
 /// The distinct cell centres of `samples`, sorted by x1, then x2.
 pub fn distinct_cells(samples: &RateSamples) -> Vec<[f64; 2]> {
@@ -100,7 +117,8 @@ impl RegionGrid {
     ///
     /// # Errors
     /// [`GridError::EmptyRegion`] for a non-finite or empty region, [`GridError::CellSize`]
-    /// for a cell that is not a positive number.
+    /// for a cell that is not a positive number, [`GridError::TooManyCells`] for more than
+    /// [`MAX_REGION_CELLS`] cells.
     pub fn new(min: [f64; 2], max: [f64; 2], cell: f64) -> Result<Self, GridError> {
         if !(cell.is_finite() && cell > 0.0) {
             return Err(GridError::CellSize(cell));
@@ -108,12 +126,22 @@ impl RegionGrid {
         if !(min.iter().chain(&max).all(|v| v.is_finite()) && max[0] > min[0] && max[1] > min[1]) {
             return Err(GridError::EmptyRegion { min, max });
         }
+        let (cols, rows) = (
+            ((max[0] - min[0]) / cell).ceil(),
+            ((max[1] - min[1]) / cell).ceil(),
+        );
+        let too_many = GridError::TooManyCells { cell, cols, rows };
+        let across = |n: f64| count_of(n, MAX_REGION_CELLS).ok_or(too_many.clone());
+        let (cols, rows) = (across(cols)?, across(rows)?);
+        if cols.saturating_mul(rows) > MAX_REGION_CELLS {
+            return Err(too_many);
+        }
         Ok(RegionGrid {
             min,
             max,
             cell,
-            cols: ((max[0] - min[0]) / cell).ceil() as usize,
-            rows: ((max[1] - min[1]) / cell).ceil() as usize,
+            cols,
+            rows,
         })
     }
 

@@ -28,6 +28,10 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
 use chronomap_core::Complex64;
+use chronomap_core::num::{count_of, fmt_number};
+
+/// The largest region or bin index of [`region_series`] (2^53: exact as an `f64`).
+const MAX_INDEX: usize = 1 << 53;
 use serde::{Deserialize, Serialize};
 
 use super::{ActivityError, RateSamples};
@@ -183,6 +187,23 @@ pub fn region_series(
     let lo = |k: usize| xs.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
     let origin = [lo(0), lo(1)];
     let t0 = ts.iter().copied().fold(f64::INFINITY, f64::min);
+    // Region and bin indices are integer keys: they must be exact (< 2^53), or distinct regions
+    // or bins would silently share a saturated key.
+    let hi = |k: usize| xs.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
+    let t1 = ts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    for (what, value, span) in [
+        ("region size", region_size, hi(0) - origin[0]),
+        ("region size", region_size, hi(1) - origin[1]),
+        ("bin length", bin_length, t1 - t0),
+    ] {
+        if !samples.is_empty() && count_of((span / value).floor(), MAX_INDEX).is_none() {
+            return Err(ActivityError::Config(format!(
+                "{what} {} gives {} regions or bins over the samples; at most 2^53",
+                fmt_number(value),
+                fmt_number((span / value).floor())
+            )));
+        }
+    }
     // region (row, column) → bin → (Σ w, Σ w t, Σ w y)
     let mut regions: BTreeMap<(i64, i64), BTreeMap<i64, [f64; 3]>> = BTreeMap::new();
     for i in 0..samples.len() {

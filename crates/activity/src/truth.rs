@@ -28,7 +28,12 @@
 
 use std::collections::{HashMap, HashSet};
 
+use chronomap_core::num::fmt_number;
+
 use super::{ActivityError, CellKey, RateSamples};
+
+/// The largest magnitude of a cell or bin index (2^53, exact as an `f64`).
+const MAX_INDEX: f64 = 9_007_199_254_740_992.0;
 
 /// One detection of a tracked person: time (seconds), the person's id, position (metres).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,11 +90,26 @@ pub fn person_counts(
             "ground-truth grid {grid:?}: cell and bin must be positive, t0 and t_offset finite"
         )));
     }
-    let index = |v: f64| (v / grid.cell).floor() as i64;
-    let wanted: HashMap<(i64, i64), CellKey> = cells
-        .iter()
-        .map(|&c| ((index(c[0]), index(c[1])), CellKey::of(c)))
-        .collect();
+    // Cell and bin indices are integer keys and must be exact (|i| ≤ 2^53); `as i64` would
+    // saturate far-away values into one shared key. A detection whose index is out of that
+    // range cannot be in a wanted cell or bin, which are checked to be in it.
+    let exact = |v: f64| {
+        let i = v.floor();
+        (i.abs() <= MAX_INDEX).then_some(i as i64)
+    };
+    let index = |v: f64| exact(v / grid.cell);
+    let mut wanted: HashMap<(i64, i64), CellKey> = HashMap::with_capacity(cells.len());
+    for (i, &c) in cells.iter().enumerate() {
+        let (Some(x), Some(y)) = (index(c[0]), index(c[1])) else {
+            return Err(ActivityError::Config(format!(
+                "cell {i} at ({}, {}) is more than 2^53 cells of {} m from the origin",
+                fmt_number(c[0]),
+                fmt_number(c[1]),
+                fmt_number(grid.cell)
+            )));
+        };
+        wanted.insert((x, y), CellKey::of(c));
+    }
     let bin_set: HashSet<i64> = bins.iter().copied().collect();
     let mut people: HashMap<(i64, CellKey), HashSet<u64>> = HashMap::new();
     for (i, p) in points.iter().enumerate() {
@@ -102,11 +122,16 @@ pub fn person_counts(
                 });
             }
         }
-        let b = ((p.t - grid.t0) / grid.bin).floor() as i64;
+        let Some(b) = exact((p.t - grid.t0) / grid.bin) else {
+            continue;
+        };
         if !bin_set.contains(&b) {
             continue;
         }
-        if let Some(&key) = wanted.get(&(index(p.x), index(p.y))) {
+        let (Some(x), Some(y)) = (index(p.x), index(p.y)) else {
+            continue;
+        };
+        if let Some(&key) = wanted.get(&(x, y)) {
             people.entry((b, key)).or_default().insert(p.person);
         }
     }

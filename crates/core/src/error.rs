@@ -5,6 +5,8 @@
 
 use thiserror::Error;
 
+use crate::num::fmt_number;
+
 /// Why a batch of observations was rejected. A rejected batch leaves the model unchanged.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
@@ -18,7 +20,7 @@ pub enum ObservationError {
         values: usize,
     },
     /// A time is NaN or infinite.
-    #[error("time {time} is not a finite number")]
+    #[error("time {} is not a finite number", fmt_number(.time))]
     NonFiniteTime {
         /// Index in the batch.
         index: usize,
@@ -26,7 +28,7 @@ pub enum ObservationError {
         time: f64,
     },
     /// A time is negative (times are unix seconds, or seconds from a dataset start, ≥ 0).
-    #[error("time {time} is negative (times are seconds >= 0)")]
+    #[error("time {} is negative (times are seconds >= 0)", fmt_number(.time))]
     NegativeTime {
         /// Index in the batch.
         index: usize,
@@ -42,7 +44,11 @@ pub enum ObservationError {
         time: f64,
     },
     /// A time is earlier than the observation before it (observations must be in time order).
-    #[error("time {time} is earlier than the previous observation at {previous}")]
+    #[error(
+        "time {} is earlier than the previous observation at {}",
+        fmt_number(.time),
+        fmt_number(.previous)
+    )]
     TimeNotIncreasing {
         /// Index in the batch.
         index: usize,
@@ -52,7 +58,7 @@ pub enum ObservationError {
         previous: f64,
     },
     /// A value is NaN or infinite.
-    #[error("value {value} is not a finite number")]
+    #[error("value {} is not a finite number", fmt_number(.value))]
     NonFiniteValue {
         /// Index in the batch.
         index: usize,
@@ -60,7 +66,7 @@ pub enum ObservationError {
         value: f64,
     },
     /// A value lies outside [0, 1].
-    #[error("value {value} is outside [0, 1]")]
+    #[error("value {} is outside [0, 1]", fmt_number(.value))]
     ValueOutOfRange {
         /// Index in the batch.
         index: usize,
@@ -68,7 +74,7 @@ pub enum ObservationError {
         value: f64,
     },
     /// A model of binary states got a value other than 0 or 1.
-    #[error("value {value} is not binary (0 or 1)")]
+    #[error("value {} is not binary (0 or 1)", fmt_number(.value))]
     NonBinaryValue {
         /// Index in the batch.
         index: usize,
@@ -76,7 +82,11 @@ pub enum ObservationError {
         value: f64,
     },
     /// A model of uniformly sampled series got a time off its sampling grid.
-    #[error("time {time} is not the next sample time {expected} of the uniform series")]
+    #[error(
+        "time {} is not the next sample time {} of the uniform series",
+        fmt_number(.time),
+        fmt_number(.expected)
+    )]
     OffGrid {
         /// Index in the batch.
         index: usize,
@@ -121,8 +131,22 @@ impl ObservationError {
 #[non_exhaustive]
 pub enum ConfigError {
     /// A period is zero, negative or not finite.
-    #[error("period {period_secs} s is not a positive finite number")]
+    #[error(
+        "period {} s is not a positive finite number",
+        fmt_number(.period_secs)
+    )]
     PeriodNotPositive {
+        /// The offending period in seconds.
+        period_secs: f64,
+    },
+    /// A period is shorter than [`MIN_PERIOD_SECS`](crate::periods::MIN_PERIOD_SECS) (times
+    /// are seconds up to 10^11, whose resolution is far coarser than such a period).
+    #[error(
+        "period {} s is shorter than the shortest period {} s",
+        fmt_number(.period_secs),
+        crate::periods::MIN_PERIOD_SECS
+    )]
+    PeriodTooShort {
         /// The offending period in seconds.
         period_secs: f64,
     },
@@ -194,6 +218,9 @@ pub fn check_positive(what: &str, value: f64) -> Result<(), String> {
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(format!("{what} {value} is not a positive number"))
+        Err(format!(
+            "{what} {} is not a positive number",
+            crate::num::fmt_number(value)
+        ))
     }
 }

@@ -52,6 +52,7 @@ pub mod mean;
 pub mod metrics;
 pub mod model;
 pub mod naive;
+pub mod num;
 pub mod observe;
 pub mod par;
 pub mod pergam;

@@ -17,6 +17,10 @@ pub const YEAR: f64 = 31_557_600.0;
 /// Largest number of candidate periods a set may have.
 pub const MAX_PERIODS: usize = 1 << 16;
 
+/// The shortest period of a set, in seconds (1 ms): times are seconds up to 10^11, which an
+/// `f64` resolves to about 10 µs, so a shorter period has no meaningful phase.
+pub const MIN_PERIOD_SECS: f64 = 1e-3;
+
 /// The candidate periods Ω a spectral model tracks.
 ///
 /// The default, [`PeriodSet::week_harmonics`], is one week divided by `k = 1..=84`
@@ -63,7 +67,8 @@ impl PeriodSet {
     /// `base_secs / k` for `k = 1..=count`.
     ///
     /// # Errors
-    /// If `base_secs` is not positive and finite, or `count` is 0 or above [`MAX_PERIODS`].
+    /// If `base_secs` is not positive and finite, `count` is 0 or above [`MAX_PERIODS`], or
+    /// the shortest period `base_secs / count` is below [`MIN_PERIOD_SECS`].
     pub fn harmonics(base_secs: f64, count: u32) -> Result<Self, ConfigError> {
         check_period(base_secs)?;
         if count == 0 {
@@ -75,13 +80,16 @@ impl PeriodSet {
                 max: MAX_PERIODS,
             });
         }
+        // The shortest harmonic too.
+        check_period(base_secs / f64::from(count))?;
         Ok(PeriodSet::Harmonics { base_secs, count })
     }
 
     /// An arbitrary list of periods in seconds (kept in the order given).
     ///
     /// # Errors
-    /// If the list is empty, too long, or a period is not positive and finite.
+    /// If the list is empty, too long, or a period is not positive and finite or below
+    /// [`MIN_PERIOD_SECS`].
     pub fn from_periods(periods: Vec<f64>) -> Result<Self, ConfigError> {
         if periods.is_empty() {
             return Err(ConfigError::NoPeriods);
@@ -143,10 +151,12 @@ impl PeriodSet {
 }
 
 fn check_period(period_secs: f64) -> Result<(), ConfigError> {
-    if period_secs.is_finite() && period_secs > 0.0 {
-        Ok(())
-    } else {
+    if !(period_secs.is_finite() && period_secs > 0.0) {
         Err(ConfigError::PeriodNotPositive { period_secs })
+    } else if period_secs < MIN_PERIOD_SECS {
+        Err(ConfigError::PeriodTooShort { period_secs })
+    } else {
+        Ok(())
     }
 }
 
@@ -223,6 +233,24 @@ impl FromStr for PeriodSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn periods_shorter_than_a_millisecond_are_refused() {
+        for text in ["1e-300", "60,1e-300", "1e-300/1", "1/10000"] {
+            let err = text.parse::<PeriodSet>().unwrap_err();
+            assert!(
+                matches!(err, ConfigError::PeriodTooShort { .. }),
+                "{text}: {err}"
+            );
+        }
+        let err = "1e-300".parse::<PeriodSet>().unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "period 1e-300 s is shorter than the shortest period 0.001 s"
+        );
+        assert!("0.001,60".parse::<PeriodSet>().is_ok());
+        assert!("10/10000".parse::<PeriodSet>().is_ok());
+    }
 
     #[test]
     fn week_harmonics_go_from_a_week_to_two_hours() {

@@ -35,9 +35,13 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use chronomap_core::model::{Ordered, TemporalModel};
+use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_core::select::{Criterion, select_order_online};
 use chronomap_core::stm::MarkovModel;
+
+/// The most steps a day of a [`World`] (2^24, a step of about 5 ms).
+pub const MAX_STEPS_PER_DAY: usize = 1 << 24;
 
 /// A recorded world: the truth of every state at every step, and the locations.
 #[derive(Clone, Debug, PartialEq)]
@@ -104,7 +108,8 @@ impl World {
     /// Checks the world.
     ///
     /// # Errors
-    /// No states, states of different lengths, non-binary truths, a bad step, empty locations,
+    /// No states, states of different lengths, non-binary truths, a bad step (or one that gives
+    /// more than [`MAX_STEPS_PER_DAY`] steps a day), empty locations,
     /// locations naming missing states, or names not one per location.
     pub fn validate(&self) -> Result<(), ExploreError> {
         let bad = |m: String| Err(ExploreError::World(m));
@@ -128,7 +133,17 @@ impl World {
         {
             return bad(format!(
                 "step {} s from {} is not a valid clock",
-                self.step_secs, self.start
+                fmt_number(self.step_secs),
+                fmt_number(self.start)
+            ));
+        }
+        // Steps are counted per day and per slot as integers: a step too short for that count
+        // is refused here, so no `as usize` of it can saturate later.
+        if count_of((86_400.0 / self.step_secs).round(), MAX_STEPS_PER_DAY).is_none() {
+            return bad(format!(
+                "step {} s gives {} steps a day; at most {MAX_STEPS_PER_DAY}",
+                fmt_number(self.step_secs),
+                fmt_number((86_400.0 / self.step_secs).round())
             ));
         }
         if self.locations.is_empty() || self.locations.iter().any(Vec::is_empty) {

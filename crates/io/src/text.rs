@@ -50,6 +50,7 @@ use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
 
 use chronomap_core::ObservationError;
+use chronomap_core::num::fmt_number;
 use chronomap_core::observe::{check_time, check_value};
 use thiserror::Error;
 
@@ -242,8 +243,9 @@ pub enum DataErrorKind {
     },
     /// A time is earlier than the time of the data line before it.
     #[error(
-        "time: {text:?} is earlier than the time {previous} on line {previous_line} \
-         (times must not go backwards)"
+        "time: {text:?} is earlier than the time {} on line {previous_line} \
+         (times must not go backwards)",
+        fmt_number(.previous)
     )]
     TimeNotIncreasing {
         /// The offending text.
@@ -303,7 +305,11 @@ pub enum DataErrorKind {
         other: String,
     },
     /// A range line of an event file's header (`min max`) has `min > max`.
-    #[error("{field}: the range {min} .. {max} of the header is empty (min must not exceed max)")]
+    #[error(
+        "{field}: the range {} .. {} of the header is empty (min must not exceed max)",
+        fmt_number(.min),
+        fmt_number(.max)
+    )]
     EmptyRange {
         /// The field whose range it is.
         field: Field,
@@ -313,7 +319,11 @@ pub enum DataErrorKind {
         max: f64,
     },
     /// A field lies outside the range the file's header declares.
-    #[error("{field}: {text:?} is outside the range {min} .. {max} of the header")]
+    #[error(
+        "{field}: {text:?} is outside the range {} .. {} of the header",
+        fmt_number(.min),
+        fmt_number(.max)
+    )]
     OutsideRange {
         /// The field.
         field: Field,
@@ -832,17 +842,42 @@ pub fn decompressing_reader<'a>(
         .and_then(|e| e.to_str())
         .unwrap_or("");
     if extension.eq_ignore_ascii_case("xz") {
-        Box::new(lzma_rust2::XzReader::new(
-            BufReader::with_capacity(BUFFER_BYTES, reader),
-            true,
-        ))
+        Box::new(EndOfInput {
+            inner: lzma_rust2::XzReader::new(BufReader::with_capacity(BUFFER_BYTES, reader), true),
+            format: "xz",
+        })
     } else if extension.eq_ignore_ascii_case("gz") {
-        Box::new(flate2::read::MultiGzDecoder::new(BufReader::with_capacity(
-            BUFFER_BYTES,
-            reader,
-        )))
+        Box::new(EndOfInput {
+            inner: flate2::read::MultiGzDecoder::new(BufReader::with_capacity(
+                BUFFER_BYTES,
+                reader,
+            )),
+            format: "gz",
+        })
     } else {
         Box::new(reader)
+    }
+}
+
+/// A decompressor whose "unexpected end of input" errors (which read "failed to fill whole
+/// buffer") say what happened: the compressed file is truncated or empty.
+struct EndOfInput<R> {
+    inner: R,
+    format: &'static str,
+}
+
+impl<R: Read> Read for EndOfInput<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        self.inner.read(buf).map_err(|e| {
+            if e.kind() == io::ErrorKind::UnexpectedEof {
+                io::Error::new(
+                    io::ErrorKind::UnexpectedEof,
+                    format!("truncated or empty .{} file", self.format),
+                )
+            } else {
+                e
+            }
+        })
     }
 }
 

@@ -6,6 +6,7 @@ use std::collections::{HashMap, HashSet};
 use super::PsbtError;
 use chronomap_activity::CopaMap;
 use chronomap_activity::truth::TrackPoint;
+use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::par::Parallelism;
 
 /// A spatio-temporal rate of people `λ(x, t)` (§5.4.1): any chronomap activity model can drive
@@ -270,10 +271,15 @@ impl RateField for GridPoisson {
     fn disc_rate(&self, centre: [f64; 2], radius: f64, t: f64) -> f64 {
         let s = self.spec.cell;
         let (ox, oy) = (self.spec.origin[0], self.spec.origin[1]);
-        let c0 = ((centre[0] - radius - ox) / s).floor() as i64;
-        let c1 = ((centre[0] + radius - ox) / s).floor() as i64;
-        let r0 = ((centre[1] - radius - oy) / s).floor() as i64;
-        let r1 = ((centre[1] + radius - oy) / s).floor() as i64;
+        // Only the grid's cells have a rate (0 outside), so the disc's cell range is clamped
+        // to the grid: a huge radius cannot make a huge loop, and a saturated (or NaN → 0)
+        // index is clamped like any other.
+        let clamp = |v: f64, n: usize| (v.floor() as i64).clamp(0, n as i64 - 1);
+        let (cols, rows) = (self.spec.cols, self.spec.rows);
+        let c0 = clamp((centre[0] - radius - ox) / s, cols);
+        let c1 = clamp((centre[0] + radius - ox) / s, cols);
+        let r0 = clamp((centre[1] - radius - oy) / s, rows);
+        let r1 = clamp((centre[1] + radius - oy) / s, rows);
         const N: usize = 6;
         let mut total = 0.0;
         for r in r0..=r1 {
@@ -327,8 +333,19 @@ pub fn copa_field(
     }
     let [x0, y0, x1, y1] = model.domain();
     let origin = [x0 - cell / 2.0, y0 - cell / 2.0];
-    let cols = ((x1 - x0) / cell).round() as usize + 1;
-    let rows = ((y1 - y0) / cell).round() as usize + 1;
+    let count = |span: f64| {
+        count_of((span / cell).round() + 1.0, crate::world::MAX_COUNT).ok_or_else(|| {
+            PsbtError::Config(format!(
+                "CoPA-Map cell {} m over a training square {} m wide gives more than {} cells \
+                 across",
+                fmt_number(cell),
+                fmt_number(span),
+                crate::world::MAX_COUNT
+            ))
+        })
+    };
+    let cols = count(x1 - x0)?;
+    let rows = count(y1 - y0)?;
     // One interval of an hour: a cell "observed for 3600 s with y people" has rate y/3600 per
     // second. The prior is negligible (1e-300 people in 1e-300 s).
     let spec = GridSpec {

@@ -83,6 +83,7 @@ use thiserror::Error;
 
 use chronomap_bt::sbt::{Action, Chain, Means, SbtError, Target, add_scaled};
 use chronomap_core::error::check_positive;
+use chronomap_core::num::fmt_number;
 use chronomap_spatial::PlanningGrid;
 use path::CellPath;
 
@@ -94,19 +95,29 @@ pub enum PsbtError {
     #[error("invalid configuration: {0}")]
     Config(String),
     /// The help location lies outside the planning grid (off the map).
-    #[error("the start ({}, {}) lies outside the map", .at[0], .at[1])]
+    #[error("the start ({}, {}) lies outside the map", fmt_number(.at[0]), fmt_number(.at[1]))]
     StartOutside {
         /// The start.
         at: [f64; 2],
     },
     /// The help location is in a blocked cell (an obstacle within the robot's clearance).
-    #[error("the start ({}, {}) is on an obstacle (or within the robot's clearance of one)", .at[0], .at[1])]
+    #[error(
+        "the start ({}, {}) is on an obstacle (or within the robot's clearance of one)",
+        fmt_number(.at[0]),
+        fmt_number(.at[1])
+    )]
     StartBlocked {
         /// The start.
         at: [f64; 2],
     },
     /// Two places are not connected by free cells.
-    #[error("no path from ({}, {}) to ({}, {})", .from[0], .from[1], .to[0], .to[1])]
+    #[error(
+        "no path from ({}, {}) to ({}, {})",
+        fmt_number(.from[0]),
+        fmt_number(.from[1]),
+        fmt_number(.to[0]),
+        fmt_number(.to[1])
+    )]
     Unreachable {
         /// From.
         from: [f64; 2],
@@ -114,12 +125,36 @@ pub enum PsbtError {
         to: [f64; 2],
     },
     /// The activity model gave a rate that is not a finite number `≥ 0`.
-    #[error("the activity model gave the rate {value} at ({}, {})", .at[0], .at[1])]
+    #[error(
+        "the activity model gave the rate {} at ({}, {})",
+        fmt_number(.value),
+        fmt_number(.at[0]),
+        fmt_number(.at[1])
+    )]
     BadRate {
         /// Where.
         at: [f64; 2],
         /// The rate.
         value: f64,
+    },
+    /// A count derived from a parameter (cells across the area, intervals over the tracked
+    /// time) is not a finite number within its limit.
+    #[error(
+        "the {parameter} {} gives {} {what}; at most {limit}",
+        fmt_number(.value),
+        fmt_number(.count)
+    )]
+    TooMany {
+        /// The parameter (`cell`, `interval`).
+        parameter: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is counted (`columns`, `rows`, `intervals`).
+        what: &'static str,
+        /// The count it gives (may be infinite).
+        count: f64,
+        /// The largest count allowed.
+        limit: usize,
     },
     /// The stochastic analysis failed.
     #[error(transparent)]
@@ -188,7 +223,7 @@ impl PsbtConfig {
     ///
     /// # Errors
     /// [`PsbtError::Config`] naming the first parameter out of range (the places must be
-    /// `≤ 16`: the candidates grow as `3^{n_pl}`).
+    /// `1 ..= 16`: the candidates grow as `3^{n_pl}`).
     pub fn validate(&self) -> Result<(), PsbtError> {
         let positive = |name: &str, v: f64| check_positive(name, v).map_err(PsbtError::Config);
         positive("the detection radius", self.detection_radius_m)?;
@@ -202,6 +237,11 @@ impl PsbtConfig {
                 "the confidence {} is not in (0, 1)",
                 self.confidence
             )));
+        }
+        if self.places == 0 {
+            return Err(PsbtError::Config(
+                "0 places: the search needs at least 1 place (at most 16)".into(),
+            ));
         }
         if self.places > 16 {
             return Err(PsbtError::Config(format!(

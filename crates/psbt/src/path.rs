@@ -3,8 +3,14 @@
 //! tests), and a bounded Dijkstra tree from the help location, which gives every place's path
 //! and distance back to it in one pass. Both are `chronomap_spatial`'s one least-cost search.
 
+use chronomap_core::num::count_of;
 use chronomap_spatial::PlanningGrid;
 use chronomap_spatial::search::ShortestPaths;
+
+use crate::PsbtError;
+
+/// The most points [`sample_cells`] gives along one path.
+pub const MAX_SAMPLES: usize = 1 << 24;
 
 /// A path through free cells and its length in metres (centre to centre).
 #[derive(Clone, Debug, PartialEq)]
@@ -79,12 +85,27 @@ impl DistanceTree {
 /// Points along a path every `spacing` metres from its start (`⌊l/spacing⌋ + 1` points), each
 /// given as the path cell nearest to it: the positions `x(t_k)` of the robot at
 /// `t_k = k Δt` when it drives at `v̄` and `spacing = v̄ Δt` (eq. 5.14).
-pub fn sample_cells(grid: &PlanningGrid, path: &CellPath, spacing: f64) -> Vec<usize> {
+///
+/// # Errors
+/// [`PsbtError::TooMany`] for more than [`MAX_SAMPLES`] points (a spacing far smaller than
+/// the path).
+pub fn sample_cells(
+    grid: &PlanningGrid,
+    path: &CellPath,
+    spacing: f64,
+) -> Result<Vec<usize>, PsbtError> {
     let cells = &path.cells;
     if cells.len() <= 1 || spacing.is_nan() || spacing <= 0.0 {
-        return cells.first().copied().into_iter().collect();
+        return Ok(cells.first().copied().into_iter().collect());
     }
-    let count = (path.length / spacing + 1e-9).floor() as usize + 1;
+    let points = (path.length / spacing + 1e-9).floor() + 1.0;
+    let count = count_of(points, MAX_SAMPLES).ok_or(PsbtError::TooMany {
+        parameter: "sample spacing (speed x time step)",
+        value: spacing,
+        what: "points along the path",
+        count: points,
+        limit: MAX_SAMPLES,
+    })?;
     let mut out = Vec::with_capacity(count);
     let (mut segment, mut start_of_segment) = (0usize, 0.0f64);
     let length_of = |i: usize| {
@@ -106,5 +127,5 @@ pub fn sample_cells(grid: &PlanningGrid, path: &CellPath, spacing: f64) -> Vec<u
             cells[segment + 1]
         });
     }
-    out
+    Ok(out)
 }

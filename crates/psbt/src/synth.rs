@@ -68,7 +68,7 @@ pub(crate) fn search_action<F: RateField + ?Sized>(
     cache: &mut DiscCache,
     path: &CellPath,
 ) -> Result<SearchAction, PsbtError> {
-    let cells = sample_cells(grid, path, config.speed_mps * config.time_step_s);
+    let cells = sample_cells(grid, path, config.speed_mps * config.time_step_s)?;
     let rates = cells
         .iter()
         .map(|&c| cache.rate(grid, field, t, config, c))

@@ -125,8 +125,16 @@ fn astar_equals_dijkstra() {
     assert!(compared > 300);
     let grid = PlanningGrid::new([0.0, 0.0], 0.5, 5, 1).unwrap();
     let path = astar(&grid, 0, 4).unwrap();
-    assert_eq!(sample_cells(&grid, &path, 0.5), vec![0, 1, 2, 3, 4]);
-    assert_eq!(sample_cells(&grid, &path, 1.0), vec![0, 2, 4]);
+    assert_eq!(
+        sample_cells(&grid, &path, 0.5).unwrap(),
+        vec![0, 1, 2, 3, 4]
+    );
+    assert_eq!(sample_cells(&grid, &path, 1.0).unwrap(), vec![0, 2, 4]);
+    // A spacing far below the path's length is refused, not wrapped into no points.
+    assert!(matches!(
+        sample_cells(&grid, &path, 1e-300),
+        Err(crate::PsbtError::TooMany { .. })
+    ));
 }
 
 /// The genetic algorithm finds the brute-force optimum of random open TSPs with n ≤ 8.

@@ -4,7 +4,13 @@
 
 use chronomap_activity::truth::TrackPoint;
 
+use chronomap_core::num::count_of;
+
 use super::{GammaPrior, GridPoisson, GridSpec, PsbtError};
+
+/// The most columns, rows or intervals of the model (the whole grid is further limited to
+/// 2²⁸ cells × intervals by [`GridPoisson::new`]).
+pub const MAX_COUNT: usize = 1 << 28;
 
 /// The grid Poisson model ([`GridPoisson::from_tracks`], default prior) over the area of
 /// `size` metres from `origin` in cells of `cell` metres (the last ones may reach past the
@@ -31,7 +37,9 @@ use super::{GammaPrior, GridPoisson, GridSpec, PsbtError};
 /// ```
 ///
 /// # Errors
-/// As [`GridPoisson::from_tracks`].
+/// [`PsbtError::TooMany`] when `cell` or `interval` gives more than [`MAX_COUNT`] columns,
+/// rows or intervals (or a first interval index beyond it); otherwise as
+/// [`GridPoisson::from_tracks`].
 pub fn grid_poisson_from_tracks(
     points: &[TrackPoint],
     origin: [f64; 2],
@@ -44,15 +52,41 @@ pub fn grid_poisson_from_tracks(
     let (Some(first), Some(last)) = (points.first(), points.last()) else {
         return Ok(None);
     };
+    let within = |limit, parameter, value: f64, what, count: f64| {
+        count_of(count, limit).ok_or(PsbtError::TooMany {
+            parameter,
+            value,
+            what,
+            count,
+            limit,
+        })
+    };
+    let count = |parameter, value, what, count| within(MAX_COUNT, parameter, value, what, count);
+    // The interval index of the first point must be an exact integer too (2^53), or t0 is
+    // not a finite multiple of the interval.
+    let index = (first.t / interval).abs().floor();
+    within(
+        1 << 53,
+        "interval",
+        interval,
+        "intervals since time 0",
+        index,
+    )?;
     let t0 = (first.t / interval).floor() * interval;
+    let intervals = count(
+        "interval",
+        interval,
+        "intervals",
+        ((last.t - t0) / interval).floor(),
+    )?;
     let spec = GridSpec {
         origin,
         cell,
-        cols: (size[0] / cell).ceil() as usize,
-        rows: (size[1] / cell).ceil() as usize,
+        cols: count("cell", cell, "columns", (size[0] / cell).ceil())?,
+        rows: count("cell", cell, "rows", (size[1] / cell).ceil())?,
         t0,
         interval,
-        intervals: ((last.t - t0) / interval).floor() as usize + 1,
+        intervals: count("interval", interval, "intervals", intervals as f64 + 1.0)?,
     };
     Ok(Some(GridPoisson::from_tracks(
         &points,

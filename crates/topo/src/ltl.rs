@@ -598,10 +598,24 @@ impl Parser<'_> {
         operand: fn(&mut Self) -> Result<Parsed, LtlError>,
     ) -> Result<Parsed, LtlError> {
         let mut left = operand(self)?;
+        let mut operands = 1usize;
         while self.peek().tok == op {
             let token = self.bump();
             let right = operand(self)?;
+            if left.depth >= MAX_DEPTH && left.depth >= right.depth {
+                // The chain itself is too long (not its operand): say so in its own terms.
+                return Err(self.error(
+                    token.start,
+                    format!(
+                        "more than {operands} operands joined by '{}': each adds a level, \
+                         and a formula nests at most {MAX_DEPTH} levels deep (group them \
+                         with parentheses)",
+                        self.source(token)
+                    ),
+                ));
+            }
             left = self.binary_node(token.start, build, left, right)?;
+            operands += 1;
         }
         Ok(left)
     }

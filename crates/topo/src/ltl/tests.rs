@@ -224,9 +224,21 @@ fn nesting_deeper_than_the_limit_is_an_error_not_a_stack_overflow() {
     let chain = deep("a & ", MAX_DEPTH, "a", "");
     let error = parse(&chain).unwrap_err();
     assert_eq!(error.position(), Some(4 * (MAX_DEPTH - 1) + 2));
-    assert!(error.to_string().starts_with(&format!(
-        "formula nested more than {MAX_DEPTH} levels deep at position"
-    )));
+    assert!(
+        error.to_string().starts_with(&format!(
+            "more than {} operands joined by '&': each adds a level, and a formula nests at \
+             most {MAX_DEPTH} levels deep",
+            MAX_DEPTH
+        )),
+        "{error}"
+    );
+    // A flat conjunction of 300 `F` operands names the operand count, not a nesting.
+    let flat: Vec<String> = (0..300).map(|i| format!("F a{i}")).collect();
+    let error = parse_co_safe(&flat.join(" & ")).unwrap_err().to_string();
+    assert!(
+        error.starts_with("more than 255 operands joined by '&'"),
+        "{error}"
+    );
     // The deepest formula parse accepts still builds its automaton: X^k a has k + 3 states.
     let dfa = to_dfa(&parse(&ok).unwrap()).unwrap();
     assert_eq!(dfa.states(), MAX_DEPTH + 2);
