@@ -130,6 +130,26 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_grid::MAX_CELLS as u128,
         ),
         (
+            "MAX_REGION_CELLS",
+            "chronomap_activity::grids",
+            chronomap_activity::grids::MAX_REGION_CELLS as u128,
+        ),
+        (
+            "MAX_COUNT",
+            "chronomap_psbt::world",
+            chronomap_psbt::world::MAX_COUNT as u128,
+        ),
+        (
+            "MAX_SAMPLES",
+            "chronomap_psbt::path",
+            chronomap_psbt::path::MAX_SAMPLES as u128,
+        ),
+        (
+            "MAX_STEPS_PER_DAY",
+            "`chronomap_explore`",
+            chronomap_explore::MAX_STEPS_PER_DAY as u128,
+        ),
+        (
             "MAX_RECORD_BYTES",
             "chronomap_rosbag::bag",
             chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,
