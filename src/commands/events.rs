@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow, bail};
+use chronomap_core::num::fmt_number;
 use chronomap_hypertime::events::SpatialGrid;
 use chronomap_hypertime::events::density::{Extent, hourly_density};
 use chronomap_hypertime::events::{
@@ -19,7 +20,7 @@ use serde_json::{Value, json};
 
 use crate::cli::{EventsEvalArgs, HypertimeArgs};
 use crate::format::{Table, duration, time};
-use crate::output::{ProgressBar, print_json};
+use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
 
 /// The models of the tables, in order: static map, global mean, `Hist_n`, FreMEn per cell.
@@ -239,8 +240,16 @@ pub fn hypertime(args: &HypertimeArgs) -> Result<()> {
     let seconds = started.elapsed().as_secs_f64();
     let periods: Vec<String> = model.periods().iter().map(|&p| duration(p)).collect();
     let observed: Vec<Event> = train.observed_events().copied().collect();
-    let space = SpatialGrid::covering(&observed, args.cell)
-        .ok_or_else(|| anyhow!("{names}: no detections in the plane"))?;
+    if observed.is_empty() {
+        bail!("{names}: no detections in the plane");
+    }
+    let space = SpatialGrid::covering(&observed, args.cell).ok_or_else(|| {
+        usage(format!(
+            "--cell {}: more than {} cells along an axis over the detections",
+            fmt_number(args.cell),
+            chronomap_hypertime::events::MAX_COUNT
+        ))
+    })?;
     // Expected detections per m² per hour at each time, on the cells' centres.
     let maps = hourly_density(&model, &space, &args.at);
     if let Some(path) = &args.plot {

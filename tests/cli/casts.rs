@@ -167,3 +167,24 @@ fn an_empty_or_truncated_xz_file_says_so() {
         assert!(!err.contains("failed to fill whole buffer"), "{err}");
     }
 }
+
+/// `hypertime --cell 1e-300` made the map's cell count saturate and `+ 1` wrap; now refused
+/// naming the flag.
+#[test]
+fn hypertime_refuses_a_tiny_map_cell_naming_the_flag() {
+    let err = usage_error(&chronomap(&[
+        "hypertime",
+        "--train",
+        &repo(
+            "data/lincoln_pedestrians_2017/whytes/wednesday_thursday_days_nights_only_ones.txt.xz",
+        ),
+        "--at",
+        "2017-05-26T10:00Z",
+        "--cell",
+        "1e-300",
+    ]));
+    assert_mentions(
+        &err,
+        &["--cell 1e-300", "more than 268435456 cells along an axis"],
+    );
+}

@@ -49,7 +49,12 @@ pub use experiment::{
 };
 pub use training::{EventError, Holdout, TrainingData, Window, observed_windows};
 
+use chronomap_core::num::count_of;
 use serde::{Deserialize, Serialize};
+
+/// The most cells along one axis of a [`SpatialGrid::covering`] the events, and the most time
+/// bins over their span (2^28): a smaller cell or bin gives `None`.
+pub const MAX_COUNT: usize = 1 << 28;
 
 /// One event: time (s) and position (m).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -201,7 +206,8 @@ impl SpatialGrid {
 
     /// The smallest grid of cells of side `cell` whose edges are multiples of `cell` and which
     /// contains every event's position. `None` if there are no events, a position is not
-    /// finite or `cell` is not finite and positive.
+    /// finite, `cell` is not finite and positive, or it gives more than [`MAX_COUNT`] cells
+    /// along an axis.
     ///
     /// ```
     /// use chronomap_hypertime::events::{Event, SpatialGrid};
@@ -228,8 +234,9 @@ impl SpatialGrid {
         let x0 = (x_min / cell).floor() * cell;
         let y0 = (y_min / cell).floor() * cell;
         // The same arithmetic as `cell_of`, so the extreme events fall inside.
-        let nx = ((x_max - x0) / cell).floor() as usize + 1;
-        let ny = ((y_max - y0) / cell).floor() as usize + 1;
+        // Checked: a tiny cell must not saturate the count (and wrap the `+ 1`).
+        let nx = count_of(((x_max - x0) / cell).floor() + 1.0, MAX_COUNT)?;
+        let ny = count_of(((y_max - y0) / cell).floor() + 1.0, MAX_COUNT)?;
         Some(SpatialGrid {
             x0,
             y0,
@@ -302,12 +309,14 @@ pub(crate) fn time_range(events: &[Event]) -> Option<(f64, f64)> {
 }
 
 /// Start and number of the whole bins of `bin_secs`, aligned to multiples of `bin_secs`, that
-/// cover `[first, last]` (`None` for a bin length that is not finite and positive).
+/// cover `[first, last]` (`None` for a bin length that is not finite and positive, or that
+/// gives more than [`MAX_COUNT`] bins).
 pub(crate) fn whole_bins(first: f64, last: f64, bin_secs: f64) -> Option<(f64, usize)> {
     if !(bin_secs.is_finite() && bin_secs > 0.0 && first.is_finite() && last >= first) {
         return None;
     }
     let t0 = (first / bin_secs).floor() * bin_secs;
-    let nt = ((last - t0) / bin_secs).floor() as usize + 1;
-    Some((t0, nt))
+    // Checked: a tiny bin must not saturate the count (and wrap the `+ 1`).
+    let nt = count_of(((last - t0) / bin_secs).floor() + 1.0, MAX_COUNT)?;
+    t0.is_finite().then_some((t0, nt))
 }

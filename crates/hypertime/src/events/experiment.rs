@@ -281,7 +281,12 @@ fn score_grid(
     bin_secs: f64,
     builders: &[Box<dyn EventModelBuilder>],
 ) -> Result<Vec<EventScore>, EventError> {
-    let grid = EventGrid::covering(test, cell, bin_secs).expect("checked events and sizes");
+    // Events and sizes were checked; what is left is a cell or bin too small to count.
+    let grid = EventGrid::covering(test, cell, bin_secs).ok_or(EventError::OutOfRange {
+        name: "cell size or bin length",
+        value: cell.min(bin_secs),
+        expected: "at most 2^28 cells along an axis and 2^28 bins over the test events",
+    })?;
     let counts = grid.count(test);
     let test_events = counts.iter().sum::<f64>() as usize;
     let squared = |predicted: &[f64]| -> Vec<f64> {
