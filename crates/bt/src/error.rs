@@ -229,6 +229,15 @@ impl DefinitionError {
         }))
     }
 
+    /// The same error, about the node at `location` (for checks that are given a stand-in
+    /// location so that none is made per node checked).
+    pub(crate) fn relocated(mut self, location: NodeLocation) -> DefinitionError {
+        if self.0.location.is_some() {
+            self.0.location = Some(location);
+        }
+        self
+    }
+
     /// The same error, about the attribute `attribute`.
     pub fn with_attribute(mut self, attribute: &str) -> DefinitionError {
         self.0.attribute = Some(attribute.to_owned());

@@ -7,6 +7,7 @@
 //! Attribute values are kept as written (`"3"`, `"{goal}"`, `"{=}"`); they are interpreted
 //! when a [`Tree`](super::Tree) is instantiated and ticked.
 
+use std::collections::HashMap;
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
@@ -394,19 +395,22 @@ impl NodeDef {
     /// Calls `visit` on this node and every descendant in depth-first pre-order, with the
     /// path of child indices from this node.
     pub fn walk<'a>(&'a self, visit: &mut dyn FnMut(&[usize], &'a NodeDef)) {
-        fn go<'a>(
-            node: &'a NodeDef,
-            path: &mut Vec<usize>,
-            visit: &mut dyn FnMut(&[usize], &'a NodeDef),
-        ) {
-            visit(path, node);
-            for (i, child) in node.children.iter().enumerate() {
-                path.push(i);
-                go(child, path, visit);
+        // Without recursion, so that no depth of description overflows the stack: a stack of
+        // the nodes whose children are being visited and the index of the next child.
+        let mut path: Vec<usize> = Vec::new();
+        let mut stack: Vec<(&'a NodeDef, usize)> = vec![(self, 0)];
+        visit(&path, self);
+        while let Some((node, next)) = stack.last_mut() {
+            let Some(child) = node.children.get(*next) else {
+                stack.pop();
                 path.pop();
-            }
+                continue;
+            };
+            path.push(*next);
+            *next += 1;
+            visit(&path, child);
+            stack.push((child, 0));
         }
-        go(self, &mut Vec::new(), visit);
     }
 
     /// The descendant at a path of child indices (`[]` is this node).
@@ -463,6 +467,26 @@ impl BtDocument {
     /// The node model with ID `id`.
     pub fn node_model(&self, id: &str) -> Option<&NodeModel> {
         self.node_models.iter().find(|m| m.id == id)
+    }
+
+    /// The trees by ID (the first of an ID, as with [`BtDocument::tree`]), for looking many up
+    /// in constant time each.
+    pub fn trees_by_id(&self) -> HashMap<&str, &TreeDef> {
+        let mut map = HashMap::with_capacity(self.trees.len());
+        for tree in &self.trees {
+            map.entry(tree.id.as_str()).or_insert(tree);
+        }
+        map
+    }
+
+    /// The node models by ID (the first of an ID, as with [`BtDocument::node_model`]), for
+    /// looking many up in constant time each.
+    pub fn node_models_by_id(&self) -> HashMap<&str, &NodeModel> {
+        let mut map = HashMap::with_capacity(self.node_models.len());
+        for model in &self.node_models {
+            map.entry(model.id.as_str()).or_insert(model);
+        }
+        map
     }
 
     /// The ID of the tree to execute: `main_tree_to_execute`, or the only tree.

@@ -78,7 +78,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -139,7 +139,7 @@ pub struct LeafContext<'a> {
     pub(crate) uid: u16,
     pub(crate) id: &'a str,
     pub(crate) name: &'a str,
-    pub(crate) ports: &'a [(String, String)],
+    pub(crate) ports: &'a Ports,
     pub(crate) status: Status,
     pub(crate) now: Duration,
     pub(crate) blackboard: &'a mut Blackboard,
@@ -222,17 +222,76 @@ impl LeafContext<'_> {
     }
 }
 
-pub(crate) fn port_attribute<'p>(ports: &'p [(String, String)], port: &str) -> Option<&'p str> {
-    ports
-        .iter()
-        .find(|(n, _)| n == port)
-        .map(|(_, v)| v.as_str())
+pub(crate) fn port_attribute<'p>(ports: &'p Ports, port: &str) -> Option<&'p str> {
+    ports.get(port)
+}
+
+/// A node's ports as it reads them: its own attributes (`{=}` expanded), then the defaults of
+/// its model for the ports it does not give. The defaults are shared by every node of the
+/// model, so that a model with many ports costs its size once, not once per node using it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Ports {
+    pub(crate) own: Vec<(String, String)>,
+    pub(crate) defaults: Arc<Defaults>,
+}
+
+/// The ports of a model that have a default value, in the model's order, indexed by name.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Defaults {
+    list: Vec<(String, String)>,
+    index: HashMap<String, usize>,
+}
+
+impl Defaults {
+    /// The defaults of `model`'s ports (the first port of a name counts).
+    pub(crate) fn of(model: &NodeModel) -> Defaults {
+        let mut defaults = Defaults::default();
+        for spec in &model.ports {
+            if let Some(default) = &spec.default
+                && !defaults.index.contains_key(&spec.name)
+            {
+                defaults
+                    .index
+                    .insert(spec.name.clone(), defaults.list.len());
+                defaults.list.push((spec.name.clone(), default.clone()));
+            }
+        }
+        defaults
+    }
+}
+
+impl Ports {
+    /// The value of `port`: the node's own attribute, or the model's default.
+    pub(crate) fn get(&self, port: &str) -> Option<&str> {
+        match self.own.iter().find(|(n, _)| n == port) {
+            Some((_, v)) => Some(v.as_str()),
+            None => self
+                .defaults
+                .index
+                .get(port)
+                .map(|&i| self.defaults.list[i].1.as_str()),
+        }
+    }
+
+    /// The node's own attributes, then the defaults of the ports it does not give.
+    pub(crate) fn merged(&self) -> Vec<(String, String)> {
+        let own: HashSet<&str> = self.own.iter().map(|(n, _)| n.as_str()).collect();
+        let mut ports = self.own.clone();
+        ports.extend(
+            self.defaults
+                .list
+                .iter()
+                .filter(|(n, _)| !own.contains(n.as_str()))
+                .cloned(),
+        );
+        ports
+    }
 }
 
 /// BehaviorTree.CPP's `TreeNode::getInput`: a `{key}` reads the blackboard (strings there are
 /// parsed), a literal is parsed with `convertFromString`.
 pub(crate) fn read_port<T: FromValue>(
-    ports: &[(String, String)],
+    ports: &Ports,
     port: &str,
     blackboard: &Blackboard,
     scope: ScopeId,
@@ -258,7 +317,7 @@ pub(crate) fn read_port<T: FromValue>(
 }
 
 pub(crate) fn write_port(
-    ports: &[(String, String)],
+    ports: &Ports,
     port: &str,
     value: Value,
     blackboard: &mut Blackboard,

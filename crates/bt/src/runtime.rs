@@ -83,6 +83,7 @@
 //! (idle, or running for a control node that set itself running), the node's status here is
 //! [`Status::Skipped`], which is recorded in transitions (Groot2 code 4) and counts as idle.
 
+use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::fmt;
 use std::sync::Arc;
@@ -98,8 +99,8 @@ use super::model::{
     BtDocument, NodeCategory, NodeDef, NodeLocation, NodeModel, TreeDef, blackboard_pointer,
 };
 use super::registry::{
-    ControlContext, ControlNode, Instance, LeafContext, LeafNode, Registry, port_attribute,
-    read_port, write_port,
+    ControlContext, ControlNode, Defaults, Instance, LeafContext, LeafNode, Ports, Registry,
+    port_attribute, read_port, write_port,
 };
 use super::scripting::{Environment, Program, truthy};
 use super::validate::{required_count, validate};
@@ -180,7 +181,7 @@ pub struct Node {
     name: String,
     category: NodeCategory,
     attributes: Vec<(String, String)>,
-    ports: Vec<(String, String)>,
+    ports: Ports,
     children: Vec<usize>,
     parent: Option<usize>,
     scope: ScopeId,
@@ -233,9 +234,10 @@ impl Node {
         &self.attributes
     }
 
-    /// The ports as the node reads them: `{=}` expanded, defaults of absent ports added.
-    pub fn ports(&self) -> &[(String, String)] {
-        &self.ports
+    /// The ports as the node reads them: `{=}` expanded, defaults of absent ports added
+    /// (after the node's own).
+    pub fn ports(&self) -> Vec<(String, String)> {
+        self.ports.merged()
     }
 
     /// The children, as indices into [`Tree::nodes`].
@@ -272,7 +274,7 @@ impl fmt::Debug for Node {
             .field("id", &self.id)
             .field("name", &self.name)
             .field("category", &self.category)
-            .field("ports", &self.ports)
+            .field("ports", &self.ports.merged())
             .field("children", &self.children)
             .field("status", &self.status)
             .finish_non_exhaustive()
@@ -303,8 +305,8 @@ impl fmt::Debug for Tree {
     }
 }
 
-/// Checks that no tree of `doc` nests deeper than [`MAX_DEPTH`], without recursion (the
-/// validation that follows walks the description recursively).
+/// Checks that no tree of `doc` nests deeper than [`MAX_DEPTH`], without recursion, before
+/// anything is built (ticking and halting recurse once per level).
 fn check_depth(doc: &BtDocument) -> Result<(), DefinitionError> {
     for tree in &doc.trees {
         let mut stack: Vec<(&NodeDef, usize, usize)> = vec![(&tree.root, 1, 0)];
@@ -389,6 +391,8 @@ impl Tree {
             }),
             registry,
             tree,
+            defaults: HashMap::new(),
+            trail: Vec::new(),
         };
         builder.build(&def.root, &def.id)?;
         Ok(builder.tree)
@@ -1685,12 +1689,21 @@ struct Builder<'a> {
     models: HashMap<&'a str, &'a NodeModel>,
     registry: &'a Registry,
     tree: Tree,
+    /// The defaults of each model's ports, made once per ID and shared by its nodes.
+    defaults: HashMap<String, Arc<Defaults>>,
+    /// Where each pending node is: the entry of its parent (in the same tree description) and
+    /// its child index. A node's [`NodeLocation`] is made from these only when it is wrong,
+    /// so that building takes memory in proportion to the nodes, however deep they nest.
+    trail: Vec<(Option<usize>, usize)>,
 }
 
 /// A node description waiting to be built.
 struct Pending<'d> {
     def: &'d NodeDef,
-    location: NodeLocation,
+    /// The ID of the tree description the node is in.
+    tree_id: &'d str,
+    /// Its entry in [`Builder::trail`] (`None` for the root of a tree description).
+    trail: Option<usize>,
     parent: Option<usize>,
     scope: ScopeId,
     /// The instance path of the subtree, followed by `/` (empty for the main tree).
@@ -1699,39 +1712,48 @@ struct Pending<'d> {
 }
 
 impl<'a> Builder<'a> {
-    fn build(&mut self, root: &'a NodeDef, tree_id: &str) -> Result<(), DefinitionError> {
+    fn build(&mut self, root: &'a NodeDef, tree_id: &'a str) -> Result<(), DefinitionError> {
         let mut stack = vec![Pending {
             def: root,
-            location: NodeLocation {
-                tree: tree_id.to_owned(),
-                path: Vec::new(),
-            },
+            tree_id,
+            trail: None,
             parent: None,
             scope: self.tree.blackboard.root(),
             prefix: Arc::from(""),
             depth: 1,
         }];
+        // The location given to the checks of each node, replaced by the node's own when one
+        // fails.
+        let stand_in = NodeLocation {
+            tree: String::new(),
+            path: Vec::new(),
+        };
         while let Some(pending) = stack.pop() {
             if pending.depth > MAX_DEPTH {
                 return Err(DefinitionError::at(
-                    pending.location,
+                    self.location(&pending),
                     DefinitionErrorKind::TooDeep { max: MAX_DEPTH },
                 ));
             }
-            let index = self.create(&pending)?;
+            let index = self
+                .create(&pending, &stand_in)
+                .map_err(|e| e.relocated(self.location(&pending)))?;
             if let Some(parent) = pending.parent {
                 self.tree.nodes[parent].children.push(index);
             }
             let def = pending.def;
             if def.category == NodeCategory::SubTree {
-                stack.push(self.open_subtree(&pending, index)?);
+                let next = self
+                    .open_subtree(&pending, index, &stand_in)
+                    .map_err(|e| e.relocated(self.location(&pending)))?;
+                stack.push(next);
             } else {
                 for (k, child) in def.children.iter().enumerate().rev() {
-                    let mut location = pending.location.clone();
-                    location.path.push(k);
+                    self.trail.push((pending.trail, k));
                     stack.push(Pending {
                         def: child,
-                        location,
+                        tree_id: pending.tree_id,
+                        trail: Some(self.trail.len() - 1),
                         parent: Some(index),
                         scope: pending.scope,
                         prefix: Arc::clone(&pending.prefix),
@@ -1743,17 +1765,34 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
+    /// The location of a pending node: its tree and path of child indices.
+    fn location(&self, pending: &Pending<'_>) -> NodeLocation {
+        let mut path = Vec::new();
+        let mut at = pending.trail;
+        while let Some(i) = at {
+            let (up, k) = self.trail[i];
+            path.push(k);
+            at = up;
+        }
+        path.reverse();
+        NodeLocation {
+            tree: pending.tree_id.to_owned(),
+            path,
+        }
+    }
+
     /// The scope and instance of the tree a `SubTree` node (at `index`) opens, and its root
     /// to build next.
     fn open_subtree(
         &mut self,
         pending: &Pending<'a>,
         index: usize,
+        location: &NodeLocation,
     ) -> Result<Pending<'a>, DefinitionError> {
         let def = pending.def;
         let subtree: &'a TreeDef = self.trees.get(def.id.as_str()).copied().ok_or_else(|| {
             DefinitionError::at(
-                pending.location.clone(),
+                location.clone(),
                 DefinitionErrorKind::UnknownTree { id: def.id.clone() },
             )
             .with_attribute("ID")
@@ -1762,12 +1801,12 @@ impl<'a> Builder<'a> {
         // are set in the new scope, `_autoremap` shares the remaining keys.
         let mut remap = BTreeMap::new();
         let mut literals = Vec::new();
-        for (name, value) in &self.tree.nodes[index].ports {
-            match blackboard_pointer(value) {
+        for (name, value) in self.tree.nodes[index].ports.merged() {
+            match blackboard_pointer(&value) {
                 Some(key) => {
                     remap.insert(name.clone(), key.to_owned());
                 }
-                None => literals.push((name.clone(), value.clone())),
+                None => literals.push((name, value)),
             }
         }
         let inner = self
@@ -1786,7 +1825,7 @@ impl<'a> Builder<'a> {
         };
         let instance_path = format!("{}{own}", pending.prefix);
         let root_uid = u16::try_from(index + 2).map_err(|_| {
-            DefinitionError::at(pending.location.clone(), DefinitionErrorKind::TooManyNodes)
+            DefinitionError::at(location.clone(), DefinitionErrorKind::TooManyNodes)
         })?;
         self.tree.subtrees.push(SubtreeInstance {
             tree_id: subtree.id.clone(),
@@ -1797,10 +1836,8 @@ impl<'a> Builder<'a> {
         });
         Ok(Pending {
             def: &subtree.root,
-            location: NodeLocation {
-                tree: subtree.id.clone(),
-                path: Vec::new(),
-            },
+            tree_id: &subtree.id,
+            trail: None,
             parent: Some(index),
             scope: inner,
             prefix: Arc::from(format!("{instance_path}/")),
@@ -1808,56 +1845,71 @@ impl<'a> Builder<'a> {
         })
     }
 
-    fn create(&mut self, pending: &Pending<'_>) -> Result<usize, DefinitionError> {
+    fn create(
+        &mut self,
+        pending: &Pending<'a>,
+        location: &NodeLocation,
+    ) -> Result<usize, DefinitionError> {
         let def = pending.def;
-        let location = &pending.location;
         let index = self.tree.nodes.len();
         let uid = u16::try_from(index + 1).map_err(|_| {
             DefinitionError::at(location.clone(), DefinitionErrorKind::TooManyNodes)
         })?;
         let mut leaf = None;
         let mut custom = None;
-        let (kind, model) = if def.category == NodeCategory::SubTree {
-            (
-                Kind::Builtin(BuiltinKind::SubTree),
-                self.models.get(def.id.as_str()).map(|m| (*m).clone()),
-            )
-        } else if let Some(kind) = BuiltinKind::of(&def.id) {
-            (Kind::Builtin(kind), builtin_model(&def.id))
-        } else {
-            let model = self
-                .registry
-                .model(&def.id)
-                .or_else(|| self.models.get(def.id.as_str()).copied())
-                .cloned();
-            let instance = self.registry.instantiate(&def.id).ok_or_else(|| {
-                DefinitionError::at(
-                    location.clone(),
-                    DefinitionErrorKind::NotImplemented {
-                        id: def.id.clone(),
-                        category: def.category,
-                    },
+        let (kind, model): (Kind, Option<Cow<'a, NodeModel>>) =
+            if def.category == NodeCategory::SubTree {
+                (
+                    Kind::Builtin(BuiltinKind::SubTree),
+                    self.models.get(def.id.as_str()).map(|m| Cow::Borrowed(*m)),
                 )
-                .with_attribute("ID")
-            })?;
-            let kind = match instance {
-                Instance::Leaf(l) => {
-                    leaf = Some(l);
-                    Kind::Leaf
-                }
-                Instance::Control(c) => {
-                    custom = Some(c);
-                    Kind::Custom
-                }
-                Instance::Builtin(kind) => Kind::Builtin(kind),
+            } else if let Some(kind) = BuiltinKind::of(&def.id) {
+                (Kind::Builtin(kind), builtin_model(&def.id).map(Cow::Owned))
+            } else {
+                let model = self
+                    .registry
+                    .model(&def.id)
+                    .or_else(|| self.models.get(def.id.as_str()).copied())
+                    .map(Cow::Borrowed);
+                let instance = self.registry.instantiate(&def.id).ok_or_else(|| {
+                    DefinitionError::at(
+                        location.clone(),
+                        DefinitionErrorKind::NotImplemented {
+                            id: def.id.clone(),
+                            category: def.category,
+                        },
+                    )
+                    .with_attribute("ID")
+                })?;
+                let kind = match instance {
+                    Instance::Leaf(l) => {
+                        leaf = Some(l);
+                        Kind::Leaf
+                    }
+                    Instance::Control(c) => {
+                        custom = Some(c);
+                        Kind::Custom
+                    }
+                    Instance::Builtin(kind) => Kind::Builtin(kind),
+                };
+                (kind, model)
             };
-            (kind, model)
+        // A model's defaults and its copy in the tree are made once per ID.
+        let defaults = match &model {
+            Some(model) => Arc::clone(
+                self.defaults
+                    .entry(model.id.clone())
+                    .or_insert_with(|| Arc::new(Defaults::of(model))),
+            ),
+            None => Arc::default(),
         };
-        let ports = ports_as_read(def, model.as_ref());
-        if let Some(model) = &model
+        let ports = ports_as_read(def, defaults);
+        if let Some(model) = model
             && !self.tree.models.contains_key(&model.id)
         {
-            self.tree.models.insert(model.id.clone(), model.clone());
+            self.tree
+                .models
+                .insert(model.id.clone(), model.into_owned());
         }
         let builtin = match kind {
             Kind::Builtin(kind) => Some(kind),
@@ -1923,13 +1975,13 @@ fn bad_value(
 }
 
 /// The literal value of a port (`None` for a `{key}` or an absent port).
-fn literal<'p>(ports: &'p [(String, String)], port: &str) -> Option<&'p str> {
+fn literal<'p>(ports: &'p Ports, port: &str) -> Option<&'p str> {
     port_attribute(ports, port).filter(|v| blackboard_pointer(v).is_none())
 }
 
 fn check_non_negative(
     def: &NodeDef,
-    ports: &[(String, String)],
+    ports: &Ports,
     port: &str,
     location: &NodeLocation,
 ) -> Result<(), DefinitionError> {
@@ -1948,8 +2000,8 @@ fn check_non_negative(
 }
 
 /// A node's ports as read: `{=}` is `{port}`, and absent ports take the model's default.
-fn ports_as_read(def: &NodeDef, model: Option<&NodeModel>) -> Vec<(String, String)> {
-    let mut ports: Vec<(String, String)> = def
+fn ports_as_read(def: &NodeDef, defaults: Arc<Defaults>) -> Ports {
+    let own = def
         .ports
         .iter()
         .map(|(name, value)| {
@@ -1961,16 +2013,7 @@ fn ports_as_read(def: &NodeDef, model: Option<&NodeModel>) -> Vec<(String, Strin
             (name.clone(), value)
         })
         .collect();
-    if let Some(model) = model {
-        for spec in &model.ports {
-            if let Some(default) = &spec.default
-                && def.port_value(&spec.name).is_none()
-            {
-                ports.push((spec.name.clone(), default.clone()));
-            }
-        }
-    }
-    ports
+    Ports { own, defaults }
 }
 
 /// A node's parsed pre- and post-conditions, and its `code` or `if` script.
@@ -1982,7 +2025,7 @@ type CompiledScripts = (Option<Arc<Conditions>>, Option<Arc<Compiled>>);
 fn compile_definition(
     def: &NodeDef,
     builtin: Option<BuiltinKind>,
-    ports: &[(String, String)],
+    ports: &Ports,
     location: &NodeLocation,
 ) -> Result<CompiledScripts, DefinitionError> {
     if let Some(kind) = builtin {
@@ -2013,8 +2056,10 @@ pub(crate) fn check_definition(
     } else {
         BuiltinKind::of(&def.id)
     };
-    let model = builtin.and_then(|_| builtin_model(&def.id));
-    let ports = ports_as_read(def, model.as_ref());
+    let defaults = builtin
+        .and_then(|_| builtin_model(&def.id))
+        .map_or_else(Arc::default, |model| Arc::new(Defaults::of(&model)));
+    let ports = ports_as_read(def, defaults);
     compile_definition(def, builtin, &ports, location).map(|_| ())
 }
 
@@ -2023,7 +2068,7 @@ pub(crate) fn check_definition(
 fn check_builtin(
     def: &NodeDef,
     kind: BuiltinKind,
-    ports: &[(String, String)],
+    ports: &Ports,
     location: &NodeLocation,
 ) -> Result<(), DefinitionError> {
     let children = def.children.len();
@@ -2176,7 +2221,7 @@ fn compile_conditions(
 /// Parses the script of a `code`/`if` port when it is a literal.
 fn compile_port(
     def: &NodeDef,
-    ports: &[(String, String)],
+    ports: &Ports,
     port: &str,
     location: &NodeLocation,
 ) -> Result<Option<Arc<Compiled>>, DefinitionError> {

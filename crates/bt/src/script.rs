@@ -153,6 +153,7 @@ pub fn scripted_registry(doc: &BtDocument) -> Result<(Registry, ScriptedOutcomes
             }
         });
     }
+    let models = doc.node_models_by_id();
     for (id, category) in leaves {
         let shared = outcomes.clone();
         let factory = move || -> Box<dyn LeafNode> {
@@ -160,8 +161,8 @@ pub fn scripted_registry(doc: &BtDocument) -> Result<(Registry, ScriptedOutcomes
                 outcomes: shared.clone(),
             })
         };
-        match doc.node_model(&id).filter(|m| m.category == category) {
-            Some(model) => registry.register(model.clone(), factory)?,
+        match models.get(id.as_str()).filter(|m| m.category == category) {
+            Some(model) => registry.register((*model).clone(), factory)?,
             None => registry.register_unchecked(category, &id, factory)?,
         }
     }

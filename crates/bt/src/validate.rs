@@ -1,6 +1,7 @@
 //! Checks of a tree description against what is known about its node IDs.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeSet, HashMap, HashSet};
+use std::rc::Rc;
 
 use super::error::{DefinitionError, DefinitionErrorKind as K};
 use super::model::{
@@ -35,18 +36,48 @@ struct Known<'d> {
     registry: &'d Registry,
     declared: HashMap<&'d str, &'d super::model::NodeModel>,
     trees: HashSet<&'d str>,
+    /// What is known of each ID looked up so far, made once per ID (a model's ports are
+    /// copied into a [`Manifest`] and indexed once, not once per node using it).
+    manifests: HashMap<&'d str, Result<Rc<Resolved>, K>>,
 }
 
-impl Known<'_> {
-    /// [`Registry::lookup`] with the document's models, without searching them.
-    fn lookup(&self, id: &str) -> Result<Manifest, K> {
-        match self.registry.lookup(id, &[]) {
+/// A [`Manifest`] with its ports indexed by name and its required ports listed.
+struct Resolved {
+    manifest: Manifest,
+    /// Index into the ports by name (the first port of a name).
+    index: HashMap<String, usize>,
+    /// Indices of the required ports.
+    required: Vec<usize>,
+}
+
+impl<'d> Known<'d> {
+    /// [`Registry::lookup`] with the document's models, without searching them, once per ID.
+    fn lookup(&mut self, id: &'d str) -> Result<Rc<Resolved>, K> {
+        if let Some(known) = self.manifests.get(id) {
+            return known.clone();
+        }
+        let manifest = match self.registry.lookup(id, &[]) {
             Ok(manifest) => Ok(manifest),
             Err(kind) => match self.declared.get(id) {
                 Some(model) => self.registry.lookup(id, std::slice::from_ref(*model)),
                 None => Err(kind),
             },
-        }
+        };
+        let resolved = manifest.map(|manifest| {
+            let specs = manifest.ports.as_deref().unwrap_or_default();
+            let mut index = HashMap::with_capacity(specs.len());
+            for (i, spec) in specs.iter().enumerate() {
+                index.entry(spec.name.clone()).or_insert(i);
+            }
+            let required = (0..specs.len()).filter(|&i| specs[i].required).collect();
+            Rc::new(Resolved {
+                manifest,
+                index,
+                required,
+            })
+        });
+        self.manifests.insert(id, resolved.clone());
+        resolved
     }
 }
 
@@ -85,24 +116,31 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
     for model in &doc.node_models {
         declared.entry(model.id.as_str()).or_insert(model);
     }
-    let known = Known {
+    let mut known = Known {
         registry,
         declared,
         trees: doc.trees.iter().map(|t| t.id.as_str()).collect(),
+        manifests: HashMap::new(),
     };
     for tree in &doc.trees {
+        // One stand-in location per tree: the path is made only for the node that fails, so
+        // checking takes time in proportion to the nodes, however deep they nest.
+        let here = NodeLocation {
+            tree: tree.id.clone(),
+            path: Vec::new(),
+        };
         let mut result = Ok(());
         tree.root.walk(&mut |path, node| {
             if result.is_ok() {
-                let location = NodeLocation {
+                let located = || NodeLocation {
                     tree: tree.id.clone(),
                     path: path.to_vec(),
                 };
-                result = match check_node(&known, node) {
-                    Ok(()) => check_definition(node, &location),
+                result = match check_node(&mut known, node) {
+                    Ok(()) => check_definition(node, &here).map_err(|e| e.relocated(located())),
                     Err(failure) => {
                         let (kind, attribute) = *failure;
-                        let error = DefinitionError::at(location, kind);
+                        let error = DefinitionError::at(located(), kind);
                         Err(match attribute {
                             Some(a) => error.with_attribute(&a),
                             None => error,
@@ -117,7 +155,10 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
 }
 
 /// Checks one node; the error's kind and attribute.
-fn check_node(known: &Known<'_>, node: &NodeDef) -> Result<(), Box<(K, Option<String>)>> {
+fn check_node<'d>(
+    known: &mut Known<'d>,
+    node: &'d NodeDef,
+) -> Result<(), Box<(K, Option<String>)>> {
     let fail =
         |kind: K, attribute: Option<&str>| Err(Box::new((kind, attribute.map(str::to_owned))));
     if !node.category.allows_children(node.children.len()) {
@@ -141,10 +182,11 @@ fn check_node(known: &Known<'_>, node: &NodeDef) -> Result<(), Box<(K, Option<St
         }
         return Ok(());
     }
-    let manifest = match known.lookup(&node.id) {
+    let resolved = match known.lookup(&node.id) {
         Ok(m) => m,
         Err(kind) => return fail(kind, Some("ID")),
     };
+    let manifest = &resolved.manifest;
     if manifest.category != node.category {
         return fail(
             K::WrongCategory {
@@ -156,22 +198,8 @@ fn check_node(known: &Known<'_>, node: &NodeDef) -> Result<(), Box<(K, Option<St
         );
     }
     if let Some(specs) = &manifest.ports {
-        // Indexed when a search per attribute would be slow (many ports and attributes).
-        let index: Option<HashMap<&str, usize>> =
-            (specs.len() * node.ports.len() > 64).then(|| {
-                specs
-                    .iter()
-                    .enumerate()
-                    .rev()
-                    .map(|(i, s)| (s.name.as_str(), i))
-                    .collect()
-            });
-        let find = |name: &str| match &index {
-            Some(index) => index.get(name).map(|&i| &specs[i]),
-            None => specs.iter().find(|s| s.name == name),
-        };
         for (name, value) in &node.ports {
-            let Some(spec) = find(name) else {
+            let Some(spec) = resolved.index.get(name.as_str()).map(|&i| &specs[i]) else {
                 return fail(
                     K::UnknownPort {
                         id: node.id.clone(),
@@ -223,21 +251,23 @@ fn check_node(known: &Known<'_>, node: &NodeDef) -> Result<(), Box<(K, Option<St
                 );
             }
         }
-        let given: Option<HashSet<&str>> =
-            (node.ports.len() > 8).then(|| node.ports.iter().map(|(n, _)| n.as_str()).collect());
-        for spec in specs.iter().filter(|s| s.required) {
-            let present = match &given {
-                Some(given) => given.contains(spec.name.as_str()),
-                None => node.port_value(&spec.name).is_some(),
-            };
-            if !present {
-                return fail(
-                    K::MissingPort {
-                        id: node.id.clone(),
-                        port: spec.name.clone(),
-                    },
-                    Some(spec.name.as_str()),
-                );
+        if !resolved.required.is_empty() {
+            let given: Option<HashSet<&str>> = (node.ports.len() > 8)
+                .then(|| node.ports.iter().map(|(n, _)| n.as_str()).collect());
+            for spec in resolved.required.iter().map(|&i| &specs[i]) {
+                let present = match &given {
+                    Some(given) => given.contains(spec.name.as_str()),
+                    None => node.port_value(&spec.name).is_some(),
+                };
+                if !present {
+                    return fail(
+                        K::MissingPort {
+                            id: node.id.clone(),
+                            port: spec.name.clone(),
+                        },
+                        Some(spec.name.as_str()),
+                    );
+                }
             }
         }
     }
@@ -281,7 +311,7 @@ pub(crate) fn required_count(threshold: i64, children: usize) -> usize {
 
 /// No tree reaches itself through `SubTree` nodes.
 fn check_recursion(doc: &BtDocument) -> Result<(), DefinitionError> {
-    let mut uses: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    let mut uses: HashMap<&str, Vec<&str>> = HashMap::with_capacity(doc.trees.len());
     for tree in &doc.trees {
         let mut used = Vec::new();
         tree.root.walk(&mut |_, node| {
@@ -289,58 +319,64 @@ fn check_recursion(doc: &BtDocument) -> Result<(), DefinitionError> {
                 used.push(node.id.as_str());
             }
         });
-        uses.insert(tree.id.as_str(), used);
+        uses.entry(tree.id.as_str()).or_insert(used);
     }
-    // Depth-first search with colours: on the stack (grey) or finished (black).
-    fn visit<'a>(
-        id: &'a str,
-        uses: &BTreeMap<&'a str, Vec<&'a str>>,
-        stack: &mut Vec<&'a str>,
-        done: &mut BTreeSet<&'a str>,
-    ) -> Option<Vec<String>> {
-        if done.contains(id) {
-            return None;
+    // Depth-first search with colours, without recursion (a chain of subtrees may be as long
+    // as the document has trees): on the path (grey, with the position on it) or finished
+    // (black). Each tree and each use is visited once.
+    let mut on_path: HashMap<&str, usize> = HashMap::new();
+    let mut done: HashSet<&str> = HashSet::new();
+    let mut cycle = None;
+    'trees: for tree in &doc.trees {
+        let start = tree.id.as_str();
+        if done.contains(start) {
+            continue;
         }
-        if let Some(start) = stack.iter().position(|&s| s == id) {
-            let mut chain: Vec<String> = stack[start..].iter().map(|s| (*s).to_owned()).collect();
-            chain.push(id.to_owned());
-            return Some(chain);
-        }
-        stack.push(id);
-        for &next in uses.get(id).into_iter().flatten() {
-            if let Some(chain) = visit(next, uses, stack, done) {
-                return Some(chain);
+        // The path: each tree and the index of the next use to follow.
+        let mut path: Vec<(&str, usize)> = vec![(start, 0)];
+        on_path.insert(start, 0);
+        while let Some(&mut (id, ref mut next)) = path.last_mut() {
+            let used = uses.get(id).map_or(&[][..], Vec::as_slice);
+            let Some(&to) = used.get(*next) else {
+                path.pop();
+                on_path.remove(id);
+                done.insert(id);
+                continue;
+            };
+            *next += 1;
+            if done.contains(to) {
+                continue;
             }
+            if let Some(&at) = on_path.get(to) {
+                let mut chain: Vec<String> =
+                    path[at..].iter().map(|(s, _)| (*s).to_owned()).collect();
+                chain.push(to.to_owned());
+                cycle = Some(chain);
+                break 'trees;
+            }
+            on_path.insert(to, path.len());
+            path.push((to, 0));
         }
-        stack.pop();
-        done.insert(id);
-        None
     }
-    let mut done = BTreeSet::new();
-    for tree in &doc.trees {
-        if let Some(chain) = visit(&tree.id, &uses, &mut Vec::new(), &mut done) {
-            // Point at the SubTree node of the first tree of the cycle that uses the next one.
-            let (from, to) = (&chain[chain.len() - 2], &chain[chain.len() - 1]);
-            let mut location = None;
-            if let Some(t) = doc.tree(from) {
-                t.root.walk(&mut |path, node| {
-                    if location.is_none()
-                        && node.category == NodeCategory::SubTree
-                        && &node.id == to
-                    {
-                        location = Some(NodeLocation {
-                            tree: from.clone(),
-                            path: path.to_vec(),
-                        });
-                    }
+    let Some(chain) = cycle else {
+        return Ok(());
+    };
+    // Point at the SubTree node of the first tree of the cycle that uses the next one.
+    let (from, to) = (&chain[chain.len() - 2], &chain[chain.len() - 1]);
+    let mut location = None;
+    if let Some(t) = doc.tree(from) {
+        t.root.walk(&mut |path, node| {
+            if location.is_none() && node.category == NodeCategory::SubTree && &node.id == to {
+                location = Some(NodeLocation {
+                    tree: from.clone(),
+                    path: path.to_vec(),
                 });
             }
-            let kind = K::RecursiveSubTree { chain };
-            return Err(match location {
-                Some(l) => DefinitionError::at(l, kind).with_attribute("ID"),
-                None => DefinitionError::document(kind),
-            });
-        }
+        });
     }
-    Ok(())
+    let kind = K::RecursiveSubTree { chain };
+    Err(match location {
+        Some(l) => DefinitionError::at(l, kind).with_attribute("ID"),
+        None => DefinitionError::document(kind),
+    })
 }

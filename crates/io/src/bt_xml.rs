@@ -127,8 +127,17 @@ pub const MAX_BYTES: u64 = 64 << 20;
 /// The most XML nodes (elements, text, comments) of one file by default.
 pub const MAX_NODES: u32 = 4_000_000;
 /// The most attributes of one element by default (the XML parser checks them for duplicates
-/// pairwise, so this bounds its time).
+/// pairwise, so this bounds its time on one element).
 pub const MAX_ATTRIBUTES: usize = 10_000;
+/// The most pairs of attributes on one element, summed over the elements of all files of a
+/// document (the XML parser compares the attributes of an element pairwise, so this bounds its
+/// time on the whole document: one element of 10,000 attributes has 49,995,000 pairs, a
+/// thousand elements of 50 attributes 1,225,000).
+pub const MAX_ATTRIBUTE_PAIRS: u64 = 50_000_000;
+/// The most namespace declarations (`xmlns`, `xmlns:p`) of one file (the XML parser copies
+/// the declarations in scope to each element that declares one, and searches them for each
+/// prefix, so this bounds its time). BehaviorTree.CPP files have none.
+pub const MAX_NAMESPACES: usize = 64;
 
 /// How to read a document: node models from other files, and the limits of reading.
 #[derive(Clone, Debug)]
@@ -352,6 +361,23 @@ pub enum BtXmlErrorKind {
     /// An element with too many attributes.
     #[error("an element with more than {limit} attributes (a limit of this reader)")]
     TooManyAttributes {
+        /// The limit.
+        limit: usize,
+    },
+    /// Too many pairs of attributes on the elements of the document ([`MAX_ATTRIBUTE_PAIRS`]).
+    #[error(
+        "more than {limit} pairs of attributes on one element, summed over the elements of the \
+         document's files (a limit of this reader: the XML parser compares them pairwise)"
+    )]
+    TooManyAttributePairs {
+        /// The limit.
+        limit: u64,
+    },
+    /// Too many namespace declarations in one file ([`MAX_NAMESPACES`]).
+    #[error(
+        "more than {limit} namespace declarations (xmlns) in one file (a limit of this reader)"
+    )]
+    TooManyNamespaces {
         /// The limit.
         limit: usize,
     },
@@ -602,7 +628,7 @@ pub fn read_node_models(path: impl AsRef<Path>) -> Result<BtNodeModels, BtXmlErr
 /// As [`read_node_models`].
 pub fn parse_node_models(name: &str, text: &str) -> Result<BtNodeModels, BtXmlError> {
     let options = BtReadOptions::default();
-    let doc = parse_document(name, text, &options)?;
+    let doc = parse_document(name, text, &options, &mut 0)?;
     let source = Source::new(name.to_owned(), None, doc);
     let sources = [&source];
     let registry = Registry::new();
@@ -715,20 +741,16 @@ fn line_column(text: &str, offset: usize) -> Pos {
     )
 }
 
-/// Parses one file's text.
+/// Parses one file's text; `pairs` counts the pairs of attributes of the document's elements
+/// parsed so far.
 fn parse_document<'t>(
     name: &str,
     text: &'t str,
     options: &BtReadOptions,
+    pairs: &mut u64,
 ) -> Result<Document<'t>, BtXmlError> {
-    if let Some(offset) = crowded_element(text, options.max_attributes) {
-        return Err(BtXmlError::new(
-            Some(line_column(text, offset)),
-            BtXmlErrorKind::TooManyAttributes {
-                limit: options.max_attributes,
-            },
-        )
-        .in_file(name));
+    if let Some((offset, kind)) = crowded_element(text, options.max_attributes, pairs) {
+        return Err(BtXmlError::new(Some(line_column(text, offset)), kind).in_file(name));
     }
     let parsing = ParsingOptions {
         allow_dtd: false,
@@ -762,16 +784,20 @@ fn parse_document<'t>(
     })
 }
 
-/// The offset of the first start tag with more than `limit` attributes (counted as `=` outside
-/// quotes), in one pass over the text; comments, CDATA, processing instructions and
-/// declarations are skipped. Not-well-formed text is left to the parser.
-fn crowded_element(text: &str, limit: usize) -> Option<usize> {
+/// What the XML parser would spend more than linear time on, found in one pass over the text
+/// before it is parsed: the offset of the first start tag with more than `limit` attributes
+/// (counted as `=` outside quotes), of the tag that takes the attribute pairs of the document
+/// (`pairs`, counted up) beyond [`MAX_ATTRIBUTE_PAIRS`], or of the namespace declaration beyond
+/// [`MAX_NAMESPACES`] in this text. Comments, CDATA, processing instructions and declarations
+/// are skipped. Not-well-formed text is left to the parser.
+fn crowded_element(text: &str, limit: usize, pairs: &mut u64) -> Option<(usize, BtXmlErrorKind)> {
     let bytes = text.as_bytes();
     let skip_to = |from: usize, end: &str| {
         text[from..]
             .find(end)
             .map_or(bytes.len(), |i| from + i + end.len())
     };
+    let mut namespaces = 0;
     let mut i = 0;
     while let Some(found) = text[i..].find('<') {
         let start = i + found;
@@ -785,7 +811,7 @@ fn crowded_element(text: &str, limit: usize) -> Option<usize> {
         } else if rest.starts_with("<!") || rest.starts_with("</") {
             i = skip_to(start + 2, ">");
         } else {
-            let mut count = 0;
+            let mut count: usize = 0;
             let mut quote = None;
             let mut j = start + 1;
             while j < bytes.len() {
@@ -796,12 +822,35 @@ fn crowded_element(text: &str, limit: usize) -> Option<usize> {
                     None if c == b'"' || c == b'\'' => quote = Some(c),
                     None if c == b'=' => count += 1,
                     None if c == b'>' || c == b'<' => break,
+                    None if c.is_ascii_whitespace()
+                        && is_namespace_declaration(&bytes[j + 1..]) =>
+                    {
+                        namespaces += 1;
+                        if namespaces > MAX_NAMESPACES {
+                            return Some((
+                                j + 1,
+                                BtXmlErrorKind::TooManyNamespaces {
+                                    limit: MAX_NAMESPACES,
+                                },
+                            ));
+                        }
+                    }
                     None => {}
                 }
                 j += 1;
             }
             if count > limit {
-                return Some(start);
+                return Some((start, BtXmlErrorKind::TooManyAttributes { limit }));
+            }
+            let c = count as u64;
+            *pairs = pairs.saturating_add(c * c.saturating_sub(1) / 2);
+            if *pairs > MAX_ATTRIBUTE_PAIRS {
+                return Some((
+                    start,
+                    BtXmlErrorKind::TooManyAttributePairs {
+                        limit: MAX_ATTRIBUTE_PAIRS,
+                    },
+                ));
             }
             i = j;
         }
@@ -812,6 +861,14 @@ fn crowded_element(text: &str, limit: usize) -> Option<usize> {
     None
 }
 
+/// Whether an attribute starting at `rest` declares a namespace (`xmlns=`, `xmlns:p=`).
+fn is_namespace_declaration(rest: &[u8]) -> bool {
+    rest.strip_prefix(b"xmlns").is_some_and(|after| {
+        matches!(after.first(), Some(b':' | b'=') | None)
+            || after.first().is_some_and(u8::is_ascii_whitespace)
+    })
+}
+
 fn read_text(
     name: &str,
     text: &str,
@@ -820,13 +877,15 @@ fn read_text(
     registry: &Registry,
     options: &BtReadOptions,
 ) -> Result<BtXml, BtXmlError> {
-    let doc = parse_document(name, text, options)?;
+    let mut pairs = 0;
+    let doc = parse_document(name, text, options, &mut pairs)?;
     let mut source = Source::new(name.to_owned(), dir, doc);
     source.chain = Rc::new(vec![(key.clone(), name.to_owned())]);
     let mut loader = Loader {
         registry,
         options,
         bytes: text.len() as u64,
+        pairs,
         files: 0,
         loaded: key.into_iter().collect(),
     };
@@ -850,6 +909,8 @@ struct Loader<'r> {
     options: &'r BtReadOptions,
     /// Bytes read so far.
     bytes: u64,
+    /// Pairs of attributes on one element read so far ([`MAX_ATTRIBUTE_PAIRS`]).
+    pairs: u64,
     /// `<include>`s followed so far.
     files: usize,
     /// Canonical paths of the files read.
@@ -980,7 +1041,7 @@ fn load<'s>(
         }),
     })?;
     loader.bytes += text.len() as u64;
-    let doc = parse_document(&resolved, &text, loader.options)?;
+    let doc = parse_document(&resolved, &text, loader.options, &mut loader.pairs)?;
     let mut chain = from.chain.as_ref().clone();
     chain.push((Some(key), resolved.clone()));
     let source = Source {
@@ -1775,7 +1836,7 @@ fn write_runtime_node(out: &mut String, tree: &Tree, index: usize, depth: usize)
         write_attribute(out, "name", node.name());
     }
     write_attribute(out, "_uid", &node.uid().to_string());
-    for (port, value) in node.ports() {
+    for (port, value) in &node.ports() {
         if is_xml_name(port) && is_port_attribute(port) {
             write_attribute(out, port, value);
         }

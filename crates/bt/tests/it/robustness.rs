@@ -257,3 +257,107 @@ fn validation_alone_finds_what_instantiation_would_refuse() {
     );
     assert_eq!(e.attribute(), Some("delay_msec"), "{e}");
 }
+
+/// A document of `count` trees, each the `SubTree` of the next (the last a leaf).
+fn subtree_chain(count: usize) -> BtDocument {
+    let trees = (0..count)
+        .map(|i| {
+            let root = if i + 1 < count {
+                NodeDef::subtree(&format!("T{}", i + 1))
+            } else {
+                NodeDef::action("AlwaysSuccess")
+            };
+            TreeDef::new(&format!("T{i}"), root)
+        })
+        .collect();
+    BtDocument {
+        main_tree: Some("T0".to_owned()),
+        trees,
+        node_models: Vec::new(),
+    }
+}
+
+#[test]
+fn a_chain_of_100000_subtrees_is_validated_without_recursion_in_linear_time() {
+    // The search for recursive subtrees recursed once per tree of a chain (a stack overflow
+    // here) and searched the chain for each tree (quadratic).
+    let doc = subtree_chain(100_000);
+    chronomap_bt::validate(&doc, &Registry::new()).unwrap();
+    // Instantiating it is refused at the depth limit, in the tree where it is passed.
+    let e = Tree::new(&doc, &Registry::new()).unwrap_err();
+    assert_eq!(*e.kind(), DefinitionErrorKind::TooDeep { max: MAX_DEPTH });
+    assert_eq!(e.location().unwrap().tree, "T1000");
+    // A cycle at its end is found, with the whole chain.
+    let mut doc = doc;
+    let last = doc.trees.len() - 1;
+    doc.trees[last].root = NodeDef::subtree("T50000");
+    let e = chronomap_bt::validate(&doc, &Registry::new()).unwrap_err();
+    let DefinitionErrorKind::RecursiveSubTree { chain } = e.kind() else {
+        panic!("{e}");
+    };
+    assert_eq!(chain.len(), 50_001);
+    assert_eq!(
+        (chain[0].as_str(), chain[50_000].as_str()),
+        ("T50000", "T50000")
+    );
+}
+
+#[test]
+fn a_description_100000_deep_is_validated_and_refused_without_recursion() {
+    // Validation walked descriptions recursively (a stack overflow at this depth).
+    let mut doc = doc(inverter_chain(100_000));
+    chronomap_bt::validate(&doc, &Registry::new()).unwrap();
+    let e = Tree::new(&doc, &Registry::new()).unwrap_err();
+    assert_eq!(*e.kind(), DefinitionErrorKind::TooDeep { max: MAX_DEPTH });
+    assert_eq!(e.location().unwrap().path.len(), MAX_DEPTH);
+    // Dropping a `NodeDef` recurses: take the chain apart from the top.
+    let mut node = std::mem::replace(&mut doc.trees[0].root, NodeDef::action("AlwaysSuccess"));
+    while let Some(child) = node.children.pop() {
+        node = child;
+    }
+}
+
+#[test]
+fn many_models_and_a_model_with_many_ports_cost_their_size_once() {
+    // 50,000 declared actions used once each, and one action with 50,000 ports with defaults
+    // used by 50,000 nodes: each model was copied (or searched for) once per node using it,
+    // and every node held a copy of every default (2.5 billion).
+    use chronomap_bt::script::scripted_registry;
+    use chronomap_bt::{NodeCategory, NodeModel, PortSpec};
+    let count = 50_000;
+    let mut models: Vec<NodeModel> = (0..count)
+        .map(|i| NodeModel::new(NodeCategory::Action, &format!("A{i}")))
+        .collect();
+    let mut big = NodeModel::new(NodeCategory::Action, "Big");
+    for i in 0..count {
+        let mut port = PortSpec::input(&format!("p{i}"));
+        port.default = Some(i.to_string());
+        big.ports.push(port);
+    }
+    models.push(big);
+    for uses in [
+        (0..count)
+            .map(|i| NodeDef::action(&format!("A{i}")))
+            .collect::<Vec<_>>(),
+        (0..count)
+            .map(|_| NodeDef::action("Big").port("p7", "{x}"))
+            .collect(),
+    ] {
+        let mut root = NodeDef::control("Sequence");
+        root.children = uses;
+        let doc = BtDocument {
+            main_tree: Some("Main".to_owned()),
+            trees: vec![TreeDef::new("Main", root)],
+            node_models: models.clone(),
+        };
+        let (registry, _) = scripted_registry(&doc).unwrap();
+        let tree = Tree::new(&doc, &registry).unwrap();
+        assert_eq!(tree.nodes().len(), count + 1);
+        let ports = tree.node(2).unwrap().ports();
+        if tree.node(2).unwrap().id() == "Big" {
+            assert_eq!(ports.len(), count);
+            assert_eq!(ports[0], ("p7".to_owned(), "{x}".to_owned()));
+            assert_eq!(ports[1], ("p0".to_owned(), "0".to_owned()));
+        }
+    }
+}

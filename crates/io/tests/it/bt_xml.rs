@@ -1200,3 +1200,71 @@ fn script_nodes_and_conditions_read_in_compact_form_and_run() {
         Some("1".to_owned())
     );
 }
+
+#[test]
+fn namespace_declarations_and_attribute_pairs_are_bounded_before_parsing() {
+    // 9,000 namespace declarations, and 10,000 elements that declare one more: the parser
+    // copied the 9,000 to each (over two minutes); now refused at the 65th declaration.
+    let mut text = String::from("<root BTCPP_format=\"4\"\n");
+    for i in 0..9_000 {
+        let _ = std::fmt::Write::write_fmt(&mut text, format_args!(" xmlns:p{i}=\"u\""));
+    }
+    text.push_str("><BehaviorTree ID=\"A\"><Sequence>");
+    text.push_str(&"<AlwaysSuccess xmlns:q=\"v\"/>".repeat(10_000));
+    text.push_str("</Sequence></BehaviorTree></root>");
+    let e = parse_bt_xml("ns.xml", &text, &Registry::new()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "ns.xml:2:{}: more than 64 namespace declarations (xmlns) in one file (a limit of \
+             this reader)",
+            position_of(&text, "xmlns:p64").1
+        )
+    );
+    // A few are read as before (and refused where used).
+    let text = "<root BTCPP_format=\"4\" xmlns:x=\"urn:x\">\n  <BehaviorTree ID=\"A\">\n    <AlwaysSuccess x:note=\"1\"/>\n  </BehaviorTree>\n</root>";
+    assert!(matches!(
+        error(text).kind(),
+        BtXmlErrorKind::Namespace { .. }
+    ));
+
+    // 100 elements of 9,000 attributes: the parser compares an element's attributes pairwise
+    // (18 s); now the document is refused at the element whose pairs pass 50 million.
+    let mut text = String::from("<root BTCPP_format=\"4\"><TreeNodesModel>\n");
+    let attributes: String = (0..9_000).map(|i| format!(" a{i}=\"\"")).collect();
+    for i in 0..100 {
+        let _ = std::fmt::Write::write_fmt(
+            &mut text,
+            format_args!("<Action ID=\"X{i}\"{attributes}/>\n"),
+        );
+    }
+    text.push_str("</TreeNodesModel><BehaviorTree ID=\"A\"><AlwaysSuccess/></BehaviorTree></root>");
+    let e = parse_bt_xml("pairs.xml", &text, &Registry::new()).unwrap_err();
+    assert!(
+        matches!(
+            e.kind(),
+            BtXmlErrorKind::TooManyAttributePairs { limit: 50_000_000 }
+        ),
+        "{e}"
+    );
+    assert_eq!((e.line(), e.column()), (Some(3), Some(1)));
+}
+
+#[test]
+fn a_model_with_many_ports_used_by_many_nodes_is_checked_in_linear_time() {
+    // One model of 20,000 ports and 20,000 nodes using it: validation copied and indexed the
+    // model's ports once per node (minutes); now once.
+    let mut text = String::from("<root BTCPP_format=\"4\"><TreeNodesModel><Action ID=\"Big\">\n");
+    for i in 0..20_000 {
+        let _ = std::fmt::Write::write_fmt(
+            &mut text,
+            format_args!("<input_port name=\"p{i}\" default=\"{i}\"/>\n"),
+        );
+    }
+    text.push_str("</Action></TreeNodesModel>\n<BehaviorTree ID=\"A\"><Sequence>\n");
+    text.push_str(&"<Big p0=\"1\"/>\n".repeat(20_000));
+    text.push_str("<Big p20000=\"1\"/>\n</Sequence></BehaviorTree></root>");
+    let e = parse_bt_xml("t.xml", &text, &Registry::new()).unwrap_err();
+    assert_at(&e, &text, "p20000=", Some("p20000"));
+    assert_eq!(e.line(), Some(40_004));
+}
