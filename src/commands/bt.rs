@@ -184,10 +184,13 @@ fn implement(
     };
     let (mut registry, outcomes) =
         scripted_registry(&leaves).context("cannot implement the leaves")?;
+    // Looked up by hash: a document may declare and use many models.
+    let models = doc.node_models_by_id();
     let model_of = |id: &str, category: NodeCategory| {
-        doc.node_model(id)
+        models
+            .get(id)
             .filter(|m| m.category == category)
-            .cloned()
+            .map(|m| (*m).clone())
             .unwrap_or_else(|| NodeModel::new(category, id))
     };
     let mut notes = Vec::new();
@@ -208,7 +211,8 @@ fn implement(
         if category.is_leaf() || registry.contains(id) {
             continue;
         }
-        match base.lookup(id, &doc.node_models) {
+        let declared = models.get(id.as_str()).map(|m| std::slice::from_ref(*m));
+        match base.lookup(id, declared.unwrap_or_default()) {
             Ok(m) if m.source == ManifestSource::Declared => {}
             _ => continue, // built in (or unknown: validation says so)
         }
@@ -269,6 +273,7 @@ fn flatten<'d>(doc: &'d BtDocument, id: &str) -> Result<Vec<Flat<'d>>> {
     let tree = doc
         .tree(id)
         .ok_or_else(|| anyhow!("there is no <BehaviorTree ID=\"{id}\">"))?;
+    let trees = doc.trees_by_id();
     let mut out: Vec<Flat<'d>> = Vec::new();
     let mut stack: Vec<(&NodeDef, usize, Option<usize>)> = vec![(&tree.root, 0, None)];
     while let Some((node, depth, parent)) = stack.pop() {
@@ -286,7 +291,7 @@ fn flatten<'d>(doc: &'d BtDocument, id: &str) -> Result<Vec<Flat<'d>>> {
             out[p].children.push(index + 1);
         }
         if node.category == NodeCategory::SubTree {
-            if let Some(sub) = doc.tree(&node.id) {
+            if let Some(sub) = trees.get(node.id.as_str()) {
                 stack.push((&sub.root, depth + 1, Some(index)));
             }
         } else {
@@ -298,9 +303,21 @@ fn flatten<'d>(doc: &'d BtDocument, id: &str) -> Result<Vec<Flat<'d>>> {
     Ok(out)
 }
 
+/// An error of instantiation at the file, line and column of the node concerned (in the file
+/// that node is in), else after the file's name.
+fn located(xml: &BtXml, e: &chronomap_bt::DefinitionError, name: &str) -> anyhow::Error {
+    match e.location().and_then(|l| Some((l, xml.locate(l)?))) {
+        Some((l, (file, line, column))) => {
+            anyhow!("{file}:{line}:{column}: tree \"{}\": {}", l.tree, e.kind())
+        }
+        None => anyhow!(e.clone()).context(name.to_owned()),
+    }
+}
+
 pub fn check(args: &BtCheckArgs) -> Result<()> {
-    let doc = load_xml(&args.file, &args.nodes)?.document;
-    let main = main_tree(&args.file, &doc, args.tree.as_deref())?;
+    let xml = load_xml(&args.file, &args.nodes)?;
+    let doc = &xml.document;
+    let main = main_tree(&args.file, doc, args.tree.as_deref())?;
     let name = args.file.display();
     // Instantiating finds what only instantiation checks (children of IfThenElse, Switch…);
     // custom controls and decorators stand in as stubs for that.
@@ -308,22 +325,22 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
         structure_only: true,
         ..Stubs::default()
     };
-    let (registry, _, _) = implement(&doc, &stubs).with_context(|| name.to_string())?;
-    if let Err(e) = Tree::with_main(&doc, &main, &registry) {
+    let (registry, _, _) = implement(doc, &stubs).with_context(|| name.to_string())?;
+    if let Err(e) = Tree::with_main(doc, &main, &registry) {
         if *e.kind() == DefinitionErrorKind::TooManyNodes {
             eprintln!(
                 "warning: {name}: tree {main} has more than 65535 nodes: `bt run` and Groot2 \
                  logs take at most 65535 (uids are 16-bit)"
             );
         } else {
-            return Err(anyhow!(e).context(name.to_string()));
+            return Err(located(&xml, &e, &name.to_string()));
         }
     }
-    let nodes = flatten(&doc, &main)?;
+    let nodes = flatten(doc, &main).with_context(|| name.to_string())?;
     let ids: Vec<&str> = doc.trees.iter().map(|t| t.id.as_str()).collect();
     let leaves = nodes.iter().filter(|n| n.node.category.is_leaf()).count();
     if let Some(path) = &args.output {
-        write_bt_xml(path, &doc)?;
+        write_bt_xml(path, doc)?;
     }
     if args.json {
         let nodes: Vec<Value> = nodes.iter().map(node_json).collect();
@@ -399,7 +416,8 @@ fn node_json(flat: &Flat<'_>) -> Value {
 }
 
 pub fn run(args: &BtRunArgs) -> Result<()> {
-    let doc = load_xml(&args.file, &args.nodes)?.document;
+    let xml = load_xml(&args.file, &args.nodes)?;
+    let doc = &xml.document;
     let script = match &args.script {
         Some(path) => read_bt_script(path)?,
         None => Script {
@@ -418,12 +436,13 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
     };
     let name = args.file.display();
     let (mut registry, outcomes, notes) =
-        implement(&doc, &stubs).with_context(|| name.to_string())?;
+        implement(doc, &stubs).with_context(|| name.to_string())?;
     for (enum_name, value) in &args.enums {
         registry.register_enum(enum_name, *value);
     }
-    let main = main_tree(&args.file, &doc, args.tree.as_deref())?;
-    let mut tree = Tree::with_main(&doc, &main, &registry).with_context(|| name.to_string())?;
+    let main = main_tree(&args.file, doc, args.tree.as_deref())?;
+    let mut tree =
+        Tree::with_main(doc, &main, &registry).map_err(|e| located(&xml, &e, &name.to_string()))?;
     for note in &notes {
         eprintln!("note: {note}");
     }

@@ -887,3 +887,45 @@ fn script_nodes_run_and_enums_come_from_the_command_line() {
         assert!(err.contains("--enum"), "{bad}: {err}");
     }
 }
+
+#[test]
+fn nesting_through_subtrees_and_a_100000_deep_file_are_refused_at_their_line() {
+    let dir = scratch("bt_deep_subtrees");
+    // 100 trees of 900 nested sequences, each around the SubTree of the next: the limit of
+    // 1,000 levels is passed in T1, which the error named only by a path of 100 child indices.
+    let mut chain = String::from("<root BTCPP_format=\"4\" main_tree_to_execute=\"T0\">\n");
+    for i in 0..100 {
+        chain.push_str(&format!("<BehaviorTree ID=\"T{i}\">\n"));
+        chain.push_str(&"<Sequence>\n".repeat(900));
+        if i < 99 {
+            chain.push_str(&format!("<SubTree ID=\"T{}\"/>\n", i + 1));
+        } else {
+            chain.push_str("<AlwaysSuccess/>\n");
+        }
+        chain.push_str(&"</Sequence>\n".repeat(900));
+        chain.push_str("</BehaviorTree>\n");
+    }
+    chain.push_str("</root>\n");
+    let file = write_arg(&dir, "chain.xml", chain);
+    let err = error(&chronomap(&["bt", "check", &file]));
+    // T0 takes lines 2 to 1,804 and 901 levels (900 sequences and the SubTree); the 100th
+    // level of T1, 99 lines below its root on line 1,806, is the 1,001st.
+    assert_eq!(
+        err,
+        format!("error: {file}:1905:1: tree \"T1\": tree nesting deeper than 1000 levels\n")
+    );
+
+    let mut deep = String::from("<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"Deep\">\n");
+    deep.push_str(&"<Sequence>\n".repeat(100_000));
+    deep.push_str("<AlwaysSuccess/>\n");
+    deep.push_str(&"</Sequence>\n".repeat(100_000));
+    deep.push_str("</BehaviorTree>\n</root>\n");
+    let deep = write_arg(&dir, "deep.xml", deep);
+    let err = error(&chronomap(&["bt", "check", &deep]));
+    assert_eq!(
+        err,
+        format!(
+            "error: {deep}:1003:1: nodes nested deeper than 1000 levels (a limit of this reader)\n"
+        )
+    );
+}
