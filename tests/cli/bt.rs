@@ -838,7 +838,7 @@ fn includes_cycles_deep_and_endless_files_are_refused_with_the_place() {
     {
         let err = error(&chronomap(&["bt", "check", "/dev/zero"]));
         assert!(
-            err.contains("/dev/zero: the document's files are larger than"),
+            err.contains("/dev/zero") && err.contains("not a regular file"),
             "{err}"
         );
     }

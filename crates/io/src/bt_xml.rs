@@ -670,7 +670,8 @@ enum Limited {
 
 /// The file's text if it has at most `limit` bytes (reads at most `limit + 1`).
 fn read_limited(path: &Path, limit: u64) -> Result<String, Limited> {
-    let file = std::fs::File::open(path).map_err(Limited::Io)?;
+    // A directory, a device such as /dev/zero or a pipe is refused before reading.
+    let file = crate::bounded::open_regular(path).map_err(Limited::Io)?;
     let mut bytes = Vec::new();
     file.take(limit.saturating_add(1))
         .read_to_end(&mut bytes)

@@ -860,7 +860,15 @@ fn a_file_included_twice_is_read_once_and_limits_are_errors() {
 #[cfg(unix)]
 #[test]
 fn endless_and_huge_inputs_are_bounded() {
+    // A device is refused before anything is read ...
     let e = read_bt_xml("/dev/zero", &Registry::new()).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    // ... and a regular file larger than the limit after reading just past it (a sparse file).
+    let path = std::env::temp_dir().join(format!("bt-huge-{}.xml", std::process::id()));
+    let file = std::fs::File::create(&path).unwrap();
+    file.set_len(chronomap_io::bt_xml::MAX_BYTES + 1).unwrap();
+    let e = read_bt_xml(&path, &Registry::new()).unwrap_err();
+    std::fs::remove_file(&path).unwrap();
     assert!(
         matches!(e.kind(), BtXmlErrorKind::TooManyBytes { .. }),
         "{e}"
