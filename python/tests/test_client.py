@@ -14,7 +14,7 @@ import chronomap._native as native
 from chronomap.client import Client, ServiceError, read_token
 
 TRAINING = "data/door_greg_2016/training_data.txt.xz"
-TOKEN = "python-tests-0123456789abcdef"
+TOKEN = "python-tests-0123456789abcdef-0123456789"
 # The first test week, every hour (as `chronomap client predict --from --to --step` asks).
 FROM, TO, STEP = 1458518400.0, 1459123200.0, 3600.0
 
@@ -25,6 +25,7 @@ def service(cli, tmp_path_factory):
     folder = tmp_path_factory.mktemp("service")
     token_file = folder / "token"
     token_file.write_text(TOKEN + "\n")
+    token_file.chmod(0o600)  # the service refuses a token file others can read
     process = subprocess.Popen(
         [str(cli.binary), "serve", "--data", str(folder / "data"), "--listen", "127.0.0.1:0",
          "--token-file", str(token_file)],
