@@ -149,6 +149,15 @@ fn errors_by_order(errors: &[f64]) -> String {
         .join(" ")
 }
 
+/// What a spec was fitted as, for the "fitted as" column: its resolved spec (`fremen:10` for
+/// `fremen:auto`), or for `auto` the number of models it combines.
+pub(crate) fn fitted_as(model: &chronomap_models::AnyModel) -> String {
+    match model {
+        chronomap_models::AnyModel::Stack(stack) => format!("stack of {}", stack.members().count()),
+        other => other.spec().to_string(),
+    }
+}
+
 /// One line saying how a model's order or family was chosen.
 fn describe_selection(selection: &Selection) -> String {
     match selection {
@@ -158,22 +167,25 @@ fn describe_selection(selection: &Selection) -> String {
             s.held_back,
             errors_by_order(&s.errors)
         ),
-        Selection::Model {
-            chosen,
-            errors,
-            held_back,
-            inner,
-        } => {
-            let errors: Vec<String> = errors.iter().map(|(m, e)| format!("{m} {e:.4}")).collect();
-            let mut text = format!(
-                "{chosen} chosen on {held_back} held-back observations ({})",
-                errors.join(", ")
-            );
-            if let Some(inner) = inner {
-                text.push_str("; then ");
-                text.push_str(&describe_selection(inner));
-            }
-            text
+        Selection::Stack(stack) => {
+            let weights: Vec<String> = stack
+                .weights
+                .iter()
+                .map(|(m, w)| format!("{m} {w:.3}"))
+                .collect();
+            let best = stack
+                .errors
+                .iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map_or(String::new(), |(m, e)| format!(", best single {m} {e:.4}"));
+            format!(
+                "weights {} fitted on {} out-of-sample predictions from {} rolling origins \
+                 (Brier {:.4}{best})",
+                weights.join(", "),
+                stack.held_back,
+                stack.origins,
+                stack.combined_error
+            )
         }
         Selection::Hypertime {
             periods,

@@ -226,6 +226,16 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
             )?;
             outln!("{}", fft_components_table(m).render())?;
         }
+        AnyModel::Stack(m) => {
+            outln!(
+                "a weighted average of these models (weights fitted by rolling-origin cross-validation):"
+            )?;
+            let mut table = Table::new(["weight", "model"]);
+            for (member, weight) in m.members() {
+                table.row([format!("{weight:.4}"), member.spec().to_string()]);
+            }
+            outln!("{}", table.render())?;
+        }
     }
     Ok(())
 }
@@ -352,6 +362,12 @@ fn inspect_json(args: &InspectArgs, model: &AnyModel) -> Value {
                 "components": fft_components_json(m),
             })
         }
+        AnyModel::Stack(m) => json!({
+            "members": m.members().map(|(member, weight)| json!({
+                "weight": weight,
+                "model": member.spec().to_string(),
+            })).collect::<Vec<_>>(),
+        }),
     };
     json!({
         "file": args.model.display().to_string(),

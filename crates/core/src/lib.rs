@@ -28,7 +28,8 @@
 //! * Models: [`MeanModel`], [`HistogramModel`], [`FremenModel`] (non-uniform incremental
 //!   FreMEn), [`PersistenceModel`], [`MarkovModel`] (short-term memory), [`PergamModel`]
 //!   (periodic Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
-//! * [`select`] — order and model selection on held-back data. [`anomaly`] — anomaly
+//! * [`select`] — order and model selection on held-back data. [`stacking`] — weights that
+//!   combine models' out-of-sample predictions. [`anomaly`] — anomaly
 //!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`naive`] — slow
 //!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
 //!   use (results never depend on it); [`rng`] — seeded randomness; [`time`] — calendar
@@ -63,6 +64,7 @@ pub mod progress;
 pub use chronomap_rng as rng;
 pub mod select;
 pub mod spectrum;
+pub mod stacking;
 pub mod stm;
 #[cfg(test)]
 mod testdata;

@@ -3,7 +3,8 @@
 //! Every temporal model of chronomap by name: [`ModelSpec`] parses `fremen:auto`, `hist:24`,
 //! `hyt-em:3` or `auto` and fits it; [`AnyModel`] is the serialisable union of all models that
 //! files, the command line and the service pass around; [`eval`] runs the train/test
-//! experiment of the FreMEn benchmarks over any list of specs; [`features`] the feature
+//! experiment of the FreMEn benchmarks over any list of specs; [`stack`] what `auto` fits, a
+//! combination of many models weighted by rolling-origin cross-validation; [`features`] the feature
 //! visibility experiment (which features will the robot see?); [`split`] chronological
 //! splits of one series into training and test parts.
 //!
@@ -15,6 +16,7 @@
 pub mod eval;
 pub mod features;
 pub mod spec;
+pub mod stack;
 pub mod split;
 
 pub use spec::{AnyModel, FitOptions, ModelSpec};

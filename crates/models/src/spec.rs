@@ -13,7 +13,7 @@
 //! | `stm` | [`MarkovModel`], short-term memory ([Santos 2017] eq. (5)–(6)) |
 //! | `pergam:K[:PERIOD]`, `pergam:auto` | [`PergamModel`], periodic Gaussian mixture ([Santos 2017] eq. (7)–(9)) |
 //! | `fft:L`, `fft:auto` | [`FftFremen`], FFT FreMEn with outlier set (uniformly sampled binary data only) |
-//! | `auto` | the candidate with the lowest error on held-back data, refitted on everything |
+//! | `auto` | [`StackedModel`]: a weighted average of many candidates, the weights fitted by rolling-origin cross-validation ([`crate::stack`]) |
 
 use std::fmt;
 use std::str::FromStr;
@@ -35,6 +35,8 @@ use chronomap_core::select::{
     Criterion, OrderSelection, fit_with_order_selection, holdout_split, select_order_online,
 };
 use chronomap_core::stm::MarkovModel;
+
+use crate::stack::{StackSelection, StackedModel, fit_stacked};
 #[cfg(feature = "hypertime")]
 use chronomap_hypertime::hypertime::{Clustering, Components, HypertimeConfig, HypertimeModel};
 
@@ -255,12 +257,15 @@ pub struct FitOptions {
     /// Most recent fraction of the training time span held back to choose orders and models
     /// (default 0.25, the 75/25 chronological split of the deployed FreMEn tools).
     pub holdout: f64,
-    /// Largest FreMEn order tried by `auto` (default 10).
+    /// Largest FreMEn order tried by `fremen:auto` and combined by `auto` (default 10).
     pub max_order: usize,
     /// Largest number of mixture components tried by `pergam:auto` (default 6).
     pub max_components: usize,
-    /// How held-back predictions are scored (default Brier).
+    /// How held-back predictions are scored (default Brier; `auto` always combines by Brier).
     pub criterion: Criterion,
+    /// Rolling origins at which `auto` scores its candidates (default 6: 40 %, 50 %, …, 90 % of
+    /// the training span; [`crate::stack::origin_fractions`]).
+    pub origins: usize,
     /// Parallelism of the spectral accumulation (results do not depend on it).
     pub parallelism: Parallelism,
 }
@@ -273,6 +278,7 @@ impl Default for FitOptions {
             max_order: 10,
             max_components: 6,
             criterion: Criterion::Brier,
+            origins: 6,
             parallelism: Parallelism::Sequential,
         }
     }
@@ -283,17 +289,8 @@ impl Default for FitOptions {
 pub enum Selection {
     /// The order was chosen on held-back data.
     Order(OrderSelection),
-    /// The model was chosen among candidates on held-back data (`auto`).
-    Model {
-        /// The candidate chosen.
-        chosen: ModelSpec,
-        /// Held-back error of every candidate.
-        errors: Vec<(ModelSpec, f64)>,
-        /// Number of held-back observations.
-        held_back: usize,
-        /// How the chosen model's own order was then chosen, if it has one.
-        inner: Option<Box<Selection>>,
-    },
+    /// The weights of a combination, fitted on rolling origins (`auto`).
+    Stack(StackSelection),
     #[cfg(feature = "hypertime")]
     /// The periodicities and components of a Warped Hypertime model, chosen on the most
     /// recent part of the training data ([Krajník 2019] §III-B).
@@ -315,28 +312,6 @@ pub struct Fitted {
 }
 
 impl ModelSpec {
-    /// The candidates `auto` chooses from.
-    pub fn auto_candidates() -> Vec<ModelSpec> {
-        vec![
-            ModelSpec::Mean,
-            ModelSpec::Histogram {
-                bins: 24,
-                period_secs: WEEK,
-            },
-            ModelSpec::Histogram {
-                bins: 168,
-                period_secs: WEEK,
-            },
-            ModelSpec::Fremen(OrderSpec::Auto),
-            ModelSpec::Persistence(OrderSpec::Auto),
-            ModelSpec::Pergam {
-                components: OrderSpec::Auto,
-                period_secs: DAY,
-            },
-            ModelSpec::Markov,
-        ]
-    }
-
     /// Builds the model this spec describes from training observations, choosing orders and
     /// models on held-back data where the spec says `auto`.
     ///
@@ -432,7 +407,13 @@ impl ModelSpec {
                 }
             }
             ModelSpec::Fft(order) => fit_fft(order, times, values, options)?,
-            ModelSpec::Auto => fit_auto(times, values, options)?,
+            ModelSpec::Auto => {
+                let (model, selection) = fit_stacked(times, values, options)?;
+                Fitted {
+                    model: AnyModel::Stack(Box::new(model)),
+                    selection: Some(Selection::Stack(selection)),
+                }
+            }
             #[cfg(feature = "hypertime")]
             ModelSpec::HypertimeEm(components) => {
                 let components = match components {
@@ -562,38 +543,6 @@ fn fit_fft(
     })
 }
 
-/// `auto`: every candidate is fitted on the earlier part, scored on the held-back part, and
-/// the best is refitted on everything (ties keep the earlier, simpler candidate).
-fn fit_auto(times: &[f64], values: &[f64], options: &FitOptions) -> Result<Fitted, BuildError> {
-    let split = holdout_split(times, options.holdout)?;
-    let (train_t, train_v) = (&times[..split], &values[..split]);
-    let (held_t, held_v) = (&times[split..], &values[split..]);
-    let mut errors = Vec::new();
-    for candidate in ModelSpec::auto_candidates() {
-        // A candidate that cannot be fitted on the earlier part (e.g. too short to hold
-        // back again) is skipped rather than failing `auto`.
-        if let Ok(fitted) = candidate.fit(train_t, train_v, options) {
-            let predictions = fitted.model.predict_many(held_t);
-            errors.push((candidate, options.criterion.error(&predictions, held_v)));
-        }
-    }
-    let (chosen, _) = errors
-        .iter()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .cloned()
-        .ok_or_else(|| BuildError::NotEnoughData("no candidate model could be fitted".into()))?;
-    let refit = chosen.fit(times, values, options)?;
-    Ok(Fitted {
-        model: refit.model,
-        selection: Some(Selection::Model {
-            chosen,
-            errors,
-            held_back: held_t.len(),
-            inner: refit.selection.map(Box::new),
-        }),
-    })
-}
-
 /// Any model of this crate: what model files store and services hold.
 ///
 /// Variants are only ever appended (their index is part of the model file format).
@@ -616,6 +565,8 @@ pub enum AnyModel {
     #[cfg(feature = "hypertime")]
     /// [`HypertimeModel`].
     Hypertime(Box<HypertimeModel>),
+    /// [`StackedModel`] (`auto`).
+    Stack(Box<StackedModel>),
 }
 
 macro_rules! delegate {
@@ -630,6 +581,7 @@ macro_rules! delegate {
             AnyModel::Fft($m) => $body,
             #[cfg(feature = "hypertime")]
             AnyModel::Hypertime($m) => $body,
+            AnyModel::Stack($m) => $body,
         }
     };
 }
@@ -668,6 +620,7 @@ impl AnyModel {
                 Clustering::Em(_) => "hyt-em",
                 Clustering::KMeans => "hyt-km",
             },
+            AnyModel::Stack(_) => "stack",
         }
     }
 
@@ -694,6 +647,8 @@ impl AnyModel {
                 }
                 Clustering::KMeans => ModelSpec::HypertimeKm,
             },
+            // What `auto` fits; its members and weights: [`AnyModel::Stack`].
+            AnyModel::Stack(_) => ModelSpec::Auto,
         }
     }
 
@@ -733,6 +688,7 @@ impl AnyModel {
             AnyModel::Fft(m) => m.is_consistent(),
             #[cfg(feature = "hypertime")]
             AnyModel::Hypertime(m) => m.is_consistent(),
+            AnyModel::Stack(m) => m.is_consistent(),
         }
     }
 }

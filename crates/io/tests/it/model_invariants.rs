@@ -80,6 +80,7 @@ fn models_with_impossible_numbers_are_refused_after_the_checksum() {
         "stm",
         "pergam:2",
         "hyt-km",
+        "auto",
     ] {
         let fitted = spec
             .parse::<ModelSpec>()
@@ -142,5 +143,46 @@ fn a_nan_parameter_behind_a_valid_checksum_is_refused_when_read() {
             "{}: the model in the file is inconsistent: the stm model breaks its invariants",
             path.display()
         )
+    );
+}
+
+/// A stacked model (`auto`) inside a stacked model is refused while decoding, at the second
+/// level: a file nesting them 100,000 deep gets a decoding error, not a stack overflow
+/// (without the refusal, this test overflows its thread's stack).
+#[test]
+fn stacked_models_nested_in_a_file_are_refused_without_recursion() {
+    let (times, values) = door();
+    let fitted = ModelSpec::Auto
+        .fit(&times, &values, &FitOptions::default())
+        .unwrap();
+    assert_eq!(fitted.model.kind(), "stack");
+    let bytes = encode_model("stack", &fitted.model).unwrap();
+    let stack = payload(&bytes);
+    let variant = stack[0];
+    for depth in [100_000usize, 1] {
+        // Each level: the variant, one member (the level below), then one weight of 1.0.
+        let mut nested = Vec::new();
+        for _ in 0..depth {
+            nested.extend([variant, 1]);
+        }
+        nested.extend_from_slice(stack);
+        for _ in 0..depth {
+            nested.push(1);
+            nested.extend(1.0f64.to_le_bytes());
+        }
+        let file = encode_model("stack", &Raw(&nested)).unwrap();
+        // (postcard reports the refusal without its message.)
+        let err = decode_any_model(&file).unwrap_err();
+        assert!(
+            matches!(err.kind(), ModelFileErrorKind::Decode { .. }),
+            "depth {depth}: {err}"
+        );
+    }
+    // The stack itself reads back and predicts as fitted.
+    let model = decode_any_model(&bytes).unwrap();
+    let t = times[times.len() - 1] + 3600.0;
+    assert_eq!(
+        model.predict(t).to_bits(),
+        fitted.model.predict(t).to_bits()
     );
 }
