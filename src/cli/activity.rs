@@ -15,11 +15,13 @@ Examples (the bundled ATC grid of CoPA-Map, 10 days x 12 recorded hours, t = hou
 Files are CSV with the header x1,x2,t,y (cell centre in metres, time bin, people per hour of
 observation), plain, .xz or .gz; see data/README.md. NRMSE is eq. (4.20) of the dissertation
 (RMSE over the mean test rate), chi2 the chi-square distance of eq. (4.21). Every baseline is
-scored; the top-level nrmse/chi2 are those of --model. `auto` (default) picks the baseline of the
-least NRMSE on the last 20 % of the training times (never on the test). `copa` is CoPA-Map, the
+scored; the top-level nrmse/chi2 are those of --model. `copa` (default) is CoPA-Map, the
 heteroscedastic sparse variational GP (about a minute with the defaults on 2 cores; --inducing and
 --iterations trade time for accuracy; --init spectral starts its periods from Algorithm 4.1
-instead of the day); it is not part of `auto`. Fr-AAM treats each row as one hour of observation: the grid
+instead of the day). `log-additive` is Log-AM: ln(1 + rate) as a level per cell, a profile of the
+day and their shrunken interaction, predicting the median (milliseconds; docs/activity.md §6).
+`auto` picks the fast model of the least NRMSE on the last 20 % of the training times (never on
+the test); CoPA-Map is not part of it. Fr-AAM treats each row as one hour of observation: the grid
 files carry rates, not the dwell times behind them.";
 
 /// `chronomap activity ...`.
@@ -38,11 +40,13 @@ pub enum ActivityCommand {
     /// counted over whole bins, in the cells of a training grid; writes `x1,x2,t,y`.
     #[command(after_help = ACTIVITY_HELP_TRUTH)]
     Truth(ActivityTruthArgs),
-    /// Fit CoPA-Map to training rates and save it as a model file (versioned, checksummed).
+    /// Fit CoPA-Map (default) or Log-AM (--model log-additive) to training rates and save it as
+    /// a model file (versioned, checksummed).
     #[command(after_help = ACTIVITY_HELP_FIT)]
     Fit(ActivityFitArgs),
-    /// Predict the rate of people (mean and standard deviation) with a saved CoPA-Map over a
-    /// grid of cells at chosen times; write CSV and/or a PNG of mean and std per time.
+    /// Predict the rate of people (mean and standard deviation) with a saved CoPA-Map or Log-AM
+    /// over a grid of cells at chosen times; write CSV and/or a PNG of mean and std per time
+    /// (Log-AM's "mean" is its prediction exp(m) − 1, the median).
     #[command(after_help = ACTIVITY_HELP_FIT)]
     Predict(ActivityPredictArgs),
     /// The service-disturbance benchmark (eq. 4.22): patrols planned on each model's predicted
@@ -71,16 +75,19 @@ pub struct ActivityFitArgs {
     /// Where to write the model.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The model to fit: CoPA-Map (copa) or Log-AM (log-additive).
+    #[arg(long, value_enum, default_value_t = FitModel::Copa)]
+    pub model: FitModel,
     /// Length of a day in units of t (12: the ATC grid's 12 recorded hours).
     #[arg(long, default_value_t = 12.0, value_parser = parse_positive)]
     pub period: f64,
-    /// Inducing points.
+    /// Inducing points (CoPA-Map).
     #[arg(long, default_value_t = 200)]
     pub inducing: usize,
-    /// Training iterations.
+    /// Training iterations (CoPA-Map).
     #[arg(long, default_value_t = 300)]
     pub iterations: usize,
-    /// Model the rates themselves or ln(1 + rate).
+    /// Model the rates themselves or ln(1 + rate) (CoPA-Map).
     #[arg(long, value_enum, default_value_t = CopaScale::Rate)]
     pub scale: CopaScale,
     /// Seed of the minibatches and of the k-means of the inducing points.
@@ -94,7 +101,7 @@ pub struct ActivityFitArgs {
 /// `chronomap activity predict`.
 #[derive(Debug, Args)]
 pub struct ActivityPredictArgs {
-    /// A model written by `chronomap activity fit`.
+    /// A model written by `chronomap activity fit` (CoPA-Map or Log-AM).
     #[arg(long)]
     pub model: PathBuf,
     /// Times to predict, in the units of the training t (numbers, not dates); repeat the flag
@@ -211,7 +218,7 @@ of --cells-from), the detections in the cell during the whole bin, ignoring the 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ActivityModel {
     /// The baseline of the least NRMSE on a chronological hold-out of the training data
-    /// (global mean, ML, ML-log or Fr-AAM; GP-Hom and WHyTe are too slow to be tried).
+    /// (global mean, ML, ML-log, Fr-AAM or Log-AM; GP-Hom and WHyTe are too slow to be tried).
     Auto,
     /// The mean of all training rates.
     GlobalMean,
@@ -232,6 +239,20 @@ pub enum ActivityModel {
     Whyte,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
+    /// Log-AM: ln(1 + rate) as a level per cell plus a profile of the day (--period in 12
+    /// phase bins) and their interaction, shrunk by a κ chosen on the last 20 % of the
+    /// training times; predicts exp(mean) − 1 (docs/activity.md).
+    LogAdditive,
+}
+
+/// The models `chronomap activity fit` saves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FitModel {
+    /// CoPA-Map, the heteroscedastic sparse variational GP of §4.2.
+    Copa,
+    /// Log-AM: ln(1 + rate) as a level per cell, a profile of the day and their shrunken
+    /// interaction.
+    LogAdditive,
 }
 
 /// The scale CoPA-Map models rates on (`chronomap_activity::RateScale`).

@@ -5,8 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::{
-    Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, PeriodInitMode,
-    RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
+    Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, LogAdditiveConfig,
+    PeriodInitMode, RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score,
+    select_baseline,
 };
 use chronomap_core::Parallelism;
 use chronomap_io::read_rate_samples;
@@ -36,6 +37,10 @@ pub(super) fn baseline_config(period: f64, inducing: usize, iterations: usize) -
             day_period: period,
             parallelism: Parallelism::Rayon(0),
             ..WhyteConfig::default()
+        },
+        log_additive: LogAdditiveConfig {
+            period,
+            ..LogAdditiveConfig::default()
         },
     }
 }
@@ -100,6 +105,7 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         ActivityModel::FrAam => (Some(Baseline::FrAam), None),
         ActivityModel::GpHom => (Some(Baseline::GpHom), None),
         ActivityModel::Whyte => (Some(Baseline::Whyte), None),
+        ActivityModel::LogAdditive => (Some(Baseline::LogAdditive), None),
         ActivityModel::Copa => (None, None),
     };
     // CoPA-Map's initial periods, for the JSON output.

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{Result, anyhow};
 use chronomap_activity::grids::{GridError, RegionGrid};
-use chronomap_activity::{CopaConfig, CopaMap, RateScale};
+use chronomap_activity::{CopaConfig, CopaMap, LogAdditive, LogAdditiveConfig, RateScale};
 use chronomap_core::Parallelism;
 use chronomap_core::num::fmt_number;
 use chronomap_io::navmap::{LoadSemantics, load_map};
@@ -14,7 +14,7 @@ use chronomap_io::{read_rate_samples, write_copa_map};
 use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::json;
 
-use crate::cli::{ActivityFitArgs, ActivityPredictArgs, CopaScale};
+use crate::cli::{ActivityFitArgs, ActivityPredictArgs, CopaScale, FitModel};
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
 
@@ -25,9 +25,15 @@ const MAX_PREDICTIONS: usize = 20_000_000;
 // A map cell blocks a predicted cell when it is at least this occupied (percent).
 use chronomap_io::WALL_PERCENT;
 
+/// The kind of Log-AM model files (`chronomap activity fit --model log-additive`).
+pub(super) const LOG_ADDITIVE_KIND: &str = "log-additive";
+
 pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     let name = args.train.display().to_string();
     let train = read_rate_samples(&args.train)?;
+    if args.model == FitModel::LogAdditive {
+        return fit_log_additive(args, &name, &train);
+    }
     let config = CopaConfig {
         inducing: args.inducing,
         iterations: args.iterations,
@@ -72,6 +78,97 @@ pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     Ok(())
 }
 
+/// `activity fit --model log-additive`: Log-AM, saved as a model file of kind
+/// [`LOG_ADDITIVE_KIND`].
+fn fit_log_additive(
+    args: &ActivityFitArgs,
+    name: &str,
+    train: &chronomap_activity::RateSamples,
+) -> Result<()> {
+    let config = LogAdditiveConfig {
+        period: args.period,
+        ..LogAdditiveConfig::default()
+    };
+    let start = Instant::now();
+    let model = LogAdditive::fit(train, &config).map_err(|e| anyhow!("{name}: Log-AM: {e}"))?;
+    let seconds = start.elapsed().as_secs_f64();
+    chronomap_io::write_model_file(&args.output, LOG_ADDITIVE_KIND, &model)?;
+    let kappa = |k: f64| {
+        if k.is_finite() {
+            json!(k)
+        } else {
+            json!("inf")
+        }
+    };
+    if args.json {
+        return print_json(&json!({
+            "model": args.output.display().to_string(),
+            "kind": LOG_ADDITIVE_KIND,
+            "train": name,
+            "samples": train.len(),
+            "cells": train.cell_count(),
+            "shrinkage": kappa(model.shrinkage()),
+            "holdout_rmse_log1p": model.holdout_scores().iter()
+                .map(|&(k, r)| json!({"shrinkage": kappa(k), "rmse": r}))
+                .collect::<Vec<_>>(),
+            "sigma": model.sigma(),
+            "profile": model.profile(),
+            "fit_seconds": seconds,
+        }));
+    }
+    outln!(
+        "{}: Log-AM fitted in {seconds:.3} s on {} samples, {} cells; shrinkage κ = {} (hold-out); \
+         residual σ {:.3} in ln(1 + rate)",
+        args.output.display(),
+        train.len(),
+        train.cell_count(),
+        model.shrinkage(),
+        model.sigma()
+    )?;
+    Ok(())
+}
+
+/// A model `activity predict` reads: CoPA-Map or Log-AM.
+enum SavedModel {
+    Copa(Box<CopaMap>),
+    LogAdditive(LogAdditive),
+}
+
+impl SavedModel {
+    fn read(path: &std::path::Path) -> Result<SavedModel> {
+        use chronomap_io::model_file::ModelFileErrorKind;
+        match chronomap_io::read_copa_map(path) {
+            Ok(m) => Ok(SavedModel::Copa(Box::new(m))),
+            Err(e) if matches!(e.kind(), ModelFileErrorKind::Decode { kind, .. } if kind == LOG_ADDITIVE_KIND) =>
+            {
+                let (_, model): (String, LogAdditive) = chronomap_io::read_model_file(path)?;
+                model
+                    .check()
+                    .map_err(|e| anyhow!("{}: an inconsistent Log-AM: {e}", path.display()))?;
+                Ok(SavedModel::LogAdditive(model))
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    fn domain(&self) -> [f64; 4] {
+        match self {
+            SavedModel::Copa(m) => m.domain(),
+            SavedModel::LogAdditive(m) => m.domain(),
+        }
+    }
+
+    fn predict_with_std(&self, points: &[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>)> {
+        match self {
+            SavedModel::Copa(m) => Ok(m.predict_with_std(points, Parallelism::Rayon(0))?),
+            SavedModel::LogAdditive(m) => Ok(points
+                .iter()
+                .map(|&(x, t)| m.predict_with_std(x, t))
+                .unzip()),
+        }
+    }
+}
+
 pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     if let Some(t) = args.times.iter().find(|t| !t.is_finite()) {
         return Err(usage(format!("--t {t}: times must be finite")));
@@ -89,7 +186,7 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
         None => None,
     };
     let model_name = args.model.display().to_string();
-    let model = read_copa_map(&args.model)?;
+    let model = SavedModel::read(&args.model)?;
     // By default the training square, widened from the cell centres to the cell edges.
     let grid = match region {
         Some(grid) => grid,
@@ -121,7 +218,7 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     for &t in &args.times {
         let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
         let (mean, std) = model
-            .predict_with_std(&points, Parallelism::Rayon(0))
+            .predict_with_std(&points)
             .map_err(|e| anyhow!("{model_name}: {e}"))?;
         for (i, &x) in centres.iter().enumerate() {
             if !blocked[i] {

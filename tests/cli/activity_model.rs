@@ -57,6 +57,66 @@ fn a_fitted_copa_map_predicts_mean_and_std_over_the_map() {
 }
 
 #[test]
+fn a_fitted_log_additive_model_is_saved_checked_and_predicts_the_median() {
+    let dir = tmp("activity_model_log");
+    let path = |name: &str| dir.join(name).display().to_string();
+    let model = path("atc.cmlog");
+    let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+    let text = stdout(&chronomap(&[
+        "activity",
+        "fit",
+        "--model",
+        "log-additive",
+        "--train",
+        &grid,
+        "-o",
+        &model,
+        "--json",
+    ]));
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["kind"], "log-additive");
+    assert_eq!(json["cells"], 652);
+    // κ chosen on the last two days (t >= 96) among 8 candidates: 10, hold-out RMSE of
+    // ln(1 + y) 1.0619 (no interaction: 1.0830).
+    assert_eq!(json["shrinkage"], 10.0);
+    let scores = json["holdout_rmse_log1p"].as_array().unwrap();
+    assert_eq!(scores.len(), 8);
+    assert_eq!(scores[0]["shrinkage"], "inf");
+    common::close(&scores[0]["rmse"], 1.08304, 1e-4);
+    common::close(&scores[4]["rmse"], 1.06186, 1e-4);
+    let bytes = std::fs::read(&model).unwrap();
+    assert!(bytes.starts_with(b"chronomap-model 1 kind=log-additive encoding=postcard"));
+
+    // A busy cell of the hallway at 12:00 and 18:00 of the next day: the median of 1 + y
+    // under (L2), and the log-normal's std.
+    let text = stdout(&chronomap(&[
+        "activity", "predict", "--model", &model, "--t", "123,129", "--region", "10.5", "-5.5",
+        "11", "-5", "--json",
+    ]));
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let p = json["predictions"].as_array().unwrap();
+    assert_eq!(p.len(), 2);
+    assert_eq!(
+        (p[0]["x1"].as_f64(), p[0]["x2"].as_f64()),
+        (Some(10.75), Some(-5.25))
+    );
+    common::close(&p[0]["mean"], 107.180, 1e-2);
+    common::close(&p[1]["mean"], 58.296, 1e-2);
+    common::close(&p[0]["std"], 288.275, 1e-1);
+
+    // A damaged file is refused, naming it.
+    let mut bytes = bytes;
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    let damaged = path("damaged.cmlog");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let err = error(&chronomap(&[
+        "activity", "predict", "--model", &damaged, "--t", "1",
+    ]));
+    assert!(err.contains("damaged.cmlog"), "{err}");
+}
+
+#[test]
 fn predict_writes_with_the_new_spellings_prints_json_and_survives_a_closed_pipe() {
     let dir = tmp("activity_model_json");
     let path = |name: &str| dir.join(name).display().to_string();

@@ -36,7 +36,9 @@
 //! [`CellMean`] ("ML"), the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM") and the
 //! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]); Warped Hypertime ([Krajník 2019]) is
 //! [`Whyte`] ("WHyTe", in [`whyte`]): a mixture of people over warped space-time divided by one
-//! of observation. CoPA-Map is [`CopaMap`].
+//! of observation. CoPA-Map is [`CopaMap`]. Beyond the dissertation, [`LogAdditive`] ("Log-AM",
+//! in [`lograte`]) models ln(1 + rate) as a level per cell plus a profile of the day and a shrunken
+//! interaction of the two.
 //!
 //! # Where samples come from
 //! [`extract`] builds them from pedestrian detections as a simulated robot sees them (§4.2.2,
@@ -61,6 +63,7 @@ pub mod extract;
 pub mod gphom;
 pub mod grids;
 pub mod init;
+pub mod lograte;
 pub mod planning;
 pub mod truth;
 pub mod whyte;
@@ -79,6 +82,7 @@ pub use baselines::{
 pub use copa::{CopaConfig, CopaMap, PeriodInitMode, RateScale};
 pub use gphom::{GpHom, GpHomConfig};
 pub use init::{PeriodInit, SpectralInitConfig, initial_periods};
+pub use lograte::{LogAdditive, LogAdditiveConfig, LogCell};
 pub use whyte::{Whyte, WhyteConfig, WhyteTrial};
 
 /// Why rate samples or a model were rejected.
