@@ -15,11 +15,12 @@ Examples (the bundled ATC grid of CoPA-Map, 10 days x 12 recorded hours, t = hou
 Files are CSV with the header x1,x2,t,y (cell centre in metres, time bin, people per hour of
 observation), plain, .xz or .gz; see data/README.md. NRMSE is eq. (4.20) of the dissertation
 (RMSE over the mean test rate), chi2 the chi-square distance of eq. (4.21). Every baseline is
-scored; the top-level nrmse/chi2 are those of --model. `copa` (default) is CoPA-Map, the
-heteroscedastic sparse variational GP (about a minute with the defaults on 2 cores; --inducing and
---iterations trade time for accuracy; --init spectral starts its periods from Algorithm 4.1
-instead of the day). `log-additive` is Log-AM: ln(1 + rate) as a level per cell, a profile of the
-day and their shrunken interaction, predicting the median (milliseconds; docs/activity.md §6).
+scored; the top-level nrmse/chi2 are those of --model. `log-additive` (default) is Log-AM:
+ln(1 + rate) as a level per cell, a profile of the day and their shrunken interaction, with a
+memory of the recent days, predicting the median (under a second; docs/activity.md §6). `copa` is
+CoPA-Map, the heteroscedastic sparse variational GP (about a minute with the defaults on 2 cores;
+--inducing and --iterations trade time for accuracy; --init spectral starts its periods from
+Algorithm 4.1 instead of the day).
 `auto` picks the fast model of the least NRMSE on the last 20 % of the training times (never on
 the test); CoPA-Map is not part of it. Fr-AAM treats each row as one hour of observation: the grid
 files carry rates, not the dwell times behind them.";
@@ -239,9 +240,9 @@ pub enum ActivityModel {
     Whyte,
     /// CoPA-Map: the heteroscedastic sparse variational GP of §4.2 (eqs. 4.7–4.16).
     Copa,
-    /// Log-AM: ln(1 + rate) as a level per cell plus a profile of the day (--period in 12
-    /// phase bins) and their interaction, shrunk by a κ chosen on the last 20 % of the
-    /// training times; predicts exp(mean) − 1 (docs/activity.md).
+    /// Log-AM (default): ln(1 + rate) as a level per cell plus a profile of the day (--period in
+    /// 12 phase bins) and their interaction, shrunk by a κ, the days weighed by a memory τ, both
+    /// chosen on the last 20 % of the training times; predicts exp(mean) − 1 (docs/activity.md).
     LogAdditive,
 }
 
@@ -350,8 +351,8 @@ pub struct ActivityEvalArgs {
     /// Split --train chronologically instead: train on t < T, test on t >= T.
     #[arg(long, value_name = "T")]
     pub split_at: Option<f64>,
-    /// The model of the top-level scores (default: CoPA-Map; every baseline is scored too).
-    #[arg(long, value_enum, default_value_t = ActivityModel::Copa)]
+    /// The model of the top-level scores (default: Log-AM; every baseline is scored too).
+    #[arg(long, value_enum, default_value_t = ActivityModel::LogAdditive)]
     pub model: ActivityModel,
     /// Fr-AAM and WHyTe: the base period in units of t (12: a day of the ATC grid's 12 recorded
     /// hours); candidate periods are period/1 .. period/6.

@@ -1,5 +1,6 @@
-//! `chronomap activity fit|predict`: CoPA-Map ([Stüde 2024] §4.2) trained once, saved as a model
-//! file, and queried for maps of the predicted rate of people and its uncertainty.
+//! `chronomap activity fit|predict`: CoPA-Map ([Stüde 2024] §4.2) or Log-AM
+//! (`chronomap_activity::lograte`) trained once, saved as a model file, and queried for maps of
+//! the predicted rate of people and its uncertainty.
 
 use std::time::Instant;
 
@@ -93,7 +94,8 @@ fn fit_log_additive(
     let model = LogAdditive::fit(train, &config).map_err(|e| anyhow!("{name}: Log-AM: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();
     chronomap_io::write_model_file(&args.output, LOG_ADDITIVE_KIND, &model)?;
-    let kappa = |k: f64| {
+    // ∞ (no interaction, every day alike) as the string "inf": JSON has no infinity.
+    let value = |k: f64| {
         if k.is_finite() {
             json!(k)
         } else {
@@ -107,21 +109,25 @@ fn fit_log_additive(
             "train": name,
             "samples": train.len(),
             "cells": train.cell_count(),
-            "shrinkage": kappa(model.shrinkage()),
-            "holdout_rmse_log1p": model.holdout_scores().iter()
-                .map(|&(k, r)| json!({"shrinkage": kappa(k), "rmse": r}))
-                .collect::<Vec<_>>(),
+            "shrinkage": value(model.shrinkage()),
+            "memory_days": value(model.memory()),
+            "holdout_rmse_log1p": model.holdout_scores().iter().map(|s| json!({
+                "memory_days": value(s.memory),
+                "shrinkage": value(s.shrinkage),
+                "rmse": s.rmse,
+            })).collect::<Vec<_>>(),
             "sigma": model.sigma(),
             "profile": model.profile(),
             "fit_seconds": seconds,
         }));
     }
     outln!(
-        "{}: Log-AM fitted in {seconds:.3} s on {} samples, {} cells; shrinkage κ = {} (hold-out); \
-         residual σ {:.3} in ln(1 + rate)",
+        "{}: Log-AM fitted in {seconds:.3} s on {} samples, {} cells; memory τ = {} days, \
+         shrinkage κ = {} (hold-out); residual σ {:.3} in ln(1 + rate)",
         args.output.display(),
         train.len(),
         train.cell_count(),
+        model.memory(),
         model.shrinkage(),
         model.sigma()
     )?;

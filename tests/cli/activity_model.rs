@@ -76,12 +76,15 @@ fn a_fitted_log_additive_model_is_saved_checked_and_predicts_the_median() {
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(json["kind"], "log-additive");
     assert_eq!(json["cells"], 652);
-    // κ chosen on the last two days (t >= 96) among 8 candidates: 10, hold-out RMSE of
-    // ln(1 + y) 1.0619 (no interaction: 1.0830).
+    // τ and κ chosen on the last two days (t >= 96) among 5 × 8 candidates: every day alike
+    // and κ = 10, hold-out RMSE of ln(1 + y) 1.0619 (no interaction: 1.0830).
     assert_eq!(json["shrinkage"], 10.0);
+    assert_eq!(json["memory_days"], "inf");
     let scores = json["holdout_rmse_log1p"].as_array().unwrap();
-    assert_eq!(scores.len(), 8);
+    assert_eq!(scores.len(), 40);
     assert_eq!(scores[0]["shrinkage"], "inf");
+    assert_eq!(scores[0]["memory_days"], "inf");
+    assert_eq!(scores[4]["shrinkage"], 10.0);
     common::close(&scores[0]["rmse"], 1.08304, 1e-4);
     common::close(&scores[4]["rmse"], 1.06186, 1e-4);
     let bytes = std::fs::read(&model).unwrap();

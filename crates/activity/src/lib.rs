@@ -82,7 +82,7 @@ pub use baselines::{
 pub use copa::{CopaConfig, CopaMap, PeriodInitMode, RateScale};
 pub use gphom::{GpHom, GpHomConfig};
 pub use init::{PeriodInit, SpectralInitConfig, initial_periods};
-pub use lograte::{LogAdditive, LogAdditiveConfig, LogCell};
+pub use lograte::{HoldoutScore, LogAdditive, LogAdditiveConfig, LogCell};
 pub use whyte::{Whyte, WhyteConfig, WhyteTrial};
 
 /// Why rate samples or a model were rejected.

@@ -9,22 +9,26 @@
 //!
 //! ```text
 //! (L1)  z_i = ln(1 + y_i)
-//! (L2)  z_i = a_c(i) + b_h(i) + γ_c(i),h(i) + ε_i,      ε_i ~ N(0, σ²),  γ_c,h ~ N(0, σ²/κ)
-//! (L3)  h(t) = ⌊H · frac(t / P)⌋                        (phase bin of the day: P = period, H = bins)
-//! (L4)  γ_c,h = Σ_{i ∈ (c,h)} r_i / (n_c,h + κ),         r_i = z_i − a_c(i) − b_h(i)
-//! (L5)  κ = argmin over the candidates of the RMSE of ln(1 + ŷ) on the last 20 % of the
+//! (L2)  z_i = a_c(i) + b_h(i) + γ_c(i),h(i) + ε_i,   ε_i ~ N(0, σ²/w_i),  γ_c,h ~ N(0, σ²/κ)
+//! (L3)  h(t) = ⌊H · frac(t / P)⌋                     (phase bin of the day: P = period, H = bins)
+//! (L4)  γ_c,h = Σ_{i ∈ (c,h)} w_i r_i / (Σ_{i ∈ (c,h)} w_i + κ),   r_i = z_i − a_c(i) − b_h(i)
+//! (L5)  (τ, κ) = argmin over the candidates of the RMSE of ln(1 + ŷ) on the last 20 % of the
 //!       training times, the model fitted on the rest
 //! (L6)  ŷ(x, t) = exp(a_c + b_h + γ_c,h) − 1 (clipped at 0)
+//! (L7)  w_i = exp(−⌊(t_max − t_i) / P⌋ / τ)            (memory: whole days before the last)
 //! ```
 //!
 //! `a_c` (one level per cell) and `b_h` (one profile of the day shared by all cells) are the
-//! least-squares fit of `z = a_c + b_h` (a two-way additive model, in the rate domain a product
+//! weighted least-squares fit of `z = a_c + b_h` (a two-way additive model, in the rate domain a product
 //! `rate ≈ level(cell) × rhythm(hour)`), found by backfitting: each sweep sets every `a_c` to
-//! the mean of `z_i − b_h(i)` over its cell and every `b_h` to the mean of `z_i − a_c(i)` over
-//! its bin (block coordinate descent on the squared error, which converges to a least-squares
-//! solution). The profile is centred, `Σ_h n_h b_h = 0`. (L4) is the posterior mean of the
-//! cell-and-hour interaction under the Gaussian prior of (L2) given `a` and `b`: a cell's own
-//! rhythm, shrunk towards the shared one by `κ` pseudo-observations; `κ = ∞` leaves it out.
+//! the `w`-weighted mean of `z_i − b_h(i)` over its cell and every `b_h` to that of
+//! `z_i − a_c(i)` over its bin (block coordinate descent on the weighted squared error, which
+//! converges to a least-squares solution). The profile is centred, `Σ_i w_i b_h(i) = 0`. (L4)
+//! is the posterior mean of the cell-and-hour interaction under the Gaussian prior of (L2)
+//! given `a` and `b`: a cell's own rhythm, shrunk towards the shared one by `κ`
+//! pseudo-observations; `κ = ∞` leaves it out. The weights (L7) are a memory of `τ` days: the
+//! noise of (L2) grows by `e^{1/τ}` per day before the last training day, so a place whose
+//! activity drifts is led by its recent days; `τ = ∞` weighs every day alike.
 //! (L6) is the median of `1 + y` under (L2), minus one: on the ATC grid it follows whole-hour
 //! counts, where the arithmetic mean of the robot's rates is about twice too high.
 //!
@@ -63,8 +67,11 @@ pub struct LogAdditiveConfig {
     /// the earlier. `f64::INFINITY` leaves the interaction out. Default
     /// `[∞, 100, 50, 20, 10, 5, 2, 1]`. With one candidate there is no hold-out.
     pub shrinkage: Vec<f64>,
-    /// Fraction of the distinct training times held out to choose `κ` (default 0.2, as
-    /// `--model auto`).
+    /// Candidate memories `τ` of (L7), in periods (days), tried in this order with every `κ`
+    /// (the outer loop). `f64::INFINITY` weighs all days alike. Default `[∞, 8, 4, 2, 1]`.
+    pub memory: Vec<f64>,
+    /// Fraction of the distinct training times held out to choose `τ` and `κ` (default 0.2,
+    /// as `--model auto`).
     pub holdout: f64,
     /// Most backfitting sweeps (default 100; they stop when no term moves by 1e-12).
     pub max_sweeps: usize,
@@ -76,6 +83,7 @@ impl Default for LogAdditiveConfig {
             period: 12.0,
             bins: 12,
             shrinkage: vec![f64::INFINITY, 100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0],
+            memory: vec![f64::INFINITY, 8.0, 4.0, 2.0, 1.0],
             holdout: 0.2,
             max_sweeps: 100,
         }
@@ -96,6 +104,12 @@ impl LogAdditiveConfig {
         }
         if let Some(k) = self.shrinkage.iter().find(|k| k.is_nan() || **k <= 0.0) {
             return bad(format!("shrinkage {k} must be > 0 (∞: no interaction)"));
+        }
+        if self.memory.is_empty() {
+            return bad("give at least one memory candidate".into());
+        }
+        if let Some(m) = self.memory.iter().find(|m| m.is_nan() || **m <= 0.0) {
+            return bad(format!("memory {m} must be > 0 (∞: every day alike)"));
         }
         if !(self.holdout > 0.0 && self.holdout < 1.0) {
             return bad(format!(
@@ -122,7 +136,18 @@ pub struct LogCell {
     pub interaction: Vec<f64>,
 }
 
-/// A fitted Log-AM, eqs. (L1)–(L6) of the [module](self).
+/// The hold-out score of one candidate of (L5).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HoldoutScore {
+    /// Memory `τ` of (L7), in periods.
+    pub memory: f64,
+    /// Shrinkage `κ` of (L4).
+    pub shrinkage: f64,
+    /// RMSE of ln(1 + ŷ) against ln(1 + y) on the held-out training times.
+    pub rmse: f64,
+}
+
+/// A fitted Log-AM, eqs. (L1)–(L7) of the [module](self).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LogAdditive {
     period: f64,
@@ -134,18 +159,20 @@ pub struct LogAdditive {
     fallback: f64,
     /// The chosen `κ` (`∞`: no interaction).
     shrinkage: f64,
+    /// The chosen memory `τ` in periods (`∞`: every day alike).
+    memory: f64,
     /// Residual standard deviation `σ` of (L2) on the training samples.
     sigma: f64,
-    /// Hold-out RMSE of ln(1 + ŷ) of every candidate `κ`, in the order tried (empty without a
-    /// hold-out).
-    holdout_scores: Vec<(f64, f64)>,
+    /// Hold-out RMSE of ln(1 + ŷ) of every candidate `(τ, κ)`, in the order tried (empty
+    /// without a hold-out).
+    holdout_scores: Vec<HoldoutScore>,
 }
 
 impl LogAdditive {
-    /// Fits (L1)–(L4) on `train`, choosing `κ` by (L5).
+    /// Fits (L1)–(L4) on `train`, choosing `τ` and `κ` by (L5).
     ///
-    /// Without two distinct training times there is nothing to hold out: the first candidate
-    /// is used.
+    /// Without two distinct training times there is nothing to hold out: the first candidates
+    /// are used.
     ///
     /// # Errors
     /// [`ActivityError::Empty`] or [`ActivityError::Config`].
@@ -155,32 +182,44 @@ impl LogAdditive {
             return Err(ActivityError::Empty);
         }
         let mut holdout_scores = Vec::new();
-        let mut chosen = config.shrinkage[0];
-        if config.shrinkage.len() > 1
+        let (mut memory, mut shrinkage) = (config.memory[0], config.shrinkage[0]);
+        let candidates = config.memory.len() * config.shrinkage.len();
+        if candidates > 1
             && let Some((fit_part, held)) = holdout_split(train, config.holdout)
         {
-            let main = MainEffects::fit(&fit_part, config);
             let z_held: Vec<f64> = held.y().iter().map(|y| y.ln_1p()).collect();
             let mut best = f64::INFINITY;
-            for &kappa in &config.shrinkage {
-                let model = main.with_interaction(kappa, config.period);
-                let p = model.predict_samples(&held);
-                let sse: f64 = p
-                    .iter()
-                    .zip(&z_held)
-                    .map(|(p, z)| (p.ln_1p() - z).powi(2))
-                    .sum();
-                let rmse = (sse / p.len() as f64).sqrt();
-                holdout_scores.push((kappa, rmse));
-                if rmse < best {
-                    best = rmse;
-                    chosen = kappa;
+            for &tau in &config.memory {
+                let main = MainEffects::fit(&fit_part, config, tau);
+                for &kappa in &config.shrinkage {
+                    let model = main.with_interaction(kappa);
+                    let p = model.predict_samples(&held);
+                    let sse: f64 = p
+                        .iter()
+                        .zip(&z_held)
+                        .map(|(p, z)| (p.ln_1p() - z).powi(2))
+                        .sum();
+                    let rmse = (sse / p.len() as f64).sqrt();
+                    holdout_scores.push(HoldoutScore {
+                        memory: tau,
+                        shrinkage: kappa,
+                        rmse,
+                    });
+                    if rmse < best {
+                        best = rmse;
+                        (memory, shrinkage) = (tau, kappa);
+                    }
                 }
             }
         }
-        let mut model = MainEffects::fit(train, config).with_interaction(chosen, config.period);
+        let mut model = MainEffects::fit(train, config, memory).with_interaction(shrinkage);
         model.holdout_scores = holdout_scores;
         Ok(model)
+    }
+
+    /// The chosen memory `τ` of (L7), in periods (`∞`: every day alike).
+    pub fn memory(&self) -> f64 {
+        self.memory
     }
 
     /// The chosen shrinkage `κ` of (L4) (`∞`: no interaction).
@@ -188,8 +227,8 @@ impl LogAdditive {
         self.shrinkage
     }
 
-    /// Hold-out RMSE of ln(1 + ŷ) for every candidate `κ`, in the order tried (L5).
-    pub fn holdout_scores(&self) -> &[(f64, f64)] {
+    /// Hold-out RMSE of ln(1 + ŷ) for every candidate `(τ, κ)`, in the order tried (L5).
+    pub fn holdout_scores(&self) -> &[HoldoutScore] {
         &self.holdout_scores
     }
 
@@ -267,7 +306,8 @@ impl LogAdditive {
             && self.fallback.is_finite()
             && self.sigma.is_finite()
             && self.sigma >= 0.0
-            && self.shrinkage > 0.0;
+            && self.shrinkage > 0.0
+            && self.memory > 0.0;
         if !finite {
             return bad("a term is not finite".into());
         }
@@ -318,21 +358,23 @@ fn holdout_split(train: &RateSamples, fraction: f64) -> Option<(RateSamples, Rat
     Some(train.split_at(times[first_held]))
 }
 
-/// The least-squares fit of `z = a_c + b_h` by backfitting, with the per-sample cell index and
-/// phase bin it was fitted on.
+/// The weighted least-squares fit of `z = a_c + b_h` by backfitting, with the per-sample
+/// cell index, phase bin and weight it was fitted on.
 struct MainEffects {
+    period: f64,
+    memory: f64,
     keys: Vec<CellKey>,
     level: Vec<f64>,
     profile: Vec<f64>,
-    /// Cell index and phase bin of every training sample.
     sample_cell: Vec<usize>,
     sample_bin: Vec<usize>,
+    weight: Vec<f64>,
     z: Vec<f64>,
 }
 
 impl MainEffects {
-    fn fit(train: &RateSamples, config: &LogAdditiveConfig) -> Self {
-        let h = config.bins;
+    fn fit(train: &RateSamples, config: &LogAdditiveConfig, memory: f64) -> Self {
+        let (h, period) = (config.bins, config.period);
         let mut cells: Vec<(CellKey, Vec<usize>)> = train.cells().into_iter().collect();
         cells.sort_by_key(|c| c.0);
         let n = train.len();
@@ -342,38 +384,47 @@ impl MainEffects {
                 sample_cell[i] = c;
             }
         }
-        let sample_bin: Vec<usize> = train
-            .t()
+        let t = train.t();
+        let sample_bin: Vec<usize> = t.iter().map(|&t| phase_bin(t, period, h)).collect();
+        // (L7): whole periods before the last training time.
+        let t_max = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let weight: Vec<f64> = t
             .iter()
-            .map(|&t| phase_bin(t, config.period, h))
+            .map(|&t| {
+                if memory.is_finite() {
+                    (-((t_max - t) / period).floor() / memory).exp()
+                } else {
+                    1.0
+                }
+            })
             .collect();
         let z: Vec<f64> = train.y().iter().map(|y| y.ln_1p()).collect();
-        let mut cell_n = vec![0.0; cells.len()];
-        let mut bin_n = vec![0.0; h];
+        let mut cell_w = vec![0.0; cells.len()];
+        let mut bin_w = vec![0.0; h];
         for i in 0..n {
-            cell_n[sample_cell[i]] += 1.0;
-            bin_n[sample_bin[i]] += 1.0;
+            cell_w[sample_cell[i]] += weight[i];
+            bin_w[sample_bin[i]] += weight[i];
         }
         let mut level = vec![0.0; cells.len()];
         let mut profile = vec![0.0; h];
         for _ in 0..config.max_sweeps {
             let mut sum = vec![0.0; cells.len()];
             for i in 0..n {
-                sum[sample_cell[i]] += z[i] - profile[sample_bin[i]];
+                sum[sample_cell[i]] += weight[i] * (z[i] - profile[sample_bin[i]]);
             }
             let mut moved: f64 = 0.0;
             for c in 0..cells.len() {
-                let a = sum[c] / cell_n[c];
+                let a = sum[c] / cell_w[c];
                 moved = moved.max((a - level[c]).abs());
                 level[c] = a;
             }
             let mut sum = vec![0.0; h];
             for i in 0..n {
-                sum[sample_bin[i]] += z[i] - level[sample_cell[i]];
+                sum[sample_bin[i]] += weight[i] * (z[i] - level[sample_cell[i]]);
             }
             for b in 0..h {
-                if bin_n[b] > 0.0 {
-                    let v = sum[b] / bin_n[b];
+                if bin_w[b] > 0.0 {
+                    let v = sum[b] / bin_w[b];
                     moved = moved.max((v - profile[b]).abs());
                     profile[b] = v;
                 }
@@ -382,10 +433,11 @@ impl MainEffects {
                 break;
             }
         }
-        // Centre the profile over the samples, Σ_h n_h b_h = 0, moving its mean into the levels.
-        let shift = (0..h).map(|b| bin_n[b] * profile[b]).sum::<f64>() / n as f64;
+        // Centre the profile over the samples, Σ_i w_i b_h(i) = 0, moving its mean into the
+        // levels.
+        let shift = (0..h).map(|b| bin_w[b] * profile[b]).sum::<f64>() / bin_w.iter().sum::<f64>();
         for b in 0..h {
-            if bin_n[b] > 0.0 {
+            if bin_w[b] > 0.0 {
                 profile[b] -= shift;
             }
         }
@@ -393,27 +445,32 @@ impl MainEffects {
             *a += shift;
         }
         MainEffects {
+            period,
+            memory,
             keys: cells.into_iter().map(|c| c.0).collect(),
             level,
             profile,
             sample_cell,
             sample_bin,
+            weight,
             z,
         }
     }
 
-    /// The model with the interaction (L4) for shrinkage `kappa`, and `σ` of its residuals.
-    fn with_interaction(&self, kappa: f64, period: f64) -> LogAdditive {
+    /// The model with the interaction (L4) for shrinkage `kappa`, and the weighted `σ` of its
+    /// residuals.
+    fn with_interaction(&self, kappa: f64) -> LogAdditive {
         let h = self.profile.len();
         let n = self.z.len();
         let mut sum = vec![vec![0.0; h]; self.keys.len()];
-        let mut count = vec![vec![0.0; h]; self.keys.len()];
+        let mut weight = vec![vec![0.0; h]; self.keys.len()];
         let residual = |i: usize| {
             self.z[i] - self.level[self.sample_cell[i]] - self.profile[self.sample_bin[i]]
         };
         for i in 0..n {
-            sum[self.sample_cell[i]][self.sample_bin[i]] += residual(i);
-            count[self.sample_cell[i]][self.sample_bin[i]] += 1.0;
+            let (c, b) = (self.sample_cell[i], self.sample_bin[i]);
+            sum[c][b] += self.weight[i] * residual(i);
+            weight[c][b] += self.weight[i];
         }
         let cells: Vec<LogCell> = self
             .keys
@@ -423,26 +480,31 @@ impl MainEffects {
                 x: key.centre(),
                 level: self.level[c],
                 interaction: if kappa.is_finite() {
-                    (0..h).map(|b| sum[c][b] / (count[c][b] + kappa)).collect()
+                    (0..h).map(|b| sum[c][b] / (weight[c][b] + kappa)).collect()
                 } else {
                     vec![0.0; h]
                 },
             })
             .collect();
+        let total: f64 = self.weight.iter().sum();
         let sse: f64 = (0..n)
             .map(|i| {
                 let r = residual(i) - cells[self.sample_cell[i]].interaction[self.sample_bin[i]];
-                r * r
+                self.weight[i] * r * r
             })
             .sum();
-        let fallback = (0..n).map(|i| self.level[self.sample_cell[i]]).sum::<f64>() / n as f64;
+        let fallback = (0..n)
+            .map(|i| self.weight[i] * self.level[self.sample_cell[i]])
+            .sum::<f64>()
+            / total;
         LogAdditive {
-            period,
+            period: self.period,
             profile: self.profile.clone(),
             cells,
             fallback,
             shrinkage: kappa,
-            sigma: (sse / n as f64).sqrt(),
+            memory: self.memory,
+            sigma: (sse / total).sqrt(),
             holdout_scores: Vec::new(),
         }
     }
@@ -460,11 +522,13 @@ mod tests {
         s
     }
 
+    /// Period, bins and shrinkage candidates; every day weighed alike.
     fn config(period: f64, bins: usize, shrinkage: &[f64]) -> LogAdditiveConfig {
         LogAdditiveConfig {
             period,
             bins,
             shrinkage: shrinkage.to_vec(),
+            memory: vec![f64::INFINITY],
             ..LogAdditiveConfig::default()
         }
     }
@@ -489,7 +553,7 @@ mod tests {
         let m = LogAdditive::fit(&samples(&rows), &config(2.0, 2, &[f64::INFINITY, 1.0])).unwrap();
         // Every candidate fits the hold-out (up to rounding): no residual to shrink.
         assert_eq!(m.holdout_scores().len(), 2);
-        assert!(m.holdout_scores().iter().all(|&(_, r)| r < 1e-12));
+        assert!(m.holdout_scores().iter().all(|s| s.rmse < 1e-12));
         assert!((m.profile()[0] + 1.0).abs() < 1e-12 && (m.profile()[1] - 1.0).abs() < 1e-12);
         assert!(m.sigma() < 1e-12);
         assert!((m.predict(A, 10.0) - rate(1.0)).abs() < 1e-9);
@@ -555,18 +619,54 @@ mod tests {
         let m = LogAdditive::fit(&samples(&rows), &config(2.0, 2, &cands)).unwrap();
         assert_eq!(m.shrinkage(), f64::INFINITY);
         let scores = m.holdout_scores();
-        assert_eq!(scores.iter().map(|s| s.0).collect::<Vec<_>>(), cands);
-        assert!(scores.windows(2).all(|w| w[0].1 < w[1].1), "{scores:?}");
+        assert_eq!(
+            scores.iter().map(|s| s.shrinkage).collect::<Vec<_>>(),
+            cands
+        );
+        assert!(
+            scores.windows(2).all(|w| w[0].rmse < w[1].rmse),
+            "{scores:?}"
+        );
+    }
+
+    #[test]
+    fn memory_weighs_the_days_before_the_last_by_e_to_the_minus_days_over_tau() {
+        // One cell, one bin a day: z = 0, 0, 3 on days 0, 1, 2. With τ = 1 the weights are
+        // e^−2, e^−1, 1 (L7) and the level is their weighted mean of z.
+        let rows = [(A, 0.0, 0.0), (A, 1.0, 0.0), (A, 2.0, rate(3.0))];
+        let c = LogAdditiveConfig {
+            memory: vec![1.0],
+            ..config(1.0, 1, &[f64::INFINITY])
+        };
+        let m = LogAdditive::fit(&samples(&rows), &c).unwrap();
+        let e = std::f64::consts::E;
+        let level = 3.0 / (1.0 + 1.0 / e + 1.0 / (e * e));
+        assert!((m.predict(A, 3.0) - rate(level)).abs() < 1e-12);
+        assert_eq!(m.memory(), 1.0);
+        // A steady trend: the hold-out (days 8 and 9) prefers the shortest memory.
+        let rows: Vec<_> = (0..10)
+            .map(|d| (A, f64::from(d), rate(0.2 * f64::from(d))))
+            .collect();
+        let c = LogAdditiveConfig {
+            memory: vec![f64::INFINITY, 4.0, 1.0, 0.25],
+            ..config(1.0, 1, &[f64::INFINITY])
+        };
+        let m = LogAdditive::fit(&samples(&rows), &c).unwrap();
+        assert_eq!(m.memory(), 0.25);
+        let scores: Vec<f64> = m.holdout_scores().iter().map(|s| s.rmse).collect();
+        assert!(scores.windows(2).all(|w| w[0] > w[1]), "{scores:?}");
     }
 
     #[test]
     fn bad_configs_and_empty_data_are_refused() {
         let s = samples(&[(A, 0.0, 1.0)]);
-        let bad: [fn(&mut LogAdditiveConfig); 6] = [
+        let bad: [fn(&mut LogAdditiveConfig); 8] = [
             |c| c.period = 0.0,
             |c| c.bins = 0,
             |c| c.shrinkage = vec![],
             |c| c.shrinkage = vec![0.0],
+            |c| c.memory = vec![],
+            |c| c.memory = vec![f64::NAN],
             |c| c.holdout = 1.0,
             |c| c.max_sweeps = 0,
         ];
