@@ -94,8 +94,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     print_selections(&tom)?;
     outln!(
         "   With a single week of training, the most recent quarter held back to choose an order is \
-         the weekend, which weekday rhythms mispredict: the automatic choices fall back to (nearly) \
-         constant models here, while ten weeks of greg's door give them enough to choose well."
+         the weekend, which weekday rhythms mispredict: fremen:auto falls back to the mean. auto \
+         scores its candidates from six rolling origins instead of one hold-out, and combines them."
     )?;
 
     // 3. FFT FreMEn on the one-second week.

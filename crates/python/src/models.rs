@@ -426,6 +426,7 @@ impl PyTemporalModel {
     /// * FFT FreMEn: `period`, `amplitude` (|X|/N), `phase`;
     /// * PerGaM: `weight`, `mean` (s into the period) and `sigma` (s);
     /// * Warped Hypertime: `period` (the periodicities found);
+    /// * `auto` (a weighted average of models): `weight` and `model` (their specs);
     /// * mean, histogram, stm: an empty dict.
     #[getter]
     fn components<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -476,6 +477,14 @@ impl PyTemporalModel {
             }
             AnyModel::Hypertime(m) => {
                 dict.set_item("period", to_numpy(py, m.periods().to_vec()))?;
+            }
+            AnyModel::Stack(m) => {
+                dict.set_item(
+                    "weight",
+                    to_numpy(py, m.members().map(|(_, w)| w).collect()),
+                )?;
+                let specs: Vec<String> = m.members().map(|(m, _)| m.spec().to_string()).collect();
+                dict.set_item("model", specs)?;
             }
             AnyModel::Mean(_) | AnyModel::Histogram(_) | AnyModel::Markov(_) => {}
         }
