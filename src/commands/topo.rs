@@ -82,6 +82,7 @@ pub fn fit(args: &TopoFitArgs) -> Result<()> {
             "last": span.map(|s| s.1),
             "success_orders": summary.success_orders,
             "duration_orders": summary.duration_orders,
+            "success_weights": summary.success_weights,
             "success_reconstruction_error": summary.success_error,
             "duration_reconstruction_error_secs": summary.duration_error_secs,
             "fit_seconds": seconds,
@@ -124,6 +125,18 @@ pub fn fit(args: &TopoFitArgs) -> Result<()> {
         &summary.duration_orders,
     ));
     outln!("{}", table.render())?;
+    if !summary.success_weights.is_empty() {
+        let weights: Vec<String> = summary
+            .success_weights
+            .iter()
+            .map(|(spec, w)| format!("{spec} {w:.3}"))
+            .collect();
+        outln!(
+            "success models: every edge weighs {} (shared weights, rolling-origin cross-validation; \
+             counted above by their largest order)",
+            weights.join(", ")
+        )?;
+    }
     outln!(
         "([Fentanes 2015] Table II, open-plan site: success 0.14 with orders 35/18/4/5; time 1.88 s with 24/19/10/9)"
     )?;

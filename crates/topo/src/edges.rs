@@ -3,10 +3,15 @@
 //!
 //! Each edge gets two models: the probability that a traversal succeeds, `p_e(t)`, from all its
 //! attempts, and the duration of successful traversals, from those. Both are FreMEn models
-//! ([Fentanes 2015] eqs. (1)–(2)) whose order is chosen per edge on the most recent part of its history
-//! (a chronological hold-out, scored like eq. (3); order 0 is the static mean, so an edge whose
-//! outcomes are not periodic falls back to a static model). Durations are not in `[0, 1]`: they
-//! are modelled as fractions of the edge's longest training duration, and scaled back.
+//! ([Fentanes 2015] eqs. (1)–(2)). The original chooses each edge's order on the most recent part
+//! of its history (a chronological hold-out, scored like eq. (3)); durations still do (order 0 is
+//! the static mean, so an edge whose outcomes are not periodic falls back to a static model).
+//! Success models, unless their order is fixed, are instead weighted averages of FreMEn of orders
+//! 0..=`max_order` with weights that all edges share, fitted by rolling-origin cross-validation over every
+//! edge's history ([`success_candidates`], [`chronomap_models::stack`]): on the Witham Wharf
+//! splits this beats the per-edge choice, which overfits the few attempts of most edges
+//! (`docs/accuracy.md`). Durations are not in `[0, 1]`: they are modelled as fractions of the
+//! edge's longest training duration, and scaled back.
 //!
 //! Success models also carry FreMEn's persistence term ([Krajník 2017] §III-D, eqs. (12)–(13)): the
 //! outcome of the latest attempt persists for a while. On the Witham Wharf data this is what
@@ -26,7 +31,9 @@ use crate::map::TopoMap;
 use chronomap_core::error::BuildError;
 use chronomap_core::model::TemporalModel;
 use chronomap_core::select::Criterion;
+use chronomap_core::stacking::StackingProblem;
 use chronomap_models::spec::{AnyModel, FitOptions, ModelSpec, OrderSpec};
+use chronomap_models::stack::{StackedModel, choose_weights, rolling_origin_problem};
 
 /// One traversal attempt of an edge.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -197,6 +204,75 @@ fn fit_series(
     }
 }
 
+/// The candidates whose weights all edges share when success orders are not fixed: FreMEn of
+/// orders 0..=`max_order` (with persistence if configured) — order 0 is the static rate.
+pub fn success_candidates(config: &EdgeModelConfig) -> Vec<ModelSpec> {
+    let orders = 0..=config.max_order;
+    orders
+        .map(|k| {
+            if config.persistence {
+                ModelSpec::Persistence(OrderSpec::Fixed(k))
+            } else {
+                ModelSpec::Fremen(OrderSpec::Fixed(k))
+            }
+        })
+        .collect()
+}
+
+/// Fits the success model of every edge in `series`: with a fixed order (or no periodic
+/// model), each edge on its own; otherwise a [`StackedModel`] per edge whose weights all edges
+/// share, fitted by rolling-origin cross-validation over every edge's history at once — an
+/// edge tried a few dozen times borrows the evidence of the busy ones about how much of the
+/// daily rhythm transfers to later weeks ([`chronomap_models::stack`]).
+fn fit_success_models(
+    map: &TopoMap,
+    edges: &mut [EdgeModel],
+    series: &[(usize, Vec<f64>, Vec<f64>)],
+    config: &EdgeModelConfig,
+) -> Result<(), (String, BuildError)> {
+    let named = |edge: usize| {
+        let id = map.edges()[edge].id.clone();
+        move |e: BuildError| (id, e)
+    };
+    let stacked = config.periodic && config.success_order.is_none();
+    if !stacked {
+        for (edge, times, outcomes) in series {
+            let model = fit_series(
+                success_spec(config),
+                times,
+                outcomes,
+                config,
+                Criterion::Brier,
+            )
+            .map_err(named(*edge))?;
+            edges[*edge].success = Some(model);
+        }
+        return Ok(());
+    }
+    let candidates = success_candidates(config);
+    let options = options(config, Criterion::Brier);
+    let mut problem = StackingProblem::new(candidates.len());
+    let mut origins = 0;
+    for (_, times, outcomes) in series {
+        let (edge_problem, used) = rolling_origin_problem(&candidates, times, outcomes, &options);
+        problem.merge(&edge_problem);
+        origins = origins.max(used);
+    }
+    let weights = choose_weights(&candidates, &problem, origins).weights;
+    for (edge, times, outcomes) in series {
+        let model = match StackedModel::refit(&weights, times, outcomes, &options) {
+            Ok(stack) => AnyModel::Stack(Box::new(stack)),
+            Err(BuildError::NotEnoughData(_)) => {
+                fit_series(ModelSpec::Mean, times, outcomes, config, Criterion::Brier)
+                    .map_err(named(*edge))?
+            }
+            Err(e) => return Err(named(*edge)(e)),
+        };
+        edges[*edge].success = Some(model);
+    }
+    Ok(())
+}
+
 impl EdgeModels {
     /// Fits the models of every edge of `map` from `attempts[e]` (in time order per edge).
     /// Success probabilities are chosen by the Brier score on the held-back attempts, durations
@@ -221,6 +297,8 @@ impl EdgeModels {
             ));
         }
         let mut edges = Vec::with_capacity(attempts.len());
+        // (edge index, attempt times, outcomes) of the edges with enough attempts for a model.
+        let mut series: Vec<(usize, Vec<f64>, Vec<f64>)> = Vec::new();
         for (edge, list) in map.edges().iter().zip(attempts) {
             let named = |e: BuildError| (edge.id.clone(), e);
             if let Some(bad) = list
@@ -242,20 +320,11 @@ impl EdgeModels {
             chronomap_core::observe::validate(None, &times, &outcomes)
                 .map_err(|e| named(e.into()))?;
             let successes = list.iter().filter(|a| a.success).count();
-            let success = if list.len() >= config.min_attempts {
-                Some(
-                    fit_series(
-                        success_spec(&config),
-                        &times,
-                        &outcomes,
-                        &config,
-                        Criterion::Brier,
-                    )
-                    .map_err(named)?,
-                )
-            } else {
-                None
-            };
+            // Success models are fitted below, when every edge's history is known.
+            let success = None;
+            if list.len() >= config.min_attempts {
+                series.push((edges.len(), times, outcomes));
+            }
             let good: Vec<&Attempt> = list.iter().filter(|a| a.success).collect();
             let scale = good.iter().map(|a| a.duration_secs).fold(0.0f64, f64::max);
             // Σ d / n where Σ d overflows (durations near f64::MAX): a finite mean either way.
@@ -294,6 +363,7 @@ impl EdgeModels {
                 last_time: list.last().map(|a| a.time),
             });
         }
+        fit_success_models(&map, &mut edges, &series, &config)?;
         let mut means: Vec<f64> = edges.iter().filter_map(|e| e.mean_duration_secs).collect();
         means.sort_by(f64::total_cmp);
         let median = means.get(means.len() / 2).copied().unwrap_or(60.0);
@@ -322,6 +392,20 @@ impl EdgeModels {
             .iter()
             .filter_map(|e| e.last_time)
             .max_by(f64::total_cmp)
+    }
+
+    /// The weights all edges' success models share ([`success_candidates`]), heaviest first:
+    /// empty when the orders are fixed or no edge has a model.
+    pub fn shared_success_weights(&self) -> Vec<(ModelSpec, f64)> {
+        let stack = self.edges.iter().find_map(|e| match &e.success {
+            Some(AnyModel::Stack(stack)) => Some(stack),
+            _ => None,
+        });
+        let mut weights: Vec<(ModelSpec, f64)> = stack
+            .map(|s| s.members().map(|(m, w)| (m.spec(), w)).collect())
+            .unwrap_or_default();
+        weights.sort_by(|a, b| b.1.total_cmp(&a.1));
+        weights
     }
 
     /// The models of one edge.

@@ -238,8 +238,11 @@ mod tests {
             attempts(30.0, false),
             attempts(30.0, false),
         ];
+        // The planner is under test, not the choice of orders: a square wave needs the
+        // sharpest model available.
         let config = EdgeModelConfig {
             persistence: false,
+            success_order: Some(10),
             ..EdgeModelConfig::default()
         };
         EdgeModels::fit(map, &data, config).unwrap()

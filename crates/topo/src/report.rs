@@ -12,6 +12,7 @@ use crate::mdp::SolverOptions;
 use crate::plan::{PlanAt, PlanError, Planned, Task, now_or_later};
 use chronomap_core::BuildError;
 use chronomap_core::progress::Progress;
+use chronomap_models::spec::AnyModel;
 
 /// Attempts per edge, in the edge order of a map.
 pub type AttemptsPerEdge = Vec<Vec<Attempt>>;
@@ -24,6 +25,10 @@ pub struct FitSummary {
     pub success_orders: [usize; 6],
     /// The same for the duration models.
     pub duration_orders: [usize; 6],
+    /// The weights that every edge's success model gives FreMEn orders 0..=`max_order` when the orders
+    /// are not fixed (shared by all edges, fitted by rolling-origin cross-validation), heaviest
+    /// first; empty with a fixed order.
+    pub success_weights: Vec<(String, f64)>,
     /// Mean over the edges with attempts of the mean absolute error of the success
     /// probability at each attempt ([Fentanes 2015] eq. 3 divided by `n`).
     pub success_error: f64,
@@ -37,19 +42,32 @@ fn bucket(order: Option<usize>) -> usize {
     order.map_or(0, |o| 1 + o.min(4))
 }
 
+/// The order of a model; of a weighted average of models, the largest order among them.
+fn order_of(model: &AnyModel) -> Option<usize> {
+    match model {
+        AnyModel::Stack(stack) => stack.members().filter_map(|(m, _)| m.order()).max(),
+        other => other.order(),
+    }
+}
+
 /// How well `models` reconstruct the `attempts` they were fitted on ([`FitSummary`]).
 pub fn fit_summary(models: &EdgeModels, attempts: &[Vec<Attempt>]) -> FitSummary {
     let mut s = FitSummary {
         success_orders: [0; 6],
         duration_orders: [0; 6],
+        success_weights: models
+            .shared_success_weights()
+            .into_iter()
+            .map(|(spec, w)| (spec.to_string(), w))
+            .collect(),
         success_error: 0.0,
         duration_error_secs: 0.0,
     };
     let (mut success_edges, mut duration_edges) = (0usize, 0usize);
     for (e, list) in attempts.iter().enumerate() {
         let model = models.edge(e);
-        s.success_orders[bucket(model.success_model().and_then(|m| m.order()))] += 1;
-        s.duration_orders[bucket(model.duration_model().and_then(|m| m.order()))] += 1;
+        s.success_orders[bucket(model.success_model().and_then(order_of))] += 1;
+        s.duration_orders[bucket(model.duration_model().and_then(order_of))] += 1;
         if !list.is_empty() {
             // [Fentanes 2015] eq. (3) divided by n: the mean absolute reconstruction error.
             let error: f64 = list
