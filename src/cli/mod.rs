@@ -168,10 +168,11 @@ pub struct FitFlags {
     /// BASE/COUNT (BASE/k for k = 1..COUNT) or a comma list of seconds.
     #[arg(long, default_value = "week", value_parser = parse_periods)]
     pub periods: PeriodSet,
-    /// Most recent fraction of the training time span held back to choose orders and models.
+    /// Most recent fraction of the training time span held back to choose orders (`fremen:auto`,
+    /// `pergam:auto`, ...; `auto` scores its candidates from six rolling origins instead).
     #[arg(long, default_value_t = 0.25, value_parser = parse_fraction)]
     pub holdout: f64,
-    /// Largest FreMEn order that `auto` tries.
+    /// Largest FreMEn order that `fremen:auto` tries and `auto` combines.
     #[arg(long, default_value_t = 10)]
     pub max_order: usize,
     /// Error measure used to choose orders and models on held-back data.

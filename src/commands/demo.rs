@@ -191,7 +191,7 @@ fn print_eval(report: &EvalReport, reference: impl Fn(&str) -> Option<f64>) -> R
     let mut table = Table::new(header);
     for m in &report.models {
         let name = m.spec.to_string();
-        let mut row = vec![name.clone(), super::fitted_as(&m.fitted.model)];
+        let mut row = vec![name.clone(), m.fitted.model.fitted_as()];
         row.extend(m.tests.iter().map(|t| format!("{:.4}", t.mse)));
         row.push(format!("{:.4}", m.mean_mse()));
         row.push(reference(&name).map_or("".into(), |r| format!("{r:.4}")));
@@ -295,7 +295,7 @@ fn plots(
         };
         let title = format!(
             "{name} (fitted as {}), Brier score {:.4} on this week",
-            super::fitted_as(&m.fitted.model),
+            m.fitted.model.fitted_as(),
             m.tests[0].mse
         );
         let x_label = if name == "auto" {

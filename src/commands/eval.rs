@@ -114,7 +114,7 @@ fn to_json(
         })).collect::<Vec<_>>(),
         "models": report.models.iter().map(|m| json!({
             "name": m.spec.to_string(),
-            "fitted": super::fitted_as(&m.fitted.model),
+            "fitted": m.fitted.model.fitted_as(),
             "selection": m.fitted.selection.as_ref().map(describe_selection),
             "tests": m.tests.iter().map(|t| json!({
                 "mse": t.mse,
@@ -246,7 +246,7 @@ fn write_metric_table(
     let mut table = Table::new(header);
     for m in &report.models {
         let values: Vec<f64> = m.tests.iter().map(&metric).collect();
-        let mut row = vec![m.spec.to_string(), super::fitted_as(&m.fitted.model)];
+        let mut row = vec![m.spec.to_string(), m.fitted.model.fitted_as()];
         row.extend(values.iter().map(|v| format!("{v:.4}")));
         row.push(format!(
             "{:.4}",

@@ -149,15 +149,6 @@ fn errors_by_order(errors: &[f64]) -> String {
         .join(" ")
 }
 
-/// What a spec was fitted as, for the "fitted as" column: its resolved spec (`fremen:10` for
-/// `fremen:auto`), or for `auto` the number of models it combines.
-pub(crate) fn fitted_as(model: &chronomap_models::AnyModel) -> String {
-    match model {
-        chronomap_models::AnyModel::Stack(stack) => format!("stack of {}", stack.members().count()),
-        other => other.spec().to_string(),
-    }
-}
-
 /// One line saying how a model's order or family was chosen.
 fn describe_selection(selection: &Selection) -> String {
     match selection {

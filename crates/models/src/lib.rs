@@ -16,7 +16,7 @@
 pub mod eval;
 pub mod features;
 pub mod spec;
-pub mod stack;
 pub mod split;
+pub mod stack;
 
 pub use spec::{AnyModel, FitOptions, ModelSpec};

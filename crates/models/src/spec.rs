@@ -652,6 +652,15 @@ impl AnyModel {
         }
     }
 
+    /// What a spec was fitted as, for tables: the resolved spec (`fremen:10` for
+    /// `fremen:auto`), or for `auto` the number of models it combines (`stack of 7`).
+    pub fn fitted_as(&self) -> String {
+        match self {
+            AnyModel::Stack(stack) => format!("stack of {}", stack.members().count()),
+            other => other.spec().to_string(),
+        }
+    }
+
     /// The order, for models that have one.
     pub fn order(&self) -> Option<usize> {
         match self {

@@ -885,13 +885,7 @@ pub fn evaluate_table<'py>(
     )?;
     dict.set_item(
         "fitted",
-        PyList::new(
-            py,
-            report
-                .models
-                .iter()
-                .map(|m| m.fitted.model.spec().to_string()),
-        )?,
+        PyList::new(py, report.models.iter().map(|m| m.fitted.model.fitted_as()))?,
     )?;
     for i in 0..sets.len() {
         dict.set_item(format!("mse_{}", i + 1), column(&|m| m.tests[i].mse))?;
