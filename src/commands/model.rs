@@ -70,7 +70,7 @@ pub fn fit_and_save(
     outln!(
         "fitted {} as {} on {} observations of {}",
         model,
-        fitted.model.spec(),
+        fitted.model.fitted_as(),
         train.len(),
         training.name
     )?;

@@ -53,6 +53,26 @@ fn automatic_models_reach_the_target_from_training_data_only() {
     }
 }
 
+/// Issue 23: `auto` (stacking over rolling origins) beats the originals on the test weeks,
+/// and on every week the best fixed FreMEn order (16, chosen knowing the answers). Measured:
+/// 0.0603 against 0.0632 (fremen:16), 0.0656 (fremen:auto) and 0.0670 (fremen:4).
+#[test]
+fn auto_beats_every_fixed_fremen_order_on_every_test_week() {
+    let results = evaluate_specs("auto,fremen:16,fremen:auto,fremen:4");
+    let (auto_weeks, auto_mean) = (&results[0].1, results[0].2);
+    assert!((auto_mean - 0.0603).abs() <= 0.0005, "{results:?}");
+    for (name, weeks, mean) in &results[1..] {
+        assert!(auto_mean < *mean, "{name}: {results:?}");
+        for (week, (ours, theirs)) in auto_weeks.iter().zip(weeks).enumerate() {
+            assert!(
+                ours < theirs,
+                "{name} week {}: {ours} vs {theirs}",
+                week + 1
+            );
+        }
+    }
+}
+
 #[test]
 fn the_original_histogram_figure_is_24_bins_over_a_day() {
     let results = evaluate_specs("hist:24:86400,hist:24");
