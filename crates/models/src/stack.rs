@@ -203,7 +203,9 @@ pub fn fit_stacked(
     values: &[f64],
     options: &FitOptions,
 ) -> Result<(StackedModel, StackSelection), BuildError> {
-    let candidates = stack_candidates(options.max_order);
+    // Orders above the number of candidate periods would repeat the largest one (and an
+    // absurd --max-order would make the weights' statistics quadratic in it).
+    let candidates = stack_candidates(options.max_order.min(options.periods.len()));
     let (problem, origins) = rolling_origin_problem(&candidates, times, values, options);
     if origins == 0 {
         return Err(BuildError::NotEnoughData(format!(
@@ -466,6 +468,18 @@ mod tests {
             StackedModel::new(vec![member()], vec![1.0]).unwrap(),
         ));
         assert!(StackedModel::new(vec![inner], vec![1.0]).is_err());
+    }
+
+    #[test]
+    fn fremen_orders_are_capped_at_the_number_of_periods() {
+        let (times, values) = office(1);
+        let options = FitOptions {
+            max_order: 1_000_000,
+            ..FitOptions::default()
+        };
+        let (_, selection) = fit_stacked(&times, &values, &options).unwrap();
+        let periods = options.periods.len();
+        assert_eq!(selection.errors.len(), stack_candidates(periods).len());
     }
 
     #[test]

@@ -207,7 +207,10 @@ fn fit_series(
 /// The candidates whose weights all edges share when success orders are not fixed: FreMEn of
 /// orders 0..=`max_order` (with persistence if configured) — order 0 is the static rate.
 pub fn success_candidates(config: &EdgeModelConfig) -> Vec<ModelSpec> {
-    let orders = 0..=config.max_order;
+    // Orders above the number of periods would repeat the largest one.
+    let orders = 0..=config
+        .max_order
+        .min(chronomap_core::periods::PeriodSet::default().len());
     orders
         .map(|k| {
             if config.persistence {
