@@ -99,6 +99,8 @@ pub mod events;
 pub mod frame_list;
 #[cfg(feature = "grid")]
 pub mod grid_file;
+#[cfg(feature = "lidar")]
+pub mod laser_text;
 #[cfg(feature = "bt")]
 pub mod line_error;
 pub mod matrix;
@@ -109,6 +111,8 @@ pub mod monitor_faults;
 pub mod navmap;
 #[cfg(feature = "navmap")]
 mod navmap_obstacles;
+#[cfg(feature = "lidar")]
+pub mod ply;
 #[cfg(feature = "psbt")]
 pub mod psbt_xml;
 #[cfg(feature = "activity")]

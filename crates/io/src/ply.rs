@@ -1,0 +1,1 @@
+//! 3-D point clouds as PLY files (ASCII and binary).

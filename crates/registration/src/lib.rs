@@ -1,0 +1,4 @@
+//! # chronomap-registration
+//!
+//! Point-cloud registration ([Stüde 2024] §3.2.2).
+#![deny(missing_docs)]
