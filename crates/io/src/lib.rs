@@ -72,6 +72,10 @@
 //!   behavior tree for `chronomap bt analyse` ([`read_leaf_params`]); [`monitor_faults`] —
 //!   faults injected into the monitoring simulation ([`read_fault_file`]); the errors of
 //!   these three ([`line_error::LineError`]) name the file and line.
+//! * [`laser_text`] — 2-D laser logs as text (the bundled Málaga log): scans with their sensor
+//!   pose ([`read_scans`]), SLAM keyframes ([`read_keyframes`]) and odometry increments
+//!   ([`read_odometry`]); no-returns become `+inf`; errors ([`LaserTextError`]) name the file,
+//!   line and field.
 //!
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
@@ -193,4 +197,9 @@ pub use topo_files::{
 #[cfg(feature = "activity")]
 pub use tracks::{
     read_track_files, read_track_point_files, read_track_points, read_tracks, read_tracks_from,
+};
+#[cfg(feature = "lidar")]
+pub use laser_text::{
+    Keyframe, LaserScan, LaserTextError, OdometryIncrement, SensorPose, read_keyframes,
+    read_odometry, read_scans,
 };
