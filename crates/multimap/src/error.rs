@@ -1,0 +1,86 @@
+//! The typed errors of the crate: every refusal names the field, map, link or parameter.
+
+use chronomap_lidar::ScanError;
+
+/// Why an input or a computation is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MultimapError {
+    /// A number that must be finite is NaN or infinite.
+    #[error("{field}: {value} is not finite")]
+    NotFinite {
+        /// The field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A matrix given as a covariance is not one (asymmetric, negative variance, not
+    /// positive semi-definite).
+    #[error("{field} is not a covariance matrix: {why}")]
+    NotCovariance {
+        /// The field.
+        field: &'static str,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// A parameter outside its range.
+    #[error("parameter {field} = {value}: {why}")]
+    Parameter {
+        /// The parameter.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// The range it must lie in.
+        why: &'static str,
+    },
+    /// A scan refused by [`chronomap_lidar::Scan2d::validate`].
+    #[error("scan: {0}")]
+    Scan(#[from] ScanError),
+    /// Scan times must not decrease.
+    #[error("time: scan at {time} s comes after one at {previous} s")]
+    TimeGoesBack {
+        /// The new scan's time.
+        time: f64,
+        /// The previous scan's time.
+        previous: f64,
+    },
+    /// A map index that is not in the graph.
+    #[error("map {0} is not in the graph")]
+    UnknownMap(usize),
+    /// A link-point index that is not in the graph.
+    #[error("link point {0} is not in the graph")]
+    UnknownLink(usize),
+    /// A link point must join two different maps.
+    #[error("a link point must join two different maps, both are map {0}")]
+    SameMap(usize),
+    /// No chain of link points joins the two maps.
+    #[error("no path of link points joins map {from} and map {to}")]
+    NoPath {
+        /// Start map.
+        from: usize,
+        /// Target map.
+        to: usize,
+    },
+    /// More elements than the crate's bound for them.
+    #[error("{what}: {n} is more than the {max} allowed")]
+    TooLarge {
+        /// What is counted.
+        what: &'static str,
+        /// How many there are.
+        n: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A relative map pose whose covariance cannot be inverted into an information matrix
+    /// (eq. (3.4) needs `Ω = Σ⁻¹`).
+    #[error("link point {link}: the covariance of its relative map pose is singular")]
+    SingularCovariance {
+        /// The link point.
+        link: usize,
+    },
+    /// The normal equations of the pose graph are singular (a map not tied to map 0).
+    #[error("the pose graph is singular: map {map} is not constrained")]
+    SingularGraph {
+        /// A map whose pose is not determined.
+        map: usize,
+    },
+}
