@@ -49,7 +49,10 @@
 
 pub mod adaboost;
 pub mod descriptor;
+pub mod evaluation;
 pub mod scan;
+pub mod search;
+pub mod threshold;
 
 pub use adaboost::{AdaBoost, AdaBoostError, AdaBoostParams};
 pub use descriptor::{Descriptor, DescriptorError, DescriptorParams};

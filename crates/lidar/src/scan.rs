@@ -98,7 +98,11 @@ impl Scan2d {
             return field("angle_min", self.angle_min, "not finite");
         }
         if !self.angle_max.is_finite() || self.angle_max <= self.angle_min {
-            return field("angle_max", self.angle_max, "must be finite and above angle_min");
+            return field(
+                "angle_max",
+                self.angle_max,
+                "must be finite and above angle_min",
+            );
         }
         if !(self.max_range.is_finite() && self.max_range > 0.0) {
             return field("max_range", self.max_range, "must be positive and finite");
@@ -137,7 +141,9 @@ impl Scan2d {
 
     /// Number of returns.
     pub fn valid_count(&self) -> usize {
-        (0..self.ranges.len()).filter(|&k| self.is_return(k)).count()
+        (0..self.ranges.len())
+            .filter(|&k| self.is_return(k))
+            .count()
     }
 
     /// The returns as points `[x, y]` in the sensor frame, in beam order.
@@ -178,7 +184,10 @@ mod tests {
             Err(ScanError::TooFewBeams(1))
         );
         let e = Scan2d::new(0.0, 1.0, 1.0, 10.0, vec![1.0, 1.0]).unwrap_err();
-        assert!(e.to_string().starts_with("angle_max: 1 is not valid"), "{e}");
+        assert!(
+            e.to_string().starts_with("angle_max: 1 is not valid"),
+            "{e}"
+        );
         let e = Scan2d::new(0.0, 0.0, 1.0, 10.0, vec![1.0, f64::NAN]).unwrap_err();
         assert!(matches!(e, ScanError::Range { index: 1, value } if value.is_nan()));
         let e = Scan2d::new(f64::NAN, 0.0, 1.0, 10.0, vec![1.0, 1.0]).unwrap_err();

@@ -1,0 +1,790 @@
+//! Evaluation of loop detection on a keyframe sequence ([Stüde 2024] §3.2.1, "Loop
+//! Classification" and its evaluation): labelled keyframe pairs, cross-validation whose folds
+//! split the *keyframes* (no keyframe of a scored pair is seen in training), ROC / TPR at
+//! FPR < 1 %, and the whole pipeline — search radius, classifier, verification — run along
+//! the sequence. `examples/malaga_loops.rs` runs it on the Málaga log; `docs/lidar.md`
+//! argues the choices.
+//!
+//! ```
+//! use chronomap_lidar::evaluation::{LabelParams, label_pairs, sector_folds};
+//!
+//! // A square loop driven twice: keyframes every metre.
+//! let lap: Vec<[f64; 2]> = (0..40).map(|k| {
+//!     let (side, t) = (k / 10, (k % 10) as f64);
+//!     [[t, 0.0], [10.0, t], [10.0 - t, 10.0], [0.0, 10.0 - t]][side]
+//! }).collect();
+//! let positions: Vec<[f64; 2]> = lap.iter().chain(&lap).copied().collect();
+//! let pairs = label_pairs(&positions, &LabelParams::default())?;
+//! // Every keyframe of lap 2 revisits its twin of lap 1 (0 m apart, 40 keyframes later),
+//! // and neighbours within 3 m as well.
+//! assert!(pairs.iter().any(|p| p.positive && (p.i, p.j) == (5, 45)));
+//! // Folds are angular sectors around the centroid, opposite sectors together.
+//! let folds = sector_folds(&positions, 2, 0.0)?;
+//! assert_eq!(folds[5], folds[45]);
+//! # Ok::<(), chronomap_lidar::evaluation::EvalError>(())
+//! ```
+//!
+//! [Stüde 2024]: M. Stüde, dissertation, Hannover 2024.
+
+use serde::{Deserialize, Serialize};
+
+use crate::adaboost::{AdaBoost, AdaBoostError, AdaBoostParams};
+use crate::search::{
+    OdometryNoise, SearchError, SearchMode, SearchParams, propagate, search_mode, search_radius,
+    verified, within_radius,
+};
+use crate::threshold::{MeanSd, RocPoint, ThresholdError, auc, rates_at, roc, threshold_for_fpr};
+
+/// Why an evaluation cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EvalError {
+    /// A position is not finite, or inputs differ in length.
+    #[error("evaluation input: {0}")]
+    Input(String),
+    /// Training failed.
+    #[error("training: {0}")]
+    Train(#[from] AdaBoostError),
+    /// A ROC curve failed.
+    #[error("roc: {0}")]
+    Roc(#[from] ThresholdError),
+    /// A search quantity failed.
+    #[error("search: {0}")]
+    Search(#[from] SearchError),
+}
+
+/// How keyframe pairs are labelled.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LabelParams {
+    /// Pairs closer than this (m) and more than `min_separation` keyframes apart are loops
+    /// (3 m, [Stüde 2024] §3.2.1).
+    pub near: f64,
+    /// Pairs farther apart than this (m) are not loops (10 m); pairs between `near` and `far`,
+    /// and close pairs of nearby keyframes, are ambiguous and left out.
+    pub far: f64,
+    /// Loops must be more than this many keyframes apart in the sequence (20).
+    pub min_separation: usize,
+}
+
+impl Default for LabelParams {
+    fn default() -> Self {
+        LabelParams {
+            near: 3.0,
+            far: 10.0,
+            min_separation: 20,
+        }
+    }
+}
+
+/// A labelled keyframe pair `i < j`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LabelledPair {
+    /// The earlier keyframe.
+    pub i: usize,
+    /// The later keyframe.
+    pub j: usize,
+    /// A loop (true) or not.
+    pub positive: bool,
+    /// Their distance (m).
+    pub distance: f64,
+}
+
+fn check_positions(positions: &[[f64; 2]]) -> Result<(), EvalError> {
+    match positions
+        .iter()
+        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+    {
+        Some(k) => Err(EvalError::Input(format!("position {k} is not finite"))),
+        None => Ok(()),
+    }
+}
+
+/// The positive and negative pairs of keyframes at `positions` (see [`LabelParams`]).
+///
+/// # Errors
+/// [`EvalError::Input`] for a non-finite position or `near > far`.
+pub fn label_pairs(
+    positions: &[[f64; 2]],
+    params: &LabelParams,
+) -> Result<Vec<LabelledPair>, EvalError> {
+    check_positions(positions)?;
+    if !(params.near >= 0.0 && params.near <= params.far && params.far.is_finite()) {
+        return Err(EvalError::Input(
+            "labels need 0 <= near <= far < inf".into(),
+        ));
+    }
+    let mut out = Vec::new();
+    for j in 0..positions.len() {
+        for i in 0..j {
+            let d = (positions[i][0] - positions[j][0]).hypot(positions[i][1] - positions[j][1]);
+            if d < params.near && j - i > params.min_separation {
+                out.push(LabelledPair {
+                    i,
+                    j,
+                    positive: true,
+                    distance: d,
+                });
+            } else if d > params.far {
+                out.push(LabelledPair {
+                    i,
+                    j,
+                    positive: false,
+                    distance: d,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Folds of keyframes by place: `2·folds` equal angular sectors around the centroid of the
+/// positions (starting at angle `rotation`), sector `s` in fold `s mod folds`, so that each
+/// fold holds two opposite sectors. Both visits of a place fall into the same fold (their
+/// loops can be scored), the two sectors of a fold are far apart (negatives), and the
+/// training folds hold no keyframe of the place — nor its neighbours in the sequence, except
+/// at sector borders.
+///
+/// # Errors
+/// [`EvalError::Input`] for no fold, or a non-finite position or rotation.
+pub fn sector_folds(
+    positions: &[[f64; 2]],
+    folds: usize,
+    rotation: f64,
+) -> Result<Vec<usize>, EvalError> {
+    check_positions(positions)?;
+    if folds == 0 || folds > 1000 || !rotation.is_finite() {
+        return Err(EvalError::Input(
+            "folds must be 1..=1000, rotation finite".into(),
+        ));
+    }
+    let n = positions.len().max(1) as f64;
+    let cx = positions.iter().map(|p| p[0]).sum::<f64>() / n;
+    let cy = positions.iter().map(|p| p[1]).sum::<f64>() / n;
+    let sectors = 2 * folds;
+    let width = std::f64::consts::TAU / sectors as f64;
+    Ok(positions
+        .iter()
+        .map(|p| {
+            let a = ((p[1] - cy).atan2(p[0] - cx) - rotation).rem_euclid(std::f64::consts::TAU);
+            ((a / width) as usize).min(sectors - 1) % folds
+        })
+        .collect())
+}
+
+/// Cross-validation settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CvParams {
+    /// The classifier's parameters (`T = 50`).
+    pub adaboost: AdaBoostParams,
+    /// The false-positive bound for `p_min` (1 %).
+    pub max_fpr: f64,
+    /// Seed of the balanced training subsets.
+    pub seed: u64,
+}
+
+impl Default for CvParams {
+    fn default() -> Self {
+        CvParams {
+            adaboost: AdaBoostParams::default(),
+            max_fpr: 0.01,
+            seed: 1,
+        }
+    }
+}
+
+/// A scored test pair.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScoredPair {
+    /// The pair.
+    pub pair: LabelledPair,
+    /// Its fold.
+    pub fold: usize,
+    /// The loop probability of the model that did not see its keyframes.
+    pub probability: f64,
+}
+
+/// One fold's result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FoldResult {
+    /// The fold.
+    pub fold: usize,
+    /// Training pairs (positives, negatives after balancing).
+    pub trained_on: (usize, usize),
+    /// Test pairs (positives, negatives).
+    pub tested_on: (usize, usize),
+    /// The fold's ROC curve.
+    pub roc: Vec<RocPoint>,
+    /// Its area.
+    pub auc: f64,
+    /// The point of its own ROC with the largest TPR at FPR below the bound (the threshold
+    /// chosen on the fold's own scores, as the dissertation's cross-validation does).
+    pub at_max_fpr: RocPoint,
+    /// `p_min` chosen on the pooled scores of the *other* folds.
+    pub heldout_threshold: f64,
+    /// TPR and FPR of this fold at that `p_min` (a threshold it did not help choose).
+    pub heldout_rates: (f64, f64),
+}
+
+/// The result of [`cross_validate`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CvReport {
+    /// Per fold (folds without test positives or negatives are left out).
+    pub folds: Vec<FoldResult>,
+    /// Every scored test pair.
+    pub scored: Vec<ScoredPair>,
+    /// ROC of all scored pairs together.
+    pub pooled_roc: Vec<RocPoint>,
+    /// Its area.
+    pub pooled_auc: f64,
+    /// `p_min` on the pooled ROC.
+    pub pooled_at_max_fpr: RocPoint,
+}
+
+impl CvReport {
+    /// Mean ± sd over folds of the TPR at FPR below the bound (each fold's own threshold).
+    pub fn tpr(&self) -> MeanSd {
+        MeanSd::of(self.folds.iter().map(|f| f.at_max_fpr.tpr))
+    }
+    /// Mean ± sd over folds of the AUC.
+    pub fn auc(&self) -> MeanSd {
+        MeanSd::of(self.folds.iter().map(|f| f.auc))
+    }
+    /// Mean ± sd over folds of the TPR at the held-out threshold.
+    pub fn heldout_tpr(&self) -> MeanSd {
+        MeanSd::of(self.folds.iter().map(|f| f.heldout_rates.0))
+    }
+    /// Mean ± sd over folds of the FPR at the held-out threshold.
+    pub fn heldout_fpr(&self) -> MeanSd {
+        MeanSd::of(self.folds.iter().map(|f| f.heldout_rates.1))
+    }
+}
+
+/// Training rows of the pairs that `keep` accepts: all positives and as many negatives,
+/// drawn with `seed` ([Stüde 2024] §3.2.1 re-balances by random subsets).
+fn balanced<'a, R: AsRef<[f64]>>(
+    pairs: &[LabelledPair],
+    x: &'a [R],
+    keep: impl Fn(&LabelledPair) -> bool,
+    seed: u64,
+) -> (Vec<&'a [f64]>, Vec<bool>) {
+    let (mut pos, mut neg): (Vec<usize>, Vec<usize>) = (Vec::new(), Vec::new());
+    for (k, p) in pairs.iter().enumerate() {
+        if keep(p) {
+            if p.positive {
+                pos.push(k);
+            } else {
+                neg.push(k);
+            }
+        }
+    }
+    let mut rng = chronomap_rng::Xoshiro256StarStar::seed_from_u64(seed);
+    rng.shuffle(&mut neg);
+    neg.truncate(pos.len());
+    neg.sort_unstable();
+    let rows = pos.iter().chain(&neg).map(|&k| x[k].as_ref()).collect();
+    let labels = pos
+        .iter()
+        .map(|_| true)
+        .chain(neg.iter().map(|_| false))
+        .collect();
+    (rows, labels)
+}
+
+fn check_rows<R: AsRef<[f64]>>(
+    pairs: &[LabelledPair],
+    x: &[R],
+    fold_of: &[usize],
+) -> Result<(), EvalError> {
+    if x.len() != pairs.len() {
+        return Err(EvalError::Input(format!(
+            "{} feature rows for {} pairs",
+            x.len(),
+            pairs.len()
+        )));
+    }
+    if let Some(p) = pairs.iter().find(|p| p.i.max(p.j) >= fold_of.len()) {
+        return Err(EvalError::Input(format!(
+            "pair ({}, {}) has a keyframe without a fold",
+            p.i, p.j
+        )));
+    }
+    Ok(())
+}
+
+/// Keyframe-disjoint cross-validation: for each fold `f`, train on the pairs of keyframes
+/// outside `f` (balanced) and score the pairs of keyframes inside `f`. `x[k]` is the pair
+/// feature vector of `pairs[k]`; `fold_of[i]` the fold of keyframe `i`.
+///
+/// # Errors
+/// [`EvalError`] for inconsistent inputs, or if training or the pooled ROC fails (no
+/// positives or negatives at all).
+pub fn cross_validate<R: AsRef<[f64]>>(
+    pairs: &[LabelledPair],
+    x: &[R],
+    fold_of: &[usize],
+    params: &CvParams,
+) -> Result<CvReport, EvalError> {
+    check_rows(pairs, x, fold_of)?;
+    let folds = fold_of.iter().max().map_or(0, |m| m + 1);
+    let mut scored = Vec::new();
+    let mut trained = Vec::new();
+    for f in 0..folds {
+        let outside = |p: &LabelledPair| fold_of[p.i] != f && fold_of[p.j] != f;
+        let seed = chronomap_rng::derive_seed(params.seed, 0x11da_0001, f as u64, 0);
+        let (rows, labels) = balanced(pairs, x, outside, seed);
+        let test: Vec<usize> = (0..pairs.len())
+            .filter(|&k| fold_of[pairs[k].i] == f && fold_of[pairs[k].j] == f)
+            .collect();
+        let has = |v: bool| test.iter().any(|&k| pairs[k].positive == v);
+        if !has(true) || !has(false) || labels.is_empty() {
+            continue;
+        }
+        let model = AdaBoost::fit(&rows, &labels, None, &params.adaboost)?;
+        for &k in &test {
+            scored.push(ScoredPair {
+                pair: pairs[k],
+                fold: f,
+                probability: model.probability(x[k].as_ref())?,
+            });
+        }
+        trained.push((f, labels.iter().filter(|&&l| l).count(), labels.len()));
+    }
+    let split = |keep: &dyn Fn(&ScoredPair) -> bool| -> (Vec<f64>, Vec<bool>) {
+        scored
+            .iter()
+            .filter(|s| keep(s))
+            .map(|s| (s.probability, s.pair.positive))
+            .unzip()
+    };
+    let mut results = Vec::new();
+    for &(f, tp, tn) in &trained {
+        let (scores, labels) = split(&|s| s.fold == f);
+        let curve = roc(&scores, &labels)?;
+        let (other_scores, other_labels) = split(&|s| s.fold != f);
+        let heldout_threshold = roc(&other_scores, &other_labels)
+            .map(|c| threshold_for_fpr(&c, params.max_fpr).threshold)
+            .unwrap_or(f64::INFINITY);
+        results.push(FoldResult {
+            fold: f,
+            trained_on: (tp, tn - tp),
+            tested_on: (
+                labels.iter().filter(|&&l| l).count(),
+                labels.iter().filter(|&&l| !l).count(),
+            ),
+            auc: auc(&curve),
+            at_max_fpr: threshold_for_fpr(&curve, params.max_fpr),
+            heldout_threshold,
+            heldout_rates: rates_at(&scores, &labels, heldout_threshold),
+            roc: curve,
+        });
+    }
+    let (scores, labels) = split(&|_| true);
+    let pooled_roc = roc(&scores, &labels)?;
+    Ok(CvReport {
+        folds: results,
+        scored,
+        pooled_auc: auc(&pooled_roc),
+        pooled_at_max_fpr: threshold_for_fpr(&pooled_roc, params.max_fpr),
+        pooled_roc,
+    })
+}
+
+/// Classifiers for scoring *any* keyframe pair without having seen its keyframes: the model
+/// for folds `a ≤ b` is trained on the pairs of keyframes outside both.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairModels {
+    /// The fold of each keyframe.
+    pub fold_of: Vec<usize>,
+    /// Number of folds.
+    pub folds: usize,
+    /// Model of folds `(a, b)`, `a ≤ b`, at `a·folds + b` (none without training data).
+    pub models: Vec<Option<AdaBoost>>,
+}
+
+impl PairModels {
+    /// Trains the `folds·(folds+1)/2` models.
+    ///
+    /// # Errors
+    /// As [`cross_validate`].
+    pub fn train<R: AsRef<[f64]>>(
+        pairs: &[LabelledPair],
+        x: &[R],
+        fold_of: &[usize],
+        params: &CvParams,
+    ) -> Result<PairModels, EvalError> {
+        check_rows(pairs, x, fold_of)?;
+        let folds = fold_of.iter().max().map_or(0, |m| m + 1);
+        let mut models = vec![None; folds * folds];
+        for a in 0..folds {
+            for b in a..folds {
+                let outside = |p: &LabelledPair| {
+                    ![a, b].contains(&fold_of[p.i]) && ![a, b].contains(&fold_of[p.j])
+                };
+                let seed = chronomap_rng::derive_seed(params.seed, 0x11da_0002, a as u64, b as u64);
+                let (rows, labels) = balanced(pairs, x, outside, seed);
+                if labels.contains(&true) && labels.contains(&false) {
+                    models[a * folds + b] =
+                        Some(AdaBoost::fit(&rows, &labels, None, &params.adaboost)?);
+                }
+            }
+        }
+        Ok(PairModels {
+            fold_of: fold_of.to_vec(),
+            folds,
+            models,
+        })
+    }
+
+    /// The loop probability of keyframes `i` and `j` with pair features `x`, by the model that
+    /// saw neither; `None` if there is none.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::probability`].
+    pub fn probability(&self, i: usize, j: usize, x: &[f64]) -> Result<Option<f64>, EvalError> {
+        let (Some(&a), Some(&b)) = (self.fold_of.get(i), self.fold_of.get(j)) else {
+            return Ok(None);
+        };
+        let (a, b) = (a.min(b), a.max(b));
+        match &self.models[a * self.folds + b] {
+            Some(m) => Ok(Some(m.probability(x)?)),
+            None => Ok(None),
+        }
+    }
+}
+
+/// Compose robot-frame increments `(dx, dy, dθ)`: `a ⊕ b`.
+pub fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a[2].sin_cos();
+    [
+        a[0] + c * b[0] - s * b[1],
+        a[1] + s * b[0] + c * b[1],
+        a[2] + b[2],
+    ]
+}
+
+/// The odometry increment from keyframe to keyframe: `odometry` holds `(time, [dx, dy, dθ])`
+/// in time order, each the motion up to its time; the increment of keyframe `k` composes those
+/// after keyframe `k − 1`'s time up to its own (keyframe 0 gets the identity).
+pub fn keyframe_increments(odometry: &[(f64, [f64; 3])], keyframe_times: &[f64]) -> Vec<[f64; 3]> {
+    let mut out = Vec::with_capacity(keyframe_times.len());
+    let mut next = 0;
+    for (k, &t) in keyframe_times.iter().enumerate() {
+        let mut inc = [0.0; 3];
+        while next < odometry.len() && odometry[next].0 <= t {
+            if k > 0 {
+                inc = compose(inc, odometry[next].1);
+            }
+            next += 1;
+        }
+        out.push(inc);
+    }
+    out
+}
+
+/// Settings of [`run_pipeline`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PipelineParams {
+    /// The search (appendix A defaults, `p_min` to be set from cross-validation).
+    pub search: SearchParams,
+    /// Odometry noise of the dead-reckoning covariance.
+    pub noise: OdometryNoise,
+    /// Nodes this close in the sequence are not loop candidates (20).
+    pub min_separation: usize,
+    /// Keyframes before this index are an earlier session whose relation to the current one
+    /// is unknown until the first loop links them (0: one session).
+    pub session_start: usize,
+    /// A detection is correct if the true positions are closer than this (3 m).
+    pub near: f64,
+}
+
+impl Default for PipelineParams {
+    fn default() -> Self {
+        PipelineParams {
+            search: SearchParams::default(),
+            noise: OdometryNoise::default(),
+            min_separation: 20,
+            session_start: 0,
+            near: 3.0,
+        }
+    }
+}
+
+/// An accepted loop.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    /// The new keyframe.
+    pub query: usize,
+    /// The node it closes the loop with.
+    pub target: usize,
+    /// The loop probability.
+    pub probability: f64,
+    /// Where the search looked.
+    pub mode: SearchMode,
+    /// The search radius (m; infinite for a global search).
+    pub radius: f64,
+    /// Candidates scored.
+    pub candidates: usize,
+    /// The true distance of the pair (m).
+    pub true_distance: f64,
+    /// Whether it is a true loop.
+    pub correct: bool,
+}
+
+/// The result of [`run_pipeline`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PipelineReport {
+    /// Accepted loops in sequence order.
+    pub detections: Vec<Detection>,
+    /// Keyframes that have a true loop partner among the eligible nodes.
+    pub queries_with_loop: usize,
+    /// Of those, keyframes whose search space held a true partner.
+    pub queries_with_loop_in_space: usize,
+    /// Of those, keyframes with a correct accepted loop.
+    pub queries_closed: usize,
+    /// True loop pairs (eligible node, query) in all.
+    pub true_pairs: usize,
+    /// Of those, pairs that were in the search space when the query came.
+    pub true_pairs_in_space: usize,
+    /// Pairs scored in all.
+    pub scored_pairs: usize,
+    /// Detections rejected by verification.
+    pub rejected_by_verification: usize,
+    /// The search radius at each keyframe (m; infinite for global searches).
+    pub radii: Vec<f64>,
+}
+
+impl PipelineReport {
+    /// Accepted loops that are true.
+    pub fn correct(&self) -> usize {
+        self.detections.iter().filter(|d| d.correct).count()
+    }
+    /// Accepted loops that are false.
+    pub fn wrong(&self) -> usize {
+        self.detections.len() - self.correct()
+    }
+}
+
+/// Runs loop detection along a keyframe sequence ([Stüde 2024] §3.2.1): dead reckoning from
+/// `increments` (robot frame, [`keyframe_increments`]) with the covariance of
+/// [`propagate`]; at each keyframe `j` the nodes within the radius of eq. (3.8) around the
+/// estimated sensor position (`sensor`: the laser's offset in the robot frame) — or all nodes
+/// while `α < α_min` — that are more than `min_separation` keyframes back are scored with
+/// `score(i, j)`; the most probable pair above `p_min` is a loop, verified by `n_ver` further
+/// detections within `r_ver` while fewer than `n_start` loops were accepted. An accepted loop
+/// resets the covariance and shifts the current pose estimate so that its scan's place is the
+/// target node's (translation only; a stand-in for registration and graph optimisation, which
+/// this crate does not do); the first link of a second session shifts that session's nodes
+/// along. Detections are
+/// judged by `truth` (true positions, e.g. SLAM poses).
+///
+/// # Errors
+/// [`EvalError`] for inconsistent inputs, bad parameters, or a failing `score`.
+pub fn run_pipeline(
+    increments: &[[f64; 3]],
+    sensor: [f64; 2],
+    truth: &[[f64; 2]],
+    params: &PipelineParams,
+    mut score: impl FnMut(usize, usize) -> Result<Option<f64>, EvalError>,
+) -> Result<PipelineReport, EvalError> {
+    let n = increments.len();
+    if truth.len() != n {
+        return Err(EvalError::Input(format!(
+            "{} true positions for {n} keyframes",
+            truth.len()
+        )));
+    }
+    check_positions(truth)?;
+    if increments.iter().flatten().any(|v| !v.is_finite()) || !sensor.iter().all(|v| v.is_finite())
+    {
+        return Err(EvalError::Input(
+            "an increment or the sensor offset is not finite".into(),
+        ));
+    }
+    params.search.validate()?;
+    let s = &params.search;
+    let place = |pose: [f64; 3]| {
+        let p = compose(pose, [sensor[0], sensor[1], 0.0]);
+        [p[0], p[1]]
+    };
+    let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    let mut poses: Vec<[f64; 3]> = Vec::with_capacity(n);
+    let mut pose = [0.0; 3];
+    let mut cov = [[0.0; 3]; 3];
+    let mut linked = params.session_start == 0;
+    let mut report = PipelineReport {
+        detections: Vec::new(),
+        queries_with_loop: 0,
+        queries_with_loop_in_space: 0,
+        queries_closed: 0,
+        true_pairs: 0,
+        true_pairs_in_space: 0,
+        scored_pairs: 0,
+        rejected_by_verification: 0,
+        radii: Vec::with_capacity(n),
+    };
+    for j in 0..n {
+        if j == params.session_start && j > 0 {
+            // A new session: its own frame, no knowledge of the old one.
+            pose = [0.0; 3];
+            cov = [[0.0; 3]; 3];
+        } else if j > 0 {
+            (pose, cov) = propagate(pose, cov, increments[j], &params.noise);
+        }
+        poses.push(pose);
+        let places: Vec<[f64; 2]> = poses.iter().map(|&p| place(p)).collect();
+        let here = places[j];
+        let (n_local, n_wm) = if linked {
+            (j + 1, j + 1)
+        } else {
+            (j + 1 - params.session_start, j + 1)
+        };
+        let mode = search_mode(n_local, n_wm, s.alpha_min);
+        let old_session =
+            |i: usize| !linked && i < params.session_start && j >= params.session_start;
+        let eligible = |i: usize| i < j && (j - i > params.min_separation || old_session(i));
+        let (candidates, radius) = match mode {
+            SearchMode::Local => {
+                let r = search_radius([[cov[0][0], cov[0][1]], [cov[1][0], cov[1][1]]], s)?;
+                (within_radius(here, r, &places, eligible), r)
+            }
+            SearchMode::Global => ((0..j).filter(|&i| eligible(i)).collect(), f64::INFINITY),
+        };
+        report.radii.push(radius);
+        let true_partners: Vec<usize> = (0..j)
+            .filter(|&i| eligible(i) && dist(truth[i], truth[j]) < params.near)
+            .collect();
+        report.true_pairs += true_partners.len();
+        let in_space = true_partners
+            .iter()
+            .filter(|i| candidates.contains(i))
+            .count();
+        report.true_pairs_in_space += in_space;
+        if !true_partners.is_empty() {
+            report.queries_with_loop += 1;
+            if in_space > 0 {
+                report.queries_with_loop_in_space += 1;
+            }
+        }
+        let mut positives = Vec::new();
+        for &i in &candidates {
+            if let Some(p) = score(i, j)? {
+                report.scored_pairs += 1;
+                if p > s.p_min {
+                    positives.push((i, p));
+                }
+            }
+        }
+        let Some(&(target, probability)) = positives.iter().max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            continue;
+        };
+        if report.detections.len() < s.n_start {
+            let detected: Vec<usize> = positives.iter().map(|p| p.0).collect();
+            if !verified(target, &detected, &places, s) {
+                report.rejected_by_verification += 1;
+                continue;
+            }
+        }
+        let d = dist(truth[target], truth[j]);
+        let correct = d < params.near;
+        report.detections.push(Detection {
+            query: j,
+            target,
+            probability,
+            mode,
+            radius,
+            candidates: candidates.len(),
+            true_distance: d,
+            correct,
+        });
+        if correct {
+            report.queries_closed += 1;
+        }
+        // Shift the current pose (and an unlinked session) so that its scan's place is the
+        // target's (translation only: the relative heading would come from registration).
+        let first = if linked { j } else { params.session_start };
+        let (dx, dy) = (places[target][0] - here[0], places[target][1] - here[1]);
+        for p in &mut poses[first..=j] {
+            p[0] += dx;
+            p[1] += dy;
+        }
+        pose = poses[j];
+        cov = [[0.0; 3]; 3];
+        linked = true;
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_leave_out_the_ambiguous_band() {
+        let positions = [[0.0, 0.0], [5.0, 0.0], [20.0, 0.0], [1.0, 0.0]];
+        let p = LabelParams {
+            min_separation: 2,
+            ..LabelParams::default()
+        };
+        let pairs = label_pairs(&positions, &p).unwrap();
+        // (0,3): 1 m, 3 apart → loop; (1,3): 4 m → ambiguous; (0,1): 5 m → ambiguous;
+        // pairs with keyframe 2 (> 10 m) → negatives.
+        let got: Vec<(usize, usize, bool)> = pairs.iter().map(|p| (p.i, p.j, p.positive)).collect();
+        assert_eq!(
+            got,
+            vec![(0, 2, false), (1, 2, false), (0, 3, true), (2, 3, false)]
+        );
+    }
+
+    #[test]
+    fn increments_compose_between_keyframe_times() {
+        let q = std::f64::consts::FRAC_PI_2;
+        let odo = [
+            (1.0, [1.0, 0.0, q]),
+            (2.0, [1.0, 0.0, 0.0]),
+            (3.0, [1.0, 0.0, 0.0]),
+        ];
+        let inc = keyframe_increments(&odo, &[1.0, 3.0]);
+        assert_eq!(inc[0], [0.0; 3]);
+        // Forward 1 then forward 1 again (no turn in between): 2 m ahead.
+        assert!((inc[1][0] - 2.0).abs() < 1e-12 && inc[1][1].abs() < 1e-12);
+        let c = compose([0.0, 0.0, q], [1.0, 0.0, 0.0]);
+        assert!(c[0].abs() < 1e-12 && (c[1] - 1.0).abs() < 1e-12);
+    }
+
+    /// A straight corridor driven out and back: keyframes every metre; the way back revisits
+    /// the way out. With a perfect scorer, loops are found once the return passes the start
+    /// of the corridor.
+    #[test]
+    fn pipeline_with_a_perfect_scorer_closes_true_loops_only() {
+        let mut truth = Vec::new();
+        let mut inc = Vec::new();
+        for k in 0..30 {
+            truth.push([k as f64, 0.0]);
+            inc.push(if k == 0 { [0.0; 3] } else { [1.0, 0.0, 0.0] });
+        }
+        for k in 0..30 {
+            truth.push([29.0 - k as f64, 0.0]);
+            inc.push(if k == 0 {
+                [0.0, 0.0, std::f64::consts::PI]
+            } else {
+                [1.0, 0.0, 0.0]
+            });
+        }
+        let truth_c = truth.clone();
+        let score = |i: usize, j: usize| -> Result<Option<f64>, EvalError> {
+            let d = (truth_c[i][0] - truth_c[j][0]).hypot(truth_c[i][1] - truth_c[j][1]);
+            Ok(Some(if d < 1.5 { 0.8 } else { 0.2 }))
+        };
+        let params = PipelineParams::default();
+        let report = run_pipeline(&inc, [0.0, 0.0], &truth, &params, score).unwrap();
+        assert_eq!(report.wrong(), 0);
+        assert!(report.correct() > 10, "{report:?}");
+        // The first detections needed two further detections within 5 m of the target.
+        let first = report.detections[0];
+        assert!(first.query > 40 && first.correct);
+        // The radius grows between loops and falls back to r_min after one.
+        assert!(report.radii[first.query] > 3.0);
+        let expected = 3.0 + 0.5 * (5.991f64 * 0.0025).sqrt();
+        assert!((report.radii[first.query + 1] - expected).abs() < 1e-12);
+    }
+}
