@@ -2,7 +2,7 @@
 //!
 //! Each update composes the odometry increment onto the robot's pose in the current map and
 //! propagates its covariance (eq. (3.13) with the increment's noise, [`OdometryNoise`]), runs
-//! the [`DoorDetector`](crate::door::DoorDetector), saves a link-point candidate for every
+//! the [`DoorDetector`], saves a link-point candidate for every
 //! new door seen ahead, and on a declared passage starts a new map — with the configuration
 //! its bounding box chooses (§3.3.2) — linked to the old one at the robot's pose: the link
 //! point's pose in the old map carries the odometry covariance accumulated there, its pose in

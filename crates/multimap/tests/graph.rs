@@ -1,6 +1,9 @@
 //! Relative map poses and their propagated covariance ([Stüde 2024] eqs. (3.10)–(3.14))
 //! against Monte Carlo and hand computation, Dijkstra's map paths against brute force, and
 //! the loop search of eq. (3.8).
+// Matrix entries are indexed by row and column as in the equations; the brute-force search
+// carries its state in arguments.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 use chronomap_multimap::MultimapError;
 use chronomap_multimap::config::MapConfig;

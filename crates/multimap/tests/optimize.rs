@@ -1,5 +1,8 @@
 //! Pose-graph optimisation of map poses ([Stüde 2024] §3.3.3, eqs. (3.3)–(3.5)): known
 //! answers, a stationarity oracle, and agreement with eq. (3.14) on loop-free graphs.
+// Matrix entries are indexed by row and column as in the equations; the brute-force search
+// carries its state in arguments.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 use chronomap_multimap::MultimapError;
 use chronomap_multimap::config::MapConfig;
