@@ -21,6 +21,8 @@
 //! # Ok::<(), chronomap_plot::PlotError>(())
 //! ```
 
+pub mod plane;
+
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
