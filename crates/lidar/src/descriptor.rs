@@ -201,7 +201,7 @@ impl DescriptorParams {
     }
 
     /// Length `n_χ` of a descriptor: 32 plus the bins of all histograms (843 by default).
-    pub fn len(&self) -> usize {
+    pub fn descriptor_len(&self) -> usize {
         SCALAR_FEATURES + self.bins().iter().sum::<usize>()
     }
 }
@@ -373,8 +373,8 @@ pub fn compare(a: &Descriptor, b: &Descriptor) -> Result<[f64; PAIR_FEATURES], D
     a.validate()?;
     b.validate()?;
     let mut out = [0.0; PAIR_FEATURES];
-    for k in 0..SCALAR_FEATURES {
-        out[k] = (a.scalars[k] - b.scalars[k]).abs();
+    for (o, (x, y)) in out.iter_mut().zip(a.scalars.iter().zip(&b.scalars)) {
+        *o = (x - y).abs();
     }
     for (j, (ha, hb)) in a.histograms.iter().zip(&b.histograms).enumerate() {
         if ha.len() != hb.len() {
@@ -595,7 +595,7 @@ fn circle_fit(pts: &[[f64; 2]], cx: f64, cy: f64, r_max: f64) -> (f64, f64, f64)
         return (cap, 0.0, cap);
     };
     let r2 = 0.25 * (d * d + e * e) - f;
-    if !(r2 > 0.0) {
+    if r2.is_nan() || r2 <= 0.0 {
         return (cap, 0.0, cap);
     }
     let (ux, uy) = (-0.5 * d, -0.5 * e);
@@ -619,7 +619,7 @@ fn circle_fit(pts: &[[f64; 2]], cx: f64, cy: f64, r_max: f64) -> (f64, f64, f64)
 /// (numerically) singular.
 fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return None;
     }
     for col in 0..3 {
@@ -629,10 +629,11 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         }
         a.swap(col, pivot);
         b.swap(col, pivot);
+        let pivot_row = a[col];
         for row in col + 1..3 {
-            let factor = a[row][col] / a[col][col];
-            for k in col..3 {
-                a[row][k] -= factor * a[col][k];
+            let factor = a[row][col] / pivot_row[col];
+            for (v, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *v -= factor * p;
             }
             b[row] -= factor * b[col];
         }
@@ -660,7 +661,7 @@ mod tests {
     fn default_parameters_give_the_dissertations_843_numbers() {
         let p = DescriptorParams::default();
         assert_eq!(p.bins(), [400, 160, 80, 54, 40, 27, 20, 16, 14]);
-        assert_eq!(p.len(), 843);
+        assert_eq!(p.descriptor_len(), 843);
     }
 
     #[test]
