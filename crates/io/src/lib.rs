@@ -59,6 +59,9 @@
 //!   ([`OccupancyMap::obstacle_grid`]) and for path planners, unknown cells blocking
 //!   ([`OccupancyMap::planning_obstacles`]). [`frame_list`] — the `<time> <map.yaml>` lists of
 //!   maps that occupancy grids are built from ([`read_frame_list`]).
+//! * [`ply`] — 3-D point clouds as PLY files, ASCII or binary ([`read_ply`], [`write_ply`]), as
+//!   [`chronomap_registration::Cloud`]s; errors ([`PlyError`]) name the file, the header line or
+//!   the vertex and property, and sizes are bounded.
 //! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
 //!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
 //!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
@@ -178,6 +181,8 @@ pub use navmap::{
 };
 #[cfg(all(feature = "navmap", feature = "activity"))]
 pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, WALL_PERCENT, load_planning_grid};
+#[cfg(feature = "lidar")]
+pub use ply::{PlyError, PlyErrorKind, PlyFormat, decode_ply, encode_ply, read_ply, write_ply};
 #[cfg(feature = "activity")]
 pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 #[cfg(feature = "bt")]
