@@ -21,7 +21,7 @@ use std::cell::Cell;
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use chronomap_core::error::{BuildError, ObservationError};
+use chronomap_core::error::{BuildError, ConfigError, ObservationError};
 use chronomap_core::model::TemporalModel;
 use chronomap_core::observe::ObservedSpan;
 use chronomap_core::periods::{DAY, WEEK};
@@ -146,6 +146,10 @@ pub fn rolling_origin_problem(
 /// only the members that matter.
 pub const MIN_WEIGHT: f64 = 1e-4;
 
+/// A combination must predict better than its best member by this relative margin (of the
+/// Brier score) to be kept as one; otherwise the best member alone is chosen.
+pub const PARSIMONY_TOLERANCE: f64 = 1e-9;
+
 /// How [`StackedModel`]'s weights were chosen.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StackSelection {
@@ -169,7 +173,20 @@ pub fn choose_weights(
     problem: &StackingProblem,
     origins: usize,
 ) -> StackSelection {
-    let raw = problem.solve();
+    let mut raw = problem.solve();
+    // A combination that predicts no better than its best member is that member: when the
+    // candidates cannot be told apart (two observations, a constant series) the solver keeps
+    // its equal-weight start point, and a file of 20 identical members helps nobody. Ties go to
+    // the earliest, simplest candidate.
+    let best_single = (0..candidates.len())
+        .map(|i| (problem.candidate_error(i), i))
+        .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    if let Some((best_error, best)) = best_single
+        && problem.error(&raw) >= best_error * (1.0 - PARSIMONY_TOLERANCE)
+    {
+        raw = vec![0.0; candidates.len()];
+        raw[best] = 1.0;
+    }
     let kept: f64 = raw.iter().filter(|&&w| w >= MIN_WEIGHT).sum();
     let mut full = vec![0.0; raw.len()];
     let mut weights = Vec::new();
@@ -231,19 +248,24 @@ impl StackedModel {
     /// A combination of `members` with `weights`.
     ///
     /// # Errors
-    /// [`BuildError::NotEnoughData`] if there are no members, the counts differ, a weight is
-    /// negative or not finite, the weights do not sum to 1, a member is itself a stacked model,
-    /// or the members have seen different observations.
+    /// [`ConfigError::OutOfRange`] (field `stack`) if there are no members, the counts
+    /// differ, a weight is negative or not finite, the weights do not sum to 1, a member is
+    /// itself a stacked model, or the members have seen different observations.
     pub fn new(members: Vec<AnyModel>, weights: Vec<f64>) -> Result<Self, BuildError> {
         let model = StackedModel { members, weights };
         if model.is_consistent() {
             Ok(model)
         } else {
-            Err(BuildError::NotEnoughData(
-                "a stacked model needs members that have seen the same observations, and \
-                 non-negative weights summing to 1, one per member"
-                    .into(),
-            ))
+            Err(BuildError::Config(ConfigError::OutOfRange {
+                name: "stack",
+                value: format!(
+                    "{} members with weights {:?}",
+                    model.members.len(),
+                    model.weights
+                ),
+                expected: "members that are not stacks and have seen the same observations, \
+                           one non-negative weight each, summing to 1",
+            }))
         }
     }
 
@@ -458,7 +480,12 @@ mod tests {
     fn inconsistent_stacks_are_refused() {
         let member = || ModelSpec::Mean.online_model().unwrap();
         assert!(StackedModel::new(vec![], vec![]).is_err());
-        assert!(StackedModel::new(vec![member()], vec![0.5]).is_err());
+        let err = StackedModel::new(vec![member()], vec![0.5]).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("stack = 1 members with weights [0.5] is out of range"),
+            "{err}"
+        );
         assert!(StackedModel::new(vec![member(), member()], vec![1.5, -0.5]).is_err());
         assert!(StackedModel::new(vec![member()], vec![f64::NAN]).is_err());
         let mut seen = member();
@@ -480,6 +507,20 @@ mod tests {
         let (_, selection) = fit_stacked(&times, &values, &options).unwrap();
         let periods = options.periods.len();
         assert_eq!(selection.errors.len(), stack_candidates(periods).len());
+    }
+
+    #[test]
+    fn candidates_that_cannot_be_told_apart_give_the_simplest_alone() {
+        // Two observations: at every origin each candidate predicts the one value before it,
+        // so no combination beats a single member, and the first (the mean) is chosen.
+        let (model, selection) =
+            fit_stacked(&[0.0, 3600.0], &[1.0, 1.0], &FitOptions::default()).unwrap();
+        assert_eq!(selection.weights, vec![(ModelSpec::Mean, 1.0)]);
+        assert_eq!(model.members().count(), 1);
+        // A combination that does help is kept (the office week of the test above).
+        let (times, values) = office(4);
+        let (_, selection) = fit_stacked(&times, &values, &FitOptions::default()).unwrap();
+        assert!(selection.weights.len() > 1, "{:?}", selection.weights);
     }
 
     #[test]
