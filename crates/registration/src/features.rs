@@ -62,7 +62,8 @@ pub fn estimate_normals<const D: usize>(
 }
 
 /// The three angular features of a point pair ([Rusu 2009] eq. (1)–(2), with PCL's choice of
-/// the source point: the one whose normal makes the smaller angle with the connecting line).
+/// the source point: the one whose normal makes the smaller angle with the connecting line; on a
+/// tie, the one that makes `φ ≥ 0`).
 ///
 /// 3-D: Darboux frame `u = n_s`, `v = u × d̂`, `w = u × v` and
 /// `(θ, α, φ) = (atan2(w·n_t, u·n_t), v·n_t, u·d̂)`.
@@ -86,7 +87,15 @@ pub(crate) fn pair_features<const D: usize>(
     }
     let a1 = dot(n1, &d) / len;
     let a2 = dot(n2, &d) / len;
-    let (ns, nt, phi) = if a1.abs().acos() > a2.abs().acos() {
+    // PCL's rule, with near ties (parallel normals on a plane, where rounding would decide)
+    // broken towards φ ≥ 0 so that the choice does not depend on the frame.
+    let (g1, g2) = (a1.abs().acos(), a2.abs().acos());
+    let swap = if (g1 - g2).abs() <= 1e-9 {
+        a1 < 0.0 && -a2 >= 0.0
+    } else {
+        g1 > g2
+    };
+    let (ns, nt, phi) = if swap {
         d = d.map(|x| -x);
         (n2, n1, -a2)
     } else {

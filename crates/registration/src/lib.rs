@@ -43,9 +43,9 @@
 //!   intensity, range, seeded random downsampling.
 //! * [`features`] — PCA normals, FPFH (33 bins; a 2-D analogue is defined there) and the
 //!   multi-scale persistence analysis.
-//! * [`ransac`] — feature correspondences and RANSAC with edge-length pre-rejection.
+//! * [`ransac`](mod@ransac) — feature correspondences and RANSAC with edge-length pre-rejection.
 //! * [`rigid`] — SE(2)/SE(3) transforms and the Kabsch/Umeyama SVD fit [`kabsch`].
-//! * [`icp`] — ICP and the [`Information`] matrix.
+//! * [`icp`](mod@icp) — ICP and the [`Information`] matrix.
 //! * [`kdtree`] — the k-d tree all nearest-neighbour searches use.
 //! * [`pipeline`] — [`register`] end to end, and [`register_scans`] for
 //!   [`chronomap_lidar::Scan2d`].
@@ -59,6 +59,9 @@
 //! [Chen & Medioni 1992]: Y. Chen, G. Medioni, "Object modelling by registration of multiple
 //! range images", Image and Vision Computing 10(3), 1992.
 #![deny(missing_docs)]
+// Index loops read like the matrix formulas they implement; `!(x > 0.0)` is deliberate: it is
+// true for NaN too.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cloud;
 pub mod features;

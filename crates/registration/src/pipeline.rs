@@ -51,8 +51,9 @@ impl RegistrationParams {
     /// Parameters scaled to a coarse voxel leaf `v` (m), after Open3D's global-registration
     /// recipe and Rusu's multi-scale FPFH: normals within 2v (30 neighbours), FPFH at 4v, 5v
     /// and 6v (100 neighbours), persistence off, mutual nearest features, RANSAC inliers within
-    /// 1.5v, ICP point-to-plane on a v/2.5 grid with correspondences within v, the information
-    /// matrix from correspondences within v. Filters: none.
+    /// 1.5v, then symmetric ICP on the filtered clouds as they are (normals: 20 neighbours within
+    /// 2v) with correspondences within v, and the information matrix from correspondences
+    /// within v. Filters: none (set [`RegistrationParams::filters`]).
     pub fn for_voxel(v: f64) -> RegistrationParams {
         RegistrationParams {
             filters: Filters {
@@ -70,10 +71,13 @@ impl RegistrationParams {
             persistence: None,
             matching: MatchParams::default(),
             ransac: RansacParams::with_inlier_distance(1.5 * v),
-            fine_voxel: Some(v / 2.5),
+            fine_voxel: None,
             fine_normal_neighbours: 20,
             fine_normal_radius: 2.0 * v,
-            icp: IcpParams::point_to_plane(v),
+            icp: IcpParams {
+                method: IcpMethod::Symmetric,
+                ..IcpParams::point_to_plane(v)
+            },
             information_distance: v,
             min_sigma: 1e-4,
         }

@@ -140,9 +140,7 @@ impl<const D: usize> Rigid<D> {
                     }
                 }
             }
-            for i in 0..3 {
-                out.translation[i] = x[3 + i];
-            }
+            out.translation.copy_from_slice(&x[3..D + 3]);
         }
         out
     }
