@@ -2,10 +2,10 @@
 //! Málaga 2006 keyframes, against the SLAM estimate.
 //!
 //! ```text
-//! cargo run --release -p chronomap-registration --example malaga_loops
+//! cargo run --release -p chronomap-registration --example malaga_loops [-- β]
 //! ```
 
-#[path = "../tests/malaga_data.rs"]
+#[path = "../tests/malaga_data/mod.rs"]
 mod malaga_data;
 
 use std::time::Instant;
@@ -15,7 +15,12 @@ use chronomap_registration::{register_scans, scan_params};
 fn main() {
     let frames = malaga_data::keyframes();
     let pairs = malaga_data::loop_pairs(&frames);
-    let params = scan_params();
+    let mut params = scan_params();
+    // Optional persistence threshold β (the first argument).
+    params.persistence = std::env::args()
+        .nth(1)
+        .map(|b| b.parse().expect("β is a number"));
+    println!("persistence β: {:?}", params.persistence);
     let (mut ok, mut rot, mut trans, mut total) = (0, Vec::new(), Vec::new(), 0.0);
     for &(i, j) in &pairs {
         let truth = malaga_data::relative(&frames[j], &frames[i]);

@@ -49,42 +49,63 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     // The variants: [Stüde 2024] appendix A's range filter (30 m) on a 5 cm grid, then each ICP.
-    let variants: [(&str, Option<f64>, Option<f64>, IcpMethod); 5] = [
+    use IcpMethod::{PointToPlane, PointToPoint, Symmetric};
+    let variants = [
         (
             "5 cm, r ≤ 30 m, symmetric",
             Some(0.05),
             Some(30.0),
-            IcpMethod::Symmetric,
+            Symmetric,
+            None,
+        ),
+        (
+            "… with persistence β = 0.5",
+            Some(0.05),
+            Some(30.0),
+            Symmetric,
+            Some(0.5),
+        ),
+        (
+            "… with persistence β = 0",
+            Some(0.05),
+            Some(30.0),
+            Symmetric,
+            Some(0.0),
         ),
         (
             "5 cm, r ≤ 30 m, point-to-plane",
             Some(0.05),
             Some(30.0),
-            IcpMethod::PointToPlane,
+            PointToPlane,
+            None,
         ),
         (
             "5 cm, r ≤ 30 m, point-to-point",
             Some(0.05),
             Some(30.0),
-            IcpMethod::PointToPoint,
+            PointToPoint,
+            None,
         ),
         (
             "10 cm, r ≤ 30 m, symmetric",
             Some(0.1),
             Some(30.0),
-            IcpMethod::Symmetric,
+            Symmetric,
+            None,
         ),
         (
             "5 cm, no range filter, symmetric",
             Some(0.05),
             None,
-            IcpMethod::Symmetric,
+            Symmetric,
+            None,
         ),
     ];
     println!(
-        "{:<34} {:>4} {:>8} {:>8} {:>9} {:>9} {:>5} {:>5} {:>6} {:>8} {:>7}",
+        "{:<34} {:>4} {:>5} {:>8} {:>8} {:>9} {:>9} {:>5} {:>5} {:>6} {:>8} {:>7}",
         "filters, ICP",
         "seed",
+        "keys",
         "rot °",
         "trans cm",
         "coarse °",
@@ -95,11 +116,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "time ms",
         "× bare"
     );
-    for (name, voxel, range, method) in variants {
+    for (name, voxel, range, method, persistence) in variants {
         let mut params = RegistrationParams::for_voxel(0.25);
         params.filters.voxel = voxel;
         params.filters.range = range.map(|r| (0.0, r));
         params.icp.method = method;
+        params.persistence = persistence;
         if method == IcpMethod::PointToPoint {
             params.icp.max_iterations = 100;
         }
@@ -111,7 +133,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (r, t) = result.transform.error_to(&truth);
             let (cr, ct) = result.coarse.error_to(&truth);
             println!(
-                "{name:<34} {seed:>4} {:>8.4} {:>8.3} {:>9.3} {:>9.2} {:>5} {:>5} {:>6.2} {:>8.0} {:>7.1}",
+                "{name:<34} {seed:>4} {:>5} {:>8.4} {:>8.3} {:>9.3} {:>9.2} {:>5} {:>5} {:>6.2} {:>8.0} {:>7.1}",
+                result.keypoints.0,
                 r.to_degrees(),
                 t * 100.0,
                 cr.to_degrees(),

@@ -289,3 +289,34 @@ pub fn multiscale_fpfh<const D: usize>(
         keypoints,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn persistent_points_are_where_the_shape_is_distinctive() {
+        // An L of two 3 m walls sampled every 2 cm: along the walls every histogram is alike;
+        // the corner and the two ends are what persists across the scales.
+        let mut points: Vec<[f64; 2]> = (0..150).map(|i| [0.02 * f64::from(i), 0.0]).collect();
+        points.extend((1..150).map(|i| [0.0, 0.02 * f64::from(i)]));
+        let tree = KdTree::new(&points);
+        let normals = estimate_normals(&points, &tree, 10, 0.1, [1.0, 1.0]);
+        let f = multiscale_fpfh(&points, &normals, &tree, &[0.2, 0.3, 0.4], 100, Some(1.0));
+        assert!(!f.keypoints.is_empty());
+        let near =
+            |p: [f64; 2], q: [f64; 2]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt() < 0.5;
+        let special = [[0.0, 0.0], [2.98, 0.0], [0.0, 2.98]];
+        for &k in &f.keypoints {
+            assert!(
+                special.iter().any(|&s| near(points[k], s)),
+                "{:?}",
+                points[k]
+            );
+        }
+        assert!(f.keypoints.iter().any(|&k| near(points[k], [0.0, 0.0])));
+        // Without the analysis every point with a histogram is kept.
+        let all = multiscale_fpfh(&points, &normals, &tree, &[0.2], 100, None);
+        assert_eq!(all.keypoints.len(), points.len());
+    }
+}

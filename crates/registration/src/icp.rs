@@ -297,3 +297,30 @@ pub fn information<const D: usize>(
         correspondences: d.len(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn information_is_the_mad_of_the_residuals() {
+        // Five pairs 10 m apart, residuals 1..5 cm: median 3 cm.
+        let target: Vec<[f64; 3]> = (0..5).map(|i| [10.0 * f64::from(i), 0.0, 0.0]).collect();
+        let source: Vec<[f64; 3]> = (0..5)
+            .map(|i| [10.0 * f64::from(i), 0.01 * f64::from(i + 1), 0.0])
+            .collect();
+        let tree = KdTree::new(&target);
+        let info = information(&source, &tree, &Rigid::identity(), 1.0, 1e-4).unwrap();
+        assert!((info.sigma - MAD_TO_SIGMA * 0.03).abs() < 1e-12);
+        assert_eq!((info.dof, info.correspondences), (6, 5));
+        let omega = info.matrix();
+        assert!(
+            (omega[3][3] - 1.0 / (MAD_TO_SIGMA * 0.03).powi(2)).abs() < 1e-6 && omega[3][4] == 0.0
+        );
+        // Beyond 4.5 cm the 5 cm pair is no correspondence: the median of 1..4 cm is 2.5 cm.
+        let info = information(&source, &tree, &Rigid::identity(), 0.045, 1e-4).unwrap();
+        assert!((info.sigma - MAD_TO_SIGMA * 0.025).abs() < 1e-12);
+        assert!(information(&source, &tree, &Rigid::identity(), 0.001, 1e-4).is_err());
+        assert!(information(&source, &tree, &Rigid::identity(), f64::NAN, 1e-4).is_err());
+    }
+}

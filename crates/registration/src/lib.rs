@@ -50,8 +50,8 @@
 //! * [`pipeline`] — [`register`] end to end, and [`register_scans`] for
 //!   [`chronomap_lidar::Scan2d`].
 //!
-//! [Stüde 2024]: M. Stüde, *Navigation and localisation of mobile robots in changing
-//! environments* (dissertation), Leibniz Universität Hannover, 2024.
+//! [Stüde 2024]: M. Stüde, *Environment and Task Modeling of Long-Term-Autonomous Service
+//! Robots*, dissertation, Gottfried Wilhelm Leibniz Universität Hannover, 2024.
 //! [Rusu 2009]: R. B. Rusu, N. Blodow, M. Beetz, "Fast Point Feature Histograms (FPFH) for 3D
 //! registration", ICRA 2009.
 //! [Besl & McKay 1992]: P. Besl, N. McKay, "A method for registration of 3-D shapes", IEEE

@@ -274,7 +274,7 @@ fn ransac_finds_the_motion_among_outliers() {
         translation: [1.0, -0.5, 2.0],
     });
     let target: Vec<[f64; 3]> = source.iter().map(|p| truth.apply(p)).collect();
-    // 40 true correspondences, 160 wrong ones (70 % + outliers).
+    // 40 true correspondences, 160 wrong ones (80 % outliers).
     let mut corr: Vec<(usize, usize)> = (0..40).map(|i| (i, i)).collect();
     for i in 40..200 {
         corr.push((i, rng.int_in(0, 199) as usize));
