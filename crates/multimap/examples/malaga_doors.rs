@@ -1,9 +1,7 @@
 //! Door passages, link-point candidates and maps on the real Málaga 2006 loop ([Stüde 2024]
 //! §3.3.2): `cargo run --release -p chronomap-multimap --example malaga_doors`.
 
-#[path = "../tests/common/malaga.rs"]
-mod malaga;
-
+use chronomap_io::laser_text::{read_odometry, read_scans};
 use chronomap_multimap::door::{DoorParams, detect_door_posts};
 use chronomap_multimap::mapper::{Mapper, MapperParams};
 use chronomap_multimap::se2::Pose2;
@@ -11,8 +9,17 @@ use chronomap_multimap::se2::Pose2;
 fn main() {
     let data =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/malaga_laser_2006");
-    let (scans, mount) = malaga::scans(&data.join("scans.txt.xz"));
-    let increments = malaga::increments(&data.join("odometry.txt.xz"));
+    // The io crate's reader: no-returns as +inf, every scan counter-clockwise (the Málaga
+    // scans are right to left already, so their beam order is kept).
+    let lasers = read_scans(data.join("scans.txt.xz")).unwrap_or_else(|e| panic!("{e}"));
+    let s = lasers[0].sensor;
+    let mount = Pose2::new(s.x, s.y, s.yaw).unwrap();
+    let scans: Vec<_> = lasers.into_iter().map(|l| l.scan).collect();
+    let increments: Vec<Pose2> = read_odometry(data.join("odometry.txt.xz"))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .iter()
+        .map(|o| Pose2::new(o.dx, o.dy, o.dyaw).unwrap())
+        .collect();
     println!(
         "{} scans, {} odometry increments, sensor at {mount:?}",
         scans.len(),

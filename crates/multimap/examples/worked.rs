@@ -86,7 +86,7 @@ fn main() {
     ];
     let mut g = MapGraph::new();
     for c in configs {
-        g.add_map(c, None);
+        g.add_map(c, None).unwrap();
     }
     let mut true_origin = vec![Pose2::IDENTITY];
     // A link-point candidate: at the start, the robot saw the open door to M3 ahead-left

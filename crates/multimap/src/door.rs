@@ -29,11 +29,11 @@
 //!
 //! // A corridor 2 m wide with a 0.9 m door in its upper wall into a 5 m × 4 m room.
 //! let plan = FloorPlan::corridor_and_room();
-//! let scanner = Scanner::full_circle(720, 30.0);
+//! let scanner = Scanner::full_circle(720, 30.0)?;
 //! let mut detector = DoorDetector::new(DoorParams::default())?;
 //! let mut passages = Vec::new();
-//! for (k, pose) in plan.door_run(0.1).iter().enumerate() {
-//!     let scan = scanner.scan(&plan, pose, 0.1 * k as f64);
+//! for (k, pose) in plan.door_run(0.1)?.iter().enumerate() {
+//!     let scan = scanner.scan(&plan, pose, 0.1 * k as f64)?;
 //!     if let Some(p) = detector.update(&scan, pose)?.passage {
 //!         passages.push(p);
 //!     }

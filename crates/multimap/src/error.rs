@@ -77,6 +77,16 @@ pub enum MultimapError {
         /// The link point.
         link: usize,
     },
+    /// The optimiser used all its iterations without meeting its stopping rule.
+    #[error(
+        "the pose-graph optimisation did not converge in {iterations} iterations (cost {cost})"
+    )]
+    NotConverged {
+        /// Iterations made.
+        iterations: usize,
+        /// The cost `F` of eq. (3.4) when it stopped.
+        cost: f64,
+    },
     /// The normal equations of the pose graph are singular (a map not tied to map 0).
     #[error("the pose graph is singular: map {map} is not constrained")]
     SingularGraph {

@@ -13,8 +13,8 @@
 //! use chronomap_multimap::se2::{Pose2, UncertainPose};
 //!
 //! let mut g = MapGraph::new();
-//! let m0 = g.add_map(MapConfig::ShortRange, None);
-//! let m1 = g.add_map(MapConfig::LongRange, None);
+//! let m0 = g.add_map(MapConfig::ShortRange, None)?;
+//! let m1 = g.add_map(MapConfig::LongRange, None)?;
 //! // The door is at (4, 0) facing +x in map 0, and map 1 starts there (its origin).
 //! let cov = [[0.04, 0.0, 0.0], [0.0, 0.04, 0.0], [0.0, 0.0, 0.01]];
 //! let door_in_0 = UncertainPose::new(Pose2::new(4.0, 0.0, 0.0)?, cov)?;
@@ -39,7 +39,7 @@ use crate::MultimapError;
 use crate::config::MapConfig;
 use crate::door::BoundingBox;
 use crate::se2::{UncertainPose, validate_covariance};
-use crate::search::{SearchParams, search_radius};
+use crate::search::{SearchParams, search_radius_for};
 
 /// The most maps a graph holds.
 pub const MAX_MAPS: usize = 100_000;
@@ -227,13 +227,25 @@ impl MapGraph {
         &self.candidates
     }
 
-    /// Adds a map (saturates at [`MAX_MAPS`]: the last index is returned again) and returns
-    /// its index.
-    pub fn add_map(&mut self, config: MapConfig, bbox: Option<BoundingBox>) -> usize {
-        if self.maps.len() < MAX_MAPS {
-            self.maps.push(MapNode { config, bbox });
+    /// Adds a map and returns its index.
+    ///
+    /// # Errors
+    /// [`MultimapError::TooLarge`] if the graph already holds [`MAX_MAPS`] maps (the graph is
+    /// left unchanged).
+    pub fn add_map(
+        &mut self,
+        config: MapConfig,
+        bbox: Option<BoundingBox>,
+    ) -> Result<usize, MultimapError> {
+        if self.maps.len() >= MAX_MAPS {
+            return Err(MultimapError::TooLarge {
+                what: "maps",
+                n: self.maps.len() + 1,
+                max: MAX_MAPS,
+            });
         }
-        self.maps.len() - 1
+        self.maps.push(MapNode { config, bbox });
+        Ok(self.maps.len() - 1)
     }
 
     fn check_map(&self, map: usize) -> Result<(), MultimapError> {
@@ -458,7 +470,7 @@ impl MapGraph {
         weight: PathWeight,
     ) -> Result<LoopSearch, MultimapError> {
         let robot = self.pose_in(reference, map, pose, weight)?;
-        let radius = search_radius(robot.lambda_max(), params)?;
+        let radius = search_radius_for(&robot.cov, params)?;
         let mut frames: Vec<Option<Option<crate::se2::Pose2>>> = vec![None; self.maps.len()];
         let mut frame = |m: usize| -> Result<Option<crate::se2::Pose2>, MultimapError> {
             if let Some(f) = frames[m] {

@@ -24,7 +24,9 @@
 //!
 //! // A corridor (map 0) with doors into two rooms (maps 1, 2) that share a connecting door.
 //! let mut g = MapGraph::new();
-//! let m: Vec<usize> = (0..3).map(|_| g.add_map(MapConfig::ShortRange, None)).collect();
+//! let m: Vec<usize> = (0..3)
+//!     .map(|_| g.add_map(MapConfig::ShortRange, None))
+//!     .collect::<Result<_, _>>()?;
 //! let cov = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.0025]];
 //! let at = |x, y, t| UncertainPose::new(Pose2::new(x, y, t).unwrap(), cov).unwrap();
 //! let origin = UncertainPose::exact(Pose2::IDENTITY);

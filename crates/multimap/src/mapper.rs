@@ -15,12 +15,12 @@
 //! use chronomap_multimap::synth::{FloorPlan, Scanner};
 //!
 //! let plan = FloorPlan::corridor_and_room();
-//! let scanner = Scanner::full_circle(720, 30.0);
+//! let scanner = Scanner::full_circle(720, 30.0)?;
 //! let mut mapper = Mapper::new(MapperParams::default())?;
 //! let mut previous = Pose2::IDENTITY;
-//! for (k, pose) in plan.door_run(0.1).iter().enumerate() {
+//! for (k, pose) in plan.door_run(0.1)?.iter().enumerate() {
 //!     let increment = if k == 0 { Pose2::IDENTITY } else { previous.between(pose) };
-//!     mapper.step(&scanner.scan(&plan, pose, 0.1 * k as f64), &increment)?;
+//!     mapper.step(&scanner.scan(&plan, pose, 0.1 * k as f64)?, &increment)?;
 //!     previous = *pose;
 //! }
 //! assert_eq!(mapper.graph().maps().len(), 2);
@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 use crate::MultimapError;
 use crate::config::{ConfigParams, choose_config};
 use crate::door::{DetectorOutput, DoorDetector, DoorParams, DoorPassage};
-use crate::graph::MapGraph;
+use crate::graph::{MAX_LINKS, MapGraph};
 use crate::se2::{Mat3, Pose2, UncertainPose};
 
 /// Odometry noise growing with the distance and angle driven (a random walk: variances
@@ -169,6 +169,11 @@ impl Mapper {
 
     /// One update: `increment` is the odometry from the previous scan to this one in the
     /// robot frame (ignored for the first scan).
+    ///
+    /// # Errors
+    /// A bad scan or increment; [`MultimapError::TooLarge`] once the graph holds
+    /// [`crate::graph::MAX_MAPS`] maps or [`MAX_LINKS`] link points and candidates (the
+    /// scan's odometry and detector state are then already applied).
     pub fn step(&mut self, scan: &Scan2d, increment: &Pose2) -> Result<StepReport, MultimapError> {
         increment.validate("increment")?;
         scan.validate()?;
@@ -185,7 +190,7 @@ impl Mapper {
             let config = out.bbox.map_or(crate::config::MapConfig::ShortRange, |b| {
                 choose_config(&b, &self.params.config)
             });
-            self.current = self.graph.add_map(config, out.bbox);
+            self.current = self.graph.add_map(config, out.bbox)?;
         }
         self.steps += 1;
         let mut report = StepReport::default();
@@ -211,7 +216,16 @@ impl Mapper {
                 .map_or(crate::config::MapConfig::ShortRange, |b| {
                     choose_config(&b, &self.params.config)
                 });
-            let new_map = self.graph.add_map(config, passage.bbox);
+            // Both bounds first, so that a full graph gets no map without its link.
+            let linked = self.graph.links().len() + self.graph.candidates().len();
+            if linked >= MAX_LINKS {
+                return Err(MultimapError::TooLarge {
+                    what: "link points and candidates",
+                    n: linked + 1,
+                    max: MAX_LINKS,
+                });
+            }
+            let new_map = self.graph.add_map(config, passage.bbox)?;
             let origin = UncertainPose::exact(Pose2::IDENTITY);
             let link = self
                 .graph

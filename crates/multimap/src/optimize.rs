@@ -19,7 +19,8 @@
 //! // Two maps linked twice, by measurements 1.0 m and 1.2 m apart along x with equal
 //! // covariance: the optimum is their mean.
 //! let mut g = MapGraph::new();
-//! let (a, b) = (g.add_map(MapConfig::ShortRange, None), g.add_map(MapConfig::ShortRange, None));
+//! let a = g.add_map(MapConfig::ShortRange, None)?;
+//! let b = g.add_map(MapConfig::ShortRange, None)?;
 //! let cov = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]];
 //! let origin = UncertainPose::exact(Pose2::IDENTITY);
 //! g.add_link(a, UncertainPose::new(Pose2::new(1.0, 0.0, 0.0)?, cov)?, b, origin)?;
@@ -45,7 +46,7 @@ pub const MAX_OPT_MAPS: usize = 400;
 /// The stopping rules of the optimiser.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OptimizeParams {
-    /// Most iterations. Default 100.
+    /// Most iterations; reaching them unconverged is an error. Default 100.
     pub max_iterations: usize,
     /// Stop when no update component exceeds this (m, rad). Default 1e-10.
     pub tolerance: f64,
@@ -203,6 +204,11 @@ fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
 /// Optimises the poses of all maps of `graph` in the frame of map 0 given every link point's
 /// relative-pose measurement (see the module documentation). Every map must be connected to
 /// map 0; every link's relative covariance must be invertible.
+///
+/// # Errors
+/// Bad parameters; [`MultimapError::TooLarge`] above [`MAX_OPT_MAPS`] maps; a singular
+/// covariance or graph; [`MultimapError::NotConverged`] if `max_iterations` pass without the
+/// stopping rule being met (no partial result is returned as if it were the optimum).
 pub fn optimize(graph: &MapGraph, params: &OptimizeParams) -> Result<OptimizedMaps, MultimapError> {
     if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
         return Err(MultimapError::Parameter {
@@ -255,6 +261,8 @@ pub fn optimize(graph: &MapGraph, params: &OptimizeParams) -> Result<OptimizedMa
     let mut current = initial_cost;
     let mut lambda = params.initial_damping;
     let mut iterations = 0;
+    // With map 0 alone there is nothing to optimise.
+    let mut converged = dim == 0;
     if dim > 0 {
         'outer: while iterations < params.max_iterations {
             iterations += 1;
@@ -290,16 +298,25 @@ pub fn optimize(graph: &MapGraph, params: &OptimizeParams) -> Result<OptimizedMa
                     current = new_cost;
                     lambda = (lambda * 0.1).max(1e-12);
                     if biggest < params.tolerance {
+                        converged = true;
                         break 'outer;
                     }
                     break;
                 }
+                // No step lowers the cost, not even a tiny one: a minimum to round-off.
                 if biggest < params.tolerance || lambda > 1e12 {
+                    converged = true;
                     break 'outer;
                 }
                 lambda = (lambda * 10.0).max(1e-9);
             }
         }
+    }
+    if !converged {
+        return Err(MultimapError::NotConverged {
+            iterations,
+            cost: current,
+        });
     }
     // Marginal covariances from the undamped normal matrix at the optimum.
     let mut covariances = vec![ZERO3; n];

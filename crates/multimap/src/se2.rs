@@ -254,12 +254,13 @@ pub fn inverse3(a: &Mat3) -> Option<Mat3> {
 }
 
 /// The larger eigenvalue of the 2×2 position block of a pose covariance (m²): the `λ_max`
-/// whose confidence ellipse sizes the loop search of [Stüde 2024] eq. (3.8).
+/// whose confidence ellipse sizes the loop search of [Stüde 2024] eq. (3.8), by
+/// [`chronomap_lidar::search::largest_eigenvalue`] of the symmetrised block
+/// ([`crate::search::position_block`]). NaN where the block is not finite or has a negative
+/// variance (not a covariance: [`validate_covariance`] refuses it).
 pub fn position_lambda_max(cov: &Mat3) -> f64 {
-    let (a, b, d) = (cov[0][0], 0.5 * (cov[0][1] + cov[1][0]), cov[1][1]);
-    let mean = 0.5 * (a + d);
-    let half_diff = 0.5 * (a - d);
-    mean + half_diff.hypot(b)
+    chronomap_lidar::search::largest_eigenvalue(crate::search::position_block(cov))
+        .unwrap_or(f64::NAN)
 }
 
 /// Checks that `cov` is a covariance matrix: finite, symmetric (to `1e-9` relative), with all

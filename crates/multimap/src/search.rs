@@ -5,28 +5,36 @@
 //! major axis of the 95 % confidence ellipse (5.991 is the 95 % quantile of χ² with two
 //! degrees of freedom) of a position covariance whose larger eigenvalue is `λ_max`.
 //!
+//! The equation is implemented once in the workspace, by
+//! [`chronomap_lidar::search::search_radius`] (and `λ_max` by
+//! [`chronomap_lidar::search::largest_eigenvalue`]); this module holds the two parameters
+//! §3.3.3 needs and thin wrappers that take a pose covariance or `λ_max` and give this crate's
+//! errors.
+//!
 //! ```
-//! use chronomap_multimap::search::{search_radius, SearchParams};
+//! use chronomap_multimap::search::{search_radius, search_radius_for, SearchParams};
 //!
 //! let params = SearchParams::default(); // r_min = 3 m, β = 0.25 (appendix A, indoor)
 //! assert_eq!(search_radius(0.0, &params)?, 3.0);
 //! // λ_max = 1 m²: the 95 % ellipse's major axis is 2√5.991 ≈ 4.895 m.
 //! assert!((search_radius(1.0, &params)? - (3.0 + 0.25 * 2.0 * 5.991f64.sqrt())).abs() < 1e-12);
+//! // A pose covariance: only its position block counts, and of it the larger eigenvalue.
+//! let cov = [[4.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 100.0]];
+//! assert_eq!(search_radius_for(&cov, &params)?, search_radius(4.0, &params)?);
 //! # Ok::<(), chronomap_multimap::MultimapError>(())
 //! ```
 //!
-//! The lidar crate has the same function for §3.2's node search; the two are meant to be
-//! merged into one.
-//!
 //! [Stüde 2024]: M. Stüde, dissertation, Leibniz Universität Hannover, 2024.
 
+use chronomap_lidar::search::{self as lidar, SearchError};
 use serde::{Deserialize, Serialize};
 
 use crate::MultimapError;
+use crate::se2::Mat3;
 
 /// The 95 % quantile of the χ² distribution with two degrees of freedom ([Stüde 2024]
-/// eq. (3.8)).
-pub const CHI2_2DOF_95: f64 = 5.991;
+/// eq. (3.8)); the lidar crate's [`chronomap_lidar::search::CHI2_95_2D`].
+pub const CHI2_2DOF_95: f64 = lidar::CHI2_95_2D;
 
 /// The parameters of eq. (3.8).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -61,15 +69,52 @@ impl SearchParams {
         }
         Ok(())
     }
+
+    /// The lidar crate's parameters with these `r_min` and `β` (the others, which eq. (3.8)
+    /// does not use, at their defaults).
+    pub fn to_lidar(&self) -> lidar::SearchParams {
+        lidar::SearchParams {
+            r_min: self.r_min,
+            beta: self.beta,
+            ..lidar::SearchParams::default()
+        }
+    }
 }
 
-/// `g_max(λ_max) = 2√(5.991·λ_max)`: the major axis of the 95 % confidence ellipse (m).
+/// The lidar crate's error as this crate's: a parameter or the covariance named.
+fn from_lidar(e: SearchError) -> MultimapError {
+    match e {
+        SearchError::Param { field, value } => MultimapError::Parameter {
+            field,
+            value,
+            why: "must be finite and non-negative",
+        },
+        SearchError::Covariance(why) => MultimapError::NotCovariance {
+            field: "position covariance",
+            why,
+        },
+    }
+}
+
+/// The 2×2 position block of a pose covariance, symmetrised.
+pub fn position_block(cov: &Mat3) -> [[f64; 2]; 2] {
+    let b = 0.5 * (cov[0][1] + cov[1][0]);
+    [[cov[0][0], b], [b, cov[1][1]]]
+}
+
+/// `g_max(λ_max) = 2√(5.991·λ_max)`: the major axis of the 95 % confidence ellipse (m), eq.
+/// (3.8) with `r_min = 0`, `β = 1`; NaN where `λ_max` is not a finite variance.
 pub fn major_axis_95(lambda_max: f64) -> f64 {
-    2.0 * (CHI2_2DOF_95 * lambda_max).sqrt()
+    let unit = SearchParams {
+        r_min: 0.0,
+        beta: 1.0,
+    };
+    search_radius(lambda_max, &unit).unwrap_or(f64::NAN)
 }
 
-/// The search radius `r(λ_max)` of [Stüde 2024] eq. (3.8) (m). `λ_max` must be finite and
-/// non-negative (round-off below zero down to `−1e-12` is read as 0).
+/// The search radius `r(λ_max)` of [Stüde 2024] eq. (3.8) (m), by
+/// [`chronomap_lidar::search::search_radius`] of the covariance `diag(λ_max, 0)`. `λ_max`
+/// must be finite and non-negative (round-off below zero down to `−1e-12` is read as 0).
 pub fn search_radius(lambda_max: f64, params: &SearchParams) -> Result<f64, MultimapError> {
     params.validate()?;
     if !lambda_max.is_finite() || lambda_max < -1e-12 {
@@ -79,7 +124,15 @@ pub fn search_radius(lambda_max: f64, params: &SearchParams) -> Result<f64, Mult
             why: "must be a finite variance (≥ 0)",
         });
     }
-    Ok(params.r_min + params.beta * major_axis_95(lambda_max.max(0.0)))
+    let cov = [[lambda_max.max(0.0), 0.0], [0.0, 0.0]];
+    lidar::search_radius(cov, &params.to_lidar()).map_err(from_lidar)
+}
+
+/// The search radius of eq. (3.8) for a pose covariance `(x, y, θ)`: `λ_max` of its position
+/// block ([`position_block`]), by [`chronomap_lidar::search::search_radius`].
+pub fn search_radius_for(cov: &Mat3, params: &SearchParams) -> Result<f64, MultimapError> {
+    params.validate()?;
+    lidar::search_radius(position_block(cov), &params.to_lidar()).map_err(from_lidar)
 }
 
 #[cfg(test)]
@@ -97,6 +150,23 @@ mod tests {
         // 1 + 0.5·2·√(5.991·λ): quadrupling λ doubles the second term.
         assert!(((r16 - 1.0) - 2.0 * (r4 - 1.0)).abs() < 1e-12);
         assert!((r4 - (1.0 + 2.0 * 5.991f64.sqrt())).abs() < 1e-12);
+        assert!((major_axis_95(4.0) - 4.0 * 5.991f64.sqrt()).abs() < 1e-12);
+        assert!(major_axis_95(-1.0).is_nan());
+    }
+
+    #[test]
+    fn the_covariance_form_uses_the_larger_eigenvalue_of_the_position_block() {
+        // [[4, 1], [1, 3]]: eigenvalues (7 ± √5)/2; the heading variance does not count.
+        let cov = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 50.0]];
+        let p = SearchParams::default();
+        let lambda = (7.0 + 5f64.sqrt()) / 2.0;
+        let r = search_radius_for(&cov, &p).unwrap();
+        assert!((r - (3.0 + 0.25 * 2.0 * (5.991 * lambda).sqrt())).abs() < 1e-12);
+        let bad = [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert_eq!(
+            search_radius_for(&bad, &p).unwrap_err().to_string(),
+            "position covariance is not a covariance matrix: a variance is negative"
+        );
     }
 
     #[test]
@@ -104,6 +174,7 @@ mod tests {
         let p = SearchParams::default();
         assert!(search_radius(f64::NAN, &p).is_err());
         assert!(search_radius(-1.0, &p).is_err());
+        assert_eq!(search_radius(-1e-13, &p).unwrap(), 3.0);
         let bad = SearchParams {
             r_min: -1.0,
             beta: 0.0,

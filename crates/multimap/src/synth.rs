@@ -7,7 +7,7 @@
 //!
 //! let plan = FloorPlan::corridor_and_room();
 //! // In the corridor (2 m wide), looking along it: the side walls are 1 m away.
-//! let scan = Scanner::full_circle(360, 30.0).scan(&plan, &Pose2::new(1.0, 1.0, 0.0)?, 0.0);
+//! let scan = Scanner::full_circle(360, 30.0)?.scan(&plan, &Pose2::new(1.0, 1.0, 0.0)?, 0.0)?;
 //! let left = scan.ranges[270]; // bearing +90°
 //! assert!((left - 1.0).abs() < 1e-9);
 //! # Ok::<(), chronomap_multimap::MultimapError>(())
@@ -17,7 +17,13 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use chronomap_lidar::Scan2d;
 
+use chronomap_lidar::scan::MAX_BEAMS;
+
+use crate::MultimapError;
 use crate::se2::Pose2;
+
+/// The shortest step of [`FloorPlan::door_run`] (m).
+pub const MIN_RUN_STEP: f64 = 1e-3;
 
 /// Wall segments `[[x0, y0], [x1, y1]]` (m).
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -66,7 +72,18 @@ impl FloorPlan {
     /// The robot's poses on a drive through the door: along the corridor's middle (`y = 1`)
     /// from `x = 1` to the door's centre, a quarter turn on the spot in steps of 0.2 rad,
     /// then `+y` through the door to `y = 4.5`; `step` metres between poses.
-    pub fn door_run(&self, step: f64) -> Vec<Pose2> {
+    ///
+    /// # Errors
+    /// A `step` that is not finite or is below [`MIN_RUN_STEP`] (the run would not end, or
+    /// not in bounded memory).
+    pub fn door_run(&self, step: f64) -> Result<Vec<Pose2>, MultimapError> {
+        if !(step.is_finite() && step >= MIN_RUN_STEP) {
+            return Err(MultimapError::Parameter {
+                field: "step",
+                value: step,
+                why: "must be finite and at least MIN_RUN_STEP (1 mm)",
+            });
+        }
         let xd = 0.5 * (DOOR[0][0] + DOOR[1][0]);
         let mut poses = Vec::new();
         let mut x = 1.0;
@@ -96,7 +113,7 @@ impl FloorPlan {
             });
             y += step;
         }
-        poses
+        Ok(poses)
     }
 
     /// The range from `origin` along `bearing` (world frame) to the nearest wall, if any.
@@ -135,32 +152,89 @@ pub struct Scanner {
 }
 
 impl Scanner {
-    /// A 360° scanner at the robot's origin (`beams` ≥ 2 beams from −π, one increment short
-    /// of +π).
-    pub fn full_circle(beams: usize, max_range: f64) -> Scanner {
-        let beams = beams.max(2);
-        Scanner {
+    /// A 360° scanner at the robot's origin (`beams` beams from −π, one increment short of
+    /// +π).
+    ///
+    /// # Errors
+    /// As [`Scanner::validate`]: fewer than 2 or more than [`MAX_BEAMS`] beams, a maximum
+    /// range that is not finite and positive.
+    pub fn full_circle(beams: usize, max_range: f64) -> Result<Scanner, MultimapError> {
+        let scanner = Scanner {
             angle_min: -PI,
-            angle_max: PI - 2.0 * PI / beams as f64,
+            angle_max: PI - 2.0 * PI / beams.max(1) as f64,
             beams,
             max_range,
             mount: Pose2::IDENTITY,
-        }
+        };
+        scanner.validate()?;
+        Ok(scanner)
     }
 
     /// A 180° scanner looking forward (like the Málaga SICK), mounted at `mount`.
-    pub fn front_half(beams: usize, max_range: f64, mount: Pose2) -> Scanner {
-        Scanner {
+    ///
+    /// # Errors
+    /// As [`Scanner::full_circle`], and a mount that is not finite.
+    pub fn front_half(
+        beams: usize,
+        max_range: f64,
+        mount: Pose2,
+    ) -> Result<Scanner, MultimapError> {
+        let scanner = Scanner {
             angle_min: -FRAC_PI_2,
             angle_max: FRAC_PI_2,
-            beams: beams.max(2),
+            beams,
             max_range,
             mount,
+        };
+        scanner.validate()?;
+        Ok(scanner)
+    }
+
+    /// Checks the scanner: 2 to [`MAX_BEAMS`] beams, finite bearings with
+    /// `angle_min < angle_max`, a finite positive maximum range, a finite mount.
+    pub fn validate(&self) -> Result<(), MultimapError> {
+        if !(2..=MAX_BEAMS).contains(&self.beams) {
+            return Err(MultimapError::Parameter {
+                field: "beams",
+                value: self.beams as f64,
+                why: "must be from 2 to chronomap_lidar::scan::MAX_BEAMS",
+            });
         }
+        for (field, value) in [("angle_min", self.angle_min), ("angle_max", self.angle_max)] {
+            if !value.is_finite() {
+                return Err(MultimapError::NotFinite { field, value });
+            }
+        }
+        if self.angle_max <= self.angle_min {
+            return Err(MultimapError::Parameter {
+                field: "angle_max",
+                value: self.angle_max,
+                why: "must exceed angle_min",
+            });
+        }
+        if !(self.max_range.is_finite() && self.max_range > 0.0) {
+            return Err(MultimapError::Parameter {
+                field: "max_range",
+                value: self.max_range,
+                why: "must be finite and positive",
+            });
+        }
+        self.mount.validate("mount")
     }
 
     /// The scan of `plan` taken at time `time` by the robot at `pose`.
-    pub fn scan(&self, plan: &FloorPlan, pose: &Pose2, time: f64) -> Scan2d {
+    ///
+    /// # Errors
+    /// As [`Scanner::validate`], and a pose or time that is not finite.
+    pub fn scan(&self, plan: &FloorPlan, pose: &Pose2, time: f64) -> Result<Scan2d, MultimapError> {
+        self.validate()?;
+        pose.validate("pose")?;
+        if !time.is_finite() {
+            return Err(MultimapError::NotFinite {
+                field: "time",
+                value: time,
+            });
+        }
         let sensor = pose.compose(&self.mount);
         let inc = (self.angle_max - self.angle_min) / (self.beams - 1) as f64;
         let ranges = (0..self.beams)
@@ -172,12 +246,70 @@ impl Scanner {
                 }
             })
             .collect();
-        Scan2d {
+        Ok(Scan2d {
             time,
             angle_min: self.angle_min,
             angle_max: self.angle_max,
             max_range: self.max_range,
             ranges,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_scanners_are_refused_not_clamped() {
+        assert_eq!(
+            Scanner::full_circle(1, 30.0).unwrap_err().to_string(),
+            "parameter beams = 1: must be from 2 to chronomap_lidar::scan::MAX_BEAMS"
+        );
+        assert!(Scanner::full_circle(0, 30.0).is_err());
+        assert!(Scanner::full_circle(MAX_BEAMS + 1, 30.0).is_err());
+        assert!(Scanner::front_half(361, f64::NAN, Pose2::IDENTITY).is_err());
+        assert!(Scanner::front_half(361, -1.0, Pose2::IDENTITY).is_err());
+        // A scanner made by hand is checked when it scans.
+        let mut s = Scanner::full_circle(4, 30.0).unwrap();
+        s.beams = 1;
+        let plan = FloorPlan::corridor_and_room();
+        assert!(s.scan(&plan, &Pose2::IDENTITY, 0.0).is_err());
+        s.beams = 4;
+        // Four beams at −180°, −90°, 0°, 90° from (1, 1) in the 2 m corridor x ∈ [0, 12].
+        let scan = s
+            .scan(&plan, &Pose2::new(1.0, 1.0, 0.0).unwrap(), 0.0)
+            .unwrap();
+        let expected = [1.0, 1.0, 11.0, 1.0];
+        for (r, e) in scan.ranges.iter().zip(expected) {
+            assert!((r - e).abs() < 1e-9, "{:?}", scan.ranges);
         }
+        assert!(s.scan(&plan, &Pose2::IDENTITY, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn door_run_steps_are_bounded() {
+        let plan = FloorPlan::corridor_and_room();
+        assert!(plan.door_run(0.0).is_err());
+        assert!(plan.door_run(f64::NAN).is_err());
+        // x = 1.0, 1.5, …, 5.5 (< 5.95): 10; θ = 0, 0.2, …, 1.4: 8; y = 1.0, 1.5, …, 4.5: 8.
+        let run = plan.door_run(0.5).unwrap();
+        assert_eq!(run.len(), 10 + 8 + 8);
+        assert_eq!(
+            run[9],
+            Pose2 {
+                x: 5.5,
+                y: 1.0,
+                theta: 0.0
+            }
+        );
+        assert_eq!(
+            run[25],
+            Pose2 {
+                x: 0.5 * (DOOR[0][0] + DOOR[1][0]),
+                y: 4.5,
+                theta: FRAC_PI_2
+            }
+        );
     }
 }

@@ -19,7 +19,7 @@ fn run(
     let mut detector = DoorDetector::new(params).unwrap();
     let mut out = Vec::new();
     for (k, pose) in poses.iter().enumerate() {
-        let mut scan = scanner.scan(plan, pose, 0.2 * k as f64);
+        let mut scan = scanner.scan(plan, pose, 0.2 * k as f64).unwrap();
         for r in scan.ranges.iter_mut().filter(|r| r.is_finite()) {
             // Box–Muller normal noise.
             let (u1, u2) = (1.0 - rng.next_f64(), rng.next_f64());
@@ -41,10 +41,10 @@ fn door_center() -> [f64; 2] {
 #[test]
 fn a_full_circle_scanner_detects_the_one_passage_by_front_and_back_posts() {
     let plan = FloorPlan::corridor_and_room();
-    let poses = plan.door_run(0.2);
+    let poses = plan.door_run(0.2).unwrap();
     let passages = run(
         &plan,
-        &Scanner::full_circle(720, 30.0),
+        &Scanner::full_circle(720, 30.0).unwrap(),
         DoorParams::default(),
         &poses,
         0.0,
@@ -77,12 +77,12 @@ fn a_full_circle_scanner_detects_the_one_passage_by_front_and_back_posts() {
 #[test]
 fn a_forward_scanner_needs_the_bounding_box_change() {
     let plan = FloorPlan::corridor_and_room();
-    let poses = plan.door_run(0.2);
+    let poses = plan.door_run(0.2).unwrap();
     let params = DoorParams {
         sensor: Pose2::new(0.78, 0.0, 0.0).unwrap(),
         ..DoorParams::default()
     };
-    let scanner = Scanner::front_half(361, 80.0, params.sensor);
+    let scanner = Scanner::front_half(361, 80.0, params.sensor).unwrap();
     let passages = run(&plan, &scanner, params, &poses, 0.0);
     assert_eq!(passages.len(), 1, "{passages:?}");
     assert_eq!(passages[0].criteria, [true, false, true]);
@@ -98,10 +98,10 @@ fn a_forward_scanner_needs_the_bounding_box_change() {
 #[test]
 fn noisy_ranges_give_the_same_single_passage() {
     let plan = FloorPlan::corridor_and_room();
-    let poses = plan.door_run(0.2);
+    let poses = plan.door_run(0.2).unwrap();
     for scanner in [
-        Scanner::full_circle(720, 30.0),
-        Scanner::front_half(361, 80.0, Pose2::new(0.78, 0.0, 0.0).unwrap()),
+        Scanner::full_circle(720, 30.0).unwrap(),
+        Scanner::front_half(361, 80.0, Pose2::new(0.78, 0.0, 0.0).unwrap()).unwrap(),
     ] {
         let params = DoorParams {
             sensor: scanner.mount,
@@ -121,10 +121,10 @@ fn driving_past_the_door_is_no_passage() {
     let poses: Vec<Pose2> = (0..50)
         .map(|k| Pose2::new(1.0 + 0.2 * k as f64, 1.0, 0.0).unwrap())
         .collect();
-    let scanner = Scanner::full_circle(720, 30.0);
+    let scanner = Scanner::full_circle(720, 30.0).unwrap();
     assert!(run(&plan, &scanner, DoorParams::default(), &poses, 0.01).is_empty());
     // Turning towards the door and stopping short of it: posts ahead, no crossing.
-    let mut short = plan.door_run(0.2);
+    let mut short = plan.door_run(0.2).unwrap();
     short.retain(|p| p.y < 1.7);
     assert!(run(&plan, &scanner, DoorParams::default(), &short, 0.0).is_empty());
 }
@@ -133,13 +133,13 @@ fn driving_past_the_door_is_no_passage() {
 #[test]
 fn a_hall_behind_the_door_gets_the_long_range_configuration() {
     let plan = FloorPlan::corridor_and_hall();
-    let mut poses = plan.door_run(0.2);
+    let mut poses = plan.door_run(0.2).unwrap();
     // Drive on into the hall: the box is read when the passage is declared.
     let last = *poses.last().unwrap();
     poses.extend((1..20).map(|k| Pose2::new(last.x, last.y + 0.2 * k as f64, last.theta).unwrap()));
     let passages = run(
         &plan,
-        &Scanner::full_circle(720, 60.0),
+        &Scanner::full_circle(720, 60.0).unwrap(),
         DoorParams::default(),
         &poses,
         0.0,
@@ -157,9 +157,9 @@ fn a_hall_behind_the_door_gets_the_long_range_configuration() {
 #[test]
 fn posts_of_a_single_scan_are_the_door_corners() {
     let plan = FloorPlan::corridor_and_room();
-    let scanner = Scanner::full_circle(720, 30.0);
+    let scanner = Scanner::full_circle(720, 30.0).unwrap();
     let pose = Pose2::new(door_center()[0], 1.0, std::f64::consts::FRAC_PI_2).unwrap();
-    let scan = scanner.scan(&plan, &pose, 0.0);
+    let scan = scanner.scan(&plan, &pose, 0.0).unwrap();
     let doors = detect_door_posts(&scan, &DoorParams::default()).unwrap();
     assert_eq!(doors.len(), 1, "{doors:?}");
     // Sensor frame: x ahead (+y of the world), y to the left (−x of the world).
@@ -181,13 +181,17 @@ fn posts_of_a_single_scan_are_the_door_corners() {
 #[test]
 fn bad_input_is_refused() {
     let plan = FloorPlan::corridor_and_room();
-    let scanner = Scanner::full_circle(90, 30.0);
+    let scanner = Scanner::full_circle(90, 30.0).unwrap();
     let mut detector = DoorDetector::new(DoorParams::default()).unwrap();
-    let scan = scanner.scan(&plan, &Pose2::new(1.0, 1.0, 0.0).unwrap(), 5.0);
+    let scan = scanner
+        .scan(&plan, &Pose2::new(1.0, 1.0, 0.0).unwrap(), 5.0)
+        .unwrap();
     detector
         .update(&scan, &Pose2::new(1.0, 1.0, 0.0).unwrap())
         .unwrap();
-    let earlier = scanner.scan(&plan, &Pose2::new(1.0, 1.0, 0.0).unwrap(), 4.0);
+    let earlier = scanner
+        .scan(&plan, &Pose2::new(1.0, 1.0, 0.0).unwrap(), 4.0)
+        .unwrap();
     let e = detector
         .update(&earlier, &Pose2::new(1.0, 1.0, 0.0).unwrap())
         .unwrap_err();

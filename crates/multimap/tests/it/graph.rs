@@ -7,7 +7,7 @@
 
 use chronomap_multimap::MultimapError;
 use chronomap_multimap::config::MapConfig;
-use chronomap_multimap::graph::{LoopTarget, MapGraph, PathWeight};
+use chronomap_multimap::graph::{LoopTarget, MAX_LINKS, MAX_MAPS, MapGraph, PathWeight};
 use chronomap_multimap::se2::{Mat3, Pose2, UncertainPose, position_lambda_max, wrap_angle};
 use chronomap_multimap::search::{SearchParams, search_radius};
 use chronomap_rng::Xoshiro256StarStar;
@@ -47,7 +47,7 @@ fn up(x: f64, y: f64, t: f64, cov: Mat3) -> UncertainPose {
 fn chain(sigma_theta: f64) -> MapGraph {
     let mut g = MapGraph::new();
     for _ in 0..3 {
-        g.add_map(MapConfig::ShortRange, None);
+        g.add_map(MapConfig::ShortRange, None).unwrap();
     }
     let st2 = sigma_theta * sigma_theta;
     g.add_link(
@@ -165,7 +165,7 @@ fn hand_computed_chain() {
     let (a, b, c, d, e) = (0.01, 0.002, 0.03, 0.05, 0.004);
     let mut g = MapGraph::new();
     for _ in 0..3 {
-        g.add_map(MapConfig::ShortRange, None);
+        g.add_map(MapConfig::ShortRange, None).unwrap();
     }
     let origin = UncertainPose::exact(Pose2::IDENTITY);
     g.add_link(0, up(2.0, 0.0, FRAC_PI_2, diag(a, a, b)), 1, origin)
@@ -283,7 +283,7 @@ fn dijkstra_map_paths_match_brute_force() {
         let n = rng.int_in(2, 5) as usize;
         let mut g = MapGraph::new();
         for _ in 0..n {
-            g.add_map(MapConfig::ShortRange, None);
+            g.add_map(MapConfig::ShortRange, None).unwrap();
         }
         for _ in 0..rng.int_in(1, 6) {
             let a = rng.int_in(0, n as u64 - 1) as usize;
@@ -343,7 +343,7 @@ fn loop_search_radius_follows_the_propagated_uncertainty() {
     let build = |var: f64| {
         let mut g = MapGraph::new();
         for _ in 0..4 {
-            g.add_map(MapConfig::ShortRange, None);
+            g.add_map(MapConfig::ShortRange, None).unwrap();
         }
         let origin = UncertainPose::exact(Pose2::IDENTITY);
         // Each map: 10 m ahead, then a left turn into the next.
@@ -398,7 +398,7 @@ fn loop_search_radius_follows_the_propagated_uncertainty() {
 #[test]
 fn bad_graph_input_is_refused() {
     let mut g = MapGraph::new();
-    let a = g.add_map(MapConfig::ShortRange, None);
+    let a = g.add_map(MapConfig::ShortRange, None).unwrap();
     let origin = UncertainPose::exact(Pose2::IDENTITY);
     assert_eq!(
         g.add_link(a, origin, a, origin),
@@ -408,7 +408,7 @@ fn bad_graph_input_is_refused() {
         g.add_link(a, origin, 5, origin),
         Err(MultimapError::UnknownMap(5))
     );
-    let b = g.add_map(MapConfig::LongRange, None);
+    let b = g.add_map(MapConfig::LongRange, None).unwrap();
     assert!(matches!(
         g.map_path(a, b, PathWeight::Distance),
         Err(MultimapError::NoPath { from: 0, to: 1 })
@@ -428,4 +428,39 @@ fn bad_graph_input_is_refused() {
             .to_string()
             .contains("not finite")
     );
+}
+
+/// The graph's bounds are errors, never a silently reused index.
+#[test]
+fn the_graph_bounds_are_errors() {
+    let mut g = MapGraph::new();
+    for k in 0..MAX_MAPS {
+        assert_eq!(g.add_map(MapConfig::ShortRange, None), Ok(k));
+    }
+    assert_eq!(
+        g.add_map(MapConfig::LongRange, None),
+        Err(MultimapError::TooLarge {
+            what: "maps",
+            n: MAX_MAPS + 1,
+            max: MAX_MAPS,
+        })
+    );
+    assert_eq!(g.maps().len(), MAX_MAPS);
+    assert_eq!(g.maps()[MAX_MAPS - 1].config, MapConfig::ShortRange);
+    // Link points and candidates share their bound.
+    let origin = UncertainPose::exact(Pose2::IDENTITY);
+    for k in 0..MAX_LINKS {
+        if k % 2 == 0 {
+            assert_eq!(g.add_link(k % 7, origin, 7, origin), Ok(k / 2));
+        } else {
+            assert_eq!(g.add_candidate(k % 5, origin, k as u64), Ok(k / 2));
+        }
+    }
+    let full = MultimapError::TooLarge {
+        what: "link points and candidates",
+        n: MAX_LINKS + 1,
+        max: MAX_LINKS,
+    };
+    assert_eq!(g.add_link(0, origin, 1, origin), Err(full.clone()));
+    assert_eq!(g.add_candidate(0, origin, 0), Err(full));
 }

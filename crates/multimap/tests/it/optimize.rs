@@ -23,7 +23,7 @@ fn up(x: f64, y: f64, t: f64, cov: Mat3) -> UncertainPose {
 fn graph_of(n: usize, links: &[(usize, usize, UncertainPose)]) -> MapGraph {
     let mut g = MapGraph::new();
     for _ in 0..n {
-        g.add_map(MapConfig::ShortRange, None);
+        g.add_map(MapConfig::ShortRange, None).unwrap();
     }
     for (a, b, p) in links {
         g.add_link(*a, *p, *b, UncertainPose::exact(Pose2::IDENTITY))
@@ -257,4 +257,45 @@ fn unusable_graphs_are_refused() {
             .contains("tolerance")
     );
     assert!(optimize(&MapGraph::new(), &OptimizeParams::default()).is_err());
+}
+
+/// Running out of iterations is an error, not a result presented as the optimum.
+#[test]
+fn an_iteration_limit_is_an_error() {
+    let z = |x: f64, y: f64, t: f64| up(x, y, t, diag(0.04, 0.04, 0.003));
+    // A square whose four edges disagree: the first step cannot reach the tolerance.
+    let links = [
+        (0, 1, z(10.2, 0.1, FRAC_PI_2 + 0.04)),
+        (1, 2, z(9.8, -0.2, FRAC_PI_2 - 0.03)),
+        (2, 3, z(10.1, 0.3, FRAC_PI_2 + 0.05)),
+        (3, 0, z(9.9, -0.1, FRAC_PI_2 - 0.02)),
+    ];
+    let g = graph_of(4, &links);
+    let full = optimize(&g, &OptimizeParams::default()).unwrap();
+    assert!(
+        full.iterations > 1 && full.iterations < 100,
+        "{}",
+        full.iterations
+    );
+    let one = OptimizeParams {
+        max_iterations: 1,
+        ..OptimizeParams::default()
+    };
+    match optimize(&g, &one) {
+        Err(MultimapError::NotConverged { iterations, cost }) => {
+            assert_eq!(iterations, 1);
+            // One Gauss–Newton step from the initial guess lowered the cost, not below the
+            // optimum.
+            assert!(cost < full.initial_cost && cost >= full.final_cost - 1e-12);
+        }
+        other => panic!("{other:?}"),
+    }
+    let none = OptimizeParams {
+        max_iterations: 0,
+        ..OptimizeParams::default()
+    };
+    assert!(matches!(
+        optimize(&g, &none),
+        Err(MultimapError::NotConverged { iterations: 0, .. })
+    ));
 }
