@@ -4,6 +4,7 @@
 //! [Rusu 2009]: R. B. Rusu, N. Blodow, M. Beetz, "Fast Point Feature Histograms (FPFH) for 3D
 //! registration", ICRA 2009.
 
+use crate::RegistrationError;
 use crate::kdtree::KdTree;
 use crate::linalg::{cross, dot, dot_slice, norm, sub, sym_eigen};
 
@@ -27,9 +28,10 @@ pub fn estimate_normals<const D: usize>(
     k: usize,
     radius: f64,
     viewpoint: [f64; D],
-) -> Vec<[f64; D]> {
-    let mut nn = Vec::with_capacity(k);
-    points
+) -> Result<Vec<[f64; D]>, RegistrationError> {
+    same_len("normals: k-d tree", tree.len(), points.len())?;
+    let mut nn = Vec::with_capacity(k.min(1 << 16));
+    Ok(points
         .iter()
         .map(|p| {
             tree.nearest_within(p, k, radius * radius, &mut nn);
@@ -58,7 +60,16 @@ pub fn estimate_normals<const D: usize>(
             }
             n
         })
-        .collect()
+        .collect())
+}
+
+/// The k-d tree or the normals must belong to the points.
+fn same_len(what: &'static str, got: usize, points: usize) -> Result<(), RegistrationError> {
+    if got == points {
+        Ok(())
+    } else {
+        Err(RegistrationError::Mismatch { what, got, points })
+    }
 }
 
 /// The three angular features of a point pair ([Rusu 2009] eq. (1)–(2), with PCL's choice of
@@ -185,9 +196,11 @@ pub fn fpfh<const D: usize>(
     tree: &KdTree<D>,
     radius: f64,
     max_neighbours: usize,
-) -> Vec<Histogram> {
+) -> Result<Vec<Histogram>, RegistrationError> {
+    same_len("fpfh: k-d tree", tree.len(), points.len())?;
+    same_len("fpfh: normals", normals.len(), points.len())?;
     let (s, neighbours) = spfh(points, normals, tree, radius, max_neighbours);
-    (0..points.len())
+    Ok((0..points.len())
         .map(|i| {
             let mut h = [0.0; FEATURE_LEN];
             for &(j, w) in &neighbours[i] {
@@ -203,7 +216,7 @@ pub fn fpfh<const D: usize>(
             }
             h
         })
-        .collect()
+        .collect())
 }
 
 /// χ² distance between histograms, `Σ (aᵢ − bᵢ)² / (aᵢ + bᵢ)` over bins with `aᵢ + bᵢ > 0`, the
@@ -240,12 +253,12 @@ pub fn multiscale_fpfh<const D: usize>(
     radii: &[f64],
     max_neighbours: usize,
     beta: Option<f64>,
-) -> MultiScaleFeatures {
+) -> Result<MultiScaleFeatures, RegistrationError> {
     let mut unique_prev: Option<Vec<bool>> = None;
     let mut persistent = vec![false; points.len()];
     let mut histograms = Vec::new();
     for &r in radii {
-        histograms = fpfh(points, normals, tree, r, max_neighbours);
+        histograms = fpfh(points, normals, tree, r, max_neighbours)?;
         let Some(beta) = beta else { continue };
         let valid: Vec<usize> = (0..points.len())
             .filter(|&i| histograms[i].iter().any(|&x| x > 0.0))
@@ -284,10 +297,10 @@ pub fn multiscale_fpfh<const D: usize>(
         })
         .filter(|&i| beta.is_none() || persistent[i])
         .collect();
-    MultiScaleFeatures {
+    Ok(MultiScaleFeatures {
         histograms,
         keypoints,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -301,8 +314,9 @@ mod tests {
         let mut points: Vec<[f64; 2]> = (0..150).map(|i| [0.02 * f64::from(i), 0.0]).collect();
         points.extend((1..150).map(|i| [0.0, 0.02 * f64::from(i)]));
         let tree = KdTree::new(&points);
-        let normals = estimate_normals(&points, &tree, 10, 0.1, [1.0, 1.0]);
-        let f = multiscale_fpfh(&points, &normals, &tree, &[0.2, 0.3, 0.4], 100, Some(1.0));
+        let normals = estimate_normals(&points, &tree, 10, 0.1, [1.0, 1.0]).unwrap();
+        let f =
+            multiscale_fpfh(&points, &normals, &tree, &[0.2, 0.3, 0.4], 100, Some(1.0)).unwrap();
         assert!(!f.keypoints.is_empty());
         let near =
             |p: [f64; 2], q: [f64; 2]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt() < 0.5;
@@ -316,7 +330,7 @@ mod tests {
         }
         assert!(f.keypoints.iter().any(|&k| near(points[k], [0.0, 0.0])));
         // Without the analysis every point with a histogram is kept.
-        let all = multiscale_fpfh(&points, &normals, &tree, &[0.2], 100, None);
+        let all = multiscale_fpfh(&points, &normals, &tree, &[0.2], 100, None).unwrap();
         assert_eq!(all.keypoints.len(), points.len());
     }
 }

@@ -143,6 +143,16 @@ pub enum RegistrationError {
         /// The point.
         index: usize,
     },
+    /// A k-d tree, normals or keypoints that do not belong to the points they come with.
+    #[error("{what}: {got} does not fit {points} points")]
+    Mismatch {
+        /// What does not fit.
+        what: &'static str,
+        /// Its length (or the offending index).
+        got: usize,
+        /// Number of points.
+        points: usize,
+    },
     /// The geometry does not determine a transform.
     #[error("degenerate: {0}")]
     Degenerate(&'static str),

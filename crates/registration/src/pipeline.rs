@@ -162,7 +162,7 @@ pub fn register<const D: usize>(
             params.normal_neighbours,
             params.normal_radius,
             origin,
-        );
+        )?;
         let features = multiscale_fpfh(
             &coarse,
             &normals,
@@ -170,7 +170,7 @@ pub fn register<const D: usize>(
             &params.feature_radii,
             params.feature_neighbours,
             params.persistence,
-        );
+        )?;
         Ok((coarse, features))
     };
     let (src_coarse, src_features) = describe(&source)?;
@@ -181,7 +181,7 @@ pub fn register<const D: usize>(
         &tgt_features.histograms,
         &tgt_features.keypoints,
         &params.matching,
-    );
+    )?;
     let consensus = ransac(&src_coarse, &tgt_coarse, &correspondences, &params.ransac)?;
     let (src_fine, tgt_fine) = match params.fine_voxel {
         Some(leaf) => (
@@ -191,24 +191,23 @@ pub fn register<const D: usize>(
         None => (source.into_parts().0, target.into_parts().0),
     };
     let tree = KdTree::new(&tgt_fine);
-    let normal_radius = params.fine_voxel.map_or(params.normal_radius, |v| 2.0 * v);
     let normals = estimate_normals(
         &tgt_fine,
         &tree,
         params.fine_normal_neighbours,
-        normal_radius,
+        params.fine_normal_radius,
         origin,
-    );
-    let src_normals = (params.icp.method == IcpMethod::Symmetric).then(|| {
-        let src_tree = KdTree::new(&src_fine);
-        estimate_normals(
+    )?;
+    let src_normals = match params.icp.method {
+        IcpMethod::Symmetric => Some(estimate_normals(
             &src_fine,
-            &src_tree,
+            &KdTree::new(&src_fine),
             params.fine_normal_neighbours,
             params.fine_normal_radius,
             origin,
-        )
-    });
+        )?),
+        _ => None,
+    };
     let fine = icp(
         &src_fine,
         src_normals.as_deref(),
@@ -240,8 +239,8 @@ pub fn register<const D: usize>(
 
 /// Parameters for 2-D laser scans of indoor spaces (SICK-like, 0.5° beams): coarse voxel
 /// 0.1 m, normals within 0.3 m (10 neighbours), FPFH-2D at 0.8, 1.0 and 1.2 m, RANSAC inliers
-/// within 0.15 m and translations up to 10 m, point-to-line ICP on 0.05 m cells with
-/// correspondences within 0.3 m.
+/// within 0.15 m and translations up to 10 m, point-to-line ICP on 0.05 m cells (normals: 8
+/// neighbours within 0.1 m) with correspondences within 0.3 m.
 pub fn scan_params() -> RegistrationParams {
     let mut p = RegistrationParams::for_voxel(0.1);
     p.normal_neighbours = 10;
@@ -251,6 +250,7 @@ pub fn scan_params() -> RegistrationParams {
     p.ransac.max_translation = Some(10.0);
     p.fine_voxel = Some(0.05);
     p.fine_normal_neighbours = 8;
+    p.fine_normal_radius = 0.1;
     p.icp = IcpParams::point_to_plane(0.3);
     p.information_distance = 0.3;
     p

@@ -37,7 +37,19 @@ pub fn match_features(
     target: &[Histogram],
     target_keys: &[usize],
     params: &MatchParams,
-) -> Vec<(usize, usize)> {
+) -> Result<Vec<(usize, usize)>, RegistrationError> {
+    for (what, keys, n) in [
+        ("source keypoints", source_keys, source.len()),
+        ("target keypoints", target_keys, target.len()),
+    ] {
+        if let Some(&k) = keys.iter().find(|&&k| k >= n) {
+            return Err(RegistrationError::Mismatch {
+                what,
+                got: k,
+                points: n,
+            });
+        }
+    }
     let target_features: Vec<[f64; FEATURE_LEN]> = target_keys.iter().map(|&i| target[i]).collect();
     let tree = KdTree::new(&target_features);
     let reverse = params.mutual.then(|| {
@@ -65,7 +77,7 @@ pub fn match_features(
         }
         out.push((s, target_keys[tj]));
     }
-    out
+    Ok(out)
 }
 
 /// RANSAC parameters.

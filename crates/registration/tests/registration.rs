@@ -6,9 +6,9 @@ mod malaga_data;
 
 use chronomap_registration::features::{BINS, FEATURE_LEN};
 use chronomap_registration::{
-    Filters, IcpMethod, IcpParams, KdTree, RansacParams, RegistrationError, RegistrationParams,
-    Rigid, estimate_normals, fpfh, icp, information, kabsch, ransac, register, register_scans,
-    scan_params,
+    Cloud, Filters, IcpMethod, IcpParams, KdTree, RansacParams, RegistrationError,
+    RegistrationParams, Rigid, estimate_normals, fpfh, icp, information, kabsch, ransac, register,
+    register_scans, scan_params,
 };
 use chronomap_rng::Xoshiro256StarStar;
 
@@ -105,8 +105,9 @@ fn icp_converges_from_a_known_perturbation() {
         });
     let source: Vec<[f64; 3]> = target.iter().map(|p| motion.inverse().apply(p)).collect();
     let tree = KdTree::new(&target);
-    let normals = estimate_normals(&target, &tree, 12, 0.15, [1.0, 0.75, 0.5]);
-    let src_normals = estimate_normals(&source, &KdTree::new(&source), 12, 0.15, [1.0, 0.75, 0.5]);
+    let normals = estimate_normals(&target, &tree, 12, 0.15, [1.0, 0.75, 0.5]).unwrap();
+    let src_normals =
+        estimate_normals(&source, &KdTree::new(&source), 12, 0.15, [1.0, 0.75, 0.5]).unwrap();
     for method in [
         IcpMethod::PointToPoint,
         IcpMethod::PointToPlane,
@@ -162,7 +163,7 @@ fn icp_converges_from_a_known_perturbation() {
     let motion2 = Rigid::from_pose(0.1, -0.07, 3f64.to_radians());
     let source2: Vec<[f64; 2]> = room.iter().map(|p| motion2.inverse().apply(p)).collect();
     let tree2 = KdTree::new(&room);
-    let normals2 = estimate_normals(&room, &tree2, 6, 0.2, [2.0, 1.5]);
+    let normals2 = estimate_normals(&room, &tree2, 6, 0.2, [2.0, 1.5]).unwrap();
     let result = icp(
         &source2,
         None,
@@ -212,8 +213,8 @@ fn fpfh_is_invariant_to_rigid_motions() {
     let moved: Vec<[f64; 3]> = points.iter().map(|p| motion.apply(p)).collect();
     let features = |pts: &[[f64; 3]], view: [f64; 3]| {
         let tree = KdTree::new(pts);
-        let normals = estimate_normals(pts, &tree, 1000, 0.15, view);
-        fpfh(pts, &normals, &tree, 0.25, 1000)
+        let normals = estimate_normals(pts, &tree, 1000, 0.15, view).unwrap();
+        fpfh(pts, &normals, &tree, 0.25, 1000).unwrap()
     };
     let a = features(&points, viewpoint);
     let b = features(&moved, motion.apply(&viewpoint));
@@ -251,8 +252,8 @@ fn fpfh_is_invariant_to_rigid_motions() {
     let moved2: Vec<[f64; 2]> = room.iter().map(|p| m2.apply(p)).collect();
     let f2 = |pts: &[[f64; 2]], view: [f64; 2]| {
         let tree = KdTree::new(pts);
-        let normals = estimate_normals(pts, &tree, 1000, 0.3, view);
-        fpfh(pts, &normals, &tree, 0.6, 1000)
+        let normals = estimate_normals(pts, &tree, 1000, 0.3, view).unwrap();
+        fpfh(pts, &normals, &tree, 0.6, 1000).unwrap()
     };
     let (a2, b2) = (f2(&room, [0.0, 0.0]), f2(&moved2, m2.apply(&[0.0, 0.0])));
     let moved2 = a2
@@ -394,4 +395,46 @@ fn malaga_loop_pairs_without_initial_guess() {
         );
         assert_eq!(result.information.dof, 3);
     }
+}
+
+#[test]
+fn bad_input_is_an_error_naming_what() {
+    let cloud = Cloud::from_points(box_cloud()).unwrap();
+    let few = Cloud::from_points(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]).unwrap();
+    let params = RegistrationParams::for_voxel(0.25);
+    let e = register(&few, &cloud, &params).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "filtered source: 2 points, at least 9 needed"
+    );
+    let mut bad = params.clone();
+    bad.coarse_voxel = f64::NAN;
+    assert_eq!(
+        register(&cloud, &cloud, &bad).unwrap_err().to_string(),
+        "coarse_voxel: NaN is not valid (must be positive and finite)"
+    );
+    bad = params.clone();
+    bad.feature_radii.clear();
+    assert!(matches!(
+        register(&cloud, &cloud, &bad),
+        Err(RegistrationError::Parameter {
+            field: "feature_radii",
+            ..
+        })
+    ));
+    // A tree or normals of other points are refused, not indexed out of bounds.
+    let points = cloud.points();
+    let other = KdTree::new(&points[..10]);
+    assert_eq!(
+        estimate_normals(points, &other, 5, 1.0, [0.0; 3])
+            .unwrap_err()
+            .to_string(),
+        format!("normals: k-d tree: 10 does not fit {} points", points.len())
+    );
+    let tree = KdTree::new(points);
+    assert!(fpfh(points, &[[0.0; 3]; 3], &tree, 0.2, 10).is_err());
+    let h = [[0.0; FEATURE_LEN]; 2];
+    assert!(
+        chronomap_registration::match_features(&h, &[0, 5], &h, &[0], &Default::default()).is_err()
+    );
 }
