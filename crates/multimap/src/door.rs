@@ -55,11 +55,14 @@ use serde::{Deserialize, Serialize};
 use crate::MultimapError;
 use crate::se2::{Pose2, wrap_angle};
 
-/// The most doors seen ahead that are tracked at once.
+/// The most doors seen ahead that are tracked at once. These three bounds are sliding
+/// windows, not clamps of a result: past them the detector forgets the door seen longest ago
+/// (the crossing waiting longest, the oldest path point or bounding box), which the windows
+/// `pending_travel` and `confirm_window_s` would drop soon anyway.
 pub const MAX_PENDING: usize = 32;
-/// The most crossings waiting for confirmation at once.
+/// The most crossings waiting for confirmation at once (the oldest is forgotten).
 pub const MAX_TRAVERSALS: usize = 32;
-/// The most robot positions kept to test crossings of door posts seen behind.
+/// The most robot positions, and bounding boxes of (C3), kept (the oldest are forgotten).
 pub const MAX_PATH: usize = 4096;
 /// The share of the beams in a door's gap that must reach past the line between its posts
 /// by `min_step` (the rest may hit clutter or a person in the doorway).
