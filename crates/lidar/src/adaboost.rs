@@ -172,12 +172,295 @@ impl AdaBoost {
         weights: Option<&[f64]>,
         params: &AdaBoostParams,
     ) -> Result<AdaBoost, AdaBoostError> {
+        let (d, w) = prepare(x, y, weights, params.rounds)?;
+        // Sample order of each feature, by value (ties by index), computed once.
+        let order = feature_order(x, d);
+        let rounds = boost(x, y, w, params.rounds, |w| fit_stump(x, y, w, &order), |s, x| {
+            s.predict(x)
+        })?;
+        Ok(AdaBoost {
+            n_features: d,
+            alphas: rounds.iter().map(|r| r.1).collect(),
+            errors: rounds.iter().map(|r| r.2).collect(),
+            stumps: rounds.into_iter().map(|r| r.0).collect(),
+        })
+    }
+
+    /// The classifier of the first `rounds` rounds (all if there are fewer). Boosting round
+    /// `t` does not depend on later rounds, so this is exactly the model that training with
+    /// `T = rounds` gives — one fit at the largest `T` serves every smaller `T`.
+    pub fn truncated(&self, rounds: usize) -> AdaBoost {
+        let t = rounds.clamp(1, self.stumps.len().max(1));
+        AdaBoost {
+            n_features: self.n_features,
+            stumps: self.stumps.iter().take(t).cloned().collect(),
+            alphas: self.alphas.iter().take(t).copied().collect(),
+            errors: self.errors.iter().take(t).copied().collect(),
+        }
+    }
+
+    /// Checks the invariants (for decoded models): at least one stump, as many weights,
+    /// features in range, finite thresholds, positive finite weights, errors in `[0, 1/2)`.
+    pub fn validate(&self) -> Result<(), AdaBoostError> {
+        if self.n_features == 0 || self.n_features > MAX_FEATURES {
+            return Err(AdaBoostError::Invalid("n_features out of range"));
+        }
+        if self.stumps.is_empty() || self.stumps.len() > MAX_ROUNDS {
+            return Err(AdaBoostError::Invalid("no stump or too many"));
+        }
+        if self.alphas.len() != self.stumps.len() || self.errors.len() != self.stumps.len() {
+            return Err(AdaBoostError::Invalid(
+                "stumps, alphas and errors differ in number",
+            ));
+        }
+        for s in &self.stumps {
+            if s.feature.is_some_and(|f| f >= self.n_features) {
+                return Err(AdaBoostError::Invalid("a stump's feature is out of range"));
+            }
+            if !s.threshold.is_finite() {
+                return Err(AdaBoostError::Invalid("a stump's threshold is not finite"));
+            }
+        }
+        if self.alphas.iter().any(|a| !(a.is_finite() && *a > 0.0)) {
+            return Err(AdaBoostError::Invalid(
+                "a weight is not positive and finite",
+            ));
+        }
+        if self.errors.iter().any(|e| !(*e >= 0.0 && *e < 0.5)) {
+            return Err(AdaBoostError::Invalid("an error is outside [0, 0.5)"));
+        }
+        Ok(())
+    }
+
+    fn check(&self, x: &[f64]) -> Result<(), AdaBoostError> {
+        check_sample(self.n_features, x)
+    }
+
+    /// The decision function `f(x) = 2 Σ α_t h_t(x) / Σ α_t` in `[−2, 2]` (positive: a loop).
+    ///
+    /// # Errors
+    /// [`AdaBoostError::FeatureCount`] for a sample of the wrong length,
+    /// [`AdaBoostError::NonFinite`] for a NaN feature.
+    pub fn decision(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
+        self.check(x)?;
+        let (mut vote, mut total) = (0.0, 0.0);
+        for (s, &a) in self.stumps.iter().zip(&self.alphas) {
+            vote += if s.predict(x) { 2.0 * a } else { -2.0 * a };
+            total += a;
+        }
+        Ok(vote / total)
+    }
+
+    /// The probability of a loop, `p_c = 1/(1 + e^{−f(x)})` (scikit-learn's `predict_proba`);
+    /// [Stüde 2024] §3.2.1 thresholds it with `p_min`.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::decision`].
+    pub fn probability(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
+        Ok(1.0 / (1.0 + (-self.decision(x)?).exp()))
+    }
+
+    /// The class, `f(x) > 0`.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::decision`].
+    pub fn predict(&self, x: &[f64]) -> Result<bool, AdaBoostError> {
+        Ok(self.decision(x)? > 0.0)
+    }
+}
+
+/// The `kind` of depth-2 boosted-tree model files (`chronomap_io::model_file`).
+pub const TREES_MODEL_KIND: &str = "lidar-adaboost-depth2";
+
+/// A decision tree of depth 2 (scikit-learn's `DecisionTreeClassifier(max_depth=2)`): the
+/// root split, then one stump on each side, fitted on that side's samples only. An extension
+/// of the paper's weak learner (decision stumps, [Stüde 2024] §3.2.1), measured in
+/// `docs/lidar.md`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tree2 {
+    /// The root split (without a feature: the tree is a single leaf, `root.below`).
+    pub root: Stump,
+    /// The stump for samples at or below the root's threshold.
+    pub below: Stump,
+    /// The stump for samples above it.
+    pub above: Stump,
+}
+
+impl Tree2 {
+    /// The tree's class for `x`.
+    pub fn predict(&self, x: &[f64]) -> bool {
+        match self.root.feature {
+            Some(f) if x[f] > self.root.threshold => self.above.predict(x),
+            Some(_) => self.below.predict(x),
+            None => self.root.below,
+        }
+    }
+
+    fn stumps(&self) -> [&Stump; 3] {
+        [&self.root, &self.below, &self.above]
+    }
+}
+
+/// SAMME AdaBoost with depth-2 trees ([`Tree2`]) instead of stumps: the same rounds, weights,
+/// decision function and probability as [`AdaBoost`] (see the [module docs](self)).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BoostedTrees {
+    /// Number of features a sample has.
+    pub n_features: usize,
+    /// The weak classifiers, in training order.
+    pub trees: Vec<Tree2>,
+    /// Their weights `α_t`.
+    pub alphas: Vec<f64>,
+    /// The weighted training error `ε_t` of each round.
+    pub errors: Vec<f64>,
+}
+
+impl BoostedTrees {
+    /// Trains on rows `x` with labels `y` and optional sample weights, as [`AdaBoost::fit`].
+    ///
+    /// # Errors
+    /// As [`AdaBoost::fit`].
+    pub fn fit<R: AsRef<[f64]>>(
+        x: &[R],
+        y: &[bool],
+        weights: Option<&[f64]>,
+        params: &AdaBoostParams,
+    ) -> Result<BoostedTrees, AdaBoostError> {
+        let (d, w) = prepare(x, y, weights, params.rounds)?;
+        let order = feature_order(x, d);
+        let rounds = boost(x, y, w, params.rounds, |w| fit_tree2(x, y, w, &order), |t, x| {
+            t.predict(x)
+        })?;
+        Ok(BoostedTrees {
+            n_features: d,
+            alphas: rounds.iter().map(|r| r.1).collect(),
+            errors: rounds.iter().map(|r| r.2).collect(),
+            trees: rounds.into_iter().map(|r| r.0).collect(),
+        })
+    }
+
+    /// The classifier of the first `rounds` rounds, as [`AdaBoost::truncated`].
+    pub fn truncated(&self, rounds: usize) -> BoostedTrees {
+        let t = rounds.clamp(1, self.trees.len().max(1));
+        BoostedTrees {
+            n_features: self.n_features,
+            trees: self.trees.iter().take(t).cloned().collect(),
+            alphas: self.alphas.iter().take(t).copied().collect(),
+            errors: self.errors.iter().take(t).copied().collect(),
+        }
+    }
+
+    /// Checks the invariants (for decoded models), as [`AdaBoost::validate`].
+    pub fn validate(&self) -> Result<(), AdaBoostError> {
+        let as_stumps = AdaBoost {
+            n_features: self.n_features,
+            stumps: self.trees.iter().map(|t| t.root.clone()).collect(),
+            alphas: self.alphas.clone(),
+            errors: self.errors.clone(),
+        };
+        as_stumps.validate()?;
+        for s in self.trees.iter().flat_map(|t| t.stumps()) {
+            if s.feature.is_some_and(|f| f >= self.n_features) || !s.threshold.is_finite() {
+                return Err(AdaBoostError::Invalid(
+                    "a tree's feature is out of range or its threshold not finite",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The decision function `f(x) = 2 Σ α_t h_t(x) / Σ α_t` in `[−2, 2]`.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::decision`].
+    pub fn decision(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
+        check_sample(self.n_features, x)?;
+        let (mut vote, mut total) = (0.0, 0.0);
+        for (t, &a) in self.trees.iter().zip(&self.alphas) {
+            vote += if t.predict(x) { 2.0 * a } else { -2.0 * a };
+            total += a;
+        }
+        Ok(vote / total)
+    }
+
+    /// The probability of a loop, `1/(1 + e^{−f(x)})`.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::decision`].
+    pub fn probability(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
+        Ok(1.0 / (1.0 + (-self.decision(x)?).exp()))
+    }
+}
+
+fn check_sample(n_features: usize, x: &[f64]) -> Result<(), AdaBoostError> {
+    if x.len() != n_features {
+        return Err(AdaBoostError::FeatureCount {
+            index: 0,
+            found: x.len(),
+            expected: n_features,
+        });
+    }
+    if let Some((feature, &value)) = x.iter().enumerate().find(|(_, v)| v.is_nan()) {
+        return Err(AdaBoostError::NonFinite {
+            index: 0,
+            feature,
+            value,
+        });
+    }
+    Ok(())
+}
+
+/// The best depth-2 tree for weights `w`: the Gini-best root split, then the Gini-best split
+/// of each side on that side's samples (a pure or single-sample side is a leaf).
+fn fit_tree2<R: AsRef<[f64]>>(x: &[R], y: &[bool], w: &[f64], order: &[Vec<u32>]) -> Tree2 {
+    let root = fit_stump(x, y, w, order);
+    let Some(f) = root.feature else {
+        return Tree2 {
+            below: root.clone(),
+            above: root.clone(),
+            root,
+        };
+    };
+    let side = |above: bool| {
+        let inside = |i: usize| (x[i].as_ref()[f] > root.threshold) == above;
+        let wn: Vec<f64> = (0..w.len())
+            .map(|i| if inside(i) { w[i] } else { 0.0 })
+            .collect();
+        let sub: Vec<Vec<u32>> = order
+            .iter()
+            .map(|o| o.iter().copied().filter(|&i| inside(i as usize)).collect())
+            .collect();
+        if sub[0].len() < 2 {
+            let class = if above { root.above } else { root.below };
+            return Stump {
+                feature: None,
+                threshold: 0.0,
+                below: class,
+                above: class,
+            };
+        }
+        fit_stump(x, y, &wn, &sub)
+    };
+    Tree2 {
+        below: side(false),
+        above: side(true),
+        root,
+    }
+}
+
+/// Checks the training data and returns the number of features and the normalised weights.
+fn prepare<R: AsRef<[f64]>>(
+    x: &[R],
+    y: &[bool],
+    weights: Option<&[f64]>,
+    rounds: usize,
+) -> Result<(usize, Vec<f64>), AdaBoostError> {
         let n = x.len();
         if n == 0 || n > MAX_SAMPLES {
             return Err(AdaBoostError::SampleCount(n));
         }
-        if !(1..=MAX_ROUNDS).contains(&params.rounds) {
-            return Err(AdaBoostError::Rounds(params.rounds));
+        if !(1..=MAX_ROUNDS).contains(&rounds) {
+            return Err(AdaBoostError::Rounds(rounds));
         }
         let d = x[0].as_ref().len();
         for (index, row) in x.iter().enumerate() {
@@ -231,153 +514,75 @@ impl AdaBoost {
         if !y.iter().zip(&w).any(|(&c, &v)| !c && v > 0.0) {
             return Err(AdaBoostError::OneClass("positives"));
         }
-        // Sample order of each feature, by value (ties by index), computed once.
-        let order: Vec<Vec<u32>> = (0..d)
-            .map(|f| {
-                let mut idx: Vec<u32> = (0..n as u32).collect();
-                idx.sort_by(|&a, &b| {
-                    x[a as usize].as_ref()[f].total_cmp(&x[b as usize].as_ref()[f])
-                });
-                idx
-            })
-            .collect();
-        let zero: Vec<bool> = w.iter().map(|&v| v == 0.0).collect();
-        let mut model = AdaBoost {
-            n_features: d,
-            stumps: Vec::new(),
-            alphas: Vec::new(),
-            errors: Vec::new(),
-        };
-        let mut incorrect = vec![false; n];
-        for round in 0..params.rounds {
-            for (v, &z) in w.iter_mut().zip(&zero) {
-                *v = if z { 0.0 } else { v.max(f64::EPSILON) };
-            }
-            let stump = fit_stump(x, y, &w, &order);
-            let (mut wrong, mut sum) = (0.0, 0.0);
-            for i in 0..n {
-                incorrect[i] = stump.predict(x[i].as_ref()) != y[i];
-                sum += w[i];
-                if incorrect[i] {
-                    wrong += w[i];
-                }
-            }
-            let error = wrong / sum;
-            if error <= 0.0 {
-                model.stumps.push(stump);
-                model.alphas.push(1.0);
-                model.errors.push(0.0);
-                break;
-            }
-            if error >= 0.5 {
-                if round == 0 {
-                    return Err(AdaBoostError::WorseThanChance(error));
-                }
-                break;
-            }
-            let alpha = ((1.0 - error) / error).ln();
-            model.stumps.push(stump);
-            model.alphas.push(alpha);
-            model.errors.push(error);
-            if round + 1 == params.rounds {
-                break;
-            }
-            for i in 0..n {
-                if w[i] > 0.0 {
-                    w[i] = (w[i].ln() + if incorrect[i] { alpha } else { 0.0 }).exp();
-                }
-            }
-            let total: f64 = w.iter().sum();
-            if !total.is_finite() || total <= 0.0 {
-                break;
-            }
-            w.iter_mut().for_each(|v| *v /= total);
-        }
-        Ok(model)
-    }
+        Ok((d, w))
+}
 
-    /// Checks the invariants (for decoded models): at least one stump, as many weights,
-    /// features in range, finite thresholds, positive finite weights, errors in `[0, 1/2)`.
-    pub fn validate(&self) -> Result<(), AdaBoostError> {
-        if self.n_features == 0 || self.n_features > MAX_FEATURES {
-            return Err(AdaBoostError::Invalid("n_features out of range"));
+/// Sample order of each feature by value (ties by index).
+fn feature_order<R: AsRef<[f64]>>(x: &[R], d: usize) -> Vec<Vec<u32>> {
+    (0..d)
+        .map(|f| {
+            let mut idx: Vec<u32> = (0..x.len() as u32).collect();
+            idx.sort_by(|&a, &b| x[a as usize].as_ref()[f].total_cmp(&x[b as usize].as_ref()[f]));
+            idx
+        })
+        .collect()
+}
+
+/// The SAMME rounds of the [module docs](self) with any weak learner: `fit` trains one on
+/// the current weights, `predict` applies it. Returns `(learner, α_t, ε_t)` per round.
+fn boost<R: AsRef<[f64]>, L>(
+    x: &[R],
+    y: &[bool],
+    mut w: Vec<f64>,
+    rounds: usize,
+    mut fit: impl FnMut(&[f64]) -> L,
+    predict: impl Fn(&L, &[f64]) -> bool,
+) -> Result<Vec<(L, f64, f64)>, AdaBoostError> {
+    let n = x.len();
+    let zero: Vec<bool> = w.iter().map(|&v| v == 0.0).collect();
+    let mut out = Vec::new();
+    let mut incorrect = vec![false; n];
+    for round in 0..rounds {
+        for (v, &z) in w.iter_mut().zip(&zero) {
+            *v = if z { 0.0 } else { v.max(f64::EPSILON) };
         }
-        if self.stumps.is_empty() || self.stumps.len() > MAX_ROUNDS {
-            return Err(AdaBoostError::Invalid("no stump or too many"));
-        }
-        if self.alphas.len() != self.stumps.len() || self.errors.len() != self.stumps.len() {
-            return Err(AdaBoostError::Invalid(
-                "stumps, alphas and errors differ in number",
-            ));
-        }
-        for s in &self.stumps {
-            if s.feature.is_some_and(|f| f >= self.n_features) {
-                return Err(AdaBoostError::Invalid("a stump's feature is out of range"));
+        let learner = fit(&w);
+        let (mut wrong, mut sum) = (0.0, 0.0);
+        for i in 0..n {
+            incorrect[i] = predict(&learner, x[i].as_ref()) != y[i];
+            sum += w[i];
+            if incorrect[i] {
+                wrong += w[i];
             }
-            if !s.threshold.is_finite() {
-                return Err(AdaBoostError::Invalid("a stump's threshold is not finite"));
+        }
+        let error = wrong / sum;
+        if error <= 0.0 {
+            out.push((learner, 1.0, 0.0));
+            break;
+        }
+        if error >= 0.5 {
+            if round == 0 {
+                return Err(AdaBoostError::WorseThanChance(error));
+            }
+            break;
+        }
+        let alpha = ((1.0 - error) / error).ln();
+        out.push((learner, alpha, error));
+        if round + 1 == rounds {
+            break;
+        }
+        for i in 0..n {
+            if w[i] > 0.0 {
+                w[i] = (w[i].ln() + if incorrect[i] { alpha } else { 0.0 }).exp();
             }
         }
-        if self.alphas.iter().any(|a| !(a.is_finite() && *a > 0.0)) {
-            return Err(AdaBoostError::Invalid(
-                "a weight is not positive and finite",
-            ));
+        let total: f64 = w.iter().sum();
+        if !total.is_finite() || total <= 0.0 {
+            break;
         }
-        if self.errors.iter().any(|e| !(*e >= 0.0 && *e < 0.5)) {
-            return Err(AdaBoostError::Invalid("an error is outside [0, 0.5)"));
-        }
-        Ok(())
+        w.iter_mut().for_each(|v| *v /= total);
     }
-
-    fn check(&self, x: &[f64]) -> Result<(), AdaBoostError> {
-        if x.len() != self.n_features {
-            return Err(AdaBoostError::FeatureCount {
-                index: 0,
-                found: x.len(),
-                expected: self.n_features,
-            });
-        }
-        if let Some((feature, &value)) = x.iter().enumerate().find(|(_, v)| v.is_nan()) {
-            return Err(AdaBoostError::NonFinite {
-                index: 0,
-                feature,
-                value,
-            });
-        }
-        Ok(())
-    }
-
-    /// The decision function `f(x) = 2 Σ α_t h_t(x) / Σ α_t` in `[−2, 2]` (positive: a loop).
-    ///
-    /// # Errors
-    /// [`AdaBoostError::FeatureCount`] for a sample of the wrong length,
-    /// [`AdaBoostError::NonFinite`] for a NaN feature.
-    pub fn decision(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
-        self.check(x)?;
-        let (mut vote, mut total) = (0.0, 0.0);
-        for (s, &a) in self.stumps.iter().zip(&self.alphas) {
-            vote += if s.predict(x) { 2.0 * a } else { -2.0 * a };
-            total += a;
-        }
-        Ok(vote / total)
-    }
-
-    /// The probability of a loop, `p_c = 1/(1 + e^{−f(x)})` (scikit-learn's `predict_proba`);
-    /// [Stüde 2024] §3.2.1 thresholds it with `p_min`.
-    ///
-    /// # Errors
-    /// As [`AdaBoost::decision`].
-    pub fn probability(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
-        Ok(1.0 / (1.0 + (-self.decision(x)?).exp()))
-    }
-
-    /// The class, `f(x) > 0`.
-    ///
-    /// # Errors
-    /// As [`AdaBoost::decision`].
-    pub fn predict(&self, x: &[f64]) -> Result<bool, AdaBoostError> {
-        Ok(self.decision(x)? > 0.0)
-    }
+    Ok(out)
 }
 
 /// Weighted class totals `[negative, positive]`.

@@ -28,7 +28,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::adaboost::{AdaBoost, AdaBoostError, AdaBoostParams};
+use crate::adaboost::{AdaBoost, AdaBoostError, AdaBoostParams, BoostedTrees};
 use crate::search::{
     OdometryNoise, SearchError, SearchMode, SearchParams, propagate, search_mode, search_radius,
     verified, within_radius,
@@ -348,6 +348,16 @@ pub fn cross_validate<R: AsRef<[f64]>>(
         }
         trained.push((f, labels.iter().filter(|&&l| l).count(), labels.len()));
     }
+    report_from(scored, &trained, params.max_fpr)
+}
+
+/// ROC, AUC and thresholds per fold and pooled, from the scored pairs of the folds in
+/// `trained` (`(fold, training positives, training rows)`).
+fn report_from(
+    scored: Vec<ScoredPair>,
+    trained: &[(usize, usize, usize)],
+    max_fpr: f64,
+) -> Result<CvReport, EvalError> {
     let split = |keep: &dyn Fn(&ScoredPair) -> bool| -> (Vec<f64>, Vec<bool>) {
         scored
             .iter()
@@ -356,12 +366,12 @@ pub fn cross_validate<R: AsRef<[f64]>>(
             .unzip()
     };
     let mut results = Vec::new();
-    for &(f, tp, tn) in &trained {
+    for &(f, tp, tn) in trained {
         let (scores, labels) = split(&|s| s.fold == f);
         let curve = roc(&scores, &labels)?;
         let (other_scores, other_labels) = split(&|s| s.fold != f);
         let heldout_threshold = roc(&other_scores, &other_labels)
-            .map(|c| threshold_for_fpr(&c, params.max_fpr).threshold)
+            .map(|c| threshold_for_fpr(&c, max_fpr).threshold)
             .unwrap_or(f64::INFINITY);
         results.push(FoldResult {
             fold: f,
@@ -371,7 +381,7 @@ pub fn cross_validate<R: AsRef<[f64]>>(
                 labels.iter().filter(|&&l| !l).count(),
             ),
             auc: auc(&curve),
-            at_max_fpr: threshold_for_fpr(&curve, params.max_fpr),
+            at_max_fpr: threshold_for_fpr(&curve, max_fpr),
             heldout_threshold,
             heldout_rates: rates_at(&scores, &labels, heldout_threshold),
             roc: curve,
@@ -383,9 +393,387 @@ pub fn cross_validate<R: AsRef<[f64]>>(
         folds: results,
         scored,
         pooled_auc: auc(&pooled_roc),
-        pooled_at_max_fpr: threshold_for_fpr(&pooled_roc, params.max_fpr),
+        pooled_at_max_fpr: threshold_for_fpr(&pooled_roc, max_fpr),
         pooled_roc,
     })
+}
+
+/// How a training set is balanced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Balance {
+    /// All positives and as many random negatives ([Stüde 2024] §3.2.1; what
+    /// [`cross_validate`] does).
+    Subsample,
+    /// All pairs, weighted so that positives and negatives weigh the same in total (our
+    /// extension: no negative is thrown away).
+    Weighted,
+}
+
+/// The weak learner of the boosted classifier.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum WeakLearner {
+    /// Decision stumps ([Stüde 2024] §3.2.1, [`AdaBoost`]).
+    Stump,
+    /// Depth-2 trees (our extension, [`BoostedTrees`]).
+    Depth2,
+}
+
+/// A trained loop classifier of either kind.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum LoopModel {
+    /// Boosted stumps (the paper's).
+    Stumps(AdaBoost),
+    /// Boosted depth-2 trees.
+    Depth2(BoostedTrees),
+}
+
+impl LoopModel {
+    /// Trains a model of kind `learner` with `rounds` rounds on the pairs `keep` accepts,
+    /// balanced as `balance` says (the subsample drawn with `seed`).
+    ///
+    /// # Errors
+    /// [`EvalError::Input`] if `x` and `pairs` differ in length; [`EvalError::Train`] if training
+    /// fails (e.g. one class only).
+    pub fn train<R: AsRef<[f64]>>(
+        pairs: &[LabelledPair],
+        x: &[R],
+        keep: impl Fn(&LabelledPair) -> bool,
+        learner: WeakLearner,
+        balance: Balance,
+        rounds: usize,
+        seed: u64,
+    ) -> Result<LoopModel, EvalError> {
+        if x.len() != pairs.len() {
+            return Err(EvalError::Input(format!(
+                "{} feature rows for {} pairs",
+                x.len(),
+                pairs.len()
+            )));
+        }
+        let (rows, labels, weights) = match balance {
+            Balance::Subsample => {
+                let (rows, labels) = balanced(pairs, x, keep, seed);
+                (rows, labels, None)
+            }
+            Balance::Weighted => {
+                let kept: Vec<usize> = (0..pairs.len()).filter(|&k| keep(&pairs[k])).collect();
+                let labels: Vec<bool> = kept.iter().map(|&k| pairs[k].positive).collect();
+                let pos = labels.iter().filter(|&&l| l).count().max(1) as f64;
+                let neg = labels.iter().filter(|&&l| !l).count().max(1) as f64;
+                let weights = labels
+                    .iter()
+                    .map(|&l| if l { 0.5 / pos } else { 0.5 / neg })
+                    .collect::<Vec<f64>>();
+                let rows = kept.iter().map(|&k| x[k].as_ref()).collect();
+                (rows, labels, Some(weights))
+            }
+        };
+        if rows.is_empty() {
+            return Err(EvalError::Train(AdaBoostError::SampleCount(0)));
+        }
+        let params = AdaBoostParams { rounds };
+        Ok(match learner {
+            WeakLearner::Stump => {
+                LoopModel::Stumps(AdaBoost::fit(&rows, &labels, weights.as_deref(), &params)?)
+            }
+            WeakLearner::Depth2 => LoopModel::Depth2(BoostedTrees::fit(
+                &rows,
+                &labels,
+                weights.as_deref(),
+                &params,
+            )?),
+        })
+    }
+
+    /// The probability of a loop.
+    ///
+    /// # Errors
+    /// As [`AdaBoost::probability`].
+    pub fn probability(&self, x: &[f64]) -> Result<f64, EvalError> {
+        Ok(match self {
+            LoopModel::Stumps(m) => m.probability(x)?,
+            LoopModel::Depth2(m) => m.probability(x)?,
+        })
+    }
+
+    /// The model of the first `rounds` rounds ([`AdaBoost::truncated`]).
+    pub fn truncated(&self, rounds: usize) -> LoopModel {
+        match self {
+            LoopModel::Stumps(m) => LoopModel::Stumps(m.truncated(rounds)),
+            LoopModel::Depth2(m) => LoopModel::Depth2(m.truncated(rounds)),
+        }
+    }
+
+    /// Rounds trained.
+    pub fn rounds(&self) -> usize {
+        match self {
+            LoopModel::Stumps(m) => m.stumps.len(),
+            LoopModel::Depth2(m) => m.trees.len(),
+        }
+    }
+}
+
+/// One classifier configuration for [`nested_cross_validate`]: its training pairs and features,
+/// the features of the scored pairs, the weak learner and the balancing.
+#[derive(Clone, Debug)]
+pub struct Candidate<'a, R: AsRef<[f64]>> {
+    /// A name for reports.
+    pub name: String,
+    /// Training pairs (e.g. [`label_pairs`] with a tighter `near` and `min_separation = 0`:
+    /// neighbouring keyframes of one place are "same place" too).
+    pub train_pairs: &'a [LabelledPair],
+    /// Their feature rows.
+    pub train_x: &'a [R],
+    /// Feature rows of the scored pairs (same features as `train_x`).
+    pub score_x: &'a [R],
+    /// The weak learner.
+    pub learner: WeakLearner,
+    /// The balancing.
+    pub balance: Balance,
+}
+
+/// Settings of [`nested_cross_validate`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NestedParams {
+    /// The rounds `T` to choose from (each candidate is trained once at the largest and
+    /// truncated: [`AdaBoost::truncated`]).
+    pub rounds: Vec<usize>,
+    /// The false-positive bound (1 %).
+    pub max_fpr: f64,
+    /// Seed of the balanced subsets.
+    pub seed: u64,
+}
+
+impl Default for NestedParams {
+    fn default() -> Self {
+        NestedParams {
+            rounds: vec![25, 50, 100, 200],
+            max_fpr: 0.01,
+            seed: 1,
+        }
+    }
+}
+
+/// What the inner cross-validation chose for an outer fold.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Choice {
+    /// The outer fold.
+    pub fold: usize,
+    /// Index of the chosen candidate.
+    pub candidate: usize,
+    /// The chosen `T`.
+    pub rounds: usize,
+    /// Its inner score: pooled TPR at FPR below the bound, then AUC (tie-break).
+    pub inner: (f64, f64),
+}
+
+/// The result of [`nested_cross_validate`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NestedReport {
+    /// The outer folds' results, as [`cross_validate`] reports them.
+    pub report: CvReport,
+    /// The configuration each outer fold used.
+    pub chosen: Vec<Choice>,
+}
+
+/// Nested keyframe-disjoint cross-validation. For each outer fold `f` (keyframes with
+/// `fold_of == f`): if there is more than one (candidate, `T`) to choose from, an inner
+/// cross-validation over the *other* folds picks one — for each inner fold `g ≠ f`, train on
+/// pairs with no keyframe in `f` or `g`, score the `score_pairs` inside `g`, pool, and take the
+/// highest TPR at FPR below the bound (ties: the higher AUC, then the earlier candidate and
+/// smaller `T`). The choice is then trained on all pairs with no keyframe in `f` and scores
+/// the `score_pairs` inside `f`. The test fold is never seen by the choice.
+///
+/// # Errors
+/// [`EvalError::Input`] for no candidate or `T`, rows that do not match their pairs, or a
+/// keyframe without a fold; [`EvalError::Train`] / [`EvalError::Roc`] as [`cross_validate`].
+pub fn nested_cross_validate<R: AsRef<[f64]>>(
+    score_pairs: &[LabelledPair],
+    candidates: &[Candidate<'_, R>],
+    fold_of: &[usize],
+    params: &NestedParams,
+) -> Result<NestedReport, EvalError> {
+    check_candidates(score_pairs, candidates, fold_of, params)?;
+    let folds = fold_of.iter().max().map_or(0, |m| m + 1);
+    let in_fold = |p: &LabelledPair, f: usize| fold_of[p.i] == f && fold_of[p.j] == f;
+    let has_both = |f: usize| {
+        let mut pos_neg = (false, false);
+        for p in score_pairs.iter().filter(|p| in_fold(p, f)) {
+            if p.positive {
+                pos_neg.0 = true;
+            } else {
+                pos_neg.1 = true;
+            }
+        }
+        pos_neg.0 && pos_neg.1
+    };
+    let mut scored = Vec::new();
+    let mut trained = Vec::new();
+    let mut chosen = Vec::new();
+    for f in 0..folds {
+        if !has_both(f) {
+            continue;
+        }
+        let (ci, t, inner) = if candidates.len() * params.rounds.len() > 1 {
+            choose(score_pairs, candidates, fold_of, Some(f), params)?
+        } else {
+            (0, params.rounds[0], (f64::NAN, f64::NAN))
+        };
+        let c = &candidates[ci];
+        let tag = ((f * folds + f) * candidates.len() + ci) as u64;
+        let model = train_outside(c, fold_of, &[f], t, params.seed, tag)?;
+        let (mut positives, mut negatives) = (0, 0);
+        for k in (0..score_pairs.len()).filter(|&k| in_fold(&score_pairs[k], f)) {
+            scored.push(ScoredPair {
+                pair: score_pairs[k],
+                fold: f,
+                probability: model.probability(c.score_x[k].as_ref())?,
+            });
+        }
+        for p in c.train_pairs {
+            if fold_of[p.i] != f && fold_of[p.j] != f {
+                if p.positive {
+                    positives += 1;
+                } else {
+                    negatives += 1;
+                }
+            }
+        }
+        if c.balance == Balance::Subsample {
+            negatives = negatives.min(positives);
+        }
+        trained.push((f, positives, positives + negatives));
+        chosen.push(Choice {
+            fold: f,
+            candidate: ci,
+            rounds: t,
+            inner,
+        });
+    }
+    Ok(NestedReport {
+        report: report_from(scored, &trained, params.max_fpr)?,
+        chosen,
+    })
+}
+
+/// The inner cross-validation of [`nested_cross_validate`], also usable on its own to choose
+/// the configuration of a deployed classifier: leaving out fold `exclude` (if any), for each
+/// other fold `g` train every candidate at the largest `T` on pairs with no keyframe in
+/// `exclude` or `g`, score the `score_pairs` inside `g`, pool over `g`, and return the
+/// (candidate, `T`) with the highest TPR at FPR below the bound (ties: higher AUC, then the
+/// earlier candidate and smaller `T`) with its (TPR, AUC).
+///
+/// # Errors
+/// As [`nested_cross_validate`]; [`EvalError::Input`] if no candidate could be scored.
+pub fn select_candidate<R: AsRef<[f64]>>(
+    score_pairs: &[LabelledPair],
+    candidates: &[Candidate<'_, R>],
+    fold_of: &[usize],
+    exclude: Option<usize>,
+    params: &NestedParams,
+) -> Result<Choice, EvalError> {
+    check_candidates(score_pairs, candidates, fold_of, params)?;
+    let (candidate, rounds, inner) = choose(score_pairs, candidates, fold_of, exclude, params)?;
+    if !inner.0.is_finite() {
+        return Err(EvalError::Input("no candidate could be scored".into()));
+    }
+    Ok(Choice {
+        fold: exclude.unwrap_or(usize::MAX),
+        candidate,
+        rounds,
+        inner,
+    })
+}
+
+fn check_candidates<R: AsRef<[f64]>>(
+    score_pairs: &[LabelledPair],
+    candidates: &[Candidate<'_, R>],
+    fold_of: &[usize],
+    params: &NestedParams,
+) -> Result<(), EvalError> {
+    if candidates.is_empty() || params.rounds.is_empty() || params.rounds.contains(&0) {
+        return Err(EvalError::Input(
+            "nested cross-validation needs candidates and positive rounds".into(),
+        ));
+    }
+    for c in candidates {
+        check_rows(score_pairs, c.score_x, fold_of)?;
+        check_rows(c.train_pairs, c.train_x, fold_of)?;
+    }
+    Ok(())
+}
+
+/// Trains candidate `c` on its pairs with no keyframe in the folds `out`.
+fn train_outside<R: AsRef<[f64]>>(
+    c: &Candidate<'_, R>,
+    fold_of: &[usize],
+    out: &[usize],
+    rounds: usize,
+    seed: u64,
+    tag: u64,
+) -> Result<LoopModel, EvalError> {
+    let keep = |p: &LabelledPair| !out.contains(&fold_of[p.i]) && !out.contains(&fold_of[p.j]);
+    let seed = chronomap_rng::derive_seed(seed, 0x11da_0003, tag, 0);
+    LoopModel::train(
+        c.train_pairs,
+        c.train_x,
+        keep,
+        c.learner,
+        c.balance,
+        rounds,
+        seed,
+    )
+}
+
+fn choose<R: AsRef<[f64]>>(
+    score_pairs: &[LabelledPair],
+    candidates: &[Candidate<'_, R>],
+    fold_of: &[usize],
+    exclude: Option<usize>,
+    params: &NestedParams,
+) -> Result<(usize, usize, (f64, f64)), EvalError> {
+    let folds = fold_of.iter().max().map_or(0, |m| m + 1);
+    let t_max = *params.rounds.iter().max().unwrap_or(&1);
+    let in_fold = |p: &LabelledPair, f: usize| fold_of[p.i] == f && fold_of[p.j] == f;
+    let mut best = (0, params.rounds[0], (f64::NEG_INFINITY, f64::NEG_INFINITY));
+        for (ci, c) in candidates.iter().enumerate() {
+            // scores[t][..]: pooled inner scores at each T.
+            let mut scores: Vec<Vec<f64>> = vec![Vec::new(); params.rounds.len()];
+            let mut labels = Vec::new();
+            for g in (0..folds).filter(|&g| Some(g) != exclude) {
+                let test: Vec<usize> = (0..score_pairs.len())
+                    .filter(|&k| in_fold(&score_pairs[k], g))
+                    .collect();
+                if test.is_empty() {
+                    continue;
+                }
+                let tag = ((exclude.unwrap_or(folds) * folds + g) * candidates.len() + ci) as u64;
+                let out: Vec<usize> = exclude.into_iter().chain([g]).collect();
+                let model = match train_outside(c, fold_of, &out, t_max, params.seed, tag) {
+                    Ok(m) => m,
+                    Err(EvalError::Train(_)) => continue,
+                    Err(e) => return Err(e),
+                };
+                for (ti, &t) in params.rounds.iter().enumerate() {
+                    let m = model.truncated(t);
+                    for &k in &test {
+                        scores[ti].push(m.probability(c.score_x[k].as_ref())?);
+                    }
+                }
+                labels.extend(test.iter().map(|&k| score_pairs[k].positive));
+            }
+            if !(labels.contains(&true) && labels.contains(&false)) {
+                continue;
+            }
+            for (ti, &t) in params.rounds.iter().enumerate() {
+                let curve = roc(&scores[ti], &labels)?;
+                let value = (threshold_for_fpr(&curve, params.max_fpr).tpr, auc(&curve));
+                if value.0 > best.2.0 || (value.0 == best.2.0 && value.1 > best.2.1) {
+                    best = (ci, t, value);
+                }
+            }
+        }
+        Ok(best)
 }
 
 /// Classifiers for scoring *any* keyframe pair without having seen its keyframes: the model

@@ -50,6 +50,7 @@
 pub mod adaboost;
 pub mod descriptor;
 pub mod evaluation;
+pub mod profile;
 pub mod scan;
 pub mod search;
 pub mod threshold;
