@@ -44,8 +44,8 @@
 //! # Ok::<(), chronomap_multimap::MultimapError>(())
 //! ```
 //!
-//! [Stüde 2024]: M. Stüde, *Navigation and localisation of mobile robots in changing
-//! environments* (dissertation), Leibniz Universität Hannover, 2024.
+//! [Stüde 2024]: M. Stüde, *Environment and Task Modeling of Long-Term-Autonomous Service
+//! Robots*, dissertation, Gottfried Wilhelm Leibniz Universität Hannover, 2024.
 #![deny(missing_docs)]
 // Small fixed-size matrix code indexes rows and columns by number, as the equations do.
 #![allow(clippy::needless_range_loop)]
