@@ -162,6 +162,11 @@ pub use frame_list::{
 };
 #[cfg(feature = "grid")]
 pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
+#[cfg(feature = "lidar")]
+pub use laser_text::{
+    Keyframe, LaserScan, LaserTextError, OdometryIncrement, SensorPose, read_keyframes,
+    read_odometry, read_scans,
+};
 pub use matrix::{read_state_matrix, read_state_matrix_from};
 #[cfg(feature = "topo")]
 pub use model_file::{EDGE_MODELS_KIND, decode_edge_models, read_edge_models, write_edge_models};
@@ -202,9 +207,4 @@ pub use topo_files::{
 #[cfg(feature = "activity")]
 pub use tracks::{
     read_track_files, read_track_point_files, read_track_points, read_tracks, read_tracks_from,
-};
-#[cfg(feature = "lidar")]
-pub use laser_text::{
-    Keyframe, LaserScan, LaserTextError, OdometryIncrement, SensorPose, read_keyframes,
-    read_odometry, read_scans,
 };
