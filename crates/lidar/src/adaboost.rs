@@ -771,6 +771,51 @@ mod tests {
     }
 
     #[test]
+    fn truncation_equals_training_fewer_rounds() {
+        // Noisy one-feature data: many rounds before the error stops falling.
+        let x: Vec<[f64; 2]> = (0..40)
+            .map(|k| [(k * 7 % 40) as f64, (k * 13 % 17) as f64])
+            .collect();
+        let y: Vec<bool> = (0..40).map(|k| ((k * 7 % 40) > 18) ^ (k % 5 == 0)).collect();
+        let long = AdaBoost::fit(&x, &y, None, &AdaBoostParams { rounds: 12 }).unwrap();
+        let short = AdaBoost::fit(&x, &y, None, &AdaBoostParams { rounds: 4 }).unwrap();
+        assert!(long.stumps.len() > 4);
+        assert_eq!(long.truncated(4), short);
+        let trees = BoostedTrees::fit(&x, &y, None, &AdaBoostParams { rounds: 12 }).unwrap();
+        let few = BoostedTrees::fit(&x, &y, None, &AdaBoostParams { rounds: 3 }).unwrap();
+        assert_eq!(trees.truncated(3), few);
+        trees.validate().unwrap();
+    }
+
+    #[test]
+    fn a_depth2_tree_learns_xor_that_stumps_cannot() {
+        let x = [[0.0, 0.0], [0.0, 1.0], [1.0, 0.0], [1.0, 1.0]];
+        let y = [false, true, true, false];
+        let p = AdaBoostParams::default();
+        // Every stump errs on half the weight.
+        assert!(matches!(
+            AdaBoost::fit(&x, &y, None, &p),
+            Err(AdaBoostError::WorseThanChance(_))
+        ));
+        // Root x0 <= 0.5 (all splits tie, the first wins), then x1 <= 0.5 on each side.
+        let m = BoostedTrees::fit(&x, &y, None, &p).unwrap();
+        assert_eq!(m.trees.len(), 1);
+        let t = &m.trees[0];
+        assert_eq!((t.root.feature, t.root.threshold), (Some(0), 0.5));
+        assert_eq!((t.below.feature, t.below.threshold), (Some(1), 0.5));
+        assert_eq!((t.below.below, t.below.above), (false, true));
+        assert_eq!((t.above.below, t.above.above), (true, false));
+        assert_eq!(m.alphas, vec![1.0]);
+        for (xi, &yi) in x.iter().zip(&y) {
+            assert_eq!(m.decision(xi).unwrap(), if yi { 2.0 } else { -2.0 });
+        }
+        let mut bad = m.clone();
+        bad.trees[0].above.feature = Some(2);
+        assert!(bad.validate().is_err());
+        assert!(m.probability(&[0.0]).is_err());
+    }
+
+    #[test]
     fn validate_catches_damaged_models() {
         let m = AdaBoost::fit(
             &[[1.0], [2.0], [3.0]],

@@ -1124,6 +1124,59 @@ mod tests {
     }
 
     #[test]
+    fn nested_cv_chooses_the_informative_candidate_on_training_folds() {
+        // 40 keyframes in 4 folds; every pair labelled; one feature set carries the label,
+        // the other is noise.
+        let fold_of: Vec<usize> = (0..40).map(|k| k % 4).collect();
+        let mut pairs = Vec::new();
+        for j in 0..40 {
+            for i in 0..j {
+                pairs.push(LabelledPair {
+                    i,
+                    j,
+                    positive: (i + j) % 3 == 0,
+                    distance: 0.0,
+                });
+            }
+        }
+        let noise = |k: usize| ((k * 2_654_435_761) % 1000) as f64 / 1000.0;
+        let useless: Vec<Vec<f64>> = (0..pairs.len()).map(|k| vec![noise(k)]).collect();
+        let useful: Vec<Vec<f64>> = pairs
+            .iter()
+            .enumerate()
+            .map(|(k, p)| vec![f64::from(u8::from(p.positive)) + 0.1 * noise(k)])
+            .collect();
+        let candidate = |name: &str, x: &'static [Vec<f64>]| Candidate {
+            name: name.into(),
+            train_pairs: Box::leak(pairs.clone().into_boxed_slice()),
+            train_x: x,
+            score_x: x,
+            learner: WeakLearner::Stump,
+            balance: Balance::Weighted,
+        };
+        let useless: &'static [Vec<f64>] = Box::leak(useless.into_boxed_slice());
+        let useful: &'static [Vec<f64>] = Box::leak(useful.into_boxed_slice());
+        let cs = [candidate("noise", useless), candidate("label", useful)];
+        let params = NestedParams {
+            rounds: vec![1, 5],
+            ..NestedParams::default()
+        };
+        let r = nested_cross_validate(&pairs, &cs, &fold_of, &params).unwrap();
+        assert_eq!(r.chosen.len(), 4);
+        for c in &r.chosen {
+            assert_eq!(c.candidate, 1, "{c:?}");
+            // Both T separate perfectly: the tie goes to the smaller T.
+            assert_eq!((c.rounds, c.inner), (1, (1.0, 1.0)));
+        }
+        assert_eq!(r.report.pooled_auc, 1.0);
+        // Each outer fold scored only its own pairs.
+        assert!(r.report.scored.iter().all(|s| fold_of[s.pair.i] == s.fold));
+        let all = select_candidate(&pairs, &cs, &fold_of, None, &params).unwrap();
+        assert_eq!((all.candidate, all.rounds), (1, 1));
+        assert!(nested_cross_validate(&pairs, &cs[..0], &fold_of, &params).is_err());
+    }
+
+    #[test]
     fn increments_compose_between_keyframe_times() {
         let q = std::f64::consts::FRAC_PI_2;
         let odo = [
