@@ -15,6 +15,7 @@ mod events;
 mod explore;
 mod grid;
 mod ingest;
+mod lidar;
 mod model;
 mod psbt;
 #[cfg(feature = "ros2")]
@@ -30,6 +31,7 @@ pub use events::*;
 pub use explore::*;
 pub use grid::*;
 pub use ingest::*;
+pub use lidar::*;
 pub use model::*;
 pub use psbt::*;
 #[cfg(feature = "ros2")]
@@ -130,6 +132,13 @@ pub enum Command {
         subcommand_negates_reqs = true
     )]
     Psbt(PsbtArgs),
+    /// Loop closure from laser scans (dissertation §3.2): scan descriptors, the AdaBoost loop
+    /// classifier, loop detection along a log, registration of clouds.
+    #[command(subcommand, after_help = LIDAR_HELP)]
+    Lidar(LidarCommand),
+    /// Modular multi-map management (dissertation §3.3): one map per room, linked at doors.
+    #[command(subcommand, after_help = MAPS_HELP)]
+    Maps(MapsCommand),
     /// Warped Hypertime for 2-D events ([Krajník 2019]): fit the intensity of detections over space
     /// and time, print the periodicities found, draw the predicted density at chosen times.
     #[command(after_help = HYPERTIME_HELP)]

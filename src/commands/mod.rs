@@ -24,6 +24,9 @@ mod explore;
 mod features;
 mod grid;
 mod ingest;
+mod laser_log;
+mod lidar;
+mod maps;
 mod model;
 mod monitor;
 mod psbt;
@@ -39,8 +42,8 @@ use chronomap_models::AnyModel;
 use chronomap_models::spec::Selection;
 
 use crate::cli::{
-    ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, MonitorCommand,
-    SeriesSource, TopoCommand,
+    ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, LidarCommand,
+    MapsCommand, MonitorCommand, SeriesSource, TopoCommand,
 };
 
 /// Runs one subcommand.
@@ -80,6 +83,12 @@ pub fn run(command: Command) -> Result<()> {
         Command::Activity(ActivityCommand::Extract(args)) => activity_extract::run(&args),
         Command::Activity(ActivityCommand::Disturbance(args)) => activity_disturbance::run(&args),
         Command::Psbt(args) => psbt::run(&args),
+        Command::Lidar(LidarCommand::Descriptors(args)) => lidar::descriptors(&args),
+        Command::Lidar(LidarCommand::Eval(args)) => lidar::eval(&args),
+        Command::Lidar(LidarCommand::Train(args)) => lidar::train(&args),
+        Command::Lidar(LidarCommand::Detect(args)) => lidar::detect(&args),
+        Command::Lidar(LidarCommand::Register(args)) => lidar::register_clouds(&args),
+        Command::Maps(MapsCommand::Build(args)) => maps::build(&args),
         Command::Hypertime(args) => events::hypertime(&args),
         Command::Features(args) => features::run(&args),
         #[cfg(feature = "serve")]

@@ -26,6 +26,7 @@ mod grid;
 mod hostile;
 mod hypertime;
 mod ingest;
+mod lidar;
 mod limits;
 mod monitor;
 mod psbt;

@@ -1,0 +1,985 @@
+//! `chronomap lidar`: scan descriptors, the loop classifier (cross-validation, training,
+//! detection along a log) and the registration of clouds (dissertation §3.2).
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow};
+use chronomap_io::ply::read_ply;
+use chronomap_io::{read_model_file, write_data_file, write_model_file};
+use chronomap_lidar::adaboost::AdaBoostParams;
+use chronomap_lidar::descriptor::{
+    Descriptor, DescriptorParams, PAIR_FEATURE_NAMES, PAIR_FEATURES, SCALAR_FEATURES, compare,
+    describe_cloud, describe_scan,
+};
+use chronomap_lidar::evaluation::{
+    Balance, CvParams, CvReport, LabelParams, LabelledPair, LoopModel, PipelineParams,
+    PipelineReport, WeakLearner, compose, cross_validate, label_pairs, run_pipeline, sector_folds,
+};
+use chronomap_lidar::threshold::MeanSd;
+use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
+use chronomap_registration::rigid::Rigid;
+use chronomap_registration::{RegistrationParams, register, register_scans, scan_params};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::laser_log;
+use crate::cli::{
+    LidarDescriptorsArgs, LidarDetectArgs, LidarEvalArgs, LidarRegisterArgs, LidarTrainArgs,
+    LoopTrainingFlags,
+};
+use crate::format::Table;
+use crate::outln;
+use crate::output::{ProgressBar, print_json, usage};
+
+/// `chronomap lidar descriptors`.
+pub fn descriptors(args: &LidarDescriptorsArgs) -> Result<()> {
+    let params = DescriptorParams::default();
+    let (name, rows): (String, Vec<(f64, Descriptor)>) = match &args.cloud {
+        Some(path) => {
+            let cloud = read_ply(path)?;
+            let d = describe_cloud(cloud.points(), &params)
+                .with_context(|| format!("{}: descriptor", path.display()))?;
+            (path.display().to_string(), vec![(0.0, d)])
+        }
+        None => {
+            let log = laser_log::read(&args.source)?;
+            let bar = ProgressBar::stage("descriptors", log.scans.len() as u64);
+            let mut rows = Vec::with_capacity(log.scans.len());
+            for (k, scan) in log.scans.iter().enumerate() {
+                let d = describe_scan(scan, &params)
+                    .with_context(|| format!("{}: scan {}", log.name, k + 1))?;
+                rows.push((scan.time, d));
+                chronomap_core::progress::Progress::advance(&bar, 1);
+            }
+            (log.name, rows)
+        }
+    };
+    if args.json {
+        return print_json(&json!({
+            "source": name,
+            "params": params,
+            "features": &PAIR_FEATURE_NAMES[..SCALAR_FEATURES],
+            "descriptors": rows.iter().map(|(t, d)| json!({"time": t, "descriptor": d})).collect::<Vec<_>>(),
+        }));
+    }
+    let mut text = String::from("index,time");
+    for name in &PAIR_FEATURE_NAMES[..SCALAR_FEATURES] {
+        text.push(',');
+        text.push_str(&csv_name(name));
+    }
+    text.push('\n');
+    for (k, (t, d)) in rows.iter().enumerate() {
+        text.push_str(&format!("{k},{t}"));
+        for v in &d.scalars {
+            text.push_str(&format!(",{v}"));
+        }
+        text.push('\n');
+    }
+    match &args.output {
+        Some(path) => {
+            write_data_file(path, text.as_bytes())?;
+            outln!(
+                "{}: {} descriptor(s) of {} scalar features written to {}",
+                name,
+                rows.len(),
+                SCALAR_FEATURES,
+                path.display()
+            )?;
+        }
+        None => crate::out!("{text}")?,
+    }
+    Ok(())
+}
+
+/// A feature name as a CSV column: lower case, words joined by `_`.
+fn csv_name(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_string()
+}
+
+/// `chronomap lidar register`.
+pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
+    if let Some(keyframes) = &args.keyframes {
+        return register_keyframes(keyframes, args);
+    }
+    let (Some(source_path), Some(target_path)) = (&args.source, &args.target) else {
+        return Err(usage("give SOURCE and TARGET clouds, or --keyframes"));
+    };
+    let source = read_ply(source_path)?;
+    let target = read_ply(target_path)?;
+    let truth = match &args.truth {
+        Some(path) => Some(read_transform(path)?),
+        None => None,
+    };
+    let mut params = RegistrationParams::for_voxel(args.voxel);
+    params.filters.voxel = Some(args.fine_voxel);
+    params.filters.range = Some((0.0, args.max_range));
+    if let Some(seed) = args.seed {
+        params.ransac.seed = seed;
+    }
+    let bar = ProgressBar::stage("registering", 0);
+    let start = Instant::now();
+    let result = register(&source, &target, &params).with_context(|| {
+        format!(
+            "cannot register {} to {}",
+            source_path.display(),
+            target_path.display()
+        )
+    })?;
+    let seconds = start.elapsed().as_secs_f64();
+    drop(bar);
+    let matrix = result.transform.to_matrix4();
+    if let Some(path) = &args.output {
+        write_data_file(path, matrix_text(&matrix).as_bytes())?;
+    }
+    let errors = truth.map(|t| result.transform.error_to(&t));
+    let coarse_errors = truth.map(|t| result.coarse.error_to(&t));
+    if args.json {
+        return print_json(&json!({
+            "source": source_path, "target": target_path,
+            "points": [source.len(), target.len()],
+            "transform": matrix,
+            "coarse_transform": result.coarse.to_matrix4(),
+            "correspondences": result.correspondences,
+            "inliers": result.inliers,
+            "ransac_iterations": result.ransac_iterations,
+            "icp": { "iterations": result.icp.iterations, "converged": result.icp.converged,
+                     "fitness": result.icp.fitness, "rmse_m": result.icp.rmse },
+            "information": { "sigma_m": result.information.sigma, "dof": result.information.dof,
+                             "correspondences": result.information.correspondences },
+            "rotation_error_deg": errors.map(|e| e.0.to_degrees()),
+            "translation_error_m": errors.map(|e| e.1),
+            "coarse_rotation_error_deg": coarse_errors.map(|e| e.0.to_degrees()),
+            "coarse_translation_error_m": coarse_errors.map(|e| e.1),
+            "seconds": seconds,
+        }));
+    }
+    outln!(
+        "{} ({} points) onto {} ({} points) in {:.2} s",
+        source_path.display(),
+        source.len(),
+        target_path.display(),
+        target.len(),
+        seconds
+    )?;
+    outln!(
+        "coarse (FPFH + RANSAC): {} correspondences, {} inliers, {} samples; fine (ICP): {} iterations, fitness {:.3}, RMSE {:.3} m",
+        result.correspondences,
+        result.inliers,
+        result.ransac_iterations,
+        result.icp.iterations,
+        result.icp.fitness,
+        result.icp.rmse
+    )?;
+    outln!(
+        "information matrix: I / σ̂² with σ̂ = {:.4} m (median absolute deviation of {} residuals)",
+        result.information.sigma,
+        result.information.correspondences
+    )?;
+    outln!(
+        "transform (target ← source):\n{}",
+        matrix_text(&matrix).trim_end()
+    )?;
+    if let (Some((r, t)), Some((cr, ct))) = (errors, coarse_errors) {
+        outln!(
+            "error against the truth: rotation {:.4}°, translation {:.2} cm (coarse: {:.3}°, {:.2} cm)",
+            r.to_degrees(),
+            t * 100.0,
+            cr.to_degrees(),
+            ct * 100.0
+        )?;
+    }
+    Ok(())
+}
+
+/// `chronomap lidar register --keyframes`: one pair, or every loop pair against the SLAM
+/// relative poses.
+fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
+    let log = laser_log::read_keyframes_file(path)?;
+    let truth = log.truth.as_deref().unwrap_or(&[]);
+    let n = log.scans.len();
+    // The laser's pose in the map: robot pose ⊕ sensor offset.
+    let sensor = |k: usize| compose(truth[k], log.sensor);
+    let pairs: Vec<[usize; 2]> = match args.pair {
+        Some([i, j]) => {
+            if i >= n || j >= n {
+                return Err(usage(format!(
+                    "--pair {i},{j}: {} has keyframes 0 to {}",
+                    log.name,
+                    n.saturating_sub(1)
+                )));
+            }
+            vec![[i, j]]
+        }
+        None => (0..n)
+            .flat_map(|j| (0..j).map(move |i| [i, j]))
+            .filter(|&[i, j]| {
+                let (a, b) = (sensor(i), sensor(j));
+                j - i > args.min_separation && (a[0] - b[0]).hypot(a[1] - b[1]) < args.near
+            })
+            .collect(),
+    };
+    if pairs.is_empty() {
+        return Err(anyhow!(
+            "{}: no keyframes are closer than {} m and more than {} apart",
+            log.name,
+            args.near,
+            args.min_separation
+        ));
+    }
+    let mut params = scan_params();
+    if let Some(seed) = args.seed {
+        params.ransac.seed = seed;
+    }
+    let bar = ProgressBar::stage("registering pairs", pairs.len() as u64);
+    let start = Instant::now();
+    let mut rows = Vec::with_capacity(pairs.len());
+    for &[i, j] in &pairs {
+        // Keyframe j's scan moved onto keyframe i's: the true transform is the pose of j's
+        // laser in the frame of i's.
+        let truth_ij = laser_log::between(sensor(i), sensor(j));
+        let truth_ij = Rigid::from_pose(truth_ij[0], truth_ij[1], truth_ij[2]);
+        let row = match register_scans(&log.scans[j], &log.scans[i], &params) {
+            Ok(r) => {
+                let (dr, dt) = r.transform.error_to(&truth_ij);
+                Ok((
+                    r.transform.to_pose(),
+                    dr.to_degrees(),
+                    dt,
+                    r.inliers,
+                    r.information.sigma,
+                ))
+            }
+            Err(e) => Err(e.to_string()),
+        };
+        rows.push(([i, j], truth_ij.to_pose(), row));
+        chronomap_core::progress::Progress::advance(&bar, 1);
+    }
+    drop(bar);
+    let seconds = start.elapsed().as_secs_f64();
+    let median = |mut v: Vec<f64>| -> f64 {
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => v[n / 2],
+            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    };
+    // Failed registrations count as unbounded errors in the medians over all pairs.
+    let rot_all = median(
+        rows.iter()
+            .map(|r| r.2.as_ref().map_or(f64::INFINITY, |x| x.1))
+            .collect(),
+    );
+    let trans_all = median(
+        rows.iter()
+            .map(|r| r.2.as_ref().map_or(f64::INFINITY, |x| x.2))
+            .collect(),
+    );
+    let within: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|r| r.2.as_ref().ok())
+        .filter(|x| x.1 < 2.0 && x.2 < 0.2)
+        .map(|x| (x.1, x.2))
+        .collect();
+    let failed = rows.iter().filter(|r| r.2.is_err()).count();
+    if let (Some(path), [(_, _, Ok(r))]) = (&args.output, rows.as_slice()) {
+        let (s, c) = r.0[2].sin_cos();
+        let text = format!(
+            "{c:.9} {:.9} {:.9}\n{s:.9} {c:.9} {:.9}\n0 0 1\n",
+            -s, r.0[0], r.0[1]
+        );
+        write_data_file(path, text.as_bytes())?;
+    }
+    if args.json {
+        return print_json(&json!({
+            "keyframes": log.name,
+            "pairs": rows.iter().map(|(p, t, r)| match r {
+                Ok(x) => json!({"pair": p, "pose": x.0, "slam_pose": t, "rotation_error_deg": x.1,
+                                "translation_error_m": x.2, "inliers": x.3, "sigma_m": x.4}),
+                Err(e) => json!({"pair": p, "slam_pose": t, "error": e}),
+            }).collect::<Vec<_>>(),
+            "within_2_deg_and_20_cm": within.len(),
+            "failed": failed,
+            "median_rotation_error_deg": rot_all,
+            "median_translation_error_m": trans_all,
+            "median_rotation_error_deg_within": median(within.iter().map(|x| x.0).collect()),
+            "median_translation_error_m_within": median(within.iter().map(|x| x.1).collect()),
+            "seconds_per_pair": seconds / rows.len() as f64,
+        }));
+    }
+    if let [([i, j], t, r)] = rows.as_slice() {
+        return match r {
+            Ok(x) => outln!(
+                "keyframe {j} onto keyframe {i}: ({:.3} m, {:.3} m, {:.2}°); SLAM: ({:.3} m, {:.3} m, {:.2}°); error {:.3}°, {:.1} cm; {} inliers, σ̂ = {:.3} m",
+                x.0[0], x.0[1], x.0[2].to_degrees(), t[0], t[1], t[2].to_degrees(), x.1, 100.0 * x.2, x.3, x.4
+            ).map_err(Into::into),
+            Err(e) => Err(anyhow!("keyframe {j} onto keyframe {i}: {e}")),
+        };
+    }
+    outln!(
+        "{}: {} loop pairs (laser origins closer than {} m, more than {} keyframes apart), registered without an initial guess (FPFH-2D, RANSAC, point-to-line ICP) in {:.1} ms per pair",
+        log.name,
+        rows.len(),
+        args.near,
+        args.min_separation,
+        1e3 * seconds / rows.len() as f64
+    )?;
+    outln!(
+        "against the SLAM relative poses: median error {:.3}° and {:.1} cm over all pairs; {} within 2° and 20 cm (median {:.3}°, {:.1} cm); {} failed",
+        rot_all,
+        100.0 * trans_all,
+        within.len(),
+        median(within.iter().map(|x| x.0).collect()),
+        100.0 * median(within.iter().map(|x| x.1).collect()),
+        failed
+    )?;
+    Ok(())
+}
+
+/// A 4×4 row-major matrix as four lines of text.
+fn matrix_text(m: &[[f64; 4]; 4]) -> String {
+    m.iter()
+        .map(|row| {
+            row.iter()
+                .map(|v| format!("{v:.9}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+                + "\n"
+        })
+        .collect()
+}
+
+/// Reads a 4×4 rigid transform: 16 numbers, row-major, whitespace-separated.
+fn read_transform(path: &Path) -> Result<Rigid<3>> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(chronomap_io::open_data_file(path)?, 1 << 16),
+        &mut bytes,
+    )
+    .with_context(|| format!("cannot read {}", path.display()))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| anyhow!("{}: not a text file of numbers", path.display()))?;
+    let mut values = Vec::with_capacity(16);
+    for (line_no, line) in text.lines().enumerate() {
+        for field in line.split_whitespace() {
+            let v: f64 = field.parse().map_err(|_| {
+                anyhow!(
+                    "{}:{}: {field:?} is not a number",
+                    path.display(),
+                    line_no + 1
+                )
+            })?;
+            values.push(v);
+        }
+    }
+    if values.len() != 16 {
+        return Err(anyhow!(
+            "{}: a 4×4 transform has 16 numbers, this file has {}",
+            path.display(),
+            values.len()
+        ));
+    }
+    let mut m = [[0.0; 4]; 4];
+    for (i, v) in values.iter().enumerate() {
+        m[i / 4][i % 4] = *v;
+    }
+    Rigid::from_matrix4(&m).with_context(|| format!("{}: not a rigid transform", path.display()))
+}
+
+/// Descriptors and labelled pairs of a keyframe file: what `eval` and `train` learn from.
+struct LabelledKeyframes {
+    log: laser_log::LaserLog,
+    descriptors: Vec<Descriptor>,
+    pairs: Vec<LabelledPair>,
+    features: Vec<[f64; PAIR_FEATURES]>,
+    /// Sensor positions (m), for folds by place.
+    places: Vec<[f64; 2]>,
+}
+
+fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<LabelledKeyframes> {
+    let log = laser_log::read_keyframes_file(path)?;
+    let truth = log.truth.clone().expect("keyframe files carry poses");
+    let params = DescriptorParams::default();
+    let descriptors = log
+        .scans
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            describe_scan(s, &params).with_context(|| format!("{}: keyframe {}", log.name, k + 1))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    if flags.near > flags.far {
+        return Err(usage(format!(
+            "--near {} is beyond --far {}: pairs cannot be both loops and not",
+            flags.near, flags.far
+        )));
+    }
+    let labels = LabelParams {
+        near: flags.near,
+        far: flags.far,
+        min_separation: flags.min_separation,
+    };
+    let robot: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
+    let pairs = label_pairs(&robot, &labels)?;
+    let positives = pairs.iter().filter(|p| p.positive).count();
+    if positives == 0 || positives == pairs.len() {
+        return Err(anyhow!(
+            "{}: {} keyframe pairs are loops (closer than {} m, more than {} keyframes apart) and {} are not (farther than {} m): training needs both",
+            log.name,
+            positives,
+            flags.near,
+            flags.min_separation,
+            pairs.len() - positives,
+            flags.far
+        ));
+    }
+    let features = pairs
+        .iter()
+        .map(|p| compare(&descriptors[p.i], &descriptors[p.j]))
+        .collect::<Result<Vec<_>, _>>()?;
+    let places = truth
+        .iter()
+        .map(|&p| {
+            let s = compose(p, log.sensor);
+            [s[0], s[1]]
+        })
+        .collect();
+    Ok(LabelledKeyframes {
+        log,
+        descriptors,
+        pairs,
+        features,
+        places,
+    })
+}
+
+/// Cross-validation over `layouts` rotations of the place folds, each with its own seed.
+struct LayoutsReport {
+    reports: Vec<CvReport>,
+}
+
+impl LayoutsReport {
+    fn folds(&self) -> impl Iterator<Item = &chronomap_lidar::evaluation::FoldResult> {
+        self.reports.iter().flat_map(|r| &r.folds)
+    }
+}
+
+fn cross_validate_layouts(
+    data: &LabelledKeyframes,
+    flags: &LoopTrainingFlags,
+) -> Result<LayoutsReport> {
+    if flags.folds < 2 {
+        return Err(usage("--folds must be at least 2"));
+    }
+    if flags.layouts == 0 {
+        return Err(usage("--layouts must be at least 1"));
+    }
+    let bar = ProgressBar::stage("cross-validation", flags.layouts as u64);
+    let mut reports = Vec::with_capacity(flags.layouts);
+    for layout in 0..flags.layouts {
+        let width = std::f64::consts::TAU / (2 * flags.folds) as f64;
+        let rotation = width * layout as f64 / flags.layouts as f64;
+        let fold_of = sector_folds(&data.places, flags.folds, rotation)?;
+        let params = CvParams {
+            seed: layout as u64 + 1,
+            max_fpr: flags.max_fpr,
+            adaboost: AdaBoostParams {
+                rounds: flags.rounds,
+            },
+        };
+        reports.push(cross_validate(
+            &data.pairs,
+            &data.features,
+            &fold_of,
+            &params,
+        )?);
+        chronomap_core::progress::Progress::advance(&bar, 1);
+    }
+    Ok(LayoutsReport { reports })
+}
+
+/// `chronomap lidar eval`.
+pub fn eval(args: &LidarEvalArgs) -> Result<()> {
+    let data = labelled_keyframes(&args.keyframes, &args.training)?;
+    let cv = cross_validate_layouts(&data, &args.training)?;
+    let fold =
+        |f: fn(&chronomap_lidar::evaluation::FoldResult) -> f64| MeanSd::of(cv.folds().map(f));
+    let auc = fold(|f| f.auc);
+    let tpr = fold(|f| f.at_max_fpr.tpr);
+    let held_tpr = fold(|f| f.heldout_rates.0);
+    let held_fpr = fold(|f| f.heldout_rates.1);
+    let pooled_auc = MeanSd::of(cv.reports.iter().map(|r| r.pooled_auc));
+    let pooled_tpr = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr));
+    let p_min = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.threshold));
+    let positives = data.pairs.iter().filter(|p| p.positive).count();
+    if let Some(path) = &args.plot {
+        plot_eval(&data, &cv, args.training.max_fpr, path)?;
+    }
+    let folds = cv.folds().count();
+    if args.json {
+        return print_json(&json!({
+            "keyframes": data.log.scans.len(),
+            "loops": positives,
+            "non_loops": data.pairs.len() - positives,
+            "folds": folds,
+            "layouts": args.training.layouts,
+            "auc": auc, "tpr_at_max_fpr": tpr,
+            "heldout_p_min_tpr": held_tpr, "heldout_p_min_fpr": held_fpr,
+            "pooled_auc": pooled_auc, "pooled_tpr_at_max_fpr": pooled_tpr, "p_min": p_min,
+            "max_fpr": args.training.max_fpr,
+            "pooled_roc": cv.reports.iter().map(|r| &r.pooled_roc).collect::<Vec<_>>(),
+        }));
+    }
+    outln!(
+        "{}: {} keyframes, {} loops (closer than {} m, more than {} keyframes apart), {} non-loops (farther than {} m)",
+        data.log.name,
+        data.log.scans.len(),
+        positives,
+        args.training.near,
+        args.training.min_separation,
+        data.pairs.len() - positives,
+        args.training.far
+    )?;
+    outln!(
+        "cross-validation: {} fold layouts × {} folds by place ({} folds with loops and non-loops to score); AdaBoost T = {}",
+        args.training.layouts,
+        args.training.folds,
+        folds,
+        args.training.rounds
+    )?;
+    let pct = 100.0 * args.training.max_fpr;
+    let mut table = Table::new(["measure", "mean ± sd"]).left(&[0]);
+    table.row(["AUC (per fold)".to_string(), format!("{auc:.3}")]);
+    table.row([
+        format!("TPR at FPR < {pct} % (each fold's own threshold)"),
+        format!("{tpr:.3}"),
+    ]);
+    table.row([
+        "TPR with p_min chosen on the other folds".to_string(),
+        format!("{held_tpr:.3}"),
+    ]);
+    table.row([
+        "FPR with p_min chosen on the other folds".to_string(),
+        format!("{held_fpr:.4}"),
+    ]);
+    table.row([
+        "AUC (pooled over folds, per layout)".to_string(),
+        format!("{pooled_auc:.3}"),
+    ]);
+    table.row([
+        format!("TPR at FPR < {pct} % (pooled, per layout)"),
+        format!("{pooled_tpr:.3}"),
+    ]);
+    table.row([
+        "p_min (pooled, per layout)".to_string(),
+        format!("{p_min:.4}"),
+    ]);
+    outln!("{}", table.render().trim_end())?;
+    Ok(())
+}
+
+/// ROC curves (pooled, one per layout) beside the trajectory with its labelled loops.
+fn plot_eval(
+    data: &LabelledKeyframes,
+    cv: &LayoutsReport,
+    max_fpr: f64,
+    path: &Path,
+) -> Result<()> {
+    let mut roc_layers: Vec<PlaneLayer> = cv
+        .reports
+        .iter()
+        .enumerate()
+        .map(|(k, r)| PlaneLayer {
+            label: if k == 0 {
+                format!("pooled ROC, {} fold layouts", cv.reports.len())
+            } else {
+                String::new()
+            },
+            shape: PlaneShape::Path(r.pooled_roc.iter().map(|p| [p.fpr, p.tpr]).collect()),
+        })
+        .collect();
+    // Every layout in the first colour: re-colour by putting them in one layer each would
+    // cycle the palette, so the later ones are drawn as one layer of separate paths.
+    let first = roc_layers.remove(0);
+    let mut paths = match first.shape {
+        PlaneShape::Path(p) => p,
+        _ => Vec::new(),
+    };
+    for layer in roc_layers {
+        if let PlaneShape::Path(p) = layer.shape {
+            paths.push([f64::NAN, f64::NAN]);
+            paths.extend(p);
+        }
+    }
+    let roc = PlanePlot {
+        title: "Loop classifier, keyframe-disjoint cross-validation".into(),
+        x_label: "false-positive rate".into(),
+        y_label: "true-positive rate".into(),
+        equal_aspect: false,
+        x_range: Some((0.0, 1.0)),
+        y_range: Some((0.0, 1.0)),
+        layers: vec![
+            PlaneLayer {
+                label: first.label,
+                shape: PlaneShape::Path(paths),
+            },
+            PlaneLayer {
+                label: "chance".into(),
+                shape: PlaneShape::Path(vec![[0.0, 0.0], [1.0, 1.0]]),
+            },
+            PlaneLayer {
+                label: format!("FPR = {} %", 100.0 * max_fpr),
+                shape: PlaneShape::Path(vec![[max_fpr, 0.0], [max_fpr, 1.0]]),
+            },
+        ],
+    };
+    let truth = data.log.truth.as_deref().unwrap_or(&[]);
+    let xy = |k: usize| [truth[k][0], truth[k][1]];
+    let loops: Vec<[[f64; 2]; 2]> = data
+        .pairs
+        .iter()
+        .filter(|p| p.positive)
+        .map(|p| [xy(p.i), xy(p.j)])
+        .collect();
+    let trajectory = PlanePlot {
+        title: format!("{} keyframes and their loops", data.descriptors.len()),
+        x_label: "x [m]".into(),
+        y_label: "y [m]".into(),
+        equal_aspect: true,
+        x_range: None,
+        y_range: None,
+        layers: vec![
+            PlaneLayer {
+                label: "SLAM trajectory".into(),
+                shape: PlaneShape::Path((0..truth.len()).map(xy).collect()),
+            },
+            PlaneLayer {
+                label: format!("loops ({})", loops.len()),
+                shape: PlaneShape::Segments(loops),
+            },
+        ],
+    };
+    render_plane_png(&[roc, trajectory], path, 1600, 720)?;
+    Ok(())
+}
+
+/// What `chronomap lidar train` saves: the descriptor, the classifier and its threshold.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct LoopClassifier {
+    descriptor: DescriptorParams,
+    model: LoopModel,
+    /// Loop probabilities above this are loops.
+    p_min: f64,
+    /// The false-positive bound `p_min` was chosen for.
+    max_fpr: f64,
+    /// How its training pairs were labelled.
+    labels: LabelParams,
+    /// Training pairs: loops, non-loops.
+    trained_on: (usize, usize),
+}
+
+/// The model-file kind of a [`LoopClassifier`].
+const CLASSIFIER_KIND: &str = "lidar-loops";
+
+impl LoopClassifier {
+    fn validate(&self) -> Result<()> {
+        self.descriptor.validate()?;
+        match &self.model {
+            LoopModel::Stumps(m) => m.validate()?,
+            LoopModel::Depth2(m) => m.validate()?,
+        }
+        if !(0.0..=1.0).contains(&self.p_min) || !(0.0..=1.0).contains(&self.max_fpr) {
+            return Err(anyhow!(
+                "p_min {} and max_fpr {} must be probabilities",
+                self.p_min,
+                self.max_fpr
+            ));
+        }
+        Ok(())
+    }
+
+    fn probability(&self, a: &Descriptor, b: &Descriptor) -> Result<f64> {
+        Ok(self.model.probability(&compare(a, b)?)?)
+    }
+}
+
+/// `chronomap lidar train`.
+pub fn train(args: &LidarTrainArgs) -> Result<()> {
+    let data = labelled_keyframes(&args.keyframes, &args.training)?;
+    let cv = cross_validate_layouts(&data, &args.training)?;
+    // p_min: the median over fold layouts of the threshold that keeps the pooled
+    // out-of-fold false-positive rate below the bound.
+    let mut thresholds: Vec<f64> = cv
+        .reports
+        .iter()
+        .map(|r| r.pooled_at_max_fpr.threshold)
+        .filter(|t| t.is_finite())
+        .collect();
+    thresholds.sort_by(f64::total_cmp);
+    let p_min = match thresholds.len() {
+        0 => {
+            return Err(anyhow!(
+                "{}: no threshold keeps the false-positive rate below {}",
+                data.log.name,
+                args.training.max_fpr
+            ));
+        }
+        n if n % 2 == 1 => thresholds[n / 2],
+        n => 0.5 * (thresholds[n / 2 - 1] + thresholds[n / 2]),
+    }
+    .min(1.0);
+    let model = LoopModel::train(
+        &data.pairs,
+        &data.features,
+        |_| true,
+        WeakLearner::Stump,
+        Balance::Subsample,
+        args.training.rounds,
+        1,
+    )?;
+    let positives = data.pairs.iter().filter(|p| p.positive).count();
+    let classifier = LoopClassifier {
+        descriptor: DescriptorParams::default(),
+        model,
+        p_min,
+        max_fpr: args.training.max_fpr,
+        labels: LabelParams {
+            near: args.training.near,
+            far: args.training.far,
+            min_separation: args.training.min_separation,
+        },
+        trained_on: (positives, data.pairs.len() - positives),
+    };
+    classifier.validate()?;
+    write_model_file(&args.output, CLASSIFIER_KIND, &classifier)?;
+    let pooled_tpr = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr));
+    if args.json {
+        return print_json(&json!({
+            "output": args.output,
+            "keyframes": data.log.scans.len(),
+            "loops": positives,
+            "non_loops": data.pairs.len() - positives,
+            "rounds": classifier.model.rounds(),
+            "p_min": p_min,
+            "max_fpr": args.training.max_fpr,
+            "cv_tpr_at_max_fpr": pooled_tpr,
+        }));
+    }
+    outln!(
+        "{}: trained on {} loops and {} non-loops of {} keyframes (AdaBoost, T = {}); p_min = {:.4} keeps the out-of-fold false-positive rate below {} % (TPR there {:.3}); written to {}",
+        data.log.name,
+        positives,
+        data.pairs.len() - positives,
+        data.log.scans.len(),
+        classifier.model.rounds(),
+        p_min,
+        100.0 * args.training.max_fpr,
+        pooled_tpr,
+        args.output.display()
+    )?;
+    Ok(())
+}
+
+/// `chronomap lidar detect`.
+pub fn detect(args: &LidarDetectArgs) -> Result<()> {
+    let (kind, classifier): (String, LoopClassifier) = read_model_file(&args.classifier)?;
+    if kind != CLASSIFIER_KIND {
+        return Err(anyhow!(
+            "{}: holds a {kind}, not a loop classifier (chronomap lidar train writes one)",
+            args.classifier.display()
+        ));
+    }
+    classifier
+        .validate()
+        .with_context(|| format!("{}: invalid classifier", args.classifier.display()))?;
+    let full = laser_log::read(&args.source)?;
+    let log = if args.source.keyframes.is_some() {
+        full
+    } else {
+        full.keyframes(args.keyframe_distance, args.keyframe_angle)
+    };
+    let bar = ProgressBar::stage("descriptors", log.scans.len() as u64);
+    let descriptors = log
+        .scans
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            chronomap_core::progress::Progress::advance(&bar, 1);
+            describe_scan(s, &classifier.descriptor)
+                .with_context(|| format!("{}: keyframe {}", log.name, k + 1))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    drop(bar);
+    let has_truth = log.truth.is_some();
+    let positions: Vec<[f64; 2]> = log
+        .truth
+        .as_ref()
+        .unwrap_or(&log.odometry)
+        .iter()
+        .map(|p| [p[0], p[1]])
+        .collect();
+    let mut params = PipelineParams {
+        min_separation: args.min_separation,
+        near: classifier.labels.near,
+        ..PipelineParams::default()
+    };
+    params.search.p_min = args.p_min.unwrap_or(classifier.p_min);
+    let mut failure = None;
+    let report = run_pipeline(
+        &log.increments(),
+        [log.sensor[0], log.sensor[1]],
+        &positions,
+        &params,
+        |i, j| match classifier.probability(&descriptors[i], &descriptors[j]) {
+            Ok(p) => Ok(Some(p)),
+            Err(e) => {
+                failure.get_or_insert(e);
+                Ok(None)
+            }
+        },
+    )?;
+    if let Some(e) = failure {
+        return Err(e.context(format!("{}: scoring a pair", log.name)));
+    }
+    if let Some(path) = &args.output {
+        let mut csv = String::from("query,target,probability,radius_m,mode\n");
+        for d in &report.detections {
+            csv.push_str(&format!(
+                "{},{},{},{},{:?}\n",
+                d.query, d.target, d.probability, d.radius, d.mode
+            ));
+        }
+        write_data_file(path, csv.as_bytes())?;
+    }
+    if let Some(path) = &args.plot {
+        plot_detections(&log, &positions, has_truth, &report, path)?;
+    }
+    if args.json {
+        return print_json(&json!({
+            "log": log.name,
+            "keyframes": log.scans.len(),
+            "p_min": params.search.p_min,
+            "detections": report.detections.iter().map(|d| json!({
+                "query": d.query, "target": d.target, "probability": d.probability,
+                "radius_m": d.radius, "mode": d.mode, "candidates": d.candidates,
+                "true_distance_m": if has_truth { Some(d.true_distance) } else { None },
+                "correct": if has_truth { Some(d.correct) } else { None },
+            })).collect::<Vec<_>>(),
+            "scored_pairs": report.scored_pairs,
+            "rejected_by_verification": report.rejected_by_verification,
+            "true_loop_pairs": if has_truth { Some(report.true_pairs) } else { None },
+            "true_loop_pairs_in_search_space": if has_truth { Some(report.true_pairs_in_space) } else { None },
+        }));
+    }
+    outln!(
+        "{}: {} keyframes, {} pairs scored within the search radius (eq. 3.8), p_min = {:.4}: {} loop(s), {} rejected by verification",
+        log.name,
+        log.scans.len(),
+        report.scored_pairs,
+        params.search.p_min,
+        report.detections.len(),
+        report.rejected_by_verification
+    )?;
+    if has_truth {
+        outln!(
+            "against the SLAM poses: {} correct, {} wrong; {} true loop pairs, {} of them inside the search radius when their second keyframe came",
+            report.correct(),
+            report.wrong(),
+            report.true_pairs,
+            report.true_pairs_in_space
+        )?;
+    }
+    if !report.detections.is_empty() {
+        let mut table = Table::new([
+            "keyframe",
+            "loop with",
+            "p",
+            "radius (m)",
+            "search",
+            "true distance (m)",
+        ]);
+        for d in &report.detections {
+            table.row([
+                d.query.to_string(),
+                d.target.to_string(),
+                format!("{:.3}", d.probability),
+                if d.radius.is_finite() {
+                    format!("{:.2}", d.radius)
+                } else {
+                    "all".into()
+                },
+                format!("{:?}", d.mode),
+                if has_truth {
+                    format!("{:.2}", d.true_distance)
+                } else {
+                    "-".into()
+                },
+            ]);
+        }
+        outln!("{}", table.render().trim_end())?;
+    }
+    Ok(())
+}
+
+/// The trajectory (SLAM poses when known, else odometry) with the loops found.
+fn plot_detections(
+    log: &laser_log::LaserLog,
+    positions: &[[f64; 2]],
+    has_truth: bool,
+    report: &PipelineReport,
+    path: &Path,
+) -> Result<()> {
+    let segment =
+        |d: &chronomap_lidar::evaluation::Detection| [positions[d.query], positions[d.target]];
+    let mut layers = vec![PlaneLayer {
+        label: if has_truth {
+            "SLAM trajectory"
+        } else {
+            "odometry"
+        }
+        .into(),
+        shape: PlaneShape::Path(positions.to_vec()),
+    }];
+    let (right, wrong): (Vec<_>, Vec<_>) = report
+        .detections
+        .iter()
+        .partition(|d| !has_truth || d.correct);
+    layers.push(PlaneLayer {
+        label: format!(
+            "{} loops{}",
+            right.len(),
+            if has_truth { " (correct)" } else { "" }
+        ),
+        shape: PlaneShape::Segments(right.iter().map(segment).collect()),
+    });
+    if has_truth {
+        layers.push(PlaneLayer {
+            label: format!("{} wrong loops", wrong.len()),
+            shape: PlaneShape::Segments(wrong.iter().map(segment).collect()),
+        });
+    }
+    layers.push(PlaneLayer {
+        label: "keyframes".into(),
+        shape: PlaneShape::Points(positions.to_vec()),
+    });
+    let plot = PlanePlot {
+        title: format!("Loops found along {}", super::maps::short_name(&log.name)),
+        x_label: "x [m]".into(),
+        y_label: "y [m]".into(),
+        equal_aspect: true,
+        x_range: None,
+        y_range: None,
+        layers,
+    };
+    render_plane_png(&[plot], path, 1000, 800)?;
+    Ok(())
+}
