@@ -57,11 +57,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ];
     let paper = |p: &LabelledPair| compare(&desc[p.i], &desc[p.j]).map(|a| a.to_vec());
     let ext = |p: &LabelledPair| {
-        compare_extended((&desc[p.i], &prof[p.i]), (&desc[p.j], &prof[p.j]), &pp).map(|a| a.to_vec())
+        compare_extended((&desc[p.i], &prof[p.i]), (&desc[p.j], &prof[p.j]), &pp)
+            .map(|a| a.to_vec())
     };
     type Rows = Vec<Vec<f64>>;
     let rows = |pairs: &[LabelledPair], f: &dyn Fn(&LabelledPair) -> Result<Vec<f64>, _>| {
-        pairs.iter().map(f).collect::<Result<Rows, chronomap_lidar::DescriptorError>>()
+        pairs
+            .iter()
+            .map(f)
+            .collect::<Result<Rows, chronomap_lidar::DescriptorError>>()
     };
     let score_x = [rows(&score_pairs, &paper)?, rows(&score_pairs, &ext)?];
     let train_x: Vec<[Rows; 2]> = train_sets
@@ -97,15 +101,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rounds: vec![50],
         ..NestedParams::default()
     };
-    let mut rows_out: Vec<(String, Vec<f64>, Vec<f64>, Vec<f64>)> = Vec::new();
-    let mut runs: Vec<(&str, Vec<usize>)> = (0..candidates.len())
-        .map(|c| ("", vec![c]))
-        .collect();
-    runs.push(("nested: paper features, stumps, chooses train set/balance/T", {
-        (0..candidates.len())
-            .filter(|&c| candidates[c].name.contains("paper41") && candidates[c].learner == WeakLearner::Stump)
-            .collect()
-    }));
+    let mut runs: Vec<(&str, Vec<usize>)> = (0..candidates.len()).map(|c| ("", vec![c])).collect();
+    runs.push((
+        "nested: paper features, stumps, chooses train set/balance/T",
+        {
+            (0..candidates.len())
+                .filter(|&c| {
+                    candidates[c].name.contains("paper41")
+                        && candidates[c].learner == WeakLearner::Stump
+                })
+                .collect()
+        },
+    ));
     runs.push(("nested: everything", (0..candidates.len()).collect()));
     for (label, set) in &runs {
         let cs: Vec<Candidate<'_, Vec<f64>>> = set.iter().map(|&c| candidates[c].clone()).collect();
@@ -115,19 +122,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let width = std::f64::consts::TAU / (2 * FOLDS) as f64;
             let fold_of = sector_folds(&sensor, FOLDS, width * layout as f64 / layouts as f64)?;
             let params = if cs.len() == 1 {
-                NestedParams { seed: layout + 1, ..fixed.clone() }
+                NestedParams {
+                    seed: layout + 1,
+                    ..fixed.clone()
+                }
             } else {
-                NestedParams { seed: layout + 1, ..NestedParams::default() }
+                NestedParams {
+                    seed: layout + 1,
+                    ..NestedParams::default()
+                }
             };
             let r = nested_cross_validate(&score_pairs, &cs, &fold_of, &params)?;
             auc.push(r.report.pooled_auc);
             tpr.push(r.report.pooled_at_max_fpr.tpr);
             held.extend(r.report.folds.iter().map(|f| f.heldout_rates.0));
             if cs.len() > 1 {
-                picks.extend(r.chosen.iter().map(|c| format!("{} T={}", cs[c.candidate].name, c.rounds)));
+                picks.extend(
+                    r.chosen
+                        .iter()
+                        .map(|c| format!("{} T={}", cs[c.candidate].name, c.rounds)),
+                );
             }
         }
-        let name = if label.is_empty() { cs[0].name.clone() } else { label.to_string() };
+        let name = if label.is_empty() {
+            cs[0].name.clone()
+        } else {
+            label.to_string()
+        };
         println!(
             "{name:<48} pooled AUC {:.3}  pooled TPR@1% {:.3}  held-out TPR {:.3}",
             MeanSd::of(auc.iter().copied()),
@@ -143,12 +164,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     _ => counts.push((p, 1)),
                 }
             }
-            counts.sort_by(|a, b| b.1.cmp(&a.1));
+            counts.sort_by_key(|c| std::cmp::Reverse(c.1));
             for (p, n) in counts.iter().take(6) {
                 println!("    chosen {n:>3}x  {p}");
             }
         }
-        rows_out.push((name, auc, tpr, held));
     }
     Ok(())
 }

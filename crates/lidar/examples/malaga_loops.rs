@@ -229,7 +229,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let rows = |ps: &[LabelledPair], ext: bool| -> Result<Vec<Vec<f64>>, EvalError> {
         ps.iter()
-            .map(|p| if ext { extended(p.i, p.j) } else { paper(p.i, p.j) })
+            .map(|p| {
+                if ext {
+                    extended(p.i, p.j)
+                } else {
+                    paper(p.i, p.j)
+                }
+            })
             .collect()
     };
     let score_x = [rows(&pairs, false)?, rows(&pairs, true)?];
@@ -301,13 +307,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{LAYOUTS} fold layouts x {FOLDS} folds (mean ± sd over the {} folds):",
         e_auc.len()
     );
-    println!("  AUC                                {:.3}", MeanSd::of(e_auc));
-    println!("  TPR at FPR < 1 % (own threshold)   {:.3}", MeanSd::of(e_tpr));
-    println!("  held-out p_min: TPR                {:.3}", MeanSd::of(e_held));
-    println!("  held-out p_min: FPR                {:.4}", MeanSd::of(e_held_fpr));
+    println!(
+        "  AUC                                {:.3}",
+        MeanSd::of(e_auc)
+    );
+    println!(
+        "  TPR at FPR < 1 % (own threshold)   {:.3}",
+        MeanSd::of(e_tpr)
+    );
+    println!(
+        "  held-out p_min: TPR                {:.3}",
+        MeanSd::of(e_held)
+    );
+    println!(
+        "  held-out p_min: FPR                {:.4}",
+        MeanSd::of(e_held_fpr)
+    );
     println!("pooled over folds (mean ± sd over the {LAYOUTS} layouts):");
-    println!("  AUC                                {:.3}", MeanSd::of(e_pauc));
-    println!("  TPR at FPR < 1 %                   {:.3}", MeanSd::of(e_ptpr));
+    println!(
+        "  AUC                                {:.3}",
+        MeanSd::of(e_pauc)
+    );
+    println!(
+        "  TPR at FPR < 1 %                   {:.3}",
+        MeanSd::of(e_ptpr)
+    );
     let e_first = e_first.expect("layout 0 ran");
     // Pipeline: one model per pair of folds, trained without both.
     let mut e_models: Vec<Option<LoopModel>> = vec![None; FOLDS * FOLDS];
@@ -334,7 +358,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let Some(m) = &e_models[a * FOLDS + b] else {
             return Ok(None);
         };
-        let f = if ext_index { extended(i, j)? } else { paper(i, j)? };
+        let f = if ext_index {
+            extended(i, j)?
+        } else {
+            paper(i, j)?
+        };
         m.probability(&f).map(Some)
     };
     let mut e_pipeline = pipeline.clone();

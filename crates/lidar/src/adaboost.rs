@@ -175,9 +175,14 @@ impl AdaBoost {
         let (d, w) = prepare(x, y, weights, params.rounds)?;
         // Sample order of each feature, by value (ties by index), computed once.
         let order = feature_order(x, d);
-        let rounds = boost(x, y, w, params.rounds, |w| fit_stump(x, y, w, &order), |s, x| {
-            s.predict(x)
-        })?;
+        let rounds = boost(
+            x,
+            y,
+            w,
+            params.rounds,
+            |w| fit_stump(x, y, w, &order),
+            |s, x| s.predict(x),
+        )?;
         Ok(AdaBoost {
             n_features: d,
             alphas: rounds.iter().map(|r| r.1).collect(),
@@ -328,9 +333,14 @@ impl BoostedTrees {
     ) -> Result<BoostedTrees, AdaBoostError> {
         let (d, w) = prepare(x, y, weights, params.rounds)?;
         let order = feature_order(x, d);
-        let rounds = boost(x, y, w, params.rounds, |w| fit_tree2(x, y, w, &order), |t, x| {
-            t.predict(x)
-        })?;
+        let rounds = boost(
+            x,
+            y,
+            w,
+            params.rounds,
+            |w| fit_tree2(x, y, w, &order),
+            |t, x| t.predict(x),
+        )?;
         Ok(BoostedTrees {
             n_features: d,
             alphas: rounds.iter().map(|r| r.1).collect(),
@@ -455,66 +465,66 @@ fn prepare<R: AsRef<[f64]>>(
     weights: Option<&[f64]>,
     rounds: usize,
 ) -> Result<(usize, Vec<f64>), AdaBoostError> {
-        let n = x.len();
-        if n == 0 || n > MAX_SAMPLES {
-            return Err(AdaBoostError::SampleCount(n));
+    let n = x.len();
+    if n == 0 || n > MAX_SAMPLES {
+        return Err(AdaBoostError::SampleCount(n));
+    }
+    if !(1..=MAX_ROUNDS).contains(&rounds) {
+        return Err(AdaBoostError::Rounds(rounds));
+    }
+    let d = x[0].as_ref().len();
+    for (index, row) in x.iter().enumerate() {
+        let row = row.as_ref();
+        if row.len() != d || d == 0 || d > MAX_FEATURES {
+            return Err(AdaBoostError::FeatureCount {
+                index,
+                found: row.len(),
+                expected: d,
+            });
         }
-        if !(1..=MAX_ROUNDS).contains(&rounds) {
-            return Err(AdaBoostError::Rounds(rounds));
+        if let Some((feature, &value)) = row.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(AdaBoostError::NonFinite {
+                index,
+                feature,
+                value,
+            });
         }
-        let d = x[0].as_ref().len();
-        for (index, row) in x.iter().enumerate() {
-            let row = row.as_ref();
-            if row.len() != d || d == 0 || d > MAX_FEATURES {
-                return Err(AdaBoostError::FeatureCount {
-                    index,
-                    found: row.len(),
-                    expected: d,
-                });
-            }
-            if let Some((feature, &value)) = row.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-                return Err(AdaBoostError::NonFinite {
-                    index,
-                    feature,
-                    value,
-                });
-            }
-        }
-        if y.len() != n {
+    }
+    if y.len() != n {
+        return Err(AdaBoostError::Length {
+            what: "labels",
+            found: y.len(),
+            samples: n,
+        });
+    }
+    let mut w: Vec<f64> = match weights {
+        None => vec![1.0; n],
+        Some(w) if w.len() != n => {
             return Err(AdaBoostError::Length {
-                what: "labels",
-                found: y.len(),
+                what: "weights",
+                found: w.len(),
                 samples: n,
             });
         }
-        let mut w: Vec<f64> = match weights {
-            None => vec![1.0; n],
-            Some(w) if w.len() != n => {
-                return Err(AdaBoostError::Length {
-                    what: "weights",
-                    found: w.len(),
-                    samples: n,
-                });
+        Some(w) => {
+            if w.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(AdaBoostError::Weights("negative or not finite"));
             }
-            Some(w) => {
-                if w.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                    return Err(AdaBoostError::Weights("negative or not finite"));
-                }
-                w.to_vec()
-            }
-        };
-        let total: f64 = w.iter().sum();
-        if !(total > 0.0 && total.is_finite()) {
-            return Err(AdaBoostError::Weights("they sum to zero or overflow"));
+            w.to_vec()
         }
-        w.iter_mut().for_each(|v| *v /= total);
-        if !y.iter().zip(&w).any(|(&c, &v)| c && v > 0.0) {
-            return Err(AdaBoostError::OneClass("positives"));
-        }
-        if !y.iter().zip(&w).any(|(&c, &v)| !c && v > 0.0) {
-            return Err(AdaBoostError::OneClass("positives"));
-        }
-        Ok((d, w))
+    };
+    let total: f64 = w.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Err(AdaBoostError::Weights("they sum to zero or overflow"));
+    }
+    w.iter_mut().for_each(|v| *v /= total);
+    if !y.iter().zip(&w).any(|(&c, &v)| c && v > 0.0) {
+        return Err(AdaBoostError::OneClass("positives"));
+    }
+    if !y.iter().zip(&w).any(|(&c, &v)| !c && v > 0.0) {
+        return Err(AdaBoostError::OneClass("positives"));
+    }
+    Ok((d, w))
 }
 
 /// Sample order of each feature by value (ties by index).
@@ -776,7 +786,9 @@ mod tests {
         let x: Vec<[f64; 2]> = (0..40)
             .map(|k| [(k * 7 % 40) as f64, (k * 13 % 17) as f64])
             .collect();
-        let y: Vec<bool> = (0..40).map(|k| ((k * 7 % 40) > 18) ^ (k % 5 == 0)).collect();
+        let y: Vec<bool> = (0..40)
+            .map(|k| ((k * 7 % 40) > 18) ^ (k % 5 == 0))
+            .collect();
         let long = AdaBoost::fit(&x, &y, None, &AdaBoostParams { rounds: 12 }).unwrap();
         let short = AdaBoost::fit(&x, &y, None, &AdaBoostParams { rounds: 4 }).unwrap();
         assert!(long.stumps.len() > 4);

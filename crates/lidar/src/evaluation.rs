@@ -736,44 +736,44 @@ fn choose<R: AsRef<[f64]>>(
     let t_max = *params.rounds.iter().max().unwrap_or(&1);
     let in_fold = |p: &LabelledPair, f: usize| fold_of[p.i] == f && fold_of[p.j] == f;
     let mut best = (0, params.rounds[0], (f64::NEG_INFINITY, f64::NEG_INFINITY));
-        for (ci, c) in candidates.iter().enumerate() {
-            // scores[t][..]: pooled inner scores at each T.
-            let mut scores: Vec<Vec<f64>> = vec![Vec::new(); params.rounds.len()];
-            let mut labels = Vec::new();
-            for g in (0..folds).filter(|&g| Some(g) != exclude) {
-                let test: Vec<usize> = (0..score_pairs.len())
-                    .filter(|&k| in_fold(&score_pairs[k], g))
-                    .collect();
-                if test.is_empty() {
-                    continue;
-                }
-                let tag = ((exclude.unwrap_or(folds) * folds + g) * candidates.len() + ci) as u64;
-                let out: Vec<usize> = exclude.into_iter().chain([g]).collect();
-                let model = match train_outside(c, fold_of, &out, t_max, params.seed, tag) {
-                    Ok(m) => m,
-                    Err(EvalError::Train(_)) => continue,
-                    Err(e) => return Err(e),
-                };
-                for (ti, &t) in params.rounds.iter().enumerate() {
-                    let m = model.truncated(t);
-                    for &k in &test {
-                        scores[ti].push(m.probability(c.score_x[k].as_ref())?);
-                    }
-                }
-                labels.extend(test.iter().map(|&k| score_pairs[k].positive));
-            }
-            if !(labels.contains(&true) && labels.contains(&false)) {
+    for (ci, c) in candidates.iter().enumerate() {
+        // scores[t][..]: pooled inner scores at each T.
+        let mut scores: Vec<Vec<f64>> = vec![Vec::new(); params.rounds.len()];
+        let mut labels = Vec::new();
+        for g in (0..folds).filter(|&g| Some(g) != exclude) {
+            let test: Vec<usize> = (0..score_pairs.len())
+                .filter(|&k| in_fold(&score_pairs[k], g))
+                .collect();
+            if test.is_empty() {
                 continue;
             }
+            let tag = ((exclude.unwrap_or(folds) * folds + g) * candidates.len() + ci) as u64;
+            let out: Vec<usize> = exclude.into_iter().chain([g]).collect();
+            let model = match train_outside(c, fold_of, &out, t_max, params.seed, tag) {
+                Ok(m) => m,
+                Err(EvalError::Train(_)) => continue,
+                Err(e) => return Err(e),
+            };
             for (ti, &t) in params.rounds.iter().enumerate() {
-                let curve = roc(&scores[ti], &labels)?;
-                let value = (threshold_for_fpr(&curve, params.max_fpr).tpr, auc(&curve));
-                if value.0 > best.2.0 || (value.0 == best.2.0 && value.1 > best.2.1) {
-                    best = (ci, t, value);
+                let m = model.truncated(t);
+                for &k in &test {
+                    scores[ti].push(m.probability(c.score_x[k].as_ref())?);
                 }
             }
+            labels.extend(test.iter().map(|&k| score_pairs[k].positive));
         }
-        Ok(best)
+        if !(labels.contains(&true) && labels.contains(&false)) {
+            continue;
+        }
+        for (ti, &t) in params.rounds.iter().enumerate() {
+            let curve = roc(&scores[ti], &labels)?;
+            let value = (threshold_for_fpr(&curve, params.max_fpr).tpr, auc(&curve));
+            if value.0 > best.2.0 || (value.0 == best.2.0 && value.1 > best.2.1) {
+                best = (ci, t, value);
+            }
+        }
+    }
+    Ok(best)
 }
 
 /// Classifiers for scoring *any* keyframe pair without having seen its keyframes: the model
@@ -1020,7 +1020,8 @@ pub fn run_pipeline(
         poses.push(pose);
         let places: Vec<[f64; 2]> = poses.iter().map(|&p| place(p)).collect();
         let here = places[j];
-        let (n_local, n_wm) = if linked {
+        // Before the second session starts, every node is local (no global search).
+        let (n_local, n_wm) = if linked || j < params.session_start {
             (j + 1, j + 1)
         } else {
             (j + 1 - params.session_start, j + 1)

@@ -169,7 +169,8 @@ pub fn compare_profiles(
         || b.ranges.len() != n
         || a.sorted.len() != n
         || b.sorted.len() != n
-        || !((a.angle_increment - b.angle_increment).abs() <= 1e-9)
+        || (a.angle_increment - b.angle_increment).abs().is_nan()
+        || (a.angle_increment - b.angle_increment).abs() > 1e-9
     {
         return Err(DescriptorError::Mismatch(
             "range profiles of different beam counts or steps",
@@ -264,11 +265,7 @@ mod tests {
         };
         assert_eq!(compare_profiles(&a, &b, &p1).unwrap()[1], 1.0);
         // No-returns and long ranges count as r_max = 10.
-        let c = range_profile(
-            &scan(vec![f64::INFINITY, 2.0, 30.0, 4.0, 5.0, 90.0]),
-            &p,
-        )
-        .unwrap();
+        let c = range_profile(&scan(vec![f64::INFINITY, 2.0, 30.0, 4.0, 5.0, 90.0]), &p).unwrap();
         assert_eq!(c.ranges, vec![10.0, 2.0, 10.0, 4.0, 5.0, 10.0]);
         assert_eq!(c.sorted, vec![2.0, 4.0, 5.0, 10.0, 10.0, 10.0]);
     }
