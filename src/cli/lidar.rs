@@ -92,6 +92,11 @@ pub struct LidarDescriptorsArgs {
 /// How loop pairs are labelled and the classifier is trained.
 #[derive(Debug, Args)]
 pub struct LoopTrainingFlags {
+    /// The dissertation's classifier (41 pair values, AdaBoost with stumps, balanced subsets)
+    /// instead of ours (3 heading-tolerant range-profile values added, depth-2 trees, class
+    /// weights).
+    #[arg(long)]
+    pub paper: bool,
     /// Keyframes closer than this (m) and --min-separation apart in the sequence are loops.
     #[arg(long, default_value_t = 3.0, value_parser = parse_positive)]
     pub near: f64,

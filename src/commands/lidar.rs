@@ -8,19 +8,20 @@ use anyhow::{Context, Result, anyhow};
 use chronomap_io::ply::read_ply;
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
 use chronomap_lidar::adaboost::AdaBoostParams;
+use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
 use chronomap_lidar::descriptor::{
-    Descriptor, DescriptorParams, PAIR_FEATURE_NAMES, PAIR_FEATURES, SCALAR_FEATURES, compare,
-    describe_cloud, describe_scan,
+    Descriptor, DescriptorParams, PAIR_FEATURE_NAMES, SCALAR_FEATURES, describe_cloud,
+    describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, CvParams, CvReport, LabelParams, LabelledPair, LoopModel, PipelineParams,
-    PipelineReport, WeakLearner, compose, cross_validate, label_pairs, run_pipeline, sector_folds,
+    Balance, Candidate, CvParams, CvReport, LabelParams, LabelledPair, NestedParams,
+    PipelineParams, PipelineReport, WeakLearner, compose, cross_validate, label_pairs,
+    nested_cross_validate, run_pipeline, sector_folds,
 };
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 use chronomap_registration::rigid::Rigid;
 use chronomap_registration::{RegistrationParams, register, register_scans, scan_params};
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::laser_log;
@@ -395,34 +396,47 @@ fn read_transform(path: &Path) -> Result<Rigid<3>> {
     Rigid::from_matrix4(&m).with_context(|| format!("{}: not a rigid transform", path.display()))
 }
 
-/// Descriptors and labelled pairs of a keyframe file: what `eval` and `train` learn from.
+/// Features and labelled pairs of a keyframe file: what `eval` and `train` learn from.
 struct LabelledKeyframes {
     log: laser_log::LaserLog,
-    descriptors: Vec<Descriptor>,
+    config: ClassifierConfig,
+    features: Vec<ScanFeatures>,
     pairs: Vec<LabelledPair>,
-    features: Vec<[f64; PAIR_FEATURES]>,
+    rows: Vec<Vec<f64>>,
+    labels: LabelParams,
     /// Sensor positions (m), for folds by place.
     places: Vec<[f64; 2]>,
 }
 
+/// The classifier configuration the flags ask for.
+fn classifier_config(flags: &LoopTrainingFlags) -> ClassifierConfig {
+    let base = if flags.paper {
+        ClassifierConfig::paper()
+    } else {
+        ClassifierConfig::extended()
+    };
+    ClassifierConfig {
+        rounds: flags.rounds,
+        ..base
+    }
+}
+
 fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<LabelledKeyframes> {
-    let log = laser_log::read_keyframes_file(path)?;
-    let truth = log.truth.clone().expect("keyframe files carry poses");
-    let params = DescriptorParams::default();
-    let descriptors = log
-        .scans
-        .iter()
-        .enumerate()
-        .map(|(k, s)| {
-            describe_scan(s, &params).with_context(|| format!("{}: keyframe {}", log.name, k + 1))
-        })
-        .collect::<Result<Vec<_>>>()?;
     if flags.near > flags.far {
         return Err(usage(format!(
             "--near {} is beyond --far {}: pairs cannot be both loops and not",
             flags.near, flags.far
         )));
     }
+    if flags.rounds == 0 {
+        return Err(usage("--rounds must be at least 1"));
+    }
+    let log = laser_log::read_keyframes_file(path)?;
+    let truth = log.truth.clone().expect("keyframe files carry poses");
+    let config = classifier_config(flags);
+    let features = config
+        .features(&log.scans)
+        .with_context(|| format!("{}: keyframe features", log.name))?;
     let labels = LabelParams {
         near: flags.near,
         far: flags.far,
@@ -442,10 +456,7 @@ fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<Labelled
             flags.far
         ));
     }
-    let features = pairs
-        .iter()
-        .map(|p| compare(&descriptors[p.i], &descriptors[p.j]))
-        .collect::<Result<Vec<_>, _>>()?;
+    let rows = config.pair_rows(&features, &pairs)?;
     let places = truth
         .iter()
         .map(|&p| {
@@ -455,9 +466,11 @@ fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<Labelled
         .collect();
     Ok(LabelledKeyframes {
         log,
-        descriptors,
-        pairs,
+        config,
         features,
+        pairs,
+        rows,
+        labels,
         places,
     })
 }
@@ -489,19 +502,34 @@ fn cross_validate_layouts(
         let width = std::f64::consts::TAU / (2 * flags.folds) as f64;
         let rotation = width * layout as f64 / flags.layouts as f64;
         let fold_of = sector_folds(&data.places, flags.folds, rotation)?;
-        let params = CvParams {
-            seed: layout as u64 + 1,
-            max_fpr: flags.max_fpr,
-            adaboost: AdaBoostParams {
-                rounds: flags.rounds,
-            },
+        let seed = layout as u64 + 1;
+        let report = if data.config == ClassifierConfig::paper() {
+            // The dissertation's procedure as `cross_validate` runs it.
+            let params = CvParams {
+                seed,
+                max_fpr: flags.max_fpr,
+                adaboost: AdaBoostParams {
+                    rounds: flags.rounds,
+                },
+            };
+            cross_validate(&data.pairs, &data.rows, &fold_of, &params)?
+        } else {
+            let candidate = Candidate {
+                name: "configured".into(),
+                train_pairs: &data.pairs,
+                train_x: &data.rows,
+                score_x: &data.rows,
+                learner: data.config.learner,
+                balance: data.config.balance,
+            };
+            let params = NestedParams {
+                rounds: vec![data.config.rounds],
+                max_fpr: flags.max_fpr,
+                seed,
+            };
+            nested_cross_validate(&data.pairs, &[candidate], &fold_of, &params)?.report
         };
-        reports.push(cross_validate(
-            &data.pairs,
-            &data.features,
-            &fold_of,
-            &params,
-        )?);
+        reports.push(report);
         chronomap_core::progress::Progress::advance(&bar, 1);
     }
     Ok(LayoutsReport { reports })
@@ -536,6 +564,7 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
             "heldout_p_min_tpr": held_tpr, "heldout_p_min_fpr": held_fpr,
             "pooled_auc": pooled_auc, "pooled_tpr_at_max_fpr": pooled_tpr, "p_min": p_min,
             "max_fpr": args.training.max_fpr,
+            "classifier": describe_config(&data.config),
             "pooled_roc": cv.reports.iter().map(|r| &r.pooled_roc).collect::<Vec<_>>(),
         }));
     }
@@ -550,10 +579,11 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
         args.training.far
     )?;
     outln!(
-        "cross-validation: {} fold layouts × {} folds by place ({} folds with loops and non-loops to score); AdaBoost T = {}",
+        "cross-validation: {} fold layouts × {} folds by place ({} folds with loops and non-loops to score); {}, T = {}",
         args.training.layouts,
         args.training.folds,
         folds,
+        describe_config(&data.config),
         args.training.rounds
     )?;
     let pct = 100.0 * args.training.max_fpr;
@@ -651,7 +681,7 @@ fn plot_eval(
         .map(|p| [xy(p.i), xy(p.j)])
         .collect();
     let trajectory = PlanePlot {
-        title: format!("{} keyframes and their loops", data.descriptors.len()),
+        title: format!("{} keyframes and their loops", data.features.len()),
         x_label: "x [m]".into(),
         y_label: "y [m]".into(),
         equal_aspect: true,
@@ -670,46 +700,6 @@ fn plot_eval(
     };
     render_plane_png(&[roc, trajectory], path, 1600, 720)?;
     Ok(())
-}
-
-/// What `chronomap lidar train` saves: the descriptor, the classifier and its threshold.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct LoopClassifier {
-    descriptor: DescriptorParams,
-    model: LoopModel,
-    /// Loop probabilities above this are loops.
-    p_min: f64,
-    /// The false-positive bound `p_min` was chosen for.
-    max_fpr: f64,
-    /// How its training pairs were labelled.
-    labels: LabelParams,
-    /// Training pairs: loops, non-loops.
-    trained_on: (usize, usize),
-}
-
-/// The model-file kind of a [`LoopClassifier`].
-const CLASSIFIER_KIND: &str = "lidar-loops";
-
-impl LoopClassifier {
-    fn validate(&self) -> Result<()> {
-        self.descriptor.validate()?;
-        match &self.model {
-            LoopModel::Stumps(m) => m.validate()?,
-            LoopModel::Depth2(m) => m.validate()?,
-        }
-        if !(0.0..=1.0).contains(&self.p_min) || !(0.0..=1.0).contains(&self.max_fpr) {
-            return Err(anyhow!(
-                "p_min {} and max_fpr {} must be probabilities",
-                self.p_min,
-                self.max_fpr
-            ));
-        }
-        Ok(())
-    }
-
-    fn probability(&self, a: &Descriptor, b: &Descriptor) -> Result<f64> {
-        Ok(self.model.probability(&compare(a, b)?)?)
-    }
 }
 
 /// `chronomap lidar train`.
@@ -737,30 +727,16 @@ pub fn train(args: &LidarTrainArgs) -> Result<()> {
         n => 0.5 * (thresholds[n / 2 - 1] + thresholds[n / 2]),
     }
     .min(1.0);
-    let model = LoopModel::train(
-        &data.pairs,
+    let mut classifier = LoopClassifier::train(
+        &data.config,
         &data.features,
-        |_| true,
-        WeakLearner::Stump,
-        Balance::Subsample,
-        args.training.rounds,
-        1,
-    )?;
-    let positives = data.pairs.iter().filter(|p| p.positive).count();
-    let classifier = LoopClassifier {
-        descriptor: DescriptorParams::default(),
-        model,
+        &data.pairs,
         p_min,
-        max_fpr: args.training.max_fpr,
-        labels: LabelParams {
-            near: args.training.near,
-            far: args.training.far,
-            min_separation: args.training.min_separation,
-        },
-        trained_on: (positives, data.pairs.len() - positives),
-    };
-    classifier.validate()?;
-    write_model_file(&args.output, CLASSIFIER_KIND, &classifier)?;
+        args.training.max_fpr,
+    )?;
+    classifier.labels = Some(data.labels.clone());
+    let positives = classifier.trained_on.0;
+    write_model_file(&args.output, MODEL_KIND, &classifier)?;
     let pooled_tpr = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr));
     if args.json {
         return print_json(&json!({
@@ -769,17 +745,19 @@ pub fn train(args: &LidarTrainArgs) -> Result<()> {
             "loops": positives,
             "non_loops": data.pairs.len() - positives,
             "rounds": classifier.model.rounds(),
+            "classifier": describe_config(&classifier.config),
             "p_min": p_min,
             "max_fpr": args.training.max_fpr,
             "cv_tpr_at_max_fpr": pooled_tpr,
         }));
     }
     outln!(
-        "{}: trained on {} loops and {} non-loops of {} keyframes (AdaBoost, T = {}); p_min = {:.4} keeps the out-of-fold false-positive rate below {} % (TPR there {:.3}); written to {}",
+        "{}: trained on {} loops and {} non-loops of {} keyframes ({}, T = {}); p_min = {:.4} keeps the out-of-fold false-positive rate below {} % (TPR there {:.3}); written to {}",
         data.log.name,
         positives,
         data.pairs.len() - positives,
         data.log.scans.len(),
+        describe_config(&classifier.config),
         classifier.model.rounds(),
         p_min,
         100.0 * args.training.max_fpr,
@@ -792,7 +770,7 @@ pub fn train(args: &LidarTrainArgs) -> Result<()> {
 /// `chronomap lidar detect`.
 pub fn detect(args: &LidarDetectArgs) -> Result<()> {
     let (kind, classifier): (String, LoopClassifier) = read_model_file(&args.classifier)?;
-    if kind != CLASSIFIER_KIND {
+    if kind != MODEL_KIND {
         return Err(anyhow!(
             "{}: holds a {kind}, not a loop classifier (chronomap lidar train writes one)",
             args.classifier.display()
@@ -807,18 +785,10 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
     } else {
         full.keyframes(args.keyframe_distance, args.keyframe_angle)
     };
-    let bar = ProgressBar::stage("descriptors", log.scans.len() as u64);
-    let descriptors = log
-        .scans
-        .iter()
-        .enumerate()
-        .map(|(k, s)| {
-            chronomap_core::progress::Progress::advance(&bar, 1);
-            describe_scan(s, &classifier.descriptor)
-                .with_context(|| format!("{}: keyframe {}", log.name, k + 1))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    drop(bar);
+    let features = classifier
+        .config
+        .features(&log.scans)
+        .with_context(|| format!("{}: keyframe features", log.name))?;
     let has_truth = log.truth.is_some();
     let positions: Vec<[f64; 2]> = log
         .truth
@@ -829,7 +799,7 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
         .collect();
     let mut params = PipelineParams {
         min_separation: args.min_separation,
-        near: classifier.labels.near,
+        near: classifier.labels.as_ref().map_or(3.0, |l| l.near),
         ..PipelineParams::default()
     };
     params.search.p_min = args.p_min.unwrap_or(classifier.p_min);
@@ -839,7 +809,7 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
         [log.sensor[0], log.sensor[1]],
         &positions,
         &params,
-        |i, j| match classifier.probability(&descriptors[i], &descriptors[j]) {
+        |i, j| match classifier.probability(&features[i], &features[j]) {
             Ok(p) => Ok(Some(p)),
             Err(e) => {
                 failure.get_or_insert(e);
@@ -848,7 +818,7 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
         },
     )?;
     if let Some(e) = failure {
-        return Err(e.context(format!("{}: scoring a pair", log.name)));
+        return Err(anyhow::Error::new(e).context(format!("{}: scoring a pair", log.name)));
     }
     if let Some(path) = &args.output {
         let mut csv = String::from("query,target,probability,radius_m,mode\n");
@@ -940,15 +910,21 @@ fn plot_detections(
 ) -> Result<()> {
     let segment =
         |d: &chronomap_lidar::evaluation::Detection| [positions[d.query], positions[d.target]];
-    let mut layers = vec![PlaneLayer {
-        label: if has_truth {
-            "SLAM trajectory"
-        } else {
-            "odometry"
-        }
-        .into(),
-        shape: PlaneShape::Path(positions.to_vec()),
-    }];
+    let mut layers = vec![
+        PlaneLayer {
+            label: if has_truth {
+                "SLAM trajectory"
+            } else {
+                "odometry"
+            }
+            .into(),
+            shape: PlaneShape::Path(positions.to_vec()),
+        },
+        PlaneLayer {
+            label: "keyframes".into(),
+            shape: PlaneShape::Points(positions.to_vec()),
+        },
+    ];
     let (right, wrong): (Vec<_>, Vec<_>) = report
         .detections
         .iter()
@@ -967,10 +943,6 @@ fn plot_detections(
             shape: PlaneShape::Segments(wrong.iter().map(segment).collect()),
         });
     }
-    layers.push(PlaneLayer {
-        label: "keyframes".into(),
-        shape: PlaneShape::Points(positions.to_vec()),
-    });
     let plot = PlanePlot {
         title: format!("Loops found along {}", super::maps::short_name(&log.name)),
         x_label: "x [m]".into(),
@@ -982,4 +954,32 @@ fn plot_detections(
     };
     render_plane_png(&[plot], path, 1000, 800)?;
     Ok(())
+}
+
+/// One line naming a classifier configuration.
+fn describe_config(config: &ClassifierConfig) -> String {
+    let features = match config.profile {
+        Some(_) => "44 pair values (41 of the descriptor, 3 of the range profiles)",
+        None => "41 pair values of the descriptor",
+    };
+    let learner = match config.learner {
+        WeakLearner::Stump => "AdaBoost with stumps",
+        WeakLearner::Depth2 => "boosted depth-2 trees",
+    };
+    let balance = match config.balance {
+        Balance::Subsample => "loops and as many random non-loops",
+        Balance::Weighted => "all pairs, classes weighted equally",
+    };
+    let fixed = ClassifierConfig {
+        rounds: 50,
+        ..config.clone()
+    };
+    let which = if fixed == ClassifierConfig::paper() {
+        "the paper's classifier"
+    } else if fixed == ClassifierConfig::extended() {
+        "the extended classifier"
+    } else {
+        "classifier"
+    };
+    format!("{which}: {features}, {learner}, {balance}")
 }

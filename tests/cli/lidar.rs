@@ -329,6 +329,23 @@ fn a_trained_classifier_is_saved_checked_and_used_along_the_bag() {
     assert_eq!(found["p_min"].as_f64().unwrap(), p_min);
     assert!(found["keyframes"].as_u64().unwrap() > 50);
     assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    // Along the keyframes with their SLAM poses, detections can be judged. The classifier saw
+    // these pairs in training, so this checks the pipeline, not how it generalises (that is
+    // what `lidar eval` measures).
+    let judged = json(&chronomap(&[
+        "lidar",
+        "detect",
+        "--classifier",
+        model.to_str().unwrap(),
+        "--keyframes",
+        &data(KEYFRAMES),
+        "--odometry",
+        &data(ODOMETRY),
+        "--json",
+    ]));
+    let detections = judged["detections"].as_array().unwrap();
+    let correct = detections.iter().filter(|d| d["correct"] == true).count();
+    assert!(correct >= 20 && detections.len() - correct <= 3, "{judged}");
     // A damaged classifier file and another kind of model file are refused.
     let mut bytes = std::fs::read(&model).unwrap();
     let last = bytes.len() - 1;
@@ -343,4 +360,65 @@ fn a_trained_classifier_is_saved_checked_and_used_along_the_bag() {
         &data(BAG),
     ]));
     assert_mentions(&e, &["damaged.cml"]);
+}
+
+#[test]
+fn cross_validation_reproduces_the_paper_classifier_and_shows_the_extension_gain() {
+    let eval = |extra: &[&str]| {
+        let mut args = vec!["lidar", "eval", "--keyframes"];
+        let keyframes = data(KEYFRAMES);
+        args.push(&keyframes);
+        args.extend_from_slice(extra);
+        args.push("--json");
+        json(&chronomap(&args))
+    };
+    let mean = |v: &serde_json::Value, k: &str| v[k]["mean"].as_f64().unwrap();
+    // The dissertation's classifier over 10 fold layouts (docs/lidar.md, crate example
+    // malaga_loops): pooled AUC 0.708 ± 0.051, TPR at FPR < 1 % 0.092 ± 0.082.
+    let paper = eval(&["--paper"]);
+    assert_eq!(paper["loops"], 184);
+    assert_eq!(paper["non_loops"], 2847);
+    assert!((mean(&paper, "pooled_auc") - 0.7080).abs() < 5e-4);
+    assert!((paper["pooled_auc"]["sd"].as_f64().unwrap() - 0.0507).abs() < 5e-4);
+    assert!((mean(&paper, "pooled_tpr_at_max_fpr") - 0.0921).abs() < 5e-4);
+    assert!((mean(&paper, "p_min") - 0.6759).abs() < 5e-4);
+    // Ours on the same two layouts: several times the loops at the same false-positive bound.
+    let paper2 = eval(&["--paper", "--layouts", "2"]);
+    let ours2 = eval(&["--layouts", "2"]);
+    let (p, o) = (
+        mean(&paper2, "pooled_tpr_at_max_fpr"),
+        mean(&ours2, "pooled_tpr_at_max_fpr"),
+    );
+    assert!(
+        (p - 0.0758).abs() < 5e-4 && (o - 0.5152).abs() < 5e-4,
+        "{p} {o}"
+    );
+    assert!(mean(&ours2, "pooled_auc") > mean(&paper2, "pooled_auc") + 0.05);
+    let dir = scratch("lidar_eval_plot");
+    let png = dir.join("roc.png");
+    let out = chronomap(&[
+        "lidar",
+        "eval",
+        "--keyframes",
+        &data(KEYFRAMES),
+        "--paper",
+        "--layouts",
+        "2",
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert_mentions(
+        &stdout(&out),
+        &["184 loops", "the paper's classifier", "TPR at FPR < 1 %"],
+    );
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    let e = usage_error(&chronomap(&[
+        "lidar",
+        "eval",
+        "--keyframes",
+        &data(KEYFRAMES),
+        "--near",
+        "12",
+    ]));
+    assert_mentions(&e, &["--near 12 is beyond --far 10"]);
 }

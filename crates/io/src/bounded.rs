@@ -81,6 +81,7 @@ pub(crate) fn read(path: &Path) -> io::Result<Vec<u8>> {
 }
 
 /// [`std::fs::read_to_string`] with the [`MAX_FILE_BYTES`] limit.
+#[cfg_attr(not(feature = "bt"), allow(dead_code))]
 pub(crate) fn read_to_string(path: &Path) -> io::Result<String> {
     String::from_utf8(read(path)?).map_err(|_| {
         io::Error::new(

@@ -567,11 +567,13 @@ impl<'a> LineFields<'a> {
 
     /// The next field as a duration in seconds (finite, `>= 0`, at most
     /// [`MAX_DURATION_SECS`]).
+    #[cfg_attr(not(feature = "topo"), allow(dead_code))]
     pub(crate) fn next_duration(&mut self) -> Result<f64, DataErrorKind> {
         parse_duration(self.next_text(Field::Duration)?)
     }
 
     /// The next field as a success flag (`0` or `1`).
+    #[cfg_attr(not(feature = "topo"), allow(dead_code))]
     pub(crate) fn next_success(&mut self) -> Result<bool, DataErrorKind> {
         parse_success(self.next_text(Field::Success)?)
     }
@@ -1036,6 +1038,7 @@ pub(crate) fn required<'a>(
 }
 
 /// A finite rate `>= 0` (column `y` of activity-rate grids).
+#[cfg_attr(not(feature = "activity"), allow(dead_code))]
 pub(crate) fn parse_rate(text: &[u8]) -> Result<f64, DataErrorKind> {
     parse_non_negative(text, Field::Rate)
 }

@@ -13,6 +13,9 @@
 //! * [`search`] — where to look for loops: the search radius of eq. (3.8) from the odometry
 //!   covariance, global search while `α = n_local/n_WM < α_min`, verification of the first
 //!   loops (appendix A defaults).
+//! * [`profile`] — three heading-tolerant pair features of range profiles (our extension).
+//! * [`classifier`] — a deployable classifier: configuration (the paper's or ours), model,
+//!   threshold; saved as a model file.
 //! * [`evaluation`] — labelled keyframe pairs, keyframe-disjoint cross-validation and the
 //!   whole loop-detection pipeline on a keyframe sequence (the Málaga evaluation of
 //!   `examples/malaga_loops.rs`).
@@ -41,13 +44,14 @@
 //! # Ok::<(), chronomap_lidar::adaboost::AdaBoostError>(())
 //! ```
 //!
-//! [Stüde 2024]: M. Stüde, *Navigation and localisation of mobile robots in changing
-//! environments* (dissertation), Leibniz Universität Hannover, 2024.
+//! [Stüde 2024]: M. Stüde, *Environment and Task Modeling of Long-Term-Autonomous Service
+//! Robots*, dissertation, Gottfried Wilhelm Leibniz Universität Hannover, 2024.
 //! [Granström 2009]: K. Granström, J. Callmer, F. Ramos, J. Nieto, "Learning to detect loop
 //! closure from range data", ICRA 2009.
 #![deny(missing_docs)]
 
 pub mod adaboost;
+pub mod classifier;
 pub mod descriptor;
 pub mod evaluation;
 pub mod profile;

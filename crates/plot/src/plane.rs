@@ -233,7 +233,7 @@ fn render(plots: &[PlanePlot], path: &Path, width: u32, height: u32) -> Result<(
                     }
                 }
                 PlaneShape::Points(points) => {
-                    let radius = scale.px(3.0).max(1);
+                    let radius = scale.px(2.0).max(1);
                     chart
                         .draw_series(
                             points
@@ -249,7 +249,7 @@ fn render(plots: &[PlanePlot], path: &Path, width: u32, height: u32) -> Result<(
                             |[a, b]| {
                                 PathElement::new(
                                     vec![(a[0], a[1]), (b[0], b[1])],
-                                    colour.stroke_width(line.div_ceil(2)),
+                                    colour.stroke_width(line),
                                 )
                             },
                         ))
