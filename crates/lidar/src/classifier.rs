@@ -323,7 +323,12 @@ mod tests {
 
     fn trained(config: &ClassifierConfig) -> (LoopClassifier, Vec<ScanFeatures>) {
         let scans: Vec<Scan2d> = (0..16)
-            .flat_map(|k| [corridor(1.0 + 0.3 * k as f64), corridor(1.02 + 0.3 * k as f64)])
+            .flat_map(|k| {
+                [
+                    corridor(1.0 + 0.3 * k as f64),
+                    corridor(1.02 + 0.3 * k as f64),
+                ]
+            })
             .collect();
         let features = config.features(&scans).unwrap();
         let mut pairs = Vec::new();
@@ -368,7 +373,10 @@ mod tests {
         c.config.profile = None;
         c.config.learner = WeakLearner::Depth2;
         let e = c.validate().unwrap_err().to_string();
-        assert!(e.contains("takes 44 pair values") && e.contains("makes 41"), "{e}");
+        assert!(
+            e.contains("takes 44 pair values") && e.contains("makes 41"),
+            "{e}"
+        );
         // Features without a profile cannot be scored by the extended classifier.
         let (c, _) = trained(&ClassifierConfig::extended());
         let bare = ScanFeatures {
