@@ -38,6 +38,42 @@ pub enum BenchCommand {
     /// the records of a rosbag2 MCAP bag, against a bare read of the same file in the same run.
     #[command(after_help = BENCH_INGEST_HELP)]
     Ingest(BenchIngestArgs),
+    /// Registration of two 3-D clouds without an initial guess (dissertation §3.2.2: FPFH,
+    /// RANSAC, ICP) against a bare nearest-neighbour pass over the same clouds in the same run,
+    /// with the errors against their known transform.
+    #[command(after_help = BENCH_REGISTRATION_HELP)]
+    Registration(BenchRegistrationArgs),
+}
+
+pub(super) const BENCH_REGISTRATION_HELP: &str = "\
+Without arguments: the bundled small_gicp pair of real 3-D lidar scans (69,792 and 69,088
+points) and its transform.
+
+Examples:
+  chronomap bench registration
+  chronomap bench registration --repeats 9 --json";
+
+/// `chronomap bench registration`.
+#[derive(Debug, Args)]
+pub struct BenchRegistrationArgs {
+    /// The cloud to move (PLY).
+    #[arg(long, default_value = "data/registration_small_gicp/source.ply.xz")]
+    pub source: PathBuf,
+    /// The cloud to move it onto (PLY).
+    #[arg(long, default_value = "data/registration_small_gicp/target.ply.xz")]
+    pub target: PathBuf,
+    /// Their true 4×4 transform (text, row-major).
+    #[arg(
+        long,
+        default_value = "data/registration_small_gicp/T_target_source.txt"
+    )]
+    pub truth: PathBuf,
+    /// Timed runs of each part (the median is reported).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: u32,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub(super) const BENCH_INGEST_HELP: &str = "\

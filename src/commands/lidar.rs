@@ -26,12 +26,12 @@ use serde_json::json;
 
 use super::laser_log;
 use crate::cli::{
-    LidarDescriptorsArgs, LidarDetectArgs, LidarEvalArgs, LidarRegisterArgs, LidarTrainArgs,
-    LoopTrainingFlags,
+    BenchRegistrationArgs, LidarDescriptorsArgs, LidarDetectArgs, LidarEvalArgs, LidarRegisterArgs,
+    LidarTrainArgs, LoopTrainingFlags,
 };
 use crate::format::Table;
 use crate::outln;
-use crate::output::{ProgressBar, print_json, usage};
+use crate::output::{ProgressBar, print_bench, print_json, usage};
 
 /// `chronomap lidar descriptors`.
 pub fn descriptors(args: &LidarDescriptorsArgs) -> Result<()> {
@@ -120,9 +120,7 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
         Some(path) => Some(read_transform(path)?),
         None => None,
     };
-    let mut params = RegistrationParams::for_voxel(args.voxel);
-    params.filters.voxel = Some(args.fine_voxel);
-    params.filters.range = Some((0.0, args.max_range));
+    let mut params = cloud_params(args.voxel, args.fine_voxel, args.max_range);
     if let Some(seed) = args.seed {
         params.ransac.seed = seed;
     }
@@ -199,6 +197,48 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// Registration parameters for 3-D clouds: features and RANSAC on a `voxel` grid, ICP on a
+/// `fine_voxel` grid, points beyond `max_range` dropped (dissertation appendix A: 30 m).
+fn cloud_params(voxel: f64, fine_voxel: f64, max_range: f64) -> RegistrationParams {
+    let mut params = RegistrationParams::for_voxel(voxel);
+    params.filters.voxel = Some(fine_voxel);
+    params.filters.range = Some((0.0, max_range));
+    params
+}
+
+/// `chronomap bench registration`: the default parameters of `lidar register` against a bare
+/// nearest-neighbour pass ([`chronomap_bench::registration`] measures, this reads and prints).
+pub fn bench_registration(args: &BenchRegistrationArgs) -> Result<()> {
+    let source = read_ply(&args.source)?;
+    let target = read_ply(&args.target)?;
+    let truth = read_transform(&args.truth)?;
+    let bench = chronomap_bench::registration::run(
+        &source,
+        &target,
+        &truth,
+        &cloud_params(0.25, 0.05, 30.0),
+        args.repeats as usize,
+    )?;
+    print_bench(args.json, &bench, |b| {
+        outln!(
+            "{} ({} points) onto {} ({} points), median of {}: registration {:.0} ms (FPFH, RANSAC, ICP; {} inliers, {} ICP iterations) = {:.1} x a bare nearest-neighbour pass ({:.0} ms: one k-d tree, one query per source point); error {:.3}°, {:.2} cm",
+            args.source.display(),
+            b.points.0,
+            args.target.display(),
+            b.points.1,
+            b.repeats,
+            b.registration_ms,
+            b.inliers,
+            b.icp_iterations,
+            b.ratio,
+            b.bare_nn_ms,
+            b.rotation_error_deg,
+            100.0 * b.translation_error_m
+        )?;
+        Ok(())
+    })
 }
 
 /// `chronomap lidar register --keyframes`: one pair, or every loop pair against the SLAM

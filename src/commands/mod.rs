@@ -69,6 +69,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Bt(args)) => bench_bt::bt(&args),
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
         Command::Bench(BenchCommand::Ingest(args)) => bench_ingest::ingest(&args),
+        Command::Bench(BenchCommand::Registration(args)) => lidar::bench_registration(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),

@@ -4,7 +4,7 @@
 //! One module per domain. Each exposes a function that runs its benchmark from a config struct
 //! and returns a result struct (`serde::Serialize`) with the timings, the baseline timings of
 //! the same run and the ratios; printing (tables, `--json`) is the caller's:
-//! `chronomap bench plan|serve|activity|psbt` and the `chronomap-bench` binary of this crate
+//! `chronomap bench plan|serve|activity|psbt|registration` and the `chronomap-bench` binary of this crate
 //! (the FreMEn benchmarks).
 //!
 //! * [`fremen`]: FFT FreMEn build, FreMEn observe and predict ([Krajník 2017]) against the textbook
@@ -18,6 +18,8 @@
 //!   against bare scans and bare matrix products.
 //! * [`bt`]: reading and checking BehaviorTree.CPP 4 XML (100,000 siblings, deep nesting, many
 //!   attributes) against parsing the same text with roxmltree alone.
+//! * [`registration`]: registration of two 3-D clouds without an initial guess ([Stüde 2024]
+//!   §3.2.2) against a bare nearest-neighbour pass over the same clouds.
 //! * [`psbt`]: person search tree synthesis ([Stüde 2024] §5.4.3) against the dense reference and
 //!   a per-tree solve.
 //!
@@ -35,6 +37,7 @@ pub mod grid;
 pub mod ingest;
 pub mod plan;
 pub mod psbt;
+pub mod registration;
 #[cfg(feature = "serve")]
 pub mod serve;
 
