@@ -126,6 +126,10 @@ pub struct LidarEvalArgs {
     /// Keyframes with their SLAM poses.
     #[arg(long, value_name = "FILE")]
     pub keyframes: PathBuf,
+    /// Odometry increments for the loop-detection run (default: the motion between the SLAM
+    /// poses, i.e. perfect odometry).
+    #[arg(long, value_name = "FILE")]
+    pub odometry: Option<PathBuf>,
     /// Labels and training.
     #[command(flatten)]
     pub training: LoopTrainingFlags,

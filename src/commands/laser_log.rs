@@ -93,10 +93,10 @@ pub fn read(args: &LaserSourceArgs) -> Result<LaserLog> {
     }
 }
 
-/// Reads a keyframe file (SLAM poses and scans; the motion between keyframes is the SLAM
-/// estimate's).
-pub fn read_keyframes_file(path: &Path) -> Result<LaserLog> {
-    from_keyframes(path, None)
+/// Reads a keyframe file (SLAM poses and scans) with its odometry, if given (else the motion
+/// between keyframes is the SLAM estimate's).
+pub fn read_keyframes_file(path: &Path, odometry: Option<&Path>) -> Result<LaserLog> {
+    from_keyframes(path, odometry)
 }
 
 /// Dead reckoning: the robot's pose at each of `times` from odometry increments `(time,

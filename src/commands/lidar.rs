@@ -14,8 +14,8 @@ use chronomap_lidar::descriptor::{
     describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, Candidate, CvParams, CvReport, LabelParams, LabelledPair, NestedParams,
-    PipelineParams, PipelineReport, WeakLearner, compose, cross_validate, label_pairs,
+    Balance, Candidate, CvParams, CvReport, EvalError, LabelParams, LabelledPair, NestedParams,
+    PairModels, PipelineParams, PipelineReport, WeakLearner, compose, cross_validate, label_pairs,
     nested_cross_validate, run_pipeline, sector_folds,
 };
 use chronomap_lidar::threshold::MeanSd;
@@ -244,7 +244,7 @@ pub fn bench_registration(args: &BenchRegistrationArgs) -> Result<()> {
 /// `chronomap lidar register --keyframes`: one pair, or every loop pair against the SLAM
 /// relative poses.
 fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
-    let log = laser_log::read_keyframes_file(path)?;
+    let log = laser_log::read_keyframes_file(path, None)?;
     let truth = log.truth.as_deref().unwrap_or(&[]);
     let n = log.scans.len();
     // The laser's pose in the map: robot pose ⊕ sensor offset.
@@ -461,7 +461,11 @@ fn classifier_config(flags: &LoopTrainingFlags) -> ClassifierConfig {
     }
 }
 
-fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<LabelledKeyframes> {
+fn labelled_keyframes(
+    path: &Path,
+    flags: &LoopTrainingFlags,
+    odometry: Option<&Path>,
+) -> Result<LabelledKeyframes> {
     if flags.near > flags.far {
         return Err(usage(format!(
             "--near {} is beyond --far {}: pairs cannot be both loops and not",
@@ -471,7 +475,7 @@ fn labelled_keyframes(path: &Path, flags: &LoopTrainingFlags) -> Result<Labelled
     if flags.rounds == 0 {
         return Err(usage("--rounds must be at least 1"));
     }
-    let log = laser_log::read_keyframes_file(path)?;
+    let log = laser_log::read_keyframes_file(path, odometry)?;
     let truth = log.truth.clone().expect("keyframe files carry poses");
     let config = classifier_config(flags);
     let features = config
@@ -577,8 +581,9 @@ fn cross_validate_layouts(
 
 /// `chronomap lidar eval`.
 pub fn eval(args: &LidarEvalArgs) -> Result<()> {
-    let data = labelled_keyframes(&args.keyframes, &args.training)?;
+    let data = labelled_keyframes(&args.keyframes, &args.training, args.odometry.as_deref())?;
     let cv = cross_validate_layouts(&data, &args.training)?;
+    let pipeline = out_of_fold_pipeline(&data, &args.training, &cv)?;
     let fold =
         |f: fn(&chronomap_lidar::evaluation::FoldResult) -> f64| MeanSd::of(cv.folds().map(f));
     let auc = fold(|f| f.auc);
@@ -590,7 +595,7 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
     let p_min = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.threshold));
     let positives = data.pairs.iter().filter(|p| p.positive).count();
     if let Some(path) = &args.plot {
-        plot_eval(&data, &cv, args.training.max_fpr, path)?;
+        plot_eval(&data, &cv, &pipeline, args.training.max_fpr, path)?;
     }
     let folds = cv.folds().count();
     if args.json {
@@ -605,6 +610,15 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
             "pooled_auc": pooled_auc, "pooled_tpr_at_max_fpr": pooled_tpr, "p_min": p_min,
             "max_fpr": args.training.max_fpr,
             "classifier": describe_config(&data.config),
+            "pipeline": {
+                "p_min": cv.reports.first().map(|r| r.pooled_at_max_fpr.threshold),
+                "loops": pipeline.detections.len(),
+                "correct": pipeline.correct(),
+                "wrong": pipeline.wrong(),
+                "revisiting_keyframes": pipeline.queries_with_loop,
+                "revisiting_keyframes_closed": pipeline.queries_closed,
+                "detections": &pipeline.detections,
+            },
             "pooled_roc": cv.reports.iter().map(|r| &r.pooled_roc).collect::<Vec<_>>(),
         }));
     }
@@ -654,13 +668,69 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
         format!("{p_min:.4}"),
     ]);
     outln!("{}", table.render().trim_end())?;
+    outln!(
+        "loop detection along the keyframes (search radius, classifier, verification; fold layout 0, each pair scored by the model trained without both keyframes' folds, p_min {:.4}): {} loops, {} correct, {} wrong; {} of {} revisiting keyframes closed",
+        cv.reports
+            .first()
+            .map_or(f64::NAN, |r| r.pooled_at_max_fpr.threshold),
+        pipeline.detections.len(),
+        pipeline.correct(),
+        pipeline.wrong(),
+        pipeline.queries_closed,
+        pipeline.queries_with_loop
+    )?;
     Ok(())
+}
+
+/// The loop pipeline along the keyframes with fold layout 0, each pair scored by the model
+/// that saw neither keyframe's fold, `p_min` from that layout's pooled ROC: detections that
+/// no model was trained on.
+fn out_of_fold_pipeline(
+    data: &LabelledKeyframes,
+    flags: &LoopTrainingFlags,
+    cv: &LayoutsReport,
+) -> Result<PipelineReport> {
+    let fold_of = sector_folds(&data.places, flags.folds, 0.0)?;
+    let models = PairModels::train_with(
+        &data.pairs,
+        &data.rows,
+        &fold_of,
+        data.config.learner,
+        data.config.balance,
+        data.config.rounds,
+        data.config.seed,
+    )?;
+    let mut params = PipelineParams {
+        min_separation: flags.min_separation,
+        near: flags.near,
+        ..PipelineParams::default()
+    };
+    params.search.p_min = cv
+        .reports
+        .first()
+        .map_or(1.0, |r| r.pooled_at_max_fpr.threshold.min(1.0));
+    let truth = data.log.truth.as_deref().unwrap_or(&[]);
+    let positions: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
+    Ok(run_pipeline(
+        &data.log.increments(),
+        [data.log.sensor[0], data.log.sensor[1]],
+        &positions,
+        &params,
+        |i, j| {
+            let x = data
+                .config
+                .pair(&data.features[i], &data.features[j])
+                .map_err(|e| EvalError::Input(e.to_string()))?;
+            models.probability(i, j, &x)
+        },
+    )?)
 }
 
 /// ROC curves (pooled, one per layout) beside the trajectory with its labelled loops.
 fn plot_eval(
     data: &LabelledKeyframes,
     cv: &LayoutsReport,
+    pipeline: &PipelineReport,
     max_fpr: f64,
     path: &Path,
 ) -> Result<()> {
@@ -713,38 +783,23 @@ fn plot_eval(
         ],
     };
     let truth = data.log.truth.as_deref().unwrap_or(&[]);
-    let xy = |k: usize| [truth[k][0], truth[k][1]];
-    let loops: Vec<[[f64; 2]; 2]> = data
-        .pairs
-        .iter()
-        .filter(|p| p.positive)
-        .map(|p| [xy(p.i), xy(p.j)])
-        .collect();
-    let trajectory = PlanePlot {
-        title: format!("{} keyframes and their loops", data.features.len()),
-        x_label: "x [m]".into(),
-        y_label: "y [m]".into(),
-        equal_aspect: true,
-        x_range: None,
-        y_range: None,
-        layers: vec![
-            PlaneLayer {
-                label: "SLAM trajectory".into(),
-                shape: PlaneShape::Path((0..truth.len()).map(xy).collect()),
-            },
-            PlaneLayer {
-                label: format!("loops ({})", loops.len()),
-                shape: PlaneShape::Segments(loops),
-            },
-        ],
-    };
+    let positions: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
+    let trajectory = detections_plot(
+        &format!(
+            "Loops found, each pair scored by a model that saw neither keyframe ({} keyframes)",
+            positions.len()
+        ),
+        &positions,
+        true,
+        pipeline,
+    );
     render_plane_png(&[roc, trajectory], path, 1600, 720)?;
     Ok(())
 }
 
 /// `chronomap lidar train`.
 pub fn train(args: &LidarTrainArgs) -> Result<()> {
-    let data = labelled_keyframes(&args.keyframes, &args.training)?;
+    let data = labelled_keyframes(&args.keyframes, &args.training, None)?;
     let cv = cross_validate_layouts(&data, &args.training)?;
     // p_min: the median over fold layouts of the threshold that keeps the pooled
     // out-of-fold false-positive rate below the bound.
@@ -948,8 +1003,26 @@ fn plot_detections(
     report: &PipelineReport,
     path: &Path,
 ) -> Result<()> {
+    let plot = detections_plot(
+        &format!("Loops found along {}", super::maps::short_name(&log.name)),
+        positions,
+        has_truth,
+        report,
+    );
+    render_plane_png(&[plot], path, 1000, 800)?;
+    Ok(())
+}
+
+/// A trajectory with its keyframes and the loops a pipeline accepted (correct and wrong ones
+/// apart when the positions are the truth).
+fn detections_plot(
+    title: &str,
+    positions: &[[f64; 2]],
+    has_truth: bool,
+    report: &PipelineReport,
+) -> PlanePlot {
     let segment =
-        |d: &chronomap_lidar::evaluation::Detection| [positions[d.query], positions[d.target]];
+        |d: &&chronomap_lidar::evaluation::Detection| [positions[d.query], positions[d.target]];
     let mut layers = vec![
         PlaneLayer {
             label: if has_truth {
@@ -983,17 +1056,15 @@ fn plot_detections(
             shape: PlaneShape::Segments(wrong.iter().map(segment).collect()),
         });
     }
-    let plot = PlanePlot {
-        title: format!("Loops found along {}", super::maps::short_name(&log.name)),
+    PlanePlot {
+        title: title.to_string(),
         x_label: "x [m]".into(),
         y_label: "y [m]".into(),
         equal_aspect: true,
         x_range: None,
         y_range: None,
         layers,
-    };
-    render_plane_png(&[plot], path, 1000, 800)?;
-    Ok(())
+    }
 }
 
 /// One line naming a classifier configuration.

@@ -384,7 +384,8 @@ fn cross_validation_reproduces_the_paper_classifier_and_shows_the_extension_gain
     assert!((mean(&paper, "p_min") - 0.6759).abs() < 5e-4);
     // Ours on the same two layouts: several times the loops at the same false-positive bound.
     let paper2 = eval(&["--paper", "--layouts", "2"]);
-    let ours2 = eval(&["--layouts", "2"]);
+    let odometry = data(ODOMETRY);
+    let ours2 = eval(&["--layouts", "2", "--odometry", &odometry]);
     let (p, o) = (
         mean(&paper2, "pooled_tpr_at_max_fpr"),
         mean(&ours2, "pooled_tpr_at_max_fpr"),
@@ -394,6 +395,18 @@ fn cross_validation_reproduces_the_paper_classifier_and_shows_the_extension_gain
         "{p} {o}"
     );
     assert!(mean(&ours2, "pooled_auc") > mean(&paper2, "pooled_auc") + 0.05);
+    // Loop detection along the loop with real odometry, every pair scored by a model trained
+    // without both keyframes' folds: 25 of the 31 revisiting keyframes closed; the 4 wrong
+    // loops join keyframes 3.1-3.3 m apart, just beyond the 3 m label.
+    let pipeline = &ours2["pipeline"];
+    assert_eq!(
+        (pipeline["correct"].as_u64(), pipeline["wrong"].as_u64()),
+        (Some(25), Some(4))
+    );
+    assert_eq!(pipeline["revisiting_keyframes_closed"], 25);
+    for d in pipeline["detections"].as_array().unwrap() {
+        assert!(d["true_distance"].as_f64().unwrap() < 3.5, "{d}");
+    }
     let dir = scratch("lidar_eval_plot");
     let png = dir.join("roc.png");
     let out = chronomap(&[

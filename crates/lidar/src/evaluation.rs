@@ -785,7 +785,7 @@ pub struct PairModels {
     /// Number of folds.
     pub folds: usize,
     /// Model of folds `(a, b)`, `a ≤ b`, at `a·folds + b` (none without training data).
-    pub models: Vec<Option<AdaBoost>>,
+    pub models: Vec<Option<LoopModel>>,
 }
 
 impl PairModels {
@@ -810,8 +810,56 @@ impl PairModels {
                 let seed = chronomap_rng::derive_seed(params.seed, 0x11da_0002, a as u64, b as u64);
                 let (rows, labels) = balanced(pairs, x, outside, seed);
                 if labels.contains(&true) && labels.contains(&false) {
-                    models[a * folds + b] =
-                        Some(AdaBoost::fit(&rows, &labels, None, &params.adaboost)?);
+                    models[a * folds + b] = Some(LoopModel::Stumps(AdaBoost::fit(
+                        &rows,
+                        &labels,
+                        None,
+                        &params.adaboost,
+                    )?));
+                }
+            }
+        }
+        Ok(PairModels {
+            fold_of: fold_of.to_vec(),
+            folds,
+            models,
+        })
+    }
+
+    /// Trains the `folds·(folds+1)/2` models of any configuration ([`LoopModel::train`] with
+    /// `learner`, `balance` and `rounds`); a fold pair whose outside holds only one class gets
+    /// no model.
+    ///
+    /// # Errors
+    /// [`EvalError::Input`] for rows that do not match their pairs or a keyframe without a fold;
+    /// [`EvalError::Train`] as [`LoopModel::train`].
+    pub fn train_with<R: AsRef<[f64]>>(
+        pairs: &[LabelledPair],
+        x: &[R],
+        fold_of: &[usize],
+        learner: WeakLearner,
+        balance: Balance,
+        rounds: usize,
+        seed: u64,
+    ) -> Result<PairModels, EvalError> {
+        check_rows(pairs, x, fold_of)?;
+        let folds = fold_of.iter().max().map_or(0, |m| m + 1);
+        let mut models = vec![None; folds * folds];
+        for a in 0..folds {
+            for b in a..folds {
+                let outside = |p: &LabelledPair| {
+                    ![a, b].contains(&fold_of[p.i]) && ![a, b].contains(&fold_of[p.j])
+                };
+                let (mut pos, mut neg) = (false, false);
+                for p in pairs.iter().filter(|p| outside(p)) {
+                    pos |= p.positive;
+                    neg |= !p.positive;
+                }
+                if pos && neg {
+                    let seed = chronomap_rng::derive_seed(seed, 0x11da_0004, a as u64, b as u64);
+                    models[a * folds + b] = Some(LoopModel::train(
+                        pairs, x, outside, learner, balance, rounds, seed,
+                    )?);
                 }
             }
         }
@@ -826,7 +874,7 @@ impl PairModels {
     /// saw neither; `None` if there is none.
     ///
     /// # Errors
-    /// As [`AdaBoost::probability`].
+    /// As [`LoopModel::probability`].
     pub fn probability(&self, i: usize, j: usize, x: &[f64]) -> Result<Option<f64>, EvalError> {
         let (Some(&a), Some(&b)) = (self.fold_of.get(i), self.fold_of.get(j)) else {
             return Ok(None);
