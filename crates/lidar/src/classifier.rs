@@ -4,7 +4,7 @@
 //!
 //! Two configurations:
 //! * [`ClassifierConfig::paper`] — the dissertation's: the 41 pair values of
-//!   [`compare`](crate::descriptor::compare), AdaBoost with decision stumps, trained on all
+//!   [`compare`], AdaBoost with decision stumps, trained on all
 //!   loop pairs and as many random non-loops;
 //! * [`ClassifierConfig::extended`] — ours (the default of `chronomap lidar`): the 41 values
 //!   and the three heading-tolerant [profile](crate::profile) features, boosted depth-2
