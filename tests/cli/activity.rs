@@ -203,6 +203,10 @@ fn bad_input_is_an_error_naming_file_line_and_column() {
 }
 
 #[test]
+// One of the two slowest tests (about 45 s of CPU each: CoPA-Map and GP-Hom are trained in a
+// debug build), kept out of the default run so that CI stays under 25 minutes; run it with
+// `cargo test --workspace -- --include-ignored`.
+#[ignore = "slow: trains CoPA-Map and GP-Hom (cargo test -- --include-ignored)"]
 fn copa_map_beats_every_baseline_on_the_later_days() {
     // A small CoPA-Map and GP-Hom (100 inducing points, 150 iterations) to keep the test
     // short; with the defaults (200, 300) CoPA-Map reaches NRMSE 2.028 in about 45 s of a

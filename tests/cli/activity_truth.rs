@@ -34,6 +34,10 @@ fn truth(tracks: &[&str], t0: &str, flags: &[&str]) -> Output {
 }
 
 #[test]
+// One of the two slowest tests (about 45 s of CPU each: CoPA-Map and GP-Hom are trained in a
+// debug build), kept out of the default run so that CI stays under 25 minutes; run it with
+// `cargo test --workspace -- --include-ignored`.
+#[ignore = "slow: trains CoPA-Map and GP-Hom (cargo test -- --include-ignored)"]
 fn the_atc_day_is_a_test_day_on_which_copa_map_beats_the_baselines() {
     let truth_file = tmp("activity_truth").join("atc_20121024_truth.csv");
     let hours = [9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20];
