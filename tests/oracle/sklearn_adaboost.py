@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference AdaBoost fits by scikit-learn for crates/lidar/tests/sklearn_adaboost.rs.
+"""Reference AdaBoost fits by scikit-learn for crates/lidar/tests/it/sklearn_adaboost.rs.
 
 Usage: sklearn_adaboost.py CASES.json
 

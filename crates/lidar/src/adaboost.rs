@@ -19,7 +19,7 @@
 //! AdaBoost [Freund & Schapire 1997] in the SAMME form of Zhu, Zou, Rosset & Hastie (2009),
 //! which for two classes is discrete AdaBoost; written to follow scikit-learn 1.9's
 //! `AdaBoostClassifier(estimator=DecisionTreeClassifier(max_depth=1))` step for step, so that
-//! it can be checked against it (`crates/lidar/tests/sklearn_adaboost.rs`):
+//! it can be checked against it (`crates/lidar/tests/it/sklearn_adaboost.rs`):
 //! 1. Sample weights `w_i` (uniform `1/n` or given), normalised to sum 1.
 //! 2. Each round `t`: weights below machine epsilon are raised to it (zero weights stay
 //!    zero); the stump minimising the weighted Gini impurity is fitted; its weighted error is
