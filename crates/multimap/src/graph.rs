@@ -45,6 +45,10 @@ use crate::search::{SearchParams, search_radius_for};
 pub const MAX_MAPS: usize = 100_000;
 /// The most link points plus link-point candidates a graph holds.
 pub const MAX_LINKS: usize = 100_000;
+/// The most link points one map may have for the edges between them ([`MapGraph::link_edges`],
+/// [`PathWeight::Distance`]): they are all pairs, so memory grows with the square (2,000 link
+/// points: 4·10⁶ edges).
+pub const MAX_LINKS_PER_MAP_FOR_EDGES: usize = 2_000;
 
 /// One metric map `Mᵢ` (the map data itself lives with the SLAM method that made it).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -331,9 +335,13 @@ impl MapGraph {
 
     /// The edges `E` within `map` (§3.3.1): every two of its link points, with the Euclidean
     /// distance of their positions in `map`'s frame, as `(link, link, distance)`.
+    ///
+    /// # Errors
+    /// [`MultimapError::UnknownMap`]; [`MultimapError::TooLarge`] if the map has more than
+    /// [`MAX_LINKS_PER_MAP_FOR_EDGES`] link points.
     pub fn link_edges(&self, map: usize) -> Result<Vec<(usize, usize, f64)>, MultimapError> {
         self.check_map(map)?;
-        let members: Vec<(usize, [f64; 2])> = self.members(map);
+        let members: Vec<(usize, [f64; 2])> = self.members_for_edges(map)?;
         let mut edges = Vec::new();
         for (i, &(a, pa)) in members.iter().enumerate() {
             for &(b, pb) in &members[i + 1..] {
@@ -341,6 +349,20 @@ impl MapGraph {
             }
         }
         Ok(edges)
+    }
+
+    /// [`MapGraph::members`], refused beyond [`MAX_LINKS_PER_MAP_FOR_EDGES`] (their edges are
+    /// all pairs).
+    fn members_for_edges(&self, map: usize) -> Result<Vec<(usize, [f64; 2])>, MultimapError> {
+        let members = self.members(map);
+        if members.len() > MAX_LINKS_PER_MAP_FOR_EDGES {
+            return Err(MultimapError::TooLarge {
+                what: "link points of one map (their edges are all pairs)",
+                n: members.len(),
+                max: MAX_LINKS_PER_MAP_FOR_EDGES,
+            });
+        }
+        Ok(members)
     }
 
     /// The link points of `map` with their positions in its frame.
@@ -403,7 +425,7 @@ impl MapGraph {
                 let nl = self.links.len();
                 let mut adj = vec![Vec::new(); nl + self.maps.len()];
                 for map in 0..self.maps.len() {
-                    let mut members: Vec<(usize, [f64; 2])> = self.members(map);
+                    let mut members: Vec<(usize, [f64; 2])> = self.members_for_edges(map)?;
                     members.push((nl + map, [0.0, 0.0]));
                     for &(a, pa) in &members {
                         for &(b, pb) in &members {

@@ -7,7 +7,9 @@
 
 use chronomap_multimap::MultimapError;
 use chronomap_multimap::config::MapConfig;
-use chronomap_multimap::graph::{LoopTarget, MAX_LINKS, MAX_MAPS, MapGraph, PathWeight};
+use chronomap_multimap::graph::{
+    LoopTarget, MAX_LINKS, MAX_LINKS_PER_MAP_FOR_EDGES, MAX_MAPS, MapGraph, PathWeight,
+};
 use chronomap_multimap::se2::{Mat3, Pose2, UncertainPose, position_lambda_max, wrap_angle};
 use chronomap_multimap::search::{SearchParams, search_radius};
 use chronomap_rng::Xoshiro256StarStar;
@@ -463,4 +465,22 @@ fn the_graph_bounds_are_errors() {
     };
     assert_eq!(g.add_link(0, origin, 1, origin), Err(full.clone()));
     assert_eq!(g.add_candidate(0, origin, 0), Err(full));
+    // Map 7 now has 50,000 link points: all pairs of them (distance paths) would be 1.25·10⁹
+    // edges, so those are refused; paths by hops do not need them.
+    let crowded = MultimapError::TooLarge {
+        what: "link points of one map (their edges are all pairs)",
+        n: MAX_LINKS / 2,
+        max: MAX_LINKS_PER_MAP_FOR_EDGES,
+    };
+    assert_eq!(g.link_edges(7), Err(crowded));
+    // Map 0, the first the distance path visits, already has 7,143 (every 14th k).
+    assert!(matches!(
+        g.map_path(0, 7, PathWeight::Distance),
+        Err(MultimapError::TooLarge {
+            n: 7143,
+            max: MAX_LINKS_PER_MAP_FOR_EDGES,
+            ..
+        })
+    ));
+    assert_eq!(g.map_path(0, 7, PathWeight::Hops).unwrap().maps, [0, 7]);
 }
