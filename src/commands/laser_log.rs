@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result, anyhow};
 use chronomap_io::laser_text::{read_keyframes, read_odometry, read_scans};
 use chronomap_lidar::Scan2d;
-use chronomap_lidar::evaluation::{compose, keyframe_increments};
+use chronomap_lidar::evaluation::{between, compose, keyframe_increments};
 use chronomap_rosbag::{Bag, TimeSource};
 
 use crate::cli::LaserSourceArgs;
@@ -62,15 +62,6 @@ impl LaserLog {
             sensor: self.sensor,
         }
     }
-}
-
-/// `b` in the frame of `a`: `a⁻¹ ⊕ b`.
-pub fn between(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    let (s, c) = a[2].sin_cos();
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let mut dyaw = b[2] - a[2];
-    dyaw = dyaw.sin().atan2(dyaw.cos());
-    [c * dx + s * dy, -s * dx + c * dy, dyaw]
 }
 
 /// Reads the log the flags name.
@@ -229,21 +220,5 @@ fn check_order(name: &str, times: &[f64]) -> Result<()> {
             times[k]
         )),
         None => Ok(()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn between_inverts_composition() {
-        let a = [1.0, 2.0, 0.7];
-        let b = [-0.3, 0.5, -2.9];
-        let c = compose(a, between(a, b));
-        for i in 0..2 {
-            assert!((c[i] - b[i]).abs() < 1e-12);
-        }
-        assert!(((c[2] - b[2]).sin()).abs() < 1e-12);
     }
 }

@@ -7,16 +7,14 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow};
 use chronomap_io::ply::read_ply;
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
-use chronomap_lidar::adaboost::AdaBoostParams;
 use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
 use chronomap_lidar::descriptor::{
     Descriptor, DescriptorParams, PAIR_FEATURE_NAMES, SCALAR_FEATURES, describe_cloud,
     describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, Candidate, CvParams, CvReport, EvalError, LabelParams, LabelledPair, NestedParams,
-    PairModels, PipelineParams, PipelineReport, WeakLearner, compose, cross_validate, label_pairs,
-    nested_cross_validate, run_pipeline, sector_folds,
+    Balance, CvReport, EvalError, LabelParams, LabelledPair, PipelineParams, PipelineReport,
+    WeakLearner, between, compose, label_pairs, layout_folds, run_pipeline,
 };
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
@@ -286,7 +284,7 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
     for &[i, j] in &pairs {
         // Keyframe j's scan moved onto keyframe i's: the true transform is the pose of j's
         // laser in the frame of i's.
-        let truth_ij = laser_log::between(sensor(i), sensor(j));
+        let truth_ij = between(sensor(i), sensor(j));
         let truth_ij = Rigid::from_pose(truth_ij[0], truth_ij[1], truth_ij[2]);
         let row = match register_scans(&log.scans[j], &log.scans[i], &params) {
             Ok(r) => {
@@ -306,14 +304,7 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
     }
     drop(bar);
     let seconds = start.elapsed().as_secs_f64();
-    let median = |mut v: Vec<f64>| -> f64 {
-        v.sort_by(f64::total_cmp);
-        match v.len() {
-            0 => f64::NAN,
-            n if n % 2 == 1 => v[n / 2],
-            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-        }
-    };
+    let median = |v: Vec<f64>| chronomap_bench::median(&v);
     // Failed registrations count as unbounded errors in the medians over all pairs.
     let rot_all = median(
         rows.iter()
@@ -543,36 +534,14 @@ fn cross_validate_layouts(
     let bar = ProgressBar::stage("cross-validation", flags.layouts as u64);
     let mut reports = Vec::with_capacity(flags.layouts);
     for layout in 0..flags.layouts {
-        let width = std::f64::consts::TAU / (2 * flags.folds) as f64;
-        let rotation = width * layout as f64 / flags.layouts as f64;
-        let fold_of = sector_folds(&data.places, flags.folds, rotation)?;
-        let seed = layout as u64 + 1;
-        let report = if data.config == ClassifierConfig::paper() {
-            // The dissertation's procedure as `cross_validate` runs it.
-            let params = CvParams {
-                seed,
-                max_fpr: flags.max_fpr,
-                adaboost: AdaBoostParams {
-                    rounds: flags.rounds,
-                },
-            };
-            cross_validate(&data.pairs, &data.rows, &fold_of, &params)?
-        } else {
-            let candidate = Candidate {
-                name: "configured".into(),
-                train_pairs: &data.pairs,
-                train_x: &data.rows,
-                score_x: &data.rows,
-                learner: data.config.learner,
-                balance: data.config.balance,
-            };
-            let params = NestedParams {
-                rounds: vec![data.config.rounds],
-                max_fpr: flags.max_fpr,
-                seed,
-            };
-            nested_cross_validate(&data.pairs, &[candidate], &fold_of, &params)?.report
-        };
+        let fold_of = layout_folds(&data.places, flags.folds, layout, flags.layouts)?;
+        let report = data.config.cross_validate(
+            &data.pairs,
+            &data.rows,
+            &fold_of,
+            flags.max_fpr,
+            layout as u64 + 1,
+        )?;
         reports.push(report);
         chronomap_core::progress::Progress::advance(&bar, 1);
     }
@@ -690,16 +659,8 @@ fn out_of_fold_pipeline(
     flags: &LoopTrainingFlags,
     cv: &LayoutsReport,
 ) -> Result<PipelineReport> {
-    let fold_of = sector_folds(&data.places, flags.folds, 0.0)?;
-    let models = PairModels::train_with(
-        &data.pairs,
-        &data.rows,
-        &fold_of,
-        data.config.learner,
-        data.config.balance,
-        data.config.rounds,
-        data.config.seed,
-    )?;
+    let fold_of = layout_folds(&data.places, flags.folds, 0, flags.layouts)?;
+    let models = data.config.pair_models(&data.pairs, &data.rows, &fold_of)?;
     let mut params = PipelineParams {
         min_separation: flags.min_separation,
         near: flags.near,
@@ -803,25 +764,20 @@ pub fn train(args: &LidarTrainArgs) -> Result<()> {
     let cv = cross_validate_layouts(&data, &args.training)?;
     // p_min: the median over fold layouts of the threshold that keeps the pooled
     // out-of-fold false-positive rate below the bound.
-    let mut thresholds: Vec<f64> = cv
+    let thresholds: Vec<f64> = cv
         .reports
         .iter()
         .map(|r| r.pooled_at_max_fpr.threshold)
         .filter(|t| t.is_finite())
         .collect();
-    thresholds.sort_by(f64::total_cmp);
-    let p_min = match thresholds.len() {
-        0 => {
-            return Err(anyhow!(
-                "{}: no threshold keeps the false-positive rate below {}",
-                data.log.name,
-                args.training.max_fpr
-            ));
-        }
-        n if n % 2 == 1 => thresholds[n / 2],
-        n => 0.5 * (thresholds[n / 2 - 1] + thresholds[n / 2]),
+    if thresholds.is_empty() {
+        return Err(anyhow!(
+            "{}: no threshold keeps the false-positive rate below {}",
+            data.log.name,
+            args.training.max_fpr
+        ));
     }
-    .min(1.0);
+    let p_min = chronomap_bench::median(&thresholds).min(1.0);
     let mut classifier = LoopClassifier::train(
         &data.config,
         &data.features,

@@ -46,8 +46,12 @@
 use serde::{Deserialize, Serialize};
 
 use crate::Scan2d;
+use crate::adaboost::AdaBoostParams;
 use crate::descriptor::{Descriptor, DescriptorError, DescriptorParams, compare, describe_scan};
-use crate::evaluation::{Balance, EvalError, LabelParams, LabelledPair, LoopModel, WeakLearner};
+use crate::evaluation::{
+    Balance, Candidate, CvParams, CvReport, EvalError, LabelParams, LabelledPair, LoopModel,
+    NestedParams, PairModels, WeakLearner, cross_validate, nested_cross_validate,
+};
 use crate::profile::{ProfileParams, RangeProfile, compare_extended, range_profile};
 
 /// The model-file kind of a saved [`LoopClassifier`].
@@ -182,6 +186,79 @@ impl ClassifierConfig {
                 ))),
             })
             .collect()
+    }
+}
+
+impl ClassifierConfig {
+    /// Whether this is the dissertation's procedure (41 values, stumps, subsampled
+    /// non-loops), whatever its rounds and seed.
+    pub fn is_paper(&self) -> bool {
+        self.profile.is_none()
+            && self.learner == WeakLearner::Stump
+            && self.balance == Balance::Subsample
+    }
+
+    /// Keyframe-disjoint cross-validation of this configuration over the folds `fold_of`
+    /// (`rows[k]` the pair vector of `pairs[k]`): the paper's procedure as [`cross_validate`]
+    /// runs it, any other configuration as [`nested_cross_validate`] with it as the only
+    /// candidate (nothing to choose).
+    ///
+    /// # Errors
+    /// As those two.
+    pub fn cross_validate<R: AsRef<[f64]>>(
+        &self,
+        pairs: &[LabelledPair],
+        rows: &[R],
+        fold_of: &[usize],
+        max_fpr: f64,
+        seed: u64,
+    ) -> Result<CvReport, EvalError> {
+        if self.is_paper() {
+            let params = CvParams {
+                seed,
+                max_fpr,
+                adaboost: AdaBoostParams {
+                    rounds: self.rounds,
+                },
+            };
+            return cross_validate(pairs, rows, fold_of, &params);
+        }
+        let candidate = Candidate {
+            name: "configured".into(),
+            train_pairs: pairs,
+            train_x: rows,
+            score_x: rows,
+            learner: self.learner,
+            balance: self.balance,
+        };
+        let params = NestedParams {
+            rounds: vec![self.rounds],
+            max_fpr,
+            seed,
+        };
+        Ok(nested_cross_validate(pairs, &[candidate], fold_of, &params)?.report)
+    }
+
+    /// The models that score any pair without having seen its keyframes
+    /// ([`PairModels::train_with`] with this configuration).
+    ///
+    /// # Errors
+    /// As [`PairModels::train_with`].
+    pub fn pair_models<R: AsRef<[f64]>>(
+        &self,
+        pairs: &[LabelledPair],
+        rows: &[R],
+        fold_of: &[usize],
+    ) -> Result<PairModels, EvalError> {
+        PairModels::train_with(
+            pairs,
+            rows,
+            fold_of,
+            self.learner,
+            self.balance,
+            self.rounds,
+            self.seed,
+        )
     }
 }
 

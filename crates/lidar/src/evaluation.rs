@@ -887,6 +887,52 @@ impl PairModels {
     }
 }
 
+/// The folds of layout `layout` of `layouts`: [`sector_folds`] with the sectors rotated by
+/// `layout/layouts` of a sector's width, so that the layouts together cover every rotation
+/// once.
+///
+/// # Errors
+/// As [`sector_folds`]; [`EvalError::Input`] for no layouts or `layout ≥ layouts`.
+pub fn layout_folds(
+    positions: &[[f64; 2]],
+    folds: usize,
+    layout: usize,
+    layouts: usize,
+) -> Result<Vec<usize>, EvalError> {
+    if layout >= layouts || folds == 0 {
+        return Err(EvalError::Input(format!(
+            "fold layout {layout} of {layouts} with {folds} folds"
+        )));
+    }
+    let width = std::f64::consts::TAU / (2 * folds) as f64;
+    sector_folds(positions, folds, width * layout as f64 / layouts as f64)
+}
+
+/// `b` in the frame of `a`: `a⁻¹ ⊕ b` for poses `(x, y, θ)`, the angle wrapped to `(−π, π]`
+/// (the inverse of [`compose`]: `compose(a, between(a, b)) = b`).
+///
+/// ```
+/// use chronomap_lidar::evaluation::{between, compose};
+///
+/// let (a, b) = ([1.0, 2.0, 0.7], [-0.3, 0.5, -2.9]);
+/// let c = compose(a, between(a, b));
+/// assert!((c[0] - b[0]).abs() < 1e-12 && (c[1] - b[1]).abs() < 1e-12);
+/// assert!((c[2] - b[2]).sin().abs() < 1e-12);
+/// // The robot 1 m ahead of a pose facing +y is at (0, 1) in the map.
+/// let d = between([0.0, 0.0, std::f64::consts::FRAC_PI_2], [0.0, 1.0, 0.0]);
+/// assert!((d[0] - 1.0).abs() < 1e-12 && d[1].abs() < 1e-12);
+/// ```
+pub fn between(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a[2].sin_cos();
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let dyaw = b[2] - a[2];
+    [
+        c * dx + s * dy,
+        -s * dx + c * dy,
+        dyaw.sin().atan2(dyaw.cos()),
+    ]
+}
+
 /// Compose robot-frame increments `(dx, dy, dθ)`: `a ⊕ b`.
 pub fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     let (s, c) = a[2].sin_cos();
