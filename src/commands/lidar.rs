@@ -258,13 +258,25 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
             }
             vec![[i, j]]
         }
-        None => (0..n)
-            .flat_map(|j| (0..j).map(move |i| [i, j]))
-            .filter(|&[i, j]| {
-                let (a, b) = (sensor(i), sensor(j));
-                j - i > args.min_separation && (a[0] - b[0]).hypot(a[1] - b[1]) < args.near
-            })
-            .collect(),
+        // The loop pairs of the laser positions, labelled as `lidar eval` labels them.
+        None => {
+            let places: Vec<[f64; 2]> = (0..n)
+                .map(|k| {
+                    let p = sensor(k);
+                    [p[0], p[1]]
+                })
+                .collect();
+            let labels = LabelParams {
+                near: args.near,
+                far: args.near,
+                min_separation: args.min_separation,
+            };
+            label_pairs(&places, &labels)?
+                .into_iter()
+                .filter(|p| p.positive)
+                .map(|p| [p.i, p.j])
+                .collect()
+        }
     };
     if pairs.is_empty() {
         return Err(anyhow!(
