@@ -10,6 +10,7 @@ Examples:
   chronomap serve --data chronomap-data --topo lab=lab.cmt --topo-layout lab=lab.yaml
   chronomap serve --data chronomap-data --activity atc=atc.cmcopa --activity-map atc=atc_map.yaml
   chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
+  chronomap serve --data node1 --postgres 'host=db.lab dbname=lab' --fleet --allow-host node1.lab
 
   chronomap serve --data chronomap-data --check      # verify the store, exit 0 or 1
   chronomap serve --data chronomap-data --salvage    # rebuild a damaged store from what is intact
@@ -70,6 +71,12 @@ pub struct ServeArgs {
     /// PostgreSQL schema of the tables (created if missing).
     #[arg(long, default_value = "chronomap", requires = "postgres")]
     pub postgres_schema: String,
+    /// Share the --postgres schema with other `chronomap serve --fleet` nodes: one log, any
+    /// node answers reads and writes for every model, a read with the header
+    /// `Chronomap-Read-After: SEQ` sees every write that returned `seq` ≤ SEQ on any node
+    /// (docs/fleet.md). Every service on the schema must run with --fleet.
+    #[arg(long, requires = "postgres", conflicts_with = "salvage")]
+    pub fleet: bool,
     /// Largest request body in bytes (larger ones get 413).
     #[arg(long, default_value_t = 32 << 20)]
     pub max_body_bytes: usize,

@@ -64,6 +64,9 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         .transpose()?;
     let maps = read_maps(args, &layouts, &activity_maps)?;
     let store: Arc<dyn Store> = match &args.postgres {
+        Some(config) if args.fleet => {
+            Arc::new(PostgresStore::connect_fleet(config, &args.postgres_schema)?)
+        }
         Some(config) => Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
         None => Arc::new(RedbStore::open(args.data.join("chronomap.redb"))?),
     };
@@ -170,6 +173,10 @@ fn check_or_salvage(args: &ServeArgs) -> Result<()> {
         return Ok(());
     }
     let (store, integrity): (Arc<dyn Store>, Option<String>) = match &args.postgres {
+        Some(config) if args.fleet => (
+            Arc::new(PostgresStore::connect_fleet(config, &args.postgres_schema)?),
+            None,
+        ),
         Some(config) => (
             Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
             None,

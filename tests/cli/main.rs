@@ -40,6 +40,8 @@ mod serve_crash;
 #[cfg(feature = "serve")]
 mod serve_damage;
 #[cfg(feature = "serve")]
+mod serve_fleet;
+#[cfg(feature = "serve")]
 mod serve_network;
 #[cfg(feature = "serve")]
 mod serve_security;

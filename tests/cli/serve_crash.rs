@@ -25,10 +25,10 @@ const KILLS: usize = 5;
 
 /// One batch a client sent, and whether the service acknowledged it.
 #[derive(Clone, Debug)]
-struct Sent {
-    times: Vec<f64>,
-    values: Vec<f64>,
-    acknowledged: bool,
+pub(crate) struct Sent {
+    pub(crate) times: Vec<f64>,
+    pub(crate) values: Vec<f64>,
+    pub(crate) acknowledged: bool,
 }
 
 /// What one client sent to each of its ids.
@@ -85,7 +85,7 @@ async fn client_loop(
 /// Matches what the service holds against what was sent: acknowledged batches must all be
 /// there, unacknowledged ones may be (the crash came after the commit, before the answer),
 /// nothing else may. Returns the batches present.
-fn present_batches(id: &str, sent: &[Sent], times: &[f64], values: &[f64]) -> Vec<Sent> {
+pub(crate) fn present_batches(id: &str, sent: &[Sent], times: &[f64], values: &[f64]) -> Vec<Sent> {
     let mut at = 0;
     let mut present = Vec::new();
     for (k, batch) in sent.iter().enumerate() {

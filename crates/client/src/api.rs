@@ -271,20 +271,54 @@ pub struct ObservationsResponse {
     pub values: Vec<f64>,
 }
 
+/// The request header of read-your-writes: the service answers only after applying the log up
+/// to this position (the `seq` of a [`WriteAck`], from any node of a fleet).
+pub const READ_AFTER_HEADER: &str = "chronomap-read-after";
+
+/// The response header giving the log position an answer was computed at.
+pub const SEQ_HEADER: &str = "chronomap-seq";
+
 /// Service health (`GET /v1/health`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Health {
-    /// `ok`.
+    /// `ok`; for a node of a fleet also `behind` (not level with the shared log for 5 s) or
+    /// `failed` (it stopped applying the log; see `reason`).
     pub status: String,
     /// Models held.
     pub models: u64,
     /// The store, e.g. `redb DIR/chronomap.redb`.
     pub store: String,
-    /// Last committed position of the observation log.
+    /// Last position of the observation log applied to the models this node serves: the
+    /// sequence token a reader may send in `Chronomap-Read-After`.
     pub seq: u64,
     /// Whether writes need a bearer token.
     pub auth: bool,
+    /// Whether this node shares its log with other nodes (`chronomap serve --fleet`).
+    #[serde(default)]
+    pub fleet: bool,
+    /// Last position of the shared log (equal to `seq` for a single service).
+    #[serde(default)]
+    pub head: u64,
+    /// `head - seq`: commit groups appended by other nodes and not yet applied here.
+    #[serde(default)]
+    pub lag: u64,
+    /// Seconds since this node last knew it had applied the whole log (0 when level).
+    #[serde(default)]
+    pub behind_secs: f64,
+    /// Why the node is `failed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+/// Which models `GET /v1/models` lists.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::IntoParams))]
+#[serde(deny_unknown_fields)]
+pub struct ListQuery {
+    /// Only ids starting with this text (e.g. `robot7/`): a robot's or a namespace's models.
+    #[serde(default)]
+    pub prefix: Option<String>,
 }
 
 #[cfg(test)]

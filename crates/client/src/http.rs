@@ -38,6 +38,7 @@ impl ClientError {
 pub struct Client {
     base: String,
     token: Option<String>,
+    read_after: Option<u64>,
     http: reqwest::Client,
 }
 
@@ -60,8 +61,19 @@ impl Client {
         Ok(Client {
             base: base.trim_end_matches('/').to_owned(),
             token,
+            read_after: None,
             http,
         })
+    }
+
+    /// A copy whose every request says `Chronomap-Read-After: seq`: the service answers only
+    /// once it has applied the log up to `seq`, so a read after a write (the `seq` of its
+    /// [`WriteAck`]) sees the write, also on another node of a fleet.
+    pub fn reading_after(&self, seq: u64) -> Client {
+        Client {
+            read_after: Some(seq),
+            ..self.clone()
+        }
     }
 
     async fn call<B: Serialize + ?Sized, R: DeserializeOwned>(
@@ -73,6 +85,9 @@ impl Client {
         let mut request = self.http.request(method, format!("{}{path}", self.base));
         if let Some(token) = &self.token {
             request = request.bearer_auth(token);
+        }
+        if let Some(seq) = self.read_after {
+            request = request.header(READ_AFTER_HEADER, seq);
         }
         if let Some(body) = body {
             request = request.json(body);
@@ -134,6 +149,19 @@ impl Client {
     /// All models.
     pub async fn list(&self) -> Result<ListResponse, ClientError> {
         self.call::<(), _>(Method::GET, "/v1/models", None).await
+    }
+
+    /// The models whose ids start with `prefix` (a robot's, a namespace's).
+    pub async fn list_prefix(&self, prefix: &str) -> Result<ListResponse, ClientError> {
+        let mut query = String::from("/v1/models?prefix=");
+        for byte in prefix.bytes() {
+            if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
+                query.push(byte as char);
+            } else {
+                query.push_str(&format!("%{byte:02X}"));
+            }
+        }
+        self.call::<(), _>(Method::GET, &query, None).await
     }
 
     /// Every observation a model holds.

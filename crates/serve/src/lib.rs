@@ -10,6 +10,8 @@
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
 //!   in an embedded redb file or in PostgreSQL (feature `postgres`, on by default).
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
+//! * [`fleet`]: several services over one shared PostgreSQL log (`chronomap serve --fleet`):
+//!   tailing, read-your-writes tokens, lag.
 //! * [`check`]: every snapshot and log entry verified at start (`chronomap serve --check`), and
 //!   the salvage of what is intact in a damaged store (`--salvage`).
 //! * [`maps`]: topological maps, occupancy grids and CoPA-Maps of people served read-only beside
@@ -21,6 +23,7 @@
 
 pub use chronomap_client::api;
 pub mod check;
+pub mod fleet;
 pub mod log;
 pub mod maps;
 pub mod registry;

@@ -4,7 +4,7 @@
 
 use std::future::Future;
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use axum::body::Bytes;
@@ -89,6 +89,8 @@ pub struct Service {
     max_body_bytes: usize,
     limits: ConnectionLimits,
     writer: std::thread::JoinHandle<()>,
+    /// A fleet node's tailer and its stop flag.
+    tailer: Option<(std::thread::JoinHandle<()>, Arc<AtomicBool>)>,
 }
 
 #[derive(Clone)]
@@ -117,6 +119,17 @@ impl Service {
             .name("chronomap-writer".into())
             .spawn(move || writer::run(writer_shared, commands, policy))
             .map_err(|e| format!("cannot start the writer thread: {e}"))?;
+        let tailer = if shared.store.is_shared() {
+            let stop = Arc::new(AtomicBool::new(false));
+            let (tail_shared, tail_stop) = (Arc::clone(&shared), Arc::clone(&stop));
+            let handle = std::thread::Builder::new()
+                .name("chronomap-tailer".into())
+                .spawn(move || crate::fleet::tail(tail_shared, tail_stop))
+                .map_err(|e| format!("cannot start the log tailer thread: {e}"))?;
+            Some((handle, stop))
+        } else {
+            None
+        };
         Ok(Service {
             state: AppState {
                 shared,
@@ -134,6 +147,7 @@ impl Service {
             max_body_bytes: config.max_body_bytes,
             limits: config.limits,
             writer,
+            tailer,
         })
     }
 
@@ -172,14 +186,21 @@ impl Service {
             state,
             writer,
             limits,
+            tailer,
             ..
         } = self;
         drop(state);
         serve_connections(listener, app, limits, shutdown).await;
         // The router (and every sender of writes) is gone: the writer drains and checkpoints.
-        tokio::task::spawn_blocking(move || writer.join())
-            .await
-            .ok();
+        tokio::task::spawn_blocking(move || {
+            let _ = writer.join();
+            if let Some((handle, stop)) = tailer {
+                stop.store(true, Ordering::Release);
+                let _ = handle.join();
+            }
+        })
+        .await
+        .ok();
         Ok(())
     }
 }
@@ -317,6 +338,7 @@ fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
             )
         })
         .layer(DefaultBodyLimit::max(max_body_bytes))
+        .layer(middleware::from_fn_with_state(outer.clone(), read_after))
         .layer(middleware::from_fn_with_state(outer.clone(), read_body))
         .layer(middleware::from_fn_with_state(outer, check_host))
 }
@@ -641,8 +663,16 @@ async fn openapi() -> Response {
 
 /// Service health. `store` is the kind of store (`redb`, `postgres`); with the bearer token
 /// (or on a service without one) it is the full description (file path or schema).
-#[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health)))]
-async fn health(State(state): State<AppState>, headers: axum::http::HeaderMap) -> Json<Health> {
+///
+/// A node of a fleet also reports the shared log's `head`, its `lag` behind it and for how
+/// long it has not been level with it; `status` is `behind` after 5 s and `failed` when it
+/// stopped applying the log.
+#[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health),
+    (status = 503, body = ErrorBody)))]
+async fn health(
+    State(state): State<AppState>,
+    headers: axum::http::HeaderMap,
+) -> Result<Json<Health>, ApiError> {
     let models = state.shared.registry.read().expect("registry lock").len() as u64;
     let store = state.shared.store.describe();
     let store = if authorized(&state, &headers) {
@@ -650,29 +680,93 @@ async fn health(State(state): State<AppState>, headers: axum::http::HeaderMap) -
     } else {
         store.split(' ').next().unwrap_or("store").to_owned()
     };
-    Json(Health {
-        status: "ok".into(),
+    let shared = Arc::clone(&state.shared);
+    let sync = tokio::task::spawn_blocking(move || crate::fleet::sync(&shared))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(|e| {
+            ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "unavailable",
+                format!("the store cannot be read: {e}"),
+            )
+        })?;
+    Ok(Json(Health {
+        status: sync.status().into(),
         models,
         store,
-        seq: state.shared.seq.load(Ordering::Acquire),
+        seq: sync.applied,
         auth: state.token.is_some(),
-    })
+        fleet: state.shared.store.is_shared(),
+        head: sync.head,
+        lag: sync.head - sync.applied,
+        behind_secs: sync.behind_secs,
+        reason: sync.broken,
+    }))
 }
 
-/// All models, by id (`list`).
-#[utoipa::path(get, path = "/v1/models", responses((status = 200, body = ListResponse)))]
-async fn list(State(state): State<AppState>) -> Json<ListResponse> {
+/// Read-your-writes: a request with `Chronomap-Read-After: SEQ` is answered only once this
+/// node has applied the log at least up to `SEQ` (a fleet node catches up first); every answer
+/// says in `Chronomap-Seq` at which position it was computed.
+async fn read_after(
+    State(state): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, ApiError> {
+    if let Some(value) = request.headers().get(READ_AFTER_HEADER) {
+        let token: u64 = value
+            .to_str()
+            .ok()
+            .and_then(|v| v.trim().parse().ok())
+            .ok_or_else(|| {
+                ApiError::bad_request(format!(
+                    "header `{READ_AFTER_HEADER}`: not a log position (a non-negative integer)"
+                ))
+            })?;
+        if state.shared.seq.load(Ordering::Acquire) < token && state.shared.store.is_shared() {
+            let shared = Arc::clone(&state.shared);
+            tokio::task::spawn_blocking(move || crate::fleet::catch_up(&shared))
+                .await
+                .map_err(|e| ApiError::internal(e.to_string()))?
+                .map_err(|e| ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", e))?;
+        }
+        let applied = state.shared.seq.load(Ordering::Acquire);
+        if applied < token {
+            return Err(ApiError::bad_request(format!(
+                "header `{READ_AFTER_HEADER}`: position {token} is beyond the end of the log \
+                 ({applied}); send the `seq` a write returned"
+            )));
+        }
+    }
+    let applied = state.shared.seq.load(Ordering::Acquire);
+    let mut response = next.run(request).await;
+    response
+        .headers_mut()
+        .insert(SEQ_HEADER, HeaderValue::from(applied));
+    Ok(response)
+}
+
+/// All models, by id (`list`); with `?prefix=robot7/` only the ids starting with it.
+#[utoipa::path(get, path = "/v1/models", params(ListQuery),
+    responses((status = 200, body = ListResponse), (status = 400, body = ErrorBody)))]
+async fn list(
+    State(state): State<AppState>,
+    query: Result<axum::extract::Query<ListQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<Json<ListResponse>, ApiError> {
+    let query = query.map_err(|e| ApiError::bad_request(e.body_text()))?.0;
+    let prefix = query.prefix.unwrap_or_default();
     let registry = state.shared.registry.read().expect("registry lock");
     let models = registry
         .ids()
         .into_iter()
+        .filter(|id| id.starts_with(prefix.as_str()))
         .map(|id| {
             let mut info = registry.get(id).expect("listed id").info(id);
             info.components.clear();
             info
         })
         .collect();
-    Json(ListResponse { models })
+    Ok(Json(ListResponse { models }))
 }
 
 /// Creates a model; no change if it exists with the same configuration.

@@ -55,6 +55,10 @@ pub struct Checkpoint<'a> {
 /// What [`Store::scan`] calls with each commit group: its log position and bytes.
 pub type Visit<'a> = dyn FnMut(u64, &[u8]) -> Result<(), StoreError> + 'a;
 
+/// What [`Store::append_next`] calls once the position of the next commit group is known: the
+/// encoded group for that position, or `None` to append nothing.
+pub type Build<'a> = dyn FnMut(u64) -> Option<Vec<u8>> + 'a;
+
 /// Durable storage of the log and the snapshots.
 ///
 /// Methods block; the service calls them from its writer thread and from blocking tasks.
@@ -86,6 +90,55 @@ pub trait Store: Send + Sync {
     /// # Errors
     /// The store cannot be read, or `visit` failed.
     fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError>;
+
+    /// Appends the next commit group after `known`, the last position this process has
+    /// applied. A store that several processes share (a fleet, [`Store::is_shared`]) first
+    /// takes its global append lock and calls `catch_up` with every group after `known` that
+    /// others appended, in order; then `build` makes the group for the next free position,
+    /// which is appended, all under the lock, so that every group is checked against the state
+    /// every earlier group made. Returns the position written (`None` when `build` made
+    /// nothing).
+    ///
+    /// The default, for a store one process owns, is [`Store::append`] at `known + 1`.
+    ///
+    /// # Errors
+    /// As [`Store::append`]; or `catch_up` failed (nothing was appended).
+    fn append_next(
+        &self,
+        known: u64,
+        catch_up: &mut Visit<'_>,
+        build: &mut Build<'_>,
+    ) -> Result<Option<u64>, StoreError> {
+        let _ = catch_up;
+        match build(known + 1) {
+            Some(group) => {
+                self.append(known + 1, &group)?;
+                Ok(Some(known + 1))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// Whether other processes append to the same log (`chronomap serve --fleet`): the service
+    /// then tails the log ([`crate::fleet`]).
+    fn is_shared(&self) -> bool {
+        false
+    }
+
+    /// The last position of the log as the store has it now, for a shared store; `None` for a
+    /// store one process owns (its own position is the head).
+    ///
+    /// # Errors
+    /// The store cannot be read.
+    fn head(&self) -> Result<Option<u64>, StoreError> {
+        Ok(None)
+    }
+
+    /// Blocks until another process may have appended (a shared store's notification) or
+    /// `timeout` has passed; a store one process owns just waits.
+    fn wait_for_appends(&self, timeout: std::time::Duration) {
+        std::thread::sleep(timeout);
+    }
 }
 
 /// Encodes a model entry as a snapshot (versioned, CRC-32-checked container).

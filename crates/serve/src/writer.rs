@@ -10,7 +10,7 @@
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
 
 use tokio::sync::{mpsc, oneshot};
@@ -112,8 +112,92 @@ pub struct Shared {
     pub registry: RwLock<Registry>,
     /// The store.
     pub store: Arc<dyn Store>,
-    /// Last durable log position.
+    /// Last durable log position applied to `registry` (changed only under its write lock).
     pub seq: AtomicU64,
+    /// Models changed since the last checkpoint: by this service's writes and, in a fleet, by
+    /// the groups other nodes appended. Locked after `registry`, never before.
+    changes: Mutex<Changes>,
+    /// Held by whoever applies log groups to `registry` (the writer; in a fleet also the
+    /// tailer), so that each group is applied once and in order.
+    pub(crate) applying: Mutex<()>,
+    /// When this service last knew it had applied the whole log (see [`crate::fleet`]).
+    pub(crate) synced: Mutex<Instant>,
+    /// Why this service stopped applying the log, if it did (a group that cannot be applied).
+    pub(crate) broken: Mutex<Option<String>>,
+}
+
+/// Models changed since the last checkpoint.
+#[derive(Default)]
+struct Changes {
+    dirty: HashSet<String>,
+    removed: HashSet<String>,
+    observations: u64,
+}
+
+impl Changes {
+    fn touched(&mut self, id: &str, exists: bool) {
+        if exists {
+            self.removed.remove(id);
+            self.dirty.insert(id.to_owned());
+        } else {
+            self.dirty.remove(id);
+            self.removed.insert(id.to_owned());
+        }
+    }
+}
+
+impl Shared {
+    /// A service state holding `registry` at log position `seq`.
+    pub fn new(store: Arc<dyn Store>, registry: Registry, seq: u64) -> Self {
+        Shared {
+            registry: RwLock::new(registry),
+            store,
+            seq: AtomicU64::new(seq),
+            changes: Mutex::new(Changes::default()),
+            applying: Mutex::new(()),
+            synced: Mutex::new(Instant::now()),
+            broken: Mutex::new(None),
+        }
+    }
+
+    /// Applies the commit group another node appended at `seq` (the next position after
+    /// [`Shared::seq`]). Call with [`Shared::applying`] held.
+    ///
+    /// # Errors
+    /// A gap before `seq`, a damaged group, or a record that cannot be applied: the registry
+    /// may then hold part of the group, so the caller must stop applying (see
+    /// [`Shared::broken`]).
+    pub(crate) fn apply_logged(&self, seq: u64, bytes: &[u8]) -> Result<(), StoreError> {
+        let error = |reason: String| StoreError {
+            store: self.store.describe(),
+            reason,
+        };
+        let known = self.seq.load(Ordering::Acquire);
+        if seq <= known {
+            return Ok(());
+        }
+        if seq != known + 1 {
+            return Err(error(format!(
+                "log entry {} is missing (the next entry is {seq})",
+                known + 1
+            )));
+        }
+        let records = decode_group(seq, bytes).map_err(|e| error(e.to_string()))?;
+        let mut registry = self.registry.write().expect("registry lock");
+        let mut changes = self.changes.lock().expect("changes lock");
+        for record in &records {
+            registry.apply(record).map_err(|e| {
+                error(format!(
+                    "log entry {seq} cannot be applied to model {:?}: {e}",
+                    record.id()
+                ))
+            })?;
+            changes.touched(record.id(), registry.get(record.id()).is_some());
+        }
+        changes.observations += records.iter().map(|r| r.observations() as u64).sum::<u64>();
+        self.seq.store(seq, Ordering::Release);
+        Ok(())
+    }
 }
 
 /// Loads the last checkpoint and replays the log after it, having verified every snapshot
@@ -128,11 +212,7 @@ pub fn recover(store: Arc<dyn Store>) -> Result<Shared, String> {
     if !verified.report.damage.is_empty() {
         return Err(verified.report.failure());
     }
-    Ok(Shared {
-        registry: RwLock::new(verified.registry),
-        seq: AtomicU64::new(verified.last_seq),
-        store,
-    })
+    Ok(Shared::new(store, verified.registry, verified.last_seq))
 }
 
 /// Every observation of `id` since it was last created, from the durable log.
@@ -203,7 +283,17 @@ pub fn run(
             }
             continue;
         }
-        if let Err(reason) = commit_group(&shared, group, &mut checkpoints) {
+        if let Some(reason) = shared.broken.lock().expect("broken lock").clone() {
+            for command in group {
+                let _ = command.reply.send(Err(WriteError::Store(reason.clone())));
+            }
+            continue;
+        }
+        if let Err(reason) = commit_group(&shared, group)
+            && !shared.store.is_shared()
+        {
+            // A shared log needs no stop: the next append reads the log from the last
+            // position applied, so a group that did commit is applied then, once.
             failed = Some(reason);
         }
         checkpoints.maybe_write(&shared, false);
@@ -214,62 +304,73 @@ pub fn run(
 }
 
 /// Checks, commits and publishes one group; returns the store failure, if any.
-fn commit_group(
-    shared: &Shared,
-    group: Vec<WriteCommand>,
-    checkpoints: &mut Checkpoints,
-) -> Result<(), String> {
+fn commit_group(shared: &Shared, group: Vec<WriteCommand>) -> Result<(), String> {
+    let _applying = shared.applying.lock().expect("applying lock");
     let mut staged: HashMap<String, Option<Entry>> = HashMap::new();
     let mut records: Vec<LogRecord> = Vec::new();
     let mut outcomes = Vec::with_capacity(group.len());
-    {
-        let registry = shared.registry.read().expect("registry lock");
-        for command in group {
-            let mut scratch: HashMap<String, Option<Entry>> = HashMap::new();
-            let mut command_records = Vec::new();
-            let result = stage(
-                command.ops,
-                &registry,
-                &staged,
-                &mut scratch,
-                &mut command_records,
-            );
-            match result {
-                Ok(observations) => {
-                    staged.extend(scratch);
-                    records.extend(command_records);
-                    outcomes.push((command.reply, Ok(observations)));
+    let mut waiting = Some(group);
+    let known = shared.seq.load(Ordering::Acquire);
+    let appended = shared.store.append_next(
+        known,
+        &mut |seq, bytes| shared.apply_logged(seq, bytes),
+        &mut |seq| {
+            // Every group before `seq` is applied now: check the requests against them.
+            let registry = shared.registry.read().expect("registry lock");
+            for command in waiting.take().into_iter().flatten() {
+                let mut scratch: HashMap<String, Option<Entry>> = HashMap::new();
+                let mut command_records = Vec::new();
+                let result = stage(
+                    command.ops,
+                    &registry,
+                    &staged,
+                    &mut scratch,
+                    &mut command_records,
+                );
+                match result {
+                    Ok(observations) => {
+                        staged.extend(scratch);
+                        records.append(&mut command_records);
+                        outcomes.push((command.reply, Ok(observations)));
+                    }
+                    Err(e) => outcomes.push((command.reply, Err(e))),
                 }
-                Err(e) => outcomes.push((command.reply, Err(e))),
             }
-        }
-    }
-    let seq = shared.seq.load(Ordering::Acquire);
+            (!records.is_empty()).then(|| encode_group(seq, &records))
+        },
+    );
     let mut store_failure = None;
-    let committed_seq = if records.is_empty() {
-        seq
-    } else {
-        let bytes = encode_group(seq + 1, &records);
-        match shared.store.append(seq + 1, &bytes) {
-            Ok(()) => {
-                let mut registry = shared.registry.write().expect("registry lock");
-                for (id, slot) in staged {
-                    checkpoints.touched(&id, slot.is_some());
-                    registry.put(id, slot);
-                }
-                shared.seq.store(seq + 1, Ordering::Release);
-                checkpoints.observations +=
-                    records.iter().map(|r| r.observations() as u64).sum::<u64>();
-                seq + 1
+    let committed_seq = match appended {
+        Ok(Some(seq)) => {
+            let mut registry = shared.registry.write().expect("registry lock");
+            let mut changes = shared.changes.lock().expect("changes lock");
+            for (id, slot) in staged {
+                changes.touched(&id, slot.is_some());
+                registry.put(id, slot);
             }
-            Err(e) => {
-                store_failure = Some(format!(
-                    "the store failed ({e}); writes are refused until the service is restarted"
-                ));
-                seq
-            }
+            changes.observations += records.iter().map(|r| r.observations() as u64).sum::<u64>();
+            shared.seq.store(seq, Ordering::Release);
+            seq
+        }
+        Ok(None) => shared.seq.load(Ordering::Acquire),
+        Err(e) => {
+            let reason = if shared.store.is_shared() {
+                format!(
+                    "the store failed ({e}); the write may or may not be in the log: read the \
+                     model before sending it again"
+                )
+            } else {
+                format!("the store failed ({e}); writes are refused until the service is restarted")
+            };
+            store_failure = Some(reason);
+            shared.seq.load(Ordering::Acquire)
         }
     };
+    // Requests never checked (the store failed before): the store's error.
+    for command in waiting.into_iter().flatten() {
+        let reason = store_failure.clone().unwrap_or_default();
+        let _ = command.reply.send(Err(WriteError::Store(reason)));
+    }
     for (reply, outcome) in outcomes {
         let outcome = match (&store_failure, outcome) {
             (_, Err(e)) => Err(WriteError::Apply(e)),
@@ -327,12 +428,9 @@ fn stage(
     Ok(observations)
 }
 
-/// Which models changed since the last checkpoint, and when to write the next.
+/// When to write the next checkpoint.
 struct Checkpoints {
     policy: CheckpointPolicy,
-    dirty: HashSet<String>,
-    removed: HashSet<String>,
-    observations: u64,
     last: Instant,
 }
 
@@ -340,55 +438,53 @@ impl Checkpoints {
     fn new(policy: CheckpointPolicy) -> Self {
         Checkpoints {
             policy,
-            dirty: HashSet::new(),
-            removed: HashSet::new(),
-            observations: 0,
             last: Instant::now(),
-        }
-    }
-
-    fn touched(&mut self, id: &str, exists: bool) {
-        if exists {
-            self.removed.remove(id);
-            self.dirty.insert(id.to_owned());
-        } else {
-            self.dirty.remove(id);
-            self.removed.insert(id.to_owned());
         }
     }
 
     /// Snapshots every changed model if the policy (or `force`) says so.
     fn maybe_write(&mut self, shared: &Shared, force: bool) {
-        let changed = !self.dirty.is_empty() || !self.removed.is_empty();
-        let due = self.observations >= self.policy.every_observations
-            || self.last.elapsed() >= self.policy.every;
-        if !changed || !(due || force) {
-            return;
-        }
-        let (seq, snapshots) = {
+        let (seq, snapshots, taken) = {
             let registry = shared.registry.read().expect("registry lock");
-            let snapshots: Vec<(String, Vec<u8>)> = self
+            let mut changes = shared.changes.lock().expect("changes lock");
+            let changed = !changes.dirty.is_empty() || !changes.removed.is_empty();
+            let due = changes.observations >= self.policy.every_observations
+                || self.last.elapsed() >= self.policy.every;
+            if !changed || !(due || force) {
+                return;
+            }
+            let taken = std::mem::take(&mut *changes);
+            let snapshots: Vec<(String, Vec<u8>)> = taken
                 .dirty
                 .iter()
                 .filter_map(|id| registry.get(id).map(|e| (id.clone(), encode_snapshot(e))))
                 .collect();
-            (shared.seq.load(Ordering::Acquire), snapshots)
+            (shared.seq.load(Ordering::Acquire), snapshots, taken)
         };
-        let removed: Vec<String> = self.removed.iter().cloned().collect();
+        let removed: Vec<String> = taken.removed.iter().cloned().collect();
         let checkpoint = Checkpoint {
             seq,
             snapshots: &snapshots,
             removed: &removed,
         };
         match shared.store.checkpoint(&checkpoint) {
-            Ok(()) => {
-                self.dirty.clear();
-                self.removed.clear();
-                self.observations = 0;
-                self.last = Instant::now();
+            Ok(()) => self.last = Instant::now(),
+            Err(e) => {
+                // The log still holds everything; the next checkpoint tries again.
+                eprintln!("warning: checkpoint at log position {seq} failed: {e}");
+                let mut changes = shared.changes.lock().expect("changes lock");
+                for id in taken.dirty {
+                    if !changes.removed.contains(&id) {
+                        changes.dirty.insert(id);
+                    }
+                }
+                for id in taken.removed {
+                    if !changes.dirty.contains(&id) {
+                        changes.removed.insert(id);
+                    }
+                }
+                changes.observations += taken.observations;
             }
-            // The log still holds everything; the next checkpoint tries again.
-            Err(e) => eprintln!("warning: checkpoint at log position {seq} failed: {e}"),
         }
     }
 }

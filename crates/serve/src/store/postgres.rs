@@ -9,14 +9,23 @@
 //! that session has ended, so the new service never reads a state that a late commit of the
 //! old one changes afterwards. Recovery then reads the checkpoint, the snapshots and the end
 //! of the log in one repeatable-read transaction, so they are one consistent state.
+//!
+//! A *fleet* ([`PostgresStore::connect_fleet`], `chronomap serve --fleet`) is several services
+//! sharing one schema. Each holds the schema's advisory lock in shared mode (so no
+//! single-owner service can open it meanwhile, nor a fleet node while one runs); appends take a
+//! transaction-level advisory lock, read the groups other nodes appended since this node's last
+//! position, and insert at the next position, so the log stays gap-free and in commit order;
+//! each commit sends a `NOTIFY` on the schema's channel that wakes the other nodes' tailers
+//! (`LISTEN` on a second connection). Checkpoints only move forward: a node whose snapshots are
+//! older than the stored checkpoint writes nothing. Design and guarantee: docs/fleet.md.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use tokio::runtime::Runtime;
 use tokio_postgres::{Client, NoTls};
 
-use super::{Checkpoint, Recovered, Store, StoreError, Visit};
+use super::{Build, Checkpoint, Recovered, Store, StoreError, Visit};
 
 /// How long [`PostgresStore::connect`] waits for another session to give up the schema.
 const OWNER_WAIT: Duration = Duration::from_secs(15);
@@ -27,6 +36,16 @@ pub struct PostgresStore {
     schema: String,
     runtime: Runtime,
     client: Mutex<Client>,
+    /// Set for a fleet node.
+    fleet: Option<Fleet>,
+}
+
+/// What a fleet node has besides the client: the connection that listens for other nodes'
+/// appends.
+struct Fleet {
+    /// Kept open: its connection's task wakes `appended` on every notification.
+    _listener: Client,
+    appended: Arc<tokio::sync::Notify>,
 }
 
 impl PostgresStore {
@@ -47,7 +66,25 @@ impl PostgresStore {
     /// # Errors
     /// As [`PostgresStore::connect`].
     pub fn connect_waiting(config: &str, schema: &str, wait: Duration) -> Result<Self, StoreError> {
-        let describe = format!("postgres schema {schema}");
+        Self::open(config, schema, wait, false)
+    }
+
+    /// Connects as one node of a fleet sharing the schema (see the module documentation):
+    /// creates the tables if missing, takes the schema's advisory lock in shared mode and
+    /// listens for the other nodes' appends.
+    ///
+    /// # Errors
+    /// As [`PostgresStore::connect`]; a single-owner service holds the schema.
+    pub fn connect_fleet(config: &str, schema: &str) -> Result<Self, StoreError> {
+        Self::open(config, schema, OWNER_WAIT, true)
+    }
+
+    fn open(config: &str, schema: &str, wait: Duration, fleet: bool) -> Result<Self, StoreError> {
+        let describe = if fleet {
+            format!("postgres schema {schema} (fleet)")
+        } else {
+            format!("postgres schema {schema}")
+        };
         let error = |reason: String| StoreError {
             store: describe.clone(),
             reason,
@@ -71,64 +108,122 @@ impl PostgresStore {
         let client = runtime.block_on(async {
             let (client, connection) = tokio_postgres::connect(config, NoTls)
                 .await
-                .map_err(|e| error(format!("cannot connect: {e}")))?;
+                .map_err(|e| error(format!("cannot connect: {}", db_message(&e))))?;
             tokio::spawn(async move {
                 // The connection ends with an error when the server goes away; every later
                 // query then fails and the writer stops.
                 let _ = connection.await;
             });
+            // Nodes of a fleet start at once: `IF NOT EXISTS` is not safe against a concurrent
+            // creation, so creation is serialised by a transaction-level advisory lock.
             client
                 .batch_execute(&format!(
-                    "CREATE SCHEMA IF NOT EXISTS {schema};
+                    "BEGIN;
+                     SELECT pg_advisory_xact_lock(hashtextextended('chronomap serve: {schema}', 2));
+                     CREATE SCHEMA IF NOT EXISTS {schema};
                      CREATE TABLE IF NOT EXISTS {schema}.log (seq BIGINT PRIMARY KEY, grp BYTEA NOT NULL);
                      CREATE TABLE IF NOT EXISTS {schema}.snapshots (id TEXT PRIMARY KEY, bytes BYTEA NOT NULL);
-                     CREATE TABLE IF NOT EXISTS {schema}.meta (key TEXT PRIMARY KEY, value BIGINT NOT NULL);"
+                     CREATE TABLE IF NOT EXISTS {schema}.meta (key TEXT PRIMARY KEY, value BIGINT NOT NULL);
+                     COMMIT;"
                 ))
                 .await
-                .map_err(|e| error(format!("cannot create tables: {e}")))?;
+                .map_err(|e| error(format!("cannot create tables: {}", db_message(&e))))?;
             let lock = format!("chronomap serve: {schema}");
             let start = Instant::now();
+            let try_lock = if fleet {
+                "SELECT pg_try_advisory_lock_shared(hashtextextended($1, 0))"
+            } else {
+                "SELECT pg_try_advisory_lock(hashtextextended($1, 0))"
+            };
             loop {
                 let owned: bool = client
-                    .query_one(
-                        "SELECT pg_try_advisory_lock(hashtextextended($1, 0))",
-                        &[&lock],
-                    )
+                    .query_one(try_lock, &[&lock])
                     .await
-                    .map_err(|e| error(format!("cannot lock the schema: {e}")))?
+                    .map_err(|e| error(format!("cannot lock the schema: {}", db_message(&e))))?
                     .get(0);
                 if owned {
                     break;
                 }
                 if start.elapsed() >= wait {
-                    return Err(error(format!(
-                        "another session (a running chronomap serve?) has held the schema for {:.1} s; \
-                         one service per schema",
-                        wait.as_secs_f64()
-                    )));
+                    return Err(error(if fleet {
+                        format!(
+                            "a single-owner service (chronomap serve without --fleet?) has held \
+                             the schema for {:.1} s; stop it, or start every service on this \
+                             schema with --fleet",
+                            wait.as_secs_f64()
+                        )
+                    } else {
+                        format!(
+                            "another session (a running chronomap serve?) has held the schema \
+                             for {:.1} s; one service per schema, or start every service on it \
+                             with --fleet",
+                            wait.as_secs_f64()
+                        )
+                    }));
                 }
                 tokio::time::sleep(Duration::from_millis(20)).await;
             }
-            Ok::<_, StoreError>(client)
+            let fleet = if fleet {
+                Some(listen(config, schema).await.map_err(|e| {
+                    error(format!("cannot listen for the other nodes' appends: {e}"))
+                })?)
+            } else {
+                None
+            };
+            Ok::<_, StoreError>((client, fleet))
         })?;
+        let (client, fleet) = client;
         Ok(PostgresStore {
             describe,
             schema: schema.to_owned(),
             runtime,
             client: Mutex::new(client),
+            fleet,
         })
     }
 
-    fn error(&self, e: impl std::fmt::Display) -> StoreError {
+    fn error(&self, e: tokio_postgres::Error) -> StoreError {
         StoreError {
             store: self.describe.clone(),
-            reason: e.to_string(),
+            reason: db_message(&e),
         }
     }
 
     fn seq_param(&self, seq: u64) -> Result<i64, StoreError> {
-        i64::try_from(seq).map_err(|_| self.error(format!("log position {seq} exceeds BIGINT")))
+        i64::try_from(seq).map_err(|_| StoreError {
+            store: self.describe.clone(),
+            reason: format!("log position {seq} exceeds BIGINT"),
+        })
     }
+}
+
+/// The server's own message of a database error (tokio-postgres displays only "db error").
+fn db_message(e: &tokio_postgres::Error) -> String {
+    match e.as_db_error() {
+        Some(db) => format!("{e}: {}", db.message()),
+        None => e.to_string(),
+    }
+}
+
+/// A second connection that `LISTEN`s on the schema's channel; every notification (an append
+/// by any node) wakes the returned [`Fleet::appended`].
+async fn listen(config: &str, schema: &str) -> Result<Fleet, tokio_postgres::Error> {
+    let (listener, mut connection) = tokio_postgres::connect(config, NoTls).await?;
+    let appended = Arc::new(tokio::sync::Notify::new());
+    let wake = Arc::clone(&appended);
+    tokio::spawn(async move {
+        // Drives the connection; ends when the server goes away (the tailer then polls).
+        while let Some(Ok(message)) = std::future::poll_fn(|cx| connection.poll_message(cx)).await {
+            if matches!(message, tokio_postgres::AsyncMessage::Notification(_)) {
+                wake.notify_one();
+            }
+        }
+    });
+    listener.batch_execute(&format!("LISTEN {schema}")).await?;
+    Ok(Fleet {
+        _listener: listener,
+        appended,
+    })
 }
 
 impl Store for PostgresStore {
@@ -198,6 +293,29 @@ impl Store for PostgresStore {
         let mut client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
+            if self.fleet.is_some() {
+                // Checkpoints only move forward: another node may have written a later one.
+                txn.execute(
+                    &format!(
+                        "INSERT INTO {s}.meta (key, value) VALUES ('checkpoint', 0)
+                         ON CONFLICT (key) DO NOTHING"
+                    ),
+                    &[],
+                )
+                .await
+                .map_err(|e| self.error(e))?;
+                let current: i64 = txn
+                    .query_one(
+                        &format!("SELECT value FROM {s}.meta WHERE key = 'checkpoint' FOR UPDATE"),
+                        &[],
+                    )
+                    .await
+                    .map_err(|e| self.error(e))?
+                    .get(0);
+                if current >= seq {
+                    return txn.rollback().await.map_err(|e| self.error(e));
+                }
+            }
             let upsert = txn
                 .prepare(&format!(
                     "INSERT INTO {s}.snapshots (id, bytes) VALUES ($1, $2)
@@ -259,6 +377,108 @@ impl Store for PostgresStore {
             if (count as i64) < PAGE {
                 return Ok(());
             }
+        }
+    }
+
+    fn append_next(
+        &self,
+        known: u64,
+        catch_up: &mut Visit<'_>,
+        build: &mut Build<'_>,
+    ) -> Result<Option<u64>, StoreError> {
+        if self.fleet.is_none() {
+            let Some(group) = build(known + 1) else {
+                return Ok(None);
+            };
+            self.append(known + 1, &group)?;
+            return Ok(Some(known + 1));
+        }
+        let s = &self.schema;
+        let mut client = self.client.lock().expect("postgres client lock");
+        self.runtime.block_on(async {
+            let txn = client.transaction().await.map_err(|e| self.error(e))?;
+            // One appender at a time in the whole fleet; released by commit or rollback (and by
+            // the server when a node dies mid-transaction).
+            txn.execute(
+                "SELECT pg_advisory_xact_lock(hashtextextended($1, 1))",
+                &[&format!("chronomap serve: {s}")],
+            )
+            .await
+            .map_err(|e| self.error(e))?;
+            // What the others appended since `known`, in pages.
+            const PAGE: i64 = 256;
+            let mut last = self.seq_param(known)?;
+            loop {
+                let rows = txn
+                    .query(
+                        &format!(
+                            "SELECT seq, grp FROM {s}.log WHERE seq > $1 ORDER BY seq LIMIT $2"
+                        ),
+                        &[&last, &PAGE],
+                    )
+                    .await
+                    .map_err(|e| self.error(e))?;
+                let count = rows.len();
+                for row in rows {
+                    let seq: i64 = row.get(0);
+                    catch_up(seq as u64, row.get(1))?;
+                    last = seq;
+                }
+                if (count as i64) < PAGE {
+                    break;
+                }
+            }
+            let next = last + 1;
+            let Some(group) = build(next as u64) else {
+                txn.rollback().await.map_err(|e| self.error(e))?;
+                return Ok(None);
+            };
+            txn.execute(
+                &format!("INSERT INTO {s}.log (seq, grp) VALUES ($1, $2)"),
+                &[&next, &group],
+            )
+            .await
+            .map_err(|e| self.error(e))?;
+            // Delivered at commit, to every node listening.
+            txn.execute("SELECT pg_notify($1, $2)", &[s, &next.to_string()])
+                .await
+                .map_err(|e| self.error(e))?;
+            txn.commit().await.map_err(|e| self.error(e))?;
+            Ok(Some(next as u64))
+        })
+    }
+
+    fn is_shared(&self) -> bool {
+        self.fleet.is_some()
+    }
+
+    fn head(&self) -> Result<Option<u64>, StoreError> {
+        if self.fleet.is_none() {
+            return Ok(None);
+        }
+        let client = self.client.lock().expect("postgres client lock");
+        self.runtime.block_on(async {
+            let head: i64 = client
+                .query_one(
+                    &format!("SELECT COALESCE(MAX(seq), 0) FROM {}.log", self.schema),
+                    &[],
+                )
+                .await
+                .map_err(|e| self.error(e))?
+                .get(0);
+            Ok(Some(head as u64))
+        })
+    }
+
+    fn wait_for_appends(&self, timeout: Duration) {
+        match &self.fleet {
+            Some(fleet) => {
+                let appended = Arc::clone(&fleet.appended);
+                let _ = self
+                    .runtime
+                    .block_on(async { tokio::time::timeout(timeout, appended.notified()).await });
+            }
+            None => std::thread::sleep(timeout),
         }
     }
 }
