@@ -38,6 +38,18 @@ pub struct PostgresStore {
     client: Mutex<Client>,
     /// Set for a fleet node.
     fleet: Option<Fleet>,
+    read_only: bool,
+}
+
+/// How a store holds its schema.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    /// One service, exclusively.
+    Owner,
+    /// One node of a fleet (shared lock, shared log).
+    Fleet,
+    /// A reader beside the writers (no lock; writes refused).
+    Reader,
 }
 
 /// What a fleet node has besides the client: the connection that listens for other nodes'
@@ -66,7 +78,17 @@ impl PostgresStore {
     /// # Errors
     /// As [`PostgresStore::connect`].
     pub fn connect_waiting(config: &str, schema: &str, wait: Duration) -> Result<Self, StoreError> {
-        Self::open(config, schema, wait, false)
+        Self::open(config, schema, wait, Mode::Owner)
+    }
+
+    /// Connects to read an existing store beside the services that write it (an export, a
+    /// report): takes no lock and refuses to append or checkpoint. Reading is safe alongside
+    /// writers because the log is append-only and [`Store::recover`] reads in one snapshot.
+    ///
+    /// # Errors
+    /// The server cannot be reached, or the schema holds no chronomap store.
+    pub fn connect_reader(config: &str, schema: &str) -> Result<Self, StoreError> {
+        Self::open(config, schema, Duration::ZERO, Mode::Reader)
     }
 
     /// Connects as one node of a fleet sharing the schema (see the module documentation):
@@ -76,14 +98,15 @@ impl PostgresStore {
     /// # Errors
     /// As [`PostgresStore::connect`]; a single-owner service holds the schema.
     pub fn connect_fleet(config: &str, schema: &str) -> Result<Self, StoreError> {
-        Self::open(config, schema, OWNER_WAIT, true)
+        Self::open(config, schema, OWNER_WAIT, Mode::Fleet)
     }
 
-    fn open(config: &str, schema: &str, wait: Duration, fleet: bool) -> Result<Self, StoreError> {
-        let describe = if fleet {
-            format!("postgres schema {schema} (fleet)")
-        } else {
-            format!("postgres schema {schema}")
+    fn open(config: &str, schema: &str, wait: Duration, mode: Mode) -> Result<Self, StoreError> {
+        let fleet = mode == Mode::Fleet;
+        let describe = match mode {
+            Mode::Owner => format!("postgres schema {schema}"),
+            Mode::Fleet => format!("postgres schema {schema} (fleet)"),
+            Mode::Reader => format!("postgres schema {schema} (read-only)"),
         };
         let error = |reason: String| StoreError {
             store: describe.clone(),
@@ -114,6 +137,20 @@ impl PostgresStore {
                 // query then fails and the writer stops.
                 let _ = connection.await;
             });
+            if mode == Mode::Reader {
+                let exists: bool = client
+                    .query_one(
+                        "SELECT to_regclass($1) IS NOT NULL AND to_regclass($2) IS NOT NULL",
+                        &[&format!("{schema}.log"), &format!("{schema}.snapshots")],
+                    )
+                    .await
+                    .map_err(|e| error(db_message(&e)))?
+                    .get(0);
+                if !exists {
+                    return Err(error("holds no chronomap store (no tables log and snapshots)".into()));
+                }
+                return Ok((client, None));
+            }
             // Nodes of a fleet start at once: `IF NOT EXISTS` is not safe against a concurrent
             // creation, so creation is serialised by a transaction-level advisory lock.
             client
@@ -179,6 +216,7 @@ impl PostgresStore {
             runtime,
             client: Mutex::new(client),
             fleet,
+            read_only: mode == Mode::Reader,
         })
     }
 
@@ -187,6 +225,16 @@ impl PostgresStore {
             store: self.describe.clone(),
             reason: db_message(&e),
         }
+    }
+
+    fn writable(&self) -> Result<(), StoreError> {
+        if self.read_only {
+            return Err(StoreError {
+                store: self.describe.clone(),
+                reason: "opened read-only".into(),
+            });
+        }
+        Ok(())
     }
 
     fn seq_param(&self, seq: u64) -> Result<i64, StoreError> {
@@ -273,6 +321,7 @@ impl Store for PostgresStore {
     }
 
     fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError> {
+        self.writable()?;
         let seq = self.seq_param(seq)?;
         let client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
@@ -288,6 +337,7 @@ impl Store for PostgresStore {
     }
 
     fn checkpoint(&self, checkpoint: &Checkpoint<'_>) -> Result<(), StoreError> {
+        self.writable()?;
         let seq = self.seq_param(checkpoint.seq)?;
         let s = &self.schema;
         let mut client = self.client.lock().expect("postgres client lock");
@@ -386,6 +436,7 @@ impl Store for PostgresStore {
         catch_up: &mut Visit<'_>,
         build: &mut Build<'_>,
     ) -> Result<Option<u64>, StoreError> {
+        self.writable()?;
         if self.fleet.is_none() {
             let Some(group) = build(known + 1) else {
                 return Ok(None);
