@@ -20,6 +20,13 @@ pub enum BenchCommand {
     #[cfg(feature = "serve")]
     #[command(after_help = BENCH_SERVE_HELP)]
     Serve(BenchServeArgs),
+    /// A fleet (`serve --fleet`) of 1, 2 and 3 nodes on loopback over one PostgreSQL server:
+    /// durable observations/s and p99 predict latency under that load, against a batched INSERT
+    /// and a COPY of the same rows in the same run; and a new node's catch-up over 10^7 logged
+    /// observations.
+    #[cfg(feature = "serve")]
+    #[command(after_help = BENCH_FLEET_HELP)]
+    Fleet(BenchFleetArgs),
     /// CoPA-Map's activity pipeline ([Stüde 2024] chapter 4) on the bundled ATC data: training-data
     /// extraction (§4.2.2) against a bare binning pass over the same detections, and CoPA-Map
     /// training (eqs. 4.12–4.16) against the bare faer matrix products of its iterations.
@@ -250,6 +257,52 @@ pub struct BenchServeArgs {
     /// Keep the service's store in this (new or empty) directory instead of a temporary one.
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_FLEET_HELP: &str = "\
+Needs a PostgreSQL server the role may create schemas on (each run makes its own and drops it).
+
+Examples:
+  chronomap bench fleet --postgres 'host=127.0.0.1 user=robot dbname=lab'   # about 1.5 min on 2 cores
+  CHRONOMAP_POSTGRES='host=127.0.0.1 user=robot dbname=lab' chronomap bench fleet --seconds 2 --catch-up-observations 0 --json";
+
+/// `chronomap bench fleet`.
+#[cfg(feature = "serve")]
+#[derive(Debug, Args)]
+pub struct BenchFleetArgs {
+    /// PostgreSQL: a libpq connection string or postgresql:// URL.
+    #[arg(long, env = "CHRONOMAP_POSTGRES", hide_env_values = true)]
+    pub postgres: String,
+    /// Node counts to measure, each on a fresh schema.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    pub nodes: Vec<usize>,
+    /// Writing clients per node.
+    #[arg(long, default_value_t = 2)]
+    pub clients_per_node: usize,
+    /// Models written.
+    #[arg(long, default_value_t = 120)]
+    pub models: usize,
+    /// Spec of the models.
+    #[arg(long, default_value = "fremen:2")]
+    pub model: String,
+    /// Observations per request (`POST /v1/observations`).
+    #[arg(long, default_value_t = 1_000)]
+    pub batch: usize,
+    /// Models per request.
+    #[arg(long, default_value_t = 10)]
+    pub batch_ids: usize,
+    /// Seconds of writing per node count.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    /// Observations of the catch-up log (0: skip the catch-up).
+    #[arg(long, default_value_t = 10_000_000)]
+    pub catch_up_observations: u64,
+    /// Keep the schemas instead of dropping them.
+    #[arg(long)]
+    pub keep: bool,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

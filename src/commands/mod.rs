@@ -8,6 +8,8 @@ mod activity_truth;
 mod bench;
 mod bench_activity;
 mod bench_bt;
+#[cfg(feature = "serve")]
+mod bench_fleet;
 mod bench_ingest;
 mod bench_plan;
 mod bench_psbt;
@@ -65,6 +67,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
         #[cfg(feature = "serve")]
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),
+        #[cfg(feature = "serve")]
+        Command::Bench(BenchCommand::Fleet(args)) => bench_fleet::fleet(&args),
         Command::Bench(BenchCommand::Activity(args)) => bench_activity::activity(&args),
         Command::Bench(BenchCommand::Bt(args)) => bench_bt::bt(&args),
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),

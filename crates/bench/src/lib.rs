@@ -32,6 +32,8 @@
 pub mod activity;
 pub mod bt;
 mod error;
+#[cfg(feature = "serve")]
+pub mod fleet;
 pub mod fremen;
 pub mod grid;
 pub mod ingest;
