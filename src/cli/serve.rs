@@ -77,6 +77,12 @@ pub struct ServeArgs {
     /// (docs/fleet.md). Every service on the schema must run with --fleet.
     #[arg(long, requires = "postgres", conflicts_with = "salvage")]
     pub fleet: bool,
+    /// Commit groups per partition of the PostgreSQL log when the schema is created (an existing
+    /// schema keeps its own). After each checkpoint, the partitions it covers move to the
+    /// archive (`log_archive`), so that recovery and new nodes read only the rest.
+    #[arg(long, default_value_t = 100_000, requires = "postgres",
+          value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
+    pub postgres_segment_groups: u64,
     /// Largest request body in bytes (larger ones get 413).
     #[arg(long, default_value_t = 32 << 20)]
     pub max_body_bytes: usize,

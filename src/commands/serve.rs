@@ -13,7 +13,7 @@ use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
 use chronomap_serve::maps::{Maps, ServedActivity, ServedTopo};
 use chronomap_serve::server::ConnectionLimits;
-use chronomap_serve::store::{PostgresStore, RedbStore, Store};
+use chronomap_serve::store::{Access, OWNER_WAIT, PostgresStore, RedbStore, Store};
 use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
 use chronomap_topo::map::TopoMap;
@@ -64,10 +64,17 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         .transpose()?;
     let maps = read_maps(args, &layouts, &activity_maps)?;
     let store: Arc<dyn Store> = match &args.postgres {
-        Some(config) if args.fleet => {
-            Arc::new(PostgresStore::connect_fleet(config, &args.postgres_schema)?)
-        }
-        Some(config) => Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
+        Some(config) => Arc::new(PostgresStore::connect_with(
+            config,
+            &args.postgres_schema,
+            if args.fleet {
+                Access::Fleet
+            } else {
+                Access::Owner
+            },
+            OWNER_WAIT,
+            args.postgres_segment_groups,
+        )?),
         None => Arc::new(RedbStore::open(args.data.join("chronomap.redb"))?),
     };
     let description = store.describe();

@@ -293,3 +293,110 @@ fn a_fleet_of_three_loses_nothing_when_a_node_is_killed_twice() {
     );
     assert!(unacknowledged >= 1, "no kill hit a request in flight");
 }
+
+/// Compaction: after checkpoints, the log's partitions that the checkpoint covers move to the
+/// archive; a new node recovers from the snapshots and the rest of the log, predicts as the
+/// nodes that saw everything, and the observations endpoint still reads the whole history.
+#[test]
+fn checkpointed_log_segments_move_to_the_archive_and_a_new_node_starts_after_them() {
+    use chronomap_serve::store::{PostgresStore, Store};
+    let Some(backend) = service::postgres_backend("fleet_compact") else {
+        return;
+    };
+    let Backend::Postgres(config, schema) = &backend else {
+        unreachable!("a postgres backend")
+    };
+    let data: Vec<_> = (0..3)
+        .map(|k| scratch(&format!("serve_fleet_compact_{k}")))
+        .collect();
+    let ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
+    let flags: Vec<&str> = vec![
+        "--fleet",
+        "--no-token",
+        "--postgres-segment-groups",
+        "5",
+        "--snapshot-every",
+        "20",
+        "--snapshot-secs",
+        "0.05",
+    ];
+    let nodes: Vec<Server> = (0..2)
+        .map(|k| start(&data[k], ports[k], &backend, &flags))
+        .collect();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let clients: Vec<Client> = nodes
+        .iter()
+        .map(|n| Client::new(&n.url, None).unwrap())
+        .collect();
+    let mut rng = Xoshiro256StarStar::seed_from_u64(5);
+    let mut sent = vec![(Vec::new(), Vec::new()); 2];
+    let ids = ["lab/door", "lab/window"];
+    let mut clock = [1.4e9, 1.4e9];
+    for request in 0..60 {
+        let m = request % 2;
+        let (times, values): (Vec<f64>, Vec<f64>) = (0..7)
+            .map(|_| {
+                clock[m] += 300.0 + (rng.next_u64() % 900) as f64;
+                (clock[m], f64::from(u8::from(rng.next_f64() < 0.4)))
+            })
+            .unzip();
+        runtime
+            .block_on(clients[request % 2].add_values(ids[m], &times, &values, Some("fremen:2")))
+            .unwrap();
+        sent[m].0.extend(times);
+        sent[m].1.extend(values);
+        // Let the checkpoints (every 20 observations or 0.05 s) happen along the way.
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for node in nodes {
+        node.stop();
+    }
+    let reader = PostgresStore::connect_reader(config, schema).unwrap();
+    let recovered = reader.recover().unwrap();
+    assert_eq!(recovered.last_seq, 60, "one commit group per request");
+    assert!(
+        recovered.compacted >= 50 && recovered.compacted.is_multiple_of(5),
+        "whole segments of 5 groups up to the checkpoint {} are compacted: {}",
+        recovered.checkpoint,
+        recovered.compacted
+    );
+    assert!(recovered.compacted <= recovered.checkpoint);
+    // A new node: snapshots + the live log only; the history is still whole.
+    let newcomer = start(&data[2], ports[2], &backend, &flags);
+    let client = Client::new(&newcomer.url, None).unwrap();
+    for (m, id) in ids.iter().enumerate() {
+        let held = runtime.block_on(client.observations(id)).unwrap();
+        assert_eq!(
+            (&held.times, &held.values),
+            (&sent[m].0, &sent[m].1),
+            "{id}"
+        );
+        let mut reference: AnyModel = ModelConfig::parse(Some("fremen:2"), None)
+            .unwrap()
+            .empty_model()
+            .unwrap();
+        reference.observe(&sent[m].0, &sent[m].1).unwrap();
+        let probes: Vec<f64> = (0..100).map(|k| 1.4e9 + k as f64 * 3_000.0).collect();
+        let served = runtime.block_on(client.predict(id, &probes, None)).unwrap();
+        for (s, r) in served.values.iter().zip(reference.predict_many(&probes)) {
+            assert_eq!(s.to_bits(), r.to_bits(), "{id}");
+        }
+    }
+    let health = runtime.block_on(client.health()).unwrap();
+    assert_eq!((health.seq, health.head, health.lag), (60, 60, 0));
+    newcomer.stop();
+    // The store passes the full check (snapshots, live log after the compacted positions).
+    let (code, stdout, stderr) = service::serve_once(&[
+        "--data".as_ref(),
+        data[2].as_os_str(),
+        "--postgres".as_ref(),
+        config.as_ref(),
+        "--postgres-schema".as_ref(),
+        schema.as_ref(),
+        "--check".as_ref(),
+    ]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+}

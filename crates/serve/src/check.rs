@@ -120,9 +120,10 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
             Err(e) => report.damage.push(e),
         }
     }
-    let mut previous = 0;
+    // Positions up to `compacted` were folded into the snapshots and live in the archive.
+    let mut previous = recovered.compacted;
     let mut replaying = report.damage.is_empty();
-    let scanned = store.scan(1, &mut |seq, bytes| {
+    let scanned = store.scan(recovered.compacted + 1, &mut |seq, bytes| {
         report.entries += 1;
         if seq != previous + 1 {
             report.damage.push(format!(

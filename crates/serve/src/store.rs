@@ -10,7 +10,7 @@ mod postgres;
 mod redb_store;
 
 #[cfg(feature = "postgres")]
-pub use postgres::PostgresStore;
+pub use postgres::{Access, DEFAULT_SEGMENT_GROUPS, OWNER_WAIT, PostgresStore};
 pub use redb_store::RedbStore;
 
 use chronomap_io::model_file::{decode_model, encode_model};
@@ -39,6 +39,9 @@ pub struct Recovered {
     pub snapshots: Vec<(String, Vec<u8>)>,
     /// Last log position written.
     pub last_seq: u64,
+    /// Every log position up to this one was folded into the snapshots and moved out of the
+    /// live log ([`Store::compact`]): recovery reads the log after it. At most `checkpoint`.
+    pub compacted: u64,
 }
 
 /// What one checkpoint writes ([`Store::checkpoint`]), atomically.
@@ -132,6 +135,17 @@ pub trait Store: Send + Sync {
     /// The store cannot be read.
     fn head(&self) -> Result<Option<u64>, StoreError> {
         Ok(None)
+    }
+
+    /// Folds the log into the snapshots: moves the whole segments of the live log that the
+    /// checkpoint covers out of it (into an archive that [`Store::scan`] still reads), so that
+    /// recovery reads only the rest. Returns the segments moved. The default, for a store that
+    /// does not segment its log, moves nothing.
+    ///
+    /// # Errors
+    /// The store cannot be written; nothing was moved.
+    fn compact(&self) -> Result<u64, StoreError> {
+        Ok(0)
     }
 
     /// Blocks until another process may have appended (a shared store's notification) or

@@ -468,7 +468,13 @@ impl Checkpoints {
             removed: &removed,
         };
         match shared.store.checkpoint(&checkpoint) {
-            Ok(()) => self.last = Instant::now(),
+            Ok(()) => {
+                self.last = Instant::now();
+                // The log the checkpoint covers is no longer needed for recovery.
+                if let Err(e) = shared.store.compact() {
+                    eprintln!("warning: compaction after log position {seq} failed: {e}");
+                }
+            }
             Err(e) => {
                 // The log still holds everything; the next checkpoint tries again.
                 eprintln!("warning: checkpoint at log position {seq} failed: {e}");

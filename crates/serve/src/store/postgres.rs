@@ -19,6 +19,7 @@
 //! (`LISTEN` on a second connection). Checkpoints only move forward: a node whose snapshots are
 //! older than the stored checkpoint writes nothing. Design and guarantee: docs/fleet.md.
 
+use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -28,7 +29,7 @@ use tokio_postgres::{Client, NoTls};
 use super::{Build, Checkpoint, Recovered, Store, StoreError, Visit};
 
 /// How long [`PostgresStore::connect`] waits for another session to give up the schema.
-const OWNER_WAIT: Duration = Duration::from_secs(15);
+pub const OWNER_WAIT: Duration = Duration::from_secs(15);
 
 /// The log and snapshots in tables `log`, `snapshots` and `meta` of one schema.
 pub struct PostgresStore {
@@ -39,18 +40,63 @@ pub struct PostgresStore {
     /// Set for a fleet node.
     fleet: Option<Fleet>,
     read_only: bool,
+    /// Commit groups per partition of `log` (`None`: a plain table made before partitioning).
+    segment: Option<i64>,
+    /// Whether the schema has `log_archive` (where compaction moves covered partitions).
+    archive: bool,
+    /// The highest partition index this process knows exists.
+    segments_upto: AtomicI64,
+}
+
+/// How a schema's log is laid out.
+struct Layout {
+    segment: Option<i64>,
+    archive: bool,
+}
+
+/// Reads the layout: whether `log` is partitioned (and by how many groups), whether
+/// `log_archive` exists.
+async fn layout(client: &Client, schema: &str) -> Result<Layout, tokio_postgres::Error> {
+    let row = client
+        .query_one(
+            "SELECT (SELECT c.relkind::text FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace
+                     WHERE n.nspname = $1 AND c.relname = 'log'),
+                    to_regclass($2) IS NOT NULL",
+            &[&schema, &format!("{schema}.log_archive")],
+        )
+        .await?;
+    let partitioned = row.get::<_, Option<String>>(0).as_deref() == Some("p");
+    let segment = if partitioned {
+        client
+            .query_opt(
+                &format!("SELECT value FROM {schema}.meta WHERE key = 'segment'"),
+                &[],
+            )
+            .await?
+            .map(|row| row.get::<_, i64>(0))
+            .filter(|&n| n > 0)
+    } else {
+        None
+    };
+    Ok(Layout {
+        segment,
+        archive: row.get(1),
+    })
 }
 
 /// How a store holds its schema.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Mode {
-    /// One service, exclusively.
+pub enum Access {
+    /// One service, exclusively ([`PostgresStore::connect`]).
     Owner,
-    /// One node of a fleet (shared lock, shared log).
+    /// One node of a fleet: shared lock, shared log ([`PostgresStore::connect_fleet`]).
     Fleet,
-    /// A reader beside the writers (no lock; writes refused).
+    /// A reader beside the writers: no lock, writes refused ([`PostgresStore::connect_reader`]).
     Reader,
 }
+
+/// Commit groups per partition of the log in a new schema, by default.
+pub const DEFAULT_SEGMENT_GROUPS: u64 = 100_000;
 
 /// What a fleet node has besides the client: the connection that listens for other nodes'
 /// appends.
@@ -78,7 +124,7 @@ impl PostgresStore {
     /// # Errors
     /// As [`PostgresStore::connect`].
     pub fn connect_waiting(config: &str, schema: &str, wait: Duration) -> Result<Self, StoreError> {
-        Self::open(config, schema, wait, Mode::Owner)
+        Self::open(config, schema, wait, Access::Owner)
     }
 
     /// Connects to read an existing store beside the services that write it (an export, a
@@ -88,7 +134,7 @@ impl PostgresStore {
     /// # Errors
     /// The server cannot be reached, or the schema holds no chronomap store.
     pub fn connect_reader(config: &str, schema: &str) -> Result<Self, StoreError> {
-        Self::open(config, schema, Duration::ZERO, Mode::Reader)
+        Self::open(config, schema, Duration::ZERO, Access::Reader)
     }
 
     /// Connects as one node of a fleet sharing the schema (see the module documentation):
@@ -98,15 +144,32 @@ impl PostgresStore {
     /// # Errors
     /// As [`PostgresStore::connect`]; a single-owner service holds the schema.
     pub fn connect_fleet(config: &str, schema: &str) -> Result<Self, StoreError> {
-        Self::open(config, schema, OWNER_WAIT, Mode::Fleet)
+        Self::open(config, schema, OWNER_WAIT, Access::Fleet)
     }
 
-    fn open(config: &str, schema: &str, wait: Duration, mode: Mode) -> Result<Self, StoreError> {
-        let fleet = mode == Mode::Fleet;
+    fn open(config: &str, schema: &str, wait: Duration, mode: Access) -> Result<Self, StoreError> {
+        Self::connect_with(config, schema, mode, wait, DEFAULT_SEGMENT_GROUPS)
+    }
+
+    /// Connects with every choice explicit: how the schema is held, how long to wait for its
+    /// lock, and the commit groups per partition of the log if the schema is new (an existing
+    /// schema keeps its own; a schema made before partitioning keeps one plain log table and
+    /// is never compacted).
+    ///
+    /// # Errors
+    /// As [`PostgresStore::connect`]; `segment_groups` is 0.
+    pub fn connect_with(
+        config: &str,
+        schema: &str,
+        mode: Access,
+        wait: Duration,
+        segment_groups: u64,
+    ) -> Result<Self, StoreError> {
+        let fleet = mode == Access::Fleet;
         let describe = match mode {
-            Mode::Owner => format!("postgres schema {schema}"),
-            Mode::Fleet => format!("postgres schema {schema} (fleet)"),
-            Mode::Reader => format!("postgres schema {schema} (read-only)"),
+            Access::Owner => format!("postgres schema {schema}"),
+            Access::Fleet => format!("postgres schema {schema} (fleet)"),
+            Access::Reader => format!("postgres schema {schema} (read-only)"),
         };
         let error = |reason: String| StoreError {
             store: describe.clone(),
@@ -122,6 +185,11 @@ impl PostgresStore {
                 "schema name {schema:?} is not a plain identifier [a-z_][a-z0-9_]*"
             )));
         }
+        let Some(segment_groups) = i64::try_from(segment_groups).ok().filter(|&n| n > 0) else {
+            return Err(error(format!(
+                "{segment_groups} commit groups per log partition: must be 1 to 2^63 - 1"
+            )));
+        };
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("chronomap-postgres")
@@ -137,7 +205,7 @@ impl PostgresStore {
                 // query then fails and the writer stops.
                 let _ = connection.await;
             });
-            if mode == Mode::Reader {
+            if mode == Access::Reader {
                 let exists: bool = client
                     .query_one(
                         "SELECT to_regclass($1) IS NOT NULL AND to_regclass($2) IS NOT NULL",
@@ -149,7 +217,8 @@ impl PostgresStore {
                 if !exists {
                     return Err(error("holds no chronomap store (no tables log and snapshots)".into()));
                 }
-                return Ok((client, None));
+                let layout = layout(&client, schema).await.map_err(|e| error(db_message(&e)))?;
+                return Ok((client, None, layout));
             }
             // Nodes of a fleet start at once: `IF NOT EXISTS` is not safe against a concurrent
             // creation, so creation is serialised by a transaction-level advisory lock.
@@ -158,9 +227,14 @@ impl PostgresStore {
                     "BEGIN;
                      SELECT pg_advisory_xact_lock(hashtextextended('chronomap serve: {schema}', 2));
                      CREATE SCHEMA IF NOT EXISTS {schema};
-                     CREATE TABLE IF NOT EXISTS {schema}.log (seq BIGINT PRIMARY KEY, grp BYTEA NOT NULL);
+                     CREATE TABLE IF NOT EXISTS {schema}.log (seq BIGINT PRIMARY KEY, grp BYTEA NOT NULL)
+                         PARTITION BY RANGE (seq);
+                     CREATE TABLE IF NOT EXISTS {schema}.log_archive (seq BIGINT PRIMARY KEY, grp BYTEA NOT NULL)
+                         PARTITION BY RANGE (seq);
                      CREATE TABLE IF NOT EXISTS {schema}.snapshots (id TEXT PRIMARY KEY, bytes BYTEA NOT NULL);
                      CREATE TABLE IF NOT EXISTS {schema}.meta (key TEXT PRIMARY KEY, value BIGINT NOT NULL);
+                     INSERT INTO {schema}.meta (key, value) VALUES ('segment', {segment_groups})
+                         ON CONFLICT (key) DO NOTHING;
                      COMMIT;"
                 ))
                 .await
@@ -207,16 +281,20 @@ impl PostgresStore {
             } else {
                 None
             };
-            Ok::<_, StoreError>((client, fleet))
+            let layout = layout(&client, schema).await.map_err(|e| error(db_message(&e)))?;
+            Ok::<_, StoreError>((client, fleet, layout))
         })?;
-        let (client, fleet) = client;
+        let (client, fleet, layout) = client;
         Ok(PostgresStore {
             describe,
             schema: schema.to_owned(),
             runtime,
             client: Mutex::new(client),
             fleet,
-            read_only: mode == Mode::Reader,
+            read_only: mode == Access::Reader,
+            segment: layout.segment,
+            archive: layout.archive,
+            segments_upto: AtomicI64::new(-1),
         })
     }
 
@@ -224,6 +302,49 @@ impl PostgresStore {
         StoreError {
             store: self.describe.clone(),
             reason: db_message(&e),
+        }
+    }
+
+    /// The statements that make the partitions of `log` for position `seq` and the segment
+    /// after it, if this process has not seen them yet; run them with the append.
+    fn segment_ddl(&self, seq: i64) -> Option<(String, i64)> {
+        let segment = self.segment?;
+        let index = (seq - 1) / segment;
+        if index < self.segments_upto.load(Ordering::Acquire) {
+            return None;
+        }
+        let s = &self.schema;
+        let ddl = (index..=index + 1)
+            .map(|i| {
+                let from = i.saturating_mul(segment).saturating_add(1);
+                let to = from.saturating_add(segment);
+                format!(
+                    "CREATE TABLE IF NOT EXISTS {s}.log_{i} PARTITION OF {s}.log \
+                     FOR VALUES FROM ({from}) TO ({to});"
+                )
+            })
+            .collect();
+        Some((ddl, index + 1))
+    }
+
+    /// The last position of the log and the last compacted one.
+    fn head_query(&self) -> String {
+        let s = &self.schema;
+        format!(
+            "SELECT GREATEST(COALESCE((SELECT MAX(seq) FROM {s}.log), 0), c.value), c.value
+             FROM (SELECT COALESCE((SELECT value FROM {s}.meta WHERE key = 'compacted'), 0) AS value) AS c"
+        )
+    }
+
+    /// The log as one relation: archive and live log, or the live log alone.
+    fn entries(&self) -> String {
+        let s = &self.schema;
+        if self.archive {
+            format!(
+                "(SELECT seq, grp FROM {s}.log_archive UNION ALL SELECT seq, grp FROM {s}.log) AS entries"
+            )
+        } else {
+            format!("{s}.log")
         }
     }
 
@@ -306,16 +427,17 @@ impl Store for PostgresStore {
                 .into_iter()
                 .map(|row| (row.get::<_, String>(0), row.get::<_, Vec<u8>>(1)))
                 .collect();
-            let last_seq = client
-                .query_one(&format!("SELECT COALESCE(MAX(seq), 0) FROM {s}.log"), &[])
+            let row = client
+                .query_one(&self.head_query(), &[])
                 .await
-                .map_err(|e| self.error(e))?
-                .get::<_, i64>(0) as u64;
+                .map_err(|e| self.error(e))?;
+            let (last_seq, compacted) = (row.get::<_, i64>(0) as u64, row.get::<_, i64>(1) as u64);
             client.commit().await.map_err(|e| self.error(e))?;
             Ok(Recovered {
                 checkpoint,
                 snapshots,
                 last_seq,
+                compacted,
             })
         })
     }
@@ -325,6 +447,13 @@ impl Store for PostgresStore {
         let seq = self.seq_param(seq)?;
         let client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
+            if let Some((ddl, upto)) = self.segment_ddl(seq) {
+                client
+                    .batch_execute(&ddl)
+                    .await
+                    .map_err(|e| self.error(e))?;
+                self.segments_upto.fetch_max(upto, Ordering::AcqRel);
+            }
             client
                 .execute(
                     &format!("INSERT INTO {}.log (seq, grp) VALUES ($1, $2)", self.schema),
@@ -408,8 +537,8 @@ impl Store for PostgresStore {
                     client
                         .query(
                             &format!(
-                                "SELECT seq, grp FROM {}.log WHERE seq >= $1 ORDER BY seq LIMIT $2",
-                                self.schema
+                                "SELECT seq, grp FROM {} WHERE seq >= $1 ORDER BY seq LIMIT $2",
+                                self.entries()
                             ),
                             &[&next, &PAGE],
                         )
@@ -484,6 +613,10 @@ impl Store for PostgresStore {
                 txn.rollback().await.map_err(|e| self.error(e))?;
                 return Ok(None);
             };
+            let segments = self.segment_ddl(next);
+            if let Some((ddl, _)) = &segments {
+                txn.batch_execute(ddl).await.map_err(|e| self.error(e))?;
+            }
             txn.execute(
                 &format!("INSERT INTO {s}.log (seq, grp) VALUES ($1, $2)"),
                 &[&next, &group],
@@ -495,12 +628,90 @@ impl Store for PostgresStore {
                 .await
                 .map_err(|e| self.error(e))?;
             txn.commit().await.map_err(|e| self.error(e))?;
+            if let Some((_, upto)) = segments {
+                self.segments_upto.fetch_max(upto, Ordering::AcqRel);
+            }
             Ok(Some(next as u64))
         })
     }
 
     fn is_shared(&self) -> bool {
         self.fleet.is_some()
+    }
+
+    fn compact(&self) -> Result<u64, StoreError> {
+        self.writable()?;
+        let (Some(segment), true) = (self.segment, self.archive) else {
+            return Ok(0);
+        };
+        let s = &self.schema;
+        let mut client = self.client.lock().expect("postgres client lock");
+        self.runtime.block_on(async {
+            let txn = client.transaction().await.map_err(|e| self.error(e))?;
+            if self.fleet.is_some() {
+                // No append of another node between reading the checkpoint and moving.
+                txn.execute(
+                    "SELECT pg_advisory_xact_lock(hashtextextended($1, 1))",
+                    &[&format!("chronomap serve: {s}")],
+                )
+                .await
+                .map_err(|e| self.error(e))?;
+            }
+            let row = txn
+                .query_one(
+                    &format!(
+                        "SELECT COALESCE((SELECT value FROM {s}.meta WHERE key = 'checkpoint'), 0),
+                                COALESCE((SELECT value FROM {s}.meta WHERE key = 'compacted'), 0)"
+                    ),
+                    &[],
+                )
+                .await
+                .map_err(|e| self.error(e))?;
+            let (checkpoint, compacted): (i64, i64) = (row.get(0), row.get(1));
+            let (mut upto, mut moved) = (compacted, 0);
+            // Whole segments only: the next one starts right after `upto`.
+            while let Some(to) = upto.checked_add(segment).filter(|&to| to <= checkpoint) {
+                let index = upto / segment;
+                let attached: bool = txn
+                    .query_one(
+                        "SELECT EXISTS (SELECT 1 FROM pg_inherits i
+                           JOIN pg_class c ON c.oid = i.inhrelid
+                           JOIN pg_class p ON p.oid = i.inhparent
+                           JOIN pg_namespace n ON n.oid = p.relnamespace
+                         WHERE n.nspname = $1 AND p.relname = 'log' AND c.relname = $2)",
+                        &[s, &format!("log_{index}")],
+                    )
+                    .await
+                    .map_err(|e| self.error(e))?
+                    .get(0);
+                if attached {
+                    txn.batch_execute(&format!(
+                        "ALTER TABLE {s}.log DETACH PARTITION {s}.log_{index};
+                         ALTER TABLE {s}.log_archive ATTACH PARTITION {s}.log_{index}
+                             FOR VALUES FROM ({}) TO ({});",
+                        upto + 1,
+                        to + 1
+                    ))
+                    .await
+                    .map_err(|e| self.error(e))?;
+                    moved += 1;
+                }
+                upto = to;
+            }
+            if upto > compacted {
+                txn.execute(
+                    &format!(
+                        "INSERT INTO {s}.meta (key, value) VALUES ('compacted', $1)
+                         ON CONFLICT (key) DO UPDATE SET value = EXCLUDED.value"
+                    ),
+                    &[&upto],
+                )
+                .await
+                .map_err(|e| self.error(e))?;
+            }
+            txn.commit().await.map_err(|e| self.error(e))?;
+            Ok(moved)
+        })
     }
 
     fn head(&self) -> Result<Option<u64>, StoreError> {
@@ -510,10 +721,7 @@ impl Store for PostgresStore {
         let client = self.client.lock().expect("postgres client lock");
         self.runtime.block_on(async {
             let head: i64 = client
-                .query_one(
-                    &format!("SELECT COALESCE(MAX(seq), 0) FROM {}.log", self.schema),
-                    &[],
-                )
+                .query_one(&self.head_query(), &[])
                 .await
                 .map_err(|e| self.error(e))?
                 .get(0);

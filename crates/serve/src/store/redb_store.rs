@@ -107,6 +107,7 @@ impl Store for RedbStore {
             checkpoint,
             snapshots,
             last_seq,
+            compacted: 0,
         })
     }
 
