@@ -1,13 +1,13 @@
 //! `chronomap bench fleet`: a fleet of 1, 2 and 3 nodes over one PostgreSQL server, against
 //! the bare database work in the same run — [`chronomap_bench::fleet`] measures, this prints.
 
-use anyhow::{Result, anyhow};
+use anyhow::Result;
 use chronomap_bench::fleet::{FleetBench, FleetBenchConfig, FleetBenchError};
 
 use crate::cli::BenchFleetArgs;
 use crate::format::Table;
 use crate::outln;
-use crate::output::{ProgressBar, print_bench};
+use crate::output::{ProgressBar, print_bench, usage};
 
 pub fn fleet(args: &BenchFleetArgs) -> Result<()> {
     let config = FleetBenchConfig {
@@ -30,11 +30,12 @@ pub fn fleet(args: &BenchFleetArgs) -> Result<()> {
     print_bench(args.json, &bench, |b| print(&config, b))
 }
 
-/// The library's error, naming the flag of a bad field (`--batch-ids` for `batch_ids`).
+/// The library's error, naming the flag of a bad field (`--batch-ids` for `batch_ids`): a usage
+/// error (exit code 2).
 fn flag_error(error: FleetBenchError) -> anyhow::Error {
     match error {
         FleetBenchError::Config { field, message } => {
-            anyhow!("--{}: {message}", field.replace('_', "-"))
+            usage(format!("--{}: {message}", field.replace('_', "-")))
         }
         other => other.into(),
     }
@@ -104,8 +105,13 @@ fn print(config: &FleetBenchConfig, b: &FleetBench) -> Result<()> {
             c.observations as f64 / c.replay_seconds
         )?;
         outln!(
-            "  checkpoint of every model: {:.2} s; a new node from it: {:.2} s ({:.1}x faster); models bit-identical: {}",
+            "  checkpoint of every model: {:.2} s; compaction ({} segments of 10 groups to the archive): {:.2} s",
             c.checkpoint_seconds,
+            c.segments_compacted,
+            c.compact_seconds
+        )?;
+        outln!(
+            "  a new node from the checkpoint and the live log: {:.2} s ({:.1}x faster); models bit-identical: {}",
             c.start_from_checkpoint_seconds,
             c.replay_seconds / c.start_from_checkpoint_seconds,
             if c.identical { "yes" } else { "NO" }

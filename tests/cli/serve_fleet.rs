@@ -400,3 +400,68 @@ fn checkpointed_log_segments_move_to_the_archive_and_a_new_node_starts_after_the
     ]);
     assert_eq!(code, 0, "{stdout}{stderr}");
 }
+
+/// `chronomap bench fleet`, small: every number is there, the baselines ran on the same
+/// server, and the catch-up's two new nodes agree bit for bit.
+#[test]
+fn bench_fleet_reports_throughput_latency_baselines_and_catch_up() {
+    let Some(config) = service::postgres() else {
+        return;
+    };
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "bench",
+            "fleet",
+            "--postgres",
+            &config,
+            "--nodes",
+            "1,2",
+            "--seconds",
+            "0.5",
+            "--models",
+            "24",
+            "--catch-up-observations",
+            "200000",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let bench: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let runs = bench["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    for (run, nodes) in runs.iter().zip([1, 2]) {
+        assert_eq!(run["nodes"], nodes);
+        assert!(run["observations"].as_u64().unwrap() > 0, "{run}");
+        assert!(run["predicts"].as_u64().unwrap() > 0, "{run}");
+        assert!(run["predict_p99_us"].as_f64().unwrap() >= run["predict_p50_us"].as_f64().unwrap());
+        let baselines = run["baselines"].as_array().unwrap();
+        assert_eq!(baselines.len(), 2, "INSERT and COPY");
+        for baseline in baselines {
+            assert!(
+                baseline["rows"].as_u64().unwrap() >= run["observations"].as_u64().unwrap() / 2
+            );
+            let ratio = baseline["ratio_fleet_to_baseline"].as_f64().unwrap();
+            assert!(ratio.is_finite() && ratio > 0.0, "{baseline}");
+        }
+    }
+    let catch_up = &bench["catch_up"];
+    assert_eq!(catch_up["observations"], 200_000);
+    assert_eq!(catch_up["groups"], 10, "groups of 20,000 observations");
+    assert_eq!(
+        catch_up["segments_compacted"], 1,
+        "one whole segment of 10 groups"
+    );
+    assert_eq!(catch_up["identical"], true);
+    // Bad flags are usage errors naming the flag.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(["bench", "fleet", "--postgres", &config, "--nodes", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--nodes"));
+}

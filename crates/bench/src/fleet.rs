@@ -12,7 +12,7 @@
 //!
 //! Catch-up: a log of 10⁷ observations is written, then a new node recovers from it (verify
 //! every entry and replay every group), and again after a checkpoint (snapshots of every model
-//! at the log's end), as a node joining the fleet does.
+//! at the log's end) and the compaction that follows it, as a node joining the fleet does.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -24,7 +24,9 @@ use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_serve::api::{AddValuesRequest, ObservationsRequest};
 use chronomap_serve::log::{LogRecord, encode_group};
 use chronomap_serve::registry::ModelConfig;
-use chronomap_serve::store::{Checkpoint, PostgresStore, Store, encode_snapshot};
+use chronomap_serve::store::{
+    Access, Checkpoint, OWNER_WAIT, PostgresStore, Store, encode_snapshot,
+};
 use chronomap_serve::{Service, ServiceConfig};
 use serde::Serialize;
 use thiserror::Error;
@@ -97,6 +99,9 @@ const MAX_MODELS: usize = 100_000;
 const MAX_CATCH_UP: u64 = 100_000_000;
 /// Observations per commit group of the catch-up log.
 const CATCH_UP_GROUP: usize = 20_000;
+/// Commit groups per partition of the catch-up log (the service's default is 100,000 groups
+/// of any size; here groups are large, so segments are short).
+const CATCH_UP_SEGMENT: u64 = 10;
 
 impl FleetBenchConfig {
     /// Checks every field.
@@ -214,7 +219,12 @@ pub struct CatchUp {
     pub replay_seconds: f64,
     /// Seconds to write a checkpoint of every model at the log's end.
     pub checkpoint_seconds: f64,
-    /// Seconds for a new node to start from that checkpoint (it still verifies every entry).
+    /// Seconds to move the log's segments that the checkpoint covers to the archive.
+    pub compact_seconds: f64,
+    /// Segments (of 10 commit groups) moved.
+    pub segments_compacted: u64,
+    /// Seconds for a new node to start from that checkpoint: snapshots, then the live log
+    /// after the compacted segments, verified and replayed.
     pub start_from_checkpoint_seconds: f64,
     /// Whether both new nodes hold bit-identical models.
     pub identical: bool,
@@ -694,7 +704,16 @@ fn catch_up(
     progress: &dyn Progress,
 ) -> Result<CatchUp, FleetBenchError> {
     let pg = |e: chronomap_serve::store::StoreError| FleetBenchError::Postgres(e.to_string());
-    let store = Arc::new(PostgresStore::connect_fleet(&config.postgres, schema).map_err(pg)?);
+    let store = Arc::new(
+        PostgresStore::connect_with(
+            &config.postgres,
+            schema,
+            Access::Fleet,
+            OWNER_WAIT,
+            CATCH_UP_SEGMENT,
+        )
+        .map_err(pg)?,
+    );
     let total = config.catch_up_observations;
     let create = ModelConfig::parse(Some(&config.model), None).map_err(FleetBenchError::Service)?;
     let mut next = vec![0u64; config.models];
@@ -767,6 +786,9 @@ fn catch_up(
         })
         .map_err(pg)?;
     let checkpoint_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let segments_compacted = store.compact().map_err(pg)?;
+    let compact_seconds = start.elapsed().as_secs_f64();
 
     let start = Instant::now();
     let from_checkpoint = chronomap_serve::writer::recover(Arc::clone(&store) as Arc<dyn Store>)
@@ -788,6 +810,8 @@ fn catch_up(
         write_seconds,
         replay_seconds,
         checkpoint_seconds,
+        compact_seconds,
+        segments_compacted,
         start_from_checkpoint_seconds,
         identical,
     })
