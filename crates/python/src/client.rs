@@ -116,8 +116,9 @@ impl PyClient {
         })
     }
 
-    /// The service's health: a dict with `status` (`ok`), `models`, `store`, `seq` (last
-    /// committed log position) and `auth` (whether writes need a token).
+    /// The service's health: a dict with `status` (`ok`; a fleet node also `behind` or
+    /// `failed`), `models`, `store`, `seq` (last log position applied), `auth` (whether writes
+    /// need a token), and for a fleet node `fleet`, `head`, `lag` and `behind_secs`.
     fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let health = self.block(py, self.client.health())?;
         from_json(py, serde_json::to_string(&health))
