@@ -118,6 +118,8 @@ pub mod monitor_faults;
 pub mod navmap;
 #[cfg(feature = "navmap")]
 mod navmap_obstacles;
+#[cfg(feature = "parquet")]
+pub mod parquet;
 #[cfg(feature = "lidar")]
 pub mod ply;
 #[cfg(feature = "psbt")]
