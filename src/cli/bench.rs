@@ -266,8 +266,8 @@ pub(super) const BENCH_FLEET_HELP: &str = "\
 Needs a PostgreSQL server the role may create schemas on (each run makes its own and drops it).
 
 Examples:
-  chronomap bench fleet --postgres 'host=127.0.0.1 user=robot dbname=lab'   # about 1.5 min on 2 cores
-  CHRONOMAP_POSTGRES='host=127.0.0.1 user=robot dbname=lab' chronomap bench fleet --seconds 2 --catch-up-observations 0 --json";
+  chronomap bench fleet --postgres 'host=127.0.0.1 dbname=lab'     # about 1 min on 2 cores
+  chronomap bench fleet --nodes 1,3 --seconds 2 --catch-up-observations 0 --json";
 
 /// `chronomap bench fleet`.
 #[cfg(feature = "serve")]
