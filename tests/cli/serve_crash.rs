@@ -32,7 +32,7 @@ pub(crate) struct Sent {
 }
 
 /// What one client sent to each of its ids.
-type History = Vec<(String, &'static str, Vec<Sent>)>;
+pub(crate) type History = Vec<(String, &'static str, Vec<Sent>)>;
 
 async fn client_loop(
     url: String,
@@ -82,6 +82,27 @@ async fn client_loop(
     }
 }
 
+/// For each of `clients` clients, its `ids` models (named by `name(client, i, k)` with `k` the
+/// model's number over all clients, kinds taken round-robin from `specs`), nothing sent yet.
+pub(crate) fn histories(
+    clients: usize,
+    ids: usize,
+    specs: &[&'static str],
+    name: impl Fn(usize, usize, usize) -> String,
+) -> Vec<Arc<Mutex<History>>> {
+    (0..clients)
+        .map(|c| {
+            let models = (0..ids)
+                .map(|i| {
+                    let k = c * ids + i;
+                    (name(c, i, k), specs[k % specs.len()], Vec::new())
+                })
+                .collect();
+            Arc::new(Mutex::new(models))
+        })
+        .collect()
+}
+
 /// Matches what the service holds against what was sent: acknowledged batches must all be
 /// there, unacknowledged ones may be (the crash came after the commit, before the answer),
 /// nothing else may. Returns the batches present.
@@ -122,21 +143,9 @@ fn crash_test(name: &str, backend: Backend) {
     let token = token(&data);
 
     let stop = Arc::new(AtomicBool::new(false));
-    let histories: Vec<Arc<Mutex<History>>> = (0..CLIENTS)
-        .map(|c| {
-            let ids = (0..IDS_PER_CLIENT)
-                .map(|i| {
-                    let k = c * IDS_PER_CLIENT + i;
-                    (
-                        format!("{name}/door-{k}"),
-                        SPECS[k % SPECS.len()],
-                        Vec::new(),
-                    )
-                })
-                .collect();
-            Arc::new(Mutex::new(ids))
-        })
-        .collect();
+    let histories = histories(CLIENTS, IDS_PER_CLIENT, &SPECS, |_, _, k| {
+        format!("{name}/door-{k}")
+    });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

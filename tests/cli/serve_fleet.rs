@@ -15,16 +15,13 @@ use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_models::AnyModel;
 use chronomap_serve::registry::ModelConfig;
 
-use crate::serve_crash::{Sent, present_batches};
+use crate::serve_crash::{History, Sent, histories, present_batches};
 use crate::service::{self, Backend, Server, free_port, scratch, start, token};
 
 const NODES: usize = 3;
 const CLIENTS: usize = 6;
 const IDS_PER_CLIENT: usize = 2;
 const SPECS: [&str; 4] = ["fremen:2", "persistence:2", "hist:24", "stm"];
-
-/// What one client sent to each of its ids.
-type History = Vec<(String, &'static str, Vec<Sent>)>;
 
 /// Counts of the read-your-writes checks.
 #[derive(Default)]
@@ -152,21 +149,9 @@ fn a_fleet_of_three_loses_nothing_when_a_node_is_killed_twice() {
 
     let stop = Arc::new(AtomicBool::new(false));
     let checks = Arc::new(Checks::default());
-    let histories: Vec<Arc<Mutex<History>>> = (0..CLIENTS)
-        .map(|c| {
-            let ids = (0..IDS_PER_CLIENT)
-                .map(|i| {
-                    let k = c * IDS_PER_CLIENT + i;
-                    (
-                        format!("robot{c}/door-{i}"),
-                        SPECS[k % SPECS.len()],
-                        Vec::new(),
-                    )
-                })
-                .collect();
-            Arc::new(Mutex::new(ids))
-        })
-        .collect();
+    let histories = histories(CLIENTS, IDS_PER_CLIENT, &SPECS, |c, i, _| {
+        format!("robot{c}/door-{i}")
+    });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -464,4 +449,92 @@ fn bench_fleet_reports_throughput_latency_baselines_and_catch_up() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--nodes"));
+}
+
+/// A node whose database sessions end (the server restarted, an administrator terminated them)
+/// connects again, takes the schema's shared lock again, and goes on writing and tailing.
+#[test]
+fn a_fleet_node_reconnects_when_the_server_ends_its_sessions() {
+    let Some(backend) = service::postgres_backend("fleet_reconnect") else {
+        return;
+    };
+    let Backend::Postgres(config, schema) = &backend else {
+        unreachable!("a postgres backend")
+    };
+    let application = format!("chronomap_test_{schema}");
+    let node2_backend = Backend::Postgres(
+        format!("{config} application_name={application}"),
+        schema.clone(),
+    );
+    let data: Vec<_> = (0..2)
+        .map(|k| scratch(&format!("serve_fleet_reconnect_{k}")))
+        .collect();
+    let ports: Vec<u16> = (0..2).map(|_| free_port()).collect();
+    let flags = ["--fleet", "--no-token"];
+    let node1 = start(&data[0], ports[0], &backend, &flags);
+    let node2 = start(&data[1], ports[1], &node2_backend, &flags);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let (one, two) = (
+        Client::new(&node1.url, None).unwrap(),
+        Client::new(&node2.url, None).unwrap(),
+    );
+    let door = |t0: f64| (vec![t0, t0 + 60.0], vec![1.0, 0.0]);
+    let (t, v) = door(1.4e9);
+    runtime
+        .block_on(two.add_values("lab/door", &t, &v, Some("fremen:2")))
+        .unwrap();
+
+    let sessions = |terminate: bool| -> i64 {
+        runtime.block_on(async {
+            let (client, connection) = tokio_postgres::connect(config, tokio_postgres::NoTls)
+                .await
+                .unwrap();
+            tokio::spawn(connection);
+            let sql = if terminate {
+                "SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity WHERE application_name = $1"
+            } else {
+                "SELECT count(*) FROM pg_stat_activity WHERE application_name = $1"
+            };
+            client.query_one(sql, &[&application]).await.unwrap().get(0)
+        })
+    };
+    assert_eq!(sessions(true), 2, "node 2's client and listener sessions");
+    std::thread::sleep(Duration::from_millis(300));
+
+    // Node 2 writes again (at most one write may meet the dead session first).
+    let (t, v) = door(1.4e9 + 600.0);
+    let mut attempts = 0;
+    let ack = loop {
+        attempts += 1;
+        match runtime.block_on(two.add_values("lab/door", &t, &v, None)) {
+            Ok(ack) => break ack,
+            Err(e)
+                if attempts < 2
+                    && e.status() == Some(chronomap_client::StatusCode::SERVICE_UNAVAILABLE) => {}
+            Err(e) => panic!("node 2 does not write after reconnecting: {e}"),
+        }
+    };
+    assert_eq!(ack.observations, 2);
+    assert_eq!(sessions(false), 2, "node 2 has its two sessions back");
+    // Node 1's write reaches node 2 without a token (its tailer listens again).
+    let (t, v) = door(1.4e9 + 1200.0);
+    let written = runtime
+        .block_on(one.add_values("lab/door", &t, &v, None))
+        .unwrap();
+    let waited = Instant::now();
+    loop {
+        let health = runtime.block_on(two.health()).unwrap();
+        if health.seq >= written.seq {
+            assert_eq!(health.status, "ok");
+            break;
+        }
+        assert!(waited.elapsed() < Duration::from_secs(5), "{health:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let info = runtime.block_on(two.view("lab/door")).unwrap();
+    assert_eq!(info.observations, 6);
+    drop((node1, node2));
 }

@@ -154,13 +154,7 @@ impl Client {
     /// The models whose ids start with `prefix` (a robot's, a namespace's).
     pub async fn list_prefix(&self, prefix: &str) -> Result<ListResponse, ClientError> {
         let mut query = String::from("/v1/models?prefix=");
-        for byte in prefix.bytes() {
-            if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
-                query.push(byte as char);
-            } else {
-                query.push_str(&format!("%{byte:02X}"));
-            }
-        }
+        percent_encode(prefix, &mut query);
         self.call::<(), _>(Method::GET, &query, None).await
     }
 
@@ -308,16 +302,21 @@ impl Client {
     }
 }
 
+/// Appends `text` percent-encoded (every byte but RFC 3986's unreserved characters).
+fn percent_encode(text: &str, into: &mut String) {
+    for byte in text.bytes() {
+        if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
+            into.push(byte as char);
+        } else {
+            into.push_str(&format!("%{byte:02X}"));
+        }
+    }
+}
+
 /// `/v1/models/{id}{suffix}` with the id percent-encoded.
 pub(crate) fn model_path(id: &str, suffix: &str) -> String {
     let mut path = String::from("/v1/models/");
-    for byte in id.bytes() {
-        if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
-            path.push(byte as char);
-        } else {
-            path.push_str(&format!("%{byte:02X}"));
-        }
-    }
+    percent_encode(id, &mut path);
     path.push_str(suffix);
     path
 }

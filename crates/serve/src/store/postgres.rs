@@ -40,6 +40,9 @@ pub struct PostgresStore {
     /// Set for a fleet node.
     fleet: Option<Fleet>,
     read_only: bool,
+    /// The connection string, to reconnect.
+    config: String,
+    mode: Access,
     /// Commit groups per partition of `log` (`None`: a plain table made before partitioning).
     segment: Option<i64>,
     /// Whether the schema has `log_archive` (where compaction moves covered partitions).
@@ -101,8 +104,9 @@ pub const DEFAULT_SEGMENT_GROUPS: u64 = 100_000;
 /// What a fleet node has besides the client: the connection that listens for other nodes'
 /// appends.
 struct Fleet {
-    /// Kept open: its connection's task wakes `appended` on every notification.
-    _listener: Client,
+    /// Kept open (reopened when it died): its connection's task wakes `appended` on every
+    /// notification.
+    listener: Mutex<Client>,
     appended: Arc<tokio::sync::Notify>,
 }
 
@@ -275,9 +279,14 @@ impl PostgresStore {
                 tokio::time::sleep(Duration::from_millis(20)).await;
             }
             let fleet = if fleet {
-                Some(listen(config, schema).await.map_err(|e| {
+                let appended = Arc::new(tokio::sync::Notify::new());
+                let listener = listen(config, schema, &appended).await.map_err(|e| {
                     error(format!("cannot listen for the other nodes' appends: {e}"))
-                })?)
+                })?;
+                Some(Fleet {
+                    listener: Mutex::new(listener),
+                    appended,
+                })
             } else {
                 None
             };
@@ -288,6 +297,8 @@ impl PostgresStore {
         Ok(PostgresStore {
             describe,
             schema: schema.to_owned(),
+            config: config.to_owned(),
+            mode,
             runtime,
             client: Mutex::new(client),
             fleet,
@@ -325,6 +336,83 @@ impl PostgresStore {
             })
             .collect();
         Some((ddl, index + 1))
+    }
+
+    /// The client, reconnected first if its connection died (a fleet node or a reader: the
+    /// server restarted, or ended the session). A fleet node takes the schema's shared lock again;
+    /// a single owner never reconnects, because another service may have taken the schema
+    /// meanwhile — its store stays failed until it is restarted.
+    fn connection(&self) -> Result<std::sync::MutexGuard<'_, Client>, StoreError> {
+        let mut client = self.client.lock().expect("postgres client lock");
+        if client.is_closed() && self.mode != Access::Owner {
+            *client = self.runtime.block_on(self.reconnect())?;
+        }
+        if let Some(fleet) = &self.fleet {
+            let mut listener = fleet.listener.lock().expect("postgres listener lock");
+            if listener.is_closed() {
+                // Without it the tailer still polls; try again at the next use if this fails.
+                if let Ok(fresh) =
+                    self.runtime
+                        .block_on(listen(&self.config, &self.schema, &fleet.appended))
+                {
+                    *listener = fresh;
+                }
+            }
+        }
+        Ok(client)
+    }
+
+    async fn reconnect(&self) -> Result<Client, StoreError> {
+        let (client, connection) =
+            tokio_postgres::connect(&self.config, NoTls)
+                .await
+                .map_err(|e| StoreError {
+                    store: self.describe.clone(),
+                    reason: format!(
+                        "the connection was lost and cannot be made again: {}",
+                        db_message(&e)
+                    ),
+                })?;
+        tokio::spawn(async move {
+            let _ = connection.await;
+        });
+        if self.mode == Access::Fleet {
+            let shared: bool = client
+                .query_one(
+                    "SELECT pg_try_advisory_lock_shared(hashtextextended($1, 0))",
+                    &[&format!("chronomap serve: {}", self.schema)],
+                )
+                .await
+                .map_err(|e| self.error(e))?
+                .get(0);
+            if !shared {
+                return Err(StoreError {
+                    store: self.describe.clone(),
+                    reason: "reconnected, but a single-owner service now holds the schema".into(),
+                });
+            }
+        }
+        Ok(client)
+    }
+
+    /// Sets `meta.key` to `value` within `txn`.
+    async fn set_meta(
+        &self,
+        txn: &tokio_postgres::Transaction<'_>,
+        key: &str,
+        value: i64,
+    ) -> Result<(), StoreError> {
+        txn.execute(
+            &format!(
+                "INSERT INTO {}.meta (key, value) VALUES ($1, $2)
+                 ON CONFLICT (key) DO UPDATE SET value = EXCLUDED.value",
+                self.schema
+            ),
+            &[&key, &value],
+        )
+        .await
+        .map_err(|e| self.error(e))?;
+        Ok(())
     }
 
     /// The last position of the log and the last compacted one.
@@ -376,10 +464,13 @@ fn db_message(e: &tokio_postgres::Error) -> String {
 
 /// A second connection that `LISTEN`s on the schema's channel; every notification (an append
 /// by any node) wakes the returned [`Fleet::appended`].
-async fn listen(config: &str, schema: &str) -> Result<Fleet, tokio_postgres::Error> {
+async fn listen(
+    config: &str,
+    schema: &str,
+    appended: &Arc<tokio::sync::Notify>,
+) -> Result<Client, tokio_postgres::Error> {
     let (listener, mut connection) = tokio_postgres::connect(config, NoTls).await?;
-    let appended = Arc::new(tokio::sync::Notify::new());
-    let wake = Arc::clone(&appended);
+    let wake = Arc::clone(appended);
     tokio::spawn(async move {
         // Drives the connection; ends when the server goes away (the tailer then polls).
         while let Some(Ok(message)) = std::future::poll_fn(|cx| connection.poll_message(cx)).await {
@@ -389,10 +480,9 @@ async fn listen(config: &str, schema: &str) -> Result<Fleet, tokio_postgres::Err
         }
     });
     listener.batch_execute(&format!("LISTEN {schema}")).await?;
-    Ok(Fleet {
-        _listener: listener,
-        appended,
-    })
+    // A reconnected listener may have missed notifications: wake the tailer once.
+    appended.notify_one();
+    Ok(listener)
 }
 
 impl Store for PostgresStore {
@@ -402,7 +492,7 @@ impl Store for PostgresStore {
 
     fn recover(&self) -> Result<Recovered, StoreError> {
         let s = &self.schema;
-        let mut client = self.client.lock().expect("postgres client lock");
+        let mut client = self.connection()?;
         self.runtime.block_on(async {
             // One snapshot of the database for all three reads.
             let client = client
@@ -445,7 +535,7 @@ impl Store for PostgresStore {
     fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError> {
         self.writable()?;
         let seq = self.seq_param(seq)?;
-        let client = self.client.lock().expect("postgres client lock");
+        let client = self.connection()?;
         self.runtime.block_on(async {
             if let Some((ddl, upto)) = self.segment_ddl(seq) {
                 client
@@ -469,7 +559,7 @@ impl Store for PostgresStore {
         self.writable()?;
         let seq = self.seq_param(checkpoint.seq)?;
         let s = &self.schema;
-        let mut client = self.client.lock().expect("postgres client lock");
+        let mut client = self.connection()?;
         self.runtime.block_on(async {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
             if self.fleet.is_some() {
@@ -512,15 +602,7 @@ impl Store for PostgresStore {
                     .await
                     .map_err(|e| self.error(e))?;
             }
-            txn.execute(
-                &format!(
-                    "INSERT INTO {s}.meta (key, value) VALUES ('checkpoint', $1)
-                     ON CONFLICT (key) DO UPDATE SET value = EXCLUDED.value"
-                ),
-                &[&seq],
-            )
-            .await
-            .map_err(|e| self.error(e))?;
+            self.set_meta(&txn, "checkpoint", seq).await?;
             txn.commit().await.map_err(|e| self.error(e))
         })
     }
@@ -532,7 +614,7 @@ impl Store for PostgresStore {
         let mut next = from;
         loop {
             let rows = {
-                let client = self.client.lock().expect("postgres client lock");
+                let client = self.connection()?;
                 self.runtime.block_on(async {
                     client
                         .query(
@@ -574,7 +656,7 @@ impl Store for PostgresStore {
             return Ok(Some(known + 1));
         }
         let s = &self.schema;
-        let mut client = self.client.lock().expect("postgres client lock");
+        let mut client = self.connection()?;
         self.runtime.block_on(async {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
             // One appender at a time in the whole fleet; released by commit or rollback (and by
@@ -645,7 +727,7 @@ impl Store for PostgresStore {
             return Ok(0);
         };
         let s = &self.schema;
-        let mut client = self.client.lock().expect("postgres client lock");
+        let mut client = self.connection()?;
         self.runtime.block_on(async {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
             if self.fleet.is_some() {
@@ -699,15 +781,7 @@ impl Store for PostgresStore {
                 upto = to;
             }
             if upto > compacted {
-                txn.execute(
-                    &format!(
-                        "INSERT INTO {s}.meta (key, value) VALUES ('compacted', $1)
-                         ON CONFLICT (key) DO UPDATE SET value = EXCLUDED.value"
-                    ),
-                    &[&upto],
-                )
-                .await
-                .map_err(|e| self.error(e))?;
+                self.set_meta(&txn, "compacted", upto).await?;
             }
             txn.commit().await.map_err(|e| self.error(e))?;
             Ok(moved)
@@ -718,7 +792,7 @@ impl Store for PostgresStore {
         if self.fleet.is_none() {
             return Ok(None);
         }
-        let client = self.client.lock().expect("postgres client lock");
+        let client = self.connection()?;
         self.runtime.block_on(async {
             let head: i64 = client
                 .query_one(&self.head_query(), &[])
