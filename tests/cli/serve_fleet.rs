@@ -538,3 +538,70 @@ fn a_fleet_node_reconnects_when_the_server_ends_its_sessions() {
     assert_eq!(info.observations, 6);
     drop((node1, node2));
 }
+
+/// A damaged group in the shared log stops every node from applying past it: health says
+/// `failed` and names the entry, writes are refused, reads answer from the last good position.
+#[test]
+fn a_damaged_group_in_the_shared_log_fails_the_nodes_loudly_and_keeps_their_reads() {
+    use chronomap_serve::store::{PostgresStore, Store};
+    let Some(backend) = service::postgres_backend("fleet_damage") else {
+        return;
+    };
+    let Backend::Postgres(config, schema) = &backend else {
+        unreachable!("a postgres backend")
+    };
+    let data = scratch("serve_fleet_damage");
+    let port = free_port();
+    let node = start(&data, port, &backend, &["--fleet", "--no-token"]);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let client = Client::new(&node.url, None).unwrap();
+    let ack = runtime
+        .block_on(client.add_values(
+            "lab/door",
+            &[1.4e9, 1.4e9 + 60.0],
+            &[1.0, 0.0],
+            Some("fremen:2"),
+        ))
+        .unwrap();
+    // Another writer (a broken tool, a bad restore) puts garbage at the next position.
+    let store = PostgresStore::connect_fleet(config, schema).unwrap();
+    store
+        .append(ack.seq + 1, b"CMLOG\x002\nnot a commit group")
+        .unwrap();
+    let waited = Instant::now();
+    let health = loop {
+        let health = runtime.block_on(client.health()).unwrap();
+        if health.status != "ok" {
+            break health;
+        }
+        assert!(waited.elapsed() < Duration::from_secs(5), "{health:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(health.status, "failed");
+    let reason = health.reason.unwrap();
+    assert!(
+        reason.contains(&format!("log entry {}", ack.seq + 1)),
+        "{reason}"
+    );
+    assert_eq!(
+        (health.seq, health.head, health.lag),
+        (ack.seq, ack.seq + 1, 1)
+    );
+    let refused = runtime
+        .block_on(client.add_values("lab/door", &[1.4e9 + 120.0], &[1.0], None))
+        .unwrap_err();
+    assert_eq!(
+        refused.status(),
+        Some(chronomap_client::StatusCode::SERVICE_UNAVAILABLE),
+        "{refused}"
+    );
+    let info = runtime.block_on(client.view("lab/door")).unwrap();
+    assert_eq!(
+        info.observations, 2,
+        "reads answer from the last good position"
+    );
+    drop(node);
+}

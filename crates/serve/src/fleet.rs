@@ -29,8 +29,9 @@ pub const BEHIND_AFTER: Duration = Duration::from_secs(5);
 /// Applies every commit group after the node's position, in order; returns the new position.
 ///
 /// # Errors
-/// The store cannot be read, or a group cannot be applied: the node then stops applying and
-/// says so in [`Shared::broken`] (its reads still answer from the last position).
+/// The store cannot be read (try again later), or a group cannot be applied: the node then
+/// stops applying for good and says so in [`Shared::broken`] (its reads still answer from the
+/// last position).
 pub fn catch_up(shared: &Shared) -> Result<u64, String> {
     let _applying = shared.applying.lock().expect("applying lock");
     if let Some(reason) = shared.broken.lock().expect("broken lock").clone() {
@@ -38,23 +39,21 @@ pub fn catch_up(shared: &Shared) -> Result<u64, String> {
     }
     let started = Instant::now();
     let from = shared.seq.load(Ordering::Acquire) + 1;
-    let mut failed_to_apply = false;
-    let scanned = shared.store.scan(from, &mut |seq, bytes| {
-        shared.apply_logged(seq, bytes).inspect_err(|_| {
-            failed_to_apply = true;
-        })
-    });
-    match scanned {
+    match shared
+        .store
+        .scan(from, &mut |seq, bytes| shared.apply_logged(seq, bytes))
+    {
         Ok(()) => {
             *shared.synced.lock().expect("synced lock") = started;
             Ok(shared.seq.load(Ordering::Acquire))
         }
-        Err(e) if failed_to_apply => {
-            let reason = format!("this node stopped applying the shared log: {e}");
-            *shared.broken.lock().expect("broken lock") = Some(reason.clone());
-            Err(reason)
-        }
-        Err(e) => Err(e.to_string()),
+        // `apply_logged` set `broken` if the log itself was at fault; else the store failed.
+        Err(e) => Err(shared
+            .broken
+            .lock()
+            .expect("broken lock")
+            .clone()
+            .unwrap_or_else(|| e.to_string())),
     }
 }
 

@@ -165,13 +165,25 @@ impl Shared {
     ///
     /// # Errors
     /// A gap before `seq`, a damaged group, or a record that cannot be applied: the registry
-    /// may then hold part of the group, so the caller must stop applying (see
-    /// [`Shared::broken`]).
+    /// may then hold part of the group, so [`Shared::broken`] is set and nothing is applied
+    /// after it (the writer refuses writes, readers get the last state, health says `failed`).
     pub(crate) fn apply_logged(&self, seq: u64, bytes: &[u8]) -> Result<(), StoreError> {
-        let error = |reason: String| StoreError {
-            store: self.store.describe(),
-            reason,
+        // Whatever goes wrong here, this node must not apply anything after it.
+        let error = |reason: String| {
+            *self.broken.lock().expect("broken lock") = Some(format!(
+                "this node stopped applying the shared log: {reason}"
+            ));
+            StoreError {
+                store: self.store.describe(),
+                reason,
+            }
         };
+        if let Some(reason) = self.broken.lock().expect("broken lock").clone() {
+            return Err(StoreError {
+                store: self.store.describe(),
+                reason,
+            });
+        }
         let known = self.seq.load(Ordering::Acquire);
         if seq <= known {
             return Ok(());
