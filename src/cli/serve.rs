@@ -158,6 +158,10 @@ pub struct ClientArgs {
     /// Print the answer as one JSON object (`health` and `view` always do).
     #[arg(long, global = true)]
     pub json: bool,
+    /// Answer only after applying the log up to this position: the `seq` a write returned, on
+    /// any node of a fleet (header `Chronomap-Read-After`; docs/fleet.md).
+    #[arg(long, global = true, value_name = "SEQ")]
+    pub read_after: Option<u64>,
     /// What to ask.
     #[command(subcommand)]
     pub command: ClientCommand,
@@ -168,8 +172,12 @@ pub struct ClientArgs {
 pub enum ClientCommand {
     /// Service health.
     Health,
-    /// All models.
-    List,
+    /// All models (with --prefix, those whose ids start with it: one robot's).
+    List {
+        /// Only ids starting with this text, e.g. `robot7/`.
+        #[arg(long)]
+        prefix: Option<String>,
+    },
     /// A model's parameters.
     View {
         /// Model id.

@@ -426,7 +426,10 @@ pub fn client(args: &ClientArgs) -> Result<()> {
                 .to_owned())
         })
         .transpose()?;
-    let client = Client::new(&args.url, token)?;
+    let mut client = Client::new(&args.url, token)?;
+    if let Some(seq) = args.read_after {
+        client = client.reading_after(seq);
+    }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -442,8 +445,11 @@ async fn run_client(
 ) -> Result<()> {
     match command {
         ClientCommand::Health => print_json(&client.health().await?)?,
-        ClientCommand::List => {
-            let list = client.list().await?;
+        ClientCommand::List { prefix } => {
+            let list = match prefix {
+                Some(prefix) => client.list_prefix(prefix).await?,
+                None => client.list().await?,
+            };
             if as_json {
                 return print_json(&list);
             }

@@ -536,6 +536,37 @@ fn a_fleet_node_reconnects_when_the_server_ends_its_sessions() {
     }
     let info = runtime.block_on(two.view("lab/door")).unwrap();
     assert_eq!(info.observations, 6);
+    // The command-line client: a token read on the other node, and one namespace's models.
+    let client_cli = |args: &[&str]| {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
+            .args(["client", "--url"])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        serde_json::from_slice::<serde_json::Value>(&output.stdout).unwrap()
+    };
+    let (t, v) = door(1.4e9 + 1800.0);
+    let written = runtime
+        .block_on(two.add_values("lab/door", &t, &v, None))
+        .unwrap();
+    let view = client_cli(&[
+        &node1.url,
+        "--read-after",
+        &written.seq.to_string(),
+        "view",
+        "lab/door",
+    ]);
+    assert_eq!(view["observations"], 8, "{view}");
+    runtime
+        .block_on(one.add_values("yard/gate", &t, &v, Some("fremen:2")))
+        .unwrap();
+    let listed = client_cli(&[&node1.url, "list", "--prefix", "lab/", "--json"]);
+    assert_eq!(listed["models"].as_array().unwrap().len(), 1, "{listed}");
     drop((node1, node2));
 }
 
