@@ -12,6 +12,8 @@ mod activity;
 mod bench;
 mod bt;
 mod events;
+#[cfg(feature = "serve")]
+mod export;
 mod explore;
 mod grid;
 mod ingest;
@@ -28,6 +30,8 @@ pub use activity::*;
 pub use bench::*;
 pub use bt::*;
 pub use events::*;
+#[cfg(feature = "serve")]
+pub use export::*;
 pub use explore::*;
 pub use grid::*;
 pub use ingest::*;
@@ -155,6 +159,11 @@ pub enum Command {
     /// Talk to a running service: add observations, predict, forecast, view, list, remove.
     #[cfg(feature = "serve")]
     Client(ClientArgs),
+    /// Export a service store's history for analysis: observations and predictions of every
+    /// model as Apache Parquet.
+    #[cfg(feature = "serve")]
+    #[command(subcommand)]
+    Export(ExportCommand),
     /// Run as a ROS 2 node: learn states, maps and people from topics online, publish
     /// predicted maps, Nav2 costmap-filter masks and predictions; rewrite a Nav2 route graph.
     #[cfg(feature = "ros2")]

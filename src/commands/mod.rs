@@ -22,6 +22,8 @@ mod demo_grids;
 mod demo_topo;
 mod eval;
 mod events;
+#[cfg(feature = "serve")]
+mod export;
 mod explore;
 mod features;
 mod grid;
@@ -100,6 +102,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Serve(args) => serve::serve(&args),
         #[cfg(feature = "serve")]
         Command::Client(args) => serve::client(&args),
+        #[cfg(feature = "serve")]
+        Command::Export(crate::cli::ExportCommand::Parquet(args)) => export::parquet(&args),
         #[cfg(feature = "ros2")]
         Command::Ros2(args) => ros2::run(&args),
         Command::Bt(BtCommand::Check(args)) => bt::check(&args),

@@ -21,6 +21,8 @@ mod casts;
 mod closed_pipes;
 mod events;
 mod explore;
+#[cfg(feature = "serve")]
+mod export_parquet;
 mod greg_door;
 mod grid;
 mod hostile;
