@@ -12,6 +12,8 @@
 //! ([`namespace_of`]). `time` is a `TIMESTAMP(MICROS, UTC)` (the seconds rounded to the
 //! nearest microsecond) and `time_s` the exact seconds as a `DOUBLE`. Every column is
 //! `REQUIRED` except the `value` of predictions, which is null for a model without a range.
+//! `time` is delta-encoded and `time_s` split into byte streams (both read by every Parquet
+//! reader of the last years); the other columns are dictionary-encoded.
 //!
 //! ```
 //! use chronomap_io::parquet::{ObservationRow, ObservationsWriter};
@@ -43,13 +45,14 @@ use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ::parquet::basic::Compression;
+use ::parquet::basic::{Compression, Encoding};
 use ::parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
 use ::parquet::errors::ParquetError;
 use ::parquet::file::metadata::KeyValue;
 use ::parquet::file::properties::WriterProperties;
 use ::parquet::file::writer::{SerializedFileWriter, SerializedRowGroupWriter};
 use ::parquet::schema::parser::parse_message_type;
+use ::parquet::schema::types::ColumnPath;
 
 /// Rows of a row group unless [`ObservationsWriter::with_row_group_rows`] says otherwise
 /// (2^20: large enough for DuckDB and DataFusion to read in parallel, small enough to buffer).
@@ -204,8 +207,15 @@ struct Table<W: Write + Send> {
 impl<W: Write + Send> Table<W> {
     fn new(name: String, writer: W, schema: &str) -> Result<Self, ParquetWriteError> {
         let schema = parse_message_type(schema).expect("the table schemas parse");
+        // Times are mostly increasing and often regular: deltas of `time` and the byte planes of
+        // `time_s` compress to a tenth of what dictionaries do (measured on the greg door,
+        // sampled every minute: 6.0 MB instead of 60.6 MB for 11.6 M observations).
         let properties = WriterProperties::builder()
             .set_compression(Compression::SNAPPY)
+            .set_column_dictionary_enabled(ColumnPath::from("time"), false)
+            .set_column_encoding(ColumnPath::from("time"), Encoding::DELTA_BINARY_PACKED)
+            .set_column_dictionary_enabled(ColumnPath::from("time_s"), false)
+            .set_column_encoding(ColumnPath::from("time_s"), Encoding::BYTE_STREAM_SPLIT)
             .build();
         let file = SerializedFileWriter::new(writer, Arc::new(schema), Arc::new(properties))
             .map_err(|e| fail(&name, None, e))?;
@@ -717,6 +727,26 @@ mod tests {
             kv.iter()
                 .any(|k| k.key == "chronomap.last_seq" && k.value.as_deref() == Some("175"))
         );
+        // The times are stored as deltas and byte streams, the rest with dictionaries.
+        let chunks = meta.row_group(0);
+        let encodings = |i: usize| chunks.column(i).encodings().collect::<Vec<_>>();
+        assert!(
+            encodings(2).contains(&Encoding::DELTA_BINARY_PACKED),
+            "{:?}",
+            encodings(2)
+        );
+        assert!(
+            encodings(3).contains(&Encoding::BYTE_STREAM_SPLIT),
+            "{:?}",
+            encodings(3)
+        );
+        for i in [0, 1, 4, 5] {
+            assert!(
+                encodings(i).contains(&Encoding::RLE_DICTIONARY),
+                "{:?}",
+                encodings(i)
+            );
+        }
         assert_eq!(read.len(), rows.len());
         for (k, (row, expected)) in read.iter().zip(&rows).enumerate() {
             let namespace = expected.model_id.split('/').next().unwrap();
