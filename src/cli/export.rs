@@ -9,7 +9,7 @@ Examples:
       --from 2026-11-01T00:00Z --to 2026-12-01T00:00Z --step 3600
   chronomap export parquet --postgres 'host=db.lab dbname=lab' --prefix robot1/ -o robot1 \\
       --no-predictions
-  duckdb -c \"SELECT namespace, count(*), avg(value) FROM 'history/observations.parquet' GROUP BY ALL\"
+  duckdb -c \"SELECT namespace, avg(value) FROM 'history/observations.parquet' GROUP BY 1\"
 
 Writes OUTPUT/observations.parquet (namespace, model_id, time, time_s, value, seq: every
 observation of the models the store holds, since each was last created, in log order) and
