@@ -636,3 +636,65 @@ fn a_damaged_group_in_the_shared_log_fails_the_nodes_loudly_and_keeps_their_read
     );
     drop(node);
 }
+
+/// A node that fell behind a compaction catches up from the archive when it appends: its
+/// catch-up sees every group in order, the archived ones included, then appends after them.
+#[test]
+fn an_append_catches_up_through_the_archive() {
+    use chronomap_serve::store::{Access, Checkpoint, OWNER_WAIT, PostgresStore, Store};
+    let Some(Backend::Postgres(config, schema)) = service::postgres_backend("fleet_archive") else {
+        return;
+    };
+    let open =
+        || PostgresStore::connect_with(&config, &schema, Access::Fleet, OWNER_WAIT, 5).unwrap();
+    let (behind, ahead) = (open(), open());
+    let group = |seq: u64| {
+        chronomap_serve::log::encode_group(
+            seq,
+            &[chronomap_serve::log::LogRecord::Remove {
+                id: format!("m{seq}"),
+            }],
+        )
+    };
+    for seq in 1..=23 {
+        let appended = ahead
+            .append_next(seq - 1, &mut |_, _| Ok(()), &mut |next| Some(group(next)))
+            .unwrap();
+        assert_eq!(appended, Some(seq));
+    }
+    ahead
+        .checkpoint(&Checkpoint {
+            seq: 23,
+            snapshots: &[],
+            removed: &[],
+        })
+        .unwrap();
+    assert_eq!(
+        ahead.compact().unwrap(),
+        4,
+        "segments 1-5, 6-10, 11-15, 16-20"
+    );
+    assert_eq!(behind.recover().unwrap().compacted, 20);
+    let mut seen = Vec::new();
+    let appended = behind
+        .append_next(
+            0,
+            &mut |seq, bytes| {
+                assert_eq!(bytes, group(seq).as_slice());
+                seen.push(seq);
+                Ok(())
+            },
+            &mut |next| Some(group(next)),
+        )
+        .unwrap();
+    assert_eq!(seen, (1..=23).collect::<Vec<_>>());
+    assert_eq!(appended, Some(24));
+    let mut scanned = Vec::new();
+    behind
+        .scan(1, &mut |seq, _| {
+            scanned.push(seq);
+            Ok(())
+        })
+        .unwrap();
+    assert_eq!(scanned, (1..=24).collect::<Vec<_>>());
+}

@@ -98,6 +98,11 @@ pub enum Access {
     Reader,
 }
 
+/// Most commit groups read in one query.
+const PAGE_GROUPS: i64 = 256;
+/// Bytes of commit groups after which a page ends (the group that crosses it is the last).
+const PAGE_BYTES: i64 = 64 << 20;
+
 /// Commit groups per partition of the log in a new schema, by default.
 pub const DEFAULT_SEGMENT_GROUPS: u64 = 100_000;
 
@@ -424,6 +429,21 @@ impl PostgresStore {
         )
     }
 
+    /// One page of the log from position `$1`: at most `$2` groups, and only as many as start
+    /// within the first `$3` bytes (at least one), so that a page of large groups stays
+    /// bounded. `octet_length` reads the stored size without fetching the value.
+    fn page_query(&self) -> String {
+        format!(
+            "SELECT seq, grp FROM (
+                 SELECT seq, grp, sum(octet_length(grp)) OVER (ORDER BY seq) - octet_length(grp) AS before
+                 FROM (SELECT seq, grp FROM {} WHERE seq >= $1 ORDER BY seq LIMIT $2) AS page
+             ) AS sized
+             WHERE before < $3
+             ORDER BY seq",
+            self.entries()
+        )
+    }
+
     /// The log as one relation: archive and live log, or the live log alone.
     fn entries(&self) -> String {
         let s = &self.schema;
@@ -609,34 +629,26 @@ impl Store for PostgresStore {
 
     fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError> {
         let from = self.seq_param(from)?;
-        // Pages of groups, so that a long log is never held in memory at once.
-        const PAGE: i64 = 256;
+        // Bounded pages of groups, so that a long log is never held in memory at once.
         let mut next = from;
         loop {
             let rows = {
                 let client = self.connection()?;
                 self.runtime.block_on(async {
                     client
-                        .query(
-                            &format!(
-                                "SELECT seq, grp FROM {} WHERE seq >= $1 ORDER BY seq LIMIT $2",
-                                self.entries()
-                            ),
-                            &[&next, &PAGE],
-                        )
+                        .query(&self.page_query(), &[&next, &PAGE_GROUPS, &PAGE_BYTES])
                         .await
                         .map_err(|e| self.error(e))
                 })?
             };
-            let count = rows.len();
+            if rows.is_empty() {
+                return Ok(());
+            }
             for row in rows {
                 let seq: i64 = row.get(0);
                 let bytes: &[u8] = row.get(1);
                 visit(seq as u64, bytes)?;
                 next = seq + 1;
-            }
-            if (count as i64) < PAGE {
-                return Ok(());
             }
         }
     }
@@ -667,27 +679,21 @@ impl Store for PostgresStore {
             )
             .await
             .map_err(|e| self.error(e))?;
-            // What the others appended since `known`, in pages.
-            const PAGE: i64 = 256;
+            // What the others appended since `known` (also from the archive, for a node that
+            // fell behind a compaction), in bounded pages.
             let mut last = self.seq_param(known)?;
             loop {
                 let rows = txn
-                    .query(
-                        &format!(
-                            "SELECT seq, grp FROM {s}.log WHERE seq > $1 ORDER BY seq LIMIT $2"
-                        ),
-                        &[&last, &PAGE],
-                    )
+                    .query(&self.page_query(), &[&(last + 1), &PAGE_GROUPS, &PAGE_BYTES])
                     .await
                     .map_err(|e| self.error(e))?;
-                let count = rows.len();
+                if rows.is_empty() {
+                    break;
+                }
                 for row in rows {
                     let seq: i64 = row.get(0);
                     catch_up(seq as u64, row.get(1))?;
                     last = seq;
-                }
-                if (count as i64) < PAGE {
-                    break;
                 }
             }
             let next = last + 1;
