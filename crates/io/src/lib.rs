@@ -59,6 +59,10 @@
 //!   ([`OccupancyMap::obstacle_grid`]) and for path planners, unknown cells blocking
 //!   ([`OccupancyMap::planning_obstacles`]). [`frame_list`] — the `<time> <map.yaml>` lists of
 //!   maps that occupancy grids are built from ([`read_frame_list`]).
+//! * `parquet` (feature `parquet`) — a fleet's observations and predictions as Apache Parquet
+//!   tables (`ObservationsWriter`, `PredictionsWriter`: the `parquet` crate without Arrow,
+//!   Snappy, one row group at a time), for DuckDB, DataFusion and pandas; `chronomap export
+//!   parquet` writes them from a service's store (docs/parquet.md).
 //! * [`ply`] — 3-D point clouds as PLY files, ASCII or binary ([`read_ply`], [`write_ply`]), as
 //!   [`chronomap_registration::Cloud`]s; errors ([`PlyError`]) name the file, the header line or
 //!   the vertex and property, and sizes are bounded.
