@@ -12,9 +12,9 @@ mod activity;
 mod bench;
 mod bt;
 mod events;
+mod explore;
 #[cfg(feature = "serve")]
 mod export;
-mod explore;
 mod grid;
 mod ingest;
 mod lidar;
@@ -30,9 +30,9 @@ pub use activity::*;
 pub use bench::*;
 pub use bt::*;
 pub use events::*;
+pub use explore::*;
 #[cfg(feature = "serve")]
 pub use export::*;
-pub use explore::*;
 pub use grid::*;
 pub use ingest::*;
 pub use lidar::*;

@@ -22,9 +22,9 @@ mod demo_grids;
 mod demo_topo;
 mod eval;
 mod events;
+mod explore;
 #[cfg(feature = "serve")]
 mod export;
-mod explore;
 mod features;
 mod grid;
 mod ingest;

@@ -684,7 +684,10 @@ impl Store for PostgresStore {
             let mut last = self.seq_param(known)?;
             loop {
                 let rows = txn
-                    .query(&self.page_query(), &[&(last + 1), &PAGE_GROUPS, &PAGE_BYTES])
+                    .query(
+                        &self.page_query(),
+                        &[&(last + 1), &PAGE_GROUPS, &PAGE_BYTES],
+                    )
                     .await
                     .map_err(|e| self.error(e))?;
                 if rows.is_empty() {
