@@ -30,7 +30,7 @@ pub const BEHIND_AFTER: Duration = Duration::from_secs(5);
 ///
 /// # Errors
 /// The store cannot be read (try again later), or a group cannot be applied: the node then
-/// stops applying for good and says so in [`Shared::broken`] (its reads still answer from the
+/// stops applying for good and says so in its health (its reads still answer from the
 /// last position).
 pub fn catch_up(shared: &Shared) -> Result<u64, String> {
     let _applying = shared.applying.lock().expect("applying lock");
