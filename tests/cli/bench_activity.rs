@@ -26,6 +26,7 @@ fn rows(path: &str) -> u64 {
 }
 
 #[test]
+#[ignore = "slow: a benchmark's smoke test (cargo test -- --include-ignored)"]
 fn bench_activity_quick_processes_every_detection_and_reports_positive_timings() {
     let out = Command::new(env!("CARGO_BIN_EXE_chronomap"))
         .args(["bench", "activity", "--quick", "--json"])

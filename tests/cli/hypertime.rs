@@ -25,6 +25,7 @@ fn mean_mse(report: &EvalReport, spec: &str) -> f64 {
 /// figure), and no difference between them and FreMEn is significant (paired t-test over the
 /// five test weeks); all beat the mean.
 #[test]
+#[ignore = "slow: trains four hypertime models on ten weeks (cargo test -- --include-ignored)"]
 fn greg_door_hypertime_beside_fremen() {
     let train = greg_training();
     let tests = greg_tests();
@@ -129,6 +130,7 @@ fn labdoor_velocity_hypertime_equals_the_mean() {
 /// mean 39.9 %, FreMEn order 2 85.7 %, HyT-KM 85.0 % of them visible (`chronomap features`;
 /// docs/hypertime.md).
 #[test]
+#[ignore = "slow: hypertime models of the lab's feature data (cargo test -- --include-ignored)"]
 fn feature_visibility_needs_time() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_chronomap"))
         .args([
