@@ -97,6 +97,9 @@ pub struct Verified {
     pub registry: Registry,
     /// Last log position.
     pub last_seq: u64,
+    /// The ids the replay after the checkpoint touched: their snapshots are older than the
+    /// models, so the next checkpoint must write (or delete) them.
+    pub replayed: std::collections::BTreeSet<String>,
     /// What was found.
     pub report: Report,
 }
@@ -123,6 +126,7 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
     // Positions up to `compacted` were folded into the snapshots and live in the archive.
     let mut previous = recovered.compacted;
     let mut replaying = report.damage.is_empty();
+    let mut replayed = std::collections::BTreeSet::new();
     let scanned = store.scan(recovered.compacted + 1, &mut |seq, bytes| {
         report.entries += 1;
         if seq != previous + 1 {
@@ -139,6 +143,7 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
                 report.observations += records.iter().map(|r| r.observations() as u64).sum::<u64>();
                 if seq > recovered.checkpoint && replaying {
                     for record in &records {
+                        replayed.insert(record.id().to_owned());
                         if let Err(e) = registry.apply(record) {
                             report.damage.push(format!(
                                 "log entry {seq} cannot be replayed onto model {:?}: {e}",
@@ -173,6 +178,7 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
     Ok(Verified {
         registry,
         last_seq: report.last_seq,
+        replayed,
         report,
     })
 }

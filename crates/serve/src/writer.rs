@@ -224,7 +224,19 @@ pub fn recover(store: Arc<dyn Store>) -> Result<Shared, String> {
     if !verified.report.damage.is_empty() {
         return Err(verified.report.failure());
     }
-    Ok(Shared::new(store, verified.registry, verified.last_seq))
+    let shared = Shared::new(store, verified.registry, verified.last_seq);
+    {
+        // The models the replay changed are newer than their snapshots: the next checkpoint,
+        // which will claim to cover the replayed positions, must write them (without this, a
+        // model changed only before a crash kept its older snapshot under a newer checkpoint,
+        // and the recovery after the next crash replayed too little).
+        let registry = shared.registry.read().expect("registry lock");
+        let mut changes = shared.changes.lock().expect("changes lock");
+        for id in &verified.replayed {
+            changes.touched(id, registry.get(id).is_some());
+        }
+    }
+    Ok(shared)
 }
 
 /// Every observation of `id` since it was last created, from the durable log.
@@ -637,6 +649,38 @@ mod tests {
             let (times, _) = observations_of(&*store, "lab").unwrap();
             assert_eq!(times.len(), 30, "observations since the last create");
         }
+    }
+
+    #[test]
+    fn models_replayed_after_a_crash_are_in_the_next_checkpoint() {
+        let dir = scratch("replayed");
+        let store: Arc<dyn Store> = Arc::new(RedbStore::open(dir.join("db")).unwrap());
+        let every = CheckpointPolicy {
+            every_observations: 1,
+            every: Duration::from_secs(3600),
+        };
+        let (outcomes, _) = run_writer(
+            Arc::clone(&store),
+            vec![vec![observe("a", 0.0, 10)], vec![observe("b", 0.0, 10)]],
+            every,
+        );
+        assert!(outcomes.iter().all(Result::is_ok));
+        // A lifetime that committed a group for "a" and was killed before its checkpoint.
+        let WriteOp { record, .. } = observe("a", 6_000.0, 10);
+        store.append(2, &encode_group(2, &[record])).unwrap();
+        // The next lifetime writes only "b" and checkpoints after it.
+        let (outcomes, _) = run_writer(
+            Arc::clone(&store),
+            vec![vec![observe("b", 6_000.0, 5)]],
+            every,
+        );
+        assert!(outcomes.iter().all(Result::is_ok));
+        // The checkpoint now covers position 3: "a" must have been written with it.
+        assert_eq!(store.recover().unwrap().checkpoint, 3);
+        let recovered = recover(Arc::clone(&store)).unwrap();
+        let registry = recovered.registry.read().unwrap();
+        assert_eq!(registry.get("a").unwrap().model.span().count, 20);
+        assert_eq!(registry.get("b").unwrap().model.span().count, 15);
     }
 
     #[test]
