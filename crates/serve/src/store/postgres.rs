@@ -400,6 +400,21 @@ impl PostgresStore {
         Ok(client)
     }
 
+    /// Takes the fleet's append lock for the rest of `txn` (released by commit or rollback, and
+    /// by the server when the session dies).
+    async fn take_append_lock(
+        &self,
+        txn: &tokio_postgres::Transaction<'_>,
+    ) -> Result<(), StoreError> {
+        txn.execute(
+            "SELECT pg_advisory_xact_lock(hashtextextended($1, 1))",
+            &[&format!("chronomap serve: {}", self.schema)],
+        )
+        .await
+        .map_err(|e| self.error(e))?;
+        Ok(())
+    }
+
     /// Sets `meta.key` to `value` within `txn`.
     async fn set_meta(
         &self,
@@ -476,9 +491,10 @@ impl PostgresStore {
 
 /// The server's own message of a database error (tokio-postgres displays only "db error").
 fn db_message(e: &tokio_postgres::Error) -> String {
-    match e.as_db_error() {
-        Some(db) => format!("{e}: {}", db.message()),
-        None => e.to_string(),
+    match (e.as_db_error(), std::error::Error::source(e)) {
+        (Some(db), _) => format!("{e}: {}", db.message()),
+        (None, Some(cause)) => format!("{e}: {cause}"),
+        (None, None) => e.to_string(),
     }
 }
 
@@ -673,12 +689,7 @@ impl Store for PostgresStore {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
             // One appender at a time in the whole fleet; released by commit or rollback (and by
             // the server when a node dies mid-transaction).
-            txn.execute(
-                "SELECT pg_advisory_xact_lock(hashtextextended($1, 1))",
-                &[&format!("chronomap serve: {s}")],
-            )
-            .await
-            .map_err(|e| self.error(e))?;
+            self.take_append_lock(&txn).await?;
             // What the others appended since `known` (also from the archive, for a node that
             // fell behind a compaction), in bounded pages.
             let mut last = self.seq_param(known)?;
@@ -741,12 +752,7 @@ impl Store for PostgresStore {
             let txn = client.transaction().await.map_err(|e| self.error(e))?;
             if self.fleet.is_some() {
                 // No append of another node between reading the checkpoint and moving.
-                txn.execute(
-                    "SELECT pg_advisory_xact_lock(hashtextextended($1, 1))",
-                    &[&format!("chronomap serve: {s}")],
-                )
-                .await
-                .map_err(|e| self.error(e))?;
+                self.take_append_lock(&txn).await?;
             }
             let row = txn
                 .query_one(
