@@ -37,8 +37,12 @@
 #![deny(missing_docs)]
 
 pub mod config;
+pub mod lifecycle;
 pub mod msgs;
 pub mod node;
+pub mod params;
+pub mod ros_args;
+pub mod rosout;
 pub mod signals;
 pub mod world;
 

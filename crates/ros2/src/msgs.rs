@@ -14,6 +14,17 @@
 //! | `nav_msgs/msg/MapMetaData` | `Time map_load_time`, `float32 resolution`, `uint32 width`, `uint32 height`, `Pose origin` |
 //! | `nav_msgs/msg/OccupancyGrid` | `Header header`, `MapMetaData info`, `int8[] data` |
 //! | `nav2_msgs/msg/CostmapFilterInfo` | `Header header`, `uint8 type`, `string filter_mask_topic`, `float32 base`, `float32 multiplier` |
+//! | `lifecycle_msgs/msg/State`, `Transition` | `uint8 id`, `string label` |
+//! | `lifecycle_msgs/msg/TransitionDescription` | `Transition transition`, `State start_state`, `State goal_state` |
+//! | `lifecycle_msgs/msg/TransitionEvent` | `uint64 timestamp`, `Transition transition`, `State start_state`, `State goal_state` |
+//! | `lifecycle_msgs/srv/ChangeState` | `Transition transition` → `bool success` |
+//! | `lifecycle_msgs/srv/GetState` | (empty) → `State current_state` |
+//! | `lifecycle_msgs/srv/GetAvailableStates` | (empty) → `State[] available_states` |
+//! | `lifecycle_msgs/srv/GetAvailableTransitions`, `GetTransitionGraph` | (empty) → `TransitionDescription[] available_transitions` |
+//!
+//! An empty request is one `uint8` (`structure_needs_at_least_one_member`), as rosidl
+//! generates it for DDS. The parameter services (`rcl_interfaces`) and `/rosout`
+//! (`rcl_interfaces/msg/Log`) use ros2-client's types.
 
 use std::fmt;
 
@@ -267,6 +278,114 @@ pub struct CostmapFilterInfo {
 }
 message!(CostmapFilterInfo, "nav2_msgs", "CostmapFilterInfo");
 
+/// `lifecycle_msgs/msg/State`: a state of a managed node ([`crate::lifecycle::State`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LifecycleState {
+    /// Its id (`PRIMARY_STATE_UNCONFIGURED` = 1, ...).
+    pub id: u8,
+    /// Its label (`unconfigured`, ...).
+    pub label: String,
+}
+message!(LifecycleState, "lifecycle_msgs", "State");
+
+/// `lifecycle_msgs/msg/Transition`: a transition by id and label.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LifecycleTransition {
+    /// Its id (`TRANSITION_CONFIGURE` = 1, ...).
+    pub id: u8,
+    /// Its label (`configure`, ...).
+    pub label: String,
+}
+message!(LifecycleTransition, "lifecycle_msgs", "Transition");
+
+/// `lifecycle_msgs/msg/TransitionDescription`: a transition of the graph.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TransitionDescription {
+    /// The transition.
+    pub transition: LifecycleTransition,
+    /// Where it starts.
+    pub start_state: LifecycleState,
+    /// Where it leads.
+    pub goal_state: LifecycleState,
+}
+message!(
+    TransitionDescription,
+    "lifecycle_msgs",
+    "TransitionDescription"
+);
+
+/// `lifecycle_msgs/msg/TransitionEvent`, published on `~/transition_event` for every change of
+/// state.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TransitionEvent {
+    /// When it happened, nanoseconds of the system clock.
+    pub timestamp: u64,
+    /// The transition taken.
+    pub transition: LifecycleTransition,
+    /// The state left.
+    pub start_state: LifecycleState,
+    /// The state entered.
+    pub goal_state: LifecycleState,
+}
+message!(TransitionEvent, "lifecycle_msgs", "TransitionEvent");
+
+/// The request of a service without arguments (`GetState`, `GetAvailableStates`, ...): one
+/// placeholder byte, as rosidl generates empty structures for DDS.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EmptyRequest {
+    /// Always 0.
+    pub structure_needs_at_least_one_member: u8,
+}
+
+/// `lifecycle_msgs/srv/ChangeState` request.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChangeStateRequest {
+    /// The transition asked for (by id, or by label with id 0).
+    pub transition: LifecycleTransition,
+}
+
+/// `lifecycle_msgs/srv/ChangeState` response.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChangeStateResponse {
+    /// Whether the transition's callback succeeded.
+    pub success: bool,
+}
+
+/// `lifecycle_msgs/srv/GetState` response.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GetStateResponse {
+    /// The node's state.
+    pub current_state: LifecycleState,
+}
+
+/// `lifecycle_msgs/srv/GetAvailableStates` response.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GetAvailableStatesResponse {
+    /// Every state.
+    pub available_states: Vec<LifecycleState>,
+}
+
+/// `lifecycle_msgs/srv/GetAvailableTransitions` and `GetTransitionGraph` response.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GetAvailableTransitionsResponse {
+    /// The transitions.
+    pub available_transitions: Vec<TransitionDescription>,
+}
+
+macro_rules! service_message {
+    ($($type:ident),*) => {
+        $(impl ros2_client::Message for $type {})*
+    };
+}
+service_message!(
+    EmptyRequest,
+    ChangeStateRequest,
+    ChangeStateResponse,
+    GetStateResponse,
+    GetAvailableStatesResponse,
+    GetAvailableTransitionsResponse
+);
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -349,6 +468,103 @@ mod tests {
         assert_eq!(bytes, expected);
         let (back, used) = from_bytes::<CostmapFilterInfo, Le>(&bytes).unwrap();
         assert_eq!((back, used), (info, bytes.len()));
+    }
+
+    /// CDR of lifecycle messages as rclpy 9.1.2's `serialize_message` writes them (the hex
+    /// printed by the ROS 2 Python stack, without the 4-byte encapsulation header; rclpy leaves
+    /// padding bytes undefined, written here as the zeros RustDDS writes).
+    #[test]
+    fn lifecycle_messages_have_the_cdr_layout_rclpy_writes() {
+        let hex = |bytes: &[u8]| bytes.iter().map(|b| format!("{b:02x}")).collect::<String>();
+        let cdr = |bytes: Vec<u8>| hex(&bytes);
+        // GetState.Request(): "00" + padding.
+        assert_eq!(
+            cdr(to_vec::<_, Le>(&EmptyRequest::default()).unwrap()),
+            "00"
+        );
+        // ChangeState.Request(transition=Transition(id=3, label='activate')).
+        let change = ChangeStateRequest {
+            transition: LifecycleTransition {
+                id: 3,
+                label: "activate".into(),
+            },
+        };
+        assert_eq!(
+            cdr(to_vec::<_, Le>(&change).unwrap()),
+            "03000000090000006163746976617465 00".replace(' ', "")
+        );
+        assert_eq!(
+            cdr(to_vec::<_, Le>(&ChangeStateResponse { success: true }).unwrap()),
+            "01"
+        );
+        // TransitionEvent(timestamp=1234567890123, transition=(10, 'transition_success'),
+        // start_state=(10, 'configuring'), goal_state=(2, 'inactive')).
+        let event = TransitionEvent {
+            timestamp: 1_234_567_890_123,
+            transition: LifecycleTransition {
+                id: 10,
+                label: "transition_success".into(),
+            },
+            start_state: LifecycleState {
+                id: 10,
+                label: "configuring".into(),
+            },
+            goal_state: LifecycleState {
+                id: 2,
+                label: "inactive".into(),
+            },
+        };
+        // rclpy: cb04fb711f010000 0a 560000 13000000 "transition_success\0" 0a 0c000000
+        // "configuring\0" 02 58d5b0 09000000 "inactive\0".
+        let rclpy = [
+            "cb04fb711f010000",
+            "0a000000",
+            "13000000",
+            &hex(b"transition_success\0"),
+            "0a",
+            "0c000000",
+            &hex(b"configuring\0"),
+            "02000000",
+            "09000000",
+            &hex(b"inactive\0"),
+        ]
+        .concat();
+        assert_eq!(cdr(to_vec::<_, Le>(&event).unwrap()), rclpy);
+        let bytes = to_vec::<_, Le>(&event).unwrap();
+        assert_eq!(from_bytes::<TransitionEvent, Le>(&bytes).unwrap().0, event);
+        // GetAvailableTransitions.Response with one description (configure: 1 -> 10).
+        let transitions = GetAvailableTransitionsResponse {
+            available_transitions: vec![TransitionDescription {
+                transition: LifecycleTransition {
+                    id: 1,
+                    label: "configure".into(),
+                },
+                start_state: LifecycleState {
+                    id: 1,
+                    label: "unconfigured".into(),
+                },
+                goal_state: LifecycleState {
+                    id: 10,
+                    label: "configuring".into(),
+                },
+            }],
+        };
+        // rclpy: 01000000 01 1c7fb0 0a000000 "configure\0" 01 b0 0d000000 "unconfigured\0"
+        // 0a 0000 0c000000 "configuring\0".
+        let rclpy = [
+            "01000000",
+            "01000000",
+            "0a000000",
+            &hex(b"configure\0"),
+            "0100",
+            "0d000000",
+            &hex(b"unconfigured\0"),
+            "0a0000",
+            "0c000000",
+            &hex(b"configuring\0"),
+        ]
+        .concat();
+        assert_eq!(cdr(to_vec::<_, Le>(&transitions).unwrap()), rclpy);
     }
 
     #[test]
