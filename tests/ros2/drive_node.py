@@ -11,6 +11,11 @@ door state (std_msgs/Bool), an observed map (nav_msgs/OccupancyGrid), people
 `flow_every` steps and at the end the driver waits until the node has published the people map
 stamped with that step's clock (flow control: the node has then taken everything before it).
 
+A phase with `"kill"` ends differently, as a crash does: after its last flow-controlled step
+the driver waits `kill["wait"]` seconds (the node has acknowledged everything before by
+publishing it, and its journal has had time to sync), publishes the `kill["in_flight"]` steps
+without waiting for anything, and kills the node with SIGKILL at once.
+
 The result (JSON on stdout) holds the node's stdout, stderr and exit code, what
 was sent and the last messages the node published at the final clock (predicted map, mask,
 people map, probability, entropy), and the topic types the ROS graph shows. Only this script
@@ -127,6 +132,56 @@ class Driver:
         msg.data = frame
         return msg
 
+    def publish_step(self, step, sent):
+        """Publishes one step: the clock, then what the step holds."""
+        t = step["clock"]
+        self.publish_clock(t)
+        if "door" in step:
+            msg = Bool()
+            msg.data = bool(step["door"])
+            self.door.publish(msg)
+            sent["door"] += 1
+        if "map" in step:
+            frame = self.plan["frames"][step["map"]]
+            self.map.publish(self.occupancy(frame["data"], frame["time"]))
+            sent["maps"] += 1
+        if "people" in step:
+            msg = PoseArray()
+            msg.header.stamp.sec = t
+            msg.header.frame_id = "map"
+            for x, y in step["people"]:
+                pose = Pose()
+                pose.position.x = x
+                pose.position.y = y
+                pose.orientation.w = 1.0
+                msg.poses.append(pose)
+            self.people.publish(msg)
+            sent["people"] += 1
+        if step.get("wrong"):
+            self.wrong.publish(self.occupancy(self.plan["frames"][0]["data"], t))
+            sent["wrong"] += 1
+
+    def crash(self, kill, process, sent, started, discovered):
+        """Waits, publishes the in-flight steps and kills the node with SIGKILL."""
+        settle = time.monotonic() + kill["wait"]
+        while time.monotonic() < settle:
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+        acknowledged = dict(sent)
+        for step in kill["in_flight"]:
+            self.publish_step(step, sent)
+            rclpy.spin_once(self.node, timeout_sec=0.0)
+        process.kill()
+        stdout, stderr = process.communicate(timeout=WAIT_SECS)
+        return {
+            "returncode": process.returncode,
+            "stdout": stdout,
+            "stderr": stderr,
+            "sent": sent,
+            "acknowledged": acknowledged,
+            "discovery_seconds": discovered,
+            "seconds": time.monotonic() - started,
+        }
+
     def run_phase(self, phase, binary, config):
         started = time.monotonic()
         process = subprocess.Popen(
@@ -162,34 +217,12 @@ class Driver:
         discovered = time.monotonic() - started
         sent = {"door": 0, "maps": 0, "people": 0, "wrong": 0}
         for i, step in enumerate(steps):
+            self.publish_step(step, sent)
             t = step["clock"]
-            self.publish_clock(t)
-            if "door" in step:
-                msg = Bool()
-                msg.data = bool(step["door"])
-                self.door.publish(msg)
-                sent["door"] += 1
-            if "map" in step:
-                frame = self.plan["frames"][step["map"]]
-                self.map.publish(self.occupancy(frame["data"], frame["time"]))
-                sent["maps"] += 1
-            if "people" in step:
-                msg = PoseArray()
-                msg.header.stamp.sec = t
-                msg.header.frame_id = "map"
-                for x, y in step["people"]:
-                    pose = Pose()
-                    pose.position.x = x
-                    pose.position.y = y
-                    pose.orientation.w = 1.0
-                    msg.poses.append(pose)
-                self.people.publish(msg)
-                sent["people"] += 1
-            if step.get("wrong"):
-                self.wrong.publish(self.occupancy(self.plan["frames"][0]["data"], t))
-                sent["wrong"] += 1
             if (i + 1) % self.plan["flow_every"] == 0 or i + 1 == len(steps):
                 self.spin_until(lambda: self.stamp_of("people_map") == t, f"the people map at {t}")
+        if "kill" in phase:
+            return self.crash(phase["kill"], process, sent, started, discovered)
         last = steps[-1]["clock"]
         self.spin_until(
             lambda: all(self.stamp_of(k) == last for k in ("map", "mask", "people_map")),

@@ -37,12 +37,9 @@
 #![deny(missing_docs)]
 
 pub mod config;
-pub mod lifecycle;
+pub mod journal;
 pub mod msgs;
 pub mod node;
-pub mod params;
-pub mod ros_args;
-pub mod rosout;
 pub mod signals;
 pub mod world;
 

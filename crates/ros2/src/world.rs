@@ -17,13 +17,17 @@
 //! * **Predicted maps** are the map `chronomap grid predict` computes, with cells as
 //!   `nav2_map_server` publishes the map files it writes ([`MapValues`]).
 
+use std::borrow::Cow;
+use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use chronomap_core::{ObservationError, TemporalModel};
 use chronomap_grid::report::project_layers;
 use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
+use chronomap_io::model_file::{read_model_file, write_model_file};
 use chronomap_io::navmap::{
     LoadSemantics, MapMetadata, MapMode, OccupancyMap, SaveOptions, decode_map_image,
     decode_map_yaml, encode_map_image, encode_map_yaml,
@@ -34,9 +38,11 @@ use chronomap_io::{
 };
 use chronomap_models::AnyModel;
 use chronomap_topo::edges::EdgeModels;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::config::{GridEntry, GridSource, MapValues, NodeConfig, StateConfig};
+use crate::journal::{Entry, Journal, JournalError, JournalSettings};
 use crate::msgs::{
     CostmapFilterInfo, Header, MapMetaData, OccupancyGrid, Point, Pose, PoseArray, Quaternion, Time,
 };
@@ -146,6 +152,9 @@ pub enum StoreError {
     /// A route graph that cannot be made from the edge models.
     #[error("{0}")]
     Route(String),
+    /// The write-ahead log cannot be read or written.
+    #[error(transparent)]
+    Journal(#[from] JournalError),
 }
 
 /// A state and what it learned.
@@ -168,6 +177,64 @@ struct OpenBin {
     index: i64,
     occupied: Vec<bool>,
     messages: u64,
+    /// The journal position of its first message: a checkpoint covers the grid only up to it,
+    /// so that replaying the journal from there fills the bin again.
+    first: Option<u64>,
+}
+
+/// The checkpoint file (`save_dir/checkpoint`, a versioned, checksummed chronomap container of
+/// kind [`CHECKPOINT_KIND`]): which journal position each saved file covers. It is replaced
+/// atomically after every file of a checkpoint was written beside its final name, which makes
+/// the checkpoint complete (see [`World::save`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+struct Manifest {
+    /// The journal position every record before which the checkpoint has seen.
+    head: u64,
+    /// The saved files.
+    files: Vec<ManifestFile>,
+}
+
+/// One file of a checkpoint.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct ManifestFile {
+    /// Path relative to `save_dir` (`states/door.cmm`).
+    path: String,
+    /// Journal records of its input from this position on are not in the file.
+    covers: u64,
+    /// The length of the state's observation record (`record_observations`) at the checkpoint.
+    record_bytes: Option<u64>,
+}
+
+/// Kind of the checkpoint file's container.
+const CHECKPOINT_KIND: &str = "ros2-checkpoint";
+
+/// What the node restored at start: per input, from the checkpoint and from the journal.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Restored {
+    /// Journal records replayed.
+    pub replayed: u64,
+    /// Journal records of inputs that are no longer configured (skipped).
+    pub unknown: u64,
+    /// Journal records the models refused on replay (skipped; logged).
+    pub refused: u64,
+    /// Bytes cut off the journal's end (a torn write).
+    pub torn_bytes: u64,
+    /// Per state, in configuration order: observations from the checkpoint's file and from
+    /// the journal.
+    pub states: Vec<(u64, u64)>,
+    /// Per grid: frames from the checkpoint's file and from the journal.
+    pub grids: Vec<(u64, u64)>,
+    /// The journal position learning goes on at.
+    pub position: u64,
+}
+
+/// Where learning is made durable.
+struct Durable {
+    dir: PathBuf,
+    journal: Journal,
+    /// Whether the last append or sync failed (logged once until one succeeds again).
+    failing: bool,
+    checkpoints: u64,
 }
 
 /// Counts of one input since the node started.
@@ -242,15 +309,40 @@ pub struct World {
     grids: Vec<GridSlot>,
     edges: Option<EdgeModels>,
     tables: ValueTables,
+    durable: Option<Durable>,
+    restored: Restored,
 }
 
 impl World {
-    /// Empty models for `config`, or the models saved in its `save_dir`, and the edge models.
+    /// Empty models for `config`, or the models saved in its `save_dir` with the journal
+    /// replayed on top (journal synced at most every second), and the edge models.
     ///
     /// # Errors
-    /// A saved file that cannot be read or was made for another configuration, unreadable
-    /// edge models, or a record file that cannot be opened.
+    /// As [`World::open`].
     pub fn new(config: NodeConfig) -> Result<World, StoreError> {
+        World::open(config, JournalSettings::default())
+    }
+
+    /// Empty models for `config`, or, with `save_dir`, the last checkpoint's models and grids
+    /// with the journal's records after it replayed (a checkpoint interrupted by a crash is
+    /// completed or discarded first; see [`World::save`]), and the edge models; the journal is
+    /// then appended to with `settings`. What was restored is logged and kept
+    /// ([`World::restored`]).
+    ///
+    /// # Errors
+    /// A saved file that cannot be read or was made for another configuration, a damaged
+    /// checkpoint file or journal, unreadable edge models, or a record file that cannot be
+    /// opened.
+    pub fn open(config: NodeConfig, settings: JournalSettings) -> Result<World, StoreError> {
+        let manifest = match &config.save_dir {
+            Some(dir) => Some(recover_checkpoint(dir)?),
+            None => None,
+        };
+        let covers: HashMap<&str, &ManifestFile> = manifest
+            .iter()
+            .flat_map(|m| &m.files)
+            .map(|f| (f.path.as_str(), f))
+            .collect();
         let mut states = Vec::new();
         for s in &config.states {
             let model = match config.save_dir.as_ref().map(|d| state_file(d, s)) {
@@ -258,7 +350,12 @@ impl World {
                 _ => s.empty_model(),
             };
             let record = match (&config.save_dir, config.record_observations) {
-                (Some(dir), true) => Some(open_record(&record_file(dir, s))?),
+                (Some(dir), true) => {
+                    let saved = covers
+                        .get(relative(&state_file(dir, s), dir).as_str())
+                        .and_then(|f| f.record_bytes);
+                    Some(open_record(&record_file(dir, s), saved)?)
+                }
                 _ => None,
             };
             states.push(StateSlot {
@@ -299,13 +396,217 @@ impl World {
             Some(e) => Some(read_edge_models(&e.models)?),
             None => None,
         };
-        Ok(World {
+        let mut restored = Restored {
+            states: states.iter().map(|s| (s.model.span().count, 0)).collect(),
+            grids: grids
+                .iter()
+                .map(|g| (g.grid.as_ref().map_or(0, FremenGrid::frames), 0))
+                .collect(),
+            ..Restored::default()
+        };
+        let mut world = World {
             config,
             states,
             grids,
             edges,
             tables: ValueTables::new(),
-        })
+            durable: None,
+            restored: Restored::default(),
+        };
+        if let (Some(dir), Some(manifest)) = (world.config.save_dir.clone(), &manifest) {
+            let cover = |path: PathBuf| {
+                covers
+                    .get(relative(&path, &dir).as_str())
+                    .map_or(0, |f| f.covers)
+            };
+            let state_covers: Vec<u64> = world
+                .config
+                .states
+                .iter()
+                .map(|s| cover(state_file(&dir, s)))
+                .collect();
+            let grid_covers: Vec<u64> = world
+                .config
+                .grids
+                .iter()
+                .map(|g| cover(grid_file(&dir, g)))
+                .collect();
+            let (journal, read) = Journal::open(
+                &dir.join(JOURNAL_DIR),
+                manifest.head,
+                settings,
+                |seq, entry| -> Result<(), StoreError> {
+                    world.replay(seq, &entry, &state_covers, &grid_covers, &mut restored);
+                    Ok(())
+                },
+            )?;
+            // Live learning counts what arrives from now on; replayed records are restored.
+            for s in &mut world.states {
+                s.learned = 0;
+            }
+            for g in &mut world.grids {
+                g.frames = 0;
+            }
+            restored.torn_bytes = read.torn_bytes;
+            restored.position = journal.next_position();
+            world.durable = Some(Durable {
+                dir,
+                journal,
+                failing: false,
+                checkpoints: 0,
+            });
+            world.flush_records();
+        }
+        world.restored = restored;
+        world.log_restored();
+        Ok(world)
+    }
+
+    /// What was restored at start.
+    pub fn restored(&self) -> &Restored {
+        &self.restored
+    }
+
+    /// Applies journal record `seq` at start, unless the checkpoint's file of its input covers
+    /// it; nothing is journaled again.
+    fn replay(
+        &mut self,
+        seq: u64,
+        entry: &Entry<'_>,
+        state_covers: &[u64],
+        grid_covers: &[u64],
+        restored: &mut Restored,
+    ) {
+        let name = entry.name();
+        let result = match entry {
+            Entry::State { time, value, .. } => {
+                let Some(index) = self.config.states.iter().position(|s| s.name == name) else {
+                    restored.unknown += 1;
+                    return;
+                };
+                if seq < state_covers[index] {
+                    return;
+                }
+                let learned = self.learn_state(index, *time, *value);
+                if learned.is_ok() {
+                    restored.states[index].1 += 1;
+                }
+                learned
+            }
+            Entry::Map { message, .. } => {
+                let Some(index) = self.grid_index(name, true) else {
+                    restored.unknown += 1;
+                    return;
+                };
+                if seq < grid_covers[index] {
+                    return;
+                }
+                let learned = self.learn_map(index, message);
+                if learned.is_ok() {
+                    restored.grids[index].1 += 1;
+                }
+                learned
+            }
+            Entry::People { message, .. } => {
+                let Some(index) = self.grid_index(name, false) else {
+                    restored.unknown += 1;
+                    return;
+                };
+                if seq < grid_covers[index] {
+                    return;
+                }
+                let before = self.grids[index].frames;
+                let learned = self.learn_people(index, message, Some(seq));
+                restored.grids[index].1 += self.grids[index].frames - before;
+                learned
+            }
+            Entry::BinClosed { .. } => {
+                let Some(index) = self.grid_index(name, false) else {
+                    restored.unknown += 1;
+                    return;
+                };
+                if seq < grid_covers[index] {
+                    return;
+                }
+                let before = self.grids[index].frames;
+                let learned = self.close_bin(index);
+                restored.grids[index].1 += self.grids[index].frames - before;
+                learned
+            }
+        };
+        match result {
+            Ok(()) => restored.replayed += 1,
+            Err(e) => {
+                restored.refused += 1;
+                log::warn!("journal position {seq} ({name}): not learned again: {e}");
+            }
+        }
+    }
+
+    /// The index of the map (`maps`) or people grid called `name`.
+    fn grid_index(&self, name: &str, map: bool) -> Option<usize> {
+        self.config
+            .grids
+            .iter()
+            .position(|g| g.name == name && (g.source == GridSource::Map) == map)
+    }
+
+    /// Logs what was restored, one line per input and one for the journal.
+    fn log_restored(&self) {
+        let Some(dir) = &self.config.save_dir else {
+            return;
+        };
+        let r = &self.restored;
+        for (index, s) in self.config.states.iter().enumerate() {
+            let span = self.states[index].model.span();
+            let (saved, replayed) = r.states[index];
+            log::info!(
+                "restored states.{}: {} with {} observations ({saved} saved, {replayed} from the \
+                 journal){}",
+                s.name,
+                s.model,
+                span.count,
+                span.last_time()
+                    .map_or(String::new(), |t| format!(", the last at {t}"))
+            );
+        }
+        for (index, g) in self.config.grids.iter().enumerate() {
+            let grid = self.grids[index].grid.as_ref();
+            let (saved, replayed) = r.grids[index];
+            let last = grid
+                .and_then(|g| g.frame_span().last_time())
+                .map_or(String::new(), |t| format!(", the last at {t}"));
+            let open = self.grids[index].open.as_ref().map_or(String::new(), |b| {
+                format!(", an open bin of {} messages", b.messages)
+            });
+            log::info!(
+                "restored {}.{}: {} frames ({saved} saved, {replayed} from the journal){last}{open}",
+                g.section(),
+                g.name,
+                saved + replayed
+            );
+        }
+        log::info!(
+            "journal {}: {} records replayed{}{}{}; learning goes on at position {}",
+            dir.join(JOURNAL_DIR).display(),
+            r.replayed,
+            if r.unknown > 0 {
+                format!(", {} of inputs no longer configured skipped", r.unknown)
+            } else {
+                String::new()
+            },
+            if r.refused > 0 {
+                format!(", {} refused (logged)", r.refused)
+            } else {
+                String::new()
+            },
+            if r.torn_bytes > 0 {
+                format!(", {} torn bytes cut off its end", r.torn_bytes)
+            } else {
+                String::new()
+            },
+            r.position
+        );
     }
 
     /// The configuration.
@@ -313,12 +614,26 @@ impl World {
         &self.config
     }
 
-    /// Learns `value` of state `index` observed at `time` (the node's time of receipt).
+    /// Learns `value` of state `index` observed at `time` (the node's time of receipt) and
+    /// appends it to the journal.
     ///
     /// # Errors
     /// A value outside [0, 1] or a time before the state's last observation; nothing is
     /// learned then.
     pub fn observe_state(&mut self, index: usize, time: f64, value: f64) -> Result<(), LearnError> {
+        self.learn_state(index, time, value)?;
+        let name = &self.config.states[index].name;
+        let entry = Entry::State {
+            name: Cow::Borrowed(name),
+            time,
+            value,
+        };
+        journal(&mut self.durable, &entry);
+        Ok(())
+    }
+
+    /// Learns a state observation (live or replayed).
+    fn learn_state(&mut self, index: usize, time: f64, value: f64) -> Result<(), LearnError> {
         if !(0.0..=1.0).contains(&value) {
             return Err(LearnError::Value(value));
         }
@@ -348,6 +663,17 @@ impl World {
     /// # Panics
     /// If grid `index` is not a map grid.
     pub fn observe_map(&mut self, index: usize, msg: &OccupancyGrid) -> Result<(), LearnError> {
+        self.learn_map(index, msg)?;
+        let entry = Entry::Map {
+            name: Cow::Borrowed(&self.config.grids[index].name),
+            message: Cow::Borrowed(msg),
+        };
+        journal(&mut self.durable, &entry);
+        Ok(())
+    }
+
+    /// Learns a map (live or replayed).
+    fn learn_map(&mut self, index: usize, msg: &OccupancyGrid) -> Result<(), LearnError> {
         let entry = &self.config.grids[index];
         assert!(
             entry.source == GridSource::Map,
@@ -420,6 +746,23 @@ impl World {
     /// # Panics
     /// If grid `index` is not a people grid.
     pub fn observe_people(&mut self, index: usize, msg: &PoseArray) -> Result<(), LearnError> {
+        let position = self.durable.as_ref().map(|d| d.journal.next_position());
+        self.learn_people(index, msg, position)?;
+        let entry = Entry::People {
+            name: Cow::Borrowed(&self.config.grids[index].name),
+            message: Cow::Borrowed(msg),
+        };
+        journal(&mut self.durable, &entry);
+        Ok(())
+    }
+
+    /// Adds detections (live or replayed); `position` is the message's journal position.
+    fn learn_people(
+        &mut self,
+        index: usize,
+        msg: &PoseArray,
+        position: Option<u64>,
+    ) -> Result<(), LearnError> {
         let entry = &self.config.grids[index];
         let GridSource::People { bin_secs, .. } = entry.source else {
             panic!("grid {index} is not a people grid");
@@ -468,6 +811,7 @@ impl World {
                     index: bin,
                     occupied: vec![false; geometry.cells()],
                     messages: 0,
+                    first: position,
                 });
             }
             Some(_) => {}
@@ -493,10 +837,24 @@ impl World {
                 && let Some(open) = &self.grids[index].open
                 && now >= (open.index + 2) as f64 * bin_secs
             {
-                self.close_bin(index)?;
+                self.close_bin_journaled(index)?;
             }
         }
         Ok(())
+    }
+
+    /// Learns the open bin of people grid `index` (if any) and journals that it did.
+    fn close_bin_journaled(&mut self, index: usize) -> Result<(), LearnError> {
+        if self.grids[index].open.is_none() {
+            return Ok(());
+        }
+        // Journaled whatever the outcome: replaying it does the same.
+        let closed = self.close_bin(index);
+        let entry = Entry::BinClosed {
+            name: Cow::Borrowed(&self.config.grids[index].name),
+        };
+        journal(&mut self.durable, &entry);
+        closed
     }
 
     /// Learns the open bin of people grid `index` as a frame.
@@ -640,60 +998,299 @@ impl World {
         Ok(true)
     }
 
-    /// Saves every model and grid into `save_dir` (each file atomically) and flushes the
-    /// observation records; nothing without `save_dir`. With `finish`, open people bins are
-    /// learned first (at shutdown).
+    /// Writes and syncs the journal if the oldest unsynced record waited the sync period or
+    /// enough records wait (the node calls it every round), with the observation records.
+    /// Failures are logged (once until it works again); learning goes on in memory and the
+    /// next checkpoint saves it.
+    pub fn sync_journal(&mut self, now: Instant) {
+        let Some(durable) = &mut self.durable else {
+            return;
+        };
+        match durable.journal.sync_if_due(now) {
+            Ok(false) => {}
+            Ok(true) => {
+                if durable.failing {
+                    log::info!("journal: writing works again");
+                    durable.failing = false;
+                }
+                log::trace!(
+                    "journal: synced up to position {}",
+                    durable.journal.next_position()
+                );
+                self.flush_records();
+            }
+            Err(e) => {
+                if !std::mem::replace(&mut durable.failing, true) {
+                    log::error!(
+                        "journal: {e}; what is learned from now on is kept in memory and saved \
+                         by the next checkpoint"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Flushes the observation records (`record_observations`), logging failures.
+    fn flush_records(&mut self) {
+        for (s, slot) in self.config.states.iter().zip(&mut self.states) {
+            if let Some(record) = &mut slot.record
+                && let Err(e) = record.flush()
+            {
+                log::error!(
+                    "states.{}: cannot write the observation record: {e}; recording stops",
+                    s.name
+                );
+                slot.record = None;
+            }
+        }
+    }
+
+    /// A checkpoint: saves every model and grid into `save_dir` and forgets the journal
+    /// records they cover; nothing without `save_dir`. With `finish` (at shutdown), open
+    /// people bins are learned first.
+    ///
+    /// The files are ordinary chronomap model and grid files (`chronomap predict`, `grid
+    /// predict` read them). A checkpoint is atomic: the journal is synced and a new segment
+    /// started at position `H`; every file is written (synced) beside its final name as
+    /// `NAME.next-H`; the checkpoint file (`save_dir/checkpoint`: `H` and, per file, the
+    /// journal position its content covers) is replaced atomically — from here on the
+    /// checkpoint counts; then the files are renamed to their names and the covered journal
+    /// segments deleted. A crash before the checkpoint file was replaced leaves the previous
+    /// checkpoint and the whole journal (the `.next-H` files are deleted at start); a crash
+    /// after it is completed at start by the renames.
     ///
     /// # Errors
-    /// A folder or file that cannot be written (the others are still saved).
+    /// A folder or file that cannot be written; the previous checkpoint and the journal then
+    /// still hold everything.
     pub fn save(&mut self, finish: bool) -> Result<(), StoreError> {
         if finish {
             for index in 0..self.grids.len() {
-                if let Err(e) = self.close_bin(index) {
+                if let Err(e) = self.close_bin_journaled(index) {
                     log::error!("{}: the last bin: {e}", self.config.grids[index].name);
                 }
             }
         }
-        let Some(dir) = self.config.save_dir.clone() else {
+        let Some(durable) = &mut self.durable else {
             return Ok(());
         };
-        let mut first_error = None;
-        for (s, slot) in self.config.states.iter().zip(&mut self.states) {
-            let file = state_file(&dir, s);
-            let result = make_parent(&file)
-                .and_then(|()| write_any_model(&file, &slot.model).map_err(StoreError::from));
-            let flushed = match &mut slot.record {
-                Some(record) => record
-                    .flush()
-                    .and_then(|()| record.get_ref().sync_data())
-                    .map_err(|source| StoreError::Io {
-                        path: record_file(&dir, s).display().to_string(),
-                        action: "write",
-                        source,
-                    }),
-                None => Ok(()),
-            };
-            for r in [result, flushed] {
-                if let Err(e) = r {
-                    first_error.get_or_insert(e);
-                }
-            }
+        let started = Instant::now();
+        let dir = durable.dir.clone();
+        durable.journal.rotate()?;
+        if std::mem::replace(&mut durable.failing, false) {
+            log::info!("journal: writing works again");
         }
-        for (g, slot) in self.config.grids.iter().zip(&self.grids) {
-            let Some(grid) = &slot.grid else {
-                continue;
-            };
-            let file = grid_file(&dir, g);
-            let result = make_parent(&file).and_then(|()| {
-                write_grid_file(&file, &GridFile::State(Box::new(grid.clone())))
-                    .map_err(StoreError::from)
-            });
-            if let Err(e) = result {
-                first_error.get_or_insert(e);
+        let head = durable.journal.next_position();
+        let mut manifest = Manifest {
+            head,
+            files: Vec::new(),
+        };
+        let mut written: Vec<(PathBuf, PathBuf)> = Vec::new();
+        let mut bytes = 0u64;
+        let result = (|| -> Result<(), StoreError> {
+            for (s, slot) in self.config.states.iter().zip(&mut self.states) {
+                let file = state_file(&dir, s);
+                let next = next_name(&file, head);
+                make_parent(&file)?;
+                write_any_model(&next, &slot.model)?;
+                let record_bytes = match &mut slot.record {
+                    Some(record) => {
+                        let path = record_file(&dir, s);
+                        let io = |source| StoreError::Io {
+                            path: path.display().to_string(),
+                            action: "write",
+                            source,
+                        };
+                        record.flush().map_err(io)?;
+                        record.get_ref().sync_data().map_err(io)?;
+                        Some(record.get_ref().metadata().map_err(io)?.len())
+                    }
+                    None => None,
+                };
+                bytes += file_len(&next);
+                manifest.files.push(ManifestFile {
+                    path: relative(&file, &dir),
+                    covers: head,
+                    record_bytes,
+                });
+                written.push((next, file));
             }
+            for (g, slot) in self.config.grids.iter().zip(&self.grids) {
+                let Some(grid) = &slot.grid else {
+                    continue;
+                };
+                let file = grid_file(&dir, g);
+                let next = next_name(&file, head);
+                make_parent(&file)?;
+                write_grid_file(&next, &GridFile::State(Box::new(grid.clone())))?;
+                bytes += file_len(&next);
+                // An open people bin is not in the file: replaying from its first message
+                // fills it again.
+                let covers = slot.open.as_ref().and_then(|b| b.first).unwrap_or(head);
+                manifest.files.push(ManifestFile {
+                    path: relative(&file, &dir),
+                    covers,
+                    record_bytes: None,
+                });
+                written.push((next, file));
+            }
+            write_model_file(dir.join(CHECKPOINT_FILE), CHECKPOINT_KIND, &manifest)?;
+            Ok(())
+        })();
+        if let Err(e) = result {
+            for (next, _) in &written {
+                let _ = std::fs::remove_file(next);
+            }
+            return Err(e);
         }
-        first_error.map_or(Ok(()), Err)
+        complete_checkpoint(&dir, &manifest)?;
+        let keep = manifest
+            .files
+            .iter()
+            .map(|f| f.covers)
+            .min()
+            .unwrap_or(head);
+        let forgotten = durable.journal.forget_before(keep)?;
+        durable.checkpoints += 1;
+        log::info!(
+            "checkpoint {} at journal position {head}: {} states, {} grids, {:.1} MB in {} ms; \
+             {forgotten} journal segments deleted",
+            durable.checkpoints,
+            self.states.len(),
+            written.len() - self.states.len(),
+            bytes as f64 / 1e6,
+            started.elapsed().as_millis()
+        );
+        Ok(())
     }
+}
+
+/// The checkpoint file in `save_dir`.
+const CHECKPOINT_FILE: &str = "checkpoint";
+/// The journal folder in `save_dir`.
+const JOURNAL_DIR: &str = "journal";
+
+/// Appends `entry` to the journal, if there is one; a failure is logged once (learning goes
+/// on in memory; the next checkpoint saves it).
+fn journal(durable: &mut Option<Durable>, entry: &Entry<'_>) {
+    let Some(durable) = durable else {
+        return;
+    };
+    if let Err(e) = durable.journal.append(entry, Instant::now())
+        && !std::mem::replace(&mut durable.failing, true)
+    {
+        log::error!(
+            "journal: {e}; what is learned from now on is kept in memory and saved by the next \
+             checkpoint"
+        );
+    }
+}
+
+/// `NAME.next-H`: where a checkpoint at journal position `head` writes `file` first.
+fn next_name(file: &Path, head: u64) -> PathBuf {
+    let mut name = file.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".next-{head}"));
+    file.with_file_name(name)
+}
+
+/// `file` relative to `dir`, with `/` (the checkpoint file's names).
+fn relative(file: &Path, dir: &Path) -> String {
+    let relative = file.strip_prefix(dir).unwrap_or(file);
+    relative
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+fn file_len(path: &Path) -> u64 {
+    std::fs::metadata(path).map_or(0, |m| m.len())
+}
+
+/// Renames the files of the checkpoint `manifest` from their `.next-H` names (those still
+/// there) and makes the renames durable.
+fn complete_checkpoint(dir: &Path, manifest: &Manifest) -> Result<(), StoreError> {
+    let mut folders = Vec::new();
+    for f in &manifest.files {
+        let file = dir.join(&f.path);
+        let next = next_name(&file, manifest.head);
+        if next.exists() {
+            std::fs::rename(&next, &file).map_err(|source| StoreError::Io {
+                path: next.display().to_string(),
+                action: "rename",
+                source,
+            })?;
+            if let Some(parent) = file.parent()
+                && !folders.contains(&parent.to_path_buf())
+            {
+                folders.push(parent.to_path_buf());
+            }
+        }
+    }
+    for folder in folders {
+        crate::journal::sync_dir(&folder)?;
+    }
+    Ok(())
+}
+
+/// At start: reads the checkpoint file of `dir` (writing a first one, covering the files
+/// there, if there is none and no journal yet), completes an interrupted checkpoint and
+/// deletes files of one that never counted.
+fn recover_checkpoint(dir: &Path) -> Result<Manifest, StoreError> {
+    let file = dir.join(CHECKPOINT_FILE);
+    let manifest = if file.exists() {
+        let (kind, manifest): (String, Manifest) = read_model_file(&file)?;
+        if kind != CHECKPOINT_KIND {
+            return Err(StoreError::Mismatch {
+                file: file.display().to_string(),
+                reason: format!("it holds a `{kind}`, not the node's checkpoint"),
+            });
+        }
+        manifest
+    } else {
+        let journal = dir.join(JOURNAL_DIR);
+        let has_segments = std::fs::read_dir(&journal).is_ok_and(|mut d| d.next().is_some());
+        if has_segments {
+            return Err(StoreError::Mismatch {
+                file: file.display().to_string(),
+                reason: format!(
+                    "missing, but {} holds a journal: without the checkpoint file the journal \
+                     cannot be replayed without learning some of it twice",
+                    journal.display()
+                ),
+            });
+        }
+        // Saved by a node without a journal (or never): its files cover everything.
+        std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
+            path: dir.display().to_string(),
+            action: "create the folder",
+            source,
+        })?;
+        let manifest = Manifest::default();
+        write_model_file(&file, CHECKPOINT_KIND, &manifest)?;
+        manifest
+    };
+    complete_checkpoint(dir, &manifest)?;
+    for section in ["states", "maps", "people"] {
+        let Ok(items) = std::fs::read_dir(dir.join(section)) else {
+            continue;
+        };
+        for item in items.flatten() {
+            let name = item.file_name();
+            if name.to_string_lossy().contains(".next-") {
+                let path = item.path();
+                log::info!(
+                    "{}: deleted, written by a checkpoint that did not complete",
+                    path.display()
+                );
+                std::fs::remove_file(&path).map_err(|source| StoreError::Io {
+                    path: path.display().to_string(),
+                    action: "delete",
+                    source,
+                })?;
+            }
+        }
+    }
+    Ok(manifest)
 }
 
 /// `dir/states/NAME.cmm`.
@@ -720,18 +1317,37 @@ fn make_parent(file: &Path) -> Result<(), StoreError> {
     })
 }
 
-fn open_record(file: &Path) -> Result<BufWriter<File>, StoreError> {
+/// Opens the observation record `file` for appending; with `saved` (its length at the last
+/// checkpoint) what was appended after the checkpoint is cut off first, since replaying the
+/// journal appends it again.
+fn open_record(file: &Path, saved: Option<u64>) -> Result<BufWriter<File>, StoreError> {
     make_parent(file)?;
-    OpenOptions::new()
+    let io = |action| {
+        move |source| StoreError::Io {
+            path: file.display().to_string(),
+            action,
+            source,
+        }
+    };
+    let handle = OpenOptions::new()
         .create(true)
         .append(true)
         .open(file)
-        .map(BufWriter::new)
-        .map_err(|source| StoreError::Io {
-            path: file.display().to_string(),
-            action: "open for appending",
-            source,
-        })
+        .map_err(io("open for appending"))?;
+    if let Some(saved) = saved {
+        let len = handle.metadata().map_err(io("inspect"))?.len();
+        if len > saved {
+            handle
+                .set_len(saved)
+                .map_err(io("cut back to the checkpoint"))?;
+        } else if len < saved {
+            log::warn!(
+                "{}: {len} bytes, shorter than the {saved} of the last checkpoint: lines are missing",
+                file.display()
+            );
+        }
+    }
+    Ok(BufWriter::new(handle))
 }
 
 fn mismatch(file: &Path, name: &str, reason: impl std::fmt::Display) -> StoreError {

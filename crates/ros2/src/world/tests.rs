@@ -1,4 +1,5 @@
 use std::path::Path;
+use std::time::Instant;
 
 use chronomap_core::TemporalModel;
 use chronomap_grid::CellState;
@@ -350,6 +351,282 @@ fn people_become_one_frame_per_bin_with_the_cells_someone_was_in() {
         .to_string();
     assert!(
         e.contains("it is 4 x 2 cells of 1 m at (10, 20), but people.lobby is 5 x 2"),
+        "{e}"
+    );
+}
+
+/// Durable learning: the parameters of a node that learns states, a map and people, with a
+/// journal that syncs only when told to.
+const DURABLE: &str = "    save_dir: saved\n    record_observations: true\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n      light: {topic: /light, type: std_msgs/msg/Float64, model: hist:24}\n    maps:\n      office: {topic: /m, order: 2}\n    people:\n      lobby: {topic: /p, width: 4, height: 2, resolution: 1.0, origin: [10, 20], bin: 100}\n";
+
+/// Syncs only when `sync` is called (or at a checkpoint).
+fn manual_sync() -> JournalSettings {
+    JournalSettings {
+        sync_period: std::time::Duration::from_secs(3600),
+        sync_records: usize::MAX,
+        ..JournalSettings::default()
+    }
+}
+
+fn detections(t: f64, xy: &[(f64, f64)]) -> PoseArray {
+    PoseArray {
+        header: Header {
+            stamp: Time::from_seconds(t),
+            frame_id: "map".into(),
+        },
+        poses: xy
+            .iter()
+            .map(|&(x, y)| Pose {
+                position: Point { x, y, z: 0.0 },
+                orientation: Quaternion::default(),
+            })
+            .collect(),
+    }
+}
+
+/// One learned message of the durability tests.
+#[derive(Clone)]
+enum Message {
+    State(usize, f64, f64),
+    Map(OccupancyGrid),
+    People(PoseArray),
+    CloseBins(f64),
+}
+
+/// Hour `k` of three days: door and light states (the real Greg door for the door), an
+/// observed map every hour, people in the lobby every few minutes.
+fn messages(hours: std::ops::Range<i32>) -> Vec<Message> {
+    let door = read_pairs(chronomap_testutil::data_path(
+        "door_greg_2016/training_data.txt.xz",
+    ))
+    .unwrap();
+    let t0 = door.times[0];
+    let mut out = Vec::new();
+    for h in hours {
+        let start = t0 + f64::from(h) * 3600.0;
+        for (&t, &v) in door.times.iter().zip(&door.values) {
+            if t >= start && t < start + 3600.0 && (t as i64) % 60 == 0 {
+                out.push(Message::State(0, t, v));
+            }
+        }
+        out.push(Message::State(
+            1,
+            start + 1.5,
+            f64::from((h * 7) % 11) / 10.0,
+        ));
+        let mut map = map_message(0, "map", 6, 4, office_frame(h));
+        map.header.stamp = Time::from_seconds(start + 2.0);
+        out.push(Message::Map(map));
+        for m in 0..6 {
+            let t = start + 10.0 + f64::from(m) * 590.0;
+            let x = 10.5 + f64::from((h + m) % 4);
+            out.push(Message::People(detections(
+                t,
+                &[(x, 20.5 + f64::from(m % 2))],
+            )));
+        }
+        out.push(Message::CloseBins(start + 3599.0));
+    }
+    out
+}
+
+fn learn(world: &mut World, messages: &[Message]) {
+    for m in messages {
+        match m {
+            Message::State(i, t, v) => world.observe_state(*i, *t, *v).unwrap(),
+            Message::Map(msg) => world.observe_map(0, msg).unwrap(),
+            Message::People(msg) => world.observe_people(1, msg).unwrap(),
+            Message::CloseBins(now) => world.close_stale_bins(*now).unwrap(),
+        }
+    }
+}
+
+/// The bytes of every model and grid of `world`, with open people bins learned (as the node
+/// does at shutdown), for bit-for-bit comparisons.
+fn model_bytes(world: &mut World) -> Vec<Vec<u8>> {
+    for index in 0..world.grids.len() {
+        world.close_bin(index).unwrap();
+    }
+    let mut bytes: Vec<Vec<u8>> = world
+        .states
+        .iter()
+        .map(|s| chronomap_io::model_file::encode_model(s.model.kind(), &s.model).unwrap())
+        .collect();
+    for g in &world.grids {
+        let grid = g.grid.clone().expect("a grid");
+        bytes.push(chronomap_io::encode_grid(&GridFile::State(Box::new(grid))).unwrap());
+    }
+    bytes
+}
+
+/// Asserts that two worlds hold the same models and grids, bit for bit (naming which differs).
+fn assert_same_models(restored: &mut World, expected: &mut World) {
+    let (a, b) = (model_bytes(restored), model_bytes(expected));
+    assert_eq!(a.len(), b.len());
+    for (i, (a, b)) in a.iter().zip(&b).enumerate() {
+        assert!(
+            a == b,
+            "model {i} differs ({} and {} bytes)",
+            a.len(),
+            b.len()
+        );
+    }
+}
+
+/// What a node without `save_dir` learns from `messages`.
+fn reference(dir: &Path, messages: &[Message]) -> World {
+    let params = DURABLE.replace("    save_dir: saved\n    record_observations: true\n", "");
+    let mut world = World::new(config(dir, &params)).unwrap();
+    learn(&mut world, messages);
+    world
+}
+
+#[test]
+fn a_crash_loses_only_what_was_not_synced_and_the_restart_equals_a_node_that_ran_through() {
+    let dir = Scratch::new("crash");
+    let all = messages(0..30);
+    // The checkpoint comes right after a people message: its bin is open.
+    let checkpoint_at = (0..all.len() / 2)
+        .rev()
+        .find(|&i| matches!(all[i], Message::People(_)))
+        .unwrap()
+        + 1;
+    let (first, rest) = all.split_at(checkpoint_at);
+    // Learned until a checkpoint, then more: synced, then a few unsynced states.
+    let mut world = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    learn(&mut world, first);
+    world.save(false).unwrap();
+    // People messages of an open bin before and after the checkpoint.
+    assert!(world.grids[1].open.is_some());
+    let synced = rest.len();
+    learn(&mut world, rest);
+    let later = Instant::now() + std::time::Duration::from_secs(7200);
+    world.sync_journal(later);
+    // States of the next hour are learned but not synced.
+    let unsynced: Vec<Message> = messages(30..31)
+        .into_iter()
+        .filter(|m| matches!(m, Message::State(..)))
+        .collect();
+    assert!(unsynced.len() > 10);
+    learn(&mut world, &unsynced);
+    // kill -9: nothing is flushed, nothing is saved.
+    std::mem::forget(world);
+
+    let mut restored = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    let learned = &all[..checkpoint_at + synced];
+    let mut expected = reference(&dir.0, learned);
+    let r = restored.restored().clone();
+    assert_eq!((r.unknown, r.refused, r.torn_bytes), (0, 0, 0));
+    // The open bin of the checkpoint is replayed from its first message.
+    let after_checkpoint = |pick: fn(&Message) -> bool| {
+        all[checkpoint_at..checkpoint_at + synced]
+            .iter()
+            .filter(|m| pick(m))
+            .count() as u64
+    };
+    assert_eq!(
+        r.states[0].1,
+        after_checkpoint(|m| matches!(m, Message::State(0, ..)))
+    );
+    assert_eq!(
+        r.grids[0].1,
+        after_checkpoint(|m| matches!(m, Message::Map(_)))
+    );
+    assert!(r.replayed > after_checkpoint(|m| !matches!(m, Message::CloseBins(_))));
+    assert_eq!(restored.learned().0[0].total, expected.learned().0[0].total);
+    // The record holds exactly the observations of the model: none twice, none lost.
+    let record = read_pairs(dir.0.join("saved/states/door.txt")).unwrap();
+    let sent: Vec<(f64, f64)> = learned
+        .iter()
+        .filter_map(|m| match m {
+            Message::State(0, t, v) => Some((*t, *v)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(record.times.len(), sent.len());
+    assert!(
+        record
+            .times
+            .iter()
+            .zip(&record.values)
+            .eq(sent.iter().map(|(t, v)| (t, v)))
+    );
+    // Bit for bit the models of a node that learned what was synced.
+    assert_same_models(&mut restored, &mut expected);
+    // Learning goes on where it stopped, and a clean stop and start changes nothing.
+    let mut again = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    learn(&mut again, &unsynced);
+    again.save(true).unwrap();
+    let mut third = World::new(config(&dir.0, DURABLE)).unwrap();
+    let mut expected = reference(&dir.0, &[learned, &unsynced[..]].concat());
+    assert_eq!(third.restored().replayed, 0);
+    assert_same_models(&mut third, &mut expected);
+}
+
+#[test]
+fn an_interrupted_checkpoint_is_completed_or_discarded_at_start() {
+    let dir = Scratch::new("interrupted");
+    let all = messages(0..12);
+    let (first, rest) = all.split_at(all.len() / 2);
+    let mut world = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    learn(&mut world, first);
+    world.save(false).unwrap();
+    let saved = dir.0.join("saved");
+    let files = [
+        "states/door.cmm",
+        "states/light.cmm",
+        "maps/office.cmg",
+        "people/lobby.cmg",
+    ];
+    let old: Vec<Vec<u8>> = files
+        .iter()
+        .map(|f| std::fs::read(saved.join(f)).unwrap())
+        .collect();
+    learn(&mut world, rest);
+    world.save(false).unwrap();
+    let head = world.durable.as_ref().unwrap().journal.next_position();
+    std::mem::forget(world);
+    // The crash came after the checkpoint file was replaced, before the renames: the new
+    // files still carry their `.next-H` names, the old ones their names.
+    for (f, old) in files.iter().zip(&old) {
+        let file = saved.join(f);
+        std::fs::rename(&file, next_name(&file, head)).unwrap();
+        std::fs::write(&file, old).unwrap();
+    }
+    // And a checkpoint that never counted left files of another position.
+    std::fs::write(saved.join("states/door.cmm.next-999999"), "half").unwrap();
+    let mut restored = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    assert!(!saved.join("states/door.cmm.next-999999").exists());
+    for f in files {
+        assert!(!next_name(&saved.join(f), head).exists(), "{f}");
+    }
+    let mut expected = reference(&dir.0, &all);
+    assert_same_models(&mut restored, &mut expected);
+}
+
+#[test]
+fn a_journal_without_its_checkpoint_file_is_refused_and_inputs_no_longer_configured_are_skipped() {
+    let dir = Scratch::new("no-checkpoint");
+    let all = messages(0..3);
+    let mut world = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    learn(&mut world, &all);
+    world.sync_journal(Instant::now() + std::time::Duration::from_secs(7200));
+    std::mem::forget(world);
+    // Without the light, its records are skipped (and counted).
+    let without_light = DURABLE.replace(
+        "      light: {topic: /light, type: std_msgs/msg/Float64, model: hist:24}\n",
+        "",
+    );
+    let restored = World::open(config(&dir.0, &without_light), manual_sync()).unwrap();
+    assert_eq!(restored.restored().unknown, 3);
+    drop(restored);
+    std::fs::remove_file(dir.0.join("saved/checkpoint")).unwrap();
+    let e = World::new(config(&dir.0, DURABLE))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("checkpoint: missing, but") && e.contains("holds a journal"),
         "{e}"
     );
 }
