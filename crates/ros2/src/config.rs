@@ -1,8 +1,11 @@
-//! The node's parameter file: ROS 2's YAML layout (`NODE: {ros__parameters: {...}}`, as
-//! `ros2 run ... --ros-args --params-file` reads it), parsed with
-//! [serde-saphyr](https://docs.rs/serde-saphyr) and checked completely before the node starts.
-//! Every error names the file, the line and the parameter (`node.yaml:12: states.door.model:
-//! ...`). The parameters are described in `docs/ros2.md`.
+//! The node's parameters, checked completely before the node starts (or, for a managed node,
+//! configures). They come from ROS 2 parameter files (`NODE: {ros__parameters: {...}}`, the
+//! `--config` file and `--ros-args --params-file` files) and `-p NAME:=VALUE` arguments, in the
+//! order rcl applies them ([`crate::params`], [`crate::ros_args`]); topic names are resolved
+//! and remapped as rcl does. Every error names where the value came from — the file and line,
+//! or the argument — and the parameter (`node.yaml:12: states.door.model: ...`,
+//! `node.yaml:9: maps.office.order: expected an integer >= 0, found the string "auto"`). The
+//! parameters are described in `docs/ros2.md`.
 //!
 //! ```
 //! use chronomap_ros2::config::{NodeConfig, StateType};
@@ -26,13 +29,10 @@ use std::path::{Path, PathBuf};
 
 use chronomap_core::{FremenConfig, FremenModel, Ordered, PeriodSet};
 use chronomap_models::{AnyModel, ModelSpec};
-use serde::Deserialize;
-use serde_saphyr::Spanned;
 
 use crate::msgs::{Bool, Float32, Float64, Message, TypeName};
-
-/// Largest parameter file read (the node's parameters fit in a few kilobytes).
-const MAX_FILE_BYTES: u64 = 1 << 20;
+use crate::params::{self, Origin, ParamFile, ParamSet, Value};
+use crate::ros_args::{ParamArg, RosArgs};
 
 /// Default of `max_map_cells`: 2²⁴ cells (a 4096 × 4096 map).
 pub const DEFAULT_MAX_MAP_CELLS: u64 = 1 << 24;
@@ -264,6 +264,284 @@ pub struct NodeConfig {
     pub grids: Vec<GridEntry>,
     /// The route graph, if any.
     pub edges: Option<EdgesConfig>,
+    /// Where simulated time is read with `use_sim_time` (`/clock`, remapped).
+    pub clock_topic: String,
+}
+
+/// Where the node's parameters come from and who the node is: what [`NodeConfig`] is checked
+/// from, again whenever a parameter changes (`set_parameters`) or a managed node configures.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    /// The node's namespace (`/` or `/robot1`), after `-r __ns:=`.
+    pub namespace: String,
+    /// The node's name, after `-r __node:=`.
+    pub name: String,
+    /// The parameters, from every source in order.
+    pub params: ParamSet,
+    /// The ROS arguments (remap rules apply to every topic and service name).
+    pub args: RosArgs,
+    /// What errors about no single value name: the `--config` file, else the first
+    /// `--params-file`, else `--ros-args`.
+    pub source: PathBuf,
+}
+
+impl Setup {
+    /// The parameters of the node: the `--config` file's entry (the only one, or `node`'s),
+    /// then `args`' parameter files and `-p` arguments in order. The node is named by the
+    /// entry's key, or `node`, or `chronomap` in `/`, and then renamed by `args`' `__node`
+    /// and `__ns` rules.
+    ///
+    /// # Errors
+    /// A file that cannot be read or is not a parameter file, a value that is not a
+    /// parameter value, or a node name that is not valid; each naming where it is.
+    pub fn new(
+        config: Option<&Path>,
+        node: Option<&str>,
+        args: RosArgs,
+    ) -> Result<Setup, ConfigError> {
+        match config {
+            Some(path) => Self::from_file(&ParamFile::read(path)?, node, args),
+            None => {
+                let name = node.unwrap_or("chronomap");
+                let (namespace, name) =
+                    node_identity(name, Some(name)).map_err(|m| ConfigError {
+                        file: "--node-name".into(),
+                        line: None,
+                        key: None,
+                        message: m,
+                    })?;
+                Self::with_args(ParamSet::default(), namespace, name, PathBuf::new(), args)
+            }
+        }
+    }
+
+    /// As [`Setup::new`] with the `--config` file already read.
+    ///
+    /// # Errors
+    /// As [`Setup::new`].
+    pub fn from_file(
+        file: &ParamFile,
+        node: Option<&str>,
+        args: RosArgs,
+    ) -> Result<Setup, ConfigError> {
+        let error = |line: Option<u64>, message: String| ConfigError {
+            file: file.path.display().to_string(),
+            line,
+            key: None,
+            message,
+        };
+        let keys = || {
+            file.entries
+                .iter()
+                .map(|e| e.key.clone())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let entry = match node {
+            Some(node) => file
+                .entries
+                .iter()
+                .find(|e| e.key == node || e.key.rsplit('/').next() == Some(node))
+                .or_else(|| file.entries.iter().find(|e| e.key == "/**"))
+                .ok_or_else(|| {
+                    error(
+                        None,
+                        format!("no parameters for node {node:?} (entries: {})", keys()),
+                    )
+                })?,
+            None => match &file.entries[..] {
+                [only] => only,
+                [] => {
+                    return Err(error(
+                        None,
+                        "no node entry (expected `NODE_NAME: {ros__parameters: {...}}`)".into(),
+                    ));
+                }
+                _ => {
+                    return Err(error(
+                        None,
+                        format!(
+                            "entries for several nodes ({}): choose one with --node-name",
+                            keys()
+                        ),
+                    ));
+                }
+            },
+        };
+        let (namespace, name) =
+            node_identity(&entry.key, node).map_err(|m| error(entry.origin.line(), m))?;
+        Self::with_args(
+            entry.params.clone(),
+            namespace,
+            name,
+            file.path.clone(),
+            args,
+        )
+    }
+
+    fn with_args(
+        mut params: ParamSet,
+        namespace: String,
+        name: String,
+        source: PathBuf,
+        args: RosArgs,
+    ) -> Result<Setup, ConfigError> {
+        let (namespace, name) = args.node_identity(&name, &namespace);
+        let fqn = fully_qualified(&namespace, &name);
+        ros2_client::NodeName::new(&namespace, &name).map_err(|e| ConfigError {
+            file: "--ros-args".into(),
+            line: None,
+            key: None,
+            message: format!("{fqn:?} is not a valid node name: {e}"),
+        })?;
+        let mut source = source;
+        for param in &args.params {
+            match param {
+                ParamArg::File(path) => {
+                    ParamFile::read(path)?.apply_matching(&fqn, &mut params)?;
+                    if source.as_os_str().is_empty() {
+                        source = path.clone();
+                    }
+                }
+                ParamArg::Override {
+                    node,
+                    name: param,
+                    value,
+                    argument,
+                } => {
+                    if node.as_deref().is_none_or(|n| n == name) {
+                        params.apply_override(param, value, argument)?;
+                    }
+                }
+            }
+        }
+        if source.as_os_str().is_empty() {
+            source = PathBuf::from("--ros-args");
+        }
+        Ok(Setup {
+            namespace,
+            name,
+            params,
+            args,
+            source,
+        })
+    }
+
+    /// The node's fully qualified name (`/chronomap`, `/robot1/chronomap`).
+    pub fn fully_qualified_name(&self) -> String {
+        fully_qualified(&self.namespace, &self.name)
+    }
+
+    /// The checked parameters.
+    ///
+    /// # Errors
+    /// The first parameter that cannot be used, named with its source.
+    pub fn config(&self) -> Result<NodeConfig, ConfigError> {
+        self.check(&self.params, false)
+    }
+
+    /// As [`Setup::config`], but a node without states, maps, people or edges is accepted
+    /// (a managed node that is given its parameters before it is configured).
+    ///
+    /// # Errors
+    /// As [`Setup::config`].
+    pub fn config_allowing_empty(&self) -> Result<NodeConfig, ConfigError> {
+        self.check(&self.params, true)
+    }
+
+    /// The checked parameters if `name` were `value` (set at run time).
+    ///
+    /// # Errors
+    /// As [`Setup::config`].
+    pub fn config_with(
+        &self,
+        name: &str,
+        value: &Value,
+        allow_empty: bool,
+    ) -> Result<NodeConfig, ConfigError> {
+        let mut params = self.params.clone();
+        params.insert(name, value.clone(), Origin::Service);
+        self.check(&params, allow_empty)
+    }
+
+    fn check(&self, params: &ParamSet, allow_empty: bool) -> Result<NodeConfig, ConfigError> {
+        let raw = Reader::new(params).params()?;
+        let file = self.source.display().to_string();
+        let checker = Checker { file: &file };
+        checker.check(
+            &raw,
+            NodeIdentity {
+                namespace: self.namespace.clone(),
+                name: self.name.clone(),
+            },
+            &self.source,
+            &self.args,
+            allow_empty,
+        )
+    }
+}
+
+/// Whether the parameter `name` may change while the node runs (the others are read when the
+/// node starts or, managed, configures).
+pub fn is_dynamic(name: &str) -> bool {
+    matches!(
+        name,
+        "publish_period" | "map_period" | "horizon" | "save_period" | "edges.period"
+    ) || ((name.starts_with("maps.") || name.starts_with("people."))
+        && (name.ends_with(".filter_type")
+            || name.ends_with(".filter_base")
+            || name.ends_with(".filter_multiplier")))
+}
+
+/// What the parameter `name` is (its `describe_parameters` description).
+pub fn description(name: &str) -> &'static str {
+    let leaf = name.rsplit('.').next().unwrap_or(name);
+    let section = name.split('.').next().unwrap_or("");
+    match (section, leaf) {
+        ("use_sim_time", _) => {
+            "follow /clock (rosgraph_msgs/msg/Clock) instead of the system clock"
+        }
+        ("publish_period", _) => "seconds of the node's clock between state predictions",
+        ("map_period", _) => {
+            "seconds of the node's clock between predicted maps, masks and people maps"
+        }
+        ("horizon", _) => "predictions are for the node's time plus this many seconds",
+        ("save_dir", _) => "folder the models are saved to and restored from",
+        ("save_period", _) => "seconds of wall-clock time between saves",
+        ("record_observations", _) => "append every learned state to save_dir/states/NAME.txt",
+        ("max_map_cells", _) => "larger OccupancyGrid messages are refused",
+        ("edges", "models") => "edge models (chronomap topo fit)",
+        ("edges", "geojson") => "the Nav2 route graph rewritten with predicted costs",
+        ("edges", "period") => "seconds of the node's clock between rewrites of the route graph",
+        (_, "topic") => "the input topic",
+        (_, "type") => "message type: std_msgs/msg/Bool, Float32 or Float64",
+        (_, "model") => "the temporal model learned online (fremen:2, hist:24, ...)",
+        (_, "reliability") => "subscription reliability: reliable or best_effort",
+        (_, "depth") => "subscription depth (keep last)",
+        (_, "transient_local") => "subscribe transient local (latched publishers only)",
+        (_, "probability_topic") => "where p(now + horizon) is published (std_msgs/msg/Float64)",
+        (_, "entropy_topic") => "where the entropy of the prediction is published (bits)",
+        (_, "frame_id") => "frame of the input and of the published maps",
+        (_, "periods") => "candidate periods of every cell's FreMEn model",
+        (_, "order") => "order every cell is predicted with",
+        (_, "values") => "cells of the predicted map: trinary, scale or probability",
+        (_, "predicted_topic") => "where the predicted map is published",
+        (_, "mask_topic") => "where the costmap-filter mask is published (\"\" for none)",
+        (_, "filter_info_topic") => "where the nav2_msgs/msg/CostmapFilterInfo is published",
+        (_, "filter_type") => {
+            "Nav2 filter type: 0 keepout, 1 speed limit %, 2 speed limit m/s, 3 binary"
+        }
+        (_, "filter_base") => "base of the filter value (base + multiplier * mask value)",
+        (_, "filter_multiplier") => {
+            "multiplier of the filter value (base + multiplier * mask value)"
+        }
+        (_, "width") => "cells per row of the people grid",
+        (_, "height") => "rows of the people grid",
+        (_, "resolution") => "metres per cell of the people grid",
+        (_, "origin") => "[x, y] of the corner of cell (0, 0), metres",
+        (_, "bin") => "length of a people time bin, seconds",
+        _ => "",
+    }
 }
 
 impl NodeConfig {
@@ -274,25 +552,7 @@ impl NodeConfig {
     /// A file that cannot be read or is not a valid parameter file, naming file, line and
     /// parameter.
     pub fn read(path: &Path, node: Option<&str>) -> Result<NodeConfig, ConfigError> {
-        let name = path.display().to_string();
-        let error = |message: String| ConfigError {
-            file: name.clone(),
-            line: None,
-            key: None,
-            message,
-        };
-        let file = std::fs::File::open(path).map_err(|e| error(format!("cannot read: {e}")))?;
-        let mut bytes = Vec::new();
-        use std::io::Read;
-        file.take(MAX_FILE_BYTES + 1)
-            .read_to_end(&mut bytes)
-            .map_err(|e| error(format!("cannot read: {e}")))?;
-        if bytes.len() as u64 > MAX_FILE_BYTES {
-            return Err(error(format!(
-                "larger than {MAX_FILE_BYTES} bytes: not a parameter file"
-            )));
-        }
-        Self::parse(path, &bytes, node)
+        Setup::new(Some(path), node, RosArgs::default())?.config()
     }
 
     /// Checks the text of the parameter file `path` (relative paths in it are relative to its
@@ -301,70 +561,8 @@ impl NodeConfig {
     /// # Errors
     /// As [`NodeConfig::read`].
     pub fn parse(path: &Path, text: &[u8], node: Option<&str>) -> Result<NodeConfig, ConfigError> {
-        let file = path.display().to_string();
-        let options = serde_saphyr::options! {
-            strict_booleans: true,
-            with_snippet: false,
-        };
-        let top: BTreeMap<String, Spanned<RawNode>> =
-            serde_saphyr::from_slice_with_options(text, options).map_err(|e| ConfigError {
-                file: file.clone(),
-                line: e.location().map(|l| l.line()),
-                key: None,
-                message: parser_message(&e),
-            })?;
-        let checker = Checker { file: &file };
-        let (key, entry) = match node {
-            Some(node) => top
-                .iter()
-                .find(|(k, _)| k.as_str() == node || k.rsplit('/').next() == Some(node))
-                .or_else(|| top.iter().find(|(k, _)| k.as_str() == "/**"))
-                .ok_or_else(|| {
-                    checker.error(
-                        None,
-                        None,
-                        format!(
-                            "no parameters for node {node:?} (entries: {})",
-                            top.keys().cloned().collect::<Vec<_>>().join(", ")
-                        ),
-                    )
-                })?,
-            None => {
-                let mut entries = top.iter();
-                match (entries.next(), entries.next()) {
-                    (Some(only), None) => only,
-                    (None, _) => {
-                        return Err(checker.error(
-                            None,
-                            None,
-                            "no node entry (expected `NODE_NAME: {ros__parameters: {...}}`)".into(),
-                        ));
-                    }
-                    (Some(_), Some(_)) => {
-                        return Err(checker.error(
-                            None,
-                            None,
-                            format!(
-                                "entries for several nodes ({}): choose one with --node-name",
-                                top.keys().cloned().collect::<Vec<_>>().join(", ")
-                            ),
-                        ));
-                    }
-                }
-            }
-        };
-        let (namespace, node_name) = node_identity(key, node)
-            .map_err(|m| checker.error(Some(entry.referenced.line()), None, m))?;
-        let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
-        checker.check(
-            &entry.value.params,
-            NodeIdentity {
-                namespace,
-                name: node_name,
-            },
-            path,
-            &folder,
-        )
+        let file = ParamFile::parse(path, text)?;
+        Setup::from_file(&file, node, RosArgs::default())?.config()
     }
 
     /// The node's fully qualified name (`/chronomap`, `/robot1/chronomap`).
@@ -377,7 +575,7 @@ impl NodeConfig {
         let mut inputs: Vec<(String, TypeName, String)> = Vec::new();
         if self.use_sim_time {
             inputs.push((
-                "/clock".into(),
+                self.clock_topic.clone(),
                 crate::msgs::Clock::TYPE,
                 "use_sim_time".into(),
             ));
@@ -421,27 +619,129 @@ impl NodeConfig {
     }
 }
 
+impl NodeConfig {
+    /// Every parameter with its value, as the node declares them (`ros2 param list`):
+    /// defaults filled in, topics resolved and remapped, paths as the node uses them.
+    pub fn parameters(&self) -> Vec<(String, Value)> {
+        let mut out: Vec<(String, Value)> = Vec::new();
+        let mut put = |name: String, value: Value| out.push((name, value));
+        let text = |s: &str| Value::String(s.to_string());
+        let path = |p: &Path| Value::String(p.display().to_string());
+        put("use_sim_time".into(), Value::Boolean(self.use_sim_time));
+        put("publish_period".into(), Value::Double(self.publish_period));
+        put("map_period".into(), Value::Double(self.map_period));
+        put("horizon".into(), Value::Double(self.horizon));
+        if let Some(dir) = &self.save_dir {
+            put("save_dir".into(), path(dir));
+        }
+        put("save_period".into(), Value::Double(self.save_period));
+        put(
+            "record_observations".into(),
+            Value::Boolean(self.record_observations),
+        );
+        put(
+            "max_map_cells".into(),
+            Value::Integer(self.max_map_cells as i64),
+        );
+        let qos = |put: &mut dyn FnMut(String, Value), key: &str, q: &InputQos| {
+            let r = match q.reliability {
+                Reliability::Reliable => "reliable",
+                Reliability::BestEffort => "best_effort",
+            };
+            put(format!("{key}.reliability"), text(r));
+            put(format!("{key}.depth"), Value::Integer(q.depth as i64));
+            put(
+                format!("{key}.transient_local"),
+                Value::Boolean(q.transient_local),
+            );
+        };
+        for s in &self.states {
+            let key = format!("states.{}", s.name);
+            put(format!("{key}.topic"), text(&s.topic));
+            put(
+                format!("{key}.type"),
+                text(&s.message.type_name().to_string()),
+            );
+            put(format!("{key}.model"), text(&s.model.to_string()));
+            qos(&mut put, &key, &s.qos);
+            put(
+                format!("{key}.probability_topic"),
+                text(&s.probability_topic),
+            );
+            put(format!("{key}.entropy_topic"), text(&s.entropy_topic));
+        }
+        for g in &self.grids {
+            let key = format!("{}.{}", g.section(), g.name);
+            put(format!("{key}.topic"), text(&g.topic));
+            qos(&mut put, &key, &g.qos);
+            put(format!("{key}.frame_id"), text(&g.frame_id));
+            put(
+                format!("{key}.periods"),
+                text(&g.fremen.periods.to_string()),
+            );
+            put(
+                format!("{key}.order"),
+                Value::Integer(g.fremen.order as i64),
+            );
+            let values = match g.values {
+                MapValues::Trinary => "trinary",
+                MapValues::Scale => "scale",
+                MapValues::Probability => "probability",
+            };
+            put(format!("{key}.values"), text(values));
+            put(format!("{key}.predicted_topic"), text(&g.predicted_topic));
+            match &g.filter {
+                Some(f) => {
+                    put(format!("{key}.mask_topic"), text(&f.mask_topic));
+                    put(format!("{key}.filter_info_topic"), text(&f.info_topic));
+                    put(
+                        format!("{key}.filter_type"),
+                        Value::Integer(i64::from(f.filter_type)),
+                    );
+                    put(
+                        format!("{key}.filter_base"),
+                        Value::Double(f64::from(f.base)),
+                    );
+                    put(
+                        format!("{key}.filter_multiplier"),
+                        Value::Double(f64::from(f.multiplier)),
+                    );
+                }
+                None => {
+                    put(format!("{key}.mask_topic"), text(""));
+                    put(format!("{key}.filter_info_topic"), text(""));
+                }
+            }
+            if let GridSource::People {
+                width,
+                height,
+                resolution,
+                origin,
+                bin_secs,
+            } = &g.source
+            {
+                put(format!("{key}.width"), Value::Integer(i64::from(*width)));
+                put(format!("{key}.height"), Value::Integer(i64::from(*height)));
+                put(format!("{key}.resolution"), Value::Double(*resolution));
+                put(format!("{key}.origin"), Value::DoubleArray(origin.to_vec()));
+                put(format!("{key}.bin"), Value::Double(*bin_secs));
+            }
+        }
+        if let Some(e) = &self.edges {
+            put("edges.models".into(), path(&e.models));
+            put("edges.geojson".into(), path(&e.geojson));
+            put("edges.period".into(), Value::Double(e.period));
+        }
+        out.sort_by(|a, b| a.0.cmp(&b.0));
+        out
+    }
+}
+
 fn fully_qualified(namespace: &str, name: &str) -> String {
     if namespace == "/" {
         format!("/{name}")
     } else {
         format!("{namespace}/{name}")
-    }
-}
-
-/// The parser's message without its location (the error carries the line).
-fn parser_message(error: &serde_saphyr::Error) -> String {
-    let mut message = error.without_snippet().to_string();
-    if let Some(at) = message.rfind(" at line ") {
-        message.truncate(at);
-    }
-    if let Some(rest) = message.strip_prefix("duplicate mapping key: ") {
-        let key = rest.split(',').next().unwrap_or(rest);
-        format!("the key `{key}` appears twice")
-    } else if message.starts_with("multiple YAML documents") {
-        "several YAML documents (a parameter file has one)".to_owned()
-    } else {
-        message
     }
 }
 
@@ -478,15 +778,12 @@ struct NodeIdentity {
     name: String,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawNode {
-    #[serde(rename = "ros__parameters")]
-    params: RawParams,
+/// A typed parameter value and where it came from.
+struct Spanned<T> {
+    value: T,
+    origin: Origin,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
 struct RawParams {
     use_sim_time: Option<Spanned<bool>>,
     publish_period: Option<Spanned<f64>>,
@@ -496,11 +793,8 @@ struct RawParams {
     save_period: Option<Spanned<f64>>,
     record_observations: Option<Spanned<bool>>,
     max_map_cells: Option<Spanned<u64>>,
-    #[serde(default)]
     states: BTreeMap<String, Spanned<RawState>>,
-    #[serde(default)]
     maps: BTreeMap<String, Spanned<RawGrid>>,
-    #[serde(default)]
     people: BTreeMap<String, Spanned<RawGrid>>,
     edges: Option<Spanned<RawEdges>>,
 }
@@ -512,11 +806,53 @@ struct RawQos<'a> {
     transient_local: &'a Option<Spanned<bool>>,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+/// The parameters of a state (`states.NAME.LEAF`).
+const STATE_KEYS: &[&str] = &[
+    "topic",
+    "type",
+    "model",
+    "reliability",
+    "depth",
+    "transient_local",
+    "probability_topic",
+    "entropy_topic",
+];
+
+/// The parameters of a map (`maps.NAME.LEAF`); people grids have [`PEOPLE_KEYS`] too.
+const GRID_KEYS: &[&str] = &[
+    "topic",
+    "reliability",
+    "depth",
+    "transient_local",
+    "frame_id",
+    "periods",
+    "order",
+    "values",
+    "predicted_topic",
+    "mask_topic",
+    "filter_info_topic",
+    "filter_type",
+    "filter_base",
+    "filter_multiplier",
+];
+
+/// The geometry and bin of a people grid.
+const PEOPLE_KEYS: &[&str] = &["width", "height", "resolution", "origin", "bin"];
+
+/// The top-level parameters.
+const TOP_KEYS: &[&str] = &[
+    "use_sim_time",
+    "publish_period",
+    "map_period",
+    "horizon",
+    "save_dir",
+    "save_period",
+    "record_observations",
+    "max_map_cells",
+];
+
 struct RawState {
     topic: Option<Spanned<String>>,
-    #[serde(rename = "type")]
     message: Option<Spanned<String>>,
     model: Option<Spanned<String>>,
     reliability: Option<Spanned<String>>,
@@ -527,8 +863,6 @@ struct RawState {
 }
 
 /// `maps.NAME` and `people.NAME` (the geometry and bin keys are for people only).
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
 struct RawGrid {
     topic: Option<Spanned<String>>,
     reliability: Option<Spanned<String>>,
@@ -541,7 +875,7 @@ struct RawGrid {
     predicted_topic: Option<Spanned<String>>,
     mask_topic: Option<Spanned<String>>,
     filter_info_topic: Option<Spanned<String>>,
-    filter_type: Option<Spanned<u8>>,
+    filter_type: Option<Spanned<u64>>,
     filter_base: Option<Spanned<f32>>,
     filter_multiplier: Option<Spanned<f32>>,
     width: Option<Spanned<u32>>,
@@ -561,14 +895,317 @@ impl RawGrid {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
 struct RawEdges {
     models: Option<Spanned<String>>,
     geojson: Option<Spanned<String>>,
     period: Option<Spanned<f64>>,
 }
 
+/// Typed reads of a [`ParamSet`]: each value must have its parameter's type, and every value
+/// must be read (what is not is an unknown parameter).
+struct Reader<'a> {
+    set: &'a ParamSet,
+    read: std::collections::BTreeSet<String>,
+}
+
+/// rcl's spellings of booleans (`yes`, `On`, ...), accepted where a boolean is expected.
+fn rcl_boolean(text: &str) -> Option<bool> {
+    match text {
+        "true" | "True" | "TRUE" | "yes" | "Yes" | "YES" | "on" | "On" | "ON" => Some(true),
+        "false" | "False" | "FALSE" | "no" | "No" | "NO" | "off" | "Off" | "OFF" => Some(false),
+        _ => None,
+    }
+}
+
+/// What an integer parameter is, for the message when it is not one.
+fn integer_hint(key: &str) -> &'static str {
+    if key.ends_with(".order") {
+        " (the node learns every cell with a fixed order; `chronomap grid build --order auto` \
+         chooses one offline on a whole series)"
+    } else {
+        ""
+    }
+}
+
+impl<'a> Reader<'a> {
+    fn new(set: &'a ParamSet) -> Self {
+        Reader {
+            set,
+            read: std::collections::BTreeSet::new(),
+        }
+    }
+
+    fn get(&mut self, key: &str) -> Option<&'a params::Entry> {
+        let entry = self.set.values.get(key)?;
+        self.read.insert(key.to_string());
+        Some(entry)
+    }
+
+    fn typed<T>(
+        &mut self,
+        key: &str,
+        expected: &str,
+        convert: impl FnOnce(&Value) -> Option<T>,
+    ) -> Result<Option<Spanned<T>>, ConfigError> {
+        let Some(entry) = self.get(key) else {
+            return Ok(None);
+        };
+        match convert(&entry.value) {
+            Some(value) => Ok(Some(Spanned {
+                value,
+                origin: entry.origin.clone(),
+            })),
+            None => Err(entry.origin.error(
+                Some(key),
+                format!(
+                    "expected {expected}, found {}{}",
+                    params::describe(&entry.value),
+                    if expected.contains("integer") {
+                        integer_hint(key)
+                    } else {
+                        ""
+                    }
+                ),
+            )),
+        }
+    }
+
+    fn boolean(&mut self, key: &str) -> Result<Option<Spanned<bool>>, ConfigError> {
+        self.typed(key, "true or false", |v| match v {
+            Value::Boolean(b) => Some(*b),
+            Value::String(s) => rcl_boolean(s),
+            _ => None,
+        })
+    }
+
+    fn number(&mut self, key: &str) -> Result<Option<Spanned<f64>>, ConfigError> {
+        self.typed(key, "a number", |v| match v {
+            Value::Double(d) => Some(*d),
+            Value::Integer(i) => Some(*i as f64),
+            _ => None,
+        })
+    }
+
+    fn float(&mut self, key: &str) -> Result<Option<Spanned<f32>>, ConfigError> {
+        Ok(self.number(key)?.map(|v| Spanned {
+            value: v.value as f32,
+            origin: v.origin,
+        }))
+    }
+
+    fn integer(&mut self, key: &str) -> Result<Option<Spanned<u64>>, ConfigError> {
+        self.typed(key, "an integer >= 0", |v| match v {
+            Value::Integer(i) => u64::try_from(*i).ok(),
+            _ => None,
+        })
+    }
+
+    fn integer32(&mut self, key: &str) -> Result<Option<Spanned<u32>>, ConfigError> {
+        self.typed(key, "an integer in 0..=4294967295", |v| match v {
+            Value::Integer(i) => u32::try_from(*i).ok(),
+            _ => None,
+        })
+    }
+
+    fn text(&mut self, key: &str) -> Result<Option<Spanned<String>>, ConfigError> {
+        self.typed(key, "a string", |v| match v {
+            Value::String(s) => Some(s.clone()),
+            // `periods: 86400` is the text of a period.
+            Value::Integer(i) => Some(i.to_string()),
+            Value::Double(d) => Some(d.to_string()),
+            _ => None,
+        })
+    }
+
+    fn numbers(&mut self, key: &str) -> Result<Option<Spanned<Vec<f64>>>, ConfigError> {
+        self.typed(key, "a list of numbers", |v| match v {
+            Value::DoubleArray(a) => Some(a.clone()),
+            Value::IntegerArray(a) => Some(a.iter().map(|&i| i as f64).collect()),
+            _ => None,
+        })
+    }
+
+    /// The names of the entries of a section (`states` → `door`, `light`), with where each
+    /// was first given.
+    fn names(&self, section: &str) -> Result<BTreeMap<String, Origin>, ConfigError> {
+        let mut names = BTreeMap::new();
+        for (key, entry) in &self.set.values {
+            let mut tokens = key.splitn(3, '.');
+            if tokens.next() != Some(section) {
+                continue;
+            }
+            match (tokens.next(), tokens.next()) {
+                (Some(name), Some(_)) => {
+                    let origin = self
+                        .set
+                        .sections
+                        .get(&format!("{section}.{name}"))
+                        .unwrap_or(&entry.origin);
+                    names
+                        .entry(name.to_string())
+                        .or_insert_with(|| origin.clone());
+                }
+                _ => {
+                    return Err(entry.origin.error(
+                        Some(key),
+                        format!(
+                            "expected a mapping of parameters (`{section}: {{NAME: {{topic: ..., ...}}}}` \
+                             or `{section}.NAME.topic: ...`), found {}",
+                            params::describe(&entry.value)
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(names)
+    }
+
+    fn state(&mut self, key: &str) -> Result<RawState, ConfigError> {
+        let k = |leaf: &str| format!("{key}.{leaf}");
+        Ok(RawState {
+            topic: self.text(&k("topic"))?,
+            message: self.text(&k("type"))?,
+            model: self.text(&k("model"))?,
+            reliability: self.text(&k("reliability"))?,
+            depth: self.integer(&k("depth"))?,
+            transient_local: self.boolean(&k("transient_local"))?,
+            probability_topic: self.text(&k("probability_topic"))?,
+            entropy_topic: self.text(&k("entropy_topic"))?,
+        })
+    }
+
+    fn grid(&mut self, key: &str) -> Result<RawGrid, ConfigError> {
+        let k = |leaf: &str| format!("{key}.{leaf}");
+        Ok(RawGrid {
+            topic: self.text(&k("topic"))?,
+            reliability: self.text(&k("reliability"))?,
+            depth: self.integer(&k("depth"))?,
+            transient_local: self.boolean(&k("transient_local"))?,
+            frame_id: self.text(&k("frame_id"))?,
+            periods: self.text(&k("periods"))?,
+            order: self.integer(&k("order"))?,
+            values: self.text(&k("values"))?,
+            predicted_topic: self.text(&k("predicted_topic"))?,
+            mask_topic: self.text(&k("mask_topic"))?,
+            filter_info_topic: self.text(&k("filter_info_topic"))?,
+            filter_type: self.integer(&k("filter_type"))?,
+            filter_base: self.float(&k("filter_base"))?,
+            filter_multiplier: self.float(&k("filter_multiplier"))?,
+            width: self.integer32(&k("width"))?,
+            height: self.integer32(&k("height"))?,
+            resolution: self.number(&k("resolution"))?,
+            origin: self.numbers(&k("origin"))?,
+            bin: self.number(&k("bin"))?,
+        })
+    }
+
+    /// Reads every parameter; anything left is an unknown parameter.
+    fn params(mut self) -> Result<RawParams, ConfigError> {
+        let section_of = |names: &BTreeMap<String, Origin>, name: &str| {
+            names.get(name).cloned().unwrap_or(Origin::Service)
+        };
+        let mut states = BTreeMap::new();
+        let state_names = self.names("states")?;
+        for name in state_names.keys() {
+            let raw = self.state(&format!("states.{name}"))?;
+            states.insert(
+                name.clone(),
+                Spanned {
+                    value: raw,
+                    origin: section_of(&state_names, name),
+                },
+            );
+        }
+        let mut maps = BTreeMap::new();
+        let map_names = self.names("maps")?;
+        for name in map_names.keys() {
+            let raw = self.grid(&format!("maps.{name}"))?;
+            maps.insert(
+                name.clone(),
+                Spanned {
+                    value: raw,
+                    origin: section_of(&map_names, name),
+                },
+            );
+        }
+        let mut people = BTreeMap::new();
+        let people_names = self.names("people")?;
+        for name in people_names.keys() {
+            let raw = self.grid(&format!("people.{name}"))?;
+            people.insert(
+                name.clone(),
+                Spanned {
+                    value: raw,
+                    origin: section_of(&people_names, name),
+                },
+            );
+        }
+        let edges_origin = self
+            .set
+            .values
+            .iter()
+            .find(|(k, _)| k.starts_with("edges.") || k.as_str() == "edges")
+            .map(|(_, e)| self.set.sections.get("edges").unwrap_or(&e.origin).clone());
+        if let Some(e) = self.set.values.get("edges") {
+            return Err(e.origin.error(
+                Some("edges"),
+                format!(
+                    "expected a mapping (`edges: {{models: ..., geojson: ...}}`), found {}",
+                    params::describe(&e.value)
+                ),
+            ));
+        }
+        let edges = match edges_origin {
+            None => None,
+            Some(origin) => Some(Spanned {
+                value: RawEdges {
+                    models: self.text("edges.models")?,
+                    geojson: self.text("edges.geojson")?,
+                    period: self.number("edges.period")?,
+                },
+                origin,
+            }),
+        };
+        let raw = RawParams {
+            use_sim_time: self.boolean("use_sim_time")?,
+            publish_period: self.number("publish_period")?,
+            map_period: self.number("map_period")?,
+            horizon: self.number("horizon")?,
+            save_dir: self.text("save_dir")?,
+            save_period: self.number("save_period")?,
+            record_observations: self.boolean("record_observations")?,
+            max_map_cells: self.integer("max_map_cells")?,
+            states,
+            maps,
+            people,
+            edges,
+        };
+        for (key, entry) in &self.set.values {
+            if self.read.contains(key) {
+                continue;
+            }
+            let tokens: Vec<&str> = key.split('.').collect();
+            let known = match tokens[0] {
+                "states" => format!("a state has {}", STATE_KEYS.join(", ")),
+                "maps" => format!("a map has {}", GRID_KEYS.join(", ")),
+                "people" => format!(
+                    "a people grid has {}, {}",
+                    GRID_KEYS.join(", "),
+                    PEOPLE_KEYS.join(", ")
+                ),
+                "edges" => "edges has models, geojson, period".to_string(),
+                _ => format!(
+                    "the node's parameters are {}, states, maps, people, edges",
+                    TOP_KEYS.join(", ")
+                ),
+            };
+            return Err(entry
+                .origin
+                .error(Some(key), format!("unknown parameter ({known})")));
+        }
+        Ok(raw)
+    }
+}
 struct Checker<'a> {
     file: &'a str,
 }
@@ -584,11 +1221,7 @@ impl Checker<'_> {
     }
 
     fn at<T>(&self, value: &Spanned<T>, key: &str, message: String) -> ConfigError {
-        self.error(
-            Some(value.referenced.line()),
-            Some(key.to_string()),
-            message,
-        )
+        value.origin.error(Some(key), message)
     }
 
     fn required<'v, T>(
@@ -597,13 +1230,9 @@ impl Checker<'_> {
         section: &Spanned<impl Sized>,
         key: &str,
     ) -> Result<&'v Spanned<T>, ConfigError> {
-        value.as_ref().ok_or_else(|| {
-            self.error(
-                Some(section.referenced.line()),
-                Some(key.to_string()),
-                "missing (required)".into(),
-            )
-        })
+        value
+            .as_ref()
+            .ok_or_else(|| section.origin.error(Some(key), "missing (required)"))
     }
 
     /// A finite number of seconds > 0 (or ≥ 0 with `zero`), or `default`.
@@ -636,11 +1265,14 @@ impl Checker<'_> {
         raw: &RawParams,
         node: NodeIdentity,
         path: &Path,
-        folder: &Path,
+        args: &RosArgs,
+        allow_empty: bool,
     ) -> Result<NodeConfig, ConfigError> {
         let names = Names {
             namespace: node.namespace.clone(),
             node: fully_qualified(&node.namespace, &node.name),
+            name: node.name.clone(),
+            args,
         };
         let max_map_cells = match &raw.max_map_cells {
             None => DEFAULT_MAX_MAP_CELLS,
@@ -669,21 +1301,19 @@ impl Checker<'_> {
                 &names,
             )?;
             for (value, leaf) in [
-                (map.value.width.as_ref().map(|v| &v.referenced), "width"),
-                (map.value.height.as_ref().map(|v| &v.referenced), "height"),
+                (map.value.width.as_ref().map(|v| &v.origin), "width"),
+                (map.value.height.as_ref().map(|v| &v.origin), "height"),
                 (
-                    map.value.resolution.as_ref().map(|v| &v.referenced),
+                    map.value.resolution.as_ref().map(|v| &v.origin),
                     "resolution",
                 ),
-                (map.value.origin.as_ref().map(|v| &v.referenced), "origin"),
-                (map.value.bin.as_ref().map(|v| &v.referenced), "bin"),
+                (map.value.origin.as_ref().map(|v| &v.origin), "origin"),
+                (map.value.bin.as_ref().map(|v| &v.origin), "bin"),
             ] {
                 if let Some(at) = value {
-                    return Err(self.error(
-                        Some(at.line()),
-                        Some(format!("{key}.{leaf}")),
-                        "only people grids have this key (a map's geometry comes from its messages)"
-                            .into(),
+                    return Err(at.error(
+                        Some(&format!("{key}.{leaf}")),
+                        "only people grids have this key (a map's geometry comes from its messages)",
                     ));
                 }
             }
@@ -778,8 +1408,8 @@ impl Checker<'_> {
                     }
                 }
                 Some(EdgesConfig {
-                    models: folder.join(&models.value),
-                    geojson: folder.join(&geojson.value),
+                    models: models.origin.folder().join(&models.value),
+                    geojson: geojson.origin.folder().join(&geojson.value),
                     period: self.seconds(&e.value.period, "edges.period", 60.0, false)?,
                 })
             }
@@ -788,7 +1418,7 @@ impl Checker<'_> {
             Some(d) if d.value.is_empty() => {
                 return Err(self.at(d, "save_dir", "an empty folder name".into()));
             }
-            Some(d) => Some(folder.join(&d.value)),
+            Some(d) => Some(d.origin.folder().join(&d.value)),
             None => None,
         };
         let record_observations = raw.record_observations.as_ref().is_some_and(|r| r.value);
@@ -799,7 +1429,11 @@ impl Checker<'_> {
                 "needs save_dir (the records are written there)".into(),
             ));
         }
+        let clock_topic = args
+            .remap("/clock", false, &names.namespace, &names.name)
+            .map_err(|e| self.error(None, Some("use_sim_time".into()), e.to_string()))?;
         let config = NodeConfig {
+            clock_topic,
             file: path.to_path_buf(),
             node_name: node.name,
             namespace: node.namespace,
@@ -816,7 +1450,11 @@ impl Checker<'_> {
             edges,
         };
         self.distinct_topics(&config)?;
-        if config.states.is_empty() && config.grids.is_empty() && config.edges.is_none() {
+        if !allow_empty
+            && config.states.is_empty()
+            && config.grids.is_empty()
+            && config.edges.is_none()
+        {
             return Err(self.error(
                 None,
                 None,
@@ -1061,7 +1699,7 @@ impl Checker<'_> {
                 Some(FilterConfig {
                     mask_topic,
                     info_topic,
-                    filter_type,
+                    filter_type: filter_type as u8,
                     base: finite(&raw.filter_base, "filter_base", 0.0)?,
                     multiplier: finite(&raw.filter_multiplier, "filter_multiplier", 1.0)?,
                 })
@@ -1097,8 +1735,12 @@ impl Checker<'_> {
         key: &str,
         names: &Names,
     ) -> Result<String, ConfigError> {
-        resolve_topic(&value.value, &names.namespace, &names.node)
-            .map_err(|m| self.at(value, key, m))
+        let resolved = resolve_topic(&value.value, &names.namespace, &names.node)
+            .map_err(|m| self.at(value, key, m))?;
+        names
+            .args
+            .remap(&resolved, false, &names.namespace, &names.name)
+            .map_err(|e| self.at(value, key, e.to_string()))
     }
 
     fn distinct_topics(&self, config: &NodeConfig) -> Result<(), ConfigError> {
@@ -1133,9 +1775,11 @@ impl Checker<'_> {
     }
 }
 
-struct Names {
+struct Names<'a> {
     namespace: String,
     node: String,
+    name: String,
+    args: &'a RosArgs,
 }
 
 /// `name` as a ROS name token: a letter or `_`, then letters, digits and single `_`.

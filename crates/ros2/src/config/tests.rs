@@ -1,4 +1,6 @@
 use super::*;
+use crate::params::MAX_FILE_BYTES;
+use crate::ros_args::RosArgs;
 
 fn parse(text: &str) -> Result<NodeConfig, ConfigError> {
     NodeConfig::parse(Path::new("cfg/node.yaml"), text.as_bytes(), None)
@@ -191,9 +193,42 @@ fn errors_name_the_file_the_line_and_the_parameter() {
         ),
         (
             "    colour: red\n",
-            "cfg/node.yaml:3: unknown field `colour`",
+            "cfg/node.yaml:3: colour: unknown parameter (the node's parameters are use_sim_time,",
         ),
-        ("    use_sim_time: yes\n", "cfg/node.yaml:3: "),
+        (
+            "    use_sim_time: 1\n",
+            "cfg/node.yaml:3: use_sim_time: expected true or false, found the integer 1",
+        ),
+        (
+            "    maps:\n      m:\n        topic: /m\n        order: auto\n",
+            "cfg/node.yaml:6: maps.m.order: expected an integer >= 0, found the string \"auto\" \
+             (the node learns every cell with a fixed order; `chronomap grid build --order auto` \
+             chooses one offline",
+        ),
+        (
+            "    maps:\n      m: {topic: /m, order: 2.0}\n",
+            "cfg/node.yaml:4: maps.m.order: expected an integer >= 0, found the number 2.0",
+        ),
+        (
+            "    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, colour: red}\n",
+            "cfg/node.yaml:4: states.door.colour: unknown parameter (a state has topic, type, model,",
+        ),
+        (
+            "    states: 3\n",
+            "cfg/node.yaml:3: states: expected a mapping of parameters",
+        ),
+        (
+            "    states:\n      door: 3\n",
+            "cfg/node.yaml:4: states.door: expected a mapping of parameters",
+        ),
+        (
+            "    people:\n      p: {topic: /p, width: -3, height: 10, resolution: 1}\n",
+            "cfg/node.yaml:4: people.p.width: expected an integer in 0..=4294967295, found the integer -3",
+        ),
+        (
+            "    horizon: \"soon\"\n",
+            "cfg/node.yaml:3: horizon: expected a number, found the string \"soon\"",
+        ),
         (
             "    states:\n      door: {topic: /door, type: nav_msgs/msg/OccupancyGrid}\n",
             "cfg/node.yaml:4: states.door.type: \"nav_msgs/OccupancyGrid\" is not a state type",
@@ -276,7 +311,7 @@ fn errors_name_the_file_the_line_and_the_parameter() {
         ),
         (
             "    edges:\n      models: a.cmt\n",
-            "cfg/node.yaml:4: edges.geojson: missing (required)",
+            "cfg/node.yaml:3: edges.geojson: missing (required)",
         ),
         ("    max_map_cells: 0\n", "max_map_cells: 0 is not in 1..="),
         ("    horizon: 1\n", "cfg/node.yaml: nothing to do"),
@@ -302,7 +337,7 @@ fn node_entries_are_chosen_by_name() {
         "n.yaml: no parameters for node \"c\" (entries: a, b)"
     );
     assert!(error("").contains("no node entry"));
-    assert!(error("chronomap: {}\n").contains("missing field `ros__parameters`"));
+    assert!(error("chronomap: {}\n").contains("cfg/node.yaml:1: chronomap: no `ros__parameters`"));
     assert!(error("bad name:\n  ros__parameters: {}\n").contains("is not a valid node name"));
     let twice = error("a:\n  ros__parameters: {}\na:\n  ros__parameters: {}\n");
     assert!(twice.contains("the key `a` appears twice"), "{twice}");
@@ -339,4 +374,86 @@ fn files_that_are_not_parameter_files_are_refused_by_name() {
             .contains("larger than 1048576 bytes")
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn ros_arguments_rename_remap_and_override_the_file() {
+    let file = ParamFile::parse(
+        Path::new("cfg/node.yaml"),
+        b"chronomap:\n  ros__parameters:\n    horizon: 5\n    states:\n      door: {topic: door, type: std_msgs/msg/Bool}\n",
+    )
+    .unwrap();
+    let args = RosArgs::parse([
+        "--ros-args",
+        "-r",
+        "__ns:=/r2",
+        "-r",
+        "/r2/door:=/front",
+        "-p",
+        "horizon:=7.5",
+        "-p",
+        "other:horizon:=1.0",
+        "-p",
+        "chronomap:states.door.model:=hist:24",
+    ])
+    .unwrap();
+    let setup = Setup::from_file(&file, None, args).unwrap();
+    let c = setup.config().unwrap();
+    assert_eq!(c.fully_qualified_name(), "/r2/chronomap");
+    assert_eq!(c.horizon, 7.5);
+    assert_eq!(c.states[0].topic, "/front");
+    assert_eq!(c.states[0].model.to_string(), "hist:24");
+    assert_eq!(
+        c.states[0].probability_topic,
+        "/r2/chronomap/door/probability"
+    );
+    // The declared parameters: every one, defaults filled in, names resolved.
+    let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
+    assert_eq!(declared.len(), 15);
+    assert_eq!(declared["horizon"], Value::Double(7.5));
+    assert_eq!(declared["publish_period"], Value::Double(1.0));
+    assert_eq!(
+        declared["states.door.topic"],
+        Value::String("/front".into())
+    );
+    assert_eq!(declared["states.door.depth"], Value::Integer(100));
+    // Errors name the argument, or set_parameters, and the parameter.
+    let bad = RosArgs::parse(["--ros-args", "-p", "horizon:=-1"]).unwrap();
+    let error = Setup::from_file(&file, None, bad)
+        .unwrap()
+        .config()
+        .unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "-p horizon:=-1: horizon: -1 is not a finite number of seconds >= 0"
+    );
+    let e = setup
+        .config_with("publish_period", &Value::String("x".into()), false)
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "set_parameters: publish_period: expected a number, found the string \"x\""
+    );
+    let later = setup
+        .config_with("publish_period", &Value::Integer(2), false)
+        .unwrap();
+    assert_eq!(later.publish_period, 2.0);
+    assert!(is_dynamic("publish_period") && is_dynamic("maps.office.filter_base"));
+    assert!(!is_dynamic("states.door.model") && !is_dynamic("use_sim_time"));
+    // Without a file: `chronomap`, in `/`; empty parameters are refused unless managed.
+    let empty = Setup::new(None, None, RosArgs::default()).unwrap();
+    assert!(
+        empty
+            .config()
+            .unwrap_err()
+            .to_string()
+            .contains("nothing to do")
+    );
+    assert_eq!(
+        empty
+            .config_allowing_empty()
+            .unwrap()
+            .fully_qualified_name(),
+        "/chronomap"
+    );
 }
