@@ -8,6 +8,8 @@ Examples:
   chronomap ros2 --config node.yaml                 # run until SIGINT/SIGTERM, then save
   chronomap ros2 --config node.yaml --check --json  # check the parameters, list the topics
   ROS_DOMAIN_ID=7 chronomap ros2 --config node.yaml --log-level debug
+  chronomap ros2 --ros-args --params-file node.yaml -r __ns:=/robot1 -p horizon:=600.0
+  chronomap ros2 --managed --config node.yaml       # a lifecycle node: starts unconfigured
 
 The parameter file is a ROS 2 parameter file:
   chronomap:
@@ -19,15 +21,20 @@ The parameter file is a ROS 2 parameter file:
         door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}
       maps:
         office: {topic: /observed_map, order: 2}
-Every parameter, topic and QoS: docs/ros2.md. Logs go to stderr; the counts of what was
-learned are printed on stdout when the node stops.";
+ROS arguments go last, as ros2 run and launch files pass them: --ros-args with -r FROM:=TO
+(and __node:=NAME, __ns:=/NS), -p NAME:=VALUE (dotted names: -p states.door.model:=hist:24),
+--params-file FILE, --log-level [LOGGER:=]LEVEL; they apply on top of --config. Parameters are
+ROS parameters (ros2 param list/get/set); the node logs to stderr and /rosout. Every
+parameter, topic and QoS: docs/ros2.md. The counts of what was learned are printed on stdout
+when the node stops.";
 
 /// `chronomap ros2`.
 #[derive(Debug, Args)]
 pub struct Ros2Args {
-    /// ROS 2 parameter file of the node (`NODE: {ros__parameters: {...}}`).
+    /// ROS 2 parameter file of the node (`NODE: {ros__parameters: {...}}`): its only entry,
+    /// or --node-name's, is the node's parameters (ROS arguments apply on top).
     #[arg(long)]
-    pub config: PathBuf,
+    pub config: Option<PathBuf>,
     /// The node whose entry of the file to use (default: the only entry); also the name for
     /// a `/**` entry.
     #[arg(long)]
@@ -47,6 +54,20 @@ pub struct Ros2Args {
     /// Print one JSON object (the topics with --check; what was learned when stopped).
     #[arg(long)]
     pub json: bool,
+    /// A managed (lifecycle) node: it starts unconfigured and is configured, activated,
+    /// deactivated and cleaned up through its lifecycle services (nav2_lifecycle_manager,
+    /// `ros2 lifecycle set`).
+    #[arg(long)]
+    pub managed: bool,
+    /// ROS arguments, as rcl reads them; everything after --ros-args is one (-r, -p,
+    /// --params-file, --log-level, ...).
+    #[arg(
+        long = "ros-args",
+        num_args = 0..,
+        allow_hyphen_values = true,
+        value_name = "ROS_ARG"
+    )]
+    pub ros_args: Option<Vec<String>>,
 }
 
 /// `--log-level` values.

@@ -1,30 +1,70 @@
-//! `chronomap ros2`: the ROS 2 node (`chronomap-ros2`). Reads the parameter file, installs the
-//! logger and the signal handlers, runs the node and prints what it learned.
+//! `chronomap ros2`: the ROS 2 node (`chronomap-ros2`). Reads the parameters (the parameter
+//! file and the ROS arguments), installs the logger and the signal handlers, runs the node and
+//! prints what it learned.
 
 use std::io::Write;
 use std::sync::OnceLock;
 
 use anyhow::{Context, Result, anyhow};
-use chronomap_ros2::config::{GridSource, NodeConfig, Reliability};
+use chronomap_ros2::config::{GridSource, NodeConfig, Reliability, Setup};
 use chronomap_ros2::log::{self, Level, LevelFilter, Log, Metadata, Record};
-use chronomap_ros2::{World, node, signals};
+use chronomap_ros2::node::{self, RunOptions};
+use chronomap_ros2::ros_args::{RosArgs, Severity};
+use chronomap_ros2::{rosout, signals};
 use serde_json::{Value, json};
 
 use crate::cli::{LogLevelArg, Ros2Args};
 use crate::format::Table;
 use crate::outln;
-use crate::output::print_json;
+use crate::output::{print_json, usage};
+
+/// The ROS arguments of the command line (everything after `--ros-args`).
+fn ros_args(args: &Ros2Args) -> Result<RosArgs> {
+    let Some(list) = &args.ros_args else {
+        return Ok(RosArgs::default());
+    };
+    let parsed =
+        RosArgs::parse(std::iter::once("--ros-args").chain(list.iter().map(String::as_str)))
+            .map_err(|e| usage(e.to_string()))?;
+    if let Some(extra) = parsed.other.first() {
+        return Err(usage(format!(
+            "--ros-args: `{extra}` after `--`: chronomap's own flags go before --ros-args"
+        )));
+    }
+    Ok(parsed)
+}
 
 pub fn run(args: &Ros2Args) -> Result<()> {
-    let config = NodeConfig::read(&args.config, args.node_name.as_deref())?;
+    let ros = ros_args(args)?;
+    if args.config.is_none() && args.ros_args.is_none() {
+        return Err(usage(
+            "the node's parameters: give --config FILE, or --ros-args with --params-file FILE \
+             or -p NAME:=VALUE",
+        ));
+    }
+    let setup = Setup::new(
+        args.config.as_deref(),
+        args.node_name.as_deref(),
+        ros.clone(),
+    )?;
+    let config = if args.managed {
+        setup.config_allowing_empty()?
+    } else {
+        setup.config()?
+    };
     if args.check {
         return check(args, &config);
     }
-    install_logger(&config.fully_qualified_name(), args);
+    install_logger(&setup.fully_qualified_name(), args, &ros);
     let stop = signals::stop_on_signals().context("cannot install the signal handlers")?;
-    let world = World::new(config.clone()).context("cannot restore the models")?;
-    let summary = node::run(world, args.domain_id, &stop)?;
+    let options = RunOptions {
+        domain_id: args.domain_id,
+        managed: args.managed,
+        rosout: ros.rosout_logs != Some(false),
+    };
+    let summary = node::run(setup, &options, &stop)?;
     let refused: u64 = summary.refused.values().sum();
+    let saved = summary.save_error.is_none() && config.save_dir.is_some() && summary.configured;
     if args.json {
         print_json(&json!({
             "node": config.fully_qualified_name(),
@@ -35,7 +75,7 @@ pub fn run(args: &Ros2Args) -> Result<()> {
                 "section": section, "name": name, "frames": l.observations, "total": l.total,
             })).collect::<Vec<_>>(),
             "refused": summary.refused,
-            "saved": summary.save_error.is_none() && config.save_dir.is_some(),
+            "saved": saved,
         }))?;
     } else {
         for (name, l) in &summary.states {
@@ -58,13 +98,13 @@ pub fn run(args: &Ros2Args) -> Result<()> {
     }
     match (summary.save_error, &config.save_dir) {
         (Some(e), _) => Err(anyhow!("saving at shutdown: {e}")),
-        (None, Some(dir)) => {
+        (None, Some(dir)) if saved => {
             if !args.json {
                 outln!("saved in {}", dir.display())?;
             }
             Ok(())
         }
-        (None, None) => Ok(()),
+        _ => Ok(()),
     }
 }
 
@@ -184,21 +224,30 @@ fn check(args: &Ros2Args, config: &NodeConfig) -> Result<()> {
     Ok(())
 }
 
-/// Log lines on stderr, as ROS 2 console output looks: `[LEVEL] [unix time] [logger]: text`.
-struct StderrLogger {
+/// Log lines on stderr, as ROS 2 console output looks: `[LEVEL] [unix time] [logger]: text`;
+/// the node's lines also go to `/rosout` while the node runs.
+struct NodeLogger {
     node: String,
     node_level: LevelFilter,
     dds_level: LevelFilter,
+    stderr: bool,
 }
 
-impl StderrLogger {
+impl NodeLogger {
     fn ours(target: &str) -> bool {
         target.starts_with("chronomap")
     }
 }
 
-impl Log for StderrLogger {
+impl Log for NodeLogger {
     fn enabled(&self, metadata: &Metadata) -> bool {
+        // ros2-client's /rosout publisher enters a `tracing` span and repeats each line as a
+        // `tracing` event, which `tracing` reports through `log` when nothing subscribes to
+        // it: the line is on stderr already.
+        if metadata.target().starts_with("tracing::") || metadata.target() == "ros2_client::rosout"
+        {
+            return false;
+        }
         let level = if Self::ours(metadata.target()) {
             self.node_level
         } else {
@@ -211,10 +260,17 @@ impl Log for StderrLogger {
         if !self.enabled(record.metadata()) {
             return;
         }
+        let ours = Self::ours(record.target());
+        if ours {
+            rosout::forward(record);
+        }
+        if !self.stderr {
+            return;
+        }
         let now = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64());
-        let logger = if Self::ours(record.target()) {
+        let logger = if ours {
             self.node.as_str()
         } else {
             record.target()
@@ -246,13 +302,33 @@ fn level(arg: LogLevelArg) -> LevelFilter {
     }
 }
 
-fn install_logger(node: &str, args: &Ros2Args) {
-    static LOGGER: OnceLock<StderrLogger> = OnceLock::new();
-    let (node_level, dds_level) = (level(args.log_level), level(args.dds_log_level));
-    let logger = LOGGER.get_or_init(|| StderrLogger {
-        node: node.trim_start_matches('/').to_string(),
+/// `--ros-args --log-level` as a filter (the node logs nothing more severe than errors, so
+/// `fatal` shows nothing).
+fn severity(severity: Severity) -> LevelFilter {
+    match severity {
+        Severity::Debug => LevelFilter::Debug,
+        Severity::Info => LevelFilter::Info,
+        Severity::Warn => LevelFilter::Warn,
+        Severity::Error => LevelFilter::Error,
+        Severity::Fatal => LevelFilter::Off,
+    }
+}
+
+fn install_logger(fqn: &str, args: &Ros2Args, ros: &RosArgs) {
+    static LOGGER: OnceLock<NodeLogger> = OnceLock::new();
+    let name = rosout::logger_name(fqn);
+    let node_level = ros
+        .severity(&name)
+        .map_or_else(|| level(args.log_level), severity);
+    let dds_level = match ros.external_lib_logs {
+        Some(false) => LevelFilter::Off,
+        _ => level(args.dds_log_level),
+    };
+    let logger = LOGGER.get_or_init(|| NodeLogger {
+        node: name,
         node_level,
         dds_level,
+        stderr: ros.stdout_logs != Some(false),
     });
     if log::set_logger(logger).is_ok() {
         log::set_max_level(node_level.max(dds_level));

@@ -24,11 +24,13 @@
 //! described in `docs/ros2.md`.
 //!
 //! ```no_run
-//! use chronomap_ros2::{World, config::NodeConfig, node, signals};
+//! use chronomap_ros2::{config::Setup, node, ros_args::RosArgs, signals};
 //!
-//! let config = NodeConfig::read("node.yaml".as_ref(), None)?;
+//! // `chronomap ros2 --config node.yaml --ros-args -p horizon:=600.0`
+//! let args = RosArgs::parse(["--ros-args", "-p", "horizon:=600.0"])?;
+//! let setup = Setup::new(Some("node.yaml".as_ref()), None, args)?;
 //! let stop = signals::stop_on_signals()?;
-//! let summary = node::run(World::new(config)?, 0, &stop)?;
+//! let summary = node::run(setup, &node::RunOptions::default(), &stop)?;
 //! for (name, learned) in &summary.states {
 //!     println!("{name}: {} observations", learned.observations);
 //! }
@@ -37,9 +39,12 @@
 #![deny(missing_docs)]
 
 pub mod config;
-pub mod journal;
+pub mod lifecycle;
 pub mod msgs;
 pub mod node;
+pub mod params;
+pub mod ros_args;
+pub mod rosout;
 pub mod signals;
 pub mod world;
 
