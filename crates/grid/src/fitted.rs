@@ -78,6 +78,47 @@ impl FremenGrid {
         self.fitted_slots(&orders, &self.slots)
     }
 
+    /// Predicted occupancy probability of every cell at `time` with the configured order (NaN
+    /// for cells never observed): bit for bit `self.fitted(OrderChoice::Fixed(order)).predict(time)`,
+    /// without keeping the compact model (it holds the map and one value per changing cell,
+    /// [`MemoryEstimate::predict_map_bytes`](crate::MemoryEstimate::predict_map_bytes)). For many
+    /// predictions, [`FremenGrid::fitted`] once and predict from the [`FittedGrid`]; for one
+    /// cell, [`FremenGrid::predict_cell`] gives the same bits.
+    pub fn predict_map(&self, time: f64) -> Vec<f32> {
+        let order = self.config.fremen.order;
+        let periods = &self.config.fremen.periods;
+        let angles: Vec<f64> = (0..periods.len())
+            .map(|k| angle(periods, k, time))
+            .collect();
+        let values: Vec<f32> = self
+            .slots
+            .par_iter()
+            .map_init(Vec::new, |components, slot| {
+                match self.fit_slot(slot, order, components) {
+                    Some(mean) => saturate(cell_value(mean, components, |k| angles[k])) as f32,
+                    // Cleared from the constant planes: predicted free, as the compact model does.
+                    None => 0.0,
+                }
+            })
+            .collect();
+        let mut map: Vec<f32> = (0..self.geometry.cells())
+            .map(|cell| {
+                let (w, b) = (cell / 64, 1u64 << (cell % 64));
+                if self.unknown[w] & b != 0 {
+                    f32::NAN
+                } else if self.occupied[w] & b != 0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        for (slot, value) in self.slots.iter().zip(values) {
+            map[slot.cell as usize] = value;
+        }
+        map
+    }
+
     /// Predicted occupancy probability of one cell at each of `times` with the configured
     /// order: bit for bit the value [`FremenGrid::predict_map`] gives that cell (NaN if it was
     /// never observed), without fitting the other cells.
@@ -93,41 +134,103 @@ impl FremenGrid {
             .predict_cell(cell, times)
     }
 
+    /// The mean of the compact model of a slot's cell with its components in `components`
+    /// (its `order` strongest, single precision), or `None` if the cell was never observed.
+    fn fit_slot(
+        &self,
+        slot: &Slot,
+        order: usize,
+        components: &mut Vec<CompactComponent>,
+    ) -> Option<f32> {
+        components.clear();
+        let mut model = self.cell_model(slot.cell as usize)?;
+        model.set_order(order);
+        let fit = model.fit();
+        components.extend(
+            fit.components[..model.order().min(fit.components.len())]
+                .iter()
+                .map(|c| CompactComponent {
+                    period: period_index(&self.config.fremen.periods, c.period_secs),
+                    amplitude: c.amplitude as f32,
+                    phase: c.phase as f32,
+                }),
+        );
+        Some(fit.mean as f32)
+    }
+
     /// The compact model of the cells of `slots` (all of the grid's, or some of them): the
     /// others of the grid's slots are left without a model, so a [`FittedGrid`] of some slots
-    /// predicts those cells exactly as the [`FittedGrid`] of all slots does.
+    /// predicts those cells exactly as the [`FittedGrid`] of all slots does. Fits in parallel
+    /// into arrays of the final size (one row of the largest order per slot), then closes the
+    /// gaps in place.
     fn fitted_slots(&self, orders: &OrderChoice, slots: &[Slot]) -> FittedGrid {
-        let fits: Vec<(FittedCell, Vec<CompactComponent>)> = slots
-            .par_iter()
-            .filter_map(|slot| {
-                let cell = slot.cell as usize;
-                let mut model = self.cell_model(cell)?;
-                model.set_order(orders.order_of(cell));
-                let fit = model.fit();
-                let components = fit.components[..model.order().min(fit.components.len())]
-                    .iter()
-                    .map(|c| CompactComponent {
-                        period: period_index(&self.config.fremen.periods, c.period_secs),
-                        amplitude: c.amplitude as f32,
-                        phase: c.phase as f32,
-                    })
-                    .collect::<Vec<_>>();
-                let cell = FittedCell {
-                    cell: slot.cell,
-                    mean: fit.mean as f32,
-                    start: 0,
-                    count: components.len() as u8,
-                };
-                Some((cell, components))
-            })
-            .collect();
-        let mut cells = Vec::with_capacity(fits.len());
-        let mut components = Vec::new();
-        for (mut cell, comps) in fits {
-            cell.start = components.len() as u32;
-            components.extend(comps);
-            cells.push(cell);
+        const CHUNK: usize = 1024;
+        let widest = match orders {
+            OrderChoice::Fixed(k) => *k,
+            OrderChoice::PerCell(orders) => orders.iter().copied().max().map_or(0, usize::from),
         }
+        .min(self.config.fremen.periods.len());
+        let unfitted = FittedCell {
+            cell: 0,
+            mean: f32::NAN,
+            start: 0,
+            count: 0,
+        };
+        let blank = CompactComponent {
+            period: 0,
+            amplitude: 0.0,
+            phase: 0.0,
+        };
+        let mut cells = vec![unfitted; slots.len()];
+        let mut components = vec![blank; slots.len() * widest];
+        let fit_chunk =
+            |cells: &mut [FittedCell], rows: &mut [CompactComponent], slots: &[Slot]| {
+                let mut fit = Vec::new();
+                for (i, (cell, slot)) in cells.iter_mut().zip(slots).enumerate() {
+                    if let Some(mean) =
+                        self.fit_slot(slot, orders.order_of(slot.cell as usize), &mut fit)
+                    {
+                        rows[i * widest..i * widest + fit.len()].copy_from_slice(&fit);
+                        *cell = FittedCell {
+                            cell: slot.cell,
+                            mean,
+                            start: 0,
+                            count: fit.len() as u8,
+                        };
+                    }
+                }
+            };
+        if widest == 0 {
+            cells
+                .par_chunks_mut(CHUNK)
+                .zip(slots.par_chunks(CHUNK))
+                .for_each(|(cells, slots)| fit_chunk(cells, &mut [], slots));
+        } else {
+            cells
+                .par_chunks_mut(CHUNK)
+                .zip(components.par_chunks_mut(CHUNK * widest))
+                .zip(slots.par_chunks(CHUNK))
+                .for_each(|((cells, rows), slots)| fit_chunk(cells, rows, slots));
+        }
+        let (mut kept, mut written) = (0, 0);
+        for i in 0..cells.len() {
+            let cell = cells[i];
+            if cell.mean.is_nan() {
+                continue;
+            }
+            let count = usize::from(cell.count);
+            components.copy_within(i * widest..i * widest + count, written);
+            cells[kept] = FittedCell {
+                start: written as u32,
+                ..cell
+            };
+            kept += 1;
+            written += count;
+        }
+        cells.truncate(kept);
+        components.truncate(written);
+        cells.shrink_to_fit();
+        components.shrink_to_fit();
         // Constant cells: planes of the cells without a slot.
         let mut occupied = self.occupied.clone();
         let mut unknown = self.unknown.clone();
@@ -153,8 +256,7 @@ impl FremenGrid {
     pub fn history(&self, cell: usize) -> Vec<(u64, CellState)> {
         match self.slot_of[cell] {
             NONE => Vec::new(),
-            slot => self.slots[slot as usize]
-                .history
+            slot => self.histories[slot as usize]
                 .iter()
                 .map(|&h| (h >> 2, state_of_code(h & 3)))
                 .collect(),
@@ -189,6 +291,20 @@ fn period_index(periods: &PeriodSet, period_secs: f64) -> u32 {
     (0..periods.len())
         .find(|&k| periods.period(k) == period_secs)
         .expect("component periods come from the set") as u32
+}
+
+/// `p(t)` of a compact cell model before saturation, given the phase angle `ω_k t` of each
+/// period index `k`: one formula for whole maps, compact grids and single evaluations, so that
+/// all give the same bits.
+fn cell_value(mean: f32, components: &[CompactComponent], angle_of: impl Fn(usize) -> f64) -> f64 {
+    f64::from(mean)
+        + components
+            .iter()
+            .map(|c| {
+                let a = angle_of(c.period as usize);
+                2.0 * f64::from(c.amplitude) * (a + f64::from(c.phase)).cos()
+            })
+            .sum::<f64>()
 }
 
 /// Phase angle `ω_k t` of period `k` at `time`, reduced as FreMEn reduces it.
@@ -232,19 +348,14 @@ impl FittedGrid {
     }
 
     /// `p(t)` of a fitted cell before saturation, given the phase angle `ω_k t` of each
-    /// period index `k` (one formula for bulk predictions and single evaluations, so that both
-    /// give the same bits).
+    /// period index `k`.
     fn value_with(&self, cell: &FittedCell, angle_of: impl Fn(usize) -> f64) -> f64 {
         let start = cell.start as usize;
-        let comps = &self.components[start..start + cell.count as usize];
-        f64::from(cell.mean)
-            + comps
-                .iter()
-                .map(|c| {
-                    let a = angle_of(c.period as usize);
-                    2.0 * f64::from(c.amplitude) * (a + f64::from(c.phase)).cos()
-                })
-                .sum::<f64>()
+        cell_value(
+            cell.mean,
+            &self.components[start..start + cell.count as usize],
+            angle_of,
+        )
     }
 
     /// `p(t)` of a fitted cell before saturation, from precomputed angles of every period.

@@ -23,10 +23,25 @@
 //! # Layout
 //! Struct of arrays: three bit planes (occupied, unknown, fractional) hold every cell's current
 //! state; cells whose state never changed since the first frame have no other storage (they are
-//! constants); the others get a *slot* with their run sums (allocated on their first change),
-//! and an unknown-run accumulator only if they were ever unknown. Grids over disjoint cell
-//! ranges that saw the same frame times can be built on separate threads and
+//! constants); the others get a *slot* (allocated on their first change) with two
+//! accumulators, the run sums of their occupied and of their unknown frames. Grids over
+//! disjoint cell ranges that saw the same frame times can be built on separate threads and
 //! [concatenated](FremenGrid::concat).
+//!
+//! # Memory
+//! An accumulator is a signed sum of prefixes, one `±P(f)` per run edge. Until its third edge
+//! it holds just those edges, inline in the slot (4 bytes each); the prefixes `P(f)` of their
+//! frames are kept once for the whole grid, shared by every cell that changed in that frame.
+//! From its third edge (or first fractional or sparse observation) it owns a block of `K + 1`
+//! exact sums, as 64-bit integers while every stored value fits (a sum of `n` phasors needs
+//! `51 + log2 n` bits: at least 8,000 frames, usually many more), widened once to 128 bits for
+//! the whole grid when one would not. A cell that changed a few times costs its 64-byte slot;
+//! one that keeps changing costs 64 bytes and two blocks of `16 (K + 1)` bytes (`32 (K + 1)`
+//! once widened); a cell that never changed costs 4 bytes and 3 bits. The snapshots never
+//! outnumber the accumulators held as edges, so blocks in use never exceed two per changing
+//! cell: [`FremenGrid::memory_estimate`] gives these bounds for a geometry and configuration
+//! before a grid is built, [`FremenGrid::heap_bytes`] what a live grid holds. Every value is
+//! exact in every representation: a cell's model is the same bits whichever way it is held.
 //!
 //! [`build`] builds grids from sequences of frames (with the snapshots of a chronological
 //! hold-out) and from sources that stream parts of the cells on separate threads; [`report`]
@@ -35,10 +50,16 @@
 
 pub mod build;
 mod fitted;
+pub mod format1;
 pub mod report;
+mod store;
+
+use std::collections::{BTreeMap, BTreeSet};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+
+use store::{Acc, EDGE_FRAMES, Edge, Pool, Snapshot, Which, reserve_within};
 
 use chronomap_core::error::{ConfigError, ObservationError};
 use chronomap_core::exact::{ExactSum, SCALE, quantize};
@@ -233,24 +254,61 @@ impl CellState {
 }
 
 /// Per-cell storage of a cell whose state changed at least once (or that was observed late,
-/// fractionally or sparsely).
+/// fractionally or sparsely): 64 bytes, plus blocks of the pool for accumulators that changed
+/// more than twice (see [`store`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct Slot {
     cell: u32,
-    /// Index of the unknown-run accumulator in `unknown_pool`, or NONE.
-    unknown: u32,
+    /// Sums `S` of the occupied runs, and of fractional and sparse observations.
+    occupied: Acc,
+    /// Sums of the unknown runs, less sparse observations.
+    unknown: Acc,
     /// Occupied frames, as run sums: `Σ_runs (b − a)` with the open run pending.
     ones: i64,
     /// Unknown frames minus sparse observations, as run sums.
     unknown_frames: i64,
-    /// Σ s of fractional and sparse observations.
-    extra_value: ExactSum,
     /// First observation time (NaN while never observed).
     first: f64,
     /// Latest observation time known before the cell's current unknown run.
     last: f64,
-    /// Change history: `(frame << 2) | new state`, if the grid keeps history.
-    history: Vec<u64>,
+}
+
+impl Slot {
+    fn acc(&self, which: Which) -> Acc {
+        match which {
+            Which::Occupied => self.occupied,
+            Which::Unknown => self.unknown,
+        }
+    }
+
+    fn acc_mut(&mut self, which: Which) -> &mut Acc {
+        match which {
+            Which::Occupied => &mut self.occupied,
+            Which::Unknown => &mut self.unknown,
+        }
+    }
+}
+
+/// Edges of the frame being applied: their prefix is the current one, turned into a snapshot
+/// when the frame ends (always empty between calls).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Pending {
+    refs: u32,
+    codes: u64,
+}
+
+/// Bytes of an internal node of the snapshot index (a `BTreeMap` of `u32` keys and 16-byte
+/// values, 11 to a node, 12 edges), the largest of its nodes.
+const SNAPSHOT_NODE_BYTES: usize = 8 + 4 + 11 * 4 + 11 * 16 + 12 * 8;
+
+/// Bytes of an internal node of the set of singly referenced snapshots (`u32` keys).
+const SINGLETON_NODE_BYTES: usize = 8 + 4 + 11 * 4 + 12 * 8;
+
+/// An upper bound of the heap bytes of a B-tree of `n` entries with nodes of at most
+/// `node_bytes`: every node but the root holds at least 5 entries, so there are at most
+/// `1 + n / 5` (none when empty: the grid drops the root of an emptied tree).
+const fn btree_bytes(n: usize, node_bytes: usize) -> usize {
+    if n == 0 { 0 } else { (1 + n / 5) * node_bytes }
 }
 
 /// A spatio-temporal occupancy grid with a FreMEn model in every cell (see the
@@ -279,6 +337,7 @@ struct Slot {
 /// # Ok::<(), chronomap_grid::GridError>(())
 /// ```
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "StoredGrid")]
 pub struct FremenGrid {
     geometry: GridGeometry,
     config: GridConfig,
@@ -293,12 +352,18 @@ pub struct FremenGrid {
     occupied: Vec<u64>,
     unknown: Vec<u64>,
     fraction: Vec<u64>,
+    /// Slot of each cell, or NONE (rebuilt from the slots when read).
+    #[serde(skip)]
     slot_of: Vec<u32>,
     slots: Vec<Slot>,
-    /// Occupied-run (and fractional/sparse) phasor sums `S`, `K` entries per slot.
-    occupied_pool: Vec<[i128; 2]>,
-    /// Unknown-run phasor sums, `K` entries per unknown accumulator.
-    unknown_pool: Vec<[i128; 2]>,
+    /// Change history of each slot, `(frame << 2) | new state`, if the grid keeps history.
+    histories: Vec<Vec<u64>>,
+    /// Blocks of `K + 1` exact sums: owned accumulators and snapshots.
+    pool: Pool,
+    /// Blocks of the pool not in use (zero).
+    free_blocks: Vec<u32>,
+    /// `P(f)` of every frame some inline edge names, by frame.
+    snapshots: BTreeMap<u32, Snapshot>,
     /// Frame times, if the grid keeps history.
     frame_times: Vec<f64>,
     /// Whether sparse observations were made (they are outside the frame history).
@@ -307,8 +372,107 @@ pub struct FremenGrid {
     /// zero, binary frames take a fast path that compares one bit plane.
     unknown_cells: u64,
     fraction_cells: u64,
+    /// Accumulators held as edges (derived).
+    #[serde(skip)]
+    edge_accs: u64,
+    /// Snapshots that exactly one edge references (derived).
+    #[serde(skip)]
+    singletons: BTreeSet<u32>,
+    #[serde(skip)]
+    pending: Pending,
     #[serde(skip)]
     scratch: FramePhasors,
+    /// Room for one accumulator's sums (reused).
+    #[serde(skip)]
+    sums: Sums,
+}
+
+/// What a grid file holds of a [`FremenGrid`] (format 2): everything but what is derived.
+#[derive(Deserialize)]
+struct StoredGrid {
+    geometry: GridGeometry,
+    config: GridConfig,
+    frames: u64,
+    frame_span: ObservedSpan,
+    latest: Option<f64>,
+    prefix: Vec<[i128; 2]>,
+    occupied: Vec<u64>,
+    unknown: Vec<u64>,
+    fraction: Vec<u64>,
+    slots: Vec<Slot>,
+    histories: Vec<Vec<u64>>,
+    pool: Pool,
+    free_blocks: Vec<u32>,
+    snapshots: BTreeMap<u32, Snapshot>,
+    frame_times: Vec<f64>,
+    had_sparse: bool,
+    unknown_cells: u64,
+    fraction_cells: u64,
+}
+
+impl TryFrom<StoredGrid> for FremenGrid {
+    type Error = String;
+
+    /// Rebuilds what is derived; [`FremenGrid::is_consistent`] checks the rest.
+    fn try_from(s: StoredGrid) -> Result<Self, String> {
+        s.geometry.validate().map_err(|e| e.to_string())?;
+        s.config.fremen.validate().map_err(|e| e.to_string())?;
+        let (cells, words) = (s.geometry.cells(), s.geometry.words());
+        // The planes come from the file: checking them first keeps the slot index (4 bytes a
+        // cell) in proportion to what was read.
+        if [&s.occupied, &s.unknown, &s.fraction]
+            .iter()
+            .any(|p| p.len() != words)
+        {
+            return Err(format!("the bit planes do not have {words} words"));
+        }
+        let mut slot_of = vec![NONE; cells];
+        for (i, slot) in s.slots.iter().enumerate() {
+            match slot_of.get_mut(slot.cell as usize) {
+                Some(entry) if *entry == NONE => *entry = i as u32,
+                _ => return Err(format!("slot {i}: cell {} is outside or taken", slot.cell)),
+            }
+        }
+        let edge_accs = s
+            .slots
+            .iter()
+            .flat_map(|slot| [slot.occupied, slot.unknown])
+            .filter(|acc| acc.is_edges())
+            .count() as u64;
+        let singletons = s
+            .snapshots
+            .iter()
+            .filter(|(_, snapshot)| snapshot.refs == 1)
+            .map(|(&frame, _)| frame)
+            .collect();
+        let k = s.config.fremen.periods.len();
+        Ok(FremenGrid {
+            geometry: s.geometry,
+            config: s.config,
+            frames: s.frames,
+            frame_span: s.frame_span,
+            latest: s.latest,
+            prefix: s.prefix,
+            occupied: s.occupied,
+            unknown: s.unknown,
+            fraction: s.fraction,
+            slot_of,
+            slots: s.slots,
+            histories: s.histories,
+            pool: s.pool,
+            free_blocks: s.free_blocks,
+            snapshots: s.snapshots,
+            frame_times: s.frame_times,
+            had_sparse: s.had_sparse,
+            unknown_cells: s.unknown_cells,
+            fraction_cells: s.fraction_cells,
+            edge_accs,
+            singletons,
+            pending: Pending::default(),
+            scratch: FramePhasors::with_periods(k),
+            sums: Sums::with_periods(k),
+        })
+    }
 }
 
 /// Scratch space for one frame's phasors and their quantized values (reused between frames;
@@ -327,6 +491,19 @@ impl PartialEq for FramePhasors {
 }
 
 impl FramePhasors {
+    /// Room for `k` periods.
+    fn with_periods(k: usize) -> Self {
+        FramePhasors {
+            re: Vec::with_capacity(k),
+            im: Vec::with_capacity(k),
+            q: Vec::with_capacity(k),
+        }
+    }
+
+    fn heap_bytes(&self) -> usize {
+        (self.re.capacity() + self.im.capacity()) * 8 + self.q.capacity() * 16
+    }
+
     fn compute(&mut self, config: &FremenConfig, time: f64) {
         let k = config.periods.len();
         self.re.resize(k, 0.0);
@@ -342,6 +519,93 @@ impl FramePhasors {
     }
 }
 
+/// Scratch space for the `K + 1` sums of one block (not part of the grid's value).
+#[derive(Clone, Debug, Default)]
+struct Sums(Vec<[i128; 2]>);
+
+impl PartialEq for Sums {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl Sums {
+    fn with_periods(k: usize) -> Self {
+        Sums(Vec::with_capacity(k + 1))
+    }
+}
+
+/// Where the sums of one accumulator are, to read them period by period.
+#[derive(Clone, Copy)]
+enum Source {
+    Zero,
+    /// A block, from this entry.
+    Block(usize),
+    /// Up to two prefixes (snapshot blocks, or the current prefix if `None`) and whether each
+    /// is added.
+    Edges([Option<(Option<usize>, bool)>; 2]),
+}
+
+/// Memory of a [`FremenGrid`] estimated from its geometry and configuration alone, in bytes (see
+/// "Memory" in the [crate docs](crate)). Without history; a grid that keeps history holds 24
+/// more bytes per changing cell and 8 per change.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct MemoryEstimate {
+    /// Number of cells.
+    pub cells: u64,
+    /// Bytes every grid of this geometry holds from the start whatever changes (an empty grid
+    /// holds exactly these): three bit planes, the slot index (4 bytes a cell), the frame
+    /// prefix and scratch space.
+    pub fixed_bytes: u64,
+    /// Bytes per changing cell whose sums are held as edges (it changed at most twice per
+    /// state, e.g. first seen late or a door that opened once): its slot.
+    pub cell_bytes_inline: u64,
+    /// Bytes per changing cell whose two accumulators both have blocks of 64-bit sums (most
+    /// bounds hold as long as no sum has left 64 bits: about 8,000 frames at least).
+    pub cell_bytes_narrow: u64,
+    /// Bytes per changing cell whose two accumulators both have blocks of 128-bit sums: the
+    /// most a changing cell can need.
+    pub cell_bytes_wide: u64,
+    /// The most a grid of this geometry and configuration can ever hold: every cell changing,
+    /// with [`MemoryEstimate::cell_bytes_wide`], all capacities at their bounds.
+    pub worst_case_bytes: u64,
+    /// The most a whole-map prediction ([`FremenGrid::predict_map`]) holds while it runs and
+    /// returns: the map (4 bytes a cell) and one value per changing cell.
+    pub predict_map_bytes: u64,
+}
+
+impl MemoryEstimate {
+    /// [`MemoryEstimate::fixed_bytes`] plus `changing` cells of `cell_bytes` each: e.g. the
+    /// memory of a grid of which a known fraction of cells change.
+    pub fn with_changing_cells(&self, changing: u64, cell_bytes: u64) -> u64 {
+        self.fixed_bytes
+            .saturating_add(changing.min(self.cells).saturating_mul(cell_bytes))
+    }
+}
+
+impl GridConfig {
+    /// The most memory one changing cell of a grid with this configuration can take, in bytes
+    /// ([`MemoryEstimate::cell_bytes_wide`]: a slot and two blocks of 128-bit sums, one per
+    /// state, with their share of the snapshot index). Cells that never change take none.
+    pub fn bytes_per_changing_cell(&self) -> u64 {
+        let k = self.fremen.periods.len() as u64;
+        wide_cell_bytes(k)
+    }
+}
+
+/// Bytes a block in use can come with besides its sums: its share of the snapshot index and
+/// of the set of singly referenced snapshots (if it is a snapshot), and a free-list entry.
+const BLOCK_OVERHEAD_BYTES: u64 = ((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) / 5 + 4) as u64;
+
+/// Bytes of one block of `k + 1` 128-bit sums, with what comes with it.
+fn wide_block_bytes(k: u64) -> u64 {
+    (k + 1) * std::mem::size_of::<[i128; 2]>() as u64 + BLOCK_OVERHEAD_BYTES
+}
+
+fn wide_cell_bytes(k: u64) -> u64 {
+    std::mem::size_of::<Slot>() as u64 + 2 * wide_block_bytes(k)
+}
+
 impl FremenGrid {
     /// An empty grid: every cell unknown.
     ///
@@ -353,15 +617,18 @@ impl FremenGrid {
         let words = geometry.words();
         let mut unknown = vec![u64::MAX; words];
         mask_tail(&mut unknown, geometry.cells());
+        let k = config.fremen.periods.len();
         Ok(FremenGrid {
-            prefix: vec![[0; 2]; config.fremen.periods.len()],
+            prefix: vec![[0; 2]; k],
             occupied: vec![0; words],
             unknown,
             fraction: vec![0; words],
             slot_of: vec![NONE; geometry.cells()],
             slots: Vec::new(),
-            occupied_pool: Vec::new(),
-            unknown_pool: Vec::new(),
+            histories: Vec::new(),
+            pool: Pool::default(),
+            free_blocks: Vec::new(),
+            snapshots: BTreeMap::new(),
             frame_times: Vec::new(),
             geometry,
             config,
@@ -371,8 +638,111 @@ impl FremenGrid {
             had_sparse: false,
             unknown_cells: geometry.cells() as u64,
             fraction_cells: 0,
-            scratch: FramePhasors::default(),
+            edge_accs: 0,
+            singletons: BTreeSet::new(),
+            pending: Pending::default(),
+            scratch: FramePhasors::with_periods(k),
+            sums: Sums::with_periods(k),
         })
+    }
+
+    /// The memory a grid of `geometry` and `config` holds at the start and can come to hold,
+    /// without building it: a pure function to check before accepting a map (see
+    /// [`MemoryEstimate`]; [`FremenGrid::heap_bytes`] is what a live grid holds).
+    ///
+    /// ```
+    /// use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
+    ///
+    /// let geometry = GridGeometry::planar(2000, 2000, 0.05, [0.0, 0.0])?;
+    /// let config = GridConfig::default(); // one week of 84 periods
+    /// let estimate = FremenGrid::memory_estimate(&geometry, &config);
+    /// assert_eq!(estimate.cells, 4_000_000);
+    /// assert!(estimate.fixed_bytes < 20_000_000);
+    /// assert_eq!(estimate.cell_bytes_inline, 64);
+    /// assert!(estimate.worst_case_bytes > 4_000_000 * 2 * 85 * 32);
+    /// let empty = FremenGrid::new(geometry, config)?;
+    /// assert_eq!(empty.heap_bytes() as u64, estimate.fixed_bytes);
+    /// # Ok::<(), chronomap_grid::GridError>(())
+    /// ```
+    pub fn memory_estimate(geometry: &GridGeometry, config: &GridConfig) -> MemoryEstimate {
+        let cells = geometry.cells() as u64;
+        let k = config.fremen.periods.len() as u64;
+        let words = geometry.words() as u64;
+        let slot = std::mem::size_of::<Slot>() as u64;
+        // Planes, slot index, prefix; scratch: phasors (re, im, quantized) and one block.
+        let fixed = 3 * words * 8 + 4 * cells + k * 32 + k * 32 + (k + 1) * 32;
+        let narrow_block = (k + 1) * std::mem::size_of::<[i64; 2]>() as u64 + BLOCK_OVERHEAD_BYTES;
+        MemoryEstimate {
+            cells,
+            fixed_bytes: fixed,
+            cell_bytes_inline: slot,
+            cell_bytes_narrow: slot + 2 * narrow_block,
+            cell_bytes_wide: wide_cell_bytes(k),
+            // Blocks in use never exceed two per cell, plus the snapshot of the frame ending.
+            // and the roots of the two B-trees.
+            worst_case_bytes: fixed
+                .saturating_add(cells.saturating_mul(wide_cell_bytes(k)))
+                .saturating_add(wide_block_bytes(k))
+                .saturating_add((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64),
+            predict_map_bytes: 4 * cells + 4 * cells,
+        }
+    }
+
+    /// The heap memory this grid holds, in bytes: the capacities of its arrays, exactly, and
+    /// the snapshot index at an upper bound per entry. Its process's resident memory grows by
+    /// about as much (untouched capacity is not resident).
+    pub fn heap_bytes(&self) -> usize {
+        let planes =
+            (self.occupied.capacity() + self.unknown.capacity() + self.fraction.capacity()) * 8;
+        let histories = self.histories.capacity() * std::mem::size_of::<Vec<u64>>()
+            + self
+                .histories
+                .iter()
+                .map(|h| h.capacity() * 8)
+                .sum::<usize>();
+        planes
+            + self.slot_of.capacity() * 4
+            + self.prefix.capacity() * 32
+            + self.slots.capacity() * std::mem::size_of::<Slot>()
+            + histories
+            + self.pool.heap_bytes()
+            + self.free_blocks.capacity() * 4
+            + self.index_bytes()
+            + self.frame_times.capacity() * 8
+            + self.scratch.heap_bytes()
+            + self.sums.0.capacity() * 32
+    }
+
+    /// The upper bound [`FremenGrid::heap_bytes`] counts for the snapshot index and the set of
+    /// singly referenced snapshots.
+    fn index_bytes(&self) -> usize {
+        btree_bytes(self.snapshots.len(), SNAPSHOT_NODE_BYTES)
+            + btree_bytes(self.singletons.len(), SINGLETON_NODE_BYTES)
+    }
+
+    /// Heap memory used, in bytes: [`FremenGrid::heap_bytes`].
+    pub fn memory_bytes(&self) -> usize {
+        self.heap_bytes()
+    }
+
+    /// How the grid holds its changing cells (what [`FremenGrid::heap_bytes`] is made of).
+    pub fn storage(&self) -> GridStorage {
+        let owned = self
+            .slots
+            .iter()
+            .flat_map(|s| [s.occupied, s.unknown])
+            .filter(|a| matches!(a, Acc::Owned(_)))
+            .count();
+        GridStorage {
+            slots: self.slots.len(),
+            edge_accumulators: self.edge_accs as usize,
+            owned_accumulators: owned,
+            snapshots: self.snapshots.len(),
+            free_blocks: self.free_blocks.len(),
+            sum_bits: if self.pool.is_wide() { 128 } else { 64 },
+            pool_bytes: self.pool.heap_bytes(),
+            slot_bytes: self.slots.capacity() * std::mem::size_of::<Slot>(),
+        }
     }
 
     /// The geometry.
@@ -427,19 +797,20 @@ impl FremenGrid {
             && self.unknown.len() == words
             && self.fraction.len() == words
             && self.slot_of.len() == cells
-            && self.occupied_pool.len() == self.slots.len() * k
-            && (k == 0 || self.unknown_pool.len().is_multiple_of(k))
             && self.slots.iter().enumerate().all(|(i, s)| {
-                (s.cell as usize) < cells
-                    && self.slot_of[s.cell as usize] == i as u32
-                    && (s.unknown == NONE
-                        || (s.unknown as usize) < self.unknown_pool.len() / k.max(1))
+                (s.cell as usize) < cells && self.slot_of[s.cell as usize] == i as u32
             })
             && self
                 .slot_of
                 .iter()
                 .all(|&s| s == NONE || (s as usize) < self.slots.len())
             && (!self.config.keep_history || self.frame_times.len() as u64 == self.frames)
+            && self.histories.len()
+                == if self.config.keep_history {
+                    self.slots.len()
+                } else {
+                    0
+                }
             && self.unknown_cells == popcount(&self.unknown)
             && self.fraction_cells == popcount(&self.fraction)
             && self.frame_span.count == self.frames
@@ -447,20 +818,83 @@ impl FremenGrid {
             && self.latest.is_none_or(f64::is_finite)
             && self.frame_times.iter().all(|t| t.is_finite())
             && self.frame_times.windows(2).all(|w| w[0] <= w[1])
+            && self.storage_is_consistent()
     }
 
-    /// Approximate heap memory used, in bytes.
-    pub fn memory_bytes(&self) -> usize {
-        let planes = 3 * self.occupied.len() * 8;
-        let slot_index = self.slot_of.len() * 4;
-        let slots = self.slots.len() * std::mem::size_of::<Slot>()
-            + self
-                .slots
-                .iter()
-                .map(|s| s.history.capacity() * 8)
-                .sum::<usize>();
-        let pools = (self.occupied_pool.len() + self.unknown_pool.len()) * 32;
-        planes + slot_index + slots + pools + self.frame_times.len() * 8
+    /// Every block is used once (by an owned accumulator or a snapshot) or free and zero; the
+    /// snapshots are exactly those the edges name, with their counts and codes; no more
+    /// snapshots than accumulators held as edges.
+    fn storage_is_consistent(&self) -> bool {
+        let stride = self.stride();
+        if !self.pool.len().is_multiple_of(stride) || self.pending != Pending::default() {
+            return false;
+        }
+        let blocks = self.pool.len() / stride;
+        let mut used = vec![false; blocks];
+        let mut claim = |block: u32| {
+            let b = block as usize;
+            b < blocks && !std::mem::replace(&mut used[b], true)
+        };
+        let mut named: BTreeMap<u32, (u32, u64)> = BTreeMap::new();
+        let mut edge_accs = 0u64;
+        for (i, slot) in self.slots.iter().enumerate() {
+            for which in [Which::Occupied, Which::Unknown] {
+                let acc = slot.acc(which);
+                match acc {
+                    Acc::Zero => {}
+                    Acc::Owned(block) => {
+                        if !claim(block) {
+                            return false;
+                        }
+                    }
+                    Acc::One(_) | Acc::Two(..) => {
+                        edge_accs += 1;
+                        if let Acc::Two(a, b) = acc
+                            && a.frame() >= b.frame()
+                        {
+                            return false;
+                        }
+                        for edge in acc.edges() {
+                            let frame = edge.frame();
+                            if frame == 0 || u64::from(frame) >= self.frames {
+                                return false;
+                            }
+                            let entry = named.entry(frame).or_insert((0, 0));
+                            entry.0 += 1;
+                            entry.1 ^= which.code(i);
+                        }
+                    }
+                }
+            }
+        }
+        if edge_accs != self.edge_accs
+            || named.len() != self.snapshots.len()
+            || self.snapshots.len() as u64 > edge_accs
+        {
+            return false;
+        }
+        for ((frame, snapshot), (named_frame, &(refs, codes))) in self.snapshots.iter().zip(&named)
+        {
+            if frame != named_frame
+                || snapshot.refs != refs
+                || snapshot.codes != codes
+                || !claim(snapshot.block)
+                || (refs == 1) != self.singletons.contains(frame)
+            {
+                return false;
+            }
+        }
+        for &block in &self.free_blocks {
+            if !claim(block) {
+                return false;
+            }
+        }
+        used.iter().all(|&u| u)
+            && self.singletons.len() == self.snapshots.values().filter(|s| s.refs == 1).count()
+            && self.free_blocks.iter().all(|&b| {
+                let at = b as usize * stride;
+                (at..at + stride).all(|i| self.pool.get(i) == [0; 2])
+            })
     }
 
     fn check_frame_time(&self, time: f64) -> Result<(), GridError> {
@@ -600,8 +1034,24 @@ impl FremenGrid {
         self.finish_frame(time, phasors);
     }
 
-    /// Adds the frame's phasors to the prefix and records the frame.
+    /// Turns the edges of the frame into a snapshot of the prefix, adds the frame's phasors to
+    /// the prefix and records the frame.
     fn finish_frame(&mut self, time: f64, phasors: FramePhasors) {
+        if self.pending.refs > 0 {
+            let block = self.alloc_block();
+            let at = self.block_at(block);
+            let prefix = std::mem::take(&mut self.prefix);
+            self.pool.add_rows(at, &prefix, false);
+            self.prefix = prefix;
+            // Edges are only held inline below frame 2^31.
+            let frame = self.frames as u32;
+            let Pending { refs, codes } = std::mem::take(&mut self.pending);
+            self.snapshots
+                .insert(frame, Snapshot { block, refs, codes });
+            if refs == 1 {
+                self.singletons.insert(frame);
+            }
+        }
         for (p, q) in self.prefix.iter_mut().zip(&phasors.q) {
             p[0] += i128::from(q[0]);
             p[1] += i128::from(q[1]);
@@ -613,6 +1063,7 @@ impl FremenGrid {
         if self.config.keep_history {
             self.frame_times.push(time);
         }
+        self.rebalance();
     }
 
     /// Applies one dense frame given, per word, its new (occupied, unknown, fraction) planes
@@ -677,40 +1128,34 @@ impl FremenGrid {
             return self.slot_of[cell] as usize;
         }
         let never_seen = self.cell_state(cell) == CellState::Unknown;
-        let k = self.prefix.len();
-        self.occupied_pool
-            .extend(std::iter::repeat_n([0i128; 2], k));
+        let cells = self.geometry.cells();
+        reserve_within(&mut self.slots, 1, 64, cells);
         self.slots.push(Slot {
             cell: cell as u32,
-            unknown: NONE,
+            occupied: Acc::Zero,
+            unknown: Acc::Zero,
             ones: 0,
             unknown_frames: 0,
-            extra_value: ExactSum::default(),
             first: if never_seen {
                 f64::NAN
             } else {
                 self.frame_span.first
             },
             last: f64::NEG_INFINITY,
-            history: Vec::new(),
         });
         let slot = self.slots.len() - 1;
         self.slot_of[cell] = slot as u32;
-        if self.config.keep_history && !never_seen {
+        if self.config.keep_history {
             // The state it has had since frame 0 (a slotless cell never changed).
-            let state = self.cell_state(cell) as u64;
-            self.slots[slot].history.push(state);
+            let history = if never_seen {
+                Vec::new()
+            } else {
+                vec![self.cell_state(cell) as u64]
+            };
+            reserve_within(&mut self.histories, 1, 64, cells);
+            self.histories.push(history);
         }
         slot
-    }
-
-    fn ensure_unknown(&mut self, slot: usize) -> usize {
-        if self.slots[slot].unknown == NONE {
-            let k = self.prefix.len();
-            self.slots[slot].unknown = (self.unknown_pool.len() / k) as u32;
-            self.unknown_pool.extend(std::iter::repeat_n([0i128; 2], k));
-        }
-        self.slots[slot].unknown as usize
     }
 
     /// Closes the run of `old` and opens the run of `new` at `frame`.
@@ -739,7 +1184,7 @@ impl FremenGrid {
             s.last = s.last.max(previous);
         }
         if self.config.keep_history {
-            self.slots[slot].history.push((frame << 2) | new as u64);
+            self.histories[slot].push((frame << 2) | new as u64);
         }
     }
 
@@ -748,46 +1193,231 @@ impl FremenGrid {
     /// that a closed run contributes the sums of exactly its own frames. Free and fractional
     /// states keep no run sums.
     fn run_edge(&mut self, slot: usize, state: CellState, frame: u64, close: bool) {
-        let k = self.prefix.len();
         let f = if close { frame as i64 } else { -(frame as i64) };
         match state {
             CellState::Occupied => {
-                add_rows(
-                    &mut self.occupied_pool[slot * k..(slot + 1) * k],
-                    &self.prefix,
-                    close,
-                );
+                self.edge(slot, Which::Occupied, frame, close);
                 self.slots[slot].ones += f;
             }
             CellState::Unknown => {
-                let u = self.ensure_unknown(slot);
-                add_rows(
-                    &mut self.unknown_pool[u * k..(u + 1) * k],
-                    &self.prefix,
-                    close,
-                );
+                self.edge(slot, Which::Unknown, frame, close);
                 self.slots[slot].unknown_frames += f;
             }
             CellState::Free | CellState::Fraction => {}
         }
     }
 
+    /// `±P(frame)` (the current prefix) into accumulator `which` of `slot`: as an inline edge
+    /// if it has room, else into its own block.
+    fn edge(&mut self, slot: usize, which: Which, frame: u64, close: bool) {
+        if frame == 0 {
+            return; // P(0) = 0
+        }
+        let acc = self.slots[slot].acc(which);
+        let inline = (frame < EDGE_FRAMES)
+            .then(|| {
+                let e = Edge::new(frame, close);
+                match acc {
+                    Acc::Zero => Some(Acc::One(e)),
+                    Acc::One(a) => Some(Acc::Two(a, e)),
+                    Acc::Two(..) | Acc::Owned(_) => None,
+                }
+            })
+            .flatten();
+        match inline {
+            Some(new) => {
+                if acc == Acc::Zero {
+                    self.edge_accs += 1;
+                }
+                self.pending.refs += 1;
+                self.pending.codes ^= which.code(slot);
+                *self.slots[slot].acc_mut(which) = new;
+            }
+            None => {
+                let at = self.own(slot, which);
+                let prefix = std::mem::take(&mut self.prefix);
+                self.pool.add_rows(at, &prefix, !close);
+                self.prefix = prefix;
+                self.rebalance();
+            }
+        }
+    }
+
+    /// The first entry of block `block`.
+    fn block_at(&self, block: u32) -> usize {
+        block as usize * self.stride()
+    }
+
+    /// Entries per block: one per period, and the sum of fractional and sparse values.
+    fn stride(&self) -> usize {
+        self.prefix.len() + 1
+    }
+
+    /// The most blocks in use at any time: two per cell, plus the snapshot of the frame ending.
+    fn block_limit(&self) -> usize {
+        2 * self.geometry.cells() + 1
+    }
+
+    /// A zero block.
+    fn alloc_block(&mut self) -> u32 {
+        if let Some(block) = self.free_blocks.pop() {
+            return block;
+        }
+        let stride = self.stride();
+        let block = self.pool.len() / stride;
+        self.pool
+            .grow(stride, 64 * stride, self.block_limit() * stride);
+        block as u32
+    }
+
+    fn free_block(&mut self, block: u32) {
+        let at = self.block_at(block);
+        self.pool.zero(at, self.stride());
+        let limit = self.block_limit();
+        reserve_within(&mut self.free_blocks, 1, 64, limit);
+        self.free_blocks.push(block);
+    }
+
+    /// Where the sums of `acc` are.
+    fn source(&self, acc: Acc) -> Source {
+        match acc {
+            Acc::Zero => Source::Zero,
+            Acc::Owned(block) => Source::Block(self.block_at(block)),
+            Acc::One(_) | Acc::Two(..) => {
+                let mut edges = [None; 2];
+                for (slot, edge) in edges.iter_mut().zip(acc.edges()) {
+                    let frame = edge.frame();
+                    let at = (u64::from(frame) != self.frames)
+                        .then(|| self.block_at(self.snapshots[&frame].block));
+                    *slot = Some((at, edge.adds()));
+                }
+                Source::Edges(edges)
+            }
+        }
+    }
+
+    /// The sums of period `j` of an accumulator.
+    #[inline]
+    fn source_value(&self, source: &Source, j: usize) -> [i128; 2] {
+        match source {
+            Source::Zero => [0; 2],
+            Source::Block(at) => self.pool.get(at + j),
+            Source::Edges(edges) => {
+                let mut sum = [0i128; 2];
+                for &(at, adds) in edges.iter().flatten() {
+                    let p = match at {
+                        Some(at) => self.pool.get(at + j),
+                        None => self.prefix[j],
+                    };
+                    if adds {
+                        sum = [sum[0] + p[0], sum[1] + p[1]];
+                    } else {
+                        sum = [sum[0] - p[0], sum[1] - p[1]];
+                    }
+                }
+                sum
+            }
+        }
+    }
+
+    /// One fewer edge names the snapshot of `edge`'s frame (`code` named it): frees it when
+    /// none does.
+    fn release(&mut self, edge: Edge, code: u64) {
+        let frame = edge.frame();
+        if u64::from(frame) == self.frames {
+            self.pending.refs -= 1;
+            self.pending.codes ^= code;
+            return;
+        }
+        let snapshot = self
+            .snapshots
+            .get_mut(&frame)
+            .expect("every inline edge has its snapshot");
+        snapshot.refs -= 1;
+        snapshot.codes ^= code;
+        match snapshot.refs {
+            0 => {
+                let block = snapshot.block;
+                self.snapshots.remove(&frame);
+                self.singletons.remove(&frame);
+                // An emptied B-tree keeps its root node: drop it, as `heap_bytes` assumes.
+                if self.snapshots.is_empty() {
+                    self.snapshots = BTreeMap::new();
+                }
+                if self.singletons.is_empty() {
+                    self.singletons = BTreeSet::new();
+                }
+                self.free_block(block);
+            }
+            1 => {
+                self.singletons.insert(frame);
+            }
+            _ => {}
+        }
+    }
+
+    /// Gives accumulator `which` of `slot` a block of its own, with the sums of its edges, and
+    /// returns the block's first entry. Callers [rebalance](Self::rebalance) after.
+    fn own(&mut self, slot: usize, which: Which) -> usize {
+        let acc = self.slots[slot].acc(which);
+        if let Acc::Owned(block) = acc {
+            return self.block_at(block);
+        }
+        let k = self.prefix.len();
+        let mut sums = std::mem::take(&mut self.sums);
+        let source = self.source(acc);
+        sums.0.clear();
+        sums.0.extend((0..k).map(|j| self.source_value(&source, j)));
+        if acc.is_edges() {
+            let code = which.code(slot);
+            for edge in acc.edges() {
+                self.release(edge, code);
+            }
+            self.edge_accs -= 1;
+        }
+        // After the release, so that a snapshot freed by it is reused.
+        let block = self.alloc_block();
+        let at = self.block_at(block);
+        self.pool.add_rows(at, &sums.0, false);
+        self.sums = sums;
+        *self.slots[slot].acc_mut(which) = Acc::Owned(block);
+        at
+    }
+
+    /// Keeps the snapshots no more numerous than the accumulators held as edges: while they
+    /// are more, an accumulator that alone names a snapshot takes a block of its own, which
+    /// frees that snapshot's block (there is one: fewer than two edges per snapshot then).
+    fn rebalance(&mut self) {
+        while self.snapshots.len() as u64 > self.edge_accs {
+            let Some(&frame) = self.singletons.first() else {
+                break;
+            };
+            let (slot, which) = Which::of_code(self.snapshots[&frame].codes);
+            self.own(slot, which);
+        }
+    }
+
     /// One fractional observation in the current frame: `S += q(v·w)`, `Σs += q(v)`.
     fn add_fraction(&mut self, cell: usize, value: f64, time: f64, phasors: &FramePhasors) {
         let slot = self.ensure_slot(cell);
-        let k = self.prefix.len();
-        for (row, (&re, &im)) in self.occupied_pool[slot * k..(slot + 1) * k]
-            .iter_mut()
-            .zip(phasors.re.iter().zip(&phasors.im))
-        {
-            row[0] += i128::from(quantize(value * re));
-            row[1] += i128::from(quantize(value * im));
-        }
+        let at = self.own(slot, Which::Occupied);
+        let mut rows = std::mem::take(&mut self.sums);
+        rows.0.clear();
+        rows.0
+            .extend(phasors.re.iter().zip(&phasors.im).map(|(&re, &im)| {
+                [
+                    i128::from(quantize(value * re)),
+                    i128::from(quantize(value * im)),
+                ]
+            }));
+        rows.0.push([i128::from(quantize(value)), 0]);
+        self.pool.add_rows(at, &rows.0, false);
+        self.sums = rows;
         let s = &mut self.slots[slot];
-        s.extra_value.add(value);
         if s.first.is_nan() {
             s.first = time;
         }
+        self.rebalance();
     }
 
     /// Observes single cells at `time` (e.g. from a local map), outside any frame: each
@@ -822,26 +1452,34 @@ impl FremenGrid {
         }
         let mut phasors = FramePhasors::default();
         phasors.compute(&self.config.fremen, time);
-        let k = self.prefix.len();
+        let mut rows = Vec::with_capacity(self.stride());
+        let quantized: Vec<[i128; 2]> = phasors
+            .q
+            .iter()
+            .map(|q| [i128::from(q[0]), i128::from(q[1])])
+            .collect();
         for (&cell, &value) in cells.iter().zip(values) {
             let slot = self.ensure_slot(cell as usize);
-            let u = self.ensure_unknown(slot);
-            for j in 0..k {
-                let s = &mut self.occupied_pool[slot * k + j];
-                s[0] += i128::from(quantize(value * phasors.re[j]));
-                s[1] += i128::from(quantize(value * phasors.im[j]));
-                let u = &mut self.unknown_pool[u * k + j];
-                u[0] -= i128::from(phasors.q[j][0]);
-                u[1] -= i128::from(phasors.q[j][1]);
-            }
+            let occupied = self.own(slot, Which::Occupied);
+            let unknown = self.own(slot, Which::Unknown);
+            rows.clear();
+            rows.extend(phasors.re.iter().zip(&phasors.im).map(|(&re, &im)| {
+                [
+                    i128::from(quantize(value * re)),
+                    i128::from(quantize(value * im)),
+                ]
+            }));
+            rows.push([i128::from(quantize(value)), 0]);
+            self.pool.add_rows(occupied, &rows, false);
+            self.pool.add_rows(unknown, &quantized, true);
             let s = &mut self.slots[slot];
             s.unknown_frames -= 1;
-            s.extra_value.add(value);
             if s.first.is_nan() {
                 s.first = time;
             }
             s.last = s.last.max(time);
         }
+        self.rebalance();
         self.latest = Some(time);
         self.had_sparse = true;
         Ok(())
@@ -872,31 +1510,32 @@ impl FremenGrid {
                     per_period,
                     ones,
                     0,
-                    ExactSum::default(),
+                    0,
                     self.frame_span.first,
                     self.frame_span.last,
                 )
             }
             slot => {
                 let s = &self.slots[slot as usize];
+                let (occupied, unknown) = (self.source(s.occupied), self.source(s.unknown));
                 let per_period = (0..k)
                     .map(|j| {
                         let p = self.prefix[j];
-                        let mut occ = self.occupied_pool[slot as usize * k + j];
+                        let mut occ = self.source_value(&occupied, j);
                         if occupied_now {
                             occ = [occ[0] + p[0], occ[1] + p[1]];
                         }
-                        let mut unk = if s.unknown == NONE {
-                            [0; 2]
-                        } else {
-                            self.unknown_pool[s.unknown as usize * k + j]
-                        };
+                        let mut unk = self.source_value(&unknown, j);
                         if unknown_now {
                             unk = [unk[0] + p[0], unk[1] + p[1]];
                         }
                         period_sums(occ, [p[0] - unk[0], p[1] - unk[1]])
                     })
                     .collect();
+                let extra = match occupied {
+                    Source::Block(at) => self.pool.get(at + k)[0],
+                    _ => 0,
+                };
                 let ones = s.ones + if occupied_now { frames } else { 0 };
                 let unknown_frames = s.unknown_frames + if unknown_now { frames } else { 0 };
                 let last = if unknown_now {
@@ -904,21 +1543,14 @@ impl FremenGrid {
                 } else {
                     s.last.max(self.frame_span.last)
                 };
-                (
-                    per_period,
-                    ones,
-                    unknown_frames,
-                    s.extra_value,
-                    s.first,
-                    last,
-                )
+                (per_period, ones, unknown_frames, extra, s.first, last)
             }
         };
         let count = frames - unknown_frames;
         if count <= 0 {
             return None;
         }
-        let sum = ExactSum::from_units(i128::from(ones) * SCALE as i128 + extra.units());
+        let sum = ExactSum::from_units(i128::from(ones) * SCALE as i128 + extra);
         let span = ObservedSpan {
             count: count as u64,
             first,
@@ -958,14 +1590,6 @@ impl FremenGrid {
         }
     }
 
-    /// Predicted occupancy probability of every cell at `time` with the configured order (NaN
-    /// for cells never observed). For many predictions, [`FremenGrid::fitted`] once and predict
-    /// from the [`FittedGrid`]; for one cell, [`FremenGrid::predict_cell`] gives the same bits.
-    pub fn predict_map(&self, time: f64) -> Vec<f32> {
-        self.fitted(OrderChoice::Fixed(self.config.fremen.order))
-            .predict(time)
-    }
-
     /// Combines grids over consecutive cell ranges (in order) that observed the same frames at
     /// the same times, e.g. built on separate threads, into one grid of `geometry`.
     ///
@@ -991,7 +1615,10 @@ impl FremenGrid {
         grid.latest = first.latest;
         grid.prefix = first.prefix.clone();
         grid.frame_times = first.frame_times.clone();
-        let k = grid.prefix.len();
+        if parts.iter().any(|p| p.pool.is_wide()) {
+            grid.pool.widen();
+        }
+        let stride = grid.stride();
         let mut offset = 0usize;
         for (i, part) in parts.into_iter().enumerate() {
             if part.config != grid.config
@@ -1022,26 +1649,98 @@ impl FremenGrid {
                 grid.fraction[w0 + w] = f;
             }
             let slot_base = grid.slots.len() as u32;
-            let unknown_base = (grid.unknown_pool.len() / k.max(1)) as u32;
+            let block_base = (grid.pool.len() / stride) as u32;
             for (c, &s) in part.slot_of.iter().enumerate() {
                 grid.slot_of[offset + c] = if s == NONE { NONE } else { s + slot_base };
             }
-            for mut s in part.slots {
+            let rebase = |acc: Acc| match acc {
+                Acc::Owned(block) => Acc::Owned(block + block_base),
+                other => other,
+            };
+            grid.slots.extend(part.slots.into_iter().map(|mut s| {
                 s.cell += offset as u32;
-                if s.unknown != NONE {
-                    s.unknown += unknown_base;
+                s.occupied = rebase(s.occupied);
+                s.unknown = rebase(s.unknown);
+                s
+            }));
+            grid.histories.extend(part.histories);
+            grid.pool.append(part.pool);
+            grid.free_blocks
+                .extend(part.free_blocks.iter().map(|&b| b + block_base));
+            for (frame, snapshot) in part.snapshots {
+                let block = snapshot.block + block_base;
+                match grid.snapshots.get(&frame).copied() {
+                    None => {
+                        grid.snapshots.insert(frame, Snapshot { block, ..snapshot });
+                    }
+                    Some(kept) => {
+                        let (a, b) = (grid.block_at(kept.block), grid.block_at(block));
+                        if (0..stride).any(|j| grid.pool.get(a + j) != grid.pool.get(b + j)) {
+                            return Err(incompatible(format!(
+                                "part {i} has another prefix at frame {frame}"
+                            )));
+                        }
+                        let kept = grid.snapshots.get_mut(&frame).expect("just found");
+                        kept.refs += snapshot.refs;
+                        grid.free_block(block);
+                    }
                 }
-                grid.slots.push(s);
             }
             grid.unknown_cells += part.unknown_cells;
             grid.fraction_cells += part.fraction_cells;
-            grid.occupied_pool.extend(part.occupied_pool);
-            grid.unknown_pool.extend(part.unknown_pool);
             grid.had_sparse |= part.had_sparse;
             offset += part.geometry.cells();
         }
+        // Codes name slots, which moved: count them again.
+        grid.edge_accs = 0;
+        for snapshot in grid.snapshots.values_mut() {
+            snapshot.codes = 0;
+        }
+        for (i, slot) in grid.slots.iter().enumerate() {
+            for which in [Which::Occupied, Which::Unknown] {
+                let acc = slot.acc(which);
+                if acc.is_edges() {
+                    grid.edge_accs += 1;
+                }
+                for edge in acc.edges() {
+                    let snapshot = grid
+                        .snapshots
+                        .get_mut(&edge.frame())
+                        .expect("parts are consistent");
+                    snapshot.codes ^= which.code(i);
+                }
+            }
+        }
+        grid.singletons = grid
+            .snapshots
+            .iter()
+            .filter(|(_, s)| s.refs == 1)
+            .map(|(&f, _)| f)
+            .collect();
+        grid.rebalance();
         Ok(grid)
     }
+}
+
+/// How a [`FremenGrid`] holds its changing cells ([`FremenGrid::storage`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct GridStorage {
+    /// Cells with a slot (changing cells).
+    pub slots: usize,
+    /// Accumulators (two per slot) held as inline edges.
+    pub edge_accumulators: usize,
+    /// Accumulators with a block of their own.
+    pub owned_accumulators: usize,
+    /// Frame prefixes kept for inline edges.
+    pub snapshots: usize,
+    /// Blocks not in use.
+    pub free_blocks: usize,
+    /// Width of the stored sums: 64 until a sum needed more, then 128.
+    pub sum_bits: u32,
+    /// Heap bytes of the blocks.
+    pub pool_bytes: usize,
+    /// Heap bytes of the slots.
+    pub slot_bytes: usize,
 }
 
 fn period_sums(weighted: [i128; 2], unweighted: [i128; 2]) -> PeriodSums {
@@ -1063,22 +1762,6 @@ fn check_length(what: &'static str, expected: usize, found: usize) -> Result<(),
             expected,
             found,
         })
-    }
-}
-
-/// `rows += prefix` (`add`) or `rows -= prefix`, element-wise: closing or opening a run.
-#[inline]
-fn add_rows(rows: &mut [[i128; 2]], prefix: &[[i128; 2]], add: bool) {
-    if add {
-        for (r, p) in rows.iter_mut().zip(prefix) {
-            r[0] += p[0];
-            r[1] += p[1];
-        }
-    } else {
-        for (r, p) in rows.iter_mut().zip(prefix) {
-            r[0] -= p[0];
-            r[1] -= p[1];
-        }
     }
 }
 

@@ -1,5 +1,6 @@
 use super::*;
 use chronomap_core::model::TemporalModel;
+use chronomap_core::periods::PeriodSet;
 
 /// xorshift64* — deterministic test randomness.
 struct Rng(u64);
@@ -118,6 +119,8 @@ fn build(
         .map(|_| FremenModel::new(config.fremen.clone()).unwrap())
         .collect();
     for (t, input) in inputs {
+        // The storage invariants (blocks, snapshots, their bound) hold after every input.
+        assert!(grid.is_consistent(), "before the input at {t}");
         match input {
             Input::Occupancy(values) => {
                 grid.observe_occupancy(*t, values).unwrap();
@@ -145,6 +148,7 @@ fn build(
             }
         }
     }
+    assert!(grid.is_consistent());
     (grid, models)
 }
 
@@ -474,4 +478,295 @@ fn fully_observed_binary_frames_take_the_fast_path_exactly() {
         assert_eq!(grid.cell_model(c).as_ref(), Some(model), "cell {c}");
     }
     assert!(grid.dynamic_cells() <= 42, "{} slots", grid.dynamic_cells());
+}
+
+/// Heap bytes allocated and not freed by the current thread (a counting global allocator for
+/// this test binary), to check [`FremenGrid::heap_bytes`] against.
+mod counting {
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    thread_local! {
+        static LIVE: Cell<isize> = const { Cell::new(0) };
+    }
+
+    fn count(bytes: isize) {
+        let _ = LIVE.try_with(|live| live.set(live.get() + bytes));
+    }
+
+    /// The live heap bytes of this thread.
+    pub fn live() -> isize {
+        LIVE.with(Cell::get)
+    }
+
+    struct Counting;
+
+    // SAFETY: every call is forwarded to `System` unchanged; only sizes are counted.
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            count(layout.size() as isize);
+            // SAFETY: as the caller guarantees for this call.
+            unsafe { System.alloc(layout) }
+        }
+        unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+            count(layout.size() as isize);
+            // SAFETY: as the caller guarantees for this call.
+            unsafe { System.alloc_zeroed(layout) }
+        }
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            count(-(layout.size() as isize));
+            // SAFETY: as the caller guarantees for this call.
+            unsafe { System.dealloc(ptr, layout) }
+        }
+        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+            count(new_size as isize - layout.size() as isize);
+            // SAFETY: as the caller guarantees for this call.
+            unsafe { System.realloc(ptr, layout, new_size) }
+        }
+    }
+
+    #[global_allocator]
+    static COUNTING: Counting = Counting;
+}
+
+/// `(heap_bytes, its part counted exactly, the heap the allocator saw)` of the grid `make`
+/// builds on this thread.
+fn measured(make: impl FnOnce() -> FremenGrid) -> (usize, usize, usize, FremenGrid) {
+    let before = counting::live();
+    let grid = make();
+    let allocated = (counting::live() - before) as usize;
+    let heap = grid.heap_bytes();
+    (heap, heap - grid.index_bytes(), allocated, grid)
+}
+
+#[test]
+fn heap_bytes_are_what_the_allocator_holds() {
+    // Late, changing, fractional and sparse cells, with and without history.
+    for config in [GridConfig::default(), of_order(3, true)] {
+        let geometry = GridGeometry::planar(23, 9, 0.1, [0.0, 0.0]).unwrap();
+        let inputs = scenario(geometry.cells(), 150, false, 13);
+        let (heap, exact, allocated, grid) = measured(|| build(geometry, config, &inputs).0);
+        assert!(
+            exact <= allocated && allocated <= heap,
+            "exact part {exact} <= allocated {allocated} <= heap_bytes {heap}"
+        );
+        assert!(grid.storage().owned_accumulators > 0);
+    }
+    // An empty grid holds exactly its fixed part, and so does one whose cells never change.
+    let geometry = GridGeometry::planar(300, 7, 0.1, [0.0, 0.0]).unwrap();
+    let config = of_order(2, false);
+    let estimate = FremenGrid::memory_estimate(&geometry, &config);
+    let (heap, exact, allocated, _) = measured(|| {
+        let mut grid = FremenGrid::new(geometry, config.clone()).unwrap();
+        for f in 0..5 {
+            grid.observe_occupancy(60.0 * f as f64, &vec![0; 2100])
+                .unwrap();
+        }
+        grid
+    });
+    let fixed = estimate.fixed_bytes as usize;
+    assert_eq!((heap, exact, allocated), (fixed, fixed, fixed));
+}
+
+/// A `cells × 1` grid over `frames` frames in which every cell changes in every frame, every
+/// third frame through unknown, so that both accumulators of every cell take blocks.
+fn churning(cells: u32, frames: u32, config: GridConfig) -> FremenGrid {
+    let geometry = GridGeometry::planar(cells, 1, 1.0, [0.0, 0.0]).unwrap();
+    let mut grid = FremenGrid::new(geometry, config).unwrap();
+    for f in 0..frames {
+        let frame: Vec<i8> = (0..cells)
+            .map(|c| match (f + c) % 3 {
+                0 => 100,
+                1 => 0,
+                _ => -1,
+            })
+            .collect();
+        grid.observe_occupancy(1e9 + 300.0 * f64::from(f), &frame)
+            .unwrap();
+    }
+    grid
+}
+
+#[test]
+fn memory_estimates_bound_what_grids_hold() {
+    for config in [
+        GridConfig::default(),
+        GridConfig {
+            fremen: FremenConfig {
+                periods: "day".parse().unwrap(),
+                order: 2,
+                ..FremenConfig::default()
+            },
+            keep_history: false,
+        },
+    ] {
+        let k = config.fremen.periods.len() as u64;
+        // A few changes: slots only, every accumulator held as edges.
+        let few = churning(1000, 3, config.clone());
+        let storage = few.storage();
+        assert_eq!(
+            (storage.slots, storage.owned_accumulators, storage.sum_bits),
+            (1000, 0, 64)
+        );
+        let estimate = FremenGrid::memory_estimate(few.geometry(), few.config());
+        assert_eq!(estimate.cell_bytes_inline, 64);
+        assert_eq!(config.bytes_per_changing_cell(), estimate.cell_bytes_wide);
+        // Slots, and the two snapshots (frames 1 and 2) every cell shares.
+        let snapshots = 2 * (k + 1) * 16 + SNAPSHOT_NODE_BYTES as u64;
+        let expected = estimate.fixed_bytes + 1000 * 64 + snapshots;
+        let heap = few.heap_bytes() as u64;
+        assert!(
+            heap >= expected && heap <= expected + 63 * 64 + 64 * (k + 1) * 16,
+            "{heap} vs {expected}"
+        );
+        // Many changes: two blocks per cell, within the narrow and the worst-case bounds.
+        let many = churning(1000, 40, config.clone());
+        let storage = many.storage();
+        assert_eq!((storage.owned_accumulators, storage.sum_bits), (2000, 64));
+        let heap = many.heap_bytes() as u64;
+        let narrow = estimate.with_changing_cells(1000, estimate.cell_bytes_narrow);
+        assert!(
+            heap <= narrow && narrow < estimate.worst_case_bytes,
+            "{heap} {narrow}"
+        );
+        assert!(heap >= estimate.fixed_bytes + 1000 * (64 + 2 * (k + 1) * 16));
+    }
+}
+
+#[test]
+fn sums_widen_to_128_bits_exactly_when_they_leave_64() {
+    // One period of a year sampled every second: its prefix grows by almost 2^50 a frame and
+    // leaves 64 bits after about 8,200 frames.
+    let config = GridConfig {
+        fremen: FremenConfig {
+            periods: PeriodSet::from_periods(vec![365.25 * 86_400.0, 3600.0]).unwrap(),
+            order: 2,
+            ..FremenConfig::default()
+        },
+        keep_history: false,
+    };
+    let geometry = GridGeometry::planar(4, 1, 1.0, [0.0, 0.0]).unwrap();
+    let mut grid = FremenGrid::new(geometry, config.clone()).unwrap();
+    let mut models: Vec<FremenModel> = (0..4)
+        .map(|_| FremenModel::new(config.fremen.clone()).unwrap())
+        .collect();
+    let mut narrow_until = None;
+    for f in 0..9000u32 {
+        let t = 1e6 + f64::from(f);
+        let frame = [
+            // Toggles every 1,000 frames: a block of its own from its third change.
+            if (f / 1000).is_multiple_of(2) { 0 } else { 100 },
+            // Changes once, late: an edge whose snapshot is too large for 64 bits.
+            if f < 8500 { 0 } else { 100 },
+            // Unknown for a stretch, then seen.
+            if (3000..4000).contains(&f) { -1 } else { 100 },
+            0,
+        ];
+        grid.observe_occupancy(t, &frame).unwrap();
+        for (model, &v) in models.iter_mut().zip(&frame) {
+            if v >= 0 {
+                model.observe(&[t], &[f64::from(v) / 100.0]).unwrap();
+            }
+        }
+        if narrow_until.is_none() && grid.storage().sum_bits == 128 {
+            narrow_until = Some(f);
+        }
+    }
+    let widened = narrow_until.expect("the sums left 64 bits");
+    assert!(
+        (8000..9000).contains(&widened),
+        "widened at frame {widened}"
+    );
+    assert!(grid.is_consistent());
+    for (c, model) in models.iter().enumerate() {
+        assert_eq!(grid.cell_model(c).as_ref(), Some(model), "cell {c}");
+    }
+    // A wide grid survives a round trip.
+    let bytes = postcard::to_allocvec(&grid).unwrap();
+    let back: FremenGrid = postcard::from_bytes(&bytes).unwrap();
+    assert!(back.is_consistent());
+    assert_eq!(back, grid);
+}
+
+#[test]
+fn grids_survive_a_round_trip_and_learn_on_identically() {
+    let geometry = GridGeometry::planar(9, 8, 0.05, [0.0, 0.0]).unwrap();
+    let inputs = scenario(geometry.cells(), 120, false, 17);
+    let (half, _) = build(geometry, with_history(), &inputs[..60]);
+    let bytes = postcard::to_allocvec(&half).unwrap();
+    let mut back: FremenGrid = postcard::from_bytes(&bytes).unwrap();
+    assert!(back.is_consistent());
+    assert_eq!(back, half);
+    let (whole, _) = build(geometry, with_history(), &inputs);
+    for (t, input) in &inputs[60..] {
+        match input {
+            Input::Occupancy(v) => back.observe_occupancy(*t, v).unwrap(),
+            Input::Bits(o, k) => back.observe_bits(*t, o, k.as_deref()).unwrap(),
+            Input::Sparse(c, v) => back.observe_cells(*t, c, v).unwrap(),
+        }
+    }
+    assert_eq!(back, whole);
+    // A grid file with the slot index of a cell taken twice, or damaged storage, is refused.
+    let mut twice = half.clone();
+    twice.slots[1].cell = twice.slots[0].cell;
+    let bytes = postcard::to_allocvec(&twice).unwrap();
+    assert!(postcard::from_bytes::<FremenGrid>(&bytes).is_err());
+    let mut lost = half.clone();
+    let slot = lost
+        .slots
+        .iter()
+        .position(|s| s.occupied.is_edges())
+        .unwrap();
+    lost.slots[slot].occupied = Acc::Zero;
+    let bytes = postcard::to_allocvec(&lost).unwrap();
+    let read: FremenGrid = postcard::from_bytes(&bytes).unwrap();
+    assert!(!read.is_consistent());
+}
+
+#[test]
+fn predicted_maps_are_the_compact_models_predictions() {
+    let geometry = GridGeometry::planar(9, 8, 0.05, [0.0, 0.0]).unwrap();
+    let inputs = scenario(geometry.cells(), 200, false, 11);
+    for order in [0, 2, 5] {
+        let (grid, _) = build(geometry, of_order(order, false), &inputs);
+        let fitted = grid.fitted(OrderChoice::Fixed(order));
+        for t in [1_461_000_000.0, 1_461_003_777.5, 0.0] {
+            let bits = |v: Vec<f32>| v.iter().map(|p| p.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(grid.predict_map(t)),
+                bits(fitted.predict(t)),
+                "{order} {t}"
+            );
+        }
+    }
+}
+
+#[test]
+fn concatenated_parts_share_their_snapshots() {
+    // Every cell toggles at the same frames: in each part, two snapshots shared by all cells.
+    let whole = GridGeometry::planar(192, 1, 1.0, [0.0, 0.0]).unwrap();
+    let frames: Vec<Vec<i8>> = (0..3)
+        .map(|f| {
+            (0..192)
+                .map(|c| if (f + c) % 2 == 0 { 100 } else { 0 })
+                .collect()
+        })
+        .collect();
+    let build_range = |range: std::ops::Range<usize>| {
+        let geometry = GridGeometry::planar(range.len() as u32, 1, 1.0, [0.0, 0.0]).unwrap();
+        let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();
+        for (f, frame) in frames.iter().enumerate() {
+            grid.observe_occupancy(600.0 * f as f64, &frame[range.clone()])
+                .unwrap();
+        }
+        grid
+    };
+    let serial = build_range(0..192);
+    let joined = FremenGrid::concat(whole, vec![build_range(0..64), build_range(64..192)]).unwrap();
+    assert!(joined.is_consistent());
+    assert_eq!(joined.storage().snapshots, 2);
+    assert_eq!(joined.storage().free_blocks, 2);
+    for c in 0..192 {
+        assert_eq!(joined.cell_model(c), serial.cell_model(c), "cell {c}");
+    }
 }

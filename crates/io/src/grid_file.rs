@@ -1,17 +1,38 @@
 //! Grid files: the learning state of a [`FremenGrid`], its compact ("lossy") model or its
 //! lossless model, in the versioned, checksummed container of [`crate::model_file`].
+//!
+//! # Formats of the learning state (`grid-state`)
+//! The payload starts with the index of what it holds: 1 is a compact model, 2 a lossless
+//! one, and the learning state has the format version in its index:
+//!
+//! * **format 1** (index 0, read only): every changing cell with its own 128-bit sums for every
+//!   period (about `64 K` bytes a changing cell for `K` periods), and the slot index of every
+//!   cell. Read into the current representation ([`chronomap_grid::format1`]), exactly.
+//! * **format 2** (index 3, [`GRID_STATE_FORMAT`], written): the grid as it is held in memory
+//!   (see "Memory" in [`chronomap_grid`]): cells that changed a few times as their slots with
+//!   inline edges, shared frame prefixes, blocks of 64-bit sums (128-bit once a sum needed
+//!   more), no slot index (rebuilt when read).
+//!
+//! A reader older than format 2 refuses a file of format 2 as a payload that does not decode.
 
 use std::path::Path;
 
+use chronomap_grid::format1::GridStateV1;
 use chronomap_grid::{FittedGrid, FremenGrid, LosslessGrid};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::model_file::{
     CheckedPayload, ModelFileError, decode_checked, encode_model, read_checked, write_model_file,
 };
 
+/// The format version of the learning state this build writes (see the [module docs](self)).
+pub const GRID_STATE_FORMAT: u32 = 2;
+
+/// The kind in the header of a file of a learning state.
+const STATE_KIND: &str = "grid-state";
+
 /// What a grid file holds.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum GridFile {
     /// Everything needed to continue learning (exact accumulators of every changing cell).
     State(Box<FremenGrid>),
@@ -21,11 +42,61 @@ pub enum GridFile {
     Lossless(Box<LosslessGrid>),
 }
 
+/// The payload as stored: postcard writes the variant index first.
+#[derive(Deserialize)]
+enum StoredGridFile {
+    /// A learning state of format 1.
+    StateV1(Box<GridStateV1>),
+    Lossy(Box<FittedGrid>),
+    Lossless(Box<LosslessGrid>),
+    /// A learning state of format 2.
+    State(Box<FremenGrid>),
+}
+
+/// Index of the learning state of format 2 in the payload.
+const STATE_INDEX: u32 = 3;
+
+impl Serialize for GridFile {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            GridFile::State(grid) => StateRef(grid).serialize(serializer),
+            GridFile::Lossy(grid) => {
+                serializer.serialize_newtype_variant("GridFile", 1, "Lossy", grid.as_ref())
+            }
+            GridFile::Lossless(grid) => {
+                serializer.serialize_newtype_variant("GridFile", 2, "Lossless", grid.as_ref())
+            }
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for GridFile {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        Ok(match StoredGridFile::deserialize(deserializer)? {
+            StoredGridFile::StateV1(v1) => GridFile::State(Box::new(
+                FremenGrid::try_from(*v1).map_err(serde::de::Error::custom)?,
+            )),
+            StoredGridFile::Lossy(grid) => GridFile::Lossy(grid),
+            StoredGridFile::Lossless(grid) => GridFile::Lossless(grid),
+            StoredGridFile::State(grid) => GridFile::State(grid),
+        })
+    }
+}
+
+/// A learning state serialised where it is, as [`GridFile::State`] is.
+struct StateRef<'a>(&'a FremenGrid);
+
+impl Serialize for StateRef<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_newtype_variant("GridFile", STATE_INDEX, "State", self.0)
+    }
+}
+
 impl GridFile {
     /// The kind written in the file header.
     pub fn kind(&self) -> &'static str {
         match self {
-            GridFile::State(_) => "grid-state",
+            GridFile::State(_) => STATE_KIND,
             GridFile::Lossy(_) => "grid-lossy",
             GridFile::Lossless(_) => "grid-lossless",
         }
@@ -80,4 +151,23 @@ pub fn write_grid_file(path: impl AsRef<Path>, grid: &GridFile) -> Result<(), Mo
 /// [`Inconsistent`](crate::model_file::ModelFileErrorKind::Inconsistent); errors name the path.
 pub fn read_grid_file(path: impl AsRef<Path>) -> Result<GridFile, ModelFileError> {
     read_checked(path.as_ref())
+}
+
+/// Encodes the learning state of `grid` as a grid file in memory without copying the grid:
+/// the bytes of [`encode_grid`]`(&GridFile::State(Box::new(grid.clone())))`.
+///
+/// # Errors
+/// As [`encode_model`].
+pub fn encode_grid_state(grid: &FremenGrid) -> Result<Vec<u8>, ModelFileError> {
+    encode_model(STATE_KIND, &StateRef(grid))
+}
+
+/// Writes the learning state of `grid` as a grid file atomically without copying the grid
+/// (a clone would double its memory while saving): the file [`write_grid_file`] writes for
+/// `GridFile::State(Box::new(grid.clone()))`.
+///
+/// # Errors
+/// As [`write_model_file`].
+pub fn write_grid_state(path: impl AsRef<Path>, grid: &FremenGrid) -> Result<(), ModelFileError> {
+    write_model_file(path, STATE_KIND, &StateRef(grid))
 }

@@ -167,7 +167,10 @@ pub use frame_list::{
     read_frame_list_from,
 };
 #[cfg(feature = "grid")]
-pub use grid_file::{GridFile, decode_grid, encode_grid, read_grid_file, write_grid_file};
+pub use grid_file::{
+    GRID_STATE_FORMAT, GridFile, decode_grid, encode_grid, encode_grid_state, read_grid_file,
+    write_grid_file, write_grid_state,
+};
 #[cfg(feature = "lidar")]
 pub use laser_text::{
     Keyframe, LaserScan, LaserTextError, OdometryIncrement, SensorPose, read_keyframes,

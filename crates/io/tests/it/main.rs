@@ -16,3 +16,4 @@ mod properties;
 mod text;
 mod topo_files;
 mod tracks;
+mod grid_format;
