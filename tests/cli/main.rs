@@ -34,6 +34,8 @@ mod monitor;
 mod psbt;
 mod readme;
 #[cfg(feature = "ros2")]
+mod ros2_conventions;
+#[cfg(feature = "ros2")]
 mod ros2_node;
 #[cfg(feature = "serve")]
 mod serve;

@@ -44,13 +44,13 @@ const HEIGHT: u32 = 20;
 /// A private network namespace with loopback up and multicast on it: the command that runs a
 /// program in one. Root uses `unshare -n`; others `unshare -rn` (a user namespace) or, where
 /// that is not allowed, `sudo -n unshare -n` and then `setpriv` back to their own user.
-struct PrivateNetwork {
+pub(crate) struct PrivateNetwork {
     prefix: Vec<String>,
 }
 
 impl PrivateNetwork {
     /// The first way that works here, or `None`.
-    fn new() -> Option<Self> {
+    pub(crate) fn new() -> Option<Self> {
         let setup = "ip link set lo up && ip link set lo multicast on";
         let words = |w: &[&str]| w.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         let script = format!("{setup} && exec \"$0\" \"$@\"");
@@ -85,7 +85,7 @@ impl PrivateNetwork {
 
     /// `program` in the namespace, on the test's DDS domain, with ROS's files in `dir` (sudo
     /// does not pass the environment on, so it is given with `env`).
-    fn command(&self, dir: &Path, program: impl AsRef<std::ffi::OsStr>) -> Command {
+    pub(crate) fn command(&self, dir: &Path, program: impl AsRef<std::ffi::OsStr>) -> Command {
         let mut command = Command::new(&self.prefix[0]);
         command
             .args(&self.prefix[1..])
@@ -470,7 +470,7 @@ chronomap:
 
 /// A private network namespace, or `None` after saying why `test` skips (a failure with
 /// `CHRONOMAP_REQUIRE_ROS=1`).
-fn private_network_or_skip(test: &str) -> Option<PrivateNetwork> {
+pub(crate) fn private_network_or_skip(test: &str) -> Option<PrivateNetwork> {
     let netns = PrivateNetwork::new();
     if netns.is_none() {
         let why = "cannot make a private network namespace (`unshare -n` as root; `unshare -rn` \
