@@ -39,6 +39,7 @@
 #![deny(missing_docs)]
 
 pub mod config;
+pub mod journal;
 pub mod lifecycle;
 pub mod msgs;
 pub mod node;
