@@ -36,6 +36,8 @@ mod readme;
 #[cfg(feature = "ros2")]
 mod ros2_conventions;
 #[cfg(feature = "ros2")]
+mod ros2_crash;
+#[cfg(feature = "ros2")]
 mod ros2_node;
 #[cfg(feature = "serve")]
 mod serve;

@@ -371,6 +371,8 @@ fn parameters_are_ros_parameters_that_rclpy_lists_gets_and_sets() {
             "states.door.topic",
             "states.door.transient_local",
             "states.door.type",
+            "sync_messages",
+            "sync_period",
             "use_sim_time"
         ])
     );

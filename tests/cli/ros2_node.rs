@@ -34,12 +34,12 @@ use crate::common::{
 /// DDS domain of the test (inside its own network namespace).
 const DOMAIN: &str = "77";
 /// Steps of the simulated clock between flow-control waits.
-const FLOW_EVERY: usize = 50;
+pub(crate) const FLOW_EVERY: usize = 50;
 /// The node predicts for its time plus this horizon (seconds).
-const HORIZON: i64 = 3600;
+pub(crate) const HORIZON: i64 = 3600;
 /// The observed map: 30 x 20 cells of 0.1 m.
-const WIDTH: u32 = 30;
-const HEIGHT: u32 = 20;
+pub(crate) const WIDTH: u32 = 30;
+pub(crate) const HEIGHT: u32 = 20;
 
 /// A private network namespace with loopback up and multicast on it: the command that runs a
 /// program in one. Root uses `unshare -n`; others `unshare -rn` (a user namespace) or, where
@@ -100,7 +100,7 @@ impl PrivateNetwork {
 
 /// Frame `k` of the observed office at hour-of-day `hour`: walls, a door closed at night, a
 /// desk whose occupancy fades over the day, a corner never seen.
-fn office_frame(k: usize, hour: u32) -> Vec<i8> {
+pub(crate) fn office_frame(k: usize, hour: u32) -> Vec<i8> {
     let mut data = vec![0i8; (WIDTH * HEIGHT) as usize];
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
@@ -124,7 +124,7 @@ fn office_frame(k: usize, hour: u32) -> Vec<i8> {
 }
 
 /// A map's cells as JSON numbers.
-fn cells(value: &Value) -> Vec<i8> {
+pub(crate) fn cells(value: &Value) -> Vec<i8> {
     value
         .as_array()
         .unwrap()
@@ -134,7 +134,7 @@ fn cells(value: &Value) -> Vec<i8> {
 }
 
 /// `grid predict GRID --time T` in `mode`, loaded as nav2_map_server loads it.
-fn grid_predict(grid: &Path, time: i64, mode: &str, out: &Path) -> OccupancyMap {
+pub(crate) fn grid_predict(grid: &Path, time: i64, mode: &str, out: &Path) -> OccupancyMap {
     let yaml = out.with_extension("yaml");
     stdout(&chronomap(&[
         "grid",
@@ -151,7 +151,7 @@ fn grid_predict(grid: &Path, time: i64, mode: &str, out: &Path) -> OccupancyMap 
 }
 
 /// `predict MODEL --at T --json`: p and entropy.
-fn predict(model: &Path, time: i64) -> (f64, f64) {
+pub(crate) fn predict(model: &Path, time: i64) -> (f64, f64) {
     let out = json(&chronomap(&[
         "predict",
         &model.display().to_string(),

@@ -38,7 +38,13 @@ use crate::ros_args::{ParamArg, RosArgs};
 pub const DEFAULT_MAX_MAP_CELLS: u64 = 1 << 24;
 
 /// Largest `max_map_cells` accepted: 2³⁰ cells.
-const MAX_MAX_MAP_CELLS: u64 = 1 << 30;
+pub const MAX_MAX_MAP_CELLS: u64 = 1 << 30;
+
+/// Longest `sync_period` accepted (s).
+const MAX_SYNC_PERIOD: f64 = 60.0;
+
+/// Default of `sync_messages`.
+const DEFAULT_SYNC_MESSAGES: u64 = 1000;
 
 /// A parameter file that cannot be used: where and why.
 #[derive(Debug, Clone, PartialEq)]
@@ -256,6 +262,11 @@ pub struct NodeConfig {
     pub save_period: f64,
     /// Append every learned state observation to `save_dir/states/NAME.txt`.
     pub record_observations: bool,
+    /// Longest time (s) a learned message waits before the journal in `save_dir` is synced:
+    /// the most a crash can lose.
+    pub sync_period: f64,
+    /// Learned messages that make a journal sync due at once.
+    pub sync_messages: u64,
     /// Largest map accepted, in cells.
     pub max_map_cells: u64,
     /// State topics, by name.
@@ -509,6 +520,10 @@ pub fn description(name: &str) -> &'static str {
         ("save_dir", _) => "folder the models are saved to and restored from",
         ("save_period", _) => "seconds of wall-clock time between saves",
         ("record_observations", _) => "append every learned state to save_dir/states/NAME.txt",
+        ("sync_period", _) => {
+            "longest time in seconds a learned message waits before the journal is synced (what a crash can lose)"
+        }
+        ("sync_messages", _) => "learned messages that make a journal sync due at once",
         ("max_map_cells", _) => "larger OccupancyGrid messages are refused",
         ("edges", "models") => "edge models (chronomap topo fit)",
         ("edges", "geojson") => "the Nav2 route graph rewritten with predicted costs",
@@ -638,6 +653,11 @@ impl NodeConfig {
         put(
             "record_observations".into(),
             Value::Boolean(self.record_observations),
+        );
+        put("sync_period".into(), Value::Double(self.sync_period));
+        put(
+            "sync_messages".into(),
+            Value::Integer(i64::try_from(self.sync_messages).unwrap_or(i64::MAX)),
         );
         put(
             "max_map_cells".into(),
@@ -792,6 +812,8 @@ struct RawParams {
     save_dir: Option<Spanned<String>>,
     save_period: Option<Spanned<f64>>,
     record_observations: Option<Spanned<bool>>,
+    sync_period: Option<Spanned<f64>>,
+    sync_messages: Option<Spanned<u64>>,
     max_map_cells: Option<Spanned<u64>>,
     states: BTreeMap<String, Spanned<RawState>>,
     maps: BTreeMap<String, Spanned<RawGrid>>,
@@ -848,6 +870,8 @@ const TOP_KEYS: &[&str] = &[
     "save_dir",
     "save_period",
     "record_observations",
+    "sync_period",
+    "sync_messages",
     "max_map_cells",
 ];
 
@@ -1174,6 +1198,8 @@ impl<'a> Reader<'a> {
             save_dir: self.text("save_dir")?,
             save_period: self.number("save_period")?,
             record_observations: self.boolean("record_observations")?,
+            sync_period: self.number("sync_period")?,
+            sync_messages: self.integer("sync_messages")?,
             max_map_cells: self.integer("max_map_cells")?,
             states,
             maps,
@@ -1429,6 +1455,28 @@ impl Checker<'_> {
                 "needs save_dir (the records are written there)".into(),
             ));
         }
+        let sync_period = self.seconds(&raw.sync_period, "sync_period", 1.0, false)?;
+        if sync_period > MAX_SYNC_PERIOD {
+            let v = raw.sync_period.as_ref().expect("not the default");
+            return Err(self.at(
+                v,
+                "sync_period",
+                format!(
+                    "{sync_period} s is more than {MAX_SYNC_PERIOD} s of learning a crash could lose"
+                ),
+            ));
+        }
+        let sync_messages = match &raw.sync_messages {
+            None => DEFAULT_SYNC_MESSAGES,
+            Some(v) if v.value >= 1 => v.value,
+            Some(v) => {
+                return Err(self.at(
+                    v,
+                    "sync_messages",
+                    "0 is not a number of messages >= 1".into(),
+                ));
+            }
+        };
         let clock_topic = args
             .remap("/clock", false, &names.namespace, &names.name)
             .map_err(|e| self.error(None, Some("use_sim_time".into()), e.to_string()))?;
@@ -1444,6 +1492,8 @@ impl Checker<'_> {
             save_dir,
             save_period: self.seconds(&raw.save_period, "save_period", 300.0, false)?,
             record_observations,
+            sync_period,
+            sync_messages,
             max_map_cells,
             states,
             grids,

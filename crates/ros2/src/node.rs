@@ -1070,6 +1070,8 @@ impl Configured {
             }
         }
         log_due(throttles, false);
+        // What was learned is durable once the journal is synced (at most `sync_period`).
+        world.sync_journal(Instant::now());
 
         let now = match sim_clock.as_ref() {
             Some(clock) => clock.at(cutoff),

@@ -192,6 +192,19 @@ struct Manifest {
     head: u64,
     /// The saved files.
     files: Vec<ManifestFile>,
+    /// The observation records (`record_observations`) and their lengths at the checkpoint:
+    /// what was appended after it is cut off at start, since replaying the journal appends it
+    /// again. A record not listed had nothing before the checkpoint.
+    records: Vec<RecordLength>,
+}
+
+/// The length of an observation record at a checkpoint.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct RecordLength {
+    /// Path relative to `save_dir` (`states/door.txt`).
+    path: String,
+    /// Bytes.
+    bytes: u64,
 }
 
 /// One file of a checkpoint.
@@ -201,8 +214,6 @@ struct ManifestFile {
     path: String,
     /// Journal records of its input from this position on are not in the file.
     covers: u64,
-    /// The length of the state's observation record (`record_observations`) at the checkpoint.
-    record_bytes: Option<u64>,
 }
 
 /// Kind of the checkpoint file's container.
@@ -315,12 +326,19 @@ pub struct World {
 
 impl World {
     /// Empty models for `config`, or the models saved in its `save_dir` with the journal
-    /// replayed on top (journal synced at most every second), and the edge models.
+    /// replayed on top (synced as `sync_period` and `sync_messages` say), and the edge models.
     ///
     /// # Errors
     /// As [`World::open`].
     pub fn new(config: NodeConfig) -> Result<World, StoreError> {
-        World::open(config, JournalSettings::default())
+        let settings = JournalSettings {
+            sync_period: std::time::Duration::from_secs_f64(config.sync_period),
+            sync_records: usize::try_from(config.sync_messages).unwrap_or(usize::MAX),
+            // A map of the largest size accepted, with its headers.
+            max_payload: usize::try_from(crate::config::MAX_MAX_MAP_CELLS + (1 << 20))
+                .unwrap_or(usize::MAX),
+        };
+        World::open(config, settings)
     }
 
     /// Empty models for `config`, or, with `save_dir`, the last checkpoint's models and grids
@@ -351,10 +369,13 @@ impl World {
             };
             let record = match (&config.save_dir, config.record_observations) {
                 (Some(dir), true) => {
-                    let saved = covers
-                        .get(relative(&state_file(dir, s), dir).as_str())
-                        .and_then(|f| f.record_bytes);
-                    Some(open_record(&record_file(dir, s), saved)?)
+                    let file = record_file(dir, s);
+                    let saved = manifest
+                        .iter()
+                        .flat_map(|m| &m.records)
+                        .find(|r| r.path == relative(&file, dir))
+                        .map_or(0, |r| r.bytes);
+                    Some(open_record(&file, saved)?)
                 }
                 _ => None,
             };
@@ -1082,7 +1103,7 @@ impl World {
         let head = durable.journal.next_position();
         let mut manifest = Manifest {
             head,
-            files: Vec::new(),
+            ..Manifest::default()
         };
         let mut written: Vec<(PathBuf, PathBuf)> = Vec::new();
         let mut bytes = 0u64;
@@ -1092,25 +1113,31 @@ impl World {
                 let next = next_name(&file, head);
                 make_parent(&file)?;
                 write_any_model(&next, &slot.model)?;
-                let record_bytes = match &mut slot.record {
-                    Some(record) => {
-                        let path = record_file(&dir, s);
-                        let io = |source| StoreError::Io {
-                            path: path.display().to_string(),
-                            action: "write",
-                            source,
-                        };
-                        record.flush().map_err(io)?;
-                        record.get_ref().sync_data().map_err(io)?;
-                        Some(record.get_ref().metadata().map_err(io)?.len())
-                    }
-                    None => None,
+                let record = record_file(&dir, s);
+                let io = |source| StoreError::Io {
+                    path: record.display().to_string(),
+                    action: "write",
+                    source,
                 };
+                let record_bytes = match &mut slot.record {
+                    Some(writer) => {
+                        writer.flush().map_err(io)?;
+                        writer.get_ref().sync_data().map_err(io)?;
+                        Some(writer.get_ref().metadata().map_err(io)?.len())
+                    }
+                    // Not recording now: a record of earlier runs keeps its length.
+                    None => std::fs::metadata(&record).ok().map(|m| m.len()),
+                };
+                if let Some(bytes) = record_bytes {
+                    manifest.records.push(RecordLength {
+                        path: relative(&record, &dir),
+                        bytes,
+                    });
+                }
                 bytes += file_len(&next);
                 manifest.files.push(ManifestFile {
                     path: relative(&file, &dir),
                     covers: head,
-                    record_bytes,
                 });
                 written.push((next, file));
             }
@@ -1129,7 +1156,6 @@ impl World {
                 manifest.files.push(ManifestFile {
                     path: relative(&file, &dir),
                     covers,
-                    record_bytes: None,
                 });
                 written.push((next, file));
             }
@@ -1259,13 +1285,29 @@ fn recover_checkpoint(dir: &Path) -> Result<Manifest, StoreError> {
                 ),
             });
         }
-        // Saved by a node without a journal (or never): its files cover everything.
+        // Saved by a node without a journal (or never): its files and records cover everything.
         std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
             path: dir.display().to_string(),
             action: "create the folder",
             source,
         })?;
-        let manifest = Manifest::default();
+        let mut manifest = Manifest::default();
+        for item in std::fs::read_dir(dir.join("states"))
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let path = item.path();
+            if path.extension().is_some_and(|e| e == "txt")
+                && let Ok(meta) = item.metadata()
+                && meta.is_file()
+            {
+                manifest.records.push(RecordLength {
+                    path: relative(&path, dir),
+                    bytes: meta.len(),
+                });
+            }
+        }
         write_model_file(&file, CHECKPOINT_KIND, &manifest)?;
         manifest
     };
@@ -1317,10 +1359,10 @@ fn make_parent(file: &Path) -> Result<(), StoreError> {
     })
 }
 
-/// Opens the observation record `file` for appending; with `saved` (its length at the last
-/// checkpoint) what was appended after the checkpoint is cut off first, since replaying the
-/// journal appends it again.
-fn open_record(file: &Path, saved: Option<u64>) -> Result<BufWriter<File>, StoreError> {
+/// Opens the observation record `file` for appending; what was appended after the last
+/// checkpoint (`saved`: its length then) is cut off first, since replaying the journal appends
+/// it again.
+fn open_record(file: &Path, saved: u64) -> Result<BufWriter<File>, StoreError> {
     make_parent(file)?;
     let io = |action| {
         move |source| StoreError::Io {
@@ -1334,18 +1376,16 @@ fn open_record(file: &Path, saved: Option<u64>) -> Result<BufWriter<File>, Store
         .append(true)
         .open(file)
         .map_err(io("open for appending"))?;
-    if let Some(saved) = saved {
-        let len = handle.metadata().map_err(io("inspect"))?.len();
-        if len > saved {
-            handle
-                .set_len(saved)
-                .map_err(io("cut back to the checkpoint"))?;
-        } else if len < saved {
-            log::warn!(
-                "{}: {len} bytes, shorter than the {saved} of the last checkpoint: lines are missing",
-                file.display()
-            );
-        }
+    let len = handle.metadata().map_err(io("inspect"))?.len();
+    if len > saved {
+        handle
+            .set_len(saved)
+            .map_err(io("cut back to the checkpoint"))?;
+    } else if len < saved {
+        log::warn!(
+            "{}: {len} bytes, shorter than the {saved} of the last checkpoint: lines are missing",
+            file.display()
+        );
     }
     Ok(BufWriter::new(handle))
 }

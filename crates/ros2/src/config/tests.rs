@@ -192,6 +192,14 @@ fn errors_name_the_file_the_line_and_the_parameter() {
             "cfg/node.yaml:3: publish_period: 0 is not a finite number of seconds > 0",
         ),
         (
+            "    sync_period: 600\n",
+            "cfg/node.yaml:3: sync_period: 600 s is more than 60 s of learning a crash could lose",
+        ),
+        (
+            "    sync_messages: 0\n",
+            "cfg/node.yaml:3: sync_messages: 0 is not a number of messages >= 1",
+        ),
+        (
             "    colour: red\n",
             "cfg/node.yaml:3: colour: unknown parameter (the node's parameters are use_sim_time,",
         ),
@@ -409,8 +417,10 @@ fn ros_arguments_rename_remap_and_override_the_file() {
     );
     // The declared parameters: every one, defaults filled in, names resolved.
     let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
-    assert_eq!(declared.len(), 15);
+    assert_eq!(declared.len(), 17);
     assert_eq!(declared["horizon"], Value::Double(7.5));
+    assert_eq!(declared["sync_period"], Value::Double(1.0));
+    assert_eq!(declared["sync_messages"], Value::Integer(1000));
     assert_eq!(declared["publish_period"], Value::Double(1.0));
     assert_eq!(
         declared["states.door.topic"],

@@ -630,3 +630,29 @@ fn a_journal_without_its_checkpoint_file_is_refused_and_inputs_no_longer_configu
         "{e}"
     );
 }
+
+#[test]
+fn a_crash_before_the_first_checkpoint_leaves_each_observation_once_in_the_record() {
+    let dir = Scratch::new("crash-record");
+    let all = messages(0..4);
+    let mut world = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    learn(&mut world, &all);
+    // Synced: the journal and the record hold the same observations.
+    world.sync_journal(Instant::now() + std::time::Duration::from_secs(7200));
+    std::mem::forget(world);
+    let mut restored = World::open(config(&dir.0, DURABLE), manual_sync()).unwrap();
+    restored.save(true).unwrap();
+    let record = read_pairs(dir.0.join("saved/states/door.txt")).unwrap();
+    let sent: Vec<(f64, f64)> = all
+        .iter()
+        .filter_map(|m| match m {
+            Message::State(0, t, v) => Some((*t, *v)),
+            _ => None,
+        })
+        .collect();
+    assert!(sent.len() > 100);
+    let recorded: Vec<(f64, f64)> = record.times.into_iter().zip(record.values).collect();
+    assert_eq!(recorded, sent);
+    let mut expected = reference(&dir.0, &all);
+    assert_same_models(&mut restored, &mut expected);
+}
