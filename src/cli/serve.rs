@@ -15,12 +15,14 @@ Examples:
   chronomap serve --data chronomap-data --check      # verify the store, exit 0 or 1
   chronomap serve --data chronomap-data --salvage    # rebuild a damaged store from what is intact
 
-Writes (add, addvalues, observations, create, remove) need `Authorization: Bearer TOKEN` and
+Writes (add, addvalues, observations, create, remove, refit) need `Authorization: Bearer TOKEN` and
 `Content-Type: application/json`; the token is read from --token-file (default DATA/token), which
 is created with a random token if it does not exist (it must be readable by its owner only and at
 least 32 characters long). Reads (predict, forecast, view, ...) need no token. Requests must name
 the service in `Host` by an IP address, localhost or an --allow-host name. Every acknowledged
 observation is durable: a restart (also after a crash or SIGKILL) restores every model exactly.
+Models fitted on a whole series (auto, fremen:auto, ...) keep their observations and are refitted
+when --refit-every/--refit-secs say, or on request; each refit is logged and durable.
 Security model, timeouts and limits: docs/service.md.";
 
 /// `chronomap serve`.
@@ -92,6 +94,14 @@ pub struct ServeArgs {
     /// ... or after this many seconds with changes.
     #[arg(long, default_value_t = 60.0, value_parser = parse_positive)]
     pub snapshot_secs: f64,
+    /// Refit a model fitted on a whole series (`auto`, `fremen:auto`, ...) once this many
+    /// observations arrived since its last fit (0: not by count). `POST
+    /// /v1/models/ID/refit` (`chronomap client refit ID`) refits at once.
+    #[arg(long, default_value_t = 100_000)]
+    pub refit_every: u64,
+    /// ... or once its data advanced this many seconds past its last fit (0: not by time).
+    #[arg(long, default_value_t = 86_400.0, value_parser = parse_non_negative)]
+    pub refit_secs: f64,
     /// Serve a topological map with edge models (from `chronomap topo fit`) as NAME=FILE:
     /// edge predictions and now-or-later plans at /v1/topo/NAME/. Repeat the flag or separate
     /// them by commas.
@@ -111,6 +121,13 @@ pub struct ServeArgs {
     /// A Nav2 map (YAML) of an --activity model as NAME=MAP.yaml: cells on its walls are left out.
     #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub activity_map: Vec<(String, PathBuf)>,
+}
+
+fn parse_non_negative(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("{text:?} is not a number of seconds >= 0")),
+    }
 }
 
 fn parse_host_name(text: &str) -> Result<String, String> {
@@ -187,7 +204,8 @@ pub enum ClientCommand {
     Create {
         /// Model id.
         id: String,
-        /// Model spec (fremen:K, persistence:K, hist:N, pergam:K, stm, mean).
+        /// Model spec: fremen:K, persistence:K, hist:N, pergam:K, stm, mean learn online; auto,
+        /// fremen:auto, pergam:auto, fft:L, ... keep their observations and are refitted.
         #[arg(long, default_value = "fremen:2")]
         model: String,
         /// Value range LO,HI of continuous states (`--range 0,10` or `--range 0 10`).
@@ -196,6 +214,12 @@ pub enum ClientCommand {
     },
     /// Remove a model.
     Remove {
+        /// Model id.
+        id: String,
+    },
+    /// Refit a model fitted on a whole series (auto, fremen:auto, ...) on its kept
+    /// observations now; prints what the fit chose.
+    Refit {
         /// Model id.
         id: String,
     },

@@ -92,6 +92,10 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             body_timeout: Duration::from_secs_f64(args.body_timeout),
             max_connections: args.max_connections as usize,
         },
+        refit: chronomap_models::RefitPolicy {
+            observations: args.refit_every,
+            data_secs: args.refit_secs,
+        },
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();
@@ -478,6 +482,32 @@ async fn run_client(
                 return print_json(&json!({"id": id, "removed": true, "seq": ack.seq}));
             }
             outln!("removed {id:?}")?;
+        }
+        ClientCommand::Refit { id } => {
+            let refit = client.refit(id).await?;
+            if as_json {
+                return print_json(&refit);
+            }
+            let fit = &refit.fit;
+            let how = if refit.refitted {
+                format!("refitted in {:.2} s", refit.secs)
+            } else {
+                "already fitted on every observation".into()
+            };
+            outln!(
+                "{id:?} {how}: {} on {} observations, {} .. {} (log position {})",
+                fit.fitted,
+                fit.observations,
+                chronomap_core::time::format_time(fit.first_time),
+                chronomap_core::time::format_time(fit.last_time),
+                refit.seq
+            )?;
+            for weight in &fit.weights {
+                outln!("  {}\t{:.4}", weight.model, weight.weight)?;
+            }
+            if let Some(error) = fit.error {
+                outln!("  held-back error {error:.4}")?;
+            }
         }
         ClientCommand::Add {
             id,

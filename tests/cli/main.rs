@@ -50,6 +50,8 @@ mod serve_fleet;
 #[cfg(feature = "serve")]
 mod serve_network;
 #[cfg(feature = "serve")]
+mod serve_refit;
+#[cfg(feature = "serve")]
 mod serve_security;
 mod sklearn_gmm;
 mod storm_case;

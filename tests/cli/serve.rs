@@ -149,6 +149,7 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
         ("/v1/models/{id}", "put"),
         ("/v1/models/{id}", "delete"),
         ("/v1/models/{id}/observations", "get"),
+        ("/v1/models/{id}/refit", "post"),
         ("/v1/add", "post"),
         ("/v1/addvalues", "post"),
         ("/v1/observations", "post"),
@@ -179,6 +180,7 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
     }
     // Writes declare the bearer token.
     assert!(paths["/v1/add"]["post"]["security"].is_array());
+    assert!(paths["/v1/models/{id}/refit"]["post"]["security"].is_array());
     assert_eq!(
         spec["components"]["securitySchemes"]["bearer"]["scheme"],
         "bearer"

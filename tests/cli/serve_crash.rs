@@ -13,7 +13,6 @@ use std::time::Duration;
 use chronomap_client::{Client, ClientError};
 use chronomap_core::TemporalModel;
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_models::AnyModel;
 use chronomap_serve::registry::ModelConfig;
 use service::{Backend, Server, free_port, scratch, start, token};
 
@@ -203,7 +202,7 @@ fn crash_test(name: &str, backend: Backend) {
             durable_unacknowledged += present.iter().filter(|b| !b.acknowledged).count();
             // The uninterrupted reference: the same batches, observed in one process.
             let config = ModelConfig::parse(Some(spec), None).unwrap();
-            let mut reference: AnyModel = config.empty_model().unwrap();
+            let mut reference = config.empty_model().unwrap();
             for batch in &present {
                 reference.observe(&batch.times, &batch.values).unwrap();
             }

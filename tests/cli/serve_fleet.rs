@@ -12,7 +12,6 @@ use std::time::{Duration, Instant};
 use chronomap_client::{Client, ClientError};
 use chronomap_core::TemporalModel;
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_models::AnyModel;
 use chronomap_serve::registry::ModelConfig;
 
 use crate::serve_crash::{History, Sent, histories, present_batches};
@@ -227,7 +226,7 @@ fn a_fleet_of_three_loses_nothing_when_a_node_is_killed_twice() {
             let present = present_batches(id, sent, &held.times, &held.values);
             durable_unacknowledged += present.iter().filter(|b| !b.acknowledged).count();
             let config = ModelConfig::parse(Some(spec), None).unwrap();
-            let mut reference: AnyModel = config.empty_model().unwrap();
+            let mut reference = config.empty_model().unwrap();
             for batch in &present {
                 reference.observe(&batch.times, &batch.values).unwrap();
             }
@@ -359,7 +358,7 @@ fn checkpointed_log_segments_move_to_the_archive_and_a_new_node_starts_after_the
             (&sent[m].0, &sent[m].1),
             "{id}"
         );
-        let mut reference: AnyModel = ModelConfig::parse(Some("fremen:2"), None)
+        let mut reference = ModelConfig::parse(Some("fremen:2"), None)
             .unwrap()
             .empty_model()
             .unwrap();

@@ -50,7 +50,7 @@ fn security_test(name: &str, backend: Backend) {
     let good_add = br#"{"id":"door","times":[200000],"states":[true]}"#;
 
     // 401: every write endpoint, without a token and with a wrong one.
-    let writes: [(Method, &str, &[u8]); 6] = [
+    let writes: [(Method, &str, &[u8]); 7] = [
         (Method::POST, "/v1/add", good_add),
         (
             Method::POST,
@@ -69,6 +69,7 @@ fn security_test(name: &str, backend: Backend) {
         ),
         (Method::PUT, "/v1/models/door", br#"{"model":"hist:24"}"#),
         (Method::DELETE, "/v1/models/door", b""),
+        (Method::POST, "/v1/models/door/refit", b"{}"),
     ];
     let wrong = "0".repeat(token.len());
     let mut unauthorised = 0;
@@ -117,7 +118,9 @@ fn security_test(name: &str, backend: Backend) {
         (Method::POST, "/v1/add".into(), format!(r#"{{"id":"{long_id}","times":[300000],"states":[true]}}"#).into_bytes()),
         (Method::POST, "/v1/add".into(), br#"{"id":"do\u0000or","times":[300000],"states":[true]}"#.to_vec()),
         (Method::POST, "/v1/add".into(), br#"{"id":"new","times":[300000],"states":[true],"model":"fremen:99999"}"#.to_vec()),
-        (Method::POST, "/v1/add".into(), br#"{"id":"new","times":[300000],"states":[true],"model":"hyt-em:auto"}"#.to_vec()),
+        (Method::POST, "/v1/add".into(), br#"{"id":"new","times":[300000],"states":[true],"model":"hyt-em:0"}"#.to_vec()),
+        (Method::POST, "/v1/models/door/refit".into(), b"{}".to_vec()),
+        (Method::POST, "/v1/models/door/refit".into(), br#"{"now":true}"#.to_vec()),
         (Method::POST, "/v1/addvalues".into(), br#"{"id":"door","times":[300000],"values":[1.5]}"#.to_vec()),
         (Method::POST, "/v1/addvalues".into(), br#"{"id":"door","times":[300000],"values":[-0.1]}"#.to_vec()),
         // One good batch and one bad one: all or nothing.

@@ -33,7 +33,8 @@ pub struct ErrorBody {
 #[serde(deny_unknown_fields)]
 pub struct CreateRequest {
     /// Model spec (`fremen:K`, `persistence:K`, `hist:N[:PERIOD]`, `pergam:K[:PERIOD]`,
-    /// `stm`, `mean`); default `fremen:2`.
+    /// `stm`, `mean`, which learn online; `auto`, `fremen:auto`, `pergam:auto`, `fft:L`, ...,
+    /// which are refitted on their kept observations); default `fremen:2`.
     #[serde(default)]
     pub model: Option<String>,
     /// For continuous states: the range `[lo, hi]` of the values; values are mapped onto
@@ -251,6 +252,80 @@ pub struct ModelInfo {
     /// Components used for prediction, strongest first, for spectral models (`view`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub components: Vec<Component>,
+    /// For models fitted on a whole series (`auto`, `fremen:auto`, `fft:L`, ...): the
+    /// observations kept for refits and the last fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refit: Option<RefitInfo>,
+}
+
+/// What a model fitted on a whole series (`auto`, `fremen:auto`, ...) keeps, and its last fit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct RefitInfo {
+    /// Observations kept for refits: the most recent `keep` (older ones are dropped).
+    pub kept: u64,
+    /// The most observations kept.
+    pub keep: u64,
+    /// Observations added since the last fit (since creation, before the first).
+    pub since_fit: u64,
+    /// The last fit; absent before the first, when the model predicts 0.5.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_fit: Option<FitInfo>,
+}
+
+/// One fit of a model on its kept observations.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct FitInfo {
+    /// Observations fitted on.
+    pub observations: u64,
+    /// Observations the model had been given (since creation) when they were taken: the fit is
+    /// of the kept ones among the first `through`; later ones were then learned online.
+    pub through: u64,
+    /// Time of the first observation fitted on (s).
+    pub first_time: f64,
+    /// Time of the last observation fitted on (s).
+    pub last_time: f64,
+    /// What was fitted: `fremen:3` for `fremen:auto`, `stack of 5` for `auto`.
+    pub fitted: String,
+    /// `auto`: the models combined and their weights, heaviest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub weights: Vec<StackWeight>,
+    /// Error of the choice on held-back data: of the combination (Brier score over the rolling
+    /// origins) for `auto`, of the chosen order for `auto` orders.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<f64>,
+}
+
+/// A member of a stacked (`auto`) model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct StackWeight {
+    /// The member's spec, e.g. `hist:168`.
+    pub model: String,
+    /// Its weight (the weights sum to 1).
+    pub weight: f64,
+}
+
+/// Asks for a refit (`POST /v1/models/{id}/refit`): `{}` (no options yet; an empty body is
+/// accepted too).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct RefitRequest {}
+
+/// A refit (`POST /v1/models/{id}/refit`): the model now predicts with `fit`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct RefitResponse {
+    /// Log position of the refit (the sequence token for `Chronomap-Read-After`).
+    pub seq: u64,
+    /// Whether a new fit was made (`false`: the last fit already covered every observation).
+    pub refitted: bool,
+    /// The fit in use.
+    pub fit: FitInfo,
+    /// Seconds the fit took (0 without a new fit).
+    pub secs: f64,
 }
 
 /// All models (`GET /v1/models`).

@@ -158,6 +158,17 @@ impl Client {
         self.call::<(), _>(Method::GET, &query, None).await
     }
 
+    /// Refits a model fitted on a whole series (`auto`, `fremen:auto`, ...) on its kept
+    /// observations now; answers once the fit is in use and durable.
+    pub async fn refit(&self, id: &str) -> Result<RefitResponse, ClientError> {
+        self.call(
+            Method::POST,
+            &model_path(id, "/refit"),
+            Some(&RefitRequest::default()),
+        )
+        .await
+    }
+
     /// Every observation a model holds.
     pub async fn observations(&self, id: &str) -> Result<ObservationsResponse, ClientError> {
         self.call::<(), _>(Method::GET, &model_path(id, "/observations"), None)

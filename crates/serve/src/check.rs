@@ -322,6 +322,9 @@ fn describe(record: &LogRecord) -> String {
         LogRecord::Create { .. } => "creation".into(),
         LogRecord::Observe { times, .. } => format!("batch of {} observations", times.len()),
         LogRecord::Remove { .. } => "removal".into(),
+        LogRecord::Refit { refit, .. } => {
+            format!("refit on {} observations", refit.record.observations)
+        }
     }
 }
 

@@ -10,6 +10,9 @@
 //! * [`log`] and [`store`]: the append-only log of commit groups and the model snapshots,
 //!   in an embedded redb file or in PostgreSQL (feature `postgres`, on by default).
 //! * [`writer`]: group commit; a write is acknowledged only once it is durable.
+//! * [`refit`]: models fitted on a whole series (`auto`, `fremen:auto`, ...) keep their
+//!   observations and are refitted on a schedule and on request, on a thread of their own;
+//!   each fit is logged and durable like any write.
 //! * [`fleet`]: several services over one shared PostgreSQL log (`chronomap serve --fleet`):
 //!   tailing, read-your-writes tokens, lag.
 //! * [`check`]: every snapshot and log entry verified at start (`chronomap serve --check`), and
@@ -26,6 +29,7 @@ pub mod check;
 pub mod fleet;
 pub mod log;
 pub mod maps;
+pub mod refit;
 pub mod registry;
 pub mod server;
 pub mod store;

@@ -8,6 +8,7 @@
 //! an entry found in the raw bytes of a damaged store file knows where it belongs
 //! ([`scan_raw`]); format 1 entries (without it) are still read.
 
+use chronomap_models::learner::Refit;
 use serde::{Deserialize, Serialize};
 
 use crate::registry::ModelConfig;
@@ -18,7 +19,9 @@ const MAGIC_1: &[u8; 8] = b"CMLOG\x001\n";
 const MAGIC: &[u8; 8] = b"CMLOG\x002\n";
 
 /// One change of the service's state.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// Variants are only ever appended (their index is part of the log format).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum LogRecord {
     /// A model is created.
     Create {
@@ -41,6 +44,40 @@ pub enum LogRecord {
         /// Model id.
         id: String,
     },
+    /// A model fitted on a whole series (`auto`, `fremen:auto`, ...) predicts with this fit of
+    /// its kept observations from here on. The fit itself is logged, not only the point where
+    /// it was made: the service fits on another thread while observations go on arriving,
+    /// and the fit says which of them it covers (`through`), so that replay installs exactly
+    /// what the live service installed, without fitting again.
+    Refit {
+        /// Model id.
+        id: String,
+        /// The fit ([`chronomap_models::Learner::install`]).
+        refit: Box<Refit>,
+    },
+}
+
+impl PartialEq for LogRecord {
+    fn eq(&self, other: &Self) -> bool {
+        use LogRecord::*;
+        match (self, other) {
+            (Create { id, config }, Create { id: i, config: c }) => id == i && config == c,
+            (
+                Observe { id, times, values },
+                Observe {
+                    id: i,
+                    times: t,
+                    values: v,
+                },
+            ) => id == i && times == t && values == v,
+            (Remove { id }, Remove { id: i }) => id == i,
+            // Models have no `PartialEq`: fits are equal when they serialise alike.
+            (Refit { id, refit }, Refit { id: i, refit: r }) => {
+                id == i && postcard::to_allocvec(refit).ok() == postcard::to_allocvec(r).ok()
+            }
+            _ => false,
+        }
+    }
 }
 
 impl LogRecord {
@@ -49,7 +86,8 @@ impl LogRecord {
         match self {
             LogRecord::Create { id, .. }
             | LogRecord::Observe { id, .. }
-            | LogRecord::Remove { id } => id,
+            | LogRecord::Remove { id }
+            | LogRecord::Refit { id, .. } => id,
         }
     }
 

@@ -6,11 +6,18 @@
 use std::collections::HashMap;
 
 use chronomap_core::{ObservationError, Ordered, TemporalModel};
-use chronomap_models::{AnyModel, ModelSpec};
+use chronomap_models::learner::{FitRecord, RefitError};
+use chronomap_models::spec::Selection;
+use chronomap_models::{AnyModel, Learner, ModelSpec};
 use serde::{Deserialize, Serialize};
 
-use crate::api::{Component, MAX_ID_BYTES, ModelInfo};
+use crate::api::{Component, FitInfo, MAX_ID_BYTES, ModelInfo, RefitInfo, StackWeight};
 use crate::log::LogRecord;
+
+/// Observations the service keeps per model fitted on a whole series (`auto`, `fremen:auto`,
+/// ...) for its refits: [`chronomap_models::learner::DEFAULT_KEEP`] (2^21, 32 MiB; the oldest
+/// are dropped). Fixed, so that replaying a log always makes the same learners.
+pub const KEEP: usize = chronomap_models::learner::DEFAULT_KEEP;
 
 /// How a model was created: what it is and the range of its values.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -25,8 +32,10 @@ impl ModelConfig {
     /// Parses and checks a spec and range as a client gives them.
     ///
     /// # Errors
-    /// A sentence naming the field: unparsable spec, a model that is fitted offline only
-    /// (`auto` orders, `fft`, hypertime), or a range that is not finite and increasing.
+    /// A sentence naming the field: unparsable spec, an order above the largest, or a range
+    /// that is not finite and increasing. Every spec is accepted: those that learn online
+    /// are that model, the others (`auto`, `fremen:auto`, `fft`, hypertime) keep their
+    /// observations and are refitted ([`chronomap_models::learner`]).
     pub fn parse(model: Option<&str>, range: Option<[f64; 2]>) -> Result<Self, String> {
         let text = model.unwrap_or(crate::api::DEFAULT_MODEL);
         let spec: ModelSpec = text.parse().map_err(|e| format!("field `model`: {e}"))?;
@@ -42,11 +51,11 @@ impl ModelConfig {
         Ok(ModelConfig { spec, range })
     }
 
-    /// The model this configuration describes, having seen nothing.
+    /// The learner this configuration describes, having seen nothing.
     ///
     /// # Errors
     /// As [`ModelConfig::parse`].
-    pub fn empty_model(&self) -> Result<AnyModel, String> {
+    pub fn empty_model(&self) -> Result<Learner, String> {
         empty_model(&self.spec)
     }
 
@@ -67,9 +76,9 @@ impl ModelConfig {
     }
 }
 
-/// An empty model of an online-trainable spec ([`ModelSpec::online_model`]).
-fn empty_model(spec: &ModelSpec) -> Result<AnyModel, String> {
-    spec.online_model().map_err(|e| e.to_string())
+/// The learner of a spec having seen nothing ([`ModelSpec::learner`], keeping [`KEEP`]).
+fn empty_model(spec: &ModelSpec) -> Result<Learner, String> {
+    spec.learner(KEEP).map_err(|e| e.to_string())
 }
 
 /// Whether `c` is a Unicode format character (general category Cf: bidirectional controls
@@ -119,8 +128,8 @@ pub fn check_id(id: &str) -> Result<(), String> {
 pub struct Entry {
     /// How it was created.
     pub config: ModelConfig,
-    /// The model.
-    pub model: AnyModel,
+    /// The model: the online model, or kept observations and the last fit.
+    pub model: Learner,
 }
 
 impl Entry {
@@ -149,28 +158,58 @@ impl Entry {
         observed.map_err(|e| ApplyError::Observation(id.to_owned(), e))
     }
 
-    /// The model predicting with `order` (a copy when the order differs from its own).
+    /// Puts a fit of its kept observations in place (`id` is for errors).
     ///
     /// # Errors
-    /// An order above the model's largest, or an order for a model without one.
+    /// A fit that does not belong to this learner, or an older one than its own
+    /// ([`Learner::install`]); the entry is then unchanged.
+    pub fn install(
+        &mut self,
+        id: &str,
+        refit: &chronomap_models::learner::Refit,
+    ) -> Result<(), ApplyError> {
+        self.model
+            .install(refit.clone())
+            .map_err(|e| ApplyError::Refit(id.to_owned(), e))
+    }
+
+    /// The model predicting with `order` (a copy when the order differs from its own). A model
+    /// fitted on a whole series that has not been fitted yet is an empty model (it predicts
+    /// 0.5, as every model that knows nothing).
+    ///
+    /// # Errors
+    /// An order above the model's largest, or an order for a model without one (or not
+    /// fitted yet).
     pub fn with_order(
         &self,
         order: Option<usize>,
     ) -> Result<std::borrow::Cow<'_, AnyModel>, String> {
-        let Some(order) = order else {
-            return Ok(std::borrow::Cow::Borrowed(&self.model));
+        let Some(model) = self.model.model() else {
+            if order.is_some() {
+                return Err(format!(
+                    "field `order`: the `{}` model has not been fitted yet (POST \
+                     /v1/models/{{id}}/refit fits it)",
+                    self.config.spec
+                ));
+            }
+            return Ok(std::borrow::Cow::Owned(AnyModel::Mean(
+                chronomap_core::MeanModel::new(),
+            )));
         };
-        if self.model.order() == Some(order) {
-            return Ok(std::borrow::Cow::Borrowed(&self.model));
+        let Some(order) = order else {
+            return Ok(std::borrow::Cow::Borrowed(model));
+        };
+        if model.order() == Some(order) {
+            return Ok(std::borrow::Cow::Borrowed(model));
         }
-        let max = max_order(&self.model)
+        let max = max_order(model)
             .ok_or_else(|| format!("field `order`: a `{}` model has no order", self.config.spec))?;
         if order > max {
             return Err(format!(
                 "field `order`: {order} is above this model's largest order {max}"
             ));
         }
-        let mut copy = self.model.clone();
+        let mut copy = model.clone();
         copy.set_order(order);
         Ok(std::borrow::Cow::Owned(copy))
     }
@@ -178,9 +217,9 @@ impl Entry {
     /// The description `view` and `list` return.
     pub fn info(&self, id: &str) -> ModelInfo {
         let span = self.model.span();
-        let fremen = match &self.model {
-            AnyModel::Fremen(m) => Some(m),
-            AnyModel::Persistence(m) => Some(m.fremen()),
+        let fremen = match self.model.model() {
+            Some(AnyModel::Fremen(m)) => Some(m),
+            Some(AnyModel::Persistence(m)) => Some(m.fremen()),
             _ => None,
         };
         ModelInfo {
@@ -203,7 +242,54 @@ impl Entry {
                         .collect()
                 })
                 .unwrap_or_default(),
+            refit: self.refit_info(),
         }
+    }
+
+    /// What a model fitted on a whole series keeps, and its last fit (`None` for models that
+    /// learn online).
+    pub fn refit_info(&self) -> Option<RefitInfo> {
+        let keep = self.model.keep()?;
+        Some(RefitInfo {
+            kept: self.model.kept() as u64,
+            keep: keep as u64,
+            since_fit: self.model.since_fit().0,
+            last_fit: self.fit_info(),
+        })
+    }
+
+    /// The last fit of a model fitted on a whole series.
+    pub fn fit_info(&self) -> Option<FitInfo> {
+        let (record, model) = (self.model.last_fit()?, self.model.model()?);
+        Some(fit_info(record, model))
+    }
+}
+
+/// A fit as the API describes it.
+pub fn fit_info(record: &FitRecord, model: &AnyModel) -> FitInfo {
+    let (weights, error) = match &record.selection {
+        Some(Selection::Stack(stack)) => (
+            stack
+                .weights
+                .iter()
+                .map(|(spec, weight)| StackWeight {
+                    model: spec.to_string(),
+                    weight: *weight,
+                })
+                .collect(),
+            Some(stack.combined_error),
+        ),
+        Some(Selection::Order(order)) => (Vec::new(), order.errors.get(order.order).copied()),
+        _ => (Vec::new(), None),
+    };
+    FitInfo {
+        observations: record.observations,
+        through: record.through,
+        first_time: record.first_time,
+        last_time: record.last_time,
+        fitted: model.fitted_as(),
+        weights,
+        error,
     }
 }
 
@@ -229,6 +315,8 @@ pub enum ApplyError {
     Observation(String, ObservationError),
     /// The configuration cannot be built.
     Config(String),
+    /// A refit that cannot be put in place (model id, why).
+    Refit(String, RefitError),
     /// A value outside the range of a model of continuous values.
     OutOfRange {
         /// Model id.
@@ -255,6 +343,7 @@ impl std::fmt::Display for ApplyError {
                 None => write!(f, "model {id:?}: {e}"),
             },
             ApplyError::Config(reason) => f.write_str(reason),
+            ApplyError::Refit(id, e) => write!(f, "model {id:?}: {e}"),
             ApplyError::OutOfRange {
                 id,
                 index,
@@ -327,6 +416,12 @@ impl Registry {
                 .get_mut(id.as_str())
                 .ok_or_else(|| ApplyError::NotFound(id.clone()))?
                 .observe(id, times, values),
+            // In place too: a learner installs a fit atomically.
+            LogRecord::Refit { id, refit } => self
+                .models
+                .get_mut(id.as_str())
+                .ok_or_else(|| ApplyError::NotFound(id.clone()))?
+                .install(id, refit),
             _ => {
                 let id = record.id();
                 let mut slot = self.models.remove(id);
@@ -370,5 +465,9 @@ pub fn apply_to(slot: &mut Option<Entry>, record: &LogRecord) -> Result<(), Appl
             }
             Ok(())
         }
+        LogRecord::Refit { id, refit } => slot
+            .as_mut()
+            .ok_or_else(|| ApplyError::NotFound(id.clone()))?
+            .install(id, refit),
     }
 }

@@ -22,6 +22,7 @@ use utoipa::OpenApi;
 
 use crate::api::*;
 use crate::maps::Maps;
+use crate::refit::{RefitFailure, Refits};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, check_id};
 use crate::store::Store;
 use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, WriteOp};
@@ -67,6 +68,10 @@ pub struct ServiceConfig {
     pub allowed_hosts: Vec<String>,
     /// Timeouts and the connection limit.
     pub limits: ConnectionLimits,
+    /// When models fitted on a whole series (`auto`, `fremen:auto`, ...) are refitted
+    /// without being asked ([`crate::refit`]): by default after a day of data time or 100,000
+    /// new observations.
+    pub refit: chronomap_models::RefitPolicy,
 }
 
 impl Default for ServiceConfig {
@@ -78,7 +83,30 @@ impl Default for ServiceConfig {
             maps: Arc::new(Maps::default()),
             allowed_hosts: Vec::new(),
             limits: ConnectionLimits::default(),
+            refit: chronomap_models::RefitPolicy::default(),
         }
+    }
+}
+
+/// The refit thread; stopped when dropped (a service dropped without [`Service::run`]).
+struct RefitThread {
+    refits: Arc<Refits>,
+    handle: Option<std::thread::JoinHandle<()>>,
+}
+
+impl RefitThread {
+    /// Stops it after the refit in progress and waits for it.
+    fn join(mut self) {
+        self.refits.stop();
+        if let Some(handle) = self.handle.take() {
+            let _ = handle.join();
+        }
+    }
+}
+
+impl Drop for RefitThread {
+    fn drop(&mut self) {
+        self.refits.stop();
     }
 }
 
@@ -91,12 +119,14 @@ pub struct Service {
     writer: std::thread::JoinHandle<()>,
     /// A fleet node's tailer and its stop flag.
     tailer: Option<(std::thread::JoinHandle<()>, Arc<AtomicBool>)>,
+    refitter: RefitThread,
 }
 
 #[derive(Clone)]
 struct AppState {
     shared: Arc<Shared>,
     writes: mpsc::Sender<WriteCommand>,
+    refits: Arc<Refits>,
     token: Option<Arc<str>>,
     allowed_hosts: Arc<[String]>,
     body_timeout: Duration,
@@ -104,7 +134,8 @@ struct AppState {
 }
 
 impl Service {
-    /// Recovers every model from `store` (last checkpoint + log replay) and starts the writer.
+    /// Recovers every model from `store` (last checkpoint + log replay) and starts the writer
+    /// and the refit thread (which queues the models already due).
     ///
     /// Call outside an async context: recovery blocks on the store.
     ///
@@ -119,6 +150,24 @@ impl Service {
             .name("chronomap-writer".into())
             .spawn(move || writer::run(writer_shared, commands, policy))
             .map_err(|e| format!("cannot start the writer thread: {e}"))?;
+        let refits = Arc::new(Refits::new(config.refit));
+        let _ = shared.refits.set(Arc::clone(&refits));
+        let refitter = {
+            let (queue, shared, writes) =
+                (Arc::clone(&refits), Arc::clone(&shared), writes.clone());
+            let handle = std::thread::Builder::new()
+                .name("chronomap-refit".into())
+                .spawn(move || crate::refit::run(queue, shared, writes))
+                .map_err(|e| format!("cannot start the refit thread: {e}"))?;
+            RefitThread {
+                refits: Arc::clone(&refits),
+                handle: Some(handle),
+            }
+        };
+        {
+            let registry = shared.registry.read().expect("registry lock");
+            refits.schedule_due(&registry, registry.ids());
+        }
         let tailer = if shared.store.is_shared() {
             let stop = Arc::new(AtomicBool::new(false));
             let (tail_shared, tail_stop) = (Arc::clone(&shared), Arc::clone(&stop));
@@ -134,6 +183,7 @@ impl Service {
             state: AppState {
                 shared,
                 writes,
+                refits,
                 token: config.token.map(Arc::from),
                 allowed_hosts: config
                     .allowed_hosts
@@ -148,6 +198,7 @@ impl Service {
             limits: config.limits,
             writer,
             tailer,
+            refitter,
         })
     }
 
@@ -187,12 +238,16 @@ impl Service {
             writer,
             limits,
             tailer,
+            refitter,
             ..
         } = self;
         drop(state);
         serve_connections(listener, app, limits, shutdown).await;
-        // The router (and every sender of writes) is gone: the writer drains and checkpoints.
+        // The router is gone; the refit thread ends after the fit in progress (a fit not yet
+        // logged is made again when due after the restart). Then no sender of writes is left:
+        // the writer drains and checkpoints.
         tokio::task::spawn_blocking(move || {
+            refitter.join();
             let _ = writer.join();
             if let Some((handle, stop)) = tailer {
                 stop.store(true, Ordering::Release);
@@ -279,7 +334,8 @@ async fn serve_connections(
                        the service has a token."
     ),
     paths(
-        health, list, create, view, remove, observations, add, addvalues, add_batch, predict,
+        health, list, create, view, remove, observations, refit, add, addvalues, add_batch,
+        predict,
         entropy, forecast, forecast_entropy, evaluate, detect, crate::maps::list,
         crate::maps::topo_info, crate::maps::topo_predict, crate::maps::topo_plan,
         crate::maps::grid_info, crate::maps::grid_predict, crate::maps::grid_cell,
@@ -307,6 +363,7 @@ impl utoipa::Modify for BearerAuth {
 fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
     let writes = Router::new()
         .route("/v1/models/{id}", put(create).delete(remove))
+        .route("/v1/models/{id}/refit", post(refit))
         .route("/v1/add", post(add))
         .route("/v1/addvalues", post(addvalues))
         .route("/v1/observations", post(add_batch))
@@ -397,7 +454,7 @@ impl From<WriteError> for ApiError {
     fn from(e: WriteError) -> Self {
         match e {
             WriteError::Apply(e @ ApplyError::NotFound(_)) => ApiError::not_found(e.to_string()),
-            WriteError::Apply(e @ ApplyError::Conflict(_)) => {
+            WriteError::Apply(e @ (ApplyError::Conflict(_) | ApplyError::Refit(..))) => {
                 ApiError::new(StatusCode::CONFLICT, "conflict", e.to_string())
             }
             WriteError::Apply(e) => ApiError::bad_request(e.to_string()),
@@ -845,6 +902,43 @@ async fn observations(
     Ok(Json(ObservationsResponse { times, values }))
 }
 
+/// Refits a model fitted on a whole series (`auto`, `fremen:auto`, `fft:L`, ...) on its kept
+/// observations now: bit for bit the model `chronomap fit --model SPEC` makes of them. Answers
+/// once the fit is in use and durable (seconds for `auto` on weeks of data; the service goes on
+/// answering and writing meanwhile). Body `{}` or empty. Such models are also refitted without
+/// being asked (`chronomap serve --refit-every`, `--refit-secs`).
+#[utoipa::path(post, path = "/v1/models/{id}/refit", request_body = RefitRequest,
+    params(("id" = String, Path, description = "model id")),
+    security(("bearer" = [])),
+    responses((status = 200, body = RefitResponse), (status = 400, body = ErrorBody),
+              (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),
+              (status = 409, body = ErrorBody), (status = 503, body = ErrorBody)))]
+async fn refit(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<RefitResponse>, ApiError> {
+    let id = path_id(path)?;
+    if !matches!(&body, Ok(bytes) if bytes.is_empty()) {
+        let _: RefitRequest = parse_body(body)?;
+    }
+    let outcome = state.refits.request(&id);
+    let outcome = outcome.await.unwrap_or(Err(RefitFailure::Stopping));
+    outcome.map(Json).map_err(|failure| match failure {
+        RefitFailure::NotFound(_) => ApiError::not_found(failure.to_string()),
+        RefitFailure::Online(..) => ApiError::bad_request(failure.to_string()),
+        RefitFailure::Fit(..) => {
+            ApiError::new(StatusCode::CONFLICT, "conflict", failure.to_string())
+        }
+        RefitFailure::Write(e) => e.into(),
+        RefitFailure::Stopping => ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "unavailable",
+            failure.to_string(),
+        ),
+    })
+}
+
 /// Adds binary observations of one state (`add`); answers once they are durable.
 #[utoipa::path(post, path = "/v1/add", request_body = AddRequest, security(("bearer" = [])),
     responses((status = 200, body = WriteAck), (status = 400, body = ErrorBody),
@@ -1061,19 +1155,20 @@ async fn evaluate(
         .map(|&v| entry.config.normalise(v))
         .collect();
     let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
-    let orders: Vec<usize> = match crate::registry::max_order(&entry.model) {
+    let max_order = entry.model.model().and_then(crate::registry::max_order);
+    let orders: Vec<usize> = match max_order {
         Some(max) => (0..=request.max_order.unwrap_or(10).min(max)).collect(),
         None => vec![0],
     };
     let mut errors = Vec::with_capacity(orders.len());
     let mut brier = Vec::with_capacity(orders.len());
     for &order in &orders {
-        let model = if crate::registry::max_order(&entry.model).is_some() {
+        let model = if max_order.is_some() {
             entry
                 .with_order(Some(order))
                 .map_err(ApiError::bad_request)?
         } else {
-            std::borrow::Cow::Borrowed(&entry.model)
+            entry.with_order(None).map_err(ApiError::bad_request)?
         };
         let p = model.predict_many(&request.times);
         let n = p.len() as f64;

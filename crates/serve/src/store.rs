@@ -14,11 +14,18 @@ pub use postgres::{Access, DEFAULT_SEGMENT_GROUPS, OWNER_WAIT, PostgresStore};
 pub use redb_store::RedbStore;
 
 use chronomap_io::model_file::{decode_model, encode_model};
+use chronomap_models::{AnyModel, Learner};
 
-use crate::registry::Entry;
+use crate::registry::{Entry, ModelConfig};
 
-/// Kind tag of model snapshots (inside a versioned, checksummed model-file container).
-const SNAPSHOT_KIND: &str = "serve-snapshot";
+/// Kind tag of model snapshots (inside a versioned, checksummed model-file container): version
+/// 2, an [`Entry`] whose model is a [`Learner`] (the online model, or the kept observations and
+/// last fit of a model fitted on a whole series).
+const SNAPSHOT_KIND: &str = "serve-snapshot-2";
+
+/// Kind tag of version 1 snapshots (still read): an entry whose model is an [`AnyModel`] that
+/// learns online.
+const SNAPSHOT_KIND_1: &str = "serve-snapshot";
 
 /// A store failure: I/O, the database, or damaged content.
 #[derive(Debug, thiserror::Error)]
@@ -160,14 +167,42 @@ pub fn encode_snapshot(entry: &Entry) -> Vec<u8> {
     encode_model(SNAPSHOT_KIND, entry).expect("entries always serialise")
 }
 
-/// Decodes a snapshot.
+/// A version 1 snapshot.
+#[derive(serde::Deserialize)]
+struct Entry1 {
+    config: ModelConfig,
+    model: AnyModel,
+}
+
+/// The kind a model-file container's header names (` kind=KIND ` in its first line), to choose
+/// the type its payload is decoded as; the container itself is checked by [`decode_model`].
+fn container_kind(bytes: &[u8]) -> Option<&str> {
+    let line = bytes.get(..bytes.len().min(200))?;
+    let line = &line[..line.iter().position(|&b| b == b'\n')?];
+    std::str::from_utf8(line)
+        .ok()?
+        .split(' ')
+        .find_map(|word| word.strip_prefix("kind="))
+}
+
+/// Decodes a snapshot (version 2, or version 1 of services before models fitted on a whole
+/// series were served).
 ///
 /// # Errors
 /// A damaged or foreign snapshot, naming the id.
 pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
-    let (kind, entry): (String, Entry) =
-        decode_model(bytes).map_err(|e| format!("snapshot of {id:?}: {e}"))?;
-    if kind != SNAPSHOT_KIND {
+    let damaged = |e: chronomap_io::ModelFileError| format!("snapshot of {id:?}: {e}");
+    let (kind, entry): (String, Entry) = if container_kind(bytes) == Some(SNAPSHOT_KIND_1) {
+        let (kind, old): (String, Entry1) = decode_model(bytes).map_err(damaged)?;
+        let entry = Entry {
+            config: old.config,
+            model: Learner::Online(old.model),
+        };
+        (kind, entry)
+    } else {
+        decode_model(bytes).map_err(damaged)?
+    };
+    if kind != SNAPSHOT_KIND && kind != SNAPSHOT_KIND_1 {
         return Err(format!(
             "snapshot of {id:?}: a {kind:?} container, not a model snapshot"
         ));
@@ -176,4 +211,62 @@ pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
         return Err(format!("snapshot of {id:?}: inconsistent model parameters"));
     }
     Ok(entry)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use chronomap_core::TemporalModel;
+
+    #[test]
+    fn version_1_snapshots_still_load_as_online_learners() {
+        // What services wrote before version 2: the entry with its model as an `AnyModel`.
+        #[derive(serde::Serialize)]
+        struct Version1<'a> {
+            config: &'a ModelConfig,
+            model: &'a AnyModel,
+        }
+        let config = ModelConfig::parse(Some("fremen:2"), None).unwrap();
+        let mut model = config.spec.online_model().unwrap();
+        let times: Vec<f64> = (0..500).map(|i| 600.0 * f64::from(i)).collect();
+        let values: Vec<f64> = times
+            .iter()
+            .map(|t| f64::from(u8::from(t % 86_400.0 > 30_000.0)))
+            .collect();
+        model.observe(&times, &values).unwrap();
+        let old = encode_model(
+            SNAPSHOT_KIND_1,
+            &Version1 {
+                config: &config,
+                model: &model,
+            },
+        )
+        .unwrap();
+        assert!(old.starts_with(b"chronomap-model 1 kind=serve-snapshot encoding=postcard "));
+        let entry = decode_snapshot("door", &old).unwrap();
+        assert_eq!(entry.config, config);
+        assert!(matches!(entry.model, Learner::Online(_)));
+        for t in [0.0, 4e4, 3e5, 1e6] {
+            assert_eq!(entry.model.predict(t).to_bits(), model.predict(t).to_bits());
+        }
+        // Written again, it is version 2 and reads back the same.
+        let new = encode_snapshot(&entry);
+        assert!(new.starts_with(b"chronomap-model 1 kind=serve-snapshot-2 encoding=postcard "));
+        let again = decode_snapshot("door", &new).unwrap();
+        assert_eq!(encode_snapshot(&again), new);
+        // Damage is still found, in both versions, naming the id.
+        for mut bytes in [old, new] {
+            *bytes.last_mut().unwrap() ^= 1;
+            let error = decode_snapshot("door", &bytes).unwrap_err();
+            assert!(
+                error.starts_with("snapshot of \"door\": ") && error.contains("checksum"),
+                "{error}"
+            );
+        }
+        assert_eq!(
+            container_kind(b"chronomap-model 1 kind=x encoding=postcard\n"),
+            Some("x")
+        );
+        assert_eq!(container_kind(b"no header line"), None);
+    }
 }

@@ -60,6 +60,17 @@ impl WriteOp {
             create: None,
         }
     }
+
+    /// Put a fit of a model's kept observations in place.
+    pub fn refit(id: String, refit: chronomap_models::learner::Refit) -> Self {
+        WriteOp {
+            record: LogRecord::Refit {
+                id,
+                refit: Box::new(refit),
+            },
+            create: None,
+        }
+    }
 }
 
 /// Why a write was not made.
@@ -124,6 +135,9 @@ pub struct Shared {
     pub(crate) synced: Mutex<Instant>,
     /// Why this service stopped applying the log, if it did (a group that cannot be applied).
     pub(crate) broken: Mutex<Option<String>>,
+    /// The refit queue of a running service: the writer queues the models its commits made
+    /// due (none in tools that only recover or check a store).
+    pub(crate) refits: std::sync::OnceLock<Arc<crate::refit::Refits>>,
 }
 
 /// Models changed since the last checkpoint.
@@ -157,6 +171,7 @@ impl Shared {
             applying: Mutex::new(()),
             synced: Mutex::new(Instant::now()),
             broken: Mutex::new(None),
+            refits: std::sync::OnceLock::new(),
         }
     }
 
@@ -266,6 +281,7 @@ pub fn observations_of(store: &dyn Store, id: &str) -> Result<(Vec<f64>, Vec<f64
                         times.clear();
                         values.clear();
                     }
+                    LogRecord::Refit { .. } => {}
                 }
             }
             Ok(())
@@ -368,12 +384,16 @@ fn commit_group(shared: &Shared, group: Vec<WriteCommand>) -> Result<(), String>
         Ok(Some(seq)) => {
             let mut registry = shared.registry.write().expect("registry lock");
             let mut changes = shared.changes.lock().expect("changes lock");
+            let ids: Vec<String> = staged.keys().cloned().collect();
             for (id, slot) in staged {
                 changes.touched(&id, slot.is_some());
                 registry.put(id, slot);
             }
             changes.observations += records.iter().map(|r| r.observations() as u64).sum::<u64>();
             shared.seq.store(seq, Ordering::Release);
+            if let Some(refits) = shared.refits.get() {
+                refits.schedule_due(&registry, ids.iter().map(String::as_str));
+            }
             seq
         }
         Ok(None) => shared.seq.load(Ordering::Acquire),
@@ -444,7 +464,7 @@ fn stage(
                     push(LogRecord::Create { id, config }, slot)?;
                 }
             }
-            LogRecord::Remove { .. } => {}
+            LogRecord::Remove { .. } | LogRecord::Refit { .. } => {}
         }
         observations += record.observations() as u64;
         push(record, slot)?;
@@ -681,6 +701,145 @@ mod tests {
         let registry = recovered.registry.read().unwrap();
         assert_eq!(registry.get("a").unwrap().model.span().count, 20);
         assert_eq!(registry.get("b").unwrap().model.span().count, 15);
+    }
+
+    /// Observations of a door open from 8:20 every day, every 10 minutes from `t0`, for a
+    /// model created as `spec` if missing.
+    fn observe_as(spec: &str, id: &str, t0: f64, n: usize) -> WriteOp {
+        let WriteOp { record, .. } = observe(id, t0, n);
+        WriteOp {
+            record,
+            create: Some(config(spec)),
+        }
+    }
+
+    fn refit_of(shared: &Shared, id: &str) -> chronomap_models::learner::Refit {
+        let job = shared
+            .registry
+            .read()
+            .unwrap()
+            .get(id)
+            .unwrap()
+            .model
+            .refit_job()
+            .unwrap();
+        job.run(&crate::refit::fit_options()).unwrap()
+    }
+
+    #[test]
+    fn refits_are_logged_and_recovery_installs_them_where_they_were() {
+        let options = crate::refit::fit_options();
+        for (name, every) in [("refit-replayed", u64::MAX), ("refit-snapshotted", 100)] {
+            let dir = scratch(name);
+            let store: Arc<dyn Store> = Arc::new(RedbStore::open(dir.join("db")).unwrap());
+            let policy = CheckpointPolicy {
+                every_observations: every,
+                every: Duration::from_secs(3600),
+            };
+            // Two weeks of an `auto` and a `fremen:auto` model; the fits are made of them...
+            let two_weeks = 2 * 7 * 144;
+            let (outcomes, shared) = run_writer(
+                Arc::clone(&store),
+                vec![vec![
+                    observe_as("auto", "door", 0.0, two_weeks),
+                    observe_as("fremen:auto", "lab", 0.0, two_weeks),
+                ]],
+                policy,
+            );
+            assert!(outcomes.iter().all(Result::is_ok), "{outcomes:?}");
+            let (door, lab) = (refit_of(&shared, "door"), refit_of(&shared, "lab"));
+            // ... and put in place after more observations arrived (in the next lifetime).
+            let t1 = two_weeks as f64 * 600.0;
+            let (outcomes, shared) = run_writer(
+                Arc::clone(&store),
+                vec![
+                    vec![observe_as("auto", "door", t1, 100)],
+                    vec![WriteOp::refit("door".into(), door)],
+                    vec![WriteOp::refit("lab".into(), lab.clone())],
+                    vec![observe_as("auto", "door", t1 + 100.0 * 600.0, 50)],
+                ],
+                policy,
+            );
+            assert!(outcomes.iter().all(Result::is_ok), "{outcomes:?}");
+            let live = models(&shared);
+            // The fit of the first two weeks, having learned the 150 later observations online.
+            let all = match &observe_as("auto", "door", 0.0, two_weeks + 150).record {
+                LogRecord::Observe { times, values, .. } => (times.clone(), values.clone()),
+                _ => unreachable!(),
+            };
+            let mut expected = "auto"
+                .parse::<chronomap_models::ModelSpec>()
+                .unwrap()
+                .fit(&all.0[..two_weeks], &all.1[..two_weeks], &options)
+                .unwrap()
+                .model;
+            expected
+                .observe(&all.0[two_weeks..], &all.1[two_weeks..])
+                .unwrap();
+            {
+                let registry = shared.registry.read().unwrap();
+                let door = &registry.get("door").unwrap().model;
+                assert_eq!(
+                    postcard::to_allocvec(door.model().unwrap()).unwrap(),
+                    postcard::to_allocvec(&expected).unwrap(),
+                    "{name}"
+                );
+                assert_eq!(door.last_fit().unwrap().through, two_weeks as u64);
+                assert_eq!(door.span().count, two_weeks as u64 + 150);
+            }
+            let recovered = recover(Arc::clone(&store)).unwrap();
+            assert_eq!(models(&recovered), live, "{name}");
+            // A lifetime killed after committing observations and a refit, before any
+            // checkpoint: recovery replays both and installs the logged fit.
+            let records = [
+                observe_as("auto", "door", t1 + 150.0 * 600.0, 10).record,
+                LogRecord::Refit {
+                    id: "door".into(),
+                    refit: Box::new(refit_of(&shared, "door")),
+                },
+            ];
+            let seq = shared.seq.load(Ordering::Acquire) + 1;
+            store.append(seq, &encode_group(seq, &records)).unwrap();
+            let mut registry = shared.registry.read().unwrap().clone();
+            for record in &records {
+                registry.apply(record).unwrap();
+            }
+            let live = Shared::new(Arc::clone(&store), registry, seq);
+            let recovered = recover(Arc::clone(&store)).unwrap();
+            assert_eq!(models(&recovered), models(&live), "{name}");
+            {
+                let registry = recovered.registry.read().unwrap();
+                let door = &registry.get("door").unwrap().model;
+                assert_eq!(door.last_fit().unwrap().through, two_weeks as u64 + 150);
+                assert_eq!(door.since_fit().0, 10);
+            }
+            let shared = recovered;
+            // The same fit again is accepted; a fit of another spec's model, or of a removed
+            // model, is refused whole and not logged.
+            let before = shared.seq.load(Ordering::Acquire);
+            let stale = lab;
+            let (outcomes, shared) = run_writer(
+                Arc::clone(&store),
+                vec![
+                    vec![WriteOp::refit("lab".into(), stale.clone())],
+                    vec![WriteOp::refit("door".into(), stale.clone())],
+                    vec![WriteOp::remove("lab".into())],
+                    vec![WriteOp::refit("lab".into(), stale)],
+                ],
+                policy,
+            );
+            assert!(outcomes[0].is_ok());
+            assert!(
+                matches!(&outcomes[1], Err(WriteError::Apply(ApplyError::Refit(id, _))) if id == "door"),
+                "{:?}",
+                outcomes[1]
+            );
+            assert!(matches!(
+                &outcomes[3],
+                Err(WriteError::Apply(ApplyError::NotFound(_)))
+            ));
+            assert_eq!(shared.seq.load(Ordering::Acquire), before + 1);
+        }
     }
 
     #[test]

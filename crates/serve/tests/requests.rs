@@ -19,8 +19,9 @@ use tower::ServiceExt;
 const TOKEN: &str = "0123456789abcdef0123456789abcdef";
 
 /// Every endpoint that takes a body, and the two that take a path only.
-const ENDPOINTS: [(&str, &str); 14] = [
+const ENDPOINTS: [(&str, &str); 15] = [
     ("PUT", "/v1/models/door"),
+    ("POST", "/v1/models/door/refit"),
     ("POST", "/v1/add"),
     ("POST", "/v1/addvalues"),
     ("POST", "/v1/observations"),
