@@ -450,7 +450,7 @@ fn parameters_are_ros_parameters_that_rclpy_lists_gets_and_sets() {
         .unwrap_or_else(|| panic!("not on /rosout: {rosout:?}"));
     assert_eq!(set_line["name"], "robot1.office_model");
     assert_eq!(set_line["level"], 20, "INFO");
-    assert!(set_line["file"].as_str().unwrap().ends_with("node.rs"));
+    assert!(set_line["file"].as_str().unwrap().ends_with("node/mod.rs"));
     assert_eq!(set_line["function"], "chronomap_ros2::node");
     assert!(set_line["line"].as_u64().unwrap() > 0);
     assert!(

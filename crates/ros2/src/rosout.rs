@@ -5,7 +5,7 @@
 //!
 //! The crate logs through the [`log`] facade and prints nothing; the program's logger (the
 //! `chronomap ros2` command's) calls [`forward`] with each record of this crate it logs. The
-//! node installs its `/rosout` publisher here while it runs ([`install`]); before and after,
+//! node installs its `/rosout` publisher here while it runs (`install`); before and after,
 //! [`forward`] does nothing.
 
 use std::sync::Mutex;

@@ -1,0 +1,258 @@
+//! The node's services: the `rcl_interfaces` parameter services and, managed, the
+//! `lifecycle_msgs` services.
+
+use ros2_client::dds::rustdds::mio1::{Interest, Poll, Token};
+use ros2_client::parameters::raw;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::rcl_interfaces::{
+    DescribeParametersRequest, DescribeParametersResponse, GetParameterTypesRequest,
+    GetParameterTypesResponse, GetParametersRequest, GetParametersResponse, ListParametersRequest,
+    ListParametersResponse, ListParametersResult, SetParametersAtomicallyResponse,
+    SetParametersRequest, SetParametersResponse,
+};
+use ros2_client::{Publisher, QosProfile, Server};
+
+use super::io::Builder;
+use super::{MAX_REQUESTS, NodeError};
+use crate::config::{self, Setup};
+use crate::lifecycle::{self, State};
+use crate::msgs::{
+    ChangeStateRequest, ChangeStateResponse, EmptyRequest, GetAvailableStatesResponse,
+    GetAvailableTransitionsResponse, GetStateResponse, LifecycleState, LifecycleTransition,
+    Message, TransitionDescription, TransitionEvent,
+};
+use crate::params::Value;
+
+/// The six `rcl_interfaces` parameter services.
+pub(super) struct ParamServers {
+    pub(super) get: Server<GetParametersRequest, GetParametersResponse>,
+    pub(super) types: Server<GetParameterTypesRequest, GetParameterTypesResponse>,
+    pub(super) set: Server<SetParametersRequest, SetParametersResponse>,
+    pub(super) set_atomically: Server<SetParametersRequest, SetParametersAtomicallyResponse>,
+    pub(super) list: Server<ListParametersRequest, ListParametersResponse>,
+    pub(super) describe: Server<DescribeParametersRequest, DescribeParametersResponse>,
+}
+
+impl ParamServers {
+    pub(super) fn new(b: &mut Builder<'_>, setup: &Setup, poll: &Poll) -> Result<Self, NodeError> {
+        let pkg = "rcl_interfaces";
+        let mut servers = ParamServers {
+            get: b.server(setup, "get_parameters", pkg, "GetParameters")?,
+            types: b.server(setup, "get_parameter_types", pkg, "GetParameterTypes")?,
+            set: b.server(setup, "set_parameters", pkg, "SetParameters")?,
+            set_atomically: b.server(
+                setup,
+                "set_parameters_atomically",
+                pkg,
+                "SetParametersAtomically",
+            )?,
+            list: b.server(setup, "list_parameters", pkg, "ListParameters")?,
+            describe: b.server(setup, "describe_parameters", pkg, "DescribeParameters")?,
+        };
+        let r = poll.registry();
+        let t = Token(usize::MAX - 1);
+        r.register(&mut servers.get, t, Interest::READABLE)?;
+        r.register(&mut servers.types, t, Interest::READABLE)?;
+        r.register(&mut servers.set, t, Interest::READABLE)?;
+        r.register(&mut servers.set_atomically, t, Interest::READABLE)?;
+        r.register(&mut servers.list, t, Interest::READABLE)?;
+        r.register(&mut servers.describe, t, Interest::READABLE)?;
+        Ok(servers)
+    }
+}
+
+/// The five `lifecycle_msgs` services and `~/transition_event`.
+pub(super) struct LifecycleServers {
+    pub(super) change: Server<ChangeStateRequest, ChangeStateResponse>,
+    pub(super) get: Server<EmptyRequest, GetStateResponse>,
+    pub(super) states: Server<EmptyRequest, GetAvailableStatesResponse>,
+    pub(super) transitions: Server<EmptyRequest, GetAvailableTransitionsResponse>,
+    pub(super) graph: Server<EmptyRequest, GetAvailableTransitionsResponse>,
+    pub(super) events: Publisher<TransitionEvent>,
+}
+
+impl LifecycleServers {
+    pub(super) fn new(b: &mut Builder<'_>, setup: &Setup, poll: &Poll) -> Result<Self, NodeError> {
+        let pkg = "lifecycle_msgs";
+        let events_topic = setup
+            .args
+            .remap(
+                &format!("{}/transition_event", setup.fully_qualified_name()),
+                false,
+                &setup.namespace,
+                &setup.name,
+            )
+            .map_err(|e| NodeError::Name(e.to_string()))?;
+        // rcl_lifecycle publishes with the default QoS: reliable, volatile, keep last 10.
+        let qos = QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::DEFAULT)
+            .durability(Durability::Volatile)
+            .history(History::KeepLast { depth: 10 });
+        let topic = b.topic(&events_topic, TransitionEvent::TYPE, &qos)?;
+        let events = b
+            .node
+            .create_publisher(&topic, Some(qos))
+            .map_err(|e| NodeError::Dds(format!("publisher of {events_topic}: {e}")))?;
+        let mut servers = LifecycleServers {
+            change: b.server(setup, "change_state", pkg, "ChangeState")?,
+            get: b.server(setup, "get_state", pkg, "GetState")?,
+            states: b.server(setup, "get_available_states", pkg, "GetAvailableStates")?,
+            transitions: b.server(
+                setup,
+                "get_available_transitions",
+                pkg,
+                "GetAvailableTransitions",
+            )?,
+            graph: b.server(
+                setup,
+                "get_transition_graph",
+                pkg,
+                "GetAvailableTransitions",
+            )?,
+            events,
+        };
+        let r = poll.registry();
+        let t = Token(usize::MAX - 2);
+        r.register(&mut servers.change, t, Interest::READABLE)?;
+        r.register(&mut servers.get, t, Interest::READABLE)?;
+        r.register(&mut servers.states, t, Interest::READABLE)?;
+        r.register(&mut servers.transitions, t, Interest::READABLE)?;
+        r.register(&mut servers.graph, t, Interest::READABLE)?;
+        Ok(servers)
+    }
+}
+
+pub(super) fn state_msg(state: State) -> LifecycleState {
+    LifecycleState {
+        id: state.id(),
+        label: state.label().to_string(),
+    }
+}
+
+pub(super) fn description(t: &lifecycle::Transition) -> TransitionDescription {
+    TransitionDescription {
+        transition: LifecycleTransition {
+            id: t.id,
+            label: t.label.to_string(),
+        },
+        start_state: state_msg(t.start),
+        goal_state: state_msg(t.goal),
+    }
+}
+
+/// Answers every waiting request of `server` with `answer`.
+pub(super) fn serve<Q, A>(server: &Server<Q, A>, what: &str, mut answer: impl FnMut(Q) -> A)
+where
+    Q: ros2_client::Message + Clone + 'static,
+    A: ros2_client::Message + 'static,
+{
+    for _ in 0..MAX_REQUESTS {
+        match server.receive_request() {
+            Ok(Some((id, request))) => {
+                let response = answer(request);
+                if let Err(e) = server.send_response(id, response) {
+                    log::warn!("{what}: cannot send the response: {e}");
+                }
+            }
+            Ok(None) => break,
+            Err(e) => {
+                log::warn!("{what}: a request that cannot be read: {e}");
+                break;
+            }
+        }
+    }
+}
+
+/// `list_parameters` as rclcpp answers it: with no prefixes, the names with fewer than `depth`
+/// dots (0: all); otherwise the names equal to a prefix or under `prefix.` within `depth`
+/// more levels; `prefixes` are the distinct namespaces of the names listed.
+pub(super) fn list_parameters<'a>(
+    names: impl Iterator<Item = &'a String>,
+    prefixes: &[String],
+    depth: u64,
+) -> ListParametersResult {
+    let within = |s: &str| depth == 0 || (s.matches('.').count() as u64) < depth;
+    let mut result = ListParametersResult {
+        names: vec![],
+        prefixes: vec![],
+    };
+    for name in names {
+        let all = prefixes.is_empty() && within(name);
+        let under = prefixes.iter().any(|prefix| {
+            name == prefix
+                || name
+                    .strip_prefix(prefix.as_str())
+                    .and_then(|rest| rest.strip_prefix('.'))
+                    .is_some_and(|rest| within(&format!(".{rest}")))
+        });
+        if all || under {
+            result.names.push(name.clone());
+            if let Some((namespace, _)) = name.rsplit_once('.')
+                && !result.prefixes.iter().any(|p| p == namespace)
+            {
+                result.prefixes.push(namespace.to_string());
+            }
+        }
+    }
+    result
+}
+
+/// The descriptor of the parameter `name` (`describe_parameters`).
+pub(super) fn describe_parameter(name: &str, value: Option<&Value>) -> raw::ParameterDescriptor {
+    let dynamic = config::is_dynamic(name);
+    let (integer_range, floating_point_range) = if name.ends_with(".filter_type") {
+        (
+            vec![raw::IntegerRange {
+                from_value: 0,
+                to_value: 3,
+                step: 1,
+            }],
+            vec![],
+        )
+    } else {
+        (vec![], vec![])
+    };
+    raw::ParameterDescriptor {
+        name: name.to_string(),
+        r#type: value.map_or(0, Value::to_parameter_type_raw),
+        description: config::description(name).to_string(),
+        additional_constraints: if value.is_none() {
+            String::new()
+        } else if dynamic {
+            "changes the running node".to_string()
+        } else {
+            "read while the node starts or configures".to_string()
+        },
+        read_only: value.is_some() && !dynamic,
+        dynamic_typing: false,
+        floating_point_range,
+        integer_range,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn parameters_are_listed_as_rclcpp_lists_them() {
+        let names: Vec<String> = ["a", "a.b", "a.b.c", "ab", "x.y"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let list = |prefixes: &[&str], depth| {
+            let prefixes: Vec<String> = prefixes.iter().map(|p| p.to_string()).collect();
+            list_parameters(names.iter(), &prefixes, depth)
+        };
+        let all = list(&[], 0);
+        assert_eq!(all.names, ["a", "a.b", "a.b.c", "ab", "x.y"]);
+        assert_eq!(all.prefixes, ["a", "a.b", "x"]);
+        assert_eq!(list(&[], 1).names, ["a", "ab"]);
+        assert_eq!(list(&["a"], 0).names, ["a", "a.b", "a.b.c"]);
+        assert_eq!(list(&["a"], 2).names, ["a", "a.b"]);
+        let d = describe_parameter("maps.office.filter_type", Some(&Value::Integer(0)));
+        assert!(!d.read_only && d.integer_range.len() == 1);
+        let d = describe_parameter("states.door.model", Some(&Value::String("x".into())));
+        assert!(d.read_only && d.r#type == 4);
+        assert_eq!(describe_parameter("nope", None).r#type, 0);
+    }
+}
