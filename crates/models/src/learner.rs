@@ -45,7 +45,8 @@ use crate::stack::StackedModel;
 
 /// Observations a [`Refitting`] learner keeps unless told otherwise: 2^21 = 2,097,152
 /// (32 MiB). That is 24 days of a state observed every second, four years at one observation
-/// a minute — several weeks, which weekly rhythms need.
+/// a minute — several weeks, which weekly rhythms need — and a refit of `auto` on that many
+/// took 11.5 s (release build, two shared cores; 0.47 s on the 96,480 of the Greg door).
 pub const DEFAULT_KEEP: usize = 1 << 21;
 
 /// Observations per shared chunk of the kept observations: a copy of a learner shares the
