@@ -200,8 +200,8 @@ fn wrong_ros_arguments_are_usage_errors_and_wrong_values_failures_naming_them() 
             "error: -p publish_period:=abc: publish_period: expected a number, found the string \"abc\"".to_string(),
         ),
         (
-            vec!["--ros-args", "--params-file", params.as_str(), "-p", "states.door.model:=fremen:auto"],
-            "error: -p states.door.model:=fremen:auto: states.door.model: `fremen:auto`: learning online needs a fixed order".to_string(),
+            vec!["--ros-args", "--params-file", params.as_str(), "-p", "states.door.model:=fremen:99"],
+            "error: -p states.door.model:=fremen:99: states.door.model: `fremen:99`: order 99 is above the largest order 84".to_string(),
         ),
         (
             vec!["--ros-args", "--params-file", params.as_str(), "-p", "colour:=red"],
@@ -366,6 +366,7 @@ fn parameters_are_ros_parameters_that_rclpy_lists_gets_and_sets() {
             "states.door.depth",
             "states.door.entropy_topic",
             "states.door.model",
+            "states.door.prediction_topic",
             "states.door.probability_topic",
             "states.door.reliability",
             "states.door.topic",

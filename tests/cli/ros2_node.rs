@@ -549,7 +549,7 @@ fn check_lists_the_topics_and_bad_parameter_files_are_refused_by_file_line_and_p
     let bad = write(
         &dir,
         "bad.yaml",
-        PEOPLE_NODE.replace("model: hist:24", "model: fremen:auto"),
+        PEOPLE_NODE.replace("model: hist:24", "model: \"fremen:99\""),
     );
     let message = error(&chronomap(&[
         "ros2",
@@ -560,7 +560,7 @@ fn check_lists_the_topics_and_bad_parameter_files_are_refused_by_file_line_and_p
     assert_mentions(
         &message,
         &[&format!(
-            "error: {}:5: states.door.model: `fremen:auto`: learning online needs a fixed order",
+            "error: {}:5: states.door.model: `fremen:99`: order 99 is above the largest order 84",
             bad.display()
         )],
     );

@@ -17,9 +17,14 @@
 //! assert_eq!(config.states[0].message, StateType::Bool);
 //! assert_eq!(config.states[0].probability_topic, "/chronomap/door/probability");
 //!
-//! let bad = "chronomap:\n  ros__parameters:\n    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fremen:auto\n";
+//! // `auto` keeps the observations and is refitted on them (`refit_observations`,
+//! // `refit_period`, or `~/refit`); `keep` is for such models only.
+//! let auto = yaml.replace("fremen:2", "auto");
+//! let config = NodeConfig::parse("node.yaml".as_ref(), auto.as_bytes(), None)?;
+//! assert!(!config.states[0].learns_online());
+//! let bad = format!("{yaml}        keep: 1000\n");
 //! let error = NodeConfig::parse("node.yaml".as_ref(), bad.as_bytes(), None).unwrap_err();
-//! assert!(error.to_string().starts_with("node.yaml:7: states.door.model: `fremen:auto`: learning online needs a fixed order"));
+//! assert!(error.to_string().starts_with("node.yaml:8: states.door.keep: `fremen:2` learns online and is never refitted"));
 //! # Ok::<(), chronomap_ros2::config::ConfigError>(())
 //! ```
 
@@ -28,7 +33,8 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use chronomap_core::{FremenConfig, FremenModel, Ordered, PeriodSet};
-use chronomap_models::{AnyModel, ModelSpec};
+use chronomap_models::ModelSpec;
+use chronomap_models::learner::{DEFAULT_KEEP, Learner, RefitPolicy};
 
 use crate::msgs::{Bool, Float32, Float64, Message, TypeName};
 use crate::params::{self, Origin, ParamFile, ParamSet, Value};
@@ -39,6 +45,9 @@ pub const DEFAULT_MAX_MAP_CELLS: u64 = 1 << 24;
 
 /// Largest `max_map_cells` accepted: 2³⁰ cells.
 pub const MAX_MAX_MAP_CELLS: u64 = 1 << 30;
+
+/// Most observations a refitted state may keep (2^24: 256 MiB of times and values).
+const MAX_KEEP: u64 = 1 << 24;
 
 /// Longest `sync_period` accepted (s).
 const MAX_SYNC_PERIOD: f64 = 60.0;
@@ -139,22 +148,35 @@ pub struct StateConfig {
     pub topic: String,
     /// The message type.
     pub message: StateType,
-    /// The model learned.
+    /// The model learned: online (`fremen:2`, `hist:24`, ...) or refitted on the kept
+    /// observations (`auto`, `fremen:auto`, ...; [`chronomap_models::learner`]).
     pub model: ModelSpec,
+    /// Observations kept for refits (models fitted on a whole series only).
+    pub keep: usize,
+    /// When a refitted model is refitted (models fitted on a whole series only).
+    pub refit: RefitPolicy,
     /// Subscription settings.
     pub qos: InputQos,
     /// Where p(now + horizon) is published (`std_msgs/msg/Float64`).
     pub probability_topic: String,
     /// Where its entropy in bits is published (`std_msgs/msg/Float64`).
     pub entropy_topic: String,
+    /// Where the stamped prediction is published (`chronomap_msgs/msg/Prediction`: the time it
+    /// is for, p, entropy, the model), if anywhere.
+    pub prediction_topic: Option<String>,
 }
 
 impl StateConfig {
-    /// The empty model of this state.
-    pub fn empty_model(&self) -> AnyModel {
+    /// The learner of this state having seen nothing.
+    pub fn empty_learner(&self) -> Learner {
         self.model
-            .online_model()
+            .learner(self.keep)
             .expect("checked when the configuration was read")
+    }
+
+    /// Whether its model learns online (else it is refitted on the kept observations).
+    pub fn learns_online(&self) -> bool {
+        self.model.online_model().is_ok()
     }
 }
 
@@ -536,6 +558,9 @@ pub fn description(name: &str) -> &'static str {
         (_, "transient_local") => "subscribe transient local (latched publishers only)",
         (_, "probability_topic") => "where p(now + horizon) is published (std_msgs/msg/Float64)",
         (_, "entropy_topic") => "where the entropy of the prediction is published (bits)",
+        (_, "prediction_topic") => {
+            "where the stamped prediction is published (chronomap_msgs/msg/Prediction; \"\" for none)"
+        }
         (_, "frame_id") => "frame of the input and of the published maps",
         (_, "periods") => "candidate periods of every cell's FreMEn model",
         (_, "order") => "order every cell is predicted with",
@@ -622,6 +647,9 @@ impl NodeConfig {
         for s in &self.states {
             outputs.push((s.probability_topic.clone(), Float64::TYPE));
             outputs.push((s.entropy_topic.clone(), Float64::TYPE));
+            if let Some(topic) = &s.prediction_topic {
+                outputs.push((topic.clone(), crate::msgs::Prediction::TYPE));
+            }
         }
         for g in &self.grids {
             outputs.push((g.predicted_topic.clone(), crate::msgs::OccupancyGrid::TYPE));
@@ -689,6 +717,10 @@ impl NodeConfig {
                 text(&s.probability_topic),
             );
             put(format!("{key}.entropy_topic"), text(&s.entropy_topic));
+            put(
+                format!("{key}.prediction_topic"),
+                text(s.prediction_topic.as_deref().unwrap_or("")),
+            );
         }
         for g in &self.grids {
             let key = format!("{}.{}", g.section(), g.name);
@@ -833,11 +865,15 @@ const STATE_KEYS: &[&str] = &[
     "topic",
     "type",
     "model",
+    "keep",
+    "refit_observations",
+    "refit_period",
     "reliability",
     "depth",
     "transient_local",
     "probability_topic",
     "entropy_topic",
+    "prediction_topic",
 ];
 
 /// The parameters of a map (`maps.NAME.LEAF`); people grids have [`PEOPLE_KEYS`] too.
@@ -879,11 +915,15 @@ struct RawState {
     topic: Option<Spanned<String>>,
     message: Option<Spanned<String>>,
     model: Option<Spanned<String>>,
+    keep: Option<Spanned<u64>>,
+    refit_observations: Option<Spanned<u64>>,
+    refit_period: Option<Spanned<f64>>,
     reliability: Option<Spanned<String>>,
     depth: Option<Spanned<u64>>,
     transient_local: Option<Spanned<bool>>,
     probability_topic: Option<Spanned<String>>,
     entropy_topic: Option<Spanned<String>>,
+    prediction_topic: Option<Spanned<String>>,
 }
 
 /// `maps.NAME` and `people.NAME` (the geometry and bin keys are for people only).
@@ -1090,11 +1130,15 @@ impl<'a> Reader<'a> {
             topic: self.text(&k("topic"))?,
             message: self.text(&k("type"))?,
             model: self.text(&k("model"))?,
+            keep: self.integer(&k("keep"))?,
+            refit_observations: self.integer(&k("refit_observations"))?,
+            refit_period: self.number(&k("refit_period"))?,
             reliability: self.text(&k("reliability"))?,
             depth: self.integer(&k("depth"))?,
             transient_local: self.boolean(&k("transient_local"))?,
             probability_topic: self.text(&k("probability_topic"))?,
             entropy_topic: self.text(&k("entropy_topic"))?,
+            prediction_topic: self.text(&k("prediction_topic"))?,
         })
     }
 
@@ -1574,10 +1618,56 @@ impl Checker<'_> {
                     m.value.parse().map_err(|e: chronomap_core::ConfigError| {
                         self.at(m, &format!("{key}.model"), e.to_string())
                     })?;
-                spec.online_model()
+                spec.learner(1)
                     .map_err(|e| self.at(m, &format!("{key}.model"), e.to_string()))?;
                 spec
             }
+        };
+        let online = model.online_model().is_ok();
+        // Keep and refit policy belong to models fitted on a whole series.
+        for (value, leaf) in [
+            (s.keep.as_ref().map(|v| v.origin.clone()), "keep"),
+            (
+                s.refit_observations.as_ref().map(|v| v.origin.clone()),
+                "refit_observations",
+            ),
+            (
+                s.refit_period.as_ref().map(|v| v.origin.clone()),
+                "refit_period",
+            ),
+        ] {
+            if let (true, Some(origin)) = (online, value) {
+                return Err(origin.error(
+                    Some(&format!("{key}.{leaf}")),
+                    format!(
+                        "`{model}` learns online and is never refitted (models fitted on a \
+                         whole series are: auto, fremen:auto, pergam:auto, fft:N, hypertime)"
+                    ),
+                ));
+            }
+        }
+        let keep = match &s.keep {
+            None => DEFAULT_KEEP,
+            Some(v) if (1..=MAX_KEEP).contains(&v.value) => v.value as usize,
+            Some(v) => {
+                return Err(self.at(
+                    v,
+                    &format!("{key}.keep"),
+                    format!("{} is not in 1..={MAX_KEEP} observations", v.value),
+                ));
+            }
+        };
+        let refit = RefitPolicy {
+            observations: s
+                .refit_observations
+                .as_ref()
+                .map_or(RefitPolicy::default().observations, |v| v.value),
+            data_secs: self.seconds(
+                &s.refit_period,
+                &format!("{key}.refit_period"),
+                RefitPolicy::default().data_secs,
+                true,
+            )?,
         };
         let qos = self.qos(
             &RawQos {
@@ -1598,9 +1688,15 @@ impl Checker<'_> {
             topic,
             message,
             model,
+            keep,
+            refit,
             qos,
             probability_topic: output(&s.probability_topic, "probability")?,
             entropy_topic: output(&s.entropy_topic, "entropy")?,
+            prediction_topic: match &s.prediction_topic {
+                Some(v) if v.value.is_empty() => None,
+                other => Some(output(other, "prediction")?),
+            },
         })
     }
 
@@ -1795,14 +1891,48 @@ impl Checker<'_> {
 
     fn distinct_topics(&self, config: &NodeConfig) -> Result<(), ConfigError> {
         let mut seen: BTreeMap<String, String> = BTreeMap::new();
+        let state_of = |key: &str| {
+            config
+                .states
+                .iter()
+                .find(|s| format!("states.{}.topic", s.name) == key)
+        };
         for (topic, _, key) in config.inputs() {
-            if let Some(other) = seen.insert(topic.clone(), key.clone()) {
-                return Err(self.error(
-                    None,
-                    Some(key),
-                    format!("{topic} is also the topic of {other} (each input topic once)"),
-                ));
+            if let Some(other) = seen.get(&topic) {
+                // Several states (several models) may learn one topic, read once.
+                match (state_of(&key), state_of(other)) {
+                    (Some(a), Some(b)) if a.message == b.message && a.qos == b.qos => continue,
+                    (Some(a), Some(b)) => {
+                        let why = if a.message == b.message {
+                            "another reliability, depth or transient_local (states of one \
+                             topic share its subscription)"
+                                .to_string()
+                        } else {
+                            format!(
+                                "type {}, not {} (states of one topic share its type)",
+                                b.message.type_name(),
+                                a.message.type_name()
+                            )
+                        };
+                        return Err(self.error(
+                            None,
+                            Some(key.clone()),
+                            format!("{topic} is also the topic of states.{}, with {why}", b.name),
+                        ));
+                    }
+                    _ => {
+                        return Err(self.error(
+                            None,
+                            Some(key),
+                            format!(
+                                "{topic} is also the topic of {other} (an input topic is read \
+                                 once; only states may share one)"
+                            ),
+                        ));
+                    }
+                }
             }
+            seen.insert(topic, key);
         }
         let mut outputs: BTreeMap<String, ()> = BTreeMap::new();
         for (topic, _) in config.outputs() {

@@ -32,6 +32,8 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use chronomap_models::learner::Refit;
+
 use crate::msgs::{OccupancyGrid, PoseArray};
 
 /// First bytes of every segment: the format and its version.
@@ -48,7 +50,7 @@ const FLAG_DEFLATE: u8 = 1;
 const SEGMENT_EXTENSION: &str = "cmj";
 
 /// One learned message.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Entry<'a> {
     /// A state observation (`states.NAME`) at the node's time of receipt.
     State {
@@ -79,6 +81,21 @@ pub enum Entry<'a> {
         /// The grid's name.
         name: Cow<'a, str>,
     },
+    /// A state's model fitted on a whole series was refitted: the fit itself, installed again
+    /// at this place on replay (a fit may take seconds; a replay does not repeat it).
+    Refit {
+        /// The state's name.
+        name: Cow<'a, str>,
+        /// The fit.
+        refit: Box<Refit>,
+    },
+}
+
+/// Entries are equal when they encode to the same bytes (what the journal holds).
+impl PartialEq for Entry<'_> {
+    fn eq(&self, other: &Self) -> bool {
+        postcard::to_allocvec(self).ok() == postcard::to_allocvec(other).ok()
+    }
 }
 
 impl Entry<'_> {
@@ -88,7 +105,8 @@ impl Entry<'_> {
             Entry::State { name, .. }
             | Entry::Map { name, .. }
             | Entry::People { name, .. }
-            | Entry::BinClosed { name } => name,
+            | Entry::BinClosed { name }
+            | Entry::Refit { name, .. } => name,
         }
     }
 }

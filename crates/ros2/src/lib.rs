@@ -53,4 +53,4 @@ pub use config::{ConfigError, NodeConfig};
 /// The logging facade the node logs through (re-exported for the logger of the command line).
 pub use log;
 pub use node::{NodeError, Summary};
-pub use world::{LearnError, StoreError, World};
+pub use world::{LearnError, Saved, StoreError, World};

@@ -21,6 +21,9 @@
 //! | `lifecycle_msgs/srv/GetState` | (empty) → `State current_state` |
 //! | `lifecycle_msgs/srv/GetAvailableStates` | (empty) → `State[] available_states` |
 //! | `lifecycle_msgs/srv/GetAvailableTransitions`, `GetTransitionGraph` | (empty) → `TransitionDescription[] available_transitions` |
+//! | `std_srvs/srv/Trigger` | (empty) → `bool success`, `string message` |
+//! | `chronomap_msgs/msg/Prediction` | `Header header`, `string name`, `string model`, `float64 probability`, `float64 entropy`, `Time made`, `uint64 observations` |
+//! | `chronomap_msgs/srv/Predict` | `string name`, `Time[] times` → `bool success`, `string message`, `string model`, `float64[] probability`, `float64[] entropy` |
 //!
 //! An empty request is one `uint8` (`structure_needs_at_least_one_member`), as rosidl
 //! generates it for DDS. The parameter services (`rcl_interfaces`) and `/rosout`
@@ -372,12 +375,69 @@ pub struct GetAvailableTransitionsResponse {
     pub available_transitions: Vec<TransitionDescription>,
 }
 
+/// `chronomap_msgs/msg/Prediction`: a state's prediction stamped with the time it is for
+/// (`ros/chronomap_msgs/msg/Prediction.msg`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Prediction {
+    /// `stamp`: the time the prediction is for; `frame_id`: empty.
+    pub header: Header,
+    /// The state (`states.NAME`).
+    pub name: String,
+    /// The model's spec (`fremen:2`, `auto`, ...).
+    pub model: String,
+    /// p(the state is 1) at `header.stamp`, in [0, 1].
+    pub probability: f64,
+    /// Binary entropy of `probability`, bits.
+    pub entropy: f64,
+    /// The node's time when it predicted.
+    pub made: Time,
+    /// Observations the model has learned.
+    pub observations: u64,
+}
+message!(Prediction, "chronomap_msgs", "Prediction");
+
+/// `chronomap_msgs/srv/Predict` request: a state and the times to predict it at.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PredictRequest {
+    /// The state (`states.NAME`).
+    pub name: String,
+    /// When.
+    pub times: Vec<Time>,
+}
+
+/// `chronomap_msgs/srv/Predict` response.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PredictResponse {
+    /// Whether the state exists and was predicted.
+    pub success: bool,
+    /// Why not, when `success` is false.
+    pub message: String,
+    /// The model's spec.
+    pub model: String,
+    /// p at each time.
+    pub probability: Vec<f64>,
+    /// The entropy at each time, bits.
+    pub entropy: Vec<f64>,
+}
+
+/// `std_srvs/srv/Trigger` response (its request is an [`EmptyRequest`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TriggerResponse {
+    /// Whether it was done.
+    pub success: bool,
+    /// What was done, or why not.
+    pub message: String,
+}
+
 macro_rules! service_message {
     ($($type:ident),*) => {
         $(impl ros2_client::Message for $type {})*
     };
 }
 service_message!(
+    PredictRequest,
+    PredictResponse,
+    TriggerResponse,
     EmptyRequest,
     ChangeStateRequest,
     ChangeStateResponse,

@@ -36,7 +36,7 @@ use chronomap_io::{
     GridFile, ModelFileError, TopoFileError, read_any_model, read_edge_models, read_grid_file,
     write_any_model, write_grid_file, write_route_geojson,
 };
-use chronomap_models::AnyModel;
+use chronomap_models::learner::{Learner, Refit, RefitError, RefitJob};
 use chronomap_topo::edges::EdgeModels;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -44,7 +44,8 @@ use thiserror::Error;
 use crate::config::{GridEntry, GridSource, MapValues, NodeConfig, StateConfig};
 use crate::journal::{Entry, Journal, JournalError, JournalSettings};
 use crate::msgs::{
-    CostmapFilterInfo, Header, MapMetaData, OccupancyGrid, Point, Pose, PoseArray, Quaternion, Time,
+    CostmapFilterInfo, Header, MapMetaData, OccupancyGrid, Point, Pose, PoseArray, Prediction,
+    Quaternion, Time,
 };
 
 /// Free threshold of the maps `chronomap grid predict` writes (ROS 1 map_saver's, so that the
@@ -120,6 +121,9 @@ pub enum LearnError {
     /// What the grid refused.
     #[error(transparent)]
     Grid(#[from] GridError),
+    /// A refit that cannot be installed (on replay).
+    #[error(transparent)]
+    Refit(RefitError),
 }
 
 /// Why models could not be restored or saved.
@@ -159,7 +163,7 @@ pub enum StoreError {
 
 /// A state and what it learned.
 struct StateSlot {
-    model: AnyModel,
+    model: Learner,
     learned: u64,
     record: Option<BufWriter<File>>,
 }
@@ -237,6 +241,39 @@ pub struct Restored {
     pub grids: Vec<(u64, u64)>,
     /// The journal position learning goes on at.
     pub position: u64,
+}
+
+/// What a checkpoint ([`World::save`]) wrote.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Saved {
+    /// Its number since the node started (1, 2, ...).
+    pub checkpoint: u64,
+    /// The journal position it covers.
+    pub position: u64,
+    /// Model and grid files written.
+    pub files: usize,
+    /// Their bytes.
+    pub bytes: u64,
+    /// How long it took.
+    pub millis: u64,
+    /// Journal segments deleted (covered by it).
+    pub segments_deleted: usize,
+}
+
+impl std::fmt::Display for Saved {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "checkpoint {} at journal position {}: {} files, {:.1} MB in {} ms; {} journal \
+             segments deleted",
+            self.checkpoint,
+            self.position,
+            self.files,
+            self.bytes as f64 / 1e6,
+            self.millis,
+            self.segments_deleted
+        )
+    }
 }
 
 /// Where learning is made durable.
@@ -365,7 +402,11 @@ impl World {
         for s in &config.states {
             let model = match config.save_dir.as_ref().map(|d| state_file(d, s)) {
                 Some(file) if file.exists() => restore_state(&file, s)?,
-                _ => s.empty_model(),
+                Some(file) => {
+                    refuse_other_kind(&file, s)?;
+                    s.empty_learner()
+                }
+                None => s.empty_learner(),
             };
             let record = match (&config.save_dir, config.record_observations) {
                 (Some(dir), true) => {
@@ -540,6 +581,19 @@ impl World {
                 let learned = self.learn_people(index, message, Some(seq));
                 restored.grids[index].1 += self.grids[index].frames - before;
                 learned
+            }
+            Entry::Refit { refit, .. } => {
+                let Some(index) = self.config.states.iter().position(|s| s.name == name) else {
+                    restored.unknown += 1;
+                    return;
+                };
+                if seq < state_covers[index] {
+                    return;
+                }
+                self.states[index]
+                    .model
+                    .install(Refit::clone(refit))
+                    .map_err(LearnError::Refit)
             }
             Entry::BinClosed { .. } => {
                 let Some(index) = self.grid_index(name, false) else {
@@ -922,9 +976,39 @@ impl World {
         (states, grids)
     }
 
-    /// The model of state `index`.
-    pub fn state_model(&self, index: usize) -> &AnyModel {
+    /// The learner of state `index`: its model, or (specs fitted on a whole series) its kept
+    /// observations and last fit.
+    pub fn state_model(&self, index: usize) -> &Learner {
         &self.states[index].model
+    }
+
+    /// Whether state `index` learns a model fitted on a whole series whose refit policy
+    /// (`refit_observations`, `refit_period`) calls for a refit now.
+    pub fn refit_due(&self, index: usize) -> bool {
+        self.states[index]
+            .model
+            .is_due(&self.config.states[index].refit)
+    }
+
+    /// The kept observations of state `index` for a refit ([`RefitJob::run`], on any thread),
+    /// `None` for models that learn online.
+    pub fn refit_job(&self, index: usize) -> Option<RefitJob> {
+        self.states[index].model.refit_job()
+    }
+
+    /// Puts a refit of state `index` in place and journals it (the fitted model itself, so
+    /// that a restart installs it at the same place without fitting again).
+    ///
+    /// # Errors
+    /// As [`Learner::install`]; nothing changes then.
+    pub fn install_refit(&mut self, index: usize, refit: Refit) -> Result<(), RefitError> {
+        self.states[index].model.install(refit.clone())?;
+        let entry = Entry::Refit {
+            name: Cow::Borrowed(&self.config.states[index].name),
+            refit: Box::new(refit),
+        };
+        journal(&mut self.durable, &entry);
+        Ok(())
     }
 
     /// The grid of entry `index`, once it has one.
@@ -936,6 +1020,26 @@ impl World {
     pub fn predict_state(&self, index: usize, time: f64) -> (f64, f64) {
         let model = &self.states[index].model;
         (model.predict(time), model.entropy(time))
+    }
+
+    /// The prediction of state `index` for `time`, made at `made` (the node's time), as
+    /// `chronomap_msgs/msg/Prediction`: stamped with `time`, with p, its entropy, the model's
+    /// spec and its observation count.
+    pub fn state_prediction(&self, index: usize, time: f64, made: Time) -> Prediction {
+        let model = &self.states[index].model;
+        let (probability, entropy) = self.predict_state(index, time);
+        Prediction {
+            header: Header {
+                stamp: Time::from_seconds(time),
+                frame_id: String::new(),
+            },
+            name: self.config.states[index].name.clone(),
+            model: self.config.states[index].model.to_string(),
+            probability,
+            entropy,
+            made,
+            observations: model.span().count,
+        }
     }
 
     /// The predicted map of grid `index` at `time` (and its mask), stamped `stamp`; `None`
@@ -1080,10 +1184,12 @@ impl World {
     /// checkpoint and the whole journal (the `.next-H` files are deleted at start); a crash
     /// after it is completed at start by the renames.
     ///
+    /// Returns what it wrote (`None` without `save_dir`).
+    ///
     /// # Errors
     /// A folder or file that cannot be written; the previous checkpoint and the journal then
     /// still hold everything.
-    pub fn save(&mut self, finish: bool) -> Result<(), StoreError> {
+    pub fn save(&mut self, finish: bool) -> Result<Option<Saved>, StoreError> {
         if finish {
             for index in 0..self.grids.len() {
                 if let Err(e) = self.close_bin_journaled(index) {
@@ -1092,7 +1198,7 @@ impl World {
             }
         }
         let Some(durable) = &mut self.durable else {
-            return Ok(());
+            return Ok(None);
         };
         let started = Instant::now();
         let dir = durable.dir.clone();
@@ -1112,7 +1218,10 @@ impl World {
                 let file = state_file(&dir, s);
                 let next = next_name(&file, head);
                 make_parent(&file)?;
-                write_any_model(&next, &slot.model)?;
+                match &slot.model {
+                    Learner::Online(model) => write_any_model(&next, model)?,
+                    learner => write_model_file(&next, LEARNER_KIND, learner)?,
+                }
                 let record = record_file(&dir, s);
                 let io = |source| StoreError::Io {
                     path: record.display().to_string(),
@@ -1177,16 +1286,16 @@ impl World {
             .unwrap_or(head);
         let forgotten = durable.journal.forget_before(keep)?;
         durable.checkpoints += 1;
-        log::info!(
-            "checkpoint {} at journal position {head}: {} states, {} grids, {:.1} MB in {} ms; \
-             {forgotten} journal segments deleted",
-            durable.checkpoints,
-            self.states.len(),
-            written.len() - self.states.len(),
-            bytes as f64 / 1e6,
-            started.elapsed().as_millis()
-        );
-        Ok(())
+        let saved = Saved {
+            checkpoint: durable.checkpoints,
+            position: head,
+            files: written.len(),
+            bytes,
+            millis: started.elapsed().as_millis() as u64,
+            segments_deleted: forgotten,
+        };
+        log::info!("{saved}");
+        Ok(Some(saved))
     }
 }
 
@@ -1335,9 +1444,12 @@ fn recover_checkpoint(dir: &Path) -> Result<Manifest, StoreError> {
     Ok(manifest)
 }
 
-/// `dir/states/NAME.cmm`.
+/// `dir/states/NAME.cmm` (a model file as `chronomap fit` writes it), or `NAME.cml` for a model
+/// fitted on a whole series (its kept observations and last fit, kind `learner`).
 pub fn state_file(dir: &Path, state: &StateConfig) -> PathBuf {
-    dir.join("states").join(format!("{}.cmm", state.name))
+    let extension = if state.learns_online() { "cmm" } else { "cml" };
+    dir.join("states")
+        .join(format!("{}.{extension}", state.name))
 }
 
 /// `dir/states/NAME.txt`: the learned observations as `t value` lines.
@@ -1397,20 +1509,72 @@ fn mismatch(file: &Path, name: &str, reason: impl std::fmt::Display) -> StoreErr
     }
 }
 
-fn restore_state(file: &Path, state: &StateConfig) -> Result<AnyModel, StoreError> {
-    let model = read_any_model(file)?;
-    if model.spec() != state.model {
+/// Kind of the files of refitted learners (`states/NAME.cml`).
+const LEARNER_KIND: &str = "learner";
+
+fn restore_state(file: &Path, state: &StateConfig) -> Result<Learner, StoreError> {
+    let mismatch = |reason: String| StoreError::Mismatch {
+        file: file.display().to_string(),
+        reason,
+    };
+    let learner = if state.learns_online() {
+        Learner::Online(read_any_model(file)?)
+    } else {
+        let (kind, learner): (String, Learner) = read_model_file(file)?;
+        if kind != LEARNER_KIND || !learner.is_consistent() {
+            return Err(mismatch(format!(
+                "not the kept observations and fit of a refitted model (kind `{kind}`{})",
+                if learner.is_consistent() {
+                    ""
+                } else {
+                    ", inconsistent"
+                }
+            )));
+        }
+        learner
+    };
+    if learner.spec() != state.model {
+        return Err(mismatch(format!(
+            "it holds a `{}` model, but states.{}.model is `{}`",
+            learner.spec(),
+            state.name,
+            state.model
+        )));
+    }
+    if learner.keep().is_some_and(|k| k != state.keep) {
+        log::info!(
+            "{}: kept {} observations at most, states.{}.keep is now {}: it applies from the \
+             next observation",
+            file.display(),
+            learner.keep().unwrap_or(0),
+            state.name,
+            state.keep
+        );
+    }
+    Ok(learner)
+}
+
+/// An error if the file of the other kind of learner for `state` is there (a model learning
+/// online saved as `.cmm`, refitted as `.cml`): the model changed and the old one would be
+/// left behind silently.
+fn refuse_other_kind(file: &Path, state: &StateConfig) -> Result<(), StoreError> {
+    let other = file.with_extension(if state.learns_online() { "cml" } else { "cmm" });
+    if other.exists() {
+        let spec = if state.learns_online() {
+            read_model_file::<Learner>(&other).map(|(_, l)| l.spec().to_string())
+        } else {
+            read_any_model(&other).map(|m| m.spec().to_string())
+        }
+        .unwrap_or_else(|_| "another".into());
         return Err(StoreError::Mismatch {
-            file: file.display().to_string(),
+            file: other.display().to_string(),
             reason: format!(
-                "it holds a `{}` model, but states.{}.model is `{}`",
-                model.spec(),
-                state.name,
-                state.model
+                "it holds a `{spec}` model, but states.{}.model is `{}`",
+                state.name, state.model
             ),
         });
     }
-    Ok(model)
+    Ok(())
 }
 
 fn restore_grid(file: &Path, entry: &GridEntry) -> Result<FremenGrid, StoreError> {

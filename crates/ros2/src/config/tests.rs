@@ -141,7 +141,8 @@ fn a_full_file_is_read_with_its_defaults_resolved() {
             "/people"
         ]
     );
-    assert_eq!(c.outputs().len(), 4 + 3 + 1);
+    // Per state p, entropy and the stamped prediction; per grid its map (and mask, info).
+    assert_eq!(c.outputs().len(), 6 + 3 + 1);
 }
 
 #[test]
@@ -246,8 +247,16 @@ fn errors_name_the_file_the_line_and_the_parameter() {
             "cfg/node.yaml:4: states.door.topic: missing (required)",
         ),
         (
-            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fft:3\n",
-            "cfg/node.yaml:7: states.door.model: `fft:3` is fitted offline",
+            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fremen:99\n",
+            "cfg/node.yaml:7: states.door.model: ",
+        ),
+        (
+            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        keep: 1000\n",
+            "cfg/node.yaml:7: states.door.keep: `fremen:2` learns online and is never refitted",
+        ),
+        (
+            "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: auto\n        keep: 0\n",
+            "cfg/node.yaml:8: states.door.keep: 0 is not in 1..=16777216 observations",
         ),
         (
             "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        model: fremen:x\n",
@@ -270,8 +279,16 @@ fn errors_name_the_file_the_line_and_the_parameter() {
             "cfg/node.yaml:4: states.my-door: the name \"my-door\" is not a ROS name token",
         ),
         (
-            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n      b: {topic: /x, type: std_msgs/msg/Bool}\n",
-            "cfg/node.yaml: states.b.topic: /x is also the topic of states.a.topic",
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n      b: {topic: /x, type: std_msgs/msg/Float64}\n",
+            "cfg/node.yaml: states.b.topic: /x is also the topic of states.a, with type std_msgs/msg/Bool, not std_msgs/msg/Float64 (states of one topic share its type)",
+        ),
+        (
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n      b: {topic: /x, type: std_msgs/msg/Bool, depth: 7}\n",
+            "cfg/node.yaml: states.b.topic: /x is also the topic of states.a, with another reliability, depth or transient_local",
+        ),
+        (
+            "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool}\n    maps:\n      m: {topic: /x}\n",
+            "cfg/node.yaml: maps.m.topic: /x is also the topic of states.a.topic (an input topic is read once; only states may share one)",
         ),
         (
             "    states:\n      a: {topic: /x, type: std_msgs/msg/Bool, probability_topic: /y}\n    maps:\n      m: {topic: /y}\n",
@@ -417,7 +434,7 @@ fn ros_arguments_rename_remap_and_override_the_file() {
     );
     // The declared parameters: every one, defaults filled in, names resolved.
     let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
-    assert_eq!(declared.len(), 17);
+    assert_eq!(declared.len(), 18);
     assert_eq!(declared["horizon"], Value::Double(7.5));
     assert_eq!(declared["sync_period"], Value::Double(1.0));
     assert_eq!(declared["sync_messages"], Value::Integer(1000));
@@ -465,5 +482,38 @@ fn ros_arguments_rename_remap_and_override_the_file() {
             .unwrap()
             .fully_qualified_name(),
         "/chronomap"
+    );
+}
+
+#[test]
+fn several_models_learn_one_state_topic() {
+    let config = NodeConfig::parse(
+        Path::new("cfg/node.yaml"),
+        b"chronomap:\n  ros__parameters:\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool}\n      door_daily: {topic: /door, type: std_msgs/msg/Bool, model: \"hist:24\", prediction_topic: \"\"}\n",
+        None,
+    )
+    .unwrap();
+    let topics: Vec<(&str, &str)> = config
+        .states
+        .iter()
+        .map(|s| (s.name.as_str(), s.topic.as_str()))
+        .collect();
+    assert_eq!(topics, [("door", "/door"), ("door_daily", "/door")]);
+    assert_eq!(config.states[1].model.to_string(), "hist:24");
+    assert_eq!(
+        config.states[0].prediction_topic.as_deref(),
+        Some("/chronomap/door/prediction")
+    );
+    assert_eq!(config.states[1].prediction_topic, None);
+    let outputs: Vec<String> = config.outputs().into_iter().map(|(t, _)| t).collect();
+    assert_eq!(
+        outputs,
+        [
+            "/chronomap/door/probability",
+            "/chronomap/door/entropy",
+            "/chronomap/door/prediction",
+            "/chronomap/door_daily/probability",
+            "/chronomap/door_daily/entropy",
+        ]
     );
 }

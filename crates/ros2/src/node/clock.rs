@@ -51,7 +51,8 @@ impl SimClock {
 
 /// A state received with `use_sim_time`, waiting for the cutoff.
 pub(super) struct Pending {
-    pub(super) index: usize,
+    /// The state input (topic) it arrived on.
+    pub(super) input: usize,
     pub(super) received: i64,
     pub(super) value: f64,
 }

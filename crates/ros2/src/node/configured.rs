@@ -8,25 +8,29 @@ use ros2_client::Node;
 use ros2_client::dds::rustdds::mio1::Poll;
 
 use super::clock::{Pending, SIM_LATENCY_NS, Schedule, SimClock, received_ns, system_now_ns};
-use super::io::{GridReader, Io, WriterCheck};
+use super::io::{GridReader, Io, StateInput, WriterCheck};
+use super::refits::Refits;
 use super::throttle::{Throttle, log_due, throttle};
 use super::{MAX_TAKE, NodeError, Summary};
 use crate::config::NodeConfig;
 use crate::msgs::{Float64, Time};
 use crate::world::{StoreError, World};
 
-/// Learns a state, logging what is refused.
+/// Learns a value of a state topic with every state of it, logging what is refused (once per
+/// topic and reason, whichever state refused it).
 pub(super) fn learn_state(
     world: &mut World,
     throttles: &mut BTreeMap<String, Throttle>,
-    topic: &str,
-    index: usize,
+    input: &StateInput,
     time: f64,
     value: f64,
 ) {
-    match world.observe_state(index, time, value) {
-        Ok(()) => log::trace!("{topic}: learned {value} at {time}"),
-        Err(e) => throttle(throttles, topic).error(topic, || e.to_string()),
+    let topic = &input.topic;
+    for &index in &input.states {
+        match world.observe_state(index, time, value) {
+            Ok(()) => log::trace!("{topic}: learned {value} at {time}"),
+            Err(e) => throttle(throttles, topic).error(topic, || e.to_string()),
+        }
     }
 }
 
@@ -44,6 +48,7 @@ pub(super) struct Configured {
     pub(super) infos_published: bool,
     pub(super) last_save: Instant,
     pub(super) waiting_for_clock_logged: bool,
+    pub(super) refits: Refits,
 }
 
 impl Configured {
@@ -56,6 +61,7 @@ impl Configured {
     ) -> Result<Configured, NodeError> {
         let world = World::new(config.clone())?;
         let (io, inputs) = Io::open(node, &config, poll)?;
+        let refits = Refits::new(config.states.len());
         Ok(Configured {
             sim_clock: config.use_sim_time.then(SimClock::default),
             config,
@@ -74,6 +80,7 @@ impl Configured {
             infos_published: false,
             last_save: Instant::now(),
             waiting_for_clock_logged: false,
+            refits,
         })
     }
 
@@ -113,8 +120,9 @@ impl Configured {
             infos_published,
             last_save,
             waiting_for_clock_logged,
+            refits,
         } = self;
-        let states = &io.states;
+        let inputs = &io.state_inputs;
         let grids = &io.grids;
         check.scan(context);
         // With simulated time, what was received before the cutoff is complete.
@@ -139,7 +147,7 @@ impl Configured {
                 }
             }
         }
-        for (index, s) in states.iter().enumerate() {
+        for (input, s) in inputs.iter().enumerate() {
             for _ in 0..MAX_TAKE {
                 match s.reader.take() {
                     Ok(Some((value, info))) => {
@@ -149,13 +157,13 @@ impl Configured {
                         let received = received_ns(&info);
                         if sim_clock.is_some() {
                             pending.push_back(Pending {
-                                index,
+                                input,
                                 received,
                                 value,
                             });
                         } else {
                             let time = received as f64 / 1e9;
-                            learn_state(world, throttles, &s.topic, index, time, value);
+                            learn_state(world, throttles, s, time, value);
                         }
                     }
                     Ok(None) => break,
@@ -170,10 +178,11 @@ impl Configured {
                     waiting.push_back(p);
                     continue;
                 }
-                let topic = &states[p.index].topic;
+                let input = &inputs[p.input];
+                let topic = &input.topic;
                 match clock.at(p.received) {
                     Some(time) => {
-                        learn_state(world, throttles, topic, p.index, time, p.value);
+                        learn_state(world, throttles, input, time, p.value);
                     }
                     None => throttle(throttles, topic).error(topic, || {
                         "a state before the first /clock message (use_sim_time): not learned".into()
@@ -228,6 +237,7 @@ impl Configured {
             }
         }
         log_due(throttles, false);
+        refits.step(world);
         // What was learned is durable once the journal is synced (at most `sync_period`).
         world.sync_journal(Instant::now());
 
@@ -275,12 +285,21 @@ impl Configured {
             }
         }
         if schedules[0].due(now, config.publish_period) {
-            for (index, s) in states.iter().enumerate() {
-                let (p, h) = world.predict_state(index, target);
-                for (publisher, data) in [(&s.probability, p), (&s.entropy, h)] {
+            for (index, s) in io.states.iter().enumerate() {
+                let prediction = world.state_prediction(index, target, stamp);
+                let name = &config.states[index].name;
+                for (publisher, data) in [
+                    (&s.probability, prediction.probability),
+                    (&s.entropy, prediction.entropy),
+                ] {
                     if let Err(e) = publisher.publish(Float64 { data }) {
-                        log::error!("{}: cannot publish a prediction: {e}", s.topic);
+                        log::error!("states.{name}: cannot publish a prediction: {e}");
                     }
+                }
+                if let Some(publisher) = &s.prediction
+                    && let Err(e) = publisher.publish(prediction)
+                {
+                    log::error!("states.{name}: cannot publish a prediction: {e}");
                 }
             }
         }
@@ -315,20 +334,13 @@ impl Configured {
         if let Some(clock) = &self.sim_clock {
             for p in self.pending.drain(..) {
                 if let Some(time) = clock.at(p.received) {
-                    let topic = &self.io.states[p.index].topic;
-                    learn_state(
-                        &mut self.world,
-                        &mut self.throttles,
-                        topic,
-                        p.index,
-                        time,
-                        p.value,
-                    );
+                    let input = &self.io.state_inputs[p.input];
+                    learn_state(&mut self.world, &mut self.throttles, input, time, p.value);
                 }
             }
         }
         log_due(&mut self.throttles, true);
-        self.world.save(true)
+        self.world.save(true).map(drop)
     }
 
     /// What it learned.

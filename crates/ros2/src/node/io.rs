@@ -14,8 +14,8 @@ use ros2_client::{
 use super::{CHECK_WRITERS, NodeError};
 use crate::config::{GridSource, InputQos, NodeConfig, Reliability, Setup, StateType};
 use crate::msgs::{
-    Bool, Clock, CostmapFilterInfo, Float32, Float64, Message, OccupancyGrid, PoseArray, TypeName,
-    ros_type_of_dds,
+    Bool, Clock, CostmapFilterInfo, Float32, Float64, Message, OccupancyGrid, PoseArray,
+    Prediction, TypeName, ros_type_of_dds,
 };
 
 /// A subscription of a state topic.
@@ -62,11 +62,19 @@ pub(super) enum GridReader {
     People(Subscription<PoseArray>),
 }
 
-pub(super) struct StateIo {
+/// A state topic and the states learned from it (several models may learn one topic).
+pub(super) struct StateInput {
     pub(super) topic: String,
     pub(super) reader: StateReader,
+    /// Indices of the states in the configuration.
+    pub(super) states: Vec<usize>,
+}
+
+/// What a state publishes.
+pub(super) struct StateOutput {
     pub(super) probability: Publisher<Float64>,
     pub(super) entropy: Publisher<Float64>,
+    pub(super) prediction: Option<Publisher<Prediction>>,
 }
 
 pub(super) struct GridIo {
@@ -261,7 +269,9 @@ impl Builder<'_> {
 /// The subscriptions and publishers of a configured node.
 pub(super) struct Io {
     pub(super) clock: Option<Subscription<Clock>>,
-    pub(super) states: Vec<StateIo>,
+    pub(super) state_inputs: Vec<StateInput>,
+    /// Per state, in configuration order.
+    pub(super) states: Vec<StateOutput>,
     pub(super) grids: Vec<GridIo>,
 }
 
@@ -292,8 +302,23 @@ impl Io {
         } else {
             None
         };
+        let mut state_inputs: Vec<StateInput> = Vec::new();
         let mut states = Vec::new();
-        for s in &config.states {
+        for (index, s) in config.states.iter().enumerate() {
+            states.push(StateOutput {
+                probability: b.writer(&s.probability_topic)?,
+                entropy: b.writer(&s.entropy_topic)?,
+                prediction: match &s.prediction_topic {
+                    Some(topic) => Some(b.writer(topic)?),
+                    None => None,
+                },
+            });
+            // States of one topic share its subscription (the configuration checked that
+            // they agree on type and QoS).
+            if let Some(input) = state_inputs.iter_mut().find(|i| i.topic == s.topic) {
+                input.states.push(index);
+                continue;
+            }
             let qos = qos_of(&s.qos);
             let (reader, dds) = match s.message {
                 StateType::Bool => {
@@ -317,11 +342,10 @@ impl Io {
                     parameter: format!("states.{}.type", s.name),
                 },
             );
-            states.push(StateIo {
+            state_inputs.push(StateInput {
                 topic: s.topic.clone(),
                 reader,
-                probability: b.writer(&s.probability_topic)?,
-                entropy: b.writer(&s.entropy_topic)?,
+                states: vec![index],
             });
         }
         let mut grids = Vec::new();
@@ -362,6 +386,7 @@ impl Io {
         }
         let mut io = Io {
             clock,
+            state_inputs,
             states,
             grids,
         };
@@ -370,7 +395,7 @@ impl Io {
             poll.registry()
                 .register(reader, token, Interest::READABLE)?;
         }
-        for s in &mut io.states {
+        for s in &mut io.state_inputs {
             s.reader.register(poll, token)?;
         }
         for g in &mut io.grids {
@@ -389,7 +414,7 @@ impl Io {
         if let Some(reader) = &mut self.clock {
             results.push(r.deregister(reader));
         }
-        for s in &mut self.states {
+        for s in &mut self.state_inputs {
             results.push(s.reader.deregister(poll));
         }
         for g in &mut self.grids {

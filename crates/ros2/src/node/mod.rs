@@ -52,7 +52,7 @@ use crate::config::{self, ConfigError, NodeConfig, Setup};
 use crate::lifecycle::{self, Machine, Outcome, State};
 use crate::msgs::{
     ChangeStateResponse, GetAvailableStatesResponse, GetAvailableTransitionsResponse,
-    GetStateResponse, LifecycleTransition, TransitionEvent,
+    GetStateResponse, LifecycleTransition, TransitionEvent, TriggerResponse,
 };
 use crate::params::{self, Origin, Value};
 use crate::rosout;
@@ -61,6 +61,7 @@ use crate::world::{Learned, StoreError};
 mod clock;
 mod configured;
 mod io;
+mod refits;
 mod services;
 mod throttle;
 
@@ -68,8 +69,8 @@ use clock::system_now_ns;
 use configured::Configured;
 use io::Builder;
 use services::{
-    LifecycleServers, ParamServers, describe_parameter, description, list_parameters, serve,
-    state_msg,
+    LifecycleServers, ModelServers, ParamServers, describe_parameter, description, list_parameters,
+    predict_answer, serve, state_msg,
 };
 
 /// Longest wait for messages and requests before the node looks at its clock and schedules
@@ -422,6 +423,67 @@ impl Host<'_> {
         }
     }
 
+    /// Answers `~/predict` and `~/save`.
+    fn serve_models(&mut self, s: &ModelServers) {
+        serve(&s.predict, "predict", |request| {
+            predict_answer(self.configured.as_ref().map(|c| &c.world), &request)
+        });
+        serve(&s.save, "save", |_| match &mut self.configured {
+            None => TriggerResponse {
+                success: false,
+                message: "the node is not configured (lifecycle configure first)".into(),
+            },
+            Some(c) => match c.world.save(false) {
+                Ok(Some(saved)) => {
+                    c.last_save = std::time::Instant::now();
+                    TriggerResponse {
+                        success: true,
+                        message: saved.to_string(),
+                    }
+                }
+                Ok(None) => TriggerResponse {
+                    success: false,
+                    message: "nothing to save: the node has no save_dir".into(),
+                },
+                Err(e) => {
+                    log::error!("save: {e}");
+                    TriggerResponse {
+                        success: false,
+                        message: e.to_string(),
+                    }
+                }
+            },
+        });
+    }
+
+    /// Answers `~/refit`: every model fitted on a whole series is refitted at the next
+    /// round; the outcome is logged.
+    fn serve_refit(&mut self, s: &ModelServers) {
+        serve(&s.refit, "refit", |_| match &mut self.configured {
+            None => TriggerResponse {
+                success: false,
+                message: "the node is not configured (lifecycle configure first)".into(),
+            },
+            Some(c) => {
+                let names = c.refits.request(&c.world);
+                if names.is_empty() {
+                    TriggerResponse {
+                        success: false,
+                        message: "no state is refitted: every model learns online".into(),
+                    }
+                } else {
+                    TriggerResponse {
+                        success: true,
+                        message: format!(
+                            "refits of states.{} start now; their outcome is logged",
+                            names.join(", states.")
+                        ),
+                    }
+                }
+            }
+        });
+    }
+
     fn serve_parameters(&mut self, s: &ParamServers) {
         serve(&s.get, "get_parameters", |r| GetParametersResponse {
             values: r
@@ -586,6 +648,7 @@ impl Host<'_> {
             node: &mut self.node,
         };
         let param_servers = ParamServers::new(&mut b, &self.setup, &self.poll)?;
+        let model_servers = ModelServers::new(&mut b, &self.setup, &self.poll)?;
         let lifecycle_servers = if self.managed {
             Some(LifecycleServers::new(&mut b, &self.setup, &self.poll)?)
         } else {
@@ -603,6 +666,8 @@ impl Host<'_> {
                 Err(e) => return Err(e.into()),
             }
             self.serve_parameters(&param_servers);
+            self.serve_models(&model_servers);
+            self.serve_refit(&model_servers);
             if let Some(servers) = &lifecycle_servers {
                 self.serve_lifecycle(servers);
             }

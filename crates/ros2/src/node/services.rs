@@ -1,5 +1,5 @@
-//! The node's services: the `rcl_interfaces` parameter services and, managed, the
-//! `lifecycle_msgs` services.
+//! The node's services: the `rcl_interfaces` parameter services, chronomap's own (`~/predict`,
+//! `~/save`) and, managed, the `lifecycle_msgs` services.
 
 use ros2_client::dds::rustdds::mio1::{Interest, Poll, Token};
 use ros2_client::parameters::raw;
@@ -19,9 +19,11 @@ use crate::lifecycle::{self, State};
 use crate::msgs::{
     ChangeStateRequest, ChangeStateResponse, EmptyRequest, GetAvailableStatesResponse,
     GetAvailableTransitionsResponse, GetStateResponse, LifecycleState, LifecycleTransition,
-    Message, TransitionDescription, TransitionEvent,
+    Message, PredictRequest, PredictResponse, TransitionDescription, TransitionEvent,
+    TriggerResponse,
 };
 use crate::params::Value;
+use crate::world::World;
 
 /// The six `rcl_interfaces` parameter services.
 pub(super) struct ParamServers {
@@ -58,6 +60,83 @@ impl ParamServers {
         r.register(&mut servers.list, t, Interest::READABLE)?;
         r.register(&mut servers.describe, t, Interest::READABLE)?;
         Ok(servers)
+    }
+}
+
+/// Largest number of times one `~/predict` request may ask for.
+pub(super) const MAX_PREDICT_TIMES: usize = 1_000_000;
+
+/// chronomap's services: `~/predict` (`chronomap_msgs/srv/Predict`: a state at given times),
+/// `~/save` (`std_srvs/srv/Trigger`: a checkpoint now) and `~/refit` (`std_srvs/srv/Trigger`:
+/// refit every model fitted on a whole series now).
+pub(super) struct ModelServers {
+    pub(super) predict: Server<PredictRequest, PredictResponse>,
+    pub(super) save: Server<EmptyRequest, TriggerResponse>,
+    pub(super) refit: Server<EmptyRequest, TriggerResponse>,
+}
+
+impl ModelServers {
+    pub(super) fn new(b: &mut Builder<'_>, setup: &Setup, poll: &Poll) -> Result<Self, NodeError> {
+        let mut servers = ModelServers {
+            predict: b.server(setup, "predict", "chronomap_msgs", "Predict")?,
+            save: b.server(setup, "save", "std_srvs", "Trigger")?,
+            refit: b.server(setup, "refit", "std_srvs", "Trigger")?,
+        };
+        let r = poll.registry();
+        let t = Token(usize::MAX - 3);
+        r.register(&mut servers.predict, t, Interest::READABLE)?;
+        r.register(&mut servers.save, t, Interest::READABLE)?;
+        r.register(&mut servers.refit, t, Interest::READABLE)?;
+        Ok(servers)
+    }
+}
+
+/// The answer of `~/predict` from `world` (`None`: the node is not configured).
+pub(super) fn predict_answer(world: Option<&World>, request: &PredictRequest) -> PredictResponse {
+    let refuse = |message: String| PredictResponse {
+        success: false,
+        message,
+        ..PredictResponse::default()
+    };
+    let Some(world) = world else {
+        return refuse("the node is not configured (lifecycle configure first)".into());
+    };
+    let states = &world.config().states;
+    let Some(index) = states.iter().position(|s| s.name == request.name) else {
+        let names: Vec<&str> = states.iter().map(|s| s.name.as_str()).collect();
+        return refuse(format!(
+            "no state {:?} (the states: {})",
+            request.name,
+            if names.is_empty() {
+                "none".to_string()
+            } else {
+                names.join(", ")
+            }
+        ));
+    };
+    if request.times.len() > MAX_PREDICT_TIMES {
+        return refuse(format!(
+            "{} times is more than {MAX_PREDICT_TIMES} in one request",
+            request.times.len()
+        ));
+    }
+    if let Some(t) = request.times.iter().find(|t| t.nanosec >= 1_000_000_000) {
+        return refuse(format!(
+            "nanosec {} is not below 1,000,000,000 (builtin_interfaces/msg/Time)",
+            t.nanosec
+        ));
+    }
+    let (probability, entropy) = request
+        .times
+        .iter()
+        .map(|t| world.predict_state(index, t.seconds()))
+        .unzip();
+    PredictResponse {
+        success: true,
+        message: String::new(),
+        model: states[index].model.to_string(),
+        probability,
+        entropy,
     }
 }
 
@@ -254,5 +333,79 @@ mod tests {
         let d = describe_parameter("states.door.model", Some(&Value::String("x".into())));
         assert!(d.read_only && d.r#type == 4);
         assert_eq!(describe_parameter("nope", None).r#type, 0);
+    }
+
+    #[test]
+    fn predict_answers_a_state_at_given_times_or_says_why_not() {
+        use crate::config::NodeConfig;
+        use crate::msgs::Time;
+        let text = "chronomap:\n  ros__parameters:\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n      light: {topic: /light, type: std_msgs/msg/Bool, model: hist:24}\n";
+        let config = NodeConfig::parse("node.yaml".as_ref(), text.as_bytes(), None).unwrap();
+        let mut world = World::new(config).unwrap();
+        for k in 0..500 {
+            let t = 1_450_000_000.0 + f64::from(k) * 600.0;
+            let open = (t / 3600.0).rem_euclid(24.0) > 8.0;
+            world
+                .observe_state(0, t, if open { 1.0 } else { 0.0 })
+                .unwrap();
+        }
+        let at = |sec: i32| Time { sec, nanosec: 0 };
+        let request = |name: &str, times: Vec<Time>| PredictRequest {
+            name: name.into(),
+            times,
+        };
+        let answer = predict_answer(
+            Some(&world),
+            &request("door", vec![at(1_450_400_000), at(1_450_430_000)]),
+        );
+        assert!(answer.success, "{answer:?}");
+        assert_eq!(answer.model, "fremen:2");
+        for (i, t) in [1_450_400_000.0, 1_450_430_000.0].into_iter().enumerate() {
+            let (p, h) = world.predict_state(0, t);
+            assert_eq!(answer.probability[i].to_bits(), p.to_bits());
+            assert_eq!(answer.entropy[i].to_bits(), h.to_bits());
+        }
+        assert_ne!(answer.probability[0], answer.probability[1]);
+        // The light has learned nothing: 0.5, one bit.
+        let light = predict_answer(Some(&world), &request("light", vec![at(5)]));
+        assert_eq!((light.probability[0], light.entropy[0]), (0.5, 1.0));
+        let refused = [
+            (
+                predict_answer(Some(&world), &request("window", vec![at(5)])),
+                "no state \"window\" (the states: door, light)",
+            ),
+            (
+                predict_answer(
+                    Some(&world),
+                    &request(
+                        "door",
+                        vec![Time {
+                            sec: 5,
+                            nanosec: 1_000_000_000,
+                        }],
+                    ),
+                ),
+                "nanosec 1000000000 is not below 1,000,000,000",
+            ),
+            (
+                predict_answer(None, &request("door", vec![])),
+                "the node is not configured",
+            ),
+        ];
+        for (answer, why) in refused {
+            assert!(
+                !answer.success && answer.message.starts_with(why),
+                "{answer:?}"
+            );
+            assert!(answer.probability.is_empty());
+        }
+        let many = predict_answer(
+            Some(&world),
+            &request("door", vec![at(0); MAX_PREDICT_TIMES + 1]),
+        );
+        assert!(
+            many.message.contains("more than 1000000 in one request"),
+            "{many:?}"
+        );
     }
 }

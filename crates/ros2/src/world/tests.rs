@@ -450,7 +450,10 @@ fn model_bytes(world: &mut World) -> Vec<Vec<u8>> {
     let mut bytes: Vec<Vec<u8>> = world
         .states
         .iter()
-        .map(|s| chronomap_io::model_file::encode_model(s.model.kind(), &s.model).unwrap())
+        .map(|s| match &s.model {
+            Learner::Online(m) => chronomap_io::model_file::encode_model(m.kind(), m).unwrap(),
+            learner => chronomap_io::model_file::encode_model("learner", learner).unwrap(),
+        })
         .collect();
     for g in &world.grids {
         let grid = g.grid.clone().expect("a grid");
@@ -655,4 +658,96 @@ fn a_crash_before_the_first_checkpoint_leaves_each_observation_once_in_the_recor
     assert_eq!(recorded, sent);
     let mut expected = reference(&dir.0, &all);
     assert_same_models(&mut restored, &mut expected);
+}
+
+#[test]
+fn a_model_fitted_on_a_whole_series_is_refitted_journaled_and_restored_bit_for_bit() {
+    let dir = Scratch::new("refit");
+    let params = "    save_dir: saved\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: \"fremen:auto\", keep: 3000, refit_observations: 2000, refit_period: 0}\n";
+    let door = read_pairs(chronomap_testutil::data_path(
+        "door_greg_2016/training_data.txt.xz",
+    ))
+    .unwrap();
+    let (times, values): (Vec<f64>, Vec<f64>) = door
+        .times
+        .iter()
+        .zip(&door.values)
+        .step_by(10)
+        .map(|(&t, &v)| (t, v))
+        .take(5000)
+        .unzip();
+    let mut world = World::open(config(&dir.0, params), manual_sync()).unwrap();
+    assert!(!world.config().states[0].learns_online());
+    // Before a fit: 0.5, and not due before 2,000 observations.
+    assert_eq!(world.predict_state(0, times[0]).0, 0.5);
+    for k in 0..1999 {
+        world.observe_state(0, times[k], values[k]).unwrap();
+    }
+    assert!(!world.refit_due(0));
+    world.observe_state(0, times[1999], values[1999]).unwrap();
+    assert!(world.refit_due(0));
+    let job = world.refit_job(0).unwrap();
+    // The node fits on another thread while learning goes on: 500 more meanwhile.
+    for k in 2000..2500 {
+        world.observe_state(0, times[k], values[k]).unwrap();
+    }
+    let refit = job
+        .run(&chronomap_models::spec::FitOptions::default())
+        .unwrap();
+    world.install_refit(0, refit).unwrap();
+    // The fit is `chronomap fit` of the 2,000 observations it saw, then it observed the 500.
+    let mut expected = "fremen:auto"
+        .parse::<chronomap_models::ModelSpec>()
+        .unwrap()
+        .fit(&times[..2000], &values[..2000], &FitOptions::default())
+        .unwrap()
+        .model;
+    expected
+        .observe(&times[2000..2500], &values[2000..2500])
+        .unwrap();
+    let later = times[2499] + 7200.0;
+    assert_eq!(
+        world.predict_state(0, later).0.to_bits(),
+        expected.predict(later).to_bits()
+    );
+    assert_ne!(world.predict_state(0, later).0, 0.5);
+    for k in 2500..2600 {
+        world.observe_state(0, times[k], values[k]).unwrap();
+    }
+    world.sync_journal(Instant::now() + std::time::Duration::from_secs(7200));
+    let live = world.predict_state(0, later).0;
+    std::mem::forget(world);
+    // After a crash the journal installs the same fit at the same place: no fit again.
+    let mut restored = World::open(config(&dir.0, params), manual_sync()).unwrap();
+    assert_eq!(restored.predict_state(0, later).0.to_bits(), live.to_bits());
+    assert_eq!(restored.state_model(0).kept(), 2600);
+    assert_eq!(
+        restored.state_model(0).last_fit().map(|f| f.through),
+        Some(2000)
+    );
+    // A checkpoint writes the kept observations and the fit (`door.cml`), restored as they were.
+    restored.save(true).unwrap();
+    assert!(dir.0.join("saved/states/door.cml").is_file());
+    let mut again = World::new(config(&dir.0, params)).unwrap();
+    assert_eq!(again.predict_state(0, later).0.to_bits(), live.to_bits());
+    assert_same_models(&mut again, &mut restored);
+    // keep: 3000 drops the oldest.
+    for k in 2600..3500 {
+        again.observe_state(0, times[k], values[k]).unwrap();
+    }
+    assert_eq!(again.state_model(0).kept(), 3000);
+    drop(again);
+    // The model changed to one learning online: the refitted one is not left behind silently.
+    let online = params.replace(
+        "model: \"fremen:auto\", keep: 3000, refit_observations: 2000, refit_period: 0",
+        "model: \"fremen:2\"",
+    );
+    let e = World::new(config(&dir.0, &online))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("door.cml: it holds a `fremen:auto` model, but states.door.model is `fremen:2`"),
+        "{e}"
+    );
 }
