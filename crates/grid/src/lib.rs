@@ -33,11 +33,13 @@
 //! it holds just those edges, inline in the slot (4 bytes each); the prefixes `P(f)` of their
 //! frames are kept once for the whole grid, shared by every cell that changed in that frame.
 //! From its third edge (or first fractional or sparse observation) it owns a block of `K + 1`
-//! exact sums, as 64-bit integers while every stored value fits (a sum of `n` phasors needs
-//! `51 + log2 n` bits: at least 8,000 frames, usually many more), widened once to 128 bits for
-//! the whole grid when one would not. A cell that changed a few times costs its 64-byte slot;
-//! one that keeps changing costs 64 bytes and two blocks of `16 (K + 1)` bytes (`32 (K + 1)`
-//! once widened); a cell that never changed costs 4 bytes and 3 bits. The snapshots never
+//! exact sums. Each period's column of sums is held in 64 bits while all its values fit (a sum
+//! of `n` phasors needs `51 + log2 n` bits: at least 8,000 frames; the prefixes of short
+//! periods oscillate and never need more) and is widened once, for every block, to 128 bits
+//! when one would not: in grids observed for weeks only the longest periods are. A cell that
+//! changed a few times costs its 64-byte slot; one that keeps changing costs 64 bytes and two
+//! blocks of `16 (K + 1)` bytes, plus 16 bytes per widened column (`32 (K + 1)` if all were);
+//! a cell that never changed costs 4 bytes and 3 bits. The snapshots never
 //! outnumber the accumulators held as edges, so blocks in use never exceed two per changing
 //! cell: [`FremenGrid::memory_estimate`] gives these bounds for a geometry and configuration
 //! before a grid is built, [`FremenGrid::heap_bytes`] what a live grid holds. Every value is
@@ -560,8 +562,8 @@ pub struct MemoryEstimate {
     /// Bytes per changing cell whose sums are held as edges (it changed at most twice per
     /// state, e.g. first seen late or a door that opened once): its slot.
     pub cell_bytes_inline: u64,
-    /// Bytes per changing cell whose two accumulators both have blocks of 64-bit sums (most
-    /// bounds hold as long as no sum has left 64 bits: about 8,000 frames at least).
+    /// Bytes per changing cell whose two accumulators both have blocks of 64-bit sums (no
+    /// column widened: at least the first 8,000 frames; each widened column adds 32 bytes).
     pub cell_bytes_narrow: u64,
     /// Bytes per changing cell whose two accumulators both have blocks of 128-bit sums: the
     /// most a changing cell can need.
@@ -626,7 +628,7 @@ impl FremenGrid {
             slot_of: vec![NONE; geometry.cells()],
             slots: Vec::new(),
             histories: Vec::new(),
-            pool: Pool::default(),
+            pool: Pool::new(k + 1),
             free_blocks: Vec::new(),
             snapshots: BTreeMap::new(),
             frame_times: Vec::new(),
@@ -669,8 +671,9 @@ impl FremenGrid {
         let k = config.fremen.periods.len() as u64;
         let words = geometry.words() as u64;
         let slot = std::mem::size_of::<Slot>() as u64;
-        // Planes, slot index, prefix; scratch: phasors (re, im, quantized) and one block.
-        let fixed = 3 * words * 8 + 4 * cells + k * 32 + k * 32 + (k + 1) * 32;
+        // Planes, slot index, prefix, the pool's column index; scratch: phasors (re, im,
+        // quantized) and one block.
+        let fixed = 3 * words * 8 + 4 * cells + k * 32 + (k + 1) * 4 + k * 32 + (k + 1) * 32;
         let narrow_block = (k + 1) * std::mem::size_of::<[i64; 2]>() as u64 + BLOCK_OVERHEAD_BYTES;
         MemoryEstimate {
             cells,
@@ -679,11 +682,12 @@ impl FremenGrid {
             cell_bytes_narrow: slot + 2 * narrow_block,
             cell_bytes_wide: wide_cell_bytes(k),
             // Blocks in use never exceed two per cell, plus the snapshot of the frame ending.
-            // and the roots of the two B-trees.
+            // the roots of the two B-trees and the list of wide columns.
             worst_case_bytes: fixed
                 .saturating_add(cells.saturating_mul(wide_cell_bytes(k)))
                 .saturating_add(wide_block_bytes(k))
-                .saturating_add((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64),
+                .saturating_add((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64)
+                .saturating_add((k + 1) * 4),
             predict_map_bytes: 4 * cells + 4 * cells,
         }
     }
@@ -739,7 +743,7 @@ impl FremenGrid {
             owned_accumulators: owned,
             snapshots: self.snapshots.len(),
             free_blocks: self.free_blocks.len(),
-            sum_bits: if self.pool.is_wide() { 128 } else { 64 },
+            wide_columns: self.pool.wide_columns(),
             pool_bytes: self.pool.heap_bytes(),
             slot_bytes: self.slots.capacity() * std::mem::size_of::<Slot>(),
         }
@@ -826,7 +830,7 @@ impl FremenGrid {
     /// snapshots than accumulators held as edges.
     fn storage_is_consistent(&self) -> bool {
         let stride = self.stride();
-        if !self.pool.len().is_multiple_of(stride) || self.pending != Pending::default() {
+        if self.pool.stride() != stride || self.pending != Pending::default() {
             return false;
         }
         let blocks = self.pool.len() / stride;
@@ -1615,9 +1619,6 @@ impl FremenGrid {
         grid.latest = first.latest;
         grid.prefix = first.prefix.clone();
         grid.frame_times = first.frame_times.clone();
-        if parts.iter().any(|p| p.pool.is_wide()) {
-            grid.pool.widen();
-        }
         let stride = grid.stride();
         let mut offset = 0usize;
         for (i, part) in parts.into_iter().enumerate() {
@@ -1735,8 +1736,9 @@ pub struct GridStorage {
     pub snapshots: usize,
     /// Blocks not in use.
     pub free_blocks: usize,
-    /// Width of the stored sums: 64 until a sum needed more, then 128.
-    pub sum_bits: u32,
+    /// Columns of the blocks held in 128 bits (of `K + 1`: one per period, one for fractional
+    /// values); the others are held in 64.
+    pub wide_columns: usize,
     /// Heap bytes of the blocks.
     pub pool_bytes: usize,
     /// Heap bytes of the slots.
