@@ -10,6 +10,10 @@ pub enum BenchCommand {
     /// streamed from the synthetic generator into FreMEn grids, against a bare scan of the same
     /// frames.
     Grid(BenchGridArgs),
+    /// Memory and grid-file bytes per changing cell of FreMEn grids of 10^4 to 4*10^6 cells whose
+    /// every cell changes, against the representation of grid-state format 1 in the same run.
+    #[command(name = "grid-memory", after_help = BENCH_GRID_MEMORY_HELP)]
+    GridMemory(BenchGridMemoryArgs),
     /// Planning on the Witham map ([Fentanes 2015] §V), 24 hours x 3 tasks, end to end, against
     /// Storm (stormpy) on the same cases in the same run.
     #[command(after_help = BENCH_PLAN_HELP)]
@@ -151,6 +155,36 @@ pub struct BenchPsbtArgs {
     /// time of the rest is extrapolated).
     #[arg(long, default_value_t = 1000)]
     pub reference_sample: usize,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) const BENCH_GRID_MEMORY_HELP: &str = "\
+Every cell changes: in frame 0 a quarter of the cells are unknown, then every cell flips each
+frame (one a minute). A 4096-cell grid of the same frames is checked first: the baseline written
+as a format-1 file and read back holds every cell's sums as the new grid does.
+
+Examples:
+  chronomap bench grid-memory
+  chronomap bench grid-memory --periods day --json
+  chronomap bench grid-memory --cells 10000,100000,1000000 --frames 40";
+
+/// `chronomap bench grid-memory`.
+#[derive(Debug, Args)]
+pub struct BenchGridMemoryArgs {
+    /// Cell counts of the grids (comma-separated).
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "10000,100000,1000000,4000000", value_parser = clap::value_parser!(u64).range(1..=u64::from(u32::MAX)))]
+    pub cells: Vec<u64>,
+    /// Frames (every cell changes in each after the first).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: u32,
+    /// Candidate periods of every cell: week, day, year, BASE/COUNT or a comma list of seconds.
+    #[arg(long, default_value = "week", value_parser = parse_periods)]
+    pub periods: PeriodSet,
+    /// Model order (kept in the grid's configuration; memory does not depend on it).
+    #[arg(long, default_value_t = 2)]
+    pub order: usize,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

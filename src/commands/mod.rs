@@ -8,6 +8,7 @@ mod activity_truth;
 mod bench;
 mod bench_activity;
 mod bench_bt;
+mod bench_grid_memory;
 #[cfg(feature = "serve")]
 mod bench_fleet;
 mod bench_ingest;
@@ -66,6 +67,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Grid(GridCommand::Stats(args)) => grid::stats(&args),
         Command::Grid(GridCommand::Plot(args)) => grid::plot(&args),
         Command::Bench(BenchCommand::Grid(args)) => bench::grid(&args),
+        Command::Bench(BenchCommand::GridMemory(args)) => bench_grid_memory::grid_memory(&args),
         Command::Bench(BenchCommand::Plan(args)) => bench_plan::plan(&args),
         #[cfg(feature = "serve")]
         Command::Bench(BenchCommand::Serve(args)) => bench_serve::serve(&args),

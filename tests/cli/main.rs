@@ -14,6 +14,7 @@ mod activity_truth;
 mod aruba;
 mod basics;
 mod bench_activity;
+mod bench_grid_memory;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;

@@ -129,4 +129,8 @@ pub enum BenchError {
     /// The timing script's output is not JSON.
     #[error("storm_time.py output")]
     StormOutput(#[source] serde_json::Error),
+    /// The baseline of the grid memory benchmark (the grid representation of format 1) does not
+    /// hold what the grid it is compared with holds, or its file size cannot be computed.
+    #[error("grid memory baseline: {0}")]
+    GridBaseline(String),
 }

@@ -11,6 +11,8 @@
 //!   transforms of `chronomap_core::naive`.
 //! * [`grid`]: the occupancy-grid build at paper scale ([Krajník 2017] §VI) against a bare scan of
 //!   the same frames.
+//! * [`grid_memory`]: memory and file size per changing cell of occupancy grids against the
+//!   representation of grid-state format 1, for 10⁴ to 4·10⁶ cells.
 //! * [`ingest`]: reading ROS 2 bags (`chronomap ingest`) against a bare read of the same file.
 //! * [`plan`]: planning on the Witham map ([Fentanes 2015] §V) against Storm on the same cases.
 //! * `serve` (feature `serve`): the service on loopback against the same work done in-process.
@@ -36,6 +38,7 @@ mod error;
 pub mod fleet;
 pub mod fremen;
 pub mod grid;
+pub mod grid_memory;
 pub mod ingest;
 pub mod plan;
 pub mod psbt;
