@@ -39,6 +39,8 @@ mod ros2_conventions;
 #[cfg(feature = "ros2")]
 mod ros2_crash;
 #[cfg(feature = "ros2")]
+mod ros2_models;
+#[cfg(feature = "ros2")]
 mod ros2_node;
 #[cfg(feature = "serve")]
 mod serve;

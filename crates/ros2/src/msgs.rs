@@ -656,4 +656,92 @@ mod tests {
         assert_eq!(bytes.len(), 40 + 56 + 4 + 4);
         assert_eq!(from_bytes::<OccupancyGrid, Le>(&bytes).unwrap().0, grid);
     }
+
+    /// chronomap_msgs as rclpy writes them: `tests/ros2/chronomap_msgs_examples.json` holds the
+    /// bytes of `serialize_message` for a Prediction, a Predict request and two responses (the
+    /// package built from the PyPI wheels by `tests/ros2/build_chronomap_msgs.py`); padding
+    /// bytes, which rclpy leaves undefined, are compared as the zeros RustDDS writes.
+    #[test]
+    fn chronomap_messages_have_the_cdr_layout_rclpy_writes() {
+        let file = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../tests/ros2/chronomap_msgs_examples.json"
+        );
+        let examples: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+        let time = |v: &serde_json::Value| Time {
+            sec: v["sec"].as_i64().unwrap() as i32,
+            nanosec: v["nanosec"].as_u64().unwrap() as u32,
+        };
+        let floats = |v: &serde_json::Value| -> Vec<f64> {
+            v.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        let text = |v: &serde_json::Value| v.as_str().unwrap().to_string();
+        // rclpy's bytes after the 4-byte encapsulation header, padding zeroed.
+        let expected = |key: &str| -> Vec<u8> {
+            let m = &examples["messages"][key];
+            let hex = m["cdr_hex"].as_str().unwrap();
+            let mut bytes: Vec<u8> = (0..hex.len())
+                .step_by(2)
+                .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+                .collect();
+            for offset in m["padding_offsets"].as_array().unwrap() {
+                bytes[offset.as_u64().unwrap() as usize] = 0;
+            }
+            bytes.split_off(4)
+        };
+        let m = &examples["messages"]["prediction"];
+        assert_eq!(m["dds_type"], Prediction::TYPE.dds());
+        let v = &m["values"];
+        let prediction = Prediction {
+            header: Header {
+                stamp: time(&v["header"]["stamp"]),
+                frame_id: text(&v["header"]["frame_id"]),
+            },
+            name: text(&v["name"]),
+            model: text(&v["model"]),
+            probability: v["probability"].as_f64().unwrap(),
+            entropy: v["entropy"].as_f64().unwrap(),
+            made: time(&v["made"]),
+            observations: v["observations"].as_u64().unwrap(),
+        };
+        let bytes = to_vec::<_, Le>(&prediction).unwrap();
+        assert_eq!(bytes, expected("prediction"));
+        assert_eq!(
+            from_bytes::<Prediction, Le>(&bytes).unwrap(),
+            (prediction, bytes.len())
+        );
+
+        let v = &examples["messages"]["predict_request"]["values"];
+        let request = PredictRequest {
+            name: text(&v["name"]),
+            times: v["times"].as_array().unwrap().iter().map(time).collect(),
+        };
+        assert_eq!(
+            to_vec::<_, Le>(&request).unwrap(),
+            expected("predict_request")
+        );
+        for key in ["predict_response", "predict_response_refused"] {
+            let v = &examples["messages"][key]["values"];
+            let response = PredictResponse {
+                success: v["success"].as_bool().unwrap(),
+                message: text(&v["message"]),
+                model: text(&v["model"]),
+                probability: floats(&v["probability"]),
+                entropy: floats(&v["entropy"]),
+            };
+            let bytes = to_vec::<_, Le>(&response).unwrap();
+            let rclpy = expected(key);
+            // rclpy counts 8 bytes more than it writes for two empty arrays (the JSON says).
+            let length = examples["messages"][key]["rclpy_length"].as_u64().unwrap() as usize;
+            let junk = if response.probability.is_empty() { 8 } else { 0 };
+            assert_eq!(4 + rclpy.len() + junk, length, "{key}");
+            assert_eq!(bytes, rclpy, "{key}");
+            assert_eq!(from_bytes::<PredictResponse, Le>(&bytes).unwrap().0, response);
+        }
+    }
 }
