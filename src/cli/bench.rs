@@ -54,6 +54,54 @@ pub enum BenchCommand {
     /// with the errors against their known transform.
     #[command(after_help = BENCH_REGISTRATION_HELP)]
     Registration(BenchRegistrationArgs),
+    /// The ROS 2 node's predicted maps (1 MB and 4 MB OccupancyGrid, one per second) to an
+    /// rclpy subscriber with Nav2's map QoS: delivery delay and losses, against an rclpy
+    /// publisher (Fast DDS to Fast DDS) to the same subscriber in the same run.
+    #[cfg(feature = "ros2")]
+    #[command(after_help = BENCH_ROS2_HELP)]
+    Ros2(BenchRos2Args),
+}
+
+#[cfg(feature = "ros2")]
+pub(super) const BENCH_ROS2_HELP: &str = "\
+It runs the node (this binary's `ros2`) and the Python driver tests/ros2/bench_maps.py in a
+private network namespace that it makes (`unshare -n` as root, `unshare -rn` otherwise). The
+Python needs rclpy (Fast DDS) and nav_msgs; .ci/run makes one in target/ros-venv.
+
+Examples:
+  chronomap bench ros2 --python target/ros-venv/bin/python
+  chronomap bench ros2 --python target/ros-venv/bin/python --sides 1000,2000,3000 --maps 20 --json";
+
+/// `chronomap bench ros2`.
+#[cfg(feature = "ros2")]
+#[derive(Debug, Args)]
+pub struct BenchRos2Args {
+    /// A Python with rclpy (Fast DDS) and nav_msgs.
+    #[arg(long, env = "CHRONOMAP_ROS_PYTHON")]
+    pub python: PathBuf,
+    /// Map sides in cells (1000: a 1 MB map, 2000: 4 MB).
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_value = "1000,2000",
+          value_parser = clap::value_parser!(u32).range(1..=20_000))]
+    pub sides: Vec<u32>,
+    /// Maps measured per size and publisher (after two warm-up maps).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub maps: u32,
+    /// Seconds between maps (the node's `map_period`).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_map_period)]
+    pub period: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[cfg(feature = "ros2")]
+fn parse_map_period(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(p) if p.is_finite() && (0.05..=3600.0).contains(&p) => Ok(p),
+        _ => Err(format!(
+            "{text:?} is not a number of seconds in [0.05, 3600]"
+        )),
+    }
 }
 
 pub(super) const BENCH_REGISTRATION_HELP: &str = "\

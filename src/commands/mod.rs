@@ -14,6 +14,8 @@ mod bench_fleet;
 mod bench_ingest;
 mod bench_plan;
 mod bench_psbt;
+#[cfg(feature = "ros2")]
+mod bench_ros2;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
@@ -78,6 +80,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Psbt(args)) => bench_psbt::psbt(&args),
         Command::Bench(BenchCommand::Ingest(args)) => bench_ingest::ingest(&args),
         Command::Bench(BenchCommand::Registration(args)) => lidar::bench_registration(&args),
+        #[cfg(feature = "ros2")]
+        Command::Bench(BenchCommand::Ros2(args)) => bench_ros2::ros2(&args),
         Command::Explore(args) => explore::run(&args),
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),

@@ -15,6 +15,8 @@ mod aruba;
 mod basics;
 mod bench_activity;
 mod bench_grid_memory;
+#[cfg(feature = "ros2")]
+mod bench_ros2;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;

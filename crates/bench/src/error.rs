@@ -133,4 +133,29 @@ pub enum BenchError {
     /// hold what the grid it is compared with holds, or its file size cannot be computed.
     #[error("grid memory baseline: {0}")]
     GridBaseline(String),
+    /// No private network namespace could be made for the DDS benchmark.
+    #[error(
+        "cannot make a private network namespace (`unshare -n` as root, `unshare -rn` \
+         otherwise, and iproute2's `ip`): the DDS benchmark does not run on the real network"
+    )]
+    NoPrivateNetwork,
+    /// The map benchmark's Python driver could not be started.
+    #[error("cannot run {} bench_maps.py", python.display())]
+    MapsStart {
+        /// The interpreter.
+        python: PathBuf,
+        /// What went wrong.
+        source: std::io::Error,
+    },
+    /// The map benchmark's Python driver failed.
+    #[error("{} bench_maps.py failed ({status})", python.display())]
+    MapsFailed {
+        /// The interpreter.
+        python: PathBuf,
+        /// How the process ended.
+        status: String,
+    },
+    /// The map benchmark's Python driver printed something that is not its report.
+    #[error("bench_maps.py output: {0}")]
+    MapsOutput(String),
 }

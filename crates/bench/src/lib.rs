@@ -22,6 +22,8 @@
 //!   attributes) against parsing the same text with roxmltree alone.
 //! * [`registration`]: registration of two 3-D clouds without an initial guess ([Stüde 2024]
 //!   §3.2.2) against a bare nearest-neighbour pass over the same clouds.
+//! * [`ros2`]: delivery delay of the ROS 2 node's 1 MB and 4 MB predicted maps to an rclpy
+//!   subscriber against Fast DDS to Fast DDS (rclpy publisher, same subscriber).
 //! * [`psbt`]: person search tree synthesis ([Stüde 2024] §5.4.3) against the dense reference and
 //!   a per-tree solve.
 //!
@@ -43,6 +45,7 @@ pub mod ingest;
 pub mod plan;
 pub mod psbt;
 pub mod registration;
+pub mod ros2;
 #[cfg(feature = "serve")]
 pub mod serve;
 
