@@ -1,6 +1,6 @@
-"""Delivery delay of large maps: chronomap's ROS 2 node against Fast DDS, for `chronomap bench ros2`.
+"""Delivery delay of large maps, chronomap's ROS 2 node against Fast DDS: `chronomap bench ros2`.
 
-Usage: bench_maps.py --node CHRONOMAP --dir DIR --sides 1000,2000 --maps 10 --period 1.0 > RESULT.json
+Usage: bench_maps.py --node CHRONOMAP --dir DIR --sides 1000,2000 --maps 10 --period 1.0 > OUT.json
 
 Run inside a private network namespace (the Rust side makes one). For every side S:
 
@@ -62,7 +62,7 @@ NODE_INPUT_QOS = QoSProfile(
 
 
 def observed_map(side, stamp):
-    """An S x S office-like map: walls on the border and every 50th row and column, free elsewhere."""
+    """An S x S office-like map: walls on the border and every 50th row and column, else free."""
     data = np.zeros((side, side), dtype=np.int8)
     data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
     data[::50, :] = 100
@@ -149,10 +149,14 @@ def run_chronomap(ros, args, side):
         sub = Subscriber(ros, topic_out)
         if not spin_until(ros, lambda: publisher.get_subscription_count() > 0, START_SECS):
             raise SystemExit(f"the node did not subscribe to {topic_in} (log: {log_path})")
-        publisher.publish(observed_map(side, time.time()))
+        # A map published before the node's reader matched this publisher is not delivered
+        # (volatile): publish again (a later frame of the same map) until a prediction comes.
+        deadline = time.time() + START_SECS
+        while not sub.received and time.time() < deadline:
+            publisher.publish(observed_map(side, time.time()))
+            spin_until(ros, lambda: bool(sub.received), 15.0)
         wanted = WARMUP + args.maps
-        patience = START_SECS + wanted * args.period * 3
-        spin_until(ros, lambda: len(sub.received) >= wanted, patience)
+        spin_until(ros, lambda: len(sub.received) >= wanted, 30 + wanted * args.period * 3)
         # Maps published after the last one measured may still be on their way: count only
         # those handed to DDS at least two periods before the end.
         end = time.time()
@@ -191,7 +195,7 @@ def run_chronomap(ros, args, side):
     complete = len(measured) == args.maps
     last = max(r["seconds"] for r in measured) if complete else end - args.period
     if handed:
-        stamps = [sec + nsec * 1e-9 for (sec, nsec), at in handed.items() if complete or at <= last]
+        stamps = [s + ns * 1e-9 for (s, ns), at in handed.items() if complete or at <= last]
         published = sum(1 for t in stamps if first - 1e-6 <= t <= last + 1e-6)
         reference = "publish"
     else:
