@@ -243,6 +243,11 @@ fn the_node_on_a_ros_2_stack_predicts_bit_for_bit_what_the_command_line_predicts
             if i % 50 == 1 {
                 step["wrong"] = json!(true);
             }
+            // A 400 x 400 map (160,000 cells) where max_map_cells is 10,000: RustDDS drops
+            // it at its first fragment, before allocating it, with one line.
+            if i == 100 {
+                step["oversized"] = json!(400);
+            }
             step
         })
         .collect();
@@ -250,6 +255,7 @@ fn the_node_on_a_ros_2_stack_predicts_bit_for_bit_what_the_command_line_predicts
 chronomap:
   ros__parameters:
     use_sim_time: true
+    max_map_cells: 10000
     publish_period: 1.0
     map_period: 1.0
     horizon: 3600.0
@@ -330,6 +336,26 @@ chronomap:
                 "stopping: saving the models",
             ],
         );
+        // The oversized map (first run): one line, from DDS, naming topic and size; nothing
+        // else about it (no reassembly, no repair errors), and it is not learned.
+        let dropped = log
+            .lines()
+            .filter(|l| l.contains("(max_sample_size)"))
+            .collect::<Vec<_>>();
+        if range.contains(&100) {
+            assert_eq!(phase["sent"]["oversized"], 1);
+            assert_eq!(dropped.len(), 1, "{log}");
+            assert_mentions(
+                dropped[0],
+                &[
+                    "topic \"rt/observed_map\": dropped sample",
+                    "bytes, more than the 75536 bytes this participant accepts",
+                ],
+            );
+            assert!(!log.contains("max size (256)"), "{log}");
+        } else {
+            assert!(dropped.is_empty(), "{log}");
+        }
         let summary: Value = serde_json::from_str(phase["stdout"].as_str().unwrap()).unwrap();
         let sent = &phase["sent"];
         assert_eq!(sent["door"], range.len());

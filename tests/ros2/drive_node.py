@@ -7,7 +7,8 @@ binary, with the plan's parameter file), publishes the phase's steps, reads what
 publishes, and stops the node with SIGINT. Each phase is a fresh process, as a restarted robot
 is: no endpoint of a node that stopped is still matched. A step publishes, in this order: /clock (simulated time), then optionally a
 door state (std_msgs/Bool), an observed map (nav_msgs/OccupancyGrid), people
-(geometry_msgs/PoseArray) and a message of the wrong type on a state topic. Every
+(geometry_msgs/PoseArray), a message of the wrong type on a state topic and an oversized map
+(`"oversized": SIDE`, a SIDE x SIDE OccupancyGrid on the map topic). Every
 `flow_every` steps and at the end the driver waits until the node has published the people map
 stamped with that step's clock (flow control: the node has then taken everything before it).
 
@@ -160,6 +161,14 @@ class Driver:
         if step.get("wrong"):
             self.wrong.publish(self.occupancy(self.plan["frames"][0]["data"], t))
             sent["wrong"] += 1
+        if "oversized" in step:
+            # A map larger than the node accepts (max_map_cells): DDS drops it.
+            side = step["oversized"]
+            msg = self.occupancy([0] * (side * side), t)
+            msg.info.width = side
+            msg.info.height = side
+            self.map.publish(msg)
+            sent["oversized"] = sent.get("oversized", 0) + 1
 
     def crash(self, kill, process, sent, started, discovered):
         """Waits, publishes the in-flight steps and kills the node with SIGKILL."""

@@ -311,8 +311,17 @@ impl Configured {
                 let Some(prediction) = world.predict_grid(index, target, stamp) else {
                     continue;
                 };
-                if let Err(e) = g.map.publish(prediction.map) {
-                    log::error!("{}: cannot publish the predicted map: {e}", g.topic);
+                let cells = prediction.map.data.len();
+                let handed = system_now_ns();
+                match g.map.publish(prediction.map) {
+                    Ok(()) => log::debug!(
+                        "{}: predicted map stamped {}.{:09} handed to DDS at {:.6} ({cells} cells)",
+                        g.topic,
+                        stamp.sec,
+                        stamp.nanosec,
+                        handed as f64 / 1e9
+                    ),
+                    Err(e) => log::error!("{}: cannot publish the predicted map: {e}", g.topic),
                 }
                 if let (Some(publisher), Some(mask)) = (&g.mask, prediction.mask)
                     && let Err(e) = publisher.publish(mask)

@@ -39,13 +39,14 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::dds::rustdds::mio1::{Events, Poll};
 use ros2_client::parameters::raw;
 use ros2_client::rcl_interfaces::{
     DescribeParametersResponse, GetParameterTypesResponse, GetParametersResponse,
     ListParametersResponse, SetParametersAtomicallyResponse, SetParametersResponse,
 };
-use ros2_client::{Context, ContextOptions, Node, NodeName, NodeOptions, Publisher};
+use ros2_client::{Context, Node, NodeName, NodeOptions, Publisher};
 use thiserror::Error;
 
 use crate::config::{self, ConfigError, NodeConfig, Setup};
@@ -73,6 +74,10 @@ use services::{
     predict_answer, serve, state_msg,
 };
 
+/// Bytes a message may have beside `max_map_cells` cells: the largest sample the node takes
+/// from DDS is `max_map_cells` + this (an OccupancyGrid's header and metadata, a long
+/// `frame_id`).
+const MAX_HEADER_BYTES: usize = 64 * 1024;
 /// Longest wait for messages and requests before the node looks at its clock and schedules
 /// again.
 const POLL: Duration = Duration::from_millis(20);
@@ -604,7 +609,16 @@ pub fn run(setup: Setup, options: &RunOptions, stop: &AtomicBool) -> Result<Summ
     } else {
         setup.config()?
     };
-    let context = Context::with_options(ContextOptions::new().domain_id(options.domain_id))
+    // Larger samples are dropped by RustDDS at their first fragment, before memory is
+    // allocated for them, with one error line naming the topic and the size (vendor/README.md).
+    let max_sample_bytes = usize::try_from(initial.max_map_cells)
+        .unwrap_or(usize::MAX)
+        .saturating_add(MAX_HEADER_BYTES);
+    let participant = DomainParticipantBuilder::new(options.domain_id)
+        .max_sample_size(max_sample_bytes)
+        .build()
+        .map_err(|e| NodeError::Dds(format!("cannot join domain {}: {e}", options.domain_id)))?;
+    let context = Context::from_domain_participant(participant)
         .map_err(|e| NodeError::Dds(format!("cannot join domain {}: {e}", options.domain_id)))?;
     let node_name = NodeName::new(&setup.namespace, &setup.name)
         .map_err(|e| NodeError::Name(format!("node name: {e}")))?;
