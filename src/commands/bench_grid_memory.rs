@@ -41,7 +41,7 @@ fn print(r: &GridMemoryBench) -> Result<()> {
         "file bytes/cell: fmt 1  now",
         "blocks",
         "snaps",
-        "wide"
+        "bits"
     )?;
     for row in &r.rows {
         outln!(
@@ -58,12 +58,12 @@ fn print(r: &GridMemoryBench) -> Result<()> {
             row.file_ratio,
             row.storage.owned_accumulators + row.storage.snapshots,
             row.storage.snapshots,
-            row.storage.wide_columns
+            row.storage.sum_bits
         )?;
     }
     outln!(
         "blocks: blocks of exact sums in use (owned by cells, or snapshots: frame prefixes \
-         shared by the cells that changed in that frame); wide: columns of 128-bit sums"
+         shared by the cells that changed in that frame); bits: of the stored sums"
     )?;
     if let Some(last) = r.rows.last() {
         let e = &last.estimate;

@@ -36,9 +36,8 @@ fn bench_grid_memory_reports_every_cell_changing_against_format_1() {
         assert_eq!(storage["slots"].as_u64(), Some(cells));
         assert_eq!(storage["owned_accumulators"], 0);
         assert_eq!(storage["snapshots"], 2);
-        assert_eq!(storage["wide_columns"], 0);
-        // (and the pool's index of its 25 columns, 4 bytes each, none of them wide).
-        assert_eq!(storage["pool_bytes"].as_u64(), Some(64 * 25 * 16 + 25 * 4));
+        assert_eq!(storage["sum_bits"], 64);
+        assert_eq!(storage["pool_bytes"].as_u64(), Some(64 * 25 * 16));
         let fixed = row["estimate"]["fixed_bytes"].as_u64().unwrap();
         let heap = fixed + 64 * cells + 64 * 25 * 16 + 328;
         assert_eq!(row["heap_bytes"].as_u64(), Some(heap));

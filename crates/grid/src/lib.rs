@@ -33,13 +33,12 @@
 //! it holds just those edges, inline in the slot (4 bytes each); the prefixes `P(f)` of their
 //! frames are kept once for the whole grid, shared by every cell that changed in that frame.
 //! From its third edge (or first fractional or sparse observation) it owns a block of `K + 1`
-//! exact sums. Each period's column of sums is held in 64 bits while all its values fit (a sum
-//! of `n` phasors needs `51 + log2 n` bits: at least 8,000 frames; the prefixes of short
-//! periods oscillate and never need more) and is widened once, for every block, to 128 bits
-//! when one would not: in grids observed for weeks only the longest periods are. A cell that
-//! changed a few times costs its 64-byte slot; one that keeps changing costs 64 bytes and two
-//! blocks of `16 (K + 1)` bytes, plus 16 bytes per widened column (`32 (K + 1)` if all were);
-//! a cell that never changed costs 4 bytes and 3 bits. The snapshots never
+//! exact sums, as 64-bit integers while every stored value fits (a sum of `n` phasors needs
+//! `51 + log2 n` bits: at least 8,000 frames; more in sparse series), widened once, in place, to
+//! 128 bits for the whole grid when one would not (long, dense series: the sums of a cell with
+//! a rhythm grow with every frame). A cell that changed a few times costs its 64-byte slot; one
+//! that keeps changing costs 64 bytes and two blocks of `16 (K + 1)` bytes (`32 (K + 1)` once
+//! widened); //! a cell that never changed costs 4 bytes and 3 bits. The snapshots never
 //! outnumber the accumulators held as edges, so blocks in use never exceed two per changing
 //! cell: [`FremenGrid::memory_estimate`] gives these bounds for a geometry and configuration
 //! before a grid is built, [`FremenGrid::heap_bytes`] what a live grid holds. Every value is
@@ -61,7 +60,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use store::{Acc, EDGE_FRAMES, Edge, Pool, Snapshot, Which, reserve_within};
+use store::{Acc, BlockAt, EDGE_FRAMES, Edge, Pool, Snapshot, Which, reserve_within};
 
 use chronomap_core::error::{ConfigError, ObservationError};
 use chronomap_core::exact::{ExactSum, SCALE, quantize};
@@ -541,11 +540,11 @@ impl Sums {
 #[derive(Clone, Copy)]
 enum Source {
     Zero,
-    /// A block, from this entry.
-    Block(usize),
+    /// A block.
+    Block(BlockAt),
     /// Up to two prefixes (snapshot blocks, or the current prefix if `None`) and whether each
     /// is added.
-    Edges([Option<(Option<usize>, bool)>; 2]),
+    Edges([Option<(Option<BlockAt>, bool)>; 2]),
 }
 
 /// Memory of a [`FremenGrid`] estimated from its geometry and configuration alone, in bytes (see
@@ -562,8 +561,8 @@ pub struct MemoryEstimate {
     /// Bytes per changing cell whose sums are held as edges (it changed at most twice per
     /// state, e.g. first seen late or a door that opened once): its slot.
     pub cell_bytes_inline: u64,
-    /// Bytes per changing cell whose two accumulators both have blocks of 64-bit sums (no
-    /// column widened: at least the first 8,000 frames; each widened column adds 32 bytes).
+    /// Bytes per changing cell whose two accumulators both have blocks of 64-bit sums (before
+    /// any sum left 64 bits: at least the first 8,000 frames).
     pub cell_bytes_narrow: u64,
     /// Bytes per changing cell whose two accumulators both have blocks of 128-bit sums: the
     /// most a changing cell can need.
@@ -671,9 +670,8 @@ impl FremenGrid {
         let k = config.fremen.periods.len() as u64;
         let words = geometry.words() as u64;
         let slot = std::mem::size_of::<Slot>() as u64;
-        // Planes, slot index, prefix, the pool's column index; scratch: phasors (re, im,
-        // quantized) and one block.
-        let fixed = 3 * words * 8 + 4 * cells + k * 32 + (k + 1) * 4 + k * 32 + (k + 1) * 32;
+        // Planes, slot index, prefix; scratch: phasors (re, im, quantized) and one block.
+        let fixed = 3 * words * 8 + 4 * cells + k * 32 + k * 32 + (k + 1) * 32;
         let narrow_block = (k + 1) * std::mem::size_of::<[i64; 2]>() as u64 + BLOCK_OVERHEAD_BYTES;
         MemoryEstimate {
             cells,
@@ -682,12 +680,11 @@ impl FremenGrid {
             cell_bytes_narrow: slot + 2 * narrow_block,
             cell_bytes_wide: wide_cell_bytes(k),
             // Blocks in use never exceed two per cell, plus the snapshot of the frame ending.
-            // the roots of the two B-trees and the list of wide columns.
+            // and the roots of the two B-trees.
             worst_case_bytes: fixed
                 .saturating_add(cells.saturating_mul(wide_cell_bytes(k)))
                 .saturating_add(wide_block_bytes(k))
-                .saturating_add((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64)
-                .saturating_add((k + 1) * 4),
+                .saturating_add((SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64),
             predict_map_bytes: 4 * cells + 4 * cells,
         }
     }
@@ -743,7 +740,7 @@ impl FremenGrid {
             owned_accumulators: owned,
             snapshots: self.snapshots.len(),
             free_blocks: self.free_blocks.len(),
-            wide_columns: self.pool.wide_columns(),
+            sum_bits: if self.pool.is_wide() { 128 } else { 64 },
             pool_bytes: self.pool.heap_bytes(),
             slot_bytes: self.slots.capacity() * std::mem::size_of::<Slot>(),
         }
@@ -1286,13 +1283,13 @@ impl FremenGrid {
     fn source(&self, acc: Acc) -> Source {
         match acc {
             Acc::Zero => Source::Zero,
-            Acc::Owned(block) => Source::Block(self.block_at(block)),
+            Acc::Owned(block) => Source::Block(self.pool.block(self.block_at(block))),
             Acc::One(_) | Acc::Two(..) => {
                 let mut edges = [None; 2];
                 for (slot, edge) in edges.iter_mut().zip(acc.edges()) {
                     let frame = edge.frame();
                     let at = (u64::from(frame) != self.frames)
-                        .then(|| self.block_at(self.snapshots[&frame].block));
+                        .then(|| self.pool.block(self.block_at(self.snapshots[&frame].block)));
                     *slot = Some((at, edge.adds()));
                 }
                 Source::Edges(edges)
@@ -1305,12 +1302,12 @@ impl FremenGrid {
     fn source_value(&self, source: &Source, j: usize) -> [i128; 2] {
         match source {
             Source::Zero => [0; 2],
-            Source::Block(at) => self.pool.get(at + j),
+            Source::Block(block) => self.pool.entry(*block, j),
             Source::Edges(edges) => {
                 let mut sum = [0i128; 2];
                 for &(at, adds) in edges.iter().flatten() {
                     let p = match at {
-                        Some(at) => self.pool.get(at + j),
+                        Some(block) => self.pool.entry(block, j),
                         None => self.prefix[j],
                     };
                     if adds {
@@ -1537,7 +1534,7 @@ impl FremenGrid {
                     })
                     .collect();
                 let extra = match occupied {
-                    Source::Block(at) => self.pool.get(at + k)[0],
+                    Source::Block(block) => self.pool.entry(block, k)[0],
                     _ => 0,
                 };
                 let ones = s.ones + if occupied_now { frames } else { 0 };
@@ -1736,9 +1733,8 @@ pub struct GridStorage {
     pub snapshots: usize,
     /// Blocks not in use.
     pub free_blocks: usize,
-    /// Columns of the blocks held in 128 bits (of `K + 1`: one per period, one for fractional
-    /// values); the others are held in 64.
-    pub wide_columns: usize,
+    /// Width of the stored sums: 64 until a sum needed more, then 128.
+    pub sum_bits: u32,
     /// Heap bytes of the blocks.
     pub pool_bytes: usize,
     /// Heap bytes of the slots.

@@ -13,13 +13,13 @@
 //!   fractional or sparse observation.
 //!
 //! Blocks live in one [`Pool`] of `K + 1` entries per block (`K` candidate periods, plus the
-//! exact sum `Σ s` of fractional and sparse values for occupied accumulators). Each column (a
-//! period, or the fractional sum) is held in 64-bit integers while all its values fit, and
-//! widened once to 128 bits in every block when one would not (a sum of `n` phasors of at most
-//! `2^50` units needs `51 + log2 n` bits: 64 bits always suffice for about 8,000 frames; the
-//! prefix of a period `T` sampled every `Δt` stays below about `T / (π Δt)` phasors, so only
-//! the longest periods of long, dense series widen). All arithmetic is exact in either width,
-//! so the width never changes a value.
+//! exact sum `Σ s` of fractional and sparse values for occupied accumulators), as 64-bit
+//! integers while every value fits, widened once, in place, to 128 bits for the whole grid when
+//! one would not. A sum of `n` phasors of at most `2^50` units needs `51 + log2 n` bits, so 64
+//! bits always suffice for about 8,000 frames; sampled every `Δt`, the prefix of a period `T`
+//! stays below about `T / (π Δt)` phasors, but the sums of a cell with a rhythm at a period grow
+//! with every frame, so long, dense series widen. All arithmetic is exact in either width, so
+//! the width never changes a value.
 //!
 //! The grid never holds more snapshots than accumulators held as edges (when it would, the
 //! accumulators referencing a snapshot no other edge references take blocks of their own, which
@@ -116,75 +116,56 @@ pub(crate) struct Snapshot {
     pub(crate) codes: u64,
 }
 
-/// Blocks of `stride` exact sums (`[re, im]` pairs), one column per period and one for the
-/// fractional values: each column is held in 64 bits while all its values fit, and widened once
-/// to 128 bits (its high halves in a second array) when one would not. Only the columns of the
-/// longest periods, whose prefix sums grow the most, ever need it.
+/// Blocks of `stride` exact sums (`[re, im]` pairs): 64-bit integers while every value fits,
+/// widened once, for the whole pool and in place, to 128 bits when one would not. Entries are
+/// kept as 64-bit words: two an entry while narrow, four (low and high halves) once wide.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "StoredPool")]
 pub(crate) struct Pool {
     stride: usize,
-    /// The low 64 bits of every entry (all of a narrow column's value), `stride` a block.
-    low: Vec<[i64; 2]>,
-    /// The widened columns, in the order they widened.
-    wide: Vec<u32>,
-    /// The high 64 bits of the entries of widened columns, `wide.len()` a block.
-    high: Vec<[i64; 2]>,
-    /// Position of each column in `wide`, or `u32::MAX` (derived).
-    #[serde(skip)]
-    high_index: Vec<u32>,
+    /// Whether entries are 128-bit.
+    wide: bool,
+    /// `re, im` (narrow) or `re low, re high, im low, im high` (wide) of every entry (signed, so
+    /// that small values of either sign take few bytes in a file).
+    words: Vec<i64>,
 }
 
 /// A [`Pool`] as a grid file holds it.
 #[derive(Deserialize)]
 struct StoredPool {
     stride: usize,
-    low: Vec<[i64; 2]>,
-    wide: Vec<u32>,
-    high: Vec<[i64; 2]>,
+    wide: bool,
+    words: Vec<i64>,
 }
 
 impl TryFrom<StoredPool> for Pool {
     type Error = String;
 
     fn try_from(s: StoredPool) -> Result<Self, String> {
-        if s.stride == 0 || !s.low.len().is_multiple_of(s.stride) {
+        let pool = Pool {
+            stride: s.stride,
+            wide: s.wide,
+            words: s.words,
+        };
+        let block = pool.stride * pool.words_per_entry();
+        if block == 0 || !pool.words.len().is_multiple_of(block) {
             return Err(format!(
-                "the pool's {} entries are not blocks of {}",
-                s.low.len(),
-                s.stride
+                "the pool's {} words are not blocks of {} entries",
+                pool.words.len(),
+                pool.stride
             ));
         }
-        // The stride comes from the file: bounded by the entries read or by the columns named.
-        if s.stride > s.low.len().max(s.wide.len()).max(1 << 17) {
-            return Err(format!("a pool stride of {} columns", s.stride));
-        }
-        let mut high_index = vec![NARROW; s.stride];
-        for (i, &column) in s.wide.iter().enumerate() {
-            match high_index.get_mut(column as usize) {
-                Some(entry) if *entry == NARROW => *entry = i as u32,
-                _ => return Err(format!("wide column {column} is outside or repeated")),
-            }
-        }
-        if s.high.len() != s.low.len() / s.stride * s.wide.len() {
-            return Err("the high halves do not fit the wide columns".into());
-        }
-        Ok(Pool {
-            stride: s.stride,
-            low: s.low,
-            wide: s.wide,
-            high: s.high,
-            high_index,
-        })
+        Ok(pool)
     }
 }
 
-/// `high_index` of a narrow column.
-const NARROW: u32 = u32::MAX;
+/// The first entry of a block of a [`Pool`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BlockAt(usize);
 
-/// The value of high half `hi` and low half `lo`.
+/// The value of low half `lo` and high half `hi`.
 #[inline]
-fn join(hi: i64, lo: i64) -> i128 {
+fn join(lo: i64, hi: i64) -> i128 {
     (i128::from(hi) << 64) | i128::from(lo as u64)
 }
 
@@ -193,11 +174,13 @@ impl Pool {
     pub(crate) fn new(stride: usize) -> Self {
         Pool {
             stride,
-            low: Vec::new(),
-            wide: Vec::new(),
-            high: Vec::new(),
-            high_index: vec![NARROW; stride],
+            wide: false,
+            words: Vec::new(),
         }
+    }
+
+    fn words_per_entry(&self) -> usize {
+        if self.wide { 4 } else { 2 }
     }
 
     /// Entries per block.
@@ -205,126 +188,133 @@ impl Pool {
         self.stride
     }
 
-    /// Number of entries.
+    /// Number of entries (`stride` a block).
     pub(crate) fn len(&self) -> usize {
-        self.low.len()
+        self.words.len() / self.words_per_entry()
     }
 
-    /// Number of columns held in 128 bits.
-    pub(crate) fn wide_columns(&self) -> usize {
-        self.wide.len()
+    /// Whether the sums are 128-bit.
+    pub(crate) fn is_wide(&self) -> bool {
+        self.wide
     }
 
     /// Heap bytes held.
     pub(crate) fn heap_bytes(&self) -> usize {
-        (self.low.capacity() + self.high.capacity()) * 16
-            + (self.wide.capacity() + self.high_index.capacity()) * 4
+        self.words.capacity() * 8
+    }
+
+    /// Where the block at entry `at` is, to read its entries with [`Pool::entry`].
+    #[inline]
+    pub(crate) fn block(&self, at: usize) -> BlockAt {
+        BlockAt(at)
+    }
+
+    /// Entry `j` of a block.
+    #[inline]
+    pub(crate) fn entry(&self, block: BlockAt, j: usize) -> [i128; 2] {
+        self.get(block.0 + j)
     }
 
     /// Entry `i`.
     #[inline]
     pub(crate) fn get(&self, i: usize) -> [i128; 2] {
-        let lo = self.low[i];
-        if !self.wide.is_empty() {
-            let h = self.high_index[i % self.stride];
-            if h != NARROW {
-                let hi = self.high[i / self.stride * self.wide.len() + h as usize];
-                return [join(hi[0], lo[0]), join(hi[1], lo[1])];
-            }
-        }
-        [i128::from(lo[0]), i128::from(lo[1])]
-    }
-
-    /// Sets entry `i` (its column must be wide enough).
-    fn set(&mut self, i: usize, value: [i128; 2]) {
-        self.low[i] = [value[0] as i64, value[1] as i64];
-        let h = self.high_index[i % self.stride];
-        if h != NARROW {
-            let at = i / self.stride * self.wide.len() + h as usize;
-            self.high[at] = [(value[0] >> 64) as i64, (value[1] >> 64) as i64];
+        if self.wide {
+            let w = &self.words[4 * i..4 * i + 4];
+            [join(w[0], w[1]), join(w[2], w[3])]
+        } else {
+            let w = &self.words[2 * i..2 * i + 2];
+            [i128::from(w[0]), i128::from(w[1])]
         }
     }
 
-    /// Holds column `column` in 128 bits from now on.
-    pub(crate) fn widen(&mut self, column: usize) {
-        if self.high_index[column] != NARROW {
+    /// Makes every entry 128-bit, in place: the words double, moved from the back.
+    pub(crate) fn widen(&mut self) {
+        if self.wide {
             return;
         }
-        let (w, blocks) = (self.wide.len(), self.low.len() / self.stride);
-        let mut high = Vec::with_capacity(self.low.capacity() / self.stride * (w + 1));
-        for b in 0..blocks {
-            high.extend_from_slice(&self.high[b * w..(b + 1) * w]);
-            let lo = self.low[b * self.stride + column];
-            high.push([lo[0] >> 63, lo[1] >> 63]);
+        let n = self.words.len() / 2;
+        let room = self.words.capacity() / 2;
+        self.words.reserve_exact(4 * room - self.words.len());
+        self.words.resize(4 * n, 0);
+        for i in (0..n).rev() {
+            let (re, im) = (self.words[2 * i], self.words[2 * i + 1]);
+            self.words[4 * i..4 * i + 4].copy_from_slice(&[re, re >> 63, im, im >> 63]);
         }
-        self.high = high;
-        self.high_index[column] = w as u32;
-        self.wide.reserve_exact(1);
-        self.wide.push(column as u32);
+        self.wide = true;
     }
 
     /// Appends `n` zero entries (whole blocks), growing the capacity as [`reserve_within`]
-    /// does.
+    /// does (`min_step` and `limit` in entries).
     pub(crate) fn grow(&mut self, n: usize, min_step: usize, limit: usize) {
-        let w = self.wide.len();
-        reserve_within(&mut self.low, n, min_step, limit);
-        let blocks = self.low.capacity() / self.stride;
-        if blocks * w > self.high.capacity() {
-            self.high.reserve_exact(blocks * w - self.high.len());
-        }
-        self.low.resize(self.low.len() + n, [0; 2]);
-        self.high.resize(self.low.len() / self.stride * w, [0; 2]);
+        let w = self.words_per_entry();
+        reserve_within(
+            &mut self.words,
+            n * w,
+            min_step * w,
+            limit.saturating_mul(w),
+        );
+        self.words.resize(self.words.len() + n * w, 0);
     }
 
-    /// Sets entries `at..at + n` (whole blocks) to zero.
+    /// Sets entries `at..at + n` to zero.
     pub(crate) fn zero(&mut self, at: usize, n: usize) {
-        self.low[at..at + n].fill([0; 2]);
-        let w = self.wide.len();
-        let (b0, b1) = (at / self.stride, (at + n) / self.stride);
-        self.high[b0 * w..b1 * w].fill([0; 2]);
+        let w = self.words_per_entry();
+        self.words[at * w..(at + n) * w].fill(0);
     }
 
-    /// Appends the blocks of `other` (a pool of the same stride).
+    /// Appends the entries of `other`, widening this pool if `other` is wide.
     pub(crate) fn append(&mut self, other: Pool) {
-        let stride = self.stride;
-        let mut values = Vec::with_capacity(stride);
-        for block in 0..other.len() / stride {
-            values.clear();
-            values.extend((0..stride).map(|j| other.get(block * stride + j)));
-            let at = self.len();
-            self.grow(stride, stride, usize::MAX);
-            self.add_rows(at, &values, false);
+        if other.wide {
+            self.widen();
+        }
+        if self.wide && !other.wide {
+            let mut other = other;
+            other.widen();
+            self.words.extend_from_slice(&other.words);
+        } else {
+            self.words.extend_from_slice(&other.words);
         }
     }
 
-    /// `pool[at + j] += values[j]` (or `-=` if `negate`) for the entries of one block from its
-    /// start `at`, widening a column whose sum leaves 64 bits.
+    /// `pool[at + j] += values[j]` (or `-=` if `negate`), widening the pool if a sum leaves 64
+    /// bits.
     pub(crate) fn add_rows(&mut self, at: usize, values: &[[i128; 2]], negate: bool) {
-        debug_assert!(at.is_multiple_of(self.stride) && values.len() <= self.stride);
-        let block = at / self.stride;
+        if negate {
+            self.add_signed::<true>(at, values);
+        } else {
+            self.add_signed::<false>(at, values);
+        }
+    }
+
+    /// [`Pool::add_rows`] with the sign known when compiled (no multiplication in the loop).
+    fn add_signed<const NEGATE: bool>(&mut self, at: usize, values: &[[i128; 2]]) {
+        let term = |v: i128| if NEGATE { -v } else { v };
+        if self.wide {
+            for (w, value) in self.words[4 * at..4 * (at + values.len())]
+                .chunks_exact_mut(4)
+                .zip(values)
+            {
+                let re = join(w[0], w[1]) + term(value[0]);
+                let im = join(w[2], w[3]) + term(value[1]);
+                w.copy_from_slice(&[re as i64, (re >> 64) as i64, im as i64, (im >> 64) as i64]);
+            }
+            return;
+        }
         for (j, value) in values.iter().enumerate() {
-            let value = if negate {
-                [-value[0], -value[1]]
-            } else {
-                *value
-            };
-            let h = self.high_index[j];
-            if h == NARROW {
-                let lo = &mut self.low[at + j];
-                let sum = [i128::from(lo[0]) + value[0], i128::from(lo[1]) + value[1]];
-                if let (Ok(re), Ok(im)) = (i64::try_from(sum[0]), i64::try_from(sum[1])) {
-                    *lo = [re, im];
-                    continue;
+            let w = &mut self.words[2 * (at + j)..2 * (at + j) + 2];
+            let re = i128::from(w[0]) + term(value[0]);
+            let im = i128::from(w[1]) + term(value[1]);
+            match (i64::try_from(re), i64::try_from(im)) {
+                (Ok(re), Ok(im)) => {
+                    w[0] = re;
+                    w[1] = im;
                 }
-                self.widen(j);
-                self.set(at + j, sum);
-            } else {
-                let hi = self.high[block * self.wide.len() + h as usize];
-                let lo = self.low[at + j];
-                self.set(
-                    at + j,
-                    [join(hi[0], lo[0]) + value[0], join(hi[1], lo[1]) + value[1]],
-                );
+                _ => {
+                    // Entries before `j` are added; widen and add the rest in 128 bits.
+                    self.widen();
+                    self.add_signed::<NEGATE>(at + j, &values[j..]);
+                    return;
+                }
             }
         }
     }
@@ -353,47 +343,51 @@ mod tests {
     use super::*;
 
     #[test]
-    fn columns_widen_exactly_when_a_sum_leaves_64_bits() {
+    fn pools_widen_in_place_exactly_when_a_sum_leaves_64_bits() {
         let big = i128::from(i64::MAX);
         let mut pool = Pool::new(3);
         pool.grow(6, 3, 6);
-        pool.add_rows(0, &[[5, -7], [big, 1], [1, 1]], false);
+        pool.add_rows(0, &[[5, -7], [big, 1], [-1, 1]], false);
         pool.add_rows(3, &[[9, 9], [-3, 4]], false);
-        assert_eq!(pool.wide_columns(), 0);
-        // Column 1 of the first block overflows: only that column widens, in every block.
+        assert!(!pool.is_wide());
+        // The second entry overflows: the first was added in 64 bits, the rest in 128.
         pool.add_rows(0, &[[1, 1], [1, 0], [2, 2]], false);
-        assert_eq!((pool.wide_columns(), pool.high.len()), (1, 2));
+        assert!(pool.is_wide());
+        assert_eq!(pool.heap_bytes(), 6 * 4 * 8);
         let all = |pool: &Pool| (0..6).map(|i| pool.get(i)).collect::<Vec<_>>();
         assert_eq!(
             all(&pool),
-            [[6, -6], [big + 1, 1], [3, 3], [9, 9], [-3, 4], [0, 0]]
+            [[6, -6], [big + 1, 1], [1, 3], [9, 9], [-3, 4], [0, 0]]
         );
-        // Far beyond 64 bits, and back.
+        // Far beyond 64 bits, below, and back.
         pool.add_rows(3, &[[0, 0], [-(big << 20), big << 20]], false);
         assert_eq!(pool.get(4), [-3 - (big << 20), 4 + (big << 20)]);
         pool.add_rows(3, &[[0, 0], [-(big << 20), big << 20]], true);
         pool.add_rows(0, &[[0, 0], [big + 1, 1]], true);
         assert_eq!(
             all(&pool),
-            [[6, -6], [0, 0], [3, 3], [9, 9], [-3, 4], [0, 0]]
+            [[6, -6], [0, 0], [1, 3], [9, 9], [-3, 4], [0, 0]]
         );
-        // Subtraction below i64::MIN widens another column; zeroing clears both halves.
-        pool.add_rows(0, &[[0, 0], [0, 0], [i128::from(i64::MIN), 0]], false);
-        assert_eq!(pool.wide_columns(), 1);
-        pool.add_rows(0, &[[0, 0], [0, 0], [10, 0]], true);
-        assert_eq!(pool.get(2), [i128::from(i64::MIN) - 7, 3]);
-        assert_eq!(pool.wide_columns(), 2);
         pool.zero(0, 3);
         assert_eq!(all(&pool)[..3], [[0, 0]; 3]);
-        // Appending converts to this pool's columns.
+        // Subtraction below i64::MIN widens too.
+        let mut narrow = Pool::new(1);
+        narrow.grow(2, 1, 2);
+        narrow.add_rows(1, &[[i128::from(i64::MIN), -1]], false);
+        narrow.add_rows(1, &[[1, 0]], true);
+        assert_eq!(
+            (narrow.get(0), narrow.get(1)),
+            ([0, 0], [i128::from(i64::MIN) - 1, -1])
+        );
+        // Appending converts to the wider of the two.
         let mut other = Pool::new(3);
         other.grow(3, 3, 3);
         other.add_rows(0, &[[1, 2], [3, 4], [5, 6]], false);
         pool.append(other.clone());
         assert_eq!(pool.get(7), [3, 4]);
-        // ... and values that fit stay narrow in a narrow pool.
         other.append(pool.clone());
-        assert_eq!((other.wide_columns(), other.get(3 + 4)), (0, [-3, 4]));
+        assert!(other.is_wide());
+        assert_eq!((other.get(0), other.get(3 + 4)), ([1, 2], [-3, 4]));
     }
 
     #[test]

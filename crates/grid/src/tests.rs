@@ -605,12 +605,8 @@ fn memory_estimates_bound_what_grids_hold() {
         let few = churning(1000, 3, config.clone());
         let storage = few.storage();
         assert_eq!(
-            (
-                storage.slots,
-                storage.owned_accumulators,
-                storage.wide_columns
-            ),
-            (1000, 0, 0)
+            (storage.slots, storage.owned_accumulators, storage.sum_bits),
+            (1000, 0, 64)
         );
         let estimate = FremenGrid::memory_estimate(few.geometry(), few.config());
         assert_eq!(estimate.cell_bytes_inline, 64);
@@ -626,10 +622,7 @@ fn memory_estimates_bound_what_grids_hold() {
         // Many changes: two blocks per cell, within the narrow and the worst-case bounds.
         let many = churning(1000, 40, config.clone());
         let storage = many.storage();
-        assert_eq!(
-            (storage.owned_accumulators, storage.wide_columns),
-            (2000, 0)
-        );
+        assert_eq!((storage.owned_accumulators, storage.sum_bits), (2000, 64));
         let heap = many.heap_bytes() as u64;
         let narrow = estimate.with_changing_cells(1000, estimate.cell_bytes_narrow);
         assert!(
@@ -643,7 +636,7 @@ fn memory_estimates_bound_what_grids_hold() {
 #[test]
 fn sums_widen_to_128_bits_exactly_when_they_leave_64() {
     // One period of a year sampled every second: its prefix grows by almost 2^50 a frame and
-    // leaves 64 bits after about 8,200 frames; that of an hour does not.
+    // leaves 64 bits after about 8,200 frames.
     let config = GridConfig {
         fremen: FremenConfig {
             periods: PeriodSet::from_periods(vec![365.25 * 86_400.0, 3600.0]).unwrap(),
@@ -675,7 +668,7 @@ fn sums_widen_to_128_bits_exactly_when_they_leave_64() {
                 model.observe(&[t], &[f64::from(v) / 100.0]).unwrap();
             }
         }
-        if narrow_until.is_none() && grid.storage().wide_columns > 0 {
+        if narrow_until.is_none() && grid.storage().sum_bits == 128 {
             narrow_until = Some(f);
         }
     }
@@ -684,8 +677,6 @@ fn sums_widen_to_128_bits_exactly_when_they_leave_64() {
         (8000..9000).contains(&widened),
         "widened at frame {widened}"
     );
-    // Only the year's column: the hour's prefix oscillates below 3600 / π phasors.
-    assert_eq!(grid.storage().wide_columns, 1);
     assert!(grid.is_consistent());
     for (c, model) in models.iter().enumerate() {
         assert_eq!(grid.cell_model(c).as_ref(), Some(model), "cell {c}");

@@ -264,7 +264,7 @@ pub fn encode_model<T: Serialize + ?Sized>(
             kind: quote(kind.as_bytes()),
         }));
     }
-    let payload = postcard::to_allocvec(model).map_err(|e| {
+    let mut bytes = postcard::to_allocvec(model).map_err(|e| {
         ModelFileError::new(ModelFileErrorKind::Encode {
             kind: kind.to_owned(),
             reason: e.to_string(),
@@ -272,13 +272,13 @@ pub fn encode_model<T: Serialize + ?Sized>(
     })?;
     let covered = format!(
         "{MAGIC} {FORMAT_VERSION} kind={kind} encoding=postcard bytes={}",
-        payload.len()
+        bytes.len()
     );
-    let crc = checksum(covered.as_bytes(), &payload);
-    let mut bytes = Vec::with_capacity(covered.len() + 16 + payload.len());
-    bytes.extend_from_slice(covered.as_bytes());
-    bytes.extend_from_slice(format!(" crc32={crc:08x}\n").as_bytes());
-    bytes.extend_from_slice(&payload);
+    let crc = checksum(covered.as_bytes(), &bytes);
+    // The header goes in front of the payload where it is: a large model (a grid of millions
+    // of cells) is not held twice while it is written.
+    let header = format!("{covered} crc32={crc:08x}\n");
+    bytes.splice(0..0, header.into_bytes());
     Ok(bytes)
 }
 
