@@ -571,7 +571,8 @@ pub struct MemoryEstimate {
     /// with [`MemoryEstimate::cell_bytes_wide`], all capacities at their bounds.
     pub worst_case_bytes: u64,
     /// The most a whole-map prediction ([`FremenGrid::predict_map`]) holds while it runs and
-    /// returns: the map (4 bytes a cell) and one value per changing cell.
+    /// returns: the map (4 bytes a cell) and one value per changing cell (and, per thread, one
+    /// cell's model at a time: a few kilobytes).
     pub predict_map_bytes: u64,
 }
 
