@@ -360,6 +360,7 @@ fn parameters_are_ros_parameters_that_rclpy_lists_gets_and_sets() {
             "horizon",
             "map_period",
             "max_map_cells",
+            "memory_limit",
             "publish_period",
             "record_observations",
             "save_period",

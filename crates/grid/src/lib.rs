@@ -715,6 +715,73 @@ impl FremenGrid {
             + self.sums.0.capacity() * 32
     }
 
+    /// An upper bound of [`FremenGrid::heap_bytes`] after [`FremenGrid::observe_occupancy`]
+    /// of `data`, without observing it: what to check before accepting a map (the node's
+    /// `memory_limit`). Every cell the frame touches — whose state it changes, or that it
+    /// observes as a fraction — is charged what it could come to hold: a slot if it has none,
+    /// and a block of sums for each of its two accumulators not yet held in one (at 128 bits
+    /// if the grid could widen with this frame: only from 8,192 frames on, when a 64-bit sum
+    /// of up to `frames · 2⁵⁰` units can overflow); the frame's prefix snapshot; the step by
+    /// which full arrays grow (an eighth, at least 64 entries); and, when it may widen, the
+    /// pool twice over.
+    /// `data` as `observe_occupancy` takes it (a value out of range counts as touching its
+    /// cell; the frame is checked when observed). O(cells).
+    pub fn heap_bound_after_occupancy(&self, data: &[i8]) -> u64 {
+        let k = self.config.fremen.periods.len() as u64;
+        let stride = k + 1;
+        let may_widen = !self.pool.is_wide() && self.frames + 1 >= 8192;
+        let entry_bytes: u64 = if self.pool.is_wide() || may_widen {
+            32
+        } else {
+            16
+        };
+        let block = stride * entry_bytes + BLOCK_OVERHEAD_BYTES;
+        let slot = std::mem::size_of::<Slot>() as u64;
+        let mut growth = 0u64;
+        for (cell, &v) in data.iter().enumerate().take(self.geometry.cells()) {
+            let state = self.cell_state(cell);
+            let touched = match v {
+                100 => state != CellState::Occupied,
+                0 => state != CellState::Free,
+                -1 => state != CellState::Unknown,
+                _ => true,
+            };
+            if !touched {
+                continue;
+            }
+            growth += match self.slot_of[cell] {
+                NONE => slot + 2 * block,
+                s => {
+                    let s = &self.slots[s as usize];
+                    [s.occupied, s.unknown]
+                        .iter()
+                        .filter(|a| !matches!(a, Acc::Owned(_)))
+                        .count() as u64
+                        * block
+                }
+            };
+        }
+        let now = self.heap_bytes() as u64;
+        let pool = self.pool.heap_bytes() as u64;
+        let slots = (self.slots.capacity() * std::mem::size_of::<Slot>()) as u64;
+        let snapshot = block + (SNAPSHOT_NODE_BYTES + SINGLETON_NODE_BYTES) as u64;
+        let widen = if may_widen { pool } else { 0 };
+        // The frame times grow as a `Vec` does: doubling when full.
+        let frame_times = if self.frame_times.len() == self.frame_times.capacity() {
+            (self.frame_times.capacity().max(4) * 8) as u64
+        } else {
+            0
+        };
+        // Arrays that run full grow by an eighth of their length, at least 64 entries
+        // (`store::reserve_within`): the pool by blocks, the slots, the free list.
+        let step = (pool + growth) / 8 + 64 * stride * entry_bytes + slots / 8 + 64 * slot + 64 * 4;
+        now.saturating_add(growth)
+            .saturating_add(step)
+            .saturating_add(snapshot)
+            .saturating_add(widen)
+            .saturating_add(frame_times)
+    }
+
     /// The upper bound [`FremenGrid::heap_bytes`] counts for the snapshot index and the set of
     /// singly referenced snapshots.
     fn index_bytes(&self) -> usize {

@@ -770,3 +770,68 @@ fn concatenated_parts_share_their_snapshots() {
         assert_eq!(joined.cell_model(c), serial.cell_model(c), "cell {c}");
     }
 }
+
+#[test]
+fn the_heap_bound_before_a_frame_holds_after_it_and_is_small_for_a_quiet_frame() {
+    // Occupancy frames only (what the ROS node learns), many cells changing, fractions,
+    // unknown stretches; past the frame (30,826 here) where the sums widen to 128 bits.
+    let cells = 200;
+    let mut rng = Rng(7);
+    let mut grid = FremenGrid::new(
+        GridGeometry::planar(20, 10, 0.1, [0.0, 0.0]).unwrap(),
+        GridConfig::default(),
+    )
+    .unwrap();
+    let mut t = 1_451_865_600.0;
+    let mut widened_at = None;
+    for frame in 0..31_000 {
+        t += 60.0;
+        let data: Vec<i8> = (0..cells)
+            .map(|c| cell_value(&mut rng, c, frame, false))
+            .collect();
+        let before = grid.heap_bytes() as u64;
+        let bound = grid.heap_bound_after_occupancy(&data);
+        assert!(bound >= before, "frame {frame}");
+        grid.observe_occupancy(t, &data).unwrap();
+        let after = grid.heap_bytes() as u64;
+        assert!(
+            after <= bound,
+            "frame {frame}: {after} bytes after, bound {bound} (before {before})"
+        );
+        if widened_at.is_none() && grid.storage().sum_bits == 128 {
+            widened_at = Some(frame);
+        }
+    }
+    assert!(widened_at.is_some(), "the test must cross a widening");
+    // A frame equal to the last one of a binary grid touches no cell: its bound is the arrays'
+    // growth step (an eighth, or 64 blocks of 85 128-bit sums and 64 slots), not the cells.
+    let mut binary = FremenGrid::new(
+        GridGeometry::planar(20, 10, 0.1, [0.0, 0.0]).unwrap(),
+        GridConfig::default(),
+    )
+    .unwrap();
+    let mut last = Vec::new();
+    for frame in 0..500 {
+        t += 60.0;
+        last = (0..cells)
+            .map(|c| cell_value(&mut rng, c, frame, true))
+            .collect();
+        binary.observe_occupancy(t, &last).unwrap();
+    }
+    let heap = binary.heap_bytes() as u64;
+    let slack = binary.heap_bound_after_occupancy(&last) - heap;
+    assert!(
+        slack <= heap / 8 + 64 * 85 * 32 + 64 * 64 + 20_000,
+        "{slack} of {heap}"
+    );
+    // A first map of 2000 x 2000 cells all different from unknown: the bound is what the
+    // estimate says a cell may take at most, for every cell.
+    let big = FremenGrid::new(
+        GridGeometry::planar(2000, 2000, 0.05, [0.0, 0.0]).unwrap(),
+        GridConfig::default(),
+    )
+    .unwrap();
+    let estimate = FremenGrid::memory_estimate(big.geometry(), big.config());
+    let bound = big.heap_bound_after_occupancy(&vec![0; 4_000_000]);
+    assert!(bound >= estimate.fixed_bytes + 4_000_000 * estimate.cell_bytes_narrow);
+}

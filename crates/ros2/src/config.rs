@@ -40,6 +40,9 @@ use crate::msgs::{Bool, Float32, Float64, Message, TypeName};
 use crate::params::{self, Origin, ParamFile, ParamSet, Value};
 use crate::ros_args::{ParamArg, RosArgs};
 
+/// Default of `memory_limit`: 4 GiB of grids.
+pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
+
 /// Default of `max_map_cells`: 2²⁴ cells (a 4096 × 4096 map).
 pub const DEFAULT_MAX_MAP_CELLS: u64 = 1 << 24;
 
@@ -291,6 +294,10 @@ pub struct NodeConfig {
     pub sync_messages: u64,
     /// Largest map accepted, in cells.
     pub max_map_cells: u64,
+    /// Most heap the grids may hold (bytes): a map whose learning could bring them above it
+    /// is refused ([`chronomap_grid::FremenGrid::heap_bound_after_occupancy`]); `None`: no
+    /// limit (`memory_limit: 0`).
+    pub memory_limit: Option<u64>,
     /// State topics, by name.
     pub states: Vec<StateConfig>,
     /// Grids (maps, then people), by name.
@@ -547,6 +554,9 @@ pub fn description(name: &str) -> &'static str {
         }
         ("sync_messages", _) => "learned messages that make a journal sync due at once",
         ("max_map_cells", _) => "larger OccupancyGrid messages are refused",
+        ("memory_limit", _) => {
+            "bytes the grids may hold at most: a map that could bring them above it is refused (0: no limit)"
+        }
         ("edges", "models") => "edge models (chronomap topo fit)",
         ("edges", "geojson") => "the Nav2 route graph rewritten with predicted costs",
         ("edges", "period") => "seconds of the node's clock between rewrites of the route graph",
@@ -690,6 +700,13 @@ impl NodeConfig {
         put(
             "max_map_cells".into(),
             Value::Integer(self.max_map_cells as i64),
+        );
+        put(
+            "memory_limit".into(),
+            Value::Integer(
+                self.memory_limit
+                    .map_or(0, |l| i64::try_from(l).unwrap_or(i64::MAX)),
+            ),
         );
         let qos = |put: &mut dyn FnMut(String, Value), key: &str, q: &InputQos| {
             let r = match q.reliability {
@@ -847,6 +864,7 @@ struct RawParams {
     sync_period: Option<Spanned<f64>>,
     sync_messages: Option<Spanned<u64>>,
     max_map_cells: Option<Spanned<u64>>,
+    memory_limit: Option<Spanned<u64>>,
     states: BTreeMap<String, Spanned<RawState>>,
     maps: BTreeMap<String, Spanned<RawGrid>>,
     people: BTreeMap<String, Spanned<RawGrid>>,
@@ -909,6 +927,7 @@ const TOP_KEYS: &[&str] = &[
     "sync_period",
     "sync_messages",
     "max_map_cells",
+    "memory_limit",
 ];
 
 struct RawState {
@@ -1245,6 +1264,7 @@ impl<'a> Reader<'a> {
             sync_period: self.number("sync_period")?,
             sync_messages: self.integer("sync_messages")?,
             max_map_cells: self.integer("max_map_cells")?,
+            memory_limit: self.integer("memory_limit")?,
             states,
             maps,
             people,
@@ -1539,6 +1559,11 @@ impl Checker<'_> {
             sync_period,
             sync_messages,
             max_map_cells,
+            memory_limit: match raw.memory_limit.as_ref().map(|v| v.value) {
+                None => Some(DEFAULT_MEMORY_LIMIT),
+                Some(0) => None,
+                Some(bytes) => Some(bytes),
+            },
             states,
             grids,
             edges,

@@ -26,7 +26,8 @@ use std::time::Instant;
 
 use chronomap_core::{ObservationError, TemporalModel};
 use chronomap_grid::report::project_layers;
-use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
+use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry};
+use chronomap_io::grid_file::write_grid_state;
 use chronomap_io::model_file::{read_model_file, write_model_file};
 use chronomap_io::navmap::{
     LoadSemantics, MapMetadata, MapMode, OccupancyMap, SaveOptions, decode_map_image,
@@ -34,7 +35,7 @@ use chronomap_io::navmap::{
 };
 use chronomap_io::{
     GridFile, ModelFileError, TopoFileError, read_any_model, read_edge_models, read_grid_file,
-    write_any_model, write_grid_file, write_route_geojson,
+    write_any_model, write_route_geojson,
 };
 use chronomap_models::learner::{Learner, Refit, RefitError, RefitJob};
 use chronomap_topo::edges::EdgeModels;
@@ -121,6 +122,18 @@ pub enum LearnError {
     /// What the grid refused.
     #[error(transparent)]
     Grid(#[from] GridError),
+    /// A map the grids could not learn within `memory_limit`.
+    #[error(
+        "learning it could bring the grids to {:.1} MB, more than memory_limit ({:.1} MB); not learned",
+        *needed as f64 / 1e6,
+        *limit as f64 / 1e6
+    )]
+    Memory {
+        /// What the grids could hold after it, at most (bytes).
+        needed: u64,
+        /// The limit (bytes).
+        limit: u64,
+    },
     /// A refit that cannot be installed (on replay).
     #[error(transparent)]
     Refit(RefitError),
@@ -783,6 +796,23 @@ impl World {
             [info.origin.position.x, info.origin.position.y],
         )?;
         let stamp = msg.header.stamp.seconds();
+        // What the other grids hold now; this one is bound before it learns the map.
+        let others: u64 = self
+            .grids
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != index)
+            .filter_map(|(_, g)| g.grid.as_ref())
+            .map(|g| g.heap_bytes() as u64)
+            .sum();
+        let limit = self.config.memory_limit;
+        let check = |grid: &FremenGrid| -> Result<(), LearnError> {
+            let needed = others.saturating_add(grid.heap_bound_after_occupancy(&msg.data));
+            match limit {
+                Some(limit) if needed > limit => Err(LearnError::Memory { needed, limit }),
+                _ => Ok(()),
+            }
+        };
         let slot = &mut self.grids[index];
         let grid = match &mut slot.grid {
             Some(grid) => {
@@ -801,11 +831,14 @@ impl World {
                         what: "frame",
                     });
                 }
+                check(grid)?;
                 grid
             }
-            None => slot
-                .grid
-                .insert(FremenGrid::new(geometry, grid_config(entry))?),
+            None => {
+                let fresh = FremenGrid::new(geometry, grid_config(entry))?;
+                check(&fresh)?;
+                slot.grid.insert(fresh)
+            }
         };
         grid.observe_occupancy(stamp, &msg.data)?;
         slot.frames += 1;
@@ -1048,8 +1081,9 @@ impl World {
         let entry = &self.config.grids[index];
         let grid = self.grids[index].grid.as_ref()?;
         let g = *grid.geometry();
-        let fitted = grid.fitted(OrderChoice::Fixed(entry.fremen.order));
-        let values = project_layers(&g, &fitted.predict(time), 0..g.depth);
+        // The grid predicts with its own order, which the configuration checked is the
+        // entry's (a restored grid of another order is refused).
+        let values = project_layers(&g, &grid.predict_map(time), 0..g.depth);
         let probabilities = OccupancyMap::from_probabilities(
             g.width,
             g.height,
@@ -1257,7 +1291,7 @@ impl World {
                 let file = grid_file(&dir, g);
                 let next = next_name(&file, head);
                 make_parent(&file)?;
-                write_grid_file(&next, &GridFile::State(Box::new(grid.clone())))?;
+                write_grid_state(&next, grid)?;
                 bytes += file_len(&next);
                 // An open people bin is not in the file: replaying from its first message
                 // fills it again.

@@ -434,7 +434,8 @@ fn ros_arguments_rename_remap_and_override_the_file() {
     );
     // The declared parameters: every one, defaults filled in, names resolved.
     let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
-    assert_eq!(declared.len(), 18);
+    assert_eq!(declared.len(), 19);
+    assert_eq!(declared["memory_limit"], Value::Integer(4 << 30));
     assert_eq!(declared["horizon"], Value::Double(7.5));
     assert_eq!(declared["sync_period"], Value::Double(1.0));
     assert_eq!(declared["sync_messages"], Value::Integer(1000));

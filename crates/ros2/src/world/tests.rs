@@ -2,7 +2,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use chronomap_core::TemporalModel;
-use chronomap_grid::CellState;
+use chronomap_grid::{CellState, OrderChoice};
 use chronomap_io::navmap::{load_map, save_map};
 use chronomap_io::read_pairs;
 use chronomap_models::spec::FitOptions;
@@ -749,5 +749,48 @@ fn a_model_fitted_on_a_whole_series_is_refitted_journaled_and_restored_bit_for_b
     assert!(
         e.contains("door.cml: it holds a `fremen:auto` model, but states.door.model is `fremen:2`"),
         "{e}"
+    );
+}
+
+#[test]
+fn a_map_that_could_bring_the_grids_above_memory_limit_is_refused_and_changes_nothing() {
+    let dir = Scratch::new("memory-limit");
+    // Two maps: `small` (6 x 4 cells) is learned first; a 200 x 200 map of `big` could take
+    // more than the 3 MB left.
+    let params =
+        "    memory_limit: 3000000\n    maps:\n      small: {topic: /s}\n      big: {topic: /b}\n";
+    let mut world = World::new(config(&dir.0, params)).unwrap();
+    for h in 0..3 {
+        world
+            .observe_map(0, &map_message(3600 * h, "map", 6, 4, office_frame(h)))
+            .unwrap();
+    }
+    let side = 200;
+    let frame = |k: i32| -> Vec<i8> {
+        (0..side * side)
+            .map(|c| if (c as i32 + k) % 3 == 0 { 100 } else { 0 })
+            .collect()
+    };
+    // The first map of `big` makes its cells known: each may take a slot and blocks.
+    let e = world
+        .observe_map(1, &map_message(0, "map", side, side, frame(0)))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("learning it could bring the grids to ")
+            && e.ends_with("MB, more than memory_limit (3.0 MB); not learned"),
+        "{e}"
+    );
+    assert!(world.grid(1).is_none(), "nothing of `big` is kept");
+    assert_eq!(world.grid(0).unwrap().frames(), 3);
+    // Without a limit the same map is learned; the bound held.
+    let unlimited = params.replace("memory_limit: 3000000", "memory_limit: 0");
+    let mut world = World::new(config(&dir.0, &unlimited)).unwrap();
+    let msg = map_message(0, "map", side, side, frame(0));
+    world.observe_map(1, &msg).unwrap();
+    let held = world.grid(1).unwrap().heap_bytes() as u64;
+    assert!(
+        held < 3_000_000,
+        "{held}: the bound is conservative, not the use"
     );
 }
