@@ -8,9 +8,9 @@ mod activity_truth;
 mod bench;
 mod bench_activity;
 mod bench_bt;
-mod bench_grid_memory;
 #[cfg(feature = "serve")]
 mod bench_fleet;
+mod bench_grid_memory;
 mod bench_ingest;
 mod bench_plan;
 mod bench_psbt;

@@ -738,10 +738,17 @@ mod tests {
             let rclpy = expected(key);
             // rclpy counts 8 bytes more than it writes for two empty arrays (the JSON says).
             let length = examples["messages"][key]["rclpy_length"].as_u64().unwrap() as usize;
-            let junk = if response.probability.is_empty() { 8 } else { 0 };
+            let junk = if response.probability.is_empty() {
+                8
+            } else {
+                0
+            };
             assert_eq!(4 + rclpy.len() + junk, length, "{key}");
             assert_eq!(bytes, rclpy, "{key}");
-            assert_eq!(from_bytes::<PredictResponse, Le>(&bytes).unwrap().0, response);
+            assert_eq!(
+                from_bytes::<PredictResponse, Le>(&bytes).unwrap().0,
+                response
+            );
         }
     }
 }
