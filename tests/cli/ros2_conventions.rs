@@ -262,20 +262,8 @@ fn the_launch_file_example_s_parameters_check() {
 /// Runs `tests/ros2/drive_conventions.py` in `mode` with `plan` in a private network namespace.
 fn drive(netns: &PrivateNetwork, python: &str, dir: &Path, mode: &str, plan: &Value) -> Value {
     let plan_file = write(dir, &format!("{mode}.json"), plan.to_string());
-    let driver = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ros2/drive_conventions.py");
     let started = Instant::now();
-    let output = netns
-        .command(dir, python)
-        .arg(&driver)
-        .arg(env!("CARGO_BIN_EXE_chronomap"))
-        .arg(&plan_file)
-        .arg(mode)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "the driver failed:\n{stderr}");
-    let result: Value = serde_json::from_slice(&output.stdout)
-        .unwrap_or_else(|e| panic!("the driver printed no JSON ({e}):\n{stderr}"));
+    let (result, _) = netns.drive(dir, python, "drive_conventions.py", &[&plan_file, &mode]);
     println!(
         "ros2_conventions {mode}: {:.1} s",
         started.elapsed().as_secs_f64()

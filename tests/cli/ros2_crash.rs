@@ -131,24 +131,14 @@ chronomap:
         ],
     });
     let plan_file = write(&dir, "plan.json", plan.to_string());
-    let driver =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/ros2/drive_node.py");
-    let mut phases = Vec::new();
-    for phase in ["0", "1"] {
-        let output = netns
-            .command(&dir, &python)
-            .arg(&driver)
-            .arg(env!("CARGO_BIN_EXE_chronomap"))
-            .arg(&plan_file)
-            .arg(phase)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "the driver failed:\n{stderr}");
-        let result: Value = serde_json::from_slice(&output.stdout)
-            .unwrap_or_else(|e| panic!("the driver printed no JSON ({e}):\n{stderr}"));
-        phases.push(result);
-    }
+    let phases: Vec<Value> = ["0", "1"]
+        .iter()
+        .map(|phase| {
+            netns
+                .drive(&dir, &python, "drive_node.py", &[&plan_file, phase])
+                .0
+        })
+        .collect();
 
     // The first run was killed: no summary, no save at exit, no checkpoint.
     let crashed = &phases[0];

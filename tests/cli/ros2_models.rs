@@ -120,19 +120,7 @@ chronomap:
         "times": times,
     });
     let plan_file = write(&dir, "plan.json", plan.to_string());
-    let driver =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/ros2/drive_models.py");
-    let output = netns
-        .command(&dir, &python)
-        .arg(&driver)
-        .arg(env!("CARGO_BIN_EXE_chronomap"))
-        .arg(&plan_file)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "the driver failed:\n{stderr}");
-    let r: Value = serde_json::from_slice(&output.stdout)
-        .unwrap_or_else(|e| panic!("the driver printed no JSON ({e}):\n{stderr}"));
+    let (r, _) = netns.drive(&dir, &python, "drive_models.py", &[&plan_file]);
     let log = r["stderr"].as_str().unwrap();
     assert_eq!(r["returncode"], 0, "{log}");
 

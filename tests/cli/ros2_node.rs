@@ -96,6 +96,32 @@ impl PrivateNetwork {
             .current_dir(dir);
         command
     }
+
+    /// Runs the rclpy driver `tests/ros2/SCRIPT` with `python` in the namespace, giving it the
+    /// node binary and `args`: the JSON it prints and the last line of its stderr (its
+    /// timing). Fails the test, with the driver's stderr, if it fails or prints no JSON.
+    pub(crate) fn drive(
+        &self,
+        dir: &Path,
+        python: &str,
+        script: &str,
+        args: &[&dyn AsRef<std::ffi::OsStr>],
+    ) -> (Value, String) {
+        let driver = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/ros2")
+            .join(script);
+        let mut command = self.command(dir, python);
+        command.arg(&driver).arg(env!("CARGO_BIN_EXE_chronomap"));
+        for arg in args {
+            command.arg(arg);
+        }
+        let output = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{script} failed:\n{stderr}");
+        let result: Value = serde_json::from_slice(&output.stdout)
+            .unwrap_or_else(|e| panic!("{script} printed no JSON ({e}):\n{stderr}"));
+        (result, stderr.lines().last().unwrap_or("").to_string())
+    }
 }
 
 /// Frame `k` of the observed office at hour-of-day `hour`: walls, a door closed at night, a
@@ -288,24 +314,11 @@ chronomap:
     let plan_file = write(&dir, "plan.json", plan.to_string());
 
     let driving = Instant::now();
-    let driver =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/ros2/drive_node.py");
     let mut phases = Vec::new();
     let mut timings = Vec::new();
     for phase in ["0", "1"] {
-        let output = netns
-            .command(&dir, &python)
-            .arg(&driver)
-            .arg(env!("CARGO_BIN_EXE_chronomap"))
-            .arg(&plan_file)
-            .arg(phase)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "the driver failed:\n{stderr}");
-        let result: Value = serde_json::from_slice(&output.stdout)
-            .unwrap_or_else(|e| panic!("the driver printed no JSON ({e}):\n{stderr}"));
-        timings.push(stderr.lines().last().unwrap_or("").to_string());
+        let (result, timing) = netns.drive(&dir, &python, "drive_node.py", &[&plan_file, &phase]);
+        timings.push(timing);
         phases.push(result);
     }
     println!(

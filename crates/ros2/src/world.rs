@@ -553,75 +553,40 @@ impl World {
         restored: &mut Restored,
     ) {
         let name = entry.name();
-        let result = match entry {
-            Entry::State { time, value, .. } => {
-                let Some(index) = self.config.states.iter().position(|s| s.name == name) else {
-                    restored.unknown += 1;
-                    return;
-                };
-                if seq < state_covers[index] {
-                    return;
-                }
-                let learned = self.learn_state(index, *time, *value);
-                if learned.is_ok() {
-                    restored.states[index].1 += 1;
-                }
-                learned
-            }
-            Entry::Map { message, .. } => {
-                let Some(index) = self.grid_index(name, true) else {
-                    restored.unknown += 1;
-                    return;
-                };
-                if seq < grid_covers[index] {
-                    return;
-                }
-                let learned = self.learn_map(index, message);
-                if learned.is_ok() {
-                    restored.grids[index].1 += 1;
-                }
-                learned
-            }
-            Entry::People { message, .. } => {
-                let Some(index) = self.grid_index(name, false) else {
-                    restored.unknown += 1;
-                    return;
-                };
-                if seq < grid_covers[index] {
-                    return;
-                }
-                let before = self.grids[index].frames;
-                let learned = self.learn_people(index, message, Some(seq));
-                restored.grids[index].1 += self.grids[index].frames - before;
-                learned
-            }
-            Entry::Refit { refit, .. } => {
-                let Some(index) = self.config.states.iter().position(|s| s.name == name) else {
-                    restored.unknown += 1;
-                    return;
-                };
-                if seq < state_covers[index] {
-                    return;
-                }
-                self.states[index]
-                    .model
-                    .install(Refit::clone(refit))
-                    .map_err(LearnError::Refit)
-            }
-            Entry::BinClosed { .. } => {
-                let Some(index) = self.grid_index(name, false) else {
-                    restored.unknown += 1;
-                    return;
-                };
-                if seq < grid_covers[index] {
-                    return;
-                }
-                let before = self.grids[index].frames;
-                let learned = self.close_bin(index);
-                restored.grids[index].1 += self.grids[index].frames - before;
-                learned
+        // The state or grid the record belongs to, and the journal position its file covers.
+        let state = || self.config.states.iter().position(|s| s.name == name);
+        let target = match entry {
+            Entry::State { .. } | Entry::Refit { .. } => state().map(|i| (i, state_covers[i])),
+            Entry::Map { .. } => self.grid_index(name, true).map(|i| (i, grid_covers[i])),
+            Entry::People { .. } | Entry::BinClosed { .. } => {
+                self.grid_index(name, false).map(|i| (i, grid_covers[i]))
             }
         };
+        let Some((index, covers)) = target else {
+            restored.unknown += 1;
+            return;
+        };
+        if seq < covers {
+            return;
+        }
+        let grid = !matches!(entry, Entry::State { .. } | Entry::Refit { .. });
+        let frames = if grid { self.grids[index].frames } else { 0 };
+        let result = match entry {
+            Entry::State { time, value, .. } => self
+                .learn_state(index, *time, *value)
+                .inspect(|()| restored.states[index].1 += 1),
+            Entry::Refit { refit, .. } => self.states[index]
+                .model
+                .install(Refit::clone(refit))
+                .map_err(LearnError::Refit),
+            Entry::Map { message, .. } => self.learn_map(index, message),
+            Entry::People { message, .. } => self.learn_people(index, message, Some(seq)),
+            Entry::BinClosed { .. } => self.close_bin(index),
+        };
+        if grid {
+            // Maps learn a frame each; people messages and closed bins when a bin closes.
+            restored.grids[index].1 += self.grids[index].frames - frames;
+        }
         match result {
             Ok(()) => restored.replayed += 1,
             Err(e) => {
