@@ -7,6 +7,9 @@ use chronomap_io::navmap::{load_map, save_map};
 use chronomap_io::read_pairs;
 use chronomap_models::spec::FitOptions;
 
+use chronomap_io::GridFile;
+
+use super::store::next_name;
 use super::*;
 use crate::msgs::Time;
 
