@@ -282,19 +282,7 @@ fn people_become_one_frame_per_bin_with_the_cells_someone_was_in() {
     let dir = Scratch::new("people");
     let params = "    save_dir: saved\n    people:\n      lobby: {topic: /p, width: 4, height: 2, resolution: 1.0, origin: [10, 20], bin: 100}\n";
     let mut world = World::new(config(&dir.0, params)).unwrap();
-    let people = |t: f64, xy: &[(f64, f64)]| PoseArray {
-        header: Header {
-            stamp: Time::from_seconds(t),
-            frame_id: "map".into(),
-        },
-        poses: xy
-            .iter()
-            .map(|&(x, y)| Pose {
-                position: Point { x, y, z: 0.0 },
-                orientation: Quaternion::default(),
-            })
-            .collect(),
-    };
+    let people = detections;
     // Bin 1 (100..200): cells 1 and 6; a pose outside the grid is ignored.
     world
         .observe_people(0, &people(110.0, &[(11.5, 20.5)]))
@@ -371,6 +359,7 @@ fn manual_sync() -> JournalSettings {
     }
 }
 
+/// People detected at `xy` at time `t`, in `map`.
 fn detections(t: f64, xy: &[(f64, f64)]) -> PoseArray {
     PoseArray {
         header: Header {
