@@ -136,14 +136,14 @@ impl Default for JournalSettings {
 #[derive(Debug, Error)]
 pub enum JournalError {
     /// A file or folder that cannot be read, written or synced.
-    #[error("{path}: cannot {action}: {source}")]
+    #[error("{path}: cannot {action}: {io}")]
     Io {
         /// The path.
         path: String,
         /// What was being done.
         action: &'static str,
-        /// Why.
-        source: io::Error,
+        /// Why (part of the message, not a further error in the chain).
+        io: io::Error,
     },
     /// Content that is not what the journal wrote.
     #[error(
@@ -177,7 +177,7 @@ fn io_error<'p>(
     move |source| JournalError::Io {
         path: path.display().to_string(),
         action,
-        source,
+        io: source,
     }
 }
 

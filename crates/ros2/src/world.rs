@@ -147,14 +147,14 @@ pub enum StoreError {
         reason: String,
     },
     /// A file or folder that cannot be written.
-    #[error("{path}: cannot {action}: {source}")]
+    #[error("{path}: cannot {action}: {io}")]
     Io {
         /// The path.
         path: String,
         /// What was being done.
         action: &'static str,
-        /// Why.
-        source: std::io::Error,
+        /// Why (part of the message, not a further error in the chain).
+        io: std::io::Error,
     },
     /// The edge models or the route graph.
     #[error(transparent)]

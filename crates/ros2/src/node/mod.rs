@@ -121,13 +121,27 @@ pub enum NodeError {
     Name(String),
     /// Polling failed.
     #[error("polling the subscriptions: {0}")]
-    Poll(#[from] std::io::Error),
+    Poll(std::io::Error),
     /// The parameters cannot be used.
     #[error(transparent)]
     Config(#[from] ConfigError),
     /// The saved models cannot be restored.
     #[error("cannot restore the models: {0}")]
-    Restore(#[from] StoreError),
+    Restore(StoreError),
+}
+
+// Not `#[from]`: the message holds the cause, so it is not repeated as a further error of the
+// chain (`error: {:#}` prints the chain).
+impl From<std::io::Error> for NodeError {
+    fn from(e: std::io::Error) -> Self {
+        NodeError::Poll(e)
+    }
+}
+
+impl From<StoreError> for NodeError {
+    fn from(e: StoreError) -> Self {
+        NodeError::Restore(e)
+    }
 }
 
 /// What a run learned, per input, in configuration order.

@@ -203,7 +203,7 @@ impl World {
                 let io = |source| StoreError::Io {
                     path: record.display().to_string(),
                     action: "write",
-                    source,
+                    io: source,
                 };
                 let record_bytes = match &mut slot.record {
                     Some(writer) => {
@@ -329,7 +329,7 @@ pub(super) fn complete_checkpoint(dir: &Path, manifest: &Manifest) -> Result<(),
             std::fs::rename(&next, &file).map_err(|source| StoreError::Io {
                 path: next.display().to_string(),
                 action: "rename",
-                source,
+                io: source,
             })?;
             if let Some(parent) = file.parent()
                 && !folders.contains(&parent.to_path_buf())
@@ -375,7 +375,7 @@ pub(super) fn recover_checkpoint(dir: &Path) -> Result<Manifest, StoreError> {
         std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
             path: dir.display().to_string(),
             action: "create the folder",
-            source,
+            io: source,
         })?;
         let mut manifest = Manifest::default();
         for item in std::fs::read_dir(dir.join("states"))
@@ -413,7 +413,7 @@ pub(super) fn recover_checkpoint(dir: &Path) -> Result<Manifest, StoreError> {
                 std::fs::remove_file(&path).map_err(|source| StoreError::Io {
                     path: path.display().to_string(),
                     action: "delete",
-                    source,
+                    io: source,
                 })?;
             }
         }
@@ -444,7 +444,7 @@ pub(super) fn make_parent(file: &Path) -> Result<(), StoreError> {
     std::fs::create_dir_all(parent).map_err(|source| StoreError::Io {
         path: parent.display().to_string(),
         action: "create the folder",
-        source,
+        io: source,
     })
 }
 
@@ -457,7 +457,7 @@ pub(super) fn open_record(file: &Path, saved: u64) -> Result<BufWriter<File>, St
         move |source| StoreError::Io {
             path: file.display().to_string(),
             action,
-            source,
+            io: source,
         }
     };
     let handle = OpenOptions::new()
