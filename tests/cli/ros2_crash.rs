@@ -24,7 +24,7 @@ use crate::common::{
     assert_mentions, chronomap, greg_training, oracle_python, scratch, stdout, write,
 };
 use crate::ros2_node::{
-    FLOW_EVERY, HEIGHT, HORIZON, WIDTH, cells, grid_predict, office_frame, predict,
+    FLOW_EVERY, HEIGHT, HORIZON, WIDTH, cells, fit_and_predict, grid_predict, office_frame,
     private_network_or_skip,
 };
 
@@ -199,16 +199,7 @@ chronomap:
     let last = restarted["final"]["clock"].as_i64().unwrap();
     assert_eq!(last, door[total - 1].0);
     let target = last + HORIZON;
-    stdout(&chronomap(&[
-        "fit",
-        "--train",
-        &path("saved/states/door.txt"),
-        "--model",
-        "fremen:2",
-        "-o",
-        &path("fit.cmm"),
-    ]));
-    let (p, h) = predict(&dir.join("fit.cmm"), target);
+    let (p, h) = fit_and_predict(&dir, "saved/states/door.txt", "fremen:2", &[target])[0];
     let published = &restarted["final"];
     assert_eq!(
         published["probability"].as_f64().unwrap().to_bits(),

@@ -12,45 +12,10 @@
 //! Runs when `CHRONOMAP_ROS_PYTHON` names a Python with rclpy and `std_srvs`, and
 //! `CHRONOMAP_ROS_MSGS` the built interfaces (`.ci/run` sets both).
 
-use std::path::Path;
-
 use serde_json::{Value, json};
 
-use crate::common::{
-    assert_mentions, chronomap, greg_training, json, oracle_python, scratch, stdout, write,
-};
-use crate::ros2_node::{HORIZON, private_network_or_skip};
-
-/// `chronomap fit --model SPEC` of `record`, then `predict --at T --json` at each of `times`.
-fn fit_and_predict(dir: &Path, record: &str, spec: &str, times: &[i64]) -> Vec<(f64, f64)> {
-    let model = dir.join(format!("{}.cmm", spec.replace(':', "_")));
-    stdout(&chronomap(&[
-        "fit",
-        "--train",
-        &dir.join(record).display().to_string(),
-        "--model",
-        spec,
-        "-o",
-        &model.display().to_string(),
-    ]));
-    times
-        .iter()
-        .map(|t| {
-            let out = json(&chronomap(&[
-                "predict",
-                &model.display().to_string(),
-                "--at",
-                &t.to_string(),
-                "--json",
-            ]));
-            let row = &out["predictions"][0];
-            (
-                row["p"].as_f64().unwrap(),
-                row["entropy_bits"].as_f64().unwrap(),
-            )
-        })
-        .collect()
-}
+use crate::common::{assert_mentions, greg_training, oracle_python, scratch, write};
+use crate::ros2_node::{HORIZON, fit_and_predict, private_network_or_skip};
 
 fn floats(v: &Value) -> Vec<f64> {
     v.as_array()

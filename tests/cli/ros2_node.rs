@@ -176,6 +176,27 @@ pub(crate) fn grid_predict(grid: &Path, time: i64, mode: &str, out: &Path) -> Oc
     load_map(&yaml, LoadSemantics::Nav2).unwrap()
 }
 
+/// `chronomap fit --model SPEC` of `record` (in `dir`), then `predict --at T --json` at each
+/// of `times`: p and entropy.
+pub(crate) fn fit_and_predict(
+    dir: &Path,
+    record: &str,
+    spec: &str,
+    times: &[i64],
+) -> Vec<(f64, f64)> {
+    let model = dir.join(format!("{}.cmm", spec.replace(':', "_")));
+    stdout(&chronomap(&[
+        "fit",
+        "--train",
+        &dir.join(record).display().to_string(),
+        "--model",
+        spec,
+        "-o",
+        &model.display().to_string(),
+    ]));
+    times.iter().map(|&t| predict(&model, t)).collect()
+}
+
 /// `predict MODEL --at T --json`: p and entropy.
 pub(crate) fn predict(model: &Path, time: i64) -> (f64, f64) {
     let out = json(&chronomap(&[
@@ -409,16 +430,7 @@ chronomap:
         late.len(),
         &late[..late.len().min(10)]
     );
-    stdout(&chronomap(&[
-        "fit",
-        "--train",
-        &path("saved/states/door.txt"),
-        "--model",
-        "fremen:2",
-        "-o",
-        &path("fit.cmm"),
-    ]));
-    let (p, h) = predict(&dir.join("fit.cmm"), target);
+    let (p, h) = fit_and_predict(&dir, "saved/states/door.txt", "fremen:2", &[target])[0];
     let published = (
         last_phase["probability"].as_f64().unwrap(),
         last_phase["entropy"].as_f64().unwrap(),

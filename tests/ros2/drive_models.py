@@ -34,13 +34,9 @@ import rclpy  # noqa: E402
 from chronomap_msgs.msg import Prediction  # noqa: E402
 from builtin_interfaces.msg import Time  # noqa: E402
 from chronomap_msgs.srv import Predict  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
+from driving import EVERY, LATEST, WAIT_SECS, RosDriver  # noqa: E402
 from std_msgs.msg import Bool  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
-
-WAIT_SECS = 30.0
 
 
 def prediction_json(msg):
@@ -56,29 +52,16 @@ def prediction_json(msg):
     }
 
 
-class Driver:
+class Driver(RosDriver):
     def __init__(self, plan):
+        super().__init__("chronomap_models_driver")
         self.plan = plan
-        self.node = Node("chronomap_models_driver")
-        every = QoSProfile(
-            depth=10000,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.VOLATILE,
-        )
-        latest = QoSProfile(
-            depth=1,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
         n = self.node
-        self.clock = n.create_publisher(Clock, "/clock", every)
-        self.door = n.create_publisher(Bool, "/door", every)
+        self.door = n.create_publisher(Bool, "/door", EVERY)
         self.latest = {}
         for name in plan["states"]:
             n.create_subscription(
-                Prediction, f"/chronomap/{name}/prediction", self.keeper(name), latest
+                Prediction, f"/chronomap/{name}/prediction", self.keeper(name), LATEST
             )
         self.predict = n.create_client(Predict, "/chronomap/predict")
         self.save = n.create_client(Trigger, "/chronomap/save")
@@ -94,23 +77,11 @@ class Driver:
         msg = self.latest.get(name)
         return None if msg is None else msg.made.sec
 
-    def spin_until(self, condition, what):
-        deadline = time.monotonic() + WAIT_SECS
-        while not condition():
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"timed out after {WAIT_SECS} s waiting for {what}")
-            rclpy.spin_once(self.node, timeout_sec=0.05)
-
     def call(self, client, request, what):
         self.spin_until(client.service_is_ready, f"the service {what}")
         future = client.call_async(request)
         self.spin_until(future.done, f"the answer of {what}")
         return future.result()
-
-    def publish_clock(self, t):
-        msg = Clock()
-        msg.clock.sec = t
-        self.clock.publish(msg)
 
     def predict_at(self, name, times):
         request = Predict.Request()

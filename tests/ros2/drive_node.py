@@ -24,6 +24,7 @@ talks to DDS; every check is in the Rust test. Run it inside a private network n
 """
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -32,12 +33,10 @@ import time
 import rclpy
 from geometry_msgs.msg import Pose, PoseArray
 from nav_msgs.msg import OccupancyGrid
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64
 
-WAIT_SECS = 30.0
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from driving import EVERY, LATEST, WAIT_SECS, RosDriver  # noqa: E402
 
 
 def grid_json(msg):
@@ -62,30 +61,17 @@ def grid_json(msg):
     }
 
 
-class Driver:
+class Driver(RosDriver):
     def __init__(self, plan):
+        super().__init__("chronomap_test_driver")
         self.plan = plan
-        self.node = Node("chronomap_test_driver")
-        every = QoSProfile(
-            depth=10000,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.VOLATILE,
-        )
-        latest = QoSProfile(
-            depth=1,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
         topics = plan["topics"]
         n = self.node
-        self.clock = n.create_publisher(Clock, "/clock", every)
-        self.door = n.create_publisher(Bool, topics["door"], every)
-        self.map = n.create_publisher(OccupancyGrid, topics["map"], every)
-        self.people = n.create_publisher(PoseArray, topics["people"], every)
+        self.door = n.create_publisher(Bool, topics["door"], EVERY)
+        self.map = n.create_publisher(OccupancyGrid, topics["map"], EVERY)
+        self.people = n.create_publisher(PoseArray, topics["people"], EVERY)
         # A publisher of the wrong type on a topic the node reads as std_msgs/Bool.
-        self.wrong = n.create_publisher(OccupancyGrid, topics["wrong"], every)
+        self.wrong = n.create_publisher(OccupancyGrid, topics["wrong"], EVERY)
         self.latest = {}
         outputs = {
             "map": (OccupancyGrid, topics["predicted_map"]),
@@ -95,7 +81,7 @@ class Driver:
             "entropy": (Float64, topics["entropy"]),
         }
         for key, (kind, topic) in outputs.items():
-            n.create_subscription(kind, topic, self.keeper(key), latest)
+            n.create_subscription(kind, topic, self.keeper(key), LATEST)
 
     def keeper(self, key):
         def keep(msg):
@@ -106,18 +92,6 @@ class Driver:
     def stamp_of(self, key):
         msg = self.latest.get(key)
         return None if msg is None else msg.header.stamp.sec
-
-    def spin_until(self, condition, what):
-        deadline = time.monotonic() + WAIT_SECS
-        while not condition():
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"timed out after {WAIT_SECS} s waiting for {what}")
-            rclpy.spin_once(self.node, timeout_sec=0.05)
-
-    def publish_clock(self, t):
-        msg = Clock()
-        msg.clock.sec = t
-        self.clock.publish(msg)
 
     def occupancy(self, frame, stamp):
         info = self.plan["map_info"]

@@ -675,7 +675,8 @@ impl World {
             [info.origin.position.x, info.origin.position.y],
         )?;
         let stamp = msg.header.stamp.seconds();
-        // What the other grids hold now; this one is bound before it learns the map.
+        // With `memory_limit`: what the other grids hold now, and this one bound before it
+        // learns the map (a pass over its cells, skipped without a limit).
         let others: u64 = self
             .grids
             .iter()
@@ -686,11 +687,14 @@ impl World {
             .sum();
         let limit = self.config.memory_limit;
         let check = |grid: &FremenGrid| -> Result<(), LearnError> {
+            let Some(limit) = limit else {
+                return Ok(());
+            };
             let needed = others.saturating_add(grid.heap_bound_after_occupancy(&msg.data));
-            match limit {
-                Some(limit) if needed > limit => Err(LearnError::Memory { needed, limit }),
-                _ => Ok(()),
+            if needed > limit {
+                return Err(LearnError::Memory { needed, limit });
             }
+            Ok(())
         };
         let slot = &mut self.grids[index];
         let grid = match &mut slot.grid {
