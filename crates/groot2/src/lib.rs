@@ -13,4 +13,5 @@
 //!   the tree that the tick loop updates after each tick.
 #![deny(missing_docs)]
 
+pub mod client;
 pub mod protocol;
