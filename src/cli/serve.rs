@@ -11,6 +11,7 @@ Examples:
   chronomap serve --data chronomap-data --activity atc=atc.cmcopa --activity-map atc=atc_map.yaml
   chronomap serve --data chronomap-data --postgres 'host=127.0.0.1 user=robot dbname=lab'
   chronomap serve --data node1 --postgres 'host=db.lab dbname=lab' --fleet --allow-host node1.lab
+  chronomap serve --data chronomap-data --bt-monitor robot=127.0.0.1:1667
 
   chronomap serve --data chronomap-data --check      # verify the store, exit 0 or 1
   chronomap serve --data chronomap-data --salvage    # rebuild a damaged store from what is intact
@@ -121,6 +122,14 @@ pub struct ServeArgs {
     /// A Nav2 map (YAML) of an --activity model as NAME=MAP.yaml: cells on its walls are left out.
     #[arg(long, value_parser = parse_named_file, value_delimiter = ',')]
     pub activity_map: Vec<(String, PathBuf)>,
+    /// Watch a running behavior tree through its Groot2 publisher ([NAME=]HOST:PORT, the
+    /// publisher's port: BehaviorTree.CPP's Groot2Publisher, Nav2's, `chronomap bt run
+    /// --groot2`): its nodes' statuses, transitions and blackboards at /v1/bt/monitors and in
+    /// the viewer's "Behavior trees" tab, any number of trees of any size. Repeat the flag or
+    /// separate them by commas.
+    #[arg(long, value_name = "[NAME=]HOST:PORT", value_delimiter = ',',
+          value_parser = chronomap_serve::bt_monitor::MonitorTarget::parse)]
+    pub bt_monitor: Vec<chronomap_serve::bt_monitor::MonitorTarget>,
 }
 
 fn parse_non_negative(text: &str) -> Result<f64, String> {

@@ -11,6 +11,7 @@ use anyhow::{Context, Result, bail};
 use chronomap_client::Client;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
+use chronomap_serve::bt_monitor::{BtMonitors, MonitorOptions};
 use chronomap_serve::maps::{Maps, ServedActivity, ServedTopo};
 use chronomap_serve::server::ConnectionLimits;
 use chronomap_serve::store::{Access, OWNER_WAIT, PostgresStore, RedbStore, Store};
@@ -96,6 +97,10 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             observations: args.refit_every,
             data_secs: args.refit_secs,
         },
+        bt_monitors: Arc::new(
+            BtMonitors::start(args.bt_monitor.clone(), MonitorOptions::default())
+                .map_err(|e| usage(e))?,
+        ),
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();
@@ -117,6 +122,14 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
                 file.display()
             )?,
             None => outln!("warning: writes need no token (--no-token)")?,
+        }
+        for target in &args.bt_monitor {
+            outln!(
+                "watching the behavior tree of the Groot2 publisher at {} as {:?} \
+                 (http://{address}/v1/bt/monitors)",
+                target.address,
+                target.id
+            )?;
         }
         outln!("API description: http://{address}/openapi.json")?;
         std::io::stdout().flush()?;

@@ -19,12 +19,15 @@
 //!   the salvage of what is intact in a damaged store (`--salvage`).
 //! * [`maps`]: topological maps, occupancy grids and CoPA-Maps of people served read-only beside
 //!   the models.
+//! * [`bt_monitor`]: behavior trees watched live over the Groot2 protocol
+//!   (`--bt-monitor HOST:PORT`), any number of trees of any size.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
 //!
 //! The server does not compile an HTTP client: processes that only talk to a service depend on
 //! `chronomap-client`, which does not compile this crate.
 
 pub use chronomap_client::api;
+pub mod bt_monitor;
 pub mod check;
 pub mod fleet;
 pub mod log;

@@ -72,6 +72,8 @@ pub struct ServiceConfig {
     /// without being asked ([`crate::refit`]): by default after a day of data time or 100,000
     /// new observations.
     pub refit: chronomap_models::RefitPolicy,
+    /// Behavior trees watched over the Groot2 protocol (`--bt-monitor`).
+    pub bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
 }
 
 impl Default for ServiceConfig {
@@ -84,6 +86,7 @@ impl Default for ServiceConfig {
             allowed_hosts: Vec::new(),
             limits: ConnectionLimits::default(),
             refit: chronomap_models::RefitPolicy::default(),
+            bt_monitors: Arc::default(),
         }
     }
 }
@@ -114,6 +117,7 @@ impl Drop for RefitThread {
 pub struct Service {
     state: AppState,
     maps: Arc<Maps>,
+    bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
     max_body_bytes: usize,
     limits: ConnectionLimits,
     writer: std::thread::JoinHandle<()>,
@@ -194,6 +198,7 @@ impl Service {
                 max_body_bytes: config.max_body_bytes,
             },
             maps: config.maps,
+            bt_monitors: config.bt_monitors,
             max_body_bytes: config.max_body_bytes,
             limits: config.limits,
             writer,
@@ -217,6 +222,7 @@ impl Service {
         router(
             self.state.clone(),
             Arc::clone(&self.maps),
+            Arc::clone(&self.bt_monitors),
             self.max_body_bytes,
         )
     }
@@ -239,9 +245,16 @@ impl Service {
             limits,
             tailer,
             refitter,
+            bt_monitors,
             ..
         } = self;
         drop(state);
+        // Streams of behavior-tree events end when shutting down, so that the connections
+        // carrying them close.
+        let shutdown = async move {
+            shutdown.await;
+            bt_monitors.stop();
+        };
         serve_connections(listener, app, limits, shutdown).await;
         // The router is gone; the refit thread ends after the fit in progress (a fit not yet
         // logged is made again when due after the restart). Then no sender of writes is left:
@@ -339,7 +352,9 @@ async fn serve_connections(
         entropy, forecast, forecast_entropy, evaluate, detect, crate::maps::list,
         crate::maps::topo_info, crate::maps::topo_predict, crate::maps::topo_plan,
         crate::maps::grid_info, crate::maps::grid_predict, crate::maps::grid_cell,
-        crate::maps::activity_info, crate::maps::activity_predict
+        crate::maps::activity_info, crate::maps::activity_predict, crate::bt_monitor::list,
+        crate::bt_monitor::view, crate::bt_monitor::events, crate::bt_monitor::transitions,
+        crate::bt_monitor::blackboard
     ),
     modifiers(&BearerAuth)
 )]
@@ -360,7 +375,12 @@ impl utoipa::Modify for BearerAuth {
     }
 }
 
-fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
+fn router(
+    state: AppState,
+    maps: Arc<Maps>,
+    bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
+    max_body_bytes: usize,
+) -> Router {
     let writes = Router::new()
         .route("/v1/models/{id}", put(create).delete(remove))
         .route("/v1/models/{id}/refit", post(refit))
@@ -386,6 +406,7 @@ fn router(state: AppState, maps: Arc<Maps>, max_body_bytes: usize) -> Router {
         .merge(writes)
         .with_state(state.clone())
         .merge(crate::maps::router(maps))
+        .merge(crate::bt_monitor::router(bt_monitors))
         .fallback(|| async { ApiError::not_found("no such endpoint; see /openapi.json".into()) })
         .method_not_allowed_fallback(|| async {
             ApiError::new(
@@ -411,7 +432,7 @@ pub struct ApiError {
 }
 
 impl ApiError {
-    fn new(status: StatusCode, error: &str, reason: String) -> Self {
+    pub(crate) fn new(status: StatusCode, error: &str, reason: String) -> Self {
         ApiError {
             status,
             body: ErrorBody {
