@@ -164,6 +164,18 @@ pub struct BtRunArgs {
     /// such as Nav2's nav2_tree_nodes.xml (repeatable; the tree file's own models come first).
     #[arg(long = "nodes", value_name = "FILE")]
     pub nodes: Vec<PathBuf>,
+    /// Serve the run to Groot2 (and other clients of its protocol, such as btview) while it
+    /// runs: ZeroMQ requests on PORT, notifications on PORT + 1, as BehaviorTree.CPP's
+    /// Groot2Publisher.
+    #[arg(long, value_name = "PORT", value_parser = clap::value_parser!(u16).range(1..=65534))]
+    pub groot2: Option<u16>,
+    /// Wall-clock milliseconds to wait before each tick (the run's own times stay the
+    /// script's), so that a client can follow the run (default: 500 with --groot2, else 0).
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(0..=3_600_000))]
+    pub tick_period: Option<u64>,
+    /// With --groot2: seconds to keep answering after the last tick.
+    #[arg(long, value_name = "SECS", requires = "groot2", value_parser = clap::value_parser!(u64).range(0..=86_400))]
+    pub linger: Option<u64>,
 }
 
 /// What a `--stub` makes of a node.

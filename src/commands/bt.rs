@@ -451,8 +451,16 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         .script
         .as_ref()
         .map_or_else(|| "the run".to_owned(), |p| p.display().to_string());
-    let run =
-        run_script(&mut tree, &outcomes, &script, period).with_context(|| script_name.clone())?;
+    let live = start_live(args, &tree, doc)?;
+    let run = match &live {
+        Some(live) => {
+            let probe = Tree::with_main(doc, &main, &registry)
+                .map_err(|e| located(&xml, &e, &name.to_string()))?;
+            run_live(live, &mut tree, probe, doc, &outcomes, &script, period)
+        }
+        None => run_script(&mut tree, &outcomes, &script, period),
+    }
+    .with_context(|| script_name.clone())?;
     let transitions: Vec<_> = run
         .ticks
         .iter()
@@ -555,6 +563,81 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// `--groot2`, `--tick-period`, `--linger`: the Groot2 server of a run and the wall-clock
+/// pacing of its ticks. Dropped at the end of the run: it keeps answering for the linger
+/// time first.
+struct Live {
+    publisher: Option<chronomap_groot2::publisher::Publisher>,
+    pause: Duration,
+    linger: Duration,
+}
+
+impl Drop for Live {
+    fn drop(&mut self) {
+        if let Some(publisher) = &self.publisher
+            && !self.linger.is_zero()
+        {
+            eprintln!(
+                "note: groot2: answering on port {} for {} s more",
+                publisher.port(),
+                self.linger.as_secs()
+            );
+            std::thread::sleep(self.linger);
+        }
+    }
+}
+
+/// The Groot2 server (started now, before the first tick) and the pacing a run asks for, if
+/// any.
+fn start_live(args: &BtRunArgs, tree: &Tree, doc: &BtDocument) -> Result<Option<Live>> {
+    if args.groot2.is_none() && args.tick_period.is_none() {
+        return Ok(None);
+    }
+    let publisher = match args.groot2 {
+        Some(port) => {
+            let publisher = chronomap_groot2::publisher::Publisher::start(tree, doc, port)
+                .with_context(|| format!("--groot2 {port}"))?;
+            eprintln!("note: groot2: serving on ports {port} and {}", port + 1);
+            Some(publisher)
+        }
+        None => None,
+    };
+    let default_ms = if publisher.is_some() { 500 } else { 0 };
+    Ok(Some(Live {
+        publisher,
+        pause: Duration::from_millis(args.tick_period.unwrap_or(default_ms)),
+        linger: Duration::from_secs(args.linger.unwrap_or(0)),
+    }))
+}
+
+/// A run in real time: the script is checked (and run) on `probe`, a tree built like `tree`,
+/// as `run_script` checks it; then `tree` runs it with a pause before each tick and the
+/// server updated after each.
+fn run_live(
+    live: &Live,
+    tree: &mut Tree,
+    mut probe: Tree,
+    doc: &BtDocument,
+    outcomes: &ScriptedOutcomes,
+    script: &Script,
+    period: Duration,
+) -> Result<chronomap_bt::script::ScriptRun, chronomap_bt::script::ScriptError> {
+    run_script(&mut probe, outcomes, script, period)?;
+    outcomes.clear();
+    Ok(chronomap_groot2::live::run_script_paced(
+        tree,
+        outcomes,
+        script,
+        period,
+        &mut || std::thread::sleep(live.pause),
+        &mut |tree, transitions| {
+            if let Some(publisher) = &live.publisher {
+                publisher.update(tree, doc, transitions);
+            }
+        },
+    ))
 }
 
 #[derive(Serialize)]

@@ -13,5 +13,8 @@
 //!   the tree that the tick loop updates after each tick.
 #![deny(missing_docs)]
 
+mod builtins;
 pub mod client;
 pub mod protocol;
+pub mod live;
+pub mod publisher;

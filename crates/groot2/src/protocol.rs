@@ -1186,3 +1186,851 @@ pub fn decode_msgpack(bytes: &[u8]) -> Result<MsgValue, ProtocolError> {
     }
     Ok(v)
 }
+
+// ---------------------------------------------------------------------------------------------
+// FULLTREE: the tree as BehaviorTree.CPP's `WriteTreeToXML(tree, true, true)` writes it
+
+/// The order in which a libstdc++ `std::unordered_map` with unique keys yields its elements
+/// after a sequence of insertions — the order in which BehaviorTree.CPP iterates its port maps
+/// (`PortsList`, `PortsRemapping`) and so writes ports. Rules of libstdc++ (`_Hashtable` and
+/// `_Prime_rehash_policy`, maximum load factor 1): a new element goes to the front of its
+/// bucket, or to the front of the whole list when its bucket was empty; the table grows to the
+/// next prime of libstdc++'s list at least twice as large when the elements would exceed the
+/// buckets (a default-constructed map starts at 13 buckets with its first element; a map
+/// built from an initializer list of *n* elements at the smallest listed bucket count ≥ *n*);
+/// growing relinks the elements bucket by bucket in list order. Hashes are libstdc++'s
+/// `std::hash<std::string>` ([`std_hash_bytes`]).
+#[derive(Clone, Debug)]
+pub(crate) struct StdUnorderedOrder<K> {
+    /// Elements in iteration order with their hash codes.
+    list: Vec<(K, u64)>,
+    buckets: u64,
+    next_resize: u64,
+}
+
+/// libstdc++'s `__fast_bkt` table for bucket requests below 14.
+const FAST_BUCKETS: [u64; 14] = [2, 2, 2, 3, 5, 5, 7, 7, 11, 11, 11, 11, 13, 13];
+
+/// The start of libstdc++'s `__prime_list` (enough for a million elements).
+const PRIMES: [u64; 130] = [
+    2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53, 59, 61, 67, 71, 73, 79, 83, 89, 97,
+    103, 109, 113, 127, 137, 139, 149, 157, 167, 179, 193, 199, 211, 227, 241, 257, 277, 293, 313,
+    337, 359, 383, 409, 439, 467, 503, 541, 577, 619, 661, 709, 761, 823, 887, 953, 1031, 1109,
+    1193, 1289, 1381, 1493, 1613, 1741, 1879, 2029, 2179, 2357, 2549, 2753, 2971, 3209, 3469, 3739,
+    4027, 4349, 4703, 5087, 5503, 5953, 6427, 6949, 7517, 8123, 8783, 9497, 10273, 11113, 12011,
+    12983, 14033, 15173, 16411, 17749, 19183, 20753, 22447, 24281, 26267, 28411, 30727, 33223,
+    35933, 38873, 42043, 45481, 49201, 53201, 57557, 62233, 67307, 72817, 78779, 85229, 92203,
+    99733, 107897, 116731, 126271, 136607, 147793, 159871, 172933, 187091, 202409, 218971,
+];
+
+impl<K: PartialEq> StdUnorderedOrder<K> {
+    /// A default-constructed map (one bucket, nothing allocated).
+    pub(crate) fn new() -> Self {
+        StdUnorderedOrder {
+            list: Vec::new(),
+            buckets: 1,
+            next_resize: 0,
+        }
+    }
+
+    /// A map about to be filled from an initializer list of `n` elements.
+    pub(crate) fn for_elements(n: usize) -> Self {
+        let mut map = StdUnorderedOrder::new();
+        let wanted = map.next_bucket_count(n as u64);
+        map.buckets = map.buckets.max(wanted);
+        map
+    }
+
+    /// `_Prime_rehash_policy::_M_next_bkt`.
+    fn next_bucket_count(&mut self, n: u64) -> u64 {
+        if n < FAST_BUCKETS.len() as u64 {
+            if n == 0 {
+                return 1;
+            }
+            let b = FAST_BUCKETS[n as usize];
+            self.next_resize = b;
+            return b;
+        }
+        let k = PRIMES[6..].partition_point(|&p| p < n) + 6;
+        let b = PRIMES.get(k).copied().unwrap_or(PRIMES[PRIMES.len() - 1]);
+        self.next_resize = b;
+        b
+    }
+
+    /// `_Prime_rehash_policy::_M_need_rehash` for one more element: the new bucket count.
+    fn need_rehash(&mut self) -> Option<u64> {
+        let n = self.list.len() as u64 + 1;
+        if n <= self.next_resize {
+            return None;
+        }
+        let min_buckets = n.max(if self.next_resize == 0 { 11 } else { 0 });
+        if min_buckets >= self.buckets {
+            return Some(self.next_bucket_count((min_buckets + 1).max(self.buckets * 2)));
+        }
+        self.next_resize = self.buckets;
+        None
+    }
+
+    /// `_Hashtable::_M_rehash_aux` (unique keys).
+    fn rehash(&mut self, buckets: u64) {
+        let old = std::mem::take(&mut self.list);
+        // A bucket's first element, as an index into `self.list`.
+        let mut first: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+        for (key, hash) in old {
+            let b = hash % buckets;
+            match first.get(&b) {
+                None => {
+                    self.list.insert(0, (key, hash));
+                    for v in first.values_mut() {
+                        *v += 1;
+                    }
+                    first.insert(b, 0);
+                }
+                Some(&at) => {
+                    // After the bucket's "before" node: at the front of the bucket.
+                    self.list.insert(at, (key, hash));
+                    for (_, v) in first.iter_mut() {
+                        if *v > at {
+                            *v += 1;
+                        }
+                    }
+                }
+            }
+        }
+        self.buckets = buckets;
+    }
+
+    /// Inserts `key` with hash code `hash` (nothing if it is present).
+    pub(crate) fn insert(&mut self, key: K, hash: u64) {
+        if self.list.iter().any(|(k, _)| *k == key) {
+            return;
+        }
+        if let Some(buckets) = self.need_rehash() {
+            self.rehash(buckets);
+        }
+        let b = hash % self.buckets;
+        let at = self
+            .list
+            .iter()
+            .position(|(_, h)| h % self.buckets == b)
+            .unwrap_or(0);
+        self.list.insert(at, (key, hash));
+    }
+
+    /// Removes `key` (`erase`: the others keep their order).
+    pub(crate) fn remove(&mut self, key: &K) {
+        self.list.retain(|(k, _)| k != key);
+    }
+
+    /// The keys in iteration order.
+    pub(crate) fn keys(&self) -> impl Iterator<Item = &K> {
+        self.list.iter().map(|(k, _)| k)
+    }
+}
+
+/// libstdc++'s `std::_Hash_bytes` on 64-bit targets with the seed of `std::hash<std::string>`
+/// (0xc70f6907): a variant of MurmurHash64A.
+pub(crate) fn std_hash_bytes(bytes: &[u8]) -> u64 {
+    const MUL: u64 = (0xc6a4_a793_u64 << 32) + 0x5bd1_e995;
+    let shift_mix = |v: u64| v ^ (v >> 47);
+    let mut hash = 0xc70f_6907_u64 ^ (bytes.len() as u64).wrapping_mul(MUL);
+    let mut chunks = bytes.chunks_exact(8);
+    for chunk in &mut chunks {
+        let mut word = [0; 8];
+        word.copy_from_slice(chunk);
+        let data = shift_mix(u64::from_le_bytes(word).wrapping_mul(MUL)).wrapping_mul(MUL);
+        hash ^= data;
+        hash = hash.wrapping_mul(MUL);
+    }
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        let data = rest
+            .iter()
+            .rev()
+            .fold(0u64, |acc, &b| (acc << 8) | u64::from(b));
+        hash ^= data;
+        hash = hash.wrapping_mul(MUL);
+    }
+    hash = shift_mix(hash).wrapping_mul(MUL);
+    shift_mix(hash)
+}
+
+/// A string-keyed map with libstdc++'s iteration order and values.
+#[derive(Clone, Debug)]
+struct StdStringMap {
+    order: StdUnorderedOrder<String>,
+    values: std::collections::HashMap<String, String>,
+}
+
+impl StdStringMap {
+    fn new() -> StdStringMap {
+        StdStringMap {
+            order: StdUnorderedOrder::new(),
+            values: std::collections::HashMap::new(),
+        }
+    }
+
+    /// `insert`: keeps an existing value.
+    fn insert(&mut self, key: &str, value: &str) {
+        if !self.values.contains_key(key) {
+            self.order
+                .insert(key.to_owned(), std_hash_bytes(key.as_bytes()));
+            self.values.insert(key.to_owned(), value.to_owned());
+        }
+    }
+
+    /// `operator[] =`: replaces an existing value.
+    fn assign(&mut self, key: &str, value: &str) {
+        self.insert(key, value);
+        self.values.insert(key.to_owned(), value.to_owned());
+    }
+
+    fn contains(&self, key: &str) -> bool {
+        self.values.contains_key(key)
+    }
+
+    fn iter(&self) -> impl Iterator<Item = (&str, &str)> {
+        self.order
+            .keys()
+            .map(|k| (k.as_str(), self.values[k].as_str()))
+    }
+}
+
+/// BehaviorTree.CPP's `IsAllowedPortName`: starts with a letter, and not `name`, `ID`,
+/// `_autoremap` or a pre-/post-condition attribute.
+fn is_allowed_port_name(name: &str) -> bool {
+    name.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
+        && !matches!(name, "name" | "ID" | "_autoremap")
+}
+
+/// BehaviorTree.CPP's `TreeNode::isBlackboardPointer`: `{…}` (spaces around allowed), at
+/// least 3 characters; the key inside.
+fn blackboard_pointer(value: &str) -> Option<&str> {
+    let trimmed = value.trim_matches(' ');
+    (value.len() >= 3 && trimmed.len() >= 3)
+        .then(|| trimmed.strip_prefix('{')?.strip_suffix('}'))
+        .flatten()
+}
+
+/// The pre-condition attributes in BehaviorTree.CPP's `PreCond` order, then the
+/// post-conditions in `PostCond` order: the order in which `WriteTreeToXML` writes them.
+const CONDITION_ATTRIBUTES: [&str; 8] = [
+    "_failureIf",
+    "_successIf",
+    "_skipIf",
+    "_while",
+    "_onHalted",
+    "_onFailure",
+    "_onSuccess",
+    "_post",
+];
+
+/// A port of a node type as the XML writer needs it.
+#[derive(Clone, Debug)]
+struct ModelPort {
+    direction: chronomap_bt::PortDirection,
+    name: String,
+    type_name: Option<String>,
+    default: Option<String>,
+    description: Option<String>,
+}
+
+/// A node type: category, ID and ports in BehaviorTree.CPP's iteration order.
+#[derive(Clone, Debug)]
+struct Model {
+    category: chronomap_bt::NodeCategory,
+    id: String,
+    ports: Vec<ModelPort>,
+}
+
+impl Model {
+    fn builtin(m: &crate::builtins::BuiltinModel) -> Model {
+        Model {
+            category: m.category,
+            id: m.id.to_owned(),
+            ports: m
+                .ports
+                .iter()
+                .map(|p| ModelPort {
+                    direction: p.direction,
+                    name: p.name.to_owned(),
+                    type_name: p.type_name.map(str::to_owned),
+                    default: p.default.map(str::to_owned),
+                    description: p.description.map(str::to_owned),
+                })
+                .collect(),
+        }
+    }
+
+    /// A model of chronomap's (a user node): its ports in the order a port map built from
+    /// an initializer list in declaration order yields them (`providedPorts() { return {…}; }`).
+    fn user(m: &chronomap_bt::NodeModel) -> Model {
+        let mut order = StdUnorderedOrder::for_elements(m.ports.len());
+        for (k, p) in m.ports.iter().enumerate() {
+            order.insert(k, std_hash_bytes(p.name.as_bytes()));
+        }
+        Model {
+            category: m.category,
+            id: m.id.clone(),
+            ports: order
+                .keys()
+                .map(|&k| {
+                    let p = &m.ports[k];
+                    ModelPort {
+                        direction: p.direction,
+                        name: p.name.clone(),
+                        type_name: p.type_name.clone(),
+                        default: p.default.clone(),
+                        description: p.description.clone(),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    fn port(&self, name: &str) -> Option<&ModelPort> {
+        self.ports.iter().find(|p| p.name == name)
+    }
+}
+
+/// The models a tree's `<TreeNodesModel>` lists, sorted by ID: every built-in node type of
+/// BehaviorTree.CPP 4.8.2, and the tree's other (user) node types.
+fn tree_models(tree: &chronomap_bt::Tree) -> std::collections::BTreeMap<String, Model> {
+    let mut models: std::collections::BTreeMap<String, Model> = crate::builtins::BUILTIN_MODELS
+        .iter()
+        .map(|m| (m.id.to_owned(), Model::builtin(m)))
+        .collect();
+    for m in tree.node_models() {
+        if m.category != chronomap_bt::NodeCategory::SubTree && !models.contains_key(&m.id) {
+            models.insert(m.id.clone(), Model::user(m));
+        }
+    }
+    models
+}
+
+/// TinyXML2's `XMLPrinter` (not compact): 4 spaces of indentation a level, one element a
+/// line, `/>` for empty elements, text on the line of its element, a newline at the end.
+struct XmlPrinter {
+    out: String,
+    depth: usize,
+    /// The open element has not been sealed with `>` yet.
+    just_opened: bool,
+    first: bool,
+    /// The depth of the element whose text was just written, if any.
+    text_depth: Option<usize>,
+    stack: Vec<String>,
+}
+
+impl XmlPrinter {
+    fn new() -> XmlPrinter {
+        XmlPrinter {
+            out: String::new(),
+            depth: 0,
+            just_opened: false,
+            first: true,
+            text_depth: None,
+            stack: Vec::new(),
+        }
+    }
+
+    fn seal(&mut self) {
+        if self.just_opened {
+            self.just_opened = false;
+            self.out.push('>');
+        }
+    }
+
+    fn indent(&mut self, depth: usize) {
+        for _ in 0..depth {
+            self.out.push_str("    ");
+        }
+    }
+
+    fn open(&mut self, name: &str) {
+        self.seal();
+        self.stack.push(name.to_owned());
+        if self.text_depth.is_none() && !self.first {
+            self.out.push('\n');
+        }
+        self.indent(self.depth);
+        self.out.push('<');
+        self.out.push_str(name);
+        self.just_opened = true;
+        self.first = false;
+        self.depth += 1;
+    }
+
+    fn attribute(&mut self, name: &str, value: &str) {
+        self.out.push(' ');
+        self.out.push_str(name);
+        self.out.push_str("=\"");
+        escape(&mut self.out, value, true);
+        self.out.push('"');
+    }
+
+    fn text(&mut self, text: &str) {
+        self.seal();
+        self.text_depth = Some(self.depth - 1);
+        escape(&mut self.out, text, false);
+    }
+
+    fn close(&mut self) {
+        self.depth -= 1;
+        let name = self.stack.pop().unwrap_or_default();
+        if self.just_opened {
+            self.out.push_str("/>");
+        } else {
+            if self.text_depth.is_none() {
+                self.out.push('\n');
+                self.indent(self.depth);
+            }
+            self.out.push_str("</");
+            self.out.push_str(&name);
+            self.out.push('>');
+        }
+        if self.text_depth == Some(self.depth) {
+            self.text_depth = None;
+        }
+        if self.depth == 0 {
+            self.out.push('\n');
+        }
+        self.just_opened = false;
+    }
+}
+
+/// TinyXML2's entities: in attribute values `"`, `&`, `'`, `<`, `>`; in text `&`, `<`, `>`.
+fn escape(out: &mut String, text: &str, attribute: bool) {
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' if attribute => out.push_str("&quot;"),
+            '\'' if attribute => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+}
+
+/// The description of each node of `tree` (by uid − 1) in `doc`, found by walking each tree
+/// instance's definition along the runtime nodes.
+fn node_defs<'d>(
+    tree: &chronomap_bt::Tree,
+    doc: &'d chronomap_bt::BtDocument,
+) -> Vec<Option<&'d chronomap_bt::NodeDef>> {
+    let nodes = tree.nodes();
+    let mut defs = vec![None; nodes.len()];
+    for instance in tree.subtrees() {
+        let Some(def) = doc.tree(&instance.tree_id) else {
+            continue;
+        };
+        let mut stack = vec![(usize::from(instance.root_uid) - 1, &def.root)];
+        while let Some((i, d)) = stack.pop() {
+            defs[i] = Some(d);
+            if nodes[i].category() == chronomap_bt::NodeCategory::SubTree {
+                continue;
+            }
+            for (&c, cd) in nodes[i].children().iter().zip(&d.children) {
+                stack.push((c, cd));
+            }
+        }
+    }
+    defs
+}
+
+/// The ports BehaviorTree.CPP writes for a node: its `input_ports` map, then the entries of
+/// its `output_ports` map that are not inputs (`createNodeFromXML` builds both from the
+/// attributes and the model's defaults).
+fn node_ports(
+    attributes: &[(String, String)],
+    model: Option<&Model>,
+    subtree: bool,
+) -> Vec<(String, String)> {
+    let mut remap = StdStringMap::new();
+    for (k, v) in attributes {
+        if is_allowed_port_name(k) {
+            remap.assign(k, v);
+        }
+    }
+    if subtree {
+        return remap
+            .iter()
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect();
+    }
+    let Some(model) = model else {
+        return remap
+            .iter()
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect();
+    };
+    use chronomap_bt::PortDirection::{Input, Output};
+    let mut inputs = StdStringMap::new();
+    let mut outputs = StdStringMap::new();
+    for (k, v) in remap.iter() {
+        if let Some(port) = model.port(k) {
+            if port.direction != Output {
+                inputs.insert(k, v);
+            }
+            if port.direction != Input {
+                outputs.insert(k, v);
+            }
+        }
+    }
+    for port in &model.ports {
+        let Some(default) = port.default.as_deref().filter(|d| !d.is_empty()) else {
+            continue;
+        };
+        if port.direction != Output && !inputs.contains(&port.name) {
+            inputs.insert(&port.name, default);
+        }
+        if port.direction != Input
+            && !outputs.contains(&port.name)
+            && blackboard_pointer(default).is_some()
+        {
+            outputs.insert(&port.name, default);
+        }
+    }
+    let mut out: Vec<(String, String)> = inputs
+        .iter()
+        .map(|(k, v)| (k.to_owned(), v.to_owned()))
+        .collect();
+    out.extend(
+        outputs
+            .iter()
+            .filter(|(k, _)| !inputs.contains(k))
+            .map(|(k, v)| (k.to_owned(), v.to_owned())),
+    );
+    out
+}
+
+/// The tree as the FULLTREE reply carries it: BehaviorTree.CPP 4.8.2's
+/// `WriteTreeToXML(tree, add_metadata = true, add_builtin_models = true)` for the same tree,
+/// byte for byte. One `<BehaviorTree ID _fullpath>` per tree instance (main tree first); every
+/// node under the tag of its registration ID with `name` (a `SubTree` node with `ID` and
+/// `_fullpath` instead), `_uid`, its ports (input ports, then output-only ports, with the
+/// model's defaults, in the order of BehaviorTree.CPP's hash maps) and its pre- and
+/// post-condition scripts; then a `<TreeNodesModel>` of all built-in node types and the
+/// tree's own, sorted by ID; printed as TinyXML2 prints. `doc` is the document the tree was
+/// built from (for the scripts).
+pub fn encode_full_tree(tree: &chronomap_bt::Tree, doc: &chronomap_bt::BtDocument) -> String {
+    use chronomap_bt::NodeCategory;
+    let models = tree_models(tree);
+    let defs = node_defs(tree, doc);
+    let nodes = tree.nodes();
+    let mut p = XmlPrinter::new();
+    p.open("root");
+    p.attribute("BTCPP_format", "4");
+    for instance in tree.subtrees() {
+        p.open("BehaviorTree");
+        p.attribute("ID", &instance.tree_id);
+        p.attribute("_fullpath", &instance.path);
+        // Depth-first through the instance: (node index, whether it is being closed).
+        let mut stack = vec![(usize::from(instance.root_uid) - 1, false)];
+        while let Some((i, closing)) = stack.pop() {
+            if closing {
+                p.close();
+                continue;
+            }
+            let node = &nodes[i];
+            let def = defs[i];
+            let subtree = node.category() == NodeCategory::SubTree;
+            if subtree {
+                p.open("SubTree");
+                p.attribute("ID", node.id());
+                let containing = instance.path.as_str();
+                let name = def.and_then(|d| d.name.as_deref()).unwrap_or(node.id());
+                let mut path = if containing.is_empty() {
+                    name.to_owned()
+                } else {
+                    format!("{containing}/{name}")
+                };
+                if name == node.id() {
+                    path.push_str(&format!("::{}", node.uid()));
+                }
+                p.attribute("_fullpath", &path);
+            } else {
+                p.open(node.id());
+                p.attribute("name", node.name());
+            }
+            p.attribute("_uid", &node.uid().to_string());
+            for (k, v) in node_ports(node.attributes(), models.get(node.id()), subtree) {
+                p.attribute(&k, &v);
+            }
+            if let Some(def) = def {
+                for attribute in CONDITION_ATTRIBUTES {
+                    if let Some((_, code)) = def.scripts.iter().find(|(a, _)| a == attribute) {
+                        p.attribute(attribute, code);
+                    }
+                }
+            }
+            stack.push((i, true));
+            if !subtree {
+                stack.extend(node.children().iter().rev().map(|&c| (c, false)));
+            }
+        }
+        p.close();
+    }
+    p.open("TreeNodesModel");
+    for model in models.values() {
+        p.open(model.category.tag());
+        p.attribute("ID", &model.id);
+        for port in &model.ports {
+            p.open(port.direction.tag());
+            p.attribute("name", &port.name);
+            if let Some(t) = &port.type_name {
+                p.attribute("type", t);
+            }
+            if let Some(d) = port.default.as_deref().filter(|d| !d.is_empty()) {
+                p.attribute("default", d);
+            }
+            if let Some(text) = port.description.as_deref().filter(|t| !t.is_empty()) {
+                p.text(text);
+            }
+            p.close();
+        }
+        p.close();
+    }
+    p.close();
+    p.close();
+    p.out
+}
+
+// ---------------------------------------------------------------------------------------------
+// BLACKBOARD
+
+/// Writes `value` as nlohmann::json's `to_msgpack` writes the JSON BehaviorTree.CPP exports
+/// for it (`ExportBlackboardToJSON`): booleans, integers in the smallest MessagePack form
+/// (non-negative ones as unsigned), doubles as float 32 when that is exact, text as str;
+/// lists (BehaviorTree.CPP's `SharedQueue`, which its JSON exporter does not know) as nil.
+fn write_msgpack_value(out: &mut Vec<u8>, value: Option<&chronomap_bt::Value>) {
+    use chronomap_bt::Value;
+    match value {
+        None | Some(Value::List(_)) => out.push(0xc0),
+        Some(Value::Bool(b)) => out.push(if *b { 0xc3 } else { 0xc2 }),
+        Some(Value::Int(i)) => write_msgpack_int(out, *i),
+        Some(Value::Double(x)) => {
+            let f = *x as f32;
+            if x.is_finite() && f64::from(f) == *x {
+                out.push(0xca);
+                out.extend_from_slice(&f.to_be_bytes());
+            } else {
+                out.push(0xcb);
+                out.extend_from_slice(&x.to_be_bytes());
+            }
+        }
+        Some(Value::Str(s)) => write_msgpack_str(out, s),
+    }
+}
+
+fn write_msgpack_int(out: &mut Vec<u8>, i: i64) {
+    if i >= 0 {
+        let u = i as u64;
+        if u < 128 {
+            out.push(u as u8);
+        } else if u <= u64::from(u8::MAX) {
+            out.extend_from_slice(&[0xcc, u as u8]);
+        } else if u <= u64::from(u16::MAX) {
+            out.push(0xcd);
+            out.extend_from_slice(&(u as u16).to_be_bytes());
+        } else if u <= u64::from(u32::MAX) {
+            out.push(0xce);
+            out.extend_from_slice(&(u as u32).to_be_bytes());
+        } else {
+            out.push(0xcf);
+            out.extend_from_slice(&u.to_be_bytes());
+        }
+    } else if i >= -32 {
+        out.push(i as i8 as u8);
+    } else if i >= i64::from(i8::MIN) {
+        out.extend_from_slice(&[0xd0, i as i8 as u8]);
+    } else if i >= i64::from(i16::MIN) {
+        out.push(0xd1);
+        out.extend_from_slice(&(i as i16).to_be_bytes());
+    } else if i >= i64::from(i32::MIN) {
+        out.push(0xd2);
+        out.extend_from_slice(&(i as i32).to_be_bytes());
+    } else {
+        out.push(0xd3);
+        out.extend_from_slice(&i.to_be_bytes());
+    }
+}
+
+fn write_msgpack_str(out: &mut Vec<u8>, s: &str) {
+    let n = s.len();
+    if n < 32 {
+        out.push(0xa0 | n as u8);
+    } else if n <= usize::from(u8::MAX) {
+        out.extend_from_slice(&[0xd9, n as u8]);
+    } else if n <= usize::from(u16::MAX) {
+        out.push(0xda);
+        out.extend_from_slice(&(n as u16).to_be_bytes());
+    } else {
+        out.push(0xdb);
+        out.extend_from_slice(&(n as u32).to_be_bytes());
+    }
+    out.extend_from_slice(s.as_bytes());
+}
+
+fn write_msgpack_map_header(out: &mut Vec<u8>, n: usize) {
+    if n < 16 {
+        out.push(0x80 | n as u8);
+    } else if n <= usize::from(u16::MAX) {
+        out.push(0xde);
+        out.extend_from_slice(&(n as u16).to_be_bytes());
+    } else {
+        out.push(0xdf);
+        out.extend_from_slice(&(n as u32).to_be_bytes());
+    }
+}
+
+/// Each blackboard of a tree as a BLACKBOARD reply carries it, by the name a client asks for:
+/// the main tree's ID for the main tree, the instance path (`open_it`, `Sub::4`, `a/b`) for a
+/// subtree instance.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BlackboardSnapshot {
+    /// Name → MessagePack of the blackboard (a map from key to value, or nil when empty).
+    blackboards: std::collections::BTreeMap<String, Vec<u8>>,
+}
+
+impl BlackboardSnapshot {
+    /// The blackboards of `tree` now. Each is the instance's own entries (not those it reaches
+    /// through remapping), sorted by key, plus — as nil until written — the entries
+    /// BehaviorTree.CPP creates when it builds the tree, one for every port that points to
+    /// the blackboard (`{key}` or `{=}`), placed where the key leads (remapped and
+    /// auto-remapped keys in the parent's blackboard, `@key` in the root's).
+    pub fn new(tree: &chronomap_bt::Tree, doc: &chronomap_bt::BtDocument) -> BlackboardSnapshot {
+        use std::collections::{BTreeMap, BTreeSet};
+        let nodes = tree.nodes();
+        let defs = node_defs(tree, doc);
+        let bb = tree.blackboard();
+        // Scope index → (parent scope index, remapping, autoremap).
+        let mut scopes: BTreeMap<usize, (Option<usize>, BTreeMap<String, String>, bool)> =
+            BTreeMap::new();
+        for instance in tree.subtrees() {
+            let mut info = (None, BTreeMap::new(), false);
+            if let Some(uid) = instance.subtree_uid
+                && let Some(node) = tree.node(uid)
+            {
+                info.0 = Some(node.scope().index());
+                for (k, v) in node.attributes() {
+                    if !is_allowed_port_name(k) {
+                        continue;
+                    }
+                    if v == "{=}" {
+                        info.1.insert(k.clone(), k.clone());
+                    } else if let Some(key) = blackboard_pointer(v) {
+                        info.1.insert(k.clone(), key.to_owned());
+                    }
+                }
+                info.2 = defs[usize::from(uid) - 1].is_some_and(|d| d.autoremap);
+            }
+            scopes.insert(instance.scope.index(), info);
+        }
+        let mut declared: BTreeSet<(usize, String)> = BTreeSet::new();
+        let exists = |declared: &BTreeSet<(usize, String)>, scope: usize, key: &str| {
+            declared.contains(&(scope, key.to_owned()))
+                || tree
+                    .subtrees()
+                    .iter()
+                    .any(|s| s.scope.index() == scope && bb.entries(s.scope).any(|(k, _)| k == key))
+        };
+        let models = tree_models(tree);
+        for node in nodes {
+            if node.category() == chronomap_bt::NodeCategory::SubTree {
+                continue;
+            }
+            let Some(model) = models.get(node.id()) else {
+                continue;
+            };
+            for (port, value) in node.attributes() {
+                if !is_allowed_port_name(port) || model.port(port).is_none() {
+                    continue;
+                }
+                let key = if value == "{=}" || value == "=" {
+                    port.as_str()
+                } else if let Some(key) = blackboard_pointer(value) {
+                    key
+                } else {
+                    continue;
+                };
+                // `Blackboard::createEntryImpl`.
+                let (mut scope, mut key) = (node.scope().index(), key.to_owned());
+                if let Some(rest) = key.strip_prefix('@') {
+                    (scope, key) = (0, rest.to_owned());
+                }
+                for _ in 0..=scopes.len() {
+                    if exists(&declared, scope, &key) {
+                        break;
+                    }
+                    let Some((Some(parent), remap, autoremap)) = scopes.get(&scope) else {
+                        break;
+                    };
+                    if let Some(external) = remap.get(&key) {
+                        (scope, key) = (*parent, external.clone());
+                    } else if *autoremap && !key.starts_with('_') {
+                        scope = *parent;
+                    } else {
+                        break;
+                    }
+                }
+                declared.insert((scope, key));
+            }
+        }
+        let mut blackboards = BTreeMap::new();
+        for (k, instance) in tree.subtrees().iter().enumerate() {
+            let name = if k == 0 {
+                instance.tree_id.clone()
+            } else {
+                instance.path.clone()
+            };
+            let scope = instance.scope.index();
+            let mut entries: BTreeMap<&str, Option<&chronomap_bt::Value>> = declared
+                .iter()
+                .filter(|(s, _)| *s == scope)
+                .map(|(_, key)| (key.as_str(), None))
+                .collect();
+            for (key, value) in bb.entries(instance.scope) {
+                entries.insert(key, Some(value));
+            }
+            let mut out = Vec::new();
+            if entries.is_empty() {
+                out.push(0xc0);
+            } else {
+                write_msgpack_map_header(&mut out, entries.len());
+                for (key, value) in entries {
+                    write_msgpack_str(&mut out, key);
+                    write_msgpack_value(&mut out, value);
+                }
+            }
+            blackboards.insert(name, out);
+        }
+        BlackboardSnapshot { blackboards }
+    }
+
+    /// The names a client may ask for.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.blackboards.keys().map(String::as_str)
+    }
+
+    /// The BLACKBOARD reply to `names` (separated by `;`): a MessagePack map of the named
+    /// blackboards that exist, sorted by name (nil if none does), as BehaviorTree.CPP's
+    /// `generateBlackboardsDump`.
+    pub fn encode(&self, names: &str) -> Vec<u8> {
+        let wanted: std::collections::BTreeSet<&str> = names
+            .split(';')
+            .filter(|n| self.blackboards.contains_key(*n))
+            .collect();
+        let mut out = Vec::new();
+        if wanted.is_empty() {
+            out.push(0xc0);
+            return out;
+        }
+        write_msgpack_map_header(&mut out, wanted.len());
+        for name in wanted {
+            write_msgpack_str(&mut out, name);
+            out.extend_from_slice(&self.blackboards[name]);
+        }
+        out
+    }
+}
