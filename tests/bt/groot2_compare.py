@@ -223,6 +223,59 @@ def run_chronomap(args):
         proc.wait()
 
 
+def zmtp_greeting():
+    """A ZMTP 3.0 greeting (NULL mechanism, client) and a READY command for a REQ socket."""
+    greeting = b"\xff" + b"\x00" * 8 + b"\x7f" + bytes([3, 0]) + b"NULL" + b"\x00" * 16
+    greeting += b"\x00" + b"\x00" * 31
+    body = b"\x05READY" + b"\x0bSocket-Type" + struct.pack(">I", 3) + b"REQ"
+    return greeting + bytes([0x04, len(body)]) + body
+
+
+def run_hostile(args):
+    """Bad input on the wire while chronomap ticks; what each client got, as JSON."""
+    import socket
+    out = {}
+    silent = socket.create_connection(("127.0.0.1", args.port))  # connects, never sends
+    garbage = socket.create_connection(("127.0.0.1", args.port))
+    garbage.sendall(b"GET / HTTP/1.1\r\n\r\n" * 10)
+    big = socket.create_connection(("127.0.0.1", args.port))
+    big.settimeout(10)
+    big.sendall(zmtp_greeting())
+    big.sendall(b"\x01\x00")  # the REQ delimiter frame, more to follow
+    big.sendall(b"\x02" + struct.pack(">Q", 100_000_000))  # a 100 MB frame declared
+    sent = 0
+    try:
+        for _ in range(64):
+            big.sendall(b"\x00" * 65536)
+            sent += 65536
+        out["big_closed"] = big.recv(1 << 16) == b""
+    except OSError:
+        out["big_closed"] = True
+    out["big_sent"] = sent
+    ctx = zmq.Context()
+    mute = ctx.socket(zmq.REQ)  # asks and never reads the reply
+    mute.setsockopt(zmq.LINGER, 0)
+    mute.connect("tcp://127.0.0.1:%d" % args.port)
+    mute.send(struct.pack("<BBI", 2, ord("T"), 5))
+    huge = ctx.socket(zmq.REQ)
+    huge.setsockopt(zmq.LINGER, 0)
+    huge.connect("tcp://127.0.0.1:%d" % args.port)
+    huge.send_multipart([struct.pack("<BBI", 2, ord("B"), 6), b"x" * (2 << 20)])
+    out["huge_answered"] = bool(huge.poll(2000))
+    many = Session(args.port)
+    reply = many.ask("many parts", None, raw=[struct.pack("<BBI", 2, ord("S"), 7)] + [b"p"] * 19)
+    out["many_parts"] = [p.decode("latin-1") for p in reply]
+    good = Session(args.port)
+    reply = good.ask("status", "S")
+    out["status_header"] = reply[0][:6].hex()
+    out["status_len"] = len(reply[1])
+    reply = good.ask("fulltree", "T")
+    out["fulltree_starts"] = reply[1][:23].decode()
+    for s in (silent, garbage, big):
+        s.close()
+    json.dump(out, open(args.out, "w"), indent=1)
+
+
 def main():
     argv = sys.argv[1:]
     command = []
@@ -230,7 +283,7 @@ def main():
         k = argv.index("--")
         argv, command = argv[:k], argv[k + 1:]
     parser = argparse.ArgumentParser()
-    parser.add_argument("mode", choices=["btcpp", "chronomap"])
+    parser.add_argument("mode", choices=["btcpp", "chronomap", "hostile"])
     parser.add_argument("xml", nargs="?")
     parser.add_argument("script", nargs="?")
     parser.add_argument("--port", type=int, required=True)
@@ -239,6 +292,8 @@ def main():
     args.command = command
     if args.mode == "btcpp":
         run_btcpp(args)
+    elif args.mode == "hostile":
+        run_hostile(args)
     else:
         run_chronomap(args)
 

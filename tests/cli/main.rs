@@ -20,6 +20,7 @@ mod bench_ros2;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
+mod bt_groot2;
 mod casts;
 mod closed_pipes;
 mod events;

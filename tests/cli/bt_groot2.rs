@@ -1,0 +1,304 @@
+//! `chronomap bt run --groot2 PORT` against BehaviorTree.CPP 4.8.2's own `Groot2Publisher`
+//! (behaviortreepy): the same trees, the same leaf outcomes, the same ticks, the same requests
+//! (`tests/bt/groot2_compare.py`), and the replies must be equal byte for byte, except
+//! * the 16-byte tree UUID of every reply header (BehaviorTree.CPP's is the same for every
+//!   tree: a default-seeded `mt19937`; ours is random);
+//! * the first 6 bytes of each 9-byte GET_TRANSITIONS record (microseconds since recording
+//!   started: wall-clock times of two different runs);
+//! * the payload of TOGGLE_RECORDING `start` (the server's clock), checked to be digits.
+//!
+//! The comparison needs `CHRONOMAP_BT_PYTHON` (a Python with behaviortreepy and pyzmq); it
+//! is skipped without, and fails without when `CHRONOMAP_REQUIRE_BT=1` (CI).
+
+use std::net::TcpListener;
+use std::path::PathBuf;
+use std::process::Command;
+
+use serde_json::Value;
+
+use crate::common::{oracle_python, scratch};
+
+fn python(test: &str) -> Option<String> {
+    oracle_python(
+        "BT",
+        test,
+        "BehaviorTree.CPP Groot2Publisher",
+        "set CHRONOMAP_BT_PYTHON to a Python with behaviortreepy 0.1.4 and pyzmq",
+    )
+}
+
+/// A port whose successor is free too (the publisher binds both).
+fn free_port_pair() -> u16 {
+    for _ in 0..100 {
+        let a = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = a.local_addr().unwrap().port();
+        if port < 65534 && TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+    panic!("no two free consecutive ports");
+}
+
+fn data(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/bt")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn driver() -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/bt/groot2_compare.py")
+        .display()
+        .to_string()
+}
+
+/// Runs the driver; its exit code and the JSON it wrote.
+fn drive(python: &str, args: &[&str], out: &PathBuf) -> (Option<i32>, Option<Value>) {
+    let output = Command::new(python)
+        .arg(driver())
+        .args(["--out", out.to_str().unwrap()])
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    let json = std::fs::read(out)
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok());
+    if output.status.code() != Some(0) && output.status.code() != Some(3) {
+        panic!("groot2_compare.py {args:?} failed: {err}");
+    }
+    (output.status.code(), json)
+}
+
+fn parts(entry: &Value, key: &str) -> Vec<Vec<u8>> {
+    entry[key]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|h| {
+            let h = h.as_str().unwrap();
+            (0..h.len())
+                .step_by(2)
+                .map(|i| u8::from_str_radix(&h[i..i + 2], 16).unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+/// The reply with what may differ removed (see the module documentation).
+fn comparable(label: &str, mut reply: Vec<Vec<u8>>) -> Vec<Vec<u8>> {
+    if reply
+        .first()
+        .is_some_and(|h| h.len() == 22 && h != b"error")
+    {
+        reply[0][6..].fill(0);
+    }
+    if label.starts_with("transitions") && reply.len() == 2 {
+        assert_eq!(reply[1].len() % 9, 0);
+        reply[1] = reply[1].chunks(9).flat_map(|r| r[6..].to_vec()).collect();
+    }
+    if label == "recording start" {
+        assert!(reply[1].iter().all(u8::is_ascii_digit), "{:?}", reply[1]);
+        reply.truncate(1);
+    }
+    reply
+}
+
+/// Runs `tree` with `script` in BehaviorTree.CPP and in chronomap, compares every reply;
+/// returns the number of bytes compared.
+fn compare(python: &str, test: &str, tree: &str, script: &str) -> usize {
+    let dir = scratch(test);
+    let (tree, script) = (data(tree), data(script));
+    let port = free_port_pair().to_string();
+    let (_, btcpp) = drive(
+        python,
+        &["btcpp", &tree, &script, "--port", &port],
+        &dir.join("btcpp.json"),
+    );
+    let btcpp = btcpp.expect("BehaviorTree.CPP's session");
+    let mut ours = None;
+    // The session must start recording before the first tick: 3 tries on a busy machine.
+    for _ in 0..3 {
+        let port = free_port_pair().to_string();
+        let bin = env!("CARGO_BIN_EXE_chronomap");
+        let (code, json) = drive(
+            python,
+            &[
+                "chronomap",
+                "--port",
+                &port,
+                "--",
+                bin,
+                "bt",
+                "run",
+                &tree,
+                "--script",
+                &script,
+                "--groot2",
+                &port,
+                "--tick-period",
+                "300",
+                "--linger",
+                "30",
+            ],
+            &dir.join("chronomap.json"),
+        );
+        if code == Some(0) {
+            ours = json;
+            break;
+        }
+    }
+    let ours = ours.expect("chronomap's session started before the first tick");
+    assert_eq!(ours["ticks"], btcpp["ticks"], "ticks run");
+    assert!(btcpp["ticks"].as_u64().unwrap() >= 3);
+    let (a, b) = (
+        btcpp["log"].as_array().unwrap(),
+        ours["log"].as_array().unwrap(),
+    );
+    assert_eq!(a.len(), b.len());
+    let mut compared = 0;
+    for (x, y) in a.iter().zip(b) {
+        let label = x["label"].as_str().unwrap();
+        assert_eq!(x["label"], y["label"]);
+        let (rx, ry) = (
+            comparable(label, parts(x, "reply")),
+            comparable(label, parts(y, "reply")),
+        );
+        assert_eq!(
+            rx,
+            ry,
+            "{test}: reply to {label} differs:\nBehaviorTree.CPP: {:?}\nchronomap:        {:?}",
+            rx.iter()
+                .map(|p| String::from_utf8_lossy(p))
+                .collect::<Vec<_>>(),
+            ry.iter()
+                .map(|p| String::from_utf8_lossy(p))
+                .collect::<Vec<_>>()
+        );
+        compared += rx.iter().map(Vec::len).sum::<usize>();
+    }
+    // The session saw the run: status changes were recorded, the tree is not all idle.
+    let transitions = a.iter().find(|e| e["label"] == "transitions").unwrap();
+    assert!(parts(transitions, "reply")[1].len() >= 9 * 5);
+    println!("{test}: {} replies, {compared} bytes equal", a.len());
+    compared
+}
+
+#[test]
+fn door_tree_replies_equal_behaviortree_cpp() {
+    if let Some(py) = python("door_tree_replies_equal_behaviortree_cpp") {
+        assert!(compare(&py, "groot2_door", "groot2/door.xml", "groot2/door.script") > 4000);
+    }
+}
+
+#[test]
+fn reactive_tree_replies_equal_behaviortree_cpp() {
+    if let Some(py) = python("reactive_tree_replies_equal_behaviortree_cpp") {
+        compare(
+            &py,
+            "groot2_reactive",
+            "groot2/reactive.xml",
+            "groot2/reactive.script",
+        );
+    }
+}
+
+#[test]
+fn parallel_tree_replies_equal_behaviortree_cpp() {
+    if let Some(py) = python("parallel_tree_replies_equal_behaviortree_cpp") {
+        compare(
+            &py,
+            "groot2_parallel",
+            "groot2/parallel.xml",
+            "groot2/parallel.script",
+        );
+    }
+}
+
+#[test]
+fn subtree_replies_equal_behaviortree_cpp() {
+    if let Some(py) = python("subtree_replies_equal_behaviortree_cpp") {
+        compare(
+            &py,
+            "groot2_subtrees",
+            "groot2/subtrees.xml",
+            "groot2/subtrees.script",
+        );
+    }
+}
+
+#[test]
+fn btcpp_check_example_replies_equal_behaviortree_cpp() {
+    if let Some(py) = python("btcpp_check_example_replies_equal_behaviortree_cpp") {
+        compare(
+            &py,
+            "groot2_check",
+            "btcpp/examples/test_files/Check.xml",
+            "groot2/check.script",
+        );
+    }
+}
+
+/// Garbage, a 100 MB frame declared (and 768 KiB of it sent), a 2 MiB part, 20 parts, a client
+/// that asks and never reads, one that connects and says nothing: the offenders are dropped or
+/// refused, a good client is answered, and the run ticks on to its last tick.
+#[test]
+fn bad_clients_do_not_stop_the_ticks() {
+    let Some(py) = python("bad_clients_do_not_stop_the_ticks") else {
+        return;
+    };
+    let dir = scratch("groot2_hostile");
+    let port = free_port_pair();
+    let child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "bt",
+            "run",
+            &data("groot2/subtrees.xml"),
+            "--stub-all",
+            "RUNNING:100000",
+        ])
+        .args([
+            "--ticks",
+            "60",
+            "--tick-period",
+            "100",
+            "--groot2",
+            &port.to_string(),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let (_, out) = drive(
+        &py,
+        &["hostile", "--port", &port.to_string()],
+        &dir.join("h.json"),
+    );
+    let out = out.expect("the hostile session's results");
+    let run = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        stdout.contains("result: still RUNNING after tick 60"),
+        "{stdout}"
+    );
+    assert_eq!(out["big_closed"], true, "{out}");
+    assert_eq!(out["huge_answered"], false, "{out}");
+    assert_eq!(
+        out["many_parts"],
+        serde_json::json!(["error", "20 parts, at most 8"])
+    );
+    // STATUS of the 8 nodes: 3 bytes each, protocol 2, type 'S'.
+    assert_eq!(out["status_len"], 24 * 2);
+    assert!(out["status_header"].as_str().unwrap().starts_with("0253"));
+    assert_eq!(out["fulltree_starts"], "<root BTCPP_format=\"4\">");
+}
