@@ -1884,6 +1884,13 @@ fn write_msgpack_map_header(out: &mut Vec<u8>, n: usize) {
     }
 }
 
+/// A blackboard scope's parent scope, remapping (own key → parent key) and auto-remapping.
+type ScopeLinks = (
+    Option<usize>,
+    std::collections::BTreeMap<String, String>,
+    bool,
+);
+
 /// Each blackboard of a tree as a BLACKBOARD reply carries it, by the name a client asks for:
 /// the main tree's ID for the main tree, the instance path (`open_it`, `Sub::4`, `a/b`) for a
 /// subtree instance.
@@ -1905,8 +1912,7 @@ impl BlackboardSnapshot {
         let defs = node_defs(tree, doc);
         let bb = tree.blackboard();
         // Scope index → (parent scope index, remapping, autoremap).
-        let mut scopes: BTreeMap<usize, (Option<usize>, BTreeMap<String, String>, bool)> =
-            BTreeMap::new();
+        let mut scopes: BTreeMap<usize, ScopeLinks> = BTreeMap::new();
         for instance in tree.subtrees() {
             let mut info = (None, BTreeMap::new(), false);
             if let Some(uid) = instance.subtree_uid
