@@ -326,6 +326,10 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
         ..Stubs::default()
     };
     let (registry, _, _) = implement(doc, &stubs).with_context(|| name.to_string())?;
+    // What BehaviorTree.CPP refuses only when it ticks the node is reported here, before
+    // anything runs (`bt run` raises it at the tick, as BehaviorTree.CPP does).
+    chronomap_bt::validate_strict(doc, &registry)
+        .map_err(|e| located(&xml, &e, &name.to_string()))?;
     if let Err(e) = Tree::with_main(doc, &main, &registry) {
         if *e.kind() == DefinitionErrorKind::TooManyNodes {
             eprintln!(
@@ -461,16 +465,30 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         None => run_script(&mut tree, &outcomes, &script, period),
     }
     .with_context(|| script_name.clone())?;
+    let failed = run.failure.as_ref();
     let transitions: Vec<_> = run
         .ticks
         .iter()
         .flat_map(|t| t.transitions.iter().copied())
+        .chain(failed.iter().flat_map(|f| f.transitions.iter().copied()))
         .collect();
     if let Some(path) = &args.btlog {
         write_btlog(path, &tree, Duration::ZERO, &transitions)?;
     }
-    let last = run.ticks.last().expect("scripts have at least one tick");
     let name_of = |uid: u16| tree.node(uid).map_or("?", |n| n.name());
+    let transitions_json = |list: &[chronomap_bt::Transition]| -> Vec<Value> {
+        list.iter()
+            .map(|t| {
+                json!({
+                    "uid": t.uid,
+                    "name": name_of(t.uid),
+                    "from": t.from.to_string(),
+                    "to": t.to.to_string(),
+                })
+            })
+            .collect()
+    };
+    let failure_message = failed.map(|f| format!("{script_name}: tick {}: {}", f.tick, f.error));
     if args.json {
         let ticks: Vec<Value> = run
             .ticks
@@ -480,29 +498,41 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
                     "tick": tick.tick,
                     "time_ms": tick.time.as_millis() as u64,
                     "status": tick.status.to_string(),
-                    "transitions": tick.transitions.iter().map(|t| json!({
-                        "uid": t.uid,
-                        "name": name_of(t.uid),
-                        "from": t.from.to_string(),
-                        "to": t.to.to_string(),
-                    })).collect::<Vec<_>>(),
+                    "transitions": transitions_json(&tick.transitions),
                 })
             })
             .collect();
-        return print_json(&json!({
+        let last = run.ticks.last();
+        let board = tree.blackboard();
+        let blackboard: serde_json::Map<String, Value> = board
+            .entries(board.root())
+            .map(|(key, value)| (key.to_owned(), blackboard_json(value)))
+            .collect();
+        print_json(&json!({
             "file": args.file.display().to_string(),
             "script": args.script.as_ref().map(|p| p.display().to_string()),
             "stubs": notes,
             "tree": tree.subtrees()[0].tree_id,
             "finished": run.finished,
-            "status": last.status.to_string(),
-            "last_tick": last.tick,
-            "last_time_ms": last.time.as_millis() as u64,
+            "status": last.map(|t| t.status.to_string()),
+            "last_tick": last.map(|t| t.tick),
+            "last_time_ms": last.map(|t| t.time.as_millis() as u64),
             "unused_ticks": run.unused,
             "ticks": ticks,
+            "error": failed.map(|f| json!({
+                "tick": f.tick,
+                "time_ms": f.time.as_millis() as u64,
+                "message": f.error.to_string(),
+                "transitions": transitions_json(&f.transitions),
+            })),
+            "blackboard": blackboard,
             "transitions": transitions.len(),
             "btlog": args.btlog.as_ref().map(|p| p.display().to_string()),
-        }));
+        }))?;
+        return match failure_message {
+            Some(message) => Err(anyhow!(message)),
+            None => Ok(()),
+        };
     }
     let width = tree
         .nodes()
@@ -510,14 +540,8 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         .map(|n| n.name().chars().count())
         .max()
         .unwrap_or(0);
-    for tick in &run.ticks {
-        outln!(
-            "tick {} @ {} ms: {}",
-            tick.tick,
-            tick.time.as_millis(),
-            tick.status
-        )?;
-        for t in &tick.transitions {
+    let print_transitions = |list: &[chronomap_bt::Transition]| -> Result<()> {
+        for t in list {
             let name = name_of(t.uid);
             let halted = if t.from == Status::Running && t.to == Status::Idle {
                 " (halted)"
@@ -531,7 +555,25 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
                 t.to
             )?;
         }
+        Ok(())
+    };
+    for tick in &run.ticks {
+        outln!(
+            "tick {} @ {} ms: {}",
+            tick.tick,
+            tick.time.as_millis(),
+            tick.status
+        )?;
+        print_transitions(&tick.transitions)?;
     }
+    if let Some(f) = failed {
+        outln!("tick {} @ {} ms: error", f.tick, f.time.as_millis())?;
+        print_transitions(&f.transitions)?;
+        return Err(anyhow!(
+            failure_message.expect("a failed tick has a message")
+        ));
+    }
+    let last = run.ticks.last().expect("a run that did not fail has ticks");
     if run.finished {
         outln!(
             "result: {} at tick {} ({} ms)",
@@ -638,6 +680,19 @@ fn run_live(
             }
         },
     ))
+}
+
+/// A blackboard value as JSON: numbers and booleans as themselves, text as a string, a queue as
+/// an array.
+fn blackboard_json(value: &chronomap_bt::Value) -> Value {
+    use chronomap_bt::Value as V;
+    match value {
+        V::Bool(b) => json!(b),
+        V::Int(i) => json!(i),
+        V::Double(d) => json!(d),
+        V::Str(s) => json!(s),
+        V::List(items) => Value::Array(items.iter().map(blackboard_json).collect()),
+    }
 }
 
 #[derive(Serialize)]

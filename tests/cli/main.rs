@@ -21,6 +21,7 @@ mod bench_ros2;
 mod bench_serve;
 mod bt;
 mod bt_groot2;
+mod bt_differential;
 mod casts;
 mod closed_pipes;
 mod events;

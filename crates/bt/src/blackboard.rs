@@ -278,8 +278,44 @@ struct Scope {
 /// entry is created, incremented by every write).
 #[derive(Clone, Debug)]
 struct Entry {
-    value: Value,
+    /// `None` for an entry left without a value (see [`Blackboard::clear_scripted_in`]).
+    value: Option<Value>,
     sequence_id: u64,
+    /// Created by a script's assignment (`x := 0`): BehaviorTree.CPP 4.8.2 gives such an
+    /// entry no port type, and `SetBlackboard` writing a literal to it leaves it without a
+    /// value (see [`Blackboard::clear_scripted_in`]).
+    scripted: bool,
+    /// The value was written by a script.
+    by_script: bool,
+    /// Declared by a port of type std::string: text written to it stays text.
+    text: bool,
+    /// Its port type is BehaviorTree.CPP's `BT::Any` (declared by such a port, copied by
+    /// `SetBlackboard` from a script's entry, or emptied once): `SetBlackboard` cannot write a
+    /// literal to it.
+    any_typed: bool,
+}
+
+/// The type of the port that declared an entry ([`Blackboard::declare_in`]), as far as
+/// `SetBlackboard` cares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeclaredType {
+    /// `std::string`: text stays text.
+    Text,
+    /// `BT::Any`: text cannot be converted to it.
+    Any,
+    /// Another type: text is converted to it.
+    Other,
+}
+
+/// What [`Blackboard::write_text_to_scripted_in`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScriptedWrite {
+    /// The entry was not made by a script: write the text as usual.
+    NotScripted,
+    /// The entry now has no value.
+    Emptied,
+    /// BehaviorTree.CPP throws ("Can't convert string [...] to type [BT::Any]").
+    Refused,
 }
 
 /// The blackboard of a tree: a root scope and one scope per subtree instance.
@@ -357,7 +393,10 @@ impl Blackboard {
     /// The value of `key` seen from `scope`, if it exists.
     pub fn get_in(&self, scope: ScopeId, key: &str) -> Option<&Value> {
         let (at, key) = self.resolve(scope, key).ok()?;
-        self.scopes[at.0].entries.get(&key).map(|e| &e.value)
+        self.scopes[at.0]
+            .entries
+            .get(&key)
+            .and_then(|e| e.value.as_ref())
     }
 
     /// The sequence number of the entry `key` seen from `scope`, if it exists: 1 after it was
@@ -411,20 +450,119 @@ impl Blackboard {
                     .entries
                     .get_mut(&key)
                     .expect("resolved entries exist");
-                entry.value = converted(&key, &entry.value, value)?;
+                entry.value = Some(match &entry.value {
+                    Some(_) if entry.text && matches!(value, Value::Str(_)) => value,
+                    Some(old) => converted(&key, old, value)?,
+                    None => value,
+                });
+                entry.by_script = false;
                 entry.sequence_id += 1;
             }
             Err((at, key)) => {
                 self.scopes[at.0].entries.insert(
                     key,
                     Entry {
-                        value,
+                        value: Some(value),
                         sequence_id: 1,
+                        scripted: false,
+                        by_script: false,
+                        text: false,
+                        any_typed: false,
                     },
                 );
             }
         }
         Ok(())
+    }
+
+    /// [`Blackboard::set_in`] from a script's assignment: an entry it creates is marked as
+    /// made by a script.
+    ///
+    /// # Errors
+    /// As [`Blackboard::set_in`].
+    pub fn set_in_by_script(
+        &mut self,
+        scope: ScopeId,
+        key: &str,
+        value: Value,
+    ) -> Result<(), BlackboardError> {
+        let created = self.sequence_id_in(scope, key).is_none();
+        self.set_in(scope, key, value)?;
+        if let Ok((at, key)) = self.resolve(scope, key)
+            && let Some(entry) = self.scopes[at.0].entries.get_mut(&key)
+        {
+            entry.scripted |= created;
+            entry.by_script = true;
+        }
+        Ok(())
+    }
+
+    /// Creates the entry `key` seen from `scope` without a value, unless it exists (what
+    /// BehaviorTree.CPP does when it loads a tree, for every port remapped to the blackboard).
+    /// Reads find nothing in it until it is written. The port's type decides what text
+    /// written to it later becomes (see [`DeclaredType`]).
+    pub fn declare_in(&mut self, scope: ScopeId, key: &str, port_type: DeclaredType) {
+        if key.is_empty() || key == "@" {
+            return;
+        }
+        if let Err((at, key)) = self.resolve(scope, key) {
+            self.scopes[at.0].entries.insert(
+                key,
+                Entry {
+                    value: None,
+                    sequence_id: 0,
+                    scripted: false,
+                    by_script: false,
+                    text: port_type == DeclaredType::Text,
+                    any_typed: port_type == DeclaredType::Any,
+                },
+            );
+        }
+    }
+
+    /// Whether the entry `key` seen from `scope` was created by a script (or copied by
+    /// `SetBlackboard` from one that was: the copy takes the source's port type).
+    pub fn is_scripted_in(&self, scope: ScopeId, key: &str) -> bool {
+        self.resolve(scope, key)
+            .ok()
+            .and_then(|(at, key)| self.scopes[at.0].entries.get(&key))
+            .is_some_and(|e| e.scripted)
+    }
+
+    /// Marks the entry `key` seen from `scope` as having BehaviorTree.CPP's port type
+    /// `BT::Any` (an entry `SetBlackboard` made by copying a script's entry takes its type).
+    pub fn mark_any_typed_in(&mut self, scope: ScopeId, key: &str) {
+        if let Ok((at, key)) = self.resolve(scope, key)
+            && let Some(entry) = self.scopes[at.0].entries.get_mut(&key)
+        {
+            entry.any_typed = true;
+        }
+    }
+
+    /// What `SetBlackboard` with a literal `value` does to an entry without a port type, in
+    /// BehaviorTree.CPP 4.8.2, where the text is converted to the entry's port type: for an
+    /// entry a script created and wrote, the conversion yields nothing and the entry is written
+    /// without a value — it still exists (its sequence number goes up, as for any write) but
+    /// reads find nothing ([`ScriptedWrite::Emptied`]); for an entry of type `BT::Any`, or one a
+    /// script made that a script did not write, the conversion throws
+    /// ([`ScriptedWrite::Refused`]). Other entries: [`ScriptedWrite::NotScripted`], nothing
+    /// changed.
+    pub fn write_text_to_scripted_in(&mut self, scope: ScopeId, key: &str) -> ScriptedWrite {
+        let Ok((at, key)) = self.resolve(scope, key) else {
+            return ScriptedWrite::NotScripted;
+        };
+        match self.scopes[at.0].entries.get_mut(&key) {
+            Some(entry) if entry.any_typed => ScriptedWrite::Refused,
+            Some(entry) if entry.scripted && entry.by_script && entry.value.is_some() => {
+                entry.value = None;
+                entry.by_script = false;
+                entry.any_typed = true;
+                entry.sequence_id += 1;
+                ScriptedWrite::Emptied
+            }
+            Some(entry) if entry.scripted => ScriptedWrite::Refused,
+            _ => ScriptedWrite::NotScripted,
+        }
     }
 
     /// Writes `value` to `key` in the root scope.
@@ -440,7 +578,17 @@ impl Blackboard {
     pub fn set_local(&mut self, scope: ScopeId, key: &str, value: Value) {
         let entries = &mut self.scopes[scope.0].entries;
         let sequence_id = entries.get(key).map_or(1, |e| e.sequence_id + 1);
-        entries.insert(key.to_owned(), Entry { value, sequence_id });
+        entries.insert(
+            key.to_owned(),
+            Entry {
+                value: Some(value),
+                sequence_id,
+                scripted: false,
+                by_script: false,
+                text: false,
+                any_typed: false,
+            },
+        );
     }
 
     /// The scope's own entries, by key.
@@ -448,7 +596,7 @@ impl Blackboard {
         self.scopes[scope.0]
             .entries
             .iter()
-            .map(|(k, e)| (k.as_str(), &e.value))
+            .filter_map(|(k, e)| Some((k.as_str(), e.value.as_ref()?)))
     }
 }
 

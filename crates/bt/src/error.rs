@@ -320,6 +320,19 @@ pub enum TickErrorKind {
     /// IDLE").
     #[error("the leaf returned IDLE")]
     ReturnedIdle,
+    /// A node's tick ended with idle, which `TreeNode::setStatus` refuses ("you are not
+    /// allowed to set manually the status to IDLE"): a `WhileDoElse` whose condition was
+    /// skipped, a `Precondition` whose `else` is `IDLE`.
+    #[error(
+        "the node's tick ended with IDLE, which BehaviorTree.CPP refuses (\"you are not \
+         allowed to set manually the status to IDLE\")"
+    )]
+    SetIdle,
+    /// A node that BehaviorTree.CPP refuses while ticking: a port it cannot read, a wrong
+    /// number of children, a skipped condition of `IfThenElse`; the message is
+    /// BehaviorTree.CPP's.
+    #[error("{0}")]
+    Refused(String),
     /// A condition returned `Running` (conditions cannot, [Stüde 2024] §5.2.1).
     #[error("a condition returned RUNNING (conditions return SUCCESS or FAILURE)")]
     ConditionRunning,

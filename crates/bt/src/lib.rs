@@ -107,7 +107,9 @@ pub mod scripting;
 mod tests;
 mod validate;
 
-pub use blackboard::{Blackboard, BlackboardError, FromValue, ScopeId, Value};
+pub use blackboard::{
+    Blackboard, BlackboardError, DeclaredType, FromValue, ScopeId, ScriptedWrite, Value,
+};
 pub use builtin::{UNSUPPORTED_BUILTINS, builtin_model, is_builtin};
 pub use error::{DefinitionError, DefinitionErrorKind, PortError, TickError, TickErrorKind};
 pub use model::{
@@ -120,7 +122,7 @@ pub use registry::{
 };
 pub use runtime::{MAX_DEPTH, Node, SubtreeInstance, Transition, Tree};
 pub use scripting::{Program, ScriptError};
-pub use validate::validate;
+pub use validate::{validate, validate_strict};
 
 use serde::{Deserialize, Serialize};
 

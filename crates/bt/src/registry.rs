@@ -85,7 +85,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use super::Status;
-use super::blackboard::{Blackboard, FromValue, ScopeId, Value};
+use super::blackboard::{Blackboard, FromValue, ScopeId, ScriptedWrite, Value};
 use super::builtin::{
     BUILTIN_LEAVES, BuiltinKind, UNSUPPORTED_BUILTINS, builtin_model, is_builtin,
 };
@@ -500,14 +500,19 @@ impl ControlContext<'_> {
     /// Resets child `k`: halts it if it is running, then sets it idle (BehaviorTree.CPP's
     /// `haltChild`). Nothing happens for a `k` out of range.
     pub fn halt_child(&mut self, k: usize) {
-        if let Some(child) = self.child(k) {
-            self.tree.halt_child(child);
+        if let Some(child) = self.child(k)
+            && let Err(error) = self.tree.halt_child(child)
+        {
+            self.tree.halt_error.get_or_insert(error);
         }
     }
 
-    /// Resets every child (BehaviorTree.CPP's `resetChildren`).
+    /// Resets every child (BehaviorTree.CPP's `resetChildren`). An `_onHalted` script that
+    /// fails ends the tick with its error when this node's tick returns.
     pub fn reset_children(&mut self) {
-        self.tree.reset_children(self.index);
+        if let Err(error) = self.tree.reset_children(self.index) {
+            self.tree.halt_error.get_or_insert(error);
+        }
     }
 
     /// Reads an input port as `T` (a literal is parsed, a `{key}` read from the blackboard).
@@ -950,16 +955,29 @@ impl LeafNode for SetBlackboard {
                 port: "value".to_owned(),
             })?
             .to_owned();
+        let mut copies_scripted = false;
         let value = match blackboard_pointer(&raw) {
-            Some(source) => ctx
-                .blackboard
-                .get_in(ctx.scope, source)
-                .cloned()
-                .ok_or_else(|| PortError::MissingEntry {
-                    port: "value".to_owned(),
-                    key: source.to_owned(),
-                })?,
-            None => Value::Str(raw),
+            Some(source) => {
+                copies_scripted = ctx.blackboard.is_scripted_in(ctx.scope, source)
+                    && ctx.blackboard.sequence_id_in(ctx.scope, &key).is_none();
+                ctx.blackboard
+                    .get_in(ctx.scope, source)
+                    .cloned()
+                    .ok_or_else(|| PortError::MissingEntry {
+                        port: "value".to_owned(),
+                        key: source.to_owned(),
+                    })?
+            }
+            None => match ctx.blackboard.write_text_to_scripted_in(ctx.scope, &key) {
+                ScriptedWrite::NotScripted => Value::Str(raw),
+                ScriptedWrite::Emptied => return Ok(Status::Success),
+                ScriptedWrite::Refused => {
+                    return Err(LeafError::new(format!(
+                        "Can't convert string [{raw}] to type [BT::Any] (the entry [{key}] \
+                         was made by a script, and has no port type to convert to)"
+                    )));
+                }
+            },
         };
         ctx.blackboard
             .set_in(ctx.scope, &key, value)
@@ -967,6 +985,9 @@ impl LeafNode for SetBlackboard {
                 port: "output_key".to_owned(),
                 error,
             })?;
+        if copies_scripted {
+            ctx.blackboard.mark_any_typed_in(ctx.scope, &key);
+        }
         Ok(Status::Success)
     }
 }

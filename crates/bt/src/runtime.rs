@@ -92,7 +92,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 
 use super::Status;
-use super::blackboard::{Blackboard, FromValue, ScopeId, Value};
+use super::blackboard::{Blackboard, DeclaredType, FromValue, ScopeId, Value};
 use super::builtin::{BuiltinKind, LoopType, builtin_model};
 use super::error::{DefinitionError, DefinitionErrorKind, PortError, TickError, TickErrorKind};
 use super::model::{
@@ -293,6 +293,9 @@ pub struct Tree {
     wake_up: bool,
     recording: bool,
     transitions: Vec<Transition>,
+    /// An error of a halt made through a [`ControlContext`] (whose methods cannot fail),
+    /// raised when the custom node's tick or halt returns.
+    pub(crate) halt_error: Option<TickError>,
 }
 
 impl fmt::Debug for Tree {
@@ -373,6 +376,7 @@ impl Tree {
             wake_up: false,
             recording: false,
             transitions: Vec::new(),
+            halt_error: None,
         };
         let scope = tree.blackboard.root();
         tree.subtrees.push(SubtreeInstance {
@@ -510,10 +514,11 @@ impl Tree {
     /// controls start over.
     pub fn halt(&mut self, now: Duration) {
         self.now = self.last_tick.map_or(now, |last| now.max(last));
-        self.halt_node(0);
+        // Errors of `_onHalted` scripts cannot be reported from here; the tree is idle after.
+        let _ = self.halt_node(0);
         for i in 0..self.nodes.len() {
             if self.nodes[i].status == Status::Running {
-                self.halt_node(i);
+                let _ = self.halt_node(i);
             }
             self.set_status(i, Status::Idle);
         }
@@ -558,24 +563,27 @@ impl Tree {
     }
 
     /// `ControlNode::haltChild` / `DecoratorNode::resetChild`.
-    pub(crate) fn halt_child(&mut self, child: usize) {
+    pub(crate) fn halt_child(&mut self, child: usize) -> Result<(), TickError> {
         if self.nodes[child].status == Status::Running {
-            self.halt_node(child);
+            self.halt_node(child)?;
         }
         self.set_status(child, Status::Idle);
+        Ok(())
     }
 
     /// `ControlNode::resetChildren`.
-    pub(crate) fn reset_children(&mut self, i: usize) {
+    pub(crate) fn reset_children(&mut self, i: usize) -> Result<(), TickError> {
         for k in 0..self.nodes[i].children.len() {
             let child = self.nodes[i].children[k];
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
+        Ok(())
     }
 
     /// `TreeNode::haltNode`: the node type's `halt()`, which ends with `resetStatus()`, then
-    /// the `_onHalted` script (whose errors are ignored: halting cannot fail).
-    fn halt_node(&mut self, i: usize) {
+    /// the `_onHalted` script. An `_onHalted` script that fails ends the tick that halted the
+    /// node with its error, as the exception does in BehaviorTree.CPP.
+    fn halt_node(&mut self, i: usize) -> Result<(), TickError> {
         match self.nodes[i].kind {
             Kind::Leaf => {
                 if self.nodes[i].status == Status::Running {
@@ -594,12 +602,21 @@ impl Tree {
                     };
                     custom.halt(&mut ctx);
                     self.nodes[i].custom = Some(custom);
+                    if let Some(error) = self.halt_error.take() {
+                        return Err(error);
+                    }
                 }
-                self.reset_children(i);
+                self.reset_children(i)?;
+            }
+            // `EntryUpdatedDecorator::halt` only forgets that its child runs: the child is not
+            // halted and the node's status stays (the parent resets it afterwards).
+            Kind::Builtin(BuiltinKind::EntryUpdated { .. }) => {
+                self.nodes[i].flag = false;
+                return self.run_on_halted(i);
             }
             Kind::Builtin(kind) => {
                 if kind == BuiltinKind::TryCatch {
-                    self.halt_try_catch(i);
+                    self.halt_try_catch(i)?;
                 }
                 let node = &mut self.nodes[i];
                 match kind {
@@ -624,18 +641,25 @@ impl Tree {
                         node.deadline = None;
                     }
                     BuiltinKind::Switch(_) => node.running_child = None,
-                    BuiltinKind::Loop(_) | BuiltinKind::EntryUpdated { .. } => node.flag = false,
+                    // `LoopNode`, `PreconditionNode` (its `_children_running`) and `RunOnceNode`
+                    // keep their state: `DecoratorNode::halt` only resets the child.
                     _ => {}
                 }
-                self.reset_children(i);
+                self.reset_children(i)?;
             }
         }
         self.set_status(i, Status::Idle);
+        self.run_on_halted(i)
+    }
+
+    /// The `_onHalted` script of node `i`.
+    fn run_on_halted(&mut self, i: usize) -> Result<(), TickError> {
         if let Some(conditions) = self.nodes[i].conditions.clone()
             && let Some(script) = &conditions.post[0]
         {
-            let _ = self.eval(i, script);
+            self.eval(i, script)?;
         }
+        Ok(())
     }
 
     fn with_leaf<R>(
@@ -782,7 +806,11 @@ impl Tree {
     // Ticks
 
     /// `TreeNode::executeTick`: pre-conditions, the node's tick, post-conditions, then its
-    /// status becomes the result.
+    /// status becomes the result — except a skipped result, which leaves the status as it was
+    /// (idle, or running for a control node that set itself running): "preserve the IDLE state
+    /// if skipped, but communicate SKIPPED to parent". A tick that returns idle is an error, as
+    /// `setStatus(IDLE)` throws. Decorators then reset a child that completed
+    /// (`DecoratorNode::executeTick`), after their own status changed.
     pub(crate) fn execute_tick(&mut self, i: usize) -> Result<Status, TickError> {
         let conditions = self.nodes[i].conditions.clone();
         let pre = match &conditions {
@@ -801,8 +829,27 @@ impl Tree {
                 self.eval(i, script)?;
             }
         }
-        self.set_status(i, status);
+        match status {
+            Status::Skipped => {}
+            Status::Idle => return Err(self.error(i, TickErrorKind::SetIdle)),
+            status => self.set_status(i, status),
+        }
+        if self.is_decorator(i)
+            && let Some(&child) = self.nodes[i].children.first()
+            && self.nodes[child].status.is_completed()
+        {
+            self.set_status(child, Status::Idle);
+        }
         Ok(status)
+    }
+
+    /// Whether node `i` is a decorator (a `SubTree` node is one: `SubTreeNode` derives from
+    /// `DecoratorNode`).
+    fn is_decorator(&self, i: usize) -> bool {
+        matches!(
+            self.nodes[i].category,
+            NodeCategory::Decorator | NodeCategory::SubTree
+        )
     }
 
     /// `TreeNode::checkPreConditions`.
@@ -824,7 +871,7 @@ impl Tree {
                     _ => {}
                 }
             } else if status == Status::Running && slot == 3 && !self.eval_bool(i, script)? {
-                self.halt_node(i);
+                self.halt_node(i)?;
                 return Ok(Some(Status::Skipped));
             }
         }
@@ -922,10 +969,18 @@ impl Tree {
         };
         let result = custom.tick(&mut ctx);
         self.nodes[i].custom = Some(custom);
+        if let Some(error) = self.halt_error.take() {
+            return Err(error);
+        }
         match result? {
             Status::Idle => Err(self.error(i, TickErrorKind::ReturnedIdle)),
             status => Ok(status),
         }
+    }
+
+    /// An error BehaviorTree.CPP raises while ticking node `i`, with its message.
+    fn refused(&self, i: usize, message: &str) -> TickError {
+        self.error(i, TickErrorKind::Refused(message.to_owned()))
     }
 
     fn returned_idle(&self, i: usize) -> TickError {
@@ -964,10 +1019,10 @@ impl Tree {
                         // "DO NOT reset current_child_idx_ on failure"
                         for k in current..n {
                             let c = self.nodes[i].children[k];
-                            self.halt_child(c);
+                            self.halt_child(c)?;
                         }
                     } else {
-                        self.reset_children(i);
+                        self.reset_children(i)?;
                         self.nodes[i].index = 0;
                     }
                     return Ok(stop);
@@ -975,8 +1030,12 @@ impl Tree {
                 _ => {
                     self.nodes[i].index += 1;
                     // "Return the execution flow if the child is async, to make this
-                    // interruptable."
-                    if asynchronous && !previous.is_active() && self.nodes[i].index < n {
+                    // interruptible": the asynchronous variants, and `SequenceWithMemory`,
+                    // which asks `requiresWakeUp()` alone (true in every tree a factory builds).
+                    if (asynchronous || with_memory)
+                        && previous == Status::Idle
+                        && self.nodes[i].index < n
+                    {
                         self.wake_up = true;
                         return Ok(Status::Running);
                     }
@@ -984,7 +1043,7 @@ impl Tree {
             }
         }
         let all_skipped = self.nodes[i].skipped == n;
-        self.reset_children(i);
+        self.reset_children(i)?;
         self.nodes[i].index = 0;
         Ok(if all_skipped {
             Status::Skipped
@@ -1008,20 +1067,20 @@ impl Tree {
                 // next time we tick them" — and halt any other running child.
                 for j in (0..n).filter(|&j| j != k) {
                     let other = self.nodes[i].children[j];
-                    self.halt_child(other);
+                    self.halt_child(other)?;
                 }
                 return Ok(Status::Running);
             }
             if status == stop {
-                self.reset_children(i);
+                self.reset_children(i)?;
                 return Ok(stop);
             }
             if status == Status::Skipped {
                 // "to allow it to be skipped again, we must reset the node"
-                self.halt_child(child);
+                self.halt_child(child)?;
             }
         }
-        self.reset_children(i);
+        self.reset_children(i)?;
         Ok(if all_skipped {
             Status::Skipped
         } else {
@@ -1091,14 +1150,14 @@ impl Tree {
                 || (success_threshold < 0 && successes + skipped >= required_success)
             {
                 self.nodes[i].parallel = ParallelState::default();
-                self.reset_children(i);
+                self.reset_children(i)?;
                 return Ok(Status::Success);
             }
             // "It fails if it is not possible to succeed anymore or if number of failures are
             // equal to failure_threshold_"
             if n - failures < required_success || failures == required_failure {
                 self.nodes[i].parallel = ParallelState::default();
-                self.reset_children(i);
+                self.reset_children(i)?;
                 return Ok(Status::Failure);
             }
         }
@@ -1156,7 +1215,7 @@ impl Tree {
         }
         if skipped + completed >= n {
             let failures = self.nodes[i].parallel.failures;
-            self.reset_children(i);
+            self.reset_children(i)?;
             self.nodes[i].parallel = ParallelState::default();
             return Ok(if failures >= threshold {
                 Status::Failure
@@ -1170,6 +1229,9 @@ impl Tree {
     /// `IfThenElseNode::tick` (`index` is `child_idx_`).
     fn tick_if_then_else(&mut self, i: usize) -> Result<Status, TickError> {
         let n = self.nodes[i].children.len();
+        if !(2..=3).contains(&n) {
+            return Err(self.refused(i, "IfThenElseNode must have either 2 or 3 children"));
+        }
         self.set_status(i, Status::Running);
         if self.nodes[i].index == 0 {
             let condition = self.nodes[i].children[0];
@@ -1178,7 +1240,10 @@ impl Tree {
                 Status::Success => self.nodes[i].index = 1,
                 Status::Failure if n == 3 => self.nodes[i].index = 2,
                 Status::Failure => return Ok(Status::Failure),
-                Status::Skipped => return Ok(Status::Skipped),
+                // BehaviorTree.CPP has no branch for a skipped condition.
+                Status::Skipped => {
+                    return Err(self.refused(i, "Something unexpected happened in IfThenElseNode"));
+                }
                 Status::Idle => return Err(self.returned_idle(condition)),
             }
         }
@@ -1187,7 +1252,7 @@ impl Tree {
         if status == Status::Running {
             return Ok(Status::Running);
         }
-        self.reset_children(i);
+        self.reset_children(i)?;
         self.nodes[i].index = 0;
         Ok(status)
     }
@@ -1195,6 +1260,9 @@ impl Tree {
     /// `WhileDoElseNode::tick`.
     fn tick_while_do_else(&mut self, i: usize) -> Result<Status, TickError> {
         let n = self.nodes[i].children.len();
+        if !(2..=3).contains(&n) {
+            return Err(self.refused(i, "WhileDoElseNode must have either 2 or 3 children"));
+        }
         self.set_status(i, Status::Running);
         let condition = self.nodes[i].children[0];
         let status = match self.execute_tick(condition)? {
@@ -1202,31 +1270,38 @@ impl Tree {
             Status::Success => {
                 if n == 3 {
                     let other = self.nodes[i].children[2];
-                    self.halt_child(other);
+                    self.halt_child(other)?;
                 }
                 let branch = self.nodes[i].children[1];
                 self.execute_tick(branch)?
             }
             Status::Failure if n == 3 => {
                 let other = self.nodes[i].children[1];
-                self.halt_child(other);
+                self.halt_child(other)?;
                 let branch = self.nodes[i].children[2];
                 self.execute_tick(branch)?
             }
             Status::Failure => Status::Failure,
-            // BehaviorTree.CPP has no rule for a skipped condition (it would return IDLE).
-            Status::Skipped => Status::Skipped,
+            // BehaviorTree.CPP has no branch for a skipped condition: it resets the children
+            // and returns IDLE, which `executeTick` refuses.
+            Status::Skipped => Status::Idle,
             Status::Idle => return Err(self.returned_idle(condition)),
         };
         if status == Status::Running {
             return Ok(Status::Running);
         }
-        self.reset_children(i);
+        self.reset_children(i)?;
         Ok(status)
     }
 
     /// `SwitchNode<N>::tick`.
     fn tick_switch(&mut self, i: usize, cases: usize) -> Result<Status, TickError> {
+        if self.nodes[i].children.len() != cases + 1 {
+            return Err(self.refused(
+                i,
+                "Wrong number of children in SwitchNode; must be (num_cases + default)",
+            ));
+        }
         let mut matched = cases;
         if let Ok(variable) = self.port::<String>(i, "variable") {
             for k in 0..cases {
@@ -1238,12 +1313,12 @@ impl Tree {
                 }
             }
         }
-        self.set_status(i, Status::Running);
+        // A `SwitchNode` does not set itself running: its status is its child's.
         if let Some(running) = self.nodes[i].running_child
             && running != matched
         {
             let child = self.nodes[i].children[running];
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         let child = self.nodes[i].children[matched];
         let status = self.execute_tick(child)?;
@@ -1251,7 +1326,7 @@ impl Tree {
             Status::Skipped => self.nodes[i].running_child = None,
             Status::Running => self.nodes[i].running_child = Some(matched),
             _ => {
-                self.reset_children(i);
+                self.reset_children(i)?;
                 self.nodes[i].running_child = None;
             }
         }
@@ -1281,7 +1356,7 @@ impl Tree {
                     Status::Failure => {
                         for k in 0..tries {
                             let c = self.nodes[i].children[k];
-                            self.halt_child(c);
+                            self.halt_child(c)?;
                         }
                         self.nodes[i].index = 0;
                         self.nodes[i].flag = true;
@@ -1292,7 +1367,7 @@ impl Tree {
             }
             if !self.nodes[i].flag {
                 let all_skipped = self.nodes[i].skipped == tries;
-                self.reset_children(i);
+                self.reset_children(i)?;
                 let node = &mut self.nodes[i];
                 node.index = 0;
                 node.skipped = 0;
@@ -1307,7 +1382,7 @@ impl Tree {
         if self.execute_tick(catch)? == Status::Running {
             return Ok(Status::Running);
         }
-        self.reset_children(i);
+        self.reset_children(i)?;
         let node = &mut self.nodes[i];
         node.index = 0;
         node.flag = false;
@@ -1315,32 +1390,38 @@ impl Tree {
     }
 
     /// `TryCatchNode::halt` with `catch_on_halt`: during the try, the catch runs once.
-    fn halt_try_catch(&mut self, i: usize) {
+    fn halt_try_catch(&mut self, i: usize) -> Result<(), TickError> {
         let catch_on_halt = self.port::<bool>(i, "catch_on_halt").unwrap_or(false);
         if catch_on_halt && !self.nodes[i].flag && self.nodes[i].status.is_active() {
             let n = self.nodes[i].children.len();
             for k in 0..n - 1 {
                 let c = self.nodes[i].children[k];
-                self.halt_child(c);
+                self.halt_child(c)?;
             }
             let catch = self.nodes[i].children[n - 1];
-            // "best-effort cleanup during halt": errors cannot be reported from a halt.
+            // "best-effort cleanup during halt": errors of the catch's tick are not reported.
             if matches!(self.execute_tick(catch), Ok(Status::Running)) {
-                self.halt_child(catch);
+                self.halt_child(catch)?;
             }
         }
+        Ok(())
     }
 
     /// `InverterNode::tick`, `ForceSuccessNode::tick`, `ForceFailureNode::tick`, and the
     /// pass-through of decorator stubs.
     fn tick_simple_decorator(&mut self, i: usize, kind: BuiltinKind) -> Result<Status, TickError> {
-        self.set_status(i, Status::Running);
         let child = self.nodes[i].children[0];
+        if kind == BuiltinKind::PassThrough {
+            // `SimpleDecoratorNode`: the child's status; `executeTick` resets a completed
+            // child after the decorator's own status changed.
+            return self.execute_tick(child);
+        }
+        self.set_status(i, Status::Running);
         let status = self.execute_tick(child)?;
         if !status.is_completed() {
             return Ok(status);
         }
-        self.halt_child(child);
+        self.halt_child(child)?;
         Ok(match kind {
             BuiltinKind::Inverter if status == Status::Success => Status::Failure,
             BuiltinKind::Inverter => Status::Success,
@@ -1358,31 +1439,34 @@ impl Tree {
         } else {
             "num_cycles"
         };
-        let limit: i64 = self.port(i, port)?;
+        let limit: i64 = self.port(i, port).map_err(|_| {
+            let node = if again_on == Status::Failure {
+                "RetryNode"
+            } else {
+                "RepeatNode"
+            };
+            self.refused(i, &format!("Missing parameter [{port}] in {node}"))
+        })?;
         let mut count = self.nodes[i].count;
         let mut do_loop = count < limit || limit == -1;
-        if !self.nodes[i].status.is_active() {
-            self.nodes[i].flag = true;
-        }
         self.set_status(i, Status::Running);
         let child = self.nodes[i].children[0];
         while do_loop {
             let previous = self.nodes[child].status;
             let status = self.execute_tick(child)?;
-            self.nodes[i].flag &= status == Status::Skipped;
             match status {
                 Status::Running => return Ok(Status::Running),
                 Status::Skipped => {
                     // "the child has been skipped. Skip the decorator too. Don't reset the
                     // counter, though!"
-                    self.halt_child(child);
+                    self.halt_child(child)?;
                     return Ok(Status::Skipped);
                 }
                 Status::Idle => return Err(self.returned_idle(child)),
                 status if status != again_on => {
                     // Retry: success; Repeat: failure. Ends the loop with the child's result.
                     self.nodes[i].count = 0;
-                    self.halt_child(child);
+                    self.halt_child(child)?;
                     return Ok(status);
                 }
                 _ => {}
@@ -1390,17 +1474,15 @@ impl Tree {
             count = count.saturating_add(1);
             do_loop = count < limit || limit == -1;
             self.nodes[i].count = count;
-            self.halt_child(child);
+            self.halt_child(child)?;
             // "Return the execution flow if the child is async, to make this interruptable."
-            if !previous.is_active() && do_loop {
+            if previous == Status::Idle && do_loop {
                 self.wake_up = true;
                 return Ok(Status::Running);
             }
         }
         self.nodes[i].count = 0;
-        Ok(if self.nodes[i].flag {
-            Status::Skipped
-        } else if again_on == Status::Failure {
+        Ok(if again_on == Status::Failure {
             Status::Failure
         } else {
             Status::Success
@@ -1424,7 +1506,7 @@ impl Tree {
             // The timer callback: "if(child()->status() == NodeStatus::RUNNING) {
             // child_halted_ = true; haltChild(); }"
             self.nodes[i].child_halted = true;
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         if self.nodes[i].child_halted {
             self.stop_timer(i);
@@ -1447,7 +1529,7 @@ impl Tree {
         let status = self.execute_tick(child)?;
         if status.is_completed() {
             self.stop_timer(i);
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         Ok(status)
     }
@@ -1473,11 +1555,11 @@ impl Tree {
         let child = self.nodes[i].children[0];
         match self.execute_tick(child)? {
             Status::Failure => {
-                self.halt_child(child);
+                self.halt_child(child)?;
                 Ok(Status::Failure)
             }
             Status::Success => {
-                self.halt_child(child);
+                self.halt_child(child)?;
                 Ok(Status::Running)
             }
             // BehaviorTree.CPP returns its own status (running) for anything else.
@@ -1556,12 +1638,14 @@ impl Tree {
         if !popped && !self.nodes[i].flag {
             return self.status_port(i, "if_empty");
         }
-        self.set_status(i, Status::Running);
+        if self.nodes[i].status == Status::Idle {
+            self.set_status(i, Status::Running);
+        }
         let child = self.nodes[i].children[0];
         let status = self.execute_tick(child)?;
         self.nodes[i].flag = status == Status::Running;
         if status.is_completed() {
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         Ok(if status == Status::Failure {
             Status::Failure
@@ -1575,15 +1659,22 @@ impl Tree {
         let code = self.code(i, "if")?;
         let otherwise = self.status_port(i, "else")?;
         let child = self.nodes[i].children[0];
-        if self.nodes[child].status.is_active() || self.eval_bool(i, &code)? {
-            let status = self.execute_tick(child)?;
-            if status.is_completed() {
-                self.halt_child(child);
-            }
-            Ok(status)
-        } else {
-            Ok(otherwise)
+        // `_children_running` (`flag`) survives a halt: a halted precondition whose child ran
+        // ticks the child again without evaluating `if`.
+        let tick_child = self.nodes[i].flag || {
+            let holds = self.eval_bool(i, &code)?;
+            self.nodes[i].flag = holds;
+            holds
+        };
+        if !tick_child {
+            return Ok(otherwise);
         }
+        let status = self.execute_tick(child)?;
+        if status.is_completed() {
+            self.halt_child(child)?;
+            self.nodes[i].flag = false;
+        }
+        Ok(status)
     }
 
     /// `RunOnceNode::tick` (`flag` is `already_ticked_`).
@@ -1602,7 +1693,7 @@ impl Tree {
         if status.is_completed() {
             self.nodes[i].flag = true;
             self.nodes[i].returned = status;
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         Ok(status)
     }
@@ -1632,11 +1723,10 @@ impl Tree {
                 Status::Running
             });
         }
+        // The child is reset by `execute_tick` (`DecoratorNode::executeTick`), after this
+        // node's status changed.
         let status = self.execute_tick(child)?;
         self.nodes[i].flag = status == Status::Running;
-        if status.is_completed() {
-            self.halt_child(child);
-        }
         Ok(status)
     }
 
@@ -1648,7 +1738,7 @@ impl Tree {
         let child = self.nodes[i].children[0];
         let status = self.execute_tick(child)?;
         if status.is_completed() {
-            self.halt_child(child);
+            self.halt_child(child)?;
         }
         Ok(status)
     }
@@ -1904,6 +1994,29 @@ impl<'a> Builder<'a> {
             None => Arc::default(),
         };
         let ports = ports_as_read(def, defaults);
+        // "Initialize the ports in the BB to set the type": BehaviorTree.CPP creates an entry,
+        // without a value, for every port the XML remaps to the blackboard (not for a
+        // `SubTree`'s remappings), which a script's `:=` then finds instead of creating.
+        if def.category != NodeCategory::SubTree {
+            for (port, value) in &ports.own {
+                if let Some(key) = blackboard_pointer(value) {
+                    let type_name = model.as_ref().and_then(|m| {
+                        m.ports
+                            .iter()
+                            .find(|spec| &spec.name == port)
+                            .and_then(|spec| spec.type_name.as_deref())
+                    });
+                    let declared = match type_name {
+                        Some("std::string") => DeclaredType::Text,
+                        Some("BT::Any") => DeclaredType::Any,
+                        _ => DeclaredType::Other,
+                    };
+                    self.tree
+                        .blackboard
+                        .declare_in(pending.scope, key, declared);
+                }
+            }
+        }
         if let Some(model) = model
             && !self.tree.models.contains_key(&model.id)
         {
@@ -1915,7 +2028,7 @@ impl<'a> Builder<'a> {
             Kind::Builtin(kind) => Some(kind),
             _ => None,
         };
-        let (conditions, code) = compile_definition(def, builtin, &ports, location)?;
+        let (conditions, code) = compile_definition(def, builtin, &ports, location, false)?;
         let name = def.instance_name().to_owned();
         let path = match &def.name {
             Some(n) => format!("{}{n}", pending.prefix),
@@ -2027,11 +2140,12 @@ fn compile_definition(
     builtin: Option<BuiltinKind>,
     ports: &Ports,
     location: &NodeLocation,
+    strict: bool,
 ) -> Result<CompiledScripts, DefinitionError> {
-    if let Some(kind) = builtin {
+    if strict && let Some(kind) = builtin {
         check_builtin(def, kind, ports, location)?;
     }
-    if def.id == "Sleep" && def.category == NodeCategory::Action {
+    if strict && def.id == "Sleep" && def.category == NodeCategory::Action {
         check_non_negative(def, ports, "msec", location)?;
     }
     let conditions = compile_conditions(def, location)?;
@@ -2050,6 +2164,7 @@ fn compile_definition(
 pub(crate) fn check_definition(
     def: &NodeDef,
     location: &NodeLocation,
+    strict: bool,
 ) -> Result<(), DefinitionError> {
     let builtin = if def.category == NodeCategory::SubTree {
         None
@@ -2060,7 +2175,7 @@ pub(crate) fn check_definition(
         .and_then(|_| builtin_model(&def.id))
         .map_or_else(Arc::default, |model| Arc::new(Defaults::of(&model)));
     let ports = ports_as_read(def, defaults);
-    compile_definition(def, builtin, &ports, location).map(|_| ())
+    compile_definition(def, builtin, &ports, location, strict).map(|_| ())
 }
 
 /// Checks of built-in nodes that BehaviorTree.CPP makes only when ticking (or never): port

@@ -120,13 +120,21 @@ impl ScriptedOutcomes {
     }
 }
 
-/// A leaf that returns the current outcome of its instance name.
+/// A leaf that returns the current outcome of its instance name. An action is
+/// BehaviorTree.CPP's `StatefulActionNode`, the base of actions that run over several ticks:
+/// `onStart` (from idle) and `onRunning` return the outcome, and an action ticked again while
+/// it still holds a completed status (a reactive parent did not reset it) returns that status
+/// without asking. A condition is a `SimpleConditionNode`, asked at every tick.
 struct ScriptedLeaf {
     outcomes: ScriptedOutcomes,
+    action: bool,
 }
 
 impl LeafNode for ScriptedLeaf {
     fn tick(&mut self, ctx: &mut LeafContext<'_>) -> Result<Status, LeafError> {
+        if self.action && ctx.status().is_completed() {
+            return Ok(ctx.status());
+        }
         self.outcomes.get(ctx.name()).ok_or_else(|| {
             LeafError::new(format!(
                 "ticked, but the script has given no outcome for \"{}\" yet",
@@ -156,9 +164,11 @@ pub fn scripted_registry(doc: &BtDocument) -> Result<(Registry, ScriptedOutcomes
     let models = doc.node_models_by_id();
     for (id, category) in leaves {
         let shared = outcomes.clone();
+        let action = category == NodeCategory::Action;
         let factory = move || -> Box<dyn LeafNode> {
             Box::new(ScriptedLeaf {
                 outcomes: shared.clone(),
+                action,
             })
         };
         match models.get(id.as_str()).filter(|m| m.category == category) {
@@ -183,14 +193,30 @@ pub struct TickRecord {
 }
 
 /// The result of [`run_script`].
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Debug)]
 pub struct ScriptRun {
-    /// Every tick done.
+    /// Every tick done that returned a status.
     pub ticks: Vec<TickRecord>,
-    /// Whether the root completed (success or failure) at the last tick done.
+    /// Whether the root stopped running (success, failure or skipped) at the last tick done.
     pub finished: bool,
-    /// Script ticks after the one at which the root completed (not used).
+    /// Script ticks after the one at which the root stopped (not used).
     pub unused: Vec<u64>,
+    /// The tick that failed, which ended the run (BehaviorTree.CPP throws from that tick).
+    pub failure: Option<TickFailure>,
+}
+
+/// A tick that failed: what [`Tree::tick_exactly_once`] returned, and the status changes made
+/// before the failure.
+#[derive(Debug)]
+pub struct TickFailure {
+    /// The tick number.
+    pub tick: u64,
+    /// Its time.
+    pub time: Duration,
+    /// Why it failed.
+    pub error: TickError,
+    /// The status changes of the tick up to the failure, in order.
+    pub transitions: Vec<Transition>,
 }
 
 /// Why a script cannot run, or stopped.
@@ -244,24 +270,20 @@ pub enum ScriptError {
         /// The outcome given.
         status: Status,
     },
-    /// A tick failed.
-    #[error("tick {tick}: {error}")]
-    Tick {
-        /// The tick.
-        tick: u64,
-        /// What failed.
-        error: TickError,
-    },
 }
 
 /// Runs `tree` through `script`: for every tick from 1 to the last tick of the script, the
 /// outcomes listed at that tick are set, then the root is ticked once
 /// ([`Tree::tick_exactly_once`]) at the tick's time — the time given in the script, or the
-/// previous tick's time plus `period` (tick 1: 0). The run stops early when the root completes.
+/// previous tick's time plus `period` (tick 1: 0). The run stops early when the root stops
+/// running (it succeeded, failed or was skipped: BehaviorTree.CPP's `tickWhileRunning` ends
+/// there too), or at a tick that fails, which is recorded in [`ScriptRun::failure`] with the
+/// status changes made before it (a script that throws, a leaf ticked before the script gave it
+/// an outcome, a port value that cannot be read).
 ///
 /// # Errors
-/// [`ScriptError`] for an empty or disordered script, names that are no leaves, outcomes a
-/// leaf cannot return, and failed ticks (a leaf ticked before the script gave it an outcome).
+/// [`ScriptError`] for an empty or disordered script, names that are no leaves and outcomes a
+/// leaf cannot return, before anything runs.
 pub fn run_script(
     tree: &mut Tree,
     outcomes: &ScriptedOutcomes,
@@ -276,6 +298,7 @@ pub fn run_script(
     let mut ticks = Vec::new();
     let mut time = Duration::ZERO;
     let mut finished = false;
+    let mut failure = None;
     for k in 1..=last {
         let line = by_tick.get(&k);
         time = match line.and_then(|l| l.at_ms) {
@@ -286,21 +309,33 @@ pub fn run_script(
         for (name, status) in line.map(|l| l.outcomes.as_slice()).unwrap_or_default() {
             outcomes.set(name, *status);
         }
-        let status = tree
-            .tick_exactly_once(time)
-            .map_err(|error| ScriptError::Tick { tick: k, error })?;
+        let status = match tree.tick_exactly_once(time) {
+            Ok(status) => status,
+            Err(error) => {
+                failure = Some(TickFailure {
+                    tick: k,
+                    time,
+                    error,
+                    transitions: tree.take_transitions(),
+                });
+                break;
+            }
+        };
         ticks.push(TickRecord {
             tick: k,
             time,
             status,
             transitions: tree.take_transitions(),
         });
-        if status.is_completed() {
+        if status != Status::Running {
             finished = true;
             break;
         }
     }
-    let done = ticks.last().map_or(0, |t| t.tick);
+    let done = failure.as_ref().map_or_else(
+        || ticks.last().map_or(0, |t| t.tick),
+        |f: &TickFailure| f.tick,
+    );
     let unused = script
         .ticks
         .iter()
@@ -311,6 +346,7 @@ pub fn run_script(
         ticks,
         finished,
         unused,
+        failure,
     })
 }
 

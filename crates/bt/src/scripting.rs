@@ -903,6 +903,16 @@ fn assign(
                     }
                 }
             }
+            // An entry holding text has BehaviorTree.CPP's type std::string, which takes no
+            // number from a script ("The right operand has type [long] and can't be
+            // converted to [std::string]").
+            (Value::Str(_), Value::Int(_) | Value::Double(_) | Value::Bool(_)) => {
+                return Err(ScriptError::new(format!(
+                    "cannot assign {} to the entry [{name}], which holds text (BehaviorTree.CPP: \
+                     \"Error assigning a value to entry [{name}] with type [std::string]\")",
+                    describe(&value)
+                )));
+            }
             _ => value,
         },
         (op, Some(old)) => {
@@ -929,7 +939,7 @@ fn assign(
         (_, None) => unreachable!("checked above"),
     };
     env.blackboard
-        .set_in(env.scope, name, new)
+        .set_in_by_script(env.scope, name, new)
         .map_err(|e| ScriptError::new(e.to_string()))?;
     Ok(env
         .blackboard

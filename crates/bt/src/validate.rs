@@ -81,11 +81,12 @@ impl<'d> Known<'d> {
     }
 }
 
-/// Checks a document: at least one tree, unique tree IDs, `main_tree_to_execute` and every
-/// `SubTree` naming a tree, no recursive subtrees, and for every node: a known ID of the
-/// category written, the number of children of its category, only declared ports, required
-/// ports present, literal values of the declared type, output ports given as `{key}`, and
-/// `Parallel` thresholds that its children can reach.
+/// Checks a document as BehaviorTree.CPP 4 checks it when it loads a tree: at least one tree,
+/// unique tree IDs, `main_tree_to_execute` and every `SubTree` naming a tree, no recursive
+/// subtrees, and for every node: a known ID of the category written, the number of children
+/// of its category, only declared ports, and literal values of the declared type. A tree that
+/// passes loads, as it loads in BehaviorTree.CPP; what BehaviorTree.CPP refuses only when it
+/// ticks the node is found by [`validate_strict`].
 ///
 /// IDs are resolved by [`Registry::lookup`] with the document's `<TreeNodesModel>`, so a leaf
 /// declared there but not registered passes here (and fails when instantiated).
@@ -94,6 +95,23 @@ impl<'d> Known<'d> {
 /// The first problem found, in document order, as a [`DefinitionError`] with the node's
 /// location and the attribute concerned.
 pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionError> {
+    validate_at(doc, registry, false)
+}
+
+/// [`validate`], and what BehaviorTree.CPP refuses only when it ticks the node (or never, but
+/// misbehaves on): required ports missing, output ports not given as `{key}`, port values out
+/// of range (`num_attempts="-5"`), `Parallel` and `ParallelAll` thresholds its children cannot
+/// reach, the number of children of `IfThenElse`, `WhileDoElse`, `Switch*` and `TryCatch`,
+/// statuses given as text (`else`, `if_empty`). `chronomap bt check` reports these before
+/// anything runs; `bt run` and the runtime raise them at the tick, as BehaviorTree.CPP does.
+///
+/// # Errors
+/// As [`validate`].
+pub fn validate_strict(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionError> {
+    validate_at(doc, registry, true)
+}
+
+fn validate_at(doc: &BtDocument, registry: &Registry, strict: bool) -> Result<(), DefinitionError> {
     if doc.trees.is_empty() {
         return Err(DefinitionError::document(K::NoTrees));
     }
@@ -136,8 +154,10 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
                     tree: tree.id.clone(),
                     path: path.to_vec(),
                 };
-                result = match check_node(&mut known, node) {
-                    Ok(()) => check_definition(node, &here).map_err(|e| e.relocated(located())),
+                result = match check_node(&mut known, node, strict) {
+                    Ok(()) => {
+                        check_definition(node, &here, strict).map_err(|e| e.relocated(located()))
+                    }
                     Err(failure) => {
                         let (kind, attribute) = *failure;
                         let error = DefinitionError::at(located(), kind);
@@ -158,6 +178,7 @@ pub fn validate(doc: &BtDocument, registry: &Registry) -> Result<(), DefinitionE
 fn check_node<'d>(
     known: &mut Known<'d>,
     node: &'d NodeDef,
+    strict: bool,
 ) -> Result<(), Box<(K, Option<String>)>> {
     let fail =
         |kind: K, attribute: Option<&str>| Err(Box::new((kind, attribute.map(str::to_owned))));
@@ -212,7 +233,7 @@ fn check_node<'d>(
             if blackboard_pointer(value).is_some() {
                 continue;
             }
-            if spec.direction == PortDirection::Output {
+            if strict && spec.direction == PortDirection::Output {
                 return fail(
                     K::OutputNotReference {
                         id: node.id.clone(),
@@ -234,7 +255,8 @@ fn check_node<'d>(
                     Some(name.as_str()),
                 );
             }
-            if manifest.source == ManifestSource::Builtin
+            if strict
+                && manifest.source == ManifestSource::Builtin
                 && let Some(&(_, _, least, expected)) = PORT_RANGES
                     .iter()
                     .find(|(id, port, _, _)| *id == node.id && port == name)
@@ -251,7 +273,7 @@ fn check_node<'d>(
                 );
             }
         }
-        if !resolved.required.is_empty() {
+        if strict && !resolved.required.is_empty() {
             let given: Option<HashSet<&str>> = (node.ports.len() > 8)
                 .then(|| node.ports.iter().map(|(n, _)| n.as_str()).collect());
             for spec in resolved.required.iter().map(|&i| &specs[i]) {
@@ -271,7 +293,7 @@ fn check_node<'d>(
             }
         }
     }
-    if node.id == "Parallel" {
+    if strict && node.id == "Parallel" {
         for (port, default) in [("success_count", -1), ("failure_count", 1)] {
             let threshold = match node.port_value(port) {
                 None => default,
