@@ -285,8 +285,6 @@ struct Entry {
     /// entry no port type, and `SetBlackboard` writing a literal to it leaves it without a
     /// value (see [`Blackboard::clear_scripted_in`]).
     scripted: bool,
-    /// The value was written by a script.
-    by_script: bool,
     /// Declared by a port of type std::string: text written to it stays text.
     text: bool,
     /// Its port type is BehaviorTree.CPP's `BT::Any` (declared by such a port, copied by
@@ -455,7 +453,6 @@ impl Blackboard {
                     Some(old) => converted(&key, old, value)?,
                     None => value,
                 });
-                entry.by_script = false;
                 entry.sequence_id += 1;
             }
             Err((at, key)) => {
@@ -465,7 +462,6 @@ impl Blackboard {
                         value: Some(value),
                         sequence_id: 1,
                         scripted: false,
-                        by_script: false,
                         text: false,
                         any_typed: false,
                     },
@@ -492,7 +488,6 @@ impl Blackboard {
             && let Some(entry) = self.scopes[at.0].entries.get_mut(&key)
         {
             entry.scripted |= created;
-            entry.by_script = true;
         }
         Ok(())
     }
@@ -512,7 +507,6 @@ impl Blackboard {
                     value: None,
                     sequence_id: 0,
                     scripted: false,
-                    by_script: false,
                     text: port_type == DeclaredType::Text,
                     any_typed: port_type == DeclaredType::Any,
                 },
@@ -540,11 +534,13 @@ impl Blackboard {
     }
 
     /// What `SetBlackboard` with a literal `value` does to an entry without a port type, in
-    /// BehaviorTree.CPP 4.8.2, where the text is converted to the entry's port type: for an
-    /// entry a script created and wrote, the conversion yields nothing and the entry is written
-    /// without a value — it still exists (its sequence number goes up, as for any write) but
-    /// reads find nothing ([`ScriptedWrite::Emptied`]); for an entry of type `BT::Any`, or one a
-    /// script made that a script did not write, the conversion throws
+    /// BehaviorTree.CPP 4.8.2, where the text is converted to the entry's port type. For an
+    /// entry a script (or a `SubTree`'s literal port) created, the conversion yields nothing
+    /// and the entry is written without a value: it still exists (its sequence number goes
+    /// up, as for any write) but reads find nothing ([`ScriptedWrite::Emptied`]). Written so
+    /// from its own scope, the entry then has the type of that empty value, `BT::Any`, which
+    /// a later literal cannot be converted to; written through a subtree's remapping, it keeps
+    /// its type. For an entry of type `BT::Any` the conversion throws
     /// ([`ScriptedWrite::Refused`]). Other entries: [`ScriptedWrite::NotScripted`], nothing
     /// changed.
     pub fn write_text_to_scripted_in(&mut self, scope: ScopeId, key: &str) -> ScriptedWrite {
@@ -553,14 +549,12 @@ impl Blackboard {
         };
         match self.scopes[at.0].entries.get_mut(&key) {
             Some(entry) if entry.any_typed => ScriptedWrite::Refused,
-            Some(entry) if entry.scripted && entry.by_script && entry.value.is_some() => {
+            Some(entry) if entry.scripted => {
                 entry.value = None;
-                entry.by_script = false;
-                entry.any_typed = true;
+                entry.any_typed = at == scope;
                 entry.sequence_id += 1;
                 ScriptedWrite::Emptied
             }
-            Some(entry) if entry.scripted => ScriptedWrite::Refused,
             _ => ScriptedWrite::NotScripted,
         }
     }
@@ -583,8 +577,9 @@ impl Blackboard {
             Entry {
                 value: Some(value),
                 sequence_id,
-                scripted: false,
-                by_script: false,
+                // A value set without a port type, as a script's: `SetBlackboard` treats the
+                // entry as it treats a script's.
+                scripted: true,
                 text: false,
                 any_typed: false,
             },

@@ -79,6 +79,13 @@ pub enum DefinitionErrorKind {
         /// The number of children found.
         found: usize,
     },
+    /// A `ReactiveSequence` with more than one `AsyncSequence` child, which BehaviorTree.CPP
+    /// refuses when it loads the tree.
+    #[error("\"{id}\": a ReactiveSequence cannot have more than one async child (AsyncSequence)")]
+    AsyncChildren {
+        /// The ID (`ReactiveSequence`).
+        id: String,
+    },
     /// A required attribute is missing.
     #[error("\"{id}\" needs the attribute \"{port}\"")]
     MissingPort {

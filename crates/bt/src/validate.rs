@@ -192,6 +192,22 @@ fn check_node<'d>(
             None,
         );
     }
+    if node.id == "ReactiveSequence"
+        && node.category == NodeCategory::Control
+        && node
+            .children
+            .iter()
+            .filter(|c| c.id == "AsyncSequence" && c.category == NodeCategory::Control)
+            .count()
+            > 1
+    {
+        return fail(
+            K::AsyncChildren {
+                id: node.id.clone(),
+            },
+            None,
+        );
+    }
     if node.category == NodeCategory::SubTree {
         if !known.trees.contains(node.id.as_str()) {
             return fail(
