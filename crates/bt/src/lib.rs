@@ -120,7 +120,7 @@ pub use registry::{
     ControlContext, ControlNode, LeafContext, LeafError, LeafNode, Manifest, ManifestSource,
     Registry, RegistryError, StubPolicy,
 };
-pub use runtime::{MAX_DEPTH, Node, SubtreeInstance, Transition, Tree};
+pub use runtime::{MAX_DEPTH, Node, SubtreeInstance, TickMonitor, Transition, Tree};
 pub use scripting::{Program, ScriptError};
 pub use validate::{validate, validate_strict};
 

@@ -110,6 +110,27 @@ use super::validate::{required_count, validate};
 /// ticking and halting, which recurse once per level, cannot overflow the stack.
 pub const MAX_DEPTH: usize = 1000;
 
+/// Hooks around every node's tick: BehaviorTree.CPP's `PreTickCallback` and
+/// `PostTickCallback` (`TreeNode::executeTick`), which its `Groot2Publisher` installs for
+/// breakpoints and for replacing a node's result. A hook may block (a breakpoint waits there
+/// until a client unlocks it).
+pub trait TickMonitor: Send {
+    /// Before the tick of node `uid` (whose status is `status`, not a completed one) and after
+    /// its pre-conditions: a success or failure returned here is the node's result, and the
+    /// node is not ticked.
+    fn pre_tick(&mut self, uid: u16, status: Status) -> Option<Status> {
+        let _ = (uid, status);
+        None
+    }
+
+    /// After the tick of node `uid` (and its post-conditions), which returned `status`: a
+    /// success or failure returned here replaces it.
+    fn post_tick(&mut self, uid: u16, status: Status) -> Option<Status> {
+        let _ = (uid, status);
+        None
+    }
+}
+
 /// A change of a node's status: what a Groot2 `.btlog` file records.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Transition {
@@ -296,6 +317,7 @@ pub struct Tree {
     /// An error of a halt made through a [`ControlContext`] (whose methods cannot fail),
     /// raised when the custom node's tick or halt returns.
     pub(crate) halt_error: Option<TickError>,
+    monitor: Option<Box<dyn TickMonitor>>,
 }
 
 impl fmt::Debug for Tree {
@@ -377,6 +399,7 @@ impl Tree {
             recording: false,
             transitions: Vec::new(),
             halt_error: None,
+            monitor: None,
         };
         let scope = tree.blackboard.root();
         tree.subtrees.push(SubtreeInstance {
@@ -448,6 +471,13 @@ impl Tree {
     /// The time of the current (or last) tick.
     pub(crate) fn now(&self) -> Duration {
         self.now
+    }
+
+    /// Installs (or removes, with `None`) the [`TickMonitor`] whose hooks run around every
+    /// node's tick (BehaviorTree.CPP's `PreTickCallback` and `PostTickCallback`, which
+    /// `Groot2Publisher` uses for breakpoints and for replacing a node's result).
+    pub fn set_tick_monitor(&mut self, monitor: Option<Box<dyn TickMonitor>>) {
+        self.monitor = monitor;
     }
 
     /// Starts or stops recording status transitions (off initially).
@@ -819,7 +849,20 @@ impl Tree {
         };
         let status = match pre {
             Some(status) => status,
-            None => self.tick_node(i)?,
+            None => {
+                // An injected pre-tick hook may give the result instead of the tick (not for a
+                // node that holds a completed status).
+                let replaced = match self.monitor.as_mut() {
+                    Some(m) if !self.nodes[i].status.is_completed() => m
+                        .pre_tick(self.nodes[i].uid, self.nodes[i].status)
+                        .filter(|s| s.is_completed()),
+                    _ => None,
+                };
+                match replaced {
+                    Some(status) => status,
+                    None => self.tick_node(i)?,
+                }
+            }
         };
         if let Some(c) = &conditions
             && status.is_completed()
@@ -829,6 +872,14 @@ impl Tree {
                 self.eval(i, script)?;
             }
         }
+        let uid = self.nodes[i].uid;
+        let status = match self.monitor.as_mut() {
+            Some(m) => m
+                .post_tick(uid, status)
+                .filter(|s| s.is_completed())
+                .unwrap_or(status),
+            None => status,
+        };
         match status {
             Status::Skipped => {}
             Status::Idle => return Err(self.error(i, TickErrorKind::SetIdle)),
