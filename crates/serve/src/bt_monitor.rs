@@ -41,8 +41,9 @@ use crate::server::ApiError;
 
 /// Time between two `STATUS` requests (20 Hz).
 pub const STATUS_PERIOD: Duration = Duration::from_millis(50);
-/// Time between two `GET_TRANSITIONS` requests (BehaviorTree.CPP keeps the last 1000).
-pub const TRANSITIONS_PERIOD: Duration = Duration::from_millis(500);
+/// Time between two `GET_TRANSITIONS` requests (BehaviorTree.CPP keeps the last 1000: a
+/// tree of 40 nodes ticked at 20 Hz makes about 300 a second).
+pub const TRANSITIONS_PERIOD: Duration = Duration::from_millis(200);
 /// Time between two `FULLTREE` requests while connected: a publisher restarted with another
 /// tree between two status requests is noticed within this time (BehaviorTree.CPP's tree
 /// UUID is the same in every process, so it cannot tell).
@@ -816,6 +817,9 @@ fn session(
 ) -> Result<(), ClientError> {
     read_tree(monitor, client)?;
     let started = client.start_recording()?;
+    // Connected once the statuses fit the tree: a publisher that sends a tree and then
+    // garbage is retried with growing delays, not reported connected again and again.
+    poll_status(monitor, client)?;
     {
         let mut data = monitor.data();
         data.set_connection(Connection::Connected, None);
@@ -1136,12 +1140,8 @@ fn event_stream(
             };
             match quiet {
                 Some(false) => return,
-                Some(true) => {
-                    if send.send(":\n\n".into()).await.is_err() {
-                        return;
-                    }
-                }
-                None => {}
+                Some(true) if send.send(":\n\n".into()).await.is_err() => return,
+                _ => {}
             }
         }
     });
@@ -1173,7 +1173,7 @@ impl hyper::body::Body for SseBody {
 }
 
 /// The transitions the publisher recorded (the monitor turns recording on when it
-/// connects and collects them every half second), numbered `after` and later.
+/// connects and collects them five times a second), numbered `after` and later.
 #[utoipa::path(get, path = "/v1/bt/monitors/{id}/transitions",
     params(("id" = String, Path, description = "monitor id"), TransitionsQuery),
     responses((status = 200, body = BtTransitionsResponse), (status = 400, body = crate::api::ErrorBody),
@@ -1247,3 +1247,7 @@ pub(crate) async fn blackboard(
         blackboards,
     }))
 }
+
+#[cfg(test)]
+#[path = "bt_monitor_tests.rs"]
+mod tests;
