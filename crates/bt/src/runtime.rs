@@ -1096,6 +1096,7 @@ impl Tree {
         let all_skipped = self.nodes[i].skipped == n;
         self.reset_children(i)?;
         self.nodes[i].index = 0;
+        self.nodes[i].skipped = 0;
         Ok(if all_skipped {
             Status::Skipped
         } else {
@@ -2193,7 +2194,10 @@ fn compile_definition(
     location: &NodeLocation,
     strict: bool,
 ) -> Result<CompiledScripts, DefinitionError> {
-    if strict && let Some(kind) = builtin {
+    // `TryCatch` (BehaviorTree.CPP 4.9, not in 4.8) checks its children when it is parsed.
+    if let Some(kind) = builtin
+        && (strict || kind == BuiltinKind::TryCatch)
+    {
         check_builtin(def, kind, ports, location)?;
     }
     if strict && def.id == "Sleep" && def.category == NodeCategory::Action {

@@ -168,17 +168,14 @@ fn sequence_with_memory_retries_the_failed_child_without_ticking_earlier_ones() 
             [leaf("A"), leaf("B"), leaf("C")],
         ),
         &[
-            // B fails: only B (and C) are reset, A keeps its success and the index stays at B.
-            (
-                &[("A", S), ("B", F)],
-                F,
-                "swm:I>R A:I>S B:I>F B:F>I swm:R>F swm:F>I",
-            ),
-            (
-                &[("B", S), ("C", S)],
-                S,
-                "swm:I>R B:I>S C:I>S A:S>I B:S>I C:S>I swm:R>S swm:S>I",
-            ),
+            // A succeeds straight from idle with children left: the node yields (returns
+            // running), as BehaviorTree.CPP's does in every tree its factory builds.
+            (&[("A", S), ("B", F)], R, "swm:I>R A:I>S"),
+            // B fails: only B (and C) are reset, A keeps its success and the index stays at B
+            // (checked against BehaviorTree.CPP 4.8.2, tests/cli/bt_differential.rs).
+            (&[], F, "B:I>F B:F>I swm:R>F swm:F>I"),
+            (&[("B", S), ("C", S)], R, "swm:I>R B:I>S"),
+            (&[], S, "C:I>S A:S>I B:S>I C:S>I swm:R>S swm:S>I"),
             // Completed: the next run starts at A.
             (&[("A", R)], R, "swm:I>R A:I>R"),
         ],
@@ -329,7 +326,9 @@ fn parallel_failure_threshold_is_reached_by_equality() {
 fn parallel_thresholds_above_the_number_of_children_are_errors() {
     let doc = one_tree(parallel(Some("3"), None, 2));
     let (registry, _) = scripted_registry(&doc).unwrap();
-    let err = Tree::new(&doc, &registry).unwrap_err();
+    // BehaviorTree.CPP loads the tree and throws at the first tick; `bt check` (strict
+    // validation) finds it before.
+    let err = crate::validate_strict(&doc, &registry).unwrap_err();
     assert_eq!(err.attribute(), Some("success_count"));
     assert!(
         matches!(
@@ -340,6 +339,13 @@ fn parallel_thresholds_above_the_number_of_children_are_errors() {
                 ..
             }
         ),
+        "{err}"
+    );
+    let mut tree = Tree::new(&doc, &registry).unwrap();
+    let err = tree.tick_once(Duration::ZERO).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("success_count = 3 needs 3 children"),
         "{err}"
     );
     // Through the blackboard, the same check happens at the tick.
@@ -426,9 +432,11 @@ fn tick_once_follows_the_wake_up_so_all_attempts_happen_in_one_call() {
 #[test]
 fn retry_with_minus_one_never_gives_up_and_zero_attempts_are_skipped() {
     keeps_running(retry("-1"), ("A", F), 20);
-    // BehaviorTree.CPP 4.6: no attempt means no child was ticked, so `all_skipped_` stays
-    // true and the decorator returns SKIPPED.
-    check(retry("0"), &[(&[("A", S)], K, "retry:I>R retry:R>K")]);
+    // BehaviorTree.CPP 4.8.2: no attempt, no tick of the child, and failure.
+    check(
+        retry("0"),
+        &[(&[("A", S)], F, "retry:I>R retry:R>F retry:F>I")],
+    );
 }
 
 #[test]
@@ -877,9 +885,10 @@ fn ticks_must_not_go_back_in_time() {
 // -----------------------------------------------------------------------------------------
 // Validation
 
+/// The first error of strict validation (what `chronomap bt check` reports).
 fn invalid(root: NodeDef) -> DefinitionError {
     let doc = one_tree(root);
-    validate(&doc, &Registry::new()).unwrap_err()
+    crate::validate_strict(&doc, &Registry::new()).unwrap_err()
 }
 
 #[test]
@@ -988,7 +997,10 @@ fn validation_checks_trees_subtrees_and_output_ports() {
             .port("goal", "dock")
             .port("path", "p"),
     ));
-    let e = validate(&doc, &registry).unwrap_err();
+    // BehaviorTree.CPP loads it (and fails when the port is written); strict validation
+    // refuses it.
+    validate(&doc, &registry).unwrap();
+    let e = crate::validate_strict(&doc, &registry).unwrap_err();
     assert_eq!(e.attribute(), Some("path"));
     assert!(e.to_string().ends_with(
         "output port path=\"p\" of \"Plan\" must be a blackboard reference such as \"{path}\""
@@ -1137,10 +1149,24 @@ fn scripts_are_checked_before_anything_runs() {
         run(&mut tree, vec![ScriptTick::new(2), ScriptTick::new(2)]),
         "tick 2 comes after tick 2 (tick numbers start at 1 and increase)"
     );
+    // A tick that fails ends the run; it is recorded, with the changes made before it.
+    let failed = run_script(
+        &mut tree,
+        &outcomes,
+        &Script {
+            ticks: vec![ScriptTick::new(1).outcome("BatteryOk", S)],
+        },
+        Duration::from_millis(100),
+    )
+    .unwrap();
+    let failure = failed.failure.expect("tick 1 fails");
+    assert_eq!(failure.tick, 1);
     assert_eq!(
-        run(&mut tree, vec![ScriptTick::new(1).outcome("BatteryOk", S)]),
-        "tick 1: node 3 (Patrol): ticked, but the script has given no outcome for \"Patrol\" yet"
+        failure.error.to_string(),
+        "node 3 (Patrol): ticked, but the script has given no outcome for \"Patrol\" yet"
     );
+    assert!(failed.ticks.is_empty() && !failed.finished);
+    tree.halt(Duration::ZERO);
     assert_eq!(run(&mut tree, vec![]), "the script has no ticks");
     // Tick 3 would come at 200 ms (100 ms after tick 2), so tick 4 cannot be at 150 ms.
     assert_eq!(

@@ -402,8 +402,9 @@ fn if_then_else__halt_behavior() {
 
 #[test]
 fn if_then_else__invalid_child_count() {
-    // gtest_if_then_else.cpp: InvalidChildCount_One, InvalidChildCount_Four — refused (here
-    // when the tree is instantiated, not at the first tick).
+    // gtest_if_then_else.cpp: InvalidChildCount_One, InvalidChildCount_Four — the tree loads
+    // and the first tick throws, as in BehaviorTree.CPP; strict validation (`bt check`) finds
+    // it before.
     let fx = Fixture::new();
     for body in [
         r#"<IfThenElse><AlwaysSuccess/></IfThenElse>"#,
@@ -412,6 +413,12 @@ fn if_then_else__invalid_child_count() {
         let e = fx.refuse(&main_tree(body));
         assert!(
             matches!(e.kind(), DefinitionErrorKind::WrongChildren { .. }),
+            "{e}"
+        );
+        let e = fx.tick_error(&main_tree(body));
+        assert!(
+            e.to_string()
+                .ends_with("IfThenElseNode must have either 2 or 3 children"),
             "{e}"
         );
     }
@@ -495,9 +502,16 @@ fn while_do_else__halt_behavior_and_invalid_child_count() {
     assert_eq!(run.tick_while_running(), S);
     assert_eq!(run.tick_while_running(), S);
     assert_eq!(fx.count(0), 2);
-    let e = fx.refuse(&main_tree(r#"<WhileDoElse><AlwaysSuccess/></WhileDoElse>"#));
+    let one = main_tree(r#"<WhileDoElse><AlwaysSuccess/></WhileDoElse>"#);
+    let e = fx.refuse(&one);
     assert!(
         matches!(e.kind(), DefinitionErrorKind::WrongChildren { .. }),
+        "{e}"
+    );
+    let e = fx.tick_error(&one);
+    assert!(
+        e.to_string()
+            .ends_with("WhileDoElseNode must have either 2 or 3 children"),
         "{e}"
     );
 }

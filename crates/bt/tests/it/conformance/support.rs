@@ -264,10 +264,21 @@ impl Fixture {
         }
     }
 
-    /// The error instantiating the tree of `xml` gives.
+    /// The error strict validation gives for the tree of `xml` (what `chronomap bt check`
+    /// reports before anything runs). Where BehaviorTree.CPP only throws when it ticks the
+    /// node, the tree still loads: the error of the first tick is checked with
+    /// [`Fixture::tick_error`].
     pub fn refuse(&self, xml: &str) -> chronomap_bt::DefinitionError {
         let doc = document(xml, &self.registry);
-        Tree::new(&doc, &self.registry).expect_err("the tree should be refused")
+        chronomap_bt::validate_strict(&doc, &self.registry).expect_err("the tree should be refused")
+    }
+
+    /// The error of the first tick of the tree of `xml`, which loads.
+    pub fn tick_error(&self, xml: &str) -> chronomap_bt::TickError {
+        let mut run = self.run(xml);
+        run.tree
+            .tick_once(Duration::from_millis(10))
+            .expect_err("the first tick should fail")
     }
 }
 
