@@ -67,6 +67,21 @@ fn check_wrapped_rows(rows: &[(&str, &str, Option<&str>, &str)]) {
     }
 }
 
+/// Checks every `(body, needle, attribute, ending)` row: the tree of [`wrap`]`(body)` loads, and
+/// strict validation refuses it at the node that starts at `needle`, naming `attribute`, with a
+/// message that ends with `ending`.
+fn check_strict_rows(rows: &[(&str, &str, Option<&str>, &str)]) {
+    for &(body, needle, attribute, ending) in rows {
+        let text = wrap(body);
+        let xml = parse_bt_xml("t.xml", &text, &Registry::new()).expect("BT.CPP loads it");
+        let e = chronomap_bt::validate_strict(&xml.document, &Registry::new()).unwrap_err();
+        let at = e.location().and_then(|l| xml.position(l));
+        assert_eq!(at, Some(position_of(&text, needle)), "{e}");
+        assert_eq!(e.attribute(), attribute, "{e}");
+        assert!(e.to_string().ends_with(ending), "{e}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The bundled trees
 
@@ -418,7 +433,9 @@ fn unknown_node_ids_are_located() {
 
 #[test]
 fn missing_required_attributes_and_bad_numbers_are_located() {
-    check_wrapped_rows(&[
+    // BehaviorTree.CPP loads these and throws when it ticks the node; strict validation
+    // (`chronomap bt check`) finds them, at the node.
+    check_strict_rows(&[
         (
             "    <Repeat>\n      <AlwaysSuccess/>\n    </Repeat>",
             "<Repeat>",
@@ -427,10 +444,12 @@ fn missing_required_attributes_and_bad_numbers_are_located() {
         ),
         (
             "    <Parallel success_count=\"3\">\n      <AlwaysSuccess/>\n      <AlwaysSuccess/>\n    </Parallel>",
-            "success_count=",
+            "<Parallel",
             Some("success_count"),
             "Parallel success_count=\"3\" needs 3 children but it has 2",
         ),
+    ]);
+    check_wrapped_rows(&[
         (
             "    <Repeat num_cycle=\"3\">\n      <AlwaysSuccess/>\n    </Repeat>",
             "num_cycle=",
@@ -948,19 +967,23 @@ fn dtds_entities_and_namespaces_are_refused() {
 
 #[test]
 fn out_of_range_counts_and_times_are_refused_with_the_port_named() {
-    check_wrapped_rows(&[
+    // BehaviorTree.CPP loads negative counts (and gives up at once); strict validation finds
+    // them. Negative times are not unsigned integers, which BehaviorTree.CPP refuses at load.
+    check_strict_rows(&[
         (
             "    <RetryUntilSuccessful num_attempts=\"-5\">\n      <AlwaysSuccess/>\n    </RetryUntilSuccessful>",
-            "num_attempts=",
+            "<RetryUntilSuccessful",
             Some("num_attempts"),
             "(expected an integer of at least -1 (-1: without limit))",
         ),
         (
             "    <Repeat num_cycles=\"-3\">\n      <AlwaysSuccess/>\n    </Repeat>",
-            "num_cycles=",
+            "<Repeat",
             Some("num_cycles"),
             "(expected an integer of at least -1 (-1: without limit))",
         ),
+    ]);
+    check_wrapped_rows(&[
         (
             "    <Timeout msec=\"-1\">\n      <AlwaysSuccess/>\n    </Timeout>",
             "msec=",
