@@ -10,6 +10,9 @@ Two modes, each printing one JSON object per line (a "case") on standard output:
 * ``run FILE.xml FILE.script [TREE_ID] ...``: trees given as files (regression cases, trees written
   by others), run under the same rules.
 
+Custom leaves ``Act`` and ``Cond`` follow the outcome table; a decorator ``Pass`` passes its
+child's status (a ``SimpleDecoratorNode``, what ``--stub Pass=PASS`` stands in for).
+
 Every case is run by BehaviorTree.CPP (PyPI ``behaviortreepy`` 0.1.4, which compiles in 4.8.2):
 custom leaves ``Act`` (a stateful action) and ``Cond`` (a condition) return the table's outcome
 for their instance name at the current tick; the root is ticked with ``tickExactlyOnce`` until it
@@ -366,6 +369,9 @@ class Oracle:
 
         factory.register_simple_stateful_action("Act", outcome, outcome)
         factory.register_simple_condition("Cond", outcome)
+        # A SimpleDecoratorNode passing its child's status: what `chronomap bt run --stub
+        # Pass=PASS` stands in for a declared decorator with.
+        factory.register_simple_decorator("Pass", lambda status, node: status)
         return factory
 
     def run(self, name, xml, script, tree_id=None):

@@ -26,7 +26,7 @@ use chronomap_bt::{Registry, Tree, Value as BtValue};
 use chronomap_io::{BtReadOptions, parse_bt_script, parse_bt_xml_in};
 use serde_json::{Value, json};
 
-use crate::common::{oracle_python, scratch};
+use crate::common::{chronomap, oracle_python, scratch};
 
 /// What both sides record of one case.
 #[derive(Debug, PartialEq)]
@@ -345,6 +345,148 @@ fn random_trees_behave_as_behaviortree_cpp() {
             "{} of {trees} trees behave differently ({kinds:?}); all in {}\n{report}",
             failing.len(),
             path.display()
+        );
+    }
+}
+
+/// The regression cases: every kind of disagreement found, minimised and named
+/// (`tests/data/bt/differential/NAME.xml`, `NAME.script`), with BehaviorTree.CPP 4.8.2's record
+/// of the run (`NAME.btcpp.json`, written by `tests/bt/btcpp_oracle.py run`).
+fn regression_cases() -> Vec<(String, PathBuf, PathBuf, Value)> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/bt/differential");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .expect("the regression cases")
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().into_string().ok()?;
+            name.strip_suffix(".xml").map(str::to_owned)
+        })
+        .collect();
+    names.sort();
+    names
+        .into_iter()
+        .map(|name| {
+            let record = std::fs::read_to_string(dir.join(format!("{name}.btcpp.json")))
+                .unwrap_or_else(|e| panic!("{name}.btcpp.json: {e}"));
+            let record: Value = serde_json::from_str(&record).expect("a record");
+            (
+                name.clone(),
+                dir.join(format!("{name}.xml")),
+                dir.join(format!("{name}.script")),
+                record,
+            )
+        })
+        .collect()
+}
+
+/// What `chronomap bt run XML --script SCRIPT --json` records, as a [`Trace`] (a decorator
+/// `Pass` is stubbed with `--stub Pass=PASS`, BehaviorTree.CPP's `SimpleDecoratorNode`).
+fn cli_trace(xml: &Path, script: &Path) -> Trace {
+    let xml_text = std::fs::read_to_string(xml).expect("the XML");
+    let (xml, script) = (xml.to_str().unwrap(), script.to_str().unwrap());
+    let mut args = vec!["bt", "run", xml, "--script", script, "--json"];
+    if xml_text.contains("<Pass") {
+        args.extend(["--stub", "Pass=PASS"]);
+    }
+    let out = chronomap(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if stdout.trim().is_empty() {
+        return Trace {
+            load_error: Some(String::from_utf8_lossy(&out.stderr).into_owned()),
+            ticks: Vec::new(),
+            error: None,
+            blackboard: BTreeMap::new(),
+        };
+    }
+    let run: Value = serde_json::from_str(&stdout).expect("JSON");
+    let changes = |list: &Value| -> Vec<[String; 3]> {
+        list.as_array()
+            .expect("transitions")
+            .iter()
+            .map(|t| {
+                let s = |k: &str| t[k].as_str().expect("text").to_owned();
+                [s("name"), s("from"), s("to")]
+            })
+            .collect()
+    };
+    let mut ticks: Vec<_> = run["ticks"]
+        .as_array()
+        .expect("ticks")
+        .iter()
+        .map(|t| {
+            (
+                t["status"].as_str().map(str::to_owned),
+                changes(&t["transitions"]),
+            )
+        })
+        .collect();
+    let error = run["error"].as_object().map(|e| {
+        ticks.push((None, changes(&e["transitions"])));
+        (
+            e["tick"].as_u64().expect("tick"),
+            e["message"].as_str().unwrap_or("").to_owned(),
+        )
+    });
+    assert_eq!(
+        out.status.code(),
+        Some(if error.is_some() { 1 } else { 0 }),
+        "a failed tick exits with 1, after the JSON"
+    );
+    Trace {
+        load_error: None,
+        ticks,
+        error,
+        blackboard: run["blackboard"]
+            .as_object()
+            .expect("blackboard")
+            .iter()
+            .map(|(k, v)| (k.clone(), normalised(v)))
+            .collect(),
+    }
+}
+
+#[test]
+fn regression_cases_behave_as_behaviortree_cpp() {
+    let cases = regression_cases();
+    assert!(cases.len() >= 16, "{} cases", cases.len());
+    let mut failures = Vec::new();
+    for (name, xml, script, record) in &cases {
+        let theirs = btcpp_trace(record);
+        let ours = cli_trace(xml, script);
+        if let Some((kind, what)) = compare(&theirs, &ours) {
+            failures.push(format!("{name}: {kind}: {what}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn regression_records_are_what_behaviortree_cpp_does_today() {
+    let Some(python) = oracle("regression_records_are_what_behaviortree_cpp_does_today") else {
+        return;
+    };
+    let cases = regression_cases();
+    let mut args: Vec<String> = vec!["run".to_owned()];
+    for (_, xml, script, _) in &cases {
+        args.push(xml.display().to_string());
+        args.push(script.display().to_string());
+    }
+    let output = Command::new(&python)
+        .arg(oracle_script())
+        .args(&args)
+        .output()
+        .expect("the oracle runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let fresh = cases_of(&output.stdout);
+    assert_eq!(fresh.len(), cases.len());
+    for ((name, _, _, stored), fresh) in cases.iter().zip(&fresh) {
+        assert_eq!(
+            btcpp_trace(stored),
+            btcpp_trace(fresh),
+            "{name}: the stored record is not what BehaviorTree.CPP does"
         );
     }
 }
