@@ -163,6 +163,8 @@ class Generator:
                          ("failure_count", str(r.choice([1, 1, -1, 2])))]
             elif kind == "ParallelAll":
                 extra = [("max_failures", str(r.choice([1, 1, 2, -1, n])))]
+            if kind in ("Parallel", "ParallelAll") and r.random() < 0.03:
+                extra = extra[1:]
             children = [self.node(depth - 1, subtrees) for _ in range(n)]
             return (kind, self.attributes(name, extra), children)
         kind = r.choices(
@@ -186,6 +188,12 @@ class Generator:
         elif kind == "LoopInt":
             extra = [("queue", r.choice(["1;2;3", "5", "1;2"])), ("value", "{v}"),
                      ("if_empty", r.choice(["SUCCESS", "FAILURE", "SKIPPED"]))]
+        if kind in ("RetryUntilSuccessful", "Repeat", "RunOnce") and r.random() < 0.03:
+            # A port left out: BehaviorTree.CPP loads the tree and throws when it ticks the node
+            # (or uses the port's default). Ports it needs when it loads the tree (a
+            # Precondition's `if`) are not left out: a tree refused half-built can end its
+            # process (an `_onHalted` script that throws from a destructor).
+            extra = []
         return (kind, self.attributes(name, extra), [self.node(depth - 1, subtrees)])
 
     def tree(self):

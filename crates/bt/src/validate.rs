@@ -12,6 +12,21 @@ use super::runtime::check_definition;
 
 /// Built-in ports with a range narrower than their type: (node, port, least value, what is
 /// expected). BehaviorTree.CPP: -1 means "without limit" for the loop counts.
+/// Built-in ports whose absence BehaviorTree.CPP 4.8.2 refuses when it loads a tree ("Missing
+/// parameter [if] in Precondition", "Missing port [code] in Script", "[queue] not found").
+const LOAD_REQUIRED: &[(&str, &str)] = &[
+    ("Precondition", "if"),
+    ("Script", "code"),
+    ("ScriptCondition", "code"),
+    ("SkipUnlessUpdated", "entry"),
+    ("WaitValueUpdate", "entry"),
+    ("WasEntryUpdated", "entry"),
+    ("LoopInt", "queue"),
+    ("LoopDouble", "queue"),
+    ("LoopString", "queue"),
+    ("LoopBool", "queue"),
+];
+
 const PORT_RANGES: &[(&str, &str, i64, &str)] = &[
     (
         "RetryUntilSuccessful",
@@ -287,6 +302,19 @@ fn check_node<'d>(
                     },
                     Some(name.as_str()),
                 );
+            }
+        }
+        if manifest.source == ManifestSource::Builtin {
+            for &(_, port) in LOAD_REQUIRED.iter().filter(|(id, _)| *id == node.id) {
+                if node.port_value(port).is_none() {
+                    return fail(
+                        K::MissingPort {
+                            id: node.id.clone(),
+                            port: port.to_owned(),
+                        },
+                        Some(port),
+                    );
+                }
             }
         }
         if strict && !resolved.required.is_empty() {
