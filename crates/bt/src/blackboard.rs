@@ -312,7 +312,7 @@ pub enum ScriptedWrite {
     NotScripted,
     /// The entry now has no value.
     Emptied,
-    /// BehaviorTree.CPP throws ("Can't convert string [...] to type [BT::Any]").
+    /// BehaviorTree.CPP throws (`Can't convert string [...] to type [BT::Any]`).
     Refused,
 }
 

@@ -20,20 +20,27 @@
 //! node is halted and returns skipped. After a tick (or a pre-condition) that completes the
 //! node, `_onSuccess` or `_onFailure` runs, then `_post`.
 //!
-//! # Skipped children ([Stüde 2024] has no skipped status; this follows BehaviorTree.CPP 4.6)
-//! Sequences and fallbacks (with or without memory, asynchronous) go past a skipped child;
-//! reactive ones too, resetting it so that it can be skipped again. A control node all of
-//! whose children were skipped in its execution returns skipped, and so do `Parallel` and
+//! # Skipped children ([Stüde 2024] has no skipped status; this follows BehaviorTree.CPP 4.8.2)
+//! A node that returns skipped keeps its status ("preserve the IDLE state if skipped, but
+//! communicate SKIPPED to parent", `TreeNode::executeTick`): idle, or running for a control
+//! node that set itself running before all its children were skipped — which its parent then
+//! halts like any running node (its `_onHalted` runs). No transition to skipped is ever
+//! recorded. Sequences and fallbacks (with or without memory, asynchronous) go past a skipped
+//! child; reactive ones too, resetting it so that it can be skipped again. A control node all
+//! of whose children were skipped in its execution returns skipped, and so do `Parallel` and
 //! `ParallelAll` when every child was skipped in a tick (but a `Parallel` with a negative
-//! `success_count` counts skipped children as successes, so it succeeds then). Decorators pass a skipped child
-//! through (`RetryUntilSuccessful` and `Repeat` reset it and keep their counters;
-//! `KeepRunningUntilFailure` returns running). A skipped node is not active: its next tick
-//! starts afresh.
+//! `success_count` counts skipped children as successes, so it succeeds then). Decorators pass
+//! a skipped child through (`RetryUntilSuccessful` and `Repeat` reset it and keep their
+//! counters; `KeepRunningUntilFailure` returns running). A skipped condition of `IfThenElse` or
+//! `WhileDoElse` is an error at that tick, as BehaviorTree.CPP throws there.
+//!
+//! Every rule here was checked by running random trees through BehaviorTree.CPP 4.8.2 and
+//! chronomap side by side (`tests/cli/bt_differential.rs`, docs/bt.md).
 //!
 //! | node | rule |
 //! |---|---|
 //! | `Sequence` | ticks children from the current one; running: returns running and resumes at that child next tick (earlier children are *not* re-ticked); failure: resets all children, restarts at the first child next time, returns failure; all succeed: resets them, success. ([Stüde 2024] Algorithm 5.1 with memory of the running child.) |
-//! | `SequenceWithMemory` (`SequenceStar`) | as `Sequence`, but on failure only the failed and later children are reset and the index is kept: the next tick retries the failed child. Halting keeps the index too (BehaviorTree.CPP leaves `current_child_idx_ = 0` commented out in `halt()`). |
+//! | `SequenceWithMemory` (`SequenceStar`) | as `Sequence`, but on failure only the failed and later children are reset and the index is kept: the next tick retries the failed child. Halting keeps the index too (BehaviorTree.CPP leaves `current_child_idx_ = 0` commented out in `halt()`). A child that succeeds straight from idle with children left makes it return running and ask for a wake-up (`requiresWakeUp()`, true in every tree BehaviorTree.CPP's factory builds). |
 //! | `AsyncSequence`, `AsyncFallback` | as `Sequence` / `Fallback`, but after a child that completed (success / failure) straight from idle with more children to go, returns running and asks for a wake-up, so [`Tree::tick_once`] ticks again at once. |
 //! | `ReactiveSequence` | ticks all children from the first every tick; a running child halts every *other* child (later ones that were running, earlier ones are reset to idle) and returns running; a failure resets all children (halting a running later one) and returns failure; all succeed: success. |
 //! | `Fallback` | mirror of `Sequence` (Algorithm 5.2): resumes at the running child; success resets all and returns success; all fail: failure. |
@@ -42,7 +49,7 @@
 //! | `ParallelAll` | ticks every child that has not completed yet; when all have completed (or were skipped), resets them and returns failure if at least `max_failures` failed (negative: `children + t + 1`), else success. |
 //! | `IfThenElse` | 2 or 3 children: ticks the condition (first child) until it completes; success: the second child, failure: the third (or failure with 2 children); the chosen branch is ticked until it completes, then all are reset. |
 //! | `WhileDoElse` | 2 or 3 children: the condition is ticked *every* tick; success: halts the third child and ticks the second; failure: halts the second and ticks the third (or returns failure); a completed branch resets all. |
-//! | `Switch2` … `Switch6` | `variable` is compared with `case_1` … `case_N` (as text, then as integers with enum names, then as reals within `f32::EPSILON`: `CheckStringEquality`); the first match, or the last child (default), is ticked; a change of branch halts the running one; completion resets all. |
+//! | `Switch2` … `Switch6` | `variable` is compared with `case_1` … `case_N` (as text, then as integers with enum names, then as reals within `f32::EPSILON`: `CheckStringEquality`); the first match, or the last child (default), is ticked; a change of branch halts the running one; completion resets all. The node does not set itself running: its status is its child's. |
 //! | `TryCatch` | the children but the last are a sequence (the "try"); if one fails they are halted and the last child (the "catch") is ticked until it completes, and the node returns failure whatever the catch returned. With `catch_on_halt`, halting the node during the try ticks the catch once (halting it if it returns running). |
 //! | `Inverter`, `ForceSuccess`, `ForceFailure` | running passes through; a completed child is reset and its result inverted / replaced. |
 //! | `RetryUntilSuccessful` | ticks the child; success: success; failure: counts an attempt, resets the child and, while attempts remain (`num_attempts`, -1 = forever), ticks it again — but if the child failed straight from idle it returns running first and tries again on the next tick (BehaviorTree.CPP returns running and emits a wake-up signal, "to make this interruptable", in every tree built by its factory). When the attempts are used up: failure. |
@@ -51,7 +58,7 @@
 //! | `Timeout` | on its first tick starts a timer of `msec` (0 = none); on a later tick at or after the deadline, if the child is still running, halts it and returns failure without ticking it (BehaviorTree.CPP halts it from a timer thread at the deadline; with the injected clock this happens at the first tick after the deadline, with that tick's time). |
 //! | `Delay` | on its first tick starts a timer of `delay_msec` and returns running; from the first tick at or after the deadline it ticks the child (at once when `delay_msec` is 0: BehaviorTree.CPP's timer fires immediately and wakes the tree up). A completed child resets the timer. |
 //! | `LoopInt`, `LoopDouble`, `LoopString`, `LoopBool` | when starting, a literal `queue` (`"1;2;3"`) is copied; while the child is not running, each tick pops the front of the queue (a `{key}` queue is popped *on the blackboard*, as BehaviorTree.CPP's shared queue) into `value` and ticks the child; running while it runs or succeeds, failure when it fails; when there is nothing to pop, returns `if_empty` (default success). |
-//! | `Precondition` | if the child is active or the `if` script is true, ticks the child (resetting it when it completes) and returns its status; otherwise returns `else` (default failure). |
+//! | `Precondition` | if the child ran (`_children_running`, which a halt does not clear) or the `if` script is true, ticks the child (resetting it when it completes) and returns its status; otherwise returns `else` (default failure). |
 //! | `RunOnce` | ticks the child until it completes once; afterwards returns skipped (`then_skip`, default) or that same result, without ticking it. Halting does not re-arm it. |
 //! | `SkipUnlessUpdated`, `WaitValueUpdate` | tick the child only if the blackboard `entry` was written since the node last looked (sequence numbers, BehaviorTree.CPP 4.5) or the child is running; otherwise skipped / running. |
 //! | `Script`, `ScriptCondition` | run `code`; success, or the truth of its value. |
@@ -69,19 +76,17 @@
 //! A tree nests at most [`MAX_DEPTH`] levels (subtrees expanded), which instantiation checks
 //! before anything else (the description is walked without recursion), so ticks and halts,
 //! which recurse once per level, cannot overflow the stack; instantiation itself is iterative
-//! and linear in the number of nodes. Port values that BehaviorTree.CPP would only reject, or
-//! misbehave on, while ticking (`num_attempts="-5"`, a negative time, `ParallelAll` thresholds
-//! above the number of children, the number of children of `IfThenElse`, `WhileDoElse`,
-//! `Switch*`, `TryCatch`) are refused at instantiation with a [`DefinitionError`] naming the
-//! node and the attribute.
+//! and linear in the number of nodes. A tree that BehaviorTree.CPP 4.8.2 loads is instantiated:
+//! what it rejects only while ticking (a missing `num_attempts`, `ParallelAll` thresholds above
+//! the number of children, the number of children of `IfThenElse`, `WhileDoElse`, `Switch*`)
+//! fails at that tick with its message, and [`validate_strict`](super::validate_strict)
+//! (`chronomap bt check`) reports it before anything runs, with the node and the attribute.
 //!
 //! # Not implemented
 //! Asynchronous nodes and threads (time is injected; leaves return running instead); the
 //! nodes in [`UNSUPPORTED_BUILTINS`](super::UNSUPPORTED_BUILTINS). `ReactiveSequence`'s
 //! optional exception for several running children (off by default in BehaviorTree.CPP) is
-//! not reproduced. Where BehaviorTree.CPP keeps the status of a node that returned skipped
-//! (idle, or running for a control node that set itself running), the node's status here is
-//! [`Status::Skipped`], which is recorded in transitions (Groot2 code 4) and counts as idle.
+//! not reproduced.
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap, VecDeque};

@@ -160,6 +160,17 @@ fn sequence_resumes_at_the_running_child_and_resets_all_on_failure() {
 }
 
 #[test]
+fn a_control_whose_children_were_all_skipped_returns_skipped_but_stays_running() {
+    // BehaviorTree.CPP 4.8.2: the sequence set itself running; its only child was skipped, so
+    // it returns SKIPPED, and `executeTick` keeps its status (running). No transition to
+    // SKIPPED is recorded, and the next tick changes nothing.
+    check(
+        control("Sequence", "seq", [leaf("A").script("_skipIf", "true")]),
+        &[(&[("A", S)], K, "seq:I>R"), (&[], K, "")],
+    );
+}
+
+#[test]
 fn sequence_with_memory_retries_the_failed_child_without_ticking_earlier_ones() {
     check(
         control(
