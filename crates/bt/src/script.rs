@@ -290,6 +290,23 @@ pub fn run_script(
     script: &Script,
     period: Duration,
 ) -> Result<ScriptRun, ScriptError> {
+    run_script_with(tree, outcomes, script, period, &mut || {}, &mut |_, _| {})
+}
+
+/// [`run_script`] with a call before every tick (`before_tick`: a wall-clock pause, say) and
+/// one after it (`after_tick`, with the tree and the tick's status changes, also for a tick
+/// that failed): what a run watched live needs (`chronomap bt run --groot2`).
+///
+/// # Errors
+/// As [`run_script`].
+pub fn run_script_with(
+    tree: &mut Tree,
+    outcomes: &ScriptedOutcomes,
+    script: &Script,
+    period: Duration,
+    before_tick: &mut dyn FnMut(),
+    after_tick: &mut dyn FnMut(&Tree, &[Transition]),
+) -> Result<ScriptRun, ScriptError> {
     check(tree, script, period)?;
     let last = script.ticks.last().map_or(0, |t| t.tick);
     let by_tick: BTreeMap<u64, &ScriptTick> = script.ticks.iter().map(|t| (t.tick, t)).collect();
@@ -309,27 +326,32 @@ pub fn run_script(
         for (name, status) in line.map(|l| l.outcomes.as_slice()).unwrap_or_default() {
             outcomes.set(name, *status);
         }
-        let status = match tree.tick_exactly_once(time) {
-            Ok(status) => status,
+        before_tick();
+        let result = tree.tick_exactly_once(time);
+        let transitions = tree.take_transitions();
+        after_tick(tree, &transitions);
+        match result {
+            Ok(status) => {
+                ticks.push(TickRecord {
+                    tick: k,
+                    time,
+                    status,
+                    transitions,
+                });
+                if status != Status::Running {
+                    finished = true;
+                    break;
+                }
+            }
             Err(error) => {
                 failure = Some(TickFailure {
                     tick: k,
                     time,
                     error,
-                    transitions: tree.take_transitions(),
+                    transitions,
                 });
                 break;
             }
-        };
-        ticks.push(TickRecord {
-            tick: k,
-            time,
-            status,
-            transitions: tree.take_transitions(),
-        });
-        if status != Status::Running {
-            finished = true;
-            break;
         }
     }
     let done = failure.as_ref().map_or_else(
