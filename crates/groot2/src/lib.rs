@@ -10,11 +10,13 @@
 //!   sends (the tree as XML, the status buffer, blackboards as MessagePack, recorded
 //!   transitions, hooks as JSON), and the decoding of replies for clients.
 //! * [`publisher`] — the server: a thread with the REP and PUB sockets, serving a snapshot of
-//!   the tree that the tick loop updates after each tick.
+//!   the tree that the tick loop updates after each tick, and the hooks' callbacks that
+//!   replace a node's result or hold the ticks at a breakpoint (the rules in `hooks`).
 #![deny(missing_docs)]
 
 mod builtins;
 pub mod client;
-pub mod protocol;
+mod hooks;
 pub mod live;
+pub mod protocol;
 pub mod publisher;

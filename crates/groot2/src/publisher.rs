@@ -8,6 +8,16 @@
 //! never touched by the server thread, so a slow, silent or hostile client cannot stop the
 //! ticks.
 //!
+//! Hooks act on the ticks through the [`TickMonitor`] of [`Publisher::tick_monitor`], which
+//! whoever ticks installs in the tree: a replacement gives a node's result, a breakpoint holds
+//! the ticking thread (never the server's) until a client unlocks it, removes or disables it
+//! ([`crate::hooks`] has the rules). A held tick is released, as BehaviorTree.CPP releases it,
+//! when no request came for [`Publisher::max_heartbeat_delay`] (5 s unless set: the client
+//! went away; its hooks stay, disabled, until a client speaks again), and when the publisher
+//! is dropped. While a tick is held, STATUS answers the statuses at the end of the last whole
+//! tick (the tree hands its changes over after each tick; BehaviorTree.CPP's show the held
+//! tick's changes up to the breakpoint).
+//!
 //! Bounds: a request part larger than [`MAX_REQUEST_PART_SIZE`] makes libzmq drop the
 //! connection that sent it (`ZMQ_MAXMSGSIZE`), parts beyond [`MAX_REQUEST_PARTS`] are read and
 //! discarded (the request gets an error reply), at most [`MAX_RECORDED_TRANSITIONS`]
@@ -18,22 +28,30 @@
 //! process (hook JSON that does not parse throws out of its server thread), this one answers
 //! `error` with the reason.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use chronomap_bt::{BtDocument, Transition, Tree};
+use chronomap_bt::{BtDocument, Status, TickMonitor, Transition, Tree};
 use thiserror::Error;
 
+use crate::hooks::{Check, Hooks};
 use crate::protocol::{
-    BlackboardSnapshot, Hook, HookMode, HookPosition, MAX_RECORDED_TRANSITIONS,
-    MAX_REQUEST_PART_SIZE, MAX_REQUEST_PARTS, ProtocolError, RecordedTransition, ReplyHeader,
-    RequestHeader, RequestType, StatusBuffer, StdUnorderedOrder, TreeUuid, check_parts,
-    decode_breakpoint_unlock, decode_hook_removal, decode_hooks, encode_error_reply,
-    encode_full_tree, encode_transitions,
+    BlackboardSnapshot, MAX_RECORDED_TRANSITIONS, MAX_REQUEST_PART_SIZE, MAX_REQUEST_PARTS,
+    ProtocolError, RecordedTransition, ReplyHeader, RequestHeader, RequestType, StatusBuffer,
+    TreeUuid, check_parts, decode_breakpoint_unlock, decode_hook_removal, decode_hooks,
+    encode_error_reply, encode_full_tree, encode_transitions,
 };
+
+/// How long the clients may stay silent before the hooks are disabled and a held tick goes
+/// on: BehaviorTree.CPP's `max_heartbeat_delay` (5000 ms).
+pub const DEFAULT_MAX_HEARTBEAT_DELAY: Duration = Duration::from_millis(5000);
+
+/// How often a held tick looks at the stop flag, and the server thread at the heartbeat (its
+/// receive timeout, as BehaviorTree.CPP's).
+const POLL: Duration = Duration::from_millis(100);
 
 /// Why a publisher could not start.
 #[derive(Debug, Error)]
@@ -58,14 +76,6 @@ pub enum PublisherError {
     Thread(std::io::Error),
 }
 
-/// A hook as the server keeps it.
-#[derive(Clone, Copy, Debug)]
-struct HookState {
-    hook: Hook,
-    /// An interactive breakpoint was unlocked and not consumed yet.
-    ready: bool,
-}
-
 /// What the server answers from: updated by the tick loop, read by the server thread.
 struct State {
     status: StatusBuffer,
@@ -73,19 +83,21 @@ struct State {
     recording: bool,
     recording_start: Instant,
     transitions: VecDeque<RecordedTransition>,
-    /// Hooks by uid (BehaviorTree.CPP keeps every hook among its pre-tick hooks, whatever the
-    /// position), with the order of its `std::unordered_map<uint16_t, …>`.
-    hooks: HashMap<u16, HookState>,
-    hook_order: StdUnorderedOrder<u16>,
+    hooks: Hooks,
 }
 
 struct Shared {
     xml: String,
     uuid: TreeUuid,
-    node_count: usize,
     state: Mutex<State>,
+    /// Wakes ticks held at breakpoints after a change of the hooks.
+    wakeup: Condvar,
+    /// The PUB socket (port + 1): breakpoint notifications, sent by the ticking thread.
+    /// Taken (closed) when the publisher is dropped.
+    notifier: Mutex<Option<zmq::Socket>>,
     stop: AtomicBool,
     requests: AtomicU64,
+    max_heartbeat_ms: AtomicU64,
 }
 
 impl Shared {
@@ -99,32 +111,35 @@ pub struct Publisher {
     shared: Arc<Shared>,
     port: u16,
     thread: Option<JoinHandle<()>>,
-    // The PUB socket (port + 1); kept open for clients that subscribe to breakpoint
-    // notifications.
-    _publisher: zmq::Socket,
     _context: zmq::Context,
 }
 
 /// A tree UUID (version 4 layout) from the clock, the process id and the standard library's
 /// random hash keys.
 fn random_uuid() -> TreeUuid {
-    use std::hash::{BuildHasher, Hasher};
     let mut out = [0u8; 16];
     for (k, chunk) in out.chunks_mut(8).enumerate() {
-        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-        h.write_u128(
-            SystemTime::now()
-                .duration_since(UNIX_EPOCH)
-                .unwrap_or_default()
-                .as_nanos(),
-        );
-        h.write_u32(std::process::id());
-        h.write_usize(k);
-        chunk.copy_from_slice(&h.finish().to_le_bytes());
+        chunk.copy_from_slice(&random_u64(k as u64).to_le_bytes());
     }
     out[6] = (out[6] & 0x0f) | 0x40;
     out[8] = (out[8] & 0x3f) | 0x80;
     out
+}
+
+/// A random number from the clock, the process id, `salt` and the standard library's random
+/// hash keys.
+fn random_u64(salt: u64) -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap_or_default()
+            .as_nanos(),
+    );
+    h.write_u32(std::process::id());
+    h.write_u64(salt);
+    h.finish()
 }
 
 fn socket_error(action: impl Into<String>) -> impl FnOnce(zmq::Error) -> PublisherError {
@@ -184,18 +199,19 @@ impl Publisher {
         let shared = Arc::new(Shared {
             xml: encode_full_tree(tree, doc),
             uuid: random_uuid(),
-            node_count: tree.nodes().len(),
             state: Mutex::new(State {
                 status: StatusBuffer::new(tree),
                 blackboards: BlackboardSnapshot::new(tree, doc),
                 recording: false,
                 recording_start: Instant::now(),
                 transitions: VecDeque::new(),
-                hooks: HashMap::new(),
-                hook_order: StdUnorderedOrder::new(),
+                hooks: Hooks::new(tree.nodes().len()),
             }),
+            wakeup: Condvar::new(),
+            notifier: Mutex::new(Some(publisher)),
             stop: AtomicBool::new(false),
             requests: AtomicU64::new(0),
+            max_heartbeat_ms: AtomicU64::new(DEFAULT_MAX_HEARTBEAT_DELAY.as_millis() as u64),
         });
         let thread = std::thread::Builder::new()
             .name("groot2".into())
@@ -208,7 +224,6 @@ impl Publisher {
             shared,
             port,
             thread: Some(thread),
-            _publisher: publisher,
             _context: context,
         })
     }
@@ -252,24 +267,105 @@ impl Publisher {
         state.blackboards = blackboards;
     }
 
-    /// The hook on node `uid`, if a client set one and it is enabled: what the node should
-    /// do before its tick. `None`: tick it.
-    pub fn pre_tick_hook(&self, uid: u16) -> Option<Hook> {
-        let state = self.shared.lock();
-        state
-            .hooks
-            .get(&uid)
-            .map(|h| h.hook)
-            .filter(|h| h.enabled && h.position == HookPosition::Pre)
+    /// How long the clients may stay silent (no request) before the hooks are disabled and
+    /// a held tick goes on ([`DEFAULT_MAX_HEARTBEAT_DELAY`] unless set; BehaviorTree.CPP's
+    /// `setMaxHeartbeatDelay`). Seen within 0.1 s.
+    pub fn set_max_heartbeat_delay(&self, delay: Duration) {
+        let ms = u64::try_from(delay.as_millis()).unwrap_or(u64::MAX);
+        self.shared.max_heartbeat_ms.store(ms, Ordering::Relaxed);
+    }
+
+    /// The delay of [`Publisher::set_max_heartbeat_delay`].
+    pub fn max_heartbeat_delay(&self) -> Duration {
+        Duration::from_millis(self.shared.max_heartbeat_ms.load(Ordering::Relaxed))
+    }
+
+    /// The hooks' pre-tick callbacks, to install in the tree this publisher serves
+    /// ([`Tree::set_tick_monitor`]): a node with an enabled hook notifies the clients, then
+    /// a replacement gives its result and a breakpoint holds the calling thread until a
+    /// client lets it go, the clients go silent for [`Publisher::max_heartbeat_delay`], or
+    /// the publisher is dropped.
+    pub fn tick_monitor(&self) -> Box<dyn TickMonitor> {
+        Box::new(HookMonitor {
+            shared: Arc::clone(&self.shared),
+            notices: 0,
+        })
     }
 }
 
 impl Drop for Publisher {
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
+        // BehaviorTree.CPP's destructor removes every hook (releasing held ticks).
+        self.shared.lock().hooks.remove_all();
+        self.shared.wakeup.notify_all();
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
+        // Close the PUB socket now (a monitor may outlive the publisher).
+        drop(
+            self.shared
+                .notifier
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .take(),
+        );
+    }
+}
+
+/// The hooks of a [`Publisher`] acting before each node's tick: BehaviorTree.CPP's pre-tick
+/// callback of `Groot2Publisher::insertHook`.
+struct HookMonitor {
+    shared: Arc<Shared>,
+    notices: u64,
+}
+
+impl HookMonitor {
+    /// BREAKPOINT_REACHED on the PUB socket: a request header (protocol 2, `N`, a random
+    /// id) and the node's uid in decimal. Never waits: PUB drops what it cannot send.
+    fn notify_reached(&mut self, uid: u16) {
+        self.notices += 1;
+        let header = RequestHeader::new(
+            RequestType::BreakpointReached,
+            random_u64(self.notices) as u32,
+        )
+        .encode();
+        let notifier = self
+            .shared
+            .notifier
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some(socket) = notifier.as_ref() {
+            let _ = socket.send_multipart([&header[..], uid.to_string().as_bytes()], zmq::DONTWAIT);
+        }
+    }
+}
+
+impl TickMonitor for HookMonitor {
+    fn pre_tick(&mut self, uid: u16, _status: Status) -> Option<Status> {
+        let shared = Arc::clone(&self.shared);
+        let mut state = shared.lock();
+        let reached = state.hooks.reach(uid)?;
+        self.notify_reached(uid);
+        if reached.breakpoint {
+            let mut seen = None;
+            loop {
+                match state.hooks.check(uid, reached.id, &mut seen) {
+                    Check::Go => break,
+                    Check::Skip => return None,
+                    Check::Wait => {}
+                }
+                if shared.stop.load(Ordering::Relaxed) {
+                    return None;
+                }
+                state = shared
+                    .wakeup
+                    .wait_timeout(state, POLL)
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .0;
+            }
+        }
+        state.hooks.finish(uid, reached.id)
     }
 }
 
@@ -294,10 +390,22 @@ fn receive(socket: &zmq::Socket) -> Option<(Vec<Vec<u8>>, usize)> {
 }
 
 fn serve(socket: &zmq::Socket, shared: &Shared) {
+    // BehaviorTree.CPP's `heartbeatLoop`: when the clients go silent (or speak again) the
+    // hooks are disabled (enabled); seen after the request that ended the silence is answered.
+    let mut last_request = Instant::now();
+    let mut heartbeat = true;
     while !shared.stop.load(Ordering::Relaxed) {
+        let alive = last_request.elapsed().as_millis()
+            < u128::from(shared.max_heartbeat_ms.load(Ordering::Relaxed));
+        if alive != heartbeat {
+            heartbeat = alive;
+            shared.lock().hooks.enable_all(alive);
+            shared.wakeup.notify_all();
+        }
         let Some((parts, count)) = receive(socket) else {
             continue;
         };
+        last_request = Instant::now();
         shared.requests.fetch_add(1, Ordering::Relaxed);
         let reply = if count > MAX_REQUEST_PARTS {
             encode_error_reply(
@@ -310,10 +418,31 @@ fn serve(socket: &zmq::Socket, shared: &Shared) {
         } else {
             answer(&parts, shared)
         };
+        if kind_changes_hooks(&parts) {
+            shared.wakeup.notify_all();
+        }
         // A reply that cannot be sent within the send timeout is dropped (the REP socket
         // forgets the request either way).
         let _ = socket.send_multipart(reply, 0);
     }
+}
+
+/// Whether a request may have changed the hooks (ticks held at breakpoints look again).
+fn kind_changes_hooks(parts: &[Vec<u8>]) -> bool {
+    parts
+        .first()
+        .and_then(|p| RequestHeader::decode(p).ok())
+        .and_then(|h| h.kind())
+        .is_some_and(|k| {
+            matches!(
+                k,
+                RequestType::HookInsert
+                    | RequestType::HookRemove
+                    | RequestType::BreakpointUnlock
+                    | RequestType::RemoveAllHooks
+                    | RequestType::DisableAllHooks
+            )
+        })
 }
 
 /// The reply to one request, as BehaviorTree.CPP's `serverLoop` gives it.
@@ -361,26 +490,13 @@ fn answer(parts: &[Vec<u8>], shared: &Shared) -> Vec<Vec<u8>> {
         RequestType::HookInsert => insert_hooks(body, shared).map(|()| None),
         RequestType::HookRemove => remove_hook(body, shared).map(|()| None),
         RequestType::BreakpointUnlock => unlock_breakpoint(body, shared).map(|()| None),
-        RequestType::HooksDump => {
-            let state = shared.lock();
-            let items: Vec<String> = state
-                .hook_order
-                .keys()
-                .filter_map(|uid| state.hooks.get(uid))
-                .map(|h| h.hook.to_json())
-                .collect();
-            Ok(Some(format!("[{}]", items.join(",")).into_bytes()))
-        }
+        RequestType::HooksDump => Ok(Some(shared.lock().hooks.dump().into_bytes())),
         RequestType::RemoveAllHooks => {
-            let mut state = shared.lock();
-            state.hooks.clear();
-            state.hook_order = StdUnorderedOrder::new();
+            shared.lock().hooks.remove_all();
             Ok(None)
         }
         RequestType::DisableAllHooks => {
-            for h in shared.lock().hooks.values_mut() {
-                h.hook.enabled = false;
-            }
+            shared.lock().hooks.enable_all(false);
             Ok(None)
         }
         RequestType::ToggleRecording => {
@@ -424,54 +540,25 @@ fn insert_hooks(body: &[u8], shared: &Shared) -> Result<(), String> {
     let hooks = decode_hooks(body).map_err(|e| e.to_string())?;
     let mut state = shared.lock();
     for hook in hooks {
-        // `Groot2Publisher::insertHook`: a hook on no node is ignored.
-        if hook.uid == 0 || usize::from(hook.uid) > shared.node_count {
-            continue;
-        }
-        match state.hooks.get_mut(&hook.uid) {
-            Some(existing) => {
-                let was_breakpoint = existing.hook.mode == HookMode::Breakpoint;
-                existing.hook = hook;
-                if was_breakpoint && hook.mode == HookMode::Replace {
-                    existing.ready = true;
-                }
-            }
-            None => {
-                state
-                    .hooks
-                    .insert(hook.uid, HookState { hook, ready: false });
-                state.hook_order.insert(hook.uid, u64::from(hook.uid));
-            }
-        }
+        state.hooks.insert(hook);
     }
     Ok(())
 }
 
 fn remove_hook(body: &[u8], shared: &Shared) -> Result<(), String> {
     let removal = decode_hook_removal(body).map_err(|e| e.to_string())?;
-    let mut state = shared.lock();
-    // `getHook(POST, …)` looks among post-tick hooks, which BehaviorTree.CPP never fills.
-    if removal.position != HookPosition::Pre || !state.hooks.contains_key(&removal.uid) {
-        return Err("Node ID not found".to_owned());
+    if shared.lock().hooks.remove(removal.uid, removal.position) {
+        Ok(())
+    } else {
+        Err("Node ID not found".to_owned())
     }
-    state.hooks.remove(&removal.uid);
-    state.hook_order.remove(&removal.uid);
-    Ok(())
 }
 
 fn unlock_breakpoint(body: &[u8], shared: &Shared) -> Result<(), String> {
     let unlock = decode_breakpoint_unlock(body).map_err(|e| e.to_string())?;
-    let mut state = shared.lock();
-    let found = unlock.position == HookPosition::Pre;
-    match state.hooks.get_mut(&unlock.uid).filter(|_| found) {
-        Some(h) => {
-            h.hook.desired_status = unlock.desired_status;
-            h.hook.once |= unlock.remove_when_done;
-            if h.hook.mode == HookMode::Breakpoint {
-                h.ready = true;
-            }
-            Ok(())
-        }
-        None => Err("Node ID not found".to_owned()),
+    if shared.lock().hooks.unlock(&unlock) {
+        Ok(())
+    } else {
+        Err("Node ID not found".to_owned())
     }
 }
