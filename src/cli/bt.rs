@@ -176,6 +176,11 @@ pub struct BtRunArgs {
     /// With --groot2: seconds to keep answering after the last tick.
     #[arg(long, value_name = "SECS", requires = "groot2", value_parser = clap::value_parser!(u64).range(0..=86_400))]
     pub linger: Option<u64>,
+    /// With --groot2: milliseconds without a request from any client after which its hooks
+    /// are disabled and a tick held at a breakpoint goes on (BehaviorTree.CPP's
+    /// max_heartbeat_delay; default 5000).
+    #[arg(long, value_name = "MS", requires = "groot2", value_parser = clap::value_parser!(u64).range(10..=86_400_000))]
+    pub groot2_heartbeat: Option<u64>,
 }
 
 /// What a `--stub` makes of a node.

@@ -641,6 +641,9 @@ fn start_live(args: &BtRunArgs, tree: &Tree, doc: &BtDocument) -> Result<Option<
         Some(port) => {
             let publisher = chronomap_groot2::publisher::Publisher::start(tree, doc, port)
                 .with_context(|| format!("--groot2 {port}"))?;
+            if let Some(ms) = args.groot2_heartbeat {
+                publisher.set_max_heartbeat_delay(Duration::from_millis(ms));
+            }
             eprintln!("note: groot2: serving on ports {port} and {}", port + 1);
             Some(publisher)
         }
@@ -668,7 +671,11 @@ fn run_live(
 ) -> Result<chronomap_bt::script::ScriptRun, chronomap_bt::script::ScriptError> {
     run_script(&mut probe, outcomes, script, period)?;
     outcomes.clear();
-    Ok(chronomap_groot2::live::run_script_paced(
+    // The clients' hooks act on the ticks (a breakpoint holds this thread).
+    if let Some(publisher) = &live.publisher {
+        tree.set_tick_monitor(Some(publisher.tick_monitor()));
+    }
+    let run = chronomap_groot2::live::run_script_paced(
         tree,
         outcomes,
         script,
@@ -679,7 +686,9 @@ fn run_live(
                 publisher.update(tree, doc, transitions);
             }
         },
-    ))
+    );
+    tree.set_tick_monitor(None);
+    Ok(run)
 }
 
 /// A blackboard value as JSON: numbers and booleans as themselves, text as a string, a queue as
