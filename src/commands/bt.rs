@@ -9,7 +9,9 @@ use std::time::Duration;
 use anyhow::{Context, Result, anyhow};
 use chronomap_bt::nav2;
 use chronomap_bt::sbt;
-use chronomap_bt::script::{Script, ScriptTick, ScriptedOutcomes, run_script, scripted_registry};
+use chronomap_bt::script::{
+    Script, ScriptTick, ScriptedOutcomes, run_script, run_script_with, scripted_registry,
+};
 use chronomap_bt::{
     BtDocument, DefinitionErrorKind, ManifestSource, NodeCategory, NodeDef, NodeModel, Registry,
     Status, StubPolicy, Tree, TreeDef, is_builtin,
@@ -457,11 +459,7 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         .map_or_else(|| "the run".to_owned(), |p| p.display().to_string());
     let live = start_live(args, &tree, doc)?;
     let run = match &live {
-        Some(live) => {
-            let probe = Tree::with_main(doc, &main, &registry)
-                .map_err(|e| located(&xml, &e, &name.to_string()))?;
-            run_live(live, &mut tree, probe, doc, &outcomes, &script, period)
-        }
+        Some(live) => run_live(live, &mut tree, doc, &outcomes, &script, period),
         None => run_script(&mut tree, &outcomes, &script, period),
     }
     .with_context(|| script_name.clone())?;
@@ -657,25 +655,21 @@ fn start_live(args: &BtRunArgs, tree: &Tree, doc: &BtDocument) -> Result<Option<
     }))
 }
 
-/// A run in real time: the script is checked (and run) on `probe`, a tree built like `tree`,
-/// as `run_script` checks it; then `tree` runs it with a pause before each tick and the
-/// server updated after each.
+/// A run in real time: `tree` runs the script with a pause before each tick and the server
+/// updated after each (the script is checked before anything runs, as by `run_script`).
 fn run_live(
     live: &Live,
     tree: &mut Tree,
-    mut probe: Tree,
     doc: &BtDocument,
     outcomes: &ScriptedOutcomes,
     script: &Script,
     period: Duration,
 ) -> Result<chronomap_bt::script::ScriptRun, chronomap_bt::script::ScriptError> {
-    run_script(&mut probe, outcomes, script, period)?;
-    outcomes.clear();
     // The clients' hooks act on the ticks (a breakpoint holds this thread).
     if let Some(publisher) = &live.publisher {
         tree.set_tick_monitor(Some(publisher.tick_monitor()));
     }
-    let run = chronomap_groot2::live::run_script_paced(
+    let run = run_script_with(
         tree,
         outcomes,
         script,
@@ -688,7 +682,7 @@ fn run_live(
         },
     );
     tree.set_tick_monitor(None);
-    Ok(run)
+    run
 }
 
 /// A blackboard value as JSON: numbers and booleans as themselves, text as a string, a queue as

@@ -17,6 +17,5 @@
 mod builtins;
 pub mod client;
 mod hooks;
-pub mod live;
 pub mod protocol;
 pub mod publisher;
