@@ -99,7 +99,7 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         },
         bt_monitors: Arc::new(
             BtMonitors::start(args.bt_monitor.clone(), MonitorOptions::default())
-                .map_err(|e| usage(e))?,
+                .map_err(usage)?,
         ),
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
