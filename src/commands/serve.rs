@@ -98,8 +98,7 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             data_secs: args.refit_secs,
         },
         bt_monitors: Arc::new(
-            BtMonitors::start(args.bt_monitor.clone(), MonitorOptions::default())
-                .map_err(usage)?,
+            BtMonitors::start(args.bt_monitor.clone(), MonitorOptions::default()).map_err(usage)?,
         ),
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;

@@ -156,8 +156,8 @@ pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
 pub use bt_script::{BtScriptError, parse_bt_script, read_bt_script};
 #[cfg(feature = "bt")]
 pub use bt_xml::{
-    BtNodeModels, BtReadOptions, BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, read_bt_xml,
-    parse_bt_xml, parse_bt_xml_in, read_bt_xml_with, read_node_models, write_bt_xml,
+    BtNodeModels, BtReadOptions, BtXml, BtXmlError, BtXmlErrorKind, encode_bt_xml, parse_bt_xml,
+    parse_bt_xml_in, read_bt_xml, read_bt_xml_with, read_node_models, write_bt_xml,
 };
 #[cfg(feature = "hypertime")]
 pub use events::{read_event_files, read_events, read_events_from, write_events};
