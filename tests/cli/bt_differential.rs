@@ -30,19 +30,19 @@ use crate::common::{chronomap, oracle_python, scratch};
 
 /// What both sides record of one case.
 #[derive(Debug, PartialEq)]
-struct Trace {
+pub(crate) struct Trace {
     /// The load error, if the tree was refused.
-    load_error: Option<String>,
+    pub(crate) load_error: Option<String>,
     /// Per tick: the root's status (`None` for the tick that threw) and the status changes.
-    ticks: Vec<(Option<String>, Vec<[String; 3]>)>,
+    pub(crate) ticks: Vec<(Option<String>, Vec<[String; 3]>)>,
     /// The tick that threw, and the message.
-    error: Option<(u64, String)>,
+    pub(crate) error: Option<(u64, String)>,
     /// The root blackboard: numbers (booleans as 0/1, numeric text as numbers) or text.
-    blackboard: BTreeMap<String, Value>,
+    pub(crate) blackboard: BTreeMap<String, Value>,
 }
 
 /// A blackboard value as the oracle reads it: `get_double` if it converts, else the text.
-fn normalised(value: &Value) -> Value {
+pub(crate) fn normalised(value: &Value) -> Value {
     match value {
         Value::Bool(b) => json!(f64::from(u8::from(*b))),
         Value::Number(n) => json!(n.as_f64()),
@@ -75,7 +75,7 @@ fn bt_value_json(value: &BtValue) -> Value {
 }
 
 /// The oracle's record of a case.
-fn btcpp_trace(case: &Value) -> Trace {
+pub(crate) fn btcpp_trace(case: &Value) -> Trace {
     let ticks = case["ticks"]
         .as_array()
         .map(|ticks| {
@@ -170,7 +170,7 @@ fn chronomap_trace(name: &str, xml: &str, script: &str, dir: &Path) -> Trace {
 
 /// What differs between the two records, by kind, with the first difference described; `None`
 /// when they agree (messages are not compared, only where errors happen).
-fn compare(btcpp: &Trace, ours: &Trace) -> Option<(&'static str, String)> {
+pub(crate) fn compare(btcpp: &Trace, ours: &Trace) -> Option<(&'static str, String)> {
     match (&btcpp.load_error, &ours.load_error) {
         (Some(_), Some(_)) => return None,
         (None, Some(e)) => {
@@ -269,7 +269,7 @@ fn differ(cases: &[Value], dir: &Path) -> (String, BTreeMap<&'static str, usize>
     (report, kinds, failing)
 }
 
-fn oracle(test: &str) -> Option<String> {
+pub(crate) fn oracle(test: &str) -> Option<String> {
     oracle_python(
         "BT",
         test,

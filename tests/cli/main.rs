@@ -20,6 +20,7 @@ mod bench_ros2;
 #[cfg(feature = "serve")]
 mod bench_serve;
 mod bt;
+mod bt_btcpp_trees;
 mod bt_groot2;
 mod bt_differential;
 mod casts;
