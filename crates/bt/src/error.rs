@@ -79,6 +79,13 @@ pub enum DefinitionErrorKind {
         /// The number of children found.
         found: usize,
     },
+    /// A tree whose ID is the name of a node type, which BehaviorTree.CPP refuses when it loads
+    /// the document ("must not use the name of a registered Node").
+    #[error("a tree cannot have the ID \"{id}\", the name of a node type")]
+    TreeIdIsANode {
+        /// The ID.
+        id: String,
+    },
     /// A `ReactiveSequence` with more than one `AsyncSequence` child, which BehaviorTree.CPP
     /// refuses when it loads the tree.
     #[error("\"{id}\": a ReactiveSequence cannot have more than one async child (AsyncSequence)")]

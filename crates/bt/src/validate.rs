@@ -135,6 +135,14 @@ fn validate_at(doc: &BtDocument, registry: &Registry, strict: bool) -> Result<()
         if tree.id.is_empty() {
             return Err(DefinitionError::document(K::EmptyId).with_attribute("ID"));
         }
+        // "The attribute [ID] of tag <BehaviorTree> must not use the name of a registered
+        // Node" (BehaviorTree.CPP refuses it when it loads the tree).
+        if super::builtin::is_builtin(&tree.id) || registry.contains(&tree.id) {
+            return Err(DefinitionError::document(K::TreeIdIsANode {
+                id: tree.id.clone(),
+            })
+            .with_attribute("ID"));
+        }
         if !seen.insert(tree.id.as_str()) {
             return Err(DefinitionError::document(K::DuplicateTree {
                 id: tree.id.clone(),
