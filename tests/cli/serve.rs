@@ -168,6 +168,11 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
         ("/v1/grid/{name}/cell", "post"),
         ("/v1/activity/{name}", "get"),
         ("/v1/activity/{name}/predict", "post"),
+        ("/v1/bt/monitors", "get"),
+        ("/v1/bt/monitors/{id}", "get"),
+        ("/v1/bt/monitors/{id}/events", "get"),
+        ("/v1/bt/monitors/{id}/transitions", "get"),
+        ("/v1/bt/monitors/{id}/blackboard", "get"),
     ];
     let paths = spec["paths"].as_object().unwrap();
     let documented: usize = paths.values().map(|p| p.as_object().unwrap().len()).sum();
