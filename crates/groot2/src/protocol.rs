@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | `T` FULLTREE | | the tree as XML, as `WriteTreeToXML(tree, true, true)` writes it ([`encode_full_tree`]) |
 //! | `S` STATUS | | 3 bytes a node: uid (`u16` LE) and status ([`StatusBuffer`]) |
-//! | `B` BLACKBOARD | names separated by `;` | MessagePack map of name → blackboard ([`encode_blackboards`]) |
+//! | `B` BLACKBOARD | names separated by `;` | MessagePack map of name → blackboard (the publisher's `blackboards`) |
 //! | `I` HOOK_INSERT | a [`Hook`] or an array of them as JSON | nothing |
 //! | `R` HOOK_REMOVE | `{"uid":…,"position":…}` | nothing |
 //! | `U` BREAKPOINT_UNLOCK | `{"uid","desired_status","position","remove_when_done"}` | nothing |

@@ -11,7 +11,7 @@
 //! Hooks act on the ticks through the [`TickMonitor`] of [`Publisher::tick_monitor`], which
 //! whoever ticks installs in the tree: a replacement gives a node's result, a breakpoint holds
 //! the ticking thread (never the server's) until a client unlocks it, removes or disables it
-//! ([`crate::hooks`] has the rules). A held tick is released, as BehaviorTree.CPP releases it,
+//! (the `hooks` module has the rules). A held tick is released, as BehaviorTree.CPP releases it,
 //! when no request came for [`Publisher::max_heartbeat_delay`] (5 s unless set: the client
 //! went away; its hooks stay, disabled, until a client speaks again), and when the publisher
 //! is dropped. While a tick is held, STATUS answers the statuses at the end of the last whole
