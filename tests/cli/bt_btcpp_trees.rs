@@ -33,8 +33,8 @@ use std::time::Instant;
 
 use serde_json::Value;
 
-use crate::bt_differential::{Trace, btcpp_trace, compare, normalised, oracle};
-use crate::common::{chronomap, scratch};
+use crate::bt_differential::{Trace, btcpp_trace, compare, oracle, run_trace};
+use crate::common::scratch;
 
 /// The directory of the bundled trees.
 fn trees_dir() -> PathBuf {
@@ -61,68 +61,6 @@ fn tree_files() -> Vec<String> {
     walk(&trees_dir(), "", &mut out);
     out.sort();
     out
-}
-
-/// What `chronomap bt run ... --json` with `args` recorded, as a [`Trace`] (a run that prints
-/// nothing on stdout refused the tree).
-fn cli_trace(args: &[&str]) -> Trace {
-    let out = chronomap(args);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
-    if stdout.trim().is_empty() {
-        return Trace {
-            load_error: Some(stderr.trim().to_owned()),
-            ticks: Vec::new(),
-            error: None,
-            blackboard: BTreeMap::new(),
-        };
-    }
-    let run: Value = serde_json::from_str(&stdout).expect("JSON");
-    let changes = |list: &Value| -> Vec<[String; 3]> {
-        list.as_array()
-            .expect("transitions")
-            .iter()
-            .map(|t| {
-                let s = |k: &str| t[k].as_str().expect("text").to_owned();
-                [s("name"), s("from"), s("to")]
-            })
-            .collect()
-    };
-    let mut ticks: Vec<_> = run["ticks"]
-        .as_array()
-        .expect("ticks")
-        .iter()
-        .map(|t| {
-            (
-                t["status"].as_str().map(str::to_owned),
-                changes(&t["transitions"]),
-            )
-        })
-        .collect();
-    let error = run["error"].as_object().map(|e| {
-        ticks.push((None, changes(&e["transitions"])));
-        (
-            e["tick"].as_u64().expect("tick"),
-            e["message"].as_str().unwrap_or("").to_owned(),
-        )
-    });
-    assert_eq!(
-        out.status.code(),
-        Some(if error.is_some() { 1 } else { 0 }),
-        "{args:?}: a failed tick exits with 1, after the JSON"
-    );
-    Trace {
-        load_error: None,
-        ticks,
-        error,
-        blackboard: run["blackboard"]
-            .as_object()
-            .expect("blackboard")
-            .iter()
-            .map(|(k, v)| (k.clone(), normalised(v)))
-            .collect(),
-    }
 }
 
 fn text<'a>(case: &'a Value, key: &str) -> &'a str {
@@ -165,7 +103,7 @@ fn chronomap_trace(case: &Value, dir: &Path) -> Trace {
         args.extend(["--nodes".to_owned(), dir.join(nodes).display().to_string()]);
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    cli_trace(&args)
+    run_trace(&args)
 }
 
 /// The (file, tree) pairs that BehaviorTree.CPP 4.8.2 refuses to load, with why (the tree:

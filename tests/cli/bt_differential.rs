@@ -387,11 +387,19 @@ fn cli_trace(xml: &Path, script: &Path) -> Trace {
     if xml_text.contains("<Pass") {
         args.extend(["--stub", "Pass=PASS"]);
     }
-    let out = chronomap(&args);
+    run_trace(&args)
+}
+
+/// What `chronomap` with `args` (a `bt run ... --json`) recorded, as a [`Trace`]: a run that
+/// prints nothing on stdout refused the tree.
+pub(crate) fn run_trace(args: &[&str]) -> Trace {
+    let out = chronomap(args);
     let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     if stdout.trim().is_empty() {
         return Trace {
-            load_error: Some(String::from_utf8_lossy(&out.stderr).into_owned()),
+            load_error: Some(stderr.trim().to_owned()),
             ticks: Vec::new(),
             error: None,
             blackboard: BTreeMap::new(),
@@ -429,7 +437,7 @@ fn cli_trace(xml: &Path, script: &Path) -> Trace {
     assert_eq!(
         out.status.code(),
         Some(if error.is_some() { 1 } else { 0 }),
-        "a failed tick exits with 1, after the JSON"
+        "{args:?}: a failed tick exits with 1, after the JSON"
     );
     Trace {
         load_error: None,
