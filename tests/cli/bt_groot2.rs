@@ -10,11 +10,12 @@
 //! The comparison needs `CHRONOMAP_BT_PYTHON` (a Python with behaviortreepy and pyzmq); it
 //! is skipped without, and fails without when `CHRONOMAP_REQUIRE_BT=1` (CI).
 
-use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
+
+use chronomap_testutil::free_port_pair;
 
 use crate::common::{oracle_python, scratch};
 
@@ -25,18 +26,6 @@ fn python(test: &str) -> Option<String> {
         "BehaviorTree.CPP Groot2Publisher",
         "set CHRONOMAP_BT_PYTHON to a Python with behaviortreepy 0.1.4 and pyzmq",
     )
-}
-
-/// A port whose successor is free too (the publisher binds both).
-fn free_port_pair() -> u16 {
-    for _ in 0..100 {
-        let a = TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = a.local_addr().unwrap().port();
-        if port < 65534 && TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
-            return port;
-        }
-    }
-    panic!("no two free consecutive ports");
 }
 
 fn data(name: &str) -> String {

@@ -713,8 +713,8 @@ pub fn parse_tree(xml: &str) -> Result<Tree, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::{BufRead, BufReader, Read, Write};
-    use std::process::{Child, Command, Stdio};
+    use chronomap_testutil::{BtcppTree, bt_python, free_port_pair};
+    use std::io::{Read, Write};
 
     #[test]
     fn statuses_keep_the_last_status_of_idle_nodes() {
@@ -847,80 +847,6 @@ mod tests {
 
     // ---- against real publishers and broken ones ----------------------------------------
 
-    /// A request port `p` with `p + 1` free too, on loopback.
-    pub(crate) fn free_port_pair() -> u16 {
-        for _ in 0..100 {
-            let first = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-            let port = first.local_addr().unwrap().port();
-            if port < 65535 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
-                return port;
-            }
-        }
-        panic!("no two free ports in a row on 127.0.0.1");
-    }
-
-    /// The Python with BehaviorTree.CPP (`CHRONOMAP_BT_PYTHON`, else the workspace's
-    /// `target/bt-venv`); `None` (the test is skipped) unless `CHRONOMAP_REQUIRE_BT=1`.
-    fn bt_python() -> Option<std::path::PathBuf> {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let python = std::env::var_os("CHRONOMAP_BT_PYTHON")
-            .map(std::path::PathBuf::from)
-            .unwrap_or_else(|| root.join("target/bt-venv/bin/python"));
-        if python.exists() {
-            return Some(python);
-        }
-        assert!(
-            std::env::var("CHRONOMAP_REQUIRE_BT").as_deref() != Ok("1"),
-            "{} does not exist (CHRONOMAP_REQUIRE_BT=1)",
-            python.display()
-        );
-        eprintln!(
-            "skipped: no BehaviorTree.CPP Python at {}",
-            python.display()
-        );
-        None
-    }
-
-    /// `tests/bt/btcpp_groot2_tree.py` on `port`, killed when dropped.
-    struct BtcppTree(Child);
-
-    impl BtcppTree {
-        fn start(python: &std::path::Path, port: u16, tree: &str) -> BtcppTree {
-            let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../tests/bt/btcpp_groot2_tree.py");
-            let mut child = Command::new(python)
-                .arg(script)
-                .args([
-                    "--port",
-                    &port.to_string(),
-                    "--tree",
-                    tree,
-                    "--seconds",
-                    "120",
-                ])
-                .stdout(Stdio::piped())
-                .stderr(Stdio::inherit())
-                .spawn()
-                .unwrap();
-            let mut line = String::new();
-            BufReader::new(child.stdout.as_mut().unwrap())
-                .read_line(&mut line)
-                .unwrap();
-            assert!(
-                line.starts_with("ready"),
-                "the tree did not start: {line:?}"
-            );
-            BtcppTree(child)
-        }
-    }
-
-    impl Drop for BtcppTree {
-        fn drop(&mut self) {
-            let _ = self.0.kill();
-            let _ = self.0.wait();
-        }
-    }
-
     fn quick() -> ClientOptions {
         ClientOptions {
             timeout: Duration::from_millis(700),
@@ -932,7 +858,7 @@ mod tests {
     fn a_real_behaviortree_cpp_publisher_is_read_whole() {
         let Some(python) = bt_python() else { return };
         let port = free_port_pair();
-        let _tree = BtcppTree::start(&python, port, "patrol");
+        let _tree = BtcppTree::start(&python, port, Some("patrol"));
         let mut client =
             Client::new(&format!("127.0.0.1:{port}"), ClientOptions::default()).unwrap();
         let reply = client.full_tree().unwrap();

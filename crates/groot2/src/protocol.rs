@@ -1403,15 +1403,6 @@ fn is_allowed_port_name(name: &str) -> bool {
         && !matches!(name, "name" | "ID" | "_autoremap")
 }
 
-/// BehaviorTree.CPP's `TreeNode::isBlackboardPointer`: `{…}` (spaces around allowed), at
-/// least 3 characters; the key inside.
-fn blackboard_pointer(value: &str) -> Option<&str> {
-    let trimmed = value.trim_matches(' ');
-    (value.len() >= 3 && trimmed.len() >= 3)
-        .then(|| trimmed.strip_prefix('{')?.strip_suffix('}'))
-        .flatten()
-}
-
 /// The pre-condition attributes in BehaviorTree.CPP's `PreCond` order, then the
 /// post-conditions in `PostCond` order: the order in which `WriteTreeToXML` writes them.
 const CONDITION_ATTRIBUTES: [&str; 8] = [
@@ -1686,7 +1677,7 @@ fn node_ports(
         }
         if port.direction != Input
             && !outputs.contains(&port.name)
-            && blackboard_pointer(default).is_some()
+            && chronomap_bt::blackboard_pointer(default).is_some()
         {
             outputs.insert(&port.name, default);
         }
@@ -1925,7 +1916,7 @@ impl BlackboardSnapshot {
                     }
                     if v == "{=}" {
                         info.1.insert(k.clone(), k.clone());
-                    } else if let Some(key) = blackboard_pointer(v) {
+                    } else if let Some(key) = chronomap_bt::blackboard_pointer(v) {
                         info.1.insert(k.clone(), key.to_owned());
                     }
                 }
@@ -1955,7 +1946,7 @@ impl BlackboardSnapshot {
                 }
                 let key = if value == "{=}" || value == "=" {
                     port.as_str()
-                } else if let Some(key) = blackboard_pointer(value) {
+                } else if let Some(key) = chronomap_bt::blackboard_pointer(value) {
                     key
                 } else {
                     continue;

@@ -4,25 +4,13 @@
 //! silent for the heartbeat delay, or until the publisher is dropped; a replacement gives the
 //! node's result; every hook that acts is announced on the PUB socket.
 
-use std::net::TcpListener;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use chronomap_bt::{BtDocument, NodeDef, Registry, Status, TreeDef};
 use chronomap_groot2::protocol::{RequestType, encode_request};
 use chronomap_groot2::publisher::Publisher;
-
-/// A port whose successor is free too (the publisher binds both).
-fn free_port_pair() -> u16 {
-    for _ in 0..100 {
-        let a = TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = a.local_addr().unwrap().port();
-        if port < 65534 && TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
-            return port;
-        }
-    }
-    panic!("no two free consecutive ports");
-}
+use chronomap_testutil::free_port_pair;
 
 /// Sequence(1) of AlwaysSuccess(2) and AlwaysSuccess(3).
 fn doc() -> BtDocument {

@@ -2,76 +2,14 @@
 //! `Groot2Publisher` (`tests/bt/btcpp_groot2_tree.py`, skipped without `CHRONOMAP_BT_PYTHON`
 //! unless `CHRONOMAP_REQUIRE_BT=1`), and against publishers that answer garbage.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
-
 use axum::body::{Body, to_bytes};
 use axum::http::Request;
 use serde_json::Value;
 use tower::ServiceExt;
 
+use chronomap_testutil::{BtcppTree, bt_python, free_port_pair};
+
 use super::*;
-
-/// A request port `p` with `p + 1` free too, on loopback.
-fn free_port_pair() -> u16 {
-    for _ in 0..100 {
-        let first = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = first.local_addr().unwrap().port();
-        if port < 65535 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
-            return port;
-        }
-    }
-    panic!("no two free ports in a row on 127.0.0.1");
-}
-
-fn bt_python() -> Option<std::path::PathBuf> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let python = std::env::var_os("CHRONOMAP_BT_PYTHON")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| root.join("target/bt-venv/bin/python"));
-    if python.exists() {
-        return Some(python);
-    }
-    assert!(
-        std::env::var("CHRONOMAP_REQUIRE_BT").as_deref() != Ok("1"),
-        "{} does not exist (CHRONOMAP_REQUIRE_BT=1)",
-        python.display()
-    );
-    eprintln!(
-        "skipped: no BehaviorTree.CPP Python at {}",
-        python.display()
-    );
-    None
-}
-
-/// `tests/bt/btcpp_groot2_tree.py` on `port`, killed when dropped.
-struct BtcppTree(Child);
-
-impl BtcppTree {
-    fn start(python: &std::path::Path, port: u16) -> BtcppTree {
-        let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../tests/bt/btcpp_groot2_tree.py");
-        let mut child = Command::new(python)
-            .arg(script)
-            .args(["--port", &port.to_string(), "--seconds", "120"])
-            .stdout(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.as_mut().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        assert_eq!(line.trim(), format!("ready port={port} nodes=43"));
-        BtcppTree(child)
-    }
-}
-
-impl Drop for BtcppTree {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 struct Fixture {
     router: Router,
@@ -210,7 +148,9 @@ fn targets_are_named_or_named_by_their_address() {
 fn the_endpoints_follow_a_real_behaviortree_cpp_tree() {
     let Some(python) = bt_python() else { return };
     let port = free_port_pair();
-    let mut tree = Some(BtcppTree::start(&python, port));
+    let started = BtcppTree::start(&python, port, None);
+    assert_eq!(started.ready, format!("ready port={port} nodes=43"));
+    let mut tree = Some(started);
     let address = format!("127.0.0.1:{port}");
     let f = Fixture::new(&[&format!("patrol={address}")], quick());
     let view = f.wait_until("connected", "/v1/bt/monitors/patrol", |v| {
@@ -334,7 +274,8 @@ fn the_endpoints_follow_a_real_behaviortree_cpp_tree() {
     );
     let (status, body) = f.get("/v1/bt/monitors/patrol/blackboard");
     assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "{body}");
-    let _tree = BtcppTree::start(&python, port);
+    let _tree = BtcppTree::start(&python, port, None);
+    assert_eq!(_tree.ready, format!("ready port={port} nodes=43"));
     let back = f.wait_until("connected again", "/v1/bt/monitors/patrol", |v| {
         v["state"] == "connected"
     });

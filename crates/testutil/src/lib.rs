@@ -14,6 +14,9 @@
 //!   (`env!("CARGO_BIN_EXE_chronomap")`, which exists only when the test is compiled), then
 //!   [`stdout`] or [`json`] of a run that must succeed, [`error`] of one that must fail with
 //!   exit code 1 and [`usage_error`] of one refused with exit code 2, never with a panic.
+//! * **Groot2 publishers**: [`free_port_pair`] (a port whose successor is free too),
+//!   [`bt_python`] (the Python with BehaviorTree.CPP) and [`BtcppTree`] (a tree run by the real
+//!   BehaviorTree.CPP under its `Groot2Publisher`).
 //!
 //! ```
 //! use chronomap_testutil::{close, data_path, repo_path};
@@ -214,4 +217,94 @@ fn failure(out: &Output, code: i32) -> String {
     assert_eq!(out.status.code(), Some(code), "accepted: {err}");
     assert!(!err.contains("panicked"), "{err}");
     err
+}
+
+/// A loopback port whose successor is free too (a Groot2 publisher binds both).
+///
+/// # Panics
+/// If no such pair is found in 100 tries.
+pub fn free_port_pair() -> u16 {
+    for _ in 0..100 {
+        let first = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+        let port = first.local_addr().expect("its address").port();
+        if port < 65534 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            return port;
+        }
+    }
+    panic!("no two free ports in a row on 127.0.0.1");
+}
+
+/// The Python with BehaviorTree.CPP (`behaviortreepy`): `CHRONOMAP_BT_PYTHON`, else the
+/// workspace's `target/bt-venv`. `None` (the caller skips, after this says so on stderr)
+/// unless `CHRONOMAP_REQUIRE_BT=1`, which makes a missing one a failure.
+///
+/// # Panics
+/// If it is missing and `CHRONOMAP_REQUIRE_BT=1`.
+pub fn bt_python() -> Option<PathBuf> {
+    let python = std::env::var_os("CHRONOMAP_BT_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("target/bt-venv/bin/python"));
+    if python.exists() {
+        return Some(python);
+    }
+    assert!(
+        std::env::var("CHRONOMAP_REQUIRE_BT").as_deref() != Ok("1"),
+        "{} does not exist (CHRONOMAP_REQUIRE_BT=1)",
+        python.display()
+    );
+    eprintln!(
+        "skipped: no BehaviorTree.CPP Python at {}",
+        python.display()
+    );
+    None
+}
+
+/// `tests/bt/btcpp_groot2_tree.py`: a tree run by the real BehaviorTree.CPP with its own
+/// `Groot2Publisher` on a port, killed when dropped.
+pub struct BtcppTree {
+    child: std::process::Child,
+    /// The line the script printed when it was ready (`ready port=P nodes=N`).
+    pub ready: String,
+}
+
+impl BtcppTree {
+    /// Starts the script with `python` on `port`, running `tree` (its default without), for at
+    /// most two minutes, and waits until it is ready.
+    ///
+    /// # Panics
+    /// If the script cannot be started or does not say it is ready.
+    pub fn start(python: &Path, port: u16, tree: Option<&str>) -> BtcppTree {
+        use std::io::BufRead;
+        let mut command = Command::new(python);
+        command
+            .arg(repo_path("tests/bt/btcpp_groot2_tree.py"))
+            .args(["--port", &port.to_string(), "--seconds", "120"]);
+        if let Some(tree) = tree {
+            command.args(["--tree", tree]);
+        }
+        let mut child = command
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::inherit())
+            .spawn()
+            .expect("the BehaviorTree.CPP tree starts");
+        let mut ready = String::new();
+        std::io::BufReader::new(child.stdout.as_mut().expect("its stdout"))
+            .read_line(&mut ready)
+            .expect("its first line");
+        assert!(
+            ready.starts_with("ready"),
+            "the tree did not start: {ready:?}"
+        );
+        BtcppTree {
+            child,
+            ready: ready.trim().to_owned(),
+        }
+    }
+}
+
+impl Drop for BtcppTree {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
