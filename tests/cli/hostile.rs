@@ -1,7 +1,8 @@
 //! The hostile-input corpus (`tests/hostile/`): every case is a command run on a file written
 //! to break it, with the exit code and the error it must give. No case may panic, abort, print
 //! more than [`MAX_STDERR_BYTES`] of errors, or run longer than [`TIME_LIMIT`]; the format of
-//! `tests/hostile/cases.txt` is described at its top.
+//! `tests/hostile/cases.txt` is described at its top; `cases_*.txt` beside it hold more cases in
+//! the same format, one file per family of readers.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -186,17 +187,35 @@ fn check(case: &Case, corpus: &Path, out: &Path) -> Option<String> {
 #[test]
 fn every_hostile_input_of_the_corpus_gets_its_error() {
     let corpus = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/hostile");
-    let cases = parse_cases(&std::fs::read_to_string(corpus.join("cases.txt")).unwrap());
+    // `cases.txt` and one `cases_<surface>.txt` per reader family (bags, clouds, outputs, …).
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&corpus)
+        .unwrap()
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| {
+            let name = path.file_name().unwrap().to_string_lossy();
+            name.starts_with("cases") && name.ends_with(".txt")
+        })
+        .collect();
+    files.sort();
+    let cases: Vec<(String, Case)> = files
+        .iter()
+        .flat_map(|path| {
+            let file = path.file_name().unwrap().to_string_lossy().into_owned();
+            parse_cases(&std::fs::read_to_string(path).unwrap())
+                .into_iter()
+                .map(move |case| (file.clone(), case))
+        })
+        .collect();
     assert!(cases.len() >= 20, "only {} cases", cases.len());
     let root = scratch("hostile_corpus");
     let failures: Vec<String> = cases
         .iter()
         .enumerate()
-        .filter_map(|(i, case)| {
+        .filter_map(|(i, (file, case))| {
             let out = root.join(format!("case_{i}"));
             std::fs::create_dir_all(&out).unwrap();
             check(case, &corpus, &out)
-                .map(|why| format!("cases.txt:{} [{}]: {why}", case.line, case.name))
+                .map(|why| format!("{file}:{} [{}]: {why}", case.line, case.name))
         })
         .collect();
     assert!(
