@@ -42,8 +42,48 @@ pub fn period(secs: f64) -> String {
     }
 }
 
+/// Most characters a table cell (or another padded name) shows: a longer text (a topic, type
+/// or node name read from a file) is cut to its first [`ELIDED_PREFIX_CHARS`] characters, `…`
+/// and its length ([`elide`]), so a hostile name neither floods the terminal nor becomes a
+/// padding width.
+pub const MAX_CELL_CHARS: usize = 200;
+
+/// Characters of an elided text kept before the `…`.
+pub const ELIDED_PREFIX_CHARS: usize = 160;
+
+/// `text` itself when it has at most [`MAX_CELL_CHARS`] characters, else its first
+/// [`ELIDED_PREFIX_CHARS`] characters, `…` and how many characters it has
+/// (`abc…(70000 chars)`), at most [`MAX_CELL_CHARS`] characters either way.
+pub fn elide(text: &str) -> std::borrow::Cow<'_, str> {
+    let chars = text.chars().count();
+    if chars <= MAX_CELL_CHARS {
+        return text.into();
+    }
+    let prefix: String = text.chars().take(ELIDED_PREFIX_CHARS).collect();
+    format!("{prefix}…({chars} chars)").into()
+}
+
+/// `text` followed by spaces up to `width` characters (nothing added when it is as wide or
+/// wider); never a formatting width, which panics from 65,535 on.
+pub fn pad_right(text: &str, width: usize) -> String {
+    let chars = text.chars().count();
+    let mut out = String::with_capacity(text.len() + width.saturating_sub(chars));
+    out.push_str(text);
+    out.extend(std::iter::repeat_n(' ', width.saturating_sub(chars)));
+    out
+}
+
+/// Spaces up to `width` characters, then `text` (see [`pad_right`]).
+pub fn pad_left(text: &str, width: usize) -> String {
+    let chars = text.chars().count();
+    let mut out: String = std::iter::repeat_n(' ', width.saturating_sub(chars)).collect();
+    out.push_str(text);
+    out
+}
+
 /// A plain-text table: the first column left-aligned, the others right-aligned (numbers)
-/// unless marked with [`Table::left`].
+/// unless marked with [`Table::left`]. Cells longer than [`MAX_CELL_CHARS`] are shown
+/// elided ([`elide`]).
 pub struct Table {
     header: Vec<String>,
     rows: Vec<Vec<String>>,
@@ -53,7 +93,10 @@ pub struct Table {
 impl Table {
     pub fn new(header: impl IntoIterator<Item = impl Into<String>>) -> Self {
         Table {
-            header: header.into_iter().map(Into::into).collect(),
+            header: header
+                .into_iter()
+                .map(|h| elide(&h.into()).into_owned())
+                .collect(),
             rows: Vec::new(),
             left: vec![0],
         }
@@ -66,7 +109,18 @@ impl Table {
     }
 
     pub fn row(&mut self, cells: impl IntoIterator<Item = impl Into<String>>) {
-        self.rows.push(cells.into_iter().map(Into::into).collect());
+        self.rows.push(
+            cells
+                .into_iter()
+                .map(|cell| {
+                    let cell: String = cell.into();
+                    match elide(&cell) {
+                        std::borrow::Cow::Borrowed(_) => cell,
+                        std::borrow::Cow::Owned(short) => short,
+                    }
+                })
+                .collect(),
+        );
     }
 
     pub fn render(&self) -> String {
@@ -88,9 +142,9 @@ impl Table {
                 .enumerate()
                 .map(|(c, s)| {
                     if self.left.contains(&c) {
-                        format!("{s:<w$}", w = width[c])
+                        pad_right(s, width[c])
                     } else {
-                        format!("{s:>w$}", w = width[c])
+                        pad_left(s, width[c])
                     }
                 })
                 .collect::<Vec<_>>()
@@ -146,5 +200,38 @@ mod tests {
             t.render(),
             "model        mse\n----------------\nfremen:4  0.0670\nmean      0.0807"
         );
+    }
+
+    #[test]
+    fn a_cell_of_70000_characters_is_shown_elided_not_padded_to_its_width() {
+        // A format width of 65,535 or more panics; a topic name read from a bag can be longer.
+        let topic = format!("/{}", "t".repeat(69_999));
+        let mut t = Table::new(["topic", "messages"]);
+        t.row([topic.as_str(), "3"]);
+        t.row(["/door", "12"]);
+        let shown = format!("/{}…(70000 chars)", "t".repeat(159));
+        // 160 characters, `…` and `(70000 chars)`.
+        assert_eq!(shown.chars().count(), 174);
+        let rendered = t.render();
+        let lines: Vec<&str> = rendered.lines().collect();
+        assert_eq!(lines[0], format!("topic{}  messages", " ".repeat(169)));
+        assert_eq!(lines[1], "-".repeat(174 + 2 + 8));
+        assert_eq!(lines[2], format!("{shown}  {}3", " ".repeat(7)));
+        assert_eq!(
+            lines[3],
+            format!("/door{}  {}12", " ".repeat(169), " ".repeat(6))
+        );
+    }
+
+    #[test]
+    fn elision_keeps_texts_up_to_the_cap_and_counts_characters_not_bytes() {
+        let at_cap = "é".repeat(MAX_CELL_CHARS);
+        assert_eq!(elide(&at_cap), at_cap.as_str());
+        let over = "é".repeat(MAX_CELL_CHARS + 1);
+        assert_eq!(elide(&over), format!("{}…(201 chars)", "é".repeat(160)));
+        assert_eq!(pad_right("ab", 4), "ab  ");
+        assert_eq!(pad_left("ab", 4), "  ab");
+        assert_eq!(pad_right("abcdef", 4), "abcdef");
+        assert_eq!(pad_right("x", 70_000).len(), 70_000);
     }
 }

@@ -535,19 +535,20 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
     let width = tree
         .nodes()
         .iter()
-        .map(|n| n.name().chars().count())
+        .map(|n| crate::format::elide(n.name()).chars().count())
         .max()
         .unwrap_or(0);
     let print_transitions = |list: &[chronomap_bt::Transition]| -> Result<()> {
         for t in list {
-            let name = name_of(t.uid);
+            // A name from the XML may be longer than a format width can pad (65,535).
+            let name = crate::format::pad_right(&crate::format::elide(&name_of(t.uid)), width);
             let halted = if t.from == Status::Running && t.to == Status::Idle {
                 " (halted)"
             } else {
                 ""
             };
             outln!(
-                "  {:>3} {name:<width$}  {} -> {}{halted}",
+                "  {:>3} {name}  {} -> {}{halted}",
                 t.uid,
                 t.from,
                 t.to

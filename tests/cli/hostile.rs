@@ -73,7 +73,10 @@ fn parse_cases(text: &str) -> Vec<Case> {
 
 /// Writes a generated input into `out`: `png W H NAME` (an all-zero 8-bit grey PNG, small
 /// when compressed but W × H bytes when decoded), `line BYTES NAME` (one line of that many
-/// `x` and a newline) or `copy NAME` (a file of the corpus, beside the generated ones).
+/// `x` and a newline), `copy NAME` (a file of the corpus, beside the generated ones), `fill
+/// TEMPLATE CHARS NAME` (a corpus file with `@LONG@` replaced by CHARS `x`) or `mcap TOPIC
+/// TYPE NAME` (an MCAP bag with a topic, and with TYPE > 0 a type name, of that many
+/// characters: [`bool_mcap`]).
 fn make(spec: &str, corpus: &Path, out: &Path) {
     let words: Vec<&str> = spec.split_whitespace().collect();
     match words.as_slice() {
@@ -100,8 +103,72 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
             text.push(b'\n');
             std::fs::write(out.join(name), text).unwrap();
         }
+        ["fill", template, chars, name] => {
+            // The corpus file `template` with `@LONG@` replaced by `chars` × `x`.
+            let text = std::fs::read_to_string(corpus.join(template)).unwrap();
+            let long = "x".repeat(chars.parse().unwrap());
+            std::fs::write(out.join(name), text.replace("@LONG@", &long)).unwrap();
+        }
+        ["mcap", topic, ty, name] => {
+            let (topic, ty): (usize, usize) = (topic.parse().unwrap(), ty.parse().unwrap());
+            std::fs::write(out.join(name), bool_mcap(topic, ty)).unwrap();
+        }
         _ => panic!("unknown `make: {spec}`"),
     }
+}
+
+/// A minimal MCAP file (header, schema, channel, three messages, data end, footer; no chunks
+/// or summary) of `std_msgs/msg/Bool` on the topic `/xxx…` of `topic` characters; with `ty`
+/// > 0, the schema's type name is `std_msgs/msg/Bxxx…` of `ty` characters instead.
+fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
+    fn string(out: &mut Vec<u8>, s: &str) {
+        out.extend_from_slice(&(s.len() as u32).to_le_bytes());
+        out.extend_from_slice(s.as_bytes());
+    }
+    fn record(out: &mut Vec<u8>, op: u8, body: &[u8]) {
+        out.push(op);
+        out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+        out.extend_from_slice(body);
+    }
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    let topic = format!("/{}", "x".repeat(topic.max(2) - 1));
+    let ty = if ty == 0 {
+        "std_msgs/msg/Bool".to_owned()
+    } else {
+        format!("std_msgs/msg/B{}", "x".repeat(ty.saturating_sub(14)))
+    };
+    let mut out = MAGIC.to_vec();
+    let mut body = Vec::new();
+    string(&mut body, "ros2");
+    string(&mut body, "chronomap hostile corpus");
+    record(&mut out, 0x01, &body);
+    body.clear();
+    body.extend_from_slice(&1u16.to_le_bytes());
+    string(&mut body, &ty);
+    string(&mut body, "ros2msg");
+    string(&mut body, "bool data");
+    record(&mut out, 0x03, &body);
+    body.clear();
+    body.extend_from_slice(&1u16.to_le_bytes());
+    body.extend_from_slice(&1u16.to_le_bytes());
+    string(&mut body, &topic);
+    string(&mut body, "cdr");
+    body.extend_from_slice(&0u32.to_le_bytes());
+    record(&mut out, 0x04, &body);
+    for i in 0..3u32 {
+        let ns = (1_700_000_000 + 60 * u64::from(i)) * 1_000_000_000;
+        body.clear();
+        body.extend_from_slice(&1u16.to_le_bytes());
+        body.extend_from_slice(&i.to_le_bytes());
+        body.extend_from_slice(&ns.to_le_bytes());
+        body.extend_from_slice(&ns.to_le_bytes());
+        body.extend_from_slice(&[0, 1, 0, 0, (i % 2) as u8, 0, 0, 0]);
+        record(&mut out, 0x05, &body);
+    }
+    record(&mut out, 0x0F, &0u32.to_le_bytes());
+    record(&mut out, 0x02, &[0u8; 20]);
+    out.extend_from_slice(MAGIC);
+    out
 }
 
 /// Runs one case; returns what is wrong with its outcome, if anything.
