@@ -547,12 +547,7 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
             } else {
                 ""
             };
-            outln!(
-                "  {:>3} {name}  {} -> {}{halted}",
-                t.uid,
-                t.from,
-                t.to
-            )?;
+            outln!("  {:>3} {name}  {} -> {}{halted}", t.uid, t.from, t.to)?;
         }
         Ok(())
     };
