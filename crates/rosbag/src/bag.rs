@@ -20,7 +20,7 @@
 //! # Ok::<(), chronomap_rosbag::BagError>(())
 //! ```
 
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
 use std::fs::File;
@@ -40,8 +40,25 @@ use crate::time::nanos_seconds;
 /// Largest `metadata.yaml` read (bytes).
 const MAX_METADATA_BYTES: u64 = 16 << 20;
 
-/// Largest record (and chunk, compressed or not) read from an MCAP file: 1 GiB.
+/// Largest record of an MCAP file: 1 GiB. A record must also fit in what remains of its file
+/// (checked before it is read).
 pub const MAX_RECORD_BYTES: usize = 1 << 30;
+
+/// Most bytes that decompression may produce at once: a compressed MCAP chunk (its declared
+/// uncompressed size is checked, and decompression stops one byte past it), a record of a
+/// compressed file (`.mcap.zstd`) or a message compressed by rosbag2: 256 MiB.
+pub const MAX_DECOMPRESSED_BYTES: usize = 256 << 20;
+
+/// Longest topic, type, schema or encoding name (bytes), in MCAP records, SQLite tables and
+/// `metadata.yaml`: ROS 2 names are far shorter (DDS allows 256 bytes for a topic).
+pub const MAX_NAME_BYTES: usize = 4096;
+
+/// Most bytes of the distinct schema and channel records one MCAP file may define: 64 MiB.
+pub const MAX_DEFINITION_BYTES: usize = 64 << 20;
+
+/// The `metadata.yaml` format versions chronomap reads: 1 (rosbag2 in Dashing) to 9 (Jazzy,
+/// Kilted).
+pub const METADATA_VERSIONS: std::ops::RangeInclusive<u32> = 1..=9;
 
 /// An error reading a bag: which bag, file and message, and what is wrong.
 #[derive(Clone, Debug, Error)]
@@ -404,10 +421,10 @@ impl Bag {
             };
             let mut next = |channel, log_time, publish_time, data: Vec<u8>| -> Result<(), E> {
                 let data = if self.compression == Compression::Message {
-                    zstd::stream::decode_all(&data[..]).map_err(|e| {
+                    decompress_message(&data).map_err(|problem| {
                         file_err(
                             Some(format!("message {}", sequence.borrow().index)),
-                            format!("zstd: {e} (the bag says messages are compressed)"),
+                            problem,
                         )
                     })?
                 } else {
@@ -434,39 +451,43 @@ impl Bag {
                 read: 0,
                 progress,
             };
-            let source: Box<dyn Read + '_> = match self.compression {
-                Compression::File => Box::new(
-                    zstd::stream::read::Decoder::new(counter)
-                        .map_err(|e| file_err(None, format!("zstd: {e}")))?,
+            let (mut source, len): (Box<dyn Read + '_>, _) = match self.compression {
+                Compression::File => (
+                    Box::new(
+                        zstd::stream::read::Decoder::new(counter)
+                            .map_err(|e| file_err(None, format!("zstd: {e}")))?,
+                    ),
+                    None,
                 ),
-                _ => Box::new(BufReader::with_capacity(1 << 16, counter)),
+                _ => (
+                    Box::new(BufReader::with_capacity(1 << 16, counter)),
+                    Some(meta.len()),
+                ),
             };
-            let options = mcap::sans_io::LinearReaderOptions::default()
-                .with_record_length_limit(MAX_RECORD_BYTES);
-            let position = Cell::new(0u64);
-            let consumed = Tracked {
-                inner: source,
-                read: &position,
+            let of = if len.is_some() {
+                ""
+            } else {
+                " of the decompressed file"
             };
-            let reader = mcap::io::MessageReader::new_with_options(consumed, options);
-            for item in reader {
-                let message = item.map_err(|e| {
-                    file_err(
-                        Some(format!(
-                            "the record {}, read up to byte {}",
-                            sequence.borrow().after(),
-                            position.get()
-                        )),
-                        mcap_problem(&e),
-                    )
-                })?;
-                next(
-                    message.channel,
-                    message.log_time,
-                    message.publish_time,
-                    message.data.into_owned(),
-                )?;
-            }
+            crate::mcap_read::read_messages(&mut source, len, &mut |(
+                channel,
+                log_time,
+                publish_time,
+                data,
+            )| {
+                next(channel, log_time, publish_time, data)
+            })
+            .map_err(|e| match e {
+                Ok(e) => e,
+                Err((at, problem)) => file_err(
+                    Some(format!(
+                        "the record {}, read up to byte {at}{of}",
+                        sequence.borrow().after()
+                    )),
+                    problem,
+                )
+                .into(),
+            })?;
         }
         Ok(())
     }
@@ -728,20 +749,6 @@ impl<R: Read> Read for Counting<'_, R> {
     }
 }
 
-/// Counts the bytes handed to the MCAP reader (decompressed, for compressed files).
-struct Tracked<'c, R> {
-    inner: R,
-    read: &'c Cell<u64>,
-}
-
-impl<R: Read> Read for Tracked<'_, R> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        self.read.set(self.read.get() + n as u64);
-        Ok(n)
-    }
-}
-
 /// Numbers the messages of a bag as they come, over all its files.
 #[derive(Default)]
 struct Sequence {
@@ -845,28 +852,29 @@ fn read_metadata(bag: &str, path: &Path) -> Result<Metadata, BagError> {
     Ok(parsed.rosbag2_bagfile_information)
 }
 
+/// A message that rosbag2 compressed (one zstd frame), decompressed to at most
+/// [`MAX_DECOMPRESSED_BYTES`].
+fn decompress_message(data: &[u8]) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    zstd::stream::read::Decoder::with_buffer(data)
+        .and_then(|d| {
+            d.take(MAX_DECOMPRESSED_BYTES as u64 + 1)
+                .read_to_end(&mut out)
+        })
+        .map_err(|e| format!("zstd: {e} (the bag says messages are compressed)"))?;
+    if out.len() > MAX_DECOMPRESSED_BYTES {
+        return Err(format!(
+            "the compressed message decompresses to more than the {MAX_DECOMPRESSED_BYTES} \
+             bytes a message may have"
+        ));
+    }
+    Ok(out)
+}
+
 fn io_problem(e: &io::Error) -> String {
     match e.kind() {
         io::ErrorKind::NotFound => "no such file or folder".into(),
         io::ErrorKind::PermissionDenied => "permission denied".into(),
         _ => e.to_string(),
-    }
-}
-
-/// The MCAP reader's error in words a user can act on.
-fn mcap_problem(e: &mcap::McapError) -> String {
-    use mcap::McapError as M;
-    match e {
-        M::UnexpectedEof => {
-            "the file ends in the middle of a record: it is truncated (was the recorder killed? \
-             `ros2 bag reindex` or `mcap recover` can save what is intact)"
-                .into()
-        }
-        M::UnexpectedEoc => "a chunk ends in the middle of a record: the chunk is damaged".into(),
-        M::BadMagic => "not an MCAP file (no MCAP magic bytes at its start)".into(),
-        M::Io(io) if io.kind() == io::ErrorKind::UnexpectedEof => {
-            "the file ends in the middle of a record: it is truncated".into()
-        }
-        other => format!("damaged: {other}"),
     }
 }

@@ -32,6 +32,7 @@
 pub mod bag;
 pub mod builtin;
 pub mod cdr;
+mod mcap_read;
 pub mod msgdef;
 pub mod records;
 mod sqlite;

@@ -34,9 +34,11 @@
 //! stored as `pkg/msg/Type`.
 //!
 //! Hostile schemas are refused: a type that contains itself (which could never be decoded),
-//! types nested deeper than [`MAX_DEPTH`], or more than [`MAX_FIELDS`] fields in all.
+//! types nested deeper than [`MAX_DEPTH`], more than [`MAX_FIELDS`] fields in all (counted while
+//! parsing, duplicates found with a hash set: time linear in the text), or fixed arrays of no
+//! elements (which take no bytes, so a sequence of them could be decoded without end).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 use thiserror::Error;
@@ -253,19 +255,18 @@ impl Schema {
             // The first definition of a name wins, as in rosbag2's own readers.
             names.entry(name.clone()).or_insert(i);
         }
-        let mut total_fields = 0usize;
+        let mut budget = MAX_FIELDS;
         let mut raw_types = Vec::with_capacity(sections.len());
         for (name, body) in &sections {
-            let fields = parse_fields(name, body)?;
-            total_fields += fields.len();
-            if total_fields > MAX_FIELDS {
-                return Err(SchemaError {
-                    message_type: root_name.clone(),
-                    line: None,
-                    field: None,
-                    problem: format!("more than {MAX_FIELDS} fields in all"),
-                });
-            }
+            // The limit applies while a type is parsed, so that no more than MAX_FIELDS + 1
+            // fields are ever looked at.
+            let fields = parse_fields(name, body, budget).ok_or_else(|| SchemaError {
+                message_type: root_name.clone(),
+                line: None,
+                field: None,
+                problem: format!("more than {MAX_FIELDS} fields in all"),
+            })??;
+            budget -= fields.len();
             raw_types.push((name.clone(), fields));
         }
         let mut types = Vec::with_capacity(raw_types.len());
@@ -460,9 +461,15 @@ fn excerpt(s: &str) -> String {
     out
 }
 
-/// Parses the field lines of one type.
-fn parse_fields(name: &str, body: &[&str]) -> Result<Vec<RawField>, SchemaError> {
+/// Parses the field lines of one type; `None` once it has more than `budget` fields.
+fn parse_fields(
+    name: &str,
+    body: &[&str],
+    budget: usize,
+) -> Option<Result<Vec<RawField>, SchemaError>> {
     let mut fields: Vec<RawField> = Vec::new();
+    // Field names seen, for duplicates in constant time each.
+    let mut seen: HashSet<&str> = HashSet::new();
     for (i, raw) in body.iter().enumerate() {
         let line = i + 1;
         let error = |field: Option<&str>, problem: String| SchemaError {
@@ -487,23 +494,29 @@ fn parse_fields(name: &str, body: &[&str]) -> Result<Vec<RawField>, SchemaError>
             continue; // a constant
         }
         if field_name.is_empty() {
-            return Err(error(
+            return Some(Err(error(
                 None,
                 format!("expected `TYPE NAME`, found {:?}", excerpt(code)),
-            ));
+            )));
         }
         if !field_name.starts_with(|c: char| c.is_ascii_alphabetic()) {
-            return Err(error(
+            return Some(Err(error(
                 Some(&field_name),
                 "a field name must start with a letter".into(),
-            ));
+            )));
         }
-        let (base, arity) = parse_type(ty).map_err(|problem| error(Some(&field_name), problem))?;
-        if fields.iter().any(|f| f.name == field_name) {
-            return Err(error(
+        if fields.len() == budget {
+            return None;
+        }
+        let (base, arity) = match parse_type(ty) {
+            Ok(parsed) => parsed,
+            Err(problem) => return Some(Err(error(Some(&field_name), problem))),
+        };
+        if !seen.insert(&rest[..field_name.len()]) {
+            return Some(Err(error(
                 Some(&field_name),
                 "the field is defined twice".into(),
-            ));
+            )));
         }
         fields.push(RawField {
             name: field_name,
@@ -512,7 +525,7 @@ fn parse_fields(name: &str, body: &[&str]) -> Result<Vec<RawField>, SchemaError>
             line,
         });
     }
-    Ok(fields)
+    Some(Ok(fields))
 }
 
 /// Parses `TYPE` with its array suffix.
@@ -528,7 +541,11 @@ fn parse_type(ty: &str) -> Result<(RawBase, Arity), String> {
             } else if let Some(bound) = inner.strip_prefix("<=") {
                 Arity::Bounded(parse_bound(bound, ty)?)
             } else {
-                Arity::Fixed(parse_bound(inner, ty)?)
+                match parse_bound(inner, ty)? {
+                    // Elements that take no bytes on the wire could be decoded without end.
+                    0 => return Err(format!("array type {:?} has no elements", excerpt(ty))),
+                    n => Arity::Fixed(n),
+                }
             };
             (&ty[..open], arity)
         }
