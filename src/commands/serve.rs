@@ -12,6 +12,7 @@ use chronomap_client::Client;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
 use chronomap_serve::bt_monitor::{BtMonitors, MonitorOptions};
+use chronomap_serve::heavy::HeavyLimits;
 use chronomap_serve::maps::{Maps, ServedActivity, ServedTopo};
 use chronomap_serve::server::ConnectionLimits;
 use chronomap_serve::store::{Access, OWNER_WAIT, PostgresStore, RedbStore, Store};
@@ -100,6 +101,12 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
         bt_monitors: Arc::new(
             BtMonitors::start(args.bt_monitor.clone(), MonitorOptions::default()).map_err(usage)?,
         ),
+        heavy: HeavyLimits {
+            workers: args
+                .heavy_workers
+                .map_or_else(HeavyLimits::default_workers, |n| n as usize),
+            queue: args.heavy_queue as usize,
+        },
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();

@@ -384,6 +384,15 @@ pub struct Health {
     /// Why the node is `failed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// Heavy requests (grid, activity and plan predictions) computing now.
+    #[serde(default)]
+    pub heavy_running: u64,
+    /// Heavy requests admitted and waiting for a worker.
+    #[serde(default)]
+    pub heavy_waiting: u64,
+    /// Heavy requests given up since the start because their client went away.
+    #[serde(default)]
+    pub heavy_cancelled: u64,
 }
 
 /// Which models `GET /v1/models` lists.

@@ -21,6 +21,8 @@
 //!   the models.
 //! * [`bt_monitor`]: behavior trees watched live over the Groot2 protocol
 //!   (`--bt-monitor HOST:PORT`), any number of trees of any size.
+//! * [`heavy`]: the requests that compute for a while (grid, activity and plan predictions) on
+//!   a bounded pool of their own, cancelled when their client goes away.
 //! * [`server`]: the HTTP/JSON API (axum) with its OpenAPI description.
 //!
 //! The server does not compile an HTTP client: processes that only talk to a service depend on
@@ -30,6 +32,7 @@ pub use chronomap_client::api;
 pub mod bt_monitor;
 pub mod check;
 pub mod fleet;
+pub mod heavy;
 pub mod log;
 pub mod maps;
 pub mod refit;

@@ -14,31 +14,43 @@
 //! * `GET /v1/activity/{name}`: a CoPA-Map's domain, periods and unit of time.
 //! * `POST /v1/activity/{name}/predict {t, cell?}`: mean and standard deviation of the rate
 //!   of people in every cell.
+//!
+//! Grid and activity predictions and plans compute for a while: they run on the service's
+//! pool for heavy requests ([`crate::heavy`]), are refused with `503` when it is full and are
+//! given up when their client goes away. A grid that keeps its learning state is fitted once,
+//! on its first prediction, into its compact model ([`FittedGrid`], [Krajník 2017] §VI),
+//! which then predicts every map (the same bits as refitting every changed cell each time);
+//! the served grids never change, so the compact model stays valid.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, PathRejection};
 use axum::extract::{Path, State};
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use chronomap_core::observe::ObservedSpan;
-use chronomap_grid::GridGeometry;
+use chronomap_grid::{FittedGrid, GridGeometry, OrderChoice};
 use chronomap_io::grid_file::GridFile;
 use chronomap_topo::mdp::SolverOptions;
-use chronomap_topo::plan::{Task, now_or_later};
+use chronomap_topo::plan::{Task, plan_at};
 use serde::{Deserialize, Serialize};
+use tokio::sync::watch;
 use utoipa::ToSchema;
 
-use crate::server::{ApiError, parse_body};
+use crate::heavy::{self, Heavy};
+use crate::server::{ApiError, check_time, parse_body};
 
 mod activity;
 mod topo;
 
 pub use activity::{
-    ActivityError, ActivityGrid, DEFAULT_CELL, MAX_ACTIVITY_CELLS, ServedActivity, TIME_UNIT,
-    WALL_PERCENT,
+    ActivityError, ActivityGrid, DEFAULT_CELL, MAX_ACTIVITY_CELLS, PREDICT_CHUNK, ServedActivity,
+    TIME_UNIT, WALL_PERCENT,
 };
 pub use topo::{COMPUTED_EDGE_LENGTH, MissingPositions, PositionSource, ServedTopo, training_span};
 
@@ -298,8 +310,97 @@ pub struct ActivityResponse {
     pub std: Vec<Option<f64>>,
 }
 
+/// The compact model of a grid served with its learning state, fitted on first use.
+#[derive(Debug)]
+struct FittedCache {
+    /// Whether its fit was started.
+    started: AtomicBool,
+    /// `Some` once fitted (`Err`: the fit failed, a bug).
+    ready: watch::Sender<Option<Result<Arc<FittedGrid>, String>>>,
+}
+
+/// What the map routes hold: the maps, the pool of heavy requests and the compact models of
+/// grids served with their learning state.
+#[derive(Clone, Debug)]
+pub(crate) struct MapsState {
+    maps: Arc<Maps>,
+    heavy: Arc<Heavy>,
+    fitted: Arc<BTreeMap<String, FittedCache>>,
+}
+
+impl MapsState {
+    pub(crate) fn new(maps: Arc<Maps>, heavy: Arc<Heavy>) -> Self {
+        let fitted = maps
+            .grids
+            .iter()
+            .filter(|(_, g)| matches!(g, GridFile::State(_)))
+            .map(|(name, _)| {
+                let cache = FittedCache {
+                    started: AtomicBool::new(false),
+                    ready: watch::Sender::new(None),
+                };
+                (name.clone(), cache)
+            })
+            .collect();
+        MapsState {
+            maps,
+            heavy,
+            fitted: Arc::new(fitted),
+        }
+    }
+
+    /// The compact model of the grid `name` served with its learning state: fitted on the
+    /// heavy pool by the first request that needs it (whether or not that request stays),
+    /// awaited by the others without holding a thread. `None` for a grid that is stored
+    /// fitted.
+    async fn fitted(&self, name: &str) -> Result<Option<Arc<FittedGrid>>, ApiError> {
+        let Some(cache) = self.fitted.get(name) else {
+            return Ok(None);
+        };
+        let mut ready = cache.ready.subscribe();
+        if !cache.started.swap(true, Ordering::AcqRel) {
+            let (state, name) = (self.clone(), name.to_owned());
+            self.heavy.prepare(move || {
+                let outcome = match state.maps.grids.get(&name) {
+                    Some(GridFile::State(g)) => std::panic::catch_unwind(|| {
+                        Arc::new(g.fitted(OrderChoice::Fixed(g.config().fremen.order)))
+                    })
+                    .map_err(|_| format!("the grid {name:?} could not be fitted")),
+                    _ => Err(format!("no grid {name:?} with a learning state")),
+                };
+                if let Some(cache) = state.fitted.get(&name) {
+                    cache.ready.send_replace(Some(outcome));
+                }
+            });
+        }
+        let fitted = ready
+            .wait_for(Option::is_some)
+            .await
+            .map_err(|_| ApiError::internal("the grid's fit was dropped".into()))?;
+        match fitted.as_ref() {
+            Some(Ok(fitted)) => Ok(Some(Arc::clone(fitted))),
+            Some(Err(reason)) => Err(ApiError::internal(reason.clone())),
+            None => Err(ApiError::internal("the grid's fit was dropped".into())),
+        }
+    }
+}
+
+/// A JSON answer serialised off the async threads.
+fn json_answer<T: Serialize>(value: &T) -> Result<Vec<u8>, ApiError> {
+    serde_json::to_vec(value).map_err(|e| ApiError::internal(format!("cannot write JSON: {e}")))
+}
+
+fn json_response(body: Vec<u8>) -> Response {
+    let mut response = body.into_response();
+    response.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    response
+}
+
 /// The routes, with their state.
-pub fn router(maps: Arc<Maps>) -> Router {
+pub(crate) fn router(maps: MapsState) -> Router {
     Router::new()
         .route("/v1/maps", get(list))
         .route("/v1/topo/{name}", get(topo_info))
@@ -317,16 +418,6 @@ fn name(path: Result<Path<String>, PathRejection>) -> Result<String, ApiError> {
     let Path(name) =
         path.map_err(|e| ApiError::bad_request(format!("map name in the path: {e}")))?;
     Ok(name)
-}
-
-fn finite(time: f64, field: &str) -> Result<f64, ApiError> {
-    if time.is_finite() {
-        Ok(time)
-    } else {
-        Err(ApiError::bad_request(format!(
-            "field `{field}`: not a finite time"
-        )))
-    }
 }
 
 fn topo<'a>(maps: &'a Maps, name: &str) -> Result<&'a ServedTopo, ApiError> {
@@ -349,7 +440,8 @@ fn activity<'a>(maps: &'a Maps, name: &str) -> Result<&'a ServedActivity, ApiErr
 
 /// The maps held.
 #[utoipa::path(get, path = "/v1/maps", responses((status = 200, body = MapsResponse)))]
-pub(crate) async fn list(State(maps): State<Arc<Maps>>) -> Json<MapsResponse> {
+pub(crate) async fn list(State(state): State<MapsState>) -> Json<MapsResponse> {
+    let maps = &*state.maps;
     let mut list: Vec<MapInfo> = maps
         .topological
         .iter()
@@ -381,11 +473,11 @@ pub(crate) async fn list(State(maps): State<Arc<Maps>>) -> Json<MapsResponse> {
     responses((status = 200, body = TopoInfo), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn topo_info(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<TopoInfo>, ApiError> {
     let name = name(path)?;
-    let served = topo(&maps, &name)?;
+    let served = topo(&state.maps, &name)?;
     let map = served.models().map();
     let nodes = map
         .nodes()
@@ -424,14 +516,14 @@ pub(crate) async fn topo_info(
     responses((status = 200, body = EdgesResponse), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn topo_predict(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Json<EdgesResponse>, ApiError> {
     let name = name(path)?;
     let request: TimeRequest = parse_body(body)?;
-    let time = finite(request.time, "time")?;
-    let models = topo(&maps, &name)?.models();
+    let time = check_time(request.time, "time")?;
+    let models = topo(&state.maps, &name)?.models();
     let (success, duration) = models.at(time);
     let map = models.map();
     let edges = map
@@ -455,10 +547,10 @@ pub(crate) async fn topo_predict(
     responses((status = 200, body = PlanResponse), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn topo_plan(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<PlanResponse>, ApiError> {
+) -> Result<Response, ApiError> {
     let name = name(path)?;
     let request: PlanRequest = parse_body(body)?;
     if request.times.is_empty() || request.times.len() > MAX_PLAN_TIMES {
@@ -468,32 +560,40 @@ pub(crate) async fn topo_plan(
         )));
     }
     for (i, &t) in request.times.iter().enumerate() {
-        finite(t, &format!("times[{i}]"))?;
+        check_time(t, &format!("times[{i}]"))?;
     }
-    let models = topo(&maps, &name)?.models();
+    let models = topo(&state.maps, &name)?.models();
     let start = models
         .map()
         .node(&request.from)
         .map_err(|e| ApiError::bad_request(format!("field `from`: {e}")))?;
     let task = Task::parse(&request.task, models.map())
         .map_err(|e| ApiError::bad_request(format!("field `task`: {e}")))?;
-    let plans = now_or_later(
-        models,
-        start,
-        &task,
-        &request.times,
-        &SolverOptions::default(),
-    )
-    .map_err(|e| ApiError::bad_request(format!("cannot plan: {e}")))?
-    .into_iter()
-    .map(|p| PlanResult {
-        time: p.time,
-        pmax: p.pmax,
-        expected_secs: p.expected_secs,
-        first_edge: p.first_edge.map(|e| models.map().edges()[e].id.clone()),
-    })
-    .collect();
-    Ok(Json(PlanResponse { plans }))
+    // "Now or later" (`now_or_later`), one start time at a time so that a request whose
+    // client went away stops.
+    let maps = Arc::clone(&state.maps);
+    let body = state
+        .heavy
+        .run(move |cancel| {
+            let models = topo(&maps, &name)?.models();
+            let mut plans = Vec::with_capacity(request.times.len());
+            for &time in &request.times {
+                if cancel.is_cancelled() {
+                    return Err(heavy::cancelled());
+                }
+                let p = plan_at(models, start, &task, time, &SolverOptions::default())
+                    .map_err(|e| ApiError::bad_request(format!("cannot plan: {e}")))?;
+                plans.push(PlanResult {
+                    time: p.time,
+                    pmax: p.pmax,
+                    expected_secs: p.expected_secs,
+                    first_edge: p.first_edge.map(|e| models.map().edges()[e].id.clone()),
+                });
+            }
+            json_answer(&PlanResponse { plans })
+        })
+        .await?;
+    Ok(json_response(body))
 }
 
 fn geometry(grid: &GridFile) -> GridGeometry {
@@ -510,26 +610,41 @@ fn geometry(grid: &GridFile) -> GridGeometry {
     responses((status = 200, body = GridResponse), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn grid_predict(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<GridResponse>, ApiError> {
+) -> Result<Response, ApiError> {
     let name = name(path)?;
     let request: TimeRequest = parse_body(body)?;
-    let time = finite(request.time, "time")?;
-    let grid = grid(&maps, &name)?;
-    let g = geometry(grid);
-    let values = match grid {
-        GridFile::State(g) => g.predict_map(time),
-        GridFile::Lossy(g) => g.predict(time),
-        GridFile::Lossless(g) => g.fitted.predict(time),
-    };
-    Ok(Json(GridResponse {
-        shape: [g.width, g.height, g.depth],
-        resolution: g.resolution,
-        origin: g.origin,
-        values,
-    }))
+    let time = check_time(request.time, "time")?;
+    grid(&state.maps, &name)?;
+    // Admitted before it waits for the grid's fit, so that a full pool refuses it at once.
+    let admitted = state.heavy.admit()?;
+    let cached = state.fitted(&name).await?;
+    let maps = Arc::clone(&state.maps);
+    let body = admitted
+        .run(move |_| {
+            let grid = grid(&maps, &name)?;
+            let g = geometry(grid);
+            let fitted: &FittedGrid = match (grid, cached.as_deref()) {
+                (GridFile::Lossy(g), _) => g,
+                (GridFile::Lossless(g), _) => &g.fitted,
+                (GridFile::State(_), Some(fitted)) => fitted,
+                (GridFile::State(_), None) => {
+                    return Err(ApiError::internal(format!(
+                        "the grid {name:?} is not fitted"
+                    )));
+                }
+            };
+            json_answer(&GridResponse {
+                shape: [g.width, g.height, g.depth],
+                resolution: g.resolution,
+                origin: g.origin,
+                values: fitted.predict(time),
+            })
+        })
+        .await?;
+    Ok(json_response(body))
 }
 
 /// Count and times of the frames a grid learned from.
@@ -547,11 +662,11 @@ fn frame_span(grid: &GridFile) -> ObservedSpan {
     responses((status = 200, body = GridInfo), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn grid_info(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<GridInfo>, ApiError> {
     let name = name(path)?;
-    let grid = grid(&maps, &name)?;
+    let grid = grid(&state.maps, &name)?;
     let g = geometry(grid);
     let span = frame_span(grid);
     let known = span.count > 0;
@@ -574,7 +689,7 @@ pub(crate) async fn grid_info(
     responses((status = 200, body = CellResponse), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn grid_cell(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Json<CellResponse>, ApiError> {
@@ -587,9 +702,9 @@ pub(crate) async fn grid_cell(
         )));
     }
     for (i, &t) in request.times.iter().enumerate() {
-        finite(t, &format!("times[{i}]"))?;
+        check_time(t, &format!("times[{i}]"))?;
     }
-    let grid = grid(&maps, &name)?;
+    let grid = grid(&state.maps, &name)?;
     let g = geometry(grid);
     let shape = [g.width, g.height, g.depth];
     let cell = match request.cell[..] {
@@ -635,11 +750,11 @@ pub(crate) async fn grid_cell(
     responses((status = 200, body = ActivityInfo), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn activity_info(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<ActivityInfo>, ApiError> {
     let name = name(path)?;
-    let served = activity(&maps, &name)?;
+    let served = activity(&state.maps, &name)?;
     Ok(Json(ActivityInfo {
         name,
         domain: served.model().domain(),
@@ -658,32 +773,46 @@ pub(crate) async fn activity_info(
     responses((status = 200, body = ActivityResponse), (status = 400, body = crate::api::ErrorBody),
               (status = 404, body = crate::api::ErrorBody)))]
 pub(crate) async fn activity_predict(
-    State(maps): State<Arc<Maps>>,
+    State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<ActivityResponse>, ApiError> {
+) -> Result<Response, ApiError> {
     let name = name(path)?;
     let request: ActivityRequest = parse_body(body)?;
-    activity(&maps, &name)?;
+    let t = check_time(request.t, "t")?;
     let cell = request.cell.unwrap_or(DEFAULT_CELL);
-    // A prediction over many cells takes a while: off the async threads.
-    let grid = tokio::task::spawn_blocking(move || {
-        activity(&maps, &name).map(|a| a.predict(request.t, cell))
-    })
-    .await
-    .map_err(|e| ApiError::internal(format!("the prediction failed: {e}")))??
-    .map_err(|e| match e {
+    // The cells are counted before the request waits for a worker.
+    activity(&state.maps, &name)?
+        .region(cell)
+        .map_err(activity_error)?;
+    let maps = Arc::clone(&state.maps);
+    let body = state
+        .heavy
+        .run(move |cancel| {
+            let grid = activity(&maps, &name)?
+                .predict_until(t, cell, heavy::PARALLELISM, &|| cancel.is_cancelled())
+                .map_err(activity_error)?;
+            json_answer(&ActivityResponse {
+                t,
+                origin: grid.origin,
+                cell: grid.cell,
+                shape: [grid.cols as u32, grid.rows as u32],
+                mean: grid.mean,
+                std: grid.std,
+            })
+        })
+        .await?;
+    Ok(json_response(body))
+}
+
+fn activity_error(e: ActivityError) -> ApiError {
+    match e {
         ActivityError::Model(_) => ApiError::internal(e.to_string()),
-        _ => ApiError::bad_request(e.to_string()),
-    })?;
-    Ok(Json(ActivityResponse {
-        t: request.t,
-        origin: grid.origin,
-        cell: grid.cell,
-        shape: [grid.cols as u32, grid.rows as u32],
-        mean: grid.mean,
-        std: grid.std,
-    }))
+        ActivityError::Cancelled => heavy::cancelled(),
+        ActivityError::Time(_) | ActivityError::Cell(_) | ActivityError::TooManyCells { .. } => {
+            ApiError::bad_request(e.to_string())
+        }
+    }
 }
 
 #[cfg(test)]

@@ -15,12 +15,14 @@ use axum::middleware::{self, Next};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post, put};
 use axum::{Json, Router};
+use chronomap_core::observe::MAX_TIME_SECS;
 use chronomap_core::{TemporalModel, binary_entropy};
 use serde::de::DeserializeOwned;
 use tokio::sync::{mpsc, oneshot};
 use utoipa::OpenApi;
 
 use crate::api::*;
+use crate::heavy::{Heavy, HeavyLimits};
 use crate::maps::Maps;
 use crate::refit::{RefitFailure, Refits};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, check_id};
@@ -74,6 +76,8 @@ pub struct ServiceConfig {
     pub refit: chronomap_models::RefitPolicy,
     /// Behavior trees watched over the Groot2 protocol (`--bt-monitor`).
     pub bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
+    /// Threads and queue of the requests that compute (grid, activity and plan predictions).
+    pub heavy: HeavyLimits,
 }
 
 impl Default for ServiceConfig {
@@ -87,6 +91,7 @@ impl Default for ServiceConfig {
             limits: ConnectionLimits::default(),
             refit: chronomap_models::RefitPolicy::default(),
             bt_monitors: Arc::default(),
+            heavy: HeavyLimits::default(),
         }
     }
 }
@@ -116,7 +121,7 @@ impl Drop for RefitThread {
 /// A recovered service, ready to answer requests.
 pub struct Service {
     state: AppState,
-    maps: Arc<Maps>,
+    maps: crate::maps::MapsState,
     bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
     max_body_bytes: usize,
     limits: ConnectionLimits,
@@ -135,6 +140,7 @@ struct AppState {
     allowed_hosts: Arc<[String]>,
     body_timeout: Duration,
     max_body_bytes: usize,
+    heavy: Arc<Heavy>,
 }
 
 impl Service {
@@ -146,6 +152,7 @@ impl Service {
     /// # Errors
     /// The store cannot be read or holds damaged entries (named in the message).
     pub fn start(store: Arc<dyn Store>, config: ServiceConfig) -> Result<Self, String> {
+        let heavy = Arc::new(Heavy::new(config.heavy)?);
         let shared = Arc::new(writer::recover(store)?);
         let (writes, commands) = mpsc::channel(1024);
         let writer_shared = Arc::clone(&shared);
@@ -196,8 +203,9 @@ impl Service {
                     .collect(),
                 body_timeout: config.limits.body_timeout,
                 max_body_bytes: config.max_body_bytes,
+                heavy: Arc::clone(&heavy),
             },
-            maps: config.maps,
+            maps: crate::maps::MapsState::new(config.maps, heavy),
             bt_monitors: config.bt_monitors,
             max_body_bytes: config.max_body_bytes,
             limits: config.limits,
@@ -221,7 +229,7 @@ impl Service {
     pub fn router(&self) -> Router {
         router(
             self.state.clone(),
-            Arc::clone(&self.maps),
+            self.maps.clone(),
             Arc::clone(&self.bt_monitors),
             self.max_body_bytes,
         )
@@ -377,7 +385,7 @@ impl utoipa::Modify for BearerAuth {
 
 fn router(
     state: AppState,
-    maps: Arc<Maps>,
+    maps: crate::maps::MapsState,
     bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
     max_body_bytes: usize,
 ) -> Router {
@@ -429,6 +437,8 @@ fn router(
 pub struct ApiError {
     status: StatusCode,
     body: ErrorBody,
+    /// Seconds for a `Retry-After` header.
+    retry_after: Option<u32>,
 }
 
 impl ApiError {
@@ -439,6 +449,15 @@ impl ApiError {
                 error: error.to_owned(),
                 reason,
             },
+            retry_after: None,
+        }
+    }
+
+    /// `503` with `Retry-After`: too many heavy requests ([`crate::heavy`]).
+    pub(crate) fn busy(reason: String) -> Self {
+        ApiError {
+            retry_after: Some(crate::heavy::RETRY_AFTER_SECS),
+            ..ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "busy", reason)
         }
     }
 
@@ -466,6 +485,11 @@ impl IntoResponse for ApiError {
             response
                 .headers_mut()
                 .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        if let Some(secs) = self.retry_after {
+            response
+                .headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(secs));
         }
         response
     }
@@ -744,7 +768,8 @@ async fn openapi() -> Response {
 ///
 /// A node of a fleet also reports the shared log's `head`, its `lag` behind it and for how
 /// long it has not been level with it; `status` is `behind` after 5 s and `failed` when it
-/// stopped applying the log.
+/// stopped applying the log. `heavy_running`, `heavy_waiting` and `heavy_cancelled` count the
+/// requests that compute ([`crate::heavy`]).
 #[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health),
     (status = 503, body = ErrorBody)))]
 async fn health(
@@ -752,6 +777,7 @@ async fn health(
     headers: axum::http::HeaderMap,
 ) -> Result<Json<Health>, ApiError> {
     let models = state.shared.registry.read().expect("registry lock").len() as u64;
+    let load = state.heavy.load();
     let store = state.shared.store.describe();
     let store = if authorized(&state, &headers) {
         store
@@ -780,6 +806,9 @@ async fn health(
         lag: sync.head - sync.applied,
         behind_secs: sync.behind_secs,
         reason: sync.broken,
+        heavy_running: load.running,
+        heavy_waiting: load.waiting,
+        heavy_cancelled: load.cancelled,
     }))
 }
 
@@ -1027,14 +1056,29 @@ async fn add_batch(
     Ok(Json(submit(&state, ops).await?))
 }
 
-fn check_times(times: &[f64]) -> Result<(), ApiError> {
-    // JSON has no NaN or infinity, but a client library may still send 1e999.
-    match times.iter().position(|t| !t.is_finite()) {
-        Some(i) => Err(ApiError::bad_request(format!(
-            "field `times`, element {i}: not a finite number"
-        ))),
-        None => Ok(()),
+/// A time a prediction is asked for: finite and within [`MAX_TIME_SECS`] of the epoch, either
+/// way (`400` naming `field` otherwise). JSON has no NaN or infinity, but a client library
+/// may still send 1e999 or 1e308; a time beyond 10^11 s is a unit error (milliseconds).
+pub(crate) fn check_time(time: f64, field: &str) -> Result<f64, ApiError> {
+    if !time.is_finite() {
+        return Err(ApiError::bad_request(format!(
+            "field `{field}`: not a finite number"
+        )));
     }
+    if time.abs() > MAX_TIME_SECS {
+        return Err(ApiError::bad_request(format!(
+            "field `{field}`: {time} is beyond ±{MAX_TIME_SECS:e} s (about the year 5138; \
+             a time in milliseconds?)"
+        )));
+    }
+    Ok(time)
+}
+
+fn check_times(times: &[f64]) -> Result<(), ApiError> {
+    for (i, &t) in times.iter().enumerate() {
+        check_time(t, &format!("times[{i}]"))?;
+    }
+    Ok(())
 }
 
 fn predictions(
@@ -1085,11 +1129,7 @@ fn forecasts(
     request: &ForecastRequest,
     map: fn(f64) -> f64,
 ) -> Result<ForecastResponse, ApiError> {
-    if !request.time.is_finite() {
-        return Err(ApiError::bad_request(
-            "field `time`: not a finite number".into(),
-        ));
-    }
+    check_time(request.time, "time")?;
     if let Some(orders) = &request.orders
         && orders.len() != request.ids.len()
     {

@@ -7,13 +7,19 @@ use std::fmt;
 use chronomap_activity::CopaMap;
 use chronomap_activity::grids::RegionGrid;
 use chronomap_core::Parallelism;
+use chronomap_core::observe::MAX_TIME_SECS;
 use chronomap_io::navmap::OccupancyMap;
 
 /// Side of a cell when a request gives none (m): the default of `chronomap activity predict`.
 pub const DEFAULT_CELL: f64 = 0.5;
 
-/// Most cells of one prediction.
+/// Most cells of one prediction, checked from the model's domain and the side asked for
+/// before anything is computed.
 pub const MAX_ACTIVITY_CELLS: usize = 250_000;
+
+/// Points predicted between two checks whether the client went away: a multiple of the 1024
+/// points the model predicts at once, so that the chunks give the bits of one call.
+pub const PREDICT_CHUNK: usize = 4096;
 
 /// A predicted cell is masked when its centre lies on a map cell at least this occupied
 /// (percent), as `chronomap activity predict --map` leaves it out
@@ -27,7 +33,7 @@ pub const TIME_UNIT: &str = "time bins of the training grid (t = k is the bin [t
 /// Why a prediction was refused; each names the request field at fault.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ActivityError {
-    /// `t` is not finite.
+    /// `t` is not finite or beyond ±[`MAX_TIME_SECS`].
     Time(f64),
     /// `cell` is not a positive number of metres.
     Cell(f64),
@@ -35,28 +41,39 @@ pub enum ActivityError {
     TooManyCells {
         /// The side asked for.
         cell: f64,
-        /// Columns.
-        cols: usize,
-        /// Rows.
-        rows: usize,
+        /// Cells of that side over the model's domain (may be beyond any integer).
+        cells: f64,
     },
     /// The model cannot predict (a model file that passed its checks should not get here).
     Model(String),
+    /// The request was given up (its client went away) before the prediction was done.
+    Cancelled,
 }
 
 impl fmt::Display for ActivityError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ActivityError::Time(t) => write!(f, "field `t`: {t} is not a finite number"),
+            ActivityError::Time(t) => write!(
+                f,
+                "field `t`: {t} is not a finite number within ±{MAX_TIME_SECS:e}"
+            ),
             ActivityError::Cell(c) => {
                 write!(f, "field `cell`: {c} is not a positive number of metres")
             }
-            ActivityError::TooManyCells { cell, cols, rows } => write!(
-                f,
-                "field `cell`: cells of {cell} m give {cols} × {rows} cells, more than \
-                 {MAX_ACTIVITY_CELLS}; ask for larger cells"
-            ),
+            ActivityError::TooManyCells { cell, cells } => {
+                let cells = if *cells < 1e15 {
+                    format!("{cells:.0}")
+                } else {
+                    format!("{cells:.3e}")
+                };
+                write!(
+                    f,
+                    "field `cell`: cells of {cell} m give {cells} cells over the model's \
+                     domain, more than {MAX_ACTIVITY_CELLS}; ask for larger cells"
+                )
+            }
             ActivityError::Model(reason) => write!(f, "the model cannot predict: {reason}"),
+            ActivityError::Cancelled => write!(f, "the prediction was given up"),
         }
     }
 }
@@ -107,13 +124,28 @@ impl ServedActivity {
     /// predict` takes them by default (`RegionGrid::around_centres` of the model's domain).
     ///
     /// # Errors
-    /// [`ActivityError::Cell`] for a side that is not a positive number.
+    /// [`ActivityError::Cell`] for a side that is not a positive number,
+    /// [`ActivityError::TooManyCells`] for more than [`MAX_ACTIVITY_CELLS`] (counted before any
+    /// integer or allocation is made of them).
     pub fn region(&self, cell: f64) -> Result<RegionGrid, ActivityError> {
         if !(cell.is_finite() && cell > 0.0) {
             return Err(ActivityError::Cell(cell));
         }
-        RegionGrid::around_centres(self.model.domain(), cell)
-            .map_err(|e| ActivityError::Model(format!("the model's domain {e}")))
+        let [x0, y0, x1, y1] = self.model.domain();
+        // The domain widened by half a cell each side, in cells (as `around_centres` counts).
+        let cells = ((x1 - x0) / cell + 1.0).ceil() * ((y1 - y0) / cell + 1.0).ceil();
+        if cells.is_nan() || cells > MAX_ACTIVITY_CELLS as f64 {
+            return Err(ActivityError::TooManyCells { cell, cells });
+        }
+        let grid = RegionGrid::around_centres(self.model.domain(), cell)
+            .map_err(|e| ActivityError::Model(format!("the model's domain {e}")))?;
+        if grid.len() > MAX_ACTIVITY_CELLS {
+            return Err(ActivityError::TooManyCells {
+                cell,
+                cells: grid.len() as f64,
+            });
+        }
+        Ok(grid)
     }
 
     /// Mean and standard deviation of the rate at `t` in every cell of `cell` metres over the
@@ -122,22 +154,47 @@ impl ServedActivity {
     /// out as `None`. The library lists cells from the top row; here row 0 is the bottom one.
     ///
     /// # Errors
-    /// A non-finite `t`, a bad `cell`, more than [`MAX_ACTIVITY_CELLS`] cells.
+    /// A `t` that is not finite or beyond ±[`MAX_TIME_SECS`], a bad `cell`, more than
+    /// [`MAX_ACTIVITY_CELLS`] cells.
     pub fn predict(&self, t: f64, cell: f64) -> Result<ActivityGrid, ActivityError> {
-        if !t.is_finite() {
+        self.predict_until(t, cell, Parallelism::Rayon(0), &|| false)
+    }
+
+    /// [`ServedActivity::predict`] with the given parallelism, [`PREDICT_CHUNK`] points at a
+    /// time, giving up with [`ActivityError::Cancelled`] once `cancelled()` says so (it is
+    /// asked between chunks). The values do not depend on `par` or the chunks.
+    ///
+    /// # Errors
+    /// As [`ServedActivity::predict`], and [`ActivityError::Cancelled`].
+    pub fn predict_until(
+        &self,
+        t: f64,
+        cell: f64,
+        par: Parallelism,
+        cancelled: &dyn Fn() -> bool,
+    ) -> Result<ActivityGrid, ActivityError> {
+        if !(t.is_finite() && t.abs() <= MAX_TIME_SECS) {
             return Err(ActivityError::Time(t));
         }
         let grid = self.region(cell)?;
         let (cols, rows) = (grid.cols, grid.rows);
-        if cols.saturating_mul(rows) > MAX_ACTIVITY_CELLS {
-            return Err(ActivityError::TooManyCells { cell, cols, rows });
-        }
         let centres = grid.centres();
-        let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
-        let (mean, std) = self
-            .model
-            .predict_with_std(&points, Parallelism::Rayon(0))
-            .map_err(|e| ActivityError::Model(e.to_string()))?;
+        let (mut mean, mut std) = (
+            Vec::with_capacity(centres.len()),
+            Vec::with_capacity(centres.len()),
+        );
+        for chunk in centres.chunks(PREDICT_CHUNK) {
+            if cancelled() {
+                return Err(ActivityError::Cancelled);
+            }
+            let points: Vec<([f64; 2], f64)> = chunk.iter().map(|&c| (c, t)).collect();
+            let (m, s) = self
+                .model
+                .predict_with_std(&points, par)
+                .map_err(|e| ActivityError::Model(e.to_string()))?;
+            mean.extend(m);
+            std.extend(s);
+        }
         let shown = |i: usize| {
             !self
                 .map
