@@ -78,7 +78,10 @@ pub use features::{
 };
 pub use icp::{IcpMethod, IcpParams, IcpResult, Information, icp, information};
 pub use kdtree::KdTree;
-pub use pipeline::{Registration, RegistrationParams, register, register_scans, scan_params};
+pub use pipeline::{
+    CENTRE_STEP, MAX_FEATURE_POINTS, Registration, RegistrationParams, register, register_scans,
+    scan_params,
+};
 pub use ransac::{MatchParams, RansacParams, RansacResult, match_features, ransac};
 pub use rigid::{Rigid, kabsch};
 
@@ -156,6 +159,19 @@ pub enum RegistrationError {
     /// The geometry does not determine a transform.
     #[error("degenerate: {0}")]
     Degenerate(&'static str),
+    /// More points than [`MAX_FEATURE_POINTS`] would enter feature computation.
+    #[error(
+        "{what}: {got} points on the {voxel} m coarse voxel grid, at most {MAX_FEATURE_POINTS} \
+         enter feature computation (a larger coarse voxel leaves fewer)"
+    )]
+    TooManyFeaturePoints {
+        /// `source` or `target`.
+        what: &'static str,
+        /// Points left on the coarse grid.
+        got: usize,
+        /// The coarse voxel leaf (m).
+        voxel: f64,
+    },
     /// RANSAC found no consensus.
     #[error("RANSAC: {0}")]
     NoConsensus(String),

@@ -8,7 +8,7 @@ use crate::cloud::{Cloud, Filters, positive};
 use crate::features::{estimate_normals, multiscale_fpfh};
 use crate::icp::{IcpMethod, IcpParams, IcpResult, Information, icp, information};
 use crate::kdtree::KdTree;
-use crate::ransac::{MatchParams, RansacParams, match_features, ransac};
+use crate::ransac::{MatchParams, RansacParams, match_features, ransac_about};
 use crate::rigid::{Rigid, assert_dim};
 
 /// Parameters of [`register`].
@@ -152,9 +152,32 @@ pub fn register<const D: usize>(
             });
         }
     }
-    let origin = [0.0; D];
-    let describe = |cloud: &Cloud<D>| -> Result<_, RegistrationError> {
+    // Work near the origin: clouds in a far frame (UTM: millions of metres) lose the precision
+    // the normals and the linearised ICP need (their rotations about the origin turn into huge
+    // lever arms), so every cloud is moved by −c, c the target's centroid rounded to a multiple
+    // of [`CENTRE_STEP`] (clouds near the origin are not moved at all), and the transform is
+    // moved back at the end. The sensor, at the origin, moves with them.
+    let centre = centre_of(target.points());
+    let origin: [f64; D] = std::array::from_fn(|a| -centre[a]);
+    let shift = |points: Vec<[f64; D]>| -> Vec<[f64; D]> {
+        if centre == [0.0; D] {
+            return points;
+        }
+        points
+            .into_iter()
+            .map(|p| std::array::from_fn(|a| p[a] - centre[a]))
+            .collect()
+    };
+    let describe = |cloud: &Cloud<D>, what: &'static str| -> Result<_, RegistrationError> {
         let coarse = cloud.voxel_grid(params.coarse_voxel)?.into_parts().0;
+        if coarse.len() > MAX_FEATURE_POINTS {
+            return Err(RegistrationError::TooManyFeaturePoints {
+                what,
+                got: coarse.len(),
+                voxel: params.coarse_voxel,
+            });
+        }
+        let coarse = shift(coarse);
         let tree = KdTree::new(&coarse);
         let normals = estimate_normals(
             &coarse,
@@ -173,8 +196,8 @@ pub fn register<const D: usize>(
         )?;
         Ok((coarse, features))
     };
-    let (src_coarse, src_features) = describe(&source)?;
-    let (tgt_coarse, tgt_features) = describe(&target)?;
+    let (src_coarse, src_features) = describe(&source, "source")?;
+    let (tgt_coarse, tgt_features) = describe(&target, "target")?;
     let correspondences = match_features(
         &src_features.histograms,
         &src_features.keypoints,
@@ -182,7 +205,13 @@ pub fn register<const D: usize>(
         &tgt_features.keypoints,
         &params.matching,
     )?;
-    let consensus = ransac(&src_coarse, &tgt_coarse, &correspondences, &params.ransac)?;
+    let consensus = ransac_about(
+        &src_coarse,
+        &tgt_coarse,
+        &correspondences,
+        &params.ransac,
+        &centre,
+    )?;
     let (src_fine, tgt_fine) = match params.fine_voxel {
         Some(leaf) => (
             source.voxel_grid(leaf)?.into_parts().0,
@@ -190,6 +219,7 @@ pub fn register<const D: usize>(
         ),
         None => (source.into_parts().0, target.into_parts().0),
     };
+    let (src_fine, tgt_fine) = (shift(src_fine), shift(tgt_fine));
     let tree = KdTree::new(&tgt_fine);
     let normals = estimate_normals(
         &tgt_fine,
@@ -224,9 +254,13 @@ pub fn register<const D: usize>(
         params.information_distance,
         params.min_sigma,
     )?;
+    let fine = IcpResult {
+        transform: uncentre(&fine.transform, &centre),
+        ..fine
+    };
     Ok(Registration {
         transform: fine.transform,
-        coarse: consensus.transform,
+        coarse: uncentre(&consensus.transform, &centre),
         coarse_points: (src_coarse.len(), tgt_coarse.len()),
         keypoints: (src_features.keypoints.len(), tgt_features.keypoints.len()),
         correspondences: correspondences.len(),
@@ -235,6 +269,45 @@ pub fn register<const D: usize>(
         icp: fine,
         information: info,
     })
+}
+
+/// The most points of one cloud that enter feature computation (normals, FPFH, matching):
+/// 250,000. FPFH keeps every point's neighbour list (up to
+/// [`RegistrationParams::feature_neighbours`] + 1 entries of 16 bytes) and a 264-byte histogram
+/// per scale, about 2 KB a point with the defaults, so this bounds that stage to about 0.5 GB
+/// a cloud. More points after the coarse voxel grid are
+/// [`RegistrationError::TooManyFeaturePoints`]: a larger [`RegistrationParams::coarse_voxel`]
+/// leaves fewer.
+pub const MAX_FEATURE_POINTS: usize = 250_000;
+
+/// Clouds are moved by their target's centroid rounded to a multiple of this many metres before
+/// registration ([`register`]): 64, so that clouds within 32 m of the origin are registered
+/// exactly as given.
+pub const CENTRE_STEP: f64 = 64.0;
+
+/// The centroid of `points` rounded to a multiple of [`CENTRE_STEP`] (zero for no points).
+fn centre_of<const D: usize>(points: &[[f64; D]]) -> [f64; D] {
+    if points.is_empty() {
+        return [0.0; D];
+    }
+    let n = points.len() as f64;
+    std::array::from_fn(|a| {
+        let mean = points.iter().map(|p| p[a]).sum::<f64>() / n;
+        (mean / CENTRE_STEP).round() * CENTRE_STEP
+    })
+}
+
+/// `T` of points moved by `−c` as a transform of the unmoved points: `p ↦ R (p − c) + t + c`,
+/// i.e. rotation `R`, translation `t + c − R c`.
+pub(crate) fn uncentre<const D: usize>(t: &Rigid<D>, centre: &[f64; D]) -> Rigid<D> {
+    if *centre == [0.0; D] {
+        return *t;
+    }
+    let rc = t.rotate(centre);
+    Rigid {
+        rotation: t.rotation,
+        translation: std::array::from_fn(|a| t.translation[a] + (centre[a] - rc[a])),
+    }
 }
 
 /// Parameters for 2-D laser scans of indoor spaces (SICK-like, 0.5° beams): coarse voxel

@@ -135,6 +135,19 @@ pub fn ransac<const D: usize>(
     correspondences: &[(usize, usize)],
     params: &RansacParams,
 ) -> Result<RansacResult<D>, RegistrationError> {
+    ransac_about(source, target, correspondences, params, &[0.0; D])
+}
+
+/// [`ransac`] on points moved by `−centre` (see [`crate::register`]): the hypotheses and the
+/// result are transforms of the moved points, [`RansacParams::max_translation`] applies to
+/// the translation of the unmoved ones.
+pub(crate) fn ransac_about<const D: usize>(
+    source: &[[f64; D]],
+    target: &[[f64; D]],
+    correspondences: &[(usize, usize)],
+    params: &RansacParams,
+    centre: &[f64; D],
+) -> Result<RansacResult<D>, RegistrationError> {
     const { assert_dim::<D>() };
     crate::cloud::positive("inlier_distance", params.inlier_distance)?;
     if !(params.confidence > 0.0 && params.confidence < 1.0) {
@@ -204,7 +217,7 @@ pub fn ransac<const D: usize>(
         let Ok(t) = kabsch(&ps, &qs) else { continue };
         if params
             .max_translation
-            .is_some_and(|m| t.translation_norm() > m)
+            .is_some_and(|m| crate::pipeline::uncentre(&t, centre).translation_norm() > m)
         {
             continue;
         }

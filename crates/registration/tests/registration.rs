@@ -376,6 +376,94 @@ fn small_gicp_pair_without_initial_guess() {
     );
 }
 
+/// The bundled small_gicp pair on a 10 cm grid within 30 m, and its shipped transform.
+fn small_gicp_pair() -> (Cloud<3>, Cloud<3>, Rigid<3>) {
+    let data = chronomap_testutil::data_path("registration_small_gicp");
+    let filters = Filters {
+        voxel: Some(0.1),
+        height: None,
+        intensity: None,
+        range: Some((0.0, 30.0)),
+        max_points: None,
+    };
+    let read = |name: &str| {
+        filters
+            .apply(&chronomap_io::read_ply(data.join(name)).unwrap())
+            .unwrap()
+    };
+    let text = std::fs::read_to_string(data.join("T_target_source.txt")).unwrap();
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(|w| w.parse().unwrap())
+        .collect();
+    let m: [[f64; 4]; 4] = std::array::from_fn(|i| std::array::from_fn(|j| v[4 * i + j]));
+    let truth = Rigid::from_matrix4(&m).unwrap();
+    (read("source.ply.xz"), read("target.ply.xz"), truth)
+}
+
+#[test]
+fn a_room_far_from_the_origin_registers_as_at_the_origin() {
+    // The same pair moved 500 km east and 5,000 km north (a UTM frame): the transform between
+    // the moved clouds is T' = shift ∘ T ∘ shift⁻¹, i.e. the same rotation and the translation
+    // t + c − R c. Before the clouds were centred, ICP's normal equations (rotations about an
+    // origin thousands of km away) were refused as "degenerate (a plane or a corridor)".
+    let (source, target, truth) = small_gicp_pair();
+    let params = RegistrationParams::for_voxel(0.25);
+    let near = register(&source, &target, &params).unwrap();
+    for c in [[1000.0, 1000.0, 0.0], [500_000.0, 5_000_000.0, 0.0]] {
+        let shift = Rigid {
+            rotation: Rigid::<3>::identity().rotation,
+            translation: c,
+        };
+        let moved = |cloud: &Cloud<3>| cloud.transformed(&shift);
+        let far = register(&moved(&source), &moved(&target), &params)
+            .unwrap_or_else(|e| panic!("{c:?}: {e}"));
+        // Back in the frame of the original clouds.
+        let back = shift.inverse().compose(&far.transform).compose(&shift);
+        let (r, t) = back.error_to(&truth);
+        assert!(
+            r.to_degrees() < 0.1 && t < 0.02,
+            "{c:?}: {}° {t} m",
+            r.to_degrees()
+        );
+        let (r, t) = back.error_to(&near.transform);
+        assert!(
+            r.to_degrees() < 0.01 && t < 0.002,
+            "{c:?}: {}° {t} m from the near result",
+            r.to_degrees()
+        );
+    }
+}
+
+#[test]
+fn too_many_points_for_features_are_refused_before_the_work() {
+    // 300,000 points of a 10 m cube on a 1 mm grid: nearly every point keeps its own voxel,
+    // more than MAX_FEATURE_POINTS would get FPFH histograms (about 2 KB each).
+    let mut rng = Xoshiro256StarStar::seed_from_u64(3);
+    let points: Vec<[f64; 3]> = (0..300_000)
+        .map(|_| std::array::from_fn(|_| rng.uniform(0.0, 10.0)))
+        .collect();
+    let cloud = Cloud::from_points(points).unwrap();
+    let small = Cloud::from_points(box_cloud()).unwrap();
+    let params = RegistrationParams::for_voxel(0.001);
+    let e = register(&small, &cloud, &params).unwrap_err();
+    let RegistrationError::TooManyFeaturePoints { what, got, voxel } = e.clone() else {
+        panic!("{e}");
+    };
+    assert_eq!((what, voxel), ("target", 0.001));
+    assert!(
+        got > chronomap_registration::MAX_FEATURE_POINTS && got <= 300_000,
+        "{got}"
+    );
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "target: {got} points on the 0.001 m coarse voxel grid, at most 250000 enter \
+             feature computation (a larger coarse voxel leaves fewer)"
+        )
+    );
+}
+
 #[test]
 fn malaga_loop_pairs_without_initial_guess() {
     // Two loop pairs of the bundled Málaga keyframes, the second 2.5 m and 71 keyframes apart; the SLAM estimate is the reference (itself an estimate: a few cm).
