@@ -35,7 +35,9 @@
 //! robot it sits 0.78 m ahead of the robot origin, so the place a scan sees is
 //! `pose ⊕ sensor`, not `pose` ([`SensorPose::in_map`]).
 //!
-//! Every number must be finite; `n` must be an integer from 2 to [`MAX_BEAMS`] and the line
+//! Every number must be finite; lengths (poses, sensor offsets, increments, the maximum range)
+//! at most [`MAX_LENGTH_M`] and angles at most [`MAX_ANGLE_RAD`] in magnitude (`odometry.txt:5:
+//! dx: "1e300" is beyond ±1000000 m`); `n` must be an integer from 2 to [`MAX_BEAMS`] and the line
 //! must hold exactly `2n` values after it; ranges must not be negative, flags must be `0` or
 //! `1`, times must not go backwards. Anything else is a [`LaserTextError`] naming file, line
 //! and field (`scans.txt:17: range 12: "-1" is negative`).
@@ -48,6 +50,15 @@ pub use chronomap_lidar::scan::MAX_BEAMS;
 
 /// The longest line read (16 MiB: a scan of [`MAX_BEAMS`] beams written with short numbers).
 pub const MAX_LINE_BYTES: usize = 16 << 20;
+
+/// The largest magnitude of a length in these files (m): poses, sensor offsets, odometry
+/// increments and the maximum range, `|x| ≤ 10⁶` (1,000 km). Larger values are no indoor or
+/// outdoor robot's, and would overflow the covariances computed from them.
+pub const MAX_LENGTH_M: f64 = 1e6;
+
+/// The largest magnitude of an angle in these files (rad): yaws and odometry rotations,
+/// `|θ| ≤ 10⁴` (about 1,600 turns, room for unwrapped headings).
+pub const MAX_ANGLE_RAD: f64 = 1e4;
 
 /// A file of this module that cannot be read, or a line that breaks its format: the file, the
 /// 1-based line (none for problems of the whole file), the field and what is wrong with it.
@@ -171,9 +182,9 @@ pub fn read_keyframes_from(name: &str, reader: impl Read) -> Result<Vec<Keyframe
     let mut keyframes = Vec::new();
     for_each_line(name, reader, |line, fields| {
         let pose = [
-            finite(fields, 0, "pose_x")?,
-            finite(fields, 1, "pose_y")?,
-            finite(fields, 2, "pose_yaw")?,
+            length(fields, 0, "pose_x")?,
+            length(fields, 1, "pose_y")?,
+            angle(fields, 2, "pose_yaw")?,
         ];
         let scan = parse_scan(fields, 3)?;
         clock.check(scan.scan.time, line)?;
@@ -213,9 +224,9 @@ pub fn read_odometry_from(
         clock.check(time, line)?;
         rows.push(OdometryIncrement {
             time,
-            dx: finite(fields, 1, "dx")?,
-            dy: finite(fields, 2, "dy")?,
-            dyaw: finite(fields, 3, "dyaw")?,
+            dx: length(fields, 1, "dx")?,
+            dy: length(fields, 2, "dy")?,
+            dyaw: angle(fields, 3, "dyaw")?,
         });
         Ok(())
     })?;
@@ -336,6 +347,34 @@ fn finite(fields: &[&str], index: usize, field: &str) -> Result<f64, FieldError>
     Ok(value)
 }
 
+/// The field `index` as a finite number of magnitude at most `limit` (`unit` for the message).
+fn bounded(
+    fields: &[&str],
+    index: usize,
+    field: &str,
+    limit: f64,
+    unit: &str,
+) -> Result<f64, FieldError> {
+    let value = finite(fields, index, field)?;
+    if value.abs() > limit {
+        return Err(field_error(
+            field,
+            format!("{} is beyond ±{limit} {unit}", quote(fields[index])),
+        ));
+    }
+    Ok(value)
+}
+
+/// A length (m), at most [`MAX_LENGTH_M`] in magnitude.
+fn length(fields: &[&str], index: usize, field: &str) -> Result<f64, FieldError> {
+    bounded(fields, index, field, MAX_LENGTH_M, "m")
+}
+
+/// An angle (rad), at most [`MAX_ANGLE_RAD`] in magnitude.
+fn angle(fields: &[&str], index: usize, field: &str) -> Result<f64, FieldError> {
+    bounded(fields, index, field, MAX_ANGLE_RAD, "rad")
+}
+
 fn quote(text: &str) -> String {
     let short: String = text.chars().take(40).collect();
     format!("{short:?}")
@@ -359,7 +398,7 @@ fn parse_scan(fields: &[&str], first: usize) -> Result<LaserScan, FieldError> {
             format!("{right_to_left} is not 0 or 1"),
         ));
     }
-    let max_range = f(3, "max_range_m")?;
+    let max_range = length(fields, first + 3, "max_range_m")?;
     if max_range <= 0.0 {
         return Err(field_error(
             "max_range_m",
@@ -367,10 +406,10 @@ fn parse_scan(fields: &[&str], first: usize) -> Result<LaserScan, FieldError> {
         ));
     }
     let sensor = SensorPose {
-        x: f(4, "sensor_x")?,
-        y: f(5, "sensor_y")?,
-        z: f(6, "sensor_z")?,
-        yaw: f(7, "sensor_yaw")?,
+        x: length(fields, first + 4, "sensor_x")?,
+        y: length(fields, first + 5, "sensor_y")?,
+        z: length(fields, first + 6, "sensor_z")?,
+        yaw: angle(fields, first + 7, "sensor_yaw")?,
     };
     let n = f(8, "n")?;
     if n.fract() != 0.0 || n < 2.0 || n > MAX_BEAMS as f64 {
@@ -585,6 +624,42 @@ mod tests {
         std::fs::remove_file(&tmp).ok();
         assert!(e.file.ends_with(".txt.xz"), "{e}");
         assert_eq!(e.field, "file");
+    }
+
+    #[test]
+    fn absurd_lengths_and_angles_are_refused_at_their_field() {
+        // 1e300 m increments made the covariance of the pose infinite, then NaN, which the map
+        // manager printed as σ = 0.00 m.
+        let e = read_odometry_from("o.txt", "1 0 0 0\n2 1e300 0 0\n".as_bytes()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            r#"o.txt:2: dx: "1e300" is beyond ±1000000 m"#
+        );
+        let e = read_odometry_from("o.txt", "1 0 -1000000.5 0\n".as_bytes()).unwrap_err();
+        assert_eq!((e.line, e.field.as_str()), (Some(1), "dy"));
+        let e = read_odometry_from("o.txt", "1 0 0 2e4\n".as_bytes()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            r#"o.txt:1: dyaw: "2e4" is beyond ±10000 rad"#
+        );
+        // The bounds themselves are accepted.
+        let ok = read_odometry_from("o.txt", "1 1e6 -1e6 -1e4\n".as_bytes()).unwrap();
+        assert_eq!((ok[0].dx, ok[0].dy, ok[0].dyaw), (1e6, -1e6, -1e4));
+        let good = scan_line(3);
+        assert_eq!(
+            scan_error(&good.replacen(" 0.78 ", " 1e300 ", 1)),
+            r#"s.txt:1: sensor_x: "1e300" is beyond ±1000000 m"#
+        );
+        assert_eq!(
+            scan_error(&good.replacen(" 80 ", " 1e7 ", 1))
+                .split(':')
+                .nth(2),
+            Some(" max_range_m")
+        );
+        let e = read_keyframes_from("k.txt", format!("1e200 0 0 {good}").as_bytes()).unwrap_err();
+        assert_eq!((e.line, e.field.as_str()), (Some(1), "pose_x"));
+        let e = read_keyframes_from("k.txt", format!("0 0 -1e5 {good}").as_bytes()).unwrap_err();
+        assert_eq!((e.line, e.field.as_str()), (Some(1), "pose_yaw"));
     }
 
     #[test]
