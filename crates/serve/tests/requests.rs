@@ -10,6 +10,10 @@ use std::sync::Arc;
 use axum::Router;
 use axum::body::{Body, to_bytes};
 use axum::http::{Request, StatusCode};
+use chronomap_activity::{CopaConfig, CopaMap};
+use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
+use chronomap_io::grid_file::GridFile;
+use chronomap_serve::maps::{Maps, ServedActivity};
 use chronomap_serve::store::RedbStore;
 use chronomap_serve::{Service, ServiceConfig};
 use proptest::prelude::*;
@@ -18,8 +22,8 @@ use tower::ServiceExt;
 
 const TOKEN: &str = "0123456789abcdef0123456789abcdef";
 
-/// Every endpoint that takes a body, and the two that take a path only.
-const ENDPOINTS: [(&str, &str); 15] = [
+/// Every endpoint that takes a body, and some that take a path only.
+const ENDPOINTS: [(&str, &str); 20] = [
     ("PUT", "/v1/models/door"),
     ("POST", "/v1/models/door/refit"),
     ("POST", "/v1/add"),
@@ -35,6 +39,11 @@ const ENDPOINTS: [(&str, &str); 15] = [
     ("GET", "/v1/models/door/observations"),
     ("DELETE", "/v1/models/nothing-here"),
     ("POST", "/v1/maps"),
+    ("POST", "/v1/grid/door/predict"),
+    ("POST", "/v1/grid/door/cell"),
+    ("GET", "/v1/grid/door"),
+    ("POST", "/v1/activity/atc/predict"),
+    ("GET", "/v1/activity/atc"),
 ];
 
 fn config() -> Config {
@@ -50,8 +59,39 @@ fn config() -> Config {
     }
 }
 
-/// A service with one model, `door`, of a day of hourly observations; its router, and the
-/// runtime to drive it.
+/// The maps served: `door`, a grid of three cells (a door open by day, a wall, a free cell)
+/// over three days, and `atc`, a CoPA-Map fitted cheaply on the bundled ATC grid.
+fn maps() -> Maps {
+    let geometry = GridGeometry::planar(3, 1, 0.5, [0.0, 0.0]).unwrap();
+    let mut grid = FremenGrid::new(geometry, GridConfig::default()).unwrap();
+    for k in 0..3 * 48 {
+        let t = 1_400_000_000.0 + f64::from(k) * 1800.0;
+        let day = ((t % 86_400.0) / 3600.0 - 12.0).abs() < 5.0;
+        grid.observe_occupancy(t, &[if day { 0 } else { 100 }, 100, 0])
+            .unwrap();
+    }
+    let train = chronomap_io::read_rate_samples(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
+    ))
+    .unwrap();
+    let copa = CopaConfig {
+        inducing: 10,
+        iterations: 3,
+        ..CopaConfig::default()
+    };
+    let mut maps = Maps::default();
+    maps.grids
+        .insert("door".into(), GridFile::State(Box::new(grid)));
+    maps.activity.insert(
+        "atc".into(),
+        ServedActivity::new(CopaMap::fit(&train, &copa).unwrap(), None),
+    );
+    maps
+}
+
+/// A service with one model, `door`, of a day of hourly observations, and the [`maps`]; its
+/// router, and the runtime to drive it.
 struct Fixture {
     router: Router,
     runtime: tokio::runtime::Runtime,
@@ -71,6 +111,7 @@ fn fixture() -> Fixture {
         store,
         ServiceConfig {
             token: Some(TOKEN.into()),
+            maps: Arc::new(maps()),
             ..ServiceConfig::default()
         },
     )
@@ -129,6 +170,18 @@ fn json_value() -> impl Strategy<Value = serde_json::Value> {
             .prop_filter("finite", |f| f.is_finite())
             .prop_map(|f| serde_json::json!(f)),
         any::<i64>().prop_map(|i| serde_json::json!(i)),
+        // Times and sizes at the edges: beyond any time, below any cell, a cell or a time the
+        // maps know.
+        prop_oneof![
+            Just(1e308),
+            Just(-1e308),
+            Just(1e-300),
+            Just(1.0000001e11),
+            Just(0.5),
+            Just(5.0),
+            Just(1.4e9),
+        ]
+        .prop_map(|f| serde_json::json!(f)),
         prop_oneof![
             Just("door".to_owned()),
             Just("fremen:2".to_owned()),
@@ -150,6 +203,8 @@ fn json_value() -> impl Strategy<Value = serde_json::Value> {
             Just("order".to_owned()),
             Just("confidence".to_owned()),
             Just("batches".to_owned()),
+            Just("t".to_owned()),
+            Just("cell".to_owned()),
             "[a-z]{1,6}",
         ];
         prop_oneof![
@@ -158,6 +213,24 @@ fn json_value() -> impl Strategy<Value = serde_json::Value> {
                 .prop_map(|m| Value::Object(m.into_iter().collect())),
         ]
     })
+}
+
+/// Numbers for times and cell sides: any finite one, the extremes, and ones the maps use.
+fn number() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        any::<f64>().prop_filter("finite", |f| f.is_finite()),
+        prop_oneof![
+            Just(1e308),
+            Just(-1e308),
+            Just(1e-300),
+            Just(-1e-300),
+            Just(0.0),
+            Just(1e11),
+            Just(-1.0000001e11),
+        ],
+        -2e11..2e11f64,
+        0.3..100.0f64,
+    ]
 }
 
 fn assert_answered(status: StatusCode, text: &str) -> Result<(), TestCaseError> {
@@ -208,6 +281,33 @@ proptest! {
     }
 
     #[test]
+    fn any_time_or_cell_to_the_grid_and_activity_maps_gets_a_client_error_or_an_answer(
+        endpoint in 0..3usize,
+        time in number(),
+        cell in proptest::option::of(number()),
+    ) {
+        thread_local!(static FIXTURE: Fixture = fixture());
+        FIXTURE.with(|f| {
+            let (path, body) = match endpoint {
+                0 => ("/v1/grid/door/predict", serde_json::json!({ "time": time })),
+                1 => ("/v1/grid/door/cell", serde_json::json!({ "cell": [2, 0], "times": [time] })),
+                _ => ("/v1/activity/atc/predict", serde_json::json!({ "t": time, "cell": cell })),
+            };
+            let (status, text) = f.send("POST", path, body.to_string().into_bytes());
+            assert_answered(status, &text)?;
+            let finite = |x: f64| x.is_finite() && x.abs() <= 1e11;
+            // A time within ±1e11 s (and a cell giving at most 250,000 cells) is answered.
+            let cell_ok = cell.is_none_or(|c| (0.1..=1e11).contains(&c));
+            if finite(time) && (endpoint < 2 || cell_ok) {
+                prop_assert_eq!(status, StatusCode::OK, "{} {}: {}", path, body, text);
+            } else if !finite(time) {
+                prop_assert_eq!(status, StatusCode::BAD_REQUEST, "{} {}: {}", path, body, text);
+            }
+            Ok(())
+        })?;
+    }
+
+    #[test]
     fn valid_predictions_answer_one_probability_per_time(
         times in proptest::collection::vec(0.0f64..1e11, 1..64),
     ) {
@@ -225,5 +325,70 @@ proptest! {
             }
             Ok(())
         })?;
+    }
+}
+
+#[test]
+fn times_and_cells_beyond_the_limits_are_refused_naming_the_field() {
+    use serde_json::json;
+    let f = fixture();
+    let refused = [
+        (
+            "/v1/grid/door/predict",
+            json!({"time": 1e308}),
+            "field `time`",
+        ),
+        (
+            "/v1/grid/door/predict",
+            json!({"time": -1e308}),
+            "field `time`",
+        ),
+        (
+            "/v1/grid/door/cell",
+            json!({"cell": [0, 0], "times": [1.4e9, 1e308]}),
+            "field `times[1]`",
+        ),
+        (
+            "/v1/predict",
+            json!({"id": "door", "times": [1.7e9, 1.0000001e11]}),
+            "field `times[1]`",
+        ),
+        (
+            "/v1/forecast",
+            json!({"ids": ["door"], "time": -1e308}),
+            "field `time`",
+        ),
+        ("/v1/activity/atc/predict", json!({"t": 1e308}), "field `t`"),
+        (
+            "/v1/activity/atc/predict",
+            json!({"t": 5.0, "cell": 1e-300}),
+            "field `cell`: cells of 1e-300 m give 2.4e301 × 2.4e301 cells",
+        ),
+        // 24 m of ATC in cells of 1 cm: 2401 × 2401 cells.
+        (
+            "/v1/activity/atc/predict",
+            json!({"t": 5.0, "cell": 0.01}),
+            "field `cell`: cells of 0.01 m give 2401 × 2401 cells over the model's domain, \
+             more than 250000",
+        ),
+        (
+            "/v1/activity/atc/predict",
+            json!({"t": 5.0, "cell": -1.0}),
+            "field `cell`: -1 is not a positive number",
+        ),
+    ];
+    for (path, body, reason) in refused {
+        let (status, text) = f.send("POST", path, body.to_string().into_bytes());
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{path} {body}: {text}");
+        assert!(text.contains(reason), "{path} {body}: {text}");
+    }
+    // The limits themselves are times.
+    for (path, body) in [
+        ("/v1/grid/door/predict", json!({"time": 1e11})),
+        ("/v1/predict", json!({"id": "door", "times": [-1e11, 1e11]})),
+        ("/v1/activity/atc/predict", json!({"t": -1e11})),
+    ] {
+        let (status, text) = f.send("POST", path, body.to_string().into_bytes());
+        assert_eq!(status, StatusCode::OK, "{path} {body}: {text}");
     }
 }

@@ -41,8 +41,10 @@ pub enum ActivityError {
     TooManyCells {
         /// The side asked for.
         cell: f64,
-        /// Cells of that side over the model's domain (may be beyond any integer).
-        cells: f64,
+        /// Columns of that side over the model's domain (may be beyond any integer).
+        cols: f64,
+        /// Rows, likewise.
+        rows: f64,
     },
     /// The model cannot predict (a model file that passed its checks should not get here).
     Model(String),
@@ -57,21 +59,19 @@ impl fmt::Display for ActivityError {
                 f,
                 "field `t`: {t} is not a finite number within ±{MAX_TIME_SECS:e}"
             ),
-            ActivityError::Cell(c) => {
-                write!(f, "field `cell`: {c} is not a positive number of metres")
-            }
-            ActivityError::TooManyCells { cell, cells } => {
-                let cells = if *cells < 1e15 {
-                    format!("{cells:.0}")
-                } else {
-                    format!("{cells:.3e}")
-                };
-                write!(
-                    f,
-                    "field `cell`: cells of {cell} m give {cells} cells over the model's \
-                     domain, more than {MAX_ACTIVITY_CELLS}; ask for larger cells"
-                )
-            }
+            ActivityError::Cell(c) => write!(
+                f,
+                "field `cell`: {} is not a positive number of metres",
+                number(*c)
+            ),
+            ActivityError::TooManyCells { cell, cols, rows } => write!(
+                f,
+                "field `cell`: cells of {} m give {} × {} cells over the model's domain, \
+                 more than {MAX_ACTIVITY_CELLS}; ask for larger cells",
+                number(*cell),
+                number(*cols),
+                number(*rows)
+            ),
             ActivityError::Model(reason) => write!(f, "the model cannot predict: {reason}"),
             ActivityError::Cancelled => write!(f, "the prediction was given up"),
         }
@@ -79,6 +79,16 @@ impl fmt::Display for ActivityError {
 }
 
 impl std::error::Error for ActivityError {}
+
+/// `x` as Rust writes it between 0.001 and 10^15, else in scientific notation (`1e-300`, not
+/// three hundred zeros).
+fn number(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e15).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
 
 /// The prediction over a grid of cells (row 0 at the bottom).
 #[derive(Clone, Debug, PartialEq)]
@@ -133,16 +143,21 @@ impl ServedActivity {
         }
         let [x0, y0, x1, y1] = self.model.domain();
         // The domain widened by half a cell each side, in cells (as `around_centres` counts).
-        let cells = ((x1 - x0) / cell + 1.0).ceil() * ((y1 - y0) / cell + 1.0).ceil();
+        let (cols, rows) = (
+            ((x1 - x0) / cell + 1.0).ceil(),
+            ((y1 - y0) / cell + 1.0).ceil(),
+        );
+        let cells = cols * rows;
         if cells.is_nan() || cells > MAX_ACTIVITY_CELLS as f64 {
-            return Err(ActivityError::TooManyCells { cell, cells });
+            return Err(ActivityError::TooManyCells { cell, cols, rows });
         }
         let grid = RegionGrid::around_centres(self.model.domain(), cell)
             .map_err(|e| ActivityError::Model(format!("the model's domain {e}")))?;
         if grid.len() > MAX_ACTIVITY_CELLS {
             return Err(ActivityError::TooManyCells {
                 cell,
-                cells: grid.len() as f64,
+                cols: grid.cols as f64,
+                rows: grid.rows as f64,
             });
         }
         Ok(grid)
