@@ -159,6 +159,7 @@ fn ingest_states(bag: &Bag, topic: &str, args: &IngestArgs, output: &Path) -> Re
         ))
     })?;
     let states = bag.read_states(topic, args.time.into(), &ProgressBar::new())?;
+    warn_count(bag, topic, states.times.len());
     let name = format!("{} {topic}", bag.name());
     let training = Training {
         json: json!({
@@ -224,6 +225,13 @@ fn time_name(time: TimeArg) -> &'static str {
 
 /// Prints what was read and written.
 #[allow(clippy::too_many_arguments)]
+/// Says so when `metadata.yaml` counts another number of messages on `topic` than were read.
+fn warn_count(bag: &Bag, topic: &str, messages: usize) {
+    if let Some(warning) = bag.count_warning(topic, messages as u64) {
+        crate::errln!("warning: {warning}");
+    }
+}
+
 fn report(
     args: &IngestArgs,
     bag: &Bag,
@@ -234,6 +242,7 @@ fn report(
     output: &Path,
     details: Value,
 ) -> Result<()> {
+    warn_count(bag, topic, messages);
     if args.json {
         return print_json(&json!({
             "bag": bag.name(),
@@ -279,6 +288,9 @@ fn makes(kind: Option<RecordKind>) -> &'static str {
 /// Lists every topic: unknown ones too, with the reason they are not used.
 fn list(bag: &Bag, json_out: bool) -> Result<()> {
     let summary: BagSummary = bag.summary(&ProgressBar::new())?;
+    for warning in &summary.warnings {
+        crate::errln!("warning: {warning}");
+    }
     if json_out {
         let topics: Vec<Value> = summary
             .topics
@@ -306,6 +318,7 @@ fn list(bag: &Bag, json_out: bool) -> Result<()> {
             "messages": summary.messages,
             "bytes": summary.bytes,
             "topics": topics,
+            "warnings": summary.warnings,
         }));
     }
     let topics = summary.topics.len();

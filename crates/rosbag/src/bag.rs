@@ -21,7 +21,7 @@
 //! ```
 
 use std::cell::RefCell;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
 use std::fs::File;
 use std::io::{self, BufReader, Read};
@@ -216,6 +216,8 @@ pub struct BagSummary {
     pub bytes: u64,
     /// The topics in order of first appearance.
     pub topics: Vec<TopicSummary>,
+    /// Where `metadata.yaml` disagrees with what was read (its message counts), in words.
+    pub warnings: Vec<String>,
 }
 
 /// One topic of a bag.
@@ -405,6 +407,15 @@ impl Bag {
     ) -> Result<(), E> {
         progress.stage(&format!("reading {}", self.name), self.size());
         let sequence = RefCell::new(Sequence::default());
+        // The types metadata.yaml gives its topics (the first entry of a topic).
+        let mut listed: HashMap<&str, (usize, &str)> = HashMap::new();
+        if let Some(meta) = &self.metadata {
+            for (i, t) in meta.topics_with_message_count.iter().enumerate() {
+                listed
+                    .entry(t.topic_metadata.name.as_str())
+                    .or_insert((i, t.topic_metadata.type_name.as_str()));
+            }
+        }
         for file in &self.files {
             let file_name = file.display().to_string();
             // A bag that is one file is named once.
@@ -419,7 +430,16 @@ impl Bag {
                 },
                 problem,
             };
-            let mut next = |channel, log_time, publish_time, data: Vec<u8>| -> Result<(), E> {
+            // The channels of this file already checked against metadata.yaml.
+            let mut checked: HashSet<u16> = HashSet::new();
+            let mut next = |channel: Arc<mcap::Channel<'static>>,
+                            log_time,
+                            publish_time,
+                            data: Vec<u8>|
+             -> Result<(), E> {
+                if checked.insert(channel.id) {
+                    self.check_listed_type(&listed, &channel)?;
+                }
                 let data = if self.compression == Compression::Message {
                     decompress_message(&data).map_err(|problem| {
                         file_err(
@@ -492,26 +512,62 @@ impl Bag {
         Ok(())
     }
 
-    /// The type (`pkg/msg/Type`) of `topic`: from `metadata.yaml` if it lists the topic, else
-    /// from the first message on it; `None` if the bag has no such topic.
+    /// A storage file's channel against the type `metadata.yaml` gives its topic: the storage
+    /// is the source of truth (its messages were written, and are decoded, with its type), so
+    /// a `metadata.yaml` that says otherwise is an error, not a type to trust.
+    fn check_listed_type(
+        &self,
+        listed: &HashMap<&str, (usize, &str)>,
+        channel: &mcap::Channel<'_>,
+    ) -> Result<(), BagError> {
+        let stored = channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        let Some(&(i, said)) = listed.get(channel.topic.as_str()) else {
+            return Ok(());
+        };
+        let canonical = |n: &str| canonical_type_name(n).unwrap_or_else(|| n.to_string());
+        if stored.is_empty() || canonical(stored) == canonical(said) {
+            return Ok(());
+        }
+        Err(BagError::new(
+            &self.name,
+            Some(format!(
+                "metadata.yaml, topics_with_message_count[{i}].topic_metadata.type"
+            )),
+            format!(
+                "topic {} is {} in metadata.yaml but {} in the storage files, whose type its \
+                 messages were written with: the bag is inconsistent",
+                channel.topic,
+                excerpt(said),
+                excerpt(stored)
+            ),
+        ))
+    }
+
+    /// The type (`pkg/msg/Type`) of `topic`: that of its first message in the storage files
+    /// (the type its data were written with), else — for a topic without messages, or a channel
+    /// without a schema — the type `metadata.yaml` gives it; `None` if the bag has no such
+    /// topic. A `metadata.yaml` that contradicts the storage is an error (see
+    /// [`Bag::for_each_message`]).
     ///
     /// # Errors
-    /// A damaged or truncated file (before the topic's first message).
+    /// A damaged or truncated file (before the topic's first message), or a `metadata.yaml`
+    /// that gives the topic another type.
     pub fn topic_type(
         &self,
         topic: &str,
         progress: &dyn Progress,
     ) -> Result<Option<String>, BagError> {
-        if let Some(listed) = self.metadata.as_ref().and_then(|meta| {
-            meta.topics_with_message_count
-                .iter()
-                .find(|t| t.topic_metadata.name == topic)
-        }) {
-            let name = &listed.topic_metadata.type_name;
-            return Ok(Some(
-                canonical_type_name(name).unwrap_or_else(|| name.clone()),
-            ));
-        }
+        let listed = || {
+            self.metadata.as_ref().and_then(|meta| {
+                meta.topics_with_message_count
+                    .iter()
+                    .find(|t| t.topic_metadata.name == topic)
+                    .map(|t| {
+                        let name = &t.topic_metadata.type_name;
+                        canonical_type_name(name).unwrap_or_else(|| name.clone())
+                    })
+            })
+        };
         /// Ends the pass at the first message of the topic.
         enum Stop {
             Found(String),
@@ -530,7 +586,7 @@ impl Bag {
                 Ok(())
             }
         }) {
-            Ok(()) => Ok(None),
+            Ok(()) => Ok(listed()),
             Err(Stop::Found(name)) => Ok(Some(name)),
             Err(Stop::Failed(e)) => Err(e),
         }
@@ -587,11 +643,63 @@ impl Bag {
             }
             Ok(())
         })?;
+        let warnings = self.count_warnings(messages, &topics);
         Ok(BagSummary {
             messages,
             bytes,
             topics,
+            warnings,
         })
+    }
+
+    /// The message counts of `metadata.yaml` that disagree with those read (nothing is
+    /// allocated from them: they are only compared).
+    fn count_warnings(&self, messages: u64, topics: &[TopicSummary]) -> Vec<String> {
+        let Some(meta) = &self.metadata else {
+            return Vec::new();
+        };
+        let mut warnings = Vec::new();
+        if meta.message_count != messages {
+            warnings.push(format!(
+                "{}: metadata.yaml, message_count: {} messages, but the storage files hold {messages}",
+                self.name, meta.message_count
+            ));
+        }
+        let read: HashMap<&str, u64> = topics.iter().map(|t| (t.name.as_str(), t.count)).collect();
+        for (i, listed) in meta.topics_with_message_count.iter().enumerate() {
+            let name = &listed.topic_metadata.name;
+            let found = read.get(name.as_str()).copied().unwrap_or(0);
+            if listed.message_count != found {
+                warnings.push(self.count_disagreement(i, listed, found));
+            }
+            if warnings.len() >= 10 {
+                warnings.push("(more disagreements are not listed)".into());
+                break;
+            }
+        }
+        warnings
+    }
+
+    fn count_disagreement(&self, i: usize, listed: &TopicCount, found: u64) -> String {
+        format!(
+            "{}: metadata.yaml, topics_with_message_count[{i}].message_count: {} messages on \
+             {}, but the storage files hold {found}",
+            self.name,
+            listed.message_count,
+            excerpt(&listed.topic_metadata.name)
+        )
+    }
+
+    /// Whether `metadata.yaml` gives `topic` another number of messages than the `found`
+    /// ones read: the disagreement in words, for a warning.
+    pub fn count_warning(&self, topic: &str, found: u64) -> Option<String> {
+        let meta = self.metadata.as_ref()?;
+        let (i, listed) = meta
+            .topics_with_message_count
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.topic_metadata.name == topic)?;
+        (listed.message_count != found).then(|| self.count_disagreement(i, listed, found))
     }
 
     /// Calls `each` with every message on `topic`, decoded, in storage order.
@@ -849,7 +957,69 @@ fn read_metadata(bag: &str, path: &Path) -> Result<Metadata, BagError> {
         let first = message.lines().next().unwrap_or("").to_string();
         err(format!("not rosbag2 metadata: {first}"))
     })?;
-    Ok(parsed.rosbag2_bagfile_information)
+    let info = parsed.rosbag2_bagfile_information;
+    check_metadata(&info).map_err(err)?;
+    Ok(info)
+}
+
+/// What `metadata.yaml` may not say: a version chronomap does not know, a storage file outside
+/// the bag's folder, a name longer than [`MAX_NAME_BYTES`].
+fn check_metadata(info: &Metadata) -> Result<(), String> {
+    if !METADATA_VERSIONS.contains(&info.version) {
+        return Err(format!(
+            "version: {} is not a rosbag2 metadata version chronomap reads ({} to {}); \
+             without metadata.yaml the storage files of the folder are read alone",
+            match info.version {
+                0 => "missing (or 0)".to_string(),
+                v => v.to_string(),
+            },
+            METADATA_VERSIONS.start(),
+            METADATA_VERSIONS.end()
+        ));
+    }
+    for (i, file) in info.relative_file_paths.iter().enumerate() {
+        let path = Path::new(file);
+        let inside = !file.is_empty()
+            && path.components().all(|c| {
+                matches!(
+                    c,
+                    std::path::Component::Normal(_) | std::path::Component::CurDir
+                )
+            });
+        if !inside || file.len() > MAX_NAME_BYTES {
+            return Err(format!(
+                "relative_file_paths[{i}]: {:?} is not a relative path inside the bag's folder \
+                 (no `..`, no absolute path)",
+                excerpt(file)
+            ));
+        }
+    }
+    for (i, topic) in info.topics_with_message_count.iter().enumerate() {
+        let t = &topic.topic_metadata;
+        for (field, value) in [
+            ("name", &t.name),
+            ("type", &t.type_name),
+            ("serialization_format", &t.serialization_format),
+        ] {
+            if value.len() > MAX_NAME_BYTES {
+                return Err(format!(
+                    "topics_with_message_count[{i}].topic_metadata.{field}: {} bytes, more than \
+                     the {MAX_NAME_BYTES} a name may have",
+                    value.len()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// At most 60 characters of `s`, for error messages.
+fn excerpt(s: &str) -> String {
+    let mut out: String = s.chars().take(60).collect();
+    if out.len() < s.len() {
+        out.push('…');
+    }
+    out
 }
 
 /// A message that rosbag2 compressed (one zstd frame), decompressed to at most

@@ -16,7 +16,7 @@ use std::sync::Arc;
 use chronomap_core::progress::Progress;
 use rusqlite::{Connection, OpenFlags};
 
-use crate::bag::BagError;
+use crate::bag::{BagError, MAX_DEFINITION_BYTES, MAX_NAME_BYTES, MAX_RECORD_BYTES};
 
 /// Calls `each(channel, log_time, publish_time, data)` for every message of the SQLite bag
 /// file `path`, in time order; `err(place, problem)` makes this file's errors.
@@ -30,11 +30,14 @@ pub(crate) fn read_messages<E: From<BagError>>(
     if !meta.is_file() {
         return Err(err(None, "not a regular file".into()).into());
     }
+    let file_size = meta.len();
     let db = open(path).map_err(|e| err(None, problem(&e)))?;
-    let channels =
-        channels(&db).map_err(|e| err(Some("the table `topics`".into()), problem(&e)))?;
+    let channels = channels(&db).map_err(|e| err(Some("the table `topics`".into()), e))?;
     let mut statement = db
-        .prepare("SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id")
+        .prepare(
+            "SELECT topic_id, timestamp, octet_length(data), data FROM messages \
+             ORDER BY timestamp, id",
+        )
         .map_err(|e| err(Some("the table `messages`".into()), problem(&e)))?;
     let mut rows = statement
         .query([])
@@ -51,7 +54,24 @@ pub(crate) fn read_messages<E: From<BagError>>(
         let place = || Some(format!("the row of message {count} in `messages`"));
         let topic_id: i64 = row.get(0).map_err(|e| err(place(), problem(&e)))?;
         let timestamp: i64 = row.get(1).map_err(|e| err(place(), problem(&e)))?;
-        let data: Vec<u8> = row.get(2).map_err(|e| err(place(), problem(&e)))?;
+        // SQLite keeps a blob's size in the row's header: checked before the blob is copied.
+        let size: Option<i64> = row.get(2).map_err(|e| err(place(), problem(&e)))?;
+        let size = u64::try_from(size.unwrap_or(0)).unwrap_or(u64::MAX);
+        if size > file_size || size > MAX_RECORD_BYTES as u64 {
+            return Err(err(
+                place(),
+                format!(
+                    "its data declare {size} bytes, more than {}",
+                    if size > file_size {
+                        format!("the whole file ({file_size} bytes)")
+                    } else {
+                        format!("the {MAX_RECORD_BYTES} a message may have")
+                    }
+                ),
+            )
+            .into());
+        }
+        let data: Vec<u8> = row.get(3).map_err(|e| err(place(), problem(&e)))?;
         let channel = channels.get(&topic_id).ok_or_else(|| {
             err(
                 place(),
@@ -93,7 +113,37 @@ fn uri_path(path: &Path) -> String {
 }
 
 /// One channel per row of `topics`, with the definition of its type when the bag has one.
-fn channels(db: &Connection) -> rusqlite::Result<HashMap<i64, Arc<mcap::Channel<'static>>>> {
+fn channels(db: &Connection) -> Result<HashMap<i64, Arc<mcap::Channel<'static>>>, String> {
+    read_channels(db).map_err(|e| match e {
+        Read::Db(e) => problem(&e),
+        Read::Bad(p) => p,
+    })
+}
+
+/// Why the channels could not be read.
+enum Read {
+    Db(rusqlite::Error),
+    Bad(String),
+}
+
+impl From<rusqlite::Error> for Read {
+    fn from(e: rusqlite::Error) -> Self {
+        Read::Db(e)
+    }
+}
+
+/// `text` if it is at most `max` bytes long.
+fn bounded(text: String, what: &str, max: usize) -> Result<String, Read> {
+    if text.len() > max {
+        return Err(Read::Bad(format!(
+            "{what} has {} bytes, more than the {max} it may have",
+            text.len()
+        )));
+    }
+    Ok(text)
+}
+
+fn read_channels(db: &Connection) -> Result<HashMap<i64, Arc<mcap::Channel<'static>>>, Read> {
     let has_definitions: bool = db.query_row(
         "SELECT count(*) > 0 FROM sqlite_master WHERE type = 'table' AND name = 'message_definitions'",
         [],
@@ -111,8 +161,17 @@ fn channels(db: &Connection) -> rusqlite::Result<HashMap<i64, Arc<mcap::Channel<
                 row.get::<_, String>(2)?,
             ))
         })?;
+        let mut total = 0usize;
         for row in rows {
             let (ty, encoding, text) = row?;
+            total = total.saturating_add(text.len());
+            if total > MAX_DEFINITION_BYTES {
+                return Err(Read::Bad(format!(
+                    "the message definitions have more than the {MAX_DEFINITION_BYTES} bytes \
+                     they may have"
+                )));
+            }
+            let ty = bounded(ty, "a topic_type of `message_definitions`", MAX_NAME_BYTES)?;
             definitions.entry(ty).or_insert((encoding, text));
         }
     }
@@ -128,6 +187,13 @@ fn channels(db: &Connection) -> rusqlite::Result<HashMap<i64, Arc<mcap::Channel<
     let mut channels = HashMap::new();
     for (i, row) in rows.enumerate() {
         let (id, name, ty, format) = row?;
+        let name = bounded(name, &format!("the name of topic id {id}"), MAX_NAME_BYTES)?;
+        let ty = bounded(ty, &format!("the type of topic id {id}"), MAX_NAME_BYTES)?;
+        let format = bounded(
+            format,
+            &format!("the serialization_format of topic id {id}"),
+            MAX_NAME_BYTES,
+        )?;
         let (encoding, text) = definitions.get(&ty).cloned().unwrap_or_default();
         let schema = mcap::Schema {
             id: u16::try_from(i + 1).unwrap_or(u16::MAX),

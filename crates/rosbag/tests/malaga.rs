@@ -262,7 +262,7 @@ fn foreign_files_and_unknown_compression_are_refused_with_advice() {
     assert!(err.contains("no such table: topics"), "{err}");
     std::fs::write(
         dir.join("metadata.yaml"),
-        "rosbag2_bagfile_information:\n  storage_identifier: mcap\n  compression_format: lz4\n  compression_mode: FILE\n  relative_file_paths: [a.mcap]\n",
+        "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: mcap\n  compression_format: lz4\n  compression_mode: FILE\n  relative_file_paths: [a.mcap]\n",
     )
     .unwrap();
     let err = Bag::open(&dir).unwrap_err().to_string();
