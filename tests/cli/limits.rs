@@ -197,6 +197,21 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             "chronomap_serve::maps",
             chronomap_serve::maps::MAX_ACTIVITY_CELLS as u128,
         ),
+        (
+            "PREDICT_CHUNK",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::PREDICT_CHUNK as u128,
+        ),
+        (
+            "DEFAULT_HEAVY_QUEUE",
+            "chronomap_serve::heavy",
+            chronomap_serve::heavy::DEFAULT_HEAVY_QUEUE as u128,
+        ),
+        (
+            "RETRY_AFTER_SECS",
+            "chronomap_serve::heavy",
+            chronomap_serve::heavy::RETRY_AFTER_SECS.into(),
+        ),
     ]);
     for (name, module, value) in limits {
         let row = doc
