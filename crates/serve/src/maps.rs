@@ -545,7 +545,9 @@ pub(crate) async fn topo_predict(
 #[utoipa::path(post, path = "/v1/topo/{name}/plan", request_body = PlanRequest,
     params(("name" = String, Path, description = "map name")),
     responses((status = 200, body = PlanResponse), (status = 400, body = crate::api::ErrorBody),
-              (status = 404, body = crate::api::ErrorBody)))]
+              (status = 404, body = crate::api::ErrorBody),
+              (status = 503, description = "too many heavy requests; `Retry-After` says when \
+               to ask again", body = crate::api::ErrorBody)))]
 pub(crate) async fn topo_plan(
     State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
@@ -608,7 +610,9 @@ fn geometry(grid: &GridFile) -> GridGeometry {
 #[utoipa::path(post, path = "/v1/grid/{name}/predict", request_body = TimeRequest,
     params(("name" = String, Path, description = "grid name")),
     responses((status = 200, body = GridResponse), (status = 400, body = crate::api::ErrorBody),
-              (status = 404, body = crate::api::ErrorBody)))]
+              (status = 404, body = crate::api::ErrorBody),
+              (status = 503, description = "too many heavy requests; `Retry-After` says when \
+               to ask again", body = crate::api::ErrorBody)))]
 pub(crate) async fn grid_predict(
     State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
@@ -771,7 +775,9 @@ pub(crate) async fn activity_info(
 #[utoipa::path(post, path = "/v1/activity/{name}/predict", request_body = ActivityRequest,
     params(("name" = String, Path, description = "activity map name")),
     responses((status = 200, body = ActivityResponse), (status = 400, body = crate::api::ErrorBody),
-              (status = 404, body = crate::api::ErrorBody)))]
+              (status = 404, body = crate::api::ErrorBody),
+              (status = 503, description = "too many heavy requests; `Retry-After` says when \
+               to ask again", body = crate::api::ErrorBody)))]
 pub(crate) async fn activity_predict(
     State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
