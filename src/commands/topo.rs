@@ -606,15 +606,17 @@ fn plan_once(
     let map = models.map();
     if let Some(path) = &args.prism {
         let model = planned.mdp.to_prism(start)?;
-        std::fs::write(path, model).with_context(|| format!("cannot write {}", path.display()))?;
+        chronomap_io::output::write_output(path, model.as_bytes())?;
         let props = path.with_extension("props");
-        std::fs::write(&props, format!("{}\n", prism_property(task.text())?))
-            .with_context(|| format!("cannot write {}", props.display()))?;
+        chronomap_io::output::write_output(
+            &props,
+            format!("{}\n", prism_property(task.text())?).as_bytes(),
+        )?;
         crate::errln!("wrote {} and {}", path.display(), props.display());
     }
     if let Some(path) = &args.drn {
         let text = product_drn(planned.product.mdp(), &planned.solution)?;
-        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        chronomap_io::output::write_output(path, text.as_bytes())?;
         crate::errln!("wrote {}", path.display());
     }
     let route = success_route(&planned, map);

@@ -37,6 +37,7 @@ mod ingest;
 mod lidar;
 mod limits;
 mod monitor;
+mod outputs;
 mod psbt;
 mod readme;
 #[cfg(feature = "ros2")]

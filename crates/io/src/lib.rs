@@ -122,6 +122,7 @@ pub mod monitor_faults;
 pub mod navmap;
 #[cfg(feature = "navmap")]
 mod navmap_obstacles;
+pub mod output;
 #[cfg(feature = "parquet")]
 pub mod parquet;
 #[cfg(feature = "lidar")]

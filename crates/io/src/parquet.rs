@@ -40,9 +40,8 @@
 
 use std::collections::HashMap;
 use std::fmt;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io::{self, Write};
+use std::path::Path;
 use std::sync::Arc;
 
 use ::parquet::basic::{Compression, Encoding};
@@ -551,103 +550,73 @@ impl<W: Write + Send> PredictionsWriter<W> {
     }
 }
 
-/// A file being written under a temporary name beside its final path; [`PendingFile::commit`]
-/// flushes it to disk and renames it into place, and dropping it uncommitted deletes it, so a
-/// failed export never leaves a truncated table behind.
+/// A table file being written with the one output writer ([`crate::output::Output`]): a
+/// regular file is written under a temporary name beside its final path and
+/// [`PendingFile::commit`] flushes it to disk and renames it into place (dropping it
+/// uncommitted deletes it, so a failed export never leaves a truncated table behind); a
+/// device or named pipe is written through; a link's file is written and the link kept; a
+/// directory is refused.
 pub struct PendingFile {
-    path: PathBuf,
-    temp: PathBuf,
-    file: Option<BufWriter<File>>,
+    output: crate::output::Output,
 }
 
 impl PendingFile {
-    /// Starts `path` as `.NAME.tmp-PID` in the same directory. With `replace` false, an
-    /// existing `path` is refused now (and again, atomically where the platform allows, at
-    /// [`PendingFile::commit`]).
+    /// Starts `path`. With `replace` false, an existing file at `path` (or where its link
+    /// points) is refused now (devices and pipes are written through).
     ///
     /// # Errors
-    /// `path` exists (and `replace` is false), or the temporary file cannot be created.
+    /// `path` exists (and `replace` is false), is a directory or another kind of file that
+    /// is not written, or cannot be opened.
     pub fn create(path: &Path, replace: bool) -> Result<Self, ParquetWriteError> {
-        let error = |reason: String| ParquetWriteError {
-            file: path.display().to_string(),
-            row: None,
-            column: None,
-            reason,
-        };
-        if !replace && fs::symlink_metadata(path).is_ok() {
-            return Err(error("exists already (replace it with --force)".into()));
-        }
-        let file_name = path
-            .file_name()
-            .ok_or_else(|| error("does not name a file".into()))?;
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(file_name);
-        temp_name.push(format!(".tmp-{}", std::process::id()));
-        let temp = path.with_file_name(temp_name);
-        let file = OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&temp)
-            .map_err(|e| error(format!("cannot create {}: {e}", temp.display())))?;
-        Ok(PendingFile {
-            path: path.to_path_buf(),
-            temp,
-            file: Some(BufWriter::with_capacity(1 << 20, file)),
-        })
+        let output = crate::output::Output::create_or_refuse(path, replace).map_err(|e| {
+            ParquetWriteError {
+                file: path.display().to_string(),
+                row: None,
+                column: None,
+                reason: if e.io.kind() == io::ErrorKind::AlreadyExists {
+                    "exists already (replace it with --force)".into()
+                } else {
+                    format!("cannot {}: {}", e.action, e.io)
+                },
+            }
+        })?;
+        Ok(PendingFile { output })
     }
 
     /// The final path.
     pub fn path(&self) -> &Path {
-        &self.path
+        self.output.path()
     }
 
-    /// Flushes the file to disk and renames it to its final path; returns its size in bytes.
+    /// Whether the file is a device or pipe written through, where nothing can be taken
+    /// back.
+    pub fn is_stream(&self) -> bool {
+        self.output.is_stream()
+    }
+
+    /// Flushes the file to disk and renames it to its final path (a device or pipe: flushes
+    /// it); returns the number of bytes written.
     ///
     /// # Errors
     /// The file cannot be written or renamed (it is then deleted).
-    pub fn commit(mut self) -> Result<u64, ParquetWriteError> {
-        let error = |reason: String| ParquetWriteError {
-            file: self.path.display().to_string(),
+    pub fn commit(self) -> Result<u64, ParquetWriteError> {
+        let file = self.output.path().display().to_string();
+        self.output.commit().map_err(|e| ParquetWriteError {
+            file,
             row: None,
             column: None,
-            reason,
-        };
-        let writer = self.file.take().expect("a pending file has its writer");
-        let file = writer
-            .into_inner()
-            .map_err(|e| error(format!("cannot write: {}", e.error())))?;
-        file.sync_all()
-            .map_err(|e| error(format!("cannot flush to disk: {e}")))?;
-        let bytes = file
-            .metadata()
-            .map_err(|e| error(format!("cannot read the size: {e}")))?
-            .len();
-        drop(file);
-        fs::rename(&self.temp, &self.path)
-            .map_err(|e| error(format!("cannot rename {} to it: {e}", self.temp.display())))?;
-        if let Some(dir) = self.path.parent().and_then(|d| File::open(d).ok()) {
-            let _ = dir.sync_all();
-        }
-        Ok(bytes)
+            reason: format!("cannot {}: {}", e.action, e.io),
+        })
     }
 }
 
 impl Write for PendingFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.file.as_mut().expect("open").write(buf)
+        self.output.write(buf)
     }
 
     fn flush(&mut self) -> io::Result<()> {
-        self.file.as_mut().expect("open").flush()
-    }
-}
-
-impl Drop for PendingFile {
-    fn drop(&mut self) {
-        if self.file.take().is_some() {
-            let _ = fs::remove_file(&self.temp);
-        }
+        self.output.flush()
     }
 }
 
@@ -656,6 +625,8 @@ mod tests {
     use ::parquet::basic::{LogicalType, Repetition, TimeUnit, Type as Physical};
     use ::parquet::file::reader::{FileReader, SerializedFileReader};
     use ::parquet::record::{Field, Row, RowAccessor};
+    use std::fs::{self, File};
+    use std::path::PathBuf;
 
     use super::*;
 

@@ -221,11 +221,19 @@ pub enum PlotErrorKind {
     /// The embedded font could not be loaded.
     #[error("the embedded font could not be loaded")]
     Font,
-    /// Drawing or writing the image failed.
+    /// Drawing or encoding the image failed.
     #[error("cannot draw or write the image: {reason}")]
     Drawing {
         /// The message of the drawing library.
         reason: String,
+    },
+    /// The image could not be written ([`chronomap_io::output`]).
+    #[error("cannot {action}: {io}")]
+    Write {
+        /// What was being done (`"write"`, `"replace"`, …).
+        action: &'static str,
+        /// The underlying error.
+        io: std::io::Error,
     },
 }
 
@@ -262,6 +270,38 @@ fn ensure_font() -> Result<(), PlotErrorKind> {
     let ok = *REGISTERED
         .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if ok { Ok(()) } else { Err(PlotErrorKind::Font) }
+}
+
+/// Draws an image of `size` pixels in memory with `draw` and writes it to `path` as PNG
+/// through the one output writer ([`chronomap_io::output::write_output`]: a regular file is
+/// replaced atomically, a device or pipe written through, a directory refused).
+fn draw_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), PlotErrorKind>,
+) -> Result<(), PlotErrorKind> {
+    let mut pixels = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+        draw(&root)?;
+        root.present().map_err(drawing)?;
+    }
+    let png = encode_png(&pixels, width, height)?;
+    chronomap_io::output::write_output(path, &png).map_err(|e| PlotErrorKind::Write {
+        action: e.action,
+        io: e.io,
+    })
+}
+
+/// The RGB `pixels` as PNG, encoded as the drawing library encodes the files it saves (the
+/// `image` crate's PNG encoder with its default compression and filter).
+fn encode_png(pixels: &[u8], width: u32, height: u32) -> Result<Vec<u8>, PlotErrorKind> {
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(pixels, width, height, image::ColorType::Rgb8)
+        .map_err(drawing)?;
+    Ok(png)
 }
 
 fn drawing<E: fmt::Debug + std::error::Error>(e: E) -> PlotErrorKind {
@@ -347,26 +387,27 @@ fn render_panels(
     ensure_font()?;
 
     let scale = Scale::for_width(width);
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    let legend_width =
-        legend_width(&root, scale, panels.iter().flat_map(|p| &p.series)).min(width * 2 / 5);
-    for (panel, area) in panels.iter().zip(root.split_evenly((panels.len(), 1))) {
-        let (chart_area, legend_area) = area.split_horizontally(width - legend_width);
-        draw_panel(panel, &chart_area, x_range.clone(), scale)?;
-        let entries: Vec<LegendEntry> = panel
-            .series
-            .iter()
-            .enumerate()
-            .map(|(i, s)| LegendEntry {
-                label: &s.label,
-                color: PALETTE[i % PALETTE.len()],
-                style: s.style,
-            })
-            .collect();
-        draw_legend(&legend_area, &entries, scale)?;
-    }
-    root.present().map_err(drawing)
+    draw_png(path, (width, height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        let legend_width =
+            legend_width(&root, scale, panels.iter().flat_map(|p| &p.series)).min(width * 2 / 5);
+        for (panel, area) in panels.iter().zip(root.split_evenly((panels.len(), 1))) {
+            let (chart_area, legend_area) = area.split_horizontally(width - legend_width);
+            draw_panel(panel, &chart_area, x_range.clone(), scale)?;
+            let entries: Vec<LegendEntry> = panel
+                .series
+                .iter()
+                .enumerate()
+                .map(|(i, s)| LegendEntry {
+                    label: &s.label,
+                    color: PALETTE[i % PALETTE.len()],
+                    style: s.style,
+                })
+                .collect();
+            draw_legend(&legend_area, &entries, scale)?;
+        }
+        Ok(())
+    })
 }
 
 /// Smallest and largest finite `x` of all panels (widened if they are equal).
@@ -745,81 +786,82 @@ fn render_spectrum(
     }
 
     let scale = Scale::for_width(width);
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    let entries = [
-        LegendEntry {
-            label: "candidate component",
-            color: CANDIDATE,
-            style: SeriesStyle::Line,
-        },
-        LegendEntry {
-            label: "chosen component",
-            color: PALETTE[1],
-            style: SeriesStyle::Line,
-        },
-    ];
-    let legend_width = {
-        let font = scale.font(14.0);
-        let text = entries
-            .iter()
-            .map(|e| {
-                root.estimate_text_size(e.label, &font)
-                    .map_or(0, |(w, _)| w)
-            })
-            .max()
-            .unwrap_or(0);
-        (text + scale.px(60.0)).min(width * 2 / 5)
-    };
-    let (chart_area, legend_area) = root.split_horizontally(width - legend_width);
-    let mut chart = ChartBuilder::on(&chart_area)
-        .caption(title, scale.font(20.0))
-        .margin(scale.px(10.0))
-        .x_label_area_size(scale.px(48.0))
-        .y_label_area_size(scale.px(70.0))
-        .build_cartesian_2d(x_range.log_scale().with_key_points(ticks), 0.0..y_high)
-        .map_err(drawing)?;
-    chart
-        .configure_mesh()
-        .x_desc("period [h] (log scale)")
-        .y_desc("amplitude")
-        .axis_desc_style(scale.font(16.0))
-        .label_style(scale.font(14.0))
-        .y_labels(6)
-        .x_label_formatter(&|x| format_tick(*x))
-        .y_label_formatter(&|y| format_tick(*y))
-        .bold_line_style(GRID)
-        .light_line_style(WHITE)
-        .draw()
-        .map_err(drawing)?;
-    let bar_width = scale.px(3.0).max(2);
-    // Candidates first, so that chosen bars are drawn on top.
-    for chosen in [false, true] {
-        let color = if chosen { PALETTE[1] } else { CANDIDATE };
+    draw_png(path, (width, height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        let entries = [
+            LegendEntry {
+                label: "candidate component",
+                color: CANDIDATE,
+                style: SeriesStyle::Line,
+            },
+            LegendEntry {
+                label: "chosen component",
+                color: PALETTE[1],
+                style: SeriesStyle::Line,
+            },
+        ];
+        let legend_width = {
+            let font = scale.font(14.0);
+            let text = entries
+                .iter()
+                .map(|e| {
+                    root.estimate_text_size(e.label, &font)
+                        .map_or(0, |(w, _)| w)
+                })
+                .max()
+                .unwrap_or(0);
+            (text + scale.px(60.0)).min(width * 2 / 5)
+        };
+        let (chart_area, legend_area) = root.split_horizontally(width - legend_width);
+        let mut chart = ChartBuilder::on(&chart_area)
+            .caption(title, scale.font(20.0))
+            .margin(scale.px(10.0))
+            .x_label_area_size(scale.px(48.0))
+            .y_label_area_size(scale.px(70.0))
+            .build_cartesian_2d(x_range.log_scale().with_key_points(ticks), 0.0..y_high)
+            .map_err(drawing)?;
         chart
-            .draw_series(bars.iter().filter(|b| b.chosen == chosen).map(|b| {
-                PathElement::new(
-                    vec![(b.period_hours, 0.0), (b.period_hours, b.amplitude)],
-                    color.stroke_width(bar_width),
+            .configure_mesh()
+            .x_desc("period [h] (log scale)")
+            .y_desc("amplitude")
+            .axis_desc_style(scale.font(16.0))
+            .label_style(scale.font(14.0))
+            .y_labels(6)
+            .x_label_formatter(&|x| format_tick(*x))
+            .y_label_formatter(&|y| format_tick(*y))
+            .bold_line_style(GRID)
+            .light_line_style(WHITE)
+            .draw()
+            .map_err(drawing)?;
+        let bar_width = scale.px(3.0).max(2);
+        // Candidates first, so that chosen bars are drawn on top.
+        for chosen in [false, true] {
+            let color = if chosen { PALETTE[1] } else { CANDIDATE };
+            chart
+                .draw_series(bars.iter().filter(|b| b.chosen == chosen).map(|b| {
+                    PathElement::new(
+                        vec![(b.period_hours, 0.0), (b.period_hours, b.amplitude)],
+                        color.stroke_width(bar_width),
+                    )
+                }))
+                .map_err(drawing)?;
+        }
+        let label_font = scale.font(13.0).pos(plotters::style::text_anchor::Pos::new(
+            plotters::style::text_anchor::HPos::Center,
+            plotters::style::text_anchor::VPos::Bottom,
+        ));
+        chart
+            .draw_series(bars.iter().filter(|b| b.chosen).map(|b| {
+                Text::new(
+                    format!("{} h", format_tick(b.period_hours)),
+                    (b.period_hours, b.amplitude + y_high * 0.015),
+                    label_font.clone(),
                 )
             }))
             .map_err(drawing)?;
-    }
-    let label_font = scale.font(13.0).pos(plotters::style::text_anchor::Pos::new(
-        plotters::style::text_anchor::HPos::Center,
-        plotters::style::text_anchor::VPos::Bottom,
-    ));
-    chart
-        .draw_series(bars.iter().filter(|b| b.chosen).map(|b| {
-            Text::new(
-                format!("{} h", format_tick(b.period_hours)),
-                (b.period_hours, b.amplitude + y_high * 0.015),
-                label_font.clone(),
-            )
-        }))
-        .map_err(drawing)?;
-    draw_legend(&legend_area, &entries, scale)?;
-    root.present().map_err(drawing)
+        draw_legend(&legend_area, &entries, scale)?;
+        Ok(())
+    })
 }
 
 /// Ticks at 1, 2 and 5 times powers of ten within `range` (for unusual period ranges).
@@ -977,50 +1019,51 @@ fn render_maps(
     check_size(width.max(200), height.max(120), 120)?;
     let (width, height) = (width.max(200), height.max(120));
     let scale = Scale::for_width(width.max(800));
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    for (i, map) in maps.iter().enumerate() {
-        let x0 = margin + i as u32 * (map_width + margin);
-        root.draw(&Text::new(
-            map.title.clone(),
-            (x0 as i32, 10),
-            scale.font(15.0),
-        ))
-        .map_err(drawing)?;
-        for y in 0..map.height {
-            for x in 0..map.width {
-                let p = map.values[(y * map.width + x) as usize];
-                // Row 0 is the bottom of the map: draw it last (lowest).
-                let top = title_height + (map.height - 1 - y) * cell;
-                let left = x0 + x * cell;
-                root.draw(&Rectangle::new(
-                    [
-                        (left as i32, top as i32),
-                        ((left + cell) as i32, (top + cell) as i32),
-                    ],
-                    occupancy_colour(p).filled(),
-                ))
-                .map_err(drawing)?;
+    draw_png(path, (width, height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        for (i, map) in maps.iter().enumerate() {
+            let x0 = margin + i as u32 * (map_width + margin);
+            root.draw(&Text::new(
+                map.title.clone(),
+                (x0 as i32, 10),
+                scale.font(15.0),
+            ))
+            .map_err(drawing)?;
+            for y in 0..map.height {
+                for x in 0..map.width {
+                    let p = map.values[(y * map.width + x) as usize];
+                    // Row 0 is the bottom of the map: draw it last (lowest).
+                    let top = title_height + (map.height - 1 - y) * cell;
+                    let left = x0 + x * cell;
+                    root.draw(&Rectangle::new(
+                        [
+                            (left as i32, top as i32),
+                            ((left + cell) as i32, (top + cell) as i32),
+                        ],
+                        occupancy_colour(p).filled(),
+                    ))
+                    .map_err(drawing)?;
+                }
             }
         }
-    }
-    // Legend: e.g. free, occupied, unknown.
-    let y = (title_height + map_height + 12) as i32;
-    let mut x = margin as i32;
-    for &(label, value) in legend {
-        let colour = occupancy_colour(value);
-        root.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], colour.filled()))
+        // Legend: e.g. free, occupied, unknown.
+        let y = (title_height + map_height + 12) as i32;
+        let mut x = margin as i32;
+        for &(label, value) in legend {
+            let colour = occupancy_colour(value);
+            root.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], colour.filled()))
+                .map_err(drawing)?;
+            root.draw(&Rectangle::new(
+                [(x, y), (x + 16, y + 16)],
+                BLACK.stroke_width(1),
+            ))
             .map_err(drawing)?;
-        root.draw(&Rectangle::new(
-            [(x, y), (x + 16, y + 16)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(drawing)?;
-        root.draw(&Text::new(label, (x + 22, y), scale.font(13.0)))
-            .map_err(drawing)?;
-        x += 40 + 9 * label.len() as i32;
-    }
-    root.present().map_err(drawing)
+            root.draw(&Text::new(label, (x + 22, y), scale.font(13.0)))
+                .map_err(drawing)?;
+            x += 40 + 9 * label.len() as i32;
+        }
+        Ok(())
+    })
 }
 
 /// A labelled grid of values in `[0, 1]` with an optional short text per cell, drawn by
@@ -1396,154 +1439,156 @@ fn render_heatmap(map: &Heatmap, path: &Path) -> Result<(), PlotErrorKind> {
     use heat::*;
     use plotters::style::text_anchor::HPos;
     let layout = map.layout()?;
-    let root = BitMapBackend::new(path, (layout.width, layout.height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    let (cw, ch) = (layout.cell_width as i32, layout.cell_height as i32);
-    let (grid_left, grid_top) = (layout.grid_left as i32, layout.grid_top as i32);
-    let columns = map.columns.len();
-    let margin = MARGIN as i32;
+    draw_png(path, (layout.width, layout.height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        let (cw, ch) = (layout.cell_width as i32, layout.cell_height as i32);
+        let (grid_left, grid_top) = (layout.grid_left as i32, layout.grid_top as i32);
+        let columns = map.columns.len();
+        let margin = MARGIN as i32;
 
-    // Title, column title, then the line of column labels (with the row and bar titles).
-    let mut y = margin;
-    if !map.title.is_empty() {
-        root.draw(&Text::new(
-            map.title.clone(),
-            (layout.width as i32 / 2, y + TITLE_LINE as i32 / 2 - 2),
-            anchored(heat_font(TITLE_FONT), HPos::Center),
-        ))
-        .map_err(drawing)?;
-        y += TITLE_LINE as i32;
-    }
-    if !map.column_label.is_empty() {
-        root.draw(&Text::new(
-            map.column_label.clone(),
-            (
-                column_title_centre(
-                    u64::from(layout.grid_left),
-                    u64::from(layout.cell_width) * columns as u64,
-                    u64::from(text_width(&map.column_label, AXIS_FONT)?),
-                ) as i32,
-                y + LABEL_LINE as i32 / 2,
-            ),
-            anchored(heat_font(AXIS_FONT), HPos::Center),
-        ))
-        .map_err(drawing)?;
-        y += LABEL_LINE as i32;
-    }
-    let header_y = y + LABEL_LINE as i32 / 2;
-    for (c, label) in map.columns.iter().enumerate() {
-        root.draw(&Text::new(
-            label.clone(),
-            (grid_left + cw * c as i32 + (cw - 1) / 2, header_y),
-            anchored(heat_font(LABEL_FONT), HPos::Center),
-        ))
-        .map_err(drawing)?;
-    }
-    let row_label_right = grid_left - ROW_LABEL_GAP as i32;
-    if !map.row_label.is_empty() {
-        root.draw(&Text::new(
-            map.row_label.clone(),
-            (row_label_right, header_y),
-            anchored(heat_font(AXIS_FONT), HPos::Right),
-        ))
-        .map_err(drawing)?;
-    }
-
-    // Cells, separated by 1-pixel white lines.
-    for (r, label) in map.rows.iter().enumerate() {
-        let top = grid_top + ch * r as i32;
-        root.draw(&Text::new(
-            label.clone(),
-            (row_label_right, top + (ch - 1) / 2),
-            anchored(heat_font(LABEL_FONT), HPos::Right),
-        ))
-        .map_err(drawing)?;
-        for c in 0..columns {
-            let index = r * columns + c;
-            let left = grid_left + cw * c as i32;
-            let colour = heatmap_colour(map.values[index]);
-            root.draw(&Rectangle::new(
-                [(left, top), (left + cw - 1, top + ch - 1)],
-                colour.filled(),
+        // Title, column title, then the line of column labels (with the row and bar titles).
+        let mut y = margin;
+        if !map.title.is_empty() {
+            root.draw(&Text::new(
+                map.title.clone(),
+                (layout.width as i32 / 2, y + TITLE_LINE as i32 / 2 - 2),
+                anchored(heat_font(TITLE_FONT), HPos::Center),
             ))
             .map_err(drawing)?;
-            let text = cell_label(map, index);
-            if !text.is_empty() {
-                let font = (FAMILY, CELL_FONT)
-                    .into_font()
-                    .color(&text_colour_on(colour));
-                root.draw(&Text::new(
-                    text,
-                    (left + (cw - 1) / 2, top + (ch - 1) / 2),
-                    anchored(font, HPos::Center),
+            y += TITLE_LINE as i32;
+        }
+        if !map.column_label.is_empty() {
+            root.draw(&Text::new(
+                map.column_label.clone(),
+                (
+                    column_title_centre(
+                        u64::from(layout.grid_left),
+                        u64::from(layout.cell_width) * columns as u64,
+                        u64::from(text_width(&map.column_label, AXIS_FONT)?),
+                    ) as i32,
+                    y + LABEL_LINE as i32 / 2,
+                ),
+                anchored(heat_font(AXIS_FONT), HPos::Center),
+            ))
+            .map_err(drawing)?;
+            y += LABEL_LINE as i32;
+        }
+        let header_y = y + LABEL_LINE as i32 / 2;
+        for (c, label) in map.columns.iter().enumerate() {
+            root.draw(&Text::new(
+                label.clone(),
+                (grid_left + cw * c as i32 + (cw - 1) / 2, header_y),
+                anchored(heat_font(LABEL_FONT), HPos::Center),
+            ))
+            .map_err(drawing)?;
+        }
+        let row_label_right = grid_left - ROW_LABEL_GAP as i32;
+        if !map.row_label.is_empty() {
+            root.draw(&Text::new(
+                map.row_label.clone(),
+                (row_label_right, header_y),
+                anchored(heat_font(AXIS_FONT), HPos::Right),
+            ))
+            .map_err(drawing)?;
+        }
+
+        // Cells, separated by 1-pixel white lines.
+        for (r, label) in map.rows.iter().enumerate() {
+            let top = grid_top + ch * r as i32;
+            root.draw(&Text::new(
+                label.clone(),
+                (row_label_right, top + (ch - 1) / 2),
+                anchored(heat_font(LABEL_FONT), HPos::Right),
+            ))
+            .map_err(drawing)?;
+            for c in 0..columns {
+                let index = r * columns + c;
+                let left = grid_left + cw * c as i32;
+                let colour = heatmap_colour(map.values[index]);
+                root.draw(&Rectangle::new(
+                    [(left, top), (left + cw - 1, top + ch - 1)],
+                    colour.filled(),
                 ))
                 .map_err(drawing)?;
+                let text = cell_label(map, index);
+                if !text.is_empty() {
+                    let font = (FAMILY, CELL_FONT)
+                        .into_font()
+                        .color(&text_colour_on(colour));
+                    root.draw(&Text::new(
+                        text,
+                        (left + (cw - 1) / 2, top + (ch - 1) / 2),
+                        anchored(font, HPos::Center),
+                    ))
+                    .map_err(drawing)?;
+                }
             }
         }
-    }
 
-    // Colour bar: 1 at the top, 0 at the bottom, ticks and labels on its right.
-    let (bar_left, bar_top) = (layout.bar_left as i32, layout.bar_top as i32);
-    let bar_height = layout.bar_height as i32;
-    let bar_right = bar_left + BAR_WIDTH as i32;
-    if !map.value_label.is_empty() {
-        root.draw(&Text::new(
-            map.value_label.clone(),
-            (bar_left, header_y),
-            anchored(heat_font(AXIS_FONT), HPos::Left),
-        ))
-        .map_err(drawing)?;
-    }
-    let bar_value = |offset: i32| 1.0 - f64::from(offset) / f64::from((bar_height - 1).max(1));
-    for offset in 0..bar_height {
-        let y = bar_top + offset;
-        root.draw(&Rectangle::new(
-            [(bar_left, y), (bar_right, y + 1)],
-            heatmap_colour(bar_value(offset)).filled(),
-        ))
-        .map_err(drawing)?;
-    }
-    for tick in HEATMAP_TICKS {
-        let y = bar_top + ((1.0 - tick) * f64::from(bar_height - 1)).round() as i32;
-        root.draw(&PathElement::new(
-            vec![(bar_right, y), (bar_right + TICK as i32, y)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(drawing)?;
-        root.draw(&Text::new(
-            format_tick(tick),
-            (bar_right + TICK as i32 + 4, y),
-            anchored(heat_font(LABEL_FONT), HPos::Left),
-        ))
-        .map_err(drawing)?;
-    }
-    if map.values.iter().any(|v| v.is_nan()) {
-        let top = bar_top + bar_height + (SWATCH_BLOCK - SWATCH) as i32 / 2 + 2;
-        let swatch = [
-            (bar_left, top),
-            (bar_left + SWATCH as i32, top + SWATCH as i32),
-        ];
-        root.draw(&Rectangle::new(swatch, HEATMAP_NO_VALUE.filled()))
+        // Colour bar: 1 at the top, 0 at the bottom, ticks and labels on its right.
+        let (bar_left, bar_top) = (layout.bar_left as i32, layout.bar_top as i32);
+        let bar_height = layout.bar_height as i32;
+        let bar_right = bar_left + BAR_WIDTH as i32;
+        if !map.value_label.is_empty() {
+            root.draw(&Text::new(
+                map.value_label.clone(),
+                (bar_left, header_y),
+                anchored(heat_font(AXIS_FONT), HPos::Left),
+            ))
             .map_err(drawing)?;
-        root.draw(&Text::new(
-            NO_VALUE_LABEL,
-            (bar_left + SWATCH as i32 + 6, top + SWATCH as i32 / 2),
-            anchored(heat_font(LABEL_FONT), HPos::Left),
-        ))
-        .map_err(drawing)?;
-    }
+        }
+        let bar_value = |offset: i32| 1.0 - f64::from(offset) / f64::from((bar_height - 1).max(1));
+        for offset in 0..bar_height {
+            let y = bar_top + offset;
+            root.draw(&Rectangle::new(
+                [(bar_left, y), (bar_right, y + 1)],
+                heatmap_colour(bar_value(offset)).filled(),
+            ))
+            .map_err(drawing)?;
+        }
+        for tick in HEATMAP_TICKS {
+            let y = bar_top + ((1.0 - tick) * f64::from(bar_height - 1)).round() as i32;
+            root.draw(&PathElement::new(
+                vec![(bar_right, y), (bar_right + TICK as i32, y)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(drawing)?;
+            root.draw(&Text::new(
+                format_tick(tick),
+                (bar_right + TICK as i32 + 4, y),
+                anchored(heat_font(LABEL_FONT), HPos::Left),
+            ))
+            .map_err(drawing)?;
+        }
+        if map.values.iter().any(|v| v.is_nan()) {
+            let top = bar_top + bar_height + (SWATCH_BLOCK - SWATCH) as i32 / 2 + 2;
+            let swatch = [
+                (bar_left, top),
+                (bar_left + SWATCH as i32, top + SWATCH as i32),
+            ];
+            root.draw(&Rectangle::new(swatch, HEATMAP_NO_VALUE.filled()))
+                .map_err(drawing)?;
+            root.draw(&Text::new(
+                NO_VALUE_LABEL,
+                (bar_left + SWATCH as i32 + 6, top + SWATCH as i32 / 2),
+                anchored(heat_font(LABEL_FONT), HPos::Left),
+            ))
+            .map_err(drawing)?;
+        }
 
-    // Legend lines.
-    for (i, line) in map.legend.iter().enumerate() {
-        let y = layout.legend_top as i32 + LEGEND_LINE as i32 * i as i32 + LEGEND_LINE as i32 / 2;
-        root.draw(&Text::new(
-            line.clone(),
-            (margin, y),
-            anchored(heat_font(LEGEND_FONT), HPos::Left),
-        ))
-        .map_err(drawing)?;
-    }
-    root.present().map_err(drawing)
+        // Legend lines.
+        for (i, line) in map.legend.iter().enumerate() {
+            let y =
+                layout.legend_top as i32 + LEGEND_LINE as i32 * i as i32 + LEGEND_LINE as i32 / 2;
+            root.draw(&Text::new(
+                line.clone(),
+                (margin, y),
+                anchored(heat_font(LEGEND_FONT), HPos::Left),
+            ))
+            .map_err(drawing)?;
+        }
+        Ok(())
+    })
 }
 
 /// One labelled path of a [`PathMap`]: points in metres (map frame), joined by lines.
@@ -1626,105 +1671,107 @@ fn render_path_maps(maps: &[PathMap], path: &Path, cell_pixels: u32) -> Result<(
     let height = (title_height + map_height + legend_height + margin).max(120);
     check_size(width, height, 120)?;
     let scale = Scale::for_width(width.min(1600));
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    for (i, map) in maps.iter().enumerate() {
-        let x0 = margin + i as u32 * (map_width + margin);
-        // Metres to pixels of this panel.
-        let to_px = |p: [f64; 2]| -> (i32, i32) {
-            let fx = (p[0] - map.origin[0]) / map.cell;
-            let fy = (p[1] - map.origin[1]) / map.cell;
-            (
-                (f64::from(x0) + fx * f64::from(cell)).round() as i32,
-                (f64::from(title_height) + (map.rows as f64 - fy) * f64::from(cell)).round() as i32,
-            )
-        };
-        root.draw(&Text::new(
-            map.title.clone(),
-            (x0 as i32, 10),
-            scale.font(14.0),
-        ))
-        .map_err(drawing)?;
-        for row in 0..map.rows {
-            for column in 0..map.cols {
-                let v = map.values[row * map.cols + column];
-                let top = title_height + (map.rows - 1 - row) as u32 * cell;
-                let left = x0 + column as u32 * cell;
+    draw_png(path, (width, height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        for (i, map) in maps.iter().enumerate() {
+            let x0 = margin + i as u32 * (map_width + margin);
+            // Metres to pixels of this panel.
+            let to_px = |p: [f64; 2]| -> (i32, i32) {
+                let fx = (p[0] - map.origin[0]) / map.cell;
+                let fy = (p[1] - map.origin[1]) / map.cell;
+                (
+                    (f64::from(x0) + fx * f64::from(cell)).round() as i32,
+                    (f64::from(title_height) + (map.rows as f64 - fy) * f64::from(cell)).round()
+                        as i32,
+                )
+            };
+            root.draw(&Text::new(
+                map.title.clone(),
+                (x0 as i32, 10),
+                scale.font(14.0),
+            ))
+            .map_err(drawing)?;
+            for row in 0..map.rows {
+                for column in 0..map.cols {
+                    let v = map.values[row * map.cols + column];
+                    let top = title_height + (map.rows - 1 - row) as u32 * cell;
+                    let left = x0 + column as u32 * cell;
+                    root.draw(&Rectangle::new(
+                        [
+                            (left as i32, top as i32),
+                            ((left + cell) as i32, (top + cell) as i32),
+                        ],
+                        heatmap_colour(f64::from(v)).filled(),
+                    ))
+                    .map_err(drawing)?;
+                }
+            }
+            let inside = |p: &[f64; 2]| {
+                p[0] >= map.origin[0]
+                    && p[1] >= map.origin[1]
+                    && p[0] < map.origin[0] + map.cols as f64 * map.cell
+                    && p[1] < map.origin[1] + map.rows as f64 * map.cell
+            };
+            let dot = (cell / 12).max(1) as i32;
+            for p in map.obstacles.iter().filter(|p| inside(p)) {
+                let (x, y) = to_px(*p);
                 root.draw(&Rectangle::new(
-                    [
-                        (left as i32, top as i32),
-                        ((left + cell) as i32, (top + cell) as i32),
-                    ],
-                    heatmap_colour(f64::from(v)).filled(),
+                    [(x - dot, y - dot), (x + dot, y + dot)],
+                    BLACK.filled(),
+                ))
+                .map_err(drawing)?;
+            }
+            for p in map.people.iter().filter(|p| inside(p)) {
+                root.draw(&Circle::new(to_px(*p), dot, WHITE.filled()))
+                    .map_err(drawing)?;
+            }
+            let n = map.paths.len();
+            for (k, line) in map.paths.iter().enumerate() {
+                let colour = PALETTE[k % PALETTE.len()];
+                let width = scale.px(2.0) + 2 * scale.px(1.5) * (n - 1 - k) as u32;
+                let points: Vec<(i32, i32)> = line.points.iter().map(|&p| to_px(p)).collect();
+                root.draw(&PathElement::new(points, colour.stroke_width(width)))
+                    .map_err(drawing)?;
+            }
+            for (label, at) in &map.waypoints {
+                let (x, y) = to_px(*at);
+                let r = (cell / 3).max(3) as i32;
+                root.draw(&Circle::new((x, y), r, WHITE.filled()))
+                    .map_err(drawing)?;
+                root.draw(&Circle::new((x, y), r, BLACK.stroke_width(2)))
+                    .map_err(drawing)?;
+                root.draw(&Text::new(
+                    label.clone(),
+                    (x + r + 2, y - r - 2),
+                    scale.font(16.0),
                 ))
                 .map_err(drawing)?;
             }
         }
-        let inside = |p: &[f64; 2]| {
-            p[0] >= map.origin[0]
-                && p[1] >= map.origin[1]
-                && p[0] < map.origin[0] + map.cols as f64 * map.cell
-                && p[1] < map.origin[1] + map.rows as f64 * map.cell
-        };
-        let dot = (cell / 12).max(1) as i32;
-        for p in map.obstacles.iter().filter(|p| inside(p)) {
-            let (x, y) = to_px(*p);
-            root.draw(&Rectangle::new(
-                [(x - dot, y - dot), (x + dot, y + dot)],
-                BLACK.filled(),
-            ))
-            .map_err(drawing)?;
-        }
-        for p in map.people.iter().filter(|p| inside(p)) {
-            root.draw(&Circle::new(to_px(*p), dot, WHITE.filled()))
-                .map_err(drawing)?;
-        }
-        let n = map.paths.len();
-        for (k, line) in map.paths.iter().enumerate() {
+        // Legend: the paths of the first map.
+        let y = (title_height + map_height + 14) as i32;
+        let mut x = margin as i32;
+        for (k, line) in maps[0].paths.iter().enumerate() {
             let colour = PALETTE[k % PALETTE.len()];
-            let width = scale.px(2.0) + 2 * scale.px(1.5) * (n - 1 - k) as u32;
-            let points: Vec<(i32, i32)> = line.points.iter().map(|&p| to_px(p)).collect();
-            root.draw(&PathElement::new(points, colour.stroke_width(width)))
-                .map_err(drawing)?;
-        }
-        for (label, at) in &map.waypoints {
-            let (x, y) = to_px(*at);
-            let r = (cell / 3).max(3) as i32;
-            root.draw(&Circle::new((x, y), r, WHITE.filled()))
-                .map_err(drawing)?;
-            root.draw(&Circle::new((x, y), r, BLACK.stroke_width(2)))
-                .map_err(drawing)?;
-            root.draw(&Text::new(
-                label.clone(),
-                (x + r + 2, y - r - 2),
-                scale.font(16.0),
+            root.draw(&PathElement::new(
+                vec![(x, y + 8), (x + 28, y + 8)],
+                colour.stroke_width(scale.px(4.0)),
             ))
             .map_err(drawing)?;
+            root.draw(&Text::new(
+                line.label.clone(),
+                (x + 34, y),
+                scale.font(13.0),
+            ))
+            .map_err(drawing)?;
+            x += 60 + 9 * line.label.len() as i32;
         }
-    }
-    // Legend: the paths of the first map.
-    let y = (title_height + map_height + 14) as i32;
-    let mut x = margin as i32;
-    for (k, line) in maps[0].paths.iter().enumerate() {
-        let colour = PALETTE[k % PALETTE.len()];
-        root.draw(&PathElement::new(
-            vec![(x, y + 8), (x + 28, y + 8)],
-            colour.stroke_width(scale.px(4.0)),
-        ))
-        .map_err(drawing)?;
         root.draw(&Text::new(
-            line.label.clone(),
-            (x + 34, y),
-            scale.font(13.0),
-        ))
-        .map_err(drawing)?;
-        x += 60 + 9 * line.label.len() as i32;
-    }
-    root.draw(&Text::new(
         "colour: value 0 (dark) to 1 (yellow); grey: not drivable; black: obstacles; white dots: people",
         (x + 20, y),
         scale.font(13.0),
     ))
     .map_err(drawing)?;
-    root.present().map_err(drawing)
+        Ok(())
+    })
 }

@@ -32,7 +32,7 @@ use plotters::prelude::*;
 
 use crate::{
     LegendEntry, PALETTE, PlotError, PlotErrorKind, Scale, SeriesStyle, check_size, draw_legend,
-    drawing, ensure_font, format_tick,
+    draw_png, drawing, ensure_font, format_tick,
 };
 
 /// What a layer draws.
@@ -177,102 +177,105 @@ fn render(plots: &[PlanePlot], path: &Path, width: u32, height: u32) -> Result<(
     check_size(width, height, 200)?;
     ensure_font()?;
     let scale = Scale::for_width(width / plots.len() as u32);
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(drawing)?;
-    for (index, (plot, area)) in plots
-        .iter()
-        .zip(root.split_evenly((1, plots.len())))
-        .enumerate()
-    {
-        let legend_rows = plot.layers.iter().filter(|l| !l.label.is_empty()).count() as u32;
-        let legend_height = if legend_rows == 0 {
-            0
-        } else {
-            scale.px(22.0) * legend_rows + scale.px(56.0)
-        };
-        let (_, area_height) = area.dim_in_pixel();
-        let (chart_area, legend_area) =
-            area.split_vertically(area_height.saturating_sub(legend_height).max(1));
-        let (cw, ch) = chart_area.dim_in_pixel();
-        // The plotting area is the chart less its labels and margins (approximately).
-        let inner_w = f64::from(cw) - f64::from(scale.px(90.0));
-        let inner_h = f64::from(ch) - f64::from(scale.px(100.0));
-        let (xr, yr) = ranges(index, plot, inner_w, inner_h)?;
-        let mut chart = ChartBuilder::on(&chart_area)
-            .caption(&plot.title, scale.font(20.0))
-            .margin(scale.px(10.0))
-            .x_label_area_size(scale.px(48.0))
-            .y_label_area_size(scale.px(70.0))
-            .build_cartesian_2d(xr, yr)
-            .map_err(drawing)?;
-        chart
-            .configure_mesh()
-            .x_desc(plot.x_label.as_str())
-            .y_desc(plot.y_label.as_str())
-            .axis_desc_style(scale.font(16.0))
-            .label_style(scale.font(14.0))
-            .x_label_formatter(&|v| format_tick(*v))
-            .y_label_formatter(&|v| format_tick(*v))
-            .bold_line_style(RGBColor(225, 225, 225))
-            .light_line_style(WHITE)
-            .draw()
-            .map_err(drawing)?;
-        let line = scale.px(2.0).max(1);
-        for (i, layer) in plot.layers.iter().enumerate() {
-            let colour = PALETTE[i % PALETTE.len()];
-            let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
-            match &layer.shape {
-                PlaneShape::Path(points) => {
-                    for run in points.split(|p| !finite(p)).filter(|r| r.len() > 1) {
+    draw_png(path, (width, height), |root| {
+        root.fill(&WHITE).map_err(drawing)?;
+        for (index, (plot, area)) in plots
+            .iter()
+            .zip(root.split_evenly((1, plots.len())))
+            .enumerate()
+        {
+            let legend_rows = plot.layers.iter().filter(|l| !l.label.is_empty()).count() as u32;
+            let legend_height = if legend_rows == 0 {
+                0
+            } else {
+                scale.px(22.0) * legend_rows + scale.px(56.0)
+            };
+            let (_, area_height) = area.dim_in_pixel();
+            let (chart_area, legend_area) =
+                area.split_vertically(area_height.saturating_sub(legend_height).max(1));
+            let (cw, ch) = chart_area.dim_in_pixel();
+            // The plotting area is the chart less its labels and margins (approximately).
+            let inner_w = f64::from(cw) - f64::from(scale.px(90.0));
+            let inner_h = f64::from(ch) - f64::from(scale.px(100.0));
+            let (xr, yr) = ranges(index, plot, inner_w, inner_h)?;
+            let mut chart = ChartBuilder::on(&chart_area)
+                .caption(&plot.title, scale.font(20.0))
+                .margin(scale.px(10.0))
+                .x_label_area_size(scale.px(48.0))
+                .y_label_area_size(scale.px(70.0))
+                .build_cartesian_2d(xr, yr)
+                .map_err(drawing)?;
+            chart
+                .configure_mesh()
+                .x_desc(plot.x_label.as_str())
+                .y_desc(plot.y_label.as_str())
+                .axis_desc_style(scale.font(16.0))
+                .label_style(scale.font(14.0))
+                .x_label_formatter(&|v| format_tick(*v))
+                .y_label_formatter(&|v| format_tick(*v))
+                .bold_line_style(RGBColor(225, 225, 225))
+                .light_line_style(WHITE)
+                .draw()
+                .map_err(drawing)?;
+            let line = scale.px(2.0).max(1);
+            for (i, layer) in plot.layers.iter().enumerate() {
+                let colour = PALETTE[i % PALETTE.len()];
+                let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
+                match &layer.shape {
+                    PlaneShape::Path(points) => {
+                        for run in points.split(|p| !finite(p)).filter(|r| r.len() > 1) {
+                            chart
+                                .draw_series(std::iter::once(PathElement::new(
+                                    run.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>(),
+                                    colour.stroke_width(line),
+                                )))
+                                .map_err(drawing)?;
+                        }
+                    }
+                    PlaneShape::Points(points) => {
+                        let radius = scale.px(2.0).max(1);
                         chart
-                            .draw_series(std::iter::once(PathElement::new(
-                                run.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>(),
-                                colour.stroke_width(line),
-                            )))
+                            .draw_series(
+                                points
+                                    .iter()
+                                    .filter(|p| finite(p))
+                                    .map(|p| Circle::new((p[0], p[1]), radius, colour.filled())),
+                            )
+                            .map_err(drawing)?;
+                    }
+                    PlaneShape::Segments(segments) => {
+                        chart
+                            .draw_series(
+                                segments.iter().filter(|[a, b]| finite(a) && finite(b)).map(
+                                    |[a, b]| {
+                                        PathElement::new(
+                                            vec![(a[0], a[1]), (b[0], b[1])],
+                                            colour.stroke_width(line),
+                                        )
+                                    },
+                                ),
+                            )
                             .map_err(drawing)?;
                     }
                 }
-                PlaneShape::Points(points) => {
-                    let radius = scale.px(2.0).max(1);
-                    chart
-                        .draw_series(
-                            points
-                                .iter()
-                                .filter(|p| finite(p))
-                                .map(|p| Circle::new((p[0], p[1]), radius, colour.filled())),
-                        )
-                        .map_err(drawing)?;
-                }
-                PlaneShape::Segments(segments) => {
-                    chart
-                        .draw_series(segments.iter().filter(|[a, b]| finite(a) && finite(b)).map(
-                            |[a, b]| {
-                                PathElement::new(
-                                    vec![(a[0], a[1]), (b[0], b[1])],
-                                    colour.stroke_width(line),
-                                )
-                            },
-                        ))
-                        .map_err(drawing)?;
-                }
+            }
+            let entries: Vec<LegendEntry> = plot
+                .layers
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| !l.label.is_empty())
+                .map(|(i, l)| LegendEntry {
+                    label: &l.label,
+                    color: PALETTE[i % PALETTE.len()],
+                    style: l.shape.legend_style(),
+                })
+                .collect();
+            if !entries.is_empty() {
+                draw_legend(&legend_area, &entries, scale)?;
             }
         }
-        let entries: Vec<LegendEntry> = plot
-            .layers
-            .iter()
-            .enumerate()
-            .filter(|(_, l)| !l.label.is_empty())
-            .map(|(i, l)| LegendEntry {
-                label: &l.label,
-                color: PALETTE[i % PALETTE.len()],
-                style: l.shape.legend_style(),
-            })
-            .collect();
-        if !entries.is_empty() {
-            draw_legend(&legend_area, &entries, scale)?;
-        }
-    }
-    root.present().map_err(drawing)
+        Ok(())
+    })
 }
 
 #[cfg(test)]
