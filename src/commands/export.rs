@@ -55,6 +55,21 @@ impl Grid {
                  {MAX_PREDICTIONS} predictions are written (raise --step or narrow --from/--to)"
             )));
         }
+        // Grid times are Parquet timestamps in microseconds: checked before anything is read
+        // or written.
+        for (flag, t) in [("--from", from), ("--to", to)] {
+            if chronomap_io::parquet::micros_of(t).is_none() {
+                let t = if t.abs() < 1e16 {
+                    t.to_string()
+                } else {
+                    format!("{t:e}")
+                };
+                return Err(usage(format!(
+                    "{flag} {t}: a prediction time must be within about 292,000 years of \
+                     1970 (a Parquet timestamp counts microseconds in 64 bits)"
+                )));
+            }
+        }
         Ok(Grid {
             from,
             to,
@@ -101,8 +116,52 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
         }
     }
 
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("cannot create the directory {}", args.output.display()))?;
+    // What this export creates is removed again if it fails: the folders it made (when still
+    // empty) and its files (never committed; a stream written through keeps what it got).
+    let created = create_dirs(&args.output)?;
+    let written = write_tables(args, &*store, last_seq, &registry, &ids, grid, started);
+    if written.is_err() {
+        for dir in created.iter().rev() {
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
+    written
+}
+
+/// Creates `dir` and its missing parents; returns those it created, outermost first.
+fn create_dirs(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let mut missing = Vec::new();
+    let mut at = Some(dir);
+    while let Some(d) = at.filter(|d| !d.as_os_str().is_empty()) {
+        if std::fs::symlink_metadata(d).is_ok() {
+            break;
+        }
+        missing.push(d.to_path_buf());
+        at = d.parent();
+    }
+    missing.reverse();
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the directory {}", dir.display()))?;
+    if !dir.is_dir() {
+        bail!(
+            "{}: not a directory (-o names the folder of the tables)",
+            dir.display()
+        );
+    }
+    Ok(missing)
+}
+
+/// Writes the tables of the export into `args.output` and prints the summary.
+fn write_tables(
+    args: &ExportParquetArgs,
+    store: &dyn Store,
+    last_seq: u64,
+    registry: &chronomap_serve::registry::Registry,
+    ids: &[&str],
+    grid: Option<Grid>,
+    started: Instant,
+) -> Result<()> {
+    let prefix = args.prefix.as_deref().unwrap_or("");
     let observations_path = args.output.join("observations.parquet");
     let predictions_path = args.output.join("predictions.parquet");
     // Both files are refused before anything is read, when they exist and --force is not given.
@@ -121,7 +180,7 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
     let mut created: HashMap<&str, (u64, usize)> = HashMap::with_capacity(ids.len());
     let selected: std::collections::HashSet<&str> = ids.iter().copied().collect();
     let bar = ProgressBar::stage("reading the log", last_seq);
-    scan_to(&*store, last_seq, &bar, &mut |seq, records| {
+    scan_to(store, last_seq, &bar, &mut |seq, records| {
         for (i, record) in records.iter().enumerate() {
             if let LogRecord::Create { id, .. } = record
                 && let Some(&id) = selected.get(id.as_str())
@@ -146,7 +205,7 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
         observations.metadata(*key, value.clone());
     }
     let bar = ProgressBar::stage("observations", last_seq);
-    scan_to(&*store, last_seq, &bar, &mut |seq, records| {
+    scan_to(store, last_seq, &bar, &mut |seq, records| {
         // Borrows the group's ids: one buffer per group.
         let mut rows: Vec<ObservationRow> = Vec::new();
         for (i, record) in records.iter().enumerate() {
@@ -180,7 +239,8 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
     drop(bar);
     let observation_rows = observations.rows();
     let observation_groups = observations.row_groups() + usize::from(observation_rows > 0);
-    let observation_bytes = observations.finish()?.commit()?;
+    // Committed once the predictions are written too: a failure there leaves no table.
+    let observations_file = observations.finish()?;
 
     let predictions = match (grid, predictions_file) {
         (Some(grid), Some(file)) => {
@@ -192,7 +252,7 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
             let bar = ProgressBar::stage("predictions", grid.points * ids.len() as u64);
             let mut times = Vec::with_capacity(BATCH);
             let mut rows: Vec<PredictionRow> = Vec::with_capacity(BATCH);
-            for &id in &ids {
+            for &id in ids {
                 let entry = registry.get(id).expect("the ids are the registry's");
                 let mut k = 0;
                 while k < grid.points {
@@ -217,10 +277,23 @@ pub fn parquet(args: &ExportParquetArgs) -> Result<()> {
             drop(bar);
             let rows = writer.rows();
             let groups = writer.row_groups() + usize::from(rows > 0);
-            let bytes = writer.finish()?.commit()?;
-            Some((grid, rows, groups, bytes))
+            Some((grid, rows, groups, writer.finish()?))
         }
         _ => None,
+    };
+    let observations_stream = observations_file.is_stream();
+    let observation_bytes = observations_file.commit()?;
+    let predictions = match predictions {
+        Some((grid, rows, groups, file)) => match file.commit() {
+            Ok(bytes) => Some((grid, rows, groups, bytes)),
+            Err(e) => {
+                if !observations_stream {
+                    let _ = std::fs::remove_file(&observations_path);
+                }
+                return Err(e.into());
+            }
+        },
+        None => None,
     };
 
     let seconds = started.elapsed().as_secs_f64();
@@ -298,7 +371,8 @@ fn open_store(args: &ExportParquetArgs) -> Result<Box<dyn Store>> {
             data.display()
         );
     }
-    RedbStore::open(&path)
+    // Read-only: an export never creates, repairs or writes the store.
+    RedbStore::open_read_only(&path)
         .map(|store| Box::new(store) as Box<dyn Store>)
         .map_err(|e| in_use(e, data))
 }

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use redb::{Database, ReadableDatabase, ReadableTable, TableDefinition};
+use redb::{Database, ReadOnlyDatabase, ReadableDatabase, ReadableTable, TableDefinition};
 
 use super::{Checkpoint, Recovered, Store, StoreError, Visit};
 
@@ -14,7 +14,22 @@ const CHECKPOINT: &str = "checkpoint";
 /// The log and snapshots in one redb database file.
 pub struct RedbStore {
     path: PathBuf,
-    db: Database,
+    db: Db,
+}
+
+/// The database, opened to read and write (the service) or only to read (an export).
+enum Db {
+    Write(Database),
+    Read(ReadOnlyDatabase),
+}
+
+impl Db {
+    fn begin_read(&self) -> Result<redb::ReadTransaction, redb::TransactionError> {
+        match self {
+            Db::Write(db) => db.begin_read(),
+            Db::Read(db) => db.begin_read(),
+        }
+    }
 }
 
 impl RedbStore {
@@ -48,8 +63,14 @@ impl RedbStore {
                 crate::check::RECOVERY_HINT
             )),
         })?;
-        let store = RedbStore { path, db };
-        let txn = store.db.begin_write().map_err(|e| store.error(e))?;
+        let store = RedbStore {
+            path,
+            db: Db::Write(db),
+        };
+        let txn = store
+            .writable()?
+            .begin_write()
+            .map_err(|e| store.error(e))?;
         {
             txn.open_table(LOG).map_err(|e| store.error(e))?;
             txn.open_table(SNAPSHOTS).map_err(|e| store.error(e))?;
@@ -59,12 +80,70 @@ impl RedbStore {
         Ok(store)
     }
 
+    /// Opens the database at `path` to read it only: nothing is created, repaired or written
+    /// (the file is opened read-only, so its bytes and times stay as they were, and a store on
+    /// a read-only file system can be read).
+    ///
+    /// # Errors
+    /// The file does not exist, is empty, is not a redb database, another process holds it
+    /// (redb's message says it is open), or it was not closed cleanly (redb would have to
+    /// repair it, which takes writing: opening it with `chronomap serve` does).
+    pub fn open_read_only(path: impl AsRef<Path>) -> Result<Self, StoreError> {
+        let path = path.as_ref().to_path_buf();
+        let fail = |reason: String| StoreError {
+            store: path.display().to_string(),
+            reason,
+        };
+        let size = std::fs::metadata(&path)
+            .map_err(|e| fail(format!("cannot open the file: {e}")))?
+            .len();
+        if size == 0 {
+            return Err(fail(
+                "the file is empty: not a store (a store is made by `chronomap serve`)".into(),
+            ));
+        }
+        let db = ReadOnlyDatabase::open(&path).map_err(|e| match e {
+            redb::DatabaseError::RepairAborted => fail(format!(
+                "the store was not closed cleanly and redb must repair it before it can be \
+                 read, which takes writing; start and stop `chronomap serve` on it once (it \
+                 repairs the file), then read it again ({e})"
+            )),
+            redb::DatabaseError::DatabaseAlreadyOpen => fail(e.to_string()),
+            e => fail(format!(
+                "{e} (if the file is damaged: {})",
+                crate::check::RECOVERY_HINT
+            )),
+        })?;
+        Ok(RedbStore {
+            path,
+            db: Db::Read(db),
+        })
+    }
+
     /// Checks every page checksum of the file (redb's own integrity check).
     ///
     /// # Errors
-    /// The check fails and redb cannot repair the file.
+    /// The check fails and redb cannot repair the file, or the store was opened read-only.
     pub fn check_integrity(&mut self) -> Result<bool, StoreError> {
-        self.db.check_integrity().map_err(|e| self.error(e))
+        let path = self.path.display().to_string();
+        match &mut self.db {
+            Db::Write(db) => db.check_integrity().map_err(|e| StoreError {
+                store: path,
+                reason: e.to_string(),
+            }),
+            Db::Read(_) => Err(StoreError {
+                store: path,
+                reason: "opened read-only: the integrity check may repair, which writes".into(),
+            }),
+        }
+    }
+
+    /// The database to write, or an error for a store opened read-only.
+    fn writable(&self) -> Result<&Database, StoreError> {
+        match &self.db {
+            Db::Write(db) => Ok(db),
+            Db::Read(_) => Err(self.error("opened read-only: nothing can be written")),
+        }
     }
 
     /// The file.
@@ -112,7 +191,7 @@ impl Store for RedbStore {
     }
 
     fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError> {
-        let txn = self.db.begin_write().map_err(|e| self.error(e))?;
+        let txn = self.writable()?.begin_write().map_err(|e| self.error(e))?;
         {
             let mut log = txn.open_table(LOG).map_err(|e| self.error(e))?;
             log.insert(seq, group).map_err(|e| self.error(e))?;
@@ -121,7 +200,7 @@ impl Store for RedbStore {
     }
 
     fn checkpoint(&self, checkpoint: &Checkpoint<'_>) -> Result<(), StoreError> {
-        let txn = self.db.begin_write().map_err(|e| self.error(e))?;
+        let txn = self.writable()?.begin_write().map_err(|e| self.error(e))?;
         {
             let mut table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
             for (id, bytes) in checkpoint.snapshots {
