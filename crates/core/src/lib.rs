@@ -45,6 +45,7 @@ pub mod anomaly;
 pub mod conformance;
 pub mod crossings;
 pub mod error;
+pub mod error_chain;
 pub mod exact;
 pub mod fft;
 pub mod fremen;
