@@ -521,6 +521,81 @@ impl Setup {
     }
 }
 
+/// Checks that the models can be saved in `dir` (`save_dir`) before anything is learned: it is
+/// a folder, or one that can be created, outside the kernel's file systems (`/proc`, `/sys`,
+/// `/dev`), and a file can be created in it (or in the folder it would be created in): a
+/// probe file is made and removed. Otherwise the first save, minutes or days later, would
+/// fail and lose what was learned.
+///
+/// # Errors
+/// Why the folder cannot hold the models.
+pub fn check_save_dir(dir: &Path) -> Result<(), String> {
+    let absolute = if dir.is_absolute() {
+        dir.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .map_err(|e| format!("cannot resolve {}: {e}", dir.display()))?
+            .join(dir)
+    };
+    for kernel in ["/proc", "/sys", "/dev"] {
+        if absolute.starts_with(kernel) {
+            return Err(format!(
+                "{} is under {kernel}, a file system of the kernel: the models cannot be saved \
+                 there",
+                dir.display()
+            ));
+        }
+    }
+    // The folder, or the nearest folder above it that exists (where it would be created).
+    let mut existing = absolute.as_path();
+    loop {
+        match std::fs::metadata(existing) {
+            Ok(meta) if meta.is_dir() => break,
+            Ok(_) if existing == absolute => {
+                return Err(format!("{} is a file, not a folder", dir.display()));
+            }
+            Ok(_) => {
+                return Err(format!(
+                    "{} cannot be created: {} is a file, not a folder",
+                    dir.display(),
+                    existing.display()
+                ));
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                existing = existing
+                    .parent()
+                    .ok_or_else(|| format!("{}: no folder of it exists", dir.display()))?;
+            }
+            Err(e) => return Err(format!("cannot inspect {}: {e}", existing.display())),
+        }
+    }
+    let probe = existing.join(format!(".chronomap-probe-{}", std::process::id()));
+    let made = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe);
+    match made {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => Err(if existing == absolute {
+            format!("{}: no file can be created in it ({e})", dir.display())
+        } else {
+            format!(
+                "{} cannot be created: no file can be created in {} ({e})",
+                dir.display(),
+                existing.display()
+            )
+        }),
+    }
+}
+
 /// Whether the parameter `name` may change while the node runs (the others are read when the
 /// node starts or, managed, configures).
 pub fn is_dynamic(name: &str) -> bool {
@@ -1508,7 +1583,11 @@ impl Checker<'_> {
             Some(d) if d.value.is_empty() => {
                 return Err(self.at(d, "save_dir", "an empty folder name".into()));
             }
-            Some(d) => Some(d.origin.folder().join(&d.value)),
+            Some(d) => {
+                let dir = d.origin.folder().join(&d.value);
+                check_save_dir(&dir).map_err(|m| self.at(d, "save_dir", m))?;
+                Some(dir)
+            }
             None => None,
         };
         let record_observations = raw.record_observations.as_ref().is_some_and(|r| r.value);

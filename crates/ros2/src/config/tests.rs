@@ -518,3 +518,59 @@ fn several_models_learn_one_state_topic() {
         ]
     );
 }
+
+/// A `save_dir` that cannot hold the models is refused when the configuration is checked
+/// (`--check`, start-up), naming file, line and parameter; before, it was found at the first
+/// save, losing everything learned until then.
+#[test]
+fn a_save_dir_that_cannot_hold_the_models_is_refused_at_once() {
+    let dir = std::env::temp_dir().join(format!("chronomap-ros2-save-dir-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("a_file"), "x").unwrap();
+    let config = dir.join("node.yaml");
+    let check = |save_dir: &str| {
+        let text = format!(
+            "chronomap:\n  ros__parameters:\n    save_dir: {save_dir}\n    states:\n      \
+             door: {{topic: /door, type: std_msgs/msg/Bool}}\n"
+        );
+        NodeConfig::parse(&config, text.as_bytes(), None).map(|c| c.save_dir)
+    };
+    let at = format!("{}:3: save_dir: ", config.display());
+    assert_eq!(
+        check("a_file").unwrap_err().to_string(),
+        format!(
+            "{at}{} is a file, not a folder",
+            dir.join("a_file").display()
+        )
+    );
+    assert_eq!(
+        check("a_file/models").unwrap_err().to_string(),
+        format!(
+            "{at}{} cannot be created: {} is a file, not a folder",
+            dir.join("a_file/models").display(),
+            dir.join("a_file").display()
+        )
+    );
+    for kernel in ["/proc", "/sys", "/dev"] {
+        let path = format!("{kernel}/chronomap");
+        assert_eq!(
+            check(&path).unwrap_err().to_string(),
+            format!(
+                "{at}{path} is under {kernel}, a file system of the kernel: the models cannot \
+                 be saved there"
+            )
+        );
+    }
+    // A folder that exists, or can be created, is accepted; the probe leaves nothing behind.
+    assert_eq!(check("."), Ok(Some(dir.join("."))));
+    assert_eq!(check("new/models"), Ok(Some(dir.join("new/models"))));
+    assert!(!dir.join("new").exists(), "checking creates no folder");
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["a_file"]);
+    std::fs::remove_dir_all(dir).unwrap();
+}
