@@ -21,7 +21,10 @@
 //! Bounds: at most [`MAX_VERTICES`] vertices and [`MAX_ELEMENT_COUNT`] items per other
 //! element, a header of at most [`MAX_HEADER_BYTES`], ASCII lines of at most
 //! [`MAX_LINE_BYTES`]; memory grows with the data actually read, never with a count announced
-//! in the header. A device such as `/dev/zero` is refused before reading.
+//! in the header. In a plain (uncompressed) file the counts are also checked against the bytes
+//! that follow the header before any item is read: an element announcing more items than those
+//! bytes can hold is refused at its header line. A device such as `/dev/zero` is refused before
+//! reading.
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
@@ -185,12 +188,31 @@ struct Element {
     name: String,
     count: u64,
     properties: Vec<Property>,
+    /// Its header line.
+    line: usize,
+}
+
+impl Element {
+    /// The fewest bytes one item takes: its scalars (a list's count alone) in binary, one
+    /// digit and one separator per property in ASCII.
+    fn min_item_bytes(&self, format: PlyFormat) -> u64 {
+        match format {
+            PlyFormat::Ascii => (2 * self.properties.len() as u64).max(1),
+            _ => self
+                .properties
+                .iter()
+                .map(|p| p.list.unwrap_or(p.scalar).size() as u64)
+                .sum(),
+        }
+    }
 }
 
 struct Header {
     format: PlyFormat,
     elements: Vec<Element>,
     lines: usize,
+    /// Bytes from `ply` to the end of `end_header`'s line.
+    bytes: usize,
 }
 
 /// Reads the PLY file `path` (plain, `.xz` or `.gz`) as a cloud.
@@ -204,21 +226,60 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<Cloud<3>, PlyError> {
             message: e.to_string(),
         },
     })?;
-    decode_ply(
+    // The size of a plain regular file bounds what its header may announce.
+    let compressed = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("xz") || e.eq_ignore_ascii_case("gz"));
+    let size = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file() && !compressed)
+        .map(|m| m.len());
+    decode(
         &name,
         crate::decompressing_reader(&path.to_string_lossy(), file),
+        size,
     )
 }
 
 /// Reads a PLY cloud from `reader`; `name` is the file name the errors give.
 pub fn decode_ply(name: &str, reader: impl Read) -> Result<Cloud<3>, PlyError> {
+    decode(name, reader, None)
+}
+
+/// Reads a PLY cloud of `size` bytes in all, if known, from `reader`.
+fn decode(name: &str, reader: impl Read, size: Option<u64>) -> Result<Cloud<3>, PlyError> {
     let fail = |kind| PlyError {
         file: name.to_string(),
         kind,
     };
     let mut reader = BufReader::new(reader);
     let header = read_header(&mut reader).map_err(fail)?;
+    if let Some(size) = size {
+        check_counts(&header, size.saturating_sub(header.bytes as u64)).map_err(fail)?;
+    }
     read_body(&mut reader, &header).map_err(fail)
+}
+
+/// Every element's count against the `left` bytes after the header: the items cannot take
+/// fewer than [`Element::min_item_bytes`] each.
+fn check_counts(header: &Header, left: u64) -> Result<(), PlyErrorKind> {
+    let mut need = 0u64;
+    for element in &header.elements {
+        let each = element.min_item_bytes(header.format);
+        need = need.saturating_add(element.count.saturating_mul(each));
+        if need > left {
+            return Err(PlyErrorKind::Header {
+                line: element.line,
+                reason: format!(
+                    "element {}: {} items of at least {each} bytes each do not fit in the \
+                     {left} bytes after end_header (a wrong count, or a truncated file)",
+                    element.name, element.count
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn io_error(e: std::io::Error) -> PlyErrorKind {
@@ -310,6 +371,7 @@ fn read_header(reader: &mut impl BufRead) -> Result<Header, PlyErrorKind> {
                     name: name.to_string(),
                     count,
                     properties: Vec::new(),
+                    line: line_no,
                 });
             }
             ["property", "list", count_type, item_type, name] => {
@@ -382,6 +444,7 @@ fn read_header(reader: &mut impl BufRead) -> Result<Header, PlyErrorKind> {
         format,
         elements,
         lines: line_no,
+        bytes: used,
     })
 }
 
@@ -785,6 +848,50 @@ element vertex 1\nproperty uchar r\nproperty short x\nproperty float y\nproperty
         let mut nan = bytes.clone();
         nan[body + 5 * 16 + 4..body + 5 * 16 + 8].copy_from_slice(&f32::NAN.to_le_bytes());
         assert_eq!(err(&nan), "t.ply: vertex 5, property y: NaN is not finite");
+    }
+
+    #[test]
+    fn counts_beyond_the_bytes_of_a_plain_file_are_refused_before_reading() {
+        // A 2-vertex binary cloud whose header announces 10^8 vertices (1.2 GB of float x, y, z):
+        // refused at the element's line from the file's size, before reading a vertex.
+        let cloud = Cloud::from_points(vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]).unwrap();
+        let bytes = encode_ply(&cloud, PlyFormat::BinaryLittleEndian);
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let body = text.find("end_header\n").unwrap() + 11;
+        let mut lying = text[..body]
+            .replace("element vertex 2", "element vertex 100000000")
+            .into_bytes();
+        lying.extend_from_slice(&bytes[body..]);
+        let dir = std::env::temp_dir().join(format!("ply_counts_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("lying.ply");
+        std::fs::write(&path, &lying).unwrap();
+        let e = read_ply(&path).unwrap_err();
+        assert_eq!(
+            e.kind.to_string(),
+            "line 4: element vertex: 100000000 items of at least 24 bytes each do not fit in the \
+             48 bytes after end_header (a wrong count, or a truncated file)"
+        );
+        // As bytes (no size known) the same file reads until it ends.
+        assert_eq!(
+            decode_ply("t.ply", &lying[..])
+                .unwrap_err()
+                .kind
+                .to_string(),
+            "vertex 2, property x: the file ends here (truncated)"
+        );
+        // ASCII: 3 lines of at least "x y z\n" (6 bytes) do not fit in 10 bytes.
+        std::fs::write(
+            &path,
+            format!("{HEAD}end_header\n1 2 3\n4 5 6\n").replace("vertex 2", "vertex 3"),
+        )
+        .unwrap();
+        let e = read_ply(&path).unwrap_err().to_string();
+        assert!(e.ends_with("line 3: element vertex: 3 items of at least 6 bytes each do not fit in the 12 bytes after end_header (a wrong count, or a truncated file)"), "{e}");
+        // The exact count is read.
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(read_ply(&path).unwrap(), cloud);
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
