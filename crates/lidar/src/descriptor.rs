@@ -217,9 +217,9 @@ pub enum DescriptorError {
         /// Its value.
         value: f64,
     },
-    /// The scan breaks its invariants.
+    /// The scan breaks its invariants (its message is part of this one's, not a source).
     #[error("scan: {0}")]
-    Scan(#[from] crate::scan::ScanError),
+    Scan(crate::scan::ScanError),
     /// A point of a cloud is not finite.
     #[error("point {index}: a coordinate is not finite")]
     Point {
@@ -232,6 +232,12 @@ pub enum DescriptorError {
     /// Two descriptors (or a descriptor and its parameters) do not match.
     #[error("descriptors do not match: {0}")]
     Mismatch(&'static str),
+}
+
+impl From<crate::scan::ScanError> for DescriptorError {
+    fn from(e: crate::scan::ScanError) -> Self {
+        DescriptorError::Scan(e)
+    }
 }
 
 /// A descriptor `χ = (χ^I, χ^II)` ([Stüde 2024] eq. (3.7)).

@@ -35,7 +35,9 @@ use crate::search::{
 };
 use crate::threshold::{MeanSd, RocPoint, ThresholdError, auc, rates_at, roc, threshold_for_fpr};
 
-/// Why an evaluation cannot run.
+/// Why an evaluation cannot run. The message of the inner error is part of this one's, so it
+/// is not also its [`source`](std::error::Error::source) (a chain printed in full would say it
+/// twice: "covariance: not finite: covariance: not finite").
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EvalError {
     /// A position is not finite, or inputs differ in length.
@@ -43,13 +45,31 @@ pub enum EvalError {
     Input(String),
     /// Training failed.
     #[error("training: {0}")]
-    Train(#[from] AdaBoostError),
+    Train(AdaBoostError),
     /// A ROC curve failed.
     #[error("roc: {0}")]
-    Roc(#[from] ThresholdError),
+    Roc(ThresholdError),
     /// A search quantity failed.
     #[error("search: {0}")]
-    Search(#[from] SearchError),
+    Search(SearchError),
+}
+
+impl From<AdaBoostError> for EvalError {
+    fn from(e: AdaBoostError) -> Self {
+        EvalError::Train(e)
+    }
+}
+
+impl From<ThresholdError> for EvalError {
+    fn from(e: ThresholdError) -> Self {
+        EvalError::Roc(e)
+    }
+}
+
+impl From<SearchError> for EvalError {
+    fn from(e: SearchError) -> Self {
+        EvalError::Search(e)
+    }
 }
 
 /// How keyframe pairs are labelled.
@@ -1200,6 +1220,29 @@ pub fn run_pipeline(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_wrapped_error_says_its_cause_once() {
+        // `lidar detect` printed "search: covariance: not finite: covariance: not finite": the
+        // inner error was both in the message and returned as its source.
+        let errors = [
+            EvalError::from(
+                search_radius([[f64::NAN, 0.0], [0.0, 1.0]], &SearchParams::default()).unwrap_err(),
+            ),
+            EvalError::from(roc(&[0.5], &[true]).unwrap_err()),
+        ];
+        assert_eq!(errors[0].to_string(), "search: covariance: not finite");
+        assert_eq!(
+            errors[1].to_string(),
+            "roc: a ROC curve needs positives and negatives"
+        );
+        for e in &errors {
+            assert!(std::error::Error::source(e).is_none(), "{e}");
+        }
+        let scan = crate::Scan2d::new(0.0, 0.0, 1.0, f64::NAN, vec![1.0, 2.0]).unwrap_err();
+        let d = crate::descriptor::DescriptorError::from(scan);
+        assert!(std::error::Error::source(&d).is_none(), "{d}");
+    }
 
     #[test]
     fn labels_leave_out_the_ambiguous_band() {

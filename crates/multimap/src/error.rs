@@ -32,9 +32,10 @@ pub enum MultimapError {
         /// The range it must lie in.
         why: &'static str,
     },
-    /// A scan refused by [`chronomap_lidar::Scan2d::validate`].
+    /// A scan refused by [`chronomap_lidar::Scan2d::validate`] (its message is part of this
+    /// one's, not a source).
     #[error("scan: {0}")]
-    Scan(#[from] ScanError),
+    Scan(ScanError),
     /// Scan times must not decrease.
     #[error("time: scan at {time} s comes after one at {previous} s")]
     TimeGoesBack {
@@ -93,4 +94,25 @@ pub enum MultimapError {
         /// A map whose pose is not determined.
         map: usize,
     },
+}
+
+impl From<ScanError> for MultimapError {
+    fn from(e: ScanError) -> Self {
+        MultimapError::Scan(e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_inner_message_is_said_once() {
+        // Its Display includes the scan error; returning it from `source()` as well made a
+        // printed chain repeat it ("scan: …: …").
+        let scan = chronomap_lidar::Scan2d::new(0.0, 0.0, 1.0, f64::NAN, vec![1.0, 2.0]);
+        let e = MultimapError::from(scan.unwrap_err());
+        assert!(e.to_string().starts_with("scan: "), "{e}");
+        assert!(std::error::Error::source(&e).is_none());
+    }
 }
