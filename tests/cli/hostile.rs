@@ -76,7 +76,8 @@ fn parse_cases(text: &str) -> Vec<Case> {
 /// `x` and a newline), `copy NAME` (a file of the corpus, beside the generated ones), `fill
 /// TEMPLATE CHARS NAME` (a corpus file with `@LONG@` replaced by CHARS `x`) or `mcap TOPIC
 /// TYPE NAME` (an MCAP bag with a topic, and with TYPE > 0 a type name, of that many
-/// characters: [`bool_mcap`]).
+/// characters: [`bool_mcap`]); `ply-random N NAME` is a binary PLY cloud of N points scattered
+/// through a 20 m cube.
 fn make(spec: &str, corpus: &Path, out: &Path) {
     let words: Vec<&str> = spec.split_whitespace().collect();
     match words.as_slice() {
@@ -113,8 +114,77 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
             let (topic, ty): (usize, usize) = (topic.parse().unwrap(), ty.parse().unwrap());
             std::fs::write(out.join(name), bool_mcap(topic, ty)).unwrap();
         }
+        ["mcap_fields", fields, name] => {
+            std::fs::write(out.join(name), wide_mcap(fields.parse().unwrap())).unwrap();
+        }
+        ["ply-random", n, name] => {
+            // `n` points spread through a 20 m cube (binary float x, y, z; a fixed xorshift
+            // sequence), so that almost every point keeps its own voxel on a fine grid.
+            let n: u64 = n.parse().unwrap();
+            let mut bytes = format!(
+                "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\n\
+                 property float y\nproperty float z\nend_header\n"
+            )
+            .into_bytes();
+            let mut state = 0x9e37_79b9_7f4a_7c15u64;
+            for _ in 0..3 * n {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let x = 20.0 * (state >> 40) as f32 / (1u64 << 24) as f32;
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+            std::fs::write(out.join(name), bytes).unwrap();
+        }
         _ => panic!("unknown `make: {spec}`"),
     }
+}
+
+/// An MCAP file (no chunks, no CRCs) whose one schema, `a/msg/Wide`, has `fields` fields `int8
+/// f0` … and then `f0` once more, with one message on `/wide`.
+fn wide_mcap(fields: usize) -> Vec<u8> {
+    let string = |s: &[u8]| [&(s.len() as u32).to_le_bytes()[..], s].concat();
+    let record =
+        |op: u8, body: &[u8]| [&[op][..], &(body.len() as u64).to_le_bytes(), body].concat();
+    let mut text: String = (0..fields).map(|i| format!("int8 f{i}\n")).collect();
+    text.push_str("int8 f0\n");
+    let schema = [
+        &1u16.to_le_bytes()[..],
+        &string(b"a/msg/Wide"),
+        &string(b"ros2msg"),
+        &string(text.as_bytes()),
+    ]
+    .concat();
+    let channel = [
+        &1u16.to_le_bytes()[..],
+        &1u16.to_le_bytes(),
+        &string(b"/wide"),
+        &string(b"cdr"),
+        &0u32.to_le_bytes(),
+    ]
+    .concat();
+    let message = [
+        &1u16.to_le_bytes()[..],
+        &0u32.to_le_bytes(),
+        &[0u8; 16],
+        &[0, 1, 0, 0, 0],
+    ]
+    .concat();
+    let magic = b"\x89MCAP0\r\n";
+    [
+        &magic[..],
+        &record(
+            0x01,
+            &[string(b"ros2"), string(b"chronomap hostile corpus")].concat(),
+        ),
+        &record(0x03, &schema),
+        &record(0x04, &channel),
+        &record(0x05, &message),
+        &record(0x0F, &0u32.to_le_bytes()),
+        &record(0x02, &[0u8; 20]),
+        magic,
+    ]
+    .concat()
 }
 
 /// A minimal MCAP file (header, schema, channel, three messages, data end, footer; no chunks

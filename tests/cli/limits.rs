@@ -155,6 +155,31 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,
         ),
         (
+            "MAX_DECOMPRESSED_BYTES",
+            "chronomap_rosbag::bag",
+            chronomap_rosbag::bag::MAX_DECOMPRESSED_BYTES as u128,
+        ),
+        (
+            "MAX_DEFINITION_BYTES",
+            "chronomap_rosbag::bag",
+            chronomap_rosbag::bag::MAX_DEFINITION_BYTES as u128,
+        ),
+        (
+            "MAX_NAME_BYTES",
+            "chronomap_rosbag::bag",
+            chronomap_rosbag::bag::MAX_NAME_BYTES as u128,
+        ),
+        (
+            "MAX_METADATA_BYTES",
+            "chronomap_rosbag::bag",
+            chronomap_rosbag::bag::MAX_METADATA_BYTES.into(),
+        ),
+        (
+            "METADATA_VERSIONS",
+            "chronomap_rosbag::bag",
+            (*chronomap_rosbag::bag::METADATA_VERSIONS.end()).into(),
+        ),
+        (
             "MAX_MAP_CELLS",
             "chronomap_rosbag::records",
             chronomap_rosbag::records::MAX_MAP_CELLS.into(),

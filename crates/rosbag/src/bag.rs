@@ -37,8 +37,8 @@ use crate::cdr::{self, Value};
 use crate::msgdef::{Schema, canonical_type_name};
 use crate::time::nanos_seconds;
 
-/// Largest `metadata.yaml` read (bytes).
-const MAX_METADATA_BYTES: u64 = 16 << 20;
+/// Largest `metadata.yaml` read (bytes): 16 MiB.
+pub const MAX_METADATA_BYTES: u64 = 16 << 20;
 
 /// Largest record of an MCAP file: 1 GiB. A record must also fit in what remains of its file
 /// (checked before it is read).
