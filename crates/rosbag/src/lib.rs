@@ -20,7 +20,8 @@
 //!   [`cdr::Value`] that borrows the bytes; [`builtin`] holds the definitions of the types
 //!   chronomap reads, for bags that carry none;
 //! * [`bag`]: a rosbag2 folder (`metadata.yaml` + MCAP or SQLite files) or a single `.mcap`
-//!   or `.db3`, read as a stream (the `mcap` and `rusqlite` crates), with errors that name the
+//!   or `.db3`, read as a stream (MCAP by this crate's own reader, which checks every declared
+//!   size against what remains and every CRC; SQLite by `rusqlite`), with errors that name the
 //!   file, the record and the message;
 //! * [`records`]: states, maps, people, scans and odometry taken from one topic, with their
 //!   times ([`time`]: exact `f64` seconds from ROS stamps).
