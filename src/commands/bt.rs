@@ -541,7 +541,7 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
     let print_transitions = |list: &[chronomap_bt::Transition]| -> Result<()> {
         for t in list {
             // A name from the XML may be longer than a format width can pad (65,535).
-            let name = crate::format::pad_right(&crate::format::elide(&name_of(t.uid)), width);
+            let name = crate::format::pad_right(&crate::format::elide(name_of(t.uid)), width);
             let halted = if t.from == Status::Running && t.to == Status::Idle {
                 " (halted)"
             } else {

@@ -390,7 +390,7 @@ fn render_panels(
     draw_png(path, (width, height), |root| {
         root.fill(&WHITE).map_err(drawing)?;
         let legend_width =
-            legend_width(&root, scale, panels.iter().flat_map(|p| &p.series)).min(width * 2 / 5);
+            legend_width(root, scale, panels.iter().flat_map(|p| &p.series)).min(width * 2 / 5);
         for (panel, area) in panels.iter().zip(root.split_evenly((panels.len(), 1))) {
             let (chart_area, legend_area) = area.split_horizontally(width - legend_width);
             draw_panel(panel, &chart_area, x_range.clone(), scale)?;
