@@ -273,15 +273,21 @@ fn parse_pair(text: &str) -> Result<[usize; 2], String> {
     }
 }
 
-/// `X,Y` as two finite numbers.
+/// `X,Y` as two finite numbers of metres, each at most
+/// [`MAX_LENGTH_M`](chronomap_io::laser_text::MAX_LENGTH_M) in magnitude (as offsets in the
+/// text logs).
 fn parse_xy(text: &str) -> Result<[f64; 2], String> {
     let parts: Vec<&str> = text.split(',').collect();
     let numbers: Vec<f64> = parts
         .iter()
         .filter_map(|p| p.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
         .collect();
+    let limit = chronomap_io::laser_text::MAX_LENGTH_M;
     match numbers[..] {
-        [x, y] if parts.len() == 2 => Ok([x, y]),
+        [x, y] if parts.len() == 2 && x.abs() <= limit && y.abs() <= limit => Ok([x, y]),
+        [_, _] if parts.len() == 2 => Err(format!(
+            "{text:?}: an offset beyond ±{limit} m (the laser sits on the robot)"
+        )),
         _ => Err(format!("{text:?} is not X,Y (two finite numbers)")),
     }
 }

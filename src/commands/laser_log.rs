@@ -171,6 +171,21 @@ fn from_bag(path: &Path, args: &LaserSourceArgs) -> Result<LaserLog> {
             args.odom_topic
         ));
     }
+    // The same bounds as the text logs: a pose beyond ±1e6 m or a non-finite one is refused.
+    let limit = chronomap_io::laser_text::MAX_LENGTH_M;
+    if let Some((k, o)) = odometry.iter().enumerate().find(|(_, o)| {
+        !(o.position[0].abs() <= limit && o.position[1].abs() <= limit && o.yaw.is_finite())
+    }) {
+        return Err(anyhow!(
+            "{}: {} message {}: pose ({}, {}, yaw {}) is not finite or beyond ±{limit} m",
+            bag.name(),
+            args.odom_topic,
+            k + 1,
+            o.position[0],
+            o.position[1],
+            o.yaw
+        ));
+    }
     let mut log = LaserLog {
         name: bag.name().to_string(),
         scans: Vec::with_capacity(scans.len()),

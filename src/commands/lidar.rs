@@ -19,7 +19,10 @@ use chronomap_lidar::evaluation::{
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 use chronomap_registration::rigid::Rigid;
-use chronomap_registration::{RegistrationParams, register, register_scans, scan_params};
+use chronomap_registration::{
+    MAX_FEATURE_POINTS, RegistrationError, RegistrationParams, register, register_scans,
+    scan_params,
+};
 use serde_json::json;
 
 use super::laser_log;
@@ -122,14 +125,42 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
     if let Some(seed) = args.seed {
         params.ransac.seed = seed;
     }
+    for (path, cloud) in [(source_path, &source), (target_path, &target)] {
+        check_range(path, cloud, args.max_range)?;
+    }
     let bar = ProgressBar::stage("registering", 0);
     let start = Instant::now();
-    let result = register(&source, &target, &params).with_context(|| {
-        format!(
-            "cannot register {} to {}",
-            source_path.display(),
-            target_path.display()
-        )
+    let result = register(&source, &target, &params).map_err(|e| {
+        let file = |what: &str| {
+            if what.ends_with("source") {
+                source_path.display()
+            } else {
+                target_path.display()
+            }
+        };
+        match e {
+            RegistrationError::TooManyFeaturePoints { what, got, voxel } => anyhow!(
+                "{}: {got} points remain on the --voxel {voxel} m grid, at most \
+                 {MAX_FEATURE_POINTS} enter feature computation (FPFH keeps about 2 KB a \
+                 point): give a larger --voxel (about {:.2} m)",
+                file(what),
+                voxel * (got as f64 / MAX_FEATURE_POINTS as f64).sqrt() * 1.2
+            ),
+            RegistrationError::TooFewPoints { what, got, need } if what.starts_with("filtered") => {
+                anyhow!(
+                    "{}: {got} points left after the --fine-voxel {} m grid and --max-range {} m, \
+                     at least {need} needed",
+                    file(what),
+                    args.fine_voxel,
+                    args.max_range
+                )
+            }
+            e => anyhow::Error::new(e).context(format!(
+                "cannot register {} to {}",
+                source_path.display(),
+                target_path.display()
+            )),
+        }
     })?;
     let seconds = start.elapsed().as_secs_f64();
     drop(bar);
@@ -195,6 +226,33 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// Too few points of a cloud within `max_range` of its sensor (the origin) for registration:
+/// an error naming the file and --max-range, with the distance of its nearest point (a cloud
+/// in a far frame, e.g. UTM, is all beyond the default 30 m).
+fn check_range(
+    path: &Path,
+    cloud: &chronomap_registration::Cloud<3>,
+    max_range: f64,
+) -> Result<()> {
+    let ranges = cloud
+        .points()
+        .iter()
+        .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt());
+    let within = ranges.clone().filter(|&r| r <= max_range).count();
+    // The 9 points `register` needs at least (3 per dimension).
+    if within >= 9 {
+        return Ok(());
+    }
+    let nearest = ranges.fold(f64::INFINITY, f64::min);
+    Err(anyhow!(
+        "{}: {within} of its {} points lie within --max-range {max_range} m of the sensor (the \
+         origin), at least 9 are needed; its nearest point is {nearest:.1} m away: give a \
+         larger --max-range",
+        path.display(),
+        cloud.len()
+    ))
 }
 
 /// Registration parameters for 3-D clouds: features and RANSAC on a `voxel` grid, ICP on a
@@ -478,12 +536,18 @@ fn labelled_keyframes(
     if flags.rounds == 0 {
         return Err(usage("--rounds must be at least 1"));
     }
+    if flags.folds < 2 {
+        return Err(usage(format!(
+            "--folds {}: cross-validation needs at least 2 folds",
+            flags.folds
+        )));
+    }
+    if flags.layouts == 0 {
+        return Err(usage("--layouts must be at least 1"));
+    }
     let log = laser_log::read_keyframes_file(path, odometry)?;
     let truth = log.truth.clone().expect("keyframe files carry poses");
     let config = classifier_config(flags);
-    let features = config
-        .features(&log.scans)
-        .with_context(|| format!("{}: keyframe features", log.name))?;
     let labels = LabelParams {
         near: flags.near,
         far: flags.far,
@@ -503,14 +567,18 @@ fn labelled_keyframes(
             flags.far
         ));
     }
-    let rows = config.pair_rows(&features, &pairs)?;
-    let places = truth
+    let places: Vec<[f64; 2]> = truth
         .iter()
         .map(|&p| {
             let s = compose(p, log.sensor);
             [s[0], s[1]]
         })
         .collect();
+    check_folds(&log.name, &places, &pairs, flags)?;
+    let features = config
+        .features(&log.scans)
+        .with_context(|| format!("{}: keyframe features", log.name))?;
+    let rows = config.pair_rows(&features, &pairs)?;
     Ok(LabelledKeyframes {
         log,
         config,
@@ -520,6 +588,58 @@ fn labelled_keyframes(
         labels,
         places,
     })
+}
+
+/// The most folds `--folds` may ask for (the sectors of [`layout_folds`]).
+const MAX_FOLDS: usize = 1000;
+
+/// Checks `--folds` against the keyframes before any feature is computed: at most one fold per
+/// keyframe (and [`MAX_FOLDS`]), and in every fold layout at least one fold whose own pairs hold
+/// a loop and a non-loop while the pairs outside it hold both too (else nothing is scored and
+/// the ROC has nothing to draw).
+fn check_folds(
+    name: &str,
+    places: &[[f64; 2]],
+    pairs: &[LabelledPair],
+    flags: &LoopTrainingFlags,
+) -> Result<()> {
+    let keyframes = places.len();
+    let positives = pairs.iter().filter(|p| p.positive).count();
+    let counts = format!(
+        "{name} has {keyframes} keyframes, {positives} loops and {} non-loops",
+        pairs.len() - positives
+    );
+    if flags.folds > keyframes.min(MAX_FOLDS) {
+        return Err(usage(format!(
+            "--folds {}: more folds than keyframes or than {MAX_FOLDS} ({counts}); the default \
+             is 5",
+            flags.folds
+        )));
+    }
+    for layout in 0..flags.layouts {
+        let fold_of = layout_folds(places, flags.folds, layout, flags.layouts)?;
+        let usable = (0..flags.folds).any(|f| {
+            let (mut inside, mut outside) = ([false; 2], [false; 2]);
+            for p in pairs {
+                let within = [fold_of[p.i] == f, fold_of[p.j] == f];
+                if within == [true, true] {
+                    inside[usize::from(p.positive)] = true;
+                } else if within == [false, false] {
+                    outside[usize::from(p.positive)] = true;
+                }
+            }
+            inside == [true, true] && outside == [true, true]
+        });
+        if !usable {
+            return Err(usage(format!(
+                "--folds {}: no fold of layout {layout} holds a loop and a non-loop among its \
+                 own keyframes with both left to train on ({counts}); use fewer folds (the \
+                 default is 5)",
+                flags.folds
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Cross-validation over `layouts` rotations of the place folds, each with its own seed.

@@ -1,6 +1,6 @@
 //! `chronomap maps build`: the map manager of the dissertation's §3.3 along a laser log.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, anyhow};
 use chronomap_multimap::door::DoorPassage;
 use chronomap_multimap::mapper::{Mapper, MapperParams};
 use chronomap_multimap::se2::Pose2;
@@ -27,6 +27,22 @@ pub fn build(args: &MapsBuildArgs) -> Result<()> {
         let report = mapper
             .step(scan, &increment)
             .with_context(|| format!("{}: scan {}", log.name, k + 1))?;
+        let pose = mapper.pose();
+        let finite = [pose.mean.x, pose.mean.y, pose.mean.theta]
+            .into_iter()
+            .chain(pose.cov.iter().flatten().copied())
+            .all(f64::is_finite);
+        if !finite {
+            return Err(anyhow!(
+                "{}: scan {}: the robot's pose or its covariance is no longer finite (odometry \
+                 increment ({}, {}, {}))",
+                log.name,
+                k + 1,
+                inc[0],
+                inc[1],
+                inc[2]
+            ));
+        }
         sides += usize::from(!report.detector.front.is_empty());
         passages.extend(report.passage);
         map_of_scan.push(mapper.current_map());
@@ -90,16 +106,23 @@ pub fn build(args: &MapsBuildArgs) -> Result<()> {
             p.criteria[2]
         )?;
     }
-    let sd = |v: f64| v.max(0.0).sqrt();
+    // A variance that is not a finite non-negative number is said so, never printed as 0.
+    let sd = |v: f64, scale: f64, unit: &str, digits: usize| {
+        if v.is_finite() && v >= 0.0 {
+            format!("{:.digits$} {unit}", scale * v.sqrt())
+        } else {
+            format!("{v} (not a variance)")
+        }
+    };
     outln!(
-        "robot in map {} at ({:.2}, {:.2}, {:.1}°), σ = ({:.2} m, {:.2} m, {:.1}°)",
+        "robot in map {} at ({:.2}, {:.2}, {:.1}°), σ = ({}, {}, {})",
         mapper.current_map(),
         pose.mean.x,
         pose.mean.y,
         pose.mean.theta.to_degrees(),
-        sd(pose.cov[0][0]),
-        sd(pose.cov[1][1]),
-        sd(pose.cov[2][2]).to_degrees()
+        sd(pose.cov[0][0], 1.0, "m", 2),
+        sd(pose.cov[1][1], 1.0, "m", 2),
+        sd(pose.cov[2][2], 1f64.to_degrees(), "°", 1).replace(" °", "°")
     )?;
     Ok(())
 }
