@@ -6,12 +6,18 @@
 //! run, e.g. `PROPTEST_CASES=100000 cargo test -p chronomap-io --test it properties`.
 
 use chronomap_io::grid_file::{GridFile, decode_grid, encode_grid};
-use chronomap_io::model_file::{decode_any_model, encode_model};
+use chronomap_io::laser_text::{
+    MAX_ANGLE_RAD, MAX_LENGTH_M, read_keyframes_from, read_odometry_from, read_scans_from,
+};
+use chronomap_io::model_file::{decode_any_model, decode_model, encode_model};
+use chronomap_io::ply::{PlyFormat, decode_ply, encode_ply};
 use chronomap_io::topo_files::{
     decode_route_geojson, decode_tmap2, encode_edge_file, encode_route_geojson, encode_tmap2,
     read_edge_file_from,
 };
 use chronomap_io::{decode_map_yaml, read_events_from, read_frame_list_from, read_pairs_from};
+use chronomap_lidar::classifier::{LoopClassifier, MODEL_KIND};
+use chronomap_registration::Cloud;
 use chronomap_testutil::repo_path;
 use chronomap_topo::TopoMap;
 use proptest::prelude::*;
@@ -50,7 +56,55 @@ fn readers() -> Vec<(&'static str, Reader)> {
         }),
         ("model file", |b| drop(decode_any_model(b))),
         ("grid file", |b| drop(decode_grid(b))),
+        ("PLY cloud", |b| drop(decode_ply("cloud.ply", b))),
+        ("laser scans", |b| drop(read_scans_from("scans.txt", b))),
+        ("keyframes", |b| {
+            drop(read_keyframes_from("keyframes.txt", b))
+        }),
+        ("odometry", |b| drop(read_odometry_from("odometry.txt", b))),
+        // As `chronomap lidar detect` reads it: the model file, then its own checks.
+        ("loop classifier", |b| {
+            if let Ok((_, c)) = decode_model::<LoopClassifier>(b) {
+                drop(c.validate());
+            }
+        }),
     ]
+}
+
+/// The first `lines` lines of a bundled (compressed) text file.
+fn head_of(path: &str, lines: usize) -> Vec<u8> {
+    let mut text = String::new();
+    std::io::Read::read_to_string(
+        &mut chronomap_io::open_data_file(chronomap_testutil::data_path(path)).unwrap(),
+        &mut text,
+    )
+    .unwrap();
+    let head: Vec<&str> = text.lines().take(lines).collect();
+    (head.join("\n") + "\n").into_bytes()
+}
+
+/// The bundled small_gicp source cloud cut to its first `n` vertices (binary, float x, y, z
+/// and intensity), its header's count changed to match.
+fn ply_head(n: usize) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(
+        &mut chronomap_io::open_data_file(chronomap_testutil::data_path(
+            "registration_small_gicp/source.ply.xz",
+        ))
+        .unwrap(),
+        &mut bytes,
+    )
+    .unwrap();
+    let body = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..body])
+        .replace("element vertex 69792", &format!("element vertex {n}"));
+    let mut out = header.into_bytes();
+    out.extend_from_slice(&bytes[body..body + 16 * n]);
+    out
 }
 
 /// Real files of each format, to mutate.
@@ -92,6 +146,12 @@ fn seeds() -> Vec<Vec<u8>> {
             .unwrap();
     }
     seeds.push(encode_grid(&GridFile::State(Box::new(grid))).unwrap());
+    // The lidar files: a real cloud, laser log, keyframes, odometry and loop classifier.
+    seeds.push(ply_head(64));
+    seeds.push(head_of("malaga_laser_2006/scans.txt.xz", 3));
+    seeds.push(head_of("malaga_laser_2006/keyframes_slam.txt.xz", 3));
+    seeds.push(head_of("malaga_laser_2006/odometry.txt.xz", 20));
+    seeds.push(std::fs::read(repo_path("tests/hostile/lidar_classifier.cml")).unwrap());
     seeds
 }
 
@@ -215,6 +275,55 @@ proptest! {
     }
 
     #[test]
+    fn ply_clouds_round_trip_in_every_format(
+        points in proptest::collection::vec((-1e6f64..1e6, -1e6f64..1e6, -1e3f64..1e3, 0.0f64..1e4), 1..64),
+        with_intensity in any::<bool>(),
+    ) {
+        let xyz: Vec<[f64; 3]> = points.iter().map(|p| [p.0, p.1, p.2]).collect();
+        let intensity = with_intensity.then(|| points.iter().map(|p| p.3).collect());
+        let cloud = Cloud::new(xyz, intensity).unwrap();
+        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+            let back = decode_ply("c.ply", &encode_ply(&cloud, format)[..]).unwrap();
+            prop_assert_eq!(&back, &cloud);
+        }
+    }
+
+    #[test]
+    fn odometry_within_the_bounds_reads_back_and_beyond_them_names_the_field(
+        rows in proptest::collection::vec((0u32..1000, -2e6f64..2e6, -2e6f64..2e6, -2e4f64..2e4), 1..32),
+    ) {
+        let mut t = 1.1e9;
+        let mut text = String::new();
+        let mut first_bad = None;
+        for (line, &(dt, dx, dy, dyaw)) in rows.iter().enumerate() {
+            t += f64::from(dt);
+            text.push_str(&format!("{t} {dx} {dy} {dyaw}\n"));
+            let bad = [
+                ("dx", dx.abs() > MAX_LENGTH_M),
+                ("dy", dy.abs() > MAX_LENGTH_M),
+                ("dyaw", dyaw.abs() > MAX_ANGLE_RAD),
+            ];
+            if first_bad.is_none()
+                && let Some((field, _)) = bad.iter().find(|b| b.1)
+            {
+                first_bad = Some((line + 1, *field));
+            }
+        }
+        match (read_odometry_from("o.txt", text.as_bytes()), first_bad) {
+            (Ok(read), None) => {
+                for (o, &(_, dx, dy, dyaw)) in read.iter().zip(&rows) {
+                    prop_assert_eq!((o.dx, o.dy, o.dyaw), (dx, dy, dyaw));
+                }
+            }
+            (Err(e), Some((line, field))) => {
+                prop_assert_eq!((e.line, e.field.as_str()), (Some(line), field));
+                prop_assert!(e.reason.contains("is beyond ±"), "{}", e);
+            }
+            (got, expected) => prop_assert!(false, "{:?} for {:?}", got.map(|r| r.len()), expected),
+        }
+    }
+
+    #[test]
     fn model_files_round_trip(
         observations in proptest::collection::vec(any::<bool>(), 8..200),
         order in 0usize..4,
@@ -245,4 +354,23 @@ fn every_seed_is_read_by_its_own_reader() {
     assert!(decode_route_geojson("g.geojson", &seeds[6]).is_ok());
     assert!(decode_any_model(&seeds[7]).is_ok());
     assert!(decode_grid(&seeds[8]).is_ok());
+    assert_eq!(decode_ply("c.ply", &seeds[9][..]).unwrap().len(), 64);
+    assert_eq!(read_scans_from("s.txt", &seeds[10][..]).unwrap().len(), 2);
+    assert_eq!(
+        read_keyframes_from("k.txt", &seeds[11][..]).unwrap().len(),
+        2
+    );
+    assert_eq!(
+        read_odometry_from("o.txt", &seeds[12][..]).unwrap().len(),
+        19
+    );
+    let (kind, classifier) = decode_model::<LoopClassifier>(&seeds[13]).unwrap();
+    assert_eq!(kind, MODEL_KIND);
+    classifier.validate().unwrap();
+    // What the classifier's writer writes, its reader reads back.
+    let again = encode_model(MODEL_KIND, &classifier).unwrap();
+    assert_eq!(
+        decode_model::<LoopClassifier>(&again).unwrap().1,
+        classifier
+    );
 }
