@@ -150,6 +150,56 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_explore::MAX_STEPS_PER_DAY as u128,
         ),
         (
+            "MAX_VERTICES",
+            "chronomap_io::ply",
+            chronomap_io::ply::MAX_VERTICES.into(),
+        ),
+        (
+            "MAX_ELEMENT_COUNT",
+            "chronomap_io::ply",
+            chronomap_io::ply::MAX_ELEMENT_COUNT.into(),
+        ),
+        (
+            "MAX_HEADER_BYTES",
+            "chronomap_io::ply",
+            chronomap_io::ply::MAX_HEADER_BYTES as u128,
+        ),
+        (
+            "MAX_LINE_BYTES",
+            "chronomap_io::ply",
+            chronomap_io::ply::MAX_LINE_BYTES as u128,
+        ),
+        (
+            "MAX_LINE_BYTES",
+            "chronomap_io::laser_text",
+            chronomap_io::laser_text::MAX_LINE_BYTES as u128,
+        ),
+        (
+            "MAX_BEAMS",
+            "chronomap_lidar::scan",
+            chronomap_lidar::scan::MAX_BEAMS as u128,
+        ),
+        (
+            "MAX_LENGTH_M",
+            "chronomap_io::laser_text",
+            chronomap_io::laser_text::MAX_LENGTH_M as u128,
+        ),
+        (
+            "MAX_ANGLE_RAD",
+            "chronomap_io::laser_text",
+            chronomap_io::laser_text::MAX_ANGLE_RAD as u128,
+        ),
+        (
+            "MAX_POINTS",
+            "chronomap_registration::cloud",
+            chronomap_registration::cloud::MAX_POINTS as u128,
+        ),
+        (
+            "MAX_FEATURE_POINTS",
+            "chronomap_registration::pipeline",
+            chronomap_registration::pipeline::MAX_FEATURE_POINTS as u128,
+        ),
+        (
             "MAX_RECORD_BYTES",
             "chronomap_rosbag::bag",
             chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,
