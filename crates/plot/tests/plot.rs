@@ -239,7 +239,17 @@ fn bad_input_gives_errors_naming_the_file() {
 
     let in_missing_dir = out("no/such/dir/plot.png");
     let err = render_panels_png(&[panel], &in_missing_dir, 800, 400).unwrap_err();
-    assert!(matches!(err.kind(), PlotErrorKind::Drawing { .. }), "{err}");
+    // Written by the one output writer: a temporary file beside it, renamed over it.
+    assert!(
+        matches!(
+            err.kind(),
+            PlotErrorKind::Write {
+                action: "create a temporary file for",
+                ..
+            }
+        ),
+        "{err}"
+    );
     assert!(
         err.to_string()
             .starts_with(&in_missing_dir.display().to_string()),
@@ -569,6 +579,15 @@ fn bad_heat_maps_give_errors_naming_the_file() {
 
     let in_missing_dir = out("no/such/dir/heatmap.png");
     let err = render_heatmap_png(&good, &in_missing_dir).unwrap_err();
-    assert!(matches!(err.kind(), PlotErrorKind::Drawing { .. }), "{err}");
+    assert!(
+        matches!(
+            err.kind(),
+            PlotErrorKind::Write {
+                action: "create a temporary file for",
+                ..
+            }
+        ),
+        "{err}"
+    );
     assert_eq!(err.path(), in_missing_dir);
 }
