@@ -223,8 +223,6 @@ fn time_name(time: TimeArg) -> &'static str {
     }
 }
 
-/// Prints what was read and written.
-#[allow(clippy::too_many_arguments)]
 /// Says so when `metadata.yaml` counts another number of messages on `topic` than were read.
 fn warn_count(bag: &Bag, topic: &str, messages: usize) {
     if let Some(warning) = bag.count_warning(topic, messages as u64) {
@@ -232,6 +230,8 @@ fn warn_count(bag: &Bag, topic: &str, messages: usize) {
     }
 }
 
+/// Prints what was read and written.
+#[allow(clippy::too_many_arguments)]
 fn report(
     args: &IngestArgs,
     bag: &Bag,
