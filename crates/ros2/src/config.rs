@@ -477,7 +477,7 @@ impl Setup {
     /// # Errors
     /// The first parameter that cannot be used, named with its source.
     pub fn config(&self) -> Result<NodeConfig, ConfigError> {
-        self.check(&self.params, false)
+        self.check(&self.params, false, true)
     }
 
     /// As [`Setup::config`], but a node without states, maps, people or edges is accepted
@@ -486,7 +486,7 @@ impl Setup {
     /// # Errors
     /// As [`Setup::config`].
     pub fn config_allowing_empty(&self) -> Result<NodeConfig, ConfigError> {
-        self.check(&self.params, true)
+        self.check(&self.params, true, true)
     }
 
     /// The checked parameters if `name` were `value` (set at run time).
@@ -501,13 +501,20 @@ impl Setup {
     ) -> Result<NodeConfig, ConfigError> {
         let mut params = self.params.clone();
         params.insert(name, value.clone(), Origin::Service);
-        self.check(&params, allow_empty)
+        self.check(&params, allow_empty, true)
     }
 
-    fn check(&self, params: &ParamSet, allow_empty: bool) -> Result<NodeConfig, ConfigError> {
+    /// Checks `params`; `files`: also the files and folders they name ([`check_save_dir`],
+    /// [`check_input_file`], [`check_output_file`]).
+    fn check(
+        &self,
+        params: &ParamSet,
+        allow_empty: bool,
+        files: bool,
+    ) -> Result<NodeConfig, ConfigError> {
         let raw = Reader::new(params).params()?;
         let file = self.source.display().to_string();
-        let checker = Checker { file: &file };
+        let checker = Checker { file: &file, files };
         checker.check(
             &raw,
             NodeIdentity {
@@ -530,22 +537,8 @@ impl Setup {
 /// # Errors
 /// Why the folder cannot hold the models.
 pub fn check_save_dir(dir: &Path) -> Result<(), String> {
-    let absolute = if dir.is_absolute() {
-        dir.to_path_buf()
-    } else {
-        std::env::current_dir()
-            .map_err(|e| format!("cannot resolve {}: {e}", dir.display()))?
-            .join(dir)
-    };
-    for kernel in ["/proc", "/sys", "/dev"] {
-        if absolute.starts_with(kernel) {
-            return Err(format!(
-                "{} is under {kernel}, a file system of the kernel: the models cannot be saved \
-                 there",
-                dir.display()
-            ));
-        }
-    }
+    let absolute =
+        outside_the_kernel(dir).map_err(|m| format!("{m}: the models cannot be saved there"))?;
     // The folder, or the nearest folder above it that exists (where it would be created).
     let mut existing = absolute.as_path();
     loop {
@@ -574,16 +567,8 @@ pub fn check_save_dir(dir: &Path) -> Result<(), String> {
             Err(e) => return Err(format!("cannot inspect {}: {e}", existing.display())),
         }
     }
-    let probe = existing.join(format!(".chronomap-probe-{}", std::process::id()));
-    let made = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe);
-    match made {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-            Ok(())
-        }
+    match probe(existing) {
+        Ok(()) => Ok(()),
         Err(e) => Err(if existing == absolute {
             format!("{}: no file can be created in it ({e})", dir.display())
         } else {
@@ -594,6 +579,124 @@ pub fn check_save_dir(dir: &Path) -> Result<(), String> {
             )
         }),
     }
+}
+
+/// Creates and removes a file in `dir`: whether files can be created there.
+fn probe(dir: &Path) -> std::io::Result<()> {
+    let probe = dir.join(format!(".chronomap-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// `path` made absolute against the working folder, refused under the kernel's file systems
+/// (`/proc`, `/sys`, `/dev`).
+fn outside_the_kernel(path: &Path) -> Result<PathBuf, String> {
+    let absolute = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .map_err(|e| format!("cannot resolve {}: {e}", path.display()))?
+            .join(path)
+    };
+    for kernel in ["/proc", "/sys", "/dev"] {
+        if absolute.starts_with(kernel) {
+            return Err(format!(
+                "{} is under {kernel}, a file system of the kernel",
+                path.display()
+            ));
+        }
+    }
+    Ok(absolute)
+}
+
+/// Checks that the file `path` that the node reads when it starts (`edges.models`) can be
+/// read: it is a regular file (not a directory, a device or a pipe), it opens read-only and
+/// its first byte reads, and it has at most [`chronomap_io::MAX_FILE_BYTES`]. Its content is
+/// checked when it is read.
+///
+/// # Errors
+/// Why the file cannot be read.
+pub fn check_input_file(path: &Path) -> Result<(), String> {
+    use std::io::Read;
+    let not_regular = || {
+        format!(
+            "{} is not a regular file (a directory, a device or a pipe)",
+            path.display()
+        )
+    };
+    // Checked before opening: opening a pipe waits for a writer.
+    let meta =
+        std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(not_regular());
+    }
+    let mut file =
+        std::fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(not_regular());
+    }
+    if meta.len() > chronomap_io::MAX_FILE_BYTES {
+        return Err(format!(
+            "{} has {} bytes, more than the {} a file read whole may have (is this the right \
+             file?)",
+            path.display(),
+            meta.len(),
+            chronomap_io::MAX_FILE_BYTES
+        ));
+    }
+    file.read(&mut [0u8; 1])
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// Checks that the file `path` that the node writes (`edges.geojson`, replaced atomically: a
+/// temporary file beside it, then renamed) can be written: it is outside the kernel's file
+/// systems, it is a regular file if it exists, its folder exists and a file can be created
+/// in it (a probe file is made and removed).
+///
+/// # Errors
+/// Why the file cannot be written.
+pub fn check_output_file(path: &Path) -> Result<(), String> {
+    let absolute =
+        outside_the_kernel(path).map_err(|m| format!("{m}: nothing is written there"))?;
+    match std::fs::metadata(&absolute) {
+        Ok(meta) if !meta.is_file() => {
+            return Err(format!(
+                "{} is not a regular file (a directory, a device or a pipe): it would not be \
+                 replaced",
+                path.display()
+            ));
+        }
+        Ok(_) => {}
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) => {}
+        Err(e) => return Err(format!("cannot inspect {}: {e}", path.display())),
+    }
+    let folder = absolute
+        .parent()
+        .ok_or_else(|| format!("{}: not a file name", path.display()))?;
+    match std::fs::metadata(folder) {
+        Ok(meta) if meta.is_dir() => {}
+        Ok(_) => return Err(format!("{} is not a folder", folder.display())),
+        Err(e) => return Err(format!("its folder {}: {e}", folder.display())),
+    }
+    probe(folder).map_err(|e| {
+        format!(
+            "{}: no file can be created in {} ({e})",
+            path.display(),
+            folder.display()
+        )
+    })
 }
 
 /// Whether the parameter `name` may change while the node runs (the others are read when the
@@ -688,6 +791,24 @@ impl NodeConfig {
     pub fn parse(path: &Path, text: &[u8], node: Option<&str>) -> Result<NodeConfig, ConfigError> {
         let file = ParamFile::parse(path, text)?;
         Setup::from_file(&file, node, RosArgs::default())?.config()
+    }
+
+    /// As [`NodeConfig::parse`], but the files and folders the text names (`save_dir`,
+    /// `edges.models`, `edges.geojson`) are not looked at: nothing on the file system is read
+    /// or created. For checking a configuration's text away from the machine that runs it
+    /// (and for tests of arbitrary text); the node and `chronomap ros2 --check` check the
+    /// files too.
+    ///
+    /// # Errors
+    /// As [`NodeConfig::parse`], less the files.
+    pub fn parse_text(
+        path: &Path,
+        text: &[u8],
+        node: Option<&str>,
+    ) -> Result<NodeConfig, ConfigError> {
+        let file = ParamFile::parse(path, text)?;
+        let setup = Setup::from_file(&file, node, RosArgs::default())?;
+        setup.check(&setup.params, false, false)
     }
 
     /// The node's fully qualified name (`/chronomap`, `/robot1/chronomap`).
@@ -1373,6 +1494,8 @@ impl<'a> Reader<'a> {
 }
 struct Checker<'a> {
     file: &'a str,
+    /// Whether the files and folders the parameters name are checked too.
+    files: bool,
 }
 
 impl Checker<'_> {
@@ -1572,9 +1695,17 @@ impl Checker<'_> {
                         return Err(self.at(v, k, "an empty file name".into()));
                     }
                 }
+                let models_path = models.origin.folder().join(&models.value);
+                let geojson_path = geojson.origin.folder().join(&geojson.value);
+                if self.files {
+                    check_input_file(&models_path)
+                        .map_err(|m| self.at(models, "edges.models", m))?;
+                    check_output_file(&geojson_path)
+                        .map_err(|m| self.at(geojson, "edges.geojson", m))?;
+                }
                 Some(EdgesConfig {
-                    models: models.origin.folder().join(&models.value),
-                    geojson: geojson.origin.folder().join(&geojson.value),
+                    models: models_path,
+                    geojson: geojson_path,
                     period: self.seconds(&e.value.period, "edges.period", 60.0, false)?,
                 })
             }
@@ -1585,7 +1716,9 @@ impl Checker<'_> {
             }
             Some(d) => {
                 let dir = d.origin.folder().join(&d.value);
-                check_save_dir(&dir).map_err(|m| self.at(d, "save_dir", m))?;
+                if self.files {
+                    check_save_dir(&dir).map_err(|m| self.at(d, "save_dir", m))?;
+                }
                 Some(dir)
             }
             None => None,

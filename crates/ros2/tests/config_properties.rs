@@ -3,6 +3,11 @@
 //! overwritten, inserted and deleted bytes, cuts, and values replaced by hostile ones), are
 //! read as a configuration or refused with an error naming the file, never a panic.
 //!
+//! Mutated text names any path (`/`, `/proc/self`, `..`): the properties check the text only
+//! ([`NodeConfig::parse_text`]), so that no probe file is made wherever a mutation points;
+//! the files and folders are checked by [`NodeConfig::parse`] on the seeds, in a scratch
+//! folder.
+//!
 //! The number of cases is small enough for CI (seconds); set `PROPTEST_CASES` for a deeper
 //! run, e.g. `PROPTEST_CASES=100000 cargo test -p chronomap-ros2 --test config_properties`.
 
@@ -27,8 +32,9 @@ fn config() -> Config {
     }
 }
 
-/// Every section and kind of value the reader knows (saved models go under the scratch
-/// folder: the reader checks that `save_dir` can hold them).
+/// Every section and kind of value the reader knows (saved models, the edge models and the
+/// route graph are in the scratch folder: the reader checks that they can be read and
+/// written).
 const FULL: &str = "\
 /robot1/chronomap:
   ros__parameters:
@@ -168,11 +174,12 @@ fn scratch() -> PathBuf {
     dir
 }
 
-/// Reads `bytes` as the configuration `dir/node.yaml`: a configuration or an error naming a
-/// file (this one, or one it names), never a panic.
+/// Reads `bytes` as the configuration `dir/node.yaml`, its text only (nothing on the file
+/// system is looked at or created): a configuration or an error naming a file (this one, or
+/// one it names), never a panic.
 fn read(dir: &Path, bytes: &[u8]) {
     let path = dir.join("node.yaml");
-    if let Err(e) = NodeConfig::parse(&path, bytes, None) {
+    if let Err(e) = NodeConfig::parse_text(&path, bytes, None) {
         assert!(!e.file.is_empty() && !e.message.is_empty(), "{e}");
     }
 }
@@ -206,9 +213,24 @@ fn the_seeds_read_as_expected() {
     let seeds = seeds();
     let path = dir.join("node.yaml");
     assert!(NodeConfig::parse(&path, &seeds[0], None).is_ok());
+    // The edge models are read when the node starts; here only opened.
+    std::fs::write(dir.join("witham.cmt"), "edge models").unwrap();
+    let e = NodeConfig::parse(&path, &seeds[3], None).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}:45: edges.geojson: its folder {}: No such file or directory (os error 2)",
+            path.display(),
+            dir.join("out").display()
+        )
+    );
+    std::fs::create_dir_all(dir.join("out")).unwrap();
     let full = NodeConfig::parse(&path, &seeds[3], None).unwrap();
     assert_eq!(full.states.len(), 2);
     assert_eq!(full.save_dir, Some(dir.join("state")));
+    let edges = full.edges.unwrap();
+    assert_eq!(edges.models, dir.join("witham.cmt"));
+    assert_eq!(edges.geojson, dir.join("out/route.geojson"));
     std::fs::write(dir.join("bom.txt"), "x").unwrap();
     let e = NodeConfig::parse(&path, &seeds[1], None).unwrap_err();
     assert_eq!(

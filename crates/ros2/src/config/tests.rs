@@ -2,8 +2,11 @@ use super::*;
 use crate::params::MAX_FILE_BYTES;
 use crate::ros_args::RosArgs;
 
+/// The text checked without its files and folders: `cfg/` does not exist, and nothing is
+/// created beside the crate (the file-system checks have tests of their own below, in a
+/// scratch folder).
 fn parse(text: &str) -> Result<NodeConfig, ConfigError> {
-    NodeConfig::parse(Path::new("cfg/node.yaml"), text.as_bytes(), None)
+    NodeConfig::parse_text(Path::new("cfg/node.yaml"), text.as_bytes(), None)
 }
 
 fn error(text: &str) -> String {
@@ -572,5 +575,96 @@ fn a_save_dir_that_cannot_hold_the_models_is_refused_at_once() {
         .collect();
     left.sort();
     assert_eq!(left, ["a_file"]);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// `edges.models` (read at start) and `edges.geojson` (written) are checked with the
+/// configuration (`--check`, start-up), naming file, line and parameter; before, a missing
+/// models file passed `--check` and stopped the node at start naming only the file, and a
+/// route graph that could not be written was found at the first rewrite.
+#[test]
+fn edge_files_that_cannot_be_read_or_written_are_refused_at_once() {
+    let dir = std::env::temp_dir().join(format!("chronomap-ros2-edges-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("a_folder")).unwrap();
+    std::fs::write(dir.join("witham.cmt"), "models").unwrap();
+    std::fs::write(dir.join("a_file"), "x").unwrap();
+    let config = dir.join("node.yaml");
+    let check = |models: &str, geojson: &str| {
+        let text = format!(
+            "chronomap:\n  ros__parameters:\n    edges:\n      models: {models}\n      \
+             geojson: {geojson}\n"
+        );
+        NodeConfig::parse(&config, text.as_bytes(), None)
+            .map(|c| c.edges.map(|e| (e.models, e.geojson)))
+            .map_err(|e| e.to_string())
+    };
+    let file = config.display();
+    assert_eq!(
+        check("witham.cmt", "route.geojson"),
+        Ok(Some((dir.join("witham.cmt"), dir.join("route.geojson"))))
+    );
+    assert_eq!(
+        check("missing.cmt", "route.geojson").unwrap_err(),
+        format!(
+            "{file}:4: edges.models: cannot read {}: No such file or directory (os error 2)",
+            dir.join("missing.cmt").display()
+        )
+    );
+    for models in ["a_folder", "/dev/zero"] {
+        let shown = if models.starts_with('/') {
+            models.into()
+        } else {
+            dir.join(models).display().to_string()
+        };
+        assert_eq!(
+            check(models, "route.geojson").unwrap_err(),
+            format!(
+                "{file}:4: edges.models: {shown} is not a regular file (a directory, a device \
+                 or a pipe)"
+            )
+        );
+    }
+    assert_eq!(
+        check("witham.cmt", "a_folder").unwrap_err(),
+        format!(
+            "{file}:5: edges.geojson: {} is not a regular file (a directory, a device or a \
+             pipe): it would not be replaced",
+            dir.join("a_folder").display()
+        )
+    );
+    assert_eq!(
+        check("witham.cmt", "out/route.geojson").unwrap_err(),
+        format!(
+            "{file}:5: edges.geojson: its folder {}: No such file or directory (os error 2)",
+            dir.join("out").display()
+        )
+    );
+    assert_eq!(
+        check("witham.cmt", "a_file/route.geojson").unwrap_err(),
+        format!(
+            "{file}:5: edges.geojson: {} is not a folder",
+            dir.join("a_file").display()
+        )
+    );
+    assert_eq!(
+        check("witham.cmt", "/proc/route.geojson").unwrap_err(),
+        format!(
+            "{file}:5: edges.geojson: /proc/route.geojson is under /proc, a file system of the \
+             kernel: nothing is written there"
+        )
+    );
+    // The text alone is accepted by `parse_text`, which looks at no file.
+    let text = "chronomap:\n  ros__parameters:\n    edges: {models: missing.cmt, geojson: \
+                out/route.geojson}\n    save_dir: /proc/x\n";
+    let c = NodeConfig::parse_text(&config, text.as_bytes(), None).unwrap();
+    assert_eq!(c.edges.unwrap().models, dir.join("missing.cmt"));
+    // Nothing was left behind by the probes.
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["a_file", "a_folder", "witham.cmt"]);
     std::fs::remove_dir_all(dir).unwrap();
 }
