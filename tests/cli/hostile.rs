@@ -117,6 +117,10 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
         ["mcap_fields", fields, name] => {
             std::fs::write(out.join(name), wide_mcap(fields.parse().unwrap())).unwrap();
         }
+        ["mcap_nested", levels, n, name] => {
+            let (levels, n) = (levels.parse().unwrap(), n.parse().unwrap());
+            std::fs::write(out.join(name), nested_mcap(levels, n)).unwrap();
+        }
         ["ply-random", n, name] => {
             // `n` points spread through a 20 m cube (binary float x, y, z; a fixed xorshift
             // sequence), so that almost every point keeps its own voxel on a fine grid.
@@ -138,6 +142,61 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
         }
         _ => panic!("unknown `make: {spec}`"),
     }
+}
+
+/// An MCAP file (no chunks, no CRCs) whose one schema calls itself `std_msgs/msg/Bool` but is a
+/// sequence of messages nested `levels` deep around one `bool`, with one message on `/deep` of
+/// `n` such elements (one byte each on the wire).
+fn nested_mcap(levels: usize, n: usize) -> Vec<u8> {
+    let string = |s: &[u8]| [&(s.len() as u32).to_le_bytes()[..], s].concat();
+    let record =
+        |op: u8, body: &[u8]| [&[op][..], &(body.len() as u64).to_le_bytes(), body].concat();
+    let sep = "=".repeat(80);
+    let mut text = String::from("N1[] items\n");
+    for i in 1..levels {
+        text.push_str(&format!("{sep}\nMSG: std_msgs/N{i}\nN{} x\n", i + 1));
+    }
+    text.push_str(&format!("{sep}\nMSG: std_msgs/N{levels}\nbool b\n"));
+    let schema = [
+        &1u16.to_le_bytes()[..],
+        &string(b"std_msgs/msg/Bool"),
+        &string(b"ros2msg"),
+        &string(text.as_bytes()),
+    ]
+    .concat();
+    let channel = [
+        &1u16.to_le_bytes()[..],
+        &1u16.to_le_bytes(),
+        &string(b"/deep"),
+        &string(b"cdr"),
+        &0u32.to_le_bytes(),
+    ]
+    .concat();
+    let mut cdr = vec![0, 1, 0, 0];
+    cdr.extend_from_slice(&(n as u32).to_le_bytes());
+    cdr.resize(8 + n, 1);
+    let message = [
+        &1u16.to_le_bytes()[..],
+        &0u32.to_le_bytes(),
+        &[0u8; 16],
+        &cdr,
+    ]
+    .concat();
+    let magic = b"\x89MCAP0\r\n";
+    [
+        &magic[..],
+        &record(
+            0x01,
+            &[string(b"ros2"), string(b"chronomap hostile corpus")].concat(),
+        ),
+        &record(0x03, &schema),
+        &record(0x04, &channel),
+        &record(0x05, &message),
+        &record(0x0F, &0u32.to_le_bytes()),
+        &record(0x02, &[0u8; 20]),
+        magic,
+    ]
+    .concat()
 }
 
 /// An MCAP file (no chunks, no CRCs) whose one schema, `a/msg/Wide`, has `fields` fields `int8

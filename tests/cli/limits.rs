@@ -244,6 +244,16 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             "chronomap_rosbag::msgdef",
             chronomap_rosbag::msgdef::MAX_FIELDS as u128,
         ),
+        (
+            "VALUES_PER_BYTE",
+            "chronomap_rosbag::cdr",
+            chronomap_rosbag::cdr::VALUES_PER_BYTE as u128,
+        ),
+        (
+            "MAX_VALUES",
+            "chronomap_rosbag::cdr",
+            chronomap_rosbag::cdr::MAX_VALUES as u128,
+        ),
     ];
     #[cfg(feature = "serve")]
     limits.extend([

@@ -28,8 +28,11 @@
 //! fields are refused with an error saying so.
 //!
 //! Nothing here trusts a length: every count is checked against the bytes that remain before
-//! anything is allocated, so a damaged message cannot make the decoder allocate more than a
-//! small multiple of its own size.
+//! anything is allocated, and the values one message decodes to are counted against a budget
+//! ([`VALUES_PER_BYTE`] a byte of the message, at most [`MAX_VALUES`]) before each is
+//! allocated, so a damaged or hostile message cannot make the decoder hold more than a small
+//! multiple of its own size: without the budget, a definition of single-byte messages nested
+//! [`MAX_DEPTH`](crate::msgdef::MAX_DEPTH) deep decodes each byte to 64 values (kilobytes).
 
 use std::borrow::Cow;
 use std::fmt;
@@ -186,6 +189,17 @@ impl CdrError {
     }
 }
 
+/// Values one message may decode to per byte of it (header included): every value — a
+/// message, a field, an element — counts once. A sequence of messages of one `bool` takes 2 a
+/// byte; every message chronomap learns from takes less than 1 (`std_msgs/Bool`: 2 values in 8
+/// bytes, `geometry_msgs/Pose`: 10 in 56).
+pub const VALUES_PER_BYTE: usize = 2;
+
+/// Most values one message may decode to, however large (each takes about 40 bytes, so at most
+/// about 1 GiB): the ranges and intensities of a scan of 8 million beams. Byte arrays
+/// (`uint8[]`, `int8[]`: map cells, point clouds) are one value, whatever their length.
+pub const MAX_VALUES: usize = 1 << 24;
+
 /// Most trailing bytes a message may have after its last field: the padding to a multiple of
 /// 4 bytes that ROS 2 middlewares add (rclpy's `std_msgs/Bool` is 4 + 1 + 3 bytes). More is a
 /// message that does not match its definition.
@@ -228,7 +242,9 @@ pub fn decode<'a>(schema: &'a Schema, data: &'a [u8]) -> Result<Value<'a>, CdrEr
         pos: 0,
         little,
         total: data.len(),
+        budget: data.len().saturating_mul(VALUES_PER_BYTE).min(MAX_VALUES),
     };
+    reader.spend(1)?;
     let value = reader.message(schema, 0)?;
     let left = reader.data.len() - reader.pos;
     if left > MAX_TRAILING {
@@ -246,6 +262,8 @@ struct Reader<'a> {
     little: bool,
     /// The size of the whole message, header included, for error messages.
     total: usize,
+    /// Values that may still be decoded ([`VALUES_PER_BYTE`], [`MAX_VALUES`]).
+    budget: usize,
 }
 
 impl<'a> Reader<'a> {
@@ -264,6 +282,21 @@ impl<'a> Reader<'a> {
             return Err(self.past_end(size));
         }
         self.pos = padded;
+        Ok(())
+    }
+
+    /// Takes `n` values from the budget, before room for them is allocated.
+    fn spend(&mut self, n: usize) -> Result<(), CdrError> {
+        if n > self.budget {
+            return Err(CdrError::new(format!(
+                "at byte {} the message decodes to more values than its {} bytes allow \
+                 ({VALUES_PER_BYTE} a byte, at most {MAX_VALUES}): the definition nests or \
+                 repeats more than the data can hold",
+                self.offset(),
+                self.total
+            )));
+        }
+        self.budget -= n;
         Ok(())
     }
 
@@ -376,6 +409,7 @@ impl<'a> Reader<'a> {
             // An empty type is one placeholder byte on the wire.
             self.take(1)?;
         }
+        self.spend(def.fields.len())?;
         let mut fields = Vec::with_capacity(def.fields.len());
         for field in &def.fields {
             let value = match field.arity {
@@ -428,6 +462,7 @@ impl<'a> Reader<'a> {
                 Ok(Value::Bytes(self.take(n)?))
             }
             _ => {
+                self.spend(n)?;
                 let mut values = Vec::with_capacity(n);
                 for i in 0..n {
                     values.push(
@@ -554,6 +589,55 @@ mod tests {
         assert!(err.problem.contains("PL_CDR"), "{err}");
         let err = decode(&schema, &hex("00070000")).unwrap_err();
         assert!(err.problem.contains("XCDR2"), "{err}");
+    }
+
+    /// `n` message types nested one in the next, the innermost holding `leaf`.
+    fn nested(n: usize, leaf: &str) -> String {
+        let mut text = String::from("N1 x\n");
+        for i in 1..n {
+            text.push_str(&format!("{SEP}\nMSG: a/N{i}\nN{} x\n", i + 1));
+        }
+        text.push_str(&format!("{SEP}\nMSG: a/N{n}\n{leaf}\n"));
+        text
+    }
+
+    #[test]
+    fn values_are_counted_against_the_bytes_of_the_message() {
+        // A sequence of messages of one bool: 2 values a byte, the most the budget allows.
+        let schema = Schema::parse(
+            "a/B",
+            &format!("Flag[] flags\n{SEP}\nMSG: a/Flag\nbool b\n"),
+        )
+        .unwrap();
+        let mut bytes = hex("0001000000100000");
+        bytes.extend([1u8; 4096]);
+        let value = decode(&schema, &bytes).unwrap();
+        assert_eq!(value.get("flags").unwrap().as_array().unwrap().len(), 4096);
+        // One level more (3 values a byte) is refused at the first element over the budget:
+        // 4104 bytes allow 8208 values; the root, its field and the 4096 elements take 4098,
+        // each element's two inner fields 2 more, so elements 0 to 2054 fit and element 2055
+        // (at byte 4 + 4 + 2055) is refused.
+        let text =
+            format!("Flag[] flags\n{SEP}\nMSG: a/Flag\nInner i\n{SEP}\nMSG: a/Inner\nbool b\n");
+        let schema = Schema::parse("a/B", &text).unwrap();
+        let err = decode(&schema, &bytes).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "field `flags[2055]`: at byte 2063 the message decodes to more values than its 4104 \
+             bytes allow (2 a byte, at most 16777216): the definition nests or repeats more than \
+             the data can hold"
+        );
+        // 60 levels of messages around one bool: 61 values from 1 byte, refused at once.
+        let schema = Schema::parse("a/B", &nested(60, "bool b")).unwrap();
+        let err = decode(&schema, &hex("0001000001")).unwrap_err();
+        assert!(
+            err.problem.contains("more values than its 5 bytes allow"),
+            "{err}"
+        );
+        assert_eq!(err.path.len(), 9, "{err}"); // 10 values: the root and 9 levels
+        // A few levels fit: std_msgs/Bool-like wrappers of real messages decode.
+        let schema = Schema::parse("a/B", &nested(3, "bool b")).unwrap();
+        assert!(decode(&schema, &hex("000100000100")).is_ok());
     }
 
     #[test]

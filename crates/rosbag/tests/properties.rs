@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use chronomap_core::progress::NoProgress;
-use chronomap_rosbag::cdr::decode;
+use chronomap_rosbag::cdr::{MAX_VALUES, VALUES_PER_BYTE, Value, decode};
 use chronomap_rosbag::msgdef::Schema;
 use chronomap_rosbag::{Bag, BagError, TimeSource};
 use chronomap_testutil::{data_path, scratch};
@@ -257,6 +257,71 @@ proptest! {
             prop_assert!(peak < 64 * 1024 + 512 * bytes.len(), "{peak} bytes held");
         }
     }
+
+    #[test]
+    fn arbitrary_bytes_of_deeply_nested_messages_stay_within_the_budget(
+        bytes in proptest::collection::vec(any::<u8>(), 0..4096),
+    ) {
+        static SCHEMA: OnceLock<Schema> = OnceLock::new();
+        let schema = SCHEMA.get_or_init(|| nested_definition(60));
+        // Mostly ones (bools that decode), so that the sequence goes on long enough to matter.
+        let mut message = vec![0, 1, 0, 0];
+        message.extend((bytes.len() as u32).to_le_bytes());
+        message.extend(bytes.iter().map(|&b| u8::from(b < 250)));
+        let (result, peak) = peak_bytes(|| decode(schema, &message).map(|_| ()));
+        drop(result);
+        prop_assert!(peak < 1024 + HELD_PER_BYTE * message.len(), "{peak} bytes held");
+    }
+}
+
+/// A definition whose root holds a sequence of messages nested `levels` deep around one
+/// `bool`: each element is one byte on the wire and `levels` messages in memory.
+fn nested_definition(levels: usize) -> Schema {
+    let sep = "================================================================================";
+    let mut text = String::from("N1[] items\n");
+    for i in 1..levels {
+        text.push_str(&format!("{sep}\nMSG: a/N{i}\nN{} x\n", i + 1));
+    }
+    text.push_str(&format!("{sep}\nMSG: a/N{levels}\nbool b\n"));
+    Schema::parse("a/msg/Deep", &text).unwrap()
+}
+
+/// The most a decoded message may hold (values, their vectors and the allocator's rounding),
+/// as a multiple of its bytes: [`VALUES_PER_BYTE`] values of 40 bytes a byte, and the vector
+/// of each message value.
+const HELD_PER_BYTE: usize = 4 * VALUES_PER_BYTE * std::mem::size_of::<Value<'static>>();
+
+#[test]
+fn nested_one_byte_messages_stay_within_a_small_multiple_of_the_message() {
+    // 60 levels (the parser allows 64) around each of 64 Ki one-byte elements: before values
+    // were counted this decoded, holding 128 MB (1,950 bytes a byte of the message); now it is
+    // refused holding about 4 MB.
+    let schema = nested_definition(60);
+    let n = 1 << 16;
+    let mut bytes = vec![0, 1, 0, 0];
+    bytes.extend((n as u32).to_le_bytes());
+    bytes.extend(std::iter::repeat_n(1u8, n));
+    let (result, peak) = peak_bytes(|| decode(&schema, &bytes).map(|_| ()));
+    let err = result.unwrap_err();
+    assert!(
+        err.problem.contains(&format!(
+            "more values than its {} bytes allow ({VALUES_PER_BYTE} a byte, at most {MAX_VALUES})",
+            bytes.len()
+        )),
+        "{err}"
+    );
+    assert!(
+        peak < HELD_PER_BYTE * bytes.len(),
+        "{peak} bytes held for a message of {}",
+        bytes.len()
+    );
+    // One level (a sequence of messages of one bool) is 2 values a byte: the budget holds it.
+    let schema = nested_definition(1);
+    let (result, peak) = peak_bytes(|| {
+        decode(&schema, &bytes).map(|v| v.get("items").map(|a| a.as_array().map(<[_]>::len)))
+    });
+    assert_eq!(result.unwrap(), Some(Some(n)));
+    assert!(peak < HELD_PER_BYTE * bytes.len(), "{peak}");
 }
 
 #[test]
