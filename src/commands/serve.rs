@@ -171,7 +171,7 @@ fn check_or_salvage(args: &ServeArgs) -> Result<()> {
                 (report, kept.display().to_string())
             }
             Some(config) => {
-                let source = PostgresStore::connect(config, &args.postgres_schema)?;
+                let source = PostgresStore::connect_checker(config, &args.postgres_schema)?;
                 let target = format!("{}_salvaged", args.postgres_schema);
                 let into = PostgresStore::connect(config, &target)?;
                 let held = into.recover()?;
@@ -202,49 +202,25 @@ fn check_or_salvage(args: &ServeArgs) -> Result<()> {
         outln!("the damaged store is kept: {kept}")?;
         return Ok(());
     }
-    let (store, integrity): (Arc<dyn Store>, Option<String>) = match &args.postgres {
-        Some(config) if args.fleet => (
-            Arc::new(PostgresStore::connect_fleet(config, &args.postgres_schema)?),
-            None,
-        ),
-        Some(config) => (
-            Arc::new(PostgresStore::connect(config, &args.postgres_schema)?),
-            None,
-        ),
-        None => {
-            let store = match RedbStore::open(&redb_path) {
-                Ok(store) => store,
-                Err(e) => {
-                    outln!("store: redb {}", redb_path.display())?;
-                    outln!("damaged: {}", e.reason)?;
-                    bail!("the store is damaged and cannot be opened");
-                }
-            };
-            // redb's page check may mark a file it cannot repair as needing repair: run it on
-            // a copy, so that --check changes nothing.
-            let copy = args.data.join("chronomap.redb.check");
-            let integrity = match std::fs::copy(&redb_path, &copy) {
-                Ok(_) => {
-                    let outcome = match RedbStore::open(&copy) {
-                        Ok(mut copied) => match copied.check_integrity() {
-                            Ok(true) => None,
-                            Ok(false) => {
-                                Some("redb found damaged pages (it can repair them)".to_owned())
-                            }
-                            Err(e) => Some(format!("redb's page checksums fail: {}", e.reason)),
-                        },
-                        Err(e) => Some(format!("redb's page checksums fail: {}", e.reason)),
-                    };
-                    let _ = std::fs::remove_file(&copy);
-                    outcome
-                }
-                Err(e) => Some(format!("cannot copy the file for redb's page check: {e}")),
-            };
-            (Arc::new(store), integrity)
+    // Nothing is written: the redb file is read read-only (redb's page check runs on a copy
+    // elsewhere), a PostgreSQL schema without a store is not created.
+    let verified = match &args.postgres {
+        Some(config) => {
+            let store = PostgresStore::connect_checker(config, &args.postgres_schema)?;
+            check::verify(&store)?
         }
+        None => match check::verify_redb(&redb_path) {
+            Ok(verified) => verified,
+            Err(e) => {
+                outln!("store: redb {}", redb_path.display())?;
+                outln!("cannot be read: {}", e.reason)?;
+                bail!(
+                    "{}: the store cannot be read; nothing was changed",
+                    redb_path.display()
+                );
+            }
+        },
     };
-    let mut verified = check::verify(&*store)?;
-    verified.report.damage.extend(integrity);
     outln!(
         "{}",
         verified.report.text(verified.registry.len()).trim_end()

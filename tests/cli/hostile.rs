@@ -117,6 +117,20 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
         ["mcap_fields", fields, name] => {
             std::fs::write(out.join(name), wide_mcap(fields.parse().unwrap())).unwrap();
         }
+        ["gz_comments", mib, name] => {
+            // `mib` gzip members, each 1 MiB of comment lines (1 KiB each) when decompressed.
+            let line = [&b"#"[..], &[b'x'; 1022], b"\n"].concat();
+            let mut member = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+            for _ in 0..1024 {
+                std::io::Write::write_all(&mut member, &line).unwrap();
+            }
+            let member = member.finish().unwrap();
+            let mut file = std::io::BufWriter::new(std::fs::File::create(out.join(name)).unwrap());
+            for _ in 0..mib.parse::<usize>().unwrap() {
+                std::io::Write::write_all(&mut file, &member).unwrap();
+            }
+            std::io::Write::flush(&mut file).unwrap();
+        }
         ["mcap_nested", levels, n, name] => {
             let (levels, n) = (levels.parse().unwrap(), n.parse().unwrap());
             std::fs::write(out.join(name), nested_mcap(levels, n)).unwrap();

@@ -30,6 +30,11 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_io::text::MAX_LINE_BYTES as u128,
         ),
         (
+            "MAX_DECOMPRESSED_BYTES",
+            "chronomap_io::text",
+            chronomap_io::text::MAX_DECOMPRESSED_BYTES.into(),
+        ),
+        (
             "MAX_IMAGE_BYTES",
             "chronomap_io::navmap",
             chronomap_io::navmap::MAX_IMAGE_BYTES.into(),

@@ -63,6 +63,12 @@ const MAX_QUOTED_CHARS: usize = 48;
 /// Size of the read buffer.
 const BUFFER_BYTES: usize = 64 * 1024;
 
+/// The most bytes a compressed (`.xz`, `.gz`) file may decompress to (2 GiB), read as a stream:
+/// a larger one is refused with a read error naming the file and line, so that a few kilobytes
+/// of repeated text (gzip reaches 1,000:1, xz far more) cannot feed a reader without end. Plain
+/// files and pipes have no such limit: their bytes are what is there to read.
+pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 31;
+
 /// Observations in time order: `values[i]` was observed at `times[i]` (seconds).
 ///
 /// Everything returned by the readers of this module satisfies the
@@ -847,6 +853,7 @@ pub fn decompressing_reader<'a>(
         Box::new(EndOfInput {
             inner: lzma_rust2::XzReader::new(BufReader::with_capacity(BUFFER_BYTES, reader), true),
             format: "xz",
+            left: MAX_DECOMPRESSED_BYTES,
         })
     } else if extension.eq_ignore_ascii_case("gz") {
         Box::new(EndOfInput {
@@ -855,6 +862,7 @@ pub fn decompressing_reader<'a>(
                 reader,
             )),
             format: "gz",
+            left: MAX_DECOMPRESSED_BYTES,
         })
     } else {
         Box::new(reader)
@@ -862,14 +870,16 @@ pub fn decompressing_reader<'a>(
 }
 
 /// A decompressor whose "unexpected end of input" errors (which read "failed to fill whole
-/// buffer") say what happened: the compressed file is truncated or empty.
+/// buffer") say what happened: the compressed file is truncated or empty; and which fails once
+/// it has produced more than [`MAX_DECOMPRESSED_BYTES`] (`left` counts down).
 struct EndOfInput<R> {
     inner: R,
     format: &'static str,
+    left: u64,
 }
 
-impl<R: Read> Read for EndOfInput<R> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+impl<R: Read> EndOfInput<R> {
+    fn read_inner(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         self.inner.read(buf).map_err(|e| {
             if e.kind() == io::ErrorKind::UnexpectedEof {
                 io::Error::new(
@@ -880,6 +890,35 @@ impl<R: Read> Read for EndOfInput<R> {
                 e
             }
         })
+    }
+}
+
+impl<R: Read> Read for EndOfInput<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        if self.left == 0 {
+            // One byte past the limit tells a larger stream from one of exactly the limit.
+            if self.read_inner(&mut [0u8; 1])? > 0 {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!(
+                        "the .{} file decompresses to more than {MAX_DECOMPRESSED_BYTES} bytes, \
+                         the most a compressed data file may hold (decompress it and pass the \
+                         plain file)",
+                        self.format
+                    ),
+                ));
+            }
+            return Ok(0);
+        }
+        let room = buf
+            .len()
+            .min(usize::try_from(self.left).unwrap_or(usize::MAX));
+        let read = self.read_inner(&mut buf[..room])?;
+        self.left -= read as u64;
+        Ok(read)
     }
 }
 
@@ -1229,6 +1268,46 @@ pub(crate) mod test_support {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn decompression_stops_one_byte_past_the_limit() {
+        // 10 bytes of gzip-decompressed comment lines, read through a limit of 8 and of 10.
+        let gz = |text: &[u8]| {
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            io::Write::write_all(&mut e, text).unwrap();
+            e.finish().unwrap()
+        };
+        let bytes = gz(b"#abc\n#def\n");
+        let limited = |left: u64| EndOfInput {
+            inner: flate2::read::MultiGzDecoder::new(&bytes[..]),
+            format: "gz",
+            left,
+        };
+        let mut out = Vec::new();
+        let err = limited(8).read_to_end(&mut out).unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::InvalidData);
+        assert_eq!(
+            err.to_string(),
+            "the .gz file decompresses to more than 2147483648 bytes, the most a compressed data \
+             file may hold (decompress it and pass the plain file)"
+        );
+        assert_eq!(out, b"#abc\n#de", "what came before the limit");
+        out.clear();
+        limited(10).read_to_end(&mut out).unwrap();
+        assert_eq!(out, b"#abc\n#def\n");
+        // Through a data-line reader, the error names the file and the line it stopped in.
+        let reader = EndOfInput {
+            inner: flate2::read::MultiGzDecoder::new(&bytes[..]),
+            format: "gz",
+            left: 7,
+        };
+        let err = for_each_data_line("bomb.txt.gz", reader, |_, _| Ok(())).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("bomb.txt.gz:2: cannot read: the .gz file decompresses to more than"),
+            "{err}"
+        );
+    }
 
     fn fields(line: &str) -> Vec<&str> {
         Fields::new(line.as_bytes())
