@@ -40,6 +40,8 @@ mod monitor;
 mod outputs;
 mod psbt;
 mod readme;
+#[cfg(feature = "serve")]
+mod read_only;
 #[cfg(feature = "ros2")]
 mod ros2_conventions;
 #[cfg(feature = "ros2")]

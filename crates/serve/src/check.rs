@@ -39,6 +39,8 @@ pub struct Report {
     pub observations: u64,
     /// Every damaged snapshot or entry, one sentence each.
     pub damage: Vec<String>,
+    /// What was found that is not damage (a file not closed cleanly), one sentence each.
+    pub notes: Vec<String>,
 }
 
 impl Report {
@@ -46,6 +48,9 @@ impl Report {
     pub fn text(&self, models: usize) -> String {
         let mut text = String::new();
         let _ = writeln!(text, "store: {}", self.store);
+        for note in &self.notes {
+            let _ = writeln!(text, "note: {note}");
+        }
         let _ = writeln!(
             text,
             "log: {} entries ({} observations), last position {}; checkpoint at {}, {} snapshots; {models} models",
@@ -181,6 +186,111 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
         replayed,
         report,
     })
+}
+
+/// Verifies the redb store file at `path` without writing to it or beside it (`chronomap serve
+/// --check`): the file is opened read-only (holding redb's shared lock, so no service writes it
+/// meanwhile) and copied to a private folder of the system's temporary directory, removed
+/// afterwards; redb's page check, which may repair and so writes, runs on the copy, which is
+/// then [`verify`]ed (the original, read-only, if the copy fails the page check). A file that
+/// was not closed cleanly (redb must repair it before it can be read) is verified on the
+/// repaired copy, with a note.
+///
+/// # Errors
+/// The file is missing, empty, not a regular file or not a redb database, another process
+/// holds it, or redb cannot open even the copy (damage it cannot repair: the reason says so).
+pub fn verify_redb(path: &std::path::Path) -> Result<Verified, StoreError> {
+    use crate::store::RedbStore;
+    let (original, unclean) = match RedbStore::try_read_only(path) {
+        Ok(store) => (Some(store), false),
+        Err((_, true)) => (None, true),
+        Err((e, false)) => return Err(e),
+    };
+    let fail = |reason: String| StoreError {
+        store: path.display().to_string(),
+        reason,
+    };
+    let scratch = Scratch::new().map_err(|e| {
+        fail(format!(
+            "cannot make a private folder in {} for redb's page check: {e}",
+            std::env::temp_dir().display()
+        ))
+    })?;
+    let copy = scratch.0.join("chronomap.redb");
+    let mut damage = Vec::new();
+    let copied = match std::fs::copy(path, &copy) {
+        Ok(_) => match RedbStore::open_checked(&copy) {
+            Ok(mut copied) => {
+                match copied.check_integrity() {
+                    Ok(true) => {}
+                    Ok(false) => {
+                        damage.push("redb found damaged pages (it can repair them)".into())
+                    }
+                    Err(e) => damage.push(format!("redb's page checksums fail: {}", e.reason)),
+                }
+                Some(copied)
+            }
+            Err(e) if unclean => return Err(fail(e.reason)),
+            Err(e) => {
+                damage.push(format!("redb's page checksums fail: {}", e.reason));
+                None
+            }
+        },
+        Err(e) if unclean => {
+            return Err(fail(format!(
+                "the store was not closed cleanly and cannot be copied to {} to be repaired \
+                 there: {e}",
+                scratch.0.display()
+            )));
+        }
+        Err(e) => {
+            damage.push(format!("cannot copy the file for redb's page check: {e}"));
+            None
+        }
+    };
+    // The copy passed redb's page check, so reading it cannot make redb panic on an altered
+    // page; the original is read (guarded) only when the copy could not be opened.
+    let store: &dyn Store = match (&copied, &original) {
+        (Some(copied), _) => copied,
+        (None, Some(original)) => original,
+        (None, None) => unreachable!("an unclean file that cannot be opened returned above"),
+    };
+    let mut verified = verify(store)?;
+    verified.report.store = format!("redb {}", path.display());
+    if unclean {
+        verified.report.notes.push(
+            "the file was not closed cleanly: it was verified on a repaired copy (the file is \
+             unchanged; `chronomap serve` repairs it when it starts)"
+                .into(),
+        );
+    }
+    verified.report.damage.extend(damage);
+    Ok(verified)
+}
+
+/// A private folder (mode 0700 on unix) in the system's temporary directory, removed with
+/// everything in it when dropped.
+struct Scratch(std::path::PathBuf);
+
+impl Scratch {
+    fn new() -> std::io::Result<Self> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let dir =
+            std::env::temp_dir().join(format!("chronomap-check-{}-{nanos}", std::process::id()));
+        let mut builder = std::fs::DirBuilder::new();
+        #[cfg(unix)]
+        std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+        builder.create(&dir)?;
+        Ok(Scratch(dir))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 /// ` (it names the model "door")`, when a damaged entry still decodes.
@@ -359,6 +469,18 @@ pub fn salvage_redb(
         store: path.display().to_string(),
         reason,
     };
+    let metadata =
+        std::fs::metadata(path).map_err(|e| fail(format!("cannot read the file: {e}")))?;
+    if !metadata.is_file() || metadata.len() == 0 {
+        return Err(fail(format!(
+            "{}: not a store, nothing to salvage; nothing was changed",
+            if metadata.is_file() {
+                "the file is empty"
+            } else {
+                "not a regular file"
+            }
+        )));
+    }
     let raw = std::fs::read(path).map_err(|e| fail(format!("cannot read the file: {e}")))?;
     let mut copies: Candidates = Candidates::new();
     for (seq, bytes) in crate::log::scan_raw(&raw) {
@@ -371,6 +493,13 @@ pub fn salvage_redb(
     let mut notes = Vec::new();
     let (mut candidates, unread) = match RedbStore::open(path) {
         Ok(store) => candidates_of(&store),
+        Err(_) if copies.is_empty() => {
+            return Err(fail(
+                "redb cannot open the file and no log entry was found in its bytes: not a \
+                 chronomap store, or nothing of it is left; nothing was changed"
+                    .into(),
+            ));
+        }
         Err(e) => (Candidates::new(), Some(e)),
     };
     for (seq, versions) in &mut candidates {
@@ -419,3 +548,7 @@ pub fn salvage_redb(
     report.lost = notes;
     Ok((report, kept))
 }
+
+#[cfg(test)]
+#[path = "check_tests.rs"]
+mod tests;

@@ -146,6 +146,48 @@ impl PostgresStore {
         Self::open(config, schema, Duration::ZERO, Access::Reader)
     }
 
+    /// Connects to check or salvage an existing store (`chronomap serve --check`,
+    /// `--salvage`'s source): nothing is created or written, as with
+    /// [`PostgresStore::connect_reader`], but the schema's advisory lock is held in shared mode,
+    /// so that no single-owner service writes (or compacts) the store while it is read; nodes
+    /// of a fleet, which hold it shared too, may.
+    ///
+    /// # Errors
+    /// As [`PostgresStore::connect_reader`]; a single-owner service still holds the schema
+    /// after 15 s.
+    pub fn connect_checker(config: &str, schema: &str) -> Result<Self, StoreError> {
+        let store = Self::connect_reader(config, schema)?;
+        let lock = format!("chronomap serve: {schema}");
+        let start = Instant::now();
+        loop {
+            let owned: bool = {
+                let client = store.connection()?;
+                store
+                    .runtime
+                    .block_on(client.query_one(
+                        "SELECT pg_try_advisory_lock_shared(hashtextextended($1, 0))",
+                        &[&lock],
+                    ))
+                    .map_err(|e| store.error(e))?
+                    .get(0)
+            };
+            if owned {
+                return Ok(store);
+            }
+            if start.elapsed() >= OWNER_WAIT {
+                return Err(StoreError {
+                    store: store.describe.clone(),
+                    reason: format!(
+                        "another session (a running chronomap serve?) has held the schema for \
+                         {:.1} s; stop it to check the store",
+                        OWNER_WAIT.as_secs_f64()
+                    ),
+                });
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Connects as one node of a fleet sharing the schema (see the module documentation):
     /// creates the tables if missing, takes the schema's advisory lock in shared mode and
     /// listens for the other nodes' appends.

@@ -40,7 +40,19 @@ impl RedbStore {
     /// The file cannot be opened, is not a redb database, or another process holds it; a
     /// file redb finds corrupted says how to recover ([`crate::check::RECOVERY_HINT`]).
     pub fn open(path: impl AsRef<Path>) -> Result<Self, StoreError> {
-        let path = path.as_ref().to_path_buf();
+        Self::open_with(path.as_ref(), false)
+    }
+
+    /// [`RedbStore::open`] with redb's page check on open: a file altered since redb wrote it
+    /// is refused as damaged instead of read (where reading could make redb panic). The check
+    /// reads the whole file and may write (repair, commit): `chronomap serve --check` runs it
+    /// on a copy.
+    pub(crate) fn open_checked(path: &Path) -> Result<Self, StoreError> {
+        Self::open_with(path, true)
+    }
+
+    fn open_with(path: &Path, check: bool) -> Result<Self, StoreError> {
+        let path = path.to_path_buf();
         let fail = |reason: String| StoreError {
             store: path.display().to_string(),
             reason,
@@ -52,7 +64,12 @@ impl RedbStore {
         options
             .open(&path)
             .map_err(|e| fail(format!("cannot open or create the file: {e}")))?;
-        let db = Database::create(&path).map_err(|e| match e {
+        let created = guarded(&path, || {
+            Ok(redb::Builder::new()
+                .set_check_integrity_on_open(check)
+                .create(&path))
+        })?;
+        let db = created.map_err(|e| match e {
             redb::DatabaseError::Storage(redb::StorageError::Corrupted(_)) => fail(format!(
                 "the file is damaged and redb cannot repair it ({e}); nothing was changed.\n{}",
                 crate::check::RECOVERY_HINT
@@ -85,34 +102,59 @@ impl RedbStore {
     /// a read-only file system can be read).
     ///
     /// # Errors
-    /// The file does not exist, is empty, is not a redb database, another process holds it
-    /// (redb's message says it is open), or it was not closed cleanly (redb would have to
-    /// repair it, which takes writing: opening it with `chronomap serve` does).
+    /// The file does not exist, is not a regular file, is empty, is not a redb database,
+    /// another process holds it (redb's message says it is open), or it was not closed cleanly
+    /// (redb would have to repair it, which takes writing: opening it with `chronomap serve`
+    /// does).
     pub fn open_read_only(path: impl AsRef<Path>) -> Result<Self, StoreError> {
-        let path = path.as_ref().to_path_buf();
+        Self::try_read_only(path.as_ref()).map_err(|(e, _)| e)
+    }
+
+    /// [`RedbStore::open_read_only`], saying with an error whether it is only that the file
+    /// was not closed cleanly (redb must repair it before it can be read).
+    pub(crate) fn try_read_only(path: &Path) -> Result<Self, (StoreError, bool)> {
+        let path = path.to_path_buf();
         let fail = |reason: String| StoreError {
             store: path.display().to_string(),
             reason,
         };
-        let size = std::fs::metadata(&path)
-            .map_err(|e| fail(format!("cannot open the file: {e}")))?
-            .len();
-        if size == 0 {
-            return Err(fail(
-                "the file is empty: not a store (a store is made by `chronomap serve`)".into(),
+        let metadata = std::fs::metadata(&path)
+            .map_err(|e| (fail(format!("cannot open the file: {e}")), false))?;
+        if !metadata.is_file() {
+            return Err((
+                fail(
+                    "not a regular file: not a store (a store is made by `chronomap serve`)".into(),
+                ),
+                false,
             ));
         }
-        let db = ReadOnlyDatabase::open(&path).map_err(|e| match e {
-            redb::DatabaseError::RepairAborted => fail(format!(
-                "the store was not closed cleanly and redb must repair it before it can be \
-                 read, which takes writing; start and stop `chronomap serve` on it once (it \
-                 repairs the file), then read it again ({e})"
-            )),
-            redb::DatabaseError::DatabaseAlreadyOpen => fail(e.to_string()),
-            e => fail(format!(
-                "{e} (if the file is damaged: {})",
-                crate::check::RECOVERY_HINT
-            )),
+        if metadata.len() == 0 {
+            return Err((
+                fail(
+                    "the file is empty: not a store (a store is made by `chronomap serve`)".into(),
+                ),
+                false,
+            ));
+        }
+        let opened =
+            guarded(&path, || Ok(ReadOnlyDatabase::open(&path))).map_err(|e| (e, false))?;
+        let db = opened.map_err(|e| match e {
+            redb::DatabaseError::RepairAborted => (
+                fail(format!(
+                    "the store was not closed cleanly and redb must repair it before it can be \
+                     read, which takes writing; start and stop `chronomap serve` on it once (it \
+                     repairs the file), then read it again ({e})"
+                )),
+                true,
+            ),
+            redb::DatabaseError::DatabaseAlreadyOpen => (fail(e.to_string()), false),
+            e => (
+                fail(format!(
+                    "{e} (if the file is damaged: {})",
+                    crate::check::RECOVERY_HINT
+                )),
+                false,
+            ),
         })?;
         Ok(RedbStore {
             path,
@@ -136,6 +178,16 @@ impl RedbStore {
                 reason: "opened read-only: the integrity check may repair, which writes".into(),
             }),
         }
+    }
+
+    /// Runs `read` (redb reading the file), turning a panic of redb into an error naming the
+    /// file. redb checks page checksums only when it repairs or checks a file it may write
+    /// (`Builder::set_check_integrity_on_open` "does not apply to read-only opens"), and
+    /// otherwise may panic on pages altered since it wrote them ("where a plain open may
+    /// panic"): a read-only reader (an export, `--check`) has no other way to refuse such a
+    /// file. The panic's message is kept for the error instead of printed.
+    fn guarded<T>(&self, read: impl FnOnce() -> Result<T, StoreError>) -> Result<T, StoreError> {
+        guarded(&self.path, read)
     }
 
     /// The database to write, or an error for a store opened read-only.
@@ -165,29 +217,7 @@ impl Store for RedbStore {
     }
 
     fn recover(&self) -> Result<Recovered, StoreError> {
-        let txn = self.db.begin_read().map_err(|e| self.error(e))?;
-        let meta = txn.open_table(META).map_err(|e| self.error(e))?;
-        let checkpoint = meta
-            .get(CHECKPOINT)
-            .map_err(|e| self.error(e))?
-            .map_or(0, |v| v.value());
-        let snapshots_table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
-        let mut snapshots = Vec::new();
-        for row in snapshots_table.iter().map_err(|e| self.error(e))? {
-            let (id, bytes) = row.map_err(|e| self.error(e))?;
-            snapshots.push((id.value().to_owned(), bytes.value().to_vec()));
-        }
-        let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
-        let last_seq = log
-            .last()
-            .map_err(|e| self.error(e))?
-            .map_or(0, |(k, _)| k.value());
-        Ok(Recovered {
-            checkpoint,
-            snapshots,
-            last_seq,
-            compacted: 0,
-        })
+        self.guarded(|| self.recover_unguarded())
     }
 
     fn append(&self, seq: u64, group: &[u8]) -> Result<(), StoreError> {
@@ -219,12 +249,95 @@ impl Store for RedbStore {
     }
 
     fn scan(&self, from: u64, visit: &mut Visit<'_>) -> Result<(), StoreError> {
-        let txn = self.db.begin_read().map_err(|e| self.error(e))?;
-        let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
-        for row in log.range(from..).map_err(|e| self.error(e))? {
+        let txn = self.guarded(|| self.db.begin_read().map_err(|e| self.error(e)))?;
+        let log = self.guarded(|| txn.open_table(LOG).map_err(|e| self.error(e)))?;
+        let mut rows = self.guarded(|| log.range(from..).map_err(|e| self.error(e)))?;
+        // Only redb's steps are guarded: a panic of `visit` is not the file's.
+        while let Some(row) = self.guarded(|| Ok(rows.next()))? {
             let (seq, bytes) = row.map_err(|e| self.error(e))?;
             visit(seq.value(), bytes.value())?;
         }
         Ok(())
     }
+}
+
+impl RedbStore {
+    fn recover_unguarded(&self) -> Result<Recovered, StoreError> {
+        let txn = self.db.begin_read().map_err(|e| self.error(e))?;
+        let meta = txn.open_table(META).map_err(|e| self.error(e))?;
+        let checkpoint = meta
+            .get(CHECKPOINT)
+            .map_err(|e| self.error(e))?
+            .map_or(0, |v| v.value());
+        let snapshots_table = txn.open_table(SNAPSHOTS).map_err(|e| self.error(e))?;
+        let mut snapshots = Vec::new();
+        for row in snapshots_table.iter().map_err(|e| self.error(e))? {
+            let (id, bytes) = row.map_err(|e| self.error(e))?;
+            snapshots.push((id.value().to_owned(), bytes.value().to_vec()));
+        }
+        let log = txn.open_table(LOG).map_err(|e| self.error(e))?;
+        let last_seq = log
+            .last()
+            .map_err(|e| self.error(e))?
+            .map_or(0, |(k, _)| k.value());
+        Ok(Recovered {
+            checkpoint,
+            snapshots,
+            last_seq,
+            compacted: 0,
+        })
+    }
+}
+
+thread_local! {
+    /// Whether this thread is inside [`guarded`], and the message of the panic it caught.
+    static GUARD: std::cell::RefCell<Option<Option<String>>> = const { std::cell::RefCell::new(None) };
+}
+
+/// [`RedbStore::guarded`] for `path`. The process's panic hook is wrapped once: a panic on a
+/// thread inside `guarded` is recorded for its error, any other goes to the previous hook.
+fn guarded<T>(path: &Path, read: impl FnOnce() -> Result<T, StoreError>) -> Result<T, StoreError> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let inside = GUARD.with(|g| {
+                let mut g = g.borrow_mut();
+                match g.as_mut() {
+                    Some(message) => {
+                        let payload = info
+                            .payload()
+                            .downcast_ref::<&str>()
+                            .map(|s| (*s).to_owned())
+                            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+                            .unwrap_or_default();
+                        let at = info
+                            .location()
+                            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+                            .unwrap_or_default();
+                        *message = Some(format!("{payload}{at}"));
+                        true
+                    }
+                    None => false,
+                }
+            });
+            if !inside {
+                previous(info);
+            }
+        }));
+    });
+    let outer = GUARD.with(|g| g.borrow_mut().replace(None));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(read));
+    let caught = GUARD.with(|g| std::mem::replace(&mut *g.borrow_mut(), outer));
+    result.unwrap_or_else(|_| {
+        let message = caught.flatten().unwrap_or_default();
+        Err(StoreError {
+            store: path.display().to_string(),
+            reason: format!(
+                "the file is damaged: redb stopped reading it ({message}); nothing was \
+                 changed.\n{}",
+                crate::check::RECOVERY_HINT
+            ),
+        })
+    })
 }

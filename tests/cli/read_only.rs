@@ -1,0 +1,257 @@
+//! Commands that only read a store leave it as it was: `chronomap serve --check` opens the redb
+//! file read-only (redb's page check runs on a copy outside the data folder), refuses a file
+//! that is no store without making a fresh one of it, and works on a read-only file system;
+//! `--salvage` refuses an empty file or one without a single log entry instead of replacing
+//! it with an empty store.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, SystemTime};
+
+use chronomap_serve::log::{LogRecord, encode_group};
+use chronomap_serve::registry::ModelConfig;
+use chronomap_serve::store::{RedbStore, Store};
+
+use crate::common::{chronomap, scratch};
+use crate::service::{Backend, free_port, start};
+
+/// A store of one model "door" with four observations in three log entries.
+fn small_store(dir: &Path) -> PathBuf {
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let store = RedbStore::open(data.join("chronomap.redb")).unwrap();
+    let groups = [
+        vec![LogRecord::Create {
+            id: "door".into(),
+            config: ModelConfig::parse(None, None).unwrap(),
+        }],
+        vec![LogRecord::Observe {
+            id: "door".into(),
+            times: vec![0.0, 60.0],
+            values: vec![0.0, 1.0],
+        }],
+        vec![LogRecord::Observe {
+            id: "door".into(),
+            times: vec![120.0, 180.0],
+            values: vec![1.0, 0.0],
+        }],
+    ];
+    for (i, records) in groups.iter().enumerate() {
+        let seq = i as u64 + 1;
+        store.append(seq, &encode_group(seq, records)).unwrap();
+    }
+    data
+}
+
+/// Every file of the folder with its bytes and modification time, and the folder's own time.
+fn snapshot(dir: &Path) -> (Vec<(String, Vec<u8>, SystemTime)>, SystemTime) {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let path = e.unwrap().path();
+            (
+                path.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&path).unwrap(),
+                std::fs::metadata(&path).unwrap().modified().unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    (files, std::fs::metadata(dir).unwrap().modified().unwrap())
+}
+
+fn serve(args: &[&str]) -> (i32, String, String) {
+    let mut all = vec!["serve"];
+    all.extend_from_slice(args);
+    let run = chronomap(&all);
+    (
+        run.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&run.stdout).into_owned(),
+        String::from_utf8_lossy(&run.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn serve_check_leaves_the_store_and_its_folder_as_they_were() {
+    let dir = scratch("read_only_check_clean");
+    let data = small_store(&dir);
+    let before = snapshot(&data);
+    std::thread::sleep(Duration::from_millis(20));
+    let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--check"]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    assert_eq!(
+        stdout,
+        format!(
+            "store: redb {}\nlog: 3 entries (4 observations), last position 3; checkpoint at 0, \
+             0 snapshots; 1 models\nok: every snapshot and log entry is intact\n",
+            data.join("chronomap.redb").display()
+        )
+    );
+    // Before: the store was opened to write (a new transaction changed its bytes) and its
+    // page check wrote and removed a copy in the data folder.
+    assert!(snapshot(&data) == before, "the data folder changed");
+}
+
+#[test]
+fn serve_check_and_salvage_refuse_an_empty_or_foreign_file_and_leave_it() {
+    let dir = scratch("read_only_check_foreign");
+    for (name, contents) in [
+        ("empty", &b""[..]),
+        ("foreign", &b"id,time,state\ndoor,0,1\n"[..]),
+    ] {
+        let data = dir.join(name);
+        std::fs::create_dir(&data).unwrap();
+        let file = data.join("chronomap.redb");
+        std::fs::write(&file, contents).unwrap();
+        let before = snapshot(&data);
+        std::thread::sleep(Duration::from_millis(20));
+        let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--check"]);
+        // Before: the empty file was made a fresh store and reported intact (exit 0).
+        assert_eq!(code, 1, "{name}: {stdout}{stderr}");
+        assert_eq!(
+            stderr,
+            format!(
+                "error: {}: the store cannot be read; nothing was changed\n",
+                file.display()
+            ),
+            "{name}"
+        );
+        if name == "empty" {
+            assert!(
+                stdout.contains("cannot be read: the file is empty: not a store"),
+                "{stdout}"
+            );
+        }
+        assert!(
+            snapshot(&data) == before,
+            "{name}: --check changed the folder"
+        );
+
+        // Before: the file was renamed to chronomap.redb.damaged-TIME and an empty store
+        // took its place (exit 0, "kept: 0 models").
+        let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--salvage"]);
+        assert_eq!(code, 1, "{name}: {stdout}{stderr}");
+        let reason = if name == "empty" {
+            "the file is empty: not a store, nothing to salvage; nothing was changed"
+        } else {
+            "redb cannot open the file and no log entry was found in its bytes: not a chronomap \
+             store, or nothing of it is left; nothing was changed"
+        };
+        assert_eq!(stderr, format!("error: {}: {reason}\n", file.display()));
+        assert!(
+            snapshot(&data) == before,
+            "{name}: --salvage changed the folder"
+        );
+    }
+}
+
+/// A store killed while open must be repaired by redb before it can be read: `--check`
+/// verifies a repaired copy and says so, leaving the file as the kill left it.
+#[test]
+fn serve_check_of_a_killed_store_verifies_a_repaired_copy() {
+    let dir = scratch("read_only_check_killed");
+    let data = dir.join("data");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let client =
+        chronomap_client::Client::new(&server.url, Some(crate::service::token(&data))).unwrap();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+        .block_on(client.add_values(
+            "door",
+            &[0.0, 60.0, 120.0],
+            &[0.0, 1.0, 1.0],
+            Some("fremen:2"),
+        ))
+        .unwrap();
+    server.kill();
+    let before = snapshot(&data);
+    std::thread::sleep(Duration::from_millis(20));
+    let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--check"]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    assert!(
+        stdout
+            .contains("note: the file was not closed cleanly: it was verified on a repaired copy"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("(3 observations)") && stdout.contains("1 models\nok:"),
+        "{stdout}"
+    );
+    // Before: redb repaired the file itself (its bytes changed).
+    assert!(snapshot(&data) == before, "--check changed the folder");
+}
+
+/// A store on a read-only file system (a read-only bind mount in a mount namespace of its
+/// own, which needs root) is checked.
+#[test]
+fn serve_check_reads_a_store_on_a_read_only_file_system() {
+    let dir = scratch("read_only_check_mount");
+    let data = small_store(&dir);
+    let ro = dir.join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let probe = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "true"])
+        .status();
+    if !probe.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: `unshare -m` is not permitted (needs root)");
+        return;
+    }
+    let script = format!(
+        "mount --bind {data} {ro} && mount -o remount,bind,ro {ro} && \
+         exec {exe} serve --data {ro} --check",
+        data = data.display(),
+        ro = ro.display(),
+        exe = env!("CARGO_BIN_EXE_chronomap"),
+    );
+    let run = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "sh", "-c", &script])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&run.stdout);
+    let err = String::from_utf8_lossy(&run.stderr);
+    // Before: "damaged: cannot open or create the file: Read-only file system", exit 1.
+    assert_eq!(run.status.code(), Some(0), "{out}{err}");
+    assert!(
+        out.ends_with("1 models\nok: every snapshot and log entry is intact\n"),
+        "{out}"
+    );
+}
+
+/// A schema that holds no store is refused by `--check` and not created (before: the check
+/// created the schema and its tables and reported an intact empty store).
+#[test]
+fn serve_check_does_not_create_a_postgres_schema() {
+    let Some(Backend::Postgres(config, schema)) = crate::service::postgres_backend("check_ro")
+    else {
+        return;
+    };
+    let dir = scratch("read_only_check_postgres");
+    let (code, stdout, stderr) = serve(&[
+        "--data",
+        dir.to_str().unwrap(),
+        "--postgres",
+        &config,
+        "--postgres-schema",
+        &schema,
+        "--check",
+    ]);
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    assert_eq!(
+        stderr,
+        format!(
+            "error: postgres schema {schema} (read-only): holds no chronomap store (no tables \
+             log and snapshots)\n"
+        )
+    );
+    let exists = Command::new("psql")
+        .args([
+            &config,
+            "-tAc",
+            &format!("SELECT count(*) FROM pg_namespace WHERE nspname = '{schema}'"),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(String::from_utf8_lossy(&exists.stdout).trim(), "0");
+}
