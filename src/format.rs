@@ -223,6 +223,31 @@ mod tests {
         );
     }
 
+    /// docs/limits.md names the cell cap in its table rows as `tests/cli/limits.rs` checks
+    /// the library's limits (that test cannot see the binary's constants).
+    #[test]
+    fn the_cell_limits_in_docs_limits_are_the_ones_here() {
+        let doc = include_str!("../docs/limits.md");
+        for (name, value) in [
+            ("MAX_CELL_CHARS", MAX_CELL_CHARS),
+            ("ELIDED_PREFIX_CHARS", ELIDED_PREFIX_CHARS),
+        ] {
+            let row = doc
+                .lines()
+                .find(|l| l.starts_with(&format!("| `{name}`")) && l.contains("`src/"))
+                .unwrap_or_else(|| panic!("docs/limits.md has no row for {name}"));
+            let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+            let digits: String = cells[2]
+                .split(' ')
+                .next()
+                .unwrap()
+                .chars()
+                .filter(|c| *c != ',')
+                .collect();
+            assert_eq!(digits, value.to_string(), "docs/limits.md row of {name}");
+        }
+    }
+
     #[test]
     fn elision_keeps_texts_up_to_the_cap_and_counts_characters_not_bytes() {
         let at_cap = "é".repeat(MAX_CELL_CHARS);
