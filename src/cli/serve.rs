@@ -58,13 +58,22 @@ pub struct ServeArgs {
     /// Connections open at once; one more is answered 503 and closed.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=65_536))]
     pub max_connections: u32,
-    /// Threads computing heavy requests (grid, activity and plan predictions), one request
-    /// each; default half the hardware threads, at least 1.
+    /// Threads computing heavy requests (grid, activity and plan predictions, model requests of
+    /// more than 16,384 predictions or 256 KiB), one request each; default half the hardware
+    /// threads, at least 1.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub heavy_workers: Option<u32>,
     /// Heavy requests that may wait for a worker; one more is answered 503 with Retry-After.
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(0..=65_536))]
     pub heavy_queue: u32,
+    /// Threads computing light requests (smaller predict, entropy, forecast, evaluate and
+    /// detect requests, grid cells, edge predictions), one request each; default half the
+    /// hardware threads, at least 1.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub light_workers: Option<u32>,
+    /// Light requests that may wait for a worker; one more is answered 503 with Retry-After.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(0..=65_536))]
+    pub light_queue: u32,
     /// Verify the store (every snapshot and log entry, and redb's page checksums), print a
     /// report and exit: 0 if intact, 1 if damaged. Serves nothing.
     #[arg(long, conflicts_with = "salvage")]

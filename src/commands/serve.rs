@@ -107,6 +107,12 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
                 .map_or_else(HeavyLimits::default_workers, |n| n as usize),
             queue: args.heavy_queue as usize,
         },
+        light: HeavyLimits {
+            workers: args
+                .light_workers
+                .map_or_else(HeavyLimits::default_workers, |n| n as usize),
+            queue: args.light_queue as usize,
+        },
     };
     let service = Service::start(store, config).map_err(anyhow::Error::msg)?;
     let models = service.models();

@@ -301,6 +301,12 @@ impl CopaMap {
     pub fn periods(&self) -> Vec<f64> {
         self.scaling.periods(&self.model.f.kernel)
     }
+
+    /// Inducing points of the model (the larger count of its two latent GPs): a prediction's
+    /// cost per point grows with its square.
+    pub fn inducing_points(&self) -> usize {
+        self.model.f.z.len().max(self.model.g.z.len())
+    }
 }
 
 /// Inputs onto `[0, 1]`: both spatial axes by one scale (distances keep their ratio), time by

@@ -384,7 +384,8 @@ pub struct Health {
     /// Why the node is `failed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
-    /// Heavy requests (grid, activity and plan predictions) computing now.
+    /// Heavy requests (grid, activity and plan predictions, large model requests) computing
+    /// now.
     #[serde(default)]
     pub heavy_running: u64,
     /// Heavy requests admitted and waiting for a worker.
@@ -393,6 +394,16 @@ pub struct Health {
     /// Heavy requests given up since the start because their client went away.
     #[serde(default)]
     pub heavy_cancelled: u64,
+    /// Light requests (small `predict`, `forecast`, `evaluate`, `detect`, grid cells, edge
+    /// predictions) computing now.
+    #[serde(default)]
+    pub light_running: u64,
+    /// Light requests admitted and waiting for a worker.
+    #[serde(default)]
+    pub light_waiting: u64,
+    /// Light requests given up since the start because their client went away.
+    #[serde(default)]
+    pub light_cancelled: u64,
 }
 
 /// Which models `GET /v1/models` lists.

@@ -1,10 +1,19 @@
-//! Requests that compute for a while — a grid's predicted map, a CoPA-Map's prediction over
-//! many cells, a now-or-later plan — run here, never on the async threads that answer every
-//! other request: on a pool of [`HeavyLimits::workers`] threads, each request on one thread
+//! Requests that compute run here, never on the async threads that answer every other
+//! request, on one of two pools of the same kind ([`Class`]):
+//!
+//! * **heavy** ([`Class::Heavy`]): a grid's predicted map, a CoPA-Map's prediction over many
+//!   cells, a now-or-later plan, and model requests with a large body or much work (more than
+//!   [`LIGHT_MAX_PREDICTIONS`] predictions or [`LIGHT_MAX_BODY_BYTES`] of JSON);
+//! * **light** ([`Class::Light`]): the other model requests (`predict`, `entropy`,
+//!   `forecast`, `evaluate`, `detect` of a few thousand predictions), a grid cell's times and
+//!   a topological map's edges at a time: at most milliseconds each, so that they never wait
+//!   behind a map that computes for seconds.
+//!
+//! Each pool runs [`HeavyLimits::workers`] threads, each request on one thread
 //! ([`Parallelism::Sequential`]), at most `workers + queue` admitted at once (one more is
-//! answered `503` with `Retry-After`), and each stopped soon after its client goes away (the
-//! handler's future is dropped, which sets the job's [`Cancel`] flag; the work checks it
-//! between chunks).
+//! answered `503` with `Retry-After`), and each request is stopped soon after its client goes
+//! away (the handler's future is dropped, which sets the job's [`Cancel`] flag; the work checks
+//! it between chunks).
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
@@ -19,6 +28,19 @@ use crate::server::ApiError;
 /// Requests admitted beyond those running, by default (`--heavy-queue`).
 pub const DEFAULT_HEAVY_QUEUE: usize = 32;
 
+/// Light requests admitted beyond those running, by default (`--light-queue`): each computes
+/// for milliseconds at most, so many may wait.
+pub const DEFAULT_LIGHT_QUEUE: usize = 256;
+
+/// Most predictions (times × orders, or ids) of a model request computed on the light pool;
+/// more go to the heavy pool. At most tens of milliseconds on one thread with the costliest
+/// model (FreMEn of order 84, about 1.6 µs a prediction).
+pub const LIGHT_MAX_PREDICTIONS: u64 = 16_384;
+
+/// Largest body of a model request parsed on the async threads (well under a millisecond of
+/// JSON); a larger one is parsed, checked and computed on the heavy pool.
+pub const LIGHT_MAX_BODY_BYTES: usize = 256 << 10;
+
 /// Seconds a client refused with `503` is asked to wait (`Retry-After`).
 pub const RETRY_AFTER_SECS: u32 = 1;
 
@@ -26,7 +48,25 @@ pub const RETRY_AFTER_SECS: u32 = 1;
 /// threads all heavy requests together keep busy.
 pub const PARALLELISM: Parallelism = Parallelism::Sequential;
 
-/// How much heavy work the service takes on.
+/// Which of the two pools a request runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Class {
+    /// Maps, plans and large model requests (`--heavy-workers`, `--heavy-queue`).
+    Heavy,
+    /// Small model requests (`--light-workers`, `--light-queue`).
+    Light,
+}
+
+impl Class {
+    fn name(self) -> &'static str {
+        match self {
+            Class::Heavy => "heavy",
+            Class::Light => "light",
+        }
+    }
+}
+
+/// How much work one pool takes on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HeavyLimits {
     /// Threads computing heavy requests, each running one request at a time
@@ -42,6 +82,15 @@ impl HeavyLimits {
     /// Half the hardware threads, at least 1.
     pub fn default_workers() -> usize {
         std::thread::available_parallelism().map_or(1, |n| n.get().div_ceil(2))
+    }
+
+    /// The light pool's defaults: [`HeavyLimits::default_workers`] threads,
+    /// [`DEFAULT_LIGHT_QUEUE`] waiting.
+    pub fn light() -> Self {
+        HeavyLimits {
+            workers: HeavyLimits::default_workers(),
+            queue: DEFAULT_LIGHT_QUEUE,
+        }
     }
 }
 
@@ -90,8 +139,9 @@ pub struct HeavyLoad {
     pub cancelled: u64,
 }
 
-/// The pool heavy requests run on.
+/// A pool requests that compute run on (heavy or light, [`Class`]).
 pub struct Heavy {
+    class: Class,
     pool: rayon::ThreadPool,
     admitted: Arc<Semaphore>,
     waiting: AtomicU64,
@@ -103,6 +153,7 @@ pub struct Heavy {
 impl std::fmt::Debug for Heavy {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Heavy")
+            .field("class", &self.class)
             .field("limits", &self.limits)
             .field("load", &self.load())
             .finish()
@@ -110,20 +161,30 @@ impl std::fmt::Debug for Heavy {
 }
 
 impl Heavy {
-    /// Starts the worker threads.
+    /// Starts the worker threads of the heavy pool.
     ///
     /// # Errors
     /// No worker (`workers == 0`), or the threads cannot be started.
     pub fn new(limits: HeavyLimits) -> Result<Self, String> {
+        Heavy::of_class(Class::Heavy, limits)
+    }
+
+    /// Starts the worker threads of a pool of `class`.
+    ///
+    /// # Errors
+    /// No worker (`workers == 0`), or the threads cannot be started.
+    pub fn of_class(class: Class, limits: HeavyLimits) -> Result<Self, String> {
+        let name = class.name();
         if limits.workers == 0 {
-            return Err("heavy workers: at least 1".into());
+            return Err(format!("{name} workers: at least 1"));
         }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(limits.workers)
-            .thread_name(|i| format!("chronomap-heavy-{i}"))
+            .thread_name(move |i| format!("chronomap-{name}-{i}"))
             .build()
-            .map_err(|e| format!("cannot start the heavy-request threads: {e}"))?;
+            .map_err(|e| format!("cannot start the {name}-request threads: {e}"))?;
         Ok(Heavy {
+            class,
             pool,
             admitted: Arc::new(Semaphore::new(
                 limits
@@ -136,6 +197,11 @@ impl Heavy {
             cancelled: AtomicU64::new(0),
             limits,
         })
+    }
+
+    /// Which pool it is.
+    pub fn class(&self) -> Class {
+        self.class
     }
 
     /// The limits it runs under.
@@ -189,9 +255,10 @@ impl Heavy {
         let permit = Arc::clone(&self.admitted)
             .try_acquire_owned()
             .map_err(|_| {
+                let name = self.class.name();
                 ApiError::busy(format!(
-                    "the service is computing {} heavy requests and {} more are waiting \
-                     (--heavy-workers, --heavy-queue); retry in {RETRY_AFTER_SECS} s",
+                    "the service is computing {} {name} requests and {} more are waiting \
+                     (--{name}-workers, --{name}-queue); retry in {RETRY_AFTER_SECS} s",
                     self.limits.workers, self.limits.queue
                 ))
             })?;

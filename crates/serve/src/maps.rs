@@ -17,7 +17,8 @@
 //!
 //! Grid and activity predictions and plans compute for a while: they run on the service's
 //! pool for heavy requests ([`crate::heavy`]), are refused with `503` when it is full and are
-//! given up when their client goes away. A grid that keeps its learning state is fitted once,
+//! given up when their client goes away. A grid cell's times and the edges at a time are
+//! bounded and short: they run on the light pool. A grid that keeps its learning state is fitted once,
 //! on its first prediction, into its compact model ([`FittedGrid`], [Krajník 2017] §VI),
 //! which then predicts every map (the same bits as refitting every changed cell each time);
 //! the served grids never change, so the compact model stays valid.
@@ -49,8 +50,8 @@ mod activity;
 mod topo;
 
 pub use activity::{
-    ActivityError, ActivityGrid, DEFAULT_CELL, MAX_ACTIVITY_CELLS, PREDICT_CHUNK, ServedActivity,
-    TIME_UNIT, WALL_PERCENT,
+    ActivityError, ActivityGrid, DEFAULT_CELL, MAX_ACTIVITY_CELLS, MAX_ACTIVITY_WORK,
+    PREDICT_CHUNK, ServedActivity, TIME_UNIT, WALL_PERCENT,
 };
 pub use topo::{COMPUTED_EDGE_LENGTH, MissingPositions, PositionSource, ServedTopo, training_span};
 
@@ -319,17 +320,18 @@ struct FittedCache {
     ready: watch::Sender<Option<Result<Arc<FittedGrid>, String>>>,
 }
 
-/// What the map routes hold: the maps, the pool of heavy requests and the compact models of
-/// grids served with their learning state.
+/// What the map routes hold: the maps, the pools of heavy and light requests and the compact
+/// models of grids served with their learning state.
 #[derive(Clone, Debug)]
 pub(crate) struct MapsState {
     maps: Arc<Maps>,
     heavy: Arc<Heavy>,
+    light: Arc<Heavy>,
     fitted: Arc<BTreeMap<String, FittedCache>>,
 }
 
 impl MapsState {
-    pub(crate) fn new(maps: Arc<Maps>, heavy: Arc<Heavy>) -> Self {
+    pub(crate) fn new(maps: Arc<Maps>, heavy: Arc<Heavy>, light: Arc<Heavy>) -> Self {
         let fitted = maps
             .grids
             .iter()
@@ -345,6 +347,7 @@ impl MapsState {
         MapsState {
             maps,
             heavy,
+            light,
             fitted: Arc::new(fitted),
         }
     }
@@ -390,7 +393,8 @@ fn json_answer<T: Serialize>(value: &T) -> Result<Vec<u8>, ApiError> {
     serde_json::to_vec(value).map_err(|e| ApiError::internal(format!("cannot write JSON: {e}")))
 }
 
-fn json_response(body: Vec<u8>) -> Response {
+/// An answer of JSON bytes.
+pub(crate) fn json_response(body: Vec<u8>) -> Response {
     let mut response = body.into_response();
     response.headers_mut().insert(
         header::CONTENT_TYPE,
@@ -514,31 +518,42 @@ pub(crate) async fn topo_info(
 #[utoipa::path(post, path = "/v1/topo/{name}/predict", request_body = TimeRequest,
     params(("name" = String, Path, description = "map name")),
     responses((status = 200, body = EdgesResponse), (status = 400, body = crate::api::ErrorBody),
-              (status = 404, body = crate::api::ErrorBody)))]
+              (status = 404, body = crate::api::ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = crate::api::ErrorBody)))]
 pub(crate) async fn topo_predict(
     State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<EdgesResponse>, ApiError> {
+) -> Result<Response, ApiError> {
     let name = name(path)?;
     let request: TimeRequest = parse_body(body)?;
     let time = check_time(request.time, "time")?;
-    let models = topo(&state.maps, &name)?.models();
-    let (success, duration) = models.at(time);
-    let map = models.map();
-    let edges = map
-        .edges()
-        .iter()
-        .enumerate()
-        .map(|(k, e)| EdgePrediction {
-            id: e.id.clone(),
-            from: map.nodes()[e.from].name.clone(),
-            to: map.nodes()[e.to].name.clone(),
-            success: success[k],
-            duration_secs: duration[k],
+    topo(&state.maps, &name)?;
+    // Every edge's models at one time: bounded by the map, on the light pool.
+    let maps = Arc::clone(&state.maps);
+    let body = state
+        .light
+        .run(move |_| {
+            let models = topo(&maps, &name)?.models();
+            let (success, duration) = models.at(time);
+            let map = models.map();
+            let edges = map
+                .edges()
+                .iter()
+                .enumerate()
+                .map(|(k, e)| EdgePrediction {
+                    id: e.id.clone(),
+                    from: map.nodes()[e.from].name.clone(),
+                    to: map.nodes()[e.to].name.clone(),
+                    success: success[k],
+                    duration_secs: duration[k],
+                })
+                .collect();
+            json_answer(&EdgesResponse { edges })
         })
-        .collect();
-    Ok(Json(EdgesResponse { edges }))
+        .await?;
+    Ok(json_response(body))
 }
 
 /// Now or later: the best plan for a co-safe LTL task at each start time ([Fentanes 2015] §V).
@@ -691,12 +706,14 @@ pub(crate) async fn grid_info(
 #[utoipa::path(post, path = "/v1/grid/{name}/cell", request_body = CellRequest,
     params(("name" = String, Path, description = "grid name")),
     responses((status = 200, body = CellResponse), (status = 400, body = crate::api::ErrorBody),
-              (status = 404, body = crate::api::ErrorBody)))]
+              (status = 404, body = crate::api::ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = crate::api::ErrorBody)))]
 pub(crate) async fn grid_cell(
     State(state): State<MapsState>,
     path: Result<Path<String>, PathRejection>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<CellResponse>, ApiError> {
+) -> Result<Response, ApiError> {
     let name = name(path)?;
     let request: CellRequest = parse_body(body)?;
     if request.times.is_empty() || request.times.len() > MAX_CELL_TIMES {
@@ -708,8 +725,7 @@ pub(crate) async fn grid_cell(
     for (i, &t) in request.times.iter().enumerate() {
         check_time(t, &format!("times[{i}]"))?;
     }
-    let grid = grid(&state.maps, &name)?;
-    let g = geometry(grid);
+    let g = geometry(grid(&state.maps, &name)?);
     let shape = [g.width, g.height, g.depth];
     let cell = match request.cell[..] {
         [x, y] => [x, y, 0],
@@ -736,16 +752,25 @@ pub(crate) async fn grid_cell(
     }
     let [x, y, z] = index.map(|i| i as usize);
     let flat = x + g.width as usize * (y + g.height as usize * z);
-    let values = match grid {
-        GridFile::State(g) => g.predict_cell(flat, &request.times),
-        GridFile::Lossy(g) => g.predict_cell(flat, &request.times),
-        GridFile::Lossless(g) => g.fitted.predict_cell(flat, &request.times),
-    };
-    Ok(Json(CellResponse {
-        cell: index,
-        centre: [0, 1, 2].map(|k| g.origin[k] + (f64::from(index[k]) + 0.5) * g.resolution),
-        values: values.into_iter().map(f64::from).collect(),
-    }))
+    // One cell (fitted from its learning state for a state grid) at ≤ 10,000 times: on the
+    // light pool.
+    let maps = Arc::clone(&state.maps);
+    let body = state
+        .light
+        .run(move |_| {
+            let values = match grid(&maps, &name)? {
+                GridFile::State(g) => g.predict_cell(flat, &request.times),
+                GridFile::Lossy(g) => g.predict_cell(flat, &request.times),
+                GridFile::Lossless(g) => g.fitted.predict_cell(flat, &request.times),
+            };
+            json_answer(&CellResponse {
+                cell: index,
+                centre: [0, 1, 2].map(|k| g.origin[k] + (f64::from(index[k]) + 0.5) * g.resolution),
+                values: values.into_iter().map(f64::from).collect(),
+            })
+        })
+        .await?;
+    Ok(json_response(body))
 }
 
 /// Domain, periods and unit of time of a CoPA-Map.
@@ -787,9 +812,9 @@ pub(crate) async fn activity_predict(
     let request: ActivityRequest = parse_body(body)?;
     let t = check_time(request.t, "t")?;
     let cell = request.cell.unwrap_or(DEFAULT_CELL);
-    // The cells are counted before the request waits for a worker.
+    // The cells and the work are counted before the request waits for a worker.
     activity(&state.maps, &name)?
-        .region(cell)
+        .checked_region(cell)
         .map_err(activity_error)?;
     let maps = Arc::clone(&state.maps);
     let body = state
@@ -815,9 +840,10 @@ fn activity_error(e: ActivityError) -> ApiError {
     match e {
         ActivityError::Model(_) => ApiError::internal(e.to_string()),
         ActivityError::Cancelled => heavy::cancelled(),
-        ActivityError::Time(_) | ActivityError::Cell(_) | ActivityError::TooManyCells { .. } => {
-            ApiError::bad_request(e.to_string())
-        }
+        ActivityError::Time(_)
+        | ActivityError::Cell(_)
+        | ActivityError::TooManyCells { .. }
+        | ActivityError::TooMuchWork { .. } => ApiError::bad_request(e.to_string()),
     }
 }
 

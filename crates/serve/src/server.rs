@@ -22,7 +22,7 @@ use tokio::sync::{mpsc, oneshot};
 use utoipa::OpenApi;
 
 use crate::api::*;
-use crate::heavy::{Heavy, HeavyLimits};
+use crate::heavy::{self, Cancel, Class, Heavy, HeavyLimits};
 use crate::maps::Maps;
 use crate::refit::{RefitFailure, Refits};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, check_id};
@@ -31,6 +31,17 @@ use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, Wr
 
 /// Largest request body by default (bytes): about a million observations in JSON.
 pub const DEFAULT_MAX_BODY_BYTES: usize = 32 << 20;
+
+/// Most predictions one model request may ask for, counted before any is computed: times
+/// (`predict`, `entropy`, `detect`), ids (`forecast`, `forecastEntropy`), rows × orders
+/// (`evaluate`). More is refused with `400` naming the field. About 3 s on one thread with the
+/// costliest model (FreMEn of order 84); 0.1 s with `fremen:2`.
+pub const MAX_REQUEST_PREDICTIONS: u64 = 2_000_000;
+
+/// Predictions computed between two checks whether the client went away (`evaluate` checks
+/// between orders, `predict` and `entropy` are one call of the model: its values are bit for
+/// bit those of `predict_many` over all the times).
+pub const MODEL_CHUNK: usize = 4096;
 
 /// How long connections may take, and how many may be open.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -76,8 +87,11 @@ pub struct ServiceConfig {
     pub refit: chronomap_models::RefitPolicy,
     /// Behavior trees watched over the Groot2 protocol (`--bt-monitor`).
     pub bt_monitors: Arc<crate::bt_monitor::BtMonitors>,
-    /// Threads and queue of the requests that compute (grid, activity and plan predictions).
+    /// Threads and queue of the requests that compute for long (grid, activity and plan
+    /// predictions, large model requests).
     pub heavy: HeavyLimits,
+    /// Threads and queue of the small model requests ([`crate::heavy::Class::Light`]).
+    pub light: HeavyLimits,
 }
 
 impl Default for ServiceConfig {
@@ -92,6 +106,7 @@ impl Default for ServiceConfig {
             refit: chronomap_models::RefitPolicy::default(),
             bt_monitors: Arc::default(),
             heavy: HeavyLimits::default(),
+            light: HeavyLimits::light(),
         }
     }
 }
@@ -141,6 +156,7 @@ struct AppState {
     body_timeout: Duration,
     max_body_bytes: usize,
     heavy: Arc<Heavy>,
+    light: Arc<Heavy>,
 }
 
 impl Service {
@@ -153,6 +169,7 @@ impl Service {
     /// The store cannot be read or holds damaged entries (named in the message).
     pub fn start(store: Arc<dyn Store>, config: ServiceConfig) -> Result<Self, String> {
         let heavy = Arc::new(Heavy::new(config.heavy)?);
+        let light = Arc::new(Heavy::of_class(Class::Light, config.light)?);
         let shared = Arc::new(writer::recover(store)?);
         let (writes, commands) = mpsc::channel(1024);
         let writer_shared = Arc::clone(&shared);
@@ -204,8 +221,9 @@ impl Service {
                 body_timeout: config.limits.body_timeout,
                 max_body_bytes: config.max_body_bytes,
                 heavy: Arc::clone(&heavy),
+                light: Arc::clone(&light),
             },
-            maps: crate::maps::MapsState::new(config.maps, heavy),
+            maps: crate::maps::MapsState::new(config.maps, heavy, light),
             bt_monitors: config.bt_monitors,
             max_body_bytes: config.max_body_bytes,
             limits: config.limits,
@@ -515,14 +533,23 @@ impl From<WriteError> for ApiError {
 pub(crate) fn parse_body<T: DeserializeOwned>(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<T, ApiError> {
-    let bytes = body.map_err(|rejection| {
+    parse_json(&body_bytes(body)?)
+}
+
+/// The bytes of a body, with `413` for oversize bodies.
+fn body_bytes(body: Result<Bytes, BytesRejection>) -> Result<Bytes, ApiError> {
+    body.map_err(|rejection| {
         if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
             too_large_error()
         } else {
             ApiError::bad_request(format!("cannot read the request body: {rejection}"))
         }
-    })?;
-    serde_json::from_slice(&bytes)
+    })
+}
+
+/// A JSON body, with `400` naming the line, column and field of anything malformed.
+fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
+    serde_json::from_slice(bytes)
         .map_err(|e| ApiError::bad_request(format!("malformed JSON body: {e}")))
 }
 
@@ -769,7 +796,8 @@ async fn openapi() -> Response {
 /// A node of a fleet also reports the shared log's `head`, its `lag` behind it and for how
 /// long it has not been level with it; `status` is `behind` after 5 s and `failed` when it
 /// stopped applying the log. `heavy_running`, `heavy_waiting` and `heavy_cancelled` count the
-/// requests that compute ([`crate::heavy`]).
+/// requests that compute on the heavy pool, `light_*` those on the light pool
+/// ([`crate::heavy`]).
 #[utoipa::path(get, path = "/v1/health", responses((status = 200, body = Health),
     (status = 503, body = ErrorBody)))]
 async fn health(
@@ -777,7 +805,7 @@ async fn health(
     headers: axum::http::HeaderMap,
 ) -> Result<Json<Health>, ApiError> {
     let models = state.shared.registry.read().expect("registry lock").len() as u64;
-    let load = state.heavy.load();
+    let (load, light) = (state.heavy.load(), state.light.load());
     let store = state.shared.store.describe();
     let store = if authorized(&state, &headers) {
         store
@@ -809,6 +837,9 @@ async fn health(
         heavy_running: load.running,
         heavy_waiting: load.waiting,
         heavy_cancelled: load.cancelled,
+        light_running: light.running,
+        light_waiting: light.waiting,
+        light_cancelled: light.cancelled,
     }))
 }
 
@@ -1081,99 +1112,242 @@ fn check_times(times: &[f64]) -> Result<(), ApiError> {
     Ok(())
 }
 
-fn predictions(
+// ---------------------------------------------------------------------------------------------
+// Model requests that compute
+
+/// A request that computes predictions of models: checked against the registry before any
+/// prediction is made, then computed on a pool ([`compute`]).
+trait ModelRequest: DeserializeOwned + Send + 'static {
+    /// Checks the request (`400` naming the field, `404` for an unknown model) and returns the
+    /// predictions it asks for, at most [`MAX_REQUEST_PREDICTIONS`].
+    fn check(&self, registry: &Registry) -> Result<u64, ApiError>;
+}
+
+/// `work` predictions asked for in `field`, or `400` naming it when they are more than
+/// [`MAX_REQUEST_PREDICTIONS`]; `how` says how they were counted, `hint` what to do instead.
+fn bounded(work: u64, field: &str, how: &str, hint: &str) -> Result<u64, ApiError> {
+    if work > MAX_REQUEST_PREDICTIONS {
+        return Err(ApiError::bad_request(format!(
+            "field `{field}`: {how} are {work} predictions, more than \
+             {MAX_REQUEST_PREDICTIONS} per request; {hint}"
+        )));
+    }
+    Ok(work)
+}
+
+/// Checks a request against the models, holding the registry only while it does.
+fn checked<R: ModelRequest>(request: &R, shared: &Shared) -> Result<u64, ApiError> {
+    request.check(&shared.registry.read().expect("registry lock"))
+}
+
+/// Runs a model request off the async threads: a body of at most
+/// [`heavy::LIGHT_MAX_BODY_BYTES`] is parsed and checked here and computed on the light pool
+/// when it asks for at most [`heavy::LIGHT_MAX_PREDICTIONS`], else on the heavy pool; a larger
+/// body is parsed, checked and computed on the heavy pool (parsing megabytes of JSON is work
+/// too). `job` gets the request, the models and the cancel flag, and answers JSON bytes
+/// (serialised off the async threads too).
+async fn compute<R: ModelRequest>(
     state: &AppState,
-    request: &PredictRequest,
+    body: Result<Bytes, BytesRejection>,
+    job: impl FnOnce(R, &Shared, &Cancel) -> Result<Vec<u8>, ApiError> + Send + 'static,
+) -> Result<Response, ApiError> {
+    let bytes = body_bytes(body)?;
+    let shared = Arc::clone(&state.shared);
+    let answer = if bytes.len() > heavy::LIGHT_MAX_BODY_BYTES {
+        state
+            .heavy
+            .run(move |cancel| {
+                let request: R = parse_json(&bytes)?;
+                checked(&request, &shared)?;
+                if cancel.is_cancelled() {
+                    return Err(heavy::cancelled());
+                }
+                job(request, &shared, cancel)
+            })
+            .await?
+    } else {
+        let request: R = parse_json(&bytes)?;
+        let work = checked(&request, &shared)?;
+        let pool = if work <= heavy::LIGHT_MAX_PREDICTIONS {
+            &state.light
+        } else {
+            &state.heavy
+        };
+        pool.run(move |cancel| job(request, &shared, cancel))
+            .await?
+    };
+    Ok(crate::maps::json_response(answer))
+}
+
+/// The JSON bytes of an answer.
+fn json_bytes<T: serde::Serialize>(value: &T) -> Result<Vec<u8>, ApiError> {
+    serde_json::to_vec(value).map_err(|e| ApiError::internal(format!("cannot write JSON: {e}")))
+}
+
+/// The model of `id` at `order` and its configuration, copied so that the registry is held
+/// only while copying (a write waits for no computation).
+fn model_copy(
+    shared: &Shared,
+    id: &str,
+    order: Option<usize>,
+) -> Result<(chronomap_models::AnyModel, ModelConfig), ApiError> {
+    let registry = shared.registry.read().expect("registry lock");
+    let entry = model_entry(&registry, id, "id")?;
+    let model = entry
+        .with_order(order)
+        .map_err(ApiError::bad_request)?
+        .into_owned();
+    Ok((model, entry.config.clone()))
+}
+
+impl ModelRequest for PredictRequest {
+    fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
+        check_times(&self.times)?;
+        model_entry(registry, &self.id, "id")?
+            .with_order(self.order)
+            .map_err(ApiError::bad_request)?;
+        bounded(
+            self.times.len() as u64,
+            "times",
+            &format!("{} times", self.times.len()),
+            "split the request",
+        )
+    }
+}
+
+/// `predict` and `entropy`: one call of the model over all the times.
+async fn predictions(
+    state: &AppState,
+    body: Result<Bytes, BytesRejection>,
     map: fn(f64) -> f64,
     scaled: bool,
-) -> Result<PredictResponse, ApiError> {
-    check_times(&request.times)?;
-    let registry = state.shared.registry.read().expect("registry lock");
-    let entry = model_entry(&registry, &request.id, "id")?;
-    let model = entry
-        .with_order(request.order)
-        .map_err(ApiError::bad_request)?;
-    let mut values = model.predict_many(&request.times);
-    let scaled = (scaled && entry.config.range.is_some())
-        .then(|| values.iter().map(|&p| entry.config.scale(p)).collect());
-    values.iter_mut().for_each(|v| *v = map(*v));
-    Ok(PredictResponse { values, scaled })
+) -> Result<Response, ApiError> {
+    compute(
+        state,
+        body,
+        move |request: PredictRequest, shared, cancel| {
+            let (model, config) = model_copy(shared, &request.id, request.order)?;
+            if cancel.is_cancelled() {
+                return Err(heavy::cancelled());
+            }
+            let mut values = model.predict_many(&request.times);
+            let scaled = (scaled && config.range.is_some())
+                .then(|| values.iter().map(|&p| config.scale(p)).collect());
+            values.iter_mut().for_each(|v| *v = map(*v));
+            json_bytes(&PredictResponse { values, scaled })
+        },
+    )
+    .await
 }
 
 /// `p(t)` of one model at many times (`predict`).
 #[utoipa::path(post, path = "/v1/predict", request_body = PredictRequest,
     responses((status = 200, body = PredictResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn predict(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<PredictResponse>, ApiError> {
-    let request: PredictRequest = parse_body(body)?;
-    Ok(Json(predictions(&state, &request, |p| p, true)?))
+) -> Result<Response, ApiError> {
+    predictions(&state, body, |p| p, true).await
 }
 
 /// Binary entropy (bits) of one model's predictions at many times (`entropy`).
 #[utoipa::path(post, path = "/v1/entropy", request_body = PredictRequest,
     responses((status = 200, body = PredictResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn entropy(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<PredictResponse>, ApiError> {
-    let request: PredictRequest = parse_body(body)?;
-    Ok(Json(predictions(&state, &request, binary_entropy, false)?))
+) -> Result<Response, ApiError> {
+    predictions(&state, body, binary_entropy, false).await
 }
 
-fn forecasts(
+impl ModelRequest for ForecastRequest {
+    fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
+        check_time(self.time, "time")?;
+        if let Some(orders) = &self.orders
+            && orders.len() != self.ids.len()
+        {
+            return Err(ApiError::bad_request(format!(
+                "field `orders`: {} orders for {} ids",
+                orders.len(),
+                self.ids.len()
+            )));
+        }
+        let work = bounded(
+            self.ids.len() as u64,
+            "ids",
+            &format!("{} ids", self.ids.len()),
+            "split the request",
+        )?;
+        for (i, id) in self.ids.iter().enumerate() {
+            model_entry(registry, id, &format!("ids[{i}]"))?;
+        }
+        Ok(work)
+    }
+}
+
+/// `forecast` and `forecastEntropy`: [`MODEL_CHUNK`] ids at a time, each chunk under the
+/// registry's lock (so that writes wait for one chunk at most).
+async fn forecasts(
     state: &AppState,
-    request: &ForecastRequest,
+    body: Result<Bytes, BytesRejection>,
     map: fn(f64) -> f64,
-) -> Result<ForecastResponse, ApiError> {
-    check_time(request.time, "time")?;
-    if let Some(orders) = &request.orders
-        && orders.len() != request.ids.len()
-    {
-        return Err(ApiError::bad_request(format!(
-            "field `orders`: {} orders for {} ids",
-            orders.len(),
-            request.ids.len()
-        )));
-    }
-    let registry = state.shared.registry.read().expect("registry lock");
-    let mut values = Vec::with_capacity(request.ids.len());
-    for (i, id) in request.ids.iter().enumerate() {
-        let entry = model_entry(&registry, id, &format!("ids[{i}]"))?;
-        let order = request.orders.as_ref().map(|o| o[i]).or(request.order);
-        let model = entry
-            .with_order(order)
-            .map_err(|e| ApiError::bad_request(format!("ids[{i}]: {e}")))?;
-        values.push(map(model.predict(request.time)));
-    }
-    Ok(ForecastResponse { values })
+) -> Result<Response, ApiError> {
+    compute(
+        state,
+        body,
+        move |request: ForecastRequest, shared, cancel| {
+            let mut values = Vec::with_capacity(request.ids.len());
+            for (chunk, ids) in request.ids.chunks(MODEL_CHUNK).enumerate() {
+                if cancel.is_cancelled() {
+                    return Err(heavy::cancelled());
+                }
+                let registry = shared.registry.read().expect("registry lock");
+                for (k, id) in ids.iter().enumerate() {
+                    let i = chunk * MODEL_CHUNK + k;
+                    let entry = model_entry(&registry, id, &format!("ids[{i}]"))?;
+                    let order = request.orders.as_ref().map(|o| o[i]).or(request.order);
+                    let model = entry
+                        .with_order(order)
+                        .map_err(|e| ApiError::bad_request(format!("ids[{i}]: {e}")))?;
+                    values.push(map(model.predict(request.time)));
+                }
+            }
+            json_bytes(&ForecastResponse { values })
+        },
+    )
+    .await
 }
 
 /// `p(t)` of many models at one time (`forecast`), with one order each or one for all.
 #[utoipa::path(post, path = "/v1/forecast", request_body = ForecastRequest,
     responses((status = 200, body = ForecastResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn forecast(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<ForecastResponse>, ApiError> {
-    let request: ForecastRequest = parse_body(body)?;
-    Ok(Json(forecasts(&state, &request, |p| p)?))
+) -> Result<Response, ApiError> {
+    forecasts(&state, body, |p| p).await
 }
 
 /// Binary entropy (bits) of many models at one time (`forecastEntropy`).
 #[utoipa::path(post, path = "/v1/forecastEntropy", request_body = ForecastRequest,
     responses((status = 200, body = ForecastResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn forecast_entropy(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<ForecastResponse>, ApiError> {
-    let request: ForecastRequest = parse_body(body)?;
-    Ok(Json(forecasts(&state, &request, binary_entropy)?))
+) -> Result<Response, ApiError> {
+    forecasts(&state, body, binary_entropy).await
 }
 
 fn check_data(times: &[f64], values: &[f64]) -> Result<(), ApiError> {
@@ -1193,118 +1367,170 @@ fn check_data(times: &[f64], values: &[f64]) -> Result<(), ApiError> {
     }
 }
 
+/// The orders `evaluate` computes for `entry`: `0..=max_order` (default 10) up to the model's
+/// largest, or `[0]` for a model without orders.
+fn evaluated_orders(entry: &Entry, max_order: Option<usize>) -> Vec<usize> {
+    match entry.model.model().and_then(crate::registry::max_order) {
+        Some(max) => (0..=max_order.unwrap_or(10).min(max)).collect(),
+        None => vec![0],
+    }
+}
+
+impl ModelRequest for EvaluateRequest {
+    fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
+        check_data(&self.times, &self.values)?;
+        if self.times.is_empty() {
+            return Err(ApiError::bad_request(
+                "field `times`: nothing to evaluate on".into(),
+            ));
+        }
+        let entry = model_entry(registry, &self.id, "id")?;
+        let orders = evaluated_orders(entry, self.max_order).len();
+        let rows = self.times.len();
+        bounded(
+            (rows as u64).saturating_mul(orders as u64),
+            "times",
+            &format!("{rows} times × {orders} orders"),
+            "send fewer times or a lower `max_order`",
+        )
+    }
+}
+
 /// Errors of a model for every order on given data (`evaluate`).
 #[utoipa::path(post, path = "/v1/evaluate", request_body = EvaluateRequest,
     responses((status = 200, body = EvaluateResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn evaluate(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<EvaluateResponse>, ApiError> {
-    let request: EvaluateRequest = parse_body(body)?;
-    check_data(&request.times, &request.values)?;
-    if request.times.is_empty() {
-        return Err(ApiError::bad_request(
-            "field `times`: nothing to evaluate on".into(),
-        ));
-    }
-    let registry = state.shared.registry.read().expect("registry lock");
-    let entry = model_entry(&registry, &request.id, "id")?;
-    let targets: Vec<f64> = request
-        .values
-        .iter()
-        .map(|&v| entry.config.normalise(v))
-        .collect();
-    let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
-    let max_order = entry.model.model().and_then(crate::registry::max_order);
-    let orders: Vec<usize> = match max_order {
-        Some(max) => (0..=request.max_order.unwrap_or(10).min(max)).collect(),
-        None => vec![0],
-    };
-    let mut errors = Vec::with_capacity(orders.len());
-    let mut brier = Vec::with_capacity(orders.len());
-    for &order in &orders {
-        let model = if max_order.is_some() {
-            entry
-                .with_order(Some(order))
-                .map_err(ApiError::bad_request)?
-        } else {
-            entry.with_order(None).map_err(ApiError::bad_request)?
+) -> Result<Response, ApiError> {
+    compute(&state, body, |request: EvaluateRequest, shared, cancel| {
+        // The model at every order, copied (the registry is held only meanwhile).
+        let (orders, models, config) = {
+            let registry = shared.registry.read().expect("registry lock");
+            let entry = model_entry(&registry, &request.id, "id")?;
+            let ordered = entry.model.model().and_then(crate::registry::max_order);
+            let orders = evaluated_orders(entry, request.max_order);
+            let models = orders
+                .iter()
+                .map(|&order| {
+                    entry
+                        .with_order(ordered.map(|_| order))
+                        .map(std::borrow::Cow::into_owned)
+                        .map_err(ApiError::bad_request)
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            (orders, models, entry.config.clone())
         };
-        let p = model.predict_many(&request.times);
-        let n = p.len() as f64;
-        let error = p
+        let targets: Vec<f64> = request
+            .values
             .iter()
-            .zip(&targets)
-            .map(|(&p, &s)| {
-                if binary {
-                    f64::from(u8::from((p > 0.5) != (s > 0.5)))
-                } else {
-                    (p - s).abs()
-                }
-            })
-            .sum::<f64>()
-            / n;
-        errors.push(error);
-        brier.push(
-            p.iter()
+            .map(|&v| config.normalise(v))
+            .collect();
+        let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
+        let mut errors = Vec::with_capacity(orders.len());
+        let mut brier = Vec::with_capacity(orders.len());
+        for model in &models {
+            if cancel.is_cancelled() {
+                return Err(heavy::cancelled());
+            }
+            let p = model.predict_many(&request.times);
+            let n = p.len() as f64;
+            let error = p
+                .iter()
                 .zip(&targets)
-                .map(|(p, s)| (p - s) * (p - s))
+                .map(|(&p, &s)| {
+                    if binary {
+                        f64::from(u8::from((p > 0.5) != (s > 0.5)))
+                    } else {
+                        (p - s).abs()
+                    }
+                })
                 .sum::<f64>()
-                / n,
-        );
-    }
-    let best = errors
-        .iter()
-        .enumerate()
-        .fold(0, |best, (i, &e)| if e < errors[best] { i } else { best });
-    Ok(Json(EvaluateResponse {
-        best_order: orders[best],
-        orders,
-        errors,
-        brier,
-        metric: if binary {
-            "binary_error"
-        } else {
-            "mean_absolute_error"
+                / n;
+            errors.push(error);
+            brier.push(
+                p.iter()
+                    .zip(&targets)
+                    .map(|(p, s)| (p - s) * (p - s))
+                    .sum::<f64>()
+                    / n,
+            );
         }
-        .into(),
-    }))
+        let best = errors
+            .iter()
+            .enumerate()
+            .fold(0, |best, (i, &e)| if e < errors[best] { i } else { best });
+        json_bytes(&EvaluateResponse {
+            best_order: orders[best],
+            orders,
+            errors,
+            brier,
+            metric: if binary {
+                "binary_error"
+            } else {
+                "mean_absolute_error"
+            }
+            .into(),
+        })
+    })
+    .await
+}
+
+impl ModelRequest for DetectRequest {
+    fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
+        check_data(&self.times, &self.values)?;
+        if !(self.confidence > 0.0 && self.confidence <= 1.0) {
+            return Err(ApiError::bad_request(format!(
+                "field `confidence`: {} is not in (0, 1]",
+                self.confidence
+            )));
+        }
+        model_entry(registry, &self.id, "id")?
+            .with_order(self.order)
+            .map_err(ApiError::bad_request)?;
+        bounded(
+            self.times.len() as u64,
+            "times",
+            &format!("{} times", self.times.len()),
+            "split the request",
+        )
+    }
 }
 
 /// Observations that differ from the prediction by at least `confidence` (`detect`).
 #[utoipa::path(post, path = "/v1/detect", request_body = DetectRequest,
     responses((status = 200, body = DetectResponse), (status = 400, body = ErrorBody),
-              (status = 404, body = ErrorBody)))]
+              (status = 404, body = ErrorBody),
+              (status = 503, description = "too many requests computing; `Retry-After` says \
+               when to ask again", body = ErrorBody)))]
 async fn detect(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
-) -> Result<Json<DetectResponse>, ApiError> {
-    let request: DetectRequest = parse_body(body)?;
-    check_data(&request.times, &request.values)?;
-    if !(request.confidence > 0.0 && request.confidence <= 1.0) {
-        return Err(ApiError::bad_request(format!(
-            "field `confidence`: {} is not in (0, 1]",
-            request.confidence
-        )));
-    }
-    let registry = state.shared.registry.read().expect("registry lock");
-    let entry = model_entry(&registry, &request.id, "id")?;
-    let model = entry
-        .with_order(request.order)
-        .map_err(ApiError::bad_request)?;
-    let anomalies = request
-        .times
-        .iter()
-        .zip(&request.values)
-        .filter_map(|(&time, &value)| {
-            let p = model.predict(time);
-            ((entry.config.normalise(value) - p).abs() >= request.confidence).then(|| Anomaly {
-                time,
-                value,
-                predicted: entry.config.scale(p),
-            })
-        })
-        .collect();
-    Ok(Json(DetectResponse { anomalies }))
+) -> Result<Response, ApiError> {
+    compute(&state, body, |request: DetectRequest, shared, cancel| {
+        let (model, config) = model_copy(shared, &request.id, request.order)?;
+        let mut anomalies = Vec::new();
+        for (times, values) in request
+            .times
+            .chunks(MODEL_CHUNK)
+            .zip(request.values.chunks(MODEL_CHUNK))
+        {
+            if cancel.is_cancelled() {
+                return Err(heavy::cancelled());
+            }
+            anomalies.extend(times.iter().zip(values).filter_map(|(&time, &value)| {
+                let p = model.predict(time);
+                ((config.normalise(value) - p).abs() >= request.confidence).then(|| Anomaly {
+                    time,
+                    value,
+                    predicted: config.scale(p),
+                })
+            }));
+        }
+        json_bytes(&DetectResponse { anomalies })
+    })
+    .await
 }

@@ -1,9 +1,9 @@
 //! The service under load from requests that compute: a grid of the synthetic office of
 //! [Krajník 2017] §VI (213,000 cells, a week of 5-second frames) and a CoPA-Map fitted on the
 //! bundled ATC grid ([Stüde 2024] §4.2) are served over TCP while eight clients ask for their
-//! predictions back to back; meanwhile `GET /v1/health` and a door prediction must stay fast,
-//! an abandoned prediction must stop computing, and a full pool must answer `503` with
-//! `Retry-After`.
+//! predictions back to back, or for the largest `predict` and `evaluate` the service takes;
+//! meanwhile `GET /v1/health` and a door prediction must stay fast, an abandoned prediction or
+//! evaluation must stop computing, and a full pool must answer `503` with `Retry-After`.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -20,6 +20,7 @@ use chronomap_io::grid_file::GridFile;
 use chronomap_serve::api::Health;
 use chronomap_serve::heavy::HeavyLimits;
 use chronomap_serve::maps::{Maps, ServedActivity};
+use chronomap_serve::server::MAX_REQUEST_PREDICTIONS;
 use chronomap_serve::store::RedbStore;
 use chronomap_serve::{Service, ServiceConfig};
 
@@ -207,6 +208,10 @@ impl Connection {
     }
 }
 
+/// Held by the tests that measure latency, so that they do not load the machine for each
+/// other (CI has two cores).
+static MEASURING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// The `q` quantile of `samples` (s), in milliseconds.
 fn quantile_ms(samples: &mut [f64], q: f64) -> f64 {
     samples.sort_by(f64::total_cmp);
@@ -216,6 +221,9 @@ fn quantile_ms(samples: &mut [f64], q: f64) -> f64 {
 
 #[test]
 fn health_and_a_door_prediction_stay_fast_while_eight_clients_ask_for_grid_and_activity_maps() {
+    let _alone = MEASURING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let served = Served::start("latency", HeavyLimits::default());
 
     // The first grid prediction fits the office's compact model; every prediction is the map
@@ -376,4 +384,168 @@ fn an_abandoned_prediction_stops_and_a_full_pool_answers_503_with_retry_after() 
         &serde_json::json!({"t": 5.0}).to_string(),
     );
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+}
+
+/// The largest `predict` the service takes: [`MAX_REQUEST_PREDICTIONS`] whole seconds of the
+/// door's day in an irregular order (26 MB of JSON).
+fn maximal_predict() -> String {
+    let n = MAX_REQUEST_PREDICTIONS;
+    let times: Vec<f64> = (0..n)
+        .map(|i| 1.7e9 + ((i * 7919) % 86_400) as f64)
+        .collect();
+    serde_json::json!({ "id": "door", "times": times }).to_string()
+}
+
+/// The largest `evaluate` of the door's `fremen:2` model at every order up to its largest
+/// (84: 85 orders) with a small body: 23,529 rows × 85 orders = 1,999,965 predictions.
+fn maximal_evaluate() -> String {
+    let rows = 23_529;
+    let times: Vec<f64> = (0..rows).map(|i| 1.7e9 + 3.0 * f64::from(i)).collect();
+    let values: Vec<f64> = (0..rows).map(|i| f64::from(i % 2)).collect();
+    serde_json::json!({ "id": "door", "times": times, "values": values, "max_order": 1000 })
+        .to_string()
+}
+
+#[test]
+fn health_and_a_door_prediction_stay_fast_while_eight_clients_send_maximal_predictions() {
+    let _alone = MEASURING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let served = Served::start("maximal", HeavyLimits::default());
+    let predict = Arc::new(maximal_predict());
+    let evaluate = Arc::new(maximal_evaluate());
+    // Both are the largest accepted: one more time or row is refused.
+    let (status, _, body) = served.connect().send("POST", "/v1/evaluate", &evaluate);
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(answer["orders"].as_array().unwrap().len(), 85);
+
+    let seconds = 4.0;
+    let done = Arc::new(AtomicBool::new(false));
+    let answered = Arc::new([0, 1, 2].map(|_| AtomicU64::new(0)));
+    let clients: Vec<_> = (0..8)
+        .map(|k| {
+            let (done, answered) = (Arc::clone(&done), Arc::clone(&answered));
+            let (predict, evaluate) = (Arc::clone(&predict), Arc::clone(&evaluate));
+            let mut connection = served.connect();
+            std::thread::spawn(move || {
+                while !done.load(Ordering::Acquire) {
+                    let (path, body) = if k % 2 == 0 {
+                        ("/v1/predict", &*predict)
+                    } else {
+                        ("/v1/evaluate", &*evaluate)
+                    };
+                    let (status, retry_after, text) = connection.send("POST", path, body);
+                    match status {
+                        200 => {
+                            answered[k % 2].fetch_add(1, Ordering::AcqRel);
+                        }
+                        503 => {
+                            assert_eq!(retry_after.as_deref(), Some("1"));
+                            answered[2].fetch_add(1, Ordering::AcqRel);
+                            std::thread::sleep(Duration::from_millis(50));
+                        }
+                        _ => panic!("{path}: {status} {}", String::from_utf8_lossy(&text)),
+                    }
+                }
+            })
+        })
+        .collect();
+
+    let mut probe = served.connect();
+    let door = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string();
+    let (mut health, mut door_times) = (Vec::new(), Vec::new());
+    let mut busiest = 0;
+    let start = Instant::now();
+    std::thread::sleep(Duration::from_millis(200));
+    while start.elapsed().as_secs_f64() < seconds {
+        let t = Instant::now();
+        let now = probe.health();
+        health.push(t.elapsed().as_secs_f64());
+        busiest = busiest.max(now.heavy_running + now.heavy_waiting);
+        let t = Instant::now();
+        let (status, _, body) = probe.send("POST", "/v1/predict", &door);
+        door_times.push(t.elapsed().as_secs_f64());
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    done.store(true, Ordering::Release);
+    for client in clients {
+        client.join().unwrap();
+    }
+    let [predicts, evaluates, refused] = [0, 1, 2].map(|k| answered[k].load(Ordering::Acquire));
+    let summary = format!(
+        "{} health requests: p50 {:.1} ms, p99 {:.1} ms; {} door predictions: p50 {:.1} ms, \
+         p99 {:.1} ms; under load: {predicts} predictions of 2,000,000 times, {evaluates} \
+         evaluations of 1,999,965 predictions, {refused} 503, at most {busiest} heavy requests \
+         admitted at once",
+        health.len(),
+        quantile_ms(&mut health, 0.5),
+        quantile_ms(&mut health, 0.99),
+        door_times.len(),
+        quantile_ms(&mut door_times, 0.5),
+        quantile_ms(&mut door_times, 0.99),
+    );
+    eprintln!("{summary}");
+    assert!(health.len() >= 200, "{summary}");
+    // The maximal requests went to the heavy pool, and were answered.
+    assert!(busiest >= 4, "{summary}");
+    assert!(predicts >= 1 && evaluates >= 1, "{summary}");
+    assert!(quantile_ms(&mut health, 0.99) <= 50.0, "{summary}");
+    assert!(quantile_ms(&mut door_times, 0.99) <= 50.0, "{summary}");
+}
+
+#[test]
+fn an_abandoned_evaluation_stops_between_orders() {
+    let served = Served::start(
+        "abandoned-evaluate",
+        HeavyLimits {
+            workers: 1,
+            queue: 0,
+        },
+    );
+    let mut probe = served.connect();
+    let mut abandoned = served.connect();
+    // 1,999,965 predictions, each of an order up to 84: seconds of work.
+    abandoned.write("POST", "/v1/evaluate", &maximal_evaluate());
+    let start = Instant::now();
+    while probe.health().heavy_running == 0 {
+        assert!(start.elapsed() < Duration::from_secs(20), "it never ran");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // A second large request is refused while it computes; a small one is answered.
+    let (status, retry_after, body) =
+        served
+            .connect()
+            .send("POST", "/v1/evaluate", &maximal_evaluate());
+    let text: String = String::from_utf8_lossy(&body).chars().take(300).collect();
+    assert_eq!((status, retry_after.as_deref()), (503, Some("1")), "{text}");
+    let door = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string();
+    let (status, _, body) = probe.send("POST", "/v1/predict", &door);
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+
+    drop(abandoned);
+    let gone = Instant::now();
+    let health = loop {
+        let health = probe.health();
+        if health.heavy_running == 0 {
+            break health;
+        }
+        assert!(
+            gone.elapsed() < Duration::from_secs(1),
+            "still computing {:.1} s after the client left",
+            gone.elapsed().as_secs_f64()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert_eq!(
+        (health.heavy_waiting, health.heavy_cancelled),
+        (0, 1),
+        "{health:?}"
+    );
+    assert_eq!(
+        (health.light_running, health.light_cancelled),
+        (0, 0),
+        "{health:?}"
+    );
 }

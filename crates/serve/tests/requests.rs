@@ -392,3 +392,156 @@ fn times_and_cells_beyond_the_limits_are_refused_naming_the_field() {
         assert_eq!(status, StatusCode::OK, "{path} {body}: {text}");
     }
 }
+
+#[test]
+fn model_requests_beyond_the_work_bound_are_refused_naming_the_field() {
+    use serde_json::json;
+    let f = fixture();
+    let zeros = |n: usize| vec![0.0; n];
+    // The door's `fremen:2` has orders 0 to 84: `max_order` 1000 evaluates 85 of them.
+    let refused = [
+        (
+            "/v1/predict",
+            json!({"id": "door", "times": zeros(2_000_001)}),
+            "field `times`: 2000001 times are 2000001 predictions, more than 2000000 per \
+             request",
+        ),
+        (
+            "/v1/entropy",
+            json!({"id": "door", "times": zeros(2_000_001)}),
+            "field `times`: 2000001 times",
+        ),
+        (
+            "/v1/forecast",
+            json!({"ids": vec!["door"; 2_000_001], "time": 1.7e9}),
+            "field `ids`: 2000001 ids are 2000001 predictions",
+        ),
+        (
+            "/v1/evaluate",
+            json!({"id": "door", "times": zeros(23_530), "values": zeros(23_530),
+                   "max_order": 1000}),
+            "field `times`: 23530 times × 85 orders are 2000050 predictions, more than \
+             2000000 per request; send fewer times or a lower `max_order`",
+        ),
+        (
+            "/v1/detect",
+            json!({"id": "door", "times": zeros(2_000_001), "values": zeros(2_000_001),
+                   "confidence": 0.5}),
+            "field `times`: 2000001 times",
+        ),
+    ];
+    for (path, body, reason) in refused {
+        let text = body.to_string();
+        let start = std::time::Instant::now();
+        let (status, answer) = f.send("POST", path, text.into_bytes());
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{path}: {answer}");
+        assert!(answer.contains(reason), "{path}: {answer}");
+        // Refused once parsed, before any prediction.
+        assert!(start.elapsed().as_secs_f64() < 5.0, "{path}");
+    }
+    // One row less is answered: 23,529 rows × 85 orders.
+    let (status, answer) = f.send(
+        "POST",
+        "/v1/evaluate",
+        json!({"id": "door", "times": zeros(23_529), "values": zeros(23_529),
+               "max_order": 1000})
+        .to_string()
+        .into_bytes(),
+    );
+    assert_eq!(status, StatusCode::OK, "{answer}");
+    let answer: serde_json::Value = serde_json::from_str(&answer).unwrap();
+    assert_eq!(answer["orders"].as_array().unwrap().len(), 85);
+}
+
+#[test]
+fn an_activity_prediction_is_bounded_by_cells_times_inducing_points_squared() {
+    // A CoPA-Map of 100 inducing points (one training iteration: its shape is what counts).
+    let train = chronomap_io::read_rate_samples(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
+    ))
+    .unwrap();
+    let config = CopaConfig {
+        inducing: 100,
+        iterations: 1,
+        ..CopaConfig::default()
+    };
+    let model = CopaMap::fit(&train, &config).unwrap();
+    assert_eq!(model.inducing_points(), 100);
+    let served = ServedActivity::new(model, None);
+    // Over the 24 m square of ATC: cells of 5 cm are 481 × 481 = 231,361 (under the 250,000
+    // cells), × 100² = 2,313,610,000 units of work, more than 10^9.
+    let refused = served.predict(5.0, 0.05).unwrap_err();
+    assert_eq!(
+        refused.to_string(),
+        "field `cell`: cells of 0.05 m give 231361 cells; with the model's 100 inducing points \
+         that is 2313610000 units of work (cells × inducing points²), more than 1000000000; \
+         ask for larger cells"
+    );
+    // Cells of 8 cm: 301 × 301 = 90,601 cells, 906,010,000 units: allowed.
+    let grid = served.checked_region(0.08).unwrap();
+    assert_eq!((grid.cols, grid.rows), (301, 301));
+    // And through the service: 400 naming the field, before any work.
+    let mut maps = Maps::default();
+    maps.activity.insert("atc100".into(), served);
+    let dir = std::env::temp_dir().join(format!(
+        "chronomap-serve-requests-work-{}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let store = Arc::new(RedbStore::open(dir.join("chronomap.redb")).unwrap());
+    let service = Service::start(
+        store,
+        ServiceConfig {
+            maps: Arc::new(maps),
+            ..ServiceConfig::default()
+        },
+    )
+    .unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let request = Request::builder()
+        .method("POST")
+        .uri("/v1/activity/atc100/predict")
+        .header("host", "127.0.0.1")
+        .body(Body::from(r#"{"t": 5, "cell": 0.05}"#))
+        .unwrap();
+    let (status, text) = runtime.block_on(async {
+        let response = service.router().oneshot(request).await.unwrap();
+        let status = response.status();
+        let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
+        (status, String::from_utf8_lossy(&bytes).into_owned())
+    });
+    assert_eq!(status, StatusCode::BAD_REQUEST, "{text}");
+    assert!(text.contains("2313610000 units of work"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_health_answer_of_docs_fleet_md_has_the_services_keys() {
+    let f = fixture();
+    let (status, text) = f.send("GET", "/v1/health", Vec::new());
+    assert_eq!(status, StatusCode::OK, "{text}");
+    let served: serde_json::Map<String, serde_json::Value> = serde_json::from_str(&text).unwrap();
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/fleet.md"))
+        .unwrap();
+    // The answer shown after `curl -s http://…/v1/health`.
+    let mut lines = doc.lines().skip_while(|l| !l.ends_with("/v1/health"));
+    lines.next().expect("docs/fleet.md asks for /v1/health");
+    let shown = lines
+        .next()
+        .and_then(|l| l.strip_prefix("# → "))
+        .expect("docs/fleet.md shows the answer of /v1/health on the next line");
+    let documented: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_str(shown).unwrap();
+    let keys = |m: &serde_json::Map<String, serde_json::Value>| {
+        m.keys().cloned().collect::<std::collections::BTreeSet<_>>()
+    };
+    assert_eq!(
+        keys(&documented),
+        keys(&served),
+        "docs/fleet.md: {shown}\nserved: {text}"
+    );
+}

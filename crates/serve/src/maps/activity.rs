@@ -17,6 +17,14 @@ pub const DEFAULT_CELL: f64 = 0.5;
 /// before anything is computed.
 pub const MAX_ACTIVITY_CELLS: usize = 250_000;
 
+/// Most work of one prediction: cells × inducing points², counted before anything is
+/// computed. A cell's prediction solves with and multiplies by the `M × M` factors of both
+/// latent GPs of the model ([`CopaMap::inducing_points`] `M`), so its cost grows with `M²`:
+/// on one thread about 7.6 µs a cell with 10 inducing points, 20 µs with 50 and 194 µs with
+/// 200. At this bound a 200-point model predicts 25,000 cells (about 5 s), a 100-point one
+/// 100,000 and a model of up to 63 points the 250,000 cells of [`MAX_ACTIVITY_CELLS`].
+pub const MAX_ACTIVITY_WORK: u64 = 1_000_000_000;
+
 /// Points predicted between two checks whether the client went away: a multiple of the 1024
 /// points the model predicts at once, so that the chunks give the bits of one call.
 pub const PREDICT_CHUNK: usize = 4096;
@@ -46,6 +54,16 @@ pub enum ActivityError {
         /// Rows, likewise.
         rows: f64,
     },
+    /// The cells of that size are too much work for the model's inducing points
+    /// ([`MAX_ACTIVITY_WORK`]).
+    TooMuchWork {
+        /// The side asked for.
+        cell: f64,
+        /// Cells of that side.
+        cells: u64,
+        /// The model's inducing points.
+        inducing: u64,
+    },
     /// The model cannot predict (a model file that passed its checks should not get here).
     Model(String),
     /// The request was given up (its client went away) before the prediction was done.
@@ -72,6 +90,18 @@ impl fmt::Display for ActivityError {
                 number(*cols),
                 number(*rows)
             ),
+            ActivityError::TooMuchWork {
+                cell,
+                cells,
+                inducing,
+            } => write!(
+                f,
+                "field `cell`: cells of {} m give {cells} cells; with the model's {inducing} \
+                 inducing points that is {} units of work (cells × inducing points²), more \
+                 than {MAX_ACTIVITY_WORK}; ask for larger cells",
+                number(*cell),
+                work(*cells, *inducing)
+            ),
             ActivityError::Model(reason) => write!(f, "the model cannot predict: {reason}"),
             ActivityError::Cancelled => write!(f, "the prediction was given up"),
         }
@@ -88,6 +118,11 @@ fn number(x: f64) -> String {
     } else {
         format!("{x:e}")
     }
+}
+
+/// The work of predicting `cells` cells with `inducing` inducing points: cells × inducing².
+fn work(cells: u64, inducing: u64) -> u64 {
+    cells.saturating_mul(inducing.saturating_mul(inducing))
 }
 
 /// The prediction over a grid of cells (row 0 at the bottom).
@@ -163,6 +198,24 @@ impl ServedActivity {
         Ok(grid)
     }
 
+    /// The cells of `cell` metres covering the training square ([`ServedActivity::region`]),
+    /// if predicting them is at most [`MAX_ACTIVITY_WORK`] for the model's inducing points.
+    ///
+    /// # Errors
+    /// As [`ServedActivity::region`], and [`ActivityError::TooMuchWork`].
+    pub fn checked_region(&self, cell: f64) -> Result<RegionGrid, ActivityError> {
+        let grid = self.region(cell)?;
+        let (cells, inducing) = (grid.len() as u64, self.model.inducing_points() as u64);
+        if work(cells, inducing) > MAX_ACTIVITY_WORK {
+            return Err(ActivityError::TooMuchWork {
+                cell,
+                cells,
+                inducing,
+            });
+        }
+        Ok(grid)
+    }
+
     /// Mean and standard deviation of the rate at `t` in every cell of `cell` metres over the
     /// training square: the values `chronomap activity predict` computes for the same model,
     /// `t` and cell (same cells, same call, bit for bit), with the cells its `--map` leaves
@@ -170,7 +223,7 @@ impl ServedActivity {
     ///
     /// # Errors
     /// A `t` that is not finite or beyond ±[`MAX_TIME_SECS`], a bad `cell`, more than
-    /// [`MAX_ACTIVITY_CELLS`] cells.
+    /// [`MAX_ACTIVITY_CELLS`] cells or [`MAX_ACTIVITY_WORK`].
     pub fn predict(&self, t: f64, cell: f64) -> Result<ActivityGrid, ActivityError> {
         self.predict_until(t, cell, Parallelism::Rayon(0), &|| false)
     }
@@ -191,7 +244,7 @@ impl ServedActivity {
         if !(t.is_finite() && t.abs() <= MAX_TIME_SECS) {
             return Err(ActivityError::Time(t));
         }
-        let grid = self.region(cell)?;
+        let grid = self.checked_region(cell)?;
         let (cols, rows) = (grid.cols, grid.rows);
         let centres = grid.centres();
         let (mut mean, mut std) = (
