@@ -273,6 +273,11 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_client::api::MAX_ID_BYTES as u128,
         ),
         (
+            "MAX_RESPONSE_BYTES",
+            "`chronomap_client` `http`",
+            chronomap_client::MAX_RESPONSE_BYTES as u128,
+        ),
+        (
             "MAX_PLAN_TIMES",
             "chronomap_serve::maps",
             chronomap_serve::maps::MAX_PLAN_TIMES as u128,

@@ -7,6 +7,38 @@ use serde::de::DeserializeOwned;
 
 use crate::api::*;
 
+/// The largest answer a client reads (256 MiB, about 5 million predicted values as JSON): a
+/// larger declared length is refused before the body is read, and a body that runs on past it
+/// (chunked, or a server that sends more than it declared) is cut off there, so that a wrong
+/// address or a hostile server cannot make the client hold more.
+pub const MAX_RESPONSE_BYTES: usize = 256 << 20;
+
+/// The body of `response`, at most [`MAX_RESPONSE_BYTES`]; `what` (the URL) names it in errors.
+async fn read_body(mut response: reqwest::Response, what: &str) -> Result<Vec<u8>, ClientError> {
+    let too_large = |what_it_does: String| {
+        ClientError::Transport(format!(
+            "{what}: the answer {what_it_does} the {MAX_RESPONSE_BYTES} bytes an answer may have"
+        ))
+    };
+    if let Some(declared) = response.content_length()
+        && declared > MAX_RESPONSE_BYTES as u64
+    {
+        return Err(too_large(format!("declares {declared} bytes, more than")));
+    }
+    let mut bytes = Vec::new();
+    while let Some(chunk) = response
+        .chunk()
+        .await
+        .map_err(|e| ClientError::Transport(format!("{what}: {e}")))?
+    {
+        if chunk.len() > MAX_RESPONSE_BYTES - bytes.len() {
+            return Err(too_large("runs on past".into()));
+        }
+        bytes.extend_from_slice(&chunk);
+    }
+    Ok(bytes)
+}
+
 /// Why a call failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
@@ -97,10 +129,7 @@ impl Client {
             .await
             .map_err(|e| ClientError::Transport(format!("{}{path}: {e}", self.base)))?;
         let status = response.status();
-        let bytes = response
-            .bytes()
-            .await
-            .map_err(|e| ClientError::Transport(format!("{}{path}: {e}", self.base)))?;
+        let bytes = read_body(response, &format!("{}{path}", self.base)).await?;
         if status.is_success() {
             serde_json::from_slice(&bytes).map_err(|e| {
                 ClientError::Transport(format!("{}{path}: unexpected answer: {e}", self.base))
@@ -305,11 +334,8 @@ impl Client {
             .await
             .map_err(|e| ClientError::Transport(e.to_string()))?;
         let status = response.status();
-        let text = response
-            .text()
-            .await
-            .map_err(|e| ClientError::Transport(e.to_string()))?;
-        Ok((status, text))
+        let bytes = read_body(response, &format!("{}{path}", self.base)).await?;
+        Ok((status, String::from_utf8_lossy(&bytes).into_owned()))
     }
 }
 
@@ -371,6 +397,76 @@ mod tests {
         };
         assert_eq!(error.to_string(), "404 Not Found: no model \"door\"");
         assert_eq!(error.status(), Some(StatusCode::NOT_FOUND));
+    }
+
+    /// A one-connection HTTP server on a loopback port that answers the first request with
+    /// `head` and then `body_bytes` bytes of `[` (sent in 64 KiB pieces, as chunks if `head`
+    /// says so), stopping when the client hangs up; its base URL.
+    fn answering(head: &'static str, body_bytes: usize) -> String {
+        use std::io::{Read, Write};
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let base = format!("http://{}", listener.local_addr().unwrap());
+        std::thread::spawn(move || {
+            let (mut stream, _) = listener.accept().unwrap();
+            let mut request = Vec::new();
+            let mut byte = [0u8; 1];
+            while !request.ends_with(b"\r\n\r\n") && stream.read(&mut byte).unwrap_or(0) == 1 {
+                request.push(byte[0]);
+            }
+            let chunked = head.contains("chunked");
+            let piece = vec![b'['; 64 << 10];
+            let mut sent = stream.write_all(head.as_bytes()).is_ok();
+            let mut left = body_bytes;
+            while sent && left > 0 {
+                let n = left.min(piece.len());
+                sent = if chunked {
+                    write!(stream, "{n:x}\r\n").is_ok()
+                        && stream.write_all(&piece[..n]).is_ok()
+                        && stream.write_all(b"\r\n").is_ok()
+                } else {
+                    stream.write_all(&piece[..n]).is_ok()
+                };
+                left -= n;
+            }
+        });
+        base
+    }
+
+    #[tokio::test]
+    async fn an_answer_larger_than_the_limit_is_refused() {
+        // A declared length beyond the limit: refused before the body is read.
+        let base = answering(
+            "HTTP/1.1 200 OK\r\ncontent-length: 1099511627776\r\n\r\n",
+            0,
+        );
+        let error = Client::new(&base, None)
+            .unwrap()
+            .health()
+            .await
+            .unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!(
+                "{base}/v1/health: the answer declares 1099511627776 bytes, more than the \
+                 268435456 bytes an answer may have"
+            )
+        );
+        // A chunked body that runs on (64 KiB more than the limit): cut off at the limit.
+        let base = answering(
+            "HTTP/1.1 200 OK\r\ntransfer-encoding: chunked\r\n\r\n",
+            MAX_RESPONSE_BYTES + (64 << 10),
+        );
+        let client = Client::new(&base, None).unwrap();
+        let error = client
+            .raw(Method::GET, "/v1/health", Vec::new(), None)
+            .await
+            .unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!(
+                "{base}/v1/health: the answer runs on past the 268435456 bytes an answer may have"
+            )
+        );
     }
 
     #[tokio::test]

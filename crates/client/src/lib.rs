@@ -30,4 +30,4 @@ pub mod api;
 mod http;
 
 #[cfg(feature = "http")]
-pub use http::{Client, ClientError, Method, StatusCode};
+pub use http::{Client, ClientError, MAX_RESPONSE_BYTES, Method, StatusCode};
