@@ -147,7 +147,8 @@ impl TryFrom<StoredPool> for Pool {
             wide: s.wide,
             words: s.words,
         };
-        let block = pool.stride * pool.words_per_entry();
+        // The stride comes from the file: a product that overflows is no block size at all.
+        let block = pool.stride.checked_mul(pool.words_per_entry()).unwrap_or(0);
         if block == 0 || !pool.words.len().is_multiple_of(block) {
             return Err(format!(
                 "the pool's {} words are not blocks of {} entries",
@@ -408,6 +409,22 @@ mod tests {
         // Past the limit (which the grid's bounds never allow) it still grows.
         reserve_within(&mut v, 1, 4, 10);
         assert!(v.capacity() >= 11);
+    }
+
+    #[test]
+    fn a_stored_pool_whose_stride_overflows_is_refused() {
+        let stored = |stride| StoredPool {
+            stride,
+            wide: true,
+            words: vec![0; 8],
+        };
+        // 2^62 entries of 4 words: the block size overflows (a panic in a checked build).
+        let err = Pool::try_from(stored(1 << 62)).unwrap_err();
+        assert_eq!(
+            err,
+            "the pool's 8 words are not blocks of 4611686018427387904 entries"
+        );
+        assert_eq!(Pool::try_from(stored(2)).unwrap().len(), 2);
     }
 
     #[test]
