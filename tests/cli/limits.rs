@@ -303,6 +303,36 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_serve::heavy::DEFAULT_HEAVY_QUEUE as u128,
         ),
         (
+            "DEFAULT_LIGHT_QUEUE",
+            "chronomap_serve::heavy",
+            chronomap_serve::heavy::DEFAULT_LIGHT_QUEUE as u128,
+        ),
+        (
+            "LIGHT_MAX_PREDICTIONS",
+            "chronomap_serve::heavy",
+            chronomap_serve::heavy::LIGHT_MAX_PREDICTIONS.into(),
+        ),
+        (
+            "LIGHT_MAX_BODY_BYTES",
+            "chronomap_serve::heavy",
+            chronomap_serve::heavy::LIGHT_MAX_BODY_BYTES as u128,
+        ),
+        (
+            "MAX_REQUEST_PREDICTIONS",
+            "chronomap_serve::server",
+            chronomap_serve::server::MAX_REQUEST_PREDICTIONS.into(),
+        ),
+        (
+            "MODEL_CHUNK",
+            "chronomap_serve::server",
+            chronomap_serve::server::MODEL_CHUNK as u128,
+        ),
+        (
+            "MAX_ACTIVITY_WORK",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_ACTIVITY_WORK.into(),
+        ),
+        (
             "RETRY_AFTER_SECS",
             "chronomap_serve::heavy",
             chronomap_serve::heavy::RETRY_AFTER_SECS.into(),
