@@ -47,7 +47,27 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
             args.listen
         )));
     }
-    if args.check || args.salvage {
+    if args.check {
+        // Every file the flags name is read as the start reads it (the token only if it
+        // exists: the start makes it), so that --check finds what would stop the start.
+        let maps = read_maps(args, &layouts, &activity_maps)?;
+        let token_file = args
+            .token_file
+            .clone()
+            .unwrap_or_else(|| args.data.join("token"));
+        if !args.no_token {
+            read_token(&token_file)?;
+        }
+        check_or_salvage(args)?;
+        outln!(
+            "maps: {} topological, {} grids, {} activity maps read",
+            maps.topological.len(),
+            maps.grids.len(),
+            maps.activity.len()
+        )?;
+        return Ok(());
+    }
+    if args.salvage {
         return check_or_salvage(args);
     }
     create_private_dir(&args.data)?;
@@ -347,57 +367,85 @@ async fn shutdown_signal() {
 /// An existing file must be readable by its owner only (as ssh requires of private keys) and
 /// hold at least [`MIN_TOKEN_CHARS`] visible ASCII characters.
 fn read_or_create_token(path: &Path) -> Result<String> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => {
-            #[cfg(unix)]
-            {
-                use std::os::unix::fs::PermissionsExt;
-                let mode = std::fs::metadata(path)
-                    .with_context(|| format!("cannot read the token file {}", path.display()))?
-                    .permissions()
-                    .mode();
-                if mode & 0o077 != 0 {
-                    bail!(
-                        "{}: the token file is readable by others (mode {:04o}); anyone who \
-                         reads it can change every model. Run `chmod 600 {}`",
-                        path.display(),
-                        mode & 0o7777,
-                        path.display()
-                    );
-                }
-            }
-            let token = text.trim().to_owned();
-            if token.chars().count() < MIN_TOKEN_CHARS
-                || !token.bytes().all(|b| b.is_ascii_graphic())
-            {
-                bail!(
-                    "{}: a token must be at least {MIN_TOKEN_CHARS} visible ASCII characters \
-                     without spaces (this one has {}); delete the file to have a random one made",
-                    path.display(),
-                    token.chars().count()
-                );
-            }
-            Ok(token)
-        }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            let mut bytes = [0u8; 32];
-            getrandom::fill(&mut bytes)
-                .map_err(|e| anyhow::anyhow!("no random numbers for a token: {e}"))?;
-            let token: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
-            let mut options = std::fs::OpenOptions::new();
-            options.write(true).create_new(true);
-            #[cfg(unix)]
-            std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
-            let mut file = options
-                .open(path)
-                .with_context(|| format!("cannot create the token file {}", path.display()))?;
-            writeln!(file, "{token}")
-                .and_then(|()| file.sync_all())
-                .with_context(|| format!("cannot write the token file {}", path.display()))?;
-            Ok(token)
-        }
-        Err(e) => Err(e).with_context(|| format!("cannot read the token file {}", path.display())),
+    if let Some(token) = read_token(path)? {
+        return Ok(token);
     }
+    let mut bytes = [0u8; 32];
+    getrandom::fill(&mut bytes)
+        .map_err(|e| anyhow::anyhow!("no random numbers for a token: {e}"))?;
+    let token: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create_new(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+    let mut file = options
+        .open(path)
+        .with_context(|| format!("cannot create the token file {}", path.display()))?;
+    writeln!(file, "{token}")
+        .and_then(|()| file.sync_all())
+        .with_context(|| format!("cannot write the token file {}", path.display()))?;
+    Ok(token)
+}
+
+/// Most bytes of a token file (a token is at least [`MIN_TOKEN_CHARS`] characters; the
+/// service makes 64).
+const MAX_TOKEN_FILE_BYTES: u64 = 4096;
+
+/// The token in the file `path`, `None` if there is no such file. The file must be a regular
+/// file of at most [`MAX_TOKEN_FILE_BYTES`] (a device such as `/dev/zero` or a pipe is refused
+/// before it is read), readable by its owner only.
+fn read_token(path: &Path) -> Result<Option<String>> {
+    use std::io::Read;
+    let cannot = || format!("cannot read the token file {}", path.display());
+    let metadata = match std::fs::metadata(path) {
+        Ok(metadata) => metadata,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(e).with_context(cannot),
+    };
+    if !metadata.is_file() {
+        bail!(
+            "{}: the token file is not a regular file (a directory, a device or a pipe)",
+            path.display()
+        );
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = metadata.permissions().mode();
+        if mode & 0o077 != 0 {
+            bail!(
+                "{}: the token file is readable by others (mode {:04o}); anyone who reads it \
+                 can change every model. Run `chmod 600 {}`",
+                path.display(),
+                mode & 0o7777,
+                path.display()
+            );
+        }
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|file| {
+            file.take(MAX_TOKEN_FILE_BYTES + 1)
+                .read_to_string(&mut text)
+        })
+        .with_context(cannot)?;
+    if text.len() as u64 > MAX_TOKEN_FILE_BYTES {
+        bail!(
+            "{}: the token file has more than {MAX_TOKEN_FILE_BYTES} bytes (is this the right \
+             file?)",
+            path.display()
+        );
+    }
+    let token = text.trim().to_owned();
+    if token.chars().count() < MIN_TOKEN_CHARS || !token.bytes().all(|b| b.is_ascii_graphic()) {
+        bail!(
+            "{}: a token must be at least {MIN_TOKEN_CHARS} visible ASCII characters without \
+             spaces (this one has {}); delete the file to have a random one made",
+            path.display(),
+            token.chars().count()
+        );
+    }
+    Ok(Some(token))
 }
 
 /// `chronomap client`.

@@ -83,7 +83,8 @@ fn serve_check_leaves_the_store_and_its_folder_as_they_were() {
         stdout,
         format!(
             "store: redb {}\nlog: 3 entries (4 observations), last position 3; checkpoint at 0, \
-             0 snapshots; 1 models\nok: every snapshot and log entry is intact\n",
+             0 snapshots; 1 models\nok: every snapshot and log entry is intact\nmaps: 0 \
+             topological, 0 grids, 0 activity maps read\n",
             data.join("chronomap.redb").display()
         )
     );
@@ -214,7 +215,7 @@ fn serve_check_reads_a_store_on_a_read_only_file_system() {
     // Before: "damaged: cannot open or create the file: Read-only file system", exit 1.
     assert_eq!(run.status.code(), Some(0), "{out}{err}");
     assert!(
-        out.ends_with("1 models\nok: every snapshot and log entry is intact\n"),
+        out.contains("1 models\nok: every snapshot and log entry is intact\n"),
         "{out}"
     );
 }
@@ -254,4 +255,61 @@ fn serve_check_does_not_create_a_postgres_schema() {
         .output()
         .unwrap();
     assert_eq!(String::from_utf8_lossy(&exists.stdout).trim(), "0");
+}
+
+/// `--check` reads every file the flags name as the start does (before: it read only the
+/// store, so a missing map passed `--check` and stopped the start), and a token file is read
+/// only if it is a regular file of at most 4,096 bytes (before: `--token-file /dev/zero` was
+/// read without end).
+#[test]
+fn serve_check_reads_the_maps_and_the_token_file_the_flags_name() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("read_only_check_flags");
+    let data = small_store(&dir);
+    let missing = dir.join("missing.cmt");
+    let topo = format!("door={}", missing.display());
+    let (code, stdout, stderr) =
+        serve(&["--data", data.to_str().unwrap(), "--check", "--topo", &topo]);
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    assert!(
+        stderr.starts_with("error: --topo door: ")
+            && stderr.contains(&missing.display().to_string()),
+        "{stderr}"
+    );
+    assert_eq!(stdout, "");
+
+    let big = dir.join("big_token");
+    std::fs::write(&big, "a".repeat(4097)).unwrap();
+    std::fs::set_permissions(&big, std::fs::Permissions::from_mode(0o600)).unwrap();
+    for (token, reason) in [
+        (
+            PathBuf::from("/dev/zero"),
+            "the token file is not a regular file (a directory, a device or a pipe)".to_owned(),
+        ),
+        (
+            big.clone(),
+            "the token file has more than 4096 bytes (is this the right file?)".to_owned(),
+        ),
+    ] {
+        let (code, stdout, stderr) = serve(&[
+            "--data",
+            data.to_str().unwrap(),
+            "--check",
+            "--token-file",
+            token.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{stdout}{stderr}");
+        assert_eq!(stderr, format!("error: {}: {reason}\n", token.display()));
+        // The start refuses it the same way, before listening.
+        let (code, stdout, stderr) = serve(&[
+            "--data",
+            data.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--token-file",
+            token.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{stdout}{stderr}");
+        assert_eq!(stderr, format!("error: {}: {reason}\n", token.display()));
+    }
 }
