@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow};
-use chronomap_io::ply::read_ply;
+use chronomap_io::ply::{PlyErrorKind, read_ply, read_ply_at_most};
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
 use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
 use chronomap_lidar::descriptor::{
@@ -13,15 +13,16 @@ use chronomap_lidar::descriptor::{
     describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, CvReport, EvalError, LabelParams, LabelledPair, PipelineParams, PipelineReport,
-    WeakLearner, between, compose, label_pairs, layout_folds, run_pipeline,
+    Balance, CvReport, EvalError, LabelParams, LabelledPair, MAX_TRAININGS, PipelineParams,
+    PipelineReport, WeakLearner, between, compose, cv_trainings, label_pairs, layout_folds,
+    run_pipeline,
 };
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 use chronomap_registration::rigid::Rigid;
 use chronomap_registration::{
-    MAX_FEATURE_POINTS, RegistrationError, RegistrationParams, register, register_scans,
-    scan_params,
+    MAX_FEATURE_POINTS, MAX_ICP_POINTS, MAX_INPUT_POINTS, RegistrationError, RegistrationParams,
+    register, register_scans, scan_params,
 };
 use serde_json::json;
 
@@ -115,8 +116,8 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
     let (Some(source_path), Some(target_path)) = (&args.source, &args.target) else {
         return Err(usage("give SOURCE and TARGET clouds, or --keyframes"));
     };
-    let source = read_ply(source_path)?;
-    let target = read_ply(target_path)?;
+    let source = read_cloud(source_path)?;
+    let target = read_cloud(target_path)?;
     let truth = match &args.truth {
         Some(path) => Some(read_transform(path)?),
         None => None,
@@ -138,13 +139,38 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
                 target_path.display()
             }
         };
+        // A grid that stopped after `seen` of `points` points with `max` cells: about
+        // max·points/seen cells in all, for points spread evenly; on a surface the cells go
+        // as 1/leaf², so a leaf larger by the square root of the excess (and a margin).
+        let larger = |leaf: f64, max: usize, seen: usize, points: usize| {
+            leaf * (points as f64 / seen.max(1) as f64).sqrt()
+                * 1.2
+                * ((max + 1) as f64 / max as f64).sqrt()
+        };
         match e {
-            RegistrationError::TooManyFeaturePoints { what, got, voxel } => anyhow!(
-                "{}: {got} points remain on the --voxel {voxel} m grid, at most \
-                 {MAX_FEATURE_POINTS} enter feature computation (FPFH keeps about 2 KB a \
-                 point): give a larger --voxel (about {:.2} m)",
+            RegistrationError::TooManyFeaturePoints {
+                what,
+                voxel,
+                seen,
+                points,
+            } => anyhow!(
+                "{}: more than {MAX_FEATURE_POINTS} points remain on the --voxel {voxel} m grid, \
+                 at most {MAX_FEATURE_POINTS} enter feature computation (FPFH keeps about 2 KB \
+                 a point; counted in the first {seen} of the {points} points left after \
+                 --fine-voxel and --max-range): give a larger --voxel (about {:.2} m)",
                 file(what),
-                voxel * (got as f64 / MAX_FEATURE_POINTS as f64).sqrt() * 1.2
+                larger(voxel, MAX_FEATURE_POINTS, seen, points)
+            ),
+            RegistrationError::TooManyIcpPoints {
+                what, seen, points, ..
+            } => anyhow!(
+                "{}: more than {MAX_ICP_POINTS} points remain on the --fine-voxel {} m grid \
+                 within --max-range {} m, at most {MAX_ICP_POINTS} enter ICP (counted in the \
+                 first {seen} of its {points} points): give a larger --fine-voxel (about {:.2} m)",
+                file(what),
+                args.fine_voxel,
+                args.max_range,
+                larger(args.fine_voxel, MAX_ICP_POINTS, seen, points)
             ),
             RegistrationError::TooFewPoints { what, got, need } if what.starts_with("filtered") => {
                 anyhow!(
@@ -228,6 +254,19 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
     Ok(())
 }
 
+/// A PLY cloud for registration: at most [`MAX_INPUT_POINTS`], checked from its header
+/// before any vertex is read.
+fn read_cloud(path: &Path) -> Result<chronomap_registration::Cloud<3>> {
+    read_ply_at_most(path, MAX_INPUT_POINTS as u64).map_err(|e| match e.kind {
+        PlyErrorKind::TooManyVertices { line, count, .. } => anyhow!(
+            "{}: line {line}: element vertex: {count} points, registration takes at most \
+             {MAX_INPUT_POINTS} a cloud (24 bytes each): thin the cloud first",
+            path.display()
+        ),
+        _ => anyhow::Error::new(e),
+    })
+}
+
 /// Too few points of a cloud within `max_range` of its sensor (the origin) for registration:
 /// an error naming the file and --max-range, with the distance of its nearest point (a cloud
 /// in a far frame, e.g. UTM, is all beyond the default 30 m).
@@ -267,8 +306,8 @@ fn cloud_params(voxel: f64, fine_voxel: f64, max_range: f64) -> RegistrationPara
 /// `chronomap bench registration`: the default parameters of `lidar register` against a bare
 /// nearest-neighbour pass ([`chronomap_bench::registration`] measures, this reads and prints).
 pub fn bench_registration(args: &BenchRegistrationArgs) -> Result<()> {
-    let source = read_ply(&args.source)?;
-    let target = read_ply(&args.target)?;
+    let source = read_cloud(&args.source)?;
+    let target = read_cloud(&args.target)?;
     let truth = read_transform(&args.truth)?;
     let bench = chronomap_bench::registration::run(
         &source,
@@ -522,10 +561,13 @@ fn classifier_config(flags: &LoopTrainingFlags) -> ClassifierConfig {
     }
 }
 
+/// Reads and labels the keyframes of `path` for a cross-validated run, after checking the
+/// flags (with `pair_models`, the run also trains eval's out-of-fold models).
 fn labelled_keyframes(
     path: &Path,
     flags: &LoopTrainingFlags,
     odometry: Option<&Path>,
+    pair_models: bool,
 ) -> Result<LabelledKeyframes> {
     if flags.near > flags.far {
         return Err(usage(format!(
@@ -574,7 +616,7 @@ fn labelled_keyframes(
             [s[0], s[1]]
         })
         .collect();
-    check_folds(&log.name, &places, &pairs, flags)?;
+    check_folds(&log.name, &places, &pairs, flags, pair_models)?;
     let features = config
         .features(&log.scans)
         .with_context(|| format!("{}: keyframe features", log.name))?;
@@ -594,14 +636,16 @@ fn labelled_keyframes(
 const MAX_FOLDS: usize = 1000;
 
 /// Checks `--folds` against the keyframes before any feature is computed: at most one fold per
-/// keyframe (and [`MAX_FOLDS`]), and in every fold layout at least one fold whose own pairs hold
-/// a loop and a non-loop while the pairs outside it hold both too (else nothing is scored and
-/// the ROC has nothing to draw).
+/// keyframe (and [`MAX_FOLDS`]), at most [`MAX_TRAININGS`] classifiers to train over the
+/// `--layouts` (with `pair_models`, eval's out-of-fold models too), and in every fold layout at
+/// least one fold whose own pairs hold a loop and a non-loop while the pairs outside it hold
+/// both too (else nothing is scored and the ROC has nothing to draw).
 fn check_folds(
     name: &str,
     places: &[[f64; 2]],
     pairs: &[LabelledPair],
     flags: &LoopTrainingFlags,
+    pair_models: bool,
 ) -> Result<()> {
     let keyframes = places.len();
     let positives = pairs.iter().filter(|p| p.positive).count();
@@ -614,6 +658,27 @@ fn check_folds(
             "--folds {}: more folds than keyframes or than {MAX_FOLDS} ({counts}); the default \
              is 5",
             flags.folds
+        )));
+    }
+    let trainings = cv_trainings(flags.folds, flags.layouts, pair_models);
+    if trainings > MAX_TRAININGS {
+        let models = if pair_models {
+            format!(
+                " + {} out-of-fold models, one per pair of folds",
+                cv_trainings(flags.folds, 0, true)
+            )
+        } else {
+            String::new()
+        };
+        return Err(usage(format!(
+            "--folds {} --layouts {}: {trainings} classifier trainings ({} layouts × {} \
+             folds{models}), at most {MAX_TRAININGS}: use fewer folds or layouts (the defaults, \
+             5 and 10, need {})",
+            flags.folds,
+            flags.layouts,
+            flags.layouts,
+            flags.folds,
+            cv_trainings(5, 10, pair_models)
         )));
     }
     for layout in 0..flags.layouts {
@@ -663,7 +728,11 @@ fn cross_validate_layouts(
     if flags.layouts == 0 {
         return Err(usage("--layouts must be at least 1"));
     }
-    let bar = ProgressBar::stage("cross-validation", flags.layouts as u64);
+    // One step per classifier trained (a model per fold and layout).
+    let bar = ProgressBar::stage(
+        "cross-validation",
+        cv_trainings(flags.folds, flags.layouts, false) as u64,
+    );
     let mut reports = Vec::with_capacity(flags.layouts);
     for layout in 0..flags.layouts {
         let fold_of = layout_folds(&data.places, flags.folds, layout, flags.layouts)?;
@@ -675,14 +744,19 @@ fn cross_validate_layouts(
             layout as u64 + 1,
         )?;
         reports.push(report);
-        chronomap_core::progress::Progress::advance(&bar, 1);
+        chronomap_core::progress::Progress::advance(&bar, flags.folds as u64);
     }
     Ok(LayoutsReport { reports })
 }
 
 /// `chronomap lidar eval`.
 pub fn eval(args: &LidarEvalArgs) -> Result<()> {
-    let data = labelled_keyframes(&args.keyframes, &args.training, args.odometry.as_deref())?;
+    let data = labelled_keyframes(
+        &args.keyframes,
+        &args.training,
+        args.odometry.as_deref(),
+        true,
+    )?;
     let cv = cross_validate_layouts(&data, &args.training)?;
     let pipeline = out_of_fold_pipeline(&data, &args.training, &cv)?;
     let fold =
@@ -792,7 +866,16 @@ fn out_of_fold_pipeline(
     cv: &LayoutsReport,
 ) -> Result<PipelineReport> {
     let fold_of = layout_folds(&data.places, flags.folds, 0, flags.layouts)?;
-    let models = data.config.pair_models(&data.pairs, &data.rows, &fold_of)?;
+    let bar = ProgressBar::stage(
+        "out-of-fold models",
+        cv_trainings(flags.folds, 0, true) as u64,
+    );
+    let models = data
+        .config
+        .pair_models(&data.pairs, &data.rows, &fold_of, &mut || {
+            chronomap_core::progress::Progress::advance(&bar, 1)
+        })?;
+    drop(bar);
     let mut params = PipelineParams {
         min_separation: flags.min_separation,
         near: flags.near,
@@ -892,7 +975,7 @@ fn plot_eval(
 
 /// `chronomap lidar train`.
 pub fn train(args: &LidarTrainArgs) -> Result<()> {
-    let data = labelled_keyframes(&args.keyframes, &args.training, None)?;
+    let data = labelled_keyframes(&args.keyframes, &args.training, None, false)?;
     let cv = cross_validate_layouts(&data, &args.training)?;
     // p_min: the median over fold layouts of the threshold that keeps the pooled
     // out-of-fold false-positive rate below the bound.

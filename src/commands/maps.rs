@@ -28,11 +28,7 @@ pub fn build(args: &MapsBuildArgs) -> Result<()> {
             .step(scan, &increment)
             .with_context(|| format!("{}: scan {}", log.name, k + 1))?;
         let pose = mapper.pose();
-        let finite = [pose.mean.x, pose.mean.y, pose.mean.theta]
-            .into_iter()
-            .chain(pose.cov.iter().flatten().copied())
-            .all(f64::is_finite);
-        if !finite {
+        if !pose.is_finite() {
             return Err(anyhow!(
                 "{}: scan {}: the robot's pose or its covariance is no longer finite (odometry \
                  increment ({}, {}, {}))",

@@ -61,6 +61,16 @@ pub enum PlyErrorKind {
         /// What is wrong.
         reason: String,
     },
+    /// More vertices than the caller takes ([`read_ply_at_most`]), found in the header.
+    #[error("line {line}: element vertex: {count} vertices, at most {max} are read here")]
+    TooManyVertices {
+        /// 1-based header line of the vertex element.
+        line: usize,
+        /// The vertices it announces.
+        count: u64,
+        /// The caller's bound.
+        max: u64,
+    },
     /// The file ends inside the data.
     #[error("{element} {index}, property {property}: the file ends here (truncated)")]
     Truncated {
@@ -217,6 +227,12 @@ struct Header {
 
 /// Reads the PLY file `path` (plain, `.xz` or `.gz`) as a cloud.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<Cloud<3>, PlyError> {
+    read_ply_at_most(path, MAX_VERTICES)
+}
+
+/// [`read_ply`] for a caller that takes at most `max_vertices` points: a header announcing
+/// more is refused ([`PlyErrorKind::TooManyVertices`]) before any vertex is read.
+pub fn read_ply_at_most(path: impl AsRef<Path>, max_vertices: u64) -> Result<Cloud<3>, PlyError> {
     let path = path.as_ref();
     let name = path.display().to_string();
     let file = crate::bounded::open_stream(path).map_err(|e| PlyError {
@@ -239,22 +255,38 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<Cloud<3>, PlyError> {
         &name,
         crate::decompressing_reader(&path.to_string_lossy(), file),
         size,
+        max_vertices,
     )
 }
 
 /// Reads a PLY cloud from `reader`; `name` is the file name the errors give.
 pub fn decode_ply(name: &str, reader: impl Read) -> Result<Cloud<3>, PlyError> {
-    decode(name, reader, None)
+    decode(name, reader, None, MAX_VERTICES)
 }
 
-/// Reads a PLY cloud of `size` bytes in all, if known, from `reader`.
-fn decode(name: &str, reader: impl Read, size: Option<u64>) -> Result<Cloud<3>, PlyError> {
+/// Reads a PLY cloud of `size` bytes in all, if known, and at most `max_vertices` vertices
+/// from `reader`.
+fn decode(
+    name: &str,
+    reader: impl Read,
+    size: Option<u64>,
+    max_vertices: u64,
+) -> Result<Cloud<3>, PlyError> {
     let fail = |kind| PlyError {
         file: name.to_string(),
         kind,
     };
     let mut reader = BufReader::new(reader);
     let header = read_header(&mut reader).map_err(fail)?;
+    if let Some(vertex) = header.elements.iter().find(|e| e.name == "vertex")
+        && vertex.count > max_vertices
+    {
+        return Err(fail(PlyErrorKind::TooManyVertices {
+            line: vertex.line,
+            count: vertex.count,
+            max: max_vertices,
+        }));
+    }
     if let Some(size) = size {
         check_counts(&header, size.saturating_sub(header.bytes as u64)).map_err(fail)?;
     }
@@ -891,6 +923,24 @@ element vertex 1\nproperty uchar r\nproperty short x\nproperty float y\nproperty
         // The exact count is read.
         std::fs::write(&path, &bytes).unwrap();
         assert_eq!(read_ply(&path).unwrap(), cloud);
+        // A caller's own bound is checked from the header, before the bytes and the vertices.
+        assert_eq!(read_ply_at_most(&path, 2).unwrap(), cloud);
+        assert_eq!(
+            read_ply_at_most(&path, 1).unwrap_err().kind,
+            PlyErrorKind::TooManyVertices {
+                line: 4,
+                count: 2,
+                max: 1
+            }
+        );
+        std::fs::write(&path, &lying).unwrap();
+        assert_eq!(
+            read_ply_at_most(&path, 10_000_000)
+                .unwrap_err()
+                .kind
+                .to_string(),
+            "line 4: element vertex: 100000000 vertices, at most 10000000 are read here"
+        );
         std::fs::remove_dir_all(&dir).ok();
     }
 

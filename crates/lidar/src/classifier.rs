@@ -240,7 +240,7 @@ impl ClassifierConfig {
     }
 
     /// The models that score any pair without having seen its keyframes
-    /// ([`PairModels::train_with`] with this configuration).
+    /// ([`PairModels::train_with`] with this configuration; `done` after each fold pair).
     ///
     /// # Errors
     /// As [`PairModels::train_with`].
@@ -249,6 +249,7 @@ impl ClassifierConfig {
         pairs: &[LabelledPair],
         rows: &[R],
         fold_of: &[usize],
+        done: &mut dyn FnMut(),
     ) -> Result<PairModels, EvalError> {
         PairModels::train_with(
             pairs,
@@ -258,6 +259,7 @@ impl ClassifierConfig {
             self.balance,
             self.rounds,
             self.seed,
+            done,
         )
     }
 }

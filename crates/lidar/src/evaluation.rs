@@ -796,6 +796,23 @@ fn choose<R: AsRef<[f64]>>(
     Ok(best)
 }
 
+/// The most classifier trainings one cross-validated run may ask for ([`cv_trainings`]):
+/// 1,000. The work grows with `layouts × folds` and, for the out-of-fold models of
+/// [`PairModels`], with `folds²`: 100 folds and 10 layouts are 6,050 trainings, the command
+/// line's default 5 folds and 10 layouts 65.
+pub const MAX_TRAININGS: usize = 1_000;
+
+/// Classifier trainings of `layouts` cross-validations over `folds` folds (one per fold) and,
+/// with `pair_models`, of the `folds·(folds+1)/2` [`PairModels`] (saturating).
+pub fn cv_trainings(folds: usize, layouts: usize, pair_models: bool) -> usize {
+    let models = if pair_models {
+        folds.saturating_mul(folds.saturating_add(1)) / 2
+    } else {
+        0
+    };
+    layouts.saturating_mul(folds).saturating_add(models)
+}
+
 /// Classifiers for scoring *any* keyframe pair without having seen its keyframes: the model
 /// for folds `a ≤ b` is trained on the pairs of keyframes outside both.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -848,11 +865,12 @@ impl PairModels {
 
     /// Trains the `folds·(folds+1)/2` models of any configuration ([`LoopModel::train`] with
     /// `learner`, `balance` and `rounds`); a fold pair whose outside holds only one class gets
-    /// no model.
+    /// no model. `done` is called after each fold pair (for a progress report).
     ///
     /// # Errors
     /// [`EvalError::Input`] for rows that do not match their pairs or a keyframe without a fold;
     /// [`EvalError::Train`] as [`LoopModel::train`].
+    #[allow(clippy::too_many_arguments)] // the configuration's parts, then the progress report
     pub fn train_with<R: AsRef<[f64]>>(
         pairs: &[LabelledPair],
         x: &[R],
@@ -861,6 +879,7 @@ impl PairModels {
         balance: Balance,
         rounds: usize,
         seed: u64,
+        done: &mut dyn FnMut(),
     ) -> Result<PairModels, EvalError> {
         check_rows(pairs, x, fold_of)?;
         let folds = fold_of.iter().max().map_or(0, |m| m + 1);
@@ -881,6 +900,7 @@ impl PairModels {
                         pairs, x, outside, learner, balance, rounds, seed,
                     )?);
                 }
+                done();
             }
         }
         Ok(PairModels {
@@ -1312,6 +1332,47 @@ mod tests {
         let all = select_candidate(&pairs, &cs, &fold_of, None, &params).unwrap();
         assert_eq!((all.candidate, all.rounds), (1, 1));
         assert!(nested_cross_validate(&pairs, &cs[..0], &fold_of, &params).is_err());
+    }
+
+    #[test]
+    fn the_trainings_of_a_run_are_counted_before_it() {
+        // Per layout one model per fold; eval's out-of-fold models one per fold pair a ≤ b.
+        assert_eq!(cv_trainings(5, 10, true), 10 * 5 + 15);
+        assert_eq!(cv_trainings(100, 10, true), 1000 + 5050);
+        assert_eq!(cv_trainings(30, 10, false), 300);
+        assert_eq!(cv_trainings(usize::MAX, 2, true), usize::MAX);
+        // The pair models report each fold pair: 4 folds, 10 pairs (a ≤ b).
+        let fold_of: Vec<usize> = (0..12).map(|k| k % 4).collect();
+        let mut pairs = Vec::new();
+        for j in 0..12 {
+            for i in 0..j {
+                pairs.push(LabelledPair {
+                    i,
+                    j,
+                    positive: (i + j) % 3 == 0,
+                    distance: 0.0,
+                });
+            }
+        }
+        let x: Vec<Vec<f64>> = pairs
+            .iter()
+            .map(|p| vec![f64::from(u8::from(p.positive))])
+            .collect();
+        let mut done = 0;
+        let models = PairModels::train_with(
+            &pairs,
+            &x,
+            &fold_of,
+            WeakLearner::Stump,
+            Balance::Weighted,
+            3,
+            1,
+            &mut || done += 1,
+        )
+        .unwrap();
+        assert_eq!(done, cv_trainings(4, 0, true));
+        assert_eq!(done, 10);
+        assert_eq!(models.models.iter().filter(|m| m.is_some()).count(), 10);
     }
 
     #[test]

@@ -322,6 +322,15 @@ impl UncertainPose {
         UncertainPose { mean, cov: ZERO3 }
     }
 
+    /// Whether the pose and every entry of its covariance are finite (a composition of finite
+    /// poses can overflow to infinity, and then to NaN).
+    pub fn is_finite(&self) -> bool {
+        [self.mean.x, self.mean.y, self.mean.theta]
+            .into_iter()
+            .chain(self.cov.iter().flatten().copied())
+            .all(f64::is_finite)
+    }
+
     /// `self ⊕ other` for independent poses, with the first-order covariance
     /// `J₁ Σ_self J₁ᵀ + J₂ Σ_other J₂ᵀ` ([Stüde 2024] eqs. (3.11)–(3.13)).
     ///
@@ -356,6 +365,33 @@ mod tests {
 
     fn p(x: f64, y: f64, t: f64) -> Pose2 {
         Pose2::new(x, y, t).unwrap()
+    }
+
+    #[test]
+    fn a_composition_that_overflows_is_not_finite() {
+        let step = UncertainPose::new(
+            p(1e308, 0.0, 0.0),
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.01]],
+        )
+        .unwrap();
+        assert!(step.is_finite());
+        // 1e308 + 1e308 overflows the mean.
+        let twice = step.compose(&step);
+        assert_eq!(twice.mean.x, f64::INFINITY);
+        assert!(!twice.is_finite());
+        // A finite mean whose covariance overflows: the heading variance times a lever arm of
+        // 1e200 m squared.
+        let far = UncertainPose::new(
+            p(0.0, 0.0, 0.0),
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.01]],
+        )
+        .unwrap();
+        let lever = UncertainPose::exact(p(1e200, 0.0, 0.0));
+        let moved = far.compose(&lever);
+        assert_eq!(moved.mean.x, 1e200);
+        assert!(moved.cov[1][1].is_infinite(), "{:?}", moved.cov);
+        assert!(!moved.is_finite());
+        assert!(UncertainPose::exact(p(3.0, 4.0, 0.5)).is_finite());
     }
 
     #[test]

@@ -114,8 +114,33 @@ impl<const D: usize> Cloud<D> {
     /// (cells `⌊p / leaf⌋`) are replaced by their centroid (and mean intensity). Voxels appear in
     /// the order of their first point, so the result does not depend on hashing.
     pub fn voxel_grid(&self, leaf: f64) -> Result<Cloud<D>, RegistrationError> {
+        self.voxel_cells(leaf, usize::MAX, &|_| true)
+    }
+
+    /// [`Cloud::voxel_grid`] holding at most `max_voxels` occupied cells: the grid stops at the
+    /// first point that would occupy one more, with [`RegistrationError::PointLimit`] (its
+    /// `seen`: the points read up to and including that one). Memory is bounded by `max_voxels`
+    /// cells (about 70 bytes each in 3-D), not by the size of the cloud.
+    pub fn voxel_grid_at_most(
+        &self,
+        leaf: f64,
+        max_voxels: usize,
+    ) -> Result<Cloud<D>, RegistrationError> {
+        self.voxel_cells(leaf, max_voxels, &|_| true)
+    }
+
+    /// The voxel grid of the cells `keep_cell` accepts (the others are dropped with their
+    /// points), at most `max` of them.
+    fn voxel_cells(
+        &self,
+        leaf: f64,
+        max: usize,
+        keep_cell: &dyn Fn(&[i64; D]) -> bool,
+    ) -> Result<Cloud<D>, RegistrationError> {
         positive("voxel leaf", leaf)?;
-        let mut slot_of: HashMap<[i64; D], usize> = HashMap::new();
+        // Slots are u32: a cloud has at most MAX_POINTS (10⁸ < 2³²) points, so at most as
+        // many cells.
+        let mut slot_of: HashMap<[i64; D], u32> = HashMap::new();
         let mut sums: Vec<([f64; D], f64, u32)> = Vec::new();
         for (index, p) in self.points.iter().enumerate() {
             let mut key = [0i64; D];
@@ -126,10 +151,25 @@ impl<const D: usize> Cloud<D> {
                 }
                 key[a] = cell as i64;
             }
-            let slot = *slot_of.entry(key).or_insert_with(|| {
-                sums.push(([0.0; D], 0.0, 0));
-                sums.len() - 1
-            });
+            let slot = match slot_of.get(&key) {
+                Some(&slot) => slot as usize,
+                None => {
+                    if !keep_cell(&key) {
+                        continue;
+                    }
+                    if sums.len() >= max {
+                        return Err(RegistrationError::PointLimit {
+                            max,
+                            counted: sums.len() + 1,
+                            seen: index + 1,
+                            points: self.len(),
+                        });
+                    }
+                    slot_of.insert(key, sums.len() as u32);
+                    sums.push(([0.0; D], 0.0, 0));
+                    sums.len() - 1
+                }
+            };
             let s = &mut sums[slot];
             for a in 0..D {
                 s.0[a] += p[a];
@@ -217,7 +257,36 @@ pub struct Filters {
 impl Filters {
     /// Applies the filters in order.
     pub fn apply<const D: usize>(&self, cloud: &Cloud<D>) -> Result<Cloud<D>, RegistrationError> {
+        self.apply_at_most(cloud, usize::MAX)
+    }
+
+    /// [`Filters::apply`], refusing more than `max_points` filtered points with
+    /// [`RegistrationError::PointLimit`]. With a voxel leaf and neither an intensity band nor
+    /// random downsampling (which could still drop points afterwards), the voxel grid stops as
+    /// soon as more than `max_points` cells are occupied, so memory stays bounded by
+    /// `max_points`: cells that lie wholly outside the range or height band are left out of the
+    /// grid (their centroids, inside the cell, would be dropped by those bands anyway, so the
+    /// result is the one [`Filters::apply`] gives), and a cell reaching into a band counts even
+    /// if its centroid ends up outside it. Otherwise the filtered points are counted at the end.
+    pub fn apply_at_most<const D: usize>(
+        &self,
+        cloud: &Cloud<D>,
+        max_points: usize,
+    ) -> Result<Cloud<D>, RegistrationError> {
+        if let Some((min, max)) = self.range {
+            band("range", min, max)?;
+        }
+        if let Some((min, max)) = self.height {
+            band("height", min, max)?;
+        }
         let mut out = match self.voxel {
+            Some(leaf) if self.intensity.is_none() && self.max_points.is_none() => {
+                let range = self.range;
+                let height = self.height.filter(|_| D == 3);
+                cloud.voxel_cells(leaf, max_points, &|key| {
+                    cell_may_pass(key, leaf, range, height)
+                })?
+            }
             Some(leaf) => cloud.voxel_grid(leaf)?,
             None => cloud.clone(),
         };
@@ -241,8 +310,57 @@ impl Filters {
         if let Some((n, seed)) = self.max_points {
             out = out.random_downsample(n, seed);
         }
+        if out.len() > max_points {
+            return Err(RegistrationError::PointLimit {
+                max: max_points,
+                counted: out.len(),
+                seen: cloud.len(),
+                points: cloud.len(),
+            });
+        }
         Ok(out)
     }
+}
+
+/// Whether the voxel `key` (the cube `[k·leaf, (k+1)·leaf]` on each axis) may hold a centroid
+/// that the `range` band (distance from the origin) and the `height` band (last coordinate)
+/// keep: false only for a cell wholly outside one of them by more than 10⁻⁶ × (leaf + |bound|),
+/// a margin that covers the rounding of `⌊p / leaf⌋` and of a centroid.
+fn cell_may_pass<const D: usize>(
+    key: &[i64; D],
+    leaf: f64,
+    range: Option<(f64, f64)>,
+    height: Option<(f64, f64)>,
+) -> bool {
+    let bounds = |a: usize| (key[a] as f64 * leaf, (key[a] as f64 + 1.0) * leaf);
+    let margin = |r: f64| 1e-6 * (leaf + r.abs());
+    if let Some((min, max)) = range {
+        let (mut near, mut far) = (0.0, 0.0);
+        for a in 0..D {
+            let (lo, hi) = bounds(a);
+            let n = if lo > 0.0 {
+                lo
+            } else if hi < 0.0 {
+                -hi
+            } else {
+                0.0
+            };
+            let f = lo.abs().max(hi.abs());
+            near += n * n;
+            far += f * f;
+        }
+        let (near, far) = (f64::sqrt(near), f64::sqrt(far));
+        if near > max + margin(max) || far < min - margin(min) {
+            return false;
+        }
+    }
+    if let Some((min, max)) = height {
+        let (lo, hi) = bounds(D - 1);
+        if lo > max + margin(max) || hi < min - margin(min) {
+            return false;
+        }
+    }
+    true
 }
 
 /// A positive finite parameter.
@@ -288,6 +406,99 @@ mod tests {
         assert_eq!(
             far.voxel_grid(1e-3),
             Err(RegistrationError::VoxelOverflow { index: 0 })
+        );
+    }
+
+    #[test]
+    fn a_bounded_voxel_grid_stops_at_the_first_point_over_its_bound() {
+        // Cells (0,0), (1,0), (0,0) again, (2,0), (3,0): the third cell is occupied by point 3.
+        let cloud = Cloud::from_points(vec![
+            [0.1, 0.1],
+            [1.5, 0.2],
+            [0.3, 0.5],
+            [2.5, 0.0],
+            [3.5, 0.0],
+        ])
+        .unwrap();
+        assert_eq!(
+            cloud.voxel_grid_at_most(1.0, 2),
+            Err(RegistrationError::PointLimit {
+                max: 2,
+                counted: 3,
+                seen: 4,
+                points: 5
+            })
+        );
+        assert_eq!(cloud.voxel_grid_at_most(1.0, 4), cloud.voxel_grid(1.0));
+        assert_eq!(cloud.voxel_grid_at_most(1.0, 4).unwrap().len(), 4);
+    }
+
+    #[test]
+    fn bounded_filters_leave_out_cells_outside_the_range_band() {
+        // Range band [0, 5] m on a 1 m grid: two cells inside, 1,000 cells 100 m out (never
+        // counted), and cell (4, 3), whose nearest corner is 5 m away but whose one point
+        // (6.3 m) is not: it counts towards the bound, then the band drops its centroid.
+        let mut points = vec![[0.5, 0.5], [2.5, 0.5]];
+        points.extend((0..1000).map(|i| [100.5 + f64::from(i), 0.5]));
+        points.push([4.9, 3.9]);
+        let cloud = Cloud::from_points(points).unwrap();
+        let filters = Filters {
+            voxel: Some(1.0),
+            height: None,
+            intensity: None,
+            range: Some((0.0, 5.0)),
+            max_points: None,
+        };
+        let all = filters.apply(&cloud).unwrap();
+        assert_eq!(all.points(), &[[0.5, 0.5], [2.5, 0.5]]);
+        assert_eq!(filters.apply_at_most(&cloud, 3).unwrap(), all);
+        assert_eq!(
+            filters.apply_at_most(&cloud, 2),
+            Err(RegistrationError::PointLimit {
+                max: 2,
+                counted: 3,
+                seen: 1003,
+                points: 1003
+            })
+        );
+        // A height band [2, 3] m leaves out the cells wholly above or below it: of the 100
+        // cells of this column, those of z in [1, 2], [2, 3] and [3, 4] touch it and count.
+        let tall = Cloud::from_points(
+            (0..100)
+                .map(|i| [0.5, 0.5, f64::from(i) + 0.5])
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
+        let filters = Filters {
+            height: Some((2.0, 3.0)),
+            range: None,
+            ..filters
+        };
+        let kept = filters.apply_at_most(&tall, 3).unwrap();
+        assert_eq!(kept.points(), &[[0.5, 0.5, 2.5]]);
+        assert_eq!(
+            filters.apply_at_most(&tall, 2),
+            Err(RegistrationError::PointLimit {
+                max: 2,
+                counted: 3,
+                seen: 4,
+                points: 100
+            })
+        );
+        // Without a voxel grid, the filtered points are counted at the end.
+        let bare = Filters {
+            voxel: None,
+            height: None,
+            ..filters
+        };
+        assert_eq!(
+            bare.apply_at_most(&tall, 10),
+            Err(RegistrationError::PointLimit {
+                max: 10,
+                counted: 100,
+                seen: 100,
+                points: 100
+            })
         );
     }
 

@@ -79,8 +79,8 @@ pub use features::{
 pub use icp::{IcpMethod, IcpParams, IcpResult, Information, icp, information};
 pub use kdtree::KdTree;
 pub use pipeline::{
-    CENTRE_STEP, MAX_FEATURE_POINTS, Registration, RegistrationParams, register, register_scans,
-    scan_params,
+    CENTRE_STEP, MAX_FEATURE_POINTS, MAX_ICP_POINTS, MAX_INPUT_POINTS, Registration,
+    RegistrationParams, register, register_scans, scan_params,
 };
 pub use ransac::{MatchParams, RansacParams, RansacResult, match_features, ransac};
 pub use rigid::{Rigid, kabsch};
@@ -159,18 +159,60 @@ pub enum RegistrationError {
     /// The geometry does not determine a transform.
     #[error("degenerate: {0}")]
     Degenerate(&'static str),
-    /// More points than [`MAX_FEATURE_POINTS`] would enter feature computation.
+    /// A bounded step ([`Cloud::voxel_grid_at_most`], [`Filters::apply_at_most`]) met more than
+    /// `max` points (occupied voxels, or filtered points).
+    #[error("more than {max} points: {counted} counted in the first {seen} of {points}")]
+    PointLimit {
+        /// The bound.
+        max: usize,
+        /// Points (or cells) counted when the step stopped: more than `max`.
+        counted: usize,
+        /// Points of the input read by then.
+        seen: usize,
+        /// Points of the input.
+        points: usize,
+    },
+    /// More points than [`MAX_FEATURE_POINTS`] would enter feature computation: the coarse
+    /// voxel grid stopped at the first point over the bound.
     #[error(
-        "{what}: {got} points on the {voxel} m coarse voxel grid, at most {MAX_FEATURE_POINTS} \
-         enter feature computation (a larger coarse voxel leaves fewer)"
+        "{what}: more than {MAX_FEATURE_POINTS} points on the {voxel} m coarse voxel grid \
+         (counted in the first {seen} of its {points} filtered points), at most \
+         {MAX_FEATURE_POINTS} enter feature computation (a larger coarse voxel leaves fewer)"
     )]
     TooManyFeaturePoints {
         /// `source` or `target`.
         what: &'static str,
-        /// Points left on the coarse grid.
-        got: usize,
         /// The coarse voxel leaf (m).
         voxel: f64,
+        /// Filtered points read when the grid stopped.
+        seen: usize,
+        /// Filtered points of the cloud.
+        points: usize,
+    },
+    /// More points than [`MAX_ICP_POINTS`] would enter ICP (the fine clouds: after the filters
+    /// or the fine voxel grid).
+    #[error(
+        "{what}: more than {MAX_ICP_POINTS} points would enter ICP ({counted} counted in the \
+         first {seen} of its {points} points), at most {MAX_ICP_POINTS} do (a larger fine voxel \
+         leaves fewer)"
+    )]
+    TooManyIcpPoints {
+        /// `source` or `target`.
+        what: &'static str,
+        /// Points counted when the step stopped.
+        counted: usize,
+        /// Points read by then.
+        seen: usize,
+        /// Points of the cloud given to that step.
+        points: usize,
+    },
+    /// A cloud given to [`register`] has more than [`MAX_INPUT_POINTS`] points.
+    #[error("{what}: {got} points, at most {MAX_INPUT_POINTS} may be registered")]
+    TooManyInputPoints {
+        /// `source` or `target`.
+        what: &'static str,
+        /// Its points.
+        got: usize,
     },
     /// RANSAC found no consensus.
     #[error("RANSAC: {0}")]

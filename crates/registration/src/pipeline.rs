@@ -141,8 +141,42 @@ pub fn register<const D: usize>(
             why: "must be finite",
         });
     }
-    let source = params.filters.apply(source)?;
-    let target = params.filters.apply(target)?;
+    for (what, cloud) in [("source", source), ("target", target)] {
+        if cloud.len() > MAX_INPUT_POINTS {
+            return Err(RegistrationError::TooManyInputPoints {
+                what,
+                got: cloud.len(),
+            });
+        }
+    }
+    // The points entering ICP are bounded (MAX_ICP_POINTS) where they are made: in the filters
+    // when ICP works on the filtered clouds, on the fine grid otherwise; both are made before
+    // any feature work, so that a refusal comes early.
+    let icp_limit = |what: &'static str| {
+        move |e: RegistrationError| match e {
+            RegistrationError::PointLimit {
+                counted,
+                seen,
+                points,
+                ..
+            } => RegistrationError::TooManyIcpPoints {
+                what,
+                counted,
+                seen,
+                points,
+            },
+            e => e,
+        }
+    };
+    let filter = |cloud: &Cloud<D>, what| match params.fine_voxel {
+        None => params
+            .filters
+            .apply_at_most(cloud, MAX_ICP_POINTS)
+            .map_err(icp_limit(what)),
+        Some(_) => params.filters.apply(cloud),
+    };
+    let source = filter(source, "source")?;
+    let target = filter(target, "target")?;
     for (what, cloud) in [("filtered source", &source), ("filtered target", &target)] {
         if cloud.len() < 3 * D {
             return Err(RegistrationError::TooFewPoints {
@@ -168,15 +202,29 @@ pub fn register<const D: usize>(
             .map(|p| std::array::from_fn(|a| p[a] - centre[a]))
             .collect()
     };
+    let fine_grid = |cloud: &Cloud<D>, what| match params.fine_voxel {
+        Some(leaf) => cloud
+            .voxel_grid_at_most(leaf, MAX_ICP_POINTS)
+            .map(|c| Some(c.into_parts().0))
+            .map_err(icp_limit(what)),
+        None => Ok(None),
+    };
+    let src_fine = fine_grid(&source, "source")?;
+    let tgt_fine = fine_grid(&target, "target")?;
     let describe = |cloud: &Cloud<D>, what: &'static str| -> Result<_, RegistrationError> {
-        let coarse = cloud.voxel_grid(params.coarse_voxel)?.into_parts().0;
-        if coarse.len() > MAX_FEATURE_POINTS {
-            return Err(RegistrationError::TooManyFeaturePoints {
-                what,
-                got: coarse.len(),
-                voxel: params.coarse_voxel,
-            });
-        }
+        // The grid stops at the first point over the bound: memory stays bounded by it.
+        let coarse = match cloud.voxel_grid_at_most(params.coarse_voxel, MAX_FEATURE_POINTS) {
+            Ok(coarse) => coarse.into_parts().0,
+            Err(RegistrationError::PointLimit { seen, points, .. }) => {
+                return Err(RegistrationError::TooManyFeaturePoints {
+                    what,
+                    voxel: params.coarse_voxel,
+                    seen,
+                    points,
+                });
+            }
+            Err(e) => return Err(e),
+        };
         let coarse = shift(coarse);
         let tree = KdTree::new(&coarse);
         let normals = estimate_normals(
@@ -212,13 +260,8 @@ pub fn register<const D: usize>(
         &params.ransac,
         &centre,
     )?;
-    let (src_fine, tgt_fine) = match params.fine_voxel {
-        Some(leaf) => (
-            source.voxel_grid(leaf)?.into_parts().0,
-            target.voxel_grid(leaf)?.into_parts().0,
-        ),
-        None => (source.into_parts().0, target.into_parts().0),
-    };
+    let src_fine = src_fine.unwrap_or_else(|| source.into_parts().0);
+    let tgt_fine = tgt_fine.unwrap_or_else(|| target.into_parts().0);
     let (src_fine, tgt_fine) = (shift(src_fine), shift(tgt_fine));
     let tree = KdTree::new(&tgt_fine);
     let normals = estimate_normals(
@@ -279,6 +322,18 @@ pub fn register<const D: usize>(
 /// [`RegistrationError::TooManyFeaturePoints`]: a larger [`RegistrationParams::coarse_voxel`]
 /// leaves fewer.
 pub const MAX_FEATURE_POINTS: usize = 250_000;
+
+/// The most points of one cloud that enter ICP (the fine clouds: the filtered clouds, or their
+/// [`RegistrationParams::fine_voxel`] grid): 1,000,000. Each takes its normal, a k-d tree entry
+/// and ICP's correspondences (about 200 bytes with both clouds' normals), so this bounds that
+/// stage to about 0.2 GB a cloud. The grid that makes them stops at the first point over the
+/// bound ([`RegistrationError::TooManyIcpPoints`]): a larger fine voxel leaves fewer.
+pub const MAX_ICP_POINTS: usize = 1_000_000;
+
+/// The most points of a cloud [`register`] takes: 10,000,000 (240 MB of coordinates); more
+/// are [`RegistrationError::TooManyInputPoints`]. A reader can check this before reading
+/// (the PLY reader does, from the header: `chronomap_io::ply::read_ply_at_most`).
+pub const MAX_INPUT_POINTS: usize = 10_000_000;
 
 /// Clouds are moved by their target's centroid rounded to a multiple of this many metres before
 /// registration ([`register`]): 64, so that clouds within 32 m of the origin are registered

@@ -447,20 +447,24 @@ fn too_many_points_for_features_are_refused_before_the_work() {
     let small = Cloud::from_points(box_cloud()).unwrap();
     let params = RegistrationParams::for_voxel(0.001);
     let e = register(&small, &cloud, &params).unwrap_err();
-    let RegistrationError::TooManyFeaturePoints { what, got, voxel } = e.clone() else {
+    let RegistrationError::TooManyFeaturePoints {
+        what,
+        voxel,
+        seen,
+        points,
+    } = e.clone()
+    else {
         panic!("{e}");
     };
-    assert_eq!((what, voxel), ("target", 0.001));
-    assert!(
-        got > chronomap_registration::MAX_FEATURE_POINTS && got <= 300_000,
-        "{got}"
-    );
+    assert_eq!((what, voxel, points), ("target", 0.001, 300_000));
+    // The grid stops at the point that occupies cell 250,001: no cell of 1 mm holds two of
+    // these points, so that is point 250,001 (it did not finish the 300,000 before).
+    assert_eq!(seen, 250_001);
     assert_eq!(
         e.to_string(),
-        format!(
-            "target: {got} points on the 0.001 m coarse voxel grid, at most 250000 enter \
-             feature computation (a larger coarse voxel leaves fewer)"
-        )
+        "target: more than 250000 points on the 0.001 m coarse voxel grid (counted in the \
+         first 250001 of its 300000 filtered points), at most 250000 enter feature computation \
+         (a larger coarse voxel leaves fewer)"
     );
 }
 
@@ -524,5 +528,73 @@ fn bad_input_is_an_error_naming_what() {
     let h = [[0.0; FEATURE_LEN]; 2];
     assert!(
         chronomap_registration::match_features(&h, &[0, 5], &h, &[0], &Default::default()).is_err()
+    );
+}
+
+#[test]
+fn too_many_points_for_icp_are_refused_before_the_features() {
+    // 1,200,000 points of a 10 m cube: on a 1 mm fine grid nearly every point keeps its own
+    // cell, more than MAX_ICP_POINTS would enter ICP. The coarse grid (0.5 m) is small, but
+    // the refusal comes first, from the fine grid, which stops at cell 1,000,001.
+    let mut rng = Xoshiro256StarStar::seed_from_u64(4);
+    let points: Vec<[f64; 3]> = (0..1_200_000)
+        .map(|_| std::array::from_fn(|_| rng.uniform(0.0, 10.0)))
+        .collect();
+    let cloud = Cloud::from_points(points).unwrap();
+    let small = Cloud::from_points(box_cloud()).unwrap();
+    let mut params = RegistrationParams::for_voxel(0.5);
+    params.fine_voxel = Some(0.001);
+    let e = register(&cloud, &small, &params).unwrap_err();
+    let RegistrationError::TooManyIcpPoints {
+        what,
+        counted,
+        seen,
+        points,
+    } = e.clone()
+    else {
+        panic!("{e}");
+    };
+    assert_eq!((what, counted, points), ("source", 1_000_001, 1_200_000));
+    assert!((1_000_001..1_000_100).contains(&seen), "{seen}");
+    assert!(
+        e.to_string()
+            .starts_with("source: more than 1000000 points would enter ICP (1000001 counted"),
+        "{e}"
+    );
+    // The same through the filters (ICP on the filtered clouds): the filters' grid stops.
+    params.fine_voxel = None;
+    params.filters.voxel = Some(0.001);
+    params.filters.range = Some((0.0, 30.0));
+    let e = register(&small, &cloud, &params).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RegistrationError::TooManyIcpPoints {
+                what: "target",
+                counted: 1_000_001,
+                points: 1_200_000,
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_cloud_beyond_the_input_bound_is_refused_before_any_work() {
+    let points = vec![[1.0, 2.0, 3.0]; chronomap_registration::MAX_INPUT_POINTS + 1];
+    let cloud = Cloud::from_points(points).unwrap();
+    let small = Cloud::from_points(box_cloud()).unwrap();
+    let e = register(&small, &cloud, &RegistrationParams::for_voxel(0.5)).unwrap_err();
+    assert_eq!(
+        e,
+        RegistrationError::TooManyInputPoints {
+            what: "target",
+            got: 10_000_001
+        }
+    );
+    assert_eq!(
+        e.to_string(),
+        "target: 10000001 points, at most 10000000 may be registered"
     );
 }
