@@ -205,6 +205,21 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_registration::pipeline::MAX_FEATURE_POINTS as u128,
         ),
         (
+            "MAX_ICP_POINTS",
+            "chronomap_registration::pipeline",
+            chronomap_registration::pipeline::MAX_ICP_POINTS as u128,
+        ),
+        (
+            "MAX_INPUT_POINTS",
+            "chronomap_registration::pipeline",
+            chronomap_registration::pipeline::MAX_INPUT_POINTS as u128,
+        ),
+        (
+            "MAX_TRAININGS",
+            "chronomap_lidar::evaluation",
+            chronomap_lidar::evaluation::MAX_TRAININGS as u128,
+        ),
+        (
             "MAX_RECORD_BYTES",
             "chronomap_rosbag::bag",
             chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,
