@@ -313,3 +313,99 @@ fn serve_check_reads_the_maps_and_the_token_file_the_flags_name() {
         assert_eq!(stderr, format!("error: {}: {reason}\n", token.display()));
     }
 }
+
+/// `chronomap export parquet` on seeded mutations of a real store (bit flips, overwritten
+/// bytes, cuts and zeroed pages among its bytes that are not zero): exit 0 with its tables, or
+/// 1 with an error naming the store; never a panic (redb panics on some altered pages: the
+/// store guards its reads) and never a changed store; `serve --check` reports each without
+/// changing it either. The library property test
+/// (`chronomap-serve` `check::tests`) runs many more.
+#[test]
+fn export_of_mutated_stores_reads_or_refuses_by_name_and_changes_nothing() {
+    let dir = scratch("read_only_export_mutated");
+    let seed = std::fs::read(small_store(&dir).join("chronomap.redb")).unwrap();
+    let live: Vec<usize> = (0..seed.len()).filter(|&i| seed[i] != 0).collect();
+    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = move || {
+        // SplitMix64.
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let (mut exported, mut refused) = (0, 0);
+    for case in 0..40 {
+        let mut bytes = seed.clone();
+        let at = live[next() as usize % live.len()];
+        match case % 4 {
+            0 => bytes[at] ^= 1 << (next() % 8),
+            1 => bytes[at] = next() as u8,
+            2 => bytes.truncate(at),
+            _ => {
+                let start = at & !4095;
+                let end = (start + 4096).min(bytes.len());
+                bytes[start..end].fill(0);
+            }
+        }
+        let data = dir.join(format!("case{case}"));
+        std::fs::create_dir(&data).unwrap();
+        let file = data.join("chronomap.redb");
+        std::fs::write(&file, &bytes).unwrap();
+        let before = snapshot(&data);
+        let out = dir.join(format!("out{case}"));
+        let run = chronomap(&[
+            "export",
+            "parquet",
+            "--data",
+            data.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--no-predictions",
+        ]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(!stderr.contains("panicked"), "case {case}: {stderr}");
+        match run.status.code() {
+            Some(0) => {
+                exported += 1;
+                let table = std::fs::read(out.join("observations.parquet")).unwrap();
+                assert_eq!(&table[..4], b"PAR1", "case {case}");
+            }
+            Some(1) => {
+                refused += 1;
+                assert!(
+                    stderr.starts_with(&format!("error: {}", file.display()))
+                        || stderr.starts_with(&format!("error: redb {}", file.display())),
+                    "case {case}: {stderr}"
+                );
+                assert!(!out.exists(), "case {case}: a failed export left {out:?}");
+            }
+            other => panic!("case {case}: exit {other:?}: {stderr}"),
+        }
+        assert!(snapshot(&data) == before, "case {case}: the store changed");
+        // `serve --check` on the same file: intact, or damage listed, or a file it cannot
+        // read named; the file unchanged.
+        let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--check"]);
+        assert!(!stderr.contains("panicked"), "case {case}: {stderr}");
+        match code {
+            0 => assert!(
+                stdout.contains("\nok: every snapshot"),
+                "case {case}: {stdout}"
+            ),
+            1 => assert!(
+                stdout.contains("\ndamaged: ") || stdout.contains("\ncannot be read: "),
+                "case {case}: {stdout}{stderr}"
+            ),
+            other => panic!("case {case}: serve --check exit {other}: {stderr}"),
+        }
+        assert!(
+            snapshot(&data) == before,
+            "case {case}: --check changed the store"
+        );
+    }
+    // Both outcomes occur: the mutations reach the store's structures.
+    assert!(
+        exported > 0 && refused > 0,
+        "{exported} exported, {refused} refused"
+    );
+}

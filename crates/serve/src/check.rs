@@ -200,12 +200,14 @@ pub fn verify(store: &dyn Store) -> Result<Verified, StoreError> {
 /// The file is missing, empty, not a regular file or not a redb database, another process
 /// holds it, or redb cannot open even the copy (damage it cannot repair: the reason says so).
 pub fn verify_redb(path: &std::path::Path) -> Result<Verified, StoreError> {
-    use crate::store::RedbStore;
-    let (original, unclean) = match RedbStore::try_read_only(path) {
-        Ok(store) => (Some(store), false),
-        Err((_, true)) => (None, true),
-        Err((e, false)) => return Err(e),
+    use crate::store::{RedbStore, Unopened};
+    let (original, unclean, unreadable) = match RedbStore::try_read_only(path) {
+        Ok(store) => (Some(store), false, None),
+        Err((_, Unopened::Unclean)) => (None, true, None),
+        Err((e, Unopened::Damaged)) => (None, false, Some(e)),
+        Err((e, Unopened::Refused)) => return Err(e),
     };
+    let first_line = |e: &StoreError| e.reason.lines().next().unwrap_or_default().to_owned();
     let fail = |reason: String| StoreError {
         store: path.display().to_string(),
         reason,
@@ -250,12 +252,27 @@ pub fn verify_redb(path: &std::path::Path) -> Result<Verified, StoreError> {
     };
     // The copy passed redb's page check, so reading it cannot make redb panic on an altered
     // page; the original is read (guarded) only when the copy could not be opened.
-    let store: &dyn Store = match (&copied, &original) {
-        (Some(copied), _) => copied,
-        (None, Some(original)) => original,
-        (None, None) => unreachable!("an unclean file that cannot be opened returned above"),
+    let store: Option<&dyn Store> = match (&copied, &original) {
+        (Some(copied), _) => Some(copied),
+        (None, Some(original)) => Some(original),
+        (None, None) => None,
     };
-    let mut verified = verify(store)?;
+    let unread = |reason: String| Verified {
+        registry: Registry::new(),
+        last_seq: 0,
+        replayed: std::collections::BTreeSet::new(),
+        report: Report {
+            damage: vec![format!("the store cannot be read: {reason}")],
+            ..Report::default()
+        },
+    };
+    let mut verified = match store.map(verify) {
+        Some(Ok(verified)) => verified,
+        // The page check failed and redb cannot read the original either: that is the damage.
+        Some(Err(e)) if copied.is_none() => unread(first_line(&e)),
+        Some(Err(e)) => return Err(e),
+        None => unread(unreadable.as_ref().map(first_line).unwrap_or_default()),
+    };
     verified.report.store = format!("redb {}", path.display());
     if unclean {
         verified.report.notes.push(

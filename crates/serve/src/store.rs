@@ -12,6 +12,7 @@ mod redb_store;
 #[cfg(feature = "postgres")]
 pub use postgres::{Access, DEFAULT_SEGMENT_GROUPS, OWNER_WAIT, PostgresStore};
 pub use redb_store::RedbStore;
+pub(crate) use redb_store::Unopened;
 
 use chronomap_io::model_file::{decode_model, encode_model};
 use chronomap_models::{AnyModel, Learner};

@@ -17,6 +17,18 @@ pub struct RedbStore {
     db: Db,
 }
 
+/// Why [`RedbStore::try_read_only`] did not open a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Unopened {
+    /// It is no store (missing, empty, not a regular file, not a redb file) or another process
+    /// holds it.
+    Refused,
+    /// It was not closed cleanly: redb must repair it before it can be read.
+    Unclean,
+    /// redb found it damaged, or stopped reading it.
+    Damaged,
+}
+
 /// The database, opened to read and write (the service) or only to read (an export).
 enum Db {
     Write(Database),
@@ -110,22 +122,25 @@ impl RedbStore {
         Self::try_read_only(path.as_ref()).map_err(|(e, _)| e)
     }
 
-    /// [`RedbStore::open_read_only`], saying with an error whether it is only that the file
-    /// was not closed cleanly (redb must repair it before it can be read).
-    pub(crate) fn try_read_only(path: &Path) -> Result<Self, (StoreError, bool)> {
+    /// [`RedbStore::open_read_only`], saying with an error why it could not be opened.
+    pub(crate) fn try_read_only(path: &Path) -> Result<Self, (StoreError, Unopened)> {
         let path = path.to_path_buf();
         let fail = |reason: String| StoreError {
             store: path.display().to_string(),
             reason,
         };
-        let metadata = std::fs::metadata(&path)
-            .map_err(|e| (fail(format!("cannot open the file: {e}")), false))?;
+        let metadata = std::fs::metadata(&path).map_err(|e| {
+            (
+                fail(format!("cannot open the file: {e}")),
+                Unopened::Refused,
+            )
+        })?;
         if !metadata.is_file() {
             return Err((
                 fail(
                     "not a regular file: not a store (a store is made by `chronomap serve`)".into(),
                 ),
-                false,
+                Unopened::Refused,
             ));
         }
         if metadata.len() == 0 {
@@ -133,11 +148,11 @@ impl RedbStore {
                 fail(
                     "the file is empty: not a store (a store is made by `chronomap serve`)".into(),
                 ),
-                false,
+                Unopened::Refused,
             ));
         }
-        let opened =
-            guarded(&path, || Ok(ReadOnlyDatabase::open(&path))).map_err(|e| (e, false))?;
+        let opened = guarded(&path, || Ok(ReadOnlyDatabase::open(&path)))
+            .map_err(|e| (e, Unopened::Damaged))?;
         let db = opened.map_err(|e| match e {
             redb::DatabaseError::RepairAborted => (
                 fail(format!(
@@ -145,15 +160,22 @@ impl RedbStore {
                      read, which takes writing; start and stop `chronomap serve` on it once (it \
                      repairs the file), then read it again ({e})"
                 )),
-                true,
+                Unopened::Unclean,
             ),
-            redb::DatabaseError::DatabaseAlreadyOpen => (fail(e.to_string()), false),
+            redb::DatabaseError::DatabaseAlreadyOpen => (fail(e.to_string()), Unopened::Refused),
+            redb::DatabaseError::Storage(redb::StorageError::Corrupted(_)) => (
+                fail(format!(
+                    "the file is damaged ({e}); nothing was changed.\n{}",
+                    crate::check::RECOVERY_HINT
+                )),
+                Unopened::Damaged,
+            ),
             e => (
                 fail(format!(
                     "{e} (if the file is damaged: {})",
                     crate::check::RECOVERY_HINT
                 )),
-                false,
+                Unopened::Refused,
             ),
         })?;
         Ok(RedbStore {
@@ -313,7 +335,12 @@ fn guarded<T>(path: &Path, read: impl FnOnce() -> Result<T, StoreError>) -> Resu
                             .unwrap_or_default();
                         let at = info
                             .location()
-                            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+                            .map(|l| {
+                                // The source file within its crate, not where it was built.
+                                let file =
+                                    l.file().rsplit_once("/src/").map_or(l.file(), |(_, f)| f);
+                                format!(" at {file}:{}", l.line())
+                            })
                             .unwrap_or_default();
                         *message = Some(format!("{payload}{at}"));
                         true
