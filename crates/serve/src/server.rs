@@ -28,14 +28,17 @@ use crate::refit::{RefitFailure, Refits};
 use crate::registry::{ApplyError, Entry, ModelConfig, Registry, check_id};
 use crate::store::Store;
 use crate::writer::{self, CheckpointPolicy, Shared, WriteCommand, WriteError, WriteOp};
+use chronomap_models::AnyModel;
+use std::borrow::Cow;
 
 /// Largest request body by default (bytes): about a million observations in JSON.
 pub const DEFAULT_MAX_BODY_BYTES: usize = 32 << 20;
 
 /// Most predictions one model request may ask for, counted before any is computed: times
 /// (`predict`, `entropy`, `detect`), ids (`forecast`, `forecastEntropy`), rows × orders
-/// (`evaluate`). More is refused with `400` naming the field. About 3 s on one thread with the
-/// costliest model (FreMEn of order 84); 0.1 s with `fremen:2`.
+/// (`evaluate`). More is refused with `400` naming the field. At most about 4 s on one thread
+/// with the costliest model (FreMEn of order 84), parsing and answering included; 0.5 s with
+/// `fremen:2`.
 pub const MAX_REQUEST_PREDICTIONS: u64 = 2_000_000;
 
 /// Predictions computed between two checks whether the client went away (`evaluate` checks
@@ -1144,12 +1147,12 @@ fn checked<R: ModelRequest>(request: &R, shared: &Shared) -> Result<u64, ApiErro
 /// [`heavy::LIGHT_MAX_BODY_BYTES`] is parsed and checked here and computed on the light pool
 /// when it asks for at most [`heavy::LIGHT_MAX_PREDICTIONS`], else on the heavy pool; a larger
 /// body is parsed, checked and computed on the heavy pool (parsing megabytes of JSON is work
-/// too). `job` gets the request, the models and the cancel flag, and answers JSON bytes
-/// (serialised off the async threads too).
+/// too). `job` gets the request, the models, the cancel flag and the pool it runs on, and
+/// answers JSON bytes (serialised off the async threads too).
 async fn compute<R: ModelRequest>(
     state: &AppState,
     body: Result<Bytes, BytesRejection>,
-    job: impl FnOnce(R, &Shared, &Cancel) -> Result<Vec<u8>, ApiError> + Send + 'static,
+    job: impl FnOnce(R, &Shared, &Cancel, Class) -> Result<Vec<u8>, ApiError> + Send + 'static,
 ) -> Result<Response, ApiError> {
     let bytes = body_bytes(body)?;
     let shared = Arc::clone(&state.shared);
@@ -1162,18 +1165,18 @@ async fn compute<R: ModelRequest>(
                 if cancel.is_cancelled() {
                     return Err(heavy::cancelled());
                 }
-                job(request, &shared, cancel)
+                job(request, &shared, cancel, Class::Heavy)
             })
             .await?
     } else {
         let request: R = parse_json(&bytes)?;
         let work = checked(&request, &shared)?;
-        let pool = if work <= heavy::LIGHT_MAX_PREDICTIONS {
-            &state.light
+        let (pool, class) = if work <= heavy::LIGHT_MAX_PREDICTIONS {
+            (&state.light, Class::Light)
         } else {
-            &state.heavy
+            (&state.heavy, Class::Heavy)
         };
-        pool.run(move |cancel| job(request, &shared, cancel))
+        pool.run(move |cancel| job(request, &shared, cancel, class))
             .await?
     };
     Ok(crate::maps::json_response(answer))
@@ -1184,20 +1187,28 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Result<Vec<u8>, ApiError> {
     serde_json::to_vec(value).map_err(|e| ApiError::internal(format!("cannot write JSON: {e}")))
 }
 
-/// The model of `id` at `order` and its configuration, copied so that the registry is held
-/// only while copying (a write waits for no computation).
-fn model_copy(
+/// Runs `f` on the model of `id` at `order` and its configuration: on the light pool under
+/// the registry's lock (milliseconds at most; copying a large model, a histogram of 2^20
+/// bins, would take longer), on the heavy pool on a copy, so that writes never wait for a
+/// long computation.
+fn on_model<T>(
     shared: &Shared,
+    class: Class,
     id: &str,
     order: Option<usize>,
-) -> Result<(chronomap_models::AnyModel, ModelConfig), ApiError> {
+    f: impl FnOnce(&AnyModel, &ModelConfig) -> Result<T, ApiError>,
+) -> Result<T, ApiError> {
     let registry = shared.registry.read().expect("registry lock");
     let entry = model_entry(&registry, id, "id")?;
-    let model = entry
-        .with_order(order)
-        .map_err(ApiError::bad_request)?
-        .into_owned();
-    Ok((model, entry.config.clone()))
+    let model = entry.with_order(order).map_err(ApiError::bad_request)?;
+    match class {
+        Class::Light => f(&model, &entry.config),
+        Class::Heavy => {
+            let (model, config) = (model.into_owned(), entry.config.clone());
+            drop(registry);
+            f(&model, &config)
+        }
+    }
 }
 
 impl ModelRequest for PredictRequest {
@@ -1225,14 +1236,22 @@ async fn predictions(
     compute(
         state,
         body,
-        move |request: PredictRequest, shared, cancel| {
-            let (model, config) = model_copy(shared, &request.id, request.order)?;
-            if cancel.is_cancelled() {
-                return Err(heavy::cancelled());
-            }
-            let mut values = model.predict_many(&request.times);
-            let scaled = (scaled && config.range.is_some())
-                .then(|| values.iter().map(|&p| config.scale(p)).collect());
+        move |request: PredictRequest, shared, cancel, class| {
+            let (mut values, scaled) = on_model(
+                shared,
+                class,
+                &request.id,
+                request.order,
+                |model, config| {
+                    if cancel.is_cancelled() {
+                        return Err(heavy::cancelled());
+                    }
+                    let values = model.predict_many(&request.times);
+                    let scaled = (scaled && config.range.is_some())
+                        .then(|| values.iter().map(|&p| config.scale(p)).collect());
+                    Ok((values, scaled))
+                },
+            )?;
             values.iter_mut().for_each(|v| *v = map(*v));
             json_bytes(&PredictResponse { values, scaled })
         },
@@ -1301,7 +1320,7 @@ async fn forecasts(
     compute(
         state,
         body,
-        move |request: ForecastRequest, shared, cancel| {
+        move |request: ForecastRequest, shared, cancel, _| {
             let mut values = Vec::with_capacity(request.ids.len());
             for (chunk, ids) in request.ids.chunks(MODEL_CHUNK).enumerate() {
                 if cancel.is_cancelled() {
@@ -1406,9 +1425,12 @@ async fn evaluate(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    compute(&state, body, |request: EvaluateRequest, shared, cancel| {
-        // The model at every order, copied (the registry is held only meanwhile).
-        let (orders, models, config) = {
+    compute(
+        &state,
+        body,
+        |request: EvaluateRequest, shared, cancel, class| {
+            // The model at every order: under the registry's lock on the light pool, copied on
+            // the heavy pool (as `on_model`).
             let registry = shared.registry.read().expect("registry lock");
             let entry = model_entry(&registry, &request.id, "id")?;
             let ordered = entry.model.model().and_then(crate::registry::max_order);
@@ -1418,65 +1440,85 @@ async fn evaluate(
                 .map(|&order| {
                     entry
                         .with_order(ordered.map(|_| order))
-                        .map(std::borrow::Cow::into_owned)
                         .map_err(ApiError::bad_request)
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            (orders, models, entry.config.clone())
-        };
-        let targets: Vec<f64> = request
-            .values
-            .iter()
-            .map(|&v| config.normalise(v))
-            .collect();
-        let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
-        let mut errors = Vec::with_capacity(orders.len());
-        let mut brier = Vec::with_capacity(orders.len());
-        for model in &models {
-            if cancel.is_cancelled() {
-                return Err(heavy::cancelled());
-            }
-            let p = model.predict_many(&request.times);
-            let n = p.len() as f64;
-            let error = p
+            let targets: Vec<f64> = request
+                .values
                 .iter()
-                .zip(&targets)
-                .map(|(&p, &s)| {
-                    if binary {
-                        f64::from(u8::from((p > 0.5) != (s > 0.5)))
-                    } else {
-                        (p - s).abs()
-                    }
-                })
-                .sum::<f64>()
-                / n;
-            errors.push(error);
-            brier.push(
-                p.iter()
-                    .zip(&targets)
-                    .map(|(p, s)| (p - s) * (p - s))
-                    .sum::<f64>()
-                    / n,
-            );
-        }
-        let best = errors
-            .iter()
-            .enumerate()
-            .fold(0, |best, (i, &e)| if e < errors[best] { i } else { best });
-        json_bytes(&EvaluateResponse {
-            best_order: orders[best],
-            orders,
-            errors,
-            brier,
-            metric: if binary {
-                "binary_error"
-            } else {
-                "mean_absolute_error"
-            }
-            .into(),
-        })
-    })
+                .map(|&v| entry.config.normalise(v))
+                .collect();
+            let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
+            let scored =
+                |models: &[&AnyModel]| score(models, &request.times, &targets, binary, cancel);
+            let (errors, brier) = match class {
+                Class::Light => scored(&models.iter().map(|m| &**m).collect::<Vec<_>>())?,
+                Class::Heavy => {
+                    let models: Vec<AnyModel> = models.into_iter().map(Cow::into_owned).collect();
+                    drop(registry);
+                    scored(&models.iter().collect::<Vec<_>>())?
+                }
+            };
+            let best = errors
+                .iter()
+                .enumerate()
+                .fold(0, |best, (i, &e)| if e < errors[best] { i } else { best });
+            json_bytes(&EvaluateResponse {
+                best_order: orders[best],
+                orders,
+                errors,
+                brier,
+                metric: if binary {
+                    "binary_error"
+                } else {
+                    "mean_absolute_error"
+                }
+                .into(),
+            })
+        },
+    )
     .await
+}
+
+/// The error (binary or mean absolute) and Brier score of each of `models` on the data,
+/// checking between models whether the client went away.
+fn score(
+    models: &[&AnyModel],
+    times: &[f64],
+    targets: &[f64],
+    binary: bool,
+    cancel: &Cancel,
+) -> Result<(Vec<f64>, Vec<f64>), ApiError> {
+    let mut errors = Vec::with_capacity(models.len());
+    let mut brier = Vec::with_capacity(models.len());
+    for model in models {
+        if cancel.is_cancelled() {
+            return Err(heavy::cancelled());
+        }
+        let p = model.predict_many(times);
+        let n = p.len() as f64;
+        let error = p
+            .iter()
+            .zip(targets)
+            .map(|(&p, &s)| {
+                if binary {
+                    f64::from(u8::from((p > 0.5) != (s > 0.5)))
+                } else {
+                    (p - s).abs()
+                }
+            })
+            .sum::<f64>()
+            / n;
+        errors.push(error);
+        brier.push(
+            p.iter()
+                .zip(targets)
+                .map(|(p, s)| (p - s) * (p - s))
+                .sum::<f64>()
+                / n,
+        );
+    }
+    Ok((errors, brier))
 }
 
 impl ModelRequest for DetectRequest {
@@ -1510,27 +1552,41 @@ async fn detect(
     State(state): State<AppState>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    compute(&state, body, |request: DetectRequest, shared, cancel| {
-        let (model, config) = model_copy(shared, &request.id, request.order)?;
-        let mut anomalies = Vec::new();
-        for (times, values) in request
-            .times
-            .chunks(MODEL_CHUNK)
-            .zip(request.values.chunks(MODEL_CHUNK))
-        {
-            if cancel.is_cancelled() {
-                return Err(heavy::cancelled());
-            }
-            anomalies.extend(times.iter().zip(values).filter_map(|(&time, &value)| {
-                let p = model.predict(time);
-                ((config.normalise(value) - p).abs() >= request.confidence).then(|| Anomaly {
-                    time,
-                    value,
-                    predicted: config.scale(p),
-                })
-            }));
-        }
-        json_bytes(&DetectResponse { anomalies })
-    })
+    compute(
+        &state,
+        body,
+        |request: DetectRequest, shared, cancel, class| {
+            let anomalies = on_model(
+                shared,
+                class,
+                &request.id,
+                request.order,
+                |model, config| {
+                    let mut anomalies = Vec::new();
+                    for (times, values) in request
+                        .times
+                        .chunks(MODEL_CHUNK)
+                        .zip(request.values.chunks(MODEL_CHUNK))
+                    {
+                        if cancel.is_cancelled() {
+                            return Err(heavy::cancelled());
+                        }
+                        anomalies.extend(times.iter().zip(values).filter_map(|(&time, &value)| {
+                            let p = model.predict(time);
+                            ((config.normalise(value) - p).abs() >= request.confidence).then(|| {
+                                Anomaly {
+                                    time,
+                                    value,
+                                    predicted: config.scale(p),
+                                }
+                            })
+                        }));
+                    }
+                    Ok(anomalies)
+                },
+            )?;
+            json_bytes(&DetectResponse { anomalies })
+        },
+    )
     .await
 }
