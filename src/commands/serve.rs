@@ -666,3 +666,24 @@ fn range_times(from: f64, to: f64, step: f64) -> Result<Vec<f64>> {
     let n = steps as usize + 1;
     Ok((0..n).map(|i| from + i as f64 * step).collect())
 }
+
+#[cfg(test)]
+mod tests {
+    /// docs/limits.md names the token file's limit as `tests/cli/limits.rs` checks the
+    /// library's limits (that test cannot see the binary's constants).
+    #[test]
+    fn the_token_file_limit_in_docs_limits_is_the_one_here() {
+        let doc = include_str!("../../docs/limits.md");
+        let row = doc
+            .lines()
+            .find(|l| {
+                l.starts_with("| `MAX_TOKEN_FILE_BYTES`") && l.contains("`src/commands/serve.rs`")
+            })
+            .expect("docs/limits.md has a row for MAX_TOKEN_FILE_BYTES");
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(
+            cells[2].replace(',', ""),
+            super::MAX_TOKEN_FILE_BYTES.to_string()
+        );
+    }
+}
