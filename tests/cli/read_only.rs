@@ -409,3 +409,56 @@ fn export_of_mutated_stores_reads_or_refuses_by_name_and_changes_nothing() {
         "{exported} exported, {refused} refused"
     );
 }
+
+/// `--salvage` keeps the damaged file exactly as it was (redb reads a copy, which it may
+/// repair; before, the file kept as `chronomap.redb.damaged-TIME` was the one redb had
+/// repaired in place), and refuses a store a running service holds (before: it salvaged from
+/// the raw bytes and renamed the file under the service).
+#[test]
+fn serve_salvage_keeps_the_damaged_file_as_it_was_and_leaves_a_held_store_alone() {
+    let dir = scratch("read_only_salvage_kept");
+    let data = dir.join("data");
+    let server = start(&data, free_port(), &Backend::Redb, &[]);
+    let client =
+        chronomap_client::Client::new(&server.url, Some(crate::service::token(&data))).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    runtime
+        .block_on(client.add_values(
+            "door",
+            &[0.0, 60.0, 120.0],
+            &[0.0, 1.0, 1.0],
+            Some("fremen:2"),
+        ))
+        .unwrap();
+
+    let before = snapshot(&data);
+    let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--salvage"]);
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    assert!(
+        stderr.contains("stop the service that holds it before salvaging"),
+        "{stderr}"
+    );
+    assert!(snapshot(&data) == before, "--salvage changed a held store");
+
+    server.kill();
+    let killed = std::fs::read(data.join("chronomap.redb")).unwrap();
+    let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--salvage"]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    assert!(
+        stdout.starts_with("kept: 1 models, 3 observations in 1 log entries\n"),
+        "{stdout}"
+    );
+    let kept: Vec<PathBuf> = std::fs::read_dir(&data)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains("chronomap.redb.damaged-"))
+        .collect();
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    assert!(
+        std::fs::read(&kept[0]).unwrap() == killed,
+        "the kept file is not the one salvaged"
+    );
+}

@@ -205,7 +205,7 @@ pub fn verify_redb(path: &std::path::Path) -> Result<Verified, StoreError> {
         Ok(store) => (Some(store), false, None),
         Err((_, Unopened::Unclean)) => (None, true, None),
         Err((e, Unopened::Damaged)) => (None, false, Some(e)),
-        Err((e, Unopened::Refused)) => return Err(e),
+        Err((e, Unopened::Refused | Unopened::Held)) => return Err(e),
     };
     let first_line = |e: &StoreError| e.reason.lines().next().unwrap_or_default().to_owned();
     let fail = |reason: String| StoreError {
@@ -481,7 +481,7 @@ pub fn candidates_of(store: &dyn Store) -> (Candidates, Option<StoreError>) {
 pub fn salvage_redb(
     path: &std::path::Path,
 ) -> Result<(SalvageReport, std::path::PathBuf), StoreError> {
-    use crate::store::RedbStore;
+    use crate::store::{RedbStore, Unopened};
     let fail = |reason: String| StoreError {
         store: path.display().to_string(),
         reason,
@@ -508,7 +508,33 @@ pub fn salvage_redb(
     }
     drop(raw);
     let mut notes = Vec::new();
-    let (mut candidates, unread) = match RedbStore::open(path) {
+    // redb may repair the file it opens: it reads a copy, so that the damaged file is kept
+    // exactly as it was; the file itself is held open read-only meanwhile (redb's shared lock)
+    // when it can be, and never salvaged while a service holds it.
+    let _held = match RedbStore::try_read_only(path) {
+        Ok(store) => Some(store),
+        Err((e, Unopened::Held)) => {
+            return Err(fail(format!(
+                "{}; stop the service that holds it before salvaging",
+                e.reason
+            )));
+        }
+        Err(_) => None,
+    };
+    let scratch = Scratch::new().map_err(|e| {
+        fail(format!(
+            "cannot make a private folder in {} to read a copy of the file: {e}",
+            std::env::temp_dir().display()
+        ))
+    })?;
+    let copy = scratch.0.join("chronomap.redb");
+    std::fs::copy(path, &copy).map_err(|e| {
+        fail(format!(
+            "cannot copy the file to {} to read it: {e}",
+            copy.display()
+        ))
+    })?;
+    let (mut candidates, unread) = match RedbStore::open(&copy) {
         Ok(store) => candidates_of(&store),
         Err(_) if copies.is_empty() => {
             return Err(fail(

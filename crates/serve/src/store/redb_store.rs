@@ -20,9 +20,10 @@ pub struct RedbStore {
 /// Why [`RedbStore::try_read_only`] did not open a file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Unopened {
-    /// It is no store (missing, empty, not a regular file, not a redb file) or another process
-    /// holds it.
+    /// It is no store (missing, empty, not a regular file, not a redb file).
     Refused,
+    /// Another process (a running service) holds it.
+    Held,
     /// It was not closed cleanly: redb must repair it before it can be read.
     Unclean,
     /// redb found it damaged, or stopped reading it.
@@ -162,7 +163,7 @@ impl RedbStore {
                 )),
                 Unopened::Unclean,
             ),
-            redb::DatabaseError::DatabaseAlreadyOpen => (fail(e.to_string()), Unopened::Refused),
+            redb::DatabaseError::DatabaseAlreadyOpen => (fail(e.to_string()), Unopened::Held),
             redb::DatabaseError::Storage(redb::StorageError::Corrupted(_)) => (
                 fail(format!(
                     "the file is damaged ({e}); nothing was changed.\n{}",
