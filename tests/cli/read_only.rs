@@ -220,8 +220,8 @@ fn serve_check_reads_a_store_on_a_read_only_file_system() {
     );
 }
 
-/// A schema that holds no store is refused by `--check` and not created (before: the check
-/// created the schema and its tables and reported an intact empty store).
+/// A schema that holds no store is refused by `--check` and `--salvage` and not created
+/// (before: the check created the schema and its tables and reported an intact empty store).
 #[test]
 fn serve_check_does_not_create_a_postgres_schema() {
     let Some(Backend::Postgres(config, schema)) = crate::service::postgres_backend("check_ro")
@@ -246,11 +246,27 @@ fn serve_check_does_not_create_a_postgres_schema() {
              log and snapshots)\n"
         )
     );
+    // Nor by `--salvage` (before: both the schema and SCHEMA_salvaged were created, and an
+    // empty store "salvaged" with exit 0).
+    let (code, stdout, stderr) = serve(&[
+        "--data",
+        dir.to_str().unwrap(),
+        "--postgres",
+        &config,
+        "--postgres-schema",
+        &schema,
+        "--salvage",
+    ]);
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    assert!(stderr.contains("holds no chronomap store"), "{stderr}");
     let exists = Command::new("psql")
         .args([
             &config,
             "-tAc",
-            &format!("SELECT count(*) FROM pg_namespace WHERE nspname = '{schema}'"),
+            &format!(
+                "SELECT count(*) FROM pg_namespace WHERE nspname IN ('{schema}', \
+                 '{schema}_salvaged')"
+            ),
         ])
         .output()
         .unwrap();
