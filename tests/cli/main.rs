@@ -39,9 +39,9 @@ mod limits;
 mod monitor;
 mod outputs;
 mod psbt;
-mod readme;
 #[cfg(feature = "serve")]
 mod read_only;
+mod readme;
 #[cfg(feature = "ros2")]
 mod ros2_conventions;
 #[cfg(feature = "ros2")]
