@@ -14,9 +14,10 @@ use chronomap_grid::build::{
 use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
 use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, save_map};
+use chronomap_io::output::write_output;
 use chronomap_io::{
     GridFile, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
-    read_pairs, write_grid_file,
+    read_pairs,
 };
 use chronomap_plot::{MapImage, render_maps_png};
 use chronomap_rosbag::{Bag, MapFrame};
@@ -177,11 +178,14 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
         StoreArg::Lossy => GridFile::Lossy(Box::new(grid.fitted(choice))),
         StoreArg::Lossless => GridFile::Lossless(Box::new(grid.lossless(choice)?)),
     };
-    write_grid_file(&args.output, &file)?;
+    // The size of eq. (16) is what was written (a device or a pipe is written through and
+    // has no size afterwards).
+    let encoded = encode_grid(&file)?;
+    write_output(&args.output, &encoded)?;
     if closed {
         return Ok(());
     }
-    let bytes = std::fs::metadata(&args.output)?.len() as usize;
+    let bytes = encoded.len();
     let ratio = compression_ratio(observations, bytes);
     if args.json {
         return print_json(&json!({

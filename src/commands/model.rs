@@ -6,7 +6,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use chronomap_core::anomaly::detect_anomalies;
 use chronomap_core::{FremenModel, FrequencyComponent, Ordered, TemporalModel, binary_entropy};
-use chronomap_io::{Field, TimeSeries, read_column, read_pairs, write_any_model};
+use chronomap_io::output::write_output;
+use chronomap_io::{Field, TimeSeries, encode_model, read_column, read_pairs};
 use chronomap_models::AnyModel;
 use chronomap_models::spec::ModelSpec;
 use serde_json::{Value, json};
@@ -52,8 +53,11 @@ pub fn fit_and_save(
         .fit(&train.times, &train.values, &fit.options())
         .map_err(|e| data_error(&training.name, e))
         .with_context(|| format!("cannot fit {model}"))?;
-    write_any_model(output, &fitted.model)?;
-    let size = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
+    // The size is what was written, not the output's size afterwards (0 for `-o /dev/null`
+    // or a pipe, which the one output writer writes through).
+    let encoded = encode_model(fitted.model.kind(), &fitted.model)?;
+    write_output(output, &encoded)?;
+    let size = encoded.len();
     let selection = fitted.selection.as_ref().map(describe_selection);
     if json {
         return print_json(&json!({

@@ -97,12 +97,14 @@ fn fit_writes_a_device_a_pipe_and_a_links_file_and_refuses_a_directory() {
 
     // A device stays a device (before: renamed over, a regular file of 96 bytes).
     let null = null_device(&dir);
-    stdout(&fit(&train, &null));
+    let said = stdout(&fit(&train, &null));
     assert!(
         is_char_device(&null),
         "{} is no longer a device",
         null.display()
     );
+    // It says how many bytes went through (before: the device's size afterwards, 0).
+    assert!(said.contains(&format!("({} bytes)", model.len())), "{said}");
 
     // A named pipe gets the model (before: renamed over; the reader got nothing).
     let pipe = dir.join("pipe");
