@@ -17,27 +17,12 @@ use chronomap_core::progress::NoProgress;
 use chronomap_rosbag::cdr::{MAX_VALUES, VALUES_PER_BYTE, Value, decode};
 use chronomap_rosbag::msgdef::Schema;
 use chronomap_rosbag::{Bag, BagError, TimeSource};
-use chronomap_testutil::{data_path, scratch};
+use chronomap_testutil::{data_path, mutate, proptest_config, scratch};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngSeed};
 use support::*;
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
-
-/// Cases per property: `PROPTEST_CASES` if set, else 256.
-fn config() -> Config {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(256);
-    Config {
-        cases,
-        rng_seed: RngSeed::Fixed(20_261_205),
-        failure_persistence: None,
-        ..Config::default()
-    }
-}
 
 const LASER: &str = "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\n\
     float32 angle_increment\nfloat32 time_increment\nfloat32 scan_time\nfloat32 range_min\n\
@@ -176,27 +161,6 @@ fn read_bytes(name: &str, bytes: &[u8]) -> usize {
     peak
 }
 
-/// A mutation of `bytes`: flipped bits, overwritten, inserted or deleted bytes, a cut.
-fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
-    for &(at, kind, value) in edits {
-        if bytes.is_empty() {
-            bytes.push(value);
-            continue;
-        }
-        let at = at % bytes.len();
-        match kind % 5 {
-            0 => bytes[at] ^= 1 << (value % 8),
-            1 => bytes[at] = value,
-            2 => bytes.insert(at, value),
-            3 => {
-                bytes.remove(at);
-            }
-            _ => bytes.truncate(at),
-        }
-    }
-    bytes
-}
-
 /// The memory a reader may hold for a file of `len` bytes: a few times the file (its largest
 /// record, a decompressed chunk of it, one message, decoded values) and a fixed allowance for
 /// buffers and SQLite's page cache — never anything from a declared size.
@@ -205,7 +169,7 @@ fn bound(len: usize) -> usize {
 }
 
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(proptest_config(256, 20_261_205))]
 
     #[test]
     fn arbitrary_bytes_never_panic_a_bag_reader(

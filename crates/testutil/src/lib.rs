@@ -14,6 +14,8 @@
 //!   (`env!("CARGO_BIN_EXE_chronomap")`, which exists only when the test is compiled), then
 //!   [`stdout`] or [`json`] of a run that must succeed, [`error`] of one that must fail with
 //!   exit code 1 and [`usage_error`] of one refused with exit code 2, never with a panic.
+//! * **Hostile input**: [`proptest_config`] (reproducible cases, `PROPTEST_CASES` for a deeper
+//!   run), [`mutate`] and [`edit`] (byte mutations of real files) and [`null_device`].
 //! * **Groot2 publishers**: [`free_port_pair`] (a port whose successor is free too),
 //!   [`bt_python`] (the Python with BehaviorTree.CPP) and [`BtcppTree`] (a tree run by the real
 //!   BehaviorTree.CPP under its `Groot2Publisher`).
@@ -217,6 +219,78 @@ fn failure(out: &Output, code: i32) -> String {
     assert_eq!(out.status.code(), Some(code), "accepted: {err}");
     assert!(!err.contains("panicked"), "{err}");
     err
+}
+
+/// The configuration of a property test: `PROPTEST_CASES` cases if set, else `default_cases`,
+/// drawn from the fixed `RngSeed::Fixed(rng_seed)` so that a failure reproduces, and no failure
+/// files written beside the sources.
+pub fn proptest_config(default_cases: u32, rng_seed: u64) -> proptest::test_runner::Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(default_cases);
+    proptest::test_runner::Config {
+        cases,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(rng_seed),
+        failure_persistence: None,
+        ..proptest::test_runner::Config::default()
+    }
+}
+
+/// One edit of `bytes` at `at` (modulo their length), by `kind` modulo 5: 0 flips the bit
+/// `value % 8`, 1 overwrites the byte with `value`, 2 inserts `value`, 3 deletes the byte, 4
+/// cuts the bytes there. Empty bytes get `value`.
+pub fn edit(bytes: &mut Vec<u8>, at: usize, kind: u8, value: u8) {
+    if bytes.is_empty() {
+        bytes.push(value);
+        return;
+    }
+    let at = at % bytes.len();
+    match kind % 5 {
+        0 => bytes[at] ^= 1 << (value % 8),
+        1 => bytes[at] = value,
+        2 => bytes.insert(at, value),
+        3 => {
+            bytes.remove(at);
+        }
+        _ => bytes.truncate(at),
+    }
+}
+
+/// `bytes` after each [`edit`] of `edits` (place, kind, value) in turn: flipped bits,
+/// overwritten, inserted or deleted bytes, a cut.
+///
+/// ```
+/// use chronomap_testutil::mutate;
+///
+/// // Overwrite the byte at 4 % 3, insert at 0, cut at 3.
+/// assert_eq!(mutate(b"abc".to_vec(), &[(4, 1, b'B'), (0, 2, b'x'), (3, 4, 0)]), b"xaB");
+/// // Flip bit 0 of the last byte, delete the first.
+/// assert_eq!(mutate(b"abc".to_vec(), &[(2, 0, 8), (0, 3, 0)]), b"bb");
+/// assert_eq!(mutate(Vec::new(), &[(7, 3, b'z')]), b"z");
+/// ```
+pub fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
+    for &(at, kind, value) in edits {
+        edit(&mut bytes, at, kind, value);
+    }
+    bytes
+}
+
+/// A null character device in `dir` when this process may make one (root, who could also
+/// rename over `/dev/null` itself); otherwise `/dev/null`, which no other user can replace.
+pub fn null_device(dir: &Path) -> PathBuf {
+    let own = dir.join("null");
+    let made = Command::new("mknod")
+        .arg(&own)
+        .args(["c", "1", "3"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if made {
+        own
+    } else {
+        eprintln!("mknod is not permitted: the device is /dev/null itself");
+        PathBuf::from("/dev/null")
+    }
 }
 
 /// A loopback port whose successor is free too (a Groot2 publisher binds both).

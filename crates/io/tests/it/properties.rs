@@ -18,24 +18,9 @@ use chronomap_io::topo_files::{
 use chronomap_io::{decode_map_yaml, read_events_from, read_frame_list_from, read_pairs_from};
 use chronomap_lidar::classifier::{LoopClassifier, MODEL_KIND};
 use chronomap_registration::Cloud;
-use chronomap_testutil::repo_path;
+use chronomap_testutil::{mutate, proptest_config, repo_path};
 use chronomap_topo::TopoMap;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngSeed};
-
-/// Cases per property: `PROPTEST_CASES` if set, else 256.
-fn config() -> Config {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(256);
-    Config {
-        cases,
-        rng_seed: RngSeed::Fixed(20_261_203),
-        failure_persistence: None,
-        ..Config::default()
-    }
-}
 
 /// A reader of bytes that drops what it read: it must return, not panic, on any input.
 type Reader = fn(&[u8]);
@@ -155,29 +140,8 @@ fn seeds() -> Vec<Vec<u8>> {
     seeds
 }
 
-/// A mutation of `bytes`: flipped bits, overwritten, inserted or deleted bytes, a cut.
-fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
-    for &(at, kind, value) in edits {
-        if bytes.is_empty() {
-            bytes.push(value);
-            continue;
-        }
-        let at = at % bytes.len();
-        match kind % 5 {
-            0 => bytes[at] ^= 1 << (value % 8),
-            1 => bytes[at] = value,
-            2 => bytes.insert(at, value),
-            3 => {
-                bytes.remove(at);
-            }
-            _ => bytes.truncate(at),
-        }
-    }
-    bytes
-}
-
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(proptest_config(256, 20_261_203))]
 
     #[test]
     fn arbitrary_bytes_never_panic_a_reader(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
