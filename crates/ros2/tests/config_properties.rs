@@ -14,74 +14,13 @@
 use std::path::{Path, PathBuf};
 
 use chronomap_ros2::config::NodeConfig;
-use chronomap_testutil::repo_path;
+use chronomap_testutil::{edit, proptest_config, repo_path};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngSeed};
-
-/// Cases per property: `PROPTEST_CASES` if set, else 256.
-fn config() -> Config {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(256);
-    Config {
-        cases,
-        rng_seed: RngSeed::Fixed(20_261_205),
-        failure_persistence: None,
-        ..Config::default()
-    }
-}
 
 /// Every section and kind of value the reader knows (saved models, the edge models and the
 /// route graph are in the scratch folder: the reader checks that they can be read and
-/// written).
-const FULL: &str = "\
-/robot1/chronomap:
-  ros__parameters:
-    use_sim_time: true
-    publish_period: 2
-    map_period: 10.0
-    horizon: 600
-    save_dir: state
-    save_period: 30
-    record_observations: true
-    sync_period: 0.5
-    sync_messages: 100
-    max_map_cells: 1000000
-    memory_limit: 100000000
-    states:
-      door:
-        topic: /door
-        type: std_msgs/msg/Bool
-        model: fremen:3
-      light:
-        topic: sensors/light
-        type: std_msgs/Float32
-        model: hist:24
-        reliability: best_effort
-        depth: 5
-        probability_topic: ~/light_p
-    maps:
-      office:
-        topic: /observed_map
-        periods: day
-        order: 1
-        values: probability
-        filter_type: 1
-        filter_base: 100
-        filter_multiplier: -1
-    people:
-      lobby:
-        topic: /people
-        width: 40
-        height: 30
-        resolution: 0.5
-        origin: [-10, -7.5]
-        bin: 900
-    edges:
-      models: witham.cmt
-      geojson: out/route.geojson
-";
+/// written); the unit tests read it too.
+const FULL: &str = include_str!("full.yaml");
 
 /// The bundled configurations and [`FULL`], to mutate.
 fn seeds() -> Vec<Vec<u8>> {
@@ -129,37 +68,26 @@ const HOSTILE: &[&str] = &[
     ">-",
 ];
 
-/// A mutation of `bytes`: flipped bits, overwritten, inserted or deleted bytes, a cut, or the
-/// value after a `: ` replaced by a hostile one.
+/// A mutation of `bytes`: flipped bits, overwritten, inserted or deleted bytes, a cut
+/// ([`edit`]), or the value after a `: ` replaced by a hostile one.
 fn mutate(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
     for &(at, kind, value) in edits {
-        if bytes.is_empty() {
-            bytes.push(value);
+        if bytes.is_empty() || kind % 6 != 5 {
+            edit(&mut bytes, at, kind % 6, value);
             continue;
         }
+        // The next `: ` at or after `at`, its value up to the end of the line.
         let at = at % bytes.len();
-        match kind % 6 {
-            0 => bytes[at] ^= 1 << (value % 8),
-            1 => bytes[at] = value,
-            2 => bytes.insert(at, value),
-            3 => {
-                bytes.remove(at);
-            }
-            4 => bytes.truncate(at),
-            _ => {
-                // The next `: ` at or after `at`, its value up to the end of the line.
-                let Some(colon) = bytes[at..].windows(2).position(|w| w == b": ") else {
-                    continue;
-                };
-                let start = at + colon + 2;
-                let end = bytes[start..]
-                    .iter()
-                    .position(|&b| b == b'\n')
-                    .map_or(bytes.len(), |n| start + n);
-                let hostile = HOSTILE[usize::from(value) % HOSTILE.len()].as_bytes();
-                bytes.splice(start..end, hostile.iter().copied());
-            }
-        }
+        let Some(colon) = bytes[at..].windows(2).position(|w| w == b": ") else {
+            continue;
+        };
+        let start = at + colon + 2;
+        let end = bytes[start..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |n| start + n);
+        let hostile = HOSTILE[usize::from(value) % HOSTILE.len()].as_bytes();
+        bytes.splice(start..end, hostile.iter().copied());
     }
     bytes
 }
@@ -185,7 +113,7 @@ fn read(dir: &Path, bytes: &[u8]) {
 }
 
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(proptest_config(256, 20_261_205))]
 
     #[test]
     fn arbitrary_bytes_never_panic_the_config_reader(
@@ -219,7 +147,7 @@ fn the_seeds_read_as_expected() {
     assert_eq!(
         e.to_string(),
         format!(
-            "{}:45: edges.geojson: its folder {}: No such file or directory (os error 2)",
+            "{}:47: edges.geojson: its folder {}: No such file or directory (os error 2)",
             path.display(),
             dir.join("out").display()
         )

@@ -16,52 +16,8 @@ fn error(text: &str) -> String {
     }
 }
 
-const FULL: &str = "\
-/robot1/chronomap:
-  ros__parameters:
-    use_sim_time: true
-    publish_period: 2
-    map_period: 10.0
-    horizon: 600
-    save_dir: state
-    save_period: 30
-    record_observations: true
-    max_map_cells: 1000000
-    states:
-      door:
-        topic: /door
-        type: std_msgs/msg/Bool
-        model: fremen:3
-      light:
-        topic: sensors/light
-        type: std_msgs/Float32
-        model: hist:24
-        reliability: best_effort
-        depth: 5
-        probability_topic: ~/light_p
-    maps:
-      office:
-        topic: /observed_map
-        periods: day
-        order: 1
-        values: probability
-        filter_type: 1
-        filter_base: 100
-        filter_multiplier: -1
-    people:
-      lobby:
-        topic: /people
-        width: 40
-        height: 30
-        resolution: 0.5
-        origin: [-10, -7.5]
-        bin: 900
-        mask_topic: \"\"
-        filter_info_topic: \"\"
-    edges:
-      models: witham.cmt
-      geojson: out/route.geojson
-";
+/// Every section and kind of value the reader knows (shared with the property tests).
+const FULL: &str = include_str!("../../tests/full.yaml");
 
 #[test]
 fn a_full_file_is_read_with_its_defaults_resolved() {
