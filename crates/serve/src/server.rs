@@ -1211,18 +1211,29 @@ fn on_model<T>(
     }
 }
 
+/// The work of a request of the model `id` at `order` at each of `times`: `404` or `400` if
+/// there is no such model or order, else [`bounded`], one prediction per time.
+fn one_model_at_times(
+    registry: &Registry,
+    id: &str,
+    order: Option<usize>,
+    times: &[f64],
+) -> Result<u64, ApiError> {
+    model_entry(registry, id, "id")?
+        .with_order(order)
+        .map_err(ApiError::bad_request)?;
+    bounded(
+        times.len() as u64,
+        "times",
+        &format!("{} times", times.len()),
+        "split the request",
+    )
+}
+
 impl ModelRequest for PredictRequest {
     fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
         check_times(&self.times)?;
-        model_entry(registry, &self.id, "id")?
-            .with_order(self.order)
-            .map_err(ApiError::bad_request)?;
-        bounded(
-            self.times.len() as u64,
-            "times",
-            &format!("{} times", self.times.len()),
-            "split the request",
-        )
+        one_model_at_times(registry, &self.id, self.order, &self.times)
     }
 }
 
@@ -1530,15 +1541,7 @@ impl ModelRequest for DetectRequest {
                 self.confidence
             )));
         }
-        model_entry(registry, &self.id, "id")?
-            .with_order(self.order)
-            .map_err(ApiError::bad_request)?;
-        bounded(
-            self.times.len() as u64,
-            "times",
-            &format!("{} times", self.times.len()),
-            "split the request",
-        )
+        one_model_at_times(registry, &self.id, self.order, &self.times)
     }
 }
 
