@@ -10,27 +10,13 @@
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
+use chronomap_testutil::proptest_config;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngSeed};
 
 use super::{Candidates, salvage, verify, verify_redb};
 use crate::log::{LogRecord, decode_group, encode_group};
 use crate::registry::ModelConfig;
 use crate::store::{RedbStore, Store};
-
-/// Cases per property: `PROPTEST_CASES` if set, else 64 (each writes and reads a store file).
-fn config() -> Config {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(64);
-    Config {
-        cases,
-        rng_seed: RngSeed::Fixed(20_261_205),
-        failure_persistence: None,
-        ..Config::default()
-    }
-}
 
 /// A folder of this test process's own.
 fn scratch() -> PathBuf {
@@ -215,7 +201,8 @@ fn the_seed_store_reads_whole_read_only() {
 }
 
 proptest! {
-    #![proptest_config(config())]
+    // Fewer cases: each writes and reads a store file.
+    #![proptest_config(proptest_config(64, 20_261_205))]
 
     #[test]
     fn mutated_stores_are_read_or_refused_by_name_and_left_unchanged(

@@ -16,8 +16,8 @@ use chronomap_io::grid_file::GridFile;
 use chronomap_serve::maps::{Maps, ServedActivity};
 use chronomap_serve::store::RedbStore;
 use chronomap_serve::{Service, ServiceConfig};
+use chronomap_testutil::proptest_config;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngSeed};
 use tower::ServiceExt;
 
 const TOKEN: &str = "0123456789abcdef0123456789abcdef";
@@ -46,17 +46,19 @@ const ENDPOINTS: [(&str, &str); 20] = [
     ("GET", "/v1/activity/atc"),
 ];
 
-fn config() -> Config {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(128);
-    Config {
-        cases,
-        rng_seed: RngSeed::Fixed(20_261_203),
-        failure_persistence: None,
-        ..Config::default()
-    }
+/// A CoPA-Map of `inducing` points fitted in `iterations` on the bundled ATC grid.
+fn atc_map(inducing: usize, iterations: usize) -> CopaMap {
+    let train = chronomap_io::read_rate_samples(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
+    ))
+    .unwrap();
+    let config = CopaConfig {
+        inducing,
+        iterations,
+        ..CopaConfig::default()
+    };
+    CopaMap::fit(&train, &config).unwrap()
 }
 
 /// The maps served: `door`, a grid of three cells (a door open by day, a wall, a free cell)
@@ -70,23 +72,11 @@ fn maps() -> Maps {
         grid.observe_occupancy(t, &[if day { 0 } else { 100 }, 100, 0])
             .unwrap();
     }
-    let train = chronomap_io::read_rate_samples(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
-    ))
-    .unwrap();
-    let copa = CopaConfig {
-        inducing: 10,
-        iterations: 3,
-        ..CopaConfig::default()
-    };
     let mut maps = Maps::default();
     maps.grids
         .insert("door".into(), GridFile::State(Box::new(grid)));
-    maps.activity.insert(
-        "atc".into(),
-        ServedActivity::new(CopaMap::fit(&train, &copa).unwrap(), None),
-    );
+    maps.activity
+        .insert("atc".into(), ServedActivity::new(atc_map(10, 3), None));
     maps
 }
 
@@ -246,7 +236,7 @@ fn assert_answered(status: StatusCode, text: &str) -> Result<(), TestCaseError> 
 }
 
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(proptest_config(128, 20_261_203))]
 
     #[test]
     fn any_bytes_to_any_endpoint_get_a_client_error_or_an_answer(
@@ -456,17 +446,7 @@ fn model_requests_beyond_the_work_bound_are_refused_naming_the_field() {
 #[test]
 fn an_activity_prediction_is_bounded_by_cells_times_inducing_points_squared() {
     // A CoPA-Map of 100 inducing points (one training iteration: its shape is what counts).
-    let train = chronomap_io::read_rate_samples(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz"
-    ))
-    .unwrap();
-    let config = CopaConfig {
-        inducing: 100,
-        iterations: 1,
-        ..CopaConfig::default()
-    };
-    let model = CopaMap::fit(&train, &config).unwrap();
+    let model = atc_map(100, 1);
     assert_eq!(model.inducing_points(), 100);
     let served = ServedActivity::new(model, None);
     // Over the 24 m square of ATC: cells of 5 cm are 481 × 481 = 231,361 (under the 250,000
