@@ -219,6 +219,167 @@ fn quantile_ms(samples: &mut [f64], q: f64) -> f64 {
     1000.0 * samples[i]
 }
 
+/// The `i`-th request of client `k` of a [`Load`]: its path, its body and the counter of its
+/// answers (0 or 1).
+type Request = dyn Fn(u32, u32) -> (&'static str, Arc<String>, usize) + Send + Sync;
+
+/// Eight clients, each on a connection of its own, sending their requests back to back until
+/// stopped. A `503` must say `Retry-After: 1`; the client then waits 50 ms.
+struct Load {
+    done: Arc<AtomicBool>,
+    answered: Arc<[AtomicU64; 3]>,
+    clients: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Load {
+    fn start(served: &Served, request: Arc<Request>) -> Load {
+        let done = Arc::new(AtomicBool::new(false));
+        let answered = Arc::new([0, 1, 2].map(|_| AtomicU64::new(0)));
+        let clients = (0..8)
+            .map(|k| {
+                let (done, answered) = (Arc::clone(&done), Arc::clone(&answered));
+                let request = Arc::clone(&request);
+                let mut connection = served.connect();
+                std::thread::spawn(move || {
+                    let mut i = 0u32;
+                    while !done.load(Ordering::Acquire) {
+                        let (path, body, counter) = request(k, i);
+                        let (status, retry_after, text) = connection.send("POST", path, &body);
+                        match status {
+                            200 => {
+                                answered[counter].fetch_add(1, Ordering::AcqRel);
+                            }
+                            503 => {
+                                assert_eq!(retry_after.as_deref(), Some("1"));
+                                answered[2].fetch_add(1, Ordering::AcqRel);
+                                std::thread::sleep(Duration::from_millis(50));
+                            }
+                            _ => panic!("{path}: {status} {}", String::from_utf8_lossy(&text)),
+                        }
+                        i += 1;
+                    }
+                })
+            })
+            .collect();
+        Load {
+            done,
+            answered,
+            clients,
+        }
+    }
+
+    /// Stops the clients: the answers counted by each of the two counters, and the `503`s.
+    fn stop(self) -> [u64; 3] {
+        self.done.store(true, Ordering::Release);
+        for client in self.clients {
+            client.join().unwrap();
+        }
+        [0, 1, 2].map(|k| self.answered[k].load(Ordering::Acquire))
+    }
+}
+
+/// A prediction of the door at 12:30 on its day.
+fn door_noon() -> String {
+    serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string()
+}
+
+/// What a client of its own measures for `seconds`, after 200 ms of the load: the seconds of
+/// each `GET /v1/health` and of each [`door_noon`] prediction (5 ms apart), and the most heavy
+/// requests running and waiting at once.
+fn probe_under_load(served: &Served, seconds: f64) -> (Vec<f64>, Vec<f64>, u64) {
+    let mut probe = served.connect();
+    let door = door_noon();
+    let (mut health, mut predict) = (Vec::new(), Vec::new());
+    let mut busiest = 0;
+    let start = Instant::now();
+    std::thread::sleep(Duration::from_millis(200));
+    while start.elapsed().as_secs_f64() < seconds {
+        let t = Instant::now();
+        let now = probe.health();
+        health.push(t.elapsed().as_secs_f64());
+        busiest = busiest.max(now.heavy_running + now.heavy_waiting);
+        let t = Instant::now();
+        let (status, _, body) = probe.send("POST", "/v1/predict", &door);
+        predict.push(t.elapsed().as_secs_f64());
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    (health, predict, busiest)
+}
+
+/// The latencies of [`probe_under_load`], for a summary.
+fn latencies(health: &mut [f64], predict: &mut [f64]) -> String {
+    format!(
+        "{} health requests: p50 {:.1} ms, p99 {:.1} ms; {} door predictions: p50 {:.1} ms, \
+         p99 {:.1} ms",
+        health.len(),
+        quantile_ms(health, 0.5),
+        quantile_ms(health, 0.99),
+        predict.len(),
+        quantile_ms(predict, 0.5),
+        quantile_ms(predict, 0.99),
+    )
+}
+
+/// At least 200 health requests were answered, and 99 % of them and of the door predictions
+/// within 50 ms.
+fn assert_fast(health: &mut [f64], predict: &mut [f64], summary: &str) {
+    assert!(health.len() >= 200, "{summary}");
+    assert!(quantile_ms(health, 0.99) <= 50.0, "{summary}");
+    assert!(quantile_ms(predict, 0.99) <= 50.0, "{summary}");
+}
+
+/// Waits until the service computes a heavy request (at most 20 s).
+fn wait_until_heavy_runs(probe: &mut Connection) {
+    let start = Instant::now();
+    while probe.health().heavy_running == 0 {
+        assert!(start.elapsed() < Duration::from_secs(20), "it never ran");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The health once the heavy request a client left stopped, which must be within `limit` of
+/// now: nothing waits, and it is counted as cancelled.
+fn health_once_stopped(probe: &mut Connection, limit: Duration) -> Health {
+    let gone = Instant::now();
+    let health = loop {
+        let health = probe.health();
+        if health.heavy_running == 0 {
+            break health;
+        }
+        assert!(
+            gone.elapsed() < limit,
+            "still computing {:.1} s after the client left",
+            gone.elapsed().as_secs_f64()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert_eq!(
+        (health.heavy_waiting, health.heavy_cancelled),
+        (0, 1),
+        "{health:?}"
+    );
+    health
+}
+
+/// The first 300 characters of a `503` answer with `Retry-After: 1`.
+fn refused_busy((status, retry_after, body): (u16, Option<String>, Vec<u8>)) -> String {
+    let text: String = String::from_utf8_lossy(&body).chars().take(300).collect();
+    assert_eq!((status, retry_after.as_deref()), (503, Some("1")), "{text}");
+    text
+}
+
+/// A service whose heavy pool has one worker and no queue.
+fn one_heavy_worker(name: &str) -> Served {
+    Served::start(
+        name,
+        HeavyLimits {
+            workers: 1,
+            queue: 0,
+        },
+    )
+}
+
 #[test]
 fn health_and_a_door_prediction_stay_fast_while_eight_clients_ask_for_grid_and_activity_maps() {
     let _alone = MEASURING
@@ -248,110 +409,46 @@ fn health_and_a_door_prediction_stay_fast_while_eight_clients_ask_for_grid_and_a
     }
     assert!(modelled > 1000, "{modelled} cells between 0 and 1");
 
-    let seconds = 4.0;
-    let done = Arc::new(AtomicBool::new(false));
-    let answered = Arc::new([0, 1, 2].map(|_| AtomicU64::new(0)));
-    let clients: Vec<_> = (0..8)
-        .map(|k| {
-            let (done, answered) = (Arc::clone(&done), Arc::clone(&answered));
-            let mut connection = served.connect();
-            std::thread::spawn(move || {
-                let mut i = 0u32;
-                while !done.load(Ordering::Acquire) {
-                    let (path, body) = if (i + k).is_multiple_of(2) {
-                        let time = OFFICE_NOON + 600.0 * f64::from(i);
-                        (
-                            "/v1/grid/office/predict",
-                            serde_json::json!({ "time": time }),
-                        )
-                    } else {
-                        let t = 5.0 + f64::from(i % 7);
-                        ("/v1/activity/atc/predict", serde_json::json!({ "t": t }))
-                    };
-                    let (status, retry_after, text) =
-                        connection.send("POST", path, &body.to_string());
-                    match status {
-                        200 => {
-                            answered[usize::from(path.contains("activity"))]
-                                .fetch_add(1, Ordering::AcqRel);
-                        }
-                        503 => {
-                            assert_eq!(retry_after.as_deref(), Some("1"));
-                            answered[2].fetch_add(1, Ordering::AcqRel);
-                            std::thread::sleep(Duration::from_millis(50));
-                        }
-                        _ => panic!("{path}: {status} {}", String::from_utf8_lossy(&text)),
-                    }
-                    i += 1;
-                }
-            })
-        })
-        .collect();
-
-    let mut probe = served.connect();
-    let door = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string();
-    let (mut health, mut predict) = (Vec::new(), Vec::new());
-    let start = Instant::now();
-    std::thread::sleep(Duration::from_millis(200));
-    while start.elapsed().as_secs_f64() < seconds {
-        let t = Instant::now();
-        probe.health();
-        health.push(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        let (status, _, body) = probe.send("POST", "/v1/predict", &door);
-        predict.push(t.elapsed().as_secs_f64());
-        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    done.store(true, Ordering::Release);
-    for client in clients {
-        client.join().unwrap();
-    }
-    let [grids, activity, refused] = [0, 1, 2].map(|k| answered[k].load(Ordering::Acquire));
+    let load = Load::start(
+        &served,
+        Arc::new(|k, i| {
+            if (i + k).is_multiple_of(2) {
+                let time = OFFICE_NOON + 600.0 * f64::from(i);
+                let body = serde_json::json!({ "time": time }).to_string();
+                ("/v1/grid/office/predict", Arc::new(body), 0)
+            } else {
+                let t = 5.0 + f64::from(i % 7);
+                let body = serde_json::json!({ "t": t }).to_string();
+                ("/v1/activity/atc/predict", Arc::new(body), 1)
+            }
+        }),
+    );
+    let (mut health, mut predict, _) = probe_under_load(&served, 4.0);
+    let [grids, activity, refused] = load.stop();
     let summary = format!(
-        "{} health requests: p50 {:.1} ms, p99 {:.1} ms; {} door predictions: p50 {:.1} ms, \
-         p99 {:.1} ms; under load: {grids} grid maps, {activity} activity maps, {refused} 503",
-        health.len(),
-        quantile_ms(&mut health, 0.5),
-        quantile_ms(&mut health, 0.99),
-        predict.len(),
-        quantile_ms(&mut predict, 0.5),
-        quantile_ms(&mut predict, 0.99),
+        "{}; under load: {grids} grid maps, {activity} activity maps, {refused} 503",
+        latencies(&mut health, &mut predict)
     );
     eprintln!("{summary}");
-    assert!(health.len() >= 200, "{summary}");
     assert!(grids >= 8 && activity >= 8, "{summary}");
-    assert!(quantile_ms(&mut health, 0.99) <= 50.0, "{summary}");
-    assert!(quantile_ms(&mut predict, 0.99) <= 50.0, "{summary}");
+    assert_fast(&mut health, &mut predict, &summary);
 }
 
 #[test]
 fn an_abandoned_prediction_stops_and_a_full_pool_answers_503_with_retry_after() {
     // One worker, nobody waiting: a second heavy request while one computes is refused.
-    let served = Served::start(
-        "abandoned",
-        HeavyLimits {
-            workers: 1,
-            queue: 0,
-        },
-    );
+    let served = one_heavy_worker("abandoned");
     let mut probe = served.connect();
     // Cells of 5 cm over the 24 m square of ATC: 231,361 cells, seconds of work.
     let slow = serde_json::json!({"t": 5.0, "cell": 0.05}).to_string();
     let mut abandoned = served.connect();
     abandoned.write("POST", "/v1/activity/atc/predict", &slow);
-    let start = Instant::now();
-    while probe.health().heavy_running == 0 {
-        assert!(start.elapsed() < Duration::from_secs(20), "it never ran");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let (status, retry_after, body) = served.connect().send(
+    wait_until_heavy_runs(&mut probe);
+    let text = refused_busy(served.connect().send(
         "POST",
         "/v1/grid/office/predict",
         &serde_json::json!({ "time": OFFICE_NOON }).to_string(),
-    );
-    let text: String = String::from_utf8_lossy(&body).chars().take(300).collect();
-    assert_eq!((status, retry_after.as_deref()), (503, Some("1")), "{text}");
+    ));
     assert!(text.contains("--heavy-workers"), "{text}");
     // Cheap requests are answered meanwhile.
     let (status, _, body) = probe.send("GET", "/v1/activity/atc", "");
@@ -359,24 +456,7 @@ fn an_abandoned_prediction_stops_and_a_full_pool_answers_503_with_retry_after() 
 
     // The client goes away: the prediction stops within a chunk of 4096 cells.
     drop(abandoned);
-    let gone = Instant::now();
-    let health = loop {
-        let health = probe.health();
-        if health.heavy_running == 0 {
-            break health;
-        }
-        assert!(
-            gone.elapsed() < Duration::from_secs(2),
-            "still computing {:.1} s after the client left",
-            gone.elapsed().as_secs_f64()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    assert_eq!(
-        (health.heavy_waiting, health.heavy_cancelled),
-        (0, 1),
-        "{health:?}"
-    );
+    health_once_stopped(&mut probe, Duration::from_secs(2));
     // The worker is free again.
     let (status, _, body) = probe.send(
         "POST",
@@ -420,129 +500,49 @@ fn health_and_a_door_prediction_stay_fast_while_eight_clients_send_maximal_predi
     let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
     assert_eq!(answer["orders"].as_array().unwrap().len(), 85);
 
-    let seconds = 4.0;
-    let done = Arc::new(AtomicBool::new(false));
-    let answered = Arc::new([0, 1, 2].map(|_| AtomicU64::new(0)));
-    let clients: Vec<_> = (0..8)
-        .map(|k| {
-            let (done, answered) = (Arc::clone(&done), Arc::clone(&answered));
-            let (predict, evaluate) = (Arc::clone(&predict), Arc::clone(&evaluate));
-            let mut connection = served.connect();
-            std::thread::spawn(move || {
-                while !done.load(Ordering::Acquire) {
-                    let (path, body) = if k % 2 == 0 {
-                        ("/v1/predict", &*predict)
-                    } else {
-                        ("/v1/evaluate", &*evaluate)
-                    };
-                    let (status, retry_after, text) = connection.send("POST", path, body);
-                    match status {
-                        200 => {
-                            answered[k % 2].fetch_add(1, Ordering::AcqRel);
-                        }
-                        503 => {
-                            assert_eq!(retry_after.as_deref(), Some("1"));
-                            answered[2].fetch_add(1, Ordering::AcqRel);
-                            std::thread::sleep(Duration::from_millis(50));
-                        }
-                        _ => panic!("{path}: {status} {}", String::from_utf8_lossy(&text)),
-                    }
-                }
-            })
-        })
-        .collect();
-
-    let mut probe = served.connect();
-    let door = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string();
-    let (mut health, mut door_times) = (Vec::new(), Vec::new());
-    let mut busiest = 0;
-    let start = Instant::now();
-    std::thread::sleep(Duration::from_millis(200));
-    while start.elapsed().as_secs_f64() < seconds {
-        let t = Instant::now();
-        let now = probe.health();
-        health.push(t.elapsed().as_secs_f64());
-        busiest = busiest.max(now.heavy_running + now.heavy_waiting);
-        let t = Instant::now();
-        let (status, _, body) = probe.send("POST", "/v1/predict", &door);
-        door_times.push(t.elapsed().as_secs_f64());
-        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    done.store(true, Ordering::Release);
-    for client in clients {
-        client.join().unwrap();
-    }
-    let [predicts, evaluates, refused] = [0, 1, 2].map(|k| answered[k].load(Ordering::Acquire));
+    let load = Load::start(
+        &served,
+        Arc::new(move |k, _| {
+            if k % 2 == 0 {
+                ("/v1/predict", Arc::clone(&predict), 0)
+            } else {
+                ("/v1/evaluate", Arc::clone(&evaluate), 1)
+            }
+        }),
+    );
+    let (mut health, mut door_times, busiest) = probe_under_load(&served, 4.0);
+    let [predicts, evaluates, refused] = load.stop();
     let summary = format!(
-        "{} health requests: p50 {:.1} ms, p99 {:.1} ms; {} door predictions: p50 {:.1} ms, \
-         p99 {:.1} ms; under load: {predicts} predictions of 2,000,000 times, {evaluates} \
-         evaluations of 1,999,965 predictions, {refused} 503, at most {busiest} heavy requests \
-         admitted at once",
-        health.len(),
-        quantile_ms(&mut health, 0.5),
-        quantile_ms(&mut health, 0.99),
-        door_times.len(),
-        quantile_ms(&mut door_times, 0.5),
-        quantile_ms(&mut door_times, 0.99),
+        "{}; under load: {predicts} predictions of 2,000,000 times, {evaluates} evaluations of \
+         1,999,965 predictions, {refused} 503, at most {busiest} heavy requests admitted at once",
+        latencies(&mut health, &mut door_times)
     );
     eprintln!("{summary}");
-    assert!(health.len() >= 200, "{summary}");
     // The maximal requests went to the heavy pool, and were answered.
     assert!(busiest >= 4, "{summary}");
     assert!(predicts >= 1 && evaluates >= 1, "{summary}");
-    assert!(quantile_ms(&mut health, 0.99) <= 50.0, "{summary}");
-    assert!(quantile_ms(&mut door_times, 0.99) <= 50.0, "{summary}");
+    assert_fast(&mut health, &mut door_times, &summary);
 }
 
 #[test]
 fn an_abandoned_evaluation_stops_between_orders() {
-    let served = Served::start(
-        "abandoned-evaluate",
-        HeavyLimits {
-            workers: 1,
-            queue: 0,
-        },
-    );
+    let served = one_heavy_worker("abandoned-evaluate");
     let mut probe = served.connect();
     let mut abandoned = served.connect();
     // 1,999,965 predictions, each of an order up to 84: seconds of work.
     abandoned.write("POST", "/v1/evaluate", &maximal_evaluate());
-    let start = Instant::now();
-    while probe.health().heavy_running == 0 {
-        assert!(start.elapsed() < Duration::from_secs(20), "it never ran");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_until_heavy_runs(&mut probe);
     // A second large request is refused while it computes; a small one is answered.
-    let (status, retry_after, body) =
+    refused_busy(
         served
             .connect()
-            .send("POST", "/v1/evaluate", &maximal_evaluate());
-    let text: String = String::from_utf8_lossy(&body).chars().take(300).collect();
-    assert_eq!((status, retry_after.as_deref()), (503, Some("1")), "{text}");
-    let door = serde_json::json!({"id": "door", "times": [1.7e9 + 12.5 * 3600.0]}).to_string();
-    let (status, _, body) = probe.send("POST", "/v1/predict", &door);
+            .send("POST", "/v1/evaluate", &maximal_evaluate()),
+    );
+    let (status, _, body) = probe.send("POST", "/v1/predict", &door_noon());
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
 
     drop(abandoned);
-    let gone = Instant::now();
-    let health = loop {
-        let health = probe.health();
-        if health.heavy_running == 0 {
-            break health;
-        }
-        assert!(
-            gone.elapsed() < Duration::from_secs(1),
-            "still computing {:.1} s after the client left",
-            gone.elapsed().as_secs_f64()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    assert_eq!(
-        (health.heavy_waiting, health.heavy_cancelled),
-        (0, 1),
-        "{health:?}"
-    );
+    let health = health_once_stopped(&mut probe, Duration::from_secs(1));
     assert_eq!(
         (health.light_running, health.light_cancelled),
         (0, 0),
