@@ -131,20 +131,7 @@ fn a_symbolic_link_stays_a_link_and_the_file_it_points_to_is_replaced() {
 #[test]
 fn a_character_device_is_written_through_and_stays_a_device() {
     let dir = scratch("device");
-    // As root (who could rename over /dev/null), a null device of our own; otherwise
-    // /dev/null itself, which no other user can replace.
-    let own = dir.join("null");
-    let made = Command::new("mknod")
-        .arg(&own)
-        .args(["c", "1", "3"])
-        .status()
-        .is_ok_and(|s| s.success());
-    let null = if made {
-        own
-    } else {
-        eprintln!("mknod is not permitted: writing to /dev/null itself");
-        PathBuf::from("/dev/null")
-    };
+    let null = chronomap_testutil::null_device(&dir);
     write_output(&null, b"nothing to keep").unwrap();
     let mut output = Output::create(&null).unwrap();
     assert!(output.is_stream());
