@@ -2,7 +2,7 @@
 //! and the scratch directory of this test binary.
 
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
 use chronomap_io::{TimeSeries, read_pairs, read_test_set};
@@ -53,6 +53,31 @@ pub fn closed_pipe(args: &[&str], lines: usize) -> (String, String) {
     assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
     assert!(!err.contains("panicked"), "{args:?}: {err}");
     (read, err)
+}
+
+/// `chronomap ARGS` in a mount namespace of its own where the folder `ro` is `data` mounted
+/// read-only (a read-only bind mount, which needs root); `None`, after saying so, where
+/// `unshare -m` is not permitted.
+pub fn on_read_only_mount(data: &Path, ro: &Path, args: &[&str]) -> Option<Output> {
+    let probe = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "true"])
+        .status();
+    if !probe.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: `unshare -m` is not permitted (needs root)");
+        return None;
+    }
+    let script = format!(
+        "mount --bind {data} {ro} && mount -o remount,bind,ro {ro} && exec {exe} {args}",
+        data = data.display(),
+        ro = ro.display(),
+        exe = env!("CARGO_BIN_EXE_chronomap"),
+        args = args.join(" "),
+    );
+    let run = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "sh", "-c", &script])
+        .output()
+        .unwrap();
+    Some(run)
 }
 
 /// A fresh scratch directory for one test (`target/tmp/TEST`).

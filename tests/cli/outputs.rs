@@ -5,29 +5,14 @@
 
 use std::io::Read;
 use std::os::unix::fs::FileTypeExt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::mpsc;
 use std::time::Duration;
 
-use crate::common::{chronomap, error, repo, scratch, stdout};
+use chronomap_testutil::null_device;
 
-/// A null character device in `dir` when this process may make one (root, who could also
-/// rename over `/dev/null` itself); otherwise `/dev/null`, which no other user can replace.
-fn null_device(dir: &Path) -> PathBuf {
-    let own = dir.join("null");
-    let made = Command::new("mknod")
-        .arg(&own)
-        .args(["c", "1", "3"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if made {
-        own
-    } else {
-        eprintln!("mknod is not permitted: the device is /dev/null itself");
-        PathBuf::from("/dev/null")
-    }
-}
+use crate::common::{chronomap, error, repo, scratch, stdout};
 
 fn is_char_device(path: &Path) -> bool {
     std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_char_device())
@@ -206,41 +191,9 @@ mod export {
     use std::path::Path;
     use std::time::SystemTime;
 
-    use chronomap_serve::log::{LogRecord, encode_group};
-    use chronomap_serve::registry::ModelConfig;
-    use chronomap_serve::store::{RedbStore, Store};
-
     use super::*;
-    use crate::common::{json, usage_error};
-
-    /// A redb store in `dir/data` of one door observed 4 times (3 commit groups); its data
-    /// directory.
-    fn small_store(dir: &Path) -> PathBuf {
-        let data = dir.join("data");
-        std::fs::create_dir_all(&data).unwrap();
-        let store = RedbStore::open(data.join("chronomap.redb")).unwrap();
-        let groups = [
-            vec![LogRecord::Create {
-                id: "door".into(),
-                config: ModelConfig::parse(None, None).unwrap(),
-            }],
-            vec![LogRecord::Observe {
-                id: "door".into(),
-                times: vec![0.0, 60.0],
-                values: vec![0.0, 1.0],
-            }],
-            vec![LogRecord::Observe {
-                id: "door".into(),
-                times: vec![120.0, 180.0],
-                values: vec![1.0, 0.0],
-            }],
-        ];
-        for (i, records) in groups.iter().enumerate() {
-            let seq = i as u64 + 1;
-            store.append(seq, &encode_group(seq, records)).unwrap();
-        }
-        data
-    }
+    use crate::common::{json, on_read_only_mount, usage_error};
+    use crate::service::small_store;
 
     fn export(data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
         let mut args = vec![
@@ -307,25 +260,23 @@ mod export {
         let ro = dir.join("ro");
         std::fs::create_dir(&ro).unwrap();
         let out = dir.join("out");
-        let script = format!(
-            "mount --bind {data} {ro} && mount -o remount,bind,ro {ro} && \
-             exec {exe} export parquet --data {ro} -o {out} --no-predictions --json",
-            data = data.display(),
-            ro = ro.display(),
-            out = out.display(),
-            exe = env!("CARGO_BIN_EXE_chronomap"),
-        );
-        let probe = Command::new("unshare")
-            .args(["-m", "--propagation", "private", "true"])
-            .status();
-        if !probe.is_ok_and(|s| s.success()) {
-            eprintln!("skipped: `unshare -m` is not permitted (needs root)");
+        let (ro_text, out_text) = (ro.display().to_string(), out.display().to_string());
+        let Some(run) = on_read_only_mount(
+            &data,
+            &ro,
+            &[
+                "export",
+                "parquet",
+                "--data",
+                &ro_text,
+                "-o",
+                &out_text,
+                "--no-predictions",
+                "--json",
+            ],
+        ) else {
             return;
-        }
-        let run = Command::new("unshare")
-            .args(["-m", "--propagation", "private", "sh", "-c", &script])
-            .output()
-            .unwrap();
+        };
         let err = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(0), "{err}");
         let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();

@@ -8,40 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, SystemTime};
 
-use chronomap_serve::log::{LogRecord, encode_group};
-use chronomap_serve::registry::ModelConfig;
-use chronomap_serve::store::{RedbStore, Store};
-
-use crate::common::{chronomap, scratch};
-use crate::service::{Backend, free_port, start};
-
-/// A store of one model "door" with four observations in three log entries.
-fn small_store(dir: &Path) -> PathBuf {
-    let data = dir.join("data");
-    std::fs::create_dir_all(&data).unwrap();
-    let store = RedbStore::open(data.join("chronomap.redb")).unwrap();
-    let groups = [
-        vec![LogRecord::Create {
-            id: "door".into(),
-            config: ModelConfig::parse(None, None).unwrap(),
-        }],
-        vec![LogRecord::Observe {
-            id: "door".into(),
-            times: vec![0.0, 60.0],
-            values: vec![0.0, 1.0],
-        }],
-        vec![LogRecord::Observe {
-            id: "door".into(),
-            times: vec![120.0, 180.0],
-            values: vec![1.0, 0.0],
-        }],
-    ];
-    for (i, records) in groups.iter().enumerate() {
-        let seq = i as u64 + 1;
-        store.append(seq, &encode_group(seq, records)).unwrap();
-    }
-    data
-}
+use crate::common::{chronomap, on_read_only_mount, scratch};
+use crate::service::{Backend, Server, free_port, small_store, start};
 
 /// Every file of the folder with its bytes and modification time, and the folder's own time.
 fn snapshot(dir: &Path) -> (Vec<(String, Vec<u8>, SystemTime)>, SystemTime) {
@@ -58,6 +26,26 @@ fn snapshot(dir: &Path) -> (Vec<(String, Vec<u8>, SystemTime)>, SystemTime) {
         .collect();
     files.sort();
     (files, std::fs::metadata(dir).unwrap().modified().unwrap())
+}
+
+/// `chronomap serve` on a new redb store in `data` that has learnt `door` (`fremen:2`) from
+/// three observations, one log entry.
+fn serving_a_door(data: &Path) -> Server {
+    let server = start(data, free_port(), &Backend::Redb, &[]);
+    let client =
+        chronomap_client::Client::new(&server.url, Some(crate::service::token(data))).unwrap();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+        .block_on(client.add_values(
+            "door",
+            &[0.0, 60.0, 120.0],
+            &[0.0, 1.0, 1.0],
+            Some("fremen:2"),
+        ))
+        .unwrap();
+    server
 }
 
 fn serve(args: &[&str]) -> (i32, String, String) {
@@ -152,21 +140,7 @@ fn serve_check_and_salvage_refuse_an_empty_or_foreign_file_and_leave_it() {
 fn serve_check_of_a_killed_store_verifies_a_repaired_copy() {
     let dir = scratch("read_only_check_killed");
     let data = dir.join("data");
-    let server = start(&data, free_port(), &Backend::Redb, &[]);
-    let client =
-        chronomap_client::Client::new(&server.url, Some(crate::service::token(&data))).unwrap();
-    tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap()
-        .block_on(client.add_values(
-            "door",
-            &[0.0, 60.0, 120.0],
-            &[0.0, 1.0, 1.0],
-            Some("fremen:2"),
-        ))
-        .unwrap();
-    server.kill();
+    serving_a_door(&data).kill();
     let before = snapshot(&data);
     std::thread::sleep(Duration::from_millis(20));
     let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--check"]);
@@ -192,24 +166,11 @@ fn serve_check_reads_a_store_on_a_read_only_file_system() {
     let data = small_store(&dir);
     let ro = dir.join("ro");
     std::fs::create_dir(&ro).unwrap();
-    let probe = Command::new("unshare")
-        .args(["-m", "--propagation", "private", "true"])
-        .status();
-    if !probe.is_ok_and(|s| s.success()) {
-        eprintln!("skipped: `unshare -m` is not permitted (needs root)");
+    let ro_text = ro.display().to_string();
+    let Some(run) = on_read_only_mount(&data, &ro, &["serve", "--data", &ro_text, "--check"])
+    else {
         return;
-    }
-    let script = format!(
-        "mount --bind {data} {ro} && mount -o remount,bind,ro {ro} && \
-         exec {exe} serve --data {ro} --check",
-        data = data.display(),
-        ro = ro.display(),
-        exe = env!("CARGO_BIN_EXE_chronomap"),
-    );
-    let run = Command::new("unshare")
-        .args(["-m", "--propagation", "private", "sh", "-c", &script])
-        .output()
-        .unwrap();
+    };
     let out = String::from_utf8_lossy(&run.stdout);
     let err = String::from_utf8_lossy(&run.stderr);
     // Before: "damaged: cannot open or create the file: Read-only file system", exit 1.
@@ -434,21 +395,7 @@ fn export_of_mutated_stores_reads_or_refuses_by_name_and_changes_nothing() {
 fn serve_salvage_keeps_the_damaged_file_as_it_was_and_leaves_a_held_store_alone() {
     let dir = scratch("read_only_salvage_kept");
     let data = dir.join("data");
-    let server = start(&data, free_port(), &Backend::Redb, &[]);
-    let client =
-        chronomap_client::Client::new(&server.url, Some(crate::service::token(&data))).unwrap();
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    runtime
-        .block_on(client.add_values(
-            "door",
-            &[0.0, 60.0, 120.0],
-            &[0.0, 1.0, 1.0],
-            Some("fremen:2"),
-        ))
-        .unwrap();
+    let server = serving_a_door(&data);
 
     let before = snapshot(&data);
     let (code, stdout, stderr) = serve(&["--data", data.to_str().unwrap(), "--salvage"]);

@@ -3,7 +3,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -82,6 +82,39 @@ macro_rules! on_each_backend {
     };
 }
 pub(crate) use on_each_backend;
+
+/// A redb store in `dir/data` of one model, `door`, observed 4 times in 3 log entries; its data
+/// folder.
+pub fn small_store(dir: &Path) -> PathBuf {
+    use chronomap_serve::log::{LogRecord, encode_group};
+    use chronomap_serve::registry::ModelConfig;
+    use chronomap_serve::store::{RedbStore, Store};
+
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let store = RedbStore::open(data.join("chronomap.redb")).unwrap();
+    let groups = [
+        vec![LogRecord::Create {
+            id: "door".into(),
+            config: ModelConfig::parse(None, None).unwrap(),
+        }],
+        vec![LogRecord::Observe {
+            id: "door".into(),
+            times: vec![0.0, 60.0],
+            values: vec![0.0, 1.0],
+        }],
+        vec![LogRecord::Observe {
+            id: "door".into(),
+            times: vec![120.0, 180.0],
+            values: vec![1.0, 0.0],
+        }],
+    ];
+    for (i, records) in groups.iter().enumerate() {
+        let seq = i as u64 + 1;
+        store.append(seq, &encode_group(seq, records)).unwrap();
+    }
+    data
+}
 
 /// A running `chronomap serve`.
 pub struct Server {
