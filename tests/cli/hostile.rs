@@ -158,112 +158,15 @@ fn make(spec: &str, corpus: &Path, out: &Path) {
     }
 }
 
-/// An MCAP file (no chunks, no CRCs) whose one schema calls itself `std_msgs/msg/Bool` but is a
-/// sequence of messages nested `levels` deep around one `bool`, with one message on `/deep` of
-/// `n` such elements (one byte each on the wire).
-fn nested_mcap(levels: usize, n: usize) -> Vec<u8> {
-    let string = |s: &[u8]| [&(s.len() as u32).to_le_bytes()[..], s].concat();
-    let record =
-        |op: u8, body: &[u8]| [&[op][..], &(body.len() as u64).to_le_bytes(), body].concat();
-    let sep = "=".repeat(80);
-    let mut text = String::from("N1[] items\n");
-    for i in 1..levels {
-        text.push_str(&format!("{sep}\nMSG: std_msgs/N{i}\nN{} x\n", i + 1));
-    }
-    text.push_str(&format!("{sep}\nMSG: std_msgs/N{levels}\nbool b\n"));
-    let schema = [
-        &1u16.to_le_bytes()[..],
-        &string(b"std_msgs/msg/Bool"),
-        &string(b"ros2msg"),
-        &string(text.as_bytes()),
-    ]
-    .concat();
-    let channel = [
-        &1u16.to_le_bytes()[..],
-        &1u16.to_le_bytes(),
-        &string(b"/deep"),
-        &string(b"cdr"),
-        &0u32.to_le_bytes(),
-    ]
-    .concat();
-    let mut cdr = vec![0, 1, 0, 0];
-    cdr.extend_from_slice(&(n as u32).to_le_bytes());
-    cdr.resize(8 + n, 1);
-    let message = [
-        &1u16.to_le_bytes()[..],
-        &0u32.to_le_bytes(),
-        &[0u8; 16],
-        &cdr,
-    ]
-    .concat();
-    let magic = b"\x89MCAP0\r\n";
-    [
-        &magic[..],
-        &record(
-            0x01,
-            &[string(b"ros2"), string(b"chronomap hostile corpus")].concat(),
-        ),
-        &record(0x03, &schema),
-        &record(0x04, &channel),
-        &record(0x05, &message),
-        &record(0x0F, &0u32.to_le_bytes()),
-        &record(0x02, &[0u8; 20]),
-        magic,
-    ]
-    .concat()
-}
-
-/// An MCAP file (no chunks, no CRCs) whose one schema, `a/msg/Wide`, has `fields` fields `int8
-/// f0` … and then `f0` once more, with one message on `/wide`.
-fn wide_mcap(fields: usize) -> Vec<u8> {
-    let string = |s: &[u8]| [&(s.len() as u32).to_le_bytes()[..], s].concat();
-    let record =
-        |op: u8, body: &[u8]| [&[op][..], &(body.len() as u64).to_le_bytes(), body].concat();
-    let mut text: String = (0..fields).map(|i| format!("int8 f{i}\n")).collect();
-    text.push_str("int8 f0\n");
-    let schema = [
-        &1u16.to_le_bytes()[..],
-        &string(b"a/msg/Wide"),
-        &string(b"ros2msg"),
-        &string(text.as_bytes()),
-    ]
-    .concat();
-    let channel = [
-        &1u16.to_le_bytes()[..],
-        &1u16.to_le_bytes(),
-        &string(b"/wide"),
-        &string(b"cdr"),
-        &0u32.to_le_bytes(),
-    ]
-    .concat();
-    let message = [
-        &1u16.to_le_bytes()[..],
-        &0u32.to_le_bytes(),
-        &[0u8; 16],
-        &[0, 1, 0, 0, 0],
-    ]
-    .concat();
-    let magic = b"\x89MCAP0\r\n";
-    [
-        &magic[..],
-        &record(
-            0x01,
-            &[string(b"ros2"), string(b"chronomap hostile corpus")].concat(),
-        ),
-        &record(0x03, &schema),
-        &record(0x04, &channel),
-        &record(0x05, &message),
-        &record(0x0F, &0u32.to_le_bytes()),
-        &record(0x02, &[0u8; 20]),
-        magic,
-    ]
-    .concat()
-}
-
-/// A minimal MCAP file (header, schema, channel, three messages, data end, footer; no chunks
-/// or summary) of `std_msgs/msg/Bool` on the topic `/xxx…` of `topic` characters; with `ty`
-/// > 0, the schema's type name is `std_msgs/msg/Bxxx…` of `ty` characters instead.
-fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
+/// An MCAP file (header, schema, channel, `messages`, data end, footer; no chunks, CRCs or
+/// summary) of one schema, `ty` in ROS 2 `definition`, on `topic`: each message its sequence
+/// number, its log and publish time (ns) and its CDR bytes.
+fn one_topic_mcap(
+    ty: &str,
+    definition: &str,
+    topic: &str,
+    messages: &[(u32, u64, &[u8])],
+) -> Vec<u8> {
     fn string(out: &mut Vec<u8>, s: &str) {
         out.extend_from_slice(&(s.len() as u32).to_le_bytes());
         out.extend_from_slice(s.as_bytes());
@@ -274,12 +177,6 @@ fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
         out.extend_from_slice(body);
     }
     const MAGIC: &[u8] = b"\x89MCAP0\r\n";
-    let topic = format!("/{}", "x".repeat(topic.max(2) - 1));
-    let ty = if ty == 0 {
-        "std_msgs/msg/Bool".to_owned()
-    } else {
-        format!("std_msgs/msg/B{}", "x".repeat(ty.saturating_sub(14)))
-    };
     let mut out = MAGIC.to_vec();
     let mut body = Vec::new();
     string(&mut body, "ros2");
@@ -287,31 +184,74 @@ fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
     record(&mut out, 0x01, &body);
     body.clear();
     body.extend_from_slice(&1u16.to_le_bytes());
-    string(&mut body, &ty);
+    string(&mut body, ty);
     string(&mut body, "ros2msg");
-    string(&mut body, "bool data");
+    string(&mut body, definition);
     record(&mut out, 0x03, &body);
     body.clear();
     body.extend_from_slice(&1u16.to_le_bytes());
     body.extend_from_slice(&1u16.to_le_bytes());
-    string(&mut body, &topic);
+    string(&mut body, topic);
     string(&mut body, "cdr");
     body.extend_from_slice(&0u32.to_le_bytes());
     record(&mut out, 0x04, &body);
-    for i in 0..3u32 {
-        let ns = (1_700_000_000 + 60 * u64::from(i)) * 1_000_000_000;
+    for &(sequence, ns, cdr) in messages {
         body.clear();
         body.extend_from_slice(&1u16.to_le_bytes());
-        body.extend_from_slice(&i.to_le_bytes());
+        body.extend_from_slice(&sequence.to_le_bytes());
         body.extend_from_slice(&ns.to_le_bytes());
         body.extend_from_slice(&ns.to_le_bytes());
-        body.extend_from_slice(&[0, 1, 0, 0, (i % 2) as u8, 0, 0, 0]);
+        body.extend_from_slice(cdr);
         record(&mut out, 0x05, &body);
     }
     record(&mut out, 0x0F, &0u32.to_le_bytes());
     record(&mut out, 0x02, &[0u8; 20]);
     out.extend_from_slice(MAGIC);
     out
+}
+
+/// An MCAP file ([`one_topic_mcap`]) whose one schema calls itself `std_msgs/msg/Bool` but is a
+/// sequence of messages nested `levels` deep around one `bool`, with one message on `/deep` of
+/// `n` such elements (one byte each on the wire).
+fn nested_mcap(levels: usize, n: usize) -> Vec<u8> {
+    let sep = "=".repeat(80);
+    let mut text = String::from("N1[] items\n");
+    for i in 1..levels {
+        text.push_str(&format!("{sep}\nMSG: std_msgs/N{i}\nN{} x\n", i + 1));
+    }
+    text.push_str(&format!("{sep}\nMSG: std_msgs/N{levels}\nbool b\n"));
+    let mut cdr = vec![0, 1, 0, 0];
+    cdr.extend_from_slice(&(n as u32).to_le_bytes());
+    cdr.resize(8 + n, 1);
+    one_topic_mcap("std_msgs/msg/Bool", &text, "/deep", &[(0, 0, &cdr)])
+}
+
+/// An MCAP file ([`one_topic_mcap`]) whose one schema, `a/msg/Wide`, has `fields` fields `int8
+/// f0` … and then `f0` once more, with one message on `/wide`.
+fn wide_mcap(fields: usize) -> Vec<u8> {
+    let mut text: String = (0..fields).map(|i| format!("int8 f{i}\n")).collect();
+    text.push_str("int8 f0\n");
+    one_topic_mcap("a/msg/Wide", &text, "/wide", &[(0, 0, &[0, 1, 0, 0, 0])])
+}
+
+/// A minimal MCAP file ([`one_topic_mcap`]) of three `std_msgs/msg/Bool` messages a minute
+/// apart on the topic `/xxx…` of `topic` characters; with `ty` > 0, the schema's type name is
+/// `std_msgs/msg/Bxxx…` of `ty` characters instead.
+fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
+    let topic = format!("/{}", "x".repeat(topic.max(2) - 1));
+    let ty = if ty == 0 {
+        "std_msgs/msg/Bool".to_owned()
+    } else {
+        format!("std_msgs/msg/B{}", "x".repeat(ty.saturating_sub(14)))
+    };
+    let cdr: Vec<[u8; 8]> = (0..3).map(|i| [0, 1, 0, 0, i % 2, 0, 0, 0]).collect();
+    let messages: Vec<(u32, u64, &[u8])> = (0..3u32)
+        .map(|i| {
+            let ns = (1_700_000_000 + 60 * u64::from(i)) * 1_000_000_000;
+            (i, ns, &cdr[i as usize][..])
+        })
+        .collect();
+    one_topic_mcap(&ty, "bool data", &topic, &messages)
 }
 
 /// Runs one case; returns what is wrong with its outcome, if anything.
