@@ -254,6 +254,15 @@ fn bool_mcap(topic: usize, ty: usize) -> Vec<u8> {
     one_topic_mcap(&ty, "bool data", &topic, &messages)
 }
 
+/// The chronomap under test: this build's, or the one `CHRONOMAP_HOSTILE_BIN` names, to show
+/// which cases an older build fails (`CHRONOMAP_HOSTILE_BIN=old/chronomap cargo test --test
+/// cli hostile` lists them).
+fn binary() -> PathBuf {
+    std::env::var_os("CHRONOMAP_HOSTILE_BIN")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_chronomap")))
+}
+
 /// Runs one case; returns what is wrong with its outcome, if anything.
 fn check(case: &Case, corpus: &Path, out: &Path) -> Option<String> {
     for spec in &case.make {
@@ -265,7 +274,7 @@ fn check(case: &Case, corpus: &Path, out: &Path) -> Option<String> {
         .split_whitespace()
         .map(|w| w.replace("OUT", &out_text))
         .collect();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+    let mut child = Command::new(binary())
         .args(&args)
         .current_dir(corpus)
         .env("RUST_BACKTRACE", "0")
