@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow};
-use chronomap_io::ply::{PlyErrorKind, read_ply, read_ply_at_most};
+use chronomap_io::ply::{PlyErrorKind, read_ply_at_most};
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
 use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
 use chronomap_lidar::descriptor::{
@@ -40,7 +40,7 @@ pub fn descriptors(args: &LidarDescriptorsArgs) -> Result<()> {
     let params = DescriptorParams::default();
     let (name, rows): (String, Vec<(f64, Descriptor)>) = match &args.cloud {
         Some(path) => {
-            let cloud = read_ply(path)?;
+            let cloud = read_cloud(path, "a descriptor")?;
             let d = describe_cloud(cloud.points(), &params)
                 .with_context(|| format!("{}: descriptor", path.display()))?;
             (path.display().to_string(), vec![(0.0, d)])
@@ -116,8 +116,8 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
     let (Some(source_path), Some(target_path)) = (&args.source, &args.target) else {
         return Err(usage("give SOURCE and TARGET clouds, or --keyframes"));
     };
-    let source = read_cloud(source_path)?;
-    let target = read_cloud(target_path)?;
+    let source = read_cloud(source_path, "registration")?;
+    let target = read_cloud(target_path, "registration")?;
     let truth = match &args.truth {
         Some(path) => Some(read_transform(path)?),
         None => None,
@@ -254,12 +254,13 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
     Ok(())
 }
 
-/// A PLY cloud for registration: at most [`MAX_INPUT_POINTS`], checked from its header
-/// before any vertex is read.
-fn read_cloud(path: &Path) -> Result<chronomap_registration::Cloud<3>> {
+/// A PLY cloud for `purpose` (registration, a descriptor): at most [`MAX_INPUT_POINTS`],
+/// checked from its header before any vertex is read, so that a compressed cloud announcing
+/// 10^8 points is refused before it is decompressed.
+fn read_cloud(path: &Path, purpose: &str) -> Result<chronomap_registration::Cloud<3>> {
     read_ply_at_most(path, MAX_INPUT_POINTS as u64).map_err(|e| match e.kind {
         PlyErrorKind::TooManyVertices { line, count, .. } => anyhow!(
-            "{}: line {line}: element vertex: {count} points, registration takes at most \
+            "{}: line {line}: element vertex: {count} points, {purpose} takes at most \
              {MAX_INPUT_POINTS} a cloud (24 bytes each): thin the cloud first",
             path.display()
         ),
@@ -306,8 +307,8 @@ fn cloud_params(voxel: f64, fine_voxel: f64, max_range: f64) -> RegistrationPara
 /// `chronomap bench registration`: the default parameters of `lidar register` against a bare
 /// nearest-neighbour pass ([`chronomap_bench::registration`] measures, this reads and prints).
 pub fn bench_registration(args: &BenchRegistrationArgs) -> Result<()> {
-    let source = read_cloud(&args.source)?;
-    let target = read_cloud(&args.target)?;
+    let source = read_cloud(&args.source, "registration")?;
+    let target = read_cloud(&args.target, "registration")?;
     let truth = read_transform(&args.truth)?;
     let bench = chronomap_bench::registration::run(
         &source,
