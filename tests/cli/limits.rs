@@ -274,6 +274,51 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             "chronomap_rosbag::cdr",
             chronomap_rosbag::cdr::MAX_VALUES as u128,
         ),
+        (
+            "MAX_REQUEST_PART_SIZE",
+            "chronomap_groot2::protocol",
+            chronomap_groot2::protocol::MAX_REQUEST_PART_SIZE as u128,
+        ),
+        (
+            "MAX_REQUEST_PARTS",
+            "chronomap_groot2::protocol",
+            chronomap_groot2::protocol::MAX_REQUEST_PARTS as u128,
+        ),
+        (
+            "MAX_MSGPACK_DEPTH",
+            "chronomap_groot2::protocol",
+            chronomap_groot2::protocol::MAX_MSGPACK_DEPTH as u128,
+        ),
+        (
+            "MAX_RECORDED_TRANSITIONS",
+            "chronomap_groot2::protocol",
+            chronomap_groot2::protocol::MAX_RECORDED_TRANSITIONS as u128,
+        ),
+        (
+            "DEFAULT_MAX_HEARTBEAT_DELAY",
+            "chronomap_groot2::publisher",
+            chronomap_groot2::publisher::DEFAULT_MAX_HEARTBEAT_DELAY.as_millis(),
+        ),
+        (
+            "DEFAULT_MAX_REPLY_BYTES",
+            "chronomap_groot2::client",
+            chronomap_groot2::client::DEFAULT_MAX_REPLY_BYTES as u128,
+        ),
+        (
+            "MAX_REPLY_PARTS",
+            "chronomap_groot2::client",
+            chronomap_groot2::client::MAX_REPLY_PARTS as u128,
+        ),
+        (
+            "MAX_XML_NODES",
+            "chronomap_groot2::client",
+            chronomap_groot2::client::MAX_XML_NODES.into(),
+        ),
+        (
+            "DEFAULT_TIMEOUT",
+            "chronomap_groot2::client",
+            chronomap_groot2::client::DEFAULT_TIMEOUT.as_secs().into(),
+        ),
     ];
     #[cfg(feature = "serve")]
     limits.extend([
