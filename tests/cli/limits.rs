@@ -320,6 +320,12 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_groot2::client::DEFAULT_TIMEOUT.as_secs().into(),
         ),
     ];
+    #[cfg(feature = "ros2")]
+    limits.push((
+        "SCAN_CHUNK",
+        "chronomap_ros2::journal",
+        chronomap_ros2::journal::SCAN_CHUNK as u128,
+    ));
     #[cfg(feature = "serve")]
     limits.extend([
         (

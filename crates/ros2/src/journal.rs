@@ -673,31 +673,119 @@ fn split_record(bytes: &[u8], max_payload: usize) -> Result<(u64, u8, &[u8]), St
     Ok((seq, flags, payload))
 }
 
+/// Bytes [`find_intact_record`] reads from a segment at once: with the few bytes of a record
+/// header that straddle two reads, its window never holds more than
+/// `SCAN_CHUNK + RECORD_HEADER` bytes, however long the damaged region or large the records.
+pub const SCAN_CHUNK: usize = 64 * 1024;
+
 /// The position of an intact record in `path` at or after byte `from`, if there is one (only
-/// on the path of a damaged record: it reads the rest of the segment).
+/// on the path of a damaged record). It scans the rest of the segment through a window of at
+/// most [`SCAN_CHUNK`]` + RECORD_HEADER` bytes, and checks the checksum of a candidate whose
+/// payload runs past the window by streaming the payload from the file, so that its memory
+/// does not grow with the segment or with `max_payload`.
 fn find_intact_record(
     path: &Path,
     from: u64,
     max_payload: usize,
 ) -> Result<Option<u64>, JournalError> {
-    let mut bytes = Vec::new();
     File::open(path)
-        .and_then(|mut f| {
-            f.seek(SeekFrom::Start(from))?;
-            f.read_to_end(&mut bytes)
-        })
-        .map_err(io_error(path, "read"))?;
-    let mut at = 0;
-    while let Some(i) = bytes[at..]
-        .windows(RECORD_MAGIC.len())
-        .position(|w| w == RECORD_MAGIC)
-    {
-        if let Ok((seq, _, _)) = split_record(&bytes[at + i..], max_payload) {
-            return Ok(Some(seq));
+        .and_then(|mut file| scan_for_record(&mut file, from, max_payload))
+        .map_err(io_error(path, "read"))
+}
+
+/// [`find_intact_record`] in `file`: the position of the first record at or after byte `from`
+/// that [`split_record`] would take (magic, declared length at most `max_payload` and within
+/// the file, known flags, checksum).
+fn scan_for_record(
+    file: &mut (impl Read + Seek),
+    from: u64,
+    max_payload: usize,
+) -> io::Result<Option<u64>> {
+    let mut window: Vec<u8> = Vec::with_capacity(SCAN_CHUNK + RECORD_HEADER);
+    // The byte of the file at `window[0]`.
+    let mut window_at = from;
+    loop {
+        let kept = window.len();
+        window.resize(kept + SCAN_CHUNK, 0);
+        file.seek(SeekFrom::Start(window_at + kept as u64))?;
+        let read = read_full(file, &mut window[kept..])?;
+        window.truncate(kept + read);
+        let end = read == 0;
+        let mut i = 0;
+        while i + RECORD_MAGIC.len() <= window.len() {
+            if &window[i..i + RECORD_MAGIC.len()] == RECORD_MAGIC {
+                if i + RECORD_HEADER > window.len() && !end {
+                    // Its header straddles this read and the next.
+                    break;
+                }
+                if let Some(seq) =
+                    check_candidate(file, window_at + i as u64, &window[i..], max_payload)?
+                {
+                    return Ok(Some(seq));
+                }
+            }
+            i += 1;
         }
-        at += i + 1;
+        if end {
+            return Ok(None);
+        }
+        window.drain(..i);
+        window_at += i as u64;
     }
-    Ok(None)
+}
+
+/// Reads into `buf` until it is full or the file ends: the bytes read.
+fn read_full(file: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match file.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
+}
+
+/// The position of the record that starts with `head` at byte `at` of `file`, if it is intact:
+/// its header from `head`, its payload from `head` where the window holds all of it, else
+/// read from the file in pieces of 8 KiB into the checksum.
+fn check_candidate(
+    file: &mut (impl Read + Seek),
+    at: u64,
+    head: &[u8],
+    max_payload: usize,
+) -> io::Result<Option<u64>> {
+    if head.len() < RECORD_HEADER {
+        return Ok(None);
+    }
+    let len = u32::from_le_bytes(head[4..8].try_into().expect("4 bytes")) as usize;
+    let seq = u64::from_le_bytes(head[8..16].try_into().expect("8 bytes"));
+    let flags = head[16];
+    let crc = u32::from_le_bytes(head[17..21].try_into().expect("4 bytes"));
+    if len > max_payload || flags & !FLAG_DEFLATE != 0 {
+        return Ok(None);
+    }
+    if let Some(payload) = head.get(RECORD_HEADER..RECORD_HEADER + len) {
+        return Ok((checksum(seq, flags, payload) == crc).then_some(seq));
+    }
+    let mut hasher = crc32fast::Hasher::new();
+    hasher.update(&seq.to_le_bytes());
+    hasher.update(&[flags]);
+    file.seek(SeekFrom::Start(at + RECORD_HEADER as u64))?;
+    let mut piece = [0u8; 8192];
+    let mut left = len;
+    while left > 0 {
+        let n = read_full(file, &mut piece[..left.min(8192)])?;
+        if n == 0 {
+            // The file ends inside the declared payload.
+            return Ok(None);
+        }
+        hasher.update(&piece[..n]);
+        left -= n;
+    }
+    Ok((hasher.finalize() == crc).then_some(seq))
 }
 
 fn checksum(seq: u64, flags: u8, payload: &[u8]) -> u32 {

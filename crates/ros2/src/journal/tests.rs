@@ -470,3 +470,82 @@ fn a_compressed_record_that_inflates_beyond_the_limit_is_damage() {
     let (_, recovered, _) = open(&scratch.journal(), 0, settings).unwrap();
     assert_eq!(recovered.records, 2);
 }
+
+/// The scan before it was bounded: the whole rest of the segment in memory.
+fn find_in_memory(bytes: &[u8], max_payload: usize) -> Option<u64> {
+    let mut at = 0;
+    while let Some(i) = bytes[at..]
+        .windows(RECORD_MAGIC.len())
+        .position(|w| w == RECORD_MAGIC)
+    {
+        if let Ok((seq, _, _)) = split_record(&bytes[at + i..], max_payload) {
+            return Some(seq);
+        }
+        at += i + 1;
+    }
+    None
+}
+
+/// A record of position `seq` with `payload`, as `Journal::append` writes an uncompressed one.
+fn raw_record(seq: u64, payload: &[u8]) -> Vec<u8> {
+    let mut out = RECORD_MAGIC.to_vec();
+    out.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    out.extend_from_slice(&seq.to_le_bytes());
+    out.push(0);
+    out.extend_from_slice(&checksum(seq, 0, payload).to_le_bytes());
+    out.extend_from_slice(payload);
+    out
+}
+
+#[test]
+fn the_windowed_scan_finds_the_record_the_whole_segment_scan_found() {
+    let small = raw_record(7, b"door open");
+    // A payload longer than the window: its checksum is read from the file.
+    let large = raw_record(9, &vec![0x5a; SCAN_CHUNK + 1000]);
+    // A fake header whose checksum fails, one with unknown flags, one with a length past the
+    // end, and a bare magic: candidates that are not records.
+    let mut bad_crc = raw_record(3, b"x");
+    bad_crc[20] ^= 1;
+    let mut bad_flags = raw_record(4, b"y");
+    bad_flags[16] = 2;
+    let past_end = raw_record(5, &[1; 64])[..40].to_vec();
+    let mut cases: Vec<(Vec<u8>, Option<u64>)> = Vec::new();
+    // The small record at every place around the first and second window boundaries, after
+    // a fake magic that straddles the boundary.
+    for gap in (SCAN_CHUNK - 30..SCAN_CHUNK + 30).chain(2 * SCAN_CHUNK - 25..2 * SCAN_CHUNK + 3) {
+        let mut bytes = vec![0xee; gap];
+        bytes[gap - 10..gap - 6].copy_from_slice(RECORD_MAGIC);
+        bytes.extend_from_slice(&small);
+        bytes.extend_from_slice(&large);
+        cases.push((bytes, Some(7)));
+    }
+    for (junk, expected) in [
+        (vec![bad_crc.clone(), large.clone()], Some(9)),
+        (
+            vec![bad_flags.clone(), bad_crc.clone(), small.clone()],
+            Some(7),
+        ),
+        (vec![vec![0; SCAN_CHUNK - 5], large.clone()], Some(9)),
+        // The large record cut short: the file ends inside its payload.
+        (vec![large[..SCAN_CHUNK + 100].to_vec()], None),
+        (vec![bad_crc, bad_flags, past_end.clone()], None),
+        (vec![vec![0; 3 * SCAN_CHUNK], RECORD_MAGIC.to_vec()], None),
+        (vec![past_end], None),
+        (vec![], None),
+    ] {
+        cases.push((junk.concat(), expected));
+    }
+    for (k, (bytes, expected)) in cases.iter().enumerate() {
+        assert_eq!(find_in_memory(bytes, 1 << 20), *expected, "case {k}");
+        for from in [0, 1].into_iter().filter(|&f| f <= bytes.len()) {
+            let mut file = io::Cursor::new([b"ab".as_slice(), bytes].concat());
+            let found = scan_for_record(&mut file, 2 + from as u64, 1 << 20).unwrap();
+            let reference = find_in_memory(&bytes[from..], 1 << 20);
+            assert_eq!(found, reference, "case {k} from {from}");
+        }
+    }
+    // A declared length above the caller's limit is no record, in the window or not.
+    let mut file = io::Cursor::new(large.clone());
+    assert_eq!(scan_for_record(&mut file, 0, SCAN_CHUNK).unwrap(), None);
+    assert_eq!(find_in_memory(&large, SCAN_CHUNK), None);
+}
