@@ -13,9 +13,9 @@ use chronomap_lidar::descriptor::{
     describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, CvReport, EvalError, LabelParams, LabelledPair, MAX_TRAININGS, PipelineParams,
-    PipelineReport, WeakLearner, between, compose, cv_trainings, label_pairs, layout_folds,
-    run_pipeline,
+    Balance, CvReport, EvalError, LabelParams, LabelledPair, MAX_BOOSTING_ROUNDS, MAX_TRAININGS,
+    PipelineParams, PipelineReport, WeakLearner, between, compose, cv_rounds, cv_trainings,
+    label_pairs, layout_folds, run_pipeline,
 };
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
@@ -638,7 +638,8 @@ const MAX_FOLDS: usize = 1000;
 
 /// Checks `--folds` against the keyframes before any feature is computed: at most one fold per
 /// keyframe (and [`MAX_FOLDS`]), at most [`MAX_TRAININGS`] classifiers to train over the
-/// `--layouts` (with `pair_models`, eval's out-of-fold models too), and in every fold layout at
+/// `--layouts` (with `pair_models`, eval's out-of-fold models too) and at most
+/// [`MAX_BOOSTING_ROUNDS`] `--rounds` over them all, and in every fold layout at
 /// least one fold whose own pairs hold a loop and a non-loop while the pairs outside it hold
 /// both too (else nothing is scored and the ROC has nothing to draw).
 fn check_folds(
@@ -680,6 +681,19 @@ fn check_folds(
             flags.layouts,
             flags.folds,
             cv_trainings(5, 10, pair_models)
+        )));
+    }
+    let rounds = cv_rounds(flags.folds, flags.layouts, pair_models, flags.rounds);
+    if rounds > MAX_BOOSTING_ROUNDS {
+        return Err(usage(format!(
+            "--rounds {} --folds {} --layouts {}: {rounds} boosting rounds ({trainings} \
+             classifier trainings × {} rounds), at most {MAX_BOOSTING_ROUNDS}: use fewer rounds, \
+             folds or layouts (the defaults, 50, 5 and 10, need {})",
+            flags.rounds,
+            flags.folds,
+            flags.layouts,
+            flags.rounds,
+            cv_rounds(5, 10, pair_models, 50)
         )));
     }
     for layout in 0..flags.layouts {

@@ -220,6 +220,11 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_lidar::evaluation::MAX_TRAININGS as u128,
         ),
         (
+            "MAX_BOOSTING_ROUNDS",
+            "chronomap_lidar::evaluation",
+            chronomap_lidar::evaluation::MAX_BOOSTING_ROUNDS as u128,
+        ),
+        (
             "MAX_RECORD_BYTES",
             "chronomap_rosbag::bag",
             chronomap_rosbag::bag::MAX_RECORD_BYTES as u128,

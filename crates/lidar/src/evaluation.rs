@@ -813,6 +813,19 @@ pub fn cv_trainings(folds: usize, layouts: usize, pair_models: bool) -> usize {
     layouts.saturating_mul(folds).saturating_add(models)
 }
 
+/// The most AdaBoost rounds one cross-validated run may ask for ([`cv_rounds`]): 100,000.
+/// [`MAX_TRAININGS`] counts trainings, but each runs `rounds` boosting rounds (up to
+/// [`crate::adaboost::MAX_ROUNDS`]), and a round is a pass over every labelled pair (about
+/// 1 ms for the 3,000 pairs of the Málaga keyframes): this bounds their product. The command
+/// line's defaults (50 rounds, 5 folds, 10 layouts) take 3,250, the most trainings at 50
+/// rounds 50,000.
+pub const MAX_BOOSTING_ROUNDS: usize = 100_000;
+
+/// AdaBoost rounds of a run of [`cv_trainings`] trainings of `rounds` rounds each (saturating).
+pub fn cv_rounds(folds: usize, layouts: usize, pair_models: bool, rounds: usize) -> usize {
+    cv_trainings(folds, layouts, pair_models).saturating_mul(rounds)
+}
+
 /// Classifiers for scoring *any* keyframe pair without having seen its keyframes: the model
 /// for folds `a ≤ b` is trained on the pairs of keyframes outside both.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -1341,6 +1354,16 @@ mod tests {
         assert_eq!(cv_trainings(100, 10, true), 1000 + 5050);
         assert_eq!(cv_trainings(30, 10, false), 300);
         assert_eq!(cv_trainings(usize::MAX, 2, true), usize::MAX);
+        // Each training boosts `rounds` times: the defaults 65 × 50, the most trainings at
+        // the default rounds 1,000 × 50, both within the bound; 65 × 2,000 is not.
+        assert_eq!(cv_rounds(5, 10, true, 50), 3_250);
+        assert_eq!(cv_rounds(5, 10, false, 50), 2_500);
+        assert_eq!(cv_rounds(30, 10, true, 50), 38_250);
+        assert_eq!(cv_rounds(2, 500, false, 50), MAX_TRAININGS * 50);
+        assert!(MAX_TRAININGS * 50 <= MAX_BOOSTING_ROUNDS);
+        assert_eq!(cv_rounds(5, 10, true, 2_000), 130_000);
+        assert!(cv_rounds(5, 10, true, 2_000) > MAX_BOOSTING_ROUNDS);
+        assert_eq!(cv_rounds(2, 1, false, usize::MAX), usize::MAX);
         // The pair models report each fold pair: 4 folds, 10 pairs (a ≤ b).
         let fold_of: Vec<usize> = (0..12).map(|k| k % 4).collect();
         let mut pairs = Vec::new();
