@@ -1360,7 +1360,7 @@ mod tests {
         assert_eq!(cv_rounds(5, 10, false, 50), 2_500);
         assert_eq!(cv_rounds(30, 10, true, 50), 38_250);
         assert_eq!(cv_rounds(2, 500, false, 50), MAX_TRAININGS * 50);
-        assert!(MAX_TRAININGS * 50 <= MAX_BOOSTING_ROUNDS);
+        assert!(cv_rounds(2, 500, false, 50) <= MAX_BOOSTING_ROUNDS);
         assert_eq!(cv_rounds(5, 10, true, 2_000), 130_000);
         assert!(cv_rounds(5, 10, true, 2_000) > MAX_BOOSTING_ROUNDS);
         assert_eq!(cv_rounds(2, 1, false, usize::MAX), usize::MAX);
