@@ -1,84 +1,17 @@
 //! The memory a journal holds while it looks past a damaged region for an intact record: a
 //! window of the segment, not the rest of it. Its own test binary, for the allocator that
-//! counts what each thread holds (the same as the hostile-bag tests of chronomap-rosbag).
+//! counts what each thread holds (chronomap-testutil's, as the hostile-bag tests of chronomap-rosbag use it).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::fs;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::Path;
 use std::time::Instant;
 
 use chronomap_ros2::journal::{Entry, Journal, JournalError, JournalSettings};
-
-/// The system allocator, counting the bytes each thread holds.
-struct Counting;
-
-thread_local! {
-    static HELD: Cell<usize> = const { Cell::new(0) };
-    static PEAK: Cell<usize> = const { Cell::new(0) };
-}
-
-fn grow(n: usize) {
-    let _ = HELD.try_with(|held| {
-        let now = held.get().saturating_add(n);
-        held.set(now);
-        let _ = PEAK.try_with(|peak| peak.set(peak.get().max(now)));
-    });
-}
-
-fn shrink(n: usize) {
-    let _ = HELD.try_with(|held| held.set(held.get().saturating_sub(n)));
-}
-
-// SAFETY: every call is passed on to `System` unchanged; only counters are updated.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        // SAFETY: the caller's contract is `System`'s.
-        let p = unsafe { System.alloc(layout) };
-        if !p.is_null() {
-            grow(layout.size());
-        }
-        p
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        // SAFETY: as above.
-        let p = unsafe { System.alloc_zeroed(layout) };
-        if !p.is_null() {
-            grow(layout.size());
-        }
-        p
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: as above.
-        unsafe { System.dealloc(ptr, layout) };
-        shrink(layout.size());
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        // SAFETY: as above.
-        let p = unsafe { System.realloc(ptr, layout, new_size) };
-        if !p.is_null() {
-            shrink(layout.size());
-            grow(new_size);
-        }
-        p
-    }
-}
+use chronomap_testutil::memory::{Counting, peak_bytes};
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
-
-/// The most bytes this thread held while `f` ran, above what it held before, with `f`'s result.
-fn peak_bytes<T>(f: impl FnOnce() -> T) -> (T, usize) {
-    let before = HELD.with(Cell::get);
-    PEAK.with(|p| p.set(before));
-    let out = f();
-    let peak = PEAK.with(Cell::get);
-    (out, peak.saturating_sub(before))
-}
 
 fn state(time: f64) -> Entry<'static> {
     Entry::State {

@@ -15,7 +15,8 @@
 //!   [`stdout`] or [`json`] of a run that must succeed, [`error`] of one that must fail with
 //!   exit code 1 and [`usage_error`] of one refused with exit code 2, never with a panic.
 //! * **Hostile input**: [`proptest_config`] (reproducible cases, `PROPTEST_CASES` for a deeper
-//!   run), [`mutate`] and [`edit`] (byte mutations of real files) and [`null_device`].
+//!   run), [`mutate`] and [`edit`] (byte mutations of real files), [`null_device`] and
+//!   [`memory`] (an allocator that counts what each thread holds, for memory bounds).
 //! * **Groot2 publishers**: [`free_port_pair`] (a port whose successor is free too),
 //!   [`bt_python`] (the Python with BehaviorTree.CPP) and [`BtcppTree`] (a tree run by the real
 //!   BehaviorTree.CPP under its `Groot2Publisher`).
@@ -28,6 +29,8 @@
 //! assert!(close(0.1 + 0.2, 0.3, 1e-15) && !close(1.0, 1.1, 0.05));
 //! ```
 #![deny(missing_docs)]
+
+pub mod memory;
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
