@@ -194,8 +194,10 @@ pub use navmap::{
     SavedMap, decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map,
     read_map_yaml, save_map,
 };
+#[cfg(feature = "navmap")]
+pub use navmap_obstacles::WALL_PERCENT;
 #[cfg(all(feature = "navmap", feature = "activity"))]
-pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, WALL_PERCENT, load_planning_grid};
+pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, load_planning_grid};
 #[cfg(feature = "lidar")]
 pub use ply::{PlyError, PlyErrorKind, PlyFormat, decode_ply, encode_ply, read_ply, write_ply};
 #[cfg(feature = "activity")]
