@@ -673,7 +673,7 @@ fn split_record(bytes: &[u8], max_payload: usize) -> Result<(u64, u8, &[u8]), St
     Ok((seq, flags, payload))
 }
 
-/// Bytes [`find_intact_record`] reads from a segment at once: with the few bytes of a record
+/// Bytes `find_intact_record` reads from a segment at once: with the few bytes of a record
 /// header that straddle two reads, its window never holds more than
 /// `SCAN_CHUNK + RECORD_HEADER` bytes, however long the damaged region or large the records.
 pub const SCAN_CHUNK: usize = 64 * 1024;

@@ -2,7 +2,7 @@
 //! tests that show a reader's memory follows what a file holds, not what it declares. A test
 //! binary installs it with
 //!
-//! ```ignore
+//! ```text
 //! #[global_allocator]
 //! static ALLOCATOR: chronomap_testutil::memory::Counting = chronomap_testutil::memory::Counting;
 //! ```
