@@ -395,7 +395,6 @@ const MAX_TOKEN_FILE_BYTES: u64 = 4096;
 /// file of at most [`MAX_TOKEN_FILE_BYTES`] (a device such as `/dev/zero` or a pipe is refused
 /// before it is read), readable by its owner only.
 fn read_token(path: &Path) -> Result<Option<String>> {
-    use std::io::Read;
     let cannot = || format!("cannot read the token file {}", path.display());
     let metadata = match std::fs::metadata(path) {
         Ok(metadata) => metadata,
@@ -422,20 +421,15 @@ fn read_token(path: &Path) -> Result<Option<String>> {
             );
         }
     }
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|file| {
-            file.take(MAX_TOKEN_FILE_BYTES + 1)
-                .read_to_string(&mut text)
-        })
-        .with_context(cannot)?;
-    if text.len() as u64 > MAX_TOKEN_FILE_BYTES {
-        bail!(
+    let text = match chronomap_io::read_regular_at_most(path, MAX_TOKEN_FILE_BYTES) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidData => bail!(
             "{}: the token file has more than {MAX_TOKEN_FILE_BYTES} bytes (is this the right \
              file?)",
             path.display()
-        );
-    }
+        ),
+        Err(e) => return Err(e).with_context(cannot),
+    };
     let token = text.trim().to_owned();
     if token.chars().count() < MIN_TOKEN_CHARS || !token.bytes().all(|b| b.is_ascii_graphic()) {
         bail!(

@@ -75,6 +75,13 @@ pub(crate) fn open_stream(path: &Path) -> io::Result<std::fs::File> {
     Ok(file)
 }
 
+/// The bytes of the regular file `path` ([`open_regular`]: a directory, a device or a pipe is
+/// refused before anything is read) if it holds at most `max` bytes, else an
+/// [`io::ErrorKind::InvalidData`] error; for small files a face reads whole (a token, a key).
+pub fn read_regular_at_most(path: &Path, max: u64) -> io::Result<Vec<u8>> {
+    read_at_most(open_regular(path)?, max)
+}
+
 /// [`std::fs::read`] of a regular file ([`open_regular`]) with the [`MAX_FILE_BYTES`] limit.
 pub(crate) fn read(path: &Path) -> io::Result<Vec<u8>> {
     read_to_end_bounded(open_regular(path)?)

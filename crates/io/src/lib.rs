@@ -93,7 +93,7 @@
 pub mod activity;
 mod atomic;
 mod bounded;
-pub use bounded::MAX_FILE_BYTES;
+pub use bounded::{MAX_FILE_BYTES, read_regular_at_most};
 #[cfg(feature = "bt")]
 pub mod bt_log;
 #[cfg(feature = "bt")]
