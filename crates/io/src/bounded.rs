@@ -75,7 +75,7 @@ pub(crate) fn open_stream(path: &Path) -> io::Result<std::fs::File> {
     Ok(file)
 }
 
-/// The bytes of the regular file `path` ([`open_regular`]: a directory, a device or a pipe is
+/// The bytes of the regular file `path` (a directory, a device or a pipe is
 /// refused before anything is read) if it holds at most `max` bytes, else an
 /// [`io::ErrorKind::InvalidData`] error; for small files a face reads whole (a token, a key).
 pub fn read_regular_at_most(path: &Path, max: u64) -> io::Result<Vec<u8>> {
