@@ -48,7 +48,7 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
         },
     )?;
     let grid = built.grid;
-    let auto = grid.select_cell_orders(&built.snapshots[0], 5)?;
+    let auto = grid.select_cell_orders(&built.snapshots[0], 5, Parallelism::Rayon(0))?;
     drop(bar);
     let end = rooms[0].len();
     let states: Vec<&[f64]> = rooms.iter().map(|r| r.values.as_slice()).collect();
@@ -58,7 +58,8 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
         ("FreMEn order 2", OrderChoice::Fixed(2)),
         ("FreMEn auto (per room)", OrderChoice::PerCell(auto)),
     ] {
-        let scores = score_frames(&grid.fitted(orders), &rooms[0].times, &states, train..end)
+        let fitted = grid.fitted(orders, Parallelism::Rayon(0));
+        let scores = score_frames(&fitted, &rooms[0].times, &states, train..end)
             .context("no held-back week to score")?;
         table.row([
             name.to_string(),
@@ -91,10 +92,14 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     let seconds = started.elapsed().as_secs_f64();
     let office_grid = built.grid;
     let frames = office_grid.frames();
-    let static_error =
-        office_grid.estimation_error(&office_grid.fitted(OrderChoice::Fixed(0)), 0, frames)?;
-    let fitted = office_grid.fitted(OrderChoice::Fixed(4));
-    let fremen_error = office_grid.estimation_error(&fitted, 0, frames)?;
+    let static_error = office_grid.estimation_error(
+        &office_grid.fitted(OrderChoice::Fixed(0), Parallelism::Rayon(0)),
+        0,
+        frames,
+        Parallelism::Rayon(0),
+    )?;
+    let fitted = office_grid.fitted(OrderChoice::Fixed(4), Parallelism::Rayon(0));
+    let fremen_error = office_grid.estimation_error(&fitted, 0, frames, Parallelism::Rayon(0))?;
     drop(bar);
     outln!(
         "\n   b) The synthetic office of [Krajník 2017] §VI (chronomap-synth: {cells} cells of 10 cm, a frame every 5 s) \
@@ -118,7 +123,7 @@ pub fn run(out: Option<&Path>) -> Result<Vec<String>> {
     let mut images = Vec::new();
     for hour in [3.0, 11.0] {
         let t = monday + hour * 3600.0;
-        let values = fitted.predict(t)[layer * w * h..(layer + 1) * w * h].to_vec();
+        let values = fitted.predict_map(t)[layer * w * h..(layer + 1) * w * h].to_vec();
         let map = OccupancyMap::from_probabilities(
             w as u32,
             h as u32,

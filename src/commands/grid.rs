@@ -161,7 +161,11 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
                 .snapshots
                 .last()
                 .context("no held-back snapshot")?;
-            OrderChoice::PerCell(grid.select_cell_orders(trained, MAX_ORDER)?)
+            OrderChoice::PerCell(grid.select_cell_orders(
+                trained,
+                MAX_ORDER,
+                Parallelism::Rayon(0),
+            )?)
         }
     };
     let errors = if args.errors {
@@ -175,8 +179,10 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     };
     let file = match args.store {
         StoreArg::State => GridFile::State(Box::new(grid.clone())),
-        StoreArg::Lossy => GridFile::Lossy(Box::new(grid.fitted(choice))),
-        StoreArg::Lossless => GridFile::Lossless(Box::new(grid.lossless(choice)?)),
+        StoreArg::Lossy => GridFile::Lossy(Box::new(grid.fitted(choice, Parallelism::Rayon(0)))),
+        StoreArg::Lossless => {
+            GridFile::Lossless(Box::new(grid.lossless(choice, Parallelism::Rayon(0))?))
+        }
     };
     // The size of eq. (16) is what was written (a device or a pipe is written through and
     // has no size afterwards).
@@ -261,12 +267,12 @@ fn error_table(built: &Built, observations: f64) -> Result<ErrorTable> {
     };
     let started = Instant::now();
     let bar = ProgressBar::new();
-    let rows = order_errors(grid, inner, trained, MAX_ORDER, &bar)?;
+    let rows = order_errors(grid, inner, trained, MAX_ORDER, Parallelism::Rayon(0), &bar)?;
     bar.stage("file sizes", rows.len() as u64);
     let rows = rows
         .into_iter()
         .map(|r| {
-            let lossless = grid.lossless(r.final_orders.clone())?;
+            let lossless = grid.lossless(r.final_orders.clone(), Parallelism::Rayon(0))?;
             let lossy = encode_grid(&GridFile::Lossy(Box::new(r.fitted.clone())))?.len();
             let lossless = encode_grid(&GridFile::Lossless(Box::new(lossless)))?.len();
             bar.advance(1);
@@ -485,7 +491,7 @@ fn fitted_of(file: GridFile, order: Option<usize>) -> Result<FittedGrid> {
     Ok(match file {
         GridFile::State(grid) => {
             let k = order.unwrap_or(grid.config().fremen.order);
-            grid.fitted(OrderChoice::Fixed(k))
+            grid.fitted(OrderChoice::Fixed(k), Parallelism::Rayon(0))
         }
         GridFile::Lossy(_) | GridFile::Lossless(_) if order.is_some() => {
             return Err(usage(
@@ -524,7 +530,7 @@ pub fn predict(args: &GridPredictArgs) -> Result<()> {
     let g = *fitted.geometry();
     let values = project_layers(
         &g,
-        &fitted.predict(args.time),
+        &fitted.predict_map(args.time),
         layers(args.layers, g.depth)?,
     );
     let map = OccupancyMap::from_probabilities(
@@ -722,7 +728,7 @@ pub fn plot(args: &GridPlotArgs) -> Result<()> {
             title: format!("predicted for {}", time(t)),
             width: g.width,
             height: g.height,
-            values: project_layers(&g, &fitted.predict(t), range.clone()),
+            values: project_layers(&g, &fitted.predict_map(t), range.clone()),
         })
         .collect();
     let cell_pixels = (700 / g.width.max(g.height)).clamp(1, 40);

@@ -390,7 +390,10 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     chronomap_io::grid_file::write_grid_file(&grid_path, &GridFile::State(Box::new(grid.clone())))
         .unwrap();
     // The same grid as the compact model, with order 1 in the door cell.
-    let lossy = grid.fitted(OrderChoice::PerCell(vec![1, 0, 0]));
+    let lossy = grid.fitted(
+        OrderChoice::PerCell(vec![1, 0, 0]),
+        chronomap_core::Parallelism::Sequential,
+    );
     let lossy_path = data.join("door-lossy.cmg");
     chronomap_io::grid_file::write_grid_file(
         &lossy_path,
@@ -494,7 +497,10 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     assert_eq!(status, 200, "{text}");
     let served: GridResponse = serde_json::from_str(&text).unwrap();
     assert_eq!(served.shape, [3, 1, 1]);
-    assert_eq!(served.values, grid.predict_map(t));
+    assert_eq!(
+        served.values,
+        grid.predict_map(t, chronomap_core::Parallelism::Sequential)
+    );
     let (status, _) = post("/v1/grid/nope/predict", serde_json::json!({ "time": t }));
     assert_eq!(status, 404);
 
@@ -572,9 +578,11 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
     for (name, maps) in [
         (
             "door",
-            day.iter().map(|&t| grid.predict_map(t)).collect::<Vec<_>>(),
+            day.iter()
+                .map(|&t| grid.predict_map(t, chronomap_core::Parallelism::Sequential))
+                .collect::<Vec<_>>(),
         ),
-        ("lossy", day.iter().map(|&t| lossy.predict(t)).collect()),
+        ("lossy", day.iter().map(|&t| lossy.predict_map(t)).collect()),
     ] {
         for x in 0..3u32 {
             let (status, text) = post(

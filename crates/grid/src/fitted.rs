@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{CellState, FremenGrid, GridError, GridGeometry, NONE, Slot};
+use chronomap_core::Parallelism;
 use chronomap_core::crossings::threshold_toggles;
 use chronomap_core::fft::{from_gaps, ones_in, to_gaps, xor_edges};
 use chronomap_core::model::{Ordered, saturate};
@@ -73,9 +74,10 @@ pub struct FittedGrid {
 }
 
 impl FremenGrid {
-    /// The compact model of every cell with the given orders ([Krajník 2017] eq. (10) per cell).
-    pub fn fitted(&self, orders: OrderChoice) -> FittedGrid {
-        self.fitted_slots(&orders, &self.slots)
+    /// The compact model of every cell with the given orders ([Krajník 2017] eq. (10) per cell),
+    /// fitting the changing cells on the threads `parallelism` allows (the same bits on any).
+    pub fn fitted(&self, orders: OrderChoice, parallelism: Parallelism) -> FittedGrid {
+        self.fitted_slots(&orders, &self.slots, parallelism)
     }
 
     /// Predicted occupancy probability of every cell at `time` with the configured order (NaN
@@ -90,17 +92,28 @@ impl FremenGrid {
         let angles: Vec<f64> = (0..periods.len())
             .map(|k| angle(periods, k, time))
             .collect();
-        let values: Vec<f32> = self
-            .slots
-            .par_iter()
-            .map_init(Vec::new, |components, slot| {
-                match self.fit_slot(slot, order, components) {
-                    Some(mean) => saturate(cell_value(mean, components, |k| angles[k])) as f32,
-                    // Cleared from the constant planes: predicted free, as the compact model does.
-                    None => 0.0,
-                }
-            })
-            .collect();
+        let value = |components: &mut Vec<CompactComponent>, slot: &Slot| {
+            match self.fit_slot(slot, order, components) {
+                Some(mean) => saturate(cell_value(mean, components, |k| angles[k])) as f32,
+                // Cleared from the constant planes: predicted free, as the compact model does.
+                None => 0.0,
+            }
+        };
+        let values: Vec<f32> = match parallelism {
+            Parallelism::Sequential => {
+                let mut components = Vec::new();
+                self.slots
+                    .iter()
+                    .map(|slot| value(&mut components, slot))
+                    .collect()
+            }
+            Parallelism::Rayon(_) => self
+                .slots
+                .par_iter()
+                .with_min_len(min_len(self.slots.len(), parallelism))
+                .map_init(Vec::new, value)
+                .collect(),
+        };
         let mut map: Vec<f32> = (0..self.geometry.cells())
             .map(|cell| {
                 let (w, b) = (cell / 64, 1u64 << (cell % 64));
@@ -130,8 +143,12 @@ impl FremenGrid {
             NONE => &[][..],
             slot => std::slice::from_ref(&self.slots[slot as usize]),
         };
-        self.fitted_slots(&OrderChoice::Fixed(self.config.fremen.order), slots)
-            .predict_cell(cell, times)
+        self.fitted_slots(
+            &OrderChoice::Fixed(self.config.fremen.order),
+            slots,
+            Parallelism::Sequential,
+        )
+        .predict_cell(cell, times)
     }
 
     /// The mean of the compact model of a slot's cell with its components in `components`
@@ -160,10 +177,15 @@ impl FremenGrid {
 
     /// The compact model of the cells of `slots` (all of the grid's, or some of them): the
     /// others of the grid's slots are left without a model, so a [`FittedGrid`] of some slots
-    /// predicts those cells exactly as the [`FittedGrid`] of all slots does. Fits in parallel
-    /// into arrays of the final size (one row of the largest order per slot), then closes the
-    /// gaps in place.
-    fn fitted_slots(&self, orders: &OrderChoice, slots: &[Slot]) -> FittedGrid {
+    /// predicts those cells exactly as the [`FittedGrid`] of all slots does. Fits chunks of
+    /// slots (on the threads `parallelism` allows) into arrays of the final size (one row of
+    /// the largest order per slot), then closes the gaps in place.
+    fn fitted_slots(
+        &self,
+        orders: &OrderChoice,
+        slots: &[Slot],
+        parallelism: Parallelism,
+    ) -> FittedGrid {
         const CHUNK: usize = 1024;
         let widest = match orders {
             OrderChoice::Fixed(k) => *k,
@@ -200,17 +222,27 @@ impl FremenGrid {
                     }
                 }
             };
-        if widest == 0 {
-            cells
+        match (parallelism, widest) {
+            (Parallelism::Sequential, 0) => cells
+                .chunks_mut(CHUNK)
+                .zip(slots.chunks(CHUNK))
+                .for_each(|(cells, slots)| fit_chunk(cells, &mut [], slots)),
+            (Parallelism::Sequential, _) => cells
+                .chunks_mut(CHUNK)
+                .zip(components.chunks_mut(CHUNK * widest))
+                .zip(slots.chunks(CHUNK))
+                .for_each(|((cells, rows), slots)| fit_chunk(cells, rows, slots)),
+            (Parallelism::Rayon(_), 0) => cells
                 .par_chunks_mut(CHUNK)
                 .zip(slots.par_chunks(CHUNK))
-                .for_each(|(cells, slots)| fit_chunk(cells, &mut [], slots));
-        } else {
-            cells
+                .with_min_len(min_len(slots.len().div_ceil(CHUNK), parallelism))
+                .for_each(|(cells, slots)| fit_chunk(cells, &mut [], slots)),
+            (Parallelism::Rayon(_), _) => cells
                 .par_chunks_mut(CHUNK)
                 .zip(components.par_chunks_mut(CHUNK * widest))
                 .zip(slots.par_chunks(CHUNK))
-                .for_each(|((cells, rows), slots)| fit_chunk(cells, rows, slots));
+                .with_min_len(min_len(slots.len().div_ceil(CHUNK), parallelism))
+                .for_each(|((cells, rows), slots)| fit_chunk(cells, rows, slots)),
         }
         let (mut kept, mut written) = (0, 0);
         for i in 0..cells.len() {
@@ -290,6 +322,31 @@ fn state_of_code(code: u64) -> CellState {
 fn period_index(periods: &PeriodSet, period_secs: f64) -> u32 {
     (0..periods.len())
         .find(|&k| periods.period(k) == period_secs)
+/// Fewest items of `items` a rayon task takes so that they split into at most
+/// `parallelism.tasks()` tasks (1 for `Rayon(0)`: as many tasks as the pool wants).
+fn min_len(items: usize, parallelism: Parallelism) -> usize {
+    match parallelism {
+        Parallelism::Rayon(0) => 1,
+        _ => items.div_ceil(parallelism.tasks()).max(1),
+    }
+}
+
+/// `f` of every item, in order, on the threads `parallelism` allows.
+fn map_items<T: Sync, R: Send>(
+    items: &[T],
+    parallelism: Parallelism,
+    f: impl Fn(&T) -> R + Sync + Send,
+) -> Vec<R> {
+    match parallelism {
+        Parallelism::Sequential => items.iter().map(f).collect(),
+        Parallelism::Rayon(_) => items
+            .par_iter()
+            .with_min_len(min_len(items.len(), parallelism))
+            .map(f)
+            .collect(),
+    }
+}
+
         .expect("component periods come from the set") as u32
 }
 
@@ -390,8 +447,10 @@ impl FittedGrid {
         Some(self.occupied[w] & b != 0)
     }
 
-    /// Occupancy probability of every cell at `time` (NaN for cells never observed).
-    pub fn predict(&self, time: f64) -> Vec<f32> {
+    /// Occupancy probability of every cell at `time` (NaN for cells never observed): the map
+    /// of [Krajník 2017] §VIII at one time, bit for bit [`FremenGrid::predict_map`] of the grid
+    /// it was fitted from with the same orders.
+    pub fn predict_map(&self, time: f64) -> Vec<f32> {
         let cells = self.geometry.cells();
         let mut map: Vec<f32> = (0..cells).map(|c| self.constant_value(c)).collect();
         let angles = self.angles(time);
@@ -402,7 +461,7 @@ impl FittedGrid {
     }
 
     /// Occupancy probability of one cell at each of `times`: bit for bit the values
-    /// [`FittedGrid::predict`] gives that cell (NaN if it was never observed).
+    /// [`FittedGrid::predict_map`] gives that cell (NaN if it was never observed).
     ///
     /// # Panics
     /// If `cell` is out of range.
@@ -440,7 +499,7 @@ impl FittedGrid {
     /// A `nav_msgs/OccupancyGrid`-style map of the prediction at `time`: −1 for cells never
     /// observed, else `round(100·p)`.
     pub fn predict_occupancy(&self, time: f64) -> Vec<i8> {
-        self.predict(time)
+        self.predict_map(time)
             .iter()
             .map(|&p| {
                 if p.is_nan() {
@@ -539,7 +598,8 @@ impl FremenGrid {
     /// Estimation error of [Krajník 2017] §VI: for every cell whose observed state changed at least
     /// once, the fraction of its observed frames where `s'(t) = p(t) ≥ 0.5` of the fitted model
     /// differs from the observed state (eq. (14)), averaged over those cells. Frames in
-    /// `[from, to)` only (e.g. held-back days for a prediction error).
+    /// `[from, to)` only (e.g. held-back days for a prediction error). Cells are compared on
+    /// the threads `parallelism` allows (the same result on any).
     ///
     /// # Errors
     /// As [`FremenGrid::grid_history`].
@@ -551,11 +611,10 @@ impl FremenGrid {
     ) -> Result<EstimationError, GridError> {
         self.require_history("an estimation error")?;
         let to = to.min(self.frames);
+        parallelism: Parallelism,
         let index = fitted.cell_positions();
-        let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> = self
-            .slots
-            .par_iter()
-            .map(|slot| {
+        let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> =
+            map_items(&self.slots, parallelism, |slot| {
                 let (occ, unk) = self.cell_toggles(slot.cell as usize)?;
                 let known = to.saturating_sub(from) - ones_in(&unk, from, to);
                 let occupied = ones_in(&occ, from, to);
@@ -579,8 +638,7 @@ impl FremenGrid {
                 // Mismatches on known frames: |m| − |m ∧ unknown|.
                 let wrong = ones_in(&mismatch, from, to) - intersection(&mismatch, &unk, from, to);
                 Ok(Some((wrong, known)))
-            })
-            .collect();
+            });
         let mut counted = Vec::new();
         for result in per_cell {
             if let Some(pair) = result? {
@@ -610,7 +668,8 @@ impl FremenGrid {
 
     /// Chooses each cell's order (0..=`max_order`) by its prediction error on frames
     /// `[split, frames)` ([Krajník 2017] §IV-B), predicting them with `trained` — the same grid
-    /// as it was at frame `split` (a clone taken then) — and returns the orders by cell.
+    /// as it was at frame `split` (a clone taken then) — and returns the orders by cell. Fits
+    /// and compares on the threads `parallelism` allows (the same orders on any).
     ///
     /// # Errors
     /// As [`FremenGrid::grid_history`], or if `trained` is not this grid at an earlier frame.
@@ -621,6 +680,7 @@ impl FremenGrid {
     ) -> Result<Vec<u8>, GridError> {
         self.require_history("choosing orders")?;
         let split = trained.frames;
+        parallelism: Parallelism,
         if trained.geometry != self.geometry
             || trained.config.fremen.periods != self.config.fremen.periods
             || split > self.frames
@@ -629,43 +689,36 @@ impl FremenGrid {
                 reason: "the trained grid is not an earlier state of this grid".into(),
             });
         }
-        let candidate = trained.fitted(OrderChoice::Fixed(max_order));
-        let full = self.fitted(OrderChoice::Fixed(0));
+        let candidate = trained.fitted(OrderChoice::Fixed(max_order), parallelism);
+        let full = self.fitted(OrderChoice::Fixed(0), parallelism);
         let history = self.grid_history(&full)?;
         let mut orders = vec![0u8; self.geometry.cells()];
         let index_of = candidate.cell_positions();
-        let chosen: Vec<(usize, u8)> = full
-            .cells
-            .par_iter()
-            .enumerate()
-            .filter_map(|(i, cell)| {
-                let &j = index_of.get(&cell.cell)?;
-                let trained_cell = candidate.cells[j];
-                let occ = &history.occupied[i];
-                let unk = &history.unknown[i];
-                let mut best = (u64::MAX, 0u8);
-                for order in 0..=usize::from(trained_cell.count) {
-                    let limited = FittedCell {
-                        count: order as u8,
-                        ..trained_cell
-                    };
-                    let predicted = candidate.predicted_toggles(
-                        &limited,
-                        &history.frame_times,
-                        split,
-                        self.frames,
-                    );
-                    let mismatch = xor_edges(occ, &predicted);
-                    let wrong = ones_in(&mismatch, split, self.frames)
-                        - intersection(&mismatch, unk, split, self.frames);
-                    if wrong < best.0 {
-                        best = (wrong, order as u8);
-                    }
+        let positions: Vec<usize> = (0..full.cells.len()).collect();
+        let chosen: Vec<Option<(usize, u8)>> = map_items(&positions, parallelism, |&i| {
+            let cell = &full.cells[i];
+            let &j = index_of.get(&cell.cell)?;
+            let trained_cell = candidate.cells[j];
+            let occ = &history.occupied[i];
+            let unk = &history.unknown[i];
+            let mut best = (u64::MAX, 0u8);
+            for order in 0..=usize::from(trained_cell.count) {
+                let limited = FittedCell {
+                    count: order as u8,
+                    ..trained_cell
+                };
+                let predicted =
+                    candidate.predicted_toggles(&limited, &history.frame_times, split, self.frames);
+                let mismatch = xor_edges(occ, &predicted);
+                let wrong = ones_in(&mismatch, split, self.frames)
+                    - intersection(&mismatch, unk, split, self.frames);
+                if wrong < best.0 {
+                    best = (wrong, order as u8);
                 }
-                Some((cell.cell as usize, best.1))
-            })
-            .collect();
-        for (cell, order) in chosen {
+            }
+            Some((cell.cell as usize, best.1))
+        });
+        for (cell, order) in chosen.into_iter().flatten() {
             orders[cell] = order;
         }
         Ok(orders)
@@ -673,25 +726,26 @@ impl FremenGrid {
 
     /// The lossless model: the compact model plus, per fitted cell, the frames where its
     /// thresholded prediction differs from the observation (Δ-encoded outlier set, eq. (7)) and
-    /// its unknown runs.
+    /// its unknown runs. Fits and compares on the threads `parallelism` allows (the same
+    /// bits on any).
     ///
     /// # Errors
     /// As [`FremenGrid::grid_history`].
-    pub fn lossless(&self, orders: OrderChoice) -> Result<LosslessGrid, GridError> {
-        let fitted = self.fitted(orders);
+    pub fn lossless(
+        &self,
+        orders: OrderChoice,
+        parallelism: Parallelism,
+    ) -> Result<LosslessGrid, GridError> {
+        let fitted = self.fitted(orders, parallelism);
         let history = self.grid_history(&fitted)?;
         let frames = self.frames;
-        let outliers: Vec<Vec<u64>> = fitted
-            .cells
-            .par_iter()
-            .zip(&history.occupied)
-            .map(|(cell, occ)| {
-                xor_edges(
-                    occ,
-                    &fitted.predicted_toggles(cell, &history.frame_times, 0, frames),
-                )
-            })
-            .collect();
+        let positions: Vec<usize> = (0..fitted.cells.len()).collect();
+        let outliers: Vec<Vec<u64>> = map_items(&positions, parallelism, |&i| {
+            xor_edges(
+                &history.occupied[i],
+                &fitted.predicted_toggles(&fitted.cells[i], &history.frame_times, 0, frames),
+            )
+        });
         Ok(LosslessGrid {
             fitted,
             frame_times: history.frame_times,

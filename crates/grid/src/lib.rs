@@ -317,7 +317,7 @@ const fn btree_bytes(n: usize, node_bytes: usize) -> usize {
 ///
 /// ```
 /// use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
-/// use chronomap_core::TemporalModel;
+/// use chronomap_core::{Parallelism, TemporalModel};
 ///
 /// // A 4×2 room; cell 5 is a door, occupied (closed) every night from 18:00 to 8:00.
 /// let geometry = GridGeometry::planar(4, 2, 0.5, [0.0, 0.0])?;
@@ -331,7 +331,8 @@ const fn btree_bytes(n: usize, node_bytes: usize) -> usize {
 ///     frame[7] = -1; // never seen
 ///     grid.observe_occupancy(t, &frame)?;
 /// }
-/// let map = grid.predict_map(15.0 * 86_400.0 + 3.0 * 3600.0); // 3:00 two weeks later
+/// // 3:00 two weeks later, the changing cells fitted on the calling thread
+/// let map = grid.predict_map(15.0 * 86_400.0 + 3.0 * 3600.0, Parallelism::Sequential);
 /// assert_eq!(map[0], 1.0);
 /// assert!(map[5] > 0.8 && map[1] == 0.0 && map[7].is_nan());
 /// assert_eq!(grid.cell_model(5).unwrap().span().count, 14 * 24);

@@ -4,6 +4,7 @@
 
 use std::ops::Range;
 
+use chronomap_core::Parallelism;
 use chronomap_core::progress::Progress;
 use serde::{Deserialize, Serialize};
 
@@ -41,7 +42,8 @@ pub struct OrderErrors {
 /// `trained` is the grid before frame `split` and `inner` the grid at an earlier frame
 /// (see [`holdout_splits`](crate::build::holdout_splits)): the per-cell orders of the final model are
 /// chosen on `[split, frames)`, those of the trained model on `[inner, split)`, so that no
-/// model is scored on frames that chose its orders. Reports one step per row to `progress`.
+/// model is scored on frames that chose its orders. Fits and compares on the threads
+/// `parallelism` allows (the same table on any). Reports one step per row to `progress`.
 ///
 /// # Errors
 /// A grid built without history, or snapshots that are not earlier states of `grid`.
@@ -50,13 +52,16 @@ pub fn order_errors(
     inner: &FremenGrid,
     trained: &FremenGrid,
     max_order: usize,
+    parallelism: Parallelism,
     progress: &dyn Progress,
 ) -> Result<Vec<OrderErrors>, GridError> {
     let (split, frames) = (trained.frames(), grid.frames());
     progress.stage("error table", max_order as u64 + 2);
-    let auto_final = OrderChoice::PerCell(grid.select_cell_orders(trained, max_order)?);
+    let auto_final =
+        OrderChoice::PerCell(grid.select_cell_orders(trained, max_order, parallelism)?);
     // For the prediction error, choose the orders without the frames they are tested on.
-    let auto_trained = OrderChoice::PerCell(trained.select_cell_orders(inner, max_order)?);
+    let auto_trained =
+        OrderChoice::PerCell(trained.select_cell_orders(inner, max_order, parallelism)?);
     let mut rows: Vec<(RowOrders, OrderChoice, OrderChoice)> = (0..=max_order)
         .map(|k| {
             (
@@ -69,10 +74,14 @@ pub fn order_errors(
     rows.push((RowOrders::PerCell, auto_final, auto_trained));
     rows.into_iter()
         .map(|(orders, final_orders, trained_orders)| {
-            let fitted = grid.fitted(final_orders.clone());
-            let estimation = grid.estimation_error(&fitted, 0, frames)?;
-            let prediction =
-                grid.estimation_error(&trained.fitted(trained_orders), split, frames)?;
+            let fitted = grid.fitted(final_orders.clone(), parallelism);
+            let estimation = grid.estimation_error(&fitted, 0, frames, parallelism)?;
+            let prediction = grid.estimation_error(
+                &trained.fitted(trained_orders, parallelism),
+                split,
+                frames,
+                parallelism,
+            )?;
             progress.advance(1);
             Ok(OrderErrors {
                 orders,
@@ -106,7 +115,7 @@ pub fn score_frames(
 ) -> Option<FrameScores> {
     let (mut brier, mut binary, mut n) = (0.0, 0.0, 0.0);
     for f in frames.start..frames.end.min(times.len()) {
-        for (cell, &p) in states.iter().zip(&fitted.predict(times[f])) {
+        for (cell, &p) in states.iter().zip(&fitted.predict_map(times[f])) {
             let (s, p) = (cell[f], f64::from(p));
             brier += (p - s) * (p - s);
             binary += f64::from(u8::from((p > 0.5) != (s == 1.0)));
@@ -192,7 +201,15 @@ mod tests {
     #[test]
     fn the_error_table_ranks_the_static_map_below_fremen() {
         let (grid, snapshots) = door_grid();
-        let rows = order_errors(&grid, &snapshots[0], &snapshots[1], 3, &NoProgress).unwrap();
+        let rows = order_errors(
+            &grid,
+            &snapshots[0],
+            &snapshots[1],
+            3,
+            Parallelism::Rayon(2),
+            &NoProgress,
+        )
+        .unwrap();
         let orders: Vec<RowOrders> = rows.iter().map(|r| r.orders).collect();
         assert_eq!(
             orders,
@@ -224,7 +241,7 @@ mod tests {
     #[test]
     fn scores_projections_and_order_counts() {
         let (grid, _) = door_grid();
-        let fitted = grid.fitted(OrderChoice::PerCell(vec![2, 0, 0]));
+        let fitted = grid.fitted(OrderChoice::PerCell(vec![2, 0, 0]), Parallelism::Sequential);
         assert_eq!(fitted.order_counts(), [(0, 1), (2, 1)]);
         let times: Vec<f64> = (0..48)
             .map(|h| 1_451_865_600.0 + 3600.0 * h as f64)

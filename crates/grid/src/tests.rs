@@ -1,4 +1,5 @@
 use super::*;
+use chronomap_core::Parallelism;
 use chronomap_core::model::TemporalModel;
 use chronomap_core::periods::PeriodSet;
 
@@ -186,7 +187,7 @@ fn predicted_maps_equal_the_cell_models() {
     let inputs = scenario(geometry.cells(), 200, false, 11);
     let (grid, models) = build(geometry, of_order(3, false), &inputs);
     let t = 1_461_000_000.0;
-    let map = grid.predict_map(t);
+    let map = grid.predict_map(t, Parallelism::Sequential);
     for (c, model) in models.iter().enumerate() {
         if model.span().count == 0 {
             assert!(map[c].is_nan());
@@ -206,10 +207,13 @@ fn per_cell_predictions_equal_the_whole_map_bit_for_bit() {
     let inputs = scenario(geometry.cells(), 200, false, 11);
     let (grid, _) = build(geometry, of_order(3, false), &inputs);
     let times = [1_461_000_000.0, 1_461_003_777.5, 0.0, -86_400.0, 1e12];
-    let maps: Vec<Vec<f32>> = times.iter().map(|&t| grid.predict_map(t)).collect();
+    let maps: Vec<Vec<f32>> = times
+        .iter()
+        .map(|&t| grid.predict_map(t, Parallelism::Rayon(0)))
+        .collect();
     let orders = OrderChoice::PerCell((0..geometry.cells()).map(|c| (c % 4) as u8).collect());
-    let fitted = grid.fitted(orders);
-    let fitted_maps: Vec<Vec<f32>> = times.iter().map(|&t| fitted.predict(t)).collect();
+    let fitted = grid.fitted(orders, Parallelism::Rayon(0));
+    let fitted_maps: Vec<Vec<f32>> = times.iter().map(|&t| fitted.predict_map(t)).collect();
     let bits = |v: &[f32]| v.iter().map(|p| p.to_bits()).collect::<Vec<_>>();
     let (mut nan, mut modelled) = (0, 0);
     for c in 0..geometry.cells() {
@@ -277,7 +281,9 @@ fn lossless_grids_reconstruct_every_frame() {
         let constant = c % 9 <= 1;
         assert_eq!(grid.slot_of[c] == NONE, constant || c % 9 == 5, "cell {c}");
     }
-    let lossless = grid.lossless(OrderChoice::Fixed(2)).unwrap();
+    let lossless = grid
+        .lossless(OrderChoice::Fixed(2), Parallelism::Rayon(0))
+        .unwrap();
     assert!(lossless.is_consistent());
     for (frame, (_, input)) in inputs.iter().enumerate() {
         let states = lossless.reconstruct_frame(frame as u64);
@@ -308,7 +314,11 @@ fn lossless_grids_reconstruct_every_frame() {
     }
     // Fractional frames cannot be stored losslessly.
     let (fractional, _) = build(geometry, with_history(), &scenario(90, 50, false, 1));
-    assert!(fractional.lossless(OrderChoice::Fixed(1)).is_err());
+    assert!(
+        fractional
+            .lossless(OrderChoice::Fixed(1), Parallelism::Sequential)
+            .is_err()
+    );
 }
 
 /// Cell models of FreMEn order `order`, keeping every frame or not.
@@ -357,12 +367,22 @@ fn estimation_error_counts_mispredicted_states_of_changing_cells() {
     });
     let frames = grid.frames();
     let static_error = grid
-        .estimation_error(&grid.fitted(OrderChoice::Fixed(0)), 0, frames)
+        .estimation_error(
+            &grid.fitted(OrderChoice::Fixed(0), Parallelism::Sequential),
+            0,
+            frames,
+            Parallelism::Sequential,
+        )
         .unwrap();
     assert_eq!(static_error.changed_cells, 1);
     assert!((static_error.mean_cell_error - 10.0 / 24.0).abs() < 1e-12);
     let fremen = grid
-        .estimation_error(&grid.fitted(OrderChoice::Fixed(4)), 0, frames)
+        .estimation_error(
+            &grid.fitted(OrderChoice::Fixed(4), Parallelism::Rayon(0)),
+            0,
+            frames,
+            Parallelism::Rayon(0),
+        )
         .unwrap();
     assert!(
         fremen.mean_cell_error < 0.1 * static_error.mean_cell_error,
@@ -383,7 +403,9 @@ fn per_cell_orders_are_chosen_on_held_back_frames() {
     observe_hours(&mut grid, 0..21 * 24, &mut frame);
     let trained = grid.clone();
     observe_hours(&mut grid, 21 * 24..28 * 24, &mut frame);
-    let orders = grid.select_cell_orders(&trained, 5).unwrap();
+    let orders = grid
+        .select_cell_orders(&trained, 5, Parallelism::Rayon(0))
+        .unwrap();
     assert!(orders[0] >= 1, "{orders:?}");
     assert_eq!(orders[1], 0, "{orders:?}");
 }
@@ -729,15 +751,72 @@ fn predicted_maps_are_the_compact_models_predictions() {
     let inputs = scenario(geometry.cells(), 200, false, 11);
     for order in [0, 2, 5] {
         let (grid, _) = build(geometry, of_order(order, false), &inputs);
-        let fitted = grid.fitted(OrderChoice::Fixed(order));
+        let fitted = grid.fitted(OrderChoice::Fixed(order), Parallelism::Sequential);
         for t in [1_461_000_000.0, 1_461_003_777.5, 0.0] {
             let bits = |v: Vec<f32>| v.iter().map(|p| p.to_bits()).collect::<Vec<_>>();
             assert_eq!(
-                bits(grid.predict_map(t)),
-                bits(fitted.predict(t)),
+                bits(grid.predict_map(t, Parallelism::Sequential)),
+                bits(fitted.predict_map(t)),
                 "{order} {t}"
             );
         }
+    }
+}
+
+#[test]
+fn sequential_and_parallel_fits_agree_bit_for_bit() {
+    // More changing cells than one chunk of the fit (1024 slots), so that parallel runs split.
+    let mut grid = history_strip(3000);
+    let mut rng = Rng(17);
+    let mut frame = |h: u32| -> Vec<i8> {
+        (0..3000u32)
+            .map(|c| match c % 3 {
+                // Daily rhythms of different phases, noise, and walls.
+                0 => {
+                    if ((h + c) % 24) < 10 {
+                        100
+                    } else {
+                        0
+                    }
+                }
+                1 => {
+                    if rng.below(4) == 0 {
+                        100
+                    } else {
+                        0
+                    }
+                }
+                _ => 100,
+            })
+            .collect()
+    };
+    observe_hours(&mut grid, 0..14 * 24, &mut frame);
+    let trained = grid.clone();
+    observe_hours(&mut grid, 14 * 24..18 * 24, &mut frame);
+    assert_eq!(grid.dynamic_cells(), 2000);
+    let frames = grid.frames();
+    let t = 1_461_003_777.5;
+    let orders = OrderChoice::PerCell((0..3000).map(|c| (c % 5) as u8).collect());
+    let run = |parallelism: Parallelism| {
+        let fitted = grid.fitted(orders.clone(), parallelism);
+        (
+            postcard::to_allocvec(&fitted).unwrap(),
+            grid.predict_map(t, parallelism)
+                .iter()
+                .map(|p| p.to_bits())
+                .collect::<Vec<_>>(),
+            grid.estimation_error(&fitted, 0, frames, parallelism)
+                .unwrap(),
+            grid.select_cell_orders(&trained, 4, parallelism).unwrap(),
+            postcard::to_allocvec(&grid.lossless(orders.clone(), parallelism).unwrap()).unwrap(),
+        )
+    };
+    let sequential = run(Parallelism::Sequential);
+    // The per-cell orders chose something beyond the static map for the daily cells.
+    assert!(sequential.3.iter().step_by(3).any(|&k| k >= 1));
+    assert!(sequential.2.changed_cells == 2000, "{:?}", sequential.2);
+    for parallelism in [Parallelism::Rayon(0), Parallelism::Rayon(3)] {
+        assert!(run(parallelism) == sequential, "{parallelism:?}");
     }
 }
 

@@ -245,7 +245,10 @@ impl PyGrid {
         match (&self.file, order) {
             (GridFile::State(grid), _) => {
                 let k = order.unwrap_or(grid.config().fremen.order);
-                Ok(Cow::Owned(grid.fitted(OrderChoice::Fixed(k))))
+                Ok(Cow::Owned(grid.fitted(
+                    OrderChoice::Fixed(k),
+                    chronomap_core::Parallelism::Rayon(0),
+                )))
             }
             (GridFile::Lossy(_) | GridFile::Lossless(_), Some(_)) => Err(PyValueError::new_err(
                 "order: needs a learning-state grid (this one holds a fitted model; predict without order)",
@@ -291,9 +294,10 @@ fn check_time(time: f64) -> PyResult<()> {
 fn store_file(grid: &FremenGrid, store: &str, order: Option<usize>) -> PyResult<GridFile> {
     let k = OrderChoice::Fixed(order.unwrap_or(grid.config().fremen.order));
     Ok(match store {
+    let parallelism = chronomap_core::Parallelism::Rayon(0);
         "state" => GridFile::State(Box::new(grid.clone())),
-        "lossy" => GridFile::Lossy(Box::new(grid.fitted(k))),
-        "lossless" => GridFile::Lossless(Box::new(grid.lossless(k).map_err(|e| {
+        "lossy" => GridFile::Lossy(Box::new(grid.fitted(k, parallelism))),
+        "lossless" => GridFile::Lossless(Box::new(grid.lossless(k, parallelism).map_err(|e| {
             PyValueError::new_err(format!(
                 "store='lossless': {e} (build the grid with keep_history=True)"
             ))
@@ -455,7 +459,7 @@ impl PyGrid {
     ) -> PyResult<Bound<'py, PyAny>> {
         check_time(time)?;
         let values =
-            py.detach(|| -> PyResult<Vec<f32>> { Ok(self.fitted_for(order)?.predict(time)) })?;
+            py.detach(|| -> PyResult<Vec<f32>> { Ok(self.fitted_for(order)?.predict_map(time)) })?;
         Ok(PyArray1::from_vec(py, values)
             .reshape(self.map_shape())?
             .into_any())

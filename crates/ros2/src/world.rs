@@ -23,7 +23,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
-use chronomap_core::{ObservationError, TemporalModel};
+use chronomap_core::{ObservationError, Parallelism, TemporalModel};
 use chronomap_grid::report::project_layers;
 use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry};
 use chronomap_io::navmap::{
@@ -965,8 +965,13 @@ impl World {
         let grid = self.grids[index].grid.as_ref()?;
         let g = *grid.geometry();
         // The grid predicts with its own order, which the configuration checked is the
-        // entry's (a restored grid of another order is refused).
-        let values = project_layers(&g, &grid.predict_map(time), 0..g.depth);
+        // entry's (a restored grid of another order is refused); its changing cells are
+        // fitted on the global rayon pool, as the node's other parallel work.
+        let values = project_layers(
+            &g,
+            &grid.predict_map(time, Parallelism::Rayon(0)),
+            0..g.depth,
+        );
         let probabilities = OccupancyMap::from_probabilities(
             g.width,
             g.height,

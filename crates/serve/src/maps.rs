@@ -366,7 +366,9 @@ impl MapsState {
             self.heavy.prepare(move || {
                 let outcome = match state.maps.grids.get(&name) {
                     Some(GridFile::State(g)) => std::panic::catch_unwind(|| {
-                        Arc::new(g.fitted(OrderChoice::Fixed(g.config().fremen.order)))
+                        // On the worker's thread alone, as every heavy request computes.
+                        let order = OrderChoice::Fixed(g.config().fremen.order);
+                        Arc::new(g.fitted(order, heavy::PARALLELISM))
                     })
                     .map_err(|_| format!("the grid {name:?} could not be fitted")),
                     _ => Err(format!("no grid {name:?} with a learning state")),
@@ -659,7 +661,7 @@ pub(crate) async fn grid_predict(
                 shape: [g.width, g.height, g.depth],
                 resolution: g.resolution,
                 origin: g.origin,
-                values: fitted.predict(time),
+                values: fitted.predict_map(time),
             })
         })
         .await?;

@@ -397,7 +397,7 @@ fn health_and_a_door_prediction_stay_fast_while_eight_clients_ask_for_grid_and_a
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     let answer: serde_json::Value = serde_json::from_slice(&body).unwrap();
     let values = answer["values"].as_array().unwrap();
-    let expected = office().predict_map(OFFICE_NOON);
+    let expected = office().predict_map(OFFICE_NOON, Parallelism::Sequential);
     assert_eq!(values.len(), 213_000);
     let mut modelled = 0;
     for (i, (served, expected)) in values.iter().zip(&expected).enumerate() {

@@ -118,7 +118,11 @@ fn grid_states_of_format_1_load_exactly() {
         assert_eq!(old.history(cell), new.history(cell), "cell {cell}");
     }
     let bits = |v: Vec<f32>| v.iter().map(|p| p.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(old.predict_map(t)), bits(new.predict_map(t)));
+    let sequential = chronomap_core::Parallelism::Sequential;
+    assert_eq!(
+        bits(old.predict_map(t, sequential)),
+        bits(new.predict_map(t, sequential))
+    );
     // It learns on as the new grid does.
     let (mut old, mut new) = (old, new);
     for f in 0..5 {

@@ -160,9 +160,12 @@ fn predicted_maps_are_what_map_server_loads_from_grid_predicts_files() {
     };
     for hour in [3.0, 12.0, 20.5] {
         let t = 9.0 * 86400.0 + hour * 3600.0;
-        let fitted = reference.fitted(OrderChoice::Fixed(2));
+        let fitted = reference.fitted(
+            OrderChoice::Fixed(2),
+            chronomap_core::Parallelism::Sequential,
+        );
         let map =
-            OccupancyMap::from_probabilities(6, 4, 0.25, [-1.0, 0.5, 0.0], &fitted.predict(t));
+            OccupancyMap::from_probabilities(6, 4, 0.25, [-1.0, 0.5, 0.0], &fitted.predict_map(t));
         let raw = world.predict_grid(1, t, stamp).unwrap();
         assert_eq!(raw.map.data, map.data, "probability values at {hour} h");
         assert!(map.data.iter().any(|&v| v > 0 && v < 100), "{:?}", map.data);
