@@ -98,6 +98,7 @@ pub fn eval(args: &EventsEvalArgs) -> Result<()> {
             &args.cells,
             &args.bins,
             &model_builders(),
+            chronomap_core::Parallelism::Rayon(0),
             &bar,
         )
         .map_err(|e| anyhow!("{test_name}: {e}"))?

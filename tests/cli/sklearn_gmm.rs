@@ -347,7 +347,11 @@ fn compare(case: &Case, ours: &EmFit, sk: &Value) -> Agreement {
     // each iteration: ours of the initial mixture, then our trace without its last value.
     let mut bounds = vec![
         case.initial
-            .mean_log_likelihood(&case.data, case.weights.as_deref())
+            .mean_log_likelihood(
+                &case.data,
+                case.weights.as_deref(),
+                chronomap_core::Parallelism::Sequential,
+            )
             .unwrap(),
     ];
     bounds.extend(&ours.trace[..ours.trace.len().saturating_sub(1)]);

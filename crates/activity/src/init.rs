@@ -28,6 +28,7 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
 use chronomap_core::Complex64;
+use chronomap_core::Parallelism;
 use chronomap_core::num::{count_of, fmt_number};
 
 /// The largest region or bin index of [`region_series`] (2^53: exact as an `f64`).
@@ -575,6 +576,7 @@ pub fn cluster_periods(
             max_iterations: 100,
             starts: 10,
             seed,
+            parallelism: Parallelism::Rayon(0),
         },
     )
     .map_err(|e| ActivityError::Config(format!("clustering periods: {e}")))?;
@@ -737,6 +739,7 @@ pub fn inducing_points(
             max_iterations: 30,
             starts: 1,
             seed,
+            parallelism: Parallelism::Rayon(0),
         },
     )
     .map_err(|e| ActivityError::Config(format!("inducing points: {e}")))?;

@@ -438,6 +438,7 @@ fn fit_mixture(
         relative_regularization: true,
         starts: config.starts,
         init: EmInit::KMeansPlusPlus,
+        parallelism: config.parallelism,
         seed: chronomap_core::rng::derive_seed(
             config.seed,
             0x0057_4879_5465,

@@ -35,6 +35,7 @@ pub mod events;
 use serde::{Deserialize, Serialize};
 
 use crate::mixture::{EmConfig, EmInit, GaussianMixture, fit_em_at_most};
+use chronomap_core::Parallelism;
 use chronomap_core::error::{BuildError, ConfigError, ObservationError};
 use chronomap_core::model::TemporalModel;
 use chronomap_core::observe::{ObservedSpan, validate};
@@ -79,6 +80,11 @@ pub struct HypertimeConfig {
     pub seed: u64,
     /// EM starts per fit. Default 2.
     pub starts: usize,
+    /// Threads a fit may use (the component counts tried by `Auto` and EM's per-row loops);
+    /// the model is the same on any. Default `Rayon(0)`; not stored (a model read back gets
+    /// the default).
+    #[serde(skip, default = "crate::mixture::all_threads")]
+    pub parallelism: Parallelism,
 }
 
 impl HypertimeConfig {
@@ -92,6 +98,7 @@ impl HypertimeConfig {
             holdout: 0.25,
             seed: 0,
             starts: 2,
+            parallelism: Parallelism::Rayon(0),
         }
     }
 
@@ -239,6 +246,7 @@ fn em_config(config: &HypertimeConfig, components: usize, stage: u64) -> EmConfi
             Clustering::Em(_) => EmInit::KMeansPlusPlus,
         },
         seed: chronomap_core::rng::derive_seed(config.seed, 0x4879_5445, stage, components as u64),
+        parallelism: config.parallelism,
         ..EmConfig::default()
     }
 }
@@ -633,13 +641,18 @@ impl HypertimeModel {
                     }
                     Clustering::KMeans => grow(&fit_rows, &check_rows, None, &self.config, binary)?,
                     Clustering::Em(Components::Auto) => {
-                        // Every k independently (in parallel), then chosen in order: the result
-                        // does not depend on the threads.
+                        // Every k independently (in parallel if allowed), then chosen in
+                        // order: the result does not depend on the threads.
                         use rayon::prelude::*;
-                        let structures: Vec<Structure> = (1..=self.config.max_components)
-                            .into_par_iter()
-                            .map(|k| grow(&fit_rows, &check_rows, Some(k), &self.config, binary))
-                            .collect::<Result<_, _>>()?;
+                        let ks = 1..=self.config.max_components;
+                        let grow_k =
+                            |k| grow(&fit_rows, &check_rows, Some(k), &self.config, binary);
+                        let structures: Vec<Structure> = match self.config.parallelism {
+                            Parallelism::Sequential => ks.map(grow_k).collect::<Result<_, _>>()?,
+                            Parallelism::Rayon(_) => {
+                                ks.into_par_iter().map(grow_k).collect::<Result<_, _>>()?
+                            }
+                        };
                         let mut best: Option<Structure> = None;
                         for s in structures {
                             // Fewer components unless more are clearly better.
@@ -826,6 +839,44 @@ mod tests {
                 "{clustering:?}: {}",
                 model.predict(night)
             );
+        }
+    }
+
+    #[test]
+    fn sequential_and_parallel_fits_agree_bit_for_bit() {
+        // Continuous values (not merged by week): 5040 rows, more than one chunk of EM's
+        // per-row loops, and every component count of `Auto` tried.
+        let times: Vec<f64> = (0..5 * 7 * 144)
+            .map(|i| 1_451_865_600.0 + 600.0 * f64::from(i))
+            .collect();
+        let values: Vec<f64> = times
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let open = (8.0..18.0).contains(&((t % DAY) / 3600.0));
+                0.2 + 0.5 * f64::from(u8::from(open)) + 0.01 * ((i * 7919) % 11) as f64
+            })
+            .collect();
+        let fit = |parallelism: Parallelism| {
+            let mut config = HypertimeConfig::new(Clustering::Em(Components::Auto));
+            config.max_components = 3;
+            config.max_periods = 2;
+            config.parallelism = parallelism;
+            let mut model = HypertimeModel::new(config).unwrap();
+            model.observe(&times, &values).unwrap();
+            let predictions: Vec<u64> = (0..200)
+                .map(|i| {
+                    model
+                        .predict(times[0] + 35.0 * DAY + 1234.5 * f64::from(i))
+                        .to_bits()
+                })
+                .collect();
+            (model.periods().to_vec(), model.components(), predictions)
+        };
+        let sequential = fit(Parallelism::Sequential);
+        assert_eq!(sequential.0[0], DAY, "{:?}", sequential.0);
+        for parallelism in [Parallelism::Rayon(0), Parallelism::Rayon(3)] {
+            assert!(fit(parallelism) == sequential, "{parallelism:?}");
         }
     }
 

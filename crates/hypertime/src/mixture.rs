@@ -29,6 +29,7 @@
 //! rows). All randomness comes from the seeded [`chronomap_core::rng::Xoshiro256StarStar`]: the same
 //! data, config and seed give bit-identical results.
 
+use chronomap_core::Parallelism;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -329,7 +330,8 @@ impl GaussianMixture {
         self.component_log_densities_into(x, out, &mut z);
     }
 
-    /// Weighted mean log-likelihood per unit weight of `data` (`n × dim`).
+    /// Weighted mean log-likelihood per unit weight of `data` (`n × dim`), summed in fixed
+    /// chunks on the threads `parallelism` allows (the same bits on any).
     ///
     /// # Errors
     /// As [`fit_em`] for malformed data.
@@ -337,8 +339,9 @@ impl GaussianMixture {
         &self,
         data: &[f64],
         weights: Option<&[f64]>,
+        parallelism: Parallelism,
     ) -> Result<f64, MixtureError> {
-        let rows = Rows::new(data, self.dim, weights)?;
+        let rows = Rows::new(data, self.dim, weights)?.with_parallelism(parallelism);
         Ok(em::mean_log_likelihood(&rows, self))
     }
 
@@ -513,6 +516,15 @@ pub struct EmConfig {
     pub init: EmInit,
     /// Seed of every random choice. Default 0.
     pub seed: u64,
+    /// Threads the per-row loops may use; the fit is the same on any. Default
+    /// `Rayon(0)`; not stored (a configuration read back gets the default).
+    #[serde(skip, default = "all_threads")]
+    pub parallelism: Parallelism,
+}
+
+/// [`Parallelism::Rayon`]`(0)`: the default of the fits' configurations.
+pub(crate) fn all_threads() -> Parallelism {
+    Parallelism::Rayon(0)
 }
 
 impl Default for EmConfig {
@@ -526,6 +538,7 @@ impl Default for EmConfig {
             starts: 3,
             init: EmInit::KMeans,
             seed: 0,
+            parallelism: all_threads(),
         }
     }
 }
@@ -573,7 +586,7 @@ pub fn fit_em(
     config: &EmConfig,
 ) -> Result<EmFit, MixtureError> {
     config.check()?;
-    let rows = Rows::new(data, dim, weights)?;
+    let rows = Rows::new(data, dim, weights)?.with_parallelism(config.parallelism);
     check_distinct(&rows, config.components)?;
     Ok(em::fit(&rows, config))
 }
@@ -623,7 +636,7 @@ pub fn fit_em_from(
     config: &EmConfig,
 ) -> Result<EmFit, MixtureError> {
     config.check_iteration_settings()?;
-    let rows = Rows::new(data, dim, weights)?;
+    let rows = Rows::new(data, dim, weights)?.with_parallelism(config.parallelism);
     if initial.dim() != dim {
         return Err(MixtureError::DimensionMismatch(format!(
             "the initial mixture has {} dimensions, the data {dim}",
@@ -689,6 +702,10 @@ pub struct KMeansConfig {
     pub starts: usize,
     /// Seed. Default 0.
     pub seed: u64,
+    /// Threads the per-row loops may use; the fit is the same on any. Default
+    /// `Rayon(0)`; not stored.
+    #[serde(skip, default = "all_threads")]
+    pub parallelism: Parallelism,
 }
 
 impl Default for KMeansConfig {
@@ -698,6 +715,7 @@ impl Default for KMeansConfig {
             max_iterations: 100,
             starts: 3,
             seed: 0,
+            parallelism: all_threads(),
         }
     }
 }
@@ -731,7 +749,7 @@ pub fn kmeans(
     if config.starts == 0 {
         return Err(MixtureError::InvalidConfig("starts must be >= 1".into()));
     }
-    let rows = Rows::new(data, dim, weights)?;
+    let rows = Rows::new(data, dim, weights)?.with_parallelism(config.parallelism);
     check_distinct(&rows, config.clusters)?;
     Ok(kmeans::fit(&rows, config))
 }

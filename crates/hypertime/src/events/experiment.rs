@@ -3,6 +3,7 @@
 
 use rayon::prelude::*;
 
+use chronomap_core::Parallelism;
 use chronomap_core::metrics::{mse, paired_t_test};
 use chronomap_core::progress::{NoProgress, Progress};
 
@@ -217,7 +218,9 @@ pub struct EventScore {
 /// for that grid's cells and bin length, and its expected counts are scored against the test
 /// counts. The [`StaticMap`] is always fitted as the reference of the reductions and t-tests.
 ///
-/// Rows come in the order cell size, bin length, builder; the result is deterministic.
+/// Rows come in the order cell size, bin length, builder; the result is deterministic and
+/// the same on any threads: the (cell size, bin length) pairs are scored on the threads
+/// `parallelism` allows.
 ///
 /// # Errors
 /// [`EventError::NoEvents`] if there are no test events, [`EventError::NonFinite`] for a test
@@ -229,8 +232,9 @@ pub fn run_experiment(
     cells: &[f64],
     bins: &[f64],
     builders: &[Box<dyn EventModelBuilder>],
+    parallelism: Parallelism,
 ) -> Result<Vec<EventScore>, EventError> {
-    run_experiment_reporting(train, test, cells, bins, builders, &NoProgress)
+    run_experiment_reporting(train, test, cells, bins, builders, parallelism, &NoProgress)
 }
 
 /// [`run_experiment`], reporting one step per (cell size, bin length) to `progress`.
@@ -243,6 +247,7 @@ pub fn run_experiment_reporting(
     cells: &[f64],
     bins: &[f64],
     builders: &[Box<dyn EventModelBuilder>],
+    parallelism: Parallelism,
     progress: &dyn Progress,
 ) -> Result<Vec<EventScore>, EventError> {
     if test.is_empty() {
@@ -263,14 +268,15 @@ pub fn run_experiment_reporting(
         .flat_map(|&c| bins.iter().map(move |&b| (c, b)))
         .collect();
     progress.stage("scoring event models", configs.len() as u64);
-    let rows: Result<Vec<Vec<EventScore>>, EventError> = configs
-        .par_iter()
-        .map(|&(cell, bin_secs)| {
-            let scores = score_grid(train, test, cell, bin_secs, builders);
-            progress.advance(1);
-            scores
-        })
-        .collect();
+    let score = |&(cell, bin_secs): &(f64, f64)| {
+        let scores = score_grid(train, test, cell, bin_secs, builders);
+        progress.advance(1);
+        scores
+    };
+    let rows: Result<Vec<Vec<EventScore>>, EventError> = match parallelism {
+        Parallelism::Sequential => configs.iter().map(score).collect(),
+        Parallelism::Rayon(_) => configs.par_iter().map(score).collect(),
+    };
     Ok(rows?.into_iter().flatten().collect())
 }
 
@@ -383,12 +389,28 @@ mod tests {
         let count = Count(AtomicU64::new(0));
         let (cells, bins) = ([1.0, 2.0], [900.0, 1800.0, 3600.0]);
         let builders = default_builders();
-        let rows =
-            run_experiment_reporting(&train, &test, &cells, &bins, &builders, &count).unwrap();
+        let rows = run_experiment_reporting(
+            &train,
+            &test,
+            &cells,
+            &bins,
+            &builders,
+            Parallelism::Sequential,
+            &count,
+        )
+        .unwrap();
         assert_eq!(count.0.load(Ordering::Relaxed), 6);
         assert_eq!(
             rows,
-            run_experiment(&train, &test, &cells, &bins, &builders).unwrap()
+            run_experiment(
+                &train,
+                &test,
+                &cells,
+                &bins,
+                &builders,
+                Parallelism::Rayon(3)
+            )
+            .unwrap()
         );
     }
 
@@ -397,7 +419,15 @@ mod tests {
         let train_events = days(0..2);
         let test = days(2..3);
         let train = TrainingData::from_events(&train_events, 3600.0).unwrap();
-        let rows = run_experiment(&train, &test, &[1.0], &[1800.0], &default_builders()).unwrap();
+        let rows = run_experiment(
+            &train,
+            &test,
+            &[1.0],
+            &[1800.0],
+            &default_builders(),
+            Parallelism::Rayon(0),
+        )
+        .unwrap();
         let names: Vec<&str> = rows.iter().map(|r| r.model.as_str()).collect();
         assert_eq!(names[0], "static");
         assert_eq!(names[1], "mean");
@@ -421,8 +451,17 @@ mod tests {
         // The global mean is worse than the static map here (the cells differ).
         assert!(rows[1].reduction_pct < 0.0);
         // Deterministic.
-        let again = run_experiment(&train, &test, &[1.0], &[1800.0], &default_builders()).unwrap();
-        assert_eq!(rows, again);
+        let again = run_experiment(
+            &train,
+            &test,
+            &[1.0],
+            &[1800.0],
+            &default_builders(),
+            Parallelism::Sequential,
+        )
+        .unwrap();
+        let text = |rows: &[EventScore]| format!("{rows:?}");
+        assert_eq!(text(&rows), text(&again));
     }
 
     #[test]
@@ -431,15 +470,36 @@ mod tests {
         let train = TrainingData::from_events(&train_events, 3600.0).unwrap();
         let builders = default_builders();
         assert!(matches!(
-            run_experiment(&train, &[], &[1.0], &[600.0], &builders),
+            run_experiment(
+                &train,
+                &[],
+                &[1.0],
+                &[600.0],
+                &builders,
+                Parallelism::Rayon(0)
+            ),
             Err(EventError::NoEvents { what: "test" })
         ));
         assert!(matches!(
-            run_experiment(&train, &train_events, &[0.0], &[600.0], &builders),
+            run_experiment(
+                &train,
+                &train_events,
+                &[0.0],
+                &[600.0],
+                &builders,
+                Parallelism::Rayon(0)
+            ),
             Err(EventError::OutOfRange { .. })
         ));
         assert!(matches!(
-            run_experiment(&train, &train_events, &[1.0], &[f64::NAN], &builders),
+            run_experiment(
+                &train,
+                &train_events,
+                &[1.0],
+                &[f64::NAN],
+                &builders,
+                Parallelism::Rayon(0)
+            ),
             Err(EventError::OutOfRange { .. })
         ));
     }

@@ -1,6 +1,7 @@
 //! Validated weighted rows, their weighted moments, and fixed-size chunking (results never
 //! depend on the number of threads: chunks are fixed, partial sums reduced in chunk order).
 
+use chronomap_core::Parallelism;
 use rayon::prelude::*;
 
 use super::MixtureError;
@@ -17,6 +18,9 @@ pub(super) struct Rows<'a> {
     pub w: Option<&'a [f64]>,
     /// Sum of the weights (`n` without weights).
     pub total: f64,
+    /// Threads the per-chunk loops may use ([`Parallelism::Sequential`] unless
+    /// [`Rows::with_parallelism`] says otherwise).
+    pub parallelism: Parallelism,
 }
 
 impl<'a> Rows<'a> {
@@ -76,7 +80,25 @@ impl<'a> Rows<'a> {
             n,
             w,
             total,
+            parallelism: Parallelism::Sequential,
         })
+    }
+
+    /// The same rows, their chunks run on the threads `parallelism` allows.
+    pub fn with_parallelism(self, parallelism: Parallelism) -> Self {
+        Rows {
+            parallelism,
+            ..self
+        }
+    }
+
+    /// Fewest chunks a rayon task takes, so that the chunks split into at most
+    /// `parallelism.tasks()` tasks (1 for `Rayon(0)`: as the pool likes).
+    fn min_chunks(&self) -> usize {
+        match self.parallelism {
+            Parallelism::Rayon(0) | Parallelism::Sequential => 1,
+            par => self.chunks().div_ceil(par.tasks()).max(1),
+        }
     }
 
     /// Row `i`.
@@ -153,8 +175,8 @@ impl<'a> Rows<'a> {
     }
 
     /// `f(first_row, rows)` for every chunk of [`CHUNK`] rows; the partial results in chunk
-    /// order. Runs on the rayon pool when there is more than one chunk; the results are the
-    /// same either way.
+    /// order. Runs as rayon tasks when there is more than one chunk and
+    /// [`Rows::parallelism`] allows; the results are the same either way.
     pub fn map_chunks<P, F>(&self, f: F) -> Vec<P>
     where
         P: Send,
@@ -165,10 +187,15 @@ impl<'a> Rows<'a> {
             let start = c * CHUNK;
             f(start, CHUNK.min(n - start))
         };
-        if self.chunks() <= 1 {
-            return vec![run(0)];
+        match self.parallelism {
+            _ if self.chunks() <= 1 => vec![run(0)],
+            Parallelism::Sequential => (0..self.chunks()).map(run).collect(),
+            Parallelism::Rayon(_) => (0..self.chunks())
+                .into_par_iter()
+                .with_min_len(self.min_chunks())
+                .map(run)
+                .collect(),
         }
-        (0..self.chunks()).into_par_iter().map(run).collect()
     }
 
     /// As [`Rows::map_chunks`], with per-row outputs: `a` holds `stride_a >= 1` values per
@@ -194,13 +221,21 @@ impl<'a> Rows<'a> {
             let start = c * CHUNK;
             f(start, CHUNK.min(n - start), a, b)
         };
-        if self.chunks() <= 1 {
-            return vec![run((0, (a, b)))];
+        match self.parallelism {
+            _ if self.chunks() <= 1 => vec![run((0, (a, b)))],
+            Parallelism::Sequential => a
+                .chunks_mut(CHUNK * stride_a)
+                .zip(b.chunks_mut(CHUNK * stride_b))
+                .enumerate()
+                .map(run)
+                .collect(),
+            Parallelism::Rayon(_) => a
+                .par_chunks_mut(CHUNK * stride_a)
+                .zip(b.par_chunks_mut(CHUNK * stride_b))
+                .enumerate()
+                .with_min_len(self.min_chunks())
+                .map(run)
+                .collect(),
         }
-        a.par_chunks_mut(CHUNK * stride_a)
-            .zip(b.par_chunks_mut(CHUNK * stride_b))
-            .enumerate()
-            .map(run)
-            .collect()
     }
 }

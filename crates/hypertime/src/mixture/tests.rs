@@ -129,7 +129,9 @@ fn em_trace_is_non_decreasing_on_random_data() {
             assert_eq!(fit.trace.len(), fit.iterations, "{what}");
             assert_eq!(fit.log_likelihood, *fit.trace.last().unwrap(), "{what}");
             assert_eq!(
-                fit.mixture.mean_log_likelihood(&data, None).unwrap(),
+                fit.mixture
+                    .mean_log_likelihood(&data, None, Parallelism::Sequential)
+                    .unwrap(),
                 fit.log_likelihood,
                 "{what}: the reported likelihood is the mixture's"
             );
@@ -226,6 +228,25 @@ fn identical_seeds_give_identical_bits_on_any_thread_pool() {
     let c = fit(3, 5);
     assert_eq!(bits(&a), bits(&b));
     assert_eq!(bits(&a), bits(&c));
+    // The same bits on the calling thread alone.
+    let sequential = EmConfig {
+        parallelism: Parallelism::Sequential,
+        ..config(3, 5)
+    };
+    assert_eq!(
+        bits(&a),
+        bits(&fit_em(&data, 4, None, &sequential).unwrap())
+    );
+    assert_eq!(
+        a.mixture
+            .mean_log_likelihood(&data, None, Parallelism::Sequential)
+            .unwrap()
+            .to_bits(),
+        a.mixture
+            .mean_log_likelihood(&data, None, Parallelism::Rayon(3))
+            .unwrap()
+            .to_bits()
+    );
     assert_eq!(a, b);
     let other = fit(2, 6);
     assert_ne!(bits(&a), bits(&other), "the seed matters");
@@ -578,10 +599,12 @@ fn mean_log_likelihood_weights_rows() {
     let data = [0.0, 1.0, 2.0];
     let weights = [1.0, 0.0, 3.0];
     let expected = (m.log_density(&[0.0]) + 3.0 * m.log_density(&[2.0])) / 4.0;
-    let got = m.mean_log_likelihood(&data, Some(&weights)).unwrap();
+    let got = m
+        .mean_log_likelihood(&data, Some(&weights), Parallelism::Sequential)
+        .unwrap();
     assert!((got - expected).abs() < 1e-14);
     assert_eq!(
-        m.mean_log_likelihood(&data, Some(&[0.0; 3])),
+        m.mean_log_likelihood(&data, Some(&[0.0; 3]), Parallelism::Rayon(2)),
         Err(MixtureError::EmptyData)
     );
 }
@@ -901,7 +924,7 @@ fn bad_input_gives_the_right_error() {
         Err(MixtureError::DimensionMismatch(_))
     ));
     assert!(matches!(
-        one.mean_log_likelihood(&[1.0, 2.0, 3.0], None),
+        one.mean_log_likelihood(&[1.0, 2.0, 3.0], None, Parallelism::Sequential),
         Err(MixtureError::DimensionMismatch(_))
     ));
 }
