@@ -7,8 +7,10 @@
 //! * [`api`]: the wire protocol, the request and response bodies of every endpoint (the
 //!   operations of the original FreMEn server as JSON). The server uses the same types, so the
 //!   two cannot drift apart; it enables the `openapi` feature to describe them.
-//! * [`Client`] (default feature `http`): one async method per endpoint, the service's JSON
-//!   errors as [`ClientError::Api`].
+//! * [`Client`] (default feature `http`, reqwest and tokio): one async method per endpoint,
+//!   the service's JSON errors as [`ClientError::Api`].
+//! * [`blocking::Client`] (feature `blocking`, ureq over `std` sockets): the same methods,
+//!   blocking, without an async runtime; what the Python package uses.
 //!
 //! # Example
 //! ```no_run
@@ -27,7 +29,13 @@
 
 pub mod api;
 #[cfg(feature = "http")]
-mod http;
+mod async_http;
+#[cfg(feature = "blocking")]
+pub mod blocking;
+#[cfg(any(feature = "http", feature = "blocking"))]
+mod call;
 
 #[cfg(feature = "http")]
-pub use http::{Client, ClientError, MAX_RESPONSE_BYTES, Method, StatusCode};
+pub use async_http::Client;
+#[cfg(any(feature = "http", feature = "blocking"))]
+pub use call::{ClientError, MAX_RESPONSE_BYTES, Method, StatusCode};
