@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime
 import os
 from typing import Any, Literal, Sequence, Tuple, Union, overload
 
@@ -19,6 +20,12 @@ FloatArray = npt.NDArray[np.float64]
 Path = Union[str, os.PathLike]
 Order = Union[int, Literal["auto"]]
 Criterion = Literal["brier", "absolute", "binary"]
+Time = Union[float, datetime.datetime, datetime.date, np.datetime64]
+"""One time: unix seconds, a ``datetime`` (naive = UTC), ``numpy.datetime64`` (UTC) or
+``pandas.Timestamp`` (a ``datetime``; zone-aware ones converted to UTC)."""
+Times = ArrayLike
+"""Times: float64 unix seconds, ``datetime64`` arrays of any unit, pandas ``Series`` /
+``DatetimeIndex`` of datetimes, or lists of ``datetime``."""
 
 class TemporalModel:
     """A model of one state over time ([Krajník 2017], [Santos 2017], [Krajník 2019]).
@@ -31,29 +38,37 @@ class TemporalModel:
 
     def __init__(self, spec: str, *, periods: str = "week", holdout: float = 0.25,
                  max_order: int = 10, criterion: Criterion = "brier") -> None: ...
-    def observe(self, times: ArrayLike, values: ArrayLike) -> TemporalModel:
-        """Adds observations: float64 unix seconds that never go backwards, values in [0, 1].
+    def observe(self, times: Times, values: ArrayLike) -> TemporalModel:
+        """Adds observations: times (unix seconds, ``datetime64``, pandas datetimes) that never
+        go backwards, values in [0, 1] (floats, ints or booleans, pandas Series too).
 
         A rejected batch raises ``ValueError`` naming the element
         (``observation 4 (times[3]): ...``) and leaves the model as it was. Contiguous float64
         arrays are read in place; the work runs without the GIL. Returns the model.
         """
     @overload
-    def predict(self, times: float) -> float: ...
+    def predict(self, times: Time, *, as_series: Literal[False] = ...) -> float: ...
     @overload
-    def predict(self, times: ArrayLike) -> FloatArray: ...
-    def predict(self, times: Any) -> Any:
-        """p(t) at ``times``; 0.5 for a model that has seen nothing."""
+    def predict(self, times: Times, *, as_series: Literal[False] = ...) -> FloatArray: ...
     @overload
-    def entropy(self, times: float) -> float: ...
+    def predict(self, times: Any, *, as_series: Literal[True]) -> Any: ...
+    def predict(self, times: Any, *, as_series: bool = False) -> Any:
+        """p(t) at ``times``; 0.5 for a model that has seen nothing. ``as_series=True``: a
+        ``pandas.Series`` named ``p`` indexed by the times (a UTC ``DatetimeIndex``)."""
     @overload
-    def entropy(self, times: ArrayLike) -> FloatArray: ...
-    def entropy(self, times: Any) -> Any:
-        """Binary entropy of p(t) in bits (1 at p = 0.5, 0 when certain)."""
-    def anomalies(self, times: ArrayLike, values: ArrayLike,
-                  confidence: float = 0.99) -> dict[str, np.ndarray]:
+    def entropy(self, times: Time, *, as_series: Literal[False] = ...) -> float: ...
+    @overload
+    def entropy(self, times: Times, *, as_series: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def entropy(self, times: Any, *, as_series: Literal[True]) -> Any: ...
+    def entropy(self, times: Any, *, as_series: bool = False) -> Any:
+        """Binary entropy of p(t) in bits (1 at p = 0.5, 0 when certain); ``as_series=True``:
+        a ``pandas.Series`` named ``entropy``."""
+    def anomalies(self, times: Times, values: ArrayLike, confidence: float = 0.99, *,
+                  as_frame: bool = False) -> Any:
         """Observations contradicting a confident prediction ([Krajník 2017] §V, eq. (9)):
-        arrays ``index``, ``time``, ``observed``, ``p``."""
+        arrays ``index``, ``time``, ``observed``, ``p`` (a dict), or with ``as_frame=True`` a
+        ``pandas.DataFrame`` of them, ``time`` as UTC datetimes."""
     def save(self, path: Path) -> None:
         """Writes the model file ``chronomap fit -o`` writes (versioned, checksummed)."""
     def to_bytes(self) -> bytes:
@@ -187,17 +202,17 @@ class HypertimeEvents:
     def periods(self) -> FloatArray: ...
     @property
     def components(self) -> int: ...
-    def rate(self, times: ArrayLike) -> FloatArray:
+    def rate(self, times: Times) -> FloatArray:
         """Expected events per second over the plane."""
-    def intensity(self, t: ArrayLike, x: ArrayLike, y: ArrayLike) -> FloatArray:
+    def intensity(self, t: Times, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """λ(t, x, y) in events per m² per second."""
-    def density(self, times: ArrayLike, cell: float = 0.25) -> dict[str, Any]:
+    def density(self, times: Times, cell: float = 0.25) -> dict[str, Any]:
         """Detections per m² per hour on a grid over the training detections."""
 
 def read_events(path: Path) -> FloatArray:
     """An event file (``t x y ...`` lines) as an ``(N, 3)`` array."""
 
-def psbt_synthesize(map: Path, start: Tuple[float, float], time: float, *,
+def psbt_synthesize(map: Path, start: Tuple[float, float], time: Time, *,
                     tracks: Sequence[Path] | None = None, copa: CopaMap | None = None,
                     cell: float = 1.0, interval: float = 3600.0, planning_cell: float = 0.5,
                     clearance: float = 0.3, places: int = 6, seed: int = 0,

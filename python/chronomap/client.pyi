@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import datetime
 import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
+
+Time = Union[float, datetime.datetime, datetime.date, np.datetime64]
 
 class ServiceError(RuntimeError):
     """The service answered with an error: ``str(e)`` is ``"404 Not Found: no model ..."``."""
@@ -45,17 +48,29 @@ class Client:
         """Adds observations (created as ``model`` if missing); returns
         ``{"observations": n, "seq": ...}`` once durable."""
     @overload
-    def predict(self, id: str, times: float, *, order: Optional[int] = None) -> float: ...
+    def predict(self, id: str, times: Time, *, order: Optional[int] = None,
+                as_series: bool = False) -> float: ...
     @overload
-    def predict(self, id: str, times: npt.ArrayLike, *, order: Optional[int] = None) -> np.ndarray: ...
+    def predict(self, id: str, times: npt.ArrayLike, *, order: Optional[int] = None,
+                as_series: bool = False) -> np.ndarray: ...
+    def predict(self, id: str, times: Any, *, order: Optional[int] = None,
+                as_series: bool = False) -> Any:
+        """p(t) at ``times`` (seconds, ``datetime64``, pandas datetimes); ``as_series=True``:
+        a ``pandas.Series`` named ``p`` indexed by the times (UTC)."""
     @overload
-    def entropy(self, id: str, times: float, *, order: Optional[int] = None) -> float: ...
+    def entropy(self, id: str, times: Time, *, order: Optional[int] = None,
+                as_series: bool = False) -> float: ...
     @overload
-    def entropy(self, id: str, times: npt.ArrayLike, *, order: Optional[int] = None) -> np.ndarray: ...
-    def forecast(self, ids: Sequence[str], time: float, *, order: Optional[int] = None) -> np.ndarray:
+    def entropy(self, id: str, times: npt.ArrayLike, *, order: Optional[int] = None,
+                as_series: bool = False) -> np.ndarray: ...
+    def entropy(self, id: str, times: Any, *, order: Optional[int] = None,
+                as_series: bool = False) -> Any:
+        """Entropy (bits) of p(t) at ``times``; ``as_series=True``: a ``pandas.Series``."""
+    def forecast(self, ids: Sequence[str], time: Time, *, order: Optional[int] = None) -> np.ndarray:
         """p(t) of many models at one time, in the order of ``ids``."""
-    def observations(self, id: str) -> Tuple[np.ndarray, np.ndarray]:
-        """Every observation the model holds: ``(times, values)``."""
+    def observations(self, id: str, *, as_frame: bool = False) -> Any:
+        """Every observation the model holds: ``(times, values)``, or with ``as_frame=True`` a
+        ``pandas.DataFrame`` with columns ``time`` (UTC datetimes) and ``value``."""
     @property
     def url(self) -> str:
         """The service's address."""

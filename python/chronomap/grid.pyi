@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from typing import Literal, Optional, Sequence, Tuple, Union
+from typing import Any, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -55,7 +55,7 @@ class Grid:
     def observe(self, frames: npt.ArrayLike, times: npt.ArrayLike) -> Grid:
         """Observes more ``(T, H, W)`` frames (learning-state grids only); a rejected batch
         leaves the grid as it was. Returns the grid."""
-    def predict_map(self, time: float, *, order: Optional[int] = None) -> np.ndarray:
+    def predict_map(self, time: Any, *, order: Optional[int] = None) -> np.ndarray:
         """Occupancy probabilities at ``time``: float32 ``(H, W)`` (``(D, H, W)`` for 3-D
         grids), NaN where never observed; ``chronomap grid predict`` writes ``round(100 p)``."""
     def compact(self, order: Optional[int] = None) -> Grid:

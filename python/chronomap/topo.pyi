@@ -30,11 +30,11 @@ class EdgeModels:
         """Fits every edge from a directory of edge files ``<From>_<To>.data`` (lines
         ``t duration_s success``), as ``chronomap topo fit --edges`` does with the same
         options."""
-    def predict(self, time: float) -> Dict[str, Any]:
+    def predict(self, time: Any) -> Dict[str, Any]:
         """Every edge at ``time``, as ``chronomap topo predict --json``: ``edge``, ``from``,
         ``to`` (lists) and the arrays ``success_probability``, ``uncertainty``,
         ``static_success_probability``, ``duration_secs``, ``attempts``."""
-    def plan(self, start: str, task: str, time: float) -> Dict[str, Any]:
+    def plan(self, start: str, task: str, time: Any) -> Dict[str, Any]:
         """The plan of a co-safe LTL ``task`` from node ``start`` at ``time``, as
         ``chronomap plan --time --json``: ``pmax``, ``expected_secs``, ``first_edge``,
         ``route``, ``route_success_probabilities``, ``product_states``, ``task``, ``from``,

@@ -157,3 +157,35 @@ def test_no_service_is_a_connection_error():
         port = s.getsockname()[1]
     with pytest.raises(ConnectionError, match=rf"http://127.0.0.1:{port}/v1/health"):
         Client(f"http://127.0.0.1:{port}").health()
+
+
+def test_pandas_times_and_states_go_to_the_service_as_seconds(client):
+    pd = pytest.importorskip("pandas")
+    # A door seen every hour for a week from 2016-03-21T00:00+01:00 (Prague), open 08-18 UTC.
+    times = pd.date_range("2016-03-21", periods=7 * 24, freq="h", tz="Europe/Prague")
+    seconds = 1458514800.0 + 3600.0 * np.arange(7 * 24)          # 2016-03-20T23:00Z onwards
+    is_open = pd.Series(((seconds % 86400) >= 8 * 3600) & ((seconds % 86400) < 18 * 3600))
+    assert client.add("pandas-door", pd.Series(times), is_open, model="fremen:2")[
+        "observations"] == 7 * 24
+    client.add("float-door", seconds, is_open.to_numpy(np.float64), model="fremen:2")
+
+    got_t, got_v = client.observations("pandas-door")
+    np.testing.assert_array_equal(got_t, seconds)
+    np.testing.assert_array_equal(got_v, is_open.to_numpy(np.float64))
+    frame = client.observations("pandas-door", as_frame=True)
+    assert list(frame.columns) == ["time", "value"]
+    assert (pd.DatetimeIndex(frame["time"]) == times).all()
+
+    later = pd.date_range("2016-03-28", periods=24, freq="h", tz="UTC")
+    later_s = 1459123200.0 + 3600.0 * np.arange(24)
+    p = client.predict("pandas-door", later, as_series=True)
+    assert isinstance(p, pd.Series) and p.name == "p" and (p.index == later).all()
+    np.testing.assert_array_equal(p.to_numpy(), client.predict("float-door", later_s))
+    np.testing.assert_array_equal(client.entropy("pandas-door", later.to_numpy()),
+                                  client.entropy("float-door", later_s))
+    noon = pd.Timestamp("2016-03-28 14:00", tz="Europe/Prague")   # 12:00 UTC (CEST)
+    assert client.predict("pandas-door", noon) == client.predict("float-door", 1459166400.0)
+    np.testing.assert_array_equal(client.forecast(["pandas-door", "float-door"], noon),
+                                  [p.iloc[12], p.iloc[12]])
+    with pytest.raises(ValueError, match=r"^times\[1\]: NaT"):
+        client.predict("pandas-door", pd.Series([noon, pd.NaT]))

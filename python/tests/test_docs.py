@@ -43,3 +43,8 @@ def test_python_guide_examples(repo, in_scratch, capsys):
     assert "[ 24. 168.]" in printed and "fremen:10" in printed
     assert [round(x, 4) for x in ns["scores"]["mean_mse"]] == [0.0807, 0.0701, 0.0670, 0.0603]
     assert np.array_equal(ns["people"].periods, [43200.0])
+    # Times from pandas: the door of "Times from pandas and numpy", open 08:00-18:00 UTC.
+    assert "1.0" in printed.splitlines()
+    assert ns["p_week"].index.name == "time" and str(ns["p_week"].index.tz) == "UTC"
+    assert ns["p_week"]["2016-03-21 12:00"] == 1.0 and ns["p_week"]["2016-03-21 03:00"] == 0.0
+    assert str(ns["local"].index.tz) == "Europe/Prague"

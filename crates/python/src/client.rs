@@ -1,20 +1,19 @@
 //! `chronomap.Client`: blocking calls to a running world-model service (`chronomap serve`)
-//! through the async [`chronomap_client::Client`], driven by a current-thread tokio runtime
-//! owned by each Python client, without the GIL while waiting.
+//! through [`chronomap_client::blocking::Client`] (no async runtime), without the GIL while
+//! waiting.
 //!
 //! The service's errors are `chronomap.ServiceError` (a `RuntimeError`) with its message and
 //! the `status` and `kind` of the answer; no answer at all (refused, reset) is a
 //! `ConnectionError`.
 
-use std::future::Future;
-
+use chronomap_client::ClientError;
 use chronomap_client::api::{ForecastRequest, ModelInfo, WriteAck};
-use chronomap_client::{Client, ClientError};
+use chronomap_client::blocking::Client;
 use pyo3::exceptions::{PyConnectionError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyFloat, PyInt, PyList};
+use pyo3::types::{PyFloat, PyList};
 
-use crate::arrays::{f64_array, to_numpy};
+use crate::arrays::{self, Times, to_numpy};
 
 pyo3::create_exception!(
     chronomap,
@@ -51,17 +50,17 @@ fn client_error(py: Python<'_>, error: ClientError) -> PyErr {
 #[pyclass(name = "Client", module = "chronomap", frozen)]
 pub struct PyClient {
     client: Client,
-    runtime: tokio::runtime::Runtime,
     url: String,
 }
 
 impl PyClient {
-    /// Runs `call` to completion without the GIL.
-    fn block<'a, T: Send, F>(&'a self, py: Python<'_>, call: F) -> PyResult<T>
-    where
-        F: Future<Output = Result<T, ClientError>> + Send + 'a,
-    {
-        py.detach(|| self.runtime.block_on(call))
+    /// Runs `call` (a request to the service) without the GIL.
+    fn block<T: Send>(
+        &self,
+        py: Python<'_>,
+        call: impl FnOnce(&Client) -> Result<T, ClientError> + Send,
+    ) -> PyResult<T> {
+        py.detach(|| call(&self.client))
             .map_err(|e| client_error(py, e))
     }
 }
@@ -80,23 +79,26 @@ fn info<'py>(py: Python<'py>, info: &ModelInfo) -> PyResult<Bound<'py, PyAny>> {
     from_json(py, serde_json::to_string(info))
 }
 
-/// Times from Python: one number (`scalar = true`) or an array.
-fn times_arg(times: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, bool)> {
-    if times.is_instance_of::<PyFloat>() || times.is_instance_of::<PyInt>() {
-        return Ok((vec![times.extract()?], true));
+/// Values as the service answered, shaped as the times were asked (a float or an array), or
+/// a `pandas.Series` named `series` indexed by the times.
+fn values_out<'py>(
+    py: Python<'py>,
+    times: &Times<'py>,
+    values: Vec<f64>,
+    series: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    if values.len() != times.as_slice().len() {
+        return Err(PyValueError::new_err(format!(
+            "the service answered with {} values for {} times",
+            values.len(),
+            times.as_slice().len()
+        )));
     }
-    Ok((f64_array(times, "times")?.as_slice().to_vec(), false))
-}
-
-/// Values as the service answered, shaped as the times were asked (a float or an array).
-fn values_out<'py>(py: Python<'py>, values: Vec<f64>, scalar: bool) -> PyResult<Bound<'py, PyAny>> {
-    if scalar {
-        let v = values.first().copied().ok_or_else(|| {
-            PyValueError::new_err("the service answered with no value for one time")
-        })?;
-        return Ok(PyFloat::new(py, v).into_any());
+    match series {
+        Some(name) => arrays::series(py, times.as_slice(), values, name),
+        None if times.is_one() => Ok(PyFloat::new(py, values[0]).into_any()),
+        None => Ok(to_numpy(py, values).into_any()),
     }
-    Ok(to_numpy(py, values).into_any())
 }
 
 #[pymethods]
@@ -105,13 +107,8 @@ impl PyClient {
     #[pyo3(signature = (url = "http://127.0.0.1:8470", token = None))]
     fn py_new(url: &str, token: Option<String>) -> PyResult<Self> {
         let client = Client::new(url, token).map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let runtime = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .map_err(|e| PyRuntimeError::new_err(format!("cannot start the async runtime: {e}")))?;
         Ok(PyClient {
             client,
-            runtime,
             url: url.trim_end_matches('/').to_owned(),
         })
     }
@@ -120,14 +117,14 @@ impl PyClient {
     /// `failed`), `models`, `store`, `seq` (last log position applied), `auth` (whether writes
     /// need a token), and for a fleet node `fleet`, `head`, `lag` and `behind_secs`.
     fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let health = self.block(py, self.client.health())?;
+        let health = self.block(py, |c| c.health())?;
         from_json(py, serde_json::to_string(&health))
     }
 
     /// All models: a list of dicts (`id`, `model` spec, `observations`, `first_time`,
     /// `last_time`, ...), by id.
     fn list<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let list = self.block(py, self.client.list())?;
+        let list = self.block(py, |c| c.list())?;
         from_json(py, serde_json::to_string(&list.models))
     }
 
@@ -135,7 +132,7 @@ impl PyClient {
     /// `last_time` and, for spectral models, `mean` and `components` (`period_secs`,
     /// `amplitude`, `phase`).
     fn view<'py>(&self, py: Python<'py>, id: &str) -> PyResult<Bound<'py, PyAny>> {
-        let view = self.block(py, self.client.view(id))?;
+        let view = self.block(py, |c| c.view(id))?;
         info(py, &view)
     }
 
@@ -151,13 +148,13 @@ impl PyClient {
         range: Option<(f64, f64)>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let range = range.map(|(lo, hi)| [lo, hi]);
-        let done = self.block(py, self.client.create(id, Some(model), range))?;
+        let done = self.block(py, |c| c.create(id, Some(model), range))?;
         ack(py, &done)
     }
 
     /// Removes model `id`.
     fn remove<'py>(&self, py: Python<'py>, id: &str) -> PyResult<Bound<'py, PyAny>> {
-        let done = self.block(py, self.client.remove(id))?;
+        let done = self.block(py, |c| c.remove(id))?;
         ack(py, &done)
     }
 
@@ -176,8 +173,8 @@ impl PyClient {
         values: &Bound<'py, PyAny>,
         model: Option<&str>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let times = f64_array(times, "times")?;
-        let values = f64_array(values, "values")?;
+        let times = arrays::time_array(times, "times")?;
+        let values = arrays::value_array(values, "values")?;
         let (t, v) = (times.as_slice(), values.as_slice());
         if t.len() != v.len() {
             return Err(PyValueError::new_err(format!(
@@ -186,49 +183,57 @@ impl PyClient {
                 v.len()
             )));
         }
-        let done = self.block(py, self.client.add_values(id, t, v, model))?;
+        let done = self.block(py, |c| c.add_values(id, t, v, model))?;
         ack(py, &done)
     }
 
-    /// p(t) of model `id` at `times` (an array, or one number): a float64 array, or a float.
-    /// `order` predicts with another order (models with one).
-    #[pyo3(signature = (id, times, *, order = None))]
+    /// p(t) of model `id` at `times` (an array, or one time: seconds, `datetime64`, pandas):
+    /// a float64 array, or a float; with `as_series=True` a `pandas.Series` named `p` indexed
+    /// by the times (UTC). `order` predicts with another order (models with one).
+    #[pyo3(signature = (id, times, *, order = None, as_series = false))]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         id: &str,
         times: &Bound<'py, PyAny>,
         order: Option<usize>,
+        as_series: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (times, scalar) = times_arg(times)?;
-        let answer = self.block(py, self.client.predict(id, &times, order))?;
-        values_out(py, answer.values, scalar)
+        let times = arrays::times(times, "times")?;
+        let t = times.as_slice();
+        let answer = self.block(py, |c| c.predict(id, t, order))?;
+        values_out(py, &times, answer.values, as_series.then_some("p"))
     }
 
-    /// The binary entropy (bits) of model `id`'s p(t) at `times` (an array or one number).
-    #[pyo3(signature = (id, times, *, order = None))]
+    /// The binary entropy (bits) of model `id`'s p(t) at `times` (an array or one time); with
+    /// `as_series=True` a `pandas.Series` named `entropy`.
+    #[pyo3(signature = (id, times, *, order = None, as_series = false))]
     fn entropy<'py>(
         &self,
         py: Python<'py>,
         id: &str,
         times: &Bound<'py, PyAny>,
         order: Option<usize>,
+        as_series: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (times, scalar) = times_arg(times)?;
-        let answer = self.block(py, self.client.entropy(id, &times, order))?;
-        values_out(py, answer.values, scalar)
+        let times = arrays::times(times, "times")?;
+        let t = times.as_slice();
+        let answer = self.block(py, |c| c.entropy(id, t, order))?;
+        values_out(py, &times, answer.values, as_series.then_some("entropy"))
     }
 
-    /// p(t) of the models `ids` (a list of ids) at one `time`: a float64 array in the order of
-    /// `ids`. `order` predicts every model with that order.
+    /// p(t) of the models `ids` (a list of ids) at one `time` (seconds, `datetime`,
+    /// `numpy.datetime64` or `pandas.Timestamp`): a float64 array in the order of `ids`.
+    /// `order` predicts every model with that order.
     #[pyo3(signature = (ids, time, *, order = None))]
     fn forecast<'py>(
         &self,
         py: Python<'py>,
         ids: &Bound<'py, PyAny>,
-        time: f64,
+        time: &Bound<'py, PyAny>,
         order: Option<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let time = arrays::time_scalar(time, "time")?;
         if ids.is_instance_of::<pyo3::types::PyString>() {
             return Err(PyTypeError::new_err(
                 "ids: expected a list of model ids, got one str (write [id])",
@@ -246,27 +251,36 @@ impl PyClient {
             order,
             orders: None,
         };
-        let answer = self.block(py, self.client.forecast(&request))?;
+        let answer = self.block(py, |c| c.forecast(&request))?;
         Ok(to_numpy(py, answer.values).into_any())
     }
 
     /// Every observation model `id` holds, from the service's durable log: `(times, values)`,
-    /// two float64 arrays.
+    /// two float64 arrays; with `as_frame=True` a `pandas.DataFrame` with columns `time` (UTC
+    /// datetimes) and `value`.
+    #[pyo3(signature = (id, *, as_frame = false))]
     fn observations<'py>(
         &self,
         py: Python<'py>,
         id: &str,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let answer = self.block(py, self.client.observations(id))?;
-        Ok((
-            to_numpy(py, answer.times).into_any(),
-            to_numpy(py, answer.values).into_any(),
-        ))
+        as_frame: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let answer = self.block(py, |c| c.observations(id))?;
+        let (times, values) = (to_numpy(py, answer.times), to_numpy(py, answer.values));
+        if as_frame {
+            let columns = pyo3::types::PyDict::new(py);
+            columns.set_item("time", times)?;
+            columns.set_item("value", values)?;
+            return py
+                .import("chronomap._time")?
+                .call_method1("frame", (columns,));
+        }
+        Ok((times, values).into_pyobject(py)?.into_any())
     }
 
     /// The ids of all models (a list of str).
     fn ids<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let list = self.block(py, self.client.list())?;
+        let list = self.block(py, |c| c.list())?;
         PyList::new(py, list.models.into_iter().map(|m| m.id))
     }
 

@@ -12,7 +12,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-use crate::arrays::{f64_array, f64_ndarray, shape_text, to_numpy};
+use crate::arrays::{self, f64_array, f64_ndarray, shape_text, to_numpy};
 use crate::errors;
 
 /// `(N, 3)` rows of `t, x, y` as events.
@@ -111,7 +111,7 @@ impl PyHypertimeEvents {
         py: Python<'py>,
         times: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let times = f64_array(times, "times")?;
+        let times = arrays::time_array(times, "times")?;
         let t = times.as_slice();
         check_finite(t, "times")?;
         Ok(to_numpy(
@@ -128,7 +128,11 @@ impl PyHypertimeEvents {
         x: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (t, x, y) = (f64_array(t, "t")?, f64_array(x, "x")?, f64_array(y, "y")?);
+        let (t, x, y) = (
+            arrays::time_array(t, "t")?,
+            f64_array(x, "x")?,
+            f64_array(y, "y")?,
+        );
         let (t, x, y) = (t.as_slice(), x.as_slice(), y.as_slice());
         if t.len() != x.len() || x.len() != y.len() {
             return Err(PyValueError::new_err(format!(
@@ -160,7 +164,7 @@ impl PyHypertimeEvents {
         times: &Bound<'py, PyAny>,
         cell: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let times = f64_array(times, "times")?;
+        let times = arrays::time_array(times, "times")?;
         let t = times.as_slice();
         check_finite(t, "times")?;
         if !(cell.is_finite() && cell > 0.0) {

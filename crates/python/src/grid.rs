@@ -13,16 +13,17 @@ use chronomap_core::progress::NoProgress;
 use chronomap_core::{FremenConfig, ObservationError};
 use chronomap_grid::build::build_from_frames;
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
-use chronomap_io::navmap::{LoadSemantics, NavMapError, NavMapErrorKind, OccupancyMap, load_map};
+use chronomap_io::navmap::{LoadSemantics, NavMapError, NavMapErrorKind, load_map};
 use chronomap_io::{
     FrameMapError, GridFile, load_frame_map, read_frame_list, read_grid_file, write_grid_file,
 };
+use chronomap_spatial::OccupancyMap;
 use numpy::{PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{f64_array, shape_text, type_name};
+use crate::arrays::{self, shape_text, type_name};
 use crate::errors;
 
 /// A map-file error as the matching Python exception (`FileNotFoundError` for a missing YAML
@@ -184,7 +185,7 @@ struct FramesArg<'py> {
 impl<'py> FramesArg<'py> {
     fn new(frames: &Bound<'py, PyAny>, times: &Bound<'py, PyAny>) -> PyResult<Self> {
         let array = int8_frames(frames)?;
-        let times = f64_array(times, "times")?;
+        let times = arrays::time_array(times, "times")?;
         let count = array.shape()[0];
         if count != times.as_slice().len() {
             return Err(PyValueError::new_err(format!(
@@ -293,8 +294,8 @@ fn check_time(time: f64) -> PyResult<()> {
 /// `--order` of `chronomap grid build`: a number of components.
 fn store_file(grid: &FremenGrid, store: &str, order: Option<usize>) -> PyResult<GridFile> {
     let k = OrderChoice::Fixed(order.unwrap_or(grid.config().fremen.order));
-    Ok(match store {
     let parallelism = chronomap_core::Parallelism::Rayon(0);
+    Ok(match store {
         "state" => GridFile::State(Box::new(grid.clone())),
         "lossy" => GridFile::Lossy(Box::new(grid.fitted(k, parallelism))),
         "lossless" => GridFile::Lossless(Box::new(grid.lossless(k, parallelism).map_err(|e| {
@@ -446,7 +447,8 @@ impl PyGrid {
         Ok(slf)
     }
 
-    /// The occupancy probability of every cell at `time` (seconds): a float32 array of shape
+    /// The occupancy probability of every cell at `time` (seconds, `datetime`,
+    /// `numpy.datetime64` or `pandas.Timestamp`): a float32 array of shape
     /// `(H, W)` (`(D, H, W)` for a 3-D grid), NaN for cells never observed — the map
     /// `chronomap grid predict` writes (as `round(100 p)`). `order` predicts a learning-state
     /// grid with another order (`grid predict --order`).
@@ -454,9 +456,10 @@ impl PyGrid {
     fn predict_map<'py>(
         &self,
         py: Python<'py>,
-        time: f64,
+        time: &Bound<'py, PyAny>,
         order: Option<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let time = arrays::time_scalar(time, "time")?;
         check_time(time)?;
         let values =
             py.detach(|| -> PyResult<Vec<f32>> { Ok(self.fitted_for(order)?.predict_map(time)) })?;

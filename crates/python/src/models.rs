@@ -14,9 +14,9 @@ use chronomap_models::{AnyModel, FitOptions, ModelSpec};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyFloat, PyInt, PyList, PyString};
+use pyo3::types::{PyBytes, PyDict, PyFloat, PyList, PyString};
 
-use crate::arrays::{ArrayPair, f64_array, to_numpy};
+use crate::arrays::{self, ArrayPair, to_numpy};
 use crate::errors;
 
 /// Settings of how models choose orders and families (the command line's `--periods`,
@@ -178,23 +178,20 @@ impl PyTemporalModel {
     }
 }
 
-/// Predictions of `model` (0.5 for a model that has seen nothing) at `times`, without the GIL.
+/// Predictions of `model` (0.5 for a model that has seen nothing) at `times`, without the GIL:
+/// a float for one time, an array for an array, a `pandas.Series` named `name` if `as_series`.
 fn predict_array<'py>(
     py: Python<'py>,
     model: Option<&AnyModel>,
     times: &Bound<'py, PyAny>,
     map: Option<fn(f64) -> f64>,
+    as_series: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if times.is_instance_of::<PyFloat>() || times.is_instance_of::<PyInt>() {
-        let t: f64 = times.extract()?;
-        check_prediction_times(&[t])?;
-        let p = model.map_or(0.5, |m| m.predict(t));
-        return Ok(PyFloat::new(py, map.map_or(p, |f| f(p))).into_any());
-    }
-    let times = f64_array(times, "times")?;
+    let times = arrays::times(times, "times")?;
+    let one = times.is_one();
     let times = times.as_slice();
     check_prediction_times(times)?;
-    let out = py.detach(|| {
+    let predict = || {
         let mut out = vec![0.5; times.len()];
         if let Some(m) = model {
             m.predict_into(times, &mut out);
@@ -203,8 +200,13 @@ fn predict_array<'py>(
             out.iter_mut().for_each(|p| *p = f(*p));
         }
         out
-    });
-    Ok(to_numpy(py, out).into_any())
+    };
+    let out = if one { predict() } else { py.detach(predict) };
+    match as_series {
+        Some(name) => arrays::series(py, times, out, name),
+        None if one => Ok(PyFloat::new(py, out[0]).into_any()),
+        None => Ok(to_numpy(py, out).into_any()),
+    }
 }
 
 #[pymethods]
@@ -241,8 +243,8 @@ impl PyTemporalModel {
         values: &Bound<'py, PyAny>,
     ) -> PyResult<PyRefMut<'py, Self>> {
         let py = slf.py();
-        let times = f64_array(times, "times")?;
-        let values = f64_array(values, "values")?;
+        let times = arrays::time_array(times, "times")?;
+        let values = arrays::value_array(values, "values")?;
         let (t, v) = (times.as_slice(), values.as_slice());
         if t.len() != v.len() {
             return Err(PyValueError::new_err(format!(
@@ -269,39 +271,49 @@ impl PyTemporalModel {
         Ok(slf)
     }
 
-    /// p(t) at `times` (an array, or one number): a float64 array of the same length, or a
-    /// float. A model that has seen nothing predicts 0.5.
+    /// p(t) at `times` (an array, or one time): a float64 array of the same length, or a
+    /// float; with `as_series=True` a `pandas.Series` named `p` indexed by the times (a UTC
+    /// `DatetimeIndex` named `time`). A model that has seen nothing predicts 0.5.
+    #[pyo3(signature = (times, *, as_series = false))]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         times: &Bound<'py, PyAny>,
+        as_series: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        predict_array(py, self.model.as_ref(), times, None)
+        let name = as_series.then_some("p");
+        predict_array(py, self.model.as_ref(), times, None, name)
     }
 
     /// Binary entropy of p(t) in bits at `times`: how uncertain the state is then (1 at p = 0.5).
+    /// `as_series=True`: a `pandas.Series` named `entropy`, as for `predict`.
+    #[pyo3(signature = (times, *, as_series = false))]
     fn entropy<'py>(
         &self,
         py: Python<'py>,
         times: &Bound<'py, PyAny>,
+        as_series: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        predict_array(py, self.model.as_ref(), times, Some(binary_entropy))
+        let name = as_series.then_some("entropy");
+        predict_array(py, self.model.as_ref(), times, Some(binary_entropy), name)
     }
 
     /// Observations that contradict a confident prediction ([Krajník 2017] §V, eq. (9)): state
     /// 0 while p(t) >= `confidence`, or 1 while p(t) < 1 - `confidence`. A dict of arrays
-    /// `index`, `time`, `observed`, `p` (what `chronomap anomalies` prints).
-    #[pyo3(signature = (times, values, confidence = 0.99))]
+    /// `index`, `time`, `observed`, `p` (what `chronomap anomalies` prints); with
+    /// `as_frame=True` a `pandas.DataFrame` of those columns, `time` as UTC datetimes.
+    #[pyo3(signature = (times, values, confidence = 0.99, *, as_frame = false))]
     fn anomalies<'py>(
         &self,
         py: Python<'py>,
         times: &Bound<'py, PyAny>,
         values: &Bound<'py, PyAny>,
         confidence: f64,
-    ) -> PyResult<Bound<'py, PyDict>> {
+        as_frame: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let model = self.fitted_or_err("detect anomalies")?;
-        let times = f64_array(times, "times")?;
-        let values = f64_array(values, "values")?;
+        let times = arrays::time_array(times, "times")?;
+        let values = arrays::value_array(values, "values")?;
         let (t, v) = (times.as_slice(), values.as_slice());
         if t.len() != v.len() {
             return Err(PyValueError::new_err(format!(
@@ -326,7 +338,10 @@ impl PyTemporalModel {
             "p",
             to_numpy(py, found.iter().map(|a| a.predicted).collect()),
         )?;
-        Ok(dict)
+        if as_frame {
+            return py.import("chronomap._time")?.call_method1("frame", (dict,));
+        }
+        Ok(dict.into_any())
     }
 
     /// Writes the model to `path` in chronomap's model file format (versioned, checksummed,
@@ -813,8 +828,8 @@ fn series_arg<'py>(
             crate::arrays::type_name(pair)
         ))
     })?;
-    let times = f64_array(&times, &format!("{name} times"))?;
-    let values = f64_array(&values, &format!("{name} values"))?;
+    let times = arrays::time_array(&times, &format!("{name} times"))?;
+    let values = arrays::value_array(&values, &format!("{name} values"))?;
     if times.as_slice().len() != values.as_slice().len() {
         return Err(PyValueError::new_err(format!(
             "{name}: {} times but {} values",

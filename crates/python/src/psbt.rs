@@ -36,7 +36,7 @@ fn psbt_synthesize<'py>(
     py: Python<'py>,
     map: PathBuf,
     start: (f64, f64),
-    time: f64,
+    time: &Bound<'py, PyAny>,
     tracks: Option<Vec<PathBuf>>,
     copa: Option<PyRef<'py, PyCopaMap>>,
     cell: f64,
@@ -48,6 +48,7 @@ fn psbt_synthesize<'py>(
     model_t: Option<f64>,
     model_cell: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let time = crate::arrays::time_scalar(time, "time")?;
     let from = [start.0, start.1];
     if !(from.iter().all(|v| v.is_finite()) && time.is_finite()) {
         return Err(PyValueError::new_err(

@@ -14,7 +14,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{f64_array, to_numpy};
+use crate::arrays::{self, to_numpy};
 use crate::errors;
 
 /// Checks a time argument.
@@ -139,7 +139,12 @@ impl PyEdgeModels {
     /// `success_probability`, `uncertainty` (sd of the Beta posterior),
     /// `static_success_probability`, `duration_secs` (expected duration of a successful
     /// traversal) and `attempts`.
-    fn predict<'py>(&self, py: Python<'py>, time: f64) -> PyResult<Bound<'py, PyDict>> {
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        time: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let time = arrays::time_scalar(time, "time")?;
         check_time("time", time)?;
         let models = &self.models;
         let map = models.map();
@@ -207,8 +212,9 @@ impl PyEdgeModels {
         py: Python<'py>,
         start: &str,
         task: &str,
-        time: f64,
+        time: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let time = arrays::time_scalar(time, "time")?;
         check_time("time", time)?;
         let (start_node, parsed) = self.start_and_task(start, task)?;
         let models = &self.models;
@@ -274,7 +280,7 @@ impl PyEdgeModels {
         task: &str,
         times: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let times = f64_array(times, "times")?;
+        let times = arrays::time_array(times, "times")?;
         let times = times.as_slice();
         if let Some(i) = times.iter().position(|t| !t.is_finite()) {
             return Err(PyValueError::new_err(format!(
