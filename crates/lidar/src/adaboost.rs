@@ -172,22 +172,13 @@ impl AdaBoost {
         weights: Option<&[f64]>,
         params: &AdaBoostParams,
     ) -> Result<AdaBoost, AdaBoostError> {
-        let (d, w) = prepare(x, y, weights, params.rounds)?;
-        // Sample order of each feature, by value (ties by index), computed once.
-        let order = feature_order(x, d);
-        let rounds = boost(
-            x,
-            y,
-            w,
-            params.rounds,
-            |w| fit_stump(x, y, w, &order),
-            |s, x| s.predict(x),
-        )?;
+        let (n_features, stumps, alphas, errors) =
+            samme(x, y, weights, params, fit_stump, Stump::predict)?;
         Ok(AdaBoost {
-            n_features: d,
-            alphas: rounds.iter().map(|r| r.1).collect(),
-            errors: rounds.iter().map(|r| r.2).collect(),
-            stumps: rounds.into_iter().map(|r| r.0).collect(),
+            n_features,
+            stumps,
+            alphas,
+            errors,
         })
     }
 
@@ -195,12 +186,13 @@ impl AdaBoost {
     /// `t` does not depend on later rounds, so this is exactly the model that training with
     /// `T = rounds` gives — one fit at the largest `T` serves every smaller `T`.
     pub fn truncated(&self, rounds: usize) -> AdaBoost {
-        let t = rounds.clamp(1, self.stumps.len().max(1));
+        let (stumps, alphas, errors) =
+            first_rounds(&self.stumps, &self.alphas, &self.errors, rounds);
         AdaBoost {
             n_features: self.n_features,
-            stumps: self.stumps.iter().take(t).cloned().collect(),
-            alphas: self.alphas.iter().take(t).copied().collect(),
-            errors: self.errors.iter().take(t).copied().collect(),
+            stumps,
+            alphas,
+            errors,
         }
     }
 
@@ -248,12 +240,7 @@ impl AdaBoost {
     /// [`AdaBoostError::NonFinite`] for a NaN feature.
     pub fn decision(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
         self.check(x)?;
-        let (mut vote, mut total) = (0.0, 0.0);
-        for (s, &a) in self.stumps.iter().zip(&self.alphas) {
-            vote += if s.predict(x) { 2.0 * a } else { -2.0 * a };
-            total += a;
-        }
-        Ok(vote / total)
+        Ok(vote(&self.stumps, &self.alphas, x, Stump::predict))
     }
 
     /// The probability of a loop, `p_c = 1/(1 + e^{−f(x)})` (scikit-learn's `predict_proba`);
@@ -331,32 +318,24 @@ impl BoostedTrees {
         weights: Option<&[f64]>,
         params: &AdaBoostParams,
     ) -> Result<BoostedTrees, AdaBoostError> {
-        let (d, w) = prepare(x, y, weights, params.rounds)?;
-        let order = feature_order(x, d);
-        let rounds = boost(
-            x,
-            y,
-            w,
-            params.rounds,
-            |w| fit_tree2(x, y, w, &order),
-            |t, x| t.predict(x),
-        )?;
+        let (n_features, trees, alphas, errors) =
+            samme(x, y, weights, params, fit_tree2, Tree2::predict)?;
         Ok(BoostedTrees {
-            n_features: d,
-            alphas: rounds.iter().map(|r| r.1).collect(),
-            errors: rounds.iter().map(|r| r.2).collect(),
-            trees: rounds.into_iter().map(|r| r.0).collect(),
+            n_features,
+            trees,
+            alphas,
+            errors,
         })
     }
 
     /// The classifier of the first `rounds` rounds, as [`AdaBoost::truncated`].
     pub fn truncated(&self, rounds: usize) -> BoostedTrees {
-        let t = rounds.clamp(1, self.trees.len().max(1));
+        let (trees, alphas, errors) = first_rounds(&self.trees, &self.alphas, &self.errors, rounds);
         BoostedTrees {
             n_features: self.n_features,
-            trees: self.trees.iter().take(t).cloned().collect(),
-            alphas: self.alphas.iter().take(t).copied().collect(),
-            errors: self.errors.iter().take(t).copied().collect(),
+            trees,
+            alphas,
+            errors,
         }
     }
 
@@ -385,12 +364,7 @@ impl BoostedTrees {
     /// As [`AdaBoost::decision`].
     pub fn decision(&self, x: &[f64]) -> Result<f64, AdaBoostError> {
         check_sample(self.n_features, x)?;
-        let (mut vote, mut total) = (0.0, 0.0);
-        for (t, &a) in self.trees.iter().zip(&self.alphas) {
-            vote += if t.predict(x) { 2.0 * a } else { -2.0 * a };
-            total += a;
-        }
-        Ok(vote / total)
+        Ok(vote(&self.trees, &self.alphas, x, Tree2::predict))
     }
 
     /// The probability of a loop, `1/(1 + e^{−f(x)})`.
@@ -536,6 +510,51 @@ fn feature_order<R: AsRef<[f64]>>(x: &[R], d: usize) -> Vec<Vec<u32>> {
             idx
         })
         .collect()
+}
+
+/// Training of either ensemble: the inputs checked ([`prepare`]), the sample order of each
+/// feature by value (ties by index) computed once, then the SAMME rounds ([`boost`]) with
+/// the weak learner `fit` (applied by `predict`). Returns the number of features, the learners, `α_t` and `ε_t`.
+#[allow(clippy::type_complexity)]
+fn samme<R: AsRef<[f64]>, L>(
+    x: &[R],
+    y: &[bool],
+    weights: Option<&[f64]>,
+    params: &AdaBoostParams,
+    fit: fn(&[R], &[bool], &[f64], &[Vec<u32>]) -> L,
+    predict: fn(&L, &[f64]) -> bool,
+) -> Result<(usize, Vec<L>, Vec<f64>, Vec<f64>), AdaBoostError> {
+    let (d, w) = prepare(x, y, weights, params.rounds)?;
+    let order = feature_order(x, d);
+    let rounds = boost(x, y, w, params.rounds, |w| fit(x, y, w, &order), predict)?;
+    let alphas = rounds.iter().map(|r| r.1).collect();
+    let errors = rounds.iter().map(|r| r.2).collect();
+    Ok((d, rounds.into_iter().map(|r| r.0).collect(), alphas, errors))
+}
+
+/// The decision function `f(x) = 2 Σ α_t h_t(x) / Σ α_t` of either ensemble.
+fn vote<L>(learners: &[L], alphas: &[f64], x: &[f64], predict: fn(&L, &[f64]) -> bool) -> f64 {
+    let (mut vote, mut total) = (0.0, 0.0);
+    for (l, &a) in learners.iter().zip(alphas) {
+        vote += if predict(l, x) { 2.0 * a } else { -2.0 * a };
+        total += a;
+    }
+    vote / total
+}
+
+/// The first `rounds` rounds (at least one, at most all) of either ensemble.
+fn first_rounds<L: Clone>(
+    learners: &[L],
+    alphas: &[f64],
+    errors: &[f64],
+    rounds: usize,
+) -> (Vec<L>, Vec<f64>, Vec<f64>) {
+    let t = rounds.clamp(1, learners.len().max(1));
+    (
+        learners.iter().take(t).cloned().collect(),
+        alphas.iter().take(t).copied().collect(),
+        errors.iter().take(t).copied().collect(),
+    )
 }
 
 /// The SAMME rounds of the [module docs](self) with any weak learner: `fit` trains one on
