@@ -291,6 +291,10 @@ mod tests {
         // [[4, 1], [1, 3]]: (7 + √5)/2.
         let l = largest_eigenvalue([[4.0, 1.0], [1.0, 3.0]]).unwrap();
         assert!((l - (7.0 + 5f64.sqrt()) / 2.0).abs() < 1e-15);
+        // diag(9, 1) rotated by 30°: the eigenvalues stay 9 and 1.
+        let (s, c) = 30f64.to_radians().sin_cos();
+        let (a, d, b) = (9.0 * c * c + s * s, 9.0 * s * s + c * c, 8.0 * s * c);
+        assert!((largest_eigenvalue([[a, b], [b, d]]).unwrap() - 9.0).abs() < 1e-12);
         let mut rng = Xoshiro256StarStar::seed_from_u64(3);
         for _ in 0..100 {
             let a = random_spd(&mut rng, 2);

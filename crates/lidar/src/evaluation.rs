@@ -961,40 +961,9 @@ pub fn layout_folds(
     sector_folds(positions, folds, width * layout as f64 / layouts as f64)
 }
 
-/// `b` in the frame of `a`: `a⁻¹ ⊕ b` for poses `(x, y, θ)`, the angle wrapped to `(−π, π]`
-/// (the inverse of [`compose`]: `compose(a, between(a, b)) = b`).
-///
-/// ```
-/// use chronomap_lidar::evaluation::{between, compose};
-///
-/// let (a, b) = ([1.0, 2.0, 0.7], [-0.3, 0.5, -2.9]);
-/// let c = compose(a, between(a, b));
-/// assert!((c[0] - b[0]).abs() < 1e-12 && (c[1] - b[1]).abs() < 1e-12);
-/// assert!((c[2] - b[2]).sin().abs() < 1e-12);
-/// // The robot 1 m ahead of a pose facing +y is at (0, 1) in the map.
-/// let d = between([0.0, 0.0, std::f64::consts::FRAC_PI_2], [0.0, 1.0, 0.0]);
-/// assert!((d[0] - 1.0).abs() < 1e-12 && d[1].abs() < 1e-12);
-/// ```
-pub fn between(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    let (s, c) = a[2].sin_cos();
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let dyaw = b[2] - a[2];
-    [
-        c * dx + s * dy,
-        -s * dx + c * dy,
-        dyaw.sin().atan2(dyaw.cos()),
-    ]
-}
-
-/// Compose robot-frame increments `(dx, dy, dθ)`: `a ⊕ b`.
-pub fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    let (s, c) = a[2].sin_cos();
-    [
-        a[0] + c * b[0] - s * b[1],
-        a[1] + s * b[0] + c * b[1],
-        a[2] + b[2],
-    ]
-}
+/// Odometry increments `(dx, dy, dθ)`: `a ⊕ b` and `b` in the frame of `a`
+/// ([`chronomap_geometry::se2`]).
+pub use chronomap_geometry::se2::{between, compose};
 
 /// The odometry increment from keyframe to keyframe: `odometry` holds `(time, [dx, dy, dθ])`
 /// in time order, each the motion up to its time; the increment of keyframe `k` composes those

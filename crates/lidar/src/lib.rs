@@ -2,7 +2,8 @@
 //!
 //! Loop closure from range data ([Stüde 2024] §3.2.1):
 //! * [`scan`] — 2-D laser scans as the sensors give them (ranges at evenly spaced angles,
-//!   REP 117 no-returns) and their points.
+//!   REP 117 no-returns) and their points: [`chronomap_geometry::scan`], which registration
+//!   and multi-map management share.
 //! * [`descriptor`] — the global descriptor `χ = (χ^I, χ^II)` of [Granström 2009] (32 scalar
 //!   features, 9 range histograms; eq. (3.7)) of 2-D scans and 3-D clouds, and the pair
 //!   feature vector (absolute differences, histogram correlations).
@@ -55,7 +56,7 @@ pub mod classifier;
 pub mod descriptor;
 pub mod evaluation;
 pub mod profile;
-pub mod scan;
+pub use chronomap_geometry::scan;
 pub mod search;
 pub mod threshold;
 

@@ -19,10 +19,13 @@
 //!
 //! [Stüde 2024]: M. Stüde, dissertation, Hannover 2024.
 
+use chronomap_geometry::GeometryError;
+use chronomap_geometry::linalg::largest_eigenvalue;
+use chronomap_geometry::se2::{self, Pose2, jacobian_compose_first, jacobian_compose_second};
 use serde::{Deserialize, Serialize};
 
 /// The χ² quantile of 2 degrees of freedom at 95 % (the 95 % confidence ellipse).
-pub const CHI2_95_2D: f64 = 5.991;
+pub use chronomap_geometry::se2::CHI2_95_2D;
 
 /// Parameters of the loop search ([Stüde 2024] appendix A, indoor column).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -96,37 +99,28 @@ pub enum SearchError {
     Covariance(&'static str),
 }
 
-/// The largest eigenvalue `λ_max` of a symmetric positive semi-definite 2×2 covariance.
-///
-/// # Errors
-/// [`SearchError::Covariance`] if it is not finite, not symmetric (to 1e-9 relative) or has a
-/// negative variance.
-pub fn largest_eigenvalue(cov: [[f64; 2]; 2]) -> Result<f64, SearchError> {
-    let [[a, b], [c, d]] = cov;
-    if ![a, b, c, d].iter().all(|v| v.is_finite()) {
-        return Err(SearchError::Covariance("not finite"));
+impl From<GeometryError> for SearchError {
+    fn from(e: GeometryError) -> Self {
+        match e {
+            GeometryError::NotCovariance { why, .. } => SearchError::Covariance(why),
+            // `largest_eigenvalue` refuses covariances only.
+            _ => SearchError::Covariance("not a covariance matrix"),
+        }
     }
-    if (b - c).abs() > 1e-9 * (a.abs() + d.abs()).max(f64::MIN_POSITIVE) {
-        return Err(SearchError::Covariance("not symmetric"));
-    }
-    if a < 0.0 || d < 0.0 {
-        return Err(SearchError::Covariance("a variance is negative"));
-    }
-    let half_trace = 0.5 * (a + d);
-    let root = (0.25 * (a - d) * (a - d) + b * b).sqrt();
-    Ok(half_trace + root)
 }
 
 /// The search radius of [Stüde 2024] eq. (3.8): `r = r_min + β·g_max` with
 /// `g_max = 2√(5.991·λ_max)` the major axis of the 95 % confidence ellipse of the 2×2
-/// position covariance.
+/// position covariance ([`se2::search_radius`] of its
+/// [`largest_eigenvalue`](chronomap_geometry::linalg::largest_eigenvalue)).
 ///
 /// # Errors
-/// As [`largest_eigenvalue`], and [`SearchError::Param`] for bad parameters.
+/// [`SearchError::Covariance`] if `cov` is not finite, not symmetric (to 1e-9 relative) or
+/// has a negative variance, and [`SearchError::Param`] for bad parameters.
 pub fn search_radius(cov: [[f64; 2]; 2], params: &SearchParams) -> Result<f64, SearchError> {
     params.validate()?;
     let lambda = largest_eigenvalue(cov)?;
-    Ok(params.r_min + params.beta * 2.0 * (CHI2_95_2D * lambda).sqrt())
+    Ok(se2::search_radius(params.r_min, params.beta, lambda))
 }
 
 /// Where to search for loops.
@@ -204,28 +198,20 @@ impl Default for OdometryNoise {
 }
 
 /// One dead-reckoning step: the pose `(x, y, θ)` composed with the increment `(dx, dy, dθ)`
-/// of the robot frame, and the first-order propagation of its covariance
-/// `Σ' = J_x Σ J_xᵀ + J_u Q J_uᵀ` with `Q` from [`OdometryNoise`] (the Taylor expansion of the
-/// composition, as [Stüde 2024] eqs. (3.12)–(3.13) propagate link-point uncertainty).
+/// of the robot frame ([`se2::compose`], heading unwrapped), and the first-order propagation
+/// of its covariance `Σ' = J_x Σ J_xᵀ + J_u Q J_uᵀ` with the Jacobians of the composition
+/// ([Stüde 2024] eqs. (3.12)–(3.13), which propagate link-point uncertainty the same way) and
+/// `Q` from [`OdometryNoise`].
 pub fn propagate(
     pose: [f64; 3],
     cov: [[f64; 3]; 3],
     increment: [f64; 3],
     noise: &OdometryNoise,
 ) -> ([f64; 3], [[f64; 3]; 3]) {
-    let (s, c) = pose[2].sin_cos();
     let [dx, dy, dt] = increment;
-    let next = [
-        pose[0] + c * dx - s * dy,
-        pose[1] + s * dx + c * dy,
-        pose[2] + dt,
-    ];
-    let jx = [
-        [1.0, 0.0, -s * dx - c * dy],
-        [0.0, 1.0, c * dx - s * dy],
-        [0.0, 0.0, 1.0],
-    ];
-    let ju = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
+    let next = se2::compose(pose, increment);
+    let jx = jacobian_compose_first(&Pose2::from_array(pose), &Pose2::from_array(increment));
+    let ju = jacobian_compose_second(&Pose2::from_array(pose));
     let d = dx.hypot(dy);
     let st = noise.translation * d;
     let sh = noise.heading_per_metre * d + noise.heading_per_radian * dt.abs();
@@ -251,16 +237,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn eigenvalue_of_a_rotated_ellipse() {
-        // diag(9, 1) rotated by 30°: eigenvalues stay 9 and 1.
+    fn radius_of_a_rotated_ellipse_and_refused_covariances() {
+        // diag(9, 1) rotated by 30°: λ_max stays 9, r = 3 + 0.25 · 2√(5.991 · 9).
         let (s, c) = 30f64.to_radians().sin_cos();
         let a = 9.0 * c * c + s * s;
         let d = 9.0 * s * s + c * c;
         let b = (9.0 - 1.0) * s * c;
-        assert!((largest_eigenvalue([[a, b], [b, d]]).unwrap() - 9.0).abs() < 1e-12);
-        assert!(largest_eigenvalue([[1.0, 2.0], [0.0, 1.0]]).is_err());
-        assert!(largest_eigenvalue([[-1.0, 0.0], [0.0, 1.0]]).is_err());
-        assert!(largest_eigenvalue([[f64::NAN, 0.0], [0.0, 1.0]]).is_err());
+        let p = SearchParams::default();
+        let r = search_radius([[a, b], [b, d]], &p).unwrap();
+        assert!((r - (3.0 + 0.5 * (5.991f64 * 9.0).sqrt())).abs() < 1e-12);
+        assert_eq!(
+            search_radius([[1.0, 2.0], [0.0, 1.0]], &p),
+            Err(SearchError::Covariance("not symmetric"))
+        );
+        assert_eq!(
+            search_radius([[-1.0, 0.0], [0.0, 1.0]], &p),
+            Err(SearchError::Covariance("a variance is negative"))
+        );
+        assert_eq!(
+            search_radius([[f64::NAN, 0.0], [0.0, 1.0]], &p),
+            Err(SearchError::Covariance("not finite"))
+        );
     }
 
     #[test]

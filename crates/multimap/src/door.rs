@@ -49,7 +49,7 @@
 use std::collections::VecDeque;
 use std::f64::consts::PI;
 
-use chronomap_lidar::Scan2d;
+use chronomap_geometry::Scan2d;
 use serde::{Deserialize, Serialize};
 
 use crate::MultimapError;

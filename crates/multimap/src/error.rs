@@ -1,6 +1,7 @@
 //! The typed errors of the crate: every refusal names the field, map, link or parameter.
 
-use chronomap_lidar::ScanError;
+use chronomap_geometry::GeometryError;
+use chronomap_geometry::scan::ScanError;
 
 /// Why an input or a computation is refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -32,7 +33,7 @@ pub enum MultimapError {
         /// The range it must lie in.
         why: &'static str,
     },
-    /// A scan refused by [`chronomap_lidar::Scan2d::validate`] (its message is part of this
+    /// A scan refused by [`chronomap_geometry::Scan2d::validate`] (its message is part of this
     /// one's, not a source).
     #[error("scan: {0}")]
     Scan(ScanError),
@@ -88,12 +89,28 @@ pub enum MultimapError {
         /// The cost `F` of eq. (3.4) when it stopped.
         cost: f64,
     },
+    /// Another refusal of the shared geometry (a fit to too few or degenerate points).
+    #[error(transparent)]
+    Geometry(GeometryError),
     /// The normal equations of the pose graph are singular (a map not tied to map 0).
     #[error("the pose graph is singular: map {map} is not constrained")]
     SingularGraph {
         /// A map whose pose is not determined.
         map: usize,
     },
+}
+
+/// A pose or covariance refused by [`chronomap_geometry::se2`] (the same field and message).
+impl From<GeometryError> for MultimapError {
+    fn from(e: GeometryError) -> Self {
+        match e {
+            GeometryError::NotFinite { field, value } => MultimapError::NotFinite { field, value },
+            GeometryError::NotCovariance { field, why } => {
+                MultimapError::NotCovariance { field, why }
+            }
+            other => MultimapError::Geometry(other),
+        }
+    }
 }
 
 impl From<ScanError> for MultimapError {
@@ -110,7 +127,7 @@ mod tests {
     fn an_inner_message_is_said_once() {
         // Its Display includes the scan error; returning it from `source()` as well made a
         // printed chain repeat it ("scan: …: …").
-        let scan = chronomap_lidar::Scan2d::new(0.0, 0.0, 1.0, f64::NAN, vec![1.0, 2.0]);
+        let scan = chronomap_geometry::Scan2d::new(0.0, 0.0, 1.0, f64::NAN, vec![1.0, 2.0]);
         let e = MultimapError::from(scan.unwrap_err());
         assert!(e.to_string().starts_with("scan: "), "{e}");
         assert!(std::error::Error::source(&e).is_none());

@@ -14,7 +14,8 @@
 //! * [`search`] — the search radius of eq. (3.8);
 //! * [`optimize`] — pose-graph optimisation of the map poses (eqs. (3.3)–(3.5));
 //! * [`mapper`] — all of it driven by scans and odometry;
-//! * [`se2`] — poses, `⊕`, `⊖`, their Jacobians; [`synth`] — a ray caster for tests.
+//! * [`se2`] — poses, `⊕`, `⊖`, their Jacobians, uncertain poses
+//!   ([`chronomap_geometry::se2`]); [`synth`] — a ray caster for tests.
 //!
 //! ```
 //! use chronomap_multimap::config::MapConfig;
@@ -56,7 +57,7 @@ mod error;
 pub mod graph;
 pub mod mapper;
 pub mod optimize;
-pub mod se2;
+pub use chronomap_geometry::se2;
 pub mod search;
 pub mod synth;
 

@@ -30,7 +30,7 @@
 //!
 //! [Stüde 2024]: M. Stüde, dissertation, Leibniz Universität Hannover, 2024.
 
-use chronomap_lidar::Scan2d;
+use chronomap_geometry::Scan2d;
 use serde::{Deserialize, Serialize};
 
 use crate::MultimapError;

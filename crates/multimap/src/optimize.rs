@@ -6,8 +6,8 @@
 //! `zᵢⱼ = ⁽ⁱ⁾pⱼ` (eq. (3.10)) with covariance `Σᵢⱼ` (eq. (3.13)); the error
 //! `eᵢⱼ = zᵢⱼ − ẑᵢⱼ(xᵢ, xⱼ)`, `ẑᵢⱼ = xᵢ⁻¹ ⊕ xⱼ`, heading wrapped (eq. (3.3)), and the cost
 //! `F = Σ eᵢⱼᵀ Ωᵢⱼ eᵢⱼ` with `Ωᵢⱼ = Σᵢⱼ⁻¹` (eq. (3.4)) is minimised (eq. (3.5)) by
-//! Levenberg–Marquardt on the dense normal equations (a Cholesky factorisation of our own:
-//! map graphs are small). The text inverts "the covariance matrices `⁽⁰⁾Σᵢ`"; the relative
+//! Levenberg–Marquardt on the dense normal equations (the Cholesky factorisation of
+//! [`chronomap_geometry::linalg`]: map graphs are small). The text inverts "the covariance matrices `⁽⁰⁾Σᵢ`"; the relative
 //! covariances are used here, which is what makes the measurements independent.
 //!
 //! ```
@@ -39,6 +39,7 @@ use serde::{Deserialize, Serialize};
 use crate::MultimapError;
 use crate::graph::{MapGraph, PathWeight};
 use crate::se2::{Mat3, Pose2, ZERO3, inverse3, wrap_angle};
+use chronomap_geometry::linalg::{self, Pivot, cholesky_solve};
 
 /// The most maps [`optimize`] accepts (its dense normal equations are `3n × 3n`).
 pub const MAX_OPT_MAPS: usize = 400;
@@ -158,47 +159,10 @@ fn normal_equations(edges: &[Edge], x: &[Pose2]) -> (Vec<f64>, Vec<f64>) {
     (h, g)
 }
 
-/// In-place Cholesky factorisation `A = L Lᵀ` of a dense symmetric matrix (lower triangle
-/// kept). Returns the first non-positive pivot's index on failure.
+/// The Cholesky factorisation of the normal equations: each pivot against its own diagonal
+/// entry (`1e-13` relative), the blocks of different maps having unrelated scales.
 fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        let scale = a[j * n + j].abs().max(f64::MIN_POSITIVE);
-        if d.is_nan() || d <= 1e-13 * scale || !d.is_finite() {
-            return Err(j);
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / d;
-        }
-    }
-    Ok(())
-}
-
-/// Solves `L Lᵀ x = b` in place.
-fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i * n + k] * b[k];
-        }
-        b[i] = s / l[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[k * n + i] * b[k];
-        }
-        b[i] = s / l[i * n + i];
-    }
+    linalg::cholesky(a, n, Pivot::Diagonal(1e-13))
 }
 
 /// Optimises the poses of all maps of `graph` in the frame of map 0 given every link point's

@@ -6,8 +6,8 @@
 //! degrees of freedom) of a position covariance whose larger eigenvalue is `λ_max`.
 //!
 //! The equation is implemented once in the workspace, by
-//! [`chronomap_lidar::search::search_radius`] (and `λ_max` by
-//! [`chronomap_lidar::search::largest_eigenvalue`]); this module holds the two parameters
+//! [`chronomap_geometry::se2::search_radius`] (and `λ_max` by
+//! [`chronomap_geometry::linalg::largest_eigenvalue`]); this module holds the two parameters
 //! §3.3.3 needs and thin wrappers that take a pose covariance or `λ_max` and give this crate's
 //! errors.
 //!
@@ -26,15 +26,18 @@
 //!
 //! [Stüde 2024]: M. Stüde, dissertation, Leibniz Universität Hannover, 2024.
 
-use chronomap_lidar::search::{self as lidar, SearchError};
+use chronomap_geometry::GeometryError;
+use chronomap_geometry::linalg::largest_eigenvalue;
+use chronomap_geometry::se2::{self, Mat3};
 use serde::{Deserialize, Serialize};
 
 use crate::MultimapError;
-use crate::se2::Mat3;
+
+pub use chronomap_geometry::se2::position_block;
 
 /// The 95 % quantile of the χ² distribution with two degrees of freedom ([Stüde 2024]
-/// eq. (3.8)); the lidar crate's [`chronomap_lidar::search::CHI2_95_2D`].
-pub const CHI2_2DOF_95: f64 = lidar::CHI2_95_2D;
+/// eq. (3.8)); [`chronomap_geometry::se2::CHI2_95_2D`].
+pub const CHI2_2DOF_95: f64 = se2::CHI2_95_2D;
 
 /// The parameters of eq. (3.8).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -69,37 +72,19 @@ impl SearchParams {
         }
         Ok(())
     }
-
-    /// The lidar crate's parameters with these `r_min` and `β` (the others, which eq. (3.8)
-    /// does not use, at their defaults).
-    pub fn to_lidar(&self) -> lidar::SearchParams {
-        lidar::SearchParams {
-            r_min: self.r_min,
-            beta: self.beta,
-            ..lidar::SearchParams::default()
-        }
-    }
 }
 
-/// The lidar crate's error as this crate's: a parameter or the covariance named.
-fn from_lidar(e: SearchError) -> MultimapError {
-    match e {
-        SearchError::Param { field, value } => MultimapError::Parameter {
-            field,
-            value,
-            why: "must be finite and non-negative",
-        },
-        SearchError::Covariance(why) => MultimapError::NotCovariance {
+/// Eq. (3.8) for a 2×2 position covariance (`params` checked by the caller); a covariance
+/// that is not one is refused naming the `position covariance`.
+fn radius_of(cov: [[f64; 2]; 2], params: &SearchParams) -> Result<f64, MultimapError> {
+    let lambda = largest_eigenvalue(cov).map_err(|e| match e {
+        GeometryError::NotCovariance { why, .. } => MultimapError::NotCovariance {
             field: "position covariance",
             why,
         },
-    }
-}
-
-/// The 2×2 position block of a pose covariance, symmetrised.
-pub fn position_block(cov: &Mat3) -> [[f64; 2]; 2] {
-    let b = 0.5 * (cov[0][1] + cov[1][0]);
-    [[cov[0][0], b], [b, cov[1][1]]]
+        other => other.into(),
+    })?;
+    Ok(se2::search_radius(params.r_min, params.beta, lambda))
 }
 
 /// `g_max(λ_max) = 2√(5.991·λ_max)`: the major axis of the 95 % confidence ellipse (m), eq.
@@ -113,7 +98,7 @@ pub fn major_axis_95(lambda_max: f64) -> f64 {
 }
 
 /// The search radius `r(λ_max)` of [Stüde 2024] eq. (3.8) (m), by
-/// [`chronomap_lidar::search::search_radius`] of the covariance `diag(λ_max, 0)`. `λ_max`
+/// [`chronomap_geometry::se2::search_radius`] of the covariance `diag(λ_max, 0)`. `λ_max`
 /// must be finite and non-negative (round-off below zero down to `−1e-12` is read as 0).
 pub fn search_radius(lambda_max: f64, params: &SearchParams) -> Result<f64, MultimapError> {
     params.validate()?;
@@ -125,14 +110,14 @@ pub fn search_radius(lambda_max: f64, params: &SearchParams) -> Result<f64, Mult
         });
     }
     let cov = [[lambda_max.max(0.0), 0.0], [0.0, 0.0]];
-    lidar::search_radius(cov, &params.to_lidar()).map_err(from_lidar)
+    radius_of(cov, params)
 }
 
 /// The search radius of eq. (3.8) for a pose covariance `(x, y, θ)`: `λ_max` of its position
-/// block ([`position_block`]), by [`chronomap_lidar::search::search_radius`].
+/// block ([`position_block`]), by [`chronomap_geometry::se2::search_radius`].
 pub fn search_radius_for(cov: &Mat3, params: &SearchParams) -> Result<f64, MultimapError> {
     params.validate()?;
-    lidar::search_radius(position_block(cov), &params.to_lidar()).map_err(from_lidar)
+    radius_of(position_block(cov), params)
 }
 
 #[cfg(test)]

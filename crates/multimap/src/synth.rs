@@ -15,9 +15,9 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
-use chronomap_lidar::Scan2d;
+use chronomap_geometry::Scan2d;
 
-use chronomap_lidar::scan::MAX_BEAMS;
+use chronomap_geometry::scan::MAX_BEAMS;
 
 use crate::MultimapError;
 use crate::se2::Pose2;
@@ -197,7 +197,7 @@ impl Scanner {
             return Err(MultimapError::Parameter {
                 field: "beams",
                 value: self.beams as f64,
-                why: "must be from 2 to chronomap_lidar::scan::MAX_BEAMS",
+                why: "must be from 2 to chronomap_geometry::scan::MAX_BEAMS",
             });
         }
         for (field, value) in [("angle_min", self.angle_min), ("angle_max", self.angle_max)] {
@@ -219,7 +219,7 @@ impl Scanner {
                 why: "must be finite and positive",
             });
         }
-        self.mount.validate("mount")
+        Ok(self.mount.validate("mount")?)
     }
 
     /// The scan of `plan` taken at time `time` by the robot at `pose`.
@@ -264,7 +264,7 @@ mod tests {
     fn bad_scanners_are_refused_not_clamped() {
         assert_eq!(
             Scanner::full_circle(1, 30.0).unwrap_err().to_string(),
-            "parameter beams = 1: must be from 2 to chronomap_lidar::scan::MAX_BEAMS"
+            "parameter beams = 1: must be from 2 to chronomap_geometry::scan::MAX_BEAMS"
         );
         assert!(Scanner::full_circle(0, 30.0).is_err());
         assert!(Scanner::full_circle(MAX_BEAMS + 1, 30.0).is_err());

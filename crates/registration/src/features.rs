@@ -6,7 +6,7 @@
 
 use crate::RegistrationError;
 use crate::kdtree::KdTree;
-use crate::linalg::{cross, dot, dot_slice, norm, sub, sym_eigen};
+use chronomap_geometry::linalg::{cross, dot, dot_slice, norm, sub, sym_eigen};
 
 /// Bins per angular feature; a histogram has three features, [`FEATURE_LEN`] bins.
 pub const BINS: usize = 11;

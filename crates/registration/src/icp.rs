@@ -4,8 +4,8 @@
 
 use crate::RegistrationError;
 use crate::kdtree::KdTree;
-use crate::linalg::{dot, solve_spd, sub};
 use crate::rigid::{Rigid, assert_dim, kabsch};
+use chronomap_geometry::linalg::{dot, solve_spd, sub};
 
 /// The error ICP minimises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

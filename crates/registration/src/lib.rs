@@ -44,11 +44,13 @@
 //! * [`features`] — PCA normals, FPFH (33 bins; a 2-D analogue is defined there) and the
 //!   multi-scale persistence analysis.
 //! * [`ransac`](mod@ransac) — feature correspondences and RANSAC with edge-length pre-rejection.
-//! * [`rigid`] — SE(2)/SE(3) transforms and the Kabsch/Umeyama SVD fit [`kabsch`].
+//! * [`rigid`] — SE(2)/SE(3) transforms and the Kabsch/Umeyama SVD fit [`kabsch`]
+//!   ([`chronomap_geometry::rigid`]).
 //! * [`icp`](mod@icp) — ICP and the [`Information`] matrix.
-//! * [`kdtree`] — the k-d tree all nearest-neighbour searches use.
+//! * [`kdtree`] — the k-d tree all nearest-neighbour searches use
+//!   ([`chronomap_geometry::kdtree`]).
 //! * [`pipeline`] — [`register`] end to end, and [`register_scans`] for
-//!   [`chronomap_lidar::Scan2d`].
+//!   [`chronomap_geometry::Scan2d`].
 //!
 //! [Stüde 2024]: M. Stüde, *Environment and Task Modeling of Long-Term-Autonomous Service
 //! Robots*, dissertation, Gottfried Wilhelm Leibniz Universität Hannover, 2024.
@@ -66,11 +68,9 @@
 pub mod cloud;
 pub mod features;
 pub mod icp;
-pub mod kdtree;
-mod linalg;
+pub use chronomap_geometry::{kdtree, rigid};
 pub mod pipeline;
 pub mod ransac;
-pub mod rigid;
 
 pub use cloud::{Cloud, Filters, MAX_POINTS};
 pub use features::{
@@ -84,6 +84,24 @@ pub use pipeline::{
 };
 pub use ransac::{MatchParams, RansacParams, RansacResult, match_features, ransac};
 pub use rigid::{Rigid, kabsch};
+
+impl From<chronomap_geometry::GeometryError> for RegistrationError {
+    fn from(e: chronomap_geometry::GeometryError) -> Self {
+        use chronomap_geometry::GeometryError as G;
+        match e {
+            G::TooFewPoints { what, got, need } => {
+                RegistrationError::TooFewPoints { what, got, need }
+            }
+            G::Degenerate(why) => RegistrationError::Degenerate(why),
+            G::NotFinite { field, value } => RegistrationError::Parameter {
+                field,
+                value,
+                why: "not finite",
+            },
+            G::NotCovariance { why, .. } => RegistrationError::Degenerate(why),
+        }
+    }
+}
 
 /// Why a registration step is refused or failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -1,7 +1,7 @@
 //! The registration of [Stüde 2024] §3.2.2 end to end: filters → FPFH at several scales with
 //! persistence → correspondences → RANSAC (coarse) → ICP (fine) → information matrix.
 
-use chronomap_lidar::Scan2d;
+use chronomap_geometry::scan::Scan2d;
 
 use crate::RegistrationError;
 use crate::cloud::{Cloud, Filters, positive};

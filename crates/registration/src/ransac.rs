@@ -6,8 +6,8 @@ use chronomap_rng::Xoshiro256StarStar;
 use crate::RegistrationError;
 use crate::features::{FEATURE_LEN, Histogram};
 use crate::kdtree::KdTree;
-use crate::linalg::dist2;
 use crate::rigid::{Rigid, assert_dim, kabsch};
+use chronomap_geometry::linalg::dist2;
 
 /// How features are matched.
 #[derive(Clone, Debug, PartialEq)]

@@ -3,8 +3,8 @@
 //! the whole log runs, that what is declared is consistent, and that the detector sees the
 //! door-width gaps the log has. `examples/malaga_doors.rs` prints what it finds.
 
+use chronomap_geometry::Scan2d;
 use chronomap_io::laser_text::{read_odometry, read_scans};
-use chronomap_lidar::Scan2d;
 use chronomap_multimap::door::{DoorParams, detect_door_posts};
 use chronomap_multimap::mapper::{Mapper, MapperParams};
 use chronomap_multimap::se2::Pose2;

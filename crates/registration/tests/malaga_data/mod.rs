@@ -5,7 +5,7 @@
 
 use std::io::Read;
 
-use chronomap_lidar::Scan2d;
+use chronomap_geometry::scan::Scan2d;
 use chronomap_registration::Rigid;
 
 /// A keyframe: the laser's pose in the map (robot pose ⊕ mounting) and its scan.
