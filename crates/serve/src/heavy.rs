@@ -37,6 +37,14 @@ pub const DEFAULT_LIGHT_QUEUE: usize = 256;
 /// model (FreMEn of order 84, about 1.6 µs a prediction).
 pub const LIGHT_MAX_PREDICTIONS: u64 = 16_384;
 
+/// Most predictions of a model request computed where its body was parsed, on the async
+/// thread, instead of on the light pool: at most about 50 µs with the costliest model (FreMEn
+/// of order 84, about 1.6 µs a prediction) — less than parsing a body of
+/// [`LIGHT_MAX_BODY_BYTES`] there — while the hop to a pool thread and back costs two thread
+/// wake-ups, which on a busy machine wait for a core (a door prediction's p99 went from
+/// 0.3 ms to over 1 ms with the hop on 2 cores).
+pub const INLINE_MAX_PREDICTIONS: u64 = 32;
+
 /// Largest body of a model request parsed on the async threads (well under a millisecond of
 /// JSON); a larger one is parsed, checked and computed on the heavy pool.
 pub const LIGHT_MAX_BODY_BYTES: usize = 256 << 10;

@@ -1143,9 +1143,10 @@ fn checked<R: ModelRequest>(request: &R, shared: &Shared) -> Result<u64, ApiErro
     request.check(&shared.registry.read().expect("registry lock"))
 }
 
-/// Runs a model request off the async threads: a body of at most
-/// [`heavy::LIGHT_MAX_BODY_BYTES`] is parsed and checked here and computed on the light pool
-/// when it asks for at most [`heavy::LIGHT_MAX_PREDICTIONS`], else on the heavy pool; a larger
+/// Runs a model request: a body of at most [`heavy::LIGHT_MAX_BODY_BYTES`] is parsed and
+/// checked here and computed here too when it asks for at most
+/// [`heavy::INLINE_MAX_PREDICTIONS`] (microseconds, less than the parse), on the light pool when
+/// it asks for at most [`heavy::LIGHT_MAX_PREDICTIONS`], else on the heavy pool; a larger
 /// body is parsed, checked and computed on the heavy pool (parsing megabytes of JSON is work
 /// too). `job` gets the request, the models, the cancel flag and the pool it runs on, and
 /// answers JSON bytes (serialised off the async threads too).
@@ -1171,6 +1172,11 @@ async fn compute<R: ModelRequest>(
     } else {
         let request: R = parse_json(&bytes)?;
         let work = checked(&request, &shared)?;
+        if work <= heavy::INLINE_MAX_PREDICTIONS {
+            // Nothing to cancel in microseconds of work.
+            let answer = job(request, &shared, &Cancel::default(), Class::Light)?;
+            return Ok(crate::maps::json_response(answer));
+        }
         let (pool, class) = if work <= heavy::LIGHT_MAX_PREDICTIONS {
             (&state.light, Class::Light)
         } else {
