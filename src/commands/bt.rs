@@ -8,14 +8,15 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow};
 use chronomap_bt::nav2;
-use chronomap_bt::sbt;
 use chronomap_bt::script::{
     Script, ScriptTick, ScriptedOutcomes, run_script, run_script_with, scripted_registry,
 };
+use chronomap_bt::stochastic::from_bt;
 use chronomap_bt::{
     BtDocument, DefinitionErrorKind, ManifestSource, NodeCategory, NodeDef, NodeModel, Registry,
     Status, StubPolicy, Tree, TreeDef, is_builtin,
 };
+use chronomap_bt_stochastic as sbt;
 use chronomap_io::{
     BtReadOptions, BtXml, BtXmlErrorKind, read_bt_script, read_bt_xml_with, read_leaf_params,
     read_node_models, write_bt_xml, write_btlog,
@@ -716,7 +717,7 @@ struct CurvePoint {
     p_failure: f64,
 }
 
-/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2 ([`sbt::from_bt()`]), eq. 5.1
+/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2 ([`from_bt()`]), eq. 5.1
 /// by uniformisation ([`sbt::Chain::transient`]) and the exact mean times that replace the
 /// averaged rates of eqs. 5.3–5.4 ([`sbt::Chain::means`]).
 pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
@@ -731,7 +732,7 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
             .with_context(|| format!("{file}: which tree? (use --tree)"))?
             .to_owned(),
     };
-    let tree = sbt::from_bt(doc, &tree_id, &params).map_err(|e| match xml.locate(&e.location) {
+    let tree = from_bt(doc, &tree_id, &params).map_err(|e| match xml.locate(&e.location) {
         Some((at, line, column)) => anyhow!("{at}:{line}:{column}: {}", e.kind),
         None => anyhow!("{file}: {e}"),
     })?;

@@ -1,12 +1,12 @@
 //! `chronomap monitor sim`: the fault-injection simulation of the system monitoring of [Stüde 2024]
-//! §5.3 (`chronomap_bt::monitor::sim`), printed as the intervention table and the metrics of
+//! §5.3 (`chronomap_bt_monitor::sim`), printed as the intervention table and the metrics of
 //! Tables 5.2 and 5.3.
 
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use chronomap_bt::monitor::sim::{SimConfig, SimReport, arbiter_document, random_faults, simulate};
 use chronomap_bt::{BtDocument, Registry};
+use chronomap_bt_monitor::sim::{SimConfig, SimReport, arbiter_document, random_faults, simulate};
 use chronomap_core::num::fmt_number;
 use chronomap_io::{BtXml, read_bt_xml};
 

@@ -6,7 +6,7 @@
 use crate::common;
 
 use chronomap_bt::Registry;
-use chronomap_bt::monitor::sim::arbiter_document;
+use chronomap_bt_monitor::sim::arbiter_document;
 use common::{chronomap, error, repo, scratch, stdout, write_arg};
 use serde_json::Value;
 

@@ -76,6 +76,11 @@
 //!   status), the content of a Groot2 `.btlog` file (written by `chronomap-io`).
 //! * [`script`]: leaves whose outcomes a script gives tick by tick, for `chronomap bt run` and
 //!   for tests.
+//! * [`stochastic`]: a tree read as a stochastic behavior tree of `chronomap-bt-stochastic`
+//!   (§5.2.2), which needs nothing of this crate.
+//!
+//! Monitoring and the fault-injection simulation whose arbiter is a tree of this crate (§5.3)
+//! are `chronomap-bt-monitor`.
 //!
 //! [`Duration`]: std::time::Duration
 #![deny(missing_docs)]
@@ -91,9 +96,8 @@ macro_rules! display_by_name {
     };
 }
 
-pub mod monitor;
 pub mod nav2;
-pub mod sbt;
+pub mod stochastic;
 
 pub mod blackboard;
 mod builtin;

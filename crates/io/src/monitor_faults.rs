@@ -1,5 +1,5 @@
 //! Fault files for `chronomap monitor sim`: the faults injected into the monitoring
-//! simulation of [Stüde 2024] §5.3 ([`chronomap_bt::monitor::sim`]), one a line.
+//! simulation of [Stüde 2024] §5.3 ([`chronomap_bt_monitor::sim`]), one a line.
 //!
 //! ```text
 //! # faults.txt
@@ -20,7 +20,7 @@
 //!
 //! ```
 //! use std::time::Duration;
-//! use chronomap_bt::monitor::sim::FaultKind;
+//! use chronomap_bt_monitor::sim::FaultKind;
 //! use chronomap_io::monitor_faults::parse_faults;
 //!
 //! let faults = parse_faults("faults.txt", "1:00:05 topic_slow /scan fails=2 # comment\n")?;
@@ -37,7 +37,7 @@ use std::io;
 use std::path::Path;
 use std::time::Duration;
 
-use chronomap_bt::monitor::sim::{Fault, FaultKind};
+use chronomap_bt_monitor::sim::{Fault, FaultKind};
 use thiserror::Error;
 
 use crate::line_error::{LineError, LineErrorKind, content_lines, parse_text_file};

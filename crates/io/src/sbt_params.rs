@@ -1,6 +1,6 @@
 //! Leaf parameters of a stochastic behavior tree ([Stüde 2024] §5.2.2) for `chronomap bt
 //! analyse`: a CSV `node,p_s,p_f,mu,nu` read into the [`LeafParams`] of
-//! [`chronomap_bt::sbt::from_bt()`].
+//! [`chronomap_bt::stochastic::from_bt()`].
 //!
 //! ```text
 //! # door_sbt.csv
@@ -32,7 +32,7 @@ use std::collections::BTreeMap;
 use std::io;
 use std::path::Path;
 
-use chronomap_bt::sbt::LeafParams;
+use chronomap_bt_stochastic::LeafParams;
 use thiserror::Error;
 
 use crate::line_error::{LineError, LineErrorKind, parse_text_file};

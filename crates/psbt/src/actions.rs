@@ -3,7 +3,7 @@
 //! navigation).
 
 use super::PsbtConfig;
-use chronomap_bt::sbt::{Action, SbtError};
+use chronomap_bt_stochastic::{Action, SbtError};
 
 /// Smallest rate of people used (1/s): below it a wait would never end in any horizon that
 /// matters, and eq. 5.11 would divide by zero.

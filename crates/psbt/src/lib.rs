@@ -32,7 +32,7 @@
 //! * **Actions** ([`actions`]): *wait at x_i* (eqs. 5.9–5.12), *search from x_i to x_j* along
 //!   the A* path of the planning grid (eqs. 5.13–5.19, [`path`]), and *move to x₀*, a search
 //!   that can only fail by navigation. Each becomes an SBT action `⟨p_s, μ, ν⟩`
-//!   ([`chronomap_bt::sbt`]).
+//!   ([`chronomap_bt_stochastic`]).
 //! * **Places** ([`places`]): `n_pl` cells within `max_distance_m` of path from the help
 //!   location `x₀`, sampled `∝ ∫_cell λ`, one per detection radius `r_D` (the larger rate
 //!   kept); their order is an open TSP over the expected times to fail `ν_{sp,i→j}⁻¹`.
@@ -44,7 +44,7 @@
 //!   (its target place), so each action's success leads to its own *move to x₀*; a failed
 //!   return fails the tree.
 //! * **Choice**: the tree of maximum `p_{s,T}(t_max)` (eq. 5.1). Its expected time to success
-//!   is `E[T | S]` of its chain ([`chronomap_bt::sbt::Chain::means`]).
+//!   is `E[T | S]` of its chain ([`chronomap_bt_stochastic::Chain::means`]).
 //!
 //! # Fast synthesis
 //! Every candidate is a chain of phases, and candidates share prefixes. [`Candidates::best`]
@@ -55,7 +55,7 @@
 //! in `S` at jump `k`, where it counts `P(N(Λ t_max) ≥ k)` towards `p_{s,T}(t_max)`. Each
 //! action costs `O(K)` (`K ≈ Λ t_max`), each choice of the walk one or two actions, so all
 //! `3^n` candidates cost `O(3^n K)` instead of `3^n` dense chains. The straightforward
-//! reference (one dense generator per tree, [`chronomap_bt::sbt::dense`]) is
+//! reference (one dense generator per tree, [`chronomap_bt_stochastic::dense`]) is
 //! [`Candidates::reference_values`]; the tests assert both agree.
 //!
 //! # Evaluation (§5.4.4)
@@ -81,7 +81,7 @@ pub use synth::{
 
 use thiserror::Error;
 
-use chronomap_bt::sbt::{Action, Chain, Means, SbtError, Target, add_scaled};
+use chronomap_bt_stochastic::{Action, Chain, Means, SbtError, Target, add_scaled};
 use chronomap_core::error::check_positive;
 use chronomap_core::num::fmt_number;
 use chronomap_spatial::PlanningGrid;

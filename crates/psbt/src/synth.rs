@@ -8,8 +8,8 @@ use super::actions::{MIN_RATE, SearchAction, WaitAction, move_to};
 use super::path::{CellPath, DistanceTree, astar, sample_cells};
 use super::places::{open_tsp, sample_places, sample_uniform};
 use super::{PersonSearchTree, Phase, PsbtConfig, PsbtError, RateField, Step, phase_chain};
-use chronomap_bt::sbt::dense::DenseGenerator;
-use chronomap_bt::sbt::{Action, SbtError, poisson_survival, poisson_truncation};
+use chronomap_bt_stochastic::dense::DenseGenerator;
+use chronomap_bt_stochastic::{Action, SbtError, poisson_survival, poisson_truncation};
 use chronomap_core::Parallelism;
 use chronomap_core::rng::{Xoshiro256StarStar, derive_seed};
 use chronomap_spatial::PlanningGrid;
@@ -223,7 +223,7 @@ impl Candidates {
     }
 
     /// The reference: `p_{s,T}(horizon)` of candidate `index` from its dense generator by
-    /// dense uniformisation ([`chronomap_bt::sbt::dense`]).
+    /// dense uniformisation ([`chronomap_bt_stochastic::dense`]).
     ///
     /// # Errors
     /// As [`phase_chain`].
@@ -248,7 +248,7 @@ impl Candidates {
     }
 
     /// `p_{s,T}(horizon)` of candidate `index` from its own sparse chain
-    /// ([`chronomap_bt::sbt::Chain::transient`]): a naive per-tree solve.
+    /// ([`chronomap_bt_stochastic::Chain::transient`]): a naive per-tree solve.
     ///
     /// # Errors
     /// As [`phase_chain`].

@@ -7,7 +7,7 @@ use super::places::{open_tsp, open_tsp_brute_force, open_tsp_genetic, tour_cost}
 use super::*;
 use chronomap_activity::disturbance::shortest_path;
 use chronomap_activity::truth::TrackPoint;
-use chronomap_bt::sbt::Node;
+use chronomap_bt_stochastic::Node;
 use chronomap_core::Parallelism;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_testutil::{close, monte_carlo_agrees};

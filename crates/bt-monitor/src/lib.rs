@@ -16,9 +16,10 @@
 //! * [`tsl`]: the total system lifetime of §5.3.2 (time between interventions by supervisors
 //!   that the robot did not request).
 //! * [`sim`]: a deterministic fault-injection simulation whose arbiter is a behavior tree
-//!   ([`crate`]) reading the monitor states from its blackboard.
+//!   ([`chronomap_bt`]) reading the monitor states from its blackboard.
 //!
 //! Everything here is pure: times are [`Duration`]s since an origin the caller chooses.
+#![deny(missing_docs)]
 
 pub mod sim;
 
@@ -89,7 +90,11 @@ impl MonitorState {
     }
 }
 
-display_by_name!(MonitorState, as_str);
+impl std::fmt::Display for MonitorState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
 
 /// A tolerance band with a warning and an error range on each side (§5.3.1: "an individual
 /// warning and error range"; Table 5.1: "not in tolerance band"). A value `v` is

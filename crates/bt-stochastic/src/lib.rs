@@ -4,7 +4,7 @@
 //! continuous-time Markov chain of the tree's execution.
 //!
 //! ```
-//! use chronomap_bt::sbt::{Action, Node};
+//! use chronomap_bt_stochastic::{Action, Node};
 //!
 //! // Search a corridor (finds someone with probability 0.6, after 20 s on average; gives up
 //! // after 40 s on average), else wait at the door (0.9, 50 s; gives up after 100 s).
@@ -19,7 +19,7 @@
 //! // The exact mean time to success, given success: (0.6·20 + 0.36·(40 + 50)) / 0.96 s.
 //! let means = chain.means();
 //! assert!((means.time_to_success.unwrap() - (0.6 * 20.0 + 0.36 * 90.0) / 0.96).abs() < 1e-9);
-//! # Ok::<(), chronomap_bt::sbt::SbtError>(())
+//! # Ok::<(), chronomap_bt_stochastic::SbtError>(())
 //! ```
 //!
 //! # Model (§5.2.2)
@@ -59,14 +59,46 @@
 //! * [`dense`] holds the straightforward reference (dense generator, dense uniformisation),
 //!   [`simulate`] a Monte-Carlo execution of the tree itself; the tests check the chain
 //!   against both and against closed forms.
+//!
+//! This crate knows nothing of running behavior trees: `chronomap-bt` reads a
+//! BehaviorTree.CPP tree as a [`Node`] (`chronomap_bt::stochastic::from_bt`, with a table of
+//! [`LeafParams`]), and the person search of `chronomap-psbt` builds its trees directly.
+
+#![deny(missing_docs)]
 
 pub mod dense;
-pub mod from_bt;
 pub mod simulate;
 
-pub use from_bt::{FromBtError, FromBtErrorKind, LeafParams, from_bt};
-
 use thiserror::Error;
+
+/// The stochastic parameters of one leaf (§5.2.2): `p_s`, and for actions the rates `μ`
+/// (success) and `ν` (failure) in 1/s. `p_f = 1 − p_s`: an action or condition always ends.
+/// `chronomap-io` reads a table of them by leaf name; `chronomap-bt` turns a BehaviorTree.CPP
+/// tree with such a table into a [`Node`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeafParams {
+    /// Probability of success `p_s`.
+    pub p_success: f64,
+    /// Success rate `μ` (1/s); `None` for conditions.
+    pub mu: Option<f64>,
+    /// Failure rate `ν` (1/s); `None` for conditions.
+    pub nu: Option<f64>,
+}
+
+/// The tree whose outcome is the opposite of `node`'s, with the same timing (De Morgan:
+/// `¬Sequence(a, b) = Fallback(¬a, ¬b)`; an inverted action swaps `p_s ↔ p_f` and `μ ↔ ν`).
+pub fn invert(node: Node) -> Node {
+    match node {
+        Node::Action(a) => Node::Action(
+            Action::new(1.0 - a.p_success(), a.nu(), a.mu()).expect("a valid action, inverted"),
+        ),
+        Node::Condition(c) => Node::Condition(
+            Condition::new(1.0 - c.p_success()).expect("a valid condition, inverted"),
+        ),
+        Node::Sequence(children) => Node::Fallback(children.into_iter().map(invert).collect()),
+        Node::Fallback(children) => Node::Sequence(children.into_iter().map(invert).collect()),
+    }
+}
 
 /// Why a stochastic tree or chain was rejected.
 #[derive(Debug, Clone, PartialEq, Error)]

@@ -14,7 +14,7 @@ fn action(p: f64, mu: f64, nu: f64) -> Node {
 
 /// `P(X + Y ≤ t)` for independent `X ~ Exp(a)`, `Y ~ Exp(b)` (hypoexponential CDF):
 /// `1 − (b e^{−at} − a e^{−bt}) / (b − a)`, and `1 − e^{−at}(1 + at)` for `a = b`.
-pub(super) fn hypo(a: f64, b: f64, t: f64) -> f64 {
+fn hypo(a: f64, b: f64, t: f64) -> f64 {
     if (a - b).abs() < 1e-12 {
         1.0 - (-a * t).exp() * (1.0 + a * t)
     } else {
@@ -22,13 +22,13 @@ pub(super) fn hypo(a: f64, b: f64, t: f64) -> f64 {
     }
 }
 
-pub(super) fn expo(a: f64, t: f64) -> f64 {
+fn expo(a: f64, t: f64) -> f64 {
     1.0 - (-a * t).exp()
 }
 
 /// Checks the transient outcome probabilities of `tree`'s chain at `times` against
 /// `expected(t) = (p_s(t), p_f(t))`.
-pub(super) fn check(tree: &Node, times: &[f64], expected: impl Fn(f64) -> (f64, f64)) {
+fn check(tree: &Node, times: &[f64], expected: impl Fn(f64) -> (f64, f64)) {
     let chain = tree.chain().unwrap();
     let got = chain.transient(times, TOL).unwrap();
     for (o, &t) in got.iter().zip(times) {

@@ -28,15 +28,16 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use super::{
-    Band, Category, Monitor, MonitorKind, MonitorState, RECOVERIES, Recovery, SUCCESS_WINDOW,
-    judge_interventions, tsl,
-};
-use crate::{
+use chronomap_bt::{
     BtDocument, DefinitionError, LeafContext, LeafError, LeafNode, NodeCategory, NodeDef, Registry,
     Status, TickError, Tree, TreeDef,
 };
 use chronomap_rng::{Xoshiro256StarStar, derive_seed};
+
+use crate::{
+    Band, Category, Monitor, MonitorKind, MonitorState, RECOVERIES, Recovery, SUCCESS_WINDOW,
+    judge_interventions, tsl,
+};
 
 /// The simulated ROS nodes (node monitor, heartbeats).
 pub const NODES: [&str; 3] = ["localization", "move_base", "camera"];

@@ -1,5 +1,5 @@
 //! A BehaviorTree.CPP tree ([`BtDocument`]) read as a stochastic behavior tree ([Stüde 2024]
-//! §5.2.2): every action leaf gets the tuple `⟨p_s, p_f, μ, ν⟩` and every condition
+//! §5.2.2, `chronomap-bt-stochastic`): every action leaf gets the tuple `⟨p_s, p_f, μ, ν⟩` and every condition
 //! `⟨p_s, p_f⟩` from a table of [`LeafParams`], and the control flow becomes a [`Node`].
 //!
 //! The conversion is exact for the nodes it accepts — the stochastic model of the leaves is
@@ -18,7 +18,7 @@
 //! | `AlwaysSuccess`, `SetBlackboard` / `AlwaysFailure` | a condition with `p_s = 1` / `0` |
 //!
 //! Not representable, hence refused with the node's location: `Parallel` (the chain of
-//! [`Chain::from_tree`](super::Chain::from_tree) runs one leaf at a time), `ReactiveSequence`
+//! [`Chain::from_tree`](chronomap_bt_stochastic::Chain::from_tree) runs one leaf at a time), `ReactiveSequence`
 //! and `ReactiveFallback` (they re-tick conditions while an action runs, which the model's
 //! independent outcomes cannot express), `Timeout` and `Sleep` (deterministic durations),
 //! `RetryUntilSuccessful`/`Repeat` with `-1` (unbounded) or a blackboard reference.
@@ -27,20 +27,9 @@ use std::collections::BTreeMap;
 
 use thiserror::Error;
 
-use super::{Action, Condition, Node, SbtError};
-use crate::{BtDocument, NodeCategory, NodeDef, NodeLocation};
+use chronomap_bt_stochastic::{Action, Condition, LeafParams, Node, SbtError, invert};
 
-/// The stochastic parameters of one leaf (§5.2.2): `p_s`, and for actions the rates `μ`
-/// (success) and `ν` (failure) in 1/s. `p_f = 1 − p_s`: an action or condition always ends.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LeafParams {
-    /// Probability of success `p_s`.
-    pub p_success: f64,
-    /// Success rate `μ` (1/s); `None` for conditions.
-    pub mu: Option<f64>,
-    /// Failure rate `ν` (1/s); `None` for conditions.
-    pub nu: Option<f64>,
-}
+use crate::{BtDocument, NodeCategory, NodeDef, NodeLocation};
 
 /// Why a behavior tree could not be read as a stochastic tree; `location` says which node.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -293,30 +282,48 @@ fn always(success: bool) -> Node {
     Node::Condition(Condition::new(if success { 1.0 } else { 0.0 }).expect("valid"))
 }
 
-/// The tree whose outcome is the opposite of `node`'s, with the same timing (De Morgan:
-/// `¬Sequence(a, b) = Fallback(¬a, ¬b)`; an inverted action swaps `p_s ↔ p_f` and `μ ↔ ν`).
-pub fn invert(node: Node) -> Node {
-    match node {
-        Node::Action(a) => Node::Action(
-            Action::new(1.0 - a.p_success(), a.nu(), a.mu()).expect("a valid action, inverted"),
-        ),
-        Node::Condition(c) => Node::Condition(
-            Condition::new(1.0 - c.p_success()).expect("a valid condition, inverted"),
-        ),
-        Node::Sequence(children) => Node::Fallback(children.into_iter().map(invert).collect()),
-        Node::Fallback(children) => Node::Sequence(children.into_iter().map(invert).collect()),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
 
     use super::*;
-    use crate::sbt::tests::{check, expo, hypo};
     use crate::{Registry, Status, Tree, TreeDef};
     use chronomap_rng::Xoshiro256StarStar;
+
+    const TOL: f64 = 1e-13;
+
+    /// `P(X + Y ≤ t)` for independent `X ~ Exp(a)`, `Y ~ Exp(b)`, `a ≠ b` (hypoexponential
+    /// CDF): `1 − (b e^{−at} − a e^{−bt}) / (b − a)`.
+    fn hypo(a: f64, b: f64, t: f64) -> f64 {
+        1.0 - (b * (-a * t).exp() - a * (-b * t).exp()) / (b - a)
+    }
+
+    /// `P(X ≤ t)` for `X ~ Exp(a)`.
+    fn expo(a: f64, t: f64) -> f64 {
+        1.0 - (-a * t).exp()
+    }
+
+    /// Checks the transient outcome probabilities of `tree`'s chain at `times` against
+    /// `expected(t) = (p_s(t), p_f(t))`.
+    fn check(tree: &Node, times: &[f64], expected: impl Fn(f64) -> (f64, f64)) {
+        let chain = tree.chain().unwrap();
+        let got = chain.transient(times, TOL).unwrap();
+        for (o, &t) in got.iter().zip(times) {
+            let (s, f) = expected(t);
+            assert!(o.error_bound <= TOL);
+            assert!(
+                (o.p_success - s).abs() < 1e-11,
+                "t={t}: p_s {} vs {s}",
+                o.p_success
+            );
+            assert!(
+                (o.p_failure - f).abs() < 1e-11,
+                "t={t}: p_f {} vs {f}",
+                o.p_failure
+            );
+        }
+    }
 
     fn action(p: f64, mu: f64, nu: f64) -> LeafParams {
         LeafParams {
