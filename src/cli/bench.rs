@@ -339,6 +339,27 @@ pub struct BenchServeArgs {
     /// Keep the service's store in this (new or empty) directory instead of a temporary one.
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// Instead: grid maps asked for by --grid-clients clients, and health and door
+    /// predictions beside them, against `chronomap serve` of this binary and of
+    /// --baseline-bin, each in a process of its own, in turns.
+    #[arg(long)]
+    pub grid_load: bool,
+    /// The `chronomap` binary to compare with in --grid-load (e.g. built from an earlier
+    /// commit).
+    #[arg(long, requires = "grid_load")]
+    pub baseline_bin: Option<PathBuf>,
+    /// Cells of the synthetic office grid of --grid-load.
+    #[arg(long, default_value_t = 40_000, requires = "grid_load")]
+    pub grid_cells: usize,
+    /// Concurrent clients asking for the grid's map in --grid-load.
+    #[arg(long, default_value_t = 20, requires = "grid_load")]
+    pub grid_clients: usize,
+    /// Seconds of each phase of --grid-load.
+    #[arg(long, default_value_t = 3.0, requires = "grid_load")]
+    pub grid_seconds: f64,
+    /// Rounds of --grid-load (each service measured once a round).
+    #[arg(long, default_value_t = 3, requires = "grid_load")]
+    pub grid_rounds: usize,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

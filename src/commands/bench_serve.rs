@@ -4,6 +4,7 @@
 
 use anyhow::{Context, Result, anyhow};
 use chronomap_bench::serve::{ServeBench, ServeBenchConfig, ServeBenchError, WARM_UP};
+use chronomap_bench::serve_grid::{GridLoadBench, GridLoadConfig, GridLoadError, Percentiles};
 
 use crate::cli::BenchServeArgs;
 use crate::format::Table;
@@ -11,6 +12,9 @@ use crate::outln;
 use crate::output::print_bench;
 
 pub fn serve(args: &BenchServeArgs) -> Result<()> {
+    if args.grid_load {
+        return grid_load(args);
+    }
     let config = ServeBenchConfig {
         models: args.models,
         model: args.model.clone(),
@@ -34,6 +38,93 @@ pub fn serve(args: &BenchServeArgs) -> Result<()> {
     };
     let bench = chronomap_bench::serve::run(&config, train).map_err(flag_error)?;
     print_bench(args.json, &bench, |b| print(&config, b))
+}
+
+/// `--grid-load`: this binary's service against --baseline-bin's under grid maps.
+fn grid_load(args: &BenchServeArgs) -> Result<()> {
+    let config = GridLoadConfig {
+        this_build: std::env::current_exe().context("cannot find this binary")?,
+        baseline: args.baseline_bin.clone(),
+        cells: args.grid_cells,
+        days: 7,
+        grid_clients: args.grid_clients,
+        seconds: args.grid_seconds,
+        rounds: args.grid_rounds,
+    };
+    config.validate().map_err(|e| match e {
+        GridLoadError::Config { field, message } => crate::output::usage(format!(
+            "--grid-{}: {message}",
+            field.trim_start_matches("grid_").replace('_', "-")
+        )),
+        other => other.into(),
+    })?;
+    let train = match &args.train {
+        Some(path) => chronomap_io::read_pairs(path)
+            .with_context(|| format!("cannot read {}", path.display()))?,
+        None => crate::bundled::GREG_TRAINING.pairs()?,
+    };
+    let bench = chronomap_bench::serve_grid::run(&config, &train)?;
+    print_bench(args.json, &bench, print_grid_load)
+}
+
+fn print_grid_load(b: &GridLoadBench) -> Result<()> {
+    outln!(
+        "chronomap serve in processes of their own on 127.0.0.1, in turns, {} rounds of {} s phases, {} hardware threads",
+        b.rounds,
+        b.seconds,
+        b.threads
+    )?;
+    outln!(
+        "grid: synthetic office, {} cells ({} changing, kept with its learning state), a map is {:.2} MB of JSON; door: fremen:2 on the greg door",
+        b.cells,
+        b.changing_cells,
+        b.map_bytes as f64 / 1e6
+    )?;
+    outln!(
+        "quiet: 4 clients back to back; loaded: {} clients ask for maps while 1 client checks health and 1 predicts the door\n",
+        b.grid_clients
+    )?;
+    let mut table = Table::new([
+        "service",
+        "quiet predict p50 / p99 µs",
+        "quiet health p50 / p99 µs",
+        "loaded map p50 / p99 ms",
+        "maps/s",
+        "loaded health p50 / p99 µs",
+        "loaded predict p50 / p99 µs",
+    ]);
+    let us = |p: &Percentiles| format!("{:.0} / {:.0}", p.p50_us, p.p99_us);
+    for s in &b.services {
+        table.row([
+            s.name.clone(),
+            us(&s.quiet_predict),
+            us(&s.quiet_health),
+            format!(
+                "{:.1} / {:.1}",
+                s.loaded_grid.p50_us / 1e3,
+                s.loaded_grid.p99_us / 1e3
+            ),
+            format!("{:.0}", s.grid_per_second),
+            us(&s.loaded_health),
+            us(&s.loaded_predict),
+        ]);
+    }
+    outln!("{}", table.render())?;
+    for (what, ratio) in b.ratios() {
+        outln!("{what}: this build / baseline = {ratio:.2}")?;
+    }
+    if let Some(this) = b.services.last() {
+        outln!(
+            "goal: door predict p99 < 1 ms (quiet): {} ({:.0} µs)",
+            if this.quiet_predict.p99_us < 1000.0 {
+                "met"
+            } else {
+                "missed"
+            },
+            this.quiet_predict.p99_us
+        )?;
+    }
+    Ok(())
 }
 
 /// The library's error, naming the flag of a bad field (`--batch-ids` for `batch_ids`).

@@ -94,3 +94,52 @@ fn bench_serve_reports_latencies_throughput_and_baselines() {
     drop(service);
     let _ = std::fs::remove_dir_all(&data);
 }
+
+#[test]
+fn bench_serve_grid_load_measures_both_services_in_turns() {
+    let binary = env!("CARGO_BIN_EXE_chronomap");
+    let out = Command::new(binary)
+        .args(["bench", "serve", "--grid-load", "--baseline-bin", binary])
+        .args(["--grid-cells", "640", "--grid-clients", "3"])
+        .args(["--grid-seconds", "0.3", "--grid-rounds", "1", "--json"])
+        .output()
+        .expect("run chronomap");
+    let report = json(&out);
+    assert_eq!(report["cells"], 640);
+    assert_eq!(report["grid_clients"], 3);
+    positive_at(&report, &["changing_cells"]);
+    // 640 values of at least a digit and a comma, with the shape around them.
+    assert!(positive_at(&report, &["map_bytes"]) > 1280.0, "{report}");
+    let services = report["services"].as_array().expect("services");
+    let names: Vec<&str> = services
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["baseline", "this build"]);
+    for s in services {
+        for kind in [
+            "quiet_predict",
+            "quiet_health",
+            "loaded_grid",
+            "loaded_health",
+            "loaded_predict",
+        ] {
+            let at = |field: &str| s[kind][field].as_f64().unwrap_or(f64::NAN);
+            assert!(at("requests") >= 1.0, "{kind}: {s}");
+            assert!(
+                0.0 < at("p50_us") && at("p50_us") <= at("p99_us") && at("p99_us") <= at("max_us"),
+                "{kind}: {s}"
+            );
+        }
+        assert!(s["grid_per_second"].as_f64().unwrap() > 0.0, "{s}");
+    }
+    let bad = Command::new(binary)
+        .args(["bench", "serve", "--grid-load", "--grid-clients", "0"])
+        .output()
+        .expect("run chronomap");
+    assert_eq!(bad.status.code(), Some(2), "{bad:?}");
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("--grid-clients: 1 to 256 clients"),
+        "{bad:?}"
+    );
+}

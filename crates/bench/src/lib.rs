@@ -48,6 +48,8 @@ pub mod registration;
 pub mod ros2;
 #[cfg(feature = "serve")]
 pub mod serve;
+#[cfg(feature = "serve")]
+pub mod serve_grid;
 
 pub use error::BenchError;
 
