@@ -6,7 +6,6 @@ use thiserror::Error;
 
 use super::blackboard::BlackboardError;
 use super::model::{NodeCategory, NodeLocation};
-use super::registry::LeafError;
 
 /// What is wrong with a tree description (the part of a [`DefinitionError`] after the
 /// location). Messages name the node ID and the attribute concerned.
@@ -318,6 +317,25 @@ pub enum PortError {
         /// The blackboard's reason.
         error: BlackboardError,
     },
+}
+
+/// An error returned by a leaf: a message of its own, or a port problem.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum LeafError {
+    /// The leaf's own message.
+    #[error("{0}")]
+    Failed(String),
+    /// A port could not be read or written.
+    #[error(transparent)]
+    Port(#[from] PortError),
+}
+
+impl LeafError {
+    /// An error with a message.
+    pub fn new(message: impl Into<String>) -> LeafError {
+        LeafError::Failed(message.into())
+    }
 }
 
 /// What went wrong in a tick (the part of a [`TickError`] after the node).

@@ -12,8 +12,6 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use super::error::DefinitionError;
-
 /// The five kinds of nodes of BehaviorTree.CPP (its `NodeType`, without `Undefined`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum NodeCategory {
@@ -487,30 +485,6 @@ impl BtDocument {
             map.entry(model.id.as_str()).or_insert(model);
         }
         map
-    }
-
-    /// The ID of the tree to execute: `main_tree_to_execute`, or the only tree.
-    ///
-    /// # Errors
-    /// [`DefinitionErrorKind::UnknownTree`](super::DefinitionErrorKind::UnknownTree) if
-    /// `main_tree_to_execute` names no tree, `NoMainTree` if there are several trees and none
-    /// is named, `NoTrees` if there are none.
-    pub fn main_tree_id(&self) -> Result<&str, DefinitionError> {
-        use super::error::DefinitionErrorKind as K;
-        match (&self.main_tree, self.trees.as_slice()) {
-            (_, []) => Err(DefinitionError::document(K::NoTrees)),
-            (Some(main), _) => match self.tree(main) {
-                Some(t) => Ok(&t.id),
-                None => Err(
-                    DefinitionError::document(K::UnknownTree { id: main.clone() })
-                        .with_attribute("main_tree_to_execute"),
-                ),
-            },
-            (None, [only]) => Ok(&only.id),
-            (None, trees) => Err(DefinitionError::document(K::NoMainTree {
-                trees: trees.iter().map(|t| t.id.clone()).collect(),
-            })),
-        }
     }
 }
 

@@ -93,24 +93,7 @@ use super::error::{DefinitionErrorKind, PortError, TickError, TickErrorKind};
 use super::model::{NodeCategory, NodeModel, PortSpec, blackboard_pointer};
 use super::runtime::Tree;
 
-/// An error returned by a leaf: a message of its own, or a port problem.
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum LeafError {
-    /// The leaf's own message.
-    #[error("{0}")]
-    Failed(String),
-    /// A port could not be read or written.
-    #[error(transparent)]
-    Port(#[from] PortError),
-}
-
-impl LeafError {
-    /// An error with a message.
-    pub fn new(message: impl Into<String>) -> LeafError {
-        LeafError::Failed(message.into())
-    }
-}
+pub use super::error::LeafError;
 
 /// An action or condition implementation.
 pub trait LeafNode: Send {

@@ -96,6 +96,33 @@ impl<'d> Known<'d> {
     }
 }
 
+// `BtDocument::main_tree_id` is a check of the description, so it lives here and the
+// description (`model`) needs nothing of the errors.
+impl BtDocument {
+    /// The ID of the tree to execute: `main_tree_to_execute`, or the only tree.
+    ///
+    /// # Errors
+    /// [`DefinitionErrorKind::UnknownTree`](super::DefinitionErrorKind::UnknownTree) if
+    /// `main_tree_to_execute` names no tree, `NoMainTree` if there are several trees and none
+    /// is named, `NoTrees` if there are none.
+    pub fn main_tree_id(&self) -> Result<&str, DefinitionError> {
+        match (&self.main_tree, self.trees.as_slice()) {
+            (_, []) => Err(DefinitionError::document(K::NoTrees)),
+            (Some(main), _) => match self.tree(main) {
+                Some(t) => Ok(&t.id),
+                None => Err(
+                    DefinitionError::document(K::UnknownTree { id: main.clone() })
+                        .with_attribute("main_tree_to_execute"),
+                ),
+            },
+            (None, [only]) => Ok(&only.id),
+            (None, trees) => Err(DefinitionError::document(K::NoMainTree {
+                trees: trees.iter().map(|t| t.id.clone()).collect(),
+            })),
+        }
+    }
+}
+
 /// Checks a document as BehaviorTree.CPP 4 checks it when it loads a tree: at least one tree,
 /// unique tree IDs, `main_tree_to_execute` and every `SubTree` naming a tree, no recursive
 /// subtrees, and for every node: a known ID of the category written, the number of children
