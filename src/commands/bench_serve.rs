@@ -63,7 +63,11 @@ fn grid_load(args: &BenchServeArgs) -> Result<()> {
             .with_context(|| format!("cannot read {}", path.display()))?,
         None => crate::bundled::GREG_TRAINING.pairs()?,
     };
-    let bench = chronomap_bench::serve_grid::run(&config, &train)?;
+    let door = chronomap_bench::serve_grid::Door {
+        times: &train.times,
+        values: &train.values,
+    };
+    let bench = chronomap_bench::serve_grid::run(&config, door)?;
     print_bench(args.json, &bench, print_grid_load)
 }
 

@@ -24,7 +24,6 @@ use std::time::{Duration, Instant};
 
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::Parallelism;
-use chronomap_core::TimeSeries;
 use chronomap_core::progress::NoProgress;
 use chronomap_grid::GridConfig;
 use chronomap_grid::build::build_partitioned;
@@ -311,14 +310,23 @@ fn start(binary: &Path, dir: &Path, grid: &Path) -> Result<Served, GridLoadError
     }
 }
 
+/// The door's observations: times (s, not decreasing) and values in `[0, 1]`.
+#[derive(Clone, Copy, Debug)]
+pub struct Door<'a> {
+    /// Times.
+    pub times: &'a [f64],
+    /// Values.
+    pub values: &'a [f64],
+}
+
 /// Runs the benchmark with `train` as the door's observations.
 ///
 /// # Errors
 /// A field of `config` out of range, a service that does not start, and any failed request.
-pub fn run(config: &GridLoadConfig, train: &TimeSeries) -> Result<GridLoadBench, GridLoadError> {
+pub fn run(config: &GridLoadConfig, train: Door<'_>) -> Result<GridLoadBench, GridLoadError> {
     config.validate()?;
-    if train.len() < 2 {
-        return Err(GridLoadError::TooFewObservations(train.len()));
+    if train.times.len() < 2 || train.times.len() != train.values.len() {
+        return Err(GridLoadError::TooFewObservations(train.times.len()));
     }
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -339,7 +347,7 @@ pub fn run(config: &GridLoadConfig, train: &TimeSeries) -> Result<GridLoadBench,
 
 fn run_in(
     config: &GridLoadConfig,
-    train: &TimeSeries,
+    train: Door<'_>,
     scratch: &Path,
 ) -> Result<GridLoadBench, GridLoadError> {
     let workload = chronomap_synth::office_grid::office(config.cells, config.days, 0)
@@ -382,16 +390,11 @@ fn run_in(
         .enable_all()
         .build()
         .map_err(GridLoadError::Runtime)?;
-    let end = train.times[train.len() - 1];
+    let end = train.times[train.times.len() - 1];
     let mut map_bytes = 0;
     for s in &served {
         let client = Client::new(&s.base, None)?;
-        runtime.block_on(client.add_values(
-            "door",
-            &train.times,
-            &train.values,
-            Some(DOOR_MODEL),
-        ))?;
+        runtime.block_on(client.add_values("door", train.times, train.values, Some(DOOR_MODEL)))?;
         // The first map fits the grid's compact model.
         map_bytes = runtime.block_on(grid_map(&client, end))?;
     }
