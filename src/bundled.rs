@@ -2,7 +2,8 @@
 //! so that the demo runs from any directory.
 
 use anyhow::Result;
-use chronomap_io::{TimeSeries, decompressing_reader, read_pairs_from, read_test_set_from};
+use chronomap_core::TimeSeries;
+use chronomap_io::{decompressing_reader, read_pairs_from, read_test_set_from};
 
 /// One embedded file.
 pub struct Bundled {
@@ -152,7 +153,7 @@ pub const WITHAM_EDGES: [Bundled; 61] = [
 ];
 
 /// Reads the embedded Witham edge files as `read_edge_directory` reads the directory.
-pub fn witham_edges() -> Result<chronomap_io::EdgeStatistics> {
+pub fn witham_edges() -> Result<chronomap_topo::edges::EdgeStatistics> {
     let files: Vec<(&str, &[u8])> = WITHAM_EDGES
         .iter()
         .map(|b| {

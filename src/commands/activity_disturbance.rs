@@ -16,13 +16,14 @@ use chronomap_activity::planning::training_grid;
 use chronomap_activity::{Baseline, CopaConfig, CopaMap, RatePredictor, RateSamples};
 use chronomap_core::Parallelism;
 use chronomap_core::progress::Progress;
-use chronomap_io::navmap::{LoadSemantics, OccupancyMap, load_map};
+use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::read_rate_samples;
 use chronomap_io::scenarios::read_scenarios;
 use chronomap_io::tracks::read_track_files;
 use chronomap_plot::{
     Panel, PathMap, PathMapPath, Series, SeriesStyle, render_panels_png, render_path_maps_png,
 };
+use chronomap_spatial::OccupancyMap;
 use serde_json::{Value, json};
 
 use crate::cli::ActivityDisturbanceArgs;

@@ -24,7 +24,7 @@ use crate::{out, outln};
 const MAX_PREDICTIONS: usize = 20_000_000;
 
 // A map cell blocks a predicted cell when it is at least this occupied (percent).
-use chronomap_io::WALL_PERCENT;
+use chronomap_spatial::occupancy::WALL_PERCENT;
 
 /// The kind of Log-AM model files (`chronomap activity fit --model log-additive`).
 pub(super) const LOG_ADDITIVE_KIND: &str = "log-additive";

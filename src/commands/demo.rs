@@ -5,9 +5,9 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use chronomap_core::TimeSeries;
 use chronomap_core::fft::{FftFremenConfig, uniform_binary_samples};
 use chronomap_core::{FremenModel, Ordered, Parallelism, TemporalModel};
-use chronomap_io::TimeSeries;
 use chronomap_models::AnyModel;
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
 use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
@@ -175,7 +175,7 @@ fn run_eval(
     tests: &[TimeSeries],
     options: &FitOptions,
 ) -> Result<EvalReport> {
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
     let bar = ProgressBar::stage(stage, specs.len() as u64);
     evaluate(specs, &train.times, &train.values, &sets, options, |_| {
         bar.advance(1)

@@ -5,13 +5,14 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use chronomap_core::TimeSeries;
 use chronomap_core::{FremenConfig, Parallelism};
 use chronomap_grid::build::{build_from_frames, build_partitioned, occupancy_percent};
 use chronomap_grid::report::score_frames;
 use chronomap_grid::{GridConfig, GridError, GridGeometry, OrderChoice};
-use chronomap_io::TimeSeries;
-use chronomap_io::navmap::{OccupancyMap, SaveOptions, save_map};
+use chronomap_io::navmap::{SaveOptions, save_map};
 use chronomap_plot::{MapImage, render_maps_png};
+use chronomap_spatial::OccupancyMap;
 use chronomap_synth::office_grid::office;
 
 use super::demo::indent;

@@ -1,8 +1,9 @@
 //! `chronomap eval`: the benchmark experiment of the FreMEn papers on any data.
 
 use anyhow::{Context, Result, anyhow};
+use chronomap_core::TimeSeries;
 use chronomap_core::progress::Progress;
-use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use chronomap_io::{read_pairs, read_test_set};
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
 use chronomap_models::split::{SplitError, chronological_split};
 use serde_json::json;
@@ -73,7 +74,7 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
 
 pub fn run(args: &EvalArgs) -> Result<()> {
     let (train, (tests, labels)) = load(args)?;
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
     let options = args.fit.options();
     let specs = model_specs(&args.models);
     let report = {

@@ -13,7 +13,7 @@ use chronomap_grid::build::{
 };
 use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
-use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, save_map};
+use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, save_map};
 use chronomap_io::output::write_output;
 use chronomap_io::{
     GridFile, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
@@ -21,6 +21,7 @@ use chronomap_io::{
 };
 use chronomap_plot::{MapImage, render_maps_png};
 use chronomap_rosbag::{Bag, MapFrame};
+use chronomap_spatial::OccupancyMap;
 use chronomap_synth::office_grid::office;
 use serde_json::{Value, json};
 

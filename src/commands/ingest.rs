@@ -7,9 +7,10 @@ use std::path::Path;
 
 use anyhow::{Result, anyhow};
 use chronomap_activity::truth::TrackPoint;
+use chronomap_core::TimeSeries;
 use chronomap_hypertime::events::Event;
 use chronomap_io::tracks::{TrackRow, write_tracks};
-use chronomap_io::{TimeSeries, write_data_file, write_events};
+use chronomap_io::{write_data_file, write_events};
 use chronomap_rosbag::records::{self, encode_poses, encode_scans};
 use chronomap_rosbag::{Bag, BagSummary, DefinitionSource, Detection, RecordKind, TimeSource};
 use serde_json::{Value, json};

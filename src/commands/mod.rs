@@ -44,7 +44,8 @@ mod serve;
 mod topo;
 
 use anyhow::{Context, Result};
-use chronomap_io::{TimeSeries, read_any_model, read_pairs, read_test_set};
+use chronomap_core::TimeSeries;
+use chronomap_io::{read_any_model, read_pairs, read_test_set};
 use chronomap_models::AnyModel;
 use chronomap_models::spec::Selection;
 

@@ -4,10 +4,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use chronomap_core::TimeSeries;
 use chronomap_core::anomaly::detect_anomalies;
 use chronomap_core::{FremenModel, FrequencyComponent, Ordered, TemporalModel, binary_entropy};
 use chronomap_io::output::write_output;
-use chronomap_io::{Field, TimeSeries, encode_model, read_column, read_pairs};
+use chronomap_io::{Field, encode_model, read_column, read_pairs};
 use chronomap_models::AnyModel;
 use chronomap_models::spec::ModelSpec;
 use serde_json::{Value, json};

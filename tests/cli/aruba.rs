@@ -2,8 +2,9 @@
 //! twelve weeks, it must predict the four held-back weeks better than a static map.
 
 use chronomap_core::FremenConfig;
+use chronomap_core::TimeSeries;
 use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
-use chronomap_io::{TimeSeries, read_pairs};
+use chronomap_io::read_pairs;
 use chronomap_testutil::data_path;
 
 fn rooms() -> Vec<TimeSeries> {

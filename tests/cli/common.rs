@@ -5,7 +5,8 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use chronomap_core::TimeSeries;
+use chronomap_io::{read_pairs, read_test_set};
 use chronomap_models::eval::{EvalReport, TestSet, evaluate};
 use chronomap_models::spec::{FitOptions, parse_model_list};
 
@@ -193,7 +194,7 @@ pub fn greg_tests() -> Vec<TimeSeries> {
 
 /// Every model of the list `specs` fitted on `train` and scored on `tests`.
 pub fn evaluate_specs_on(specs: &str, train: &TimeSeries, tests: &[TimeSeries]) -> EvalReport {
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TimeSeries::as_test_set).collect();
+    let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
     evaluate(
         &parse_model_list(specs).unwrap(),
         &train.times,

@@ -1,12 +1,13 @@
 //! The greg door dataset (Lincoln, 2016): chronomap against the original FreMEn code's
 //! published figures, and the model contract on real data.
 
+use chronomap_core::TimeSeries;
 use chronomap_core::conformance::check_temporal_model;
 use chronomap_core::{
     FremenModel, HistogramModel, MarkovModel, MeanModel, PergamModel, PersistenceModel,
     TemporalModel,
 };
-use chronomap_io::{TimeSeries, decode_any_model, encode_model};
+use chronomap_io::{decode_any_model, encode_model};
 use chronomap_models::AnyModel;
 use chronomap_models::spec::{FitOptions, ModelSpec};
 

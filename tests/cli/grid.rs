@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use crate::common::{assert_mentions, chronomap, json, scratch, stdout};
-use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
+use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, load_map, save_map};
 use chronomap_io::{GridFile, read_grid_file};
+use chronomap_spatial::OccupancyMap;
 
 /// A 4×3 map: a wall column (x = 0), a door (cell 5) closed from 18:00 to 8:00, an unseen
 /// corner (cell 11), the rest free.

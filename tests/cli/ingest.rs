@@ -10,11 +10,12 @@
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
-use chronomap_io::navmap::{LoadSemantics, OccupancyMap, SaveOptions, load_map, save_map};
+use chronomap_io::navmap::{LoadSemantics, SaveOptions, load_map, save_map};
 use chronomap_io::tracks::read_track_points;
 use chronomap_io::{Field, read_column, read_events};
 use chronomap_rosbag::cdr::{Value, decode};
 use chronomap_rosbag::{builtin, time::stamp_seconds};
+use chronomap_spatial::OccupancyMap;
 use serde_json::json;
 
 use crate::common::{

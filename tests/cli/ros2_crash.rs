@@ -16,8 +16,9 @@
 
 use std::time::Instant;
 
-use chronomap_io::navmap::{MapMode, OccupancyMap, SaveOptions, save_map};
+use chronomap_io::navmap::{MapMode, SaveOptions, save_map};
 use chronomap_io::read_pairs;
+use chronomap_spatial::OccupancyMap;
 use serde_json::{Value, json};
 
 use crate::common::{

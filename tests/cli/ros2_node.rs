@@ -22,8 +22,9 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-use chronomap_io::navmap::{LoadSemantics, MapMode, OccupancyMap, SaveOptions, load_map, save_map};
+use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, load_map, save_map};
 use chronomap_io::read_pairs;
+use chronomap_spatial::OccupancyMap;
 use serde_json::{Value, json};
 
 use crate::common::{

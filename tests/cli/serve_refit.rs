@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use chronomap_client::Client;
 use chronomap_core::TemporalModel;
-use chronomap_io::TimeSeries;
+use chronomap_core::TimeSeries;
 use chronomap_models::{FitOptions, ModelSpec};
 use service::{Backend, Server, free_port, on_each_backend, scratch, start, token};
 

@@ -10,10 +10,11 @@ use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use chronomap_core::TimeSeries;
 use chronomap_core::fft::{FftFremen, FftFremenConfig, SpectrumMethod, edges_of};
 use chronomap_core::naive::{naive_dft, naive_fremen_predict, naive_spectrum};
 use chronomap_core::{FremenModel, Ordered, Parallelism, TemporalModel};
-use chronomap_io::{TimeSeries, read_pairs, read_test_set};
+use chronomap_io::{read_pairs, read_test_set};
 use serde::Serialize;
 
 use crate::BenchError;

@@ -18,8 +18,8 @@ use std::io::{BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use chronomap_core::TimeSeries;
 use chronomap_core::progress::NoProgress;
-use chronomap_io::TimeSeries;
 use chronomap_rosbag::{Bag, RecordKind, TimeSource, builtin};
 use serde::Serialize;
 

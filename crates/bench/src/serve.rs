@@ -20,8 +20,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::TemporalModel;
+use chronomap_core::TimeSeries;
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_io::TimeSeries;
 use chronomap_serve::api::{AddValuesRequest, ForecastRequest, ObservationsRequest, WriteAck};
 use chronomap_serve::log::{LogRecord, encode_group};
 use chronomap_serve::registry::{Entry, ModelConfig, Registry};

@@ -78,7 +78,7 @@ pub use fremen::{FremenConfig, FremenModel, FrequencyComponent};
 pub use hist::HistogramModel;
 pub use mean::MeanModel;
 pub use model::{Ordered, TemporalModel, binary_entropy};
-pub use observe::ObservedSpan;
+pub use observe::{ObservedSpan, TimeSeries};
 pub use par::Parallelism;
 pub use pergam::{PergamComponent, PergamConfig, PergamFit, PergamModel};
 pub use periods::PeriodSet;

@@ -27,6 +27,43 @@ use crate::error::ObservationError;
 /// 5138. Unix times in milliseconds (1.7·10^12) are refused instead of learned as seconds.
 pub const MAX_TIME_SECS: f64 = 1e11;
 
+/// Observations in time order: `values[i]` was observed at `times[i]` (seconds).
+///
+/// What the readers of `chronomap-io` return satisfies the
+/// [observation contract](self), so it can be passed to
+/// [`TemporalModel::observe`](crate::TemporalModel::observe) as it is.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TimeSeries {
+    /// Times in seconds, never decreasing.
+    pub times: Vec<f64>,
+    /// States in `[0, 1]`, one per time.
+    pub values: Vec<f64>,
+}
+
+impl TimeSeries {
+    /// Number of observations.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// The observations with `from <= t < to`, in order.
+    pub fn between(&self, from: f64, to: f64) -> TimeSeries {
+        let (times, values) = self
+            .times
+            .iter()
+            .zip(&self.values)
+            .filter(|&(&t, _)| t >= from && t < to)
+            .map(|(&t, &v)| (t, v))
+            .unzip();
+        TimeSeries { times, values }
+    }
+
+    /// Whether there are no observations.
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+}
+
 /// Count and time span of the observations a model has seen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ObservedSpan {

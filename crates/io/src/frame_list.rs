@@ -31,7 +31,9 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::navmap::{LoadSemantics, NavMapError, OccupancyMap, load_map};
+use chronomap_spatial::OccupancyMap;
+
+use crate::navmap::{LoadSemantics, NavMapError, load_map};
 use crate::text::{
     DataError, DataErrorKind, Field, Fields, for_each_data_line, open_data_file, parse_time,
     required, shorten,

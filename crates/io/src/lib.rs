@@ -55,9 +55,8 @@
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
-//!   ([`NavMapError`]) name the file, line and key. A map's obstacles for sight lines
-//!   ([`OccupancyMap::obstacle_grid`]) and for path planners, unknown cells blocking
-//!   ([`OccupancyMap::planning_obstacles`]). [`frame_list`] — the `<time> <map.yaml>` lists of
+//!   ([`NavMapError`]) name the file, line and key; the map itself is
+//!   `chronomap_spatial::OccupancyMap`. [`frame_list`] — the `<time> <map.yaml>` lists of
 //!   maps that occupancy grids are built from ([`read_frame_list`]).
 //! * `parquet` (feature `parquet`) — a fleet's observations and predictions as Apache Parquet
 //!   tables (`ObservationsWriter`, `PredictionsWriter`: the `parquet` crate without Arrow,
@@ -120,7 +119,7 @@ pub mod model_file;
 pub mod monitor_faults;
 #[cfg(feature = "navmap")]
 pub mod navmap;
-#[cfg(feature = "navmap")]
+#[cfg(all(feature = "navmap", feature = "activity"))]
 mod navmap_obstacles;
 pub mod output;
 #[cfg(feature = "parquet")]
@@ -190,12 +189,10 @@ pub use model_file::{decode_any_model, read_any_model, write_any_model};
 pub use monitor_faults::{FaultFileError, read_fault_file};
 #[cfg(feature = "navmap")]
 pub use navmap::{
-    LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, OccupancyMap, SaveOptions,
-    SavedMap, decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map,
-    read_map_yaml, save_map,
+    LoadSemantics, MapMetadata, MapMode, NavMapError, NavMapErrorKind, SaveOptions, SavedMap,
+    decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, load_map, read_map_yaml,
+    save_map,
 };
-#[cfg(feature = "navmap")]
-pub use navmap_obstacles::WALL_PERCENT;
 #[cfg(all(feature = "navmap", feature = "activity"))]
 pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, load_planning_grid};
 #[cfg(feature = "lidar")]
@@ -205,14 +202,14 @@ pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 #[cfg(feature = "bt")]
 pub use sbt_params::{SbtParamsError, read_leaf_params};
 pub use text::{
-    DataError, DataErrorKind, Field, TimeSeries, decompressing_reader, open_data_file, read_column,
+    DataError, DataErrorKind, Field, decompressing_reader, open_data_file, read_column,
     read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
     write_data_file,
 };
 #[cfg(feature = "topo")]
 pub use topo_files::{
-    EdgeAttempt, EdgeStatistics, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2,
-    encode_edge_file, encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
+    EdgeAttempt, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2, encode_edge_file,
+    encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
     read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
     read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
 };

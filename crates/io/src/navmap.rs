@@ -4,8 +4,9 @@
 //! ```
 //! use chronomap_io::navmap::{
 //!     decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, LoadSemantics,
-//!     OccupancyMap, SaveOptions,
+//!     SaveOptions,
 //! };
+//! use chronomap_spatial::OccupancyMap;
 //!
 //! // A 3 x 2 map, row 0 at the bottom: free, occupied, unknown / 40 %, free, occupied.
 //! let mut map = OccupancyMap::new(3, 2, 0.05, [-1.5, 2.25, 0.0]);
@@ -38,12 +39,10 @@
 //! ```
 //!
 //! # The map
-//! [`OccupancyMap`] holds what a `nav_msgs/OccupancyGrid` message holds: `data` is row-major,
-//! row 0 is the **bottom** row (cell (0, 0) has its lower-left corner at `origin`), values
-//! `0..=100` are occupancy probabilities in percent and `-1` is unknown; `resolution` is the
-//! cell size in metres (an `f32`, as in the message) and `origin` is `[x, y, yaw]` (metres,
-//! metres, radians). Image files store rows top first, so every reader and writer here flips
-//! the rows.
+//! [`OccupancyMap`] (of `chronomap-spatial`) holds what a `nav_msgs/OccupancyGrid` message
+//! holds: `data` is row-major, row 0 is the **bottom** row, values `0..=100` are occupancy in
+//! percent and `-1` is unknown. Image files store rows top first, so every reader and writer
+//! here flips the rows.
 //!
 //! # The YAML file
 //! Keys (as read by `nav2_map_server` `map_io.cpp` `loadMapYaml` and ROS 1 `map_server`):
@@ -163,14 +162,9 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::yaml::{self, Prefix, Yaml};
+use chronomap_spatial::occupancy::{FREE, InvalidMap, OCCUPIED, OccupancyMap, UNKNOWN};
 
-/// Cell value of a free cell.
-pub const FREE: i8 = 0;
-/// Cell value of an occupied cell.
-pub const OCCUPIED: i8 = 100;
-/// Cell value of an unknown cell.
-pub const UNKNOWN: i8 = -1;
+use crate::yaml::{self, Prefix, Yaml};
 
 /// Largest decoded image accepted by the readers, in bytes (samples of all channels at their
 /// bit depth): 1 GiB, e.g. a 16 384 × 16 384 RGBA map.
@@ -186,173 +180,6 @@ const MAX_IMAGE_NAME_BYTES: usize = 4096;
 
 /// Longest excerpt of file content quoted in an error message, in characters.
 const MAX_QUOTED_CHARS: usize = 40;
-
-/// A 2-D occupancy map with `nav_msgs/OccupancyGrid` semantics (see the
-/// [module docs](self#the-map)).
-#[derive(Clone, Debug, PartialEq)]
-pub struct OccupancyMap {
-    /// Number of cells per row.
-    pub width: u32,
-    /// Number of rows.
-    pub height: u32,
-    /// Cell size in metres.
-    pub resolution: f32,
-    /// `[x, y, yaw]` of the lower-left corner of cell (0, 0): metres, metres, radians.
-    pub origin: [f64; 3],
-    /// Row-major cells, row 0 at the bottom: `0..=100` occupancy in percent, `-1` unknown.
-    pub data: Vec<i8>,
-}
-
-impl OccupancyMap {
-    /// A map of `width × height` unknown cells.
-    ///
-    /// # Panics
-    /// If `width · height` does not fit in memory (`usize`).
-    pub fn new(width: u32, height: u32, resolution: f32, origin: [f64; 3]) -> Self {
-        let cells = (width as usize)
-            .checked_mul(height as usize)
-            .expect("width * height overflows usize");
-        OccupancyMap {
-            width,
-            height,
-            resolution,
-            origin,
-            data: vec![UNKNOWN; cells],
-        }
-    }
-
-    /// A map of occupancy probabilities (`width × height` values in `[0, 1]`, row 0 at the
-    /// bottom, NaN for unknown), each cell `round(100·p)` or −1.
-    ///
-    /// # Panics
-    /// If `probabilities` does not have `width · height` values.
-    pub fn from_probabilities(
-        width: u32,
-        height: u32,
-        resolution: f32,
-        origin: [f64; 3],
-        probabilities: &[f32],
-    ) -> Self {
-        assert_eq!(
-            probabilities.len(),
-            width as usize * height as usize,
-            "map size"
-        );
-        let data = probabilities
-            .iter()
-            .map(|&p| {
-                if p.is_nan() {
-                    UNKNOWN
-                } else {
-                    (100.0 * p.clamp(0.0, 1.0)).round() as i8
-                }
-            })
-            .collect();
-        OccupancyMap {
-            width,
-            height,
-            resolution,
-            origin,
-            data,
-        }
-    }
-
-    /// Index in `data` of cell (`x`, `y`) (`y = 0` is the bottom row), if it is in the map.
-    pub fn index(&self, x: u32, y: u32) -> Option<usize> {
-        (x < self.width && y < self.height).then(|| y as usize * self.width as usize + x as usize)
-    }
-
-    /// Value of cell (`x`, `y`), if it is in the map (and `data` is long enough).
-    pub fn cell(&self, x: u32, y: u32) -> Option<i8> {
-        self.index(x, y).and_then(|i| self.data.get(i).copied())
-    }
-
-    /// The map as the [`ObstacleGrid`](chronomap_spatial::ObstacleGrid) of `chronomap-activity`'s training-sample extraction: a cell blocks
-    /// sight when its occupancy is at least `min_occupancy` percent (in a trinary map, 100 for
-    /// occupied cells); free and unknown (`-1`) cells do not. The resolution is the shortest
-    /// decimal of the `f32` (0.05, not 0.0500000007).
-    ///
-    /// ```
-    /// use chronomap_io::OccupancyMap;
-    ///
-    /// let mut map = OccupancyMap::new(4, 2, 0.05, [-1.0, 2.0, 0.0]);
-    /// map.data = vec![0, 100, -1, 30, 0, 0, 0, 65];
-    /// let grid = map.obstacle_grid(50)?;
-    /// assert_eq!((grid.resolution(), grid.origin()), (0.05, [-1.0, 2.0]));
-    /// assert!(grid.is_blocked(1, 0) && grid.is_blocked(3, 1));
-    /// assert!(!grid.is_blocked(2, 0) && !grid.is_blocked(3, 0));
-    /// # Ok::<(), chronomap_io::NavMapErrorKind>(())
-    /// ```
-    ///
-    /// # Errors
-    /// [`NavMapErrorKind::InvalidMap`] for an empty or inconsistent map, or a rotated one
-    /// (yaw ≠ 0).
-    pub fn obstacle_grid(
-        &self,
-        min_occupancy: i8,
-    ) -> Result<chronomap_spatial::ObstacleGrid, NavMapErrorKind> {
-        self.check()?;
-        if self.origin[2] != 0.0 {
-            return Err(NavMapErrorKind::InvalidMap {
-                reason: format!(
-                    "the origin's yaw is {} rad: rotated maps are not supported here",
-                    self.origin[2]
-                ),
-            });
-        }
-        let resolution: f64 = self
-            .resolution
-            .to_string()
-            .parse()
-            .expect("an f32 prints as a decimal");
-        let blocked = self
-            .data
-            .iter()
-            .map(|&v| v >= min_occupancy && v >= 0)
-            .collect();
-        chronomap_spatial::ObstacleGrid::new(
-            self.width as usize,
-            self.height as usize,
-            resolution,
-            [self.origin[0], self.origin[1]],
-            blocked,
-        )
-        .map_err(|e| NavMapErrorKind::InvalidMap {
-            reason: e.to_string(),
-        })
-    }
-
-    /// Checks what a writer needs: a non-empty map whose `data` has `width · height` cells,
-    /// a positive finite resolution and a finite origin.
-    fn check(&self) -> Result<(), NavMapErrorKind> {
-        let invalid = |reason: String| Err(NavMapErrorKind::InvalidMap { reason });
-        if self.width == 0 || self.height == 0 {
-            return invalid(format!(
-                "the map is empty ({} x {} cells)",
-                self.width, self.height
-            ));
-        }
-        let cells = u64::from(self.width) * u64::from(self.height);
-        if self.data.len() as u64 != cells {
-            return invalid(format!(
-                "data has {} cells but width x height = {} x {} = {cells}",
-                self.data.len(),
-                self.width,
-                self.height
-            ));
-        }
-        if !(self.resolution.is_finite() && self.resolution > 0.0) {
-            return invalid(format!(
-                "resolution {} is not a positive number",
-                self.resolution
-            ));
-        }
-        if let Some(bad) = self.origin.iter().find(|v| !v.is_finite()) {
-            return invalid(format!("origin contains {bad}, not a finite number"));
-        }
-        Ok(())
-    }
-}
 
 /// How image pixels and cell values correspond (the YAML key `mode`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -602,6 +429,12 @@ pub enum NavMapErrorKind {
     },
 }
 
+impl From<InvalidMap> for NavMapErrorKind {
+    fn from(e: InvalidMap) -> Self {
+        NavMapErrorKind::InvalidMap { reason: e.reason }
+    }
+}
+
 /// Why a map could not be loaded, decoded, encoded or saved: the file (when there is one),
 /// the 1-based line (for YAML values) and the problem.
 ///
@@ -799,7 +632,8 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), NavMapError> {
 /// # Errors
 /// [`NavMapErrorKind::InvalidMap`] or [`InvalidOptions`](NavMapErrorKind::InvalidOptions).
 pub fn encode_map_image(map: &OccupancyMap, options: &SaveOptions) -> Result<Vec<u8>, NavMapError> {
-    map.check().map_err(NavMapError::new)?;
+    map.check()
+        .map_err(|e| NavMapError::new(NavMapErrorKind::from(e)))?;
     options.check().map_err(NavMapError::new)?;
     let free = (100.0 * options.free_thresh).round_ties_even() as i32;
     let occupied = (100.0 * options.occupied_thresh).round_ties_even() as i32;
@@ -906,7 +740,8 @@ pub fn encode_map_yaml(
     map: &OccupancyMap,
     options: &SaveOptions,
 ) -> Result<String, NavMapError> {
-    map.check().map_err(NavMapError::new)?;
+    map.check()
+        .map_err(|e| NavMapError::new(NavMapErrorKind::from(e)))?;
     options.check().map_err(NavMapError::new)?;
     let mut text = String::new();
     if let Some(comment) = &options.comment {

@@ -49,9 +49,9 @@ use std::fmt;
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
 
-use chronomap_core::ObservationError;
 use chronomap_core::num::fmt_number;
 use chronomap_core::observe::{check_time, check_value};
+use chronomap_core::{ObservationError, TimeSeries};
 use thiserror::Error;
 
 /// Longest accepted line in bytes (guards against reading a binary file as one huge line).
@@ -68,52 +68,6 @@ const BUFFER_BYTES: usize = 64 * 1024;
 /// of repeated text (gzip reaches 1,000:1, xz far more) cannot feed a reader without end. Plain
 /// files and pipes have no such limit: their bytes are what is there to read.
 pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 31;
-
-/// Observations in time order: `values[i]` was observed at `times[i]` (seconds).
-///
-/// Everything returned by the readers of this module satisfies the
-/// [observation contract](chronomap_core::observe), so it can be passed to
-/// [`TemporalModel::observe`](chronomap_core::TemporalModel::observe) as it is.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TimeSeries {
-    /// Times in seconds, never decreasing.
-    pub times: Vec<f64>,
-    /// States in `[0, 1]`, one per time.
-    pub values: Vec<f64>,
-}
-
-impl TimeSeries {
-    /// Number of observations.
-    pub fn len(&self) -> usize {
-        self.times.len()
-    }
-
-    /// The observations with `from <= t < to`, in order.
-    pub fn between(&self, from: f64, to: f64) -> TimeSeries {
-        let (times, values) = self
-            .times
-            .iter()
-            .zip(&self.values)
-            .filter(|&(&t, _)| t >= from && t < to)
-            .map(|(&t, &v)| (t, v))
-            .unzip();
-        TimeSeries { times, values }
-    }
-
-    #[cfg(feature = "models")]
-    /// The series as a test set of [`chronomap_models::eval`].
-    pub fn as_test_set(&self) -> chronomap_models::eval::TestSet<'_> {
-        chronomap_models::eval::TestSet {
-            times: &self.times,
-            values: &self.values,
-        }
-    }
-
-    /// Whether there are no observations.
-    pub fn is_empty(&self) -> bool {
-        self.times.is_empty()
-    }
-}
 
 /// Which field of a line an error concerns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -164,13 +164,14 @@ use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
+use chronomap_topo::edges::EdgeStatistics;
 use chronomap_topo::map::{TopoError, TopoMap};
 use serde_json::{Value, json};
 use serde_saphyr::Spanned;
 use thiserror::Error;
 
 use crate::text::{
-    DataError, DataErrorKind, TimeSeries, decompressing_reader, read_data_file, read_timed_lines,
+    DataError, DataErrorKind, decompressing_reader, read_data_file, read_timed_lines,
 };
 use crate::yaml::{self, Prefix, Yaml};
 
@@ -181,102 +182,6 @@ use crate::yaml::{self, Prefix, Yaml};
 /// so what the readers return goes straight into
 /// [`EdgeModels::fit`](chronomap_topo::edges::EdgeModels::fit).
 pub use chronomap_topo::edges::Attempt as EdgeAttempt;
-
-/// A topological map and every recorded attempt to traverse each of its edges.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct EdgeStatistics {
-    /// The map: the nodes, and one edge per edge file.
-    pub map: TopoMap,
-    /// `attempts[i]` are the attempts on `map.edges()[i]`, in time order.
-    pub attempts: Vec<Vec<EdgeAttempt>>,
-}
-
-impl EdgeStatistics {
-    /// Number of attempts over all edges.
-    pub fn total_attempts(&self) -> usize {
-        self.attempts.iter().map(Vec::len).sum()
-    }
-
-    /// The attempts on the edge with id `edge_id`, if the map has that edge.
-    pub fn attempts_of(&self, edge_id: &str) -> Option<&[EdgeAttempt]> {
-        let index = self.map.edges().iter().position(|e| e.id == edge_id)?;
-        self.attempts.get(index).map(Vec::as_slice)
-    }
-
-    /// Fraction of successful attempts on edge `edge` (an index into `map.edges()`); `None` if
-    /// it has no attempt (or no such edge).
-    pub fn success_rate(&self, edge: usize) -> Option<f64> {
-        let attempts = self.attempts.get(edge).filter(|a| !a.is_empty())?;
-        let successes = attempts.iter().filter(|a| a.success).count();
-        Some(successes as f64 / attempts.len() as f64)
-    }
-
-    /// Earliest and latest attempt time over all edges; `None` without attempts.
-    pub fn time_span(&self) -> Option<(f64, f64)> {
-        self.attempts
-            .iter()
-            .flatten()
-            .map(|a| a.time)
-            .fold(None, |span, t| match span {
-                None => Some((t, t)),
-                Some((lo, hi)) => Some((f64::min(lo, t), f64::max(hi, t))),
-            })
-    }
-
-    /// Outcomes of the attempts on edge `edge` as a binary time series (1 = success), ready
-    /// for [`TemporalModel::observe`](chronomap_core::TemporalModel::observe). Empty if the
-    /// edge has no attempt or does not exist.
-    ///
-    /// The series satisfies the [observation contract](chronomap_core::observe) when the
-    /// attempts do, as those read by [`read_edge_directory`] always do.
-    pub fn success_series(&self, edge: usize) -> TimeSeries {
-        let attempts = self.attempts.get(edge).map_or(&[][..], Vec::as_slice);
-        TimeSeries {
-            times: attempts.iter().map(|a| a.time).collect(),
-            values: attempts
-                .iter()
-                .map(|a| f64::from(u8::from(a.success)))
-                .collect(),
-        }
-    }
-
-    /// Splits the attempts chronologically: `before` has those with `time < split`, `after`
-    /// those with `time >= split`. Both keep the whole map (every node and edge), so an edge
-    /// may have no attempt in one of them. A NaN `split` puts every attempt in `after`.
-    ///
-    /// ```
-    /// use chronomap_io::topo_files::{EdgeAttempt, EdgeStatistics};
-    /// use chronomap_topo::map::TopoMap;
-    ///
-    /// let mut map = TopoMap::new();
-    /// map.add_node("A", None)?;
-    /// map.add_node("B", None)?;
-    /// map.add_edge("A_B", "A", "B")?;
-    /// let attempt = |time| EdgeAttempt { time, duration_secs: 5.0, success: true };
-    /// let stats = EdgeStatistics { map, attempts: vec![vec![attempt(10.0), attempt(20.0)]] };
-    /// let (before, after) = stats.split_at(20.0);
-    /// assert_eq!((before.total_attempts(), after.total_attempts()), (1, 1));
-    /// assert_eq!(after.attempts[0][0].time, 20.0);
-    /// # Ok::<(), chronomap_topo::map::TopoError>(())
-    /// ```
-    pub fn split_at(&self, split: f64) -> (EdgeStatistics, EdgeStatistics) {
-        let (before, after) = self
-            .attempts
-            .iter()
-            .map(|edge| edge.iter().partition(|a| a.time < split))
-            .unzip();
-        (
-            EdgeStatistics {
-                map: self.map.clone(),
-                attempts: before,
-            },
-            EdgeStatistics {
-                map: self.map.clone(),
-                attempts: after,
-            },
-        )
-    }
-}
 
 /// What a line of an edge file must look like (quoted in errors).
 const EDGE_LINE: &str = "expected three fields: time duration success";

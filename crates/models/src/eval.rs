@@ -14,6 +14,16 @@ pub struct TestSet<'a> {
     pub values: &'a [f64],
 }
 
+impl<'a> From<&'a chronomap_core::TimeSeries> for TestSet<'a> {
+    /// The series as a test set.
+    fn from(series: &'a chronomap_core::TimeSeries) -> Self {
+        TestSet {
+            times: &series.times,
+            values: &series.values,
+        }
+    }
+}
+
 /// A model fitted on the training data and scored on every test set.
 #[derive(Clone, Debug)]
 pub struct ModelEvaluation {

@@ -27,11 +27,12 @@ use chronomap_core::{ObservationError, Parallelism, TemporalModel};
 use chronomap_grid::report::project_layers;
 use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry};
 use chronomap_io::navmap::{
-    LoadSemantics, MapMetadata, MapMode, OccupancyMap, SaveOptions, decode_map_image,
-    decode_map_yaml, encode_map_image, encode_map_yaml,
+    LoadSemantics, MapMetadata, MapMode, SaveOptions, decode_map_image, decode_map_yaml,
+    encode_map_image, encode_map_yaml,
 };
 use chronomap_io::{ModelFileError, TopoFileError, read_edge_models, write_route_geojson};
 use chronomap_models::learner::{Learner, Refit, RefitError, RefitJob};
+use chronomap_spatial::OccupancyMap;
 use chronomap_topo::edges::EdgeModels;
 use thiserror::Error;
 

@@ -8,11 +8,11 @@ use std::time::{Duration, Instant};
 
 use chronomap_io::frame_list::{MAX_MAP_PATH_BYTES, read_frame_list, read_frame_list_from};
 use chronomap_io::navmap::{
-    LoadSemantics, MAX_MAP_CELLS, NavMapErrorKind, OccupancyMap, SaveOptions, decode_map_yaml,
-    load_map, save_map,
+    LoadSemantics, MAX_MAP_CELLS, NavMapErrorKind, SaveOptions, decode_map_yaml, load_map, save_map,
 };
 use chronomap_io::text::Field;
 use chronomap_io::{FrameMapError, load_frame_map, load_next_frame_map};
+use chronomap_spatial::OccupancyMap;
 use chronomap_testutil::write;
 
 fn scratch(test: &str) -> PathBuf {

@@ -9,10 +9,11 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use chronomap_io::navmap::{
-    LoadSemantics, MapMetadata, MapMode, NavMapErrorKind, OccupancyMap, SaveOptions, SavedMap,
-    decode_map_image, decode_map_yaml, encode_map_image, encode_map_yaml, format_g, image_path,
-    load_map, read_map_yaml, save_map,
+    LoadSemantics, MapMetadata, MapMode, NavMapErrorKind, SaveOptions, SavedMap, decode_map_image,
+    decode_map_yaml, encode_map_image, encode_map_yaml, format_g, image_path, load_map,
+    read_map_yaml, save_map,
 };
+use chronomap_spatial::OccupancyMap;
 use chronomap_testutil::write;
 
 /// A fresh scratch folder for one test.

@@ -8,7 +8,7 @@ use chronomap_activity::CopaMap;
 use chronomap_activity::grids::RegionGrid;
 use chronomap_core::Parallelism;
 use chronomap_core::observe::MAX_TIME_SECS;
-use chronomap_io::navmap::OccupancyMap;
+use chronomap_spatial::OccupancyMap;
 
 /// Side of a cell when a request gives none (m): the default of `chronomap activity predict`.
 pub const DEFAULT_CELL: f64 = 0.5;
@@ -32,7 +32,7 @@ pub const PREDICT_CHUNK: usize = 4096;
 /// A predicted cell is masked when its centre lies on a map cell at least this occupied
 /// (percent), as `chronomap activity predict --map` leaves it out
 /// (`OccupancyMap::is_occupied_at`; unknown cells and centres outside the map are not masked).
-pub use chronomap_io::WALL_PERCENT;
+pub use chronomap_spatial::occupancy::WALL_PERCENT;
 
 /// What `t` is, as `GET /v1/activity/{name}` says.
 pub const TIME_UNIT: &str = "time bins of the training grid (t = k is the bin [t0 + k·τ, \
