@@ -1,0 +1,928 @@
+//! The range-data studies of [Stüde 2024] §3.2 along a laser log: descriptors of every scan
+//! (§3.2.1, eq. 3.7), scan registration of loop pairs against the SLAM relative poses
+//! (§3.2.2), the loop classifier's keyframe-disjoint cross-validation over fold layouts, the
+//! `p_min` training rule, the out-of-fold loop pipeline (§3.2.1, eq. 3.8) and loop detection
+//! with a trained classifier.
+//!
+//! Each function takes plain settings and a [`Progress`] and returns a result struct; the
+//! faces print, plot and map settings errors to their own argument names.
+
+use std::path::Path;
+
+use chronomap_core::progress::Progress;
+use chronomap_geometry::se2::{Pose2, between, compose};
+use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, ScanFeatures};
+use chronomap_lidar::descriptor::{Descriptor, DescriptorError, DescriptorParams, describe_scan};
+use chronomap_lidar::evaluation::{
+    CvReport, EvalError, FoldResult, LabelParams, LabelledPair, MAX_BOOSTING_ROUNDS, MAX_TRAININGS,
+    PipelineParams, PipelineReport, cv_rounds, cv_trainings, label_pairs, layout_folds,
+    run_pipeline,
+};
+use chronomap_lidar::threshold::MeanSd;
+use chronomap_registration::rigid::Rigid;
+use chronomap_registration::{register_scans, scan_params};
+
+use crate::laser_log::{LaserLog, LaserLogError, from_keyframes};
+
+/// The most folds a cross-validation may ask for (the sectors of [`layout_folds`]).
+pub const MAX_FOLDS: usize = 1000;
+
+/// A study that cannot run: the log, the settings, or the classifier's input.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopStudyError {
+    /// The laser log cannot be read.
+    #[error(transparent)]
+    Log(#[from] LaserLogError),
+    /// Settings that cannot work on this log (the faces name their own arguments).
+    #[error(transparent)]
+    Settings(#[from] SettingsError),
+    /// Labelling, training, cross-validation or the pipeline refused its input.
+    #[error(transparent)]
+    Eval(#[from] EvalError),
+    /// The features of a log's keyframes.
+    #[error("{name}: keyframe features")]
+    Features {
+        /// The log.
+        name: String,
+        /// Why.
+        #[source]
+        source: EvalError,
+    },
+    /// A pair scored by a trained classifier.
+    #[error("{name}: scoring a pair")]
+    Scoring {
+        /// The log.
+        name: String,
+        /// Why.
+        #[source]
+        source: EvalError,
+    },
+    /// The descriptor of one scan (eq. 3.7).
+    #[error("{name}: scan {index}")]
+    Descriptor {
+        /// The log.
+        name: String,
+        /// The 1-based scan.
+        index: usize,
+        /// Why.
+        #[source]
+        source: DescriptorError,
+    },
+    /// The labelled pairs hold only loops or only non-loops.
+    #[error(
+        "{name}: {positives} keyframe pairs are loops (closer than {near} m, more than {min_separation} keyframes apart) and {negatives} are not (farther than {far} m): training needs both"
+    )]
+    OneClass {
+        /// The log.
+        name: String,
+        /// Loop pairs.
+        positives: usize,
+        /// Non-loop pairs.
+        negatives: usize,
+        /// The loop distance (m).
+        near: f64,
+        /// The non-loop distance (m).
+        far: f64,
+        /// The least keyframe separation of a pair.
+        min_separation: usize,
+    },
+    /// No fold layout has a threshold that keeps the false-positive rate below the bound.
+    #[error("{name}: no threshold keeps the false-positive rate below {max_fpr}")]
+    NoThreshold {
+        /// The log.
+        name: String,
+        /// The bound.
+        max_fpr: f64,
+    },
+}
+
+/// Loop-training settings that cannot work, alone or on a given log. Displayed without the
+/// names a face gives them; the command line maps each to its flags.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    /// `near` beyond `far`: pairs cannot be both loops and not.
+    #[error("near {near} is beyond far {far}: pairs cannot be both loops and not")]
+    NearBeyondFar {
+        /// Loop distance (m).
+        near: f64,
+        /// Non-loop distance (m).
+        far: f64,
+    },
+    /// No boosting rounds.
+    #[error("rounds must be at least 1")]
+    NoRounds,
+    /// Fewer than 2 folds.
+    #[error("{folds} folds: cross-validation needs at least 2 folds")]
+    TooFewFolds {
+        /// The folds asked for.
+        folds: usize,
+    },
+    /// No fold layouts.
+    #[error("layouts must be at least 1")]
+    NoLayouts,
+    /// More folds than keyframes or than [`MAX_FOLDS`].
+    #[error("{folds} folds: more folds than keyframes or than {MAX_FOLDS} ({counts})")]
+    TooManyFolds {
+        /// The folds asked for.
+        folds: usize,
+        /// What the log holds.
+        counts: PairCounts,
+    },
+    /// More than [`MAX_TRAININGS`] classifier trainings.
+    #[error("{trainings} classifier trainings, at most {MAX_TRAININGS}")]
+    TooManyTrainings {
+        /// The trainings asked for.
+        trainings: usize,
+        /// Of them, the out-of-fold models (one per pair of folds), if asked for.
+        out_of_fold: Option<usize>,
+    },
+    /// More than [`MAX_BOOSTING_ROUNDS`] boosting rounds over all trainings.
+    #[error(
+        "{rounds} boosting rounds ({trainings} classifier trainings), at most {MAX_BOOSTING_ROUNDS}"
+    )]
+    TooManyRounds {
+        /// The rounds in all.
+        rounds: usize,
+        /// The trainings.
+        trainings: usize,
+    },
+    /// A fold layout without a fold that can be scored (a loop and a non-loop inside it,
+    /// both outside it too).
+    #[error(
+        "no fold of layout {layout} holds a loop and a non-loop among its own keyframes with both left to train on ({counts})"
+    )]
+    NoUsableFold {
+        /// The layout (0-based).
+        layout: usize,
+        /// What the log holds.
+        counts: PairCounts,
+    },
+}
+
+/// Keyframes and labelled pairs of a log, for messages.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairCounts {
+    /// The log.
+    pub name: String,
+    /// Keyframes.
+    pub keyframes: usize,
+    /// Loop pairs.
+    pub positives: usize,
+    /// Non-loop pairs.
+    pub negatives: usize,
+}
+
+impl std::fmt::Display for PairCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} has {} keyframes, {} loops and {} non-loops",
+            self.name, self.keyframes, self.positives, self.negatives
+        )
+    }
+}
+
+/// How the loop classifier is trained and cross-validated ([Stüde 2024] §3.2.1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopTraining {
+    /// The dissertation's classifier (41 pair values, stumps) instead of the extended one.
+    pub paper: bool,
+    /// Laser origins closer than this are loops (m).
+    pub near: f64,
+    /// Laser origins farther than this are non-loops (m).
+    pub far: f64,
+    /// Pairs at most this many keyframes apart are not labelled.
+    pub min_separation: usize,
+    /// Boosting rounds `T`.
+    pub rounds: usize,
+    /// The bound on the false-positive rate that chooses `p_min`.
+    pub max_fpr: f64,
+    /// Folds by place.
+    pub folds: usize,
+    /// Fold layouts (rotations of the place sectors).
+    pub layouts: usize,
+}
+
+impl LoopTraining {
+    /// The classifier configuration these settings ask for.
+    pub fn config(&self) -> ClassifierConfig {
+        let base = if self.paper {
+            ClassifierConfig::paper()
+        } else {
+            ClassifierConfig::extended()
+        };
+        ClassifierConfig {
+            rounds: self.rounds,
+            ..base
+        }
+    }
+
+    /// Checks the settings on their own (before any file is read).
+    ///
+    /// # Errors
+    /// `near > far`, no rounds, fewer than 2 folds, no layouts.
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        if self.near > self.far {
+            return Err(SettingsError::NearBeyondFar {
+                near: self.near,
+                far: self.far,
+            });
+        }
+        if self.rounds == 0 {
+            return Err(SettingsError::NoRounds);
+        }
+        if self.folds < 2 {
+            return Err(SettingsError::TooFewFolds { folds: self.folds });
+        }
+        if self.layouts == 0 {
+            return Err(SettingsError::NoLayouts);
+        }
+        Ok(())
+    }
+}
+
+/// Features and labelled pairs of a keyframe file: what cross-validation and training learn
+/// from.
+pub struct LabelledKeyframes {
+    /// The keyframes, with SLAM poses.
+    pub log: LaserLog,
+    /// The classifier configuration.
+    pub config: ClassifierConfig,
+    /// The features of each keyframe.
+    pub features: Vec<ScanFeatures>,
+    /// The labelled pairs (by the robot's SLAM positions).
+    pub pairs: Vec<LabelledPair>,
+    /// The pair values of each labelled pair.
+    pub rows: Vec<Vec<f64>>,
+    /// How the pairs were labelled.
+    pub labels: LabelParams,
+    /// Sensor positions (m), for folds by place.
+    pub places: Vec<[f64; 2]>,
+}
+
+impl LabelledKeyframes {
+    /// The loop pairs.
+    pub fn positives(&self) -> usize {
+        self.pairs.iter().filter(|p| p.positive).count()
+    }
+}
+
+/// Reads and labels the keyframes of `path` for a cross-validated run, after checking the
+/// settings against them (with `pair_models`, the run also trains the out-of-fold models of
+/// [`out_of_fold_pipeline`]).
+///
+/// # Errors
+/// Settings that cannot work ([`LoopTraining::validate`], [`check_folds`]), a log that cannot
+/// be read, pairs of one class only, features that cannot be computed.
+pub fn labelled_keyframes(
+    path: &Path,
+    settings: &LoopTraining,
+    odometry: Option<&Path>,
+    pair_models: bool,
+) -> Result<LabelledKeyframes, LoopStudyError> {
+    settings.validate()?;
+    let log = from_keyframes(path, odometry)?;
+    let truth = log.truth.clone().expect("keyframe files carry poses");
+    let config = settings.config();
+    let labels = LabelParams {
+        near: settings.near,
+        far: settings.far,
+        min_separation: settings.min_separation,
+    };
+    let robot: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
+    let pairs = label_pairs(&robot, &labels)?;
+    let positives = pairs.iter().filter(|p| p.positive).count();
+    if positives == 0 || positives == pairs.len() {
+        return Err(LoopStudyError::OneClass {
+            name: log.name,
+            positives,
+            negatives: pairs.len() - positives,
+            near: settings.near,
+            far: settings.far,
+            min_separation: settings.min_separation,
+        });
+    }
+    let places: Vec<[f64; 2]> = truth
+        .iter()
+        .map(|&p| {
+            let s = compose(p, log.sensor);
+            [s[0], s[1]]
+        })
+        .collect();
+    check_folds(&log.name, &places, &pairs, settings, pair_models)?;
+    let features = config
+        .features(&log.scans)
+        .map_err(|source| LoopStudyError::Features {
+            name: log.name.clone(),
+            source,
+        })?;
+    let rows = config.pair_rows(&features, &pairs)?;
+    Ok(LabelledKeyframes {
+        log,
+        config,
+        features,
+        pairs,
+        rows,
+        labels,
+        places,
+    })
+}
+
+/// Checks the folds against the keyframes before any feature is computed: at most one fold per
+/// keyframe (and [`MAX_FOLDS`]), at most [`MAX_TRAININGS`] classifiers to train over the
+/// layouts (with `pair_models`, the out-of-fold models too) and at most
+/// [`MAX_BOOSTING_ROUNDS`] rounds over them all, and in every fold layout at least one fold
+/// whose own pairs hold a loop and a non-loop while the pairs outside it hold both too (else
+/// nothing is scored and the ROC is empty).
+///
+/// # Errors
+/// The first of these that fails; [`EvalError`] from [`layout_folds`].
+pub fn check_folds(
+    name: &str,
+    places: &[[f64; 2]],
+    pairs: &[LabelledPair],
+    settings: &LoopTraining,
+    pair_models: bool,
+) -> Result<(), LoopStudyError> {
+    let keyframes = places.len();
+    let positives = pairs.iter().filter(|p| p.positive).count();
+    let counts = PairCounts {
+        name: name.to_string(),
+        keyframes,
+        positives,
+        negatives: pairs.len() - positives,
+    };
+    if settings.folds > keyframes.min(MAX_FOLDS) {
+        return Err(SettingsError::TooManyFolds {
+            folds: settings.folds,
+            counts,
+        }
+        .into());
+    }
+    let trainings = cv_trainings(settings.folds, settings.layouts, pair_models);
+    if trainings > MAX_TRAININGS {
+        return Err(SettingsError::TooManyTrainings {
+            trainings,
+            out_of_fold: pair_models.then(|| cv_trainings(settings.folds, 0, true)),
+        }
+        .into());
+    }
+    let rounds = cv_rounds(
+        settings.folds,
+        settings.layouts,
+        pair_models,
+        settings.rounds,
+    );
+    if rounds > MAX_BOOSTING_ROUNDS {
+        return Err(SettingsError::TooManyRounds { rounds, trainings }.into());
+    }
+    for layout in 0..settings.layouts {
+        let fold_of = layout_folds(places, settings.folds, layout, settings.layouts)?;
+        let usable = (0..settings.folds).any(|f| {
+            let (mut inside, mut outside) = ([false; 2], [false; 2]);
+            for p in pairs {
+                let within = [fold_of[p.i] == f, fold_of[p.j] == f];
+                if within == [true, true] {
+                    inside[usize::from(p.positive)] = true;
+                } else if within == [false, false] {
+                    outside[usize::from(p.positive)] = true;
+                }
+            }
+            inside == [true, true] && outside == [true, true]
+        });
+        if !usable {
+            return Err(SettingsError::NoUsableFold { layout, counts }.into());
+        }
+    }
+    Ok(())
+}
+
+/// Cross-validation over several rotations of the place folds, each with its own seed.
+pub struct LayoutsReport {
+    /// One report per fold layout.
+    pub reports: Vec<CvReport>,
+}
+
+impl LayoutsReport {
+    /// Every fold of every layout.
+    pub fn folds(&self) -> impl Iterator<Item = &FoldResult> {
+        self.reports.iter().flat_map(|r| &r.folds)
+    }
+
+    /// `p_min` of the first layout's pooled ROC, the one [`out_of_fold_pipeline`] uses.
+    pub fn first_threshold(&self) -> Option<f64> {
+        self.reports.first().map(|r| r.pooled_at_max_fpr.threshold)
+    }
+}
+
+/// Keyframe-disjoint cross-validation of the loop classifier over `settings.layouts` fold
+/// layouts by place, layout `l` seeded with `l + 1` ([Stüde 2024] §3.2.1). Reports one stage,
+/// one step per classifier trained.
+///
+/// # Errors
+/// Settings that cannot work; [`EvalError`] from the folds and the training.
+pub fn cross_validate_layouts(
+    data: &LabelledKeyframes,
+    settings: &LoopTraining,
+    progress: &dyn Progress,
+) -> Result<LayoutsReport, LoopStudyError> {
+    settings.validate()?;
+    progress.stage(
+        "cross-validation",
+        cv_trainings(settings.folds, settings.layouts, false) as u64,
+    );
+    let mut reports = Vec::with_capacity(settings.layouts);
+    for layout in 0..settings.layouts {
+        let fold_of = layout_folds(&data.places, settings.folds, layout, settings.layouts)?;
+        let report = data.config.cross_validate(
+            &data.pairs,
+            &data.rows,
+            &fold_of,
+            settings.max_fpr,
+            layout as u64 + 1,
+        )?;
+        reports.push(report);
+        progress.advance(settings.folds as u64);
+    }
+    Ok(LayoutsReport { reports })
+}
+
+/// The loop pipeline along the keyframes ([Stüde 2024] §3.2.1: search radius of eq. 3.8,
+/// classifier, verification) with fold layout 0, each pair scored by the model that saw
+/// neither keyframe's fold, `p_min` from that layout's pooled ROC: detections that no model
+/// was trained on. Reports one stage, one step per out-of-fold model.
+///
+/// # Errors
+/// [`EvalError`] from the folds, the models and the pipeline.
+pub fn out_of_fold_pipeline(
+    data: &LabelledKeyframes,
+    settings: &LoopTraining,
+    cv: &LayoutsReport,
+    progress: &dyn Progress,
+) -> Result<PipelineReport, LoopStudyError> {
+    let fold_of = layout_folds(&data.places, settings.folds, 0, settings.layouts)?;
+    progress.stage(
+        "out-of-fold models",
+        cv_trainings(settings.folds, 0, true) as u64,
+    );
+    let models = data
+        .config
+        .pair_models(&data.pairs, &data.rows, &fold_of, &mut || {
+            progress.advance(1)
+        })?;
+    let mut params = PipelineParams {
+        min_separation: settings.min_separation,
+        near: settings.near,
+        ..PipelineParams::default()
+    };
+    params.search.p_min = cv.first_threshold().map_or(1.0, |t| t.min(1.0));
+    let truth = data.log.truth.as_deref().unwrap_or(&[]);
+    let positions: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
+    Ok(run_pipeline(
+        &data.log.increments(),
+        [data.log.sensor[0], data.log.sensor[1]],
+        &positions,
+        &params,
+        |i, j| {
+            let x = data
+                .config
+                .pair(&data.features[i], &data.features[j])
+                .map_err(|e| EvalError::Input(e.to_string()))?;
+            models.probability(i, j, &x)
+        },
+    )?)
+}
+
+/// What the cross-validation says, as mean ± sd over folds (per fold) or over layouts
+/// (pooled).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CvSummary {
+    /// Folds scored, over all layouts.
+    pub folds: usize,
+    /// AUC per fold.
+    pub auc: MeanSd,
+    /// TPR at the bound with each fold's own threshold.
+    pub tpr: MeanSd,
+    /// TPR with `p_min` chosen on the other folds.
+    pub heldout_tpr: MeanSd,
+    /// FPR with `p_min` chosen on the other folds.
+    pub heldout_fpr: MeanSd,
+    /// AUC pooled over the folds of a layout.
+    pub pooled_auc: MeanSd,
+    /// TPR at the bound, pooled over the folds of a layout.
+    pub pooled_tpr: MeanSd,
+    /// `p_min` of each layout's pooled ROC.
+    pub p_min: MeanSd,
+}
+
+impl CvSummary {
+    /// The summary of a cross-validation.
+    pub fn of(cv: &LayoutsReport) -> CvSummary {
+        let fold = |f: fn(&FoldResult) -> f64| MeanSd::of(cv.folds().map(f));
+        CvSummary {
+            folds: cv.folds().count(),
+            auc: fold(|f| f.auc),
+            tpr: fold(|f| f.at_max_fpr.tpr),
+            heldout_tpr: fold(|f| f.heldout_rates.0),
+            heldout_fpr: fold(|f| f.heldout_rates.1),
+            pooled_auc: MeanSd::of(cv.reports.iter().map(|r| r.pooled_auc)),
+            pooled_tpr: MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr)),
+            p_min: MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.threshold)),
+        }
+    }
+}
+
+/// The `p_min` training rule: the median over fold layouts of the threshold that keeps each
+/// layout's pooled out-of-fold false-positive rate below the bound, at most 1 ([Stüde 2024]
+/// §3.2.1, `p_min` at FPR < 1 %); `None` if no layout has one.
+pub fn p_min_rule(cv: &LayoutsReport) -> Option<f64> {
+    let thresholds: Vec<f64> = cv
+        .reports
+        .iter()
+        .map(|r| r.pooled_at_max_fpr.threshold)
+        .filter(|t| t.is_finite())
+        .collect();
+    (!thresholds.is_empty()).then(|| median(&thresholds).min(1.0))
+}
+
+/// Trains the loop classifier on every labelled pair, with `p_min` from [`p_min_rule`] over
+/// the cross-validation `cv`, and keeps the labelling with it.
+///
+/// # Errors
+/// [`LoopStudyError::NoThreshold`] if no layout has a threshold; [`EvalError`] from the
+/// training.
+pub fn train_classifier(
+    data: &LabelledKeyframes,
+    cv: &LayoutsReport,
+    max_fpr: f64,
+) -> Result<LoopClassifier, LoopStudyError> {
+    let p_min = p_min_rule(cv).ok_or_else(|| LoopStudyError::NoThreshold {
+        name: data.log.name.clone(),
+        max_fpr,
+    })?;
+    let mut classifier =
+        LoopClassifier::train(&data.config, &data.features, &data.pairs, p_min, max_fpr)?;
+    classifier.labels = Some(data.labels.clone());
+    Ok(classifier)
+}
+
+/// Loops found along a log by a trained classifier.
+pub struct Detection {
+    /// The pipeline's report.
+    pub report: PipelineReport,
+    /// The `p_min` used.
+    pub p_min: f64,
+    /// The trajectory the pipeline judged against: SLAM positions if the log has them, else
+    /// the odometry's.
+    pub positions: Vec<[f64; 2]>,
+}
+
+/// Loop detection along `log` with a trained classifier ([Stüde 2024] §3.2.1: search radius
+/// of eq. 3.8 from the odometry, classifier, verification), `p_min` given or the
+/// classifier's, loops labelled with the classifier's `near` (3 m without labels).
+///
+/// # Errors
+/// Features that cannot be computed, a pair the classifier cannot score, [`EvalError`] from
+/// the pipeline.
+pub fn detect_loops(
+    log: &LaserLog,
+    classifier: &LoopClassifier,
+    p_min: Option<f64>,
+    min_separation: usize,
+) -> Result<Detection, LoopStudyError> {
+    let features =
+        classifier
+            .config
+            .features(&log.scans)
+            .map_err(|source| LoopStudyError::Features {
+                name: log.name.clone(),
+                source,
+            })?;
+    let positions: Vec<[f64; 2]> = log
+        .truth
+        .as_ref()
+        .unwrap_or(&log.odometry)
+        .iter()
+        .map(|p| [p[0], p[1]])
+        .collect();
+    let mut params = PipelineParams {
+        min_separation,
+        near: classifier.labels.as_ref().map_or(3.0, |l| l.near),
+        ..PipelineParams::default()
+    };
+    params.search.p_min = p_min.unwrap_or(classifier.p_min);
+    let mut failure = None;
+    let report = run_pipeline(
+        &log.increments(),
+        [log.sensor[0], log.sensor[1]],
+        &positions,
+        &params,
+        |i, j| match classifier.probability(&features[i], &features[j]) {
+            Ok(p) => Ok(Some(p)),
+            Err(e) => {
+                failure.get_or_insert(e);
+                Ok(None)
+            }
+        },
+    )?;
+    if let Some(source) = failure {
+        return Err(LoopStudyError::Scoring {
+            name: log.name.clone(),
+            source,
+        });
+    }
+    Ok(Detection {
+        report,
+        p_min: params.search.p_min,
+        positions,
+    })
+}
+
+/// The global descriptor (eq. 3.7) of every scan of a log, with the scan's time. Reports one
+/// stage, one step per scan.
+///
+/// # Errors
+/// [`LoopStudyError::Descriptor`] naming the first scan that has none.
+pub fn describe_log(
+    log: &LaserLog,
+    params: &DescriptorParams,
+    progress: &dyn Progress,
+) -> Result<Vec<(f64, Descriptor)>, LoopStudyError> {
+    progress.stage("descriptors", log.scans.len() as u64);
+    let mut rows = Vec::with_capacity(log.scans.len());
+    for (k, scan) in log.scans.iter().enumerate() {
+        let d = describe_scan(scan, params).map_err(|source| LoopStudyError::Descriptor {
+            name: log.name.clone(),
+            index: k + 1,
+            source,
+        })?;
+        rows.push((scan.time, d));
+        progress.advance(1);
+    }
+    Ok(rows)
+}
+
+/// The loop pairs of a keyframe log by its laser positions (robot SLAM pose ⊕ sensor):
+/// origins closer than `near` metres and more than `min_separation` keyframes apart, as
+/// [`labelled_keyframes`] labels loops.
+///
+/// # Errors
+/// [`EvalError`] from the labelling (positions not finite, a negative distance).
+pub fn loop_pairs(
+    log: &LaserLog,
+    near: f64,
+    min_separation: usize,
+) -> Result<Vec<[usize; 2]>, LoopStudyError> {
+    let places: Vec<[f64; 2]> = (0..log.scans.len())
+        .filter_map(|k| log.sensor_in_map(k).map(|p| [p[0], p[1]]))
+        .collect();
+    let labels = LabelParams {
+        near,
+        far: near,
+        min_separation,
+    };
+    Ok(label_pairs(&places, &labels)?
+        .into_iter()
+        .filter(|p| p.positive)
+        .map(|p| [p.i, p.j])
+        .collect())
+}
+
+/// One keyframe pair registered without an initial guess.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairRegistration {
+    /// Keyframes `[i, j]`: `j`'s scan moved onto `i`'s.
+    pub pair: [usize; 2],
+    /// The pose of `j`'s laser in the frame of `i`'s by SLAM (`x, y, yaw`).
+    pub slam_pose: [f64; 3],
+    /// The registration, or why it failed.
+    pub result: Result<PairResult, String>,
+}
+
+/// A registered pair against its SLAM relative pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairResult {
+    /// The registered pose of `j`'s laser in the frame of `i`'s (`x, y, yaw`).
+    pub pose: [f64; 3],
+    /// Rotation error against SLAM (degrees).
+    pub rotation_error_deg: f64,
+    /// Translation error against SLAM (m).
+    pub translation_error_m: f64,
+    /// RANSAC inliers.
+    pub inliers: usize,
+    /// `σ̂` of the information matrix (m).
+    pub sigma_m: f64,
+}
+
+impl PairResult {
+    /// The registered pose as a homogeneous 3×3 transform (row-major).
+    pub fn matrix(&self) -> [[f64; 3]; 3] {
+        Pose2::from_array(self.pose).to_matrix()
+    }
+}
+
+/// Registers keyframe `j`'s scan onto keyframe `i`'s for each pair, without an initial guess
+/// ([Stüde 2024] §3.2.2: FPFH-2D, RANSAC, point-to-line ICP; [`scan_params`], RANSAC seeded
+/// with `seed` if given), and compares each with the SLAM relative pose of the lasers. Reports
+/// one stage, one step per pair.
+///
+/// # Panics
+/// If the log has no SLAM poses or a pair names a keyframe it does not have.
+pub fn register_pairs(
+    log: &LaserLog,
+    pairs: &[[usize; 2]],
+    seed: Option<u64>,
+    progress: &dyn Progress,
+) -> Vec<PairRegistration> {
+    let mut params = scan_params();
+    if let Some(seed) = seed {
+        params.ransac.seed = seed;
+    }
+    let sensor = |k: usize| log.sensor_in_map(k).expect("a keyframe log");
+    progress.stage("registering pairs", pairs.len() as u64);
+    let mut rows = Vec::with_capacity(pairs.len());
+    for &[i, j] in pairs {
+        // Keyframe j's scan moved onto keyframe i's: the true transform is the pose of j's
+        // laser in the frame of i's.
+        let truth_ij = between(sensor(i), sensor(j));
+        let truth_ij = Rigid::from_pose(truth_ij[0], truth_ij[1], truth_ij[2]);
+        let result = match register_scans(&log.scans[j], &log.scans[i], &params) {
+            Ok(r) => {
+                let (dr, dt) = r.transform.error_to(&truth_ij);
+                Ok(PairResult {
+                    pose: r.transform.to_pose(),
+                    rotation_error_deg: dr.to_degrees(),
+                    translation_error_m: dt,
+                    inliers: r.inliers,
+                    sigma_m: r.information.sigma,
+                })
+            }
+            Err(e) => Err(e.to_string()),
+        };
+        rows.push(PairRegistration {
+            pair: [i, j],
+            slam_pose: truth_ij.to_pose(),
+            result,
+        });
+        progress.advance(1);
+    }
+    rows
+}
+
+/// Registration against SLAM over many pairs: medians over all pairs (a failed registration
+/// counts as an unbounded error) and over those within 2° and 20 cm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegistrationSummary {
+    /// Median rotation error over all pairs (degrees).
+    pub median_rotation_deg: f64,
+    /// Median translation error over all pairs (m).
+    pub median_translation_m: f64,
+    /// Pairs within 2° and 20 cm.
+    pub within: usize,
+    /// Median rotation error of those (degrees).
+    pub median_rotation_within_deg: f64,
+    /// Median translation error of those (m).
+    pub median_translation_within_m: f64,
+    /// Pairs whose registration failed.
+    pub failed: usize,
+}
+
+impl RegistrationSummary {
+    /// The summary of registered pairs.
+    pub fn of(rows: &[PairRegistration]) -> RegistrationSummary {
+        let all = |f: fn(&PairResult) -> f64| {
+            median(
+                &rows
+                    .iter()
+                    .map(|r| r.result.as_ref().map_or(f64::INFINITY, f))
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let within: Vec<&PairResult> = rows
+            .iter()
+            .filter_map(|r| r.result.as_ref().ok())
+            .filter(|x| x.rotation_error_deg < 2.0 && x.translation_error_m < 0.2)
+            .collect();
+        let of_within =
+            |f: fn(&PairResult) -> f64| median(&within.iter().map(|x| f(x)).collect::<Vec<_>>());
+        RegistrationSummary {
+            median_rotation_deg: all(|x| x.rotation_error_deg),
+            median_translation_m: all(|x| x.translation_error_m),
+            within: within.len(),
+            median_rotation_within_deg: of_within(|x| x.rotation_error_deg),
+            median_translation_within_m: of_within(|x| x.translation_error_m),
+            failed: rows.iter().filter(|r| r.result.is_err()).count(),
+        }
+    }
+}
+
+/// The median of `values`: the middle one, or the mean of the middle two for an even count
+/// (NaN for none).
+fn median(values: &[f64]) -> f64 {
+    let mut values = values.to_vec();
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n == 0 {
+        f64::NAN
+    } else if n.is_multiple_of(2) {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    } else {
+        values[n / 2]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(result: Result<(f64, f64), &str>) -> PairRegistration {
+        PairRegistration {
+            pair: [0, 1],
+            slam_pose: [0.0; 3],
+            result: result
+                .map(|(r, t)| PairResult {
+                    pose: [0.0; 3],
+                    rotation_error_deg: r,
+                    translation_error_m: t,
+                    inliers: 10,
+                    sigma_m: 0.01,
+                })
+                .map_err(str::to_string),
+        }
+    }
+
+    #[test]
+    fn registration_medians_count_failures_as_unbounded() {
+        let rows = [
+            pair(Ok((0.5, 0.0625))),
+            pair(Ok((1.5, 0.125))),
+            pair(Ok((5.0, 0.03125))),
+            pair(Err("too few points")),
+        ];
+        let s = RegistrationSummary::of(&rows);
+        // Over all four, the failure as +inf: (1.5 + 5) / 2 and (0.0625 + 0.125) / 2; within
+        // 2° and 20 cm: the first two.
+        assert_eq!(s.median_rotation_deg, 3.25);
+        assert_eq!(s.median_translation_m, 0.09375);
+        assert_eq!(s.within, 2);
+        assert_eq!(s.median_rotation_within_deg, 1.0);
+        assert_eq!(s.median_translation_within_m, 0.09375);
+        assert_eq!(s.failed, 1);
+        assert!(median(&[]).is_nan());
+    }
+
+    #[test]
+    fn a_registered_pose_is_its_homogeneous_matrix() {
+        let r = PairResult {
+            pose: [1.0, -2.0, std::f64::consts::FRAC_PI_2],
+            rotation_error_deg: 0.0,
+            translation_error_m: 0.0,
+            inliers: 0,
+            sigma_m: 0.0,
+        };
+        let m = r.matrix();
+        assert!(m[0][0].abs() < 1e-15 && m[1][1].abs() < 1e-15);
+        assert_eq!([m[0][1], m[1][0], m[0][2], m[1][2]], [-1.0, 1.0, 1.0, -2.0]);
+        assert_eq!(m[2], [0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn settings_are_checked_before_any_file_is_read() {
+        let ok = LoopTraining {
+            paper: true,
+            near: 3.0,
+            far: 10.0,
+            min_separation: 20,
+            rounds: 50,
+            max_fpr: 0.01,
+            folds: 5,
+            layouts: 10,
+        };
+        assert_eq!(ok.validate(), Ok(()));
+        assert_eq!(ok.config(), ClassifierConfig::paper());
+        let bad = LoopTraining {
+            near: 12.0,
+            ..ok.clone()
+        };
+        assert_eq!(
+            bad.validate(),
+            Err(SettingsError::NearBeyondFar {
+                near: 12.0,
+                far: 10.0
+            })
+        );
+        // One fold is refused before the (missing) file is opened.
+        let result = labelled_keyframes(
+            Path::new("/nothing"),
+            &LoopTraining { folds: 1, ..ok },
+            None,
+            false,
+        );
+        assert!(matches!(
+            result,
+            Err(LoopStudyError::Settings(SettingsError::TooFewFolds {
+                folds: 1
+            }))
+        ));
+    }
+}
