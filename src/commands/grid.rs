@@ -12,12 +12,13 @@ use chronomap_grid::build::{
     GridBuild, GridBuilder, build_from_frames, build_partitioned, holdout_splits, occupancy_percent,
 };
 use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
-use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridGeometry, OrderChoice};
+use chronomap_grid::{
+    AnyGrid, FittedGrid, FremenGrid, GridConfig, GridGeometry, GridStore, OrderChoice,
+};
 use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, save_map};
 use chronomap_io::output::write_output;
 use chronomap_io::{
-    GridFile, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
-    read_pairs,
+    encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file, read_pairs,
 };
 use chronomap_plot::{MapImage, render_maps_png};
 use chronomap_rosbag::{Bag, MapFrame};
@@ -178,13 +179,12 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     } else {
         None
     };
-    let file = match args.store {
-        StoreArg::State => GridFile::State(Box::new(grid.clone())),
-        StoreArg::Lossy => GridFile::Lossy(Box::new(grid.fitted(choice, Parallelism::Rayon(0)))),
-        StoreArg::Lossless => {
-            GridFile::Lossless(Box::new(grid.lossless(choice, Parallelism::Rayon(0))?))
-        }
+    let form = match args.store {
+        StoreArg::State => GridStore::State,
+        StoreArg::Lossy => GridStore::Lossy,
+        StoreArg::Lossless => GridStore::Lossless,
     };
+    let file = AnyGrid::store(&grid, form, choice, Parallelism::Rayon(0))?;
     // The size of eq. (16) is what was written (a device or a pipe is written through and
     // has no size afterwards).
     let encoded = encode_grid(&file)?;
@@ -206,7 +206,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
             "memory_mb": grid.memory_bytes() as f64 / 1048576.0,
             "errors": errors.map(|t| t.json(built.split, grid.frames())),
             "output": args.output.display().to_string(),
-            "kind": file.kind(),
+            "kind": chronomap_io::grid_kind(&file),
             "bytes": bytes,
             "compression_ratio": ratio,
         }));
@@ -214,7 +214,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     outln!(
         "wrote {} ({}, {} bytes, compression 1:{:.0} by eq. 16)",
         args.output.display(),
-        file.kind(),
+        chronomap_io::grid_kind(&file),
         bytes,
         ratio
     )?;
@@ -274,8 +274,8 @@ fn error_table(built: &Built, observations: f64) -> Result<ErrorTable> {
         .into_iter()
         .map(|r| {
             let lossless = grid.lossless(r.final_orders.clone(), Parallelism::Rayon(0))?;
-            let lossy = encode_grid(&GridFile::Lossy(Box::new(r.fitted.clone())))?.len();
-            let lossless = encode_grid(&GridFile::Lossless(Box::new(lossless)))?.len();
+            let lossy = encode_grid(&AnyGrid::Lossy(Box::new(r.fitted.clone())))?.len();
+            let lossless = encode_grid(&AnyGrid::Lossless(Box::new(lossless)))?.len();
             bar.advance(1);
             Ok((r, lossy, lossless))
         })
@@ -488,20 +488,13 @@ fn build_from_cell_series(files: &[PathBuf], job: &BuildJob) -> Result<Built> {
 }
 
 /// The compact model in a grid file (learning-state files are fitted with `order`).
-fn fitted_of(file: GridFile, order: Option<usize>) -> Result<FittedGrid> {
-    Ok(match file {
-        GridFile::State(grid) => {
-            let k = order.unwrap_or(grid.config().fremen.order);
-            grid.fitted(OrderChoice::Fixed(k), Parallelism::Rayon(0))
-        }
-        GridFile::Lossy(_) | GridFile::Lossless(_) if order.is_some() => {
-            return Err(usage(
-                "--order needs a learning-state grid file (this one stores a fitted model)",
-            ));
-        }
-        GridFile::Lossy(fitted) => *fitted,
-        GridFile::Lossless(lossless) => lossless.fitted,
-    })
+fn fitted_of(file: AnyGrid, order: Option<usize>) -> Result<FittedGrid> {
+    match file.into_fitted(order, Parallelism::Rayon(0)) {
+        Ok(fitted) => Ok(fitted),
+        Err(_) => Err(usage(
+            "--order needs a learning-state grid file (this one stores a fitted model)",
+        )),
+    }
 }
 
 /// The layers of `--layers` (default all) of a grid `depth` layers deep.
@@ -604,18 +597,14 @@ pub fn stats(args: &GridStatsArgs) -> Result<()> {
         .with_context(|| format!("{}: cannot read", args.grid.display()))?
         .len();
     let file = read_grid_file(&args.grid)?;
-    let (geometry, frames) = match &file {
-        GridFile::State(grid) => (*grid.geometry(), grid.frame_span()),
-        GridFile::Lossy(fitted) => (*fitted.geometry(), fitted.frames()),
-        GridFile::Lossless(lossless) => (*lossless.fitted.geometry(), lossless.fitted.frames()),
-    };
+    let (geometry, frames) = (*file.geometry(), file.frame_span());
     let observations = geometry.cells() as f64 * frames.count as f64;
     let ratio = (frames.count > 0).then(|| compression_ratio(observations, bytes as usize));
     if args.json {
         let contents = match &file {
-            GridFile::State(grid) => state_json(grid),
-            GridFile::Lossy(fitted) => fitted_json(fitted),
-            GridFile::Lossless(lossless) => {
+            AnyGrid::State(grid) => state_json(grid),
+            AnyGrid::Lossy(fitted) => fitted_json(fitted),
+            AnyGrid::Lossless(lossless) => {
                 let mut value = fitted_json(&lossless.fitted);
                 value["outlier_toggles"] = json!(lossless.outlier_toggles());
                 value
@@ -623,7 +612,7 @@ pub fn stats(args: &GridStatsArgs) -> Result<()> {
         };
         return print_json(&json!({
             "file": args.grid.display().to_string(),
-            "kind": file.kind(),
+            "kind": chronomap_io::grid_kind(&file),
             "bytes": bytes,
             "geometry": geometry_json(&geometry),
             "frames": (frames.count > 0).then(|| json!({
@@ -639,7 +628,7 @@ pub fn stats(args: &GridStatsArgs) -> Result<()> {
     outln!(
         "file: {} ({}, {bytes} bytes)",
         args.grid.display(),
-        file.kind()
+        chronomap_io::grid_kind(&file)
     )?;
     outln!(
         "grid: {}x{}x{} cells at {} m, origin {:?}",
@@ -662,14 +651,14 @@ pub fn stats(args: &GridStatsArgs) -> Result<()> {
         )?;
     }
     let extra = match &file {
-        GridFile::State(grid) => format!(
+        AnyGrid::State(grid) => format!(
             "{} cells with storage, {:.1} MB in memory, periods {}",
             grid.dynamic_cells(),
             grid.memory_bytes() as f64 / 1048576.0,
             grid.config().fremen.periods
         ),
-        GridFile::Lossy(fitted) => describe_fitted(fitted),
-        GridFile::Lossless(lossless) => format!(
+        AnyGrid::Lossy(fitted) => describe_fitted(fitted),
+        AnyGrid::Lossless(lossless) => format!(
             "{}; {} outlier toggles",
             describe_fitted(&lossless.fitted),
             lossless.outlier_toggles()

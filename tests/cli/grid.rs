@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use crate::common::{assert_mentions, chronomap, json, scratch, stdout};
+use chronomap_grid::AnyGrid;
 use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, load_map, save_map};
-use chronomap_io::{GridFile, read_grid_file};
+use chronomap_io::read_grid_file;
 use chronomap_spatial::OccupancyMap;
 
 /// A 4×3 map: a wall column (x = 0), a door (cell 5) closed from 18:00 to 8:00, an unseen
@@ -67,7 +68,7 @@ fn predicted_maps_are_nav2_maps_that_read_back() {
     let list = write_frames(&dir);
     let grid = dir.join("door.cmg").display().to_string();
     stdout(&build_from_frames(&list, &grid, &["--order", "4"]));
-    let GridFile::State(state) = read_grid_file(&grid).unwrap() else {
+    let AnyGrid::State(state) = read_grid_file(&grid).unwrap() else {
         panic!("not a learning state")
     };
     assert_eq!(state.frames(), 14 * 24);
@@ -274,7 +275,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
     stdout(&out);
     assert!(matches!(
         read_grid_file(&out_path).unwrap(),
-        GridFile::Lossy(_)
+        AnyGrid::Lossy(_)
     ));
 
     let office = dir.join("office.cmg").display().to_string();
@@ -296,7 +297,7 @@ fn symbolic_maps_from_cell_series_and_the_synthetic_office() {
     stdout(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_mentions(&text, &["static (order 0)", "FreMEn auto"]);
-    let GridFile::Lossless(lossless) = read_grid_file(&office).unwrap() else {
+    let AnyGrid::Lossless(lossless) = read_grid_file(&office).unwrap() else {
         panic!("not lossless")
     };
     assert_eq!(lossless.frames(), 14 * 17_280);

@@ -365,8 +365,8 @@ fn forecast_entropy_detect_ranges_and_remove_answer_as_the_models_do() {
 
 #[test]
 fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
+    use chronomap_grid::AnyGrid;
     use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, OrderChoice};
-    use chronomap_io::grid_file::GridFile;
     use chronomap_serve::maps::{
         CellResponse, EdgesResponse, GridInfo, GridResponse, MapsResponse, PlanResponse, TopoInfo,
     };
@@ -387,7 +387,7 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
             .unwrap();
     }
     let grid_path = data.join("door.cmg");
-    chronomap_io::grid_file::write_grid_file(&grid_path, &GridFile::State(Box::new(grid.clone())))
+    chronomap_io::grid_file::write_grid_file(&grid_path, &AnyGrid::State(Box::new(grid.clone())))
         .unwrap();
     // The same grid as the compact model, with order 1 in the door cell.
     let lossy = grid.fitted(
@@ -395,11 +395,8 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
         chronomap_core::Parallelism::Sequential,
     );
     let lossy_path = data.join("door-lossy.cmg");
-    chronomap_io::grid_file::write_grid_file(
-        &lossy_path,
-        &GridFile::Lossy(Box::new(lossy.clone())),
-    )
-    .unwrap();
+    chronomap_io::grid_file::write_grid_file(&lossy_path, &AnyGrid::Lossy(Box::new(lossy.clone())))
+        .unwrap();
 
     let topo_flag = format!("witham={}", witham.display());
     let grid_flag = format!(

@@ -35,8 +35,9 @@ pub mod legacy;
 use chronomap_core::FremenConfig;
 use chronomap_core::periods::PeriodSet;
 use chronomap_core::progress::Progress;
+use chronomap_grid::AnyGrid;
 use chronomap_grid::{FremenGrid, GridConfig, GridGeometry, GridStorage, MemoryEstimate};
-use chronomap_io::grid_file::{GridFile, decode_grid, encode_grid_state};
+use chronomap_io::grid_file::{decode_grid, encode_grid_state};
 use chronomap_io::model_file::encode_model;
 use serde::Serialize;
 
@@ -318,8 +319,13 @@ fn check_baseline(config: &GridConfig, frames: u32) -> Result<usize, BenchError>
         )));
     }
     let read = match decode_grid(&bytes).map_err(baseline_error)? {
-        GridFile::State(read) => read,
-        other => return Err(baseline_error(format!("read back as {}", other.kind()))),
+        AnyGrid::State(read) => read,
+        other => {
+            return Err(baseline_error(format!(
+                "read back as {}",
+                chronomap_io::grid_kind(&other)
+            )));
+        }
     };
     for cell in 0..CHECKED_CELLS {
         if read.cell_sums(cell) != grid.cell_sums(cell) {

@@ -25,9 +25,9 @@ use std::time::{Duration, Instant};
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::Parallelism;
 use chronomap_core::progress::NoProgress;
+use chronomap_grid::AnyGrid;
 use chronomap_grid::GridConfig;
 use chronomap_grid::build::build_partitioned;
-use chronomap_io::grid_file::GridFile;
 use serde::Serialize;
 use thiserror::Error;
 
@@ -367,7 +367,7 @@ fn run_in(
     .grid;
     let changing_cells = grid.dynamic_cells();
     let grid_path = scratch.join("office.cmg");
-    chronomap_io::grid_file::write_grid_file(&grid_path, &GridFile::State(Box::new(grid)))
+    chronomap_io::grid_file::write_grid_file(&grid_path, &AnyGrid::State(Box::new(grid)))
         .map_err(|e| GridLoadError::Grid(e.to_string()))?;
 
     let mut binaries = Vec::new();

@@ -49,6 +49,7 @@
 //! computes the error table of [Krajník 2017] §VI and other views of a built grid.
 #![deny(missing_docs)]
 
+mod any;
 pub mod build;
 mod fitted;
 pub mod format1;
@@ -68,6 +69,7 @@ use chronomap_core::fremen::{FremenConfig, FremenModel};
 use chronomap_core::observe::{ObservedSpan, check_time};
 use chronomap_core::spectrum::{PeriodSums, SpectralSums, phasors};
 
+pub use any::{AnyGrid, AnyGridError, GridStore};
 pub use fitted::{
     CompactComponent, EstimationError, FittedCell, FittedGrid, GridHistory, LosslessGrid,
     OrderChoice,

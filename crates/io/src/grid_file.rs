@@ -1,5 +1,6 @@
 //! Grid files: the learning state of a [`FremenGrid`], its compact ("lossy") model or its
-//! lossless model, in the versioned, checksummed container of [`crate::model_file`].
+//! lossless model ([`AnyGrid`] of `chronomap-grid`), in the versioned, checksummed container
+//! of [`crate::model_file`].
 //!
 //! # Formats of the learning state (`grid-state`)
 //! The payload starts with the index of what it holds: 1 is a compact model, 2 a lossless
@@ -18,7 +19,7 @@
 use std::path::Path;
 
 use chronomap_grid::format1::GridStateV1;
-use chronomap_grid::{FittedGrid, FremenGrid, LosslessGrid};
+use chronomap_grid::{AnyGrid, FittedGrid, FremenGrid, GridStore, LosslessGrid};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::model_file::{
@@ -31,16 +32,8 @@ pub const GRID_STATE_FORMAT: u32 = 2;
 /// The kind in the header of a file of a learning state.
 const STATE_KIND: &str = "grid-state";
 
-/// What a grid file holds.
-#[derive(Clone, Debug, PartialEq)]
-pub enum GridFile {
-    /// Everything needed to continue learning (exact accumulators of every changing cell).
-    State(Box<FremenGrid>),
-    /// The compact model: predicts maps, cannot learn further ([Krajník 2017] §VI "lossy").
-    Lossy(Box<FittedGrid>),
-    /// The compact model and the outlier sets that reproduce every frame (§VI "lossless").
-    Lossless(Box<LosslessGrid>),
-}
+/// An [`AnyGrid`] as the payload of a grid file (the serde forms are this format's).
+struct GridPayload(AnyGrid);
 
 /// The payload as stored: postcard writes the variant index first.
 #[derive(Deserialize)]
@@ -56,34 +49,39 @@ enum StoredGridFile {
 /// Index of the learning state of format 2 in the payload.
 const STATE_INDEX: u32 = 3;
 
-impl Serialize for GridFile {
+/// An [`AnyGrid`] serialised where it is.
+struct GridRef<'a>(&'a AnyGrid);
+
+impl Serialize for GridRef<'_> {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        match self {
-            GridFile::State(grid) => StateRef(grid).serialize(serializer),
-            GridFile::Lossy(grid) => {
+        match self.0 {
+            AnyGrid::State(grid) => StateRef(grid).serialize(serializer),
+            AnyGrid::Lossy(grid) => {
                 serializer.serialize_newtype_variant("GridFile", 1, "Lossy", grid.as_ref())
             }
-            GridFile::Lossless(grid) => {
+            AnyGrid::Lossless(grid) => {
                 serializer.serialize_newtype_variant("GridFile", 2, "Lossless", grid.as_ref())
             }
         }
     }
 }
 
-impl<'de> Deserialize<'de> for GridFile {
+impl<'de> Deserialize<'de> for GridPayload {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        Ok(match StoredGridFile::deserialize(deserializer)? {
-            StoredGridFile::StateV1(v1) => GridFile::State(Box::new(
-                FremenGrid::try_from(*v1).map_err(serde::de::Error::custom)?,
-            )),
-            StoredGridFile::Lossy(grid) => GridFile::Lossy(grid),
-            StoredGridFile::Lossless(grid) => GridFile::Lossless(grid),
-            StoredGridFile::State(grid) => GridFile::State(grid),
-        })
+        Ok(GridPayload(
+            match StoredGridFile::deserialize(deserializer)? {
+                StoredGridFile::StateV1(v1) => AnyGrid::State(Box::new(
+                    FremenGrid::try_from(*v1).map_err(serde::de::Error::custom)?,
+                )),
+                StoredGridFile::Lossy(grid) => AnyGrid::Lossy(grid),
+                StoredGridFile::Lossless(grid) => AnyGrid::Lossless(grid),
+                StoredGridFile::State(grid) => AnyGrid::State(grid),
+            },
+        ))
     }
 }
 
-/// A learning state serialised where it is, as [`GridFile::State`] is.
+/// A learning state serialised where it is, as [`AnyGrid::State`] is.
 struct StateRef<'a>(&'a FremenGrid);
 
 impl Serialize for StateRef<'_> {
@@ -92,30 +90,25 @@ impl Serialize for StateRef<'_> {
     }
 }
 
-impl GridFile {
-    /// The kind written in the file header.
-    pub fn kind(&self) -> &'static str {
-        match self {
-            GridFile::State(_) => STATE_KIND,
-            GridFile::Lossy(_) => "grid-lossy",
-            GridFile::Lossless(_) => "grid-lossless",
-        }
+/// The kind written in the header of a file of `grid`: `grid-state`, `grid-lossy` or
+/// `grid-lossless`.
+pub fn grid_kind(grid: &AnyGrid) -> &'static str {
+    match grid.form() {
+        GridStore::State => STATE_KIND,
+        GridStore::Lossy => "grid-lossy",
+        GridStore::Lossless => "grid-lossless",
     }
 }
 
-impl CheckedPayload for GridFile {
+impl CheckedPayload for GridPayload {
     const NOUN: &'static str = "";
 
     fn payload_kind(&self) -> &str {
-        self.kind()
+        grid_kind(&self.0)
     }
 
     fn invariants_hold(&self) -> bool {
-        match self {
-            GridFile::State(g) => g.is_consistent(),
-            GridFile::Lossy(g) => g.is_consistent(),
-            GridFile::Lossless(g) => g.is_consistent(),
-        }
+        self.0.is_consistent()
     }
 }
 
@@ -123,8 +116,8 @@ impl CheckedPayload for GridFile {
 ///
 /// # Errors
 /// As [`encode_model`].
-pub fn encode_grid(grid: &GridFile) -> Result<Vec<u8>, ModelFileError> {
-    encode_model(grid.kind(), grid)
+pub fn encode_grid(grid: &AnyGrid) -> Result<Vec<u8>, ModelFileError> {
+    encode_model(grid_kind(grid), &GridRef(grid))
 }
 
 /// Decodes a grid file, checking the kind and the grid's invariants.
@@ -132,16 +125,16 @@ pub fn encode_grid(grid: &GridFile) -> Result<Vec<u8>, ModelFileError> {
 /// # Errors
 /// As [`decode_model`](crate::model_file::decode_model), or
 /// [`Inconsistent`](crate::model_file::ModelFileErrorKind::Inconsistent).
-pub fn decode_grid(bytes: &[u8]) -> Result<GridFile, ModelFileError> {
-    decode_checked(bytes)
+pub fn decode_grid(bytes: &[u8]) -> Result<AnyGrid, ModelFileError> {
+    decode_checked::<GridPayload>(bytes).map(|p| p.0)
 }
 
 /// Writes a grid file atomically.
 ///
 /// # Errors
 /// As [`write_model_file`].
-pub fn write_grid_file(path: impl AsRef<Path>, grid: &GridFile) -> Result<(), ModelFileError> {
-    write_model_file(path, grid.kind(), grid)
+pub fn write_grid_file(path: impl AsRef<Path>, grid: &AnyGrid) -> Result<(), ModelFileError> {
+    write_model_file(path, grid_kind(grid), &GridRef(grid))
 }
 
 /// Reads a grid file, checking version, checksum, kind and invariants.
@@ -149,12 +142,12 @@ pub fn write_grid_file(path: impl AsRef<Path>, grid: &GridFile) -> Result<(), Mo
 /// # Errors
 /// As [`read_model_file`](crate::model_file::read_model_file), or
 /// [`Inconsistent`](crate::model_file::ModelFileErrorKind::Inconsistent); errors name the path.
-pub fn read_grid_file(path: impl AsRef<Path>) -> Result<GridFile, ModelFileError> {
-    read_checked(path.as_ref())
+pub fn read_grid_file(path: impl AsRef<Path>) -> Result<AnyGrid, ModelFileError> {
+    read_checked::<GridPayload>(path.as_ref()).map(|p| p.0)
 }
 
 /// Encodes the learning state of `grid` as a grid file in memory without copying the grid:
-/// the bytes of [`encode_grid`]`(&GridFile::State(Box::new(grid.clone())))`.
+/// the bytes of [`encode_grid`]`(&AnyGrid::State(Box::new(grid.clone())))`.
 ///
 /// # Errors
 /// As [`encode_model`].
@@ -164,7 +157,7 @@ pub fn encode_grid_state(grid: &FremenGrid) -> Result<Vec<u8>, ModelFileError> {
 
 /// Writes the learning state of `grid` as a grid file atomically without copying the grid
 /// (a clone would double its memory while saving): the file [`write_grid_file`] writes for
-/// `GridFile::State(Box::new(grid.clone()))`.
+/// `AnyGrid::State(Box::new(grid.clone()))`.
 ///
 /// # Errors
 /// As [`write_model_file`].

@@ -168,7 +168,7 @@ pub use frame_list::{
 };
 #[cfg(feature = "grid")]
 pub use grid_file::{
-    GRID_STATE_FORMAT, GridFile, decode_grid, encode_grid, encode_grid_state, read_grid_file,
+    GRID_STATE_FORMAT, decode_grid, encode_grid, encode_grid_state, grid_kind, read_grid_file,
     write_grid_file, write_grid_state,
 };
 #[cfg(feature = "lidar")]

@@ -620,7 +620,8 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), NavMapError> {
 /// grey + alpha PNG for scale.
 ///
 /// ```
-/// use chronomap_io::navmap::{encode_map_image, MapMode, OccupancyMap, SaveOptions};
+/// use chronomap_io::navmap::{encode_map_image, MapMode, SaveOptions};
+/// use chronomap_spatial::OccupancyMap;
 ///
 /// let mut map = OccupancyMap::new(4, 1, 0.1, [0.0; 3]);
 /// map.data = vec![0, 42, 100, -1];
@@ -716,7 +717,8 @@ fn encode_scale_png(map: &OccupancyMap) -> Result<Vec<u8>, NavMapError> {
 /// [`comment`](SaveOptions::comment) lines if any.
 ///
 /// ```
-/// use chronomap_io::navmap::{encode_map_yaml, MapMode, OccupancyMap, SaveOptions};
+/// use chronomap_io::navmap::{encode_map_yaml, MapMode, SaveOptions};
+/// use chronomap_spatial::OccupancyMap;
 ///
 /// let map = OccupancyMap::new(1, 1, 0.05, [-12.345, 123456.0, 0.0]);
 /// let options = SaveOptions {

@@ -12,10 +12,11 @@ use chronomap_core::periods::PeriodSet;
 use chronomap_core::progress::NoProgress;
 use chronomap_core::{FremenConfig, ObservationError};
 use chronomap_grid::build::build_from_frames;
+use chronomap_grid::{AnyGrid, GridStore};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
 use chronomap_io::navmap::{LoadSemantics, NavMapError, NavMapErrorKind, load_map};
 use chronomap_io::{
-    FrameMapError, GridFile, load_frame_map, read_frame_list, read_grid_file, write_grid_file,
+    FrameMapError, load_frame_map, read_frame_list, read_grid_file, write_grid_file,
 };
 use chronomap_spatial::OccupancyMap;
 use numpy::{PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
@@ -228,35 +229,23 @@ impl<'py> FramesArg<'py> {
 /// `chronomap grid build -o` writes and `chronomap grid predict` reads.
 #[pyclass(name = "Grid", module = "chronomap")]
 pub struct PyGrid {
-    file: GridFile,
+    file: AnyGrid,
 }
 
 impl PyGrid {
     fn geometry(&self) -> &GridGeometry {
-        match &self.file {
-            GridFile::State(g) => g.geometry(),
-            GridFile::Lossy(f) => f.geometry(),
-            GridFile::Lossless(l) => l.fitted.geometry(),
-        }
+        self.file.geometry()
     }
 
     /// The compact model that predicts, as `chronomap grid predict --order` chooses it.
     fn fitted_for(&self, order: Option<usize>) -> PyResult<std::borrow::Cow<'_, FittedGrid>> {
-        use std::borrow::Cow;
-        match (&self.file, order) {
-            (GridFile::State(grid), _) => {
-                let k = order.unwrap_or(grid.config().fremen.order);
-                Ok(Cow::Owned(grid.fitted(
-                    OrderChoice::Fixed(k),
-                    chronomap_core::Parallelism::Rayon(0),
-                )))
-            }
-            (GridFile::Lossy(_) | GridFile::Lossless(_), Some(_)) => Err(PyValueError::new_err(
-                "order: needs a learning-state grid (this one holds a fitted model; predict without order)",
-            )),
-            (GridFile::Lossy(fitted), None) => Ok(Cow::Borrowed(fitted)),
-            (GridFile::Lossless(lossless), None) => Ok(Cow::Borrowed(&lossless.fitted)),
-        }
+        self.file
+            .fitted(order, chronomap_core::Parallelism::Rayon(0))
+            .map_err(|_| {
+                PyValueError::new_err(
+                    "order: needs a learning-state grid (this one holds a fitted model; predict without order)",
+                )
+            })
     }
 
     /// The numpy shape of a map: `(H, W)`, or `(D, H, W)` for a 3-D grid.
@@ -270,13 +259,12 @@ impl PyGrid {
     }
 
     fn state_or_err(&mut self, what: &str) -> PyResult<&mut FremenGrid> {
-        let kind = self.file.kind();
-        match &mut self.file {
-            GridFile::State(grid) => Ok(grid),
-            _ => Err(PyValueError::new_err(format!(
+        let kind = chronomap_io::grid_kind(&self.file);
+        self.file.learning_state_mut().ok_or_else(|| {
+            PyValueError::new_err(format!(
                 "cannot {what}: this grid holds a fitted model ({kind}), not a learning state"
-            ))),
-        }
+            ))
+        })
     }
 }
 
@@ -292,22 +280,22 @@ fn check_time(time: f64) -> PyResult<()> {
 }
 
 /// `--order` of `chronomap grid build`: a number of components.
-fn store_file(grid: &FremenGrid, store: &str, order: Option<usize>) -> PyResult<GridFile> {
+fn store_file(grid: &FremenGrid, store: &str, order: Option<usize>) -> PyResult<AnyGrid> {
     let k = OrderChoice::Fixed(order.unwrap_or(grid.config().fremen.order));
-    let parallelism = chronomap_core::Parallelism::Rayon(0);
-    Ok(match store {
-        "state" => GridFile::State(Box::new(grid.clone())),
-        "lossy" => GridFile::Lossy(Box::new(grid.fitted(k, parallelism))),
-        "lossless" => GridFile::Lossless(Box::new(grid.lossless(k, parallelism).map_err(|e| {
-            PyValueError::new_err(format!(
-                "store='lossless': {e} (build the grid with keep_history=True)"
-            ))
-        })?)),
+    let form = match store {
+        "state" => GridStore::State,
+        "lossy" => GridStore::Lossy,
+        "lossless" => GridStore::Lossless,
         other => {
             return Err(PyValueError::new_err(format!(
                 "store: {other:?} is not one of 'state', 'lossy', 'lossless'"
             )));
         }
+    };
+    AnyGrid::store(grid, form, k, chronomap_core::Parallelism::Rayon(0)).map_err(|e| {
+        PyValueError::new_err(format!(
+            "store='lossless': {e} (build the grid with keep_history=True)"
+        ))
     })
 }
 
@@ -348,7 +336,7 @@ impl PyGrid {
         let mut grid = FremenGrid::new(geometry, config).map_err(|e| grid_error(&e))?;
         arg.observe_into(py, &mut grid)?;
         Ok(PyGrid {
-            file: GridFile::State(Box::new(grid)),
+            file: AnyGrid::State(Box::new(grid)),
         })
     }
 
@@ -413,7 +401,7 @@ impl PyGrid {
         });
         let build = build.map_err(PyErrText::into_py)?;
         Ok(PyGrid {
-            file: GridFile::State(Box::new(build.grid)),
+            file: AnyGrid::State(Box::new(build.grid)),
         })
     }
 
@@ -476,7 +464,7 @@ impl PyGrid {
         let fitted =
             py.detach(|| -> PyResult<FittedGrid> { Ok(self.fitted_for(order)?.into_owned()) })?;
         Ok(PyGrid {
-            file: GridFile::Lossy(Box::new(fitted)),
+            file: AnyGrid::Lossy(Box::new(fitted)),
         })
     }
 
@@ -493,18 +481,20 @@ impl PyGrid {
         store: Option<&str>,
         order: Option<usize>,
     ) -> PyResult<()> {
-        let file = match &self.file {
-            GridFile::State(grid) => {
+        let file = match self.file.learning_state() {
+            Some(grid) => {
                 let store = store.unwrap_or("state");
                 Some(py.detach(|| store_file(grid, store, order))?)
             }
-            other => {
-                if store.is_some_and(|s| s != other.kind().trim_start_matches("grid-"))
-                    || order.is_some()
+            None => {
+                let other = &self.file;
+                if store.is_some_and(|s| {
+                    s != chronomap_io::grid_kind(other).trim_start_matches("grid-")
+                }) || order.is_some()
                 {
                     return Err(PyValueError::new_err(format!(
                         "this grid holds a fitted model ({}): it is saved as it is (no store or order)",
-                        other.kind()
+                        chronomap_io::grid_kind(other)
                     )));
                 }
                 None
@@ -538,21 +528,13 @@ impl PyGrid {
     /// Number of frames learnt from.
     #[getter]
     fn frames(&self) -> u64 {
-        match &self.file {
-            GridFile::State(g) => g.frames(),
-            GridFile::Lossy(f) => f.frames().count,
-            GridFile::Lossless(l) => l.frames(),
-        }
+        self.file.frames()
     }
 
     /// `(first, last)` frame time, or None before any frame.
     #[getter]
     fn span(&self) -> Option<(f64, f64)> {
-        let span = match &self.file {
-            GridFile::State(g) => g.frame_span(),
-            GridFile::Lossy(f) => f.frames(),
-            GridFile::Lossless(l) => l.fitted.frames(),
-        };
+        let span = self.file.frame_span();
         (span.count > 0).then_some((span.first, span.last))
     }
 
@@ -560,23 +542,20 @@ impl PyGrid {
     /// `grid-lossless`.
     #[getter]
     fn kind(&self) -> &'static str {
-        self.file.kind()
+        chronomap_io::grid_kind(&self.file)
     }
 
     /// The default order of a learning-state grid (None for fitted grids).
     #[getter]
     fn order(&self) -> Option<usize> {
-        match &self.file {
-            GridFile::State(g) => Some(g.config().fremen.order),
-            _ => None,
-        }
+        self.file.learned_order()
     }
 
     fn __repr__(&self) -> String {
         let g = self.geometry();
         format!(
             "<chronomap.Grid {} {}x{}x{} at {} m, {} frames>",
-            self.file.kind(),
+            chronomap_io::grid_kind(&self.file),
             g.width,
             g.height,
             g.depth,

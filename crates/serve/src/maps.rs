@@ -35,8 +35,8 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use chronomap_core::observe::ObservedSpan;
+use chronomap_grid::AnyGrid;
 use chronomap_grid::{FittedGrid, GridGeometry, OrderChoice};
-use chronomap_io::grid_file::GridFile;
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, plan_at};
 use serde::{Deserialize, Serialize};
@@ -67,7 +67,7 @@ pub struct Maps {
     /// Topological maps with edge models and node positions.
     pub topological: BTreeMap<String, ServedTopo>,
     /// Occupancy grids.
-    pub grids: BTreeMap<String, GridFile>,
+    pub grids: BTreeMap<String, AnyGrid>,
     /// CoPA-Maps of the rate of people.
     pub activity: BTreeMap<String, ServedActivity>,
 }
@@ -335,7 +335,7 @@ impl MapsState {
         let fitted = maps
             .grids
             .iter()
-            .filter(|(_, g)| matches!(g, GridFile::State(_)))
+            .filter(|(_, g)| matches!(g, AnyGrid::State(_)))
             .map(|(name, _)| {
                 let cache = FittedCache {
                     started: AtomicBool::new(false),
@@ -365,7 +365,7 @@ impl MapsState {
             let (state, name) = (self.clone(), name.to_owned());
             self.heavy.prepare(move || {
                 let outcome = match state.maps.grids.get(&name) {
-                    Some(GridFile::State(g)) => std::panic::catch_unwind(|| {
+                    Some(AnyGrid::State(g)) => std::panic::catch_unwind(|| {
                         // On the worker's thread alone, as every heavy request computes.
                         let order = OrderChoice::Fixed(g.config().fremen.order);
                         Arc::new(g.fitted(order, heavy::PARALLELISM))
@@ -432,7 +432,7 @@ fn topo<'a>(maps: &'a Maps, name: &str) -> Result<&'a ServedTopo, ApiError> {
         .ok_or_else(|| ApiError::not_found(format!("no topological map named {name:?}")))
 }
 
-fn grid<'a>(maps: &'a Maps, name: &str) -> Result<&'a GridFile, ApiError> {
+fn grid<'a>(maps: &'a Maps, name: &str) -> Result<&'a AnyGrid, ApiError> {
     maps.grids
         .get(name)
         .ok_or_else(|| ApiError::not_found(format!("no grid named {name:?}")))
@@ -460,7 +460,7 @@ pub(crate) async fn list(State(state): State<MapsState>) -> Json<MapsResponse> {
         .collect();
     list.extend(maps.grids.iter().map(|(name, g)| MapInfo {
         name: name.clone(),
-        kind: g.kind().into(),
+        kind: chronomap_io::grid_kind(g).into(),
         size: geometry(g).cells() as u64,
         edges: None,
     }));
@@ -615,12 +615,8 @@ pub(crate) async fn topo_plan(
     Ok(json_response(body))
 }
 
-fn geometry(grid: &GridFile) -> GridGeometry {
-    match grid {
-        GridFile::State(g) => *g.geometry(),
-        GridFile::Lossy(g) => *g.geometry(),
-        GridFile::Lossless(g) => *g.fitted.geometry(),
-    }
+fn geometry(grid: &AnyGrid) -> GridGeometry {
+    *grid.geometry()
 }
 
 /// The occupancy probability of every cell of a grid at a time.
@@ -648,10 +644,10 @@ pub(crate) async fn grid_predict(
             let grid = grid(&maps, &name)?;
             let g = geometry(grid);
             let fitted: &FittedGrid = match (grid, cached.as_deref()) {
-                (GridFile::Lossy(g), _) => g,
-                (GridFile::Lossless(g), _) => &g.fitted,
-                (GridFile::State(_), Some(fitted)) => fitted,
-                (GridFile::State(_), None) => {
+                (AnyGrid::Lossy(g), _) => g,
+                (AnyGrid::Lossless(g), _) => &g.fitted,
+                (AnyGrid::State(_), Some(fitted)) => fitted,
+                (AnyGrid::State(_), None) => {
                     return Err(ApiError::internal(format!(
                         "the grid {name:?} is not fitted"
                     )));
@@ -669,12 +665,8 @@ pub(crate) async fn grid_predict(
 }
 
 /// Count and times of the frames a grid learned from.
-fn frame_span(grid: &GridFile) -> ObservedSpan {
-    match grid {
-        GridFile::State(g) => g.frame_span(),
-        GridFile::Lossy(g) => g.frames(),
-        GridFile::Lossless(g) => g.fitted.frames(),
-    }
+fn frame_span(grid: &AnyGrid) -> ObservedSpan {
+    grid.frame_span()
 }
 
 /// Shape, placement and frames of a grid.
@@ -693,7 +685,7 @@ pub(crate) async fn grid_info(
     let known = span.count > 0;
     Ok(Json(GridInfo {
         name,
-        kind: grid.kind().into(),
+        kind: chronomap_io::grid_kind(grid).into(),
         shape: [g.width, g.height, g.depth],
         resolution: g.resolution,
         origin: g.origin,
@@ -760,11 +752,7 @@ pub(crate) async fn grid_cell(
     let body = state
         .light
         .run(move |_| {
-            let values = match grid(&maps, &name)? {
-                GridFile::State(g) => g.predict_cell(flat, &request.times),
-                GridFile::Lossy(g) => g.predict_cell(flat, &request.times),
-                GridFile::Lossless(g) => g.fitted.predict_cell(flat, &request.times),
-            };
+            let values = grid(&maps, &name)?.predict_cell(flat, &request.times);
             json_answer(&CellResponse {
                 cell: index,
                 centre: [0, 1, 2].map(|k| g.origin[k] + (f64::from(index[k]) + 0.5) * g.resolution),

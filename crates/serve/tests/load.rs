@@ -14,9 +14,9 @@ use std::time::{Duration, Instant};
 use chronomap_activity::{CopaConfig, CopaMap};
 use chronomap_core::Parallelism;
 use chronomap_core::progress::NoProgress;
+use chronomap_grid::AnyGrid;
 use chronomap_grid::build::build_partitioned;
 use chronomap_grid::{FremenGrid, GridConfig};
-use chronomap_io::grid_file::GridFile;
 use chronomap_serve::api::Health;
 use chronomap_serve::heavy::HeavyLimits;
 use chronomap_serve::maps::{Maps, ServedActivity};
@@ -83,7 +83,7 @@ impl Served {
         std::fs::create_dir_all(&dir).unwrap();
         let mut maps = Maps::default();
         maps.grids
-            .insert("office".into(), GridFile::State(Box::new(office().clone())));
+            .insert("office".into(), AnyGrid::State(Box::new(office().clone())));
         maps.activity
             .insert("atc".into(), ServedActivity::new(atc().clone(), None));
         let store = Arc::new(RedbStore::open(dir.join("chronomap.redb")).unwrap());

@@ -11,8 +11,8 @@ use axum::Router;
 use axum::body::{Body, to_bytes};
 use axum::http::{Request, StatusCode};
 use chronomap_activity::{CopaConfig, CopaMap};
+use chronomap_grid::AnyGrid;
 use chronomap_grid::{FremenGrid, GridConfig, GridGeometry};
-use chronomap_io::grid_file::GridFile;
 use chronomap_serve::maps::{Maps, ServedActivity};
 use chronomap_serve::store::RedbStore;
 use chronomap_serve::{Service, ServiceConfig};
@@ -74,7 +74,7 @@ fn maps() -> Maps {
     }
     let mut maps = Maps::default();
     maps.grids
-        .insert("door".into(), GridFile::State(Box::new(grid)));
+        .insert("door".into(), AnyGrid::State(Box::new(grid)));
     maps.activity
         .insert("atc".into(), ServedActivity::new(atc_map(10, 3), None));
     maps

@@ -5,7 +5,8 @@
 //! The number of cases is small enough for CI (seconds); set `PROPTEST_CASES` for a deeper
 //! run, e.g. `PROPTEST_CASES=100000 cargo test -p chronomap-io --test it properties`.
 
-use chronomap_io::grid_file::{GridFile, decode_grid, encode_grid};
+use chronomap_grid::AnyGrid;
+use chronomap_io::grid_file::{decode_grid, encode_grid};
 use chronomap_io::laser_text::{
     MAX_ANGLE_RAD, MAX_LENGTH_M, read_keyframes_from, read_odometry_from, read_scans_from,
 };
@@ -130,7 +131,7 @@ fn seeds() -> Vec<Vec<u8>> {
         grid.observe_occupancy(1e9 + 1800.0 * f64::from(k), &[open, 100, 0, 0, open, 100])
             .unwrap();
     }
-    seeds.push(encode_grid(&GridFile::State(Box::new(grid))).unwrap());
+    seeds.push(encode_grid(&AnyGrid::State(Box::new(grid))).unwrap());
     // The lidar files: a real cloud, laser log, keyframes, odometry and loop classifier.
     seeds.push(ply_head(64));
     seeds.push(head_of("malaga_laser_2006/scans.txt.xz", 3));

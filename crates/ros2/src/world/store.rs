@@ -8,10 +8,11 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use chronomap_grid::AnyGrid;
 use chronomap_grid::{FremenGrid, GridGeometry};
 use chronomap_io::grid_file::write_grid_state;
 use chronomap_io::model_file::{read_model_file, write_model_file};
-use chronomap_io::{GridFile, read_any_model, read_grid_file, write_any_model};
+use chronomap_io::{read_any_model, read_grid_file, write_any_model};
 use chronomap_models::learner::Learner;
 use serde::{Deserialize, Serialize};
 
@@ -557,11 +558,14 @@ pub(super) fn refuse_other_kind(file: &Path, state: &StateConfig) -> Result<(), 
 pub(super) fn restore_grid(file: &Path, entry: &GridEntry) -> Result<FremenGrid, StoreError> {
     let name = file.display().to_string();
     let grid = match read_grid_file(file)? {
-        GridFile::State(grid) => *grid,
+        AnyGrid::State(grid) => *grid,
         other => {
             return Err(StoreError::Mismatch {
                 file: name,
-                reason: format!("it holds a {} grid, not a learning state", other.kind()),
+                reason: format!(
+                    "it holds a {} grid, not a learning state",
+                    chronomap_io::grid_kind(&other)
+                ),
             });
         }
     };

@@ -7,7 +7,7 @@ use chronomap_io::navmap::{load_map, save_map};
 use chronomap_io::read_pairs;
 use chronomap_models::spec::FitOptions;
 
-use chronomap_io::GridFile;
+use chronomap_grid::AnyGrid;
 
 use super::store::next_name;
 use super::*;
@@ -452,7 +452,7 @@ fn model_bytes(world: &mut World) -> Vec<Vec<u8>> {
         .collect();
     for g in &world.grids {
         let grid = g.grid.clone().expect("a grid");
-        bytes.push(chronomap_io::encode_grid(&GridFile::State(Box::new(grid))).unwrap());
+        bytes.push(chronomap_io::encode_grid(&AnyGrid::State(Box::new(grid))).unwrap());
     }
     bytes
 }
