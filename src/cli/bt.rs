@@ -183,41 +183,8 @@ pub struct BtRunArgs {
     pub groot2_heartbeat: Option<u64>,
 }
 
-/// What a `--stub` makes of a node.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum StubBehaviour {
-    /// A leaf that succeeds.
-    Success,
-    /// A leaf that fails.
-    Failure,
-    /// An action that is running for n ticks, then succeeds.
-    Running(u32),
-    /// A control node that ticks its children as a `Sequence`.
-    Sequence,
-    /// A decorator that returns its child's status.
-    Pass,
-    /// Nav2's node of that ID, as chronomap emulates it.
-    Nav2,
-}
-
-impl StubBehaviour {
-    /// Whether this is for actions and conditions.
-    pub fn is_leaf(self) -> bool {
-        matches!(
-            self,
-            StubBehaviour::Success | StubBehaviour::Failure | StubBehaviour::Running(_)
-        )
-    }
-}
-
-/// `--stub ID=BEHAVIOUR`.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct StubSpec {
-    /// The node ID.
-    pub id: String,
-    /// What it does.
-    pub behaviour: StubBehaviour,
-}
+/// What a `--stub` makes of a node, and `--stub ID=BEHAVIOUR`.
+pub use chronomap_app::bt::{StubBehaviour, StubSpec};
 
 /// `SUCCESS`, `FAILURE`, `RUNNING:n`, `SEQUENCE`, `PASS` or `NAV2` (any case).
 fn parse_stub_behaviour(text: &str) -> Result<StubBehaviour, String> {

@@ -2,337 +2,57 @@
 //! trees ([Stüde 2024] §5.2–5.3) checked and printed, ticked with leaves that follow a script of
 //! outcomes (or stubs), or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4).
 
-use std::collections::{BTreeMap, BTreeSet, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow};
-use chronomap_bt::nav2;
-use chronomap_bt::script::{
-    Script, ScriptTick, ScriptedOutcomes, run_script, run_script_with, scripted_registry,
-};
-use chronomap_bt::stochastic::from_bt;
-use chronomap_bt::{
-    BtDocument, DefinitionErrorKind, ManifestSource, NodeCategory, NodeDef, NodeModel, Registry,
-    Status, StubPolicy, Tree, TreeDef, is_builtin,
-};
+use chronomap_app::bt::{self, BtJobError, Flat, Implemented, Stubs};
+use chronomap_bt::script::{Script, ScriptTick, ScriptedOutcomes, run_script, run_script_with};
+use chronomap_bt::{BtDocument, DefinitionErrorKind, NodeCategory, Status, Tree};
 use chronomap_bt_stochastic as sbt;
-use chronomap_io::{
-    BtReadOptions, BtXml, BtXmlErrorKind, read_bt_script, read_bt_xml_with, read_leaf_params,
-    read_node_models, write_bt_xml, write_btlog,
-};
+use chronomap_io::{BtXml, read_bt_script, read_leaf_params, write_bt_xml, write_btlog};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs, StubBehaviour, StubSpec};
+use crate::cli::{BtAnalyseArgs, BtCheckArgs, BtRunArgs};
 use crate::outln;
 use crate::output::{print_json, usage};
 
-/// Reads the file (and its includes) with the built-in nodes, the files' own node models and
-/// those of the `--nodes` files, printing warnings.
+/// An error of the application layer as the command reports it: a stub that does not fit the
+/// document is a usage error (exit code 2).
+fn job_error(e: BtJobError) -> anyhow::Error {
+    match e {
+        BtJobError::Usage(message) => usage(message),
+        e => anyhow::Error::new(e),
+    }
+}
+
+/// Reads the file (and its includes) with the node models of the `--nodes` files, printing
+/// warnings ([`chronomap_app::bt::load_xml`]).
 fn load_xml(file: &Path, nodes: &[PathBuf]) -> Result<BtXml> {
-    let mut models: Vec<NodeModel> = Vec::new();
-    let mut seen = HashSet::new();
-    for path in nodes {
-        let read = read_node_models(path)?;
-        for warning in &read.warnings {
-            eprintln!("warning: {warning}");
-        }
-        for model in read.models {
-            if seen.insert(model.id.clone()) {
-                models.push(model);
-            } else {
-                eprintln!(
-                    "warning: {}: skipped a second model of \"{}\" (an earlier --nodes file has one)",
-                    path.display(),
-                    model.id
-                );
-            }
-        }
-    }
-    let options = BtReadOptions::with_node_models(models);
-    let xml = read_bt_xml_with(file, &Registry::new(), &options).map_err(|e| {
-        let unknown = matches!(
-            e.kind(),
-            BtXmlErrorKind::Definition(DefinitionErrorKind::UnknownNode { .. })
-        );
-        if unknown && nodes.is_empty() {
-            anyhow!(
-                "{e}; node models declared in another file (such as Nav2's \
-                 nav2_tree_nodes.xml) count with --nodes FILE"
-            )
-        } else {
-            anyhow!(e)
-        }
-    })?;
-    for warning in &xml.warnings {
-        eprintln!("warning: {warning}");
-    }
-    Ok(xml)
-}
-
-/// The tree to use: `--tree`, or the document's main tree.
-fn main_tree(file: &Path, doc: &BtDocument, tree: Option<&str>) -> Result<String> {
-    Ok(match tree {
-        Some(t) => t.to_owned(),
-        None => doc
-            .main_tree_id()
-            .with_context(|| format!("{}: which tree? (use --tree)", file.display()))?
-            .to_owned(),
-    })
-}
-
-/// How the nodes without implementation are to be run.
-#[derive(Default)]
-struct Stubs<'a> {
-    /// `--stub`s.
-    specs: &'a [StubSpec],
-    /// `--stub-all`.
-    all: Option<StubBehaviour>,
-    /// Instance names the script gives outcomes to.
-    scripted_names: BTreeSet<String>,
-    /// Stub every unimplemented control as a Sequence and decorator as a pass-through
-    /// without asking (for `bt check`, which does not tick).
-    structure_only: bool,
-}
-
-/// A registry implementing every node of `doc`: leaves by the script (or stubs), custom
-/// controls and decorators by stubs or Nav2 emulations; notes on what was stubbed.
-fn implement(
-    doc: &BtDocument,
-    stubs: &Stubs<'_>,
-) -> Result<(Registry, ScriptedOutcomes, Vec<String>)> {
-    // The IDs used, their category, and the instance names of leaves.
-    let mut used: BTreeMap<String, (NodeCategory, BTreeSet<String>)> = BTreeMap::new();
-    for tree in &doc.trees {
-        tree.root.walk(&mut |_, node| {
-            if node.category != NodeCategory::SubTree {
-                used.entry(node.id.clone())
-                    .or_insert_with(|| (node.category, BTreeSet::new()))
-                    .1
-                    .insert(node.instance_name().to_owned());
-            }
-        });
-    }
-    let base = Registry::new();
-    let mut explicit: BTreeMap<&str, StubBehaviour> = BTreeMap::new();
-    for spec in stubs.specs {
-        let Some((category, _)) = used.get(&spec.id) else {
-            return Err(usage(format!(
-                "--stub {}=...: no node of the document has the ID \"{}\"",
-                spec.id, spec.id
-            )));
-        };
-        let implemented = match base.lookup(&spec.id, &[]) {
-            Ok(m) => m.source != ManifestSource::Declared,
-            Err(_) => false,
-        };
-        if implemented {
-            return Err(usage(format!(
-                "--stub {}=...: \"{}\" is implemented by chronomap; stubs are for declared nodes",
-                spec.id, spec.id
-            )));
-        }
-        let fits = match spec.behaviour {
-            StubBehaviour::Success | StubBehaviour::Failure => category.is_leaf(),
-            StubBehaviour::Running(_) => *category == NodeCategory::Action,
-            StubBehaviour::Sequence => *category == NodeCategory::Control,
-            StubBehaviour::Pass => *category == NodeCategory::Decorator,
-            StubBehaviour::Nav2 => nav2::is_emulated(&spec.id, *category),
-        };
-        if !fits {
-            let expected = match category {
-                NodeCategory::Action => "SUCCESS, FAILURE or RUNNING:n",
-                NodeCategory::Condition => "SUCCESS or FAILURE (conditions do not run)",
-                NodeCategory::Control if nav2::is_emulated(&spec.id, *category) => {
-                    "SEQUENCE or NAV2"
-                }
-                NodeCategory::Control => "SEQUENCE",
-                NodeCategory::Decorator if nav2::is_emulated(&spec.id, *category) => "PASS or NAV2",
-                _ => "PASS",
-            };
-            return Err(usage(format!(
-                "--stub {}={:?}: \"{}\" is a {category}; its stub is {expected}",
-                spec.id, spec.behaviour, spec.id
-            )));
-        }
-        explicit.insert(spec.id.as_str(), spec.behaviour);
-    }
-
-    // Leaves: stubbed, or driven by the script.
-    let mut stubbed_leaves: Vec<(String, NodeCategory, StubBehaviour)> = Vec::new();
-    let mut scripted = NodeDef::control("Sequence");
-    for (id, (category, names)) in &used {
-        // Built-in leaves (`Script`, `UnsetBlackboard`, ...) run as they are.
-        if !category.is_leaf() || base.contains(id) || is_builtin(id) {
-            continue;
-        }
-        let behaviour = explicit.get(id.as_str()).copied().or_else(|| {
-            let mentioned = stubs.scripted_names.contains(id)
-                || names.iter().any(|n| stubs.scripted_names.contains(n));
-            let running_condition = *category == NodeCategory::Condition
-                && matches!(stubs.all, Some(StubBehaviour::Running(_)));
-            stubs.all.filter(|_| !mentioned && !running_condition)
-        });
-        match behaviour {
-            Some(b) => stubbed_leaves.push((id.clone(), *category, b)),
-            None => scripted = scripted.child(NodeDef::new(*category, id)),
-        }
-    }
-    let leaves = BtDocument {
-        main_tree: None,
-        trees: vec![TreeDef::new("leaves", scripted)],
-        node_models: doc.node_models.clone(),
-    };
-    let (mut registry, outcomes) =
-        scripted_registry(&leaves).context("cannot implement the leaves")?;
-    // Looked up by hash: a document may declare and use many models.
-    let models = doc.node_models_by_id();
-    let model_of = |id: &str, category: NodeCategory| {
-        models
-            .get(id)
-            .filter(|m| m.category == category)
-            .map(|m| (*m).clone())
-            .unwrap_or_else(|| NodeModel::new(category, id))
-    };
-    let mut notes = Vec::new();
-    for (id, category, behaviour) in &stubbed_leaves {
-        let policy = match *behaviour {
-            StubBehaviour::Failure => StubPolicy::Failure,
-            StubBehaviour::Running(n) => StubPolicy::Running(n),
-            _ => StubPolicy::Success,
-        };
-        registry
-            .register_stub(model_of(id, *category), policy)
-            .with_context(|| format!("--stub {id}"))?;
-        notes.push(format!("{id}: {}", describe(*behaviour)));
-    }
-
-    // Custom controls and decorators that are declared but not implemented.
-    for (id, (category, _)) in &used {
-        if category.is_leaf() || registry.contains(id) {
-            continue;
-        }
-        let declared = models.get(id.as_str()).map(|m| std::slice::from_ref(*m));
-        match base.lookup(id, declared.unwrap_or_default()) {
-            Ok(m) if m.source == ManifestSource::Declared => {}
-            _ => continue, // built in (or unknown: validation says so)
-        }
-        let model = model_of(id, *category);
-        let behaviour = match explicit.get(id.as_str()) {
-            Some(&b) => b,
-            None if nav2::is_emulated(id, *category) => StubBehaviour::Nav2,
-            None if stubs.structure_only => match category {
-                NodeCategory::Control => StubBehaviour::Sequence,
-                _ => StubBehaviour::Pass,
-            },
-            None => {
-                let suggestion = match category {
-                    NodeCategory::Control => "SEQUENCE",
-                    _ => "PASS",
-                };
-                return Err(usage(format!(
-                    "{category} \"{id}\" is declared but chronomap has no implementation of it: \
-                     give --stub {id}={suggestion}"
-                )));
-            }
-        };
-        match behaviour {
-            StubBehaviour::Nav2 => nav2::register(&mut registry, &model)?,
-            _ => registry.register_stub(model, StubPolicy::Success)?,
-        }
-        if !stubs.structure_only {
-            notes.push(format!("{id}: {}", describe(behaviour)));
-        }
-    }
-    Ok((registry, outcomes, notes))
-}
-
-fn describe(behaviour: StubBehaviour) -> String {
-    match behaviour {
-        StubBehaviour::Success => "stub, SUCCESS".to_owned(),
-        StubBehaviour::Failure => "stub, FAILURE".to_owned(),
-        StubBehaviour::Running(n) => format!("stub, RUNNING for {n} ticks, then SUCCESS"),
-        StubBehaviour::Sequence => "stub, ticks its children as a Sequence".to_owned(),
-        StubBehaviour::Pass => "stub, returns its child's status".to_owned(),
-        StubBehaviour::Nav2 => "Nav2's behaviour (chronomap's emulation)".to_owned(),
-    }
-}
-
-/// One node of the tree to execute, depth first with subtrees expanded (uids as in `Tree`).
-struct Flat<'d> {
-    uid: usize,
-    node: &'d NodeDef,
-    depth: usize,
-    children: Vec<usize>,
-}
-
-/// The most nodes `bt check` prints once subtrees are expanded.
-const MAX_PRINTED: usize = 2_000_000;
-
-/// The nodes of tree `id` depth first, subtrees expanded, without recursion.
-fn flatten<'d>(doc: &'d BtDocument, id: &str) -> Result<Vec<Flat<'d>>> {
-    let tree = doc
-        .tree(id)
-        .ok_or_else(|| anyhow!("there is no <BehaviorTree ID=\"{id}\">"))?;
-    let trees = doc.trees_by_id();
-    let mut out: Vec<Flat<'d>> = Vec::new();
-    let mut stack: Vec<(&NodeDef, usize, Option<usize>)> = vec![(&tree.root, 0, None)];
-    while let Some((node, depth, parent)) = stack.pop() {
-        if out.len() == MAX_PRINTED {
-            anyhow::bail!("tree {id} has more than {MAX_PRINTED} nodes with its subtrees expanded");
-        }
-        let index = out.len();
-        out.push(Flat {
-            uid: index + 1,
-            node,
-            depth,
-            children: Vec::new(),
-        });
-        if let Some(p) = parent {
-            out[p].children.push(index + 1);
-        }
-        if node.category == NodeCategory::SubTree {
-            if let Some(sub) = trees.get(node.id.as_str()) {
-                stack.push((&sub.root, depth + 1, Some(index)));
-            }
-        } else {
-            for child in node.children.iter().rev() {
-                stack.push((child, depth + 1, Some(index)));
-            }
-        }
-    }
-    Ok(out)
-}
-
-/// An error of instantiation at the file, line and column of the node concerned (in the file
-/// that node is in), else after the file's name.
-fn located(xml: &BtXml, e: &chronomap_bt::DefinitionError, name: &str) -> anyhow::Error {
-    match e.location().and_then(|l| Some((l, xml.locate(l)?))) {
-        Some((l, (file, line, column))) => {
-            anyhow!("{file}:{line}:{column}: tree \"{}\": {}", l.tree, e.kind())
-        }
-        None => anyhow!(e.clone()).context(name.to_owned()),
-    }
+    bt::load_xml(file, nodes, &mut |warning| eprintln!("warning: {warning}")).map_err(job_error)
 }
 
 pub fn check(args: &BtCheckArgs) -> Result<()> {
     let xml = load_xml(&args.file, &args.nodes)?;
     let doc = &xml.document;
-    let main = main_tree(&args.file, doc, args.tree.as_deref())?;
     let name = args.file.display();
+    let main = bt::main_tree(&name.to_string(), doc, args.tree.as_deref()).map_err(job_error)?;
     // Instantiating finds what only instantiation checks (children of IfThenElse, Switch…);
     // custom controls and decorators stand in as stubs for that.
     let stubs = Stubs {
         structure_only: true,
         ..Stubs::default()
     };
-    let (registry, _, _) = implement(doc, &stubs).with_context(|| name.to_string())?;
+    let registry = bt::implement(doc, &stubs)
+        .map_err(job_error)
+        .with_context(|| name.to_string())?
+        .registry;
     // What BehaviorTree.CPP refuses only when it ticks the node is reported here, before
     // anything runs (`bt run` raises it at the tick, as BehaviorTree.CPP does).
     chronomap_bt::validate_strict(doc, &registry)
-        .map_err(|e| located(&xml, &e, &name.to_string()))?;
+        .map_err(|e| job_error(bt::located(&xml, &e, &name.to_string())))?;
     if let Err(e) = Tree::with_main(doc, &main, &registry) {
         if *e.kind() == DefinitionErrorKind::TooManyNodes {
             eprintln!(
@@ -340,10 +60,12 @@ pub fn check(args: &BtCheckArgs) -> Result<()> {
                  logs take at most 65535 (uids are 16-bit)"
             );
         } else {
-            return Err(located(&xml, &e, &name.to_string()));
+            return Err(job_error(bt::located(&xml, &e, &name.to_string())));
         }
     }
-    let nodes = flatten(doc, &main).with_context(|| name.to_string())?;
+    let nodes = bt::flatten(doc, &main)
+        .map_err(job_error)
+        .with_context(|| name.to_string())?;
     let ids: Vec<&str> = doc.trees.iter().map(|t| t.id.as_str()).collect();
     let leaves = nodes.iter().filter(|n| n.node.category.is_leaf()).count();
     if let Some(path) = &args.output {
@@ -442,14 +164,19 @@ pub fn run(args: &BtRunArgs) -> Result<()> {
         structure_only: false,
     };
     let name = args.file.display();
-    let (mut registry, outcomes, notes) =
-        implement(doc, &stubs).with_context(|| name.to_string())?;
+    let Implemented {
+        mut registry,
+        outcomes,
+        notes,
+    } = bt::implement(doc, &stubs)
+        .map_err(job_error)
+        .with_context(|| name.to_string())?;
     for (enum_name, value) in &args.enums {
         registry.register_enum(enum_name, *value);
     }
-    let main = main_tree(&args.file, doc, args.tree.as_deref())?;
-    let mut tree =
-        Tree::with_main(doc, &main, &registry).map_err(|e| located(&xml, &e, &name.to_string()))?;
+    let main = bt::main_tree(&name.to_string(), doc, args.tree.as_deref()).map_err(job_error)?;
+    let mut tree = Tree::with_main(doc, &main, &registry)
+        .map_err(|e| job_error(bt::located(&xml, &e, &name.to_string())))?;
     for note in &notes {
         eprintln!("note: {note}");
     }
@@ -717,40 +444,20 @@ struct CurvePoint {
     p_failure: f64,
 }
 
-/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2 ([`from_bt()`]), eq. 5.1
-/// by uniformisation ([`sbt::Chain::transient`]) and the exact mean times that replace the
-/// averaged rates of eqs. 5.3–5.4 ([`sbt::Chain::means`]).
+/// `chronomap bt analyse`: the stochastic behavior tree of §5.2.2
+/// ([`chronomap_app::bt::stochastic_chain`]), eq. 5.1 by uniformisation
+/// ([`sbt::Chain::transient`]) and the exact mean times that replace the averaged rates of
+/// eqs. 5.3–5.4 ([`sbt::Chain::means`]).
 pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
     let file = args.file.display().to_string();
     let xml = load_xml(&args.file, &args.nodes)?;
     let params = read_leaf_params(&args.params)?;
     let doc = &xml.document;
-    let tree_id = match &args.tree {
-        Some(t) => t.clone(),
-        None => doc
-            .main_tree_id()
-            .with_context(|| format!("{file}: which tree? (use --tree)"))?
-            .to_owned(),
-    };
-    let tree = from_bt(doc, &tree_id, &params).map_err(|e| match xml.locate(&e.location) {
-        Some((at, line, column)) => anyhow!("{at}:{line}:{column}: {}", e.kind),
-        None => anyhow!("{file}: {e}"),
-    })?;
-    let chain = tree.chain().with_context(|| file.clone())?;
+    let tree_id = bt::main_tree(&file, doc, args.tree.as_deref()).map_err(job_error)?;
+    let chain = bt::stochastic_chain(&xml, &file, &tree_id, &params).map_err(job_error)?;
     let means = chain.means();
-    let t_max = match args.t_max {
-        Some(t) => t,
-        None => {
-            let longest = [means.time_to_success, means.time_to_failure]
-                .into_iter()
-                .flatten()
-                .fold(0.0, f64::max);
-            if longest > 0.0 { 3.0 * longest } else { 1.0 }
-        }
-    };
-    let times: Vec<f64> = (0..=args.steps)
-        .map(|i| t_max * f64::from(i) / f64::from(args.steps))
-        .collect();
+    let t_max = args.t_max.unwrap_or_else(|| bt::default_t_max(&means));
+    let times = bt::curve_times(t_max, args.steps);
     const TOLERANCE: f64 = 1e-12;
     let curve = chain.transient(&times, TOLERANCE)?;
     let analysis = Analysis {
@@ -808,7 +515,7 @@ pub fn analyse(args: &BtAnalyseArgs) -> Result<()> {
         }
     }
     if let Some(path) = &args.plot {
-        let fine: Vec<f64> = (0..=200).map(|i| t_max * i as f64 / 200.0).collect();
+        let fine = bt::curve_times(t_max, 200);
         let at = chain.transient(&fine, TOLERANCE)?;
         let series = |label: &str, pick: fn(&sbt::Outcome) -> f64| Series {
             label: label.to_owned(),
