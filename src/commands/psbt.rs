@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::disturbance::PlanningGrid;
 use chronomap_activity::truth::TrackPoint;
+use chronomap_app::open::FileKind;
 use chronomap_core::Parallelism;
 use chronomap_core::num::fmt_number;
 use chronomap_io::psbt_xml::psbt_to_xml;
@@ -61,18 +62,10 @@ fn planning_grid(
 }
 
 /// Whether `--activity` names a saved model rather than tracks: one file that starts with the
-/// model-file magic word or ends in `.cmcopa`.
+/// model-file magic word or ends in `.cmcopa` ([`FileKind`]).
 fn is_model_source(activity: &[std::path::PathBuf]) -> Result<bool> {
     let is_model = |path: &Path| -> Result<bool> {
-        if path.extension().is_some_and(|e| e == "cmcopa") {
-            return Ok(true);
-        }
-        let mut start = [0u8; 16];
-        let mut file = std::fs::File::open(path)
-            .with_context(|| format!("{}: cannot open", path.display()))?;
-        let n = std::io::Read::read(&mut file, &mut start)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
-        Ok(start[..n].starts_with(chronomap_io::model_file::MAGIC.as_bytes()))
+        Ok(FileKind::by_name(path).is_copa_map() || FileKind::of(path)?.is_model_file())
     };
     let mut models = 0;
     for path in activity {

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use chronomap_app::open::FileKind;
 use chronomap_client::Client;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
@@ -326,17 +327,8 @@ fn read_maps(
 /// The nodes (with positions) of a Nav2 route graph (`.geojson`, `.json`) or else of a tmap2
 /// map; either may be compressed (`.xz`, `.gz`).
 fn read_layout(path: &Path) -> Result<TopoMap> {
-    let extension = |p: &Path| {
-        p.extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-    };
-    let kind = match extension(path).as_deref() {
-        Some("xz" | "gz") => path.file_stem().and_then(|s| extension(Path::new(s))),
-        other => other.map(str::to_owned),
-    };
-    Ok(match kind.as_deref() {
-        Some("geojson" | "json") => chronomap_io::topo_files::read_route_geojson(path)?,
+    Ok(match FileKind::by_name(path) {
+        FileKind::RouteGeoJson => chronomap_io::topo_files::read_route_geojson(path)?,
         _ => chronomap_io::topo_files::read_tmap2(path)?,
     })
 }
