@@ -5,24 +5,26 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow};
+use chronomap_app::lidar_study::{
+    CvSummary, LabelledKeyframes, LayoutsReport, LoopStudyError, LoopTraining, MAX_FOLDS,
+    RegistrationSummary, SettingsError, cross_validate_layouts, describe_log, detect_loops,
+    labelled_keyframes, loop_pairs, out_of_fold_pipeline, register_pairs, train_classifier,
+};
 use chronomap_io::ply::{PlyErrorKind, read_ply_at_most};
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
-use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
+use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND};
 use chronomap_lidar::descriptor::{
     Descriptor, DescriptorParams, PAIR_FEATURE_NAMES, SCALAR_FEATURES, describe_cloud,
-    describe_scan,
 };
 use chronomap_lidar::evaluation::{
-    Balance, CvReport, EvalError, LabelParams, LabelledPair, MAX_BOOSTING_ROUNDS, MAX_TRAININGS,
-    PipelineParams, PipelineReport, WeakLearner, between, compose, cv_rounds, cv_trainings,
-    label_pairs, layout_folds, run_pipeline,
+    Balance, MAX_BOOSTING_ROUNDS, MAX_TRAININGS, PipelineReport, WeakLearner, cv_rounds,
+    cv_trainings,
 };
-use chronomap_lidar::threshold::MeanSd;
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 use chronomap_registration::rigid::Rigid;
 use chronomap_registration::{
     MAX_FEATURE_POINTS, MAX_ICP_POINTS, MAX_INPUT_POINTS, RegistrationError, RegistrationParams,
-    register, register_scans, scan_params,
+    register,
 };
 use serde_json::json;
 
@@ -47,14 +49,7 @@ pub fn descriptors(args: &LidarDescriptorsArgs) -> Result<()> {
         }
         None => {
             let log = laser_log::read(&args.source)?;
-            let bar = ProgressBar::stage("descriptors", log.scans.len() as u64);
-            let mut rows = Vec::with_capacity(log.scans.len());
-            for (k, scan) in log.scans.iter().enumerate() {
-                let d = describe_scan(scan, &params)
-                    .with_context(|| format!("{}: scan {}", log.name, k + 1))?;
-                rows.push((scan.time, d));
-                chronomap_core::progress::Progress::advance(&bar, 1);
-            }
+            let rows = describe_log(&log, &params, &ProgressBar::new())?;
             (log.name, rows)
         }
     };
@@ -341,10 +336,7 @@ pub fn bench_registration(args: &BenchRegistrationArgs) -> Result<()> {
 /// relative poses.
 fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
     let log = laser_log::read_keyframes_file(path, None)?;
-    let truth = log.truth.as_deref().unwrap_or(&[]);
     let n = log.scans.len();
-    // The laser's pose in the map: robot pose ⊕ sensor offset.
-    let sensor = |k: usize| compose(truth[k], log.sensor);
     let pairs: Vec<[usize; 2]> = match args.pair {
         Some([i, j]) => {
             if i >= n || j >= n {
@@ -357,24 +349,7 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
             vec![[i, j]]
         }
         // The loop pairs of the laser positions, labelled as `lidar eval` labels them.
-        None => {
-            let places: Vec<[f64; 2]> = (0..n)
-                .map(|k| {
-                    let p = sensor(k);
-                    [p[0], p[1]]
-                })
-                .collect();
-            let labels = LabelParams {
-                near: args.near,
-                far: args.near,
-                min_separation: args.min_separation,
-            };
-            label_pairs(&places, &labels)?
-                .into_iter()
-                .filter(|p| p.positive)
-                .map(|p| [p.i, p.j])
-                .collect()
-        }
+        None => loop_pairs(&log, args.near, args.min_separation)?,
     };
     if pairs.is_empty() {
         return Err(anyhow!(
@@ -384,85 +359,48 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
             args.min_separation
         ));
     }
-    let mut params = scan_params();
-    if let Some(seed) = args.seed {
-        params.ransac.seed = seed;
-    }
-    let bar = ProgressBar::stage("registering pairs", pairs.len() as u64);
+    let bar = ProgressBar::new();
     let start = Instant::now();
-    let mut rows = Vec::with_capacity(pairs.len());
-    for &[i, j] in &pairs {
-        // Keyframe j's scan moved onto keyframe i's: the true transform is the pose of j's
-        // laser in the frame of i's.
-        let truth_ij = between(sensor(i), sensor(j));
-        let truth_ij = Rigid::from_pose(truth_ij[0], truth_ij[1], truth_ij[2]);
-        let row = match register_scans(&log.scans[j], &log.scans[i], &params) {
-            Ok(r) => {
-                let (dr, dt) = r.transform.error_to(&truth_ij);
-                Ok((
-                    r.transform.to_pose(),
-                    dr.to_degrees(),
-                    dt,
-                    r.inliers,
-                    r.information.sigma,
-                ))
-            }
-            Err(e) => Err(e.to_string()),
-        };
-        rows.push(([i, j], truth_ij.to_pose(), row));
-        chronomap_core::progress::Progress::advance(&bar, 1);
-    }
+    let rows = register_pairs(&log, &pairs, args.seed, &bar);
     drop(bar);
     let seconds = start.elapsed().as_secs_f64();
-    let median = |v: Vec<f64>| chronomap_bench::median(&v);
-    // Failed registrations count as unbounded errors in the medians over all pairs.
-    let rot_all = median(
-        rows.iter()
-            .map(|r| r.2.as_ref().map_or(f64::INFINITY, |x| x.1))
-            .collect(),
-    );
-    let trans_all = median(
-        rows.iter()
-            .map(|r| r.2.as_ref().map_or(f64::INFINITY, |x| x.2))
-            .collect(),
-    );
-    let within: Vec<(f64, f64)> = rows
-        .iter()
-        .filter_map(|r| r.2.as_ref().ok())
-        .filter(|x| x.1 < 2.0 && x.2 < 0.2)
-        .map(|x| (x.1, x.2))
-        .collect();
-    let failed = rows.iter().filter(|r| r.2.is_err()).count();
-    if let (Some(path), [(_, _, Ok(r))]) = (&args.output, rows.as_slice()) {
-        let (s, c) = r.0[2].sin_cos();
+    let summary = RegistrationSummary::of(&rows);
+    if let (Some(path), [row]) = (&args.output, rows.as_slice())
+        && let Ok(r) = &row.result
+    {
+        let m = r.matrix();
         let text = format!(
-            "{c:.9} {:.9} {:.9}\n{s:.9} {c:.9} {:.9}\n0 0 1\n",
-            -s, r.0[0], r.0[1]
+            "{:.9} {:.9} {:.9}\n{:.9} {:.9} {:.9}\n0 0 1\n",
+            m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2]
         );
         write_data_file(path, text.as_bytes())?;
     }
     if args.json {
         return print_json(&json!({
             "keyframes": log.name,
-            "pairs": rows.iter().map(|(p, t, r)| match r {
-                Ok(x) => json!({"pair": p, "pose": x.0, "slam_pose": t, "rotation_error_deg": x.1,
-                                "translation_error_m": x.2, "inliers": x.3, "sigma_m": x.4}),
-                Err(e) => json!({"pair": p, "slam_pose": t, "error": e}),
+            "pairs": rows.iter().map(|row| match &row.result {
+                Ok(x) => json!({"pair": row.pair, "pose": x.pose, "slam_pose": row.slam_pose,
+                                "rotation_error_deg": x.rotation_error_deg,
+                                "translation_error_m": x.translation_error_m,
+                                "inliers": x.inliers, "sigma_m": x.sigma_m}),
+                Err(e) => json!({"pair": row.pair, "slam_pose": row.slam_pose, "error": e}),
             }).collect::<Vec<_>>(),
-            "within_2_deg_and_20_cm": within.len(),
-            "failed": failed,
-            "median_rotation_error_deg": rot_all,
-            "median_translation_error_m": trans_all,
-            "median_rotation_error_deg_within": median(within.iter().map(|x| x.0).collect()),
-            "median_translation_error_m_within": median(within.iter().map(|x| x.1).collect()),
+            "within_2_deg_and_20_cm": summary.within,
+            "failed": summary.failed,
+            "median_rotation_error_deg": summary.median_rotation_deg,
+            "median_translation_error_m": summary.median_translation_m,
+            "median_rotation_error_deg_within": summary.median_rotation_within_deg,
+            "median_translation_error_m_within": summary.median_translation_within_m,
             "seconds_per_pair": seconds / rows.len() as f64,
         }));
     }
-    if let [([i, j], t, r)] = rows.as_slice() {
-        return match r {
+    if let [row] = rows.as_slice() {
+        let ([i, j], t) = (row.pair, row.slam_pose);
+        return match &row.result {
             Ok(x) => outln!(
                 "keyframe {j} onto keyframe {i}: ({:.3} m, {:.3} m, {:.2}°); SLAM: ({:.3} m, {:.3} m, {:.2}°); error {:.3}°, {:.1} cm; {} inliers, σ̂ = {:.3} m",
-                x.0[0], x.0[1], x.0[2].to_degrees(), t[0], t[1], t[2].to_degrees(), x.1, 100.0 * x.2, x.3, x.4
+                x.pose[0], x.pose[1], x.pose[2].to_degrees(), t[0], t[1], t[2].to_degrees(),
+                x.rotation_error_deg, 100.0 * x.translation_error_m, x.inliers, x.sigma_m
             ).map_err(Into::into),
             Err(e) => Err(anyhow!("keyframe {j} onto keyframe {i}: {e}")),
         };
@@ -477,12 +415,12 @@ fn register_keyframes(path: &Path, args: &LidarRegisterArgs) -> Result<()> {
     )?;
     outln!(
         "against the SLAM relative poses: median error {:.3}° and {:.1} cm over all pairs; {} within 2° and 20 cm (median {:.3}°, {:.1} cm); {} failed",
-        rot_all,
-        100.0 * trans_all,
-        within.len(),
-        median(within.iter().map(|x| x.0).collect()),
-        100.0 * median(within.iter().map(|x| x.1).collect()),
-        failed
+        summary.median_rotation_deg,
+        100.0 * summary.median_translation_m,
+        summary.within,
+        summary.median_rotation_within_deg,
+        100.0 * summary.median_translation_within_m,
+        summary.failed
     )?;
     Ok(())
 }
@@ -537,155 +475,57 @@ fn read_transform(path: &Path) -> Result<Rigid<3>> {
     Rigid::from_matrix4(&m).with_context(|| format!("{}: not a rigid transform", path.display()))
 }
 
-/// Features and labelled pairs of a keyframe file: what `eval` and `train` learn from.
-struct LabelledKeyframes {
-    log: laser_log::LaserLog,
-    config: ClassifierConfig,
-    features: Vec<ScanFeatures>,
-    pairs: Vec<LabelledPair>,
-    rows: Vec<Vec<f64>>,
-    labels: LabelParams,
-    /// Sensor positions (m), for folds by place.
-    places: Vec<[f64; 2]>,
-}
-
-/// The classifier configuration the flags ask for.
-fn classifier_config(flags: &LoopTrainingFlags) -> ClassifierConfig {
-    let base = if flags.paper {
-        ClassifierConfig::paper()
-    } else {
-        ClassifierConfig::extended()
-    };
-    ClassifierConfig {
-        rounds: flags.rounds,
-        ..base
-    }
-}
-
-/// Reads and labels the keyframes of `path` for a cross-validated run, after checking the
-/// flags (with `pair_models`, the run also trains eval's out-of-fold models).
-fn labelled_keyframes(
-    path: &Path,
-    flags: &LoopTrainingFlags,
-    odometry: Option<&Path>,
-    pair_models: bool,
-) -> Result<LabelledKeyframes> {
-    if flags.near > flags.far {
-        return Err(usage(format!(
-            "--near {} is beyond --far {}: pairs cannot be both loops and not",
-            flags.near, flags.far
-        )));
-    }
-    if flags.rounds == 0 {
-        return Err(usage("--rounds must be at least 1"));
-    }
-    if flags.folds < 2 {
-        return Err(usage(format!(
-            "--folds {}: cross-validation needs at least 2 folds",
-            flags.folds
-        )));
-    }
-    if flags.layouts == 0 {
-        return Err(usage("--layouts must be at least 1"));
-    }
-    let log = laser_log::read_keyframes_file(path, odometry)?;
-    let truth = log.truth.clone().expect("keyframe files carry poses");
-    let config = classifier_config(flags);
-    let labels = LabelParams {
+/// The loop-training settings of the flags.
+fn training(flags: &LoopTrainingFlags) -> LoopTraining {
+    LoopTraining {
+        paper: flags.paper,
         near: flags.near,
         far: flags.far,
         min_separation: flags.min_separation,
-    };
-    let robot: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
-    let pairs = label_pairs(&robot, &labels)?;
-    let positives = pairs.iter().filter(|p| p.positive).count();
-    if positives == 0 || positives == pairs.len() {
-        return Err(anyhow!(
-            "{}: {} keyframe pairs are loops (closer than {} m, more than {} keyframes apart) and {} are not (farther than {} m): training needs both",
-            log.name,
-            positives,
-            flags.near,
-            flags.min_separation,
-            pairs.len() - positives,
-            flags.far
-        ));
+        rounds: flags.rounds,
+        max_fpr: flags.max_fpr,
+        folds: flags.folds,
+        layouts: flags.layouts,
     }
-    let places: Vec<[f64; 2]> = truth
-        .iter()
-        .map(|&p| {
-            let s = compose(p, log.sensor);
-            [s[0], s[1]]
-        })
-        .collect();
-    check_folds(&log.name, &places, &pairs, flags, pair_models)?;
-    let features = config
-        .features(&log.scans)
-        .with_context(|| format!("{}: keyframe features", log.name))?;
-    let rows = config.pair_rows(&features, &pairs)?;
-    Ok(LabelledKeyframes {
-        log,
-        config,
-        features,
-        pairs,
-        rows,
-        labels,
-        places,
-    })
 }
 
-/// The most folds `--folds` may ask for (the sectors of [`layout_folds`]).
-const MAX_FOLDS: usize = 1000;
-
-/// Checks `--folds` against the keyframes before any feature is computed: at most one fold per
-/// keyframe (and [`MAX_FOLDS`]), at most [`MAX_TRAININGS`] classifiers to train over the
-/// `--layouts` (with `pair_models`, eval's out-of-fold models too) and at most
-/// [`MAX_BOOSTING_ROUNDS`] `--rounds` over them all, and in every fold layout at
-/// least one fold whose own pairs hold a loop and a non-loop while the pairs outside it hold
-/// both too (else nothing is scored and the ROC has nothing to draw).
-fn check_folds(
-    name: &str,
-    places: &[[f64; 2]],
-    pairs: &[LabelledPair],
-    flags: &LoopTrainingFlags,
-    pair_models: bool,
-) -> Result<()> {
-    let keyframes = places.len();
-    let positives = pairs.iter().filter(|p| p.positive).count();
-    let counts = format!(
-        "{name} has {keyframes} keyframes, {positives} loops and {} non-loops",
-        pairs.len() - positives
-    );
-    if flags.folds > keyframes.min(MAX_FOLDS) {
-        return Err(usage(format!(
-            "--folds {}: more folds than keyframes or than {MAX_FOLDS} ({counts}); the default \
-             is 5",
-            flags.folds
-        )));
-    }
-    let trainings = cv_trainings(flags.folds, flags.layouts, pair_models);
-    if trainings > MAX_TRAININGS {
-        let models = if pair_models {
+/// A study's error, its settings named by their flags (a usage error).
+fn study_error(e: LoopStudyError, flags: &LoopTrainingFlags, pair_models: bool) -> anyhow::Error {
+    let LoopStudyError::Settings(settings) = e else {
+        return anyhow::Error::new(e);
+    };
+    usage(match settings {
+        SettingsError::NearBeyondFar { near, far } => {
+            format!("--near {near} is beyond --far {far}: pairs cannot be both loops and not")
+        }
+        SettingsError::NoRounds => "--rounds must be at least 1".into(),
+        SettingsError::TooFewFolds { folds } => {
+            format!("--folds {folds}: cross-validation needs at least 2 folds")
+        }
+        SettingsError::NoLayouts => "--layouts must be at least 1".into(),
+        SettingsError::TooManyFolds { folds, counts } => format!(
+            "--folds {folds}: more folds than keyframes or than {MAX_FOLDS} ({counts}); the \
+             default is 5"
+        ),
+        SettingsError::TooManyTrainings {
+            trainings,
+            out_of_fold,
+        } => {
+            let models = out_of_fold.map_or(String::new(), |m| {
+                format!(" + {m} out-of-fold models, one per pair of folds")
+            });
             format!(
-                " + {} out-of-fold models, one per pair of folds",
-                cv_trainings(flags.folds, 0, true)
+                "--folds {} --layouts {}: {trainings} classifier trainings ({} layouts × {} \
+                 folds{models}), at most {MAX_TRAININGS}: use fewer folds or layouts (the \
+                 defaults, 5 and 10, need {})",
+                flags.folds,
+                flags.layouts,
+                flags.layouts,
+                flags.folds,
+                cv_trainings(5, 10, pair_models)
             )
-        } else {
-            String::new()
-        };
-        return Err(usage(format!(
-            "--folds {} --layouts {}: {trainings} classifier trainings ({} layouts × {} \
-             folds{models}), at most {MAX_TRAININGS}: use fewer folds or layouts (the defaults, \
-             5 and 10, need {})",
-            flags.folds,
-            flags.layouts,
-            flags.layouts,
-            flags.folds,
-            cv_trainings(5, 10, pair_models)
-        )));
-    }
-    let rounds = cv_rounds(flags.folds, flags.layouts, pair_models, flags.rounds);
-    if rounds > MAX_BOOSTING_ROUNDS {
-        return Err(usage(format!(
+        }
+        SettingsError::TooManyRounds { rounds, trainings } => format!(
             "--rounds {} --folds {} --layouts {}: {rounds} boosting rounds ({trainings} \
              classifier trainings × {} rounds), at most {MAX_BOOSTING_ROUNDS}: use fewer rounds, \
              folds or layouts (the defaults, 50, 5 and 10, need {})",
@@ -694,100 +534,55 @@ fn check_folds(
             flags.layouts,
             flags.rounds,
             cv_rounds(5, 10, pair_models, 50)
-        )));
-    }
-    for layout in 0..flags.layouts {
-        let fold_of = layout_folds(places, flags.folds, layout, flags.layouts)?;
-        let usable = (0..flags.folds).any(|f| {
-            let (mut inside, mut outside) = ([false; 2], [false; 2]);
-            for p in pairs {
-                let within = [fold_of[p.i] == f, fold_of[p.j] == f];
-                if within == [true, true] {
-                    inside[usize::from(p.positive)] = true;
-                } else if within == [false, false] {
-                    outside[usize::from(p.positive)] = true;
-                }
-            }
-            inside == [true, true] && outside == [true, true]
-        });
-        if !usable {
-            return Err(usage(format!(
-                "--folds {}: no fold of layout {layout} holds a loop and a non-loop among its \
-                 own keyframes with both left to train on ({counts}); use fewer folds (the \
-                 default is 5)",
-                flags.folds
-            )));
-        }
-    }
-    Ok(())
+        ),
+        SettingsError::NoUsableFold { layout, counts } => format!(
+            "--folds {}: no fold of layout {layout} holds a loop and a non-loop among its own \
+             keyframes with both left to train on ({counts}); use fewer folds (the default is 5)",
+            flags.folds
+        ),
+    })
 }
 
-/// Cross-validation over `layouts` rotations of the place folds, each with its own seed.
-struct LayoutsReport {
-    reports: Vec<CvReport>,
-}
-
-impl LayoutsReport {
-    fn folds(&self) -> impl Iterator<Item = &chronomap_lidar::evaluation::FoldResult> {
-        self.reports.iter().flat_map(|r| &r.folds)
-    }
-}
-
-fn cross_validate_layouts(
-    data: &LabelledKeyframes,
+/// Reads and labels the keyframes and cross-validates over the fold layouts: what `eval` and
+/// `train` share (with `pair_models`, eval's out-of-fold models are counted in the checks).
+fn cross_validated(
+    path: &Path,
     flags: &LoopTrainingFlags,
-) -> Result<LayoutsReport> {
-    if flags.folds < 2 {
-        return Err(usage("--folds must be at least 2"));
-    }
-    if flags.layouts == 0 {
-        return Err(usage("--layouts must be at least 1"));
-    }
-    // One step per classifier trained (a model per fold and layout).
-    let bar = ProgressBar::stage(
-        "cross-validation",
-        cv_trainings(flags.folds, flags.layouts, false) as u64,
-    );
-    let mut reports = Vec::with_capacity(flags.layouts);
-    for layout in 0..flags.layouts {
-        let fold_of = layout_folds(&data.places, flags.folds, layout, flags.layouts)?;
-        let report = data.config.cross_validate(
-            &data.pairs,
-            &data.rows,
-            &fold_of,
-            flags.max_fpr,
-            layout as u64 + 1,
-        )?;
-        reports.push(report);
-        chronomap_core::progress::Progress::advance(&bar, flags.folds as u64);
-    }
-    Ok(LayoutsReport { reports })
+    odometry: Option<&Path>,
+    pair_models: bool,
+) -> Result<(LabelledKeyframes, LayoutsReport)> {
+    let settings = training(flags);
+    let data = labelled_keyframes(path, &settings, odometry, pair_models)
+        .map_err(|e| study_error(e, flags, pair_models))?;
+    let cv = cross_validate_layouts(&data, &settings, &ProgressBar::new())
+        .map_err(|e| study_error(e, flags, pair_models))?;
+    Ok((data, cv))
 }
 
 /// `chronomap lidar eval`.
 pub fn eval(args: &LidarEvalArgs) -> Result<()> {
-    let data = labelled_keyframes(
+    let (data, cv) = cross_validated(
         &args.keyframes,
         &args.training,
         args.odometry.as_deref(),
         true,
     )?;
-    let cv = cross_validate_layouts(&data, &args.training)?;
-    let pipeline = out_of_fold_pipeline(&data, &args.training, &cv)?;
-    let fold =
-        |f: fn(&chronomap_lidar::evaluation::FoldResult) -> f64| MeanSd::of(cv.folds().map(f));
-    let auc = fold(|f| f.auc);
-    let tpr = fold(|f| f.at_max_fpr.tpr);
-    let held_tpr = fold(|f| f.heldout_rates.0);
-    let held_fpr = fold(|f| f.heldout_rates.1);
-    let pooled_auc = MeanSd::of(cv.reports.iter().map(|r| r.pooled_auc));
-    let pooled_tpr = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr));
-    let p_min = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.threshold));
-    let positives = data.pairs.iter().filter(|p| p.positive).count();
+    let pipeline =
+        out_of_fold_pipeline(&data, &training(&args.training), &cv, &ProgressBar::new())?;
+    let CvSummary {
+        folds,
+        auc,
+        tpr,
+        heldout_tpr: held_tpr,
+        heldout_fpr: held_fpr,
+        pooled_auc,
+        pooled_tpr,
+        p_min,
+    } = CvSummary::of(&cv);
+    let positives = data.positives();
     if let Some(path) = &args.plot {
         plot_eval(&data, &cv, &pipeline, args.training.max_fpr, path)?;
     }
-    let folds = cv.folds().count();
     if args.json {
         return print_json(&json!({
             "keyframes": data.log.scans.len(),
@@ -801,7 +596,7 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
             "max_fpr": args.training.max_fpr,
             "classifier": describe_config(&data.config),
             "pipeline": {
-                "p_min": cv.reports.first().map(|r| r.pooled_at_max_fpr.threshold),
+                "p_min": cv.first_threshold(),
                 "loops": pipeline.detections.len(),
                 "correct": pipeline.correct(),
                 "wrong": pipeline.wrong(),
@@ -860,9 +655,7 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
     outln!("{}", table.render().trim_end())?;
     outln!(
         "loop detection along the keyframes (search radius, classifier, verification; fold layout 0, each pair scored by the model trained without both keyframes' folds, p_min {:.4}): {} loops, {} correct, {} wrong; {} of {} revisiting keyframes closed",
-        cv.reports
-            .first()
-            .map_or(f64::NAN, |r| r.pooled_at_max_fpr.threshold),
+        cv.first_threshold().unwrap_or(f64::NAN),
         pipeline.detections.len(),
         pipeline.correct(),
         pipeline.wrong(),
@@ -870,51 +663,6 @@ pub fn eval(args: &LidarEvalArgs) -> Result<()> {
         pipeline.queries_with_loop
     )?;
     Ok(())
-}
-
-/// The loop pipeline along the keyframes with fold layout 0, each pair scored by the model
-/// that saw neither keyframe's fold, `p_min` from that layout's pooled ROC: detections that
-/// no model was trained on.
-fn out_of_fold_pipeline(
-    data: &LabelledKeyframes,
-    flags: &LoopTrainingFlags,
-    cv: &LayoutsReport,
-) -> Result<PipelineReport> {
-    let fold_of = layout_folds(&data.places, flags.folds, 0, flags.layouts)?;
-    let bar = ProgressBar::stage(
-        "out-of-fold models",
-        cv_trainings(flags.folds, 0, true) as u64,
-    );
-    let models = data
-        .config
-        .pair_models(&data.pairs, &data.rows, &fold_of, &mut || {
-            chronomap_core::progress::Progress::advance(&bar, 1)
-        })?;
-    drop(bar);
-    let mut params = PipelineParams {
-        min_separation: flags.min_separation,
-        near: flags.near,
-        ..PipelineParams::default()
-    };
-    params.search.p_min = cv
-        .reports
-        .first()
-        .map_or(1.0, |r| r.pooled_at_max_fpr.threshold.min(1.0));
-    let truth = data.log.truth.as_deref().unwrap_or(&[]);
-    let positions: Vec<[f64; 2]> = truth.iter().map(|p| [p[0], p[1]]).collect();
-    Ok(run_pipeline(
-        &data.log.increments(),
-        [data.log.sensor[0], data.log.sensor[1]],
-        &positions,
-        &params,
-        |i, j| {
-            let x = data
-                .config
-                .pair(&data.features[i], &data.features[j])
-                .map_err(|e| EvalError::Input(e.to_string()))?;
-            models.probability(i, j, &x)
-        },
-    )?)
 }
 
 /// ROC curves (pooled, one per layout) beside the trajectory with its labelled loops.
@@ -990,35 +738,14 @@ fn plot_eval(
 
 /// `chronomap lidar train`.
 pub fn train(args: &LidarTrainArgs) -> Result<()> {
-    let data = labelled_keyframes(&args.keyframes, &args.training, None, false)?;
-    let cv = cross_validate_layouts(&data, &args.training)?;
+    let (data, cv) = cross_validated(&args.keyframes, &args.training, None, false)?;
     // p_min: the median over fold layouts of the threshold that keeps the pooled
     // out-of-fold false-positive rate below the bound.
-    let thresholds: Vec<f64> = cv
-        .reports
-        .iter()
-        .map(|r| r.pooled_at_max_fpr.threshold)
-        .filter(|t| t.is_finite())
-        .collect();
-    if thresholds.is_empty() {
-        return Err(anyhow!(
-            "{}: no threshold keeps the false-positive rate below {}",
-            data.log.name,
-            args.training.max_fpr
-        ));
-    }
-    let p_min = chronomap_bench::median(&thresholds).min(1.0);
-    let mut classifier = LoopClassifier::train(
-        &data.config,
-        &data.features,
-        &data.pairs,
-        p_min,
-        args.training.max_fpr,
-    )?;
-    classifier.labels = Some(data.labels.clone());
+    let classifier = train_classifier(&data, &cv, args.training.max_fpr)?;
+    let p_min = classifier.p_min;
     let positives = classifier.trained_on.0;
     write_model_file(&args.output, MODEL_KIND, &classifier)?;
-    let pooled_tpr = MeanSd::of(cv.reports.iter().map(|r| r.pooled_at_max_fpr.tpr));
+    let pooled_tpr = CvSummary::of(&cv).pooled_tpr;
     if args.json {
         return print_json(&json!({
             "output": args.output,
@@ -1066,41 +793,9 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
     } else {
         full.keyframes(args.keyframe_distance, args.keyframe_angle)
     };
-    let features = classifier
-        .config
-        .features(&log.scans)
-        .with_context(|| format!("{}: keyframe features", log.name))?;
     let has_truth = log.truth.is_some();
-    let positions: Vec<[f64; 2]> = log
-        .truth
-        .as_ref()
-        .unwrap_or(&log.odometry)
-        .iter()
-        .map(|p| [p[0], p[1]])
-        .collect();
-    let mut params = PipelineParams {
-        min_separation: args.min_separation,
-        near: classifier.labels.as_ref().map_or(3.0, |l| l.near),
-        ..PipelineParams::default()
-    };
-    params.search.p_min = args.p_min.unwrap_or(classifier.p_min);
-    let mut failure = None;
-    let report = run_pipeline(
-        &log.increments(),
-        [log.sensor[0], log.sensor[1]],
-        &positions,
-        &params,
-        |i, j| match classifier.probability(&features[i], &features[j]) {
-            Ok(p) => Ok(Some(p)),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Ok(None)
-            }
-        },
-    )?;
-    if let Some(e) = failure {
-        return Err(anyhow::Error::new(e).context(format!("{}: scoring a pair", log.name)));
-    }
+    let detection = detect_loops(&log, &classifier, args.p_min, args.min_separation)?;
+    let (report, positions) = (&detection.report, &detection.positions);
     if let Some(path) = &args.output {
         let mut csv = String::from("query,target,probability,radius_m,mode\n");
         for d in &report.detections {
@@ -1112,13 +807,13 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
         write_data_file(path, csv.as_bytes())?;
     }
     if let Some(path) = &args.plot {
-        plot_detections(&log, &positions, has_truth, &report, path)?;
+        plot_detections(&log, positions, has_truth, report, path)?;
     }
     if args.json {
         return print_json(&json!({
             "log": log.name,
             "keyframes": log.scans.len(),
-            "p_min": params.search.p_min,
+            "p_min": detection.p_min,
             "detections": report.detections.iter().map(|d| json!({
                 "query": d.query, "target": d.target, "probability": d.probability,
                 "radius_m": d.radius, "mode": d.mode, "candidates": d.candidates,
@@ -1136,7 +831,7 @@ pub fn detect(args: &LidarDetectArgs) -> Result<()> {
         log.name,
         log.scans.len(),
         report.scored_pairs,
-        params.search.p_min,
+        detection.p_min,
         report.detections.len(),
         report.rejected_by_verification
     )?;
