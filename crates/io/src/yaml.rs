@@ -21,6 +21,7 @@ pub(crate) enum Yaml {
     Map(Vec<(String, Spanned<Yaml>)>),
 }
 
+#[cfg(feature = "navmap")]
 impl Yaml {
     /// The value with the items of a sequence written out (`[1, 2, "x"]`); [`Yaml`]'s
     /// `Display` writes `[...]` for them.
@@ -107,9 +108,11 @@ impl fmt::Display for Yaml {
     }
 }
 
-/// [`Yaml::listed`].
+/// [`Yaml::listed`] (map files quote whole sequences in their errors).
+#[cfg(feature = "navmap")]
 pub(crate) struct Listed<'a>(&'a Yaml);
 
+#[cfg(feature = "navmap")]
 impl fmt::Display for Listed<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.0 {
