@@ -81,12 +81,15 @@ impl FremenGrid {
     }
 
     /// Predicted occupancy probability of every cell at `time` with the configured order (NaN
-    /// for cells never observed): bit for bit `self.fitted(OrderChoice::Fixed(order)).predict(time)`,
-    /// without keeping the compact model (it holds the map and one value per changing cell,
-    /// [`MemoryEstimate::predict_map_bytes`](crate::MemoryEstimate::predict_map_bytes)). For many
-    /// predictions, [`FremenGrid::fitted`] once and predict from the [`FittedGrid`]; for one
-    /// cell, [`FremenGrid::predict_cell`] gives the same bits.
-    pub fn predict_map(&self, time: f64) -> Vec<f32> {
+    /// for cells never observed): bit for bit
+    /// `self.fitted(OrderChoice::Fixed(order), parallelism).predict_map(time)`, without keeping
+    /// the compact model (it holds the map and one value per changing cell,
+    /// [`MemoryEstimate::predict_map_bytes`](crate::MemoryEstimate::predict_map_bytes)); the
+    /// changing cells are fitted on the threads `parallelism` allows (the same bits on any).
+    /// For many predictions, [`FremenGrid::fitted`] once and
+    /// [`FittedGrid::predict_map`] from it; for one cell, [`FremenGrid::predict_cell`] gives
+    /// the same bits.
+    pub fn predict_map(&self, time: f64, parallelism: Parallelism) -> Vec<f32> {
         let order = self.config.fremen.order;
         let periods = &self.config.fremen.periods;
         let angles: Vec<f64> = (0..periods.len())
@@ -319,9 +322,6 @@ fn state_of_code(code: u64) -> CellState {
     }
 }
 
-fn period_index(periods: &PeriodSet, period_secs: f64) -> u32 {
-    (0..periods.len())
-        .find(|&k| periods.period(k) == period_secs)
 /// Fewest items of `items` a rayon task takes so that they split into at most
 /// `parallelism.tasks()` tasks (1 for `Rayon(0)`: as many tasks as the pool wants).
 fn min_len(items: usize, parallelism: Parallelism) -> usize {
@@ -347,6 +347,9 @@ fn map_items<T: Sync, R: Send>(
     }
 }
 
+fn period_index(periods: &PeriodSet, period_secs: f64) -> u32 {
+    (0..periods.len())
+        .find(|&k| periods.period(k) == period_secs)
         .expect("component periods come from the set") as u32
 }
 
@@ -608,10 +611,10 @@ impl FremenGrid {
         fitted: &FittedGrid,
         from: u64,
         to: u64,
+        parallelism: Parallelism,
     ) -> Result<EstimationError, GridError> {
         self.require_history("an estimation error")?;
         let to = to.min(self.frames);
-        parallelism: Parallelism,
         let index = fitted.cell_positions();
         let per_cell: Vec<Result<Option<(u64, u64)>, GridError>> =
             map_items(&self.slots, parallelism, |slot| {
@@ -677,10 +680,10 @@ impl FremenGrid {
         &self,
         trained: &FremenGrid,
         max_order: usize,
+        parallelism: Parallelism,
     ) -> Result<Vec<u8>, GridError> {
         self.require_history("choosing orders")?;
         let split = trained.frames;
-        parallelism: Parallelism,
         if trained.geometry != self.geometry
             || trained.config.fremen.periods != self.config.fremen.periods
             || split > self.frames
