@@ -184,7 +184,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
         StoreArg::Lossy => GridStore::Lossy,
         StoreArg::Lossless => GridStore::Lossless,
     };
-    let file = AnyGrid::store(&grid, form, choice, Parallelism::Rayon(0))?;
+    let file = AnyGrid::store(grid, form, choice, Parallelism::Rayon(0))?;
     // The size of eq. (16) is what was written (a device or a pipe is written through and
     // has no size afterwards).
     let encoded = encode_grid(&file)?;
