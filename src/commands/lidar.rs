@@ -7,8 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow};
 use chronomap_app::lidar_study::{
     CvSummary, LabelledKeyframes, LayoutsReport, LoopStudyError, LoopTraining, MAX_FOLDS,
-    RegistrationSummary, SettingsError, cross_validate_layouts, describe_log, detect_loops,
-    labelled_keyframes, loop_pairs, out_of_fold_pipeline, register_pairs, train_classifier,
+    RegistrationSummary, SettingsError, cloud_params, cross_validate_layouts, describe_log,
+    detect_loops, labelled_keyframes, loop_pairs, out_of_fold_pipeline, register_pairs,
+    train_classifier, within_range,
 };
 use chronomap_io::ply::{PlyErrorKind, read_ply_at_most};
 use chronomap_io::{read_model_file, write_data_file, write_model_file};
@@ -23,8 +24,7 @@ use chronomap_lidar::evaluation::{
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 use chronomap_registration::rigid::Rigid;
 use chronomap_registration::{
-    MAX_FEATURE_POINTS, MAX_ICP_POINTS, MAX_INPUT_POINTS, RegistrationError, RegistrationParams,
-    register,
+    MAX_FEATURE_POINTS, MAX_ICP_POINTS, MAX_INPUT_POINTS, RegistrationError, register,
 };
 use serde_json::json;
 
@@ -271,16 +271,11 @@ fn check_range(
     cloud: &chronomap_registration::Cloud<3>,
     max_range: f64,
 ) -> Result<()> {
-    let ranges = cloud
-        .points()
-        .iter()
-        .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt());
-    let within = ranges.clone().filter(|&r| r <= max_range).count();
+    let (within, nearest) = within_range(cloud, max_range);
     // The 9 points `register` needs at least (3 per dimension).
     if within >= 9 {
         return Ok(());
     }
-    let nearest = ranges.fold(f64::INFINITY, f64::min);
     Err(anyhow!(
         "{}: {within} of its {} points lie within --max-range {max_range} m of the sensor (the \
          origin), at least 9 are needed; its nearest point is {nearest:.1} m away: give a \
@@ -288,15 +283,6 @@ fn check_range(
         path.display(),
         cloud.len()
     ))
-}
-
-/// Registration parameters for 3-D clouds: features and RANSAC on a `voxel` grid, ICP on a
-/// `fine_voxel` grid, points beyond `max_range` dropped (dissertation appendix A: 30 m).
-fn cloud_params(voxel: f64, fine_voxel: f64, max_range: f64) -> RegistrationParams {
-    let mut params = RegistrationParams::for_voxel(voxel);
-    params.filters.voxel = Some(fine_voxel);
-    params.filters.range = Some((0.0, max_range));
-    params
 }
 
 /// `chronomap bench registration`: the default parameters of `lidar register` against a bare

@@ -20,7 +20,7 @@ use chronomap_lidar::evaluation::{
 };
 use chronomap_lidar::threshold::MeanSd;
 use chronomap_registration::rigid::Rigid;
-use chronomap_registration::{register_scans, scan_params};
+use chronomap_registration::{Cloud, RegistrationParams, register_scans, scan_params};
 
 use crate::laser_log::{LaserLog, LaserLogError, from_keyframes};
 
@@ -816,6 +816,27 @@ impl RegistrationSummary {
     }
 }
 
+/// Registration parameters for 3-D clouds ([Stüde 2024] §3.2.2): features and RANSAC on a
+/// `voxel` grid, ICP on a `fine_voxel` grid, points beyond `max_range` of the sensor dropped
+/// (appendix A: 30 m).
+pub fn cloud_params(voxel: f64, fine_voxel: f64, max_range: f64) -> RegistrationParams {
+    let mut params = RegistrationParams::for_voxel(voxel);
+    params.filters.voxel = Some(fine_voxel);
+    params.filters.range = Some((0.0, max_range));
+    params
+}
+
+/// The points of a cloud within `max_range` of its sensor (the origin), and the distance of
+/// its nearest point (+inf for an empty cloud): a cloud in a far frame (e.g. UTM) has none.
+pub fn within_range(cloud: &Cloud<3>, max_range: f64) -> (usize, f64) {
+    let ranges = cloud
+        .points()
+        .iter()
+        .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt());
+    let within = ranges.clone().filter(|&r| r <= max_range).count();
+    (within, ranges.fold(f64::INFINITY, f64::min))
+}
+
 /// The median of `values`: the middle one, or the mean of the middle two for an even count
 /// (NaN for none).
 fn median(values: &[f64]) -> f64 {
@@ -869,6 +890,19 @@ mod tests {
         assert_eq!(s.median_translation_within_m, 0.09375);
         assert_eq!(s.failed, 1);
         assert!(median(&[]).is_nan());
+    }
+
+    #[test]
+    fn points_within_range_of_the_sensor_are_counted() {
+        let cloud =
+            Cloud::from_points(vec![[3.0, 4.0, 0.0], [0.0, 0.0, 2.0], [30.0, 40.0, 0.0]]).unwrap();
+        assert_eq!(within_range(&cloud, 5.0), (2, 2.0));
+        assert_eq!(within_range(&cloud, 1.0), (0, 2.0));
+        let p = cloud_params(0.25, 0.05, 30.0);
+        assert_eq!(
+            (p.filters.voxel, p.filters.range),
+            (Some(0.05), Some((0.0, 30.0)))
+        );
     }
 
     #[test]
