@@ -112,7 +112,7 @@ impl From<GeometryError> for SearchError {
 /// The search radius of [Stüde 2024] eq. (3.8): `r = r_min + β·g_max` with
 /// `g_max = 2√(5.991·λ_max)` the major axis of the 95 % confidence ellipse of the 2×2
 /// position covariance ([`se2::search_radius`] of its
-/// [`largest_eigenvalue`](chronomap_geometry::linalg::largest_eigenvalue)).
+/// [`largest_eigenvalue`]).
 ///
 /// # Errors
 /// [`SearchError::Covariance`] if `cov` is not finite, not symmetric (to 1e-9 relative) or

@@ -90,7 +90,7 @@ impl EdgeStatistics {
     }
 
     /// Outcomes of the attempts on edge `edge` as a binary time series (1 = success), ready
-    /// for [`TemporalModel::observe`](chronomap_core::TemporalModel::observe). Empty if the
+    /// for [`TemporalModel::observe`]. Empty if the
     /// edge has no attempt or does not exist.
     ///
     /// The series satisfies the [observation contract](chronomap_core::observe) when the
