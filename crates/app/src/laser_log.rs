@@ -191,9 +191,7 @@ pub fn from_scans(scans: &Path, odometry: &Path) -> Result<LaserLog, LaserLogErr
     let increments = odometry_increments(odometry)?;
     let times: Vec<f64> = lines.iter().map(|l| l.scan.time).collect();
     check_order(&scans.display().to_string(), &times)?;
-    let sensor = lines
-        .first()
-        .map_or([0.0; 3], |l| [l.sensor.x, l.sensor.y, l.sensor.yaw]);
+    let sensor = lines.first().map_or([0.0; 3], |l| l.sensor.planar());
     Ok(LaserLog {
         name: scans.display().to_string(),
         odometry: dead_reckon(&increments, &times),
@@ -229,9 +227,7 @@ pub fn from_keyframes(
             out
         }
     };
-    let sensor = frames.first().map_or([0.0; 3], |k| {
-        [k.scan.sensor.x, k.scan.sensor.y, k.scan.sensor.yaw]
-    });
+    let sensor = frames.first().map_or([0.0; 3], |k| k.scan.sensor.planar());
     Ok(LaserLog {
         name: keyframes.display().to_string(),
         scans: frames.into_iter().map(|k| k.scan.scan).collect(),

@@ -90,15 +90,16 @@ pub struct SensorPose {
 }
 
 impl SensorPose {
+    /// The planar pose `(x, y, yaw)` of the sensor on the robot.
+    pub fn planar(&self) -> [f64; 3] {
+        [self.x, self.y, self.yaw]
+    }
+
     /// The planar pose `(x, y, yaw)` of the sensor in the map for the robot pose
-    /// `(x, y, yaw)`: `robot ⊕ sensor`.
+    /// `(x, y, yaw)`: `robot ⊕ sensor` ([Stüde 2024] eq. (3.11), the geometry crate's
+    /// `se2::compose`).
     pub fn in_map(&self, robot: [f64; 3]) -> [f64; 3] {
-        let (s, c) = robot[2].sin_cos();
-        [
-            robot[0] + c * self.x - s * self.y,
-            robot[1] + s * self.x + c * self.y,
-            robot[2] + self.yaw,
-        ]
+        chronomap_lidar::evaluation::compose(robot, self.planar())
     }
 }
 
