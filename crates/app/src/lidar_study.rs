@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use chronomap_core::num::median;
 use chronomap_core::progress::Progress;
 use chronomap_geometry::se2::{Pose2, between, compose};
 use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, ScanFeatures};
@@ -835,21 +836,6 @@ pub fn within_range(cloud: &Cloud<3>, max_range: f64) -> (usize, f64) {
         .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt());
     let within = ranges.clone().filter(|&r| r <= max_range).count();
     (within, ranges.fold(f64::INFINITY, f64::min))
-}
-
-/// The median of `values`: the middle one, or the mean of the middle two for an even count
-/// (NaN for none).
-fn median(values: &[f64]) -> f64 {
-    let mut values = values.to_vec();
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    if n == 0 {
-        f64::NAN
-    } else if n.is_multiple_of(2) {
-        (values[n / 2 - 1] + values[n / 2]) / 2.0
-    } else {
-        values[n / 2]
-    }
 }
 
 #[cfg(test)]
