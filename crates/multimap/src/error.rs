@@ -6,23 +6,6 @@ use chronomap_geometry::scan::ScanError;
 /// Why an input or a computation is refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MultimapError {
-    /// A number that must be finite is NaN or infinite.
-    #[error("{field}: {value} is not finite")]
-    NotFinite {
-        /// The field.
-        field: &'static str,
-        /// Its value.
-        value: f64,
-    },
-    /// A matrix given as a covariance is not one (asymmetric, negative variance, not
-    /// positive semi-definite).
-    #[error("{field} is not a covariance matrix: {why}")]
-    NotCovariance {
-        /// The field.
-        field: &'static str,
-        /// What is wrong with it.
-        why: &'static str,
-    },
     /// A parameter outside its range.
     #[error("parameter {field} = {value}: {why}")]
     Parameter {
@@ -89,7 +72,8 @@ pub enum MultimapError {
         /// The cost `F` of eq. (3.4) when it stopped.
         cost: f64,
     },
-    /// Another refusal of the shared geometry (a fit to too few or degenerate points).
+    /// A refusal of the shared geometry: a number that is not finite, a matrix that is not a
+    /// covariance, a fit to too few or degenerate points.
     #[error(transparent)]
     Geometry(GeometryError),
     /// The normal equations of the pose graph are singular (a map not tied to map 0).
@@ -103,13 +87,7 @@ pub enum MultimapError {
 /// A pose or covariance refused by [`chronomap_geometry::se2`] (the same field and message).
 impl From<GeometryError> for MultimapError {
     fn from(e: GeometryError) -> Self {
-        match e {
-            GeometryError::NotFinite { field, value } => MultimapError::NotFinite { field, value },
-            GeometryError::NotCovariance { field, why } => {
-                MultimapError::NotCovariance { field, why }
-            }
-            other => MultimapError::Geometry(other),
-        }
+        MultimapError::Geometry(e)
     }
 }
 

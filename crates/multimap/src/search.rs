@@ -77,12 +77,14 @@ impl SearchParams {
 /// Eq. (3.8) for a 2×2 position covariance (`params` checked by the caller); a covariance
 /// that is not one is refused naming the `position covariance`.
 fn radius_of(cov: [[f64; 2]; 2], params: &SearchParams) -> Result<f64, MultimapError> {
-    let lambda = largest_eigenvalue(cov).map_err(|e| match e {
-        GeometryError::NotCovariance { why, .. } => MultimapError::NotCovariance {
-            field: "position covariance",
-            why,
-        },
-        other => other.into(),
+    let lambda = largest_eigenvalue(cov).map_err(|e| {
+        MultimapError::from(match e {
+            GeometryError::NotCovariance { why, .. } => GeometryError::NotCovariance {
+                field: "position covariance",
+                why,
+            },
+            other => other,
+        })
     })?;
     Ok(se2::search_radius(params.r_min, params.beta, lambda))
 }

@@ -15,7 +15,7 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
-use chronomap_geometry::Scan2d;
+use chronomap_geometry::{GeometryError, Scan2d};
 
 use chronomap_geometry::scan::MAX_BEAMS;
 
@@ -202,7 +202,7 @@ impl Scanner {
         }
         for (field, value) in [("angle_min", self.angle_min), ("angle_max", self.angle_max)] {
             if !value.is_finite() {
-                return Err(MultimapError::NotFinite { field, value });
+                return Err(GeometryError::NotFinite { field, value }.into());
             }
         }
         if self.angle_max <= self.angle_min {
@@ -230,10 +230,11 @@ impl Scanner {
         self.validate()?;
         pose.validate("pose")?;
         if !time.is_finite() {
-            return Err(MultimapError::NotFinite {
+            return Err(GeometryError::NotFinite {
                 field: "time",
                 value: time,
-            });
+            }
+            .into());
         }
         let sensor = pose.compose(&self.mount);
         let inc = (self.angle_max - self.angle_min) / (self.beams - 1) as f64;
