@@ -3,7 +3,7 @@
 
 use crate::MAX_RESPONSE_BYTES;
 use crate::api::*;
-use crate::call::{Call, ClientError, Method, StatusCode, base_url, decode, too_large};
+use crate::call::{Call, ClientError, Method, StatusCode, base_url, decode, endpoints, too_large};
 
 /// The body of `response`, at most [`MAX_RESPONSE_BYTES`]; `url` names it in errors.
 async fn read_body(mut response: reqwest::Response, url: &str) -> Result<Vec<u8>, ClientError> {
@@ -92,132 +92,7 @@ impl Client {
         decode(status, &bytes, &url)
     }
 
-    /// `GET /v1/health`.
-    pub async fn health(&self) -> Result<Health, ClientError> {
-        self.call(Ok(Call::health())).await
-    }
-
-    /// Creates a model (`model` spec, `range` for continuous values).
-    pub async fn create(
-        &self,
-        id: &str,
-        model: Option<&str>,
-        range: Option<[f64; 2]>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::create(id, model, range)).await
-    }
-
-    /// Removes a model.
-    pub async fn remove(&self, id: &str) -> Result<WriteAck, ClientError> {
-        self.call(Ok(Call::remove(id))).await
-    }
-
-    /// A model's parameters.
-    pub async fn view(&self, id: &str) -> Result<ModelInfo, ClientError> {
-        self.call(Ok(Call::view(id))).await
-    }
-
-    /// All models.
-    pub async fn list(&self) -> Result<ListResponse, ClientError> {
-        self.call(Ok(Call::list())).await
-    }
-
-    /// The models whose ids start with `prefix` (a robot's, a namespace's).
-    pub async fn list_prefix(&self, prefix: &str) -> Result<ListResponse, ClientError> {
-        self.call(Ok(Call::list_prefix(prefix))).await
-    }
-
-    /// Refits a model fitted on a whole series (`auto`, `fremen:auto`, ...) on its kept
-    /// observations now; answers once the fit is in use and durable.
-    pub async fn refit(&self, id: &str) -> Result<RefitResponse, ClientError> {
-        self.call(Call::refit(id)).await
-    }
-
-    /// Every observation a model holds.
-    pub async fn observations(&self, id: &str) -> Result<ObservationsResponse, ClientError> {
-        self.call(Ok(Call::observations(id))).await
-    }
-
-    /// Adds binary observations, creating the model as `model` if it does not exist.
-    pub async fn add(
-        &self,
-        id: &str,
-        times: &[f64],
-        states: &[bool],
-        model: Option<&str>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::add(id, times, states, model)).await
-    }
-
-    /// Adds observations with values.
-    pub async fn add_values(
-        &self,
-        id: &str,
-        times: &[f64],
-        values: &[f64],
-        model: Option<&str>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::add_values(id, times, values, model)).await
-    }
-
-    /// Adds observations of many models in one durable commit.
-    pub async fn add_batches(
-        &self,
-        request: &ObservationsRequest,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::add_batches(request)).await
-    }
-
-    /// `p(t)` at many times.
-    pub async fn predict(
-        &self,
-        id: &str,
-        times: &[f64],
-        order: Option<usize>,
-    ) -> Result<PredictResponse, ClientError> {
-        self.call(Call::at_times("/v1/predict", id, times, order))
-            .await
-    }
-
-    /// Entropies (bits) at many times.
-    pub async fn entropy(
-        &self,
-        id: &str,
-        times: &[f64],
-        order: Option<usize>,
-    ) -> Result<PredictResponse, ClientError> {
-        self.call(Call::at_times("/v1/entropy", id, times, order))
-            .await
-    }
-
-    /// `p(t)` of many models at one time.
-    pub async fn forecast(
-        &self,
-        request: &ForecastRequest,
-    ) -> Result<ForecastResponse, ClientError> {
-        self.call(Call::forecast(request)).await
-    }
-
-    /// Entropies of many models at one time.
-    pub async fn forecast_entropy(
-        &self,
-        request: &ForecastRequest,
-    ) -> Result<ForecastResponse, ClientError> {
-        self.call(Call::forecast_entropy(request)).await
-    }
-
-    /// Errors per order on given data.
-    pub async fn evaluate(
-        &self,
-        request: &EvaluateRequest,
-    ) -> Result<EvaluateResponse, ClientError> {
-        self.call(Call::evaluate(request)).await
-    }
-
-    /// Anomalies in given data.
-    pub async fn detect(&self, request: &DetectRequest) -> Result<DetectResponse, ClientError> {
-        self.call(Call::detect(request)).await
-    }
+    endpoints!(async);
 
     /// A raw request, for tests of hostile input: method, path, body bytes; returns status
     /// and body.

@@ -6,7 +6,7 @@ use std::io::Read;
 
 use crate::MAX_RESPONSE_BYTES;
 use crate::api::*;
-use crate::call::{Call, ClientError, Method, StatusCode, base_url, decode, too_large};
+use crate::call::{Call, ClientError, Method, StatusCode, base_url, decode, endpoints, too_large};
 
 /// The body of `response`, at most [`MAX_RESPONSE_BYTES`]; `url` names it in errors.
 fn read_body(response: &mut http::Response<ureq::Body>, url: &str) -> Result<Vec<u8>, ClientError> {
@@ -110,120 +110,7 @@ impl Client {
         decode(status, &bytes, &url)
     }
 
-    /// `GET /v1/health`.
-    pub fn health(&self) -> Result<Health, ClientError> {
-        self.call(Ok(Call::health()))
-    }
-
-    /// Creates a model (`model` spec, `range` for continuous values).
-    pub fn create(
-        &self,
-        id: &str,
-        model: Option<&str>,
-        range: Option<[f64; 2]>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::create(id, model, range))
-    }
-
-    /// Removes a model.
-    pub fn remove(&self, id: &str) -> Result<WriteAck, ClientError> {
-        self.call(Ok(Call::remove(id)))
-    }
-
-    /// A model's parameters.
-    pub fn view(&self, id: &str) -> Result<ModelInfo, ClientError> {
-        self.call(Ok(Call::view(id)))
-    }
-
-    /// All models.
-    pub fn list(&self) -> Result<ListResponse, ClientError> {
-        self.call(Ok(Call::list()))
-    }
-
-    /// The models whose ids start with `prefix` (a robot's, a namespace's).
-    pub fn list_prefix(&self, prefix: &str) -> Result<ListResponse, ClientError> {
-        self.call(Ok(Call::list_prefix(prefix)))
-    }
-
-    /// Refits a model fitted on a whole series on its kept observations now.
-    pub fn refit(&self, id: &str) -> Result<RefitResponse, ClientError> {
-        self.call(Call::refit(id))
-    }
-
-    /// Every observation a model holds.
-    pub fn observations(&self, id: &str) -> Result<ObservationsResponse, ClientError> {
-        self.call(Ok(Call::observations(id)))
-    }
-
-    /// Adds binary observations, creating the model as `model` if it does not exist.
-    pub fn add(
-        &self,
-        id: &str,
-        times: &[f64],
-        states: &[bool],
-        model: Option<&str>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::add(id, times, states, model))
-    }
-
-    /// Adds observations with values.
-    pub fn add_values(
-        &self,
-        id: &str,
-        times: &[f64],
-        values: &[f64],
-        model: Option<&str>,
-    ) -> Result<WriteAck, ClientError> {
-        self.call(Call::add_values(id, times, values, model))
-    }
-
-    /// Adds observations of many models in one durable commit.
-    pub fn add_batches(&self, request: &ObservationsRequest) -> Result<WriteAck, ClientError> {
-        self.call(Call::add_batches(request))
-    }
-
-    /// `p(t)` at many times.
-    pub fn predict(
-        &self,
-        id: &str,
-        times: &[f64],
-        order: Option<usize>,
-    ) -> Result<PredictResponse, ClientError> {
-        self.call(Call::at_times("/v1/predict", id, times, order))
-    }
-
-    /// Entropies (bits) at many times.
-    pub fn entropy(
-        &self,
-        id: &str,
-        times: &[f64],
-        order: Option<usize>,
-    ) -> Result<PredictResponse, ClientError> {
-        self.call(Call::at_times("/v1/entropy", id, times, order))
-    }
-
-    /// `p(t)` of many models at one time.
-    pub fn forecast(&self, request: &ForecastRequest) -> Result<ForecastResponse, ClientError> {
-        self.call(Call::forecast(request))
-    }
-
-    /// Entropies of many models at one time.
-    pub fn forecast_entropy(
-        &self,
-        request: &ForecastRequest,
-    ) -> Result<ForecastResponse, ClientError> {
-        self.call(Call::forecast_entropy(request))
-    }
-
-    /// Errors per order on given data.
-    pub fn evaluate(&self, request: &EvaluateRequest) -> Result<EvaluateResponse, ClientError> {
-        self.call(Call::evaluate(request))
-    }
-
-    /// Anomalies in given data.
-    pub fn detect(&self, request: &DetectRequest) -> Result<DetectResponse, ClientError> {
-        self.call(Call::detect(request))
-    }
+    endpoints!();
 
     /// A raw request, for tests of hostile input: method, path, body bytes; returns status
     /// and body.

@@ -6,6 +6,75 @@ pub use http::{Method, StatusCode};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
+/// Every endpoint of the service once, as the methods of a client (`async` ones or blocking
+/// ones), each building its [`Call`] and handing it to the client's `call`: the two clients
+/// cannot offer different endpoints, arguments or documentation.
+macro_rules! endpoints {
+    ($($mode:ident)?) => {
+        endpoints! { @methods [$($mode)?]
+            /// `GET /v1/health`.
+            fn health() -> Health = Ok(Call::health());
+            /// Creates a model (`model` spec, `range` for continuous values).
+            fn create(id: &str, model: Option<&str>, range: Option<[f64; 2]>) -> WriteAck =
+                Call::create(id, model, range);
+            /// Removes a model.
+            fn remove(id: &str) -> WriteAck = Ok(Call::remove(id));
+            /// A model's parameters.
+            fn view(id: &str) -> ModelInfo = Ok(Call::view(id));
+            /// All models.
+            fn list() -> ListResponse = Ok(Call::list());
+            /// The models whose ids start with `prefix` (a robot's, a namespace's).
+            fn list_prefix(prefix: &str) -> ListResponse = Ok(Call::list_prefix(prefix));
+            /// Refits a model fitted on a whole series (`auto`, `fremen:auto`, ...) on its kept
+            /// observations now; answers once the fit is in use and durable.
+            fn refit(id: &str) -> RefitResponse = Call::refit(id);
+            /// Every observation a model holds.
+            fn observations(id: &str) -> ObservationsResponse = Ok(Call::observations(id));
+            /// Adds binary observations, creating the model as `model` if it does not exist.
+            fn add(id: &str, times: &[f64], states: &[bool], model: Option<&str>) -> WriteAck =
+                Call::add(id, times, states, model);
+            /// Adds observations with values.
+            fn add_values(id: &str, times: &[f64], values: &[f64], model: Option<&str>)
+                -> WriteAck = Call::add_values(id, times, values, model);
+            /// Adds observations of many models in one durable commit.
+            fn add_batches(request: &ObservationsRequest) -> WriteAck =
+                Call::add_batches(request);
+            /// `p(t)` at many times.
+            fn predict(id: &str, times: &[f64], order: Option<usize>) -> PredictResponse =
+                Call::at_times("/v1/predict", id, times, order);
+            /// Entropies (bits) at many times.
+            fn entropy(id: &str, times: &[f64], order: Option<usize>) -> PredictResponse =
+                Call::at_times("/v1/entropy", id, times, order);
+            /// `p(t)` of many models at one time.
+            fn forecast(request: &ForecastRequest) -> ForecastResponse = Call::forecast(request);
+            /// Entropies of many models at one time.
+            fn forecast_entropy(request: &ForecastRequest) -> ForecastResponse =
+                Call::forecast_entropy(request);
+            /// Errors per order on given data.
+            fn evaluate(request: &EvaluateRequest) -> EvaluateResponse = Call::evaluate(request);
+            /// Anomalies in given data.
+            fn detect(request: &DetectRequest) -> DetectResponse = Call::detect(request);
+        }
+    };
+    (@methods [async] $($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = $call:expr;)*) => {
+        $(
+            $(#[$doc])*
+            pub async fn $name(&self, $($arg: $ty),*) -> Result<$ret, ClientError> {
+                self.call($call).await
+            }
+        )*
+    };
+    (@methods [] $($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = $call:expr;)*) => {
+        $(
+            $(#[$doc])*
+            pub fn $name(&self, $($arg: $ty),*) -> Result<$ret, ClientError> {
+                self.call($call)
+            }
+        )*
+    };
+}
+pub(crate) use endpoints;
+
 use crate::api::*;
 
 /// The largest answer a client reads (256 MiB, about 5 million predicted values as JSON): a
