@@ -1,15 +1,15 @@
 //! `chronomap compress`: FFT FreMEn with the outlier set on a uniformly sampled binary series
 //! ([Krajník 2017] §III-B, §IV-A, §IV-C).
 
-use std::time::Instant;
-
 use anyhow::{Result, bail};
-use chronomap_core::TemporalModel;
-use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of, uniform_binary_samples};
+use chronomap_app::compress::{continue_with, ones_and_changes, select_order};
+use chronomap_core::fft::{FftFremenConfig, uniform_binary_samples};
 use chronomap_io::compression::CompressedSeries;
 use chronomap_io::write_any_model;
 use chronomap_models::AnyModel;
 use serde_json::json;
+
+pub use chronomap_app::compress::{Compression, compress};
 
 use super::model::fft_components_json;
 use super::{data_error, fft_components_table, read_series, source_name};
@@ -17,28 +17,6 @@ use crate::cli::{CompressArgs, OrderArg};
 use crate::format::{duration, time};
 use crate::outln;
 use crate::output::print_json;
-
-/// A compressed series and how long the model took to build.
-pub struct Compression {
-    pub series: CompressedSeries,
-    pub build_ms: f64,
-}
-
-/// Builds the FFT FreMEn model of `samples`, timing the build, and measures its files.
-pub fn compress(
-    start: f64,
-    step: f64,
-    samples: &[u8],
-    config: FftFremenConfig,
-) -> Result<Compression> {
-    let clock = Instant::now();
-    let model = FftFremen::build(start, step, samples, config)?;
-    let build_ms = clock.elapsed().as_secs_f64() * 1e3;
-    Ok(Compression {
-        series: CompressedSeries::measure(model, samples)?,
-        build_ms,
-    })
-}
 
 pub fn run(args: &CompressArgs) -> Result<()> {
     let series = read_series(&args.series)?;
@@ -48,11 +26,7 @@ pub fn run(args: &CompressArgs) -> Result<()> {
     let mut order_errors = None;
     let order = match args.order {
         OrderArg::Auto => {
-            let config = FftFremenConfig {
-                order: 0,
-                shortest_period_secs,
-            };
-            let (best, errors) = FftFremen::select_order(&samples, step, 0.25, 20, config)?;
+            let (best, errors) = select_order(&samples, step, shortest_period_secs)?;
             if !args.json {
                 outln!(
                     "order {best} chosen by prediction error on the last 25 % (eq. 15; by order {})",
@@ -73,19 +47,13 @@ pub fn run(args: &CompressArgs) -> Result<()> {
         build_ms,
     } = compress(start, step, &samples, config)?;
     let m = &report.model;
-    let ones = samples.iter().filter(|&&s| s == 1).count();
-    let changes = edges_of(&samples)?.len();
+    let (ones, changes) = ones_and_changes(&samples)?;
     let mut model = report.model.clone();
     let mut test_result = None;
     if let Some(test) = &args.test {
         let test = read_series(test)?;
-        let before = model.len();
-        model.observe(&test.times, &test.values)?;
-        test_result = Some((
-            test.len(),
-            model.error_between(before, model.len()),
-            model.outlier_toggles().len(),
-        ));
+        let c = continue_with(&mut model, &test)?;
+        test_result = Some((c.samples, c.prediction_error, c.outlier_toggles));
     }
     if args.json {
         print_json(&json!({

@@ -6,19 +6,19 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, bail};
+use chronomap_app::topo::{self, fit_edge_models};
+use chronomap_core::progress::NoProgress;
 use chronomap_io::{
     read_edge_directory, read_edge_models, write_edge_directory, write_edge_models,
     write_route_geojson, write_tmap2,
 };
 use chronomap_plot::{Heatmap, render_heatmap_png};
-use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels};
+use chronomap_topo::edges::{EdgeEvaluation, EdgeModels};
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
 use chronomap_topo::plan::{PlanAt, Task, plan_full};
-use chronomap_topo::report::{
-    Protocol, WeekTable, fit_summary, letters, merge_maps, per_edge_scores, success_route,
-};
+use chronomap_topo::report::{Protocol, WeekTable, fit_summary, letters, success_route};
 use serde_json::{Value, json};
 
 use crate::cli::{
@@ -37,25 +37,6 @@ impl From<ProtocolArg> for Protocol {
     }
 }
 
-/// Fits edge models, naming the edge file whose attempts are at fault.
-fn fit_models(
-    map: TopoMap,
-    attempts: &[Vec<Attempt>],
-    config: EdgeModelConfig,
-    dir: &Path,
-) -> Result<EdgeModels> {
-    EdgeModels::fit(map, attempts, config).map_err(|(edge, error)| {
-        let at = error
-            .observation_index()
-            .map(|i| format!(": attempt {}", i + 1))
-            .unwrap_or_default();
-        anyhow!(
-            "{}{at}: {error}",
-            dir.join(format!("{edge}.data")).display()
-        )
-    })
-}
-
 fn load(path: &Path) -> Result<EdgeModels> {
     read_edge_models(path).context("cannot load the edge models")
 }
@@ -63,7 +44,7 @@ fn load(path: &Path) -> Result<EdgeModels> {
 pub fn fit(args: &TopoFitArgs) -> Result<()> {
     let stats = read_edge_directory(&args.edges)?;
     let started = Instant::now();
-    let models = fit_models(
+    let models = fit_edge_models(
         stats.map.clone(),
         &stats.attempts,
         args.model.config(),
@@ -199,33 +180,27 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
         [&args.train, &args.test],
         ": score on later attempts",
     )?;
-    let train = read_edge_directory(&args.train)?;
-    let test = read_edge_directory(&args.test)?;
-    if test.total_attempts() == 0 {
-        bail!("{}: no test attempts", args.test.display());
-    }
-    let train_total = train.total_attempts();
-    let (map, train_attempts, test_attempts) =
-        merge_maps(train.map, train.attempts, &test.map, &test.attempts)?;
-    let models = fit_models(map, &train_attempts, args.model.config(), &args.train)?;
-    let online = Protocol::Online.evaluate(&models, &test_attempts)?;
-    let frozen = Protocol::Frozen.evaluate(&models, &test_attempts)?;
     let protocol = Protocol::from(args.protocol);
-    let chosen = match protocol {
-        Protocol::Online => &online,
-        Protocol::Frozen => &frozen,
-    };
-    let per_edge = if args.per_edge {
-        per_edge_scores(
-            &models,
-            &train_attempts,
-            &test_attempts,
-            protocol,
-            &ProgressBar::new(),
-        )?
-    } else {
-        Vec::new()
-    };
+    // A bar only for the edges scored one by one.
+    let bar = args.per_edge.then(ProgressBar::new);
+    let evaluation = topo::evaluate(
+        &args.train,
+        &args.test,
+        args.model.config(),
+        args.per_edge.then_some(protocol),
+        match &bar {
+            Some(bar) => bar,
+            None => &NoProgress,
+        },
+    )?;
+    let topo::Evaluation {
+        models,
+        train_attempts: train_total,
+        online,
+        frozen,
+        per_edge,
+    } = &evaluation;
+    let chosen = evaluation.by(protocol);
     let edge_id = |e: usize| models.map().edges()[e].id.clone();
     if args.json {
         let mut report = json!({
@@ -238,8 +213,8 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
             "protocol": protocol.name(),
             "train_attempts": train_total,
             "edges": models.map().edges().len(),
-            "online": score_json(&online),
-            "frozen": score_json(&frozen),
+            "online": score_json(online),
+            "frozen": score_json(frozen),
         });
         if args.per_edge {
             report["per_edge"] = per_edge
@@ -275,8 +250,8 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
     let table = score_table(
         "static MSE (s²)",
         [
-            (label(Protocol::Online), &online),
-            (label(Protocol::Frozen), &frozen),
+            (label(Protocol::Online), online),
+            (label(Protocol::Frozen), frozen),
         ],
     );
     outln!("{}", table.render())?;
@@ -286,7 +261,7 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
     )?;
     if args.per_edge {
         let mut table = Table::new(["edge", "train", "test", "Brier", "static"]);
-        for s in &per_edge {
+        for s in per_edge {
             table.row([
                 edge_id(s.edge),
                 s.train_attempts.to_string(),

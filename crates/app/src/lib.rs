@@ -11,6 +11,8 @@
 #![deny(missing_docs)]
 
 pub mod bt;
+pub mod compress;
 pub mod laser_log;
 pub mod lidar_study;
 pub mod open;
+pub mod topo;
