@@ -4,17 +4,14 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, bail};
+use chronomap_app::events::{
+    Experiment, ExperimentResult, HypertimeFit, fit_hypertime, read_test_events,
+    read_training_events,
+};
 use chronomap_core::num::fmt_number;
-use chronomap_hypertime::events::SpatialGrid;
 use chronomap_hypertime::events::density::{Extent, hourly_density};
-use chronomap_hypertime::events::{
-    Event, EventModelBuilder, EventScore, TrainingData, default_builders, run_experiment_reporting,
-};
-use chronomap_hypertime::hypertime::events::{
-    EventModelConfig, HypertimeEvents, HypertimeEventsBuilder,
-};
-use chronomap_io::{read_event_files, read_events};
+use chronomap_hypertime::events::{Event, EventScore, SpatialGrid};
 use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::{Value, json};
 
@@ -22,19 +19,6 @@ use crate::cli::{EventsEvalArgs, HypertimeArgs};
 use crate::format::{Table, duration, time};
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
-
-/// The models of the tables, in order: static map, global mean, `Hist_n`, FreMEn per cell.
-///
-/// Extension point: a new event model (such as the Warped Hypertime event model of [Krajník 2019])
-/// is one more [`EventModelBuilder`] pushed here; the experiment, the tables and the JSON pick
-/// it up. Builders choose their parameters on the training data only.
-fn model_builders() -> Vec<Box<dyn EventModelBuilder>> {
-    let mut builders = default_builders();
-    builders.push(Box::new(HypertimeEventsBuilder::new(
-        EventModelConfig::default(),
-    )));
-    builders
-}
 
 fn file_list(paths: &[PathBuf]) -> String {
     paths
@@ -46,16 +30,13 @@ fn file_list(paths: &[PathBuf]) -> String {
 
 /// The training events of `files` (`--train`) before `before` (`--train-before`), with the
 /// list of the files' names; an error saying there are no `what` if none is left.
-fn read_training_events(
+fn read_training(
     files: &[PathBuf],
     before: Option<f64>,
     what: &str,
 ) -> Result<(String, Vec<Event>)> {
     let names = file_list(files);
-    let mut events = read_event_files(files).context("cannot read the training events")?;
-    if let Some(before) = before {
-        events.retain(|e| e.t < before);
-    }
+    let events = read_training_events(files, before)?;
     if events.is_empty() {
         bail!("{names}: no {what} (before --train-before?)");
     }
@@ -70,38 +51,24 @@ fn bound(word: &str, t: Option<f64>) -> String {
 
 pub fn eval(args: &EventsEvalArgs) -> Result<()> {
     let (train_names, train) =
-        read_training_events(&args.train, args.train_before, "training detections")?;
+        read_training(&args.train, args.train_before, "training detections")?;
     let test_name = args.test.display().to_string();
-    let mut test = read_events(&args.test).context("cannot read the test events")?;
-    if let Some(from) = args.test_from {
-        test.retain(|e| e.t >= from);
-    }
+    let test = read_test_events(&args.test, args.test_from)?;
     if test.is_empty() {
         bail!("{test_name}: no test detections (at or after --test-from?)");
     }
-    let last_train = train[train.len() - 1].t;
-    if test[0].t <= last_train {
-        bail!(
-            "{test_name}: the test starts at {} but the training data end at {}: a test must \
-             come after its training data",
-            time(test[0].t),
-            time(last_train)
-        );
-    }
-    let training =
-        TrainingData::from_events(&train, args.gap).map_err(|e| anyhow!("{train_names}: {e}"))?;
-    let rows = {
+    let experiment = Experiment {
+        train_name: &train_names,
+        train: &train,
+        test_name: &test_name,
+        test: &test,
+        gap_secs: args.gap,
+        cells: &args.cells,
+        bins: &args.bins,
+    };
+    let ExperimentResult { training, rows } = {
         let bar = ProgressBar::new();
-        run_experiment_reporting(
-            &training,
-            &test,
-            &args.cells,
-            &args.bins,
-            &model_builders(),
-            chronomap_core::Parallelism::Rayon(0),
-            &bar,
-        )
-        .map_err(|e| anyhow!("{test_name}: {e}"))?
+        experiment.run(chronomap_core::Parallelism::Rayon(0), &bar)?
     };
 
     if args.json {
@@ -225,20 +192,15 @@ fn score_json(r: &EventScore) -> Value {
 
 /// `chronomap hypertime`: fit the Warped Hypertime event intensity and draw it.
 pub fn hypertime(args: &HypertimeArgs) -> Result<()> {
-    let (names, events) = read_training_events(&args.train, args.train_before, "detections")?;
-    let train =
-        TrainingData::from_events(&events, args.gap).map_err(|e| anyhow!("{names}: {e}"))?;
-    let config = EventModelConfig {
-        components: args.components,
-        ..EventModelConfig::default()
+    let (names, events) = read_training(&args.train, args.train_before, "detections")?;
+    let HypertimeFit {
+        training: train,
+        model,
+        seconds,
+    } = {
+        let bar = ProgressBar::new();
+        fit_hypertime(&names, &events, args.gap, args.components, &bar)?
     };
-    let started = std::time::Instant::now();
-    let model = {
-        let _bar = ProgressBar::stage("fitting Warped Hypertime", 0);
-        HypertimeEvents::fit(&train, &config)
-            .with_context(|| format!("cannot fit the hypertime model to {names}"))?
-    };
-    let seconds = started.elapsed().as_secs_f64();
     let periods: Vec<String> = model.periods().iter().map(|&p| duration(p)).collect();
     let observed: Vec<Event> = train.observed_events().copied().collect();
     if observed.is_empty() {

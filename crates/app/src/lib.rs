@@ -12,6 +12,7 @@
 
 pub mod bt;
 pub mod compress;
+pub mod events;
 pub mod laser_log;
 pub mod lidar_study;
 pub mod open;
