@@ -7,11 +7,12 @@ use std::time::Instant;
 use anyhow::{Result, anyhow};
 use chronomap_activity::grids::{GridError, RegionGrid};
 use chronomap_activity::{CopaConfig, CopaMap, LogAdditive, LogAdditiveConfig, RateScale};
+use chronomap_app::activity::open_activity_model;
 use chronomap_core::Parallelism;
 use chronomap_core::num::fmt_number;
 use chronomap_io::navmap::{LoadSemantics, load_map};
 use chronomap_io::rate_predictions::{RatePrediction, write_rate_predictions};
-use chronomap_io::{read_rate_samples, write_copa_map};
+use chronomap_io::{LOG_ADDITIVE_KIND, read_rate_samples, write_copa_map};
 use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::json;
 
@@ -25,9 +26,6 @@ const MAX_PREDICTIONS: usize = 20_000_000;
 
 // A map cell blocks a predicted cell when it is at least this occupied (percent).
 use chronomap_spatial::occupancy::WALL_PERCENT;
-
-/// The kind of Log-AM model files (`chronomap activity fit --model log-additive`).
-pub(super) const LOG_ADDITIVE_KIND: &str = "log-additive";
 
 pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     let name = args.train.display().to_string();
@@ -134,47 +132,6 @@ fn fit_log_additive(
     Ok(())
 }
 
-/// A model `activity predict` reads: CoPA-Map or Log-AM.
-enum SavedModel {
-    Copa(Box<CopaMap>),
-    LogAdditive(LogAdditive),
-}
-
-impl SavedModel {
-    fn read(path: &std::path::Path) -> Result<SavedModel> {
-        use chronomap_io::model_file::ModelFileErrorKind;
-        match chronomap_io::read_copa_map(path) {
-            Ok(m) => Ok(SavedModel::Copa(Box::new(m))),
-            Err(e) if matches!(e.kind(), ModelFileErrorKind::Decode { kind, .. } if kind == LOG_ADDITIVE_KIND) =>
-            {
-                let (_, model): (String, LogAdditive) = chronomap_io::read_model_file(path)?;
-                model
-                    .check()
-                    .map_err(|e| anyhow!("{}: an inconsistent Log-AM: {e}", path.display()))?;
-                Ok(SavedModel::LogAdditive(model))
-            }
-            Err(e) => Err(e.into()),
-        }
-    }
-
-    fn domain(&self) -> [f64; 4] {
-        match self {
-            SavedModel::Copa(m) => m.domain(),
-            SavedModel::LogAdditive(m) => m.domain(),
-        }
-    }
-
-    fn predict_with_std(&self, points: &[([f64; 2], f64)]) -> Result<(Vec<f64>, Vec<f64>)> {
-        match self {
-            SavedModel::Copa(m) => Ok(m.predict_with_std(points, Parallelism::Rayon(0))?),
-            SavedModel::LogAdditive(m) => Ok(points
-                .iter()
-                .map(|&(x, t)| m.predict_with_std(x, t))
-                .unzip()),
-        }
-    }
-}
-
 pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     if let Some(t) = args.times.iter().find(|t| !t.is_finite()) {
         return Err(usage(format!("--t {t}: times must be finite")));
@@ -192,7 +149,7 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
         None => None,
     };
     let model_name = args.model.display().to_string();
-    let model = SavedModel::read(&args.model)?;
+    let model = open_activity_model(&args.model)?;
     // By default the training square, widened from the cell centres to the cell edges.
     let grid = match region {
         Some(grid) => grid,
@@ -224,7 +181,7 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
     for &t in &args.times {
         let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
         let (mean, std) = model
-            .predict_with_std(&points)
+            .predict(&points, Parallelism::Rayon(0))
             .map_err(|e| anyhow!("{model_name}: {e}"))?;
         for (i, &x) in centres.iter().enumerate() {
             if !blocked[i] {

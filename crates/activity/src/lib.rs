@@ -36,7 +36,8 @@
 //! [`CellMean`] ("ML"), the per-cell Poisson-spectral FreMEn model [`FrAam`] ("Fr-AAM") and the
 //! log-Gaussian Cox process [`GpHom`] ("GP-Hom", in [`gphom`]); Warped Hypertime ([Krajník 2019]) is
 //! [`Whyte`] ("WHyTe", in [`whyte`]): a mixture of people over warped space-time divided by one
-//! of observation. CoPA-Map is [`CopaMap`]. Beyond the dissertation, [`LogAdditive`] ("Log-AM",
+//! of observation. CoPA-Map is [`CopaMap`]; [`AnyActivityModel`] is whichever of CoPA-Map and
+//! Log-AM a model file holds. Beyond the dissertation, [`LogAdditive`] ("Log-AM",
 //! in [`lograte`]) models ln(1 + rate) as a level per cell plus a profile of the day and a shrunken
 //! interaction of the two.
 //!
@@ -54,6 +55,7 @@
 
 pub mod gp;
 
+pub mod any;
 pub mod atc;
 pub mod baselines;
 pub mod copa;
@@ -75,6 +77,7 @@ use std::collections::HashMap;
 
 use thiserror::Error;
 
+pub use any::AnyActivityModel;
 pub use baselines::{
     Baseline, BaselineConfig, BaselineSelection, CellLogMean, CellMean, FrAam, FrAamCell,
     FrAamComponent, FrAamConfig, GlobalMean, select_baseline,

@@ -10,6 +10,7 @@
 //! depends on the domains and on `chronomap-io`, and nothing below it depends on it.
 #![deny(missing_docs)]
 
+pub mod activity;
 pub mod bt;
 pub mod compress;
 pub mod events;

@@ -295,6 +295,9 @@ pub fn write_rate_samples(path: impl AsRef<Path>, samples: &RateSamples) -> Resu
 /// The kind of CoPA-Map model files (`chronomap activity fit -o`).
 pub const COPA_MAP_KIND: &str = "copa-map";
 
+/// The kind of Log-AM model files (`chronomap activity fit --model log-additive -o`).
+pub const LOG_ADDITIVE_KIND: &str = "log-additive";
+
 /// Writes a fitted CoPA-Map as a model file of kind [`COPA_MAP_KIND`], atomically.
 ///
 /// # Errors

@@ -146,9 +146,9 @@ mod yaml;
 
 #[cfg(feature = "activity")]
 pub use activity::{
-    COPA_MAP_KIND, RateGrid, encode_rate_samples, format_rate_grid, read_copa_map, read_rate_grid,
-    read_rate_grid_from, read_rate_samples, read_rate_samples_from, write_copa_map,
-    write_rate_grid, write_rate_samples,
+    COPA_MAP_KIND, LOG_ADDITIVE_KIND, RateGrid, encode_rate_samples, format_rate_grid,
+    read_copa_map, read_rate_grid, read_rate_grid_from, read_rate_samples, read_rate_samples_from,
+    write_copa_map, write_rate_grid, write_rate_samples,
 };
 #[cfg(feature = "bt")]
 pub use bt_log::{BtLogError, BtLogErrorKind, read_btlog, write_btlog};
