@@ -2,17 +2,15 @@
 //! The bag is read by `chronomap-rosbag`; what it yields goes through the same code as the
 //! text files of `fit` and `grid build`, so both give the same bits.
 
-use std::collections::HashMap;
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
-use chronomap_activity::truth::TrackPoint;
+use chronomap_app::ingest::{People, events_of, read_people, track_rows};
 use chronomap_core::TimeSeries;
-use chronomap_hypertime::events::Event;
-use chronomap_io::tracks::{TrackRow, write_tracks};
+use chronomap_io::tracks::write_tracks;
 use chronomap_io::{write_data_file, write_events};
-use chronomap_rosbag::records::{self, encode_poses, encode_scans};
-use chronomap_rosbag::{Bag, BagSummary, DefinitionSource, Detection, RecordKind, TimeSource};
+use chronomap_rosbag::records::{encode_poses, encode_scans};
+use chronomap_rosbag::{Bag, BagSummary, DefinitionSource, RecordKind, TimeSource};
 use serde_json::{Value, json};
 
 use super::grid;
@@ -80,28 +78,24 @@ pub fn run(args: &IngestArgs) -> Result<()> {
             json: args.json,
         }),
         RecordKind::People => {
-            let mut detections = Vec::new();
-            let mut messages = 0;
-            bag.for_each_record(topic, kind, time, &ProgressBar::new(), |_, t, v| {
-                messages += 1;
-                detections.extend(records::detections(v, t)?);
-                Ok(())
-            })?;
+            let People {
+                messages,
+                detections,
+            } = read_people(&bag, topic, time, &ProgressBar::new())?;
             let written = match args.people {
                 PeopleFormat::Events => {
-                    let events: Vec<Event> = detections
-                        .iter()
-                        .map(|d| Event {
-                            t: d.time,
-                            x: d.x,
-                            y: d.y,
-                        })
-                        .collect();
-                    write_events(output, &events)?;
+                    write_events(output, &events_of(&detections))?;
                     "events"
                 }
                 PeopleFormat::Tracks => {
-                    write_tracks(output, &track_rows(&bag, topic, &detections)?)?;
+                    let rows = track_rows(&detections).map_err(|_| {
+                        usage(format!(
+                            "--people tracks: {} {topic} has poses without identities \
+                             (geometry_msgs/msg/PoseArray); write events instead",
+                            bag.name()
+                        ))
+                    })?;
+                    write_tracks(output, &rows)?;
                     "tracks"
                 }
             };
@@ -176,43 +170,6 @@ fn ingest_states(bag: &Bag, topic: &str, args: &IngestArgs, output: &Path) -> Re
         },
     };
     fit_and_save(&training, model, &args.fit, output, args.json)
-}
-
-/// Track rows of people detections: ids from the names (a name that is a whole number is
-/// that id, others are numbered from 1 in order of first appearance), speed and heading from
-/// the velocity.
-fn track_rows(bag: &Bag, topic: &str, detections: &[Detection]) -> Result<Vec<TrackRow>> {
-    let mut ids: HashMap<String, u64> = HashMap::new();
-    let mut next = 1u64;
-    detections
-        .iter()
-        .map(|d| {
-            let (Some(name), Some([vx, vy])) = (&d.person, d.velocity) else {
-                return Err(usage(format!(
-                    "--people tracks: {} {topic} has poses without identities \
-                     (geometry_msgs/msg/PoseArray); write events instead",
-                    bag.name()
-                )));
-            };
-            let person = match name.parse::<u64>() {
-                Ok(id) => id,
-                Err(_) => *ids.entry(name.clone()).or_insert_with(|| {
-                    next += 1;
-                    next - 1
-                }),
-            };
-            Ok(TrackRow {
-                point: TrackPoint {
-                    t: d.time,
-                    person,
-                    x: d.x,
-                    y: d.y,
-                },
-                speed: vx.hypot(vy),
-                heading: vy.atan2(vx),
-            })
-        })
-        .collect()
 }
 
 fn time_name(time: TimeArg) -> &'static str {
