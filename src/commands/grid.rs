@@ -1,29 +1,19 @@
 //! `chronomap grid build | predict | stats | plot`: spatio-temporal occupancy grids and the
 //! time-specific maps they predict ([Krajník 2017] §VI, §VIII).
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
-
-use anyhow::{Context, Result, anyhow, ensure};
+use anyhow::{Context, Result};
+use chronomap_app::grid::{
+    BuildSettings, BuiltGrid, ErrorTable, FrameSource, build_grid, error_table,
+};
+use chronomap_core::Parallelism;
 use chronomap_core::metrics::compression_ratio;
-use chronomap_core::progress::Progress;
-use chronomap_core::{FremenConfig, Parallelism};
-use chronomap_grid::build::{
-    GridBuild, GridBuilder, build_from_frames, build_partitioned, holdout_splits, occupancy_percent,
-};
-use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
-use chronomap_grid::{
-    AnyGrid, FittedGrid, FremenGrid, GridConfig, GridGeometry, GridStore, OrderChoice,
-};
+use chronomap_grid::report::{RowOrders, project_layers};
+use chronomap_grid::{AnyGrid, FittedGrid, FremenGrid, GridGeometry, GridStore};
 use chronomap_io::navmap::{LoadSemantics, MapMode, SaveOptions, save_map};
 use chronomap_io::output::write_output;
-use chronomap_io::{
-    encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file, read_pairs,
-};
+use chronomap_io::{encode_grid, read_grid_file};
 use chronomap_plot::{MapImage, render_maps_png};
-use chronomap_rosbag::{Bag, MapFrame};
 use chronomap_spatial::OccupancyMap;
-use chronomap_synth::office_grid::office;
 use serde_json::{Value, json};
 
 use crate::cli::{
@@ -34,95 +24,54 @@ use crate::format::{Table, duration, time};
 use crate::outln;
 use crate::output::{ProgressBar, closed_pipe, print_json, usage};
 
-/// Largest order `auto` and the error table consider.
-const MAX_ORDER: usize = 5;
-
-/// A built grid, where it came from and how long it took.
-struct Built {
-    build: GridBuild,
-    /// The first held-back frame.
-    split: u64,
-    seconds: f64,
-    source: String,
-}
-
-impl Built {
-    /// `build`, held back from the second of `splits`, built since `started` from `source`.
-    fn new(build: GridBuild, splits: [u64; 2], started: Instant, source: String) -> Self {
-        Self {
-            build,
-            split: splits[1],
-            seconds: started.elapsed().as_secs_f64(),
-            source,
-        }
-    }
-}
-
-/// What every source of frames builds with: the flags, the grid's configuration, whether to
-/// snapshot the grid at the hold-out splits (for the error table) and where to show progress.
-struct BuildJob<'a> {
-    args: &'a GridBuildArgs,
-    config: &'a GridConfig,
-    snapshots: bool,
-    progress: &'a dyn Progress,
-}
-
-impl BuildJob<'_> {
-    /// The frames to snapshot the grid after: `splits`, or none without `snapshots`.
-    fn snapshot_at<'s>(&self, splits: &'s [u64; 2]) -> &'s [u64] {
-        if self.snapshots { &splits[..] } else { &[] }
-    }
-
-    /// The grid of `frames` frames that `next` observes in order, held back at `splits`.
-    fn read_frames(
-        &self,
-        geometry: GridGeometry,
-        frames: usize,
-        splits: &[u64; 2],
-        next: impl FnMut(usize, &mut FremenGrid) -> Result<()>,
-    ) -> Result<GridBuild> {
-        let at = self.snapshot_at(splits);
-        build_from_frames(geometry, self.config, frames, at, self.progress, next)
-    }
-}
-
 pub fn build(args: &GridBuildArgs) -> Result<()> {
-    let needs_history =
-        args.errors || args.store == StoreArg::Lossless || args.order == OrderArg::Auto;
-    let fremen = FremenConfig {
+    let settings = BuildSettings {
         periods: args.periods.clone(),
         order: match args.order {
-            OrderArg::Fixed(k) => k,
-            OrderArg::Auto => 2,
+            OrderArg::Fixed(k) => Some(k),
+            OrderArg::Auto => None,
         },
-        ..FremenConfig::default()
+        holdout: args.holdout,
+        errors: args.errors,
+        store: match args.store {
+            StoreArg::State => GridStore::State,
+            StoreArg::Lossy => GridStore::Lossy,
+            StoreArg::Lossless => GridStore::Lossless,
+        },
     };
-    let config = GridConfig {
-        fremen,
-        keep_history: needs_history,
-    };
-    let built = {
-        let bar = ProgressBar::new();
-        let job = BuildJob {
-            args,
-            config: &config,
-            snapshots: needs_history,
-            progress: &bar,
-        };
-        if args.source.synthetic {
-            build_from_synthetic(&job)?
-        } else if let Some(list) = &args.source.frames {
-            build_from_map_list(list, &job)?
-        } else if let Some(bag) = &args.source.bag {
-            build_from_bag(bag, &job)?
-        } else {
-            build_from_cell_series(&args.source.cell_series, &job)?
+    let source = if args.source.synthetic {
+        FrameSource::Synthetic {
+            cells: args.cells,
+            days: args.days,
+            seed: args.seed,
+            threads: args.threads.map(|n| n as usize),
         }
+    } else if let Some(list) = &args.source.frames {
+        FrameSource::MapList {
+            list,
+            semantics: if args.ros1 {
+                LoadSemantics::Ros1
+            } else {
+                LoadSemantics::Nav2
+            },
+        }
+    } else if let Some(bag) = &args.source.bag {
+        FrameSource::Bag {
+            bag,
+            topic: args
+                .topic
+                .as_deref()
+                .ok_or_else(|| usage("--bag needs --topic"))?,
+            time: args.time.into(),
+        }
+    } else {
+        FrameSource::CellSeries(&args.source.cell_series)
     };
+    let built = build_grid(&source, &settings, &ProgressBar::new())?;
     let grid = &built.build.grid;
     let geometry = *grid.geometry();
     let span = grid.frame_span();
-    let observations = geometry.cells() as f64 * grid.frames() as f64;
+    let observations = built.observations();
     // A closed stdout must not keep the grid file from being written: reports before the
     // write are dropped once the pipe is closed, and the command ends after the write.
     let mut closed = false;
@@ -155,23 +104,9 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
             )?;
         }
     }
-    let choice = match args.order {
-        OrderArg::Fixed(k) => OrderChoice::Fixed(k),
-        OrderArg::Auto => {
-            let trained = built
-                .build
-                .snapshots
-                .last()
-                .context("no held-back snapshot")?;
-            OrderChoice::PerCell(grid.select_cell_orders(
-                trained,
-                MAX_ORDER,
-                Parallelism::Rayon(0),
-            )?)
-        }
-    };
+    let choice = built.orders(settings.order, Parallelism::Rayon(0))?;
     let errors = if args.errors {
-        let table = error_table(&built, observations)?;
+        let table = error_table(&built, Parallelism::Rayon(0), &ProgressBar::new())?;
         if !(args.json || closed) {
             closed |= closed_pipe(print_error_table(&built, &table))?;
         }
@@ -179,12 +114,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     } else {
         None
     };
-    let form = match args.store {
-        StoreArg::State => GridStore::State,
-        StoreArg::Lossy => GridStore::Lossy,
-        StoreArg::Lossless => GridStore::Lossless,
-    };
-    let file = AnyGrid::store(grid, form, choice, Parallelism::Rayon(0))?;
+    let file = AnyGrid::store(grid, settings.store, choice, Parallelism::Rayon(0))?;
     // The size of eq. (16) is what was written (a device or a pipe is written through and
     // has no size afterwards).
     let encoded = encode_grid(&file)?;
@@ -204,7 +134,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
             "seconds": built.seconds,
             "dynamic_cells": grid.dynamic_cells(),
             "memory_mb": grid.memory_bytes() as f64 / 1048576.0,
-            "errors": errors.map(|t| t.json(built.split, grid.frames())),
+            "errors": errors.map(|t| error_table_json(&t, built.split, grid.frames())),
             "output": args.output.display().to_string(),
             "kind": chronomap_io::grid_kind(&file),
             "bytes": bytes,
@@ -221,73 +151,29 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
     Ok(())
 }
 
-/// The rows of the error table of [Krajník 2017] §VI with the sizes of their files.
-struct ErrorTable {
-    rows: Vec<(OrderErrors, usize, usize)>,
-    observations: f64,
-    seconds: f64,
-}
-
-impl ErrorTable {
-    fn name(orders: RowOrders) -> String {
-        match orders {
-            RowOrders::Fixed(0) => "static (order 0)".to_string(),
-            RowOrders::Fixed(k) => format!("FreMEn order {k}"),
-            RowOrders::PerCell => "FreMEn auto (per cell)".to_string(),
-        }
-    }
-
-    fn json(&self, split: u64, frames: u64) -> Value {
-        json!({
-            "changed_cells": self.rows.last().map(|r| r.0.estimation.changed_cells),
-            "split": split,
-            "frames": frames,
-            "rows": self.rows.iter().map(|(r, lossy, lossless)| json!({
-                "model": Self::name(r.orders),
-                "order": match r.orders {
-                    RowOrders::Fixed(k) => json!(k),
-                    RowOrders::PerCell => json!("auto"),
-                },
-                "estimation_error": r.estimation.mean_cell_error,
-                "prediction_error": r.prediction.mean_cell_error,
-                "lossy_bytes": lossy,
-                "lossy_ratio": compression_ratio(self.observations, *lossy),
-                "lossless_bytes": lossless,
-                "lossless_ratio": compression_ratio(self.observations, *lossless),
-            })).collect::<Vec<_>>(),
-        })
-    }
-}
-
-/// Estimation and prediction errors for static, orders 1..5 and per-cell auto, and the sizes
-/// of their lossy and lossless files.
-fn error_table(built: &Built, observations: f64) -> Result<ErrorTable> {
-    let grid = &built.build.grid;
-    let [inner, trained] = &built.build.snapshots[..] else {
-        return Err(anyhow!("the error report needs two held-back snapshots"));
-    };
-    let started = Instant::now();
-    let bar = ProgressBar::new();
-    let rows = order_errors(grid, inner, trained, MAX_ORDER, Parallelism::Rayon(0), &bar)?;
-    bar.stage("file sizes", rows.len() as u64);
-    let rows = rows
-        .into_iter()
-        .map(|r| {
-            let lossless = grid.lossless(r.final_orders.clone(), Parallelism::Rayon(0))?;
-            let lossy = encode_grid(&AnyGrid::Lossy(Box::new(r.fitted.clone())))?.len();
-            let lossless = encode_grid(&AnyGrid::Lossless(Box::new(lossless)))?.len();
-            bar.advance(1);
-            Ok((r, lossy, lossless))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(ErrorTable {
-        rows,
-        observations,
-        seconds: started.elapsed().as_secs_f64(),
+/// The error table of [Krajník 2017] §VI as JSON.
+fn error_table_json(table: &ErrorTable, split: u64, frames: u64) -> Value {
+    json!({
+        "changed_cells": table.changed_cells(),
+        "split": split,
+        "frames": frames,
+        "rows": table.rows.iter().map(|r| json!({
+            "model": ErrorTable::name(r.errors.orders),
+            "order": match r.errors.orders {
+                RowOrders::Fixed(k) => json!(k),
+                RowOrders::PerCell => json!("auto"),
+            },
+            "estimation_error": r.errors.estimation.mean_cell_error,
+            "prediction_error": r.errors.prediction.mean_cell_error,
+            "lossy_bytes": r.lossy_bytes,
+            "lossy_ratio": table.ratio(r.lossy_bytes),
+            "lossless_bytes": r.lossless_bytes,
+            "lossless_ratio": table.ratio(r.lossless_bytes),
+        })).collect::<Vec<_>>(),
     })
 }
 
-fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
+fn print_error_table(built: &BuiltGrid, errors: &ErrorTable) -> Result<()> {
     let (split, frames) = (built.split, built.build.grid.frames());
     let mut table = Table::new([
         "model",
@@ -298,21 +184,18 @@ fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
         "lossless bytes",
         "lossless ratio",
     ]);
-    for (r, lossy, lossless) in &errors.rows {
+    for r in &errors.rows {
         table.row([
-            ErrorTable::name(r.orders),
-            format!("{:.2} %", 100.0 * r.estimation.mean_cell_error),
-            format!("{:.2} %", 100.0 * r.prediction.mean_cell_error),
-            lossy.to_string(),
-            format!("1:{:.0}", compression_ratio(errors.observations, *lossy)),
-            lossless.to_string(),
-            format!("1:{:.0}", compression_ratio(errors.observations, *lossless)),
+            ErrorTable::name(r.errors.orders),
+            format!("{:.2} %", 100.0 * r.errors.estimation.mean_cell_error),
+            format!("{:.2} %", 100.0 * r.errors.prediction.mean_cell_error),
+            r.lossy_bytes.to_string(),
+            format!("1:{:.0}", errors.ratio(r.lossy_bytes)),
+            r.lossless_bytes.to_string(),
+            format!("1:{:.0}", errors.ratio(r.lossless_bytes)),
         ]);
     }
-    let changed = errors
-        .rows
-        .last()
-        .map_or(0, |r| r.0.estimation.changed_cells);
+    let changed = errors.changed_cells().unwrap_or(0);
     outln!(
         "\nErrors over the {changed} cells that changed ([Krajník 2017] §VI: mean over those cells of the fraction of \
          wrongly estimated states). Estimation: models built on all {frames} frames. Prediction: models \
@@ -325,166 +208,6 @@ fn print_error_table(built: &Built, errors: &ErrorTable) -> Result<()> {
         errors.seconds
     )?;
     Ok(())
-}
-
-fn build_from_synthetic(job: &BuildJob) -> Result<Built> {
-    let args = job.args;
-    let workload = office(args.cells, args.days, args.seed)?;
-    let geometry = workload.geometry()?;
-    let frames = workload.frames();
-    let splits = holdout_splits(frames, args.holdout);
-    let at = job.snapshot_at(&splits);
-    let started = Instant::now();
-    let build = |parallelism| {
-        build_partitioned(
-            &workload,
-            geometry,
-            job.config,
-            at,
-            parallelism,
-            job.progress,
-        )
-    };
-    let build = match args.threads {
-        None => build(Parallelism::Rayon(0))?,
-        Some(threads) => rayon::ThreadPoolBuilder::new()
-            .num_threads(threads as usize)
-            .build()?
-            .install(|| build(Parallelism::Rayon(0)))?,
-    };
-    let source = format!("synthetic office (seed {})", args.seed);
-    Ok(Built::new(build, splits, started, source))
-}
-
-fn build_from_map_list(list: &Path, job: &BuildJob) -> Result<Built> {
-    let started = Instant::now();
-    let args = job.args;
-    let name = list.display().to_string();
-    let frames = read_frame_list(list)?;
-    let semantics = if args.ros1 {
-        LoadSemantics::Ros1
-    } else {
-        LoadSemantics::Nav2
-    };
-    let first = load_frame_map(&name, &frames[0], semantics, None)?;
-    let geometry = GridGeometry::planar(
-        first.width,
-        first.height,
-        f64::from(first.resolution),
-        [first.origin[0], first.origin[1]],
-    )?;
-    let splits = holdout_splits(frames.len() as u64, args.holdout);
-    let build = job.read_frames(geometry, frames.len(), &splits, |f, grid| {
-        let frame = &frames[f];
-        let map = if f == 0 {
-            first.clone()
-        } else {
-            load_next_frame_map(&name, frame, semantics, &frames[0], &first)?
-        };
-        grid.observe_occupancy(frame.time, &map.data)
-            .with_context(|| format!("{name}:{}: {}", frame.line, frame.map.display()))
-    })?;
-    Ok(Built::new(build, splits, started, name))
-}
-
-/// Frames from the `nav_msgs/msg/OccupancyGrid` messages of a bag's topic, observed as
-/// `build_from_map_list` observes map files. With snapshots, a first pass counts the maps to
-/// place the hold-out splits.
-fn build_from_bag(bag: &Path, job: &BuildJob) -> Result<Built> {
-    let started = Instant::now();
-    let args = job.args;
-    let topic = args
-        .topic
-        .as_deref()
-        .ok_or_else(|| usage("--bag needs --topic"))?;
-    let bag = Bag::open(bag)?;
-    let count = if job.snapshots {
-        bag.count_messages(topic, job.progress)?
-    } else {
-        0
-    };
-    let splits = holdout_splits(count, args.holdout);
-    let at = job.snapshot_at(&splits);
-    let mut builder: Option<(GridBuilder, MapFrame)> = None;
-    bag.for_each_map(topic, args.time.into(), job.progress, |frame| {
-        let (builder, first) = match &mut builder {
-            Some(b) => b,
-            None => {
-                let geometry = GridGeometry::planar(
-                    frame.width,
-                    frame.height,
-                    f64::from(frame.resolution),
-                    [frame.origin[0], frame.origin[1]],
-                )
-                .map_err(|e| e.to_string())?;
-                let new = GridBuilder::new(geometry, job.config, at).map_err(|e| e.to_string())?;
-                let first = MapFrame {
-                    data: Vec::new(),
-                    ..frame.clone()
-                };
-                builder.insert((new, first))
-            }
-        };
-        if (frame.width, frame.height, frame.resolution, frame.origin)
-            != (first.width, first.height, first.resolution, first.origin)
-        {
-            return Err(format!(
-                "the map is {}x{} cells of {} m at {:?}, but the first map is {}x{} of {} m at {:?} \
-                 (a grid needs maps of one geometry)",
-                frame.width,
-                frame.height,
-                frame.resolution,
-                frame.origin,
-                first.width,
-                first.height,
-                first.resolution,
-                first.origin
-            ));
-        }
-        builder
-            .next_frame()
-            .observe_occupancy(frame.time, &frame.data)
-            .map_err(|e| e.to_string())
-    })?;
-    let Some((builder, _)) = builder else {
-        return Err(anyhow!("{}: topic {topic} has no map", bag.name()));
-    };
-    let frames = builder.frames();
-    let splits = if job.snapshots {
-        splits
-    } else {
-        holdout_splits(frames, args.holdout)
-    };
-    let source = format!("{} {topic}", bag.name());
-    Ok(Built::new(builder.finish(), splits, started, source))
-}
-
-fn build_from_cell_series(files: &[PathBuf], job: &BuildJob) -> Result<Built> {
-    let started = Instant::now();
-    let series = files
-        .iter()
-        .map(read_pairs)
-        .collect::<Result<Vec<_>, _>>()?;
-    let reference = &series[0];
-    for (s, file) in series.iter().zip(files).skip(1) {
-        ensure!(
-            s.times == reference.times,
-            "{}: its times differ from those of {} (every cell series must have the same times)",
-            file.display(),
-            files[0].display()
-        );
-    }
-    let geometry = GridGeometry::planar(series.len() as u32, 1, 1.0, [0.0, 0.0])?;
-    let splits = holdout_splits(reference.len() as u64, job.args.holdout);
-    let build = job.read_frames(geometry, reference.len(), &splits, |f, grid| {
-        let frame: Vec<i8> = series
-            .iter()
-            .map(|s| occupancy_percent(s.values[f]))
-            .collect();
-        Ok(grid.observe_occupancy(reference.times[f], &frame)?)
-    })?;
-    let source = format!("{} cell series", files.len());
-    Ok(Built::new(build, splits, started, source))
 }
 
 /// The compact model in a grid file (learning-state files are fitted with `order`).
