@@ -3,15 +3,14 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Context, Result};
+use chronomap_app::explore::{Behaviour, Dataset, behaviour as behaviour_of, load_world};
 use chronomap_core::Parallelism;
-use chronomap_core::num::count_of;
 use chronomap_explore::table::{
-    ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, SWEEP_SEEDS, busiest_locations,
-    exploration_sweep, explore_table, row_title,
+    ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, SWEEP_SEEDS, exploration_sweep,
+    explore_table, row_title,
 };
-use chronomap_explore::{ExploreConfig, MAX_STEPS_PER_DAY, Strategy, World, explore};
-use chronomap_io::datasets::{load_aruba, load_brayford};
+use chronomap_explore::{ExploreConfig, Strategy, World};
 use chronomap_plot::{Panel, Series, SeriesStyle, render_panels_png};
 use serde_json::json;
 
@@ -20,21 +19,16 @@ use crate::format::{Table, time};
 use crate::outln;
 use crate::output::{ProgressBar, print_json};
 
-fn load(args: &ExploreArgs) -> Result<World> {
-    let world = match args.dataset {
-        DatasetArg::Aruba => load_aruba(&args.data)?,
-        DatasetArg::Brayford => load_brayford(&args.data)?,
-    };
-    // Checked here to name the folder (e.g. a step too short to count the steps of a day).
-    world
-        .validate()
-        .map_err(|e| anyhow!("{}: {e}", args.data.display()))?;
-    Ok(world)
+fn dataset(arg: DatasetArg) -> Dataset {
+    match arg {
+        DatasetArg::Aruba => Dataset::Aruba,
+        DatasetArg::Brayford => Dataset::Brayford,
+    }
 }
 
 pub fn run(args: &ExploreArgs) -> Result<()> {
-    let world =
-        load(args).with_context(|| format!("cannot load the {:?} dataset", args.dataset))?;
+    let world = load_world(dataset(args.dataset), &args.data)
+        .with_context(|| format!("cannot load the {:?} dataset", args.dataset))?;
     let config = ExploreConfig {
         ratio: args.ratio,
         days: args.days,
@@ -166,28 +160,13 @@ pub fn sweep(world: &World, seed: u64, path: &Path) -> Result<()> {
 /// [Santos 2017] Fig. 6: the truth, the model, the expected information and the visits of three
 /// areas over the first four days of FreMEn with the Monte-Carlo strategy.
 pub fn behaviour(world: &World, ratio: f64, seed: u64, path: &Path) -> Result<()> {
-    let days = 4usize;
-    let config = ExploreConfig {
-        ratio,
-        days: Some(days),
-        seed,
-        trace_days: days,
-        ..ExploreConfig::default()
-    };
-    let result = explore(
-        world,
-        Strategy::MonteCarlo { iota: 0.01 },
-        &|| ModelKind::Fremen.make(),
-        &config,
-    )?;
+    let Behaviour {
+        result,
+        areas,
+        steps,
+    } = behaviour_of(world, ratio, seed)?;
     let trace = &result.trace;
-    // The three busiest areas (one state per location in these datasets).
-    let areas = busiest_locations(world, 3);
     let day = |t: f64| (t - world.start) / 86_400.0;
-    // `explore` above validated the world: at most MAX_STEPS_PER_DAY steps a day.
-    let per_day = count_of((86_400.0 / world.step_secs).trunc(), MAX_STEPS_PER_DAY)
-        .ok_or_else(|| anyhow!("step {} s: too many steps a day", world.step_secs))?;
-    let steps = days * per_day;
     let offset = |k: usize| 1.5 * (2 - k) as f64;
     // One series per area, stacked by its rank `k`.
     let per_area = |style: SeriesStyle, points: &dyn Fn(usize, usize) -> Vec<(f64, f64)>| {

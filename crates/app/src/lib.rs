@@ -14,6 +14,7 @@ pub mod activity;
 pub mod bt;
 pub mod compress;
 pub mod events;
+pub mod explore;
 pub mod ingest;
 pub mod grid;
 pub mod laser_log;
