@@ -5,10 +5,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use chronomap_activity::{
-    Baseline, BaselineConfig, CopaConfig, CopaMap, FrAamConfig, GpHomConfig, LogAdditiveConfig,
-    PeriodInitMode, RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score,
-    select_baseline,
+    Baseline, CopaConfig, CopaMap, PeriodInitMode, RatePredictor, RateSamples, RateScale, Scores,
+    score, select_baseline,
 };
+use chronomap_app::activity::baseline_config;
 use chronomap_core::Parallelism;
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
@@ -17,33 +17,6 @@ use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::format::Table;
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
-
-/// The baselines' settings from the command line: Fr-AAM's base period, and GP-Hom trained
-/// like CoPA-Map (day period, inducing points, iterations) on every core.
-pub(super) fn baseline_config(period: f64, inducing: usize, iterations: usize) -> BaselineConfig {
-    BaselineConfig {
-        fr_aam: FrAamConfig {
-            period,
-            ..FrAamConfig::default()
-        },
-        gp_hom: GpHomConfig {
-            inducing,
-            iterations,
-            day_period: period,
-            parallelism: Parallelism::Rayon(0),
-            ..GpHomConfig::default()
-        },
-        whyte: WhyteConfig {
-            day_period: period,
-            parallelism: Parallelism::Rayon(0),
-            ..WhyteConfig::default()
-        },
-        log_additive: LogAdditiveConfig {
-            period,
-            ..LogAdditiveConfig::default()
-        },
-    }
-}
 
 /// Fraction of the distinct training times that `--model auto` holds out to choose a model.
 const HOLDOUT: f64 = 0.2;
@@ -72,7 +45,12 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     if test.mean_rate() == 0.0 {
         bail!("{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined");
     }
-    let config = baseline_config(args.period, args.inducing, args.iterations);
+    let config = baseline_config(
+        args.period,
+        args.inducing,
+        args.iterations,
+        Parallelism::Rayon(0),
+    );
 
     // Every baseline, fitted once and timed; the top-level model reuses its fit.
     let progress = ProgressBar::new();

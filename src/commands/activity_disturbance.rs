@@ -5,21 +5,14 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result, anyhow, bail};
-use chronomap_activity::disturbance::{
-    Detections, DisturbanceConfig, PathCost, PlanningGrid, Scenario,
+use anyhow::{Result, bail};
+use chronomap_activity::disturbance::{Detections, PlanningGrid, Scenario};
+use chronomap_activity::disturbance_day::{Outcome, RATIOS, SLOT_SECS, reduction_percent};
+use chronomap_app::disturbance::{
+    Contender, DisturbanceFiles, DisturbanceSettings, DisturbanceStudy, map_obstacle_points,
+    run_disturbance,
 };
-use chronomap_activity::disturbance_day::{
-    Outcome, RATIOS, SLOT_SECS, reduction_percent, run_scenario, test_day,
-};
-use chronomap_activity::planning::training_grid;
-use chronomap_activity::{Baseline, CopaConfig, CopaMap, RatePredictor, RateSamples};
 use chronomap_core::Parallelism;
-use chronomap_core::progress::Progress;
-use chronomap_io::navmap::{LoadSemantics, load_map};
-use chronomap_io::read_rate_samples;
-use chronomap_io::scenarios::read_scenarios;
-use chronomap_io::tracks::read_track_files;
 use chronomap_plot::{
     Panel, PathMap, PathMapPath, Series, SeriesStyle, render_panels_png, render_path_maps_png,
 };
@@ -32,122 +25,56 @@ use crate::output::{ProgressBar, print_json};
 use crate::{out, outln};
 
 /// A map cell is an obstacle if its occupancy is at least this (percent) or unknown.
-pub(super) const OCCUPIED_PERCENT: i8 = 50;
-
-/// The baseline that always drives the shortest route.
-const OCCUPANCY: &str = "occupancy";
-
-/// One model of the comparison: its name and how it prices a cell (`None`: by length only).
-struct Contender {
-    name: String,
-    model: Option<Box<dyn RatePredictor + Send + Sync>>,
-    fit_seconds: f64,
-}
-
-impl Contender {
-    fn cost(&self) -> PathCost<'_> {
-        match &self.model {
-            None => PathCost::Length,
-            Some(model) => PathCost::Rate(model.as_ref()),
-        }
-    }
-}
+pub(super) use chronomap_app::disturbance::OCCUPIED_PERCENT;
 
 pub fn run(args: &ActivityDisturbanceArgs) -> Result<()> {
     let started = Instant::now();
     let train_name = args.train.display().to_string();
-    let train = read_rate_samples(&args.train).context("cannot read the training rates")?;
-    let events = read_track_files(&args.tracks).context("cannot read the tracks")?;
-    let detections = Detections::new(events).map_err(|e| anyhow!("the tracks: {e}"))?;
-    let map_name = args.map.display().to_string();
-    let map = load_map(&args.map, LoadSemantics::Nav2)?;
-    let obstacles = map
-        .planning_obstacles(OCCUPIED_PERCENT)
-        .map_err(|e| anyhow!("{map_name}: {e}"))?;
-    let mut scenarios = read_scenarios(&args.scenarios)?;
-    if args.scenario != "all" {
-        scenarios.retain(|s| s.name == args.scenario);
-        if scenarios.is_empty() {
-            bail!(
-                "{}: no scenario {:?} (use a name from the file or `all`)",
-                args.scenarios.display(),
-                args.scenario
-            );
-        }
-    }
-
-    // Where the robot may drive: the training grid's cells that are free on the map.
-    let grid = training_grid(&train, &obstacles, args.clearance)
-        .map_err(|e| anyhow!("{train_name}: {e}"))?;
-
-    // Every waypoint must be a free cell (checked before the models are fitted).
-    let waypoint_cells = scenarios
-        .iter()
-        .map(|scenario| {
-            scenario
-                .waypoints
-                .iter()
-                .map(|w| {
-                    grid.waypoint(w.at).map_err(|e| {
-                        anyhow!("scenario {:?}, waypoint {}: {e}", scenario.name, w.label)
-                    })
-                })
-                .collect::<Result<Vec<usize>>>()
-        })
-        .collect::<Result<Vec<_>>>()?;
-
-    // When: four patrols per hour, each slot wholly inside the tracked time.
-    let day = test_day(&detections, &train, args.day_start, args.t0, args.period);
-    if day.starts.is_empty() {
-        bail!(
-            "no 15-minute slot between {} and {} lies inside the tracked time of the tracks",
-            crate::format::time(day.day_start),
-            crate::format::time(day.day_end)
-        );
-    }
-
-    let progress = ProgressBar::new();
-    let contenders =
-        fit_models(args, &train, &progress).map_err(|e| anyhow!("{train_name}: {e}"))?;
-    let config = DisturbanceConfig {
-        epsilon: args.epsilon,
-        max_duration: SLOT_SECS,
-        ..DisturbanceConfig::default()
+    let files = DisturbanceFiles {
+        train: &args.train,
+        tracks: &args.tracks,
+        map: &args.map,
+        scenarios: &args.scenarios,
+        scenario: &args.scenario,
     };
-
-    let bench_start = Instant::now();
-    let costs: Vec<(&str, PathCost<'_>)> = contenders
-        .iter()
-        .map(|c| (c.name.as_str(), c.cost()))
-        .collect();
-    let mut results: Vec<(Scenario, Vec<Outcome>)> = Vec::new();
-    for (scenario, waypoints) in scenarios.into_iter().zip(waypoint_cells) {
-        let outcomes = run_scenario(
-            &grid,
-            &waypoints,
-            &costs,
-            &day.slots,
-            &detections,
-            &config,
-            &progress,
-        )
-        .map_err(|e| anyhow!("scenario {:?}, {e}", scenario.name))?;
-        results.push((scenario, outcomes));
-    }
-    let bench_seconds = bench_start.elapsed().as_secs_f64();
-    drop(progress);
+    let settings = DisturbanceSettings {
+        clearance: args.clearance,
+        day_start: args.day_start,
+        t0: args.t0,
+        period: args.period,
+        epsilon: args.epsilon,
+        inducing: args.inducing,
+        iterations: args.iterations,
+        no_copa: args.no_copa,
+        parallelism: Parallelism::Rayon(0),
+    };
+    let study = {
+        let progress = ProgressBar::new();
+        run_disturbance(&files, &settings, &progress)?
+    };
+    let DisturbanceStudy {
+        train,
+        detections,
+        map,
+        grid,
+        day,
+        contenders,
+        results,
+        config,
+        bench_seconds,
+    } = &study;
 
     if let Some(path) = &args.plot {
-        plot_curves(&results, &contenders, path)?;
+        plot_curves(results, contenders, path)?;
     }
     if let Some(path) = &args.plot_paths {
-        plot_paths(&results, &contenders, &grid, &map, &detections, path)?;
+        plot_paths(results, contenders, grid, map, detections, path)?;
     }
 
     if args.json {
         let scenarios: Vec<Value> = results
             .iter()
-            .map(|(scenario, outcomes)| scenario_json(scenario, outcomes, &contenders))
+            .map(|(scenario, outcomes)| scenario_json(scenario, outcomes, contenders))
             .collect();
         return print_json(&json!({
             "train": train_name,
@@ -193,7 +120,7 @@ pub fn run(args: &ActivityDisturbanceArgs) -> Result<()> {
         crate::format::time(day.starts[0]),
         crate::format::time(day.starts[day.starts.len() - 1])
     )?;
-    for (scenario, outcomes) in &results {
+    for (scenario, outcomes) in results {
         let route: Vec<String> = scenario
             .waypoints
             .iter()
@@ -235,56 +162,6 @@ pub fn run(args: &ActivityDisturbanceArgs) -> Result<()> {
         started.elapsed().as_secs_f64()
     )?;
     Ok(())
-}
-
-/// The models of the comparison, in table order: the shortest route first, then every
-/// baseline of [`Baseline::ALL`], then CoPA-Map. Any other [`RatePredictor`] joins with one
-/// more `push`. Each fit is timed here, at the edge; the long ones report their iterations to
-/// `progress`.
-fn fit_models(
-    args: &ActivityDisturbanceArgs,
-    train: &RateSamples,
-    progress: &dyn Progress,
-) -> Result<Vec<Contender>> {
-    let mut contenders = vec![Contender {
-        name: OCCUPANCY.into(),
-        model: None,
-        fit_seconds: 0.0,
-    }];
-    let config = super::activity::baseline_config(args.period, args.inducing, args.iterations);
-    for baseline in Baseline::ALL {
-        if args.no_copa && baseline == Baseline::GpHom {
-            continue;
-        }
-        progress.stage(baseline.name(), 0);
-        let start = Instant::now();
-        let model = baseline
-            .fit_with_progress(train, &config, progress)
-            .map_err(|e| anyhow!("{}: {e}", baseline.name()))?;
-        contenders.push(Contender {
-            name: baseline.name().into(),
-            model: Some(model),
-            fit_seconds: start.elapsed().as_secs_f64(),
-        });
-    }
-    if !args.no_copa {
-        let start = Instant::now();
-        let copa = CopaConfig {
-            inducing: args.inducing,
-            iterations: args.iterations,
-            day_period: args.period,
-            parallelism: Parallelism::Rayon(0),
-            ..CopaConfig::default()
-        };
-        let model = CopaMap::fit_with_progress(train, &copa, progress)
-            .map_err(|e| anyhow!("CoPA-Map: {e}"))?;
-        contenders.push(Contender {
-            name: model.name().into(),
-            model: Some(Box::new(model)),
-            fit_seconds: start.elapsed().as_secs_f64(),
-        });
-    }
-    Ok(contenders)
 }
 
 fn scenario_json(scenario: &Scenario, outcomes: &[Outcome], contenders: &[Contender]) -> Value {
@@ -440,14 +317,4 @@ fn plot_paths(
     }
     render_path_maps_png(&panels, path, 24)?;
     Ok(())
-}
-
-/// The centres of the map's occupied pixels inside the planning grid.
-fn map_obstacle_points(map: &OccupancyMap, grid: &PlanningGrid) -> Vec<[f64; 2]> {
-    let [gx, gy] = grid.origin();
-    let top = [
-        gx + grid.cols() as f64 * grid.cell_size(),
-        gy + grid.rows() as f64 * grid.cell_size(),
-    ];
-    map.occupied_centres(OCCUPIED_PERCENT, [gx, gy], top)
 }

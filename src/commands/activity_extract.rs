@@ -2,26 +2,26 @@
 //! simulated patrol robots see them (§4.2.2, eqs. 4.5–4.6 of dissertation chapter 4), or the
 //! ground truth of §4.3.2.
 
-use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result, anyhow, bail};
-use chronomap_activity::extract::{
-    ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
-};
+use anyhow::{Context, Result, bail};
+use chronomap_activity::extract::{ExtractConfig, Extraction, RobotPath};
+use chronomap_app::activity::{SampleSource, extract_samples};
+use chronomap_core::num::{count_of, fmt_number};
+use chronomap_core::progress::NoProgress;
 use chronomap_hypertime::events::Event;
-use chronomap_io::navmap::{LoadSemantics, load_map};
-use chronomap_io::{read_rate_samples, read_robot_paths, read_track_files, write_rate_grid};
+use chronomap_io::{read_rate_samples, read_track_files, write_rate_grid};
 use serde_json::json;
 
-use chronomap_core::num::{count_of, fmt_number};
-
 use crate::cli::ActivityExtractArgs;
+use crate::outln;
+use crate::output::{print_json, usage};
+
+/// The setup of `activity extract` and `bench activity`.
+pub(super) use chronomap_app::activity::robots_on_map;
 
 /// The most time bins `activity extract` counts from t0 over the detections (2^24).
 const MAX_BINS: usize = 1 << 24;
-use crate::outln;
-use crate::output::{print_json, usage};
 
 pub fn run(args: &ActivityExtractArgs) -> Result<()> {
     let started = Instant::now();
@@ -70,8 +70,8 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
                 .context("cannot read the cells of --cells-from")?
                 .x()
                 .to_vec();
-            let truth = ground_truth(&detections, &cells, &bins, &config)
-                .map_err(|e| anyhow!("ground truth: {e}"))?;
+            let source = SampleSource::TruthIn(&cells);
+            let truth = extract_samples(&detections, source, &bins, &config, &NoProgress)?;
             (truth, Vec::new())
         }
         _ => {
@@ -88,22 +88,14 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
                 &args.robots,
             )?;
             let paths: Vec<RobotPath> = robots.iter().map(|(_, p)| p.clone()).collect();
-            let seen = extract_with_progress(
-                &grid,
-                &paths,
-                &detections,
-                &bins,
-                &config,
-                &crate::output::ProgressBar::new(),
-            )
-            .map_err(|e| anyhow!("extraction: {e}"))?;
-            if args.ground_truth {
-                let truth = ground_truth(&detections, &seen.cells(), &bins, &config)
-                    .map_err(|e| anyhow!("ground truth: {e}"))?;
-                (truth, robots)
-            } else {
-                (seen, robots)
-            }
+            let source = SampleSource::Robots {
+                grid: &grid,
+                paths: &paths,
+                truth: args.ground_truth,
+            };
+            let progress = crate::output::ProgressBar::new();
+            let samples = extract_samples(&detections, source, &bins, &config, &progress)?;
+            (samples, robots)
         }
     };
     let seconds = simulate.elapsed().as_secs_f64();
@@ -118,56 +110,6 @@ pub fn run(args: &ActivityExtractArgs) -> Result<()> {
 /// ([`chronomap_activity::grids::detection_bins`]).
 pub(super) fn detection_bins(detections: &[Event], t0: f64, bin: f64) -> Vec<i64> {
     chronomap_activity::grids::detection_bins(detections, t0, bin)
-}
-
-/// The obstacle grid of a ROS map (cells of at least `min_occupancy` percent block sight) and
-/// the paths of a robot-path file (all, or those named in `names`) at `speed` m/s, each checked
-/// to stay on free cells: the setup of `activity extract` and `bench activity`.
-pub(super) fn robots_on_map(
-    map_file: &Path,
-    paths_file: &Path,
-    speed: f64,
-    min_occupancy: i8,
-    names: &[String],
-) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>)> {
-    let map_name = map_file.display().to_string();
-    let map = load_map(map_file, LoadSemantics::Nav2).context("cannot load the map")?;
-    let grid = map
-        .obstacle_grid(min_occupancy)
-        .map_err(|e| anyhow!("{map_name}: {e}"))?;
-    let paths_name = paths_file.display().to_string();
-    let all = read_robot_paths(paths_file, speed).context("cannot read the robot paths")?;
-    for name in names {
-        if !all.iter().any(|p| &p.name == name) {
-            let known: Vec<&str> = all.iter().map(|p| p.name.as_str()).collect();
-            bail!(
-                "{paths_name}: no path named {name:?} (--robot); the file has {}",
-                known.join(", ")
-            );
-        }
-    }
-    let mut robots = Vec::new();
-    for named in all {
-        if !names.is_empty() && !names.contains(&named.name) {
-            continue;
-        }
-        if let Some((at, outside)) = named.path.first_blocked(&grid, grid.resolution() / 2.0) {
-            bail!(
-                "{paths_name}:{}: path {:?} passes ({:.3}, {:.3}), which is {} of {map_name}",
-                named.line,
-                named.name,
-                at[0],
-                at[1],
-                if outside {
-                    "outside the map"
-                } else {
-                    "an obstacle"
-                }
-            );
-        }
-        robots.push((named.name, named.path));
-    }
-    Ok((grid, robots))
 }
 
 fn report(
