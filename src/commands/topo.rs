@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use chronomap_app::topo::{self, fit_edge_models};
+use chronomap_app::topo::{self, TimedPlan, TimedWeek, fit_edge_models, plan_at, plan_week};
 use chronomap_core::progress::NoProgress;
 use chronomap_io::{
     read_edge_directory, read_edge_models, write_edge_directory, write_edge_models,
@@ -17,8 +17,8 @@ use chronomap_plot::{Heatmap, render_heatmap_png};
 use chronomap_topo::edges::{EdgeEvaluation, EdgeModels};
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
-use chronomap_topo::plan::{PlanAt, Task, plan_full};
-use chronomap_topo::report::{Protocol, WeekTable, fit_summary, letters, success_route};
+use chronomap_topo::plan::{PlanAt, Task};
+use chronomap_topo::report::{Protocol, WeekTable, fit_summary, letters};
 use serde_json::{Value, json};
 
 use crate::cli::{
@@ -420,9 +420,8 @@ impl<'a> DayTable<'a> {
         let map = models.map();
         let start = map.node(from).with_context(|| format!("--from {from}"))?;
         let parsed = Task::parse(task, map).context("--task")?;
-        let started = Instant::now();
-        let table = WeekTable::compute(models, start, &parsed, first_day, days, step_mins)?;
-        let seconds = started.elapsed().as_secs_f64();
+        let TimedWeek { table, seconds } =
+            plan_week(models, start, &parsed, first_day, days, step_mins)?;
         Ok(DayTable {
             map,
             task: task.to_string(),
@@ -575,9 +574,11 @@ fn plan_once(
     t: f64,
     options: &SolverOptions,
 ) -> Result<()> {
-    let started = Instant::now();
-    let planned = plan_full(models, start, task, t, options)?;
-    let seconds = started.elapsed().as_secs_f64();
+    let TimedPlan {
+        planned,
+        route,
+        seconds,
+    } = plan_at(models, start, task, t, options)?;
     let map = models.map();
     if let Some(path) = &args.prism {
         let model = planned.mdp.to_prism(start)?;
@@ -594,7 +595,6 @@ fn plan_once(
         chronomap_io::output::write_output(path, text.as_bytes())?;
         crate::errln!("wrote {}", path.display());
     }
-    let route = success_route(&planned, map);
     let plan = &planned.plan;
     let product_states = planned.product.states().len();
     if args.json {

@@ -1,18 +1,24 @@
 //! Jobs on topological maps whose edges know time ([Fentanes 2015]): the edge models of a
-//! directory of edge files (§IV, the file at fault named), and their evaluation on the later
+//! directory of edge files (§IV, the file at fault named), their evaluation on the later
 //! attempts of another directory against the static per-edge rates (§V-A), by both protocols
-//! and edge by edge.
+//! and edge by edge, and timed plans (§V): at one time with the route if every edge succeeds,
+//! and now-or-later over days (Table III).
 //!
 //! Files in, result structs out: the faces print the tables and map their own argument names.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use chronomap_core::BuildError;
 use chronomap_core::progress::Progress;
 use chronomap_io::{DataError, read_edge_directory};
 use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels};
 use chronomap_topo::map::TopoMap;
-use chronomap_topo::report::{EdgeScore, MergeError, Protocol, merge_maps, per_edge_scores};
+use chronomap_topo::mdp::SolverOptions;
+use chronomap_topo::plan::{PlanError, Planned, Task, plan_full};
+use chronomap_topo::report::{
+    EdgeScore, MergeError, Protocol, WeekTable, merge_maps, per_edge_scores, success_route,
+};
 
 /// Why a job on edge files failed.
 #[derive(Debug, thiserror::Error)]
@@ -138,6 +144,69 @@ pub fn evaluate(
     })
 }
 
+/// A plan at one time ([Fentanes 2015] §V) and how long it took.
+pub struct TimedPlan {
+    /// The Navigation MDP, its product with the task, its solution and the plan.
+    pub planned: Planned,
+    /// The route if every edge succeeds, as edge indices ([`success_route`]).
+    pub route: Vec<usize>,
+    /// Seconds spent planning (building and solving; not the route).
+    pub seconds: f64,
+}
+
+/// Plans `task` from node `start` at time `t` with `options`, timing it.
+///
+/// # Errors
+/// As [`plan_full`].
+pub fn plan_at(
+    models: &EdgeModels,
+    start: usize,
+    task: &Task,
+    t: f64,
+    options: &SolverOptions,
+) -> Result<TimedPlan, PlanError> {
+    let started = Instant::now();
+    let planned = plan_full(models, start, task, t, options)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let route = success_route(&planned, models.map());
+    Ok(TimedPlan {
+        planned,
+        route,
+        seconds,
+    })
+}
+
+/// The now-or-later table of [Fentanes 2015] Table III ([`WeekTable::compute`]) and how long it
+/// took.
+#[derive(Clone, Debug)]
+pub struct TimedWeek {
+    /// The plans at every start time of every day.
+    pub table: WeekTable,
+    /// Seconds spent planning.
+    pub seconds: f64,
+}
+
+/// Plans `task` from node `start` at every start time, `step_mins` apart, of `days` days from
+/// midnight UTC of the day of `first_day`, timing it.
+///
+/// # Errors
+/// As [`WeekTable::compute`].
+pub fn plan_week(
+    models: &EdgeModels,
+    start: usize,
+    task: &Task,
+    first_day: f64,
+    days: usize,
+    step_mins: usize,
+) -> Result<TimedWeek, PlanError> {
+    let started = Instant::now();
+    let table = WeekTable::compute(models, start, task, first_day, days, step_mins)?;
+    Ok(TimedWeek {
+        table,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use chronomap_core::progress::NoProgress;
@@ -175,6 +244,26 @@ mod tests {
         assert_eq!(done.per_edge.len(), 1);
         assert_eq!(done.per_edge[0].train_attempts, 2);
         assert_eq!(done.by(Protocol::Frozen), &done.frozen);
+
+        // Reaching B from A is one attempt of A_B: the plan takes it, and succeeds as often as
+        // the edge's model predicts ([Fentanes 2015] §V).
+        let models = done.models;
+        let (a, b) = (
+            models.map().node("A").unwrap(),
+            models.map().node("B").unwrap(),
+        );
+        assert_ne!(a, b);
+        let task = Task::parse("F B", models.map()).unwrap();
+        let timed = plan_at(&models, a, &task, 300.0, &SolverOptions::default()).unwrap();
+        assert_eq!(timed.route, [0]);
+        assert_eq!(timed.planned.plan.first_edge, Some(0));
+        let p = models.success_probability(0, 300.0);
+        assert!((timed.planned.plan.pmax - p).abs() < 1e-9, "{p}");
+        // Two start times a day (every 720 minutes) over two days.
+        let week = plan_week(&models, a, &task, 0.0, 2, 720).unwrap();
+        assert_eq!((week.table.days, week.table.per_day), (2, 2));
+        assert_eq!(week.table.plans.len(), 4);
+        assert!(week.table.plans.iter().all(|p| p.first_edge == Some(0)));
         let _ = std::fs::remove_dir_all(&tmp);
     }
 }
