@@ -1,11 +1,11 @@
 //! `chronomap eval`: the benchmark experiment of the FreMEn papers on any data.
 
 use anyhow::{Context, Result, anyhow};
+use chronomap_app::eval::{evaluate_models, split_series};
 use chronomap_core::TimeSeries;
-use chronomap_core::progress::Progress;
 use chronomap_io::{read_pairs, read_test_set};
-use chronomap_models::eval::{EvalReport, TestSet, evaluate};
-use chronomap_models::split::{SplitError, chronological_split};
+use chronomap_models::eval::EvalReport;
+use chronomap_models::split::SplitError;
 use serde_json::json;
 
 use super::describe_selection;
@@ -41,7 +41,7 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
         }
     };
     let file = args.train.display();
-    let split = chronological_split(&all.times, &args.split_at).map_err(|e| match e {
+    let (train, tests) = split_series(&all, &args.split_at).map_err(|e| match e {
         SplitError::NotIncreasing { previous, next } => usage(format!(
             "--split-at: {} is not after {} (times must increase)",
             time(next),
@@ -58,35 +58,23 @@ fn load(args: &EvalArgs) -> Result<(TimeSeries, Tests)> {
         ),
         e => anyhow!("--split-at: {e}"),
     })?;
-    let part = |range: std::ops::Range<usize>| TimeSeries {
-        times: all.times[range.clone()].to_vec(),
-        values: all.values[range].to_vec(),
-    };
     let mut labels = Vec::new();
     for (i, &from) in args.split_at.iter().enumerate() {
         let to = args.split_at.get(i + 1).copied().unwrap_or(f64::INFINITY);
         let label = format!("{file} from {} to {}", time(from), until(to));
         labels.push((label.clone(), label));
     }
-    let tests = split.tests.into_iter().map(part).collect();
-    Ok((part(split.train), (tests, labels)))
+    Ok((train, (tests, labels)))
 }
 
 pub fn run(args: &EvalArgs) -> Result<()> {
     let (train, (tests, labels)) = load(args)?;
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
     let options = args.fit.options();
     let specs = model_specs(&args.models);
     let report = {
-        let bar = ProgressBar::stage("fitting models", specs.len() as u64);
-        evaluate(&specs, &train.times, &train.values, &sets, &options, |_| {
-            bar.advance(1)
-        })
+        let bar = ProgressBar::new();
+        evaluate_models(&specs, &train, &tests, &options, &bar)
     }
-    .map_err(|(spec, e)| match e.observation_index() {
-        Some(i) => anyhow::anyhow!("model {spec}: training observation {}: {e}", i + 1),
-        None => anyhow::anyhow!("model {spec}: {e}"),
-    })
     .with_context(|| format!("cannot fit to {}", args.train.display()))?;
     if args.json {
         print_json(&to_json(args, &train, &tests, &labels, &report))

@@ -13,6 +13,7 @@
 pub mod activity;
 pub mod bt;
 pub mod compress;
+pub mod eval;
 pub mod disturbance;
 pub mod events;
 pub mod explore;
