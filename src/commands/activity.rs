@@ -1,14 +1,9 @@
 //! `chronomap activity eval`: scores of models of human activity (rates of people per cell and
 //! hour) on later data, eq. (4.20) NRMSE and eq. (4.21) χ²-distance of dissertation chapter 4.
 
-use std::time::Instant;
-
-use anyhow::{Context, Result, anyhow, bail};
-use chronomap_activity::{
-    Baseline, CopaConfig, CopaMap, PeriodInitMode, RatePredictor, RateSamples, RateScale, Scores,
-    score, select_baseline,
-};
-use chronomap_app::activity::baseline_config;
+use anyhow::{Context, Result, bail};
+use chronomap_activity::{Baseline, PeriodInitMode, RateSamples, RateScale, Scores};
+use chronomap_app::activity::{EvalChoice, EvalSettings, Evaluation, evaluate};
 use chronomap_core::Parallelism;
 use chronomap_io::read_rate_samples;
 use serde_json::{Map, Value, json};
@@ -17,9 +12,6 @@ use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::format::Table;
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{out, outln};
-
-/// Fraction of the distinct training times that `--model auto` holds out to choose a model.
-const HOLDOUT: f64 = 0.2;
 
 pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     let train_name = args.train.display().to_string();
@@ -45,92 +37,62 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     if test.mean_rate() == 0.0 {
         bail!("{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined");
     }
-    let config = baseline_config(
-        args.period,
-        args.inducing,
-        args.iterations,
-        Parallelism::Rayon(0),
-    );
-
-    // Every baseline, fitted once and timed; the top-level model reuses its fit.
-    let progress = ProgressBar::new();
-    let mut baselines = Vec::new();
-    let mut fitted = Vec::new();
-    for baseline in Baseline::ALL {
-        chronomap_core::progress::Progress::stage(&progress, baseline.name(), 0);
-        let start = Instant::now();
-        let model = baseline
-            .fit_with_progress(&train, &config, &progress)
-            .map_err(|e| anyhow!("{train_name}: {}: {e}", baseline.name()))?;
-        let seconds = start.elapsed().as_secs_f64();
-        let scores = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
-        baselines.push((baseline, scores, seconds));
-        fitted.push(Some(model));
-    }
-
-    // The top-level model, timed from the training samples to a fitted model (including the
-    // choice of `auto`).
-    let start = Instant::now();
-    let (chosen, selection) = match args.model {
-        ActivityModel::Auto => {
-            let selection = select_baseline(&train, HOLDOUT, &config)
-                .map_err(|e| anyhow!("{train_name}: cannot choose a model: {e}"))?;
-            (Some(selection.chosen), Some(selection))
-        }
-        ActivityModel::GlobalMean => (Some(Baseline::GlobalMean), None),
-        ActivityModel::Ml => (Some(Baseline::Ml), None),
-        ActivityModel::MlLog => (Some(Baseline::MlLog), None),
-        ActivityModel::FrAam => (Some(Baseline::FrAam), None),
-        ActivityModel::GpHom => (Some(Baseline::GpHom), None),
-        ActivityModel::Whyte => (Some(Baseline::Whyte), None),
-        ActivityModel::LogAdditive => (Some(Baseline::LogAdditive), None),
-        ActivityModel::Copa => (None, None),
-    };
-    // CoPA-Map's initial periods, for the JSON output.
-    let mut copa_init = Value::Null;
-    let (model, train_seconds): (Box<dyn RatePredictor + Send + Sync>, f64) = match chosen {
-        Some(baseline) => {
-            let i = Baseline::ALL
-                .iter()
-                .position(|&b| b == baseline)
-                .expect("every baseline is in Baseline::ALL");
-            let model = fitted[i].take().expect("each baseline is chosen once");
-            (model, start.elapsed().as_secs_f64() + baselines[i].2)
-        }
-        None => {
-            let copa = CopaConfig {
-                inducing: args.inducing,
-                iterations: args.iterations,
-                day_period: args.period,
+    let settings = EvalSettings {
+        period: args.period,
+        inducing: args.inducing,
+        iterations: args.iterations,
+        choice: match args.model {
+            ActivityModel::Auto => EvalChoice::Auto,
+            ActivityModel::GlobalMean => EvalChoice::Baseline(Baseline::GlobalMean),
+            ActivityModel::Ml => EvalChoice::Baseline(Baseline::Ml),
+            ActivityModel::MlLog => EvalChoice::Baseline(Baseline::MlLog),
+            ActivityModel::FrAam => EvalChoice::Baseline(Baseline::FrAam),
+            ActivityModel::GpHom => EvalChoice::Baseline(Baseline::GpHom),
+            ActivityModel::Whyte => EvalChoice::Baseline(Baseline::Whyte),
+            ActivityModel::LogAdditive => EvalChoice::Baseline(Baseline::LogAdditive),
+            ActivityModel::Copa => EvalChoice::Copa {
                 init: match args.init {
                     CopaInit::Spectral => PeriodInitMode::Spectral,
                     CopaInit::Day => PeriodInitMode::Day,
                 },
-                parallelism: Parallelism::Rayon(0),
-                target: match args.scale {
+                scale: match args.scale {
                     CopaScale::Log1p => RateScale::Log1p,
                     CopaScale::Rate => RateScale::Rate,
                 },
-                ..CopaConfig::default()
-            };
-            let map = CopaMap::fit_with_progress(&train, &copa, &progress)
-                .map_err(|e| anyhow!("{train_name}: CoPA-Map: {e}"))?;
-            copa_init = match &map.period_init {
-                Some(init) => json!({
-                    "mode": "spectral",
-                    "psi": init.psi,
-                    "periods": init.periods,
-                    "variances": init.variances,
-                    "fallback": init.none.map(|why| format!("{why:?}")),
-                }),
-                None => json!({"mode": "day"}),
-            };
-            (Box::new(map), start.elapsed().as_secs_f64())
-        }
+            },
+        },
+        parallelism: Parallelism::Rayon(0),
+    };
+    let Evaluation {
+        baselines,
+        selection,
+        model,
+        scores: top,
+        train_seconds,
+        copa_init,
+    } = {
+        let progress = ProgressBar::new();
+        evaluate(
+            &train,
+            &test,
+            &settings,
+            [&train_name, &test_name],
+            &progress,
+        )?
+    };
+    // CoPA-Map's initial periods, for the JSON output.
+    let copa_init = match copa_init {
+        None => Value::Null,
+        Some(Some(init)) => json!({
+            "mode": "spectral",
+            "psi": init.psi,
+            "periods": init.periods,
+            "variances": init.variances,
+            "fallback": init.none.map(|why| format!("{why:?}")),
+        }),
+        Some(None) => json!({"mode": "day"}),
     };
     let chosen_name = model.name().to_string();
-    let top = score(model.as_ref(), &test).map_err(|e| anyhow!("{test_name}: {e}"))?;
-    drop(progress);
 
     if args.json {
         let mut table = Map::new();

@@ -3,16 +3,19 @@
 //! and the baselines' settings from the few numbers the command line takes
 //! ([`baseline_config`]); the extraction job of §4.2.2 (eqs. 4.5–4.6: training samples from
 //! pedestrian detections as simulated patrol robots see them, [`extract_samples`]) with its
-//! setup ([`robots_on_map`]), or the ground truth of §4.3.2.
+//! setup ([`robots_on_map`]), or the ground truth of §4.3.2; and the evaluation of §4.3.2
+//! ([`evaluate`]: every baseline and the chosen model scored by eqs. 4.20–4.21 on later data).
 
 use std::path::Path;
+use std::time::Instant;
 
 use chronomap_activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
 };
 use chronomap_activity::{
-    AnyActivityModel, BaselineConfig, FrAamConfig, GpHomConfig, LogAdditive, LogAdditiveConfig,
-    WhyteConfig,
+    AnyActivityModel, Baseline, BaselineConfig, BaselineSelection, CopaConfig, CopaMap,
+    FrAamConfig, GpHomConfig, LogAdditive, LogAdditiveConfig, PeriodInit, PeriodInitMode,
+    RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_core::Parallelism;
 use chronomap_core::progress::Progress;
@@ -96,9 +99,9 @@ pub fn baseline_config(
     }
 }
 
-/// Why the extraction job cannot run.
+/// Why an activity job (extraction, evaluation) cannot run.
 #[derive(Debug, Error)]
-pub enum ExtractJobError {
+pub enum ActivityJobError {
     /// The map cannot be read.
     #[error("cannot load the map")]
     Map(#[source] NavMapError),
@@ -115,22 +118,22 @@ pub enum ExtractJobError {
 /// to stay on free cells: the setup of the extraction of [Stüde 2024] §4.2.2.
 ///
 /// # Errors
-/// [`ExtractJobError`] naming the map, the path file and line, or an unknown name.
+/// [`ActivityJobError`] naming the map, the path file and line, or an unknown name.
 pub fn robots_on_map(
     map_file: &Path,
     paths_file: &Path,
     speed: f64,
     min_occupancy: i8,
     names: &[String],
-) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>), ExtractJobError> {
-    let message = ExtractJobError::Message;
+) -> Result<(ObstacleGrid, Vec<(String, RobotPath)>), ActivityJobError> {
+    let message = ActivityJobError::Message;
     let map_name = map_file.display().to_string();
-    let map = load_map(map_file, LoadSemantics::Nav2).map_err(ExtractJobError::Map)?;
+    let map = load_map(map_file, LoadSemantics::Nav2).map_err(ActivityJobError::Map)?;
     let grid = map
         .obstacle_grid(min_occupancy)
         .map_err(|e| message(format!("{map_name}: {e}")))?;
     let paths_name = paths_file.display().to_string();
-    let all = read_robot_paths(paths_file, speed).map_err(ExtractJobError::Paths)?;
+    let all = read_robot_paths(paths_file, speed).map_err(ActivityJobError::Paths)?;
     for name in names {
         if !all.iter().any(|p| &p.name == name) {
             let known: Vec<&str> = all.iter().map(|p| p.name.as_str()).collect();
@@ -186,17 +189,17 @@ pub enum SampleSource<'a> {
 /// simulation reports to `progress`.
 ///
 /// # Errors
-/// [`ExtractJobError::Message`] `extraction: …` or `ground truth: …`.
+/// [`ActivityJobError::Message`] `extraction: …` or `ground truth: …`.
 pub fn extract_samples(
     detections: &[Event],
     source: SampleSource,
     bins: &[i64],
     config: &ExtractConfig,
     progress: &dyn Progress,
-) -> Result<Extraction, ExtractJobError> {
+) -> Result<Extraction, ActivityJobError> {
     let truth = |cells: &[[f64; 2]]| {
         ground_truth(detections, cells, bins, config)
-            .map_err(|e| ExtractJobError::Message(format!("ground truth: {e}")))
+            .map_err(|e| ActivityJobError::Message(format!("ground truth: {e}")))
     };
     match source {
         SampleSource::TruthIn(cells) => truth(cells),
@@ -206,7 +209,7 @@ pub fn extract_samples(
             truth: counted,
         } => {
             let seen = extract_with_progress(grid, paths, detections, bins, config, progress)
-                .map_err(|e| ExtractJobError::Message(format!("extraction: {e}")))?;
+                .map_err(|e| ActivityJobError::Message(format!("extraction: {e}")))?;
             if counted {
                 truth(&seen.cells())
             } else {
@@ -214,6 +217,147 @@ pub fn extract_samples(
             }
         }
     }
+}
+
+/// Fraction of the distinct training times that [`EvalChoice::Auto`] holds out to choose a
+/// model.
+pub const HOLDOUT: f64 = 0.2;
+
+/// The model [`evaluate`] reports at the top.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EvalChoice {
+    /// The baseline of least NRMSE on the last [`HOLDOUT`] of the training times
+    /// ([`select_baseline`]).
+    Auto,
+    /// This baseline.
+    Baseline(Baseline),
+    /// CoPA-Map ([Stüde 2024] §4.2), with these initial periods and this target scale.
+    Copa {
+        /// How the periods start (Algorithm 4.1 or the day).
+        init: PeriodInitMode,
+        /// The rate or ln(1 + rate).
+        scale: RateScale,
+    },
+}
+
+/// How [`evaluate`] trains.
+#[derive(Clone, Copy, Debug)]
+pub struct EvalSettings {
+    /// The day's length in the samples' time (hour bins).
+    pub period: f64,
+    /// Inducing points of CoPA-Map and GP-Hom.
+    pub inducing: usize,
+    /// Training iterations of CoPA-Map and GP-Hom.
+    pub iterations: usize,
+    /// The model at the top.
+    pub choice: EvalChoice,
+    /// Threads of the fits.
+    pub parallelism: Parallelism,
+}
+
+/// The scores of [Stüde 2024] §4.3.2: every baseline, and the model at the top.
+pub struct Evaluation {
+    /// Every baseline of [`Baseline::ALL`] with its scores and training seconds.
+    pub baselines: Vec<(Baseline, Scores, f64)>,
+    /// How [`EvalChoice::Auto`] chose (`None` for another choice).
+    pub selection: Option<BaselineSelection>,
+    /// The model at the top.
+    pub model: Box<dyn RatePredictor + Send + Sync>,
+    /// Its scores.
+    pub scores: Scores,
+    /// Seconds from the training samples to it fitted (the choice of `auto` included).
+    pub train_seconds: f64,
+    /// With CoPA-Map at the top: what Algorithm 4.1 found (`None`: started from the day).
+    pub copa_init: Option<Option<PeriodInit>>,
+}
+
+/// Fits every baseline and the chosen model on `train` and scores each on `test` with the
+/// NRMSE of eq. (4.20) and the χ²-distance of eq. (4.21); fits report to `progress`.
+/// `train_name` and `test_name` name the data in errors.
+///
+/// # Errors
+/// [`ActivityJobError::Message`] naming the data and the model that failed.
+pub fn evaluate(
+    train: &RateSamples,
+    test: &RateSamples,
+    settings: &EvalSettings,
+    names: [&str; 2],
+    progress: &dyn Progress,
+) -> Result<Evaluation, ActivityJobError> {
+    let [train_name, test_name] = names;
+    let message = ActivityJobError::Message;
+    let config = baseline_config(
+        settings.period,
+        settings.inducing,
+        settings.iterations,
+        settings.parallelism,
+    );
+    // Every baseline, fitted once and timed; the top-level model reuses its fit.
+    let mut baselines = Vec::new();
+    let mut fitted = Vec::new();
+    for baseline in Baseline::ALL {
+        progress.stage(baseline.name(), 0);
+        let start = Instant::now();
+        let model = baseline
+            .fit_with_progress(train, &config, progress)
+            .map_err(|e| message(format!("{train_name}: {}: {e}", baseline.name())))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let scores =
+            score(model.as_ref(), test).map_err(|e| message(format!("{test_name}: {e}")))?;
+        baselines.push((baseline, scores, seconds));
+        fitted.push(Some(model));
+    }
+
+    // The top-level model, timed from the training samples to a fitted model (including the
+    // choice of `auto`).
+    let start = Instant::now();
+    let (chosen, selection) = match settings.choice {
+        EvalChoice::Auto => {
+            let selection = select_baseline(train, HOLDOUT, &config)
+                .map_err(|e| message(format!("{train_name}: cannot choose a model: {e}")))?;
+            (Some(selection.chosen), Some(selection))
+        }
+        EvalChoice::Baseline(baseline) => (Some(baseline), None),
+        EvalChoice::Copa { .. } => (None, None),
+    };
+    let mut copa_init = None;
+    let (model, train_seconds): (Box<dyn RatePredictor + Send + Sync>, f64) = match chosen {
+        Some(baseline) => {
+            let i = Baseline::ALL
+                .iter()
+                .position(|&b| b == baseline)
+                .expect("every baseline is in Baseline::ALL");
+            let model = fitted[i].take().expect("each baseline is chosen once");
+            (model, start.elapsed().as_secs_f64() + baselines[i].2)
+        }
+        None => {
+            let EvalChoice::Copa { init, scale } = settings.choice else {
+                unreachable!("only CoPA-Map is not a baseline")
+            };
+            let copa = CopaConfig {
+                inducing: settings.inducing,
+                iterations: settings.iterations,
+                day_period: settings.period,
+                init,
+                parallelism: settings.parallelism,
+                target: scale,
+                ..CopaConfig::default()
+            };
+            let map = CopaMap::fit_with_progress(train, &copa, progress)
+                .map_err(|e| message(format!("{train_name}: CoPA-Map: {e}")))?;
+            copa_init = Some(map.period_init.clone());
+            (Box::new(map), start.elapsed().as_secs_f64())
+        }
+    };
+    let scores = score(model.as_ref(), test).map_err(|e| message(format!("{test_name}: {e}")))?;
+    Ok(Evaluation {
+        baselines,
+        selection,
+        model,
+        scores,
+        train_seconds,
+        copa_init,
+    })
 }
 
 #[cfg(test)]
@@ -262,5 +406,41 @@ mod tests {
         let error = open_activity_model(&missing).unwrap_err();
         assert!(matches!(error, OpenActivityError::ModelFile(_)), "{error}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn evaluate_scores_every_baseline_and_names_the_data_in_errors() {
+        let mut train = RateSamples::default();
+        let mut test = RateSamples::default();
+        for t in 0..36 {
+            let samples = if t < 24 { &mut train } else { &mut test };
+            samples.push([0.25, 0.25], f64::from(t), 10.0).unwrap();
+            samples.push([0.75, 0.25], f64::from(t), 1.0).unwrap();
+        }
+        let settings = EvalSettings {
+            period: 12.0,
+            inducing: 4,
+            iterations: 5,
+            choice: EvalChoice::Baseline(Baseline::Ml),
+            parallelism: Parallelism::Sequential,
+        };
+        let progress = chronomap_core::progress::NoProgress;
+        let names = ["train.csv", "test.csv"];
+        let eval = evaluate(&train, &test, &settings, names, &progress).unwrap();
+        assert_eq!(eval.baselines.len(), Baseline::ALL.len());
+        assert_eq!(eval.model.name(), Baseline::Ml.name());
+        // Every cell keeps its rate: the per-cell mean predicts the later days exactly.
+        assert!(eval.scores.nrmse < 1e-12, "{:?}", eval.scores);
+        assert!(eval.selection.is_none() && eval.copa_init.is_none());
+
+        let mut empty = RateSamples::default();
+        empty.push([0.25, 0.25], 30.0, 0.0).unwrap();
+        let error = evaluate(&train, &empty, &settings, names, &progress)
+            .err()
+            .unwrap();
+        assert_eq!(
+            error.to_string(),
+            "test.csv: the mean ground-truth rate is 0: the NRMSE is undefined"
+        );
     }
 }
