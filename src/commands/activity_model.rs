@@ -7,11 +7,11 @@ use std::time::Instant;
 use anyhow::{Result, anyhow};
 use chronomap_activity::grids::{GridError, RegionGrid};
 use chronomap_activity::{CopaConfig, CopaMap, LogAdditive, LogAdditiveConfig, RateScale};
-use chronomap_app::activity::open_activity_model;
+use chronomap_app::activity::{RateMaps, open_activity_model, predict_maps};
 use chronomap_core::Parallelism;
 use chronomap_core::num::fmt_number;
 use chronomap_io::navmap::{LoadSemantics, load_map};
-use chronomap_io::rate_predictions::{RatePrediction, write_rate_predictions};
+use chronomap_io::rate_predictions::write_rate_predictions;
 use chronomap_io::{LOG_ADDITIVE_KIND, read_rate_samples, write_copa_map};
 use chronomap_plot::{MapImage, render_scaled_maps_png};
 use serde_json::json;
@@ -23,9 +23,6 @@ use crate::{out, outln};
 /// Largest grid `predict` evaluates (cells × times), to keep a mistyped `--cell` from running
 /// for hours.
 const MAX_PREDICTIONS: usize = 20_000_000;
-
-// A map cell blocks a predicted cell when it is at least this occupied (percent).
-use chronomap_spatial::occupancy::WALL_PERCENT;
 
 pub fn fit(args: &ActivityFitArgs) -> Result<()> {
     let name = args.train.display().to_string();
@@ -168,33 +165,18 @@ pub fn predict(args: &ActivityPredictArgs) -> Result<()> {
         Some(path) => Some(load_map(path, LoadSemantics::Nav2)?),
         None => None,
     };
-    let centres = grid.centres();
-    let blocked: Vec<bool> = centres
-        .iter()
-        .map(|&c| {
-            map.as_ref()
-                .is_some_and(|m| m.is_occupied_at(c, WALL_PERCENT))
-        })
-        .collect();
-    let mut rows = Vec::new();
-    let mut panels = Vec::new();
-    for &t in &args.times {
-        let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
-        let (mean, std) = model
-            .predict(&points, Parallelism::Rayon(0))
-            .map_err(|e| anyhow!("{model_name}: {e}"))?;
-        for (i, &x) in centres.iter().enumerate() {
-            if !blocked[i] {
-                rows.push(RatePrediction {
-                    x,
-                    t,
-                    mean: mean[i],
-                    std: std[i],
-                });
-            }
-        }
-        panels.push((t, mean, std));
-    }
+    let RateMaps {
+        blocked,
+        rows,
+        panels,
+    } = predict_maps(
+        &model,
+        &grid,
+        &args.times,
+        map.as_ref(),
+        Parallelism::Rayon(0),
+    )
+    .map_err(|e| anyhow!("{model_name}: {e}"))?;
     if let Some(path) = &args.output {
         write_rate_predictions(path, &rows)?;
     }

@@ -4,7 +4,8 @@
 //! ([`baseline_config`]); the extraction job of §4.2.2 (eqs. 4.5–4.6: training samples from
 //! pedestrian detections as simulated patrol robots see them, [`extract_samples`]) with its
 //! setup ([`robots_on_map`]), or the ground truth of §4.3.2; and the evaluation of §4.3.2
-//! ([`evaluate`]: every baseline and the chosen model scored by eqs. 4.20–4.21 on later data).
+//! ([`evaluate`]: every baseline and the chosen model scored by eqs. 4.20–4.21 on later data);
+//! maps of a model's predicted rate over a grid of cells at several times ([`predict_maps`]).
 
 use std::path::Path;
 use std::time::Instant;
@@ -12,6 +13,7 @@ use std::time::Instant;
 use chronomap_activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
 };
+use chronomap_activity::grids::RegionGrid;
 use chronomap_activity::{
     AnyActivityModel, Baseline, BaselineConfig, BaselineSelection, CopaConfig, CopaMap,
     FrAamConfig, GpHomConfig, LogAdditive, LogAdditiveConfig, PeriodInit, PeriodInitMode,
@@ -23,7 +25,10 @@ use chronomap_hypertime::events::Event;
 use chronomap_io::DataError;
 use chronomap_io::model_file::ModelFileError;
 use chronomap_io::navmap::{LoadSemantics, NavMapError, load_map};
+use chronomap_io::rate_predictions::RatePrediction;
 use chronomap_io::{LOG_ADDITIVE_KIND, read_copa_map, read_model_file, read_robot_paths};
+use chronomap_spatial::OccupancyMap;
+use chronomap_spatial::occupancy::WALL_PERCENT;
 use thiserror::Error;
 
 use crate::open::FileKind;
@@ -64,6 +69,58 @@ pub fn open_activity_model(path: &Path) -> Result<AnyActivityModel, OpenActivity
             reason: e.to_string(),
         })?;
     Ok(AnyActivityModel::LogAdditive(model))
+}
+
+/// A model's predicted rate over the cells of a grid at several times.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RateMaps {
+    /// Per cell (row-major, as [`RegionGrid::centres`]): whether a wall of the map covers it.
+    pub blocked: Vec<bool>,
+    /// Every cell off the walls at every time, time by time.
+    pub rows: Vec<RatePrediction>,
+    /// Per time: the time, and the mean and standard deviation at every cell.
+    pub panels: Vec<(f64, Vec<f64>, Vec<f64>)>,
+}
+
+/// The rate `model` predicts at the centre of every cell of `grid` at every one of `times`;
+/// cells at least [`WALL_PERCENT`] occupied on `map` are kept out of the rows.
+///
+/// # Errors
+/// The model's ([`AnyActivityModel::predict`]).
+pub fn predict_maps(
+    model: &AnyActivityModel,
+    grid: &RegionGrid,
+    times: &[f64],
+    map: Option<&OccupancyMap>,
+    parallelism: Parallelism,
+) -> Result<RateMaps, chronomap_activity::ActivityError> {
+    let centres = grid.centres();
+    let blocked: Vec<bool> = centres
+        .iter()
+        .map(|&c| map.is_some_and(|m| m.is_occupied_at(c, WALL_PERCENT)))
+        .collect();
+    let mut rows = Vec::new();
+    let mut panels = Vec::new();
+    for &t in times {
+        let points: Vec<([f64; 2], f64)> = centres.iter().map(|&c| (c, t)).collect();
+        let (mean, std) = model.predict(&points, parallelism)?;
+        for (i, &x) in centres.iter().enumerate() {
+            if !blocked[i] {
+                rows.push(RatePrediction {
+                    x,
+                    t,
+                    mean: mean[i],
+                    std: std[i],
+                });
+            }
+        }
+        panels.push((t, mean, std));
+    }
+    Ok(RateMaps {
+        blocked,
+        rows,
+        panels,
+    })
 }
 
 /// The baselines' settings ([Stüde 2024] §4.3.2) from the command line's numbers: Fr-AAM's
@@ -442,5 +499,29 @@ mod tests {
             error.to_string(),
             "test.csv: the mean ground-truth rate is 0: the NRMSE is undefined"
         );
+    }
+
+    #[test]
+    fn rate_maps_keep_walls_out_of_the_rows() {
+        let model = AnyActivityModel::LogAdditive(log_additive());
+        // The two training cells, 0.5 m each: centres (0.25, 0.25) and (0.75, 0.25).
+        let grid = RegionGrid::around_centres(model.domain(), 0.5).unwrap();
+        assert_eq!((grid.cols, grid.rows), (2, 1));
+        // A map of two 0.5 m pixels from the origin, the second a wall.
+        let map = OccupancyMap::from_probabilities(2, 1, 0.5, [0.0, 0.0, 0.0], &[0.0, 1.0]);
+        let times = [48.0, 49.0];
+        let maps =
+            predict_maps(&model, &grid, &times, Some(&map), Parallelism::Sequential).unwrap();
+        assert_eq!(maps.blocked, [false, true]);
+        assert_eq!(maps.panels.len(), 2);
+        assert_eq!(maps.rows.len(), 2);
+        for (row, t) in maps.rows.iter().zip(times) {
+            assert_eq!((row.x, row.t), ([0.25, 0.25], t));
+            assert!((row.mean - 10.0).abs() < 1e-6, "{row:?}");
+        }
+        // The wall's cell is still predicted for plots: the quiet cell's rate, 1 per hour.
+        assert!((maps.panels[0].1[1] - 1.0).abs() < 1e-6);
+        let open = predict_maps(&model, &grid, &times, None, Parallelism::Sequential).unwrap();
+        assert_eq!(open.rows.len(), 4);
     }
 }
