@@ -13,12 +13,12 @@
 pub mod activity;
 pub mod bt;
 pub mod compress;
-pub mod eval;
 pub mod disturbance;
+pub mod eval;
 pub mod events;
 pub mod explore;
-pub mod ingest;
 pub mod grid;
+pub mod ingest;
 pub mod laser_log;
 pub mod lidar_study;
 pub mod open;
