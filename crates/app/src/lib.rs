@@ -8,6 +8,31 @@
 //!
 //! Data still flow one way, observations → models → predictions → decisions: this crate
 //! depends on the domains and on `chronomap-io`, and nothing below it depends on it.
+//!
+//! ```
+//! use std::path::Path;
+//! use chronomap_app::open::FileKind;
+//!
+//! // A face asks what a file holds before it chooses a reader: by the container's header
+//! // where there is one, by the name (through `.xz`/`.gz`) where there is not.
+//! let header = b"chronomap-model 1 kind=copa-map encoding=postcard bytes=12 crc32=0badf00d\n";
+//! let kind = FileKind::of_bytes(header).unwrap();
+//! assert!(kind.is_copa_map());
+//! assert_eq!(FileKind::by_name(Path::new("witham.tmap2.xz")), FileKind::Tmap2);
+//! assert_eq!(FileKind::by_name(Path::new("door.xml")), FileKind::BtXml);
+//! ```
+//!
+//! | module | what the faces get |
+//! |---|---|
+//! | [`open`] | what kind of file a path holds |
+//! | [`activity`], [`disturbance`] | activity models opened by content, rate maps, sample extraction, the evaluation of [Stüde 2024] §4.3.2 and the service-disturbance experiment (eq. 4.22) |
+//! | [`bt`] | a BehaviorTree.CPP document with node models, its registry under stubs, the stochastic chain and horizon |
+//! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI) |
+//! | [`eval`], [`compress`] | the FreMEn benchmark experiment and the compression study ([Krajník 2017]) |
+//! | [`events`], [`ingest`] | people as events and tracks, the pedestrian study ([Krajník 2019] §V-D) |
+//! | [`explore`] | the exploration datasets and the traced run ([Santos 2017]) |
+//! | [`topo`] | edge-model fits, evaluations and timed plans ([Fentanes 2015]) |
+//! | [`laser_log`], [`lidar_study`] | laser logs and keyframes; the range-data studies with the `p_min` rule ([Stüde 2024] §3.2) |
 #![deny(missing_docs)]
 
 pub mod activity;
