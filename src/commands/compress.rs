@@ -2,9 +2,8 @@
 //! ([Krajník 2017] §III-B, §IV-A, §IV-C).
 
 use anyhow::{Result, bail};
-use chronomap_app::compress::{continue_with, ones_and_changes, select_order};
+use chronomap_app::compress::{CompressedSeries, continue_with, ones_and_changes, select_order};
 use chronomap_core::fft::{FftFremenConfig, uniform_binary_samples};
-use chronomap_io::compression::CompressedSeries;
 use chronomap_io::write_any_model;
 use chronomap_models::AnyModel;
 use serde_json::json;

@@ -4,7 +4,7 @@
 //! began (a PostgreSQL store may grow meanwhile): first to find where each exported model was
 //! last created, then to write its observations since, in log order. Nothing is buffered per
 //! model, so memory is one decoded group, one row group of the table being written (see
-//! `chronomap_io::parquet`) and a map of the exported ids, however long the log.
+//! `chronomap_parquet`) and a map of the exported ids, however long the log.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -13,7 +13,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use chronomap_core::TemporalModel;
 use chronomap_core::progress::Progress;
-use chronomap_io::parquet::{
+use chronomap_parquet::{
     ObservationRow, ObservationsWriter, PendingFile, PredictionRow, PredictionsWriter,
 };
 use chronomap_serve::check;
@@ -58,7 +58,7 @@ impl Grid {
         // Grid times are Parquet timestamps in microseconds: checked before anything is read
         // or written.
         for (flag, t) in [("--from", from), ("--to", to)] {
-            if chronomap_io::parquet::micros_of(t).is_none() {
+            if chronomap_parquet::micros_of(t).is_none() {
                 let t = if t.abs() < 1e16 {
                     t.to_string()
                 } else {

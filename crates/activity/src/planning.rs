@@ -27,6 +27,7 @@
 
 use std::collections::HashSet;
 
+use chronomap_spatial::OccupancyMap;
 use thiserror::Error;
 
 use super::{CellKey, RateSamples};
@@ -36,6 +37,9 @@ use crate::disturbance::{ObstacleGrid, PlanningGrid};
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum PlanningGridError {
+    /// The map cannot be planned on (rotated, or inconsistent).
+    #[error(transparent)]
+    Map(#[from] chronomap_spatial::InvalidMap),
     /// No cell centre at all.
     #[error("no training cell")]
     NoCells,
@@ -164,6 +168,40 @@ pub fn map_grid(
         return Err(PlanningGridError::NoFreeMapCell { clearance });
     }
     Ok(grid)
+}
+
+/// A whole map as a grid of planning cells ([`map_grid`]) with the map's lower-left corner and
+/// size: what the service-disturbance benchmark (§4.3.5) and the person search (§5.4) plan on.
+#[derive(Clone, Debug)]
+pub struct MapPlanningGrid {
+    /// Free planning cells of side `cell`, those nearer than `clearance` to an obstacle blocked.
+    pub grid: PlanningGrid,
+    /// Lower-left corner of the map (m).
+    pub origin: [f64; 2],
+    /// Width and height of the map (m).
+    pub size: [f64; 2],
+}
+
+impl MapPlanningGrid {
+    /// `map` gridded for planning: cells at least `occupied_percent` occupied, or unknown, are
+    /// obstacles ([`OccupancyMap::planning_obstacles`]); planning cells of `cell` metres keep
+    /// `clearance` metres from them.
+    ///
+    /// # Errors
+    /// [`PlanningGridError::Map`] for a rotated or inconsistent map, and as [`map_grid`].
+    pub fn of_map(
+        map: &OccupancyMap,
+        occupied_percent: i8,
+        cell: f64,
+        clearance: f64,
+    ) -> Result<Self, PlanningGridError> {
+        let obstacles = map.planning_obstacles(occupied_percent)?;
+        Ok(MapPlanningGrid {
+            grid: map_grid(&obstacles, cell, clearance)?,
+            origin: obstacles.origin(),
+            size: map_size(&obstacles),
+        })
+    }
 }
 
 /// Width and height of a map in metres (cells times resolution).

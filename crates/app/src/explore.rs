@@ -6,12 +6,12 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::datasets::{DatasetError, load_aruba, load_brayford};
 use chronomap_core::num::count_of;
 use chronomap_explore::table::{ModelKind, busiest_locations};
 use chronomap_explore::{
     ExploreConfig, ExploreError, ExploreResult, MAX_STEPS_PER_DAY, Strategy, World, explore,
 };
-use chronomap_io::datasets::{DatasetError, load_aruba, load_brayford};
 
 /// The datasets of [Santos 2017] §7.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

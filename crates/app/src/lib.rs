@@ -30,7 +30,7 @@
 //! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI) |
 //! | [`eval`], [`compress`] | the FreMEn benchmark experiment and the compression study ([Krajník 2017]) |
 //! | [`events`], [`ingest`] | people as events and tracks, the pedestrian study ([Krajník 2019] §V-D) |
-//! | [`explore`] | the exploration datasets and the traced run ([Santos 2017]) |
+//! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford) and the traced run ([Santos 2017]) |
 //! | [`topo`] | edge-model fits, evaluations and timed plans ([Fentanes 2015]) |
 //! | [`laser_log`], [`lidar_study`] | laser logs and keyframes; the range-data studies with the `p_min` rule ([Stüde 2024] §3.2) |
 #![deny(missing_docs)]
@@ -38,6 +38,7 @@
 pub mod activity;
 pub mod bt;
 pub mod compress;
+pub mod datasets;
 pub mod disturbance;
 pub mod eval;
 pub mod events;

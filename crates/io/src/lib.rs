@@ -50,18 +50,13 @@
 //! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
 //!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
 //!   writes are atomic, and damaged, truncated or foreign files are rejected with a
-//!   [`ModelFileError`]. [`compression`] — the sizes and compression ratios of FFT FreMEn
-//!   model files ([Krajník 2017] eq. (16)).
+//!   [`ModelFileError`].
 //! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
 //!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
 //!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
 //!   ([`NavMapError`]) name the file, line and key; the map itself is
 //!   `chronomap_spatial::OccupancyMap`. [`frame_list`] — the `<time> <map.yaml>` lists of
 //!   maps that occupancy grids are built from ([`read_frame_list`]).
-//! * `parquet` (feature `parquet`) — a fleet's observations and predictions as Apache Parquet
-//!   tables (`ObservationsWriter`, `PredictionsWriter`: the `parquet` crate without Arrow,
-//!   Snappy, one row group at a time), for DuckDB, DataFusion and pandas; `chronomap export
-//!   parquet` writes them from a service's store (docs/parquet.md).
 //! * [`ply`] — 3-D point clouds as PLY files, ASCII or binary ([`read_ply`], [`write_ply`]), as
 //!   [`chronomap_registration::Cloud`]s; errors ([`PlyError`]) name the file, the header line or
 //!   the vertex and property, and sizes are bounded.
@@ -99,10 +94,6 @@ pub mod bt_log;
 pub mod bt_script;
 #[cfg(feature = "bt")]
 pub mod bt_xml;
-#[cfg(feature = "models")]
-pub mod compression;
-#[cfg(feature = "explore")]
-pub mod datasets;
 #[cfg(feature = "hypertime")]
 pub mod events;
 #[cfg(feature = "navmap")]
@@ -122,8 +113,6 @@ pub mod navmap;
 #[cfg(all(feature = "navmap", feature = "activity"))]
 mod navmap_obstacles;
 pub mod output;
-#[cfg(feature = "parquet")]
-pub mod parquet;
 #[cfg(feature = "lidar")]
 pub mod ply;
 #[cfg(feature = "psbt")]
@@ -194,7 +183,7 @@ pub use navmap::{
     save_map,
 };
 #[cfg(all(feature = "navmap", feature = "activity"))]
-pub use navmap_obstacles::{MapPlanningGrid, PlanningMapError, load_planning_grid};
+pub use navmap_obstacles::{PlanningMapError, load_planning_grid};
 #[cfg(feature = "lidar")]
 pub use ply::{PlyError, PlyErrorKind, PlyFormat, decode_ply, encode_ply, read_ply, write_ply};
 #[cfg(feature = "activity")]

@@ -1,3 +1,5 @@
+//! # chronomap-parquet
+//!
 //! Apache Parquet tables of a fleet's observations and predictions, for DataFusion, DuckDB,
 //! pandas and Polars (`chronomap export parquet`).
 //!
@@ -16,7 +18,7 @@
 //! reader of the last years); the other columns are dictionary-encoded.
 //!
 //! ```
-//! use chronomap_io::parquet::{ObservationRow, ObservationsWriter};
+//! use chronomap_parquet::{ObservationRow, ObservationsWriter};
 //!
 //! let mut writer = ObservationsWriter::new("memory", Vec::new())?;
 //! writer.write(&[
@@ -35,8 +37,10 @@
 //!     error.to_string(),
 //!     "obs.parquet: row 1: column time: NaN s is not a time (finite seconds within ±292,000 years of 1970)"
 //! );
-//! # Ok::<(), chronomap_io::parquet::ParquetWriteError>(())
+//! # Ok::<(), chronomap_parquet::ParquetWriteError>(())
 //! ```
+
+#![deny(missing_docs)]
 
 use std::collections::HashMap;
 use std::fmt;
@@ -44,14 +48,14 @@ use std::io::{self, Write};
 use std::path::Path;
 use std::sync::Arc;
 
-use ::parquet::basic::{Compression, Encoding};
-use ::parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
-use ::parquet::errors::ParquetError;
-use ::parquet::file::metadata::KeyValue;
-use ::parquet::file::properties::WriterProperties;
-use ::parquet::file::writer::{SerializedFileWriter, SerializedRowGroupWriter};
-use ::parquet::schema::parser::parse_message_type;
-use ::parquet::schema::types::ColumnPath;
+use parquet::basic::{Compression, Encoding};
+use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
+use parquet::errors::ParquetError;
+use parquet::file::metadata::KeyValue;
+use parquet::file::properties::WriterProperties;
+use parquet::file::writer::{SerializedFileWriter, SerializedRowGroupWriter};
+use parquet::schema::parser::parse_message_type;
+use parquet::schema::types::ColumnPath;
 
 /// Rows of a row group unless [`ObservationsWriter::with_row_group_rows`] says otherwise
 /// (2^20: large enough for DuckDB and DataFusion to read in parallel, small enough to buffer).
@@ -550,14 +554,14 @@ impl<W: Write + Send> PredictionsWriter<W> {
     }
 }
 
-/// A table file being written with the one output writer ([`crate::output::Output`]): a
+/// A table file being written with the one output writer (`chronomap_io::output::Output`): a
 /// regular file is written under a temporary name beside its final path and
 /// [`PendingFile::commit`] flushes it to disk and renames it into place (dropping it
 /// uncommitted deletes it, so a failed export never leaves a truncated table behind); a
 /// device or named pipe is written through; a link's file is written and the link kept; a
 /// directory is refused.
 pub struct PendingFile {
-    output: crate::output::Output,
+    output: chronomap_io::output::Output,
 }
 
 impl PendingFile {
@@ -568,18 +572,19 @@ impl PendingFile {
     /// `path` exists (and `replace` is false), is a directory or another kind of file that
     /// is not written, or cannot be opened.
     pub fn create(path: &Path, replace: bool) -> Result<Self, ParquetWriteError> {
-        let output = crate::output::Output::create_or_refuse(path, replace).map_err(|e| {
-            ParquetWriteError {
-                file: path.display().to_string(),
-                row: None,
-                column: None,
-                reason: if e.io.kind() == io::ErrorKind::AlreadyExists {
-                    "exists already (replace it with --force)".into()
-                } else {
-                    format!("cannot {}: {}", e.action, e.io)
-                },
-            }
-        })?;
+        let output =
+            chronomap_io::output::Output::create_or_refuse(path, replace).map_err(|e| {
+                ParquetWriteError {
+                    file: path.display().to_string(),
+                    row: None,
+                    column: None,
+                    reason: if e.io.kind() == io::ErrorKind::AlreadyExists {
+                        "exists already (replace it with --force)".into()
+                    } else {
+                        format!("cannot {}: {}", e.action, e.io)
+                    },
+                }
+            })?;
         Ok(PendingFile { output })
     }
 
@@ -622,9 +627,9 @@ impl Write for PendingFile {
 
 #[cfg(test)]
 mod tests {
-    use ::parquet::basic::{LogicalType, Repetition, TimeUnit, Type as Physical};
-    use ::parquet::file::reader::{FileReader, SerializedFileReader};
-    use ::parquet::record::{Field, Row, RowAccessor};
+    use parquet::basic::{LogicalType, Repetition, TimeUnit, Type as Physical};
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::{Field, Row, RowAccessor};
     use std::fs::{self, File};
     use std::path::PathBuf;
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use chronomap_explore::World;
 use thiserror::Error;
 
-use crate::text::{DataError, Field, read_column, read_pairs};
+use chronomap_io::text::{DataError, Field, read_column, read_pairs};
 
 /// Why a dataset directory could not be loaded.
 #[derive(Debug, Error)]
