@@ -24,10 +24,8 @@ use std::time::{Duration, Instant};
 
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::Parallelism;
-use chronomap_core::progress::NoProgress;
 use chronomap_grid::AnyGrid;
 use chronomap_grid::GridConfig;
-use chronomap_grid::build::build_partitioned;
 use serde::Serialize;
 use thiserror::Error;
 
@@ -352,19 +350,9 @@ fn run_in(
 ) -> Result<GridLoadBench, GridLoadError> {
     let workload = chronomap_synth::office_grid::office(config.cells, config.days, 0)
         .map_err(|e| GridLoadError::Grid(e.to_string()))?;
-    let geometry = workload
-        .geometry()
+    let grid = workload
+        .learned_grid(&GridConfig::default(), Parallelism::Rayon(0))
         .map_err(|e| GridLoadError::Grid(e.to_string()))?;
-    let grid = build_partitioned(
-        &workload,
-        geometry,
-        &GridConfig::default(),
-        &[],
-        Parallelism::Rayon(0),
-        &NoProgress,
-    )
-    .map_err(|e| GridLoadError::Grid(e.to_string()))?
-    .grid;
     let changing_cells = grid.dynamic_cells();
     let grid_path = scratch.join("office.cmg");
     chronomap_io::grid_file::write_grid_file(&grid_path, &AnyGrid::State(Box::new(grid)))

@@ -13,9 +13,7 @@ use std::time::{Duration, Instant};
 
 use chronomap_activity::{CopaConfig, CopaMap};
 use chronomap_core::Parallelism;
-use chronomap_core::progress::NoProgress;
 use chronomap_grid::AnyGrid;
-use chronomap_grid::build::build_partitioned;
 use chronomap_grid::{FremenGrid, GridConfig};
 use chronomap_serve::api::Health;
 use chronomap_serve::heavy::HeavyLimits;
@@ -32,17 +30,9 @@ fn office() -> &'static FremenGrid {
     static GRID: OnceLock<FremenGrid> = OnceLock::new();
     GRID.get_or_init(|| {
         let workload = chronomap_synth::office_grid::office(213_000, 7, 0).unwrap();
-        let geometry = workload.geometry().unwrap();
-        build_partitioned(
-            &workload,
-            geometry,
-            &GridConfig::default(),
-            &[],
-            Parallelism::Rayon(0),
-            &NoProgress,
-        )
-        .unwrap()
-        .grid
+        workload
+            .learned_grid(&GridConfig::default(), Parallelism::Rayon(0))
+            .unwrap()
     })
 }
 

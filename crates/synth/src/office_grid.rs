@@ -22,8 +22,10 @@
 
 use std::ops::Range;
 
-use chronomap_grid::build::{BitFrames, PartitionedFrames};
-use chronomap_grid::{GridError, GridGeometry};
+use chronomap_core::Parallelism;
+use chronomap_core::progress::NoProgress;
+use chronomap_grid::build::{BitFrames, PartitionError, PartitionedFrames, build_partitioned};
+use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry};
 
 use crate::error::SynthError;
 use crate::office::{FrameStream, OfficeConfig, OfficeWorkload};
@@ -88,6 +90,20 @@ impl OfficeWorkload {
     pub fn geometry(&self) -> Result<GridGeometry, GridError> {
         office_geometry(self.cells())
     }
+
+    /// Every frame of this office learned by a grid with `config` (no hold-out splits), on
+    /// the threads `parallelism` allows: the learning state benchmarks and load tests serve.
+    ///
+    /// # Errors
+    /// As [`build_partitioned`].
+    pub fn learned_grid(
+        &self,
+        config: &GridConfig,
+        parallelism: Parallelism,
+    ) -> Result<FremenGrid, PartitionError> {
+        let geometry = self.geometry()?;
+        Ok(build_partitioned(self, geometry, config, &[], parallelism, &NoProgress)?.grid)
+    }
 }
 
 impl BitFrames for FrameStream<'_> {
@@ -116,10 +132,7 @@ impl PartitionedFrames for OfficeWorkload {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use chronomap_core::Parallelism;
-    use chronomap_core::progress::NoProgress;
-    use chronomap_grid::GridConfig;
-    use chronomap_grid::build::{bare_scan, build_partitioned};
+    use chronomap_grid::build::bare_scan;
 
     #[test]
     fn geometries_of_the_paper_and_of_other_sizes() {
