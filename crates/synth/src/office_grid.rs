@@ -1,6 +1,6 @@
 //! The synthetic office as a [`chronomap_grid`] occupancy grid: its geometry, and its frame
 //! streams as a [`PartitionedFrames`] source, so that
-//! [`build_partitioned`](chronomap_grid::build::build_partitioned) builds the grid of [Krajník 2017]
+//! [`build_partitioned`] builds the grid of [Krajník 2017]
 //! §VI on several threads.
 //!
 //! ```
