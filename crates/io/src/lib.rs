@@ -83,55 +83,92 @@
 //! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
-#[cfg(feature = "activity")]
-pub mod activity;
+// Shared by every feature: bounded reads, atomic writes, text and model files.
 mod atomic;
 mod bounded;
 pub use bounded::{MAX_FILE_BYTES, read_regular_at_most};
-#[cfg(feature = "bt")]
-pub mod bt_log;
-#[cfg(feature = "bt")]
-pub mod bt_script;
-#[cfg(feature = "bt")]
-pub mod bt_xml;
-#[cfg(feature = "hypertime")]
-pub mod events;
-#[cfg(feature = "navmap")]
-pub mod frame_list;
-#[cfg(feature = "grid")]
-pub mod grid_file;
-#[cfg(feature = "lidar")]
-pub mod laser_text;
-#[cfg(feature = "bt")]
-pub mod line_error;
 pub mod matrix;
 pub mod model_file;
-#[cfg(feature = "bt")]
-pub mod monitor_faults;
-#[cfg(feature = "navmap")]
-pub mod navmap;
-#[cfg(all(feature = "navmap", feature = "activity"))]
-mod navmap_obstacles;
 pub mod output;
-#[cfg(feature = "lidar")]
-pub mod ply;
-#[cfg(feature = "psbt")]
-pub mod psbt_xml;
-#[cfg(feature = "activity")]
-pub mod rate_predictions;
-#[cfg(feature = "activity")]
-pub mod robot_paths;
-#[cfg(feature = "bt")]
-pub mod sbt_params;
-#[cfg(feature = "activity")]
-pub mod scenarios;
 pub mod text;
-#[cfg(feature = "topo")]
-pub mod topo_files;
-#[cfg(feature = "activity")]
-pub mod tracks;
 #[cfg(any(feature = "navmap", feature = "topo"))]
 mod yaml;
+
+// Feature `activity`: the files in `activity/`.
+#[cfg(feature = "activity")]
+#[path = "activity/activity.rs"]
+pub mod activity;
+#[cfg(feature = "activity")]
+#[path = "activity/rate_predictions.rs"]
+pub mod rate_predictions;
+#[cfg(feature = "activity")]
+#[path = "activity/robot_paths.rs"]
+pub mod robot_paths;
+#[cfg(feature = "activity")]
+#[path = "activity/scenarios.rs"]
+pub mod scenarios;
+#[cfg(feature = "activity")]
+#[path = "activity/tracks.rs"]
+pub mod tracks;
+
+// Feature `bt`: the files in `bt/`.
+#[cfg(feature = "bt")]
+#[path = "bt/bt_log.rs"]
+pub mod bt_log;
+#[cfg(feature = "bt")]
+#[path = "bt/bt_script.rs"]
+pub mod bt_script;
+#[cfg(feature = "bt")]
+#[path = "bt/bt_xml.rs"]
+pub mod bt_xml;
+#[cfg(feature = "bt")]
+#[path = "bt/line_error.rs"]
+pub mod line_error;
+#[cfg(feature = "bt")]
+#[path = "bt/monitor_faults.rs"]
+pub mod monitor_faults;
+#[cfg(feature = "bt")]
+#[path = "bt/sbt_params.rs"]
+pub mod sbt_params;
+
+// Feature `grid`: the files in `grid/`.
+#[cfg(feature = "grid")]
+#[path = "grid/grid_file.rs"]
+pub mod grid_file;
+
+// Feature `hypertime`: the files in `hypertime/`.
+#[cfg(feature = "hypertime")]
+#[path = "hypertime/events.rs"]
+pub mod events;
+
+// Feature `lidar`: the files in `lidar/`.
+#[cfg(feature = "lidar")]
+#[path = "lidar/laser_text.rs"]
+pub mod laser_text;
+#[cfg(feature = "lidar")]
+#[path = "lidar/ply.rs"]
+pub mod ply;
+
+// Feature `navmap`: the files in `navmap/`.
+#[cfg(feature = "navmap")]
+#[path = "navmap/frame_list.rs"]
+pub mod frame_list;
+#[cfg(feature = "navmap")]
+#[path = "navmap/navmap.rs"]
+pub mod navmap;
+#[cfg(all(feature = "navmap", feature = "activity"))]
+#[path = "navmap/navmap_obstacles.rs"]
+mod navmap_obstacles;
+
+// Feature `psbt`: the files in `psbt/`.
+#[cfg(feature = "psbt")]
+#[path = "psbt/psbt_xml.rs"]
+pub mod psbt_xml;
+
+// Feature `topo`: the files in `topo/`.
+#[cfg(feature = "topo")]
+#[path = "topo/topo_files.rs"]
+pub mod topo_files;
 
 #[cfg(feature = "activity")]
 pub use activity::{
