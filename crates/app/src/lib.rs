@@ -25,6 +25,7 @@
 //! | module | what the faces get |
 //! |---|---|
 //! | [`open`] | what kind of file a path holds |
+//! | [`report`] | plain-text tables and units for the reports the jobs render |
 //! | [`activity`], [`disturbance`] | activity models opened by content, rate maps, sample extraction, the evaluation of [Stüde 2024] §4.3.2 and the service-disturbance experiment (eq. 4.22) |
 //! | [`bt`] | a BehaviorTree.CPP document with node models, its registry under stubs, the stochastic chain and horizon |
 //! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI) |
@@ -48,4 +49,5 @@ pub mod ingest;
 pub mod laser_log;
 pub mod lidar_study;
 pub mod open;
+pub mod report;
 pub mod topo;
