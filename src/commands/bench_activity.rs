@@ -1,55 +1,22 @@
 //! `chronomap bench activity`: the two performance goals of CoPA-Map's activity pipeline
 //! ([Stüde 2024] chapter 4) on the bundled ATC data, each timed against a baseline in the same run —
-//! [`chronomap_bench::activity`] measures; this reads the data with `activity extract`'s setup
-//! (the bundled patrol robots on the real map over the tracks of 2012-10-24: the whole day, one
-//! hour with `--quick`) and prints.
+//! [`chronomap_bench::activity`] measures; [`chronomap_app::activity::extraction_setup`] reads
+//! the data with `activity extract`'s setup (the bundled patrol robots on the real map over the
+//! tracks of 2012-10-24: the whole day, one hour with `--quick`); this prints.
 
-use std::path::{Path, PathBuf};
-
-use anyhow::{Context, Result, bail};
-use chronomap_activity::extract::{ExtractConfig, RobotPath};
+use anyhow::{Context, Result};
+use chronomap_app::activity::{atc_tracks, extraction_setup};
 use chronomap_bench::activity::{
     ActivityBench, ActivityBenchConfig, COPA_GOAL_SECONDS, ExtractionInput, PRODUCTS_PER_ITERATION,
     TrainingInput, product_flops,
 };
-use chronomap_io::{read_rate_samples, read_track_files};
+use chronomap_io::read_rate_samples;
 
-use super::activity_extract::{detection_bins, robots_on_map};
 use super::bench_plan::StageLog;
 use crate::cli::BenchActivityArgs;
 use crate::format::Table;
 use crate::outln;
 use crate::output::print_bench;
-
-/// The bundled tracks of 2012-10-24 (one file per hour).
-const TRACK_DIR: &str = "data/atc_20121024_1hz";
-/// The hour of `--quick`.
-const QUICK_TRACKS: &str = "atc-1024-10_train.csv.xz";
-/// Map cells of at least this occupancy (percent) block sight (`activity extract`'s default).
-const MIN_OCCUPANCY: i8 = 50;
-
-/// Every `atc-1024-*_train.csv.xz` of `dir`, sorted by name.
-fn day_tracks(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| {
-            format!(
-                "cannot list {} (run from the repository root, or give --tracks)",
-                dir.display()
-            )
-        })?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("atc-1024-") && n.ends_with("_train.csv.xz"))
-        })
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        bail!("no atc-1024-*_train.csv.xz in {}", dir.display());
-    }
-    Ok(files)
-}
 
 /// The run's sizes: `--quick` or the full run, overridden by the flags given.
 fn config_of(args: &BenchActivityArgs) -> ActivityBenchConfig {
@@ -69,45 +36,23 @@ fn config_of(args: &BenchActivityArgs) -> ActivityBenchConfig {
 
 pub fn activity(args: &BenchActivityArgs) -> Result<()> {
     let config = config_of(args);
-    let tracks = if !args.tracks.is_empty() {
-        args.tracks.clone()
-    } else if args.quick {
-        vec![Path::new(TRACK_DIR).join(QUICK_TRACKS)]
-    } else {
-        day_tracks(Path::new(TRACK_DIR))?
-    };
-
-    // Extraction: `activity extract`'s setup and defaults (3.5 m, 0.5 m cells, hour bins from
-    // the first detection's hour, 1 s steps, every bin with a detection).
-    let detections = read_track_files(&tracks).context("cannot read the tracks")?;
-    let Some(first) = detections.first().map(|d| d.t) else {
-        bail!("the track files have no detection");
-    };
-    let (grid, robots) = robots_on_map(
-        &args.map,
-        &args.paths,
-        RobotPath::DEFAULT_SPEED,
-        MIN_OCCUPANCY,
-        &[],
-    )?;
-    let defaults = ExtractConfig::default();
-    let t0 = (first / defaults.bin_seconds).floor() * defaults.bin_seconds;
-    let extract_config = ExtractConfig { t0, ..defaults };
-    let bins = detection_bins(&detections, t0, extract_config.bin_seconds);
+    // Extraction: `activity extract`'s setup and defaults over the ATC day (or its quick hour).
+    let tracks = atc_tracks(&args.tracks, args.quick)?;
+    let setup = extraction_setup(&tracks, &args.map, &args.paths)?;
     let track_files: Vec<String> = tracks.iter().map(|p| p.display().to_string()).collect();
     let extraction = chronomap_bench::activity::extraction(
         &ExtractionInput {
             track_files: &track_files,
-            detections: &detections,
-            grid: &grid,
-            robots: &robots,
-            bins: &bins,
-            config: &extract_config,
+            detections: &setup.detections,
+            grid: &setup.grid,
+            robots: &setup.robots,
+            bins: &setup.bins,
+            config: &setup.config,
         },
         &config,
         &StageLog,
     )?;
-    drop(detections);
+    drop(setup);
 
     let name = args.train.display().to_string();
     let train = read_rate_samples(&args.train).context("cannot read the training rates")?;

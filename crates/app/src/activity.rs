@@ -7,31 +7,40 @@
 //! ([`evaluate`]: every baseline and the chosen model scored by eqs. 4.20–4.21 on later data);
 //! maps of a model's predicted rate over a grid of cells at several times ([`predict_maps`]).
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use chronomap_activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
 };
-use chronomap_activity::grids::RegionGrid;
+use chronomap_activity::grids::{RegionGrid, check_aligned, detection_bins, distinct_cells};
+use chronomap_activity::truth::{TruthGrid, person_counts};
 use chronomap_activity::{
     AnyActivityModel, Baseline, BaselineConfig, BaselineSelection, CopaConfig, CopaMap,
     FrAamConfig, GpHomConfig, LogAdditive, LogAdditiveConfig, PeriodInit, PeriodInitMode,
     RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_core::Parallelism;
+use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::progress::Progress;
 use chronomap_hypertime::events::Event;
 use chronomap_io::DataError;
 use chronomap_io::model_file::ModelFileError;
 use chronomap_io::navmap::{LoadSemantics, NavMapError, load_map};
 use chronomap_io::rate_predictions::RatePrediction;
-use chronomap_io::{LOG_ADDITIVE_KIND, read_copa_map, read_model_file, read_robot_paths};
+use chronomap_io::{
+    LOG_ADDITIVE_KIND, read_copa_map, read_model_file, read_rate_samples, read_robot_paths,
+    read_track_files, read_track_point_files,
+};
 use chronomap_spatial::OccupancyMap;
 use chronomap_spatial::occupancy::WALL_PERCENT;
+use serde::Serialize;
+use serde_json::{Value, json};
 use thiserror::Error;
 
 use crate::open::FileKind;
+use crate::report::Table;
 
 /// Why an activity model file cannot be opened.
 #[derive(Debug, Error)]
@@ -80,6 +89,57 @@ pub struct RateMaps {
     pub rows: Vec<RatePrediction>,
     /// Per time: the time, and the mean and standard deviation at every cell.
     pub panels: Vec<(f64, Vec<f64>, Vec<f64>)>,
+}
+
+impl RateMaps {
+    /// The mean and the standard deviation at every time as images for a plot: a title and
+    /// per cell the value over the largest of its kind off the walls at any time (NaN on a
+    /// wall), means and deviations alternating.
+    pub fn scaled_panels(&self) -> Vec<(String, Vec<f32>)> {
+        let blocked = &self.blocked;
+        let visible = |v: &[f64]| {
+            v.iter()
+                .zip(blocked)
+                .filter(|(_, b)| !**b)
+                .map(|(v, _)| *v)
+                .fold(0.0f64, f64::max)
+        };
+        let max_mean = self
+            .panels
+            .iter()
+            .map(|p| visible(&p.1))
+            .fold(0.0, f64::max);
+        let max_std = self
+            .panels
+            .iter()
+            .map(|p| visible(&p.2))
+            .fold(0.0, f64::max);
+        let scaled = |values: &[f64], max: f64| -> Vec<f32> {
+            values
+                .iter()
+                .zip(blocked)
+                .map(|(v, b)| {
+                    if *b {
+                        f32::NAN
+                    } else {
+                        (v / max.max(1e-12)) as f32
+                    }
+                })
+                .collect()
+        };
+        let mut images = Vec::new();
+        for (t, mean, std) in &self.panels {
+            images.push((
+                format!("mean at t = {t} (max {max_mean:.0} per h)"),
+                scaled(mean, max_mean),
+            ));
+            images.push((
+                format!("std at t = {t} (max {max_std:.0} per h)"),
+                scaled(std, max_std),
+            ));
+        }
+        images
+    }
 }
 
 /// The rate `model` predicts at the centre of every cell of `grid` at every one of `times`;
@@ -165,6 +225,48 @@ pub enum ActivityJobError {
     /// The robot paths cannot be read.
     #[error("cannot read the robot paths")]
     Paths(#[source] DataError),
+    /// A file of rates or tracks cannot be read.
+    #[error("cannot read the {what}")]
+    Rates {
+        /// What the file holds.
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: Box<DataError>,
+    },
+    /// More time bins than [`MAX_BINS`] over the detections.
+    #[error(
+        "--bin {}: gives {} bins from t0 {} over the detections; at most {MAX_BINS}",
+        fmt_number(*bin),
+        fmt_number(*span),
+        fmt_number(*t0)
+    )]
+    TooManyBins {
+        /// The bin (s).
+        bin: f64,
+        /// Bins from `t0` over the detections.
+        span: f64,
+        /// The start of bin 0.
+        t0: f64,
+    },
+    /// A file that cannot be read.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// A folder that cannot be listed.
+    #[error("cannot list {dir} (run from the repository root, or give --tracks)")]
+    List {
+        /// The folder.
+        dir: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A map that cannot be read.
+    #[error(transparent)]
+    MapFile(#[from] NavMapError),
+    /// The model refused its input.
+    #[error(transparent)]
+    Model(#[from] chronomap_activity::ActivityError),
     /// Anything else, as a message naming the file, path or step.
     #[error("{0}")]
     Message(String),
@@ -417,6 +519,942 @@ pub fn evaluate(
     })
 }
 
+/// What [`evaluate_files`] tests on.
+#[derive(Clone, Copy, Debug)]
+pub enum EvalTest<'a> {
+    /// The rates of this file.
+    File(&'a Path),
+    /// The training file's samples from this time on (the earlier ones train).
+    SplitAt(f64),
+}
+
+/// A set of rates in a report: its file and what it holds.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RatesSummary {
+    /// The file (with the part used, for a split).
+    pub file: String,
+    /// Samples.
+    pub samples: usize,
+    /// Distinct cells.
+    pub cells: usize,
+    /// The first time.
+    pub t_first: f64,
+    /// The last time.
+    pub t_last: f64,
+    /// The mean rate (people per hour).
+    pub mean_rate: f64,
+}
+
+impl RatesSummary {
+    /// The summary of `samples` read from `file`.
+    pub fn of(file: &str, samples: &RateSamples) -> RatesSummary {
+        let (t_first, t_last) = samples
+            .t()
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+                (lo.min(t), hi.max(t))
+            });
+        RatesSummary {
+            file: file.to_string(),
+            samples: samples.len(),
+            cells: samples.cell_count(),
+            t_first,
+            t_last,
+            mean_rate: samples.mean_rate(),
+        }
+    }
+
+    /// `: 61131 samples (t < 96), 652 cells, t 0 .. 95, mean rate 42.10 per hour`.
+    fn line(&self, part: Option<String>) -> String {
+        let part = part.map(|p| format!(" ({p})")).unwrap_or_default();
+        format!(
+            ": {} samples{part}, {} cells, t {} .. {}, mean rate {:.2} per hour",
+            self.samples, self.cells, self.t_first, self.t_last, self.mean_rate
+        )
+    }
+}
+
+/// The evaluation of [Stüde 2024] §4.3.2 on files, as `chronomap activity eval` reports it:
+/// every baseline and the chosen model scored by eqs. 4.20–4.21.
+#[derive(Clone, Debug)]
+pub struct ActivityEvalReport {
+    /// The training rates.
+    pub train: RatesSummary,
+    /// The test rates.
+    pub test: RatesSummary,
+    /// The split time, if the test is the training file's later part.
+    pub split_at: Option<f64>,
+    /// Every baseline with its scores and training seconds.
+    pub baselines: Vec<(Baseline, Scores, f64)>,
+    /// How `auto` chose (`None` for another choice).
+    pub selection: Option<BaselineSelection>,
+    /// The model at the top.
+    pub model: String,
+    /// Its scores.
+    pub scores: Scores,
+    /// Seconds from the training samples to it fitted.
+    pub train_seconds: f64,
+    /// With CoPA-Map at the top: what Algorithm 4.1 found (`None`: started from the day).
+    pub copa_init: Option<Option<PeriodInit>>,
+}
+
+impl ActivityEvalReport {
+    /// The report as `chronomap activity eval --json` prints it.
+    pub fn json(&self) -> Value {
+        let scores = |s: &Scores| json!({ "nrmse": s.nrmse, "chi2": s.chi2 });
+        let copa_init = match &self.copa_init {
+            None => Value::Null,
+            Some(Some(init)) => json!({
+                "mode": "spectral",
+                "psi": init.psi,
+                "periods": init.periods,
+                "variances": init.variances,
+                "fallback": init.none.as_ref().map(|why| format!("{why:?}")),
+            }),
+            Some(None) => json!({"mode": "day"}),
+        };
+        let mut table = serde_json::Map::new();
+        for (baseline, s, seconds) in &self.baselines {
+            let mut entry = scores(s);
+            entry["train_seconds"] = json!(seconds);
+            table.insert(baseline.name().into(), entry);
+        }
+        let selected_by = match &self.selection {
+            Some(sel) => json!({
+                "holdout_from_t": sel.cut,
+                "scores": sel.scores.iter().map(|(b, s)| (b.name().to_string(), scores(s))).collect::<serde_json::Map<_, _>>(),
+            }),
+            None => Value::String("--model".into()),
+        };
+        json!({
+            "model": self.model,
+            "selected_by": selected_by,
+            "nrmse": self.scores.nrmse,
+            "chi2": self.scores.chi2,
+            "train_seconds": self.train_seconds,
+            "copa_init": copa_init,
+            "train": self.train,
+            "test": self.test,
+            "split_at": self.split_at,
+            "baselines": table,
+        })
+    }
+
+    /// The report as `chronomap activity eval` prints it.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "training: {}{}",
+            self.train.file,
+            self.train.line(self.split_at.map(|at| format!("t < {at}")))
+        );
+        let _ = writeln!(out, "test: {}{}", self.test.file, self.test.line(None));
+        out.push('\n');
+        let mut table = Table::new(["model", "NRMSE", "chi2", "train s"]);
+        for (baseline, s, seconds) in &self.baselines {
+            table.row([
+                baseline.name().to_string(),
+                format!("{:.4}", s.nrmse),
+                format!("{:.1}", s.chi2),
+                format!("{seconds:.3}"),
+            ]);
+        }
+        out.push_str(&table.render());
+        let why = match &self.selection {
+            Some(sel) => {
+                let scores: Vec<String> = sel
+                    .scores
+                    .iter()
+                    .map(|(b, s)| format!("{} {:.4}", b.name(), s.nrmse))
+                    .collect();
+                format!(
+                    "chosen by --model auto: least NRMSE on the training samples with t >= {} \
+                     held out ({})",
+                    sel.cut,
+                    scores.join(", ")
+                )
+            }
+            None => "chosen by --model".to_string(),
+        };
+        let _ = writeln!(
+            out,
+            "\nmodel: {} ({why}); NRMSE {:.4}, chi2 {:.1}, trained in {:.3} s",
+            self.model, self.scores.nrmse, self.scores.chi2, self.train_seconds
+        );
+        let _ = writeln!(
+            out,
+            "NRMSE: eq. (4.20), root mean square error over the mean test rate; chi2: eq. (4.21), \
+             chi-square distance (lower is better for both). gp_hom is trained with --inducing and \
+             --iterations as CoPA-Map (`--model copa`); `--model auto` chooses among the others."
+        );
+        out
+    }
+}
+
+/// Reads the training rates of `train` and the test of `test` and runs [`evaluate`].
+///
+/// # Errors
+/// A file that cannot be read; a split that leaves nothing to train or test on; test rates all
+/// 0 (the NRMSE is undefined); as [`evaluate`].
+pub fn evaluate_files(
+    train_path: &Path,
+    test: EvalTest,
+    settings: &EvalSettings,
+    progress: &dyn Progress,
+) -> Result<ActivityEvalReport, ActivityJobError> {
+    let train_name = train_path.display().to_string();
+    let all = read_rate_samples(train_path).map_err(|source| ActivityJobError::Rates {
+        what: "training rates",
+        source: Box::new(source),
+    })?;
+    let message = ActivityJobError::Message;
+    let (train, test, test_name, split_at) = match test {
+        EvalTest::File(path) => {
+            let test = read_rate_samples(path).map_err(|source| ActivityJobError::Rates {
+                what: "test rates",
+                source: Box::new(source),
+            })?;
+            (all, test, path.display().to_string(), None)
+        }
+        EvalTest::SplitAt(at) => {
+            let (train, test) = all.split_at(at);
+            if train.is_empty() {
+                return Err(message(format!(
+                    "{train_name}: no sample has t < {at} (--split-at): nothing to train on"
+                )));
+            }
+            if test.is_empty() {
+                return Err(message(format!(
+                    "{train_name}: no sample has t >= {at} (--split-at): nothing to test on"
+                )));
+            }
+            (train, test, format!("{train_name} (t >= {at})"), Some(at))
+        }
+    };
+    if test.mean_rate() == 0.0 {
+        return Err(message(format!(
+            "{test_name}: every test rate is 0, so the NRMSE (eq. 4.20) is undefined"
+        )));
+    }
+    let evaluation = evaluate(&train, &test, settings, [&train_name, &test_name], progress)?;
+    Ok(ActivityEvalReport {
+        train: RatesSummary::of(&train_name, &train),
+        test: RatesSummary::of(&test_name, &test),
+        split_at,
+        baselines: evaluation.baselines,
+        selection: evaluation.selection,
+        model: evaluation.model.name().to_string(),
+        scores: evaluation.scores,
+        train_seconds: evaluation.train_seconds,
+        copa_init: evaluation.copa_init,
+    })
+}
+
+/// The most time bins [`extract_job`] counts from `t0` over the detections (2^24).
+pub const MAX_BINS: usize = 1 << 24;
+
+/// Reads pedestrian detections from track files.
+///
+/// # Errors
+/// A file that cannot be read; no detection at all.
+pub fn read_detections(tracks: &[PathBuf]) -> Result<Vec<Event>, ActivityJobError> {
+    let detections = read_track_files(tracks).map_err(|source| ActivityJobError::Rates {
+        what: "tracks",
+        source: Box::new(source),
+    })?;
+    if detections.is_empty() {
+        return Err(ActivityJobError::Message(
+            "the track files have no detection".into(),
+        ));
+    }
+    Ok(detections)
+}
+
+/// Where [`extract_job`] counts.
+#[derive(Clone, Copy, Debug)]
+pub enum ExtractWhere<'a> {
+    /// The ground truth of §4.3.2 in the cells of this rate grid.
+    TruthInCellsOf(&'a Path),
+    /// What the patrol robots of a path file see on a ROS map ([`robots_on_map`]); with
+    /// `truth`, the ground truth in the cells they observed.
+    Robots {
+        /// The map (Nav2 YAML).
+        map: &'a Path,
+        /// The robot-path file.
+        paths: &'a Path,
+        /// The robots' speed (m/s).
+        speed: f64,
+        /// Cells of at least this occupancy (percent) block sight.
+        min_occupancy: i8,
+        /// The robots to simulate (all if empty).
+        robots: &'a [String],
+        /// Whether to count the ground truth in the observed cells.
+        truth: bool,
+    },
+}
+
+/// How [`extract_job`] bins and where it counts.
+#[derive(Clone, Debug)]
+pub struct ExtractRequest<'a> {
+    /// Field of view radius (m).
+    pub fov: f64,
+    /// Cell size (m).
+    pub cell: f64,
+    /// Time bin (s).
+    pub bin: f64,
+    /// Robot step (s).
+    pub step: f64,
+    /// Start of bin 0 (default: the first detection's bin).
+    pub t0: Option<f64>,
+    /// The bins to count (default: every bin with a detection).
+    pub bins: &'a [i64],
+    /// Where.
+    pub source: ExtractWhere<'a>,
+}
+
+/// A robot of an extraction, as the report shows it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RobotSummary {
+    /// Its name in the path file.
+    pub name: String,
+    /// The length of its loop (m).
+    pub length_m: f64,
+    /// The time of one loop (s).
+    pub loop_s: f64,
+    /// Its waypoints.
+    pub waypoints: usize,
+    /// Its speed (m/s).
+    #[serde(skip)]
+    pub speed: f64,
+}
+
+/// Training data or ground truth extracted from detections (eqs. 4.5–4.6, §4.3.2), as
+/// `chronomap activity extract` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExtractReport {
+    /// `training data` or `ground truth`.
+    pub kind: &'static str,
+    /// Where the face writes the samples.
+    pub output: String,
+    /// Samples.
+    pub samples: usize,
+    /// Cells.
+    pub cells: usize,
+    /// The bins counted.
+    pub bins: Vec<i64>,
+    /// Start of bin 0.
+    pub t0: f64,
+    /// Detections counted.
+    pub total_count: u64,
+    /// Seconds of cell observation.
+    pub total_duration_s: f64,
+    /// The mean rate of the samples (per hour).
+    pub mean_rate_per_hour: f64,
+    /// Detections per hour of observation.
+    pub pooled_rate_per_hour: f64,
+    /// The simulated robots.
+    pub robots: Vec<RobotSummary>,
+    /// Seconds the extraction took (the job times itself on purpose).
+    pub seconds: f64,
+    /// The time bin (s).
+    #[serde(skip)]
+    pub bin: f64,
+    /// The samples.
+    #[serde(skip)]
+    pub extraction: Extraction,
+}
+
+impl ExtractReport {
+    /// The report as `chronomap activity extract` prints it.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        for r in &self.robots {
+            let _ = writeln!(
+                out,
+                "robot {}: {} waypoints, loop {:.1} m, {:.0} s at {} m/s",
+                r.name, r.waypoints, r.length_m, r.loop_s, r.speed
+            );
+        }
+        let _ = writeln!(
+            out,
+            "{}: {} samples over {} cells and {} bins (t0 = {}, {} s each), written to {}",
+            self.kind,
+            self.samples,
+            self.cells,
+            self.bins.len(),
+            self.t0,
+            self.bin,
+            self.output
+        );
+        let _ = writeln!(
+            out,
+            "{} detections in {:.1} h of cell observation: mean rate {:.2} per hour (pooled {:.2}); computed in {:.2} s",
+            self.total_count,
+            self.total_duration_s / 3600.0,
+            self.mean_rate_per_hour,
+            self.pooled_rate_per_hour,
+            self.seconds
+        );
+        out
+    }
+}
+
+/// The start of bin 0 for `bin`-second bins over `detections` (that of the first detection
+/// unless given) and the bins to count (every bin with a detection unless given); the set-up
+/// [`extract_job`] and the activity benchmark share.
+///
+/// # Errors
+/// [`ActivityJobError::TooManyBins`] if more than [`MAX_BINS`] bins lie from `t0` over the
+/// detections (or `t0` is not finite).
+pub fn bins_over(
+    detections: &[Event],
+    bin: f64,
+    t0: Option<f64>,
+    bins: &[i64],
+) -> Result<(f64, Vec<i64>), ActivityJobError> {
+    let first = detections.first().map_or(0.0, |d| d.t);
+    let t0 = t0.unwrap_or((first / bin).floor() * bin);
+    // Bin indices are counted from t0 over the detections: refuse a bin (or t0) that gives
+    // more than MAX_BINS of them instead of letting `as i64` saturate them into one.
+    let last = detections.iter().map(|d| d.t).fold(first, f64::max);
+    let span = ((last.max(t0) - first.min(t0)) / bin).floor();
+    if !t0.is_finite() || count_of(span, MAX_BINS).is_none() {
+        return Err(ActivityJobError::TooManyBins { bin, span, t0 });
+    }
+    // By default every bin with a detection: a bin without any (an hour missing from the
+    // data) would read as "nobody there".
+    let bins = if bins.is_empty() {
+        detection_bins(detections, t0, bin)
+    } else {
+        bins.to_vec()
+    };
+    Ok((t0, bins))
+}
+
+/// The extraction of [Stüde 2024] §4.2.2 (or the ground truth of §4.3.2) of `detections` as
+/// `request` asks, timed (on purpose) from the set-up to the samples; `output` only names
+/// where the face writes them. The robots' simulation reports to `progress`.
+///
+/// # Errors
+/// Too many bins; a map, path or cell file that cannot be read; no cell observed.
+pub fn extract_job(
+    detections: &[Event],
+    request: &ExtractRequest,
+    output: &Path,
+    progress: &dyn Progress,
+) -> Result<ExtractReport, ActivityJobError> {
+    let (t0, bins) = bins_over(detections, request.bin, request.t0, request.bins)?;
+    let config = ExtractConfig {
+        fov_radius: request.fov,
+        cell_size: request.cell,
+        bin_seconds: request.bin,
+        step_seconds: request.step,
+        t0,
+    };
+    let start = Instant::now();
+    let (extraction, robots, truth) = match request.source {
+        ExtractWhere::TruthInCellsOf(cells_file) => {
+            let cells: Vec<[f64; 2]> = read_rate_samples(cells_file)
+                .map_err(|source| ActivityJobError::Rates {
+                    what: "cells of --cells-from",
+                    source: Box::new(source),
+                })?
+                .x()
+                .to_vec();
+            let source = SampleSource::TruthIn(&cells);
+            let truth = extract_samples(detections, source, &bins, &config, progress)?;
+            (truth, Vec::new(), true)
+        }
+        ExtractWhere::Robots {
+            map,
+            paths,
+            speed,
+            min_occupancy,
+            robots,
+            truth,
+        } => {
+            let (grid, robots) = robots_on_map(map, paths, speed, min_occupancy, robots)?;
+            let paths: Vec<RobotPath> = robots.iter().map(|(_, p)| p.clone()).collect();
+            let source = SampleSource::Robots {
+                grid: &grid,
+                paths: &paths,
+                truth,
+            };
+            let samples = extract_samples(detections, source, &bins, &config, progress)?;
+            (samples, robots, truth)
+        }
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    if extraction.is_empty() {
+        return Err(ActivityJobError::Message(format!(
+            "no cell was observed in bins {bins:?}: nothing to write"
+        )));
+    }
+    let count = extraction.total_count();
+    let duration = extraction.total_duration();
+    Ok(ExtractReport {
+        kind: if truth {
+            "ground truth"
+        } else {
+            "training data"
+        },
+        output: output.display().to_string(),
+        samples: extraction.len(),
+        cells: extraction.cells().len(),
+        bins,
+        t0,
+        total_count: count,
+        total_duration_s: duration,
+        mean_rate_per_hour: extraction.to_rate_samples().mean_rate(),
+        pooled_rate_per_hour: count as f64 * 3600.0 / duration,
+        robots: robots
+            .iter()
+            .map(|(name, p)| RobotSummary {
+                name: name.clone(),
+                length_m: p.length(),
+                loop_s: p.period(),
+                waypoints: p.waypoints().len(),
+                speed: p.speed(),
+            })
+            .collect(),
+        seconds,
+        bin: request.bin,
+        extraction,
+    })
+}
+
+/// The ground truth of §4.3.2 in the cells of a grid, as `chronomap activity truth` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct TruthReport {
+    /// Where the face writes the samples.
+    pub output: String,
+    /// Samples (cells × bins).
+    pub samples: usize,
+    /// Cells.
+    pub cells: usize,
+    /// Bins.
+    pub bins: Vec<i64>,
+    /// Track points read.
+    pub detections: usize,
+    /// The mean rate (people per hour).
+    pub mean_rate_per_hour: f64,
+    /// The samples.
+    #[serde(skip)]
+    pub truth: RateSamples,
+}
+
+impl TruthReport {
+    /// The report as `chronomap activity truth` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "{}: {} samples ({} cells × {} bins) from {} detections; mean {:.3} people per hour\n",
+            self.output,
+            self.samples,
+            self.cells,
+            self.bins.len(),
+            self.detections,
+            self.mean_rate_per_hour
+        )
+    }
+}
+
+/// The ground truth of [Stüde 2024] §4.3.2 — distinct people per cell and bin, counted over
+/// whole bins — from the track files `tracks` in the cells of the rate grid `cells_file`
+/// (aligned to `grid.cell`); `output` only names where the face writes it.
+///
+/// # Errors
+/// A file that cannot be read; cells off the grid; as [`person_counts`].
+pub fn truth_job(
+    cells_file: &Path,
+    tracks: &[PathBuf],
+    bins: &[i64],
+    grid: &TruthGrid,
+    output: &Path,
+) -> Result<TruthReport, ActivityJobError> {
+    let samples = read_rate_samples(cells_file).map_err(|source| ActivityJobError::Rates {
+        what: "grid of --cells",
+        source: Box::new(source),
+    })?;
+    let cells = distinct_cells(&samples);
+    check_aligned(&cells, grid.cell).map_err(|e| {
+        ActivityJobError::Message(format!("{}: {e} (--cell)", cells_file.display()))
+    })?;
+    let points = read_track_point_files(tracks).map_err(|source| ActivityJobError::Rates {
+        what: "tracks",
+        source: Box::new(source),
+    })?;
+    let truth = person_counts(&points, &cells, bins, grid)?;
+    Ok(TruthReport {
+        output: output.display().to_string(),
+        samples: truth.len(),
+        cells: cells.len(),
+        bins: bins.to_vec(),
+        detections: points.len(),
+        mean_rate_per_hour: truth.mean_rate(),
+        truth,
+    })
+}
+
+/// CoPA-Map fitted once ([Stüde 2024] §4.2), as `chronomap activity fit` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct CopaFitReport {
+    /// Where the face writes the model.
+    pub model: String,
+    /// The training file.
+    pub train: String,
+    /// Training samples.
+    pub samples: usize,
+    /// Their cells.
+    pub cells: usize,
+    /// Inducing points.
+    pub inducing: usize,
+    /// Iterations.
+    pub iterations: usize,
+    /// The learnt periods (units of t).
+    pub periods: Vec<f64>,
+    /// The last minibatch ELBO.
+    pub final_elbo: f64,
+    /// Seconds of the fit (the job times itself on purpose).
+    pub fit_seconds: f64,
+    /// The fitted model.
+    #[serde(skip)]
+    pub fitted: CopaMap,
+}
+
+impl CopaFitReport {
+    /// The report as `chronomap activity fit` prints it.
+    pub fn text(&self) -> String {
+        let periods: Vec<String> = self.periods.iter().map(|p| format!("{p:.3}")).collect();
+        format!(
+            "{}: CoPA-Map fitted in {:.1} s on {} samples, {} cells; periods {} (units of t); \
+             final minibatch ELBO {:.1}\n",
+            self.model,
+            self.fit_seconds,
+            self.samples,
+            self.cells,
+            periods.join(", "),
+            self.final_elbo
+        )
+    }
+}
+
+/// Fits CoPA-Map to the rates of `train_path` with `config`, timed; iterations report to
+/// `progress`; `output` only names where the face writes the model.
+///
+/// # Errors
+/// The file cannot be read; the fit fails (naming the file).
+pub fn fit_copa(
+    train_path: &Path,
+    config: &CopaConfig,
+    output: &Path,
+    progress: &dyn Progress,
+) -> Result<CopaFitReport, ActivityJobError> {
+    let name = train_path.display().to_string();
+    let train = read_rate_samples(train_path)?;
+    let start = Instant::now();
+    let fitted = CopaMap::fit_with_progress(&train, config, progress)
+        .map_err(|e| ActivityJobError::Message(format!("{name}: CoPA-Map: {e}")))?;
+    Ok(CopaFitReport {
+        model: output.display().to_string(),
+        train: name,
+        samples: train.len(),
+        cells: train.cell_count(),
+        inducing: config.inducing,
+        iterations: config.iterations,
+        periods: fitted.periods(),
+        final_elbo: fitted.trace.last().copied().unwrap_or(f64::NAN),
+        fit_seconds: start.elapsed().as_secs_f64(),
+        fitted,
+    })
+}
+
+/// Log-AM fitted once, as `chronomap activity fit --model log-additive` reports it.
+#[derive(Clone, Debug)]
+pub struct LogAmFitReport {
+    /// Where the face writes the model.
+    pub model: String,
+    /// The training file.
+    pub train: String,
+    /// Training samples.
+    pub samples: usize,
+    /// Their cells.
+    pub cells: usize,
+    /// Seconds of the fit (the job times itself on purpose).
+    pub fit_seconds: f64,
+    /// The fitted model.
+    pub fitted: LogAdditive,
+}
+
+impl LogAmFitReport {
+    /// The report as `--json` prints it; ∞ (no interaction, every day alike) as the string
+    /// `"inf"`: JSON has no infinity.
+    pub fn json(&self) -> Value {
+        let value = |k: f64| {
+            if k.is_finite() {
+                json!(k)
+            } else {
+                json!("inf")
+            }
+        };
+        let m = &self.fitted;
+        json!({
+            "model": self.model,
+            "kind": LOG_ADDITIVE_KIND,
+            "train": self.train,
+            "samples": self.samples,
+            "cells": self.cells,
+            "shrinkage": value(m.shrinkage()),
+            "memory_days": value(m.memory()),
+            "holdout_rmse_log1p": m.holdout_scores().iter().map(|s| json!({
+                "memory_days": value(s.memory),
+                "shrinkage": value(s.shrinkage),
+                "rmse": s.rmse,
+            })).collect::<Vec<_>>(),
+            "sigma": m.sigma(),
+            "profile": m.profile(),
+            "fit_seconds": self.fit_seconds,
+        })
+    }
+
+    /// The report as `chronomap activity fit --model log-additive` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "{}: Log-AM fitted in {:.3} s on {} samples, {} cells; memory τ = {} days, \
+             shrinkage κ = {} (hold-out); residual σ {:.3} in ln(1 + rate)\n",
+            self.model,
+            self.fit_seconds,
+            self.samples,
+            self.cells,
+            self.fitted.memory(),
+            self.fitted.shrinkage(),
+            self.fitted.sigma()
+        )
+    }
+}
+
+/// Fits Log-AM to the rates of `train_path` with the day `period`, timed; `output` only names
+/// where the face writes the model.
+///
+/// # Errors
+/// The file cannot be read; the fit fails (naming the file).
+pub fn fit_log_additive(
+    train_path: &Path,
+    period: f64,
+    output: &Path,
+) -> Result<LogAmFitReport, ActivityJobError> {
+    let name = train_path.display().to_string();
+    let train = read_rate_samples(train_path)?;
+    let config = LogAdditiveConfig {
+        period,
+        ..LogAdditiveConfig::default()
+    };
+    let start = Instant::now();
+    let fitted = LogAdditive::fit(&train, &config)
+        .map_err(|e| ActivityJobError::Message(format!("{name}: Log-AM: {e}")))?;
+    Ok(LogAmFitReport {
+        model: output.display().to_string(),
+        train: name,
+        samples: train.len(),
+        cells: train.cell_count(),
+        fit_seconds: start.elapsed().as_secs_f64(),
+        fitted,
+    })
+}
+
+/// A prediction of [`RatePredictReport`] as `--json` shows it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PredictionRow {
+    /// Cell centre `x₁`.
+    pub x1: f64,
+    /// Cell centre `x₂`.
+    pub x2: f64,
+    /// Time.
+    pub t: f64,
+    /// Predicted rate.
+    pub mean: f64,
+    /// Its standard deviation.
+    pub std: f64,
+}
+
+/// A model's predicted rate over a grid at several times ([`predict_maps`]), as
+/// `chronomap activity predict` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct RatePredictReport {
+    /// The model's file.
+    pub model: String,
+    /// The times.
+    pub times: Vec<f64>,
+    /// The grid's region (`x1 min, x2 min, x1 max, x2 max`).
+    pub region: [f64; 4],
+    /// The cell size (m).
+    pub cell_m: f64,
+    /// Cells along `x₁`.
+    pub cols: usize,
+    /// Cells along `x₂`.
+    pub rows: usize,
+    /// Where the face writes the predictions, if anywhere.
+    pub output: Option<String>,
+    /// Where the face draws them, if anywhere.
+    pub plot: Option<String>,
+    /// Every cell off the walls at every time.
+    pub predictions: Vec<PredictionRow>,
+    /// The maps.
+    #[serde(skip)]
+    pub maps: RateMaps,
+}
+
+impl RatePredictReport {
+    /// The report as `chronomap activity predict` prints it: what was written and drawn, or
+    /// the predictions as text when neither.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        if let Some(path) = &self.output {
+            let _ = writeln!(out, "{path}: {} predictions", self.maps.rows.len());
+        }
+        if let Some(path) = &self.plot {
+            let times: Vec<String> = self.times.iter().map(|t| t.to_string()).collect();
+            let _ = writeln!(
+                out,
+                "{path}: mean and std of the rate at t = {} ({} × {} cells of {} m)",
+                times.join(", "),
+                self.cols,
+                self.rows,
+                self.cell_m
+            );
+        }
+        if self.output.is_none() && self.plot.is_none() {
+            out = chronomap_io::rate_predictions::encode_rate_predictions(&self.maps.rows);
+        }
+        out
+    }
+}
+
+/// The rate `model` (read from `model_name`) predicts over `grid` at `times`, walls of the
+/// ROS map `map` kept out; `output` and `plot` only name where the face writes and draws.
+///
+/// # Errors
+/// The map cannot be read; the model cannot predict (naming its file).
+pub fn predict_report(
+    model: &AnyActivityModel,
+    model_name: &str,
+    grid: &RegionGrid,
+    times: &[f64],
+    map: Option<&Path>,
+    [output, plot]: [Option<&Path>; 2],
+) -> Result<RatePredictReport, ActivityJobError> {
+    let map = map.map(|p| load_map(p, LoadSemantics::Nav2)).transpose()?;
+    let maps = predict_maps(model, grid, times, map.as_ref(), Parallelism::Rayon(0))
+        .map_err(|e| ActivityJobError::Message(format!("{model_name}: {e}")))?;
+    Ok(RatePredictReport {
+        model: model_name.to_string(),
+        times: times.to_vec(),
+        region: [grid.min[0], grid.min[1], grid.max[0], grid.max[1]],
+        cell_m: grid.cell,
+        cols: grid.cols,
+        rows: grid.rows,
+        output: output.map(|p| p.display().to_string()),
+        plot: plot.map(|p| p.display().to_string()),
+        predictions: maps
+            .rows
+            .iter()
+            .map(|r| PredictionRow {
+                x1: r.x[0],
+                x2: r.x[1],
+                t: r.t,
+                mean: r.mean,
+                std: r.std,
+            })
+            .collect(),
+        maps,
+    })
+}
+
+/// The bundled ATC tracks of 2012-10-24 ([Stüde 2024] §4.3.1), one file per hour, relative to
+/// the repository root.
+pub const ATC_TRACK_DIR: &str = "data/atc_20121024_1hz";
+
+/// The hour of the ATC day a quick run extracts from.
+pub const ATC_QUICK_TRACKS: &str = "atc-1024-10_train.csv.xz";
+
+/// Map cells of at least this occupancy (percent) block sight (`activity extract`'s default).
+pub const ATC_MIN_OCCUPANCY: i8 = 50;
+
+/// The track files of the ATC day: `given` if any, else the quick hour of [`ATC_TRACK_DIR`]
+/// with `quick`, else every `atc-1024-*_train.csv.xz` there, sorted by name.
+///
+/// # Errors
+/// The folder cannot be listed or holds no such file.
+pub fn atc_tracks(given: &[PathBuf], quick: bool) -> Result<Vec<PathBuf>, ActivityJobError> {
+    let dir = Path::new(ATC_TRACK_DIR);
+    if !given.is_empty() {
+        return Ok(given.to_vec());
+    }
+    if quick {
+        return Ok(vec![dir.join(ATC_QUICK_TRACKS)]);
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|source| ActivityJobError::List {
+            dir: dir.display().to_string(),
+            source,
+        })?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("atc-1024-") && n.ends_with("_train.csv.xz"))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(ActivityJobError::Message(format!(
+            "no atc-1024-*_train.csv.xz in {}",
+            dir.display()
+        )));
+    }
+    Ok(files)
+}
+
+/// What the extraction of [Stüde 2024] §4.2.2 runs on with `activity extract`'s defaults
+/// (3.5 m field of view, 0.5 m cells, hour bins from the first detection's hour, 1 s steps,
+/// every bin with a detection) and every robot of a path file at the default speed.
+pub struct ExtractionSetup {
+    /// The detections.
+    pub detections: Vec<Event>,
+    /// Obstacles that block sight.
+    pub grid: ObstacleGrid,
+    /// The robots.
+    pub robots: Vec<(String, RobotPath)>,
+    /// The bins counted.
+    pub bins: Vec<i64>,
+    /// The extraction's settings.
+    pub config: ExtractConfig,
+}
+
+/// Reads the tracks, the map and the robot paths for an extraction with the defaults
+/// ([`ExtractionSetup`]).
+///
+/// # Errors
+/// A file that cannot be read; no detection; a robot off the map.
+pub fn extraction_setup(
+    tracks: &[PathBuf],
+    map: &Path,
+    paths: &Path,
+) -> Result<ExtractionSetup, ActivityJobError> {
+    let detections = read_detections(tracks)?;
+    let (grid, robots) =
+        robots_on_map(map, paths, RobotPath::DEFAULT_SPEED, ATC_MIN_OCCUPANCY, &[])?;
+    let defaults = ExtractConfig::default();
+    let (t0, bins) = bins_over(&detections, defaults.bin_seconds, None, &[])?;
+    Ok(ExtractionSetup {
+        detections,
+        grid,
+        robots,
+        bins,
+        config: ExtractConfig { t0, ..defaults },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -523,5 +1561,98 @@ mod tests {
         assert!((maps.panels[0].1[1] - 1.0).abs() < 1e-6);
         let open = predict_maps(&model, &grid, &times, None, Parallelism::Sequential).unwrap();
         assert_eq!(open.rows.len(), 4);
+        // For plots: means over the busiest cell off the walls (10 per hour), the wall NaN.
+        let images = maps.scaled_panels();
+        assert_eq!(images.len(), 4);
+        assert_eq!(images[0].0, "mean at t = 48 (max 10 per h)");
+        assert!((images[0].1[0] - 1.0).abs() < 1e-6 && images[0].1[1].is_nan());
+        assert!(images[1].0.starts_with("std at t = 48 (max "));
+    }
+
+    #[test]
+    fn evaluate_files_splits_one_file_and_reports_text_and_json() {
+        let dir = chronomap_testutil::fresh_dir(
+            std::env::temp_dir().join(format!("chronomap-app-eval-{}", std::process::id())),
+        );
+        let mut all = RateSamples::default();
+        for t in 0..36 {
+            all.push([0.25, 0.25], f64::from(t), 10.0).unwrap();
+            all.push([0.75, 0.25], f64::from(t), 1.0).unwrap();
+        }
+        let path = dir.join("rates.csv");
+        chronomap_io::write_rate_samples(&path, &all).unwrap();
+        let settings = EvalSettings {
+            period: 12.0,
+            inducing: 4,
+            iterations: 5,
+            choice: EvalChoice::Baseline(Baseline::Ml),
+            parallelism: Parallelism::Sequential,
+        };
+        let progress = chronomap_core::progress::NoProgress;
+        let report = evaluate_files(&path, EvalTest::SplitAt(24.0), &settings, &progress).unwrap();
+        let name = path.display();
+        let text = report.text();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            format!(
+                "training: {name}: 48 samples (t < 24), 2 cells, t 0 .. 23, mean rate 5.50 per hour"
+            )
+        );
+        assert_eq!(
+            lines[1],
+            format!(
+                "test: {name} (t >= 24): 24 samples, 2 cells, t 24 .. 35, mean rate 5.50 per hour"
+            )
+        );
+        assert_eq!(lines[2], "");
+        assert!(lines[3].starts_with("model") && lines[3].ends_with("train s"));
+        assert_eq!(lines.len(), 5 + Baseline::ALL.len() + 2);
+        assert!(
+            lines[5 + Baseline::ALL.len()]
+                .starts_with("model: ml (chosen by --model); NRMSE 0.0000, chi2 0.0,"),
+            "{text}"
+        );
+        let json = report.json();
+        assert_eq!(json["model"], "ml");
+        assert_eq!(json["selected_by"], "--model");
+        assert_eq!(json["split_at"], 24.0);
+        assert_eq!(json["train"]["samples"], 48);
+        assert_eq!(json["test"]["t_first"], 24.0);
+        assert_eq!(json["copa_init"], Value::Null);
+        assert_eq!(
+            json["baselines"].as_object().unwrap().len(),
+            Baseline::ALL.len()
+        );
+        let error = evaluate_files(&path, EvalTest::SplitAt(0.0), &settings, &progress)
+            .err()
+            .unwrap();
+        assert_eq!(
+            error.to_string(),
+            format!("{name}: no sample has t < 0 (--split-at): nothing to train on")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bins_start_at_the_first_detections_bin_and_are_bounded() {
+        let at = |t: f64| Event { t, x: 0.0, y: 0.0 };
+        let detections = [at(3600.5), at(3700.0), at(10_900.0)];
+        // Hour bins from 01:00: the first and the third hour have detections.
+        assert_eq!(
+            bins_over(&detections, 3600.0, None, &[]).unwrap(),
+            (3600.0, vec![0, 2])
+        );
+        assert_eq!(
+            bins_over(&detections, 3600.0, Some(0.0), &[5]).unwrap(),
+            (0.0, vec![5])
+        );
+        // 7,300 s in bins of a millisecond: 7.3 million bins, within 2^24; of a microsecond:
+        // 7.3 billion, refused.
+        assert!(bins_over(&detections, 1e-3, None, &[7]).is_ok());
+        assert!(matches!(
+            bins_over(&detections, 1e-6, None, &[]),
+            Err(ActivityJobError::TooManyBins { .. })
+        ));
     }
 }

@@ -6,13 +6,16 @@
 //! Files in ([`DisturbanceFiles`]), a [`DisturbanceStudy`] out; the command line prints its
 //! tables and draws its plots.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use chronomap_activity::disturbance::{
-    Detections, DisturbanceConfig, PathCost, PlanningGrid, Scenario,
+    Detections, DisturbanceConfig, DisturbanceError, PathCost, PlanningGrid, Scenario,
 };
-use chronomap_activity::disturbance_day::{Outcome, SLOT_SECS, TestDay, run_scenario, test_day};
+use chronomap_activity::disturbance_day::{
+    Outcome, RATIOS, SLOT_SECS, TestDay, reduction_percent, run_scenario, test_day,
+};
 use chronomap_activity::planning::training_grid;
 use chronomap_activity::{Baseline, CopaConfig, CopaMap, RatePredictor, RateSamples};
 use chronomap_core::Parallelism;
@@ -24,9 +27,11 @@ use chronomap_io::read_rate_samples;
 use chronomap_io::scenarios::read_scenarios;
 use chronomap_io::tracks::read_track_files;
 use chronomap_spatial::OccupancyMap;
+use serde_json::{Value, json};
 use thiserror::Error;
 
 use crate::activity::baseline_config;
+use crate::report::Table;
 
 /// A map cell is an obstacle if its occupancy is at least this (percent) or unknown.
 pub const OCCUPIED_PERCENT: i8 = 50;
@@ -133,6 +138,251 @@ pub struct DisturbanceStudy {
     pub config: DisturbanceConfig,
     /// Seconds the patrols took (fits excluded).
     pub bench_seconds: f64,
+}
+
+impl DisturbanceStudy {
+    /// The study as `chronomap activity disturbance --json` prints it: the files and settings
+    /// it ran with, the seconds of the fits, the patrols and the whole run (`total_seconds`,
+    /// timed by the face), and per scenario every model's E(ρ) curve of eq. (4.22) with its
+    /// patrols.
+    pub fn json(
+        &self,
+        files: &DisturbanceFiles,
+        settings: &DisturbanceSettings,
+        total_seconds: f64,
+    ) -> Value {
+        let scenarios: Vec<Value> = self
+            .results
+            .iter()
+            .map(|(scenario, outcomes)| self.scenario_json(scenario, outcomes))
+            .collect();
+        json!({
+            "train": files.train.display().to_string(),
+            "tracks": files.tracks.len(),
+            "detections": self.detections.events().len(),
+            "day_start": self.day.day_start,
+            "t0": self.day.t0,
+            "n_nav": self.day.slots.len(),
+            "starts": self.day.starts,
+            "free_cells": self.grid.free_count(),
+            "cell_m": self.grid.cell_size(),
+            "clearance_m": settings.clearance,
+            "epsilon": settings.epsilon,
+            "speed_m_s": self.config.speed,
+            "radius_m": self.config.radius,
+            "ratios": RATIOS,
+            "fit_seconds": self.contenders.iter().map(|c| (c.name.clone(), json!(c.fit_seconds))).collect::<serde_json::Map<_, _>>(),
+            "benchmark_seconds": self.bench_seconds,
+            "total_seconds": total_seconds,
+            "scenarios": scenarios,
+        })
+    }
+
+    fn scenario_json(&self, scenario: &Scenario, outcomes: &[Outcome]) -> Value {
+        let baseline = outcomes[0].at_one();
+        let models: Vec<Value> = self
+            .contenders
+            .iter()
+            .zip(outcomes)
+            .map(|(contender, outcome)| {
+                let at_one = outcome.at_one();
+                json!({
+                    "model": contender.name,
+                    "curve": RATIOS.iter().zip(&outcome.curve).map(|(r, e)| json!({"rho": r, "encounters": e})).collect::<Vec<_>>(),
+                    "encounters_at_1": at_one,
+                    "reduction_vs_occupancy_percent": reduction_percent(baseline, at_one),
+                    "mean_path_m": outcome.mean_length(),
+                    "patrols": outcome.runs.iter().map(|r| json!({
+                        "start": r.slot.start,
+                        "model_t": r.slot.model_t,
+                        "cost": r.cost,
+                        "length_m": r.length,
+                        "encounters": r.encounters,
+                    })).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        json!({
+            "scenario": scenario.name,
+            "waypoints": scenario.waypoints.iter().map(|w| json!({"label": w.label, "x": w.at[0], "y": w.at[1]})).collect::<Vec<_>>(),
+            "models": models,
+        })
+    }
+
+    /// The study as `chronomap activity disturbance` prints it: the data, the planning grid
+    /// and the test day, one table of E(ρ) per scenario, and what the columns mean.
+    pub fn text(
+        &self,
+        files: &DisturbanceFiles,
+        settings: &DisturbanceSettings,
+        total_seconds: f64,
+    ) -> String {
+        let (day, grid) = (&self.day, &self.grid);
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "training: {}: {} samples over {} cells; test: {} detections in {} track files",
+            files.train.display(),
+            self.train.len(),
+            self.train.cell_count(),
+            self.detections.events().len(),
+            files.tracks.len()
+        );
+        let _ = writeln!(
+            out,
+            "planning: {} free cells of {} m (training cells at least {} m from obstacles); model \
+             time t = {} + hour from {}",
+            grid.free_count(),
+            grid.cell_size(),
+            settings.clearance,
+            day.t0,
+            format_time(day.day_start)
+        );
+        let _ = writeln!(
+            out,
+            "patrols: n_nav = {} per scenario, every 15 min where the slot is tracked ({} .. {})",
+            day.slots.len(),
+            format_time(day.starts[0]),
+            format_time(day.starts[day.starts.len() - 1])
+        );
+        for (scenario, outcomes) in &self.results {
+            let route: Vec<String> = scenario
+                .waypoints
+                .iter()
+                .map(|w| format!("{} ({}, {})", w.label, w.at[0], w.at[1]))
+                .collect();
+            let _ = writeln!(out, "\nscenario {}: {}", scenario.name, route.join(" -> "));
+            let mut header = vec!["model".to_string()];
+            header.extend(RATIOS.iter().map(|r| format!("E({r})")));
+            header.push("vs occupancy".into());
+            header.push("mean path m".into());
+            let mut table = Table::new(header);
+            let baseline = outcomes[0].at_one();
+            for (contender, outcome) in self.contenders.iter().zip(outcomes) {
+                let mut row = vec![contender.name.clone()];
+                row.extend(outcome.curve.iter().map(|e| e.to_string()));
+                row.push(
+                    reduction_percent(baseline, outcome.at_one())
+                        .map_or_else(|| "-".into(), |r| format!("{r:.1} %")),
+                );
+                row.push(format!("{:.1}", outcome.mean_length()));
+                table.row(row);
+            }
+            out.push_str(&table.render());
+        }
+        let fits: Vec<String> = self
+            .contenders
+            .iter()
+            .filter(|c| c.model.is_some())
+            .map(|c| format!("{} {:.1} s", c.name, c.fit_seconds))
+            .collect();
+        let _ = writeln!(
+            out,
+            "\nE(rho): eq. (4.22), encounters (detections within {} m of the robot at {} m/s) of the \
+             floor(n_nav rho) patrols of least predicted cost (lower is better); vs occupancy: fewer \
+             encounters than the shortest route at rho = 1. Fitting: {}; benchmark {:.1} s, total \
+             {:.1} s.",
+            self.config.radius,
+            self.config.speed,
+            fits.join(", "),
+            self.bench_seconds,
+            total_seconds
+        );
+        out
+    }
+}
+
+/// A scenario's busiest patrol slot for a plot: the cost map of one rate model then, every
+/// model's path, and the people tracked then.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BusiestSlot {
+    /// The scenario.
+    pub scenario: String,
+    /// The model whose cost map is shown.
+    pub model: String,
+    /// The slot's start (time of the detections).
+    pub start: f64,
+    /// The cost the colours end at (the 98th percentile of the finite costs).
+    pub top: f64,
+    /// Per cell of the planning grid: cost / `top` (NaN where the robot cannot drive).
+    pub values: Vec<f32>,
+    /// Every model's path then (cell centres).
+    pub paths: Vec<(String, Vec<[f64; 2]>)>,
+    /// The people detected during the slot.
+    pub people: Vec<[f64; 2]>,
+    /// The scenario's waypoints.
+    pub waypoints: Vec<(String, [f64; 2])>,
+}
+
+impl DisturbanceStudy {
+    /// Per scenario, its busiest slot (the most encounters of the shortest route) with the
+    /// cost map of the last rate model (CoPA-Map unless left out); `None` without a rate model.
+    ///
+    /// # Errors
+    /// The model cannot price the cells.
+    pub fn busiest_slots(&self) -> Result<Option<Vec<BusiestSlot>>, DisturbanceError> {
+        let Some(shown) = self.contenders.iter().rposition(|c| c.model.is_some()) else {
+            return Ok(None);
+        };
+        let grid = &self.grid;
+        let mut slots = Vec::new();
+        for (scenario, outcomes) in &self.results {
+            let busiest = outcomes[0].busiest().unwrap_or(0);
+            let slot = outcomes[0].runs[busiest].slot;
+            let weights =
+                self.contenders[shown]
+                    .cost()
+                    .weights(grid, slot.model_t, f64::MIN_POSITIVE)?;
+            // Colours up to the 98th percentile: a few queues would otherwise darken the rest.
+            let mut finite: Vec<f64> = weights.iter().copied().filter(|w| w.is_finite()).collect();
+            finite.sort_by(f64::total_cmp);
+            let top = finite
+                .get((finite.len() * 98 / 100).min(finite.len().saturating_sub(1)))
+                .copied()
+                .unwrap_or(0.0)
+                .max(f64::MIN_POSITIVE);
+            slots.push(BusiestSlot {
+                scenario: scenario.name.clone(),
+                model: self.contenders[shown].name.clone(),
+                start: slot.start,
+                top,
+                values: weights
+                    .iter()
+                    .map(|&w| {
+                        if w.is_finite() {
+                            (w / top) as f32
+                        } else {
+                            f32::NAN
+                        }
+                    })
+                    .collect(),
+                paths: self
+                    .contenders
+                    .iter()
+                    .zip(outcomes)
+                    .map(|(c, o)| {
+                        let cells = &o.runs[busiest].cells;
+                        (
+                            c.name.clone(),
+                            cells.iter().map(|&c| grid.centre(c)).collect(),
+                        )
+                    })
+                    .collect(),
+                people: self
+                    .detections
+                    .between(slot.start, slot.start + SLOT_SECS)
+                    .iter()
+                    .map(|e| [e.x, e.y])
+                    .collect(),
+                waypoints: scenario
+                    .waypoints
+                    .iter()
+                    .map(|w| (w.label.clone(), w.at))
+                    .collect(),
+            });
+        }
+        Ok(Some(slots))
+    }
 }
 
 /// Reads the files, fits every model and drives every scenario's patrols through the test

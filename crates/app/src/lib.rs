@@ -34,6 +34,8 @@
 //! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford) and the traced run ([Santos 2017]) |
 //! | [`topo`] | edge-model fits, evaluations and timed plans ([Fentanes 2015]) |
 //! | [`laser_log`], [`lidar_study`] | laser logs and keyframes; the range-data studies with the `p_min` rule ([Stüde 2024] §3.2) |
+//! | [`registration`], [`maps`] | clouds and keyframe pairs registered against a truth or SLAM (§3.2.2); the map manager along a log (§3.3) |
+//! | [`features`] | which features will be visible ([Krajník 2017] §VII Table I, [Krajník 2019] §V-B) |
 #![deny(missing_docs)]
 
 pub mod activity;
@@ -44,10 +46,13 @@ pub mod disturbance;
 pub mod eval;
 pub mod events;
 pub mod explore;
+pub mod features;
 pub mod grid;
 pub mod ingest;
 pub mod laser_log;
 pub mod lidar_study;
+pub mod maps;
 pub mod open;
+pub mod registration;
 pub mod report;
 pub mod topo;

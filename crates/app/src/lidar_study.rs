@@ -7,23 +7,33 @@
 //! Each function takes plain settings and a [`Progress`] and returns a result struct; the
 //! faces print, plot and map settings errors to their own argument names.
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use chronomap_core::num::median;
 use chronomap_core::progress::Progress;
 use chronomap_geometry::se2::{Pose2, between, compose};
-use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, ScanFeatures};
-use chronomap_lidar::descriptor::{Descriptor, DescriptorError, DescriptorParams, describe_scan};
-use chronomap_lidar::evaluation::{
-    CvReport, EvalError, FoldResult, LabelParams, LabelledPair, MAX_BOOSTING_ROUNDS, MAX_TRAININGS,
-    PipelineParams, PipelineReport, cv_rounds, cv_trainings, label_pairs, layout_folds,
-    run_pipeline,
+use chronomap_io::model_file::ModelFileError;
+use chronomap_io::read_model_file;
+use chronomap_lidar::classifier::{ClassifierConfig, LoopClassifier, MODEL_KIND, ScanFeatures};
+use chronomap_lidar::descriptor::{
+    Descriptor, DescriptorError, DescriptorParams, PAIR_FEATURE_NAMES, SCALAR_FEATURES,
+    describe_cloud, describe_scan,
 };
-use chronomap_lidar::threshold::MeanSd;
+use chronomap_lidar::evaluation::{
+    Balance, CvReport, Detection as EvalDetection, EvalError, FoldResult, LabelParams,
+    LabelledPair, MAX_BOOSTING_ROUNDS, MAX_TRAININGS, PipelineParams, PipelineReport, WeakLearner,
+    cv_rounds, cv_trainings, label_pairs, layout_folds, run_pipeline,
+};
+use chronomap_lidar::search::SearchMode;
+use chronomap_lidar::threshold::{MeanSd, RocPoint};
 use chronomap_registration::rigid::Rigid;
 use chronomap_registration::{Cloud, RegistrationParams, register_scans, scan_params};
+use serde::Serialize;
 
 use crate::laser_log::{LaserLog, LaserLogError, from_keyframes};
+use crate::registration::RegistrationJobError;
+use crate::report::Table;
 
 /// The most folds a cross-validation may ask for (the sectors of [`layout_folds`]).
 pub const MAX_FOLDS: usize = 1000;
@@ -86,6 +96,38 @@ pub enum LoopStudyError {
         far: f64,
         /// The least keyframe separation of a pair.
         min_separation: usize,
+    },
+    /// A cloud that cannot be read.
+    #[error(transparent)]
+    Cloud(#[from] RegistrationJobError),
+    /// The descriptor of a cloud (eq. 3.7).
+    #[error("{file}: descriptor")]
+    CloudDescriptor {
+        /// The cloud's file.
+        file: String,
+        /// Why.
+        #[source]
+        source: DescriptorError,
+    },
+    /// A classifier file that cannot be read.
+    #[error(transparent)]
+    ModelFile(#[from] ModelFileError),
+    /// A model file of another kind.
+    #[error("{file}: holds a {kind}, not a loop classifier (chronomap lidar train writes one)")]
+    NotAClassifier {
+        /// The file.
+        file: String,
+        /// What it holds.
+        kind: String,
+    },
+    /// A classifier file whose classifier is invalid.
+    #[error("{file}: invalid classifier")]
+    InvalidClassifier {
+        /// The file.
+        file: String,
+        /// Why.
+        #[source]
+        source: EvalError,
     },
     /// No fold layout has a threshold that keeps the false-positive rate below the bound.
     #[error("{name}: no threshold keeps the false-positive rate below {max_fpr}")]
@@ -838,6 +880,591 @@ pub fn within_range(cloud: &Cloud<3>, max_range: f64) -> (usize, f64) {
     (within, ranges.fold(f64::INFINITY, f64::min))
 }
 
+/// The descriptors of a cloud or of every scan of a log, as `chronomap lidar descriptors`
+/// reports them ([Stüde 2024] §3.2.1, eq. 3.7).
+#[derive(Debug, Clone, Serialize)]
+pub struct DescriptorsReport {
+    /// The cloud's file or the log.
+    pub source: String,
+    /// The descriptor's parameters.
+    pub params: DescriptorParams,
+    /// The names of the scalar features, in the order of each descriptor's scalars.
+    pub features: Vec<&'static str>,
+    /// One descriptor per cloud or scan, with the scan's time (0 for a cloud).
+    pub descriptors: Vec<TimedDescriptor>,
+}
+
+/// A descriptor with the time of its scan.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimedDescriptor {
+    /// The scan's time (s).
+    pub time: f64,
+    /// The descriptor.
+    pub descriptor: Descriptor,
+}
+
+impl DescriptorsReport {
+    fn new(source: String, params: DescriptorParams, rows: Vec<(f64, Descriptor)>) -> Self {
+        DescriptorsReport {
+            source,
+            params,
+            features: PAIR_FEATURE_NAMES[..SCALAR_FEATURES].to_vec(),
+            descriptors: rows
+                .into_iter()
+                .map(|(time, descriptor)| TimedDescriptor { time, descriptor })
+                .collect(),
+        }
+    }
+
+    /// The scalar features as CSV: `index,time` and one column per feature (lower case, words
+    /// joined by `_`), one line per descriptor.
+    pub fn csv(&self) -> String {
+        let mut text = String::from("index,time");
+        for name in &self.features {
+            text.push(',');
+            text.push_str(&csv_name(name));
+        }
+        text.push('\n');
+        for (k, d) in self.descriptors.iter().enumerate() {
+            let _ = write!(text, "{k},{}", d.time);
+            for v in &d.descriptor.scalars {
+                let _ = write!(text, ",{v}");
+            }
+            text.push('\n');
+        }
+        text
+    }
+
+    /// The line saying the CSV was written to `path`.
+    pub fn written(&self, path: &Path) -> String {
+        format!(
+            "{}: {} descriptor(s) of {} scalar features written to {}\n",
+            self.source,
+            self.descriptors.len(),
+            SCALAR_FEATURES,
+            path.display()
+        )
+    }
+}
+
+/// A feature name as a CSV column: lower case, words joined by `_`.
+fn csv_name(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_string()
+}
+
+/// The descriptor (eq. 3.7) of a PLY cloud, with the default parameters.
+///
+/// # Errors
+/// The file cannot be read, or the cloud has no descriptor.
+pub fn cloud_descriptors(path: &Path) -> Result<DescriptorsReport, LoopStudyError> {
+    let params = DescriptorParams::default();
+    let cloud = crate::registration::read_cloud(path, "a descriptor")?;
+    let d = describe_cloud(cloud.points(), &params).map_err(|source| {
+        LoopStudyError::CloudDescriptor {
+            file: path.display().to_string(),
+            source,
+        }
+    })?;
+    Ok(DescriptorsReport::new(
+        path.display().to_string(),
+        params,
+        vec![(0.0, d)],
+    ))
+}
+
+/// The descriptors (eq. 3.7) of every scan of a log ([`describe_log`]), with the default
+/// parameters.
+///
+/// # Errors
+/// The first scan without a descriptor.
+pub fn log_descriptors(
+    log: &LaserLog,
+    progress: &dyn Progress,
+) -> Result<DescriptorsReport, LoopStudyError> {
+    let params = DescriptorParams::default();
+    let rows = describe_log(log, &params, progress)?;
+    Ok(DescriptorsReport::new(log.name.clone(), params, rows))
+}
+
+/// One line naming a classifier configuration ([Stüde 2024] §3.2.1: the paper's classifier,
+/// the extended one, or another).
+pub fn describe_config(config: &ClassifierConfig) -> String {
+    let features = match config.profile {
+        Some(_) => "44 pair values (41 of the descriptor, 3 of the range profiles)",
+        None => "41 pair values of the descriptor",
+    };
+    let learner = match config.learner {
+        WeakLearner::Stump => "AdaBoost with stumps",
+        WeakLearner::Depth2 => "boosted depth-2 trees",
+    };
+    let balance = match config.balance {
+        Balance::Subsample => "loops and as many random non-loops",
+        Balance::Weighted => "all pairs, classes weighted equally",
+    };
+    let fixed = ClassifierConfig {
+        rounds: 50,
+        ..config.clone()
+    };
+    let which = if fixed == ClassifierConfig::paper() {
+        "the paper's classifier"
+    } else if fixed == ClassifierConfig::extended() {
+        "the extended classifier"
+    } else {
+        "classifier"
+    };
+    format!("{which}: {features}, {learner}, {balance}")
+}
+
+/// The out-of-fold loop pipeline of [`LoopEvalReport`].
+#[derive(Debug, Clone, Serialize)]
+pub struct PipelineSummary {
+    /// `p_min` of fold layout 0's pooled ROC.
+    pub p_min: Option<f64>,
+    /// Loops accepted.
+    pub loops: usize,
+    /// Of them, true loops.
+    pub correct: usize,
+    /// Of them, false loops.
+    pub wrong: usize,
+    /// Keyframes with a true loop partner.
+    pub revisiting_keyframes: usize,
+    /// Of those, keyframes with a correct loop.
+    pub revisiting_keyframes_closed: usize,
+    /// The loops accepted, in sequence order.
+    pub detections: Vec<EvalDetection>,
+}
+
+/// The cross-validation of the loop classifier over fold layouts and its out-of-fold pipeline
+/// ([Stüde 2024] §3.2.1), as `chronomap lidar eval` reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopEvalReport {
+    /// Keyframes.
+    pub keyframes: usize,
+    /// Loop pairs.
+    pub loops: usize,
+    /// Non-loop pairs.
+    pub non_loops: usize,
+    /// Folds scored, over all layouts.
+    pub folds: usize,
+    /// Fold layouts.
+    pub layouts: usize,
+    /// AUC per fold.
+    pub auc: MeanSd,
+    /// TPR at the bound with each fold's own threshold.
+    pub tpr_at_max_fpr: MeanSd,
+    /// TPR with `p_min` chosen on the other folds.
+    pub heldout_p_min_tpr: MeanSd,
+    /// FPR with `p_min` chosen on the other folds.
+    pub heldout_p_min_fpr: MeanSd,
+    /// AUC pooled over the folds of a layout.
+    pub pooled_auc: MeanSd,
+    /// TPR at the bound, pooled per layout.
+    pub pooled_tpr_at_max_fpr: MeanSd,
+    /// `p_min` of each layout's pooled ROC.
+    pub p_min: MeanSd,
+    /// The bound on the false-positive rate.
+    pub max_fpr: f64,
+    /// The classifier ([`describe_config`]).
+    pub classifier: String,
+    /// The out-of-fold loop pipeline.
+    pub pipeline: PipelineSummary,
+    /// The pooled ROC of every layout.
+    pub pooled_roc: Vec<Vec<RocPoint>>,
+    /// The log.
+    #[serde(skip)]
+    pub name: String,
+    /// The settings.
+    #[serde(skip)]
+    pub settings: LoopTraining,
+    /// The SLAM positions of the keyframes (m), for plots.
+    #[serde(skip)]
+    pub trajectory: Vec<[f64; 2]>,
+}
+
+impl LoopEvalReport {
+    /// The report as `chronomap lidar eval` prints it.
+    pub fn text(&self) -> String {
+        let s = &self.settings;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{}: {} keyframes, {} loops (closer than {} m, more than {} keyframes apart), {} non-loops (farther than {} m)",
+            self.name, self.keyframes, self.loops, s.near, s.min_separation, self.non_loops, s.far
+        );
+        let _ = writeln!(
+            out,
+            "cross-validation: {} fold layouts × {} folds by place ({} folds with loops and non-loops to score); {}, T = {}",
+            s.layouts, s.folds, self.folds, self.classifier, s.rounds
+        );
+        let pct = 100.0 * s.max_fpr;
+        let mut table = Table::new(["measure", "mean ± sd"]).left(&[0]);
+        let rows = [
+            ("AUC (per fold)".to_string(), format!("{:.3}", self.auc)),
+            (
+                format!("TPR at FPR < {pct} % (each fold's own threshold)"),
+                format!("{:.3}", self.tpr_at_max_fpr),
+            ),
+            (
+                "TPR with p_min chosen on the other folds".to_string(),
+                format!("{:.3}", self.heldout_p_min_tpr),
+            ),
+            (
+                "FPR with p_min chosen on the other folds".to_string(),
+                format!("{:.4}", self.heldout_p_min_fpr),
+            ),
+            (
+                "AUC (pooled over folds, per layout)".to_string(),
+                format!("{:.3}", self.pooled_auc),
+            ),
+            (
+                format!("TPR at FPR < {pct} % (pooled, per layout)"),
+                format!("{:.3}", self.pooled_tpr_at_max_fpr),
+            ),
+            (
+                "p_min (pooled, per layout)".to_string(),
+                format!("{:.4}", self.p_min),
+            ),
+        ];
+        for (measure, value) in rows {
+            table.row([measure, value]);
+        }
+        let _ = writeln!(out, "{}", table.render().trim_end());
+        let p = &self.pipeline;
+        let _ = writeln!(
+            out,
+            "loop detection along the keyframes (search radius, classifier, verification; fold layout 0, each pair scored by the model trained without both keyframes' folds, p_min {:.4}): {} loops, {} correct, {} wrong; {} of {} revisiting keyframes closed",
+            p.p_min.unwrap_or(f64::NAN),
+            p.loops,
+            p.correct,
+            p.wrong,
+            p.revisiting_keyframes_closed,
+            p.revisiting_keyframes
+        );
+        out
+    }
+}
+
+/// `chronomap lidar eval`: reads and labels the keyframes, cross-validates the classifier over
+/// the fold layouts ([`cross_validate_layouts`]) and runs the out-of-fold pipeline
+/// ([`out_of_fold_pipeline`]).
+///
+/// # Errors
+/// As [`labelled_keyframes`], [`cross_validate_layouts`] and [`out_of_fold_pipeline`].
+pub fn evaluate_loops(
+    path: &Path,
+    settings: &LoopTraining,
+    odometry: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<LoopEvalReport, LoopStudyError> {
+    let data = labelled_keyframes(path, settings, odometry, true)?;
+    let cv = cross_validate_layouts(&data, settings, progress)?;
+    let pipeline = out_of_fold_pipeline(&data, settings, &cv, progress)?;
+    let summary = CvSummary::of(&cv);
+    let loops = data.positives();
+    let truth = data.log.truth.as_deref().unwrap_or(&[]);
+    Ok(LoopEvalReport {
+        keyframes: data.log.scans.len(),
+        loops,
+        non_loops: data.pairs.len() - loops,
+        folds: summary.folds,
+        layouts: settings.layouts,
+        auc: summary.auc,
+        tpr_at_max_fpr: summary.tpr,
+        heldout_p_min_tpr: summary.heldout_tpr,
+        heldout_p_min_fpr: summary.heldout_fpr,
+        pooled_auc: summary.pooled_auc,
+        pooled_tpr_at_max_fpr: summary.pooled_tpr,
+        p_min: summary.p_min,
+        max_fpr: settings.max_fpr,
+        classifier: describe_config(&data.config),
+        pipeline: PipelineSummary {
+            p_min: cv.first_threshold(),
+            loops: pipeline.detections.len(),
+            correct: pipeline.correct(),
+            wrong: pipeline.wrong(),
+            revisiting_keyframes: pipeline.queries_with_loop,
+            revisiting_keyframes_closed: pipeline.queries_closed,
+            detections: pipeline.detections,
+        },
+        pooled_roc: cv.reports.into_iter().map(|r| r.pooled_roc).collect(),
+        name: data.log.name.clone(),
+        settings: settings.clone(),
+        trajectory: truth.iter().map(|p| [p[0], p[1]]).collect(),
+    })
+}
+
+/// The loop classifier trained on every labelled pair with `p_min` from [`p_min_rule`], as
+/// `chronomap lidar train` reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopTrainReport {
+    /// Where the classifier is written.
+    pub output: PathBuf,
+    /// Keyframes.
+    pub keyframes: usize,
+    /// Loop pairs trained on.
+    pub loops: usize,
+    /// Non-loop pairs.
+    pub non_loops: usize,
+    /// Boosting rounds trained.
+    pub rounds: usize,
+    /// The classifier ([`describe_config`]).
+    pub classifier: String,
+    /// The threshold.
+    pub p_min: f64,
+    /// The bound on the false-positive rate it was chosen for.
+    pub max_fpr: f64,
+    /// The pooled out-of-fold TPR at the bound.
+    pub cv_tpr_at_max_fpr: MeanSd,
+    /// The log.
+    #[serde(skip)]
+    pub name: String,
+    /// The trained classifier.
+    #[serde(skip)]
+    pub model: LoopClassifier,
+}
+
+impl LoopTrainReport {
+    /// The report as `chronomap lidar train` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "{}: trained on {} loops and {} non-loops of {} keyframes ({}, T = {}); p_min = {:.4} keeps the out-of-fold false-positive rate below {} % (TPR there {:.3}); written to {}\n",
+            self.name,
+            self.loops,
+            self.non_loops,
+            self.keyframes,
+            self.classifier,
+            self.rounds,
+            self.p_min,
+            100.0 * self.max_fpr,
+            self.cv_tpr_at_max_fpr,
+            self.output.display()
+        )
+    }
+}
+
+/// `chronomap lidar train`: reads and labels the keyframes, cross-validates over the fold
+/// layouts and trains the classifier on every pair with `p_min` by [`p_min_rule`]
+/// ([`train_classifier`]); `output` is where the face writes it.
+///
+/// # Errors
+/// As [`labelled_keyframes`], [`cross_validate_layouts`] and [`train_classifier`].
+pub fn train_loops(
+    path: &Path,
+    settings: &LoopTraining,
+    output: &Path,
+    progress: &dyn Progress,
+) -> Result<LoopTrainReport, LoopStudyError> {
+    let data = labelled_keyframes(path, settings, None, false)?;
+    let cv = cross_validate_layouts(&data, settings, progress)?;
+    let model = train_classifier(&data, &cv, settings.max_fpr)?;
+    let loops = model.trained_on.0;
+    Ok(LoopTrainReport {
+        output: output.to_path_buf(),
+        keyframes: data.log.scans.len(),
+        loops,
+        non_loops: data.pairs.len() - loops,
+        rounds: model.model.rounds(),
+        classifier: describe_config(&model.config),
+        p_min: model.p_min,
+        max_fpr: settings.max_fpr,
+        cv_tpr_at_max_fpr: CvSummary::of(&cv).pooled_tpr,
+        name: data.log.name.clone(),
+        model,
+    })
+}
+
+/// Reads a loop classifier file ([`MODEL_KIND`]) and checks the classifier.
+///
+/// # Errors
+/// The file cannot be read, holds another kind, or an invalid classifier.
+pub fn read_classifier(path: &Path) -> Result<LoopClassifier, LoopStudyError> {
+    let (kind, classifier): (String, LoopClassifier) = read_model_file(path)?;
+    let file = path.display().to_string();
+    if kind != MODEL_KIND {
+        return Err(LoopStudyError::NotAClassifier { file, kind });
+    }
+    classifier
+        .validate()
+        .map_err(|source| LoopStudyError::InvalidClassifier { file, source })?;
+    Ok(classifier)
+}
+
+/// A loop found by [`detect_report`], as `--json` shows it.
+#[derive(Debug, Clone, Serialize)]
+pub struct DetectionRow {
+    /// The new keyframe.
+    pub query: usize,
+    /// The keyframe it closes the loop with.
+    pub target: usize,
+    /// The loop probability.
+    pub probability: f64,
+    /// The search radius (m; infinite for a global search).
+    pub radius_m: f64,
+    /// Where the search looked.
+    pub mode: SearchMode,
+    /// Candidates scored.
+    pub candidates: usize,
+    /// The true distance of the pair (m), if the log has SLAM poses.
+    pub true_distance_m: Option<f64>,
+    /// Whether it is a true loop, if the log has SLAM poses.
+    pub correct: Option<bool>,
+}
+
+/// Loops found along a log by a trained classifier ([`detect_loops`]), as
+/// `chronomap lidar detect` reports them.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopDetectReport {
+    /// The log.
+    pub log: String,
+    /// Keyframes.
+    pub keyframes: usize,
+    /// The threshold used.
+    pub p_min: f64,
+    /// The loops accepted.
+    pub detections: Vec<DetectionRow>,
+    /// Pairs scored within the search radius.
+    pub scored_pairs: usize,
+    /// Loops rejected by verification.
+    pub rejected_by_verification: usize,
+    /// True loop pairs, if the log has SLAM poses.
+    pub true_loop_pairs: Option<usize>,
+    /// Of those, pairs inside the search radius when their second keyframe came.
+    pub true_loop_pairs_in_search_space: Option<usize>,
+    /// The pipeline's report.
+    #[serde(skip)]
+    pub pipeline: PipelineReport,
+    /// The trajectory judged against (SLAM if known, else odometry; m).
+    #[serde(skip)]
+    pub positions: Vec<[f64; 2]>,
+    /// Whether the log has SLAM poses.
+    #[serde(skip)]
+    pub has_truth: bool,
+}
+
+impl LoopDetectReport {
+    /// The loops as CSV: `query,target,probability,radius_m,mode`.
+    pub fn csv(&self) -> String {
+        let mut csv = String::from("query,target,probability,radius_m,mode\n");
+        for d in &self.pipeline.detections {
+            let _ = writeln!(
+                csv,
+                "{},{},{},{},{:?}",
+                d.query, d.target, d.probability, d.radius, d.mode
+            );
+        }
+        csv
+    }
+
+    /// The report as `chronomap lidar detect` prints it.
+    pub fn text(&self) -> String {
+        let report = &self.pipeline;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{}: {} keyframes, {} pairs scored within the search radius (eq. 3.8), p_min = {:.4}: {} loop(s), {} rejected by verification",
+            self.log,
+            self.keyframes,
+            report.scored_pairs,
+            self.p_min,
+            report.detections.len(),
+            report.rejected_by_verification
+        );
+        if self.has_truth {
+            let _ = writeln!(
+                out,
+                "against the SLAM poses: {} correct, {} wrong; {} true loop pairs, {} of them inside the search radius when their second keyframe came",
+                report.correct(),
+                report.wrong(),
+                report.true_pairs,
+                report.true_pairs_in_space
+            );
+        }
+        if !report.detections.is_empty() {
+            let mut table = Table::new([
+                "keyframe",
+                "loop with",
+                "p",
+                "radius (m)",
+                "search",
+                "true distance (m)",
+            ]);
+            for d in &report.detections {
+                table.row([
+                    d.query.to_string(),
+                    d.target.to_string(),
+                    format!("{:.3}", d.probability),
+                    if d.radius.is_finite() {
+                        format!("{:.2}", d.radius)
+                    } else {
+                        "all".into()
+                    },
+                    format!("{:?}", d.mode),
+                    if self.has_truth {
+                        format!("{:.2}", d.true_distance)
+                    } else {
+                        "-".into()
+                    },
+                ]);
+            }
+            let _ = writeln!(out, "{}", table.render().trim_end());
+        }
+        out
+    }
+}
+
+/// `chronomap lidar detect`: loop detection along `log` ([`detect_loops`]) as a report.
+///
+/// # Errors
+/// As [`detect_loops`].
+pub fn detect_report(
+    log: &LaserLog,
+    classifier: &LoopClassifier,
+    p_min: Option<f64>,
+    min_separation: usize,
+) -> Result<LoopDetectReport, LoopStudyError> {
+    let has_truth = log.truth.is_some();
+    let Detection {
+        report,
+        p_min,
+        positions,
+    } = detect_loops(log, classifier, p_min, min_separation)?;
+    let known = |v: usize| has_truth.then_some(v);
+    Ok(LoopDetectReport {
+        log: log.name.clone(),
+        keyframes: log.scans.len(),
+        p_min,
+        detections: report
+            .detections
+            .iter()
+            .map(|d| DetectionRow {
+                query: d.query,
+                target: d.target,
+                probability: d.probability,
+                radius_m: d.radius,
+                mode: d.mode,
+                candidates: d.candidates,
+                true_distance_m: has_truth.then_some(d.true_distance),
+                correct: has_truth.then_some(d.correct),
+            })
+            .collect(),
+        scored_pairs: report.scored_pairs,
+        rejected_by_verification: report.rejected_by_verification,
+        true_loop_pairs: known(report.true_pairs),
+        true_loop_pairs_in_search_space: known(report.true_pairs_in_space),
+        pipeline: report,
+        positions,
+        has_truth,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -944,5 +1571,54 @@ mod tests {
                 folds: 1
             }))
         ));
+    }
+
+    #[test]
+    fn the_two_classifiers_are_named_by_what_they_learn_from() {
+        assert_eq!(
+            describe_config(&ClassifierConfig::paper()),
+            "the paper's classifier: 41 pair values of the descriptor, AdaBoost with stumps, \
+             loops and as many random non-loops"
+        );
+        let extended = ClassifierConfig {
+            rounds: 7,
+            ..ClassifierConfig::extended()
+        };
+        assert_eq!(
+            describe_config(&extended),
+            "the extended classifier: 44 pair values (41 of the descriptor, 3 of the range \
+             profiles), boosted depth-2 trees, all pairs, classes weighted equally"
+        );
+        assert_eq!(csv_name("Range mean (m)"), "range_mean_m");
+    }
+
+    /// The 225 scans of the Málaga 2006 log: one descriptor each, 32 scalar features, as CSV
+    /// and as JSON.
+    #[test]
+    fn the_descriptors_of_the_malaga_log_are_one_row_per_scan() {
+        let log = crate::laser_log::from_scans(
+            &chronomap_testutil::data_path("malaga_laser_2006/scans.txt.xz"),
+            &chronomap_testutil::data_path("malaga_laser_2006/odometry.txt.xz"),
+        )
+        .unwrap();
+        let report = log_descriptors(&log, &chronomap_core::progress::NoProgress).unwrap();
+        assert_eq!(report.descriptors.len(), 225);
+        let csv = report.csv();
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines.len(), 226);
+        assert!(lines[0].starts_with("index,time,"), "{}", lines[0]);
+        assert_eq!(lines[0].split(',').count(), 2 + SCALAR_FEATURES);
+        assert_eq!(lines[1].split(',').count(), 2 + SCALAR_FEATURES);
+        assert!(lines[1].starts_with(&format!("0,{},", log.scans[0].time)));
+        assert_eq!(
+            report.written(Path::new("d.csv")),
+            format!(
+                "{}: 225 descriptor(s) of 32 scalar features written to d.csv\n",
+                log.name
+            )
+        );
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["features"].as_array().unwrap().len(), SCALAR_FEATURES);
+        assert_eq!(json["descriptors"][224]["time"], log.scans[224].time);
     }
 }
