@@ -1,151 +1,61 @@
 //! `chronomap demo`: the main job on bundled real data. Evaluates the temporal models on the
 //! door datasets beside the original FreMEn code's published figures, compresses the one-second
-//! door week with FFT FreMEn, and draws the FreMEn paper's figures 2 and 3 for these data.
+//! door week with FFT FreMEn, and draws the FreMEn paper's figures 2 and 3 for these data
+//! (`chronomap_app::demo` runs the studies and writes their text, this prints and draws).
 
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use chronomap_app::demo::{GREG_MODELS, TOM_MODELS, evaluate_doors, fft_text, greg_text, tom_text};
 use chronomap_core::TimeSeries;
-use chronomap_core::fft::{FftFremenConfig, uniform_binary_samples};
 use chronomap_core::{FremenModel, Ordered, Parallelism, TemporalModel};
 use chronomap_models::AnyModel;
-use chronomap_models::eval::{EvalReport, TestSet, evaluate};
-use chronomap_models::spec::{FitOptions, ModelSpec, parse_model_list};
+use chronomap_models::eval::EvalReport;
 use chronomap_plot::{
     Panel, Series, SeriesStyle, SpectrumBar, render_panels_png, render_spectrum_png,
 };
 
-use super::compress::compress;
-use super::describe_selection;
+/// The demo's indentation, for the topological section's tables too.
+#[allow(unused_imports)]
+pub(super) use chronomap_app::demo::indent;
+
 use crate::bundled;
 use crate::cli::DemoArgs;
-use crate::format::{Table, duration, time};
+use crate::format::{duration, time};
 use crate::outln;
 use crate::output::ProgressBar;
-use chronomap_core::progress::Progress;
-
-/// Mean Brier score over greg door test weeks 1..5 of the original FreMEn C++ code
-/// (strands-project/fremen `CFrelement`), from the dataset's README.
-const GREG_REFERENCE: [(&str, f64); 5] = [
-    ("mean", 0.0807),
-    ("fremen:0", 0.0807),
-    ("fremen:2", 0.0701),
-    ("fremen:4", 0.0670),
-    ("pergam:2", 0.0951),
-];
-/// The original's "24-bin histogram" figure (0.0703) is reproduced by 24 bins over one day.
-const GREG_HIST_REFERENCE: (&str, f64) = ("hist:24:86400", 0.0703);
 
 pub fn run(args: &DemoArgs) -> Result<()> {
-    let options = FitOptions {
-        parallelism: Parallelism::Rayon(0),
-        ..FitOptions::default()
-    };
     outln!("chronomap demo: temporal models of real doors, beside the original FreMEn code\n")?;
 
     // 1. Greg's door.
     let train = bundled::GREG_TRAINING.pairs()?;
     let tests = bundled::test_sets(&bundled::GREG_TESTS)?;
-    outln!(
-        "1. An office door in Lincoln, 2016 (data/door_greg_2016): trained on {} minutes from {} to {}, \
-         tested on the {} weeks that follow. The door is open {:.1} % of the time.\n",
-        train.len(),
-        time(train.times[0]),
-        time(train.times[train.len() - 1]),
-        tests.len(),
-        100.0 * train.values.iter().sum::<f64>() / train.len() as f64
+    let greg = evaluate_doors(
+        GREG_MODELS,
+        &train,
+        &tests,
+        "greg door: fitting",
+        &ProgressBar::new(),
     )?;
-    let specs = parse_model_list(
-        "mean,fremen:0,fremen:2,fremen:4,fremen:auto,persistence:auto,stm,hist:24,hist:24:86400,pergam:2,auto",
-    )?;
-    let greg = run_eval("greg door: fitting", &specs, &train, &tests, &options)?;
-    print_eval(&greg, |name| {
-        GREG_REFERENCE
-            .iter()
-            .chain(std::iter::once(&GREG_HIST_REFERENCE))
-            .find(|(n, _)| *n == name)
-            .map(|(_, v)| *v)
-    })?;
-    outln!(
-        "\n   'original' = mean squared error of the original FreMEn C++ code on the same weeks. \
-         Its 24-bin histogram figure matches 24 bins over a day (hist:24:86400); \
-         24 bins over a week (hist:24) is shown too. The original PerGaM had no wrap-around at midnight."
-    )?;
-    print_selections(&greg)?;
-    print_significant(&greg, 8)?;
+    outln!("{}", greg_text(&train, &tests, &greg))?;
 
     // 2. Tom's door, one week at one minute.
     let tom_train = bundled::TOM_TRAINING.pairs()?;
     let tom_tests = bundled::test_sets(&bundled::TOM_TESTS)?;
-    outln!(
-        "\n2. The door of the FreMEn paper ([Krajník 2017] §V), 2013: trained on one week at one minute, \
-         tested on days 8, 9 and 13 (door closed all day).\n"
-    )?;
-    let tom_specs =
-        parse_model_list("mean,fremen:1,fremen:2,fremen:4,fremen:auto,hist:24,pergam:2,auto")?;
-    let tom = run_eval(
-        "tom door: fitting",
-        &tom_specs,
+    let tom = evaluate_doors(
+        TOM_MODELS,
         &tom_train,
         &tom_tests,
-        &options,
+        "tom door: fitting",
+        &ProgressBar::new(),
     )?;
-    print_eval(&tom, |_| None)?;
-    print_selections(&tom)?;
-    outln!(
-        "   With a single week of training, the most recent quarter held back to choose an order is \
-         the weekend, which weekday rhythms mispredict: fremen:auto falls back to the mean. auto \
-         scores its candidates from six rolling origins instead of one hold-out, and combines them."
-    )?;
+    outln!("{}", tom_text(&tom))?;
 
     // 3. FFT FreMEn on the one-second week.
     let week = bundled::test_set(&bundled::TOM_SECONDS_WEEK)?;
     let day8 = bundled::test_set(&bundled::TOM_SECONDS_DAY8)?;
-    let (start, step, samples) = uniform_binary_samples(&week.times, &week.values)?;
-    outln!(
-        "\n3. FFT FreMEn with outlier set ([Krajník 2017] §III-B) on the same door at one second: {} samples.\n",
-        samples.len()
-    )?;
-    let mut table = Table::new([
-        "order",
-        "outlier toggles",
-        "eps_e",
-        "file bytes",
-        "ratio lossless",
-        "ratio lossy",
-        "lossless",
-        "eps_p day 8",
-        "build ms",
-    ]);
-    let orders = [0usize, 2, 5, 10];
-    let bar = ProgressBar::stage("FFT FreMEn", orders.len() as u64);
-    for order in orders {
-        let compressed = compress(start, step, &samples, FftFremenConfig::with_order(order))?;
-        let (report, build_ms) = (&compressed.series, compressed.build_ms);
-        let mut model = report.model.clone();
-        let before = model.len();
-        model.observe(&day8.times, &day8.values)?;
-        table.row([
-            order.to_string(),
-            report.model.outlier_toggles().len().to_string(),
-            format!("{:.4}", report.model.estimation_error()),
-            report.file_bytes.to_string(),
-            format!("1:{:.0}", report.ratio(report.file_bytes)),
-            format!("1:{:.0}", report.ratio(report.lossy_file_bytes)),
-            if report.lossless { "yes" } else { "NO" }.to_string(),
-            format!("{:.4}", model.error_between(before, model.len())),
-            format!("{build_ms:.2}"),
-        ]);
-        anyhow::ensure!(report.lossless, "FFT FreMEn order {order} is not lossless");
-        bar.advance(1);
-    }
-    drop(bar);
-    outln!("{}", indent(&table.render()))?;
-    outln!(
-        "\n   The paper reports ~360 outlier values (180 intervals), ~1:100 lossless and ~1:1000 lossy \
-         compression of this week at 2 Hz, built in 3.7 ms (FFTW, i7). eps_e = estimation error, \
-         eps_p = prediction error on day 8 (eq. 14-15)."
-    )?;
+    outln!("{}", fft_text(&week, &day8, &ProgressBar::new())?)?;
 
     if !args.no_plots {
         std::fs::create_dir_all(&args.output)
@@ -165,77 +75,6 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Evaluates `specs` with a progress bar named `stage` (cleared before anything is printed).
-fn run_eval(
-    stage: &str,
-    specs: &[ModelSpec],
-    train: &TimeSeries,
-    tests: &[TimeSeries],
-    options: &FitOptions,
-) -> Result<EvalReport> {
-    let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
-    let bar = ProgressBar::stage(stage, specs.len() as u64);
-    evaluate(specs, &train.times, &train.values, &sets, options, |_| {
-        bar.advance(1)
-    })
-    .map_err(|(spec, e)| anyhow::anyhow!("model {spec}: {e}"))
-}
-
-fn print_eval(report: &EvalReport, reference: impl Fn(&str) -> Option<f64>) -> Result<()> {
-    let tests = report.models[0].tests.len();
-    let mut header = vec!["model".to_string(), "fitted as".into()];
-    header.extend((1..=tests).map(|i| format!("test {i}")));
-    header.extend(["mean MSE".into(), "original".into(), "binary err".into()]);
-    let mut table = Table::new(header);
-    for m in &report.models {
-        let name = m.spec.to_string();
-        let mut row = vec![name.clone(), m.fitted.model.fitted_as()];
-        row.extend(m.tests.iter().map(|t| format!("{:.4}", t.mse)));
-        row.push(format!("{:.4}", m.mean_mse()));
-        row.push(reference(&name).map_or("".into(), |r| format!("{r:.4}")));
-        row.push(format!("{:.4}", m.mean_binary_error()));
-        table.row(row);
-    }
-    outln!("{}", indent(&table.render()))?;
-    Ok(())
-}
-
-fn print_selections(report: &EvalReport) -> Result<()> {
-    for m in &report.models {
-        if let Some(s) = &m.fitted.selection {
-            outln!("   {}: {}", m.spec, describe_selection(s))?;
-        }
-    }
-    Ok(())
-}
-
-fn print_significant(report: &EvalReport, max: usize) -> Result<()> {
-    let mut significant: Vec<_> = report.significant(0.05).collect();
-    significant.sort_by(|a, b| a.test.p_value.total_cmp(&b.test.p_value));
-    outln!(
-        "   {} of {} pairs differ significantly (paired t-test over the test weeks, p < 0.05); the strongest:",
-        significant.len(),
-        report.comparisons.len()
-    )?;
-    for c in significant.iter().take(max) {
-        outln!(
-            "     {} better than {} by {:.4} (p = {:.4})",
-            report.models[c.better].spec,
-            report.models[c.worse].spec,
-            -c.test.mean_difference,
-            c.test.p_value
-        )?;
-    }
-    Ok(())
-}
-
-pub(super) fn indent(text: &str) -> String {
-    text.lines()
-        .map(|l| format!("   {l}"))
-        .collect::<Vec<_>>()
-        .join("\n")
 }
 
 /// Figures 2 and 3 of the FreMEn paper for the tom door, and the same for a greg test week.

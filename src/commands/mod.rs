@@ -47,7 +47,6 @@ use anyhow::{Context, Result};
 use chronomap_core::TimeSeries;
 use chronomap_io::{read_any_model, read_pairs, read_test_set};
 use chronomap_models::AnyModel;
-use chronomap_models::spec::Selection;
 
 use crate::cli::{
     ActivityCommand, BenchCommand, BtCommand, Command, EventsCommand, GridCommand, LidarCommand,
@@ -128,15 +127,6 @@ fn read_series(source: &SeriesSource) -> Result<TimeSeries> {
     })
 }
 
-/// A model-building error about the data of `source`, naming the offending observation
-/// (its position among the data lines) when there is one.
-fn data_error(source: &str, error: chronomap_core::BuildError) -> anyhow::Error {
-    match error.observation_index() {
-        Some(i) => anyhow::anyhow!("{source}: observation {}: {error}", i + 1),
-        None => anyhow::anyhow!("{source}: {error}"),
-    }
-}
-
 /// Display name of a series source.
 fn source_name(source: &SeriesSource) -> String {
     match source {
@@ -148,74 +138,4 @@ fn source_name(source: &SeriesSource) -> String {
 /// Reads a model file, checking version, checksum and invariants.
 fn load_model(path: &std::path::Path) -> Result<AnyModel> {
     read_any_model(path).context("cannot load the model")
-}
-
-/// The spectral set `P` of an FFT FreMEn model as a table.
-fn fft_components_table(m: &chronomap_core::FftFremen) -> crate::format::Table {
-    let mut table = crate::format::Table::new(["bin", "period", "amplitude |X|/N", "phase (rad)"]);
-    for c in m.components() {
-        table.row([
-            c.bin.to_string(),
-            crate::format::period(m.period_of_bin(c.bin)),
-            format!("{:.5}", c.amplitude),
-            format!("{:+.3}", c.phase),
-        ]);
-    }
-    table
-}
-
-/// The held-out error of each candidate order, `ORDER:ERROR` from order 0 up, space-separated.
-fn errors_by_order(errors: &[f64]) -> String {
-    errors
-        .iter()
-        .enumerate()
-        .map(|(k, e)| format!("{k}:{e:.4}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// One line saying how a model's order or family was chosen.
-fn describe_selection(selection: &Selection) -> String {
-    match selection {
-        Selection::Order(s) => format!(
-            "order {} chosen on {} held-back observations (error by order {})",
-            s.order,
-            s.held_back,
-            errors_by_order(&s.errors)
-        ),
-        Selection::Stack(stack) => {
-            let weights: Vec<String> = stack
-                .weights
-                .iter()
-                .map(|(m, w)| format!("{m} {w:.3}"))
-                .collect();
-            let best = stack
-                .errors
-                .iter()
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .map_or(String::new(), |(m, e)| format!(", best single {m} {e:.4}"));
-            format!(
-                "weights {} fitted on {} out-of-sample predictions from {} rolling origins \
-                 (Brier {:.4}{best})",
-                weights.join(", "),
-                stack.held_back,
-                stack.origins,
-                stack.combined_error
-            )
-        }
-        Selection::Hypertime {
-            periods,
-            components,
-        } => {
-            let periods: Vec<String> = periods.iter().map(|&p| crate::format::period(p)).collect();
-            format!(
-                "{components} mixture components, periodicities {} (chosen on the most recent 25 % of the training data)",
-                if periods.is_empty() {
-                    "none".to_string()
-                } else {
-                    periods.join(", ")
-                }
-            )
-        }
-    }
 }

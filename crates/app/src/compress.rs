@@ -4,15 +4,22 @@
 //! files with and without `O` and their compression ratios (eq. 16), and the prediction error
 //! on later samples added by eq. (8).
 //!
-//! Files in, result structs out: the faces read the series, print and write the model.
+//! Files in, result structs out ([`CompressReport`] renders itself as text and JSON): the faces
+//! read the series, print and write the model.
 
 use std::time::Instant;
 
-use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of};
+use std::path::Path;
+
+use chronomap_core::fft::{FftFremen, FftFremenConfig, edges_of, uniform_binary_samples};
 use chronomap_core::metrics::compression_ratio;
 use chronomap_core::{BuildError, TemporalModel, TimeSeries};
 use chronomap_io::ModelFileError;
 use chronomap_models::AnyModel;
+use serde_json::{Value, json};
+
+use crate::model::{DataIssue, errors_by_order, fft_components_json, fft_components_table};
+use crate::report::{duration, time};
 
 /// A series compressed by FFT FreMEn: the model, whether it reconstructs the series, and the
 /// sizes of its model files (as the model files of `chronomap_io::model_file`).
@@ -83,6 +90,9 @@ pub enum CompressError {
     /// The model cannot be encoded to measure its file.
     #[error(transparent)]
     File(#[from] ModelFileError),
+    /// The series is not uniformly sampled binary data.
+    #[error(transparent)]
+    Samples(#[from] DataIssue),
 }
 
 /// A compressed series and how long the model took to build.
@@ -170,6 +180,220 @@ pub fn continue_with(model: &mut FftFremen, test: &TimeSeries) -> Result<Continu
     })
 }
 
+/// A series as uniformly spaced binary samples, the input of FFT FreMEn ([Krajník 2017]
+/// §III-B).
+#[derive(Clone, Debug)]
+pub struct Samples {
+    /// Where the series came from.
+    pub source: String,
+    /// Time of the first sample.
+    pub start: f64,
+    /// Seconds between samples.
+    pub step: f64,
+    /// The states, 0 or 1.
+    pub samples: Vec<u8>,
+}
+
+/// The order [`select_order`] chose and the prediction error of every order tried.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChosenOrder {
+    /// The order.
+    pub order: usize,
+    /// Eq. (15) on the hold-out, by order from 0 up.
+    pub errors: Vec<f64>,
+}
+
+impl ChosenOrder {
+    /// The line `chronomap compress --order auto` prints as soon as the order is chosen.
+    pub fn text(&self) -> String {
+        format!(
+            "order {} chosen by prediction error on the last 25 % (eq. 15; by order {})",
+            self.order,
+            errors_by_order(&self.errors)
+        )
+    }
+}
+
+impl Samples {
+    /// The samples of `series` (named `source`).
+    ///
+    /// # Errors
+    /// [`DataIssue`] naming the observation that is not binary or not on the sampling grid.
+    pub fn of(source: &str, series: &TimeSeries) -> Result<Samples, DataIssue> {
+        let (start, step, samples) = uniform_binary_samples(&series.times, &series.values)
+            .map_err(|error| DataIssue {
+                source_name: source.to_string(),
+                error,
+            })?;
+        Ok(Samples {
+            source: source.to_string(),
+            start,
+            step,
+            samples,
+        })
+    }
+
+    /// The order with the least prediction error ([`select_order`]).
+    ///
+    /// # Errors
+    /// Too few samples, or a bad shortest period.
+    pub fn choose_order(
+        &self,
+        shortest_period_secs: Option<f64>,
+    ) -> Result<ChosenOrder, BuildError> {
+        let (order, errors) = select_order(&self.samples, self.step, shortest_period_secs)?;
+        Ok(ChosenOrder { order, errors })
+    }
+
+    /// The study of these samples with FFT FreMEn of `order` (or the order `chosen`, which
+    /// the report then names): the model, its files, and the later samples `test` added by
+    /// eq. (8).
+    ///
+    /// # Errors
+    /// [`CompressError`]: a model that cannot be built or encoded, test samples it cannot take.
+    pub fn study(
+        self,
+        order: usize,
+        chosen: Option<ChosenOrder>,
+        shortest_period_secs: Option<f64>,
+        test: Option<&TimeSeries>,
+    ) -> Result<CompressReport, CompressError> {
+        let config = FftFremenConfig {
+            order,
+            shortest_period_secs,
+        };
+        let compression = compress(self.start, self.step, &self.samples, config)?;
+        let (ones, changes) = ones_and_changes(&self.samples)?;
+        let mut model = compression.series.model.clone();
+        let test = test.map(|t| continue_with(&mut model, t)).transpose()?;
+        Ok(CompressReport {
+            samples: self,
+            ones,
+            changes,
+            order,
+            chosen,
+            shortest_period_secs,
+            compression,
+            test,
+            model,
+        })
+    }
+}
+
+/// The compression study of one series, as `chronomap compress` reports it.
+#[derive(Clone, Debug)]
+pub struct CompressReport {
+    /// The series.
+    pub samples: Samples,
+    /// Samples that are 1.
+    pub ones: usize,
+    /// Changes of state.
+    pub changes: usize,
+    /// The order of the model.
+    pub order: usize,
+    /// How the order was chosen, if it was.
+    pub chosen: Option<ChosenOrder>,
+    /// The shortest period considered.
+    pub shortest_period_secs: Option<f64>,
+    /// The model of the series and its files.
+    pub compression: Compression,
+    /// What the test samples did, if any were added.
+    pub test: Option<Continuation>,
+    /// The model with the test samples added: the one to write.
+    pub model: FftFremen,
+}
+
+impl CompressReport {
+    /// The report as `chronomap compress --json` prints it, naming the model file `output`.
+    pub fn json(&self, output: Option<&Path>) -> Value {
+        let (s, report) = (&self.samples, &self.compression.series);
+        let m = &report.model;
+        json!({
+            "series": {
+                "source": s.source,
+                "samples": s.samples.len(),
+                "start": s.start,
+                "step_secs": s.step,
+                "changes": self.changes,
+                "ones_fraction": self.ones as f64 / s.samples.len() as f64,
+            },
+            "order": self.order,
+            "order_errors": self.chosen.as_ref().map(|c| &c.errors),
+            "shortest_period_secs": self.shortest_period_secs,
+            "gain": m.gain(),
+            "components": fft_components_json(m),
+            "outlier_toggles": m.outlier_toggles().len(),
+            "estimation_error": m.estimation_error(),
+            "lossless": report.lossless,
+            "file_bytes": report.file_bytes,
+            "lossy_file_bytes": report.lossy_file_bytes,
+            "ratio_lossless": report.ratio(report.file_bytes),
+            "ratio_lossy": report.ratio(report.lossy_file_bytes),
+            "build_ms": self.compression.build_ms,
+            "test": self.test.map(|c| json!({
+                "samples": c.samples,
+                "prediction_error": c.prediction_error,
+                "outlier_toggles": c.outlier_toggles,
+            })),
+            "output": output.map(|p| p.display().to_string()),
+        })
+    }
+
+    /// The report as `chronomap compress` prints it (after the chosen order's line): the
+    /// series, `P` and `O`, whether it is lossless (eq. 7), the files (eq. 16), the build
+    /// time, and the prediction error of the test samples.
+    pub fn text(&self) -> String {
+        let (s, report) = (&self.samples, &self.compression.series);
+        let (m, samples) = (&report.model, s.samples.len());
+        let mut lines = vec![
+            format!(
+                "series: {} samples every {} s from {} ({}), {} changes, {:.1} % ones",
+                samples,
+                s.step,
+                time(s.start),
+                duration(s.step * samples as f64),
+                self.changes,
+                100.0 * self.ones as f64 / samples as f64
+            ),
+            format!(
+                "spectral model P: mean {:.5} and {} components\n{}",
+                m.gain(),
+                m.components().len(),
+                fft_components_table(m).render()
+            ),
+            format!(
+                "outlier set O: {} toggles ({} intervals); estimation error eps_e = {:.4} (eq. 14-15)",
+                m.outlier_toggles().len(),
+                m.outlier_toggles().len().div_ceil(2),
+                m.estimation_error()
+            ),
+            format!(
+                "reconstruction (eq. 7): {}",
+                if report.lossless {
+                    format!("lossless, all {samples} samples equal")
+                } else {
+                    "NOT lossless (this is a bug, please report it)".into()
+                }
+            ),
+            format!(
+                "model file: {} bytes, compression ratio 1:{:.0} lossless; without the outlier set {} bytes, 1:{:.0} lossy (eq. 16)",
+                report.file_bytes,
+                report.ratio(report.file_bytes),
+                report.lossy_file_bytes,
+                report.ratio(report.lossy_file_bytes)
+            ),
+            format!("build time: {:.2} ms", self.compression.build_ms),
+        ];
+        if let Some(c) = &self.test {
+            lines.push(format!(
+                "next {} samples added by eq. 8: prediction error eps_p = {:.4} (eq. 15), outlier set now {} toggles",
+                c.samples, c.prediction_error, c.outlier_toggles
+            ));
+        }
+        lines.join("\n")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -177,6 +401,45 @@ mod tests {
     /// One day sampled hourly: on from 08:00 to 17:59 (10 of 24 hours), two changes.
     fn office_day() -> Vec<u8> {
         (0..24).map(|h| u8::from((8..18).contains(&h))).collect()
+    }
+
+    #[test]
+    fn the_study_of_a_week_reports_its_changes_and_a_repeated_day() {
+        // A week of office days sampled hourly, then the same day again.
+        let times: Vec<f64> = (0..24 * 8).map(|h| h as f64 * 3600.0).collect();
+        let values: Vec<f64> = (0..8).flat_map(|_| office_day()).map(f64::from).collect();
+        let week = TimeSeries {
+            times: times[..168].to_vec(),
+            values: values[..168].to_vec(),
+        };
+        let day8 = TimeSeries {
+            times: times[168..].to_vec(),
+            values: values[168..].to_vec(),
+        };
+        let samples = Samples::of("week.txt", &week).unwrap();
+        assert_eq!((samples.start, samples.step), (0.0, 3600.0));
+        let report = samples.study(1, None, None, Some(&day8)).unwrap();
+        assert_eq!((report.ones, report.changes), (70, 14));
+        assert_eq!(report.model.len(), 192);
+        let text = report.text();
+        assert!(
+            text.starts_with("series: 168 samples every 3600 s from "),
+            "{text}"
+        );
+        assert!(text.contains("14 changes, 41.7 % ones"), "{text}");
+        assert!(text.contains("reconstruction (eq. 7): lossless, all 168 samples equal"));
+        assert!(text.ends_with("toggles"), "{text}");
+        let json = report.json(None);
+        assert_eq!(json["series"]["changes"], 14);
+        assert_eq!(json["test"]["samples"], 24);
+        assert_eq!(json["order_errors"], Value::Null);
+
+        let bad = TimeSeries {
+            times: vec![0.0, 1.0],
+            values: vec![0.0, 0.5],
+        };
+        let error = Samples::of("bad.txt", &bad).unwrap_err().to_string();
+        assert!(error.starts_with("bad.txt: "), "{error}");
     }
 
     #[test]

@@ -4,9 +4,15 @@
 //! error table of §VI (estimation and prediction errors of static, orders 1..5 and per-cell
 //! orders, with the sizes of their lossy and lossless files).
 //!
+//! Beside the job, the reports of a grid: the build's summary and error table, what a grid
+//! file holds ([`GridStats`], the compression ratio of eq. (16)) and the time-specific map a
+//! grid predicts (§VIII) written as a Nav2 map ([`write_predicted_map`]); each renders itself
+//! as text and as the JSON the faces print.
+//!
 //! Files in, result structs out: progress goes to a [`Progress`], threads are a
-//! [`Parallelism`]; the command line prints and writes.
+//! [`Parallelism`]; the faces print.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -19,20 +25,26 @@ use chronomap_grid::build::{
     GridBuild, GridBuilder, PartitionError, build_from_frames, build_partitioned, holdout_splits,
     occupancy_percent,
 };
-use chronomap_grid::report::{OrderErrors, RowOrders, order_errors};
+use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
 use chronomap_grid::{
-    AnyGrid, FremenGrid, GridConfig, GridError, GridGeometry, GridStore, OrderChoice,
+    AnyGrid, FittedGrid, FremenGrid, GridConfig, GridError, GridGeometry, GridStore, OrderChoice,
 };
 use chronomap_io::frame_list::FrameMapError;
 use chronomap_io::model_file::ModelFileError;
-use chronomap_io::navmap::LoadSemantics;
+use chronomap_io::navmap::{LoadSemantics, MapMode, NavMapError, SaveOptions, SavedMap, save_map};
+use chronomap_io::output::{OutputError, write_output};
 use chronomap_io::{
-    DataError, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_pairs,
+    DataError, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
+    read_pairs,
 };
 use chronomap_rosbag::{Bag, BagError, MapFrame, TimeSource};
+use chronomap_spatial::OccupancyMap;
 use chronomap_synth::SynthError;
 use chronomap_synth::office_grid::office;
+use serde_json::{Value, json};
 use thiserror::Error;
+
+use crate::report::{Table, duration, time};
 
 /// Largest order `auto` and the error table consider.
 pub const MAX_ORDER: usize = 5;
@@ -98,9 +110,34 @@ pub enum GridJobError {
     /// The error table of a grid built without its two snapshots.
     #[error("the error report needs two held-back snapshots")]
     NoSnapshots,
-    /// A grid cannot be encoded (for the sizes of the error table).
+    /// A grid cannot be encoded (for the sizes of the error table), or a grid file cannot be
+    /// read.
     #[error(transparent)]
     ModelFile(#[from] ModelFileError),
+    /// The grid file cannot be written.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// A file's size cannot be read.
+    #[error("{path}: cannot read")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The folder of a map cannot be made.
+    #[error("cannot create {folder}")]
+    CreateFolder {
+        /// The folder.
+        folder: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A predicted map cannot be written.
+    #[error(transparent)]
+    Map(#[from] NavMapError),
 }
 
 /// Where a grid's frames come from.
@@ -339,6 +376,445 @@ pub fn error_table(
         observations: built.observations(),
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The grid file written by [`write_grid`]: its form and size.
+#[derive(Clone, Copy, Debug)]
+pub struct WrittenGrid {
+    /// The form's name in the file (`grid-state`, `grid-lossy`, …).
+    pub kind: &'static str,
+    /// Bytes written.
+    pub bytes: usize,
+}
+
+/// Stores the grid of `built` as `store` with `orders` and writes it to `output` (a device or
+/// a pipe is written through, so the size is what was written, for eq. (16)).
+///
+/// # Errors
+/// [`GridJobError`]: a lossless file of a grid without history, encoding or writing.
+pub fn write_grid(
+    built: &BuiltGrid,
+    store: GridStore,
+    orders: OrderChoice,
+    output: &Path,
+) -> Result<WrittenGrid, GridJobError> {
+    let file = AnyGrid::store(&built.build.grid, store, orders, Parallelism::Rayon(0))?;
+    let encoded = encode_grid(&file)?;
+    write_output(output, &encoded)?;
+    Ok(WrittenGrid {
+        kind: chronomap_io::grid_kind(&file),
+        bytes: encoded.len(),
+    })
+}
+
+impl BuiltGrid {
+    /// The two lines `chronomap grid build` prints once the grid is built: its frames and
+    /// geometry, the build time and memory.
+    pub fn summary(&self) -> String {
+        let grid = &self.build.grid;
+        let g = grid.geometry();
+        let span = grid.frame_span();
+        format!(
+            "{}: {} frames from {} to {} ({}), {} cells ({}x{}x{} at {} m)\n\
+             built in {:.2} s: {} cells changed or needed storage, grid memory {:.1} MB",
+            self.source,
+            grid.frames(),
+            time(span.first),
+            time(span.last),
+            duration(span.duration()),
+            g.cells(),
+            g.width,
+            g.height,
+            g.depth,
+            g.resolution,
+            self.seconds,
+            grid.dynamic_cells(),
+            megabytes(grid.memory_bytes())
+        )
+    }
+
+    /// `chronomap grid build --json`: the grid, its error table and the file written.
+    pub fn json(&self, errors: Option<&ErrorTable>, output: &Path, written: &WrittenGrid) -> Value {
+        let grid = &self.build.grid;
+        let span = grid.frame_span();
+        json!({
+            "source": self.source,
+            "frames": grid.frames(),
+            "first": span.first,
+            "last": span.last,
+            "geometry": geometry_json(grid.geometry()),
+            "seconds": self.seconds,
+            "dynamic_cells": grid.dynamic_cells(),
+            "memory_mb": megabytes(grid.memory_bytes()),
+            "errors": errors.map(|t| t.json(self.split, grid.frames())),
+            "output": output.display().to_string(),
+            "kind": written.kind,
+            "bytes": written.bytes,
+            "compression_ratio": compression_ratio(self.observations(), written.bytes),
+        })
+    }
+
+    /// The last line of `chronomap grid build`: the file written and its compression ratio
+    /// (eq. (16)).
+    pub fn written_text(&self, output: &Path, written: &WrittenGrid) -> String {
+        format!(
+            "wrote {} ({}, {} bytes, compression 1:{:.0} by eq. 16)",
+            output.display(),
+            written.kind,
+            written.bytes,
+            compression_ratio(self.observations(), written.bytes)
+        )
+    }
+}
+
+impl ErrorTable {
+    /// The table as JSON, for a grid of `frames` frames held back from `split` on.
+    pub fn json(&self, split: u64, frames: u64) -> Value {
+        json!({
+            "changed_cells": self.changed_cells(),
+            "split": split,
+            "frames": frames,
+            "rows": self.rows.iter().map(|r| json!({
+                "model": ErrorTable::name(r.errors.orders),
+                "order": match r.errors.orders {
+                    RowOrders::Fixed(k) => json!(k),
+                    RowOrders::PerCell => json!("auto"),
+                },
+                "estimation_error": r.errors.estimation.mean_cell_error,
+                "prediction_error": r.errors.prediction.mean_cell_error,
+                "lossy_bytes": r.lossy_bytes,
+                "lossy_ratio": self.ratio(r.lossy_bytes),
+                "lossless_bytes": r.lossless_bytes,
+                "lossless_ratio": self.ratio(r.lossless_bytes),
+            })).collect::<Vec<_>>(),
+        })
+    }
+
+    /// The table as text with what it means, beside the figures of [Krajník 2017] §VI
+    /// (a blank line before and after).
+    pub fn text(&self, built: &BuiltGrid) -> String {
+        let (split, frames) = (built.split, built.build.grid.frames());
+        let mut table = Table::new([
+            "model",
+            "estimation error",
+            "prediction error",
+            "lossy bytes",
+            "lossy ratio",
+            "lossless bytes",
+            "lossless ratio",
+        ]);
+        for r in &self.rows {
+            table.row([
+                ErrorTable::name(r.errors.orders),
+                format!("{:.2} %", 100.0 * r.errors.estimation.mean_cell_error),
+                format!("{:.2} %", 100.0 * r.errors.prediction.mean_cell_error),
+                r.lossy_bytes.to_string(),
+                format!("1:{:.0}", self.ratio(r.lossy_bytes)),
+                r.lossless_bytes.to_string(),
+                format!("1:{:.0}", self.ratio(r.lossless_bytes)),
+            ]);
+        }
+        let changed = self.changed_cells().unwrap_or(0);
+        format!(
+            "\nErrors over the {changed} cells that changed ([Krajník 2017] §VI: mean over those cells of the fraction of \
+             wrongly estimated states). Estimation: models built on all {frames} frames. Prediction: models \
+             built on the first {split} frames, tested on the {} after them.\n{}\n\
+             ([Krajník 2017] §VI: static ~6 %, lossy FreMEn 3-4 %, lossless 1:250; computed in {:.1} s)\n",
+            frames - split,
+            table.render(),
+            self.seconds
+        )
+    }
+}
+
+fn megabytes(bytes: usize) -> f64 {
+    bytes as f64 / 1048576.0
+}
+
+fn geometry_json(g: &GridGeometry) -> Value {
+    json!({
+        "width": g.width,
+        "height": g.height,
+        "depth": g.depth,
+        "cells": g.cells(),
+        "resolution": g.resolution,
+        "origin": g.origin,
+    })
+}
+
+/// What a grid file holds: its form, geometry, frames and compression ratio (eq. (16)).
+#[derive(Clone, Debug)]
+pub struct GridStats {
+    /// The file, as named.
+    pub file: String,
+    /// Its size.
+    pub bytes: u64,
+    /// The grid it holds.
+    pub grid: AnyGrid,
+}
+
+/// Reads the grid file `path` for [`GridStats`].
+///
+/// # Errors
+/// [`GridJobError::Read`] for a file that cannot be read, or the file's error.
+pub fn grid_stats(path: &Path) -> Result<GridStats, GridJobError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::metadata(path)
+        .map_err(|source| GridJobError::Read {
+            path: file.clone(),
+            source,
+        })?
+        .len();
+    let grid = read_grid_file(path)?;
+    Ok(GridStats { file, bytes, grid })
+}
+
+impl GridStats {
+    /// Cell observations (cells × frames) and the ratio of eq. (16), if there are frames.
+    fn compression(&self) -> (f64, Option<f64>) {
+        let frames = self.grid.frame_span().count;
+        let observations = self.grid.geometry().cells() as f64 * frames as f64;
+        let ratio = (frames > 0).then(|| compression_ratio(observations, self.bytes as usize));
+        (observations, ratio)
+    }
+
+    /// The report as `chronomap grid stats --json` prints it.
+    pub fn json(&self) -> Value {
+        let frames = self.grid.frame_span();
+        let (observations, ratio) = self.compression();
+        let contents = match &self.grid {
+            AnyGrid::State(grid) => json!({
+                "dynamic_cells": grid.dynamic_cells(),
+                "memory_mb": megabytes(grid.memory_bytes()),
+                "periods": grid.config().fremen.periods.to_string(),
+                "order": grid.config().fremen.order,
+            }),
+            AnyGrid::Lossy(fitted) => fitted_json(fitted),
+            AnyGrid::Lossless(lossless) => {
+                let mut value = fitted_json(&lossless.fitted);
+                value["outlier_toggles"] = json!(lossless.outlier_toggles());
+                value
+            }
+        };
+        json!({
+            "file": self.file,
+            "kind": chronomap_io::grid_kind(&self.grid),
+            "bytes": self.bytes,
+            "geometry": geometry_json(self.grid.geometry()),
+            "frames": (frames.count > 0).then(|| json!({
+                "count": frames.count,
+                "first": frames.first,
+                "last": frames.last,
+            })),
+            "cell_observations": observations,
+            "compression_ratio": ratio,
+            "contents": contents,
+        })
+    }
+
+    /// The report as `chronomap grid stats` prints it.
+    pub fn text(&self) -> String {
+        let (g, frames) = (self.grid.geometry(), self.grid.frame_span());
+        let (observations, ratio) = self.compression();
+        let mut lines = vec![
+            format!(
+                "file: {} ({}, {} bytes)",
+                self.file,
+                chronomap_io::grid_kind(&self.grid),
+                self.bytes
+            ),
+            format!(
+                "grid: {}x{}x{} cells at {} m, origin {:?}",
+                g.width, g.height, g.depth, g.resolution, g.origin
+            ),
+        ];
+        if let Some(ratio) = ratio {
+            lines.push(format!(
+                "frames: {} from {} to {} ({})",
+                frames.count,
+                time(frames.first),
+                time(frames.last),
+                duration(frames.duration())
+            ));
+            lines.push(format!(
+                "compression (eq. 16): {observations:.3e} cell observations in {} bytes = 1:{ratio:.0}",
+                self.bytes
+            ));
+        }
+        lines.push(match &self.grid {
+            AnyGrid::State(grid) => format!(
+                "{} cells with storage, {:.1} MB in memory, periods {}",
+                grid.dynamic_cells(),
+                megabytes(grid.memory_bytes()),
+                grid.config().fremen.periods
+            ),
+            AnyGrid::Lossy(fitted) => describe_fitted(fitted),
+            AnyGrid::Lossless(lossless) => format!(
+                "{}; {} outlier toggles",
+                describe_fitted(&lossless.fitted),
+                lossless.outlier_toggles()
+            ),
+        });
+        lines.join("\n")
+    }
+}
+
+fn fitted_json(fitted: &FittedGrid) -> Value {
+    json!({
+        "fitted_cells": fitted.cells().len(),
+        "orders": fitted
+            .order_counts()
+            .into_iter()
+            .map(|(order, cells)| json!({"order": order, "cells": cells}))
+            .collect::<Vec<_>>(),
+    })
+}
+
+fn describe_fitted(fitted: &FittedGrid) -> String {
+    let listed: Vec<String> = fitted
+        .order_counts()
+        .into_iter()
+        .map(|(k, n)| format!("{n} of order {k}"))
+        .collect();
+    format!(
+        "{} cells with a model: {}",
+        fitted.cells().len(),
+        listed.join(", ")
+    )
+}
+
+/// The map a fitted grid predicts for `time` ([Krajník 2017] §VIII: a time-specific map),
+/// its `layers` projected onto one plane ([`project_layers`]), as an occupancy map.
+pub fn predicted_map(fitted: &FittedGrid, time: f64, layers: Range<u32>) -> OccupancyMap {
+    let g = fitted.geometry();
+    let values = project_layers(g, &fitted.predict_map(time), layers);
+    OccupancyMap::from_probabilities(
+        g.width,
+        g.height,
+        g.resolution as f32,
+        [g.origin[0], g.origin[1], 0.0],
+        &values,
+    )
+}
+
+/// A predicted map written as a Nav2 map: where, and how many cells of each kind.
+#[derive(Clone, Debug)]
+pub struct MapReport {
+    /// The grid file it was predicted from, as named.
+    pub grid: String,
+    /// The time it was predicted for.
+    pub time: f64,
+    /// Cells along x.
+    pub width: u32,
+    /// Cells along y.
+    pub height: u32,
+    /// Cells of occupancy 65 % and more.
+    pub occupied: usize,
+    /// Cells never observed.
+    pub unknown: usize,
+    /// The other cells.
+    pub free: usize,
+    /// The image mode.
+    pub mode: MapMode,
+    /// The files written.
+    pub saved: SavedMap,
+}
+
+/// Writes the map `fitted` predicts for `time` (`layers` projected) as a Nav2 map at `output`
+/// (`map.yaml` or `map`: both write `map.yaml` and its image), in the image `mode`, with ROS 1
+/// map_saver's free threshold (the unknown grey stays unknown when loaded back).
+///
+/// # Errors
+/// [`GridJobError`]: the folder or the map cannot be written.
+pub fn write_predicted_map(
+    grid: &str,
+    fitted: &FittedGrid,
+    time: f64,
+    layers: Range<u32>,
+    output: &Path,
+    mode: MapMode,
+) -> Result<MapReport, GridJobError> {
+    let map = predicted_map(fitted, time, layers);
+    // `-o map.yaml` and `-o map` both mean map.yaml + map.pgm/png.
+    let base = if output
+        .extension()
+        .is_some_and(|e| e == "yaml" || e == "yml")
+    {
+        output.with_extension("")
+    } else {
+        output.to_path_buf()
+    };
+    if let Some(folder) = base.parent().filter(|f| !f.as_os_str().is_empty()) {
+        std::fs::create_dir_all(folder).map_err(|source| GridJobError::CreateFolder {
+            folder: folder.display().to_string(),
+            source,
+        })?;
+    }
+    let options = SaveOptions {
+        mode,
+        comment: Some(format!(
+            "map predicted by chronomap {} for t = {time} ({})",
+            env!("CARGO_PKG_VERSION"),
+            crate::report::time(time)
+        )),
+        // ROS 1 map_saver's free threshold: with Nav2's default 0.25 the unknown grey (205,
+        // p = 0.196) would be read back as free.
+        free_thresh: 0.196,
+        ..SaveOptions::default()
+    };
+    let saved = save_map(&base, &map, &options)?;
+    let occupied = map.data.iter().filter(|&&v| v >= 65).count();
+    let unknown = map.data.iter().filter(|&&v| v < 0).count();
+    Ok(MapReport {
+        grid: grid.to_string(),
+        time,
+        width: map.width,
+        height: map.height,
+        occupied,
+        unknown,
+        free: map.data.len() - occupied - unknown,
+        mode,
+        saved,
+    })
+}
+
+impl MapReport {
+    /// The report as `chronomap grid predict --json` prints it.
+    pub fn json(&self) -> Value {
+        json!({
+            "grid": self.grid,
+            "time": self.time,
+            "width": self.width,
+            "height": self.height,
+            "occupied": self.occupied,
+            "unknown": self.unknown,
+            "free": self.free,
+            "mode": self.mode.as_str(),
+            "yaml": self.saved.yaml.display().to_string(),
+            "image": self.saved.image.display().to_string(),
+        })
+    }
+
+    /// The report as `chronomap grid predict` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "predicted {}x{} map for {}: {} occupied, {} unknown cells; wrote {} and {}",
+            self.width,
+            self.height,
+            time(self.time),
+            self.occupied,
+            self.unknown,
+            self.saved.yaml.display(),
+            self.saved.image.display()
+        )
+    }
+}
+
+/// The times `chronomap grid plot` draws when none are asked for: 3:00 and 14:00 of the day
+/// after the grid's last frame.
+pub fn default_plot_times(fitted: &FittedGrid) -> Vec<f64> {
+    let day = (fitted.frames().last / 86_400.0).floor() * 86_400.0 + 86_400.0;
+    vec![day + 3.0 * 3600.0, day + 14.0 * 3600.0]
 }
 
 /// What every source builds with.
@@ -584,6 +1060,84 @@ mod tests {
         assert_eq!(table.rows[1].errors.estimation.mean_cell_error, 0.0);
         assert_eq!(table.rows[1].errors.prediction.mean_cell_error, 0.0);
         assert_eq!(table.rows[0].errors.estimation.mean_cell_error, 0.5);
+        let text = table.text(&built);
+        assert!(
+            text.starts_with("\nErrors over the 1 cells that changed"),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                "Prediction: models built on the first 12 frames, tested on the 4 after them."
+            ),
+            "{text}"
+        );
+        let static_row = text
+            .lines()
+            .find(|l| l.starts_with("static (order 0)"))
+            .unwrap();
+        assert!(static_row.contains(" 50.00 %"), "{text}");
+        assert_eq!(
+            table.json(built.split, 16)["rows"][1]["estimation_error"],
+            0.0
+        );
+        assert!(
+            built
+                .summary()
+                .starts_with("2 cell series: 16 frames from "),
+            "{}",
+            built.summary()
+        );
+        assert!(
+            built
+                .summary()
+                .contains(", 2 cells (2x1x1 at 1 m)\nbuilt in ")
+        );
+
+        // The lossy file of order 1, what it holds, and the map it predicts at 03:00 of the
+        // fifth day: the door open (as in every first half of a day), the other cell free.
+        let output = dir.join("door.cmg");
+        let written = write_grid(&built, GridStore::Lossy, OrderChoice::Fixed(1), &output).unwrap();
+        assert_eq!(written.kind, "grid-lossy");
+        assert_eq!(
+            built.written_text(&output, &written),
+            format!(
+                "wrote {} (grid-lossy, {} bytes, compression 1:{:.0} by eq. 16)",
+                output.display(),
+                written.bytes,
+                compression_ratio(32.0, written.bytes)
+            )
+        );
+        let stats = grid_stats(&output).unwrap();
+        assert_eq!(stats.bytes as usize, written.bytes);
+        let lines: Vec<String> = stats.text().lines().map(str::to_string).collect();
+        assert_eq!(lines[1], "grid: 2x1x1 cells at 1 m, origin [0.0, 0.0, 0.0]");
+        assert_eq!(lines[4], "1 cells with a model: 1 of order 1");
+        assert_eq!(stats.json()["cell_observations"], 32.0);
+        assert_eq!(stats.json()["contents"]["fitted_cells"], 1);
+        let AnyGrid::Lossy(fitted) = stats.grid else {
+            panic!("not a lossy grid")
+        };
+        let t = 4.0 * 86_400.0 + 3.0 * 3600.0;
+        let report = write_predicted_map(
+            "door.cmg",
+            &fitted,
+            t,
+            0..1,
+            &dir.join("maps/door.yaml"),
+            MapMode::Trinary,
+        )
+        .unwrap();
+        assert_eq!((report.occupied, report.unknown, report.free), (1, 0, 1));
+        assert_eq!(report.saved.yaml, dir.join("maps/door.yaml"));
+        assert!(report.text().starts_with("predicted 2x1 map for "));
+        assert_eq!(report.json()["mode"], "trinary");
+        assert_eq!(
+            default_plot_times(&fitted),
+            [
+                4.0 * 86_400.0 + 3.0 * 3600.0,
+                4.0 * 86_400.0 + 14.0 * 3600.0
+            ]
+        );
 
         let mut other = door.clone();
         other.push_str("400000 1\n");

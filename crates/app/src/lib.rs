@@ -28,7 +28,9 @@
 //! | [`report`] | plain-text tables and units for the reports the jobs render |
 //! | [`activity`], [`disturbance`] | activity models opened by content, rate maps, sample extraction, the evaluation of [Stüde 2024] §4.3.2 and the service-disturbance experiment (eq. 4.22) |
 //! | [`bt`] | a BehaviorTree.CPP document with node models, its registry under stubs, the stochastic chain and horizon |
-//! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI) |
+//! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI), what a grid file holds, predicted maps (§VIII) |
+//! | [`model`] | a model fitted and written, what a model file holds, anomalies ([Krajník 2017], [Krajník 2019]) |
+//! | [`demo`] | the sections of `chronomap demo`: doors beside the original FreMEn code, FFT FreMEn, grids ([Krajník 2017]) |
 //! | [`eval`], [`compress`] | the FreMEn benchmark experiment and the compression study ([Krajník 2017]) |
 //! | [`events`], [`ingest`] | people as events and tracks, the pedestrian study ([Krajník 2019] §V-D) |
 //! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford) and the traced run ([Santos 2017]) |
@@ -42,6 +44,7 @@ pub mod activity;
 pub mod bt;
 pub mod compress;
 pub mod datasets;
+pub mod demo;
 pub mod disturbance;
 pub mod eval;
 pub mod events;
@@ -51,6 +54,7 @@ pub mod grid;
 pub mod ingest;
 pub mod laser_log;
 pub mod lidar_study;
+pub mod model;
 pub mod maps;
 pub mod open;
 pub mod registration;
