@@ -2,7 +2,7 @@
 //! bare scan of the same frames in the same run (`chronomap_bench::grid`).
 
 use anyhow::Result;
-use chronomap_bench::grid::{GridBench, GridBenchConfig, bench_grid};
+use chronomap_bench::grid::{GridBenchConfig, bench_grid};
 use chronomap_core::Parallelism;
 
 use crate::cli::BenchGridArgs;
@@ -29,37 +29,5 @@ pub fn grid(args: &BenchGridArgs) -> Result<()> {
     if args.json {
         return print_json(&result);
     }
-    print_text(&result)?;
-    Ok(())
-}
-
-fn print_text(r: &GridBench) -> std::io::Result<()> {
-    outln!(
-        "synthetic office: {} cells x {} frames ({} days at 5 s) = {:.3e} cell observations, {} changes, {} threads",
-        r.cells,
-        r.frames,
-        r.days,
-        r.cell_observations as f64,
-        r.changed_bits,
-        r.threads
-    )?;
-    outln!(
-        "bare scan (stream frames, XOR with the previous one, popcount): {:.2} s",
-        r.bare_scan_seconds
-    )?;
-    outln!(
-        "FreMEn grid ({} periods per cell, exact):                      {:.2} s = {:.2} x the bare scan, {:.3e} cell observations/s",
-        r.periods,
-        r.seconds,
-        r.ratio_to_bare_scan,
-        r.cell_observations as f64 / r.seconds
-    )?;
-    outln!(
-        "cells with storage: {}; grid memory {:.1} MB; peak RSS {}",
-        r.changing_cells,
-        r.grid_memory_mb,
-        r.peak_rss_mb
-            .map_or("unknown".into(), |p| format!("{p:.0} MB"))
-    )?;
-    outln!("([Krajník 2017] §VI: 4e11 cell observations in < 1 h on an i7-4500U)")
+    Ok(outln!("{}", result.text())?)
 }

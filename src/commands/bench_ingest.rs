@@ -2,16 +2,13 @@
 //! same run — [`chronomap_bench::ingest`] measures, this picks the bags and prints.
 
 use anyhow::Result;
-use chronomap_bench::ingest::{IngestBench, IngestCase, write_door_bag};
+use chronomap_bench::ingest::{IngestBench, IngestCase, default_cases};
 
 use crate::bundled::GREG_TRAINING;
 use crate::cli::BenchIngestArgs;
 use crate::format::Table;
 use crate::outln;
 use crate::output::{print_bench, usage};
-
-/// The bundled real laser bag, relative to the repository (as the other benchmarks' inputs).
-const MALAGA_BAG: &str = "data/malaga_laser_2006/rosbag2/malaga_2006_bag/malaga_2006_bag.mcap";
 
 pub fn ingest(args: &BenchIngestArgs) -> Result<()> {
     if args.bag.len() != args.topic.len() {
@@ -23,18 +20,7 @@ pub fn ingest(args: &BenchIngestArgs) -> Result<()> {
     }
     let scratch = tempdir()?;
     let cases: Vec<IngestCase> = if args.bag.is_empty() {
-        let door = scratch.0.join("greg_door.mcap");
-        write_door_bag(&GREG_TRAINING.pairs()?, &door, "/door/open")?;
-        vec![
-            IngestCase {
-                bag: door,
-                topic: "/door/open".into(),
-            },
-            IngestCase {
-                bag: MALAGA_BAG.into(),
-                topic: "/scan".into(),
-            },
-        ]
+        default_cases(&GREG_TRAINING.pairs()?, &scratch.0)?
     } else {
         args.bag
             .iter()

@@ -127,6 +127,70 @@ pub struct GridMemoryBench {
     pub rows: Vec<GridMemoryRow>,
 }
 
+impl GridMemoryBench {
+    /// The result as `chronomap bench grid-memory` prints it: a row per grid size, the bytes
+    /// per changing cell in memory and in the file beside grid-state format 1, and the
+    /// estimate of [`FremenGrid::memory_estimate`] for the largest grid.
+    pub fn text(&self) -> String {
+        let mut lines = vec![
+            format!(
+                "FreMEn grids whose every cell changes: {} periods ({}), {} frames; baseline: grid-state \
+                 format 1 (checked on {} cells: same sums read back)",
+                self.period_count, self.periods, self.frames, self.checked_cells
+            ),
+            format!(
+                "{:>9} {:>11} | {:>27} {:>8} | {:>27} | {:>7} {:>5} {:>4}",
+                "cells",
+                "shape",
+                "bytes/cell: format 1  now",
+                "RSS now",
+                "file bytes/cell: fmt 1  now",
+                "blocks",
+                "snaps",
+                "bits"
+            ),
+        ];
+        for row in &self.rows {
+            lines.push(format!(
+                "{:>9} {:>11} | {:>13.0} {:>5.0} {:>6.1}x {:>8} | {:>13.0} {:>5.0} {:>6.1}x | {:>7} {:>5} {:>4}",
+                row.cells,
+                format!("{}x{}", row.shape[0], row.shape[1]),
+                row.baseline_bytes_per_cell,
+                row.bytes_per_cell,
+                row.memory_ratio,
+                row.rss_bytes_per_cell
+                    .map_or("-".into(), |b| format!("{b:.0}")),
+                row.baseline_file_bytes_per_cell,
+                row.file_bytes_per_cell,
+                row.file_ratio,
+                row.storage.owned_accumulators + row.storage.snapshots,
+                row.storage.snapshots,
+                row.storage.sum_bits
+            ));
+        }
+        lines.push(
+            "blocks: blocks of exact sums in use (owned by cells, or snapshots: frame prefixes \
+             shared by the cells that changed in that frame); bits: of the stored sums"
+                .to_string(),
+        );
+        if let Some(last) = self.rows.last() {
+            let e = &last.estimate;
+            lines.push(format!(
+                "estimate per changing cell (FremenGrid::memory_estimate): {} bytes while it changed at \
+                 most twice per state, {} with blocks of 64-bit sums, {} of 128-bit sums (the most); \
+                 {} cells: {:.1} MB fixed, {:.2} GB at most",
+                e.cell_bytes_inline,
+                e.cell_bytes_narrow,
+                e.cell_bytes_wide,
+                e.cells,
+                e.fixed_bytes as f64 / 1e6,
+                e.worst_case_bytes as f64 / 1e9
+            ));
+        }
+        lines.join("\n")
+    }
+}
+
 /// The occupancy of `cell` in `frame`: in frame 0 every fourth cell unknown and the others
 /// alternating; from frame 1 on every cell flips.
 pub fn workload_value(cell: usize, frame: u32) -> i8 {

@@ -70,6 +70,29 @@ pub struct IngestPass {
     pub ratio_to_bare_read: f64,
 }
 
+/// The bundled real laser bag, relative to the repository (as the other benchmarks' inputs).
+pub const MALAGA_BAG: &str = "data/malaga_laser_2006/rosbag2/malaga_2006_bag/malaga_2006_bag.mcap";
+
+/// The default cases: the greg door training data `door` written by [`write_door_bag`] as
+/// `greg_door.mcap` in `scratch` (topic `/door/open`), and the scans of [`MALAGA_BAG`].
+///
+/// # Errors
+/// The door bag cannot be written.
+pub fn default_cases(door: &TimeSeries, scratch: &Path) -> Result<Vec<IngestCase>, BenchError> {
+    let bag = scratch.join("greg_door.mcap");
+    write_door_bag(door, &bag, "/door/open")?;
+    Ok(vec![
+        IngestCase {
+            bag,
+            topic: "/door/open".into(),
+        },
+        IngestCase {
+            bag: MALAGA_BAG.into(),
+            topic: "/scan".into(),
+        },
+    ])
+}
+
 /// Times the four passes over each case.
 ///
 /// # Errors
