@@ -1655,4 +1655,46 @@ mod tests {
             Err(ActivityJobError::TooManyBins { .. })
         ));
     }
+
+    /// Two hours of the bundled ATC tracks in the 652 cells of the bundled training grid:
+    /// 1,304 samples, their text and JSON; a cell size the grid is not aligned to is refused
+    /// naming the file and the flag.
+    #[test]
+    fn the_truth_of_two_atc_hours_is_a_sample_per_cell_and_hour() {
+        let cells =
+            chronomap_testutil::data_path("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+        let tracks = [10, 11].map(|h| {
+            chronomap_testutil::data_path(&format!("atc_20121024_1hz/atc-1024-{h}_train.csv.xz"))
+        });
+        let grid = TruthGrid {
+            cell: 0.5,
+            t0: 1_351_036_800.0,
+            bin: 3600.0,
+            t_offset: 120.0,
+        };
+        let out = Path::new("truth.csv");
+        let report = truth_job(&cells, &tracks, &[1, 2], &grid, out).unwrap();
+        assert_eq!((report.samples, report.cells), (1304, 652));
+        assert_eq!(report.truth.t()[0], 121.0);
+        assert_eq!(
+            report.text(),
+            format!(
+                "truth.csv: 1304 samples (652 cells × 2 bins) from {} detections; mean {:.3} people per hour\n",
+                report.detections,
+                report.truth.mean_rate()
+            )
+        );
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["bins"], json!([1, 2]));
+        assert_eq!(json["mean_rate_per_hour"], report.truth.mean_rate());
+        assert!(json.get("truth").is_none());
+        let off = TruthGrid { cell: 0.3, ..grid };
+        let error = truth_job(&cells, &tracks, &[1], &off, out).err().unwrap();
+        let message = error.to_string();
+        assert!(
+            message.starts_with(&format!("{}: cell centre", cells.display()))
+                && message.ends_with("(--cell)"),
+            "{message}"
+        );
+    }
 }

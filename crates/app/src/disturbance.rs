@@ -560,3 +560,91 @@ pub fn map_obstacle_points(map: &OccupancyMap, grid: &PlanningGrid) -> Vec<[f64;
     ];
     map.occupied_centres(OCCUPIED_PERCENT, [gx, gy], top)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use chronomap_core::progress::NoProgress;
+    use chronomap_testutil::data_path;
+
+    /// The hallway of the bundled ATC scenarios over two hours of tracks (13:00–15:00 JST),
+    /// the cheap models only: the measured encounters of the command line's test, as text and
+    /// JSON, and the busiest slot for the plot.
+    #[test]
+    fn the_atc_hallway_study_reports_its_encounters_as_text_and_json() {
+        let tracks = [
+            data_path("atc_20121024_1hz/atc-1024-13_train.csv.xz"),
+            data_path("atc_20121024_1hz/atc-1024-14_train.csv.xz"),
+        ];
+        let train = data_path("atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
+        let map = data_path("atc_copa_map_grid/atc_map.yaml");
+        let scenarios = data_path("atc_20121024_1hz/disturbance_scenarios.csv");
+        let files = DisturbanceFiles {
+            train: &train,
+            tracks: &tracks,
+            map: &map,
+            scenarios: &scenarios,
+            scenario: "hallway",
+        };
+        let settings = DisturbanceSettings {
+            clearance: 0.3,
+            // 2012-10-24 09:00 JST.
+            day_start: Some(1_351_036_800.0),
+            t0: None,
+            period: 12.0,
+            epsilon: 1.0,
+            inducing: 200,
+            iterations: 300,
+            no_copa: true,
+            parallelism: Parallelism::Sequential,
+        };
+        let study = run_disturbance(&files, &settings, &NoProgress).unwrap();
+        let json = study.json(&files, &settings, 2.5);
+        assert_eq!(json["n_nav"], 8);
+        assert_eq!(json["free_cells"], 523);
+        assert_eq!(json["tracks"], 2);
+        assert_eq!(json["total_seconds"], 2.5);
+        let models = &json["scenarios"][0]["models"];
+        assert_eq!(models[0]["model"], OCCUPANCY);
+        assert_eq!(models[0]["encounters_at_1"], 67);
+        assert_eq!(models[2]["encounters_at_1"], 81);
+        assert_eq!(models[0]["reduction_vs_occupancy_percent"], 0.0);
+
+        let text = study.text(&files, &settings, 2.5);
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(
+            lines[2].starts_with("patrols: n_nav = 8 per scenario, every 15 min where the slot is tracked (2012-10-24 04:00 UTC .. "),
+            "{text}"
+        );
+        let row = lines.iter().find(|l| l.starts_with("occupancy ")).unwrap();
+        let cells: Vec<&str> = row.split_whitespace().collect();
+        // The curve E(ρ) at every ratio of RATIOS, the reduction against itself, the mean path.
+        assert_eq!(
+            cells,
+            [
+                "occupancy",
+                "0",
+                "8",
+                "15",
+                "23",
+                "29",
+                "29",
+                "37",
+                "41",
+                "46",
+                "67",
+                "0.0",
+                "%",
+                "27.5"
+            ]
+        );
+        assert!(text.ends_with("total 2.5 s.\n"), "{text}");
+
+        let slots = study.busiest_slots().unwrap().unwrap();
+        assert_eq!(slots.len(), 1);
+        assert_eq!(slots[0].scenario, "hallway");
+        assert_eq!(slots[0].model, "log_additive");
+        assert_eq!(slots[0].paths.len(), 7);
+        assert_eq!(slots[0].values.len(), study.grid.len());
+    }
+}
