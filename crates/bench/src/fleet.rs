@@ -14,10 +14,12 @@
 //! every entry and replay every group), and again after a checkpoint (snapshots of every model
 //! at the log's end) and the compaction that follows it, as a node joining the fleet does.
 
+use std::fmt::Write as _;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use chronomap_app::report::Table;
 use chronomap_client::Client;
 use chronomap_core::progress::Progress;
 use chronomap_core::rng::Xoshiro256StarStar;
@@ -850,6 +852,87 @@ impl Database {
             .block_on(self.client.query_one(sql, &[]))
             .map(|row| row.get::<_, String>(0))
             .map_err(|e| FleetBenchError::Postgres(e.to_string()))
+    }
+}
+
+impl FleetBench {
+    /// The result as `chronomap bench fleet` prints it, with the `config` it ran with.
+    pub fn text(&self, config: &FleetBenchConfig) -> String {
+        let b = self;
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "chronomap serve --fleet on 127.0.0.1, PostgreSQL {}, {} hardware threads shared by nodes, clients and the database",
+            b.server_version, b.threads
+        );
+        let _ = writeln!(
+            text,
+            "writes: {} clients per node, POST /v1/observations of {} observations over {} models, for {} s; one client per node times predict (one model, one time) meanwhile",
+            config.clients_per_node, config.batch, config.batch_ids, config.seconds
+        );
+        let mut table = Table::new([
+            "nodes",
+            "observations/s",
+            "requests",
+            "commit groups",
+            "predict p50 µs",
+            "predict p99 µs",
+            "INSERT rows/s",
+            "fleet / INSERT",
+            "COPY rows/s",
+            "fleet / COPY",
+        ]);
+        for run in &b.runs {
+            let baseline = |k: usize| {
+                run.baselines.get(k).map_or(("-".into(), "-".into()), |x| {
+                    (
+                        format!("{:.3e}", x.rows_per_second),
+                        format!("{:.2}", x.ratio_fleet_to_baseline),
+                    )
+                })
+            };
+            let (insert, insert_ratio) = baseline(0);
+            let (copy, copy_ratio) = baseline(1);
+            table.row([
+                run.nodes.to_string(),
+                format!("{:.3e}", run.observations_per_second),
+                run.requests.to_string(),
+                run.commit_groups.to_string(),
+                format!("{:.0}", run.predict_p50_us),
+                format!("{:.0}", run.predict_p99_us),
+                insert,
+                insert_ratio,
+                copy,
+                copy_ratio,
+            ]);
+        }
+        let _ = writeln!(text, "{}", table.render());
+        if let Some(c) = &b.catch_up {
+            let _ = writeln!(
+                text,
+                "\ncatch-up of a new node: {} observations of {} models in {} commit groups (written in {:.1} s)",
+                c.observations, c.models, c.groups, c.write_seconds
+            );
+            let _ = writeln!(
+                text,
+                "  from the log alone (verify + replay every group): {:.2} s = {:.3e} observations/s",
+                c.replay_seconds,
+                c.observations as f64 / c.replay_seconds
+            );
+            let _ = writeln!(
+                text,
+                "  checkpoint of every model: {:.2} s; compaction ({} segments of 10 groups to the archive): {:.2} s",
+                c.checkpoint_seconds, c.segments_compacted, c.compact_seconds
+            );
+            let _ = writeln!(
+                text,
+                "  a new node from the checkpoint and the live log: {:.2} s ({:.1}x faster); models bit-identical: {}",
+                c.start_from_checkpoint_seconds,
+                c.replay_seconds / c.start_from_checkpoint_seconds,
+                if c.identical { "yes" } else { "NO" }
+            );
+        }
+        text
     }
 }
 

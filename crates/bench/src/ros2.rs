@@ -10,6 +10,7 @@
 //! makes the namespace, runs the driver and reduces its raw delays to medians, maxima, losses
 //! and ratios.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -283,6 +284,87 @@ pub fn run(config: &MapsConfig) -> Result<MapsBench, BenchError> {
     Ok(reduce(report, prefix[..2].join(" ")))
 }
 
+impl MapsBench {
+    /// The result as `chronomap bench ros2` prints it.
+    pub fn text(&self) -> String {
+        let b = self;
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "predicted maps, {} per size after {} warm-up maps, one every {} s; subscriber: rclpy \
+         (Python {}, {}) with Nav2's map QoS (reliable, transient local, keep last 1); private \
+         network namespace ({})",
+            b.maps, b.warmup, b.period, b.python, b.rmw, b.namespace
+        );
+        let _ = writeln!(
+            text,
+            "{:<20} {:<26} {:>11} {:>9} {:>9}   ratio (median, max)",
+            "map", "publisher", "received", "median", "max"
+        );
+        for s in &b.sizes {
+            let map = format!("{}x{} {:.1} MB", s.side, s.side, s.bytes as f64 / 1e6);
+            let _ = writeln!(
+                text,
+                "{}   {:.1}, {:.1}",
+                row(&map, "chronomap ros2 (RustDDS)", &s.chronomap),
+                s.ratio_median,
+                s.ratio_max
+            );
+            let _ = writeln!(text, "{}", row("", "rclpy (Fast DDS)", &s.fastdds));
+        }
+        let stamped = b.sizes.iter().any(|s| s.chronomap.reference == "stamp");
+        if stamped {
+            let _ = writeln!(
+                text,
+                "the node logs no moment it hands a map to DDS: its delays start at the map's stamp, \
+             taken before predicting (prediction included)"
+            );
+        } else {
+            let since: Vec<String> = b
+                .sizes
+                .iter()
+                .map(|s| {
+                    format!(
+                        "{}x{}: {}",
+                        s.side,
+                        s.side,
+                        s.chronomap
+                            .median_since_stamp_seconds
+                            .map_or("-".into(), seconds)
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                text,
+                "delays from the moment the map is handed to DDS (the node's debug log; Fast DDS: \
+             the publish call); the node's median from the map's stamp, prediction included: {}",
+                since.join(", ")
+            );
+        }
+        text
+    }
+}
+
+/// Seconds with 3 decimals, `-` for none.
+fn seconds(s: f64) -> String {
+    if s.is_nan() {
+        "-".into()
+    } else {
+        format!("{s:.3} s")
+    }
+}
+
+/// One line of the table: map, publisher, received of published, median and max delay.
+fn row(map: &str, publisher: &str, d: &Delivery) -> String {
+    format!(
+        "{map:<20} {publisher:<26} {:>5}/{:<5} {:>9} {:>9}",
+        d.received,
+        d.published,
+        seconds(d.median_seconds),
+        seconds(d.max_seconds)
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -332,5 +414,37 @@ mod tests {
         assert_eq!((size.chronomap.published, size.chronomap.lost), (0, 0));
         assert!(size.chronomap.median_seconds.is_nan() && size.ratio_median.is_nan());
         assert_eq!((size.fastdds.received, size.fastdds.lost), (1, 1));
+    }
+
+    /// The text of a hand-made report: one line per publisher and size, the node's delays
+    /// since the stamp last.
+    #[test]
+    fn the_text_has_a_line_per_publisher_and_the_delays_since_the_stamp() {
+        let report: Report = serde_json::from_str(
+            r#"{"maps": 3, "warmup": 2, "period": 1.0, "rmw": "rmw_fastrtps_cpp",
+                "python": "3.11.2", "sides": [{"side": 1000, "cells": 1000000, "bytes": 1000104,
+                "chronomap": {"published": 4, "reference": "publish", "maps": [
+                    {"delay": 0.3, "since_stamp": 0.5}, {"delay": 0.1, "since_stamp": 0.2},
+                    {"delay": 0.2, "since_stamp": 0.4}]},
+                "fastdds": {"published": 3, "maps": [
+                    {"delay": 0.05}, {"delay": 0.02}, {"delay": 0.1}]}}]}"#,
+        )
+        .unwrap();
+        let text = reduce(report, "unshare -n".into()).text();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 5);
+        assert!(
+            lines[0].starts_with("predicted maps, 3 per size after 2 warm-up maps, one every 1 s;")
+        );
+        assert!(lines[0].ends_with("(Python 3.11.2, rmw_fastrtps_cpp) with Nav2's map QoS (reliable, transient local, keep last 1); private network namespace (unshare -n)"));
+        assert_eq!(
+            lines[2],
+            "1000x1000 1.0 MB     chronomap ros2 (RustDDS)       3/4       0.200 s   0.300 s   4.0, 3.0"
+        );
+        assert_eq!(
+            lines[3],
+            "                     rclpy (Fast DDS)               3/3       0.050 s   0.100 s"
+        );
+        assert!(lines[4].ends_with("prediction included: 1000x1000: 0.400 s"));
     }
 }

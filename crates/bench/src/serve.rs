@@ -14,10 +14,12 @@
 //! same size to a redb store, one transaction per request.
 
 use std::collections::HashMap;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use chronomap_app::report::Table;
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::TemporalModel;
 use chronomap_core::TimeSeries;
@@ -1334,6 +1336,147 @@ fn write_baselines(
         source,
     })?;
     Ok(vec![parse, apply, encode, redb])
+}
+
+impl ServeBench {
+    /// The result as `chronomap bench serve` prints it, with the `config` it ran with.
+    pub fn text(&self, config: &ServeBenchConfig) -> String {
+        let b = self;
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "chronomap serve on 127.0.0.1 (redb store, bearer token), {} {} models, {}, {} hardware threads",
+            b.models,
+            b.model,
+            clients(b.clients),
+            b.threads
+        );
+        let p = &b.preload;
+        let _ = writeln!(
+            text,
+            "preload: {} observations ({} per model) in {} requests, durable in {:.2} s = {:.3e} observations/s (in-process models: {:.2} s)",
+            p.observations,
+            config.preload,
+            p.requests,
+            p.seconds,
+            p.observations_per_second,
+            p.in_process_seconds
+        );
+        let _ = writeln!(
+            text,
+            "\nlatency: {} back to back, up to {} requests each per kind (or {} s), after {WARM_UP} untimed ones",
+            clients(b.clients),
+            config.requests,
+            config.latency_seconds
+        );
+        let mut table = Table::new([
+            "request",
+            "requests",
+            "p50 µs",
+            "p99 µs",
+            "max µs",
+            "requests/s",
+            "in-process µs",
+            "p50 / in-process",
+            "p50 / health p50",
+        ]);
+        for l in &b.latency {
+            let (ip, ratio, ratio_health) = match (
+                l.in_process_ns,
+                l.ratio_p50_to_in_process,
+                l.ratio_p50_to_health,
+            ) {
+                (Some(ns), Some(ratio), Some(health)) => (
+                    format!("{:.3}", ns / 1e3),
+                    format!("{ratio:.0}"),
+                    format!("{health:.2}"),
+                ),
+                _ => ("-".into(), "-".into(), "1.00".into()),
+            };
+            table.row([
+                l.request.clone(),
+                l.requests.to_string(),
+                format!("{:.0}", l.p50_us),
+                format!("{:.0}", l.p99_us),
+                format!("{:.0}", l.max_us),
+                format!("{:.0}", l.requests_per_second),
+                ip,
+                ratio,
+                ratio_health,
+            ]);
+        }
+        let _ = writeln!(text, "{}", table.render());
+        let t = &b.throughput;
+        let _ = writeln!(
+            text,
+            "\ndurable throughput: {}, POST /v1/observations of {} observations over {} models each ({:.1} MB of JSON bodies, encoded beforehand in {:.2} s)",
+            clients(t.writers),
+            t.batch,
+            t.batch_ids.min(b.models.div_ceil(t.writers)),
+            t.body_bytes as f64 / 1e6,
+            t.client_encode_seconds
+        );
+        let _ = writeln!(
+            text,
+            "  {} observations in {} requests acknowledged in {:.2} s ({} commit groups{}) = {:.3e} durable observations/s",
+            t.observations,
+            t.requests,
+            t.seconds,
+            t.commits,
+            if t.observations < t.prepared_observations {
+                format!(", stopped by --seconds before {}", t.prepared_observations)
+            } else {
+                String::new()
+            },
+            t.observations_per_second
+        );
+        let mut table = Table::new([
+            "baseline (one thread, same bodies)",
+            "observations",
+            "observations/s",
+            "service / baseline",
+        ]);
+        for baseline in &t.baselines {
+            table.row([
+                baseline.what.to_string(),
+                baseline.observations.to_string(),
+                format!("{:.3e}", baseline.observations_per_second),
+                format!("{:.2}", baseline.ratio_service_to_baseline),
+            ]);
+        }
+        table.row([
+            "all four one after the other".to_string(),
+            "-".into(),
+            format!("{:.3e}", t.baseline_pipeline_observations_per_second),
+            format!("{:.2}", t.ratio_service_to_pipeline),
+        ]);
+        let _ = writeln!(text, "{}", table.render());
+        let p99 = b.predict_p99_us();
+        let _ = writeln!(
+            text,
+            "\ngoals: predict p99 < 1 ms: {} ({p99:.0} µs); >= 1e6 durable observations/s in batches: {} ({:.3e})",
+            if b.goals.predict_p99_under_1ms {
+                "met"
+            } else {
+                "missed"
+            },
+            if b.goals.durable_1m_observations_per_second {
+                "met"
+            } else {
+                "missed"
+            },
+            t.observations_per_second
+        );
+        if let Some(path) = &b.data {
+            let _ = writeln!(text, "the store is kept in {path}");
+        }
+        text
+    }
+}
+
+/// "1 client", "4 clients".
+fn clients(n: usize) -> String {
+    format!("{n} client{}", if n == 1 { "" } else { "s" })
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@
 //! The latencies of all rounds are pooled per service; the ratios are this build's over the
 //! baseline's. Taking turns spreads the noise of a shared machine over both services.
 
+use std::fmt::Write as _;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -22,6 +23,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use chronomap_app::report::Table;
 use chronomap_client::{Client, ClientError, Method, StatusCode};
 use chronomap_core::Parallelism;
 use chronomap_grid::AnyGrid;
@@ -587,4 +589,71 @@ async fn loaded(
     let predict = small.pop().expect("two")?;
     let health = small.pop().expect("two")?;
     Ok((grid, health, predict, seconds))
+}
+
+impl GridLoadBench {
+    /// The result as `chronomap bench serve --grid-load` prints it.
+    pub fn text(&self) -> String {
+        let b = self;
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "chronomap serve in processes of their own on 127.0.0.1, in turns, {} rounds of {} s phases, {} hardware threads",
+            b.rounds, b.seconds, b.threads
+        );
+        let _ = writeln!(
+            text,
+            "grid: synthetic office, {} cells ({} changing, kept with its learning state), a map is {:.2} MB of JSON; door: fremen:2 on the greg door",
+            b.cells,
+            b.changing_cells,
+            b.map_bytes as f64 / 1e6
+        );
+        let _ = writeln!(
+            text,
+            "quiet: 4 clients back to back; loaded: {} clients ask for maps while 1 client checks health and 1 predicts the door\n",
+            b.grid_clients
+        );
+        let mut table = Table::new([
+            "service",
+            "quiet predict p50 / p99 µs",
+            "quiet health p50 / p99 µs",
+            "loaded map p50 / p99 ms",
+            "maps/s",
+            "loaded health p50 / p99 µs",
+            "loaded predict p50 / p99 µs",
+        ]);
+        let us = |p: &Percentiles| format!("{:.0} / {:.0}", p.p50_us, p.p99_us);
+        for s in &b.services {
+            table.row([
+                s.name.clone(),
+                us(&s.quiet_predict),
+                us(&s.quiet_health),
+                format!(
+                    "{:.1} / {:.1}",
+                    s.loaded_grid.p50_us / 1e3,
+                    s.loaded_grid.p99_us / 1e3
+                ),
+                format!("{:.0}", s.grid_per_second),
+                us(&s.loaded_health),
+                us(&s.loaded_predict),
+            ]);
+        }
+        let _ = writeln!(text, "{}", table.render());
+        for (what, ratio) in b.ratios() {
+            let _ = writeln!(text, "{what}: this build / baseline = {ratio:.2}");
+        }
+        if let Some(this) = b.services.last() {
+            let _ = writeln!(
+                text,
+                "goal: door predict p99 < 1 ms (quiet): {} ({:.0} µs)",
+                if this.quiet_predict.p99_us < 1000.0 {
+                    "met"
+                } else {
+                    "missed"
+                },
+                this.quiet_predict.p99_us
+            );
+        }
+        text
+    }
 }

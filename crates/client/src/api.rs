@@ -416,6 +416,53 @@ pub struct ListQuery {
     pub prefix: Option<String>,
 }
 
+/// Most times [`time_range`] makes: one request of `chronomap client predict --from --to`.
+pub const MAX_RANGE_TIMES: usize = 1_000_000;
+
+/// Why [`time_range`] makes no times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TimeRangeError {
+    /// The end is before the start.
+    Backwards,
+    /// More than [`MAX_RANGE_TIMES`] times (this many; infinite or NaN for a step of 0 or
+    /// NaN).
+    TooMany {
+        /// Times the range would have.
+        times: f64,
+    },
+}
+
+impl std::fmt::Display for TimeRangeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TimeRangeError::Backwards => f.write_str("the end is before the start"),
+            TimeRangeError::TooMany { times } => {
+                write!(f, "{times:e} times: at most {MAX_RANGE_TIMES}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for TimeRangeError {}
+
+/// The times `from, from + step, …` up to `to` (`to` itself when `step` divides the span), at
+/// most [`MAX_RANGE_TIMES`] of them; counted before any is made.
+///
+/// # Errors
+/// `to` is before `from`, or there would be more than [`MAX_RANGE_TIMES`] times.
+pub fn time_range(from: f64, to: f64, step: f64) -> Result<Vec<f64>, TimeRangeError> {
+    if to < from {
+        return Err(TimeRangeError::Backwards);
+    }
+    // In floating point first: a cast would saturate (1e9 / 1e-300) and the + 1 wrap to 0.
+    let steps = ((to - from) / step).floor();
+    if !(steps.is_finite() && steps < MAX_RANGE_TIMES as f64) {
+        return Err(TimeRangeError::TooMany { times: steps + 1.0 });
+    }
+    let n = steps as usize + 1;
+    Ok((0..n).map(|i| from + i as f64 * step).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -455,5 +502,29 @@ mod tests {
         let error: ErrorBody =
             serde_json::from_str(r#"{"error":"not_found","reason":"no model \"x\""}"#).unwrap();
         assert_eq!(error.reason, "no model \"x\"");
+    }
+
+    #[test]
+    fn a_time_range_has_its_ends_and_at_most_a_million_times() {
+        assert_eq!(
+            time_range(0.0, 3600.0, 1200.0),
+            Ok(vec![0.0, 1200.0, 2400.0, 3600.0])
+        );
+        assert_eq!(time_range(10.0, 10.0, 5.0), Ok(vec![10.0]));
+        assert_eq!(time_range(0.0, 2500.0, 1000.0).unwrap().len(), 3);
+        assert_eq!(time_range(5.0, 4.0, 1.0), Err(TimeRangeError::Backwards));
+        assert_eq!(
+            time_range(0.0, 999_999.0, 1.0).unwrap().len(),
+            MAX_RANGE_TIMES
+        );
+        assert_eq!(
+            time_range(0.0, 1_000_000.0, 1.0),
+            Err(TimeRangeError::TooMany { times: 1_000_001.0 })
+        );
+        assert!(matches!(
+            time_range(0.0, 1e9, 1e-300),
+            Err(TimeRangeError::TooMany { times }) if times.is_infinite()
+        ));
+        assert!(time_range(0.0, 1.0, 0.0).is_err());
     }
 }

@@ -26,6 +26,30 @@ async fn read_body(mut response: reqwest::Response, url: &str) -> Result<Vec<u8>
     Ok(bytes)
 }
 
+/// What [`Client::add_series`] added.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Added {
+    /// Observations added.
+    pub observations: u64,
+    /// The log position of the last request (`None` for an empty series).
+    pub seq: Option<u64>,
+}
+
+/// A request of [`Client::add_series`] that failed.
+#[derive(Debug, thiserror::Error)]
+#[error("observations {first}..{last} were not added ({added} were)")]
+pub struct BatchError {
+    /// Observations added before it.
+    pub added: u64,
+    /// The first observation of the failed request (counted from 1).
+    pub first: u64,
+    /// Its last observation.
+    pub last: u64,
+    /// Why it failed.
+    #[source]
+    pub source: ClientError,
+}
+
 /// A connection to one service (cheap to clone; clones share connections).
 #[derive(Clone, Debug)]
 pub struct Client {
@@ -93,6 +117,41 @@ impl Client {
     }
 
     endpoints!(async);
+
+    /// Adds the series `times`, `values` to the model `id` (created as `model` on first use)
+    /// in requests of at most `batch` observations (`/v1/addvalues`), in order, up to the first
+    /// request that fails.
+    ///
+    /// # Errors
+    /// The first request that failed, with the observations added before it.
+    pub async fn add_series(
+        &self,
+        id: &str,
+        times: &[f64],
+        values: &[f64],
+        model: Option<&str>,
+        batch: usize,
+    ) -> Result<Added, BatchError> {
+        let mut added = Added {
+            observations: 0,
+            seq: None,
+        };
+        let batch = batch.max(1);
+        for (times, values) in times.chunks(batch).zip(values.chunks(batch)) {
+            let ack = self
+                .add_values(id, times, values, model)
+                .await
+                .map_err(|source| BatchError {
+                    added: added.observations,
+                    first: added.observations + 1,
+                    last: added.observations + times.len() as u64,
+                    source,
+                })?;
+            added.observations += ack.observations;
+            added.seq = Some(ack.seq);
+        }
+        Ok(added)
+    }
 
     /// A raw request, for tests of hostile input: method, path, body bytes; returns status
     /// and body.

@@ -36,6 +36,6 @@ pub mod blocking;
 mod call;
 
 #[cfg(feature = "http")]
-pub use async_http::Client;
+pub use async_http::{Added, BatchError, Client};
 #[cfg(any(feature = "http", feature = "blocking"))]
 pub use call::{ClientError, MAX_RESPONSE_BYTES, Method, StatusCode};

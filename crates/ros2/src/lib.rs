@@ -20,7 +20,8 @@
 //! predictions into messages with the domain crates (`chronomap-models`, `chronomap-grid`,
 //! `chronomap-topo`) and files with `chronomap-io`; [`node`] moves messages over DDS. It logs
 //! through the [`log`] facade (as ros2-client and RustDDS do) and prints nothing; the
-//! `chronomap ros2` command installs a logger and prints. Parameters, topics and QoS are
+//! `chronomap ros2` command installs the [`console`] logger and prints ([`topics`] lists what
+//! `--check` shows). Parameters, topics and QoS are
 //! described in `docs/ros2.md`.
 //!
 //! ```no_run
@@ -39,6 +40,7 @@
 #![deny(missing_docs)]
 
 pub mod config;
+pub mod console;
 pub mod journal;
 pub mod lifecycle;
 pub mod msgs;
@@ -47,6 +49,7 @@ pub mod params;
 pub mod ros_args;
 pub mod rosout;
 pub mod signals;
+pub mod topics;
 pub mod world;
 
 pub use config::{ConfigError, NodeConfig};

@@ -11,12 +11,20 @@
 //! a record that no longer applies (its model was created by a lost entry, or its times
 //! precede what the model has now) is dropped and reported by model, and the new store gets
 //! the kept records, renumbered without gaps, and a snapshot of every model.
+//!
+//! [`check_store`] and [`salvage_store`] do either for a store where the flags of `chronomap
+//! serve` name it (a redb file, or a PostgreSQL schema salvaged into a new one); [`open_reader`]
+//! and [`scan_records`] read a store beside a running service (`chronomap export parquet`).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use chronomap_core::progress::Progress;
 
 use crate::log::{LogRecord, decode_group, encode_group, ids_of_damaged};
 use crate::registry::Registry;
+use crate::startup::StoreLocation;
 use crate::store::{Checkpoint, Store, StoreError, decode_snapshot, encode_snapshot};
 
 /// At most this many problems are listed in a message (all are counted).
@@ -590,6 +598,292 @@ pub fn salvage_redb(
     notes.append(&mut report.lost);
     report.lost = notes;
     Ok((report, kept))
+}
+
+/// What `chronomap serve --check` found: the verified store, or a redb file that cannot be read.
+pub enum StoreCheck {
+    /// The store was read to its end (it may still be damaged: see [`StoreCheck::failure`]).
+    Verified(Box<Verified>),
+    /// redb cannot read the file.
+    Unreadable {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+}
+
+impl StoreCheck {
+    /// The report as lines for people.
+    pub fn text(&self) -> String {
+        match self {
+            StoreCheck::Verified(verified) => verified.report.text(verified.registry.len()),
+            StoreCheck::Unreadable { path, reason } => {
+                format!("store: redb {}\ncannot be read: {reason}\n", path.display())
+            }
+        }
+    }
+
+    /// Why the check fails (the command's error), `None` for an intact store.
+    pub fn failure(&self) -> Option<String> {
+        match self {
+            StoreCheck::Verified(verified) if verified.report.damage.is_empty() => None,
+            StoreCheck::Verified(verified) => Some(format!(
+                "the store is damaged ({} problems); `chronomap serve --salvage` with the same \
+                 flags rebuilds it from every intact log entry",
+                verified.report.damage.len()
+            )),
+            StoreCheck::Unreadable { path, .. } => Some(format!(
+                "{}: the store cannot be read; nothing was changed",
+                path.display()
+            )),
+        }
+    }
+}
+
+/// The redb file of `data`, which must exist to be checked or salvaged.
+fn existing_redb(data: &Path) -> Result<PathBuf, StoreError> {
+    let path = StoreLocation::redb_file(data);
+    if !path.exists() {
+        return Err(StoreError {
+            store: path.display().to_string(),
+            reason: "no store to check or salvage".into(),
+        });
+    }
+    Ok(path)
+}
+
+/// Checks the store at `at` without writing anything (`chronomap serve --check`): a redb file
+/// by [`verify_redb`], a PostgreSQL schema by [`verify`] under no lock (a schema without a
+/// store is not created).
+///
+/// # Errors
+/// There is no redb file, or the store cannot be opened or read at all.
+pub fn check_store(at: &StoreLocation) -> Result<StoreCheck, StoreError> {
+    Ok(match at {
+        StoreLocation::Redb { data } => {
+            let path = existing_redb(data)?;
+            match verify_redb(&path) {
+                Ok(verified) => StoreCheck::Verified(Box::new(verified)),
+                Err(e) => StoreCheck::Unreadable {
+                    path,
+                    reason: e.reason,
+                },
+            }
+        }
+        #[cfg(feature = "postgres")]
+        StoreLocation::Postgres { config, schema } => {
+            let store = crate::store::PostgresStore::connect_checker(config, schema)?;
+            StoreCheck::Verified(Box::new(verify(&store)?))
+        }
+    })
+}
+
+/// What a salvage kept and lost, and where the damaged store is.
+#[derive(Debug)]
+pub struct Salvaged {
+    /// Kept and lost.
+    pub report: SalvageReport,
+    /// The damaged store, kept, and where the salvaged one is.
+    pub kept: String,
+}
+
+impl Salvaged {
+    /// The report as lines for people (`chronomap serve --salvage`).
+    pub fn text(&self) -> String {
+        format!(
+            "{}\nthe damaged store is kept: {}\n",
+            self.report.text().trim_end(),
+            self.kept
+        )
+    }
+}
+
+/// Why a salvage did not happen.
+#[derive(Debug, thiserror::Error)]
+pub enum SalvageError {
+    /// A store cannot be read or written.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The schema a PostgreSQL store is salvaged into is not empty.
+    #[error(
+        "postgres schema {schema} already holds a store; drop it (DROP SCHEMA {schema} CASCADE) \
+         or salvage into another --postgres-schema"
+    )]
+    Occupied {
+        /// The schema.
+        schema: String,
+    },
+}
+
+/// Salvages the store at `at` (`chronomap serve --salvage`): a redb file by [`salvage_redb`],
+/// which keeps the damaged file beside the new one; a PostgreSQL schema `S` into the new
+/// schema `S_salvaged`, leaving `S` unchanged.
+///
+/// # Errors
+/// There is no redb file; a store cannot be read or written; `S_salvaged` holds a store.
+pub fn salvage_store(at: &StoreLocation) -> Result<Salvaged, SalvageError> {
+    match at {
+        StoreLocation::Redb { data } => {
+            let (report, kept) = salvage_redb(&existing_redb(data)?)?;
+            Ok(Salvaged {
+                report,
+                kept: kept.display().to_string(),
+            })
+        }
+        #[cfg(feature = "postgres")]
+        StoreLocation::Postgres { config, schema } => salvage_postgres(config, schema),
+    }
+}
+
+/// Salvages the PostgreSQL store in `schema` into the schema `{schema}_salvaged`, which must
+/// not hold a store: every entry the log holds, up to where it can be read.
+///
+/// # Errors
+/// A store cannot be read or written; the target schema holds a store.
+#[cfg(feature = "postgres")]
+pub fn salvage_postgres(config: &str, schema: &str) -> Result<Salvaged, SalvageError> {
+    use crate::store::PostgresStore;
+    let source = PostgresStore::connect_checker(config, schema)?;
+    let target = format!("{schema}_salvaged");
+    let into = PostgresStore::connect(config, &target)?;
+    let held = into.recover()?;
+    if held.last_seq > 0 || !held.snapshots.is_empty() {
+        return Err(SalvageError::Occupied { schema: target });
+    }
+    let (candidates, unread) = candidates_of(&source);
+    let mut report = salvage(&candidates, &into)?;
+    if let Some(e) = unread {
+        report
+            .lost
+            .insert(0, format!("the log cannot be read to its end: {e}"));
+    }
+    Ok(Salvaged {
+        report,
+        kept: format!(
+            "schema {schema} (unchanged); the salvaged store is the schema {target}: serve it \
+             with --postgres-schema {target}"
+        ),
+    })
+}
+
+/// Opens the store at `at` to read it beside (never instead of) the service: the redb file,
+/// which must exist, read-only (the service must not hold it: redb lets one process open a
+/// file); a PostgreSQL schema without a lock.
+///
+/// # Errors
+/// There is no redb file, another process holds it (the message says what to do), or the
+/// store cannot be opened.
+pub fn open_reader(at: &StoreLocation) -> Result<Box<dyn Store>, StoreError> {
+    match at {
+        #[cfg(feature = "postgres")]
+        StoreLocation::Postgres { config, schema } => Ok(Box::new(
+            crate::store::PostgresStore::connect_reader(config, schema)?,
+        )),
+        StoreLocation::Redb { data } => {
+            let path = StoreLocation::redb_file(data);
+            if !path.is_file() {
+                return Err(StoreError {
+                    store: path.display().to_string(),
+                    reason: format!(
+                        "no store (a `chronomap serve --data {}` keeps its models there)",
+                        data.display()
+                    ),
+                });
+            }
+            crate::store::RedbStore::open_read_only(&path)
+                .map(|store| Box::new(store) as Box<dyn Store>)
+                .map_err(|e| in_use(e, data))
+        }
+    }
+}
+
+/// A redb open error, explained when another process (a running service) holds the file.
+fn in_use(error: StoreError, data: &Path) -> StoreError {
+    if error.reason.to_lowercase().contains("already open") {
+        StoreError {
+            reason: format!(
+                "the store is in use ({}): is `chronomap serve --data {}` running? redb lets \
+                 one process open the file; stop the service and export again, or keep the \
+                 store in PostgreSQL (`serve --postgres`), which `export parquet --postgres` \
+                 reads beside running services",
+                error.reason,
+                data.display()
+            ),
+            store: error.store,
+        }
+    } else {
+        error
+    }
+}
+
+/// A failure inside a scan, carried out of the store's callback (the store is named once the
+/// scan has returned).
+pub fn scan_failure(reason: String) -> StoreError {
+    StoreError {
+        store: String::new(),
+        reason,
+    }
+}
+
+/// What [`scan_records`] calls with each commit group: its position and records.
+pub type VisitRecords<'a> = dyn FnMut(u64, &[LogRecord]) -> Result<(), StoreError> + 'a;
+
+/// Calls `visit` with the decoded records of every commit group from position 1 to
+/// `last_seq`, advancing `progress` by one per group; stops at `last_seq` (a shared store may
+/// have grown since it was verified). A [`scan_failure`] of `visit` is reported naming the
+/// store.
+///
+/// # Errors
+/// The log cannot be read, an entry is missing or damaged, the log ends before `last_seq`, or
+/// `visit` failed.
+pub fn scan_records(
+    store: &dyn Store,
+    last_seq: u64,
+    progress: &dyn Progress,
+    visit: &mut VisitRecords<'_>,
+) -> Result<(), StoreError> {
+    let mut previous = 0;
+    let mut stopped = false;
+    let scanned = store.scan(1, &mut |seq, bytes| {
+        if seq > last_seq {
+            stopped = true;
+            return Err(scan_failure(String::new()));
+        }
+        if seq != previous + 1 {
+            return Err(scan_failure(format!(
+                "log entries {}..={} are missing: the observations cannot be exported complete",
+                previous + 1,
+                seq - 1
+            )));
+        }
+        previous = seq;
+        let records = decode_group(seq, bytes).map_err(|e| scan_failure(e.to_string()))?;
+        visit(seq, &records)?;
+        progress.advance(1);
+        Ok(())
+    });
+    match scanned {
+        Err(_) if stopped => {}
+        Ok(()) => {}
+        Err(e) if e.store.is_empty() => {
+            return Err(StoreError {
+                store: store.describe(),
+                reason: e.reason,
+            });
+        }
+        Err(e) => return Err(e),
+    }
+    if previous < last_seq {
+        return Err(StoreError {
+            store: store.describe(),
+            reason: format!(
+                "the log ends at position {previous}, before {last_seq} where it ended when \
+                 the export began"
+            ),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]

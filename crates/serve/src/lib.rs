@@ -16,7 +16,12 @@
 //! * [`fleet`]: several services over one shared PostgreSQL log (`chronomap serve --fleet`):
 //!   tailing, read-your-writes tokens, lag.
 //! * [`check`]: every snapshot and log entry verified at start (`chronomap serve --check`), and
-//!   the salvage of what is intact in a damaged store (`--salvage`).
+//!   the salvage of what is intact in a damaged store (`--salvage`); the reading side of a
+//!   store beside a running service.
+//! * [`startup`]: what a service needs before it serves: its data folder, its token file, the
+//!   map files it serves, its store.
+//! * `export` (feature `parquet`, on by default): a store's observations and predictions as
+//!   Parquet tables (`chronomap export parquet`).
 //! * [`maps`]: topological maps, occupancy grids and CoPA-Maps of people served read-only beside
 //!   the models.
 //! * [`bt_monitor`]: behavior trees watched live over the Groot2 protocol
@@ -31,6 +36,8 @@
 pub use chronomap_client::api;
 pub mod bt_monitor;
 pub mod check;
+#[cfg(feature = "parquet")]
+pub mod export;
 pub mod fleet;
 pub mod heavy;
 pub mod log;
@@ -38,6 +45,7 @@ pub mod maps;
 pub mod refit;
 pub mod registry;
 pub mod server;
+pub mod startup;
 pub mod store;
 pub mod writer;
 
