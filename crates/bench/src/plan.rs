@@ -9,6 +9,7 @@
 //! Navigation MDP and the task as co-safe LTL, build, check `Pmax` (Storm's own product
 //! through Spot); and, apart, Storm solving chronomap's products from DRN.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
@@ -227,6 +228,89 @@ pub struct PlanBench {
     pub ratio_storm_to_chronomap: Option<f64>,
 }
 
+impl PlanBench {
+    /// The measurements as `chronomap bench plan` prints them.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let ours = self.chronomap_seconds;
+        let _ = writeln!(
+            out,
+            "Witham: {} nodes, {} edges, {} attempts; edge models fitted in {:.2} s (not timed below)",
+            self.nodes, self.edges, self.attempts, self.fit_seconds
+        );
+        let _ = writeln!(
+            out,
+            "{} cases: every hour of 2014-09-04 (UTC) x {} tasks from Station ({}); {} product states in all",
+            self.cases,
+            TASKS.len(),
+            TASKS
+                .iter()
+                .map(|(_, t)| t.to_string())
+                .collect::<Vec<_>>()
+                .join("; "),
+            self.product_states
+        );
+        let _ = writeln!(
+            out,
+            "chronomap end to end (task automaton, predictions of {} edges, Navigation MDP, product, Pmax + expected time + policy in every state):\n  {:8.2} ms per sweep of {} cases (median of {}), {:.0} µs per case",
+            self.edges,
+            ours * 1e3,
+            self.cases,
+            self.chronomap_sweeps.len(),
+            ours * 1e6 / self.cases as f64
+        );
+        let Some(storm) = &self.storm else {
+            out.push_str(
+                "Storm was not run (give --storm-python PATH, a Python that imports stormpy 2.0)\n",
+            );
+            return out;
+        };
+        let _ = writeln!(
+            out,
+            "Storm {} (stormpy), the same cases, median of {} sweeps after a warm-up:",
+            storm.stormpy.as_deref().unwrap_or("?"),
+            storm
+                .repeat
+                .map_or_else(|| "null".to_string(), |r| r.to_string())
+        );
+        for t in &storm.timings {
+            let what = match t.path.as_str() {
+                "prism_ltl" => "PRISM + co-safe LTL (Spot), Pmax at the initial state",
+                _ => "chronomap's products from DRN, Pmax + Rmin in every state",
+            };
+            let engine_text = match t.engine.as_str() {
+                "default" => "default engine (sound, 1e-6)",
+                "sound12" => "sound, 1e-12",
+                "exact" => "exact rationals",
+                other => other,
+            };
+            let delta = t
+                .max_abs_delta_pmax
+                .map_or("?".into(), |d| format!("{d:.1e}"));
+            let _ = writeln!(
+                out,
+                "  {what}, {engine_text}:\n  {:8.2} ms = {:6.1} x chronomap   (max |Pmax - ours| {delta})",
+                t.seconds * 1e3,
+                t.seconds / ours
+            );
+        }
+        let _ = writeln!(
+            out,
+            "  not included: Python start-up {:.2} s, import stormpy {:.2} s (whole process {:.1} s)",
+            storm.interpreter_startup_seconds.unwrap_or(f64::NAN),
+            storm.import_seconds.unwrap_or(f64::NAN),
+            storm.process_seconds
+        );
+        if let Some(ratio) = self.ratio_storm_to_chronomap {
+            let _ = writeln!(
+                out,
+                "ratio Storm (PRISM + LTL, default engine) / chronomap: {ratio:.1}"
+            );
+        }
+        out
+    }
+}
+
 /// Runs the planning benchmark: fits the edge models, sweeps all cases once as a warm-up and
 /// `repeat` times timed, then (with a Python) Storm on the same cases.
 ///
@@ -323,4 +407,41 @@ pub fn run(config: &PlanConfig, progress: &dyn Progress) -> Result<PlanBench, Be
         storm,
         ratio_storm_to_chronomap: headline.map(|s| s / ours),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_report_without_storm_says_how_to_run_it() {
+        let bench = PlanBench {
+            nodes: 3,
+            edges: 4,
+            attempts: 50,
+            cases: 72,
+            product_states: 900,
+            fit_seconds: 0.25,
+            chronomap_seconds: 0.0144,
+            chronomap_sweeps: vec![0.0144, 0.0150],
+            storm: None,
+            ratio_storm_to_chronomap: None,
+        };
+        let text = bench.text();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "Witham: 3 nodes, 4 edges, 50 attempts; edge models fitted in 0.25 s (not timed below)"
+        );
+        // 14.4 ms over 72 cases: 200 µs a case.
+        assert_eq!(
+            lines[3],
+            "     14.40 ms per sweep of 72 cases (median of 2), 200 µs per case"
+        );
+        assert_eq!(
+            lines[4],
+            "Storm was not run (give --storm-python PATH, a Python that imports stormpy 2.0)"
+        );
+        assert_eq!(lines.len(), 5);
+    }
 }
