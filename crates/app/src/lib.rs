@@ -27,14 +27,15 @@
 //! | [`open`] | what kind of file a path holds |
 //! | [`report`] | plain-text tables and units for the reports the jobs render |
 //! | [`activity`], [`disturbance`] | activity models opened by content, rate maps, sample extraction, the evaluation of [Stüde 2024] §4.3.2 and the service-disturbance experiment (eq. 4.22) |
-//! | [`bt`] | a BehaviorTree.CPP document with node models, its registry under stubs, the stochastic chain and horizon |
+//! | [`bt`], [`monitor`] | a BehaviorTree.CPP document with node models, its registry under stubs, checks, scripted runs and the stochastic analysis ([Stüde 2024] §5.2); the monitoring simulation (§5.3) |
+//! | [`psbt`] | the person search behavior tree: synthesis and the comparison with the baselines ([Stüde 2024] §5.4) |
 //! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI), what a grid file holds, predicted maps (§VIII) |
 //! | [`model`] | a model fitted and written, what a model file holds, anomalies ([Krajník 2017], [Krajník 2019]) |
 //! | [`demo`] | the sections of `chronomap demo`: doors beside the original FreMEn code, FFT FreMEn, grids ([Krajník 2017]) |
 //! | [`eval`], [`compress`] | the FreMEn benchmark experiment and the compression study ([Krajník 2017]) |
 //! | [`events`], [`ingest`] | people as events and tracks, the pedestrian study ([Krajník 2019] §V-D) |
-//! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford) and the traced run ([Santos 2017]) |
-//! | [`topo`] | edge-model fits, evaluations and timed plans ([Fentanes 2015]) |
+//! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford), the strategy × model table, Figs. 5 and 6 ([Santos 2017]) |
+//! | [`topo`] | edge-model fits, evaluations, splits, predictions, timed plans and now-or-later tables, the Witham demo ([Fentanes 2015]) |
 //! | [`laser_log`], [`lidar_study`] | laser logs and keyframes; the range-data studies with the `p_min` rule ([Stüde 2024] §3.2) |
 //! | [`registration`], [`maps`] | clouds and keyframe pairs registered against a truth or SLAM (§3.2.2); the map manager along a log (§3.3) |
 //! | [`features`] | which features will be visible ([Krajník 2017] §VII Table I, [Krajník 2019] §V-B) |
@@ -54,9 +55,11 @@ pub mod grid;
 pub mod ingest;
 pub mod laser_log;
 pub mod lidar_study;
-pub mod model;
 pub mod maps;
+pub mod model;
+pub mod monitor;
 pub mod open;
+pub mod psbt;
 pub mod registration;
 pub mod report;
 pub mod topo;

@@ -6,19 +6,29 @@
 //!
 //! Files in, result structs out: the faces print the tables and map their own argument names.
 
+use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use chronomap_core::BuildError;
 use chronomap_core::progress::Progress;
-use chronomap_io::{DataError, read_edge_directory};
-use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels};
-use chronomap_topo::map::TopoMap;
-use chronomap_topo::mdp::SolverOptions;
-use chronomap_topo::plan::{PlanError, Planned, Task, plan_full};
-use chronomap_topo::report::{
-    EdgeScore, MergeError, Protocol, WeekTable, merge_maps, per_edge_scores, success_route,
+use chronomap_io::{
+    DataError, ModelFileError, TopoFileError, read_edge_directory, write_edge_directory,
+    write_edge_models,
 };
+use chronomap_plot::Heatmap;
+use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics};
+use chronomap_topo::map::TopoMap;
+use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
+use chronomap_topo::plan::{PlanAt, PlanError, Planned, Task, plan_full};
+use chronomap_topo::report::{
+    EdgeScore, MergeError, Protocol, WeekTable, fit_summary, letters, merge_maps, per_edge_scores,
+    success_route,
+};
+use serde::Serialize;
+use serde_json::{Value, json};
+
+use crate::report::{Table, time};
 
 /// Why a job on edge files failed.
 #[derive(Debug, thiserror::Error)]
@@ -53,6 +63,34 @@ pub enum TopoJobError {
     /// The models cannot score the test attempts.
     #[error(transparent)]
     Evaluate(#[from] BuildError),
+    /// The model file cannot be written.
+    #[error(transparent)]
+    Write(#[from] ModelFileError),
+    /// A directory of edge files cannot be written.
+    #[error(transparent)]
+    WriteEdges(#[from] TopoFileError),
+    /// A split time leaves one side without attempts.
+    #[error(
+        "splitting at {} leaves {before} attempts before and {after} after; choose a time inside the data{}",
+        time(*at),
+        span.map(|(a, b)| format!(" ({} .. {})", time(a), time(b))).unwrap_or_default()
+    )]
+    SplitOutside {
+        /// The time asked for.
+        at: f64,
+        /// Attempts before it.
+        before: usize,
+        /// Attempts from it on.
+        after: usize,
+        /// The first and last attempt's times, if any.
+        span: Option<(f64, f64)>,
+    },
+    /// The bundled Witham Wharf data hold no attempt.
+    #[error("the Witham data have no attempt")]
+    WithamEmpty,
+    /// A plan cannot be made.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
 }
 
 /// Fits the success and duration models of every edge ([Fentanes 2015] §IV) from `attempts`
@@ -154,6 +192,31 @@ pub struct TimedPlan {
     pub seconds: f64,
 }
 
+impl TimedPlan {
+    /// The Navigation MDP in PRISM's language with `start` as the initial state, and the
+    /// property of `task` (a `.props` file's text).
+    ///
+    /// # Errors
+    /// The MDP or the task cannot be written in PRISM's language.
+    pub fn prism(&self, start: usize, task: &Task) -> Result<(String, String), PlanError> {
+        Ok((
+            self.planned.mdp.to_prism(start)?,
+            format!("{}\n", prism_property(task.text())?),
+        ))
+    }
+
+    /// The product MDP with its solution in Storm's explicit DRN format.
+    ///
+    /// # Errors
+    /// The product cannot be written in that format.
+    pub fn drn(&self) -> Result<String, PlanError> {
+        Ok(product_drn(
+            self.planned.product.mdp(),
+            &self.planned.solution,
+        )?)
+    }
+}
+
 /// Plans `task` from node `start` at time `t` with `options`, timing it.
 ///
 /// # Errors
@@ -205,6 +268,903 @@ pub fn plan_week(
         table,
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// What `chronomap topo fit` reports: the directory read, the orders and reconstruction errors
+/// of the edge models ([Fentanes 2015] Table II), and the file written. Serialises as the
+/// command's `--json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct TopoFitReport {
+    /// Nodes of the map.
+    pub nodes: usize,
+    /// Edges of the map.
+    pub edges: usize,
+    /// Traversal attempts in all.
+    pub attempts: usize,
+    /// The first attempt's time, if any.
+    pub first: Option<f64>,
+    /// The last attempt's time, if any.
+    pub last: Option<f64>,
+    /// Edges per order bucket of the success models ([`chronomap_topo::report::FitSummary::success_orders`]).
+    pub success_orders: [usize; 6],
+    /// The same for the duration models.
+    pub duration_orders: [usize; 6],
+    /// The shared weights of the success models' orders, heaviest first.
+    pub success_weights: Vec<(String, f64)>,
+    /// Mean absolute error of the success probabilities (eq. 3 / n).
+    pub success_reconstruction_error: f64,
+    /// Mean absolute error of the expected durations (seconds).
+    pub duration_reconstruction_error_secs: f64,
+    /// Seconds spent fitting (timed on purpose: the report says it).
+    pub fit_seconds: f64,
+    /// The model file written.
+    pub model: String,
+    /// The directory of edge files read.
+    #[serde(skip)]
+    pub directory: String,
+}
+
+/// Reads the edge files of `edges`, fits their models with `config` ([Fentanes 2015] §IV),
+/// timing the fit, and writes them to `output`.
+///
+/// # Errors
+/// [`TopoJobError`]: the directory cannot be read, the attempts cannot be fitted, the file
+/// cannot be written.
+pub fn fit_report(
+    edges: &Path,
+    output: &Path,
+    config: EdgeModelConfig,
+) -> Result<TopoFitReport, TopoJobError> {
+    let stats = read_edge_directory(edges)?;
+    let started = Instant::now();
+    let models = fit_edge_models(stats.map.clone(), &stats.attempts, config, edges)?;
+    let fit_seconds = started.elapsed().as_secs_f64();
+    write_edge_models(output, &models)?;
+    let summary = fit_summary(&models, &stats.attempts);
+    let span = stats.time_span();
+    Ok(TopoFitReport {
+        nodes: stats.map.nodes().len(),
+        edges: stats.map.edges().len(),
+        attempts: stats.total_attempts(),
+        first: span.map(|s| s.0),
+        last: span.map(|s| s.1),
+        success_orders: summary.success_orders,
+        duration_orders: summary.duration_orders,
+        success_weights: summary.success_weights,
+        success_reconstruction_error: summary.success_error,
+        duration_reconstruction_error_secs: summary.duration_error_secs,
+        fit_seconds,
+        model: output.display().to_string(),
+        directory: edges.display().to_string(),
+    })
+}
+
+impl TopoFitReport {
+    /// The report as `chronomap topo fit` prints it.
+    pub fn text(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl fmt::Display for TopoFitReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let span = self.first.zip(self.last);
+        writeln!(
+            f,
+            "{}: {} nodes, {} edges, {} attempts{}",
+            self.directory,
+            self.nodes,
+            self.edges,
+            self.attempts,
+            span.map(|(a, b)| format!(", {} .. {}", time(a), time(b)))
+                .unwrap_or_default()
+        )?;
+        let mut table = Table::new([
+            "model",
+            "mean error (eq. 3 / n)",
+            "rate only",
+            "order 0",
+            "1",
+            "2",
+            "3",
+            ">= 4",
+        ]);
+        let row = |name: &str, error: String, orders: &[usize; 6]| {
+            [name.to_string(), error]
+                .into_iter()
+                .chain(orders.iter().map(usize::to_string))
+                .collect::<Vec<_>>()
+        };
+        table.row(row(
+            "success",
+            format!("{:.3}", self.success_reconstruction_error),
+            &self.success_orders,
+        ));
+        table.row(row(
+            "time",
+            format!("{:.2} s", self.duration_reconstruction_error_secs),
+            &self.duration_orders,
+        ));
+        writeln!(f, "{}", table.render())?;
+        if !self.success_weights.is_empty() {
+            let weights: Vec<String> = self
+                .success_weights
+                .iter()
+                .map(|(spec, w)| format!("{spec} {w:.3}"))
+                .collect();
+            writeln!(
+                f,
+                "success models: every edge weighs {} (shared weights, rolling-origin \
+                 cross-validation; counted above by their largest order)",
+                weights.join(", ")
+            )?;
+        }
+        writeln!(
+            f,
+            "([Fentanes 2015] Table II, open-plan site: success 0.14 with orders 35/18/4/5; time 1.88 s with 24/19/10/9)"
+        )?;
+        writeln!(
+            f,
+            "fitted in {:.2} s; wrote {}",
+            self.fit_seconds, self.model
+        )
+    }
+}
+
+/// Success Brier score and duration MSE of each labelled evaluation against the static
+/// per-edge rates ([Fentanes 2015] §V-A); `static_mse` heads the static duration column.
+pub fn score_table<'a>(
+    static_mse: &str,
+    scores: impl IntoIterator<Item = (String, &'a EdgeEvaluation)>,
+) -> Table {
+    let mut table = Table::new([
+        "protocol",
+        "success Brier",
+        "static Brier",
+        "ratio",
+        "duration MSE (s²)",
+        static_mse,
+    ]);
+    for (label, s) in scores {
+        table.row([
+            label,
+            format!("{:.4}", s.success_brier),
+            format!("{:.4}", s.static_success_brier),
+            format!("{:.2}", s.success_brier / s.static_success_brier),
+            format!("{:.2}", s.duration_mse),
+            format!("{:.2}", s.static_duration_mse),
+        ]);
+    }
+    table
+}
+
+/// What `chronomap topo eval` reports: an [`Evaluation`] with the protocol asked for and the
+/// directories it read ([Fentanes 2015] §V-A).
+pub struct EvalReport {
+    /// The evaluation.
+    pub evaluation: Evaluation,
+    /// The protocol asked for.
+    pub protocol: Protocol,
+    /// Whether every edge was scored alone.
+    pub per_edge: bool,
+    /// The training directory.
+    pub train: String,
+    /// The test directory.
+    pub test: String,
+}
+
+/// [`evaluate`] as `chronomap topo eval` reports it: every edge alone when `per_edge`.
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn eval_report(
+    train: &Path,
+    test: &Path,
+    config: EdgeModelConfig,
+    protocol: Protocol,
+    per_edge: bool,
+    progress: &dyn Progress,
+) -> Result<EvalReport, TopoJobError> {
+    let evaluation = evaluate(train, test, config, per_edge.then_some(protocol), progress)?;
+    Ok(EvalReport {
+        evaluation,
+        protocol,
+        per_edge,
+        train: train.display().to_string(),
+        test: test.display().to_string(),
+    })
+}
+
+/// The scores of one evaluation as JSON.
+fn score_json(score: &EdgeEvaluation) -> Value {
+    json!({
+        "success_brier": score.success_brier,
+        "static_success_brier": score.static_success_brier,
+        "duration_mse": score.duration_mse,
+        "static_duration_mse": score.static_duration_mse,
+    })
+}
+
+impl EvalReport {
+    fn edge_id(&self, e: usize) -> String {
+        self.evaluation.models.map().edges()[e].id.clone()
+    }
+
+    /// The report as `chronomap topo eval --json` prints it.
+    pub fn json(&self) -> Value {
+        let e = &self.evaluation;
+        let chosen = e.by(self.protocol);
+        let mut report = json!({
+            "success_brier": chosen.success_brier,
+            "duration_mse": chosen.duration_mse,
+            "static_success_brier": chosen.static_success_brier,
+            "static_duration_mse": chosen.static_duration_mse,
+            "attempts": chosen.attempts,
+            "successes": chosen.successes,
+            "protocol": self.protocol.name(),
+            "train_attempts": e.train_attempts,
+            "edges": e.models.map().edges().len(),
+            "online": score_json(&e.online),
+            "frozen": score_json(&e.frozen),
+        });
+        if self.per_edge {
+            report["per_edge"] = e
+                .per_edge
+                .iter()
+                .map(|s| {
+                    json!({
+                        "edge": self.edge_id(s.edge),
+                        "train_attempts": s.train_attempts,
+                        "test_attempts": s.score.attempts,
+                        "success_brier": s.score.success_brier,
+                        "static_success_brier": s.score.static_success_brier,
+                    })
+                })
+                .collect();
+        }
+        report
+    }
+
+    /// The report as `chronomap topo eval` prints it.
+    pub fn text(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl fmt::Display for EvalReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.evaluation;
+        let chosen = e.by(self.protocol);
+        writeln!(
+            f,
+            "trained on {} attempts ({}), tested on {} attempts ({}) of {} edges",
+            e.train_attempts,
+            self.train,
+            chosen.attempts,
+            self.test,
+            e.models.map().edges().len()
+        )?;
+        let label = |p: Protocol| {
+            if p == self.protocol {
+                format!("{} *", p.name())
+            } else {
+                p.name().to_string()
+            }
+        };
+        let table = score_table(
+            "static MSE (s²)",
+            [
+                (label(Protocol::Online), &e.online),
+                (label(Protocol::Frozen), &e.frozen),
+            ],
+        );
+        writeln!(f, "{}", table.render())?;
+        writeln!(
+            f,
+            "(* the protocol asked for; ratio < 1: the per-edge models beat the static per-edge rates; durations of the {} successful attempts, models as fitted)",
+            chosen.successes
+        )?;
+        if self.per_edge {
+            let mut table = Table::new(["edge", "train", "test", "Brier", "static"]);
+            for s in &e.per_edge {
+                table.row([
+                    self.edge_id(s.edge),
+                    s.train_attempts.to_string(),
+                    s.score.attempts.to_string(),
+                    format!("{:.4}", s.score.success_brier),
+                    format!("{:.4}", s.score.static_success_brier),
+                ]);
+            }
+            writeln!(f, "\n{}", table.render())?;
+        }
+        Ok(())
+    }
+}
+
+/// One side of a split: the directory written, its attempts and edge files.
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitPart {
+    /// The directory written.
+    pub directory: String,
+    /// Attempts in it.
+    pub attempts: usize,
+    /// Edge files written.
+    pub edge_files: usize,
+}
+
+/// What `chronomap topo split` reports (serialises as its `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitReport {
+    /// The time split at.
+    pub at: f64,
+    /// The same in UTC.
+    pub utc: String,
+    /// The attempts before it.
+    pub before: SplitPart,
+    /// The attempts from it on.
+    pub after: SplitPart,
+}
+
+/// Splits the attempts of the edge files of `edges` at time `at`: those before into the
+/// directory `before`, the others into `after` (to train on one and score on the later).
+///
+/// # Errors
+/// [`TopoJobError::SplitOutside`] when either side would be empty; a directory that cannot be
+/// read or written.
+pub fn split(
+    edges: &Path,
+    at: f64,
+    before_dir: &Path,
+    after_dir: &Path,
+) -> Result<SplitReport, TopoJobError> {
+    let stats = read_edge_directory(edges)?;
+    let (before, after) = stats.split_at(at);
+    if before.total_attempts() == 0 || after.total_attempts() == 0 {
+        return Err(TopoJobError::SplitOutside {
+            at,
+            before: before.total_attempts(),
+            after: after.total_attempts(),
+            span: stats.time_span(),
+        });
+    }
+    let a = write_edge_directory(before_dir, &before)?;
+    let b = write_edge_directory(after_dir, &after)?;
+    let part = |dir: &Path, attempts: usize, edge_files: usize| SplitPart {
+        directory: dir.display().to_string(),
+        attempts,
+        edge_files,
+    };
+    Ok(SplitReport {
+        at,
+        utc: time(at),
+        before: part(before_dir, before.total_attempts(), a),
+        after: part(after_dir, after.total_attempts(), b),
+    })
+}
+
+impl SplitReport {
+    /// The report as `chronomap topo split` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "before {}: {} attempts in {} edge files -> {}\nfrom {}: {} attempts in {} edge files -> {}\n",
+            self.utc,
+            self.before.attempts,
+            self.before.edge_files,
+            self.before.directory,
+            self.utc,
+            self.after.attempts,
+            self.after.edge_files,
+            self.after.directory
+        )
+    }
+}
+
+/// One edge at one time as `chronomap topo predict` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct EdgePrediction {
+    /// The edge's ID.
+    pub edge: String,
+    /// The name of the node it leaves.
+    pub from: String,
+    /// The name of the node it reaches.
+    pub to: String,
+    /// Probability that a traversal succeeds.
+    pub success_probability: f64,
+    /// Standard deviation of that probability.
+    pub uncertainty: f64,
+    /// The static per-edge success rate.
+    pub static_success_probability: f64,
+    /// Expected duration of a successful traversal (seconds).
+    pub duration_secs: f64,
+    /// Attempts the model was fitted on.
+    pub attempts: usize,
+}
+
+/// What `chronomap topo predict` reports (serialises as its `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct PredictReport {
+    /// The time predicted for.
+    pub time: f64,
+    /// Every edge, in map order.
+    pub edges: Vec<EdgePrediction>,
+}
+
+/// Every edge of `models` at time `t`: success probability with its uncertainty, the static
+/// rate, the expected duration ([Fentanes 2015] §IV).
+pub fn predict(models: &EdgeModels, t: f64) -> PredictReport {
+    let (success, duration) = models.at(t);
+    let map = models.map();
+    let edges = map
+        .edges()
+        .iter()
+        .enumerate()
+        .map(|(e, edge)| EdgePrediction {
+            edge: edge.id.clone(),
+            from: map.nodes()[edge.from].name.clone(),
+            to: map.nodes()[edge.to].name.clone(),
+            success_probability: success[e],
+            uncertainty: models.success_uncertainty(e, t),
+            static_success_probability: models.static_success_probability(e),
+            duration_secs: duration[e],
+            attempts: models.edge(e).attempts,
+        })
+        .collect();
+    PredictReport { time: t, edges }
+}
+
+impl PredictReport {
+    /// `(success probability, duration)` of every edge, as route metadata.
+    pub fn route_metadata(&self) -> Vec<(f64, f64)> {
+        self.edges
+            .iter()
+            .map(|e| (e.success_probability, e.duration_secs))
+            .collect()
+    }
+
+    /// The report as `chronomap topo predict` prints it.
+    pub fn text(&self) -> String {
+        let mut table = Table::new([
+            "edge",
+            "p(success)",
+            "± sd",
+            "static p",
+            "duration",
+            "attempts",
+        ]);
+        for e in &self.edges {
+            table.row([
+                e.edge.clone(),
+                format!("{:.3}", e.success_probability),
+                format!("{:.3}", e.uncertainty),
+                format!("{:.3}", e.static_success_probability),
+                format!("{:.1} s", e.duration_secs),
+                e.attempts.to_string(),
+            ]);
+        }
+        format!(
+            "{} edges at {}\n{}\n",
+            self.edges.len(),
+            time(self.time),
+            table.render()
+        )
+    }
+}
+
+/// What `chronomap plan --time` reports: the plan at one time ([Fentanes 2015] §V) with the
+/// route if every edge succeeds (serialises as its `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct PlanReport {
+    /// The task, as given.
+    pub task: String,
+    /// The start node, as given.
+    pub from: String,
+    /// The start time.
+    pub time: f64,
+    /// The same in UTC.
+    pub utc: String,
+    /// Maximum probability of fulfilling the task.
+    pub pmax: f64,
+    /// Expected time until done or failed (seconds).
+    pub expected_secs: f64,
+    /// The first edge to take, if any.
+    pub first_edge: Option<String>,
+    /// The route if every edge succeeds.
+    pub route: Vec<String>,
+    /// The success probability of each edge of the route at the start time.
+    pub route_success_probabilities: Vec<f64>,
+    /// States of the product of the Navigation MDP and the task automaton.
+    pub product_states: usize,
+    /// Seconds spent planning (timed on purpose: the report says it).
+    pub seconds: f64,
+}
+
+/// The report of a [`TimedPlan`] of `task` from `from` at time `t`.
+pub fn plan_report(
+    models: &EdgeModels,
+    timed: &TimedPlan,
+    from: &str,
+    task: &str,
+    t: f64,
+) -> PlanReport {
+    let edges = models.map().edges();
+    let plan = &timed.planned.plan;
+    PlanReport {
+        task: task.to_string(),
+        from: from.to_string(),
+        time: t,
+        utc: time(t),
+        pmax: plan.pmax,
+        expected_secs: plan.expected_secs,
+        first_edge: plan.first_edge.map(|e| edges[e].id.clone()),
+        route: timed.route.iter().map(|&e| edges[e].id.clone()).collect(),
+        route_success_probabilities: timed
+            .route
+            .iter()
+            .map(|&e| models.success_probability(e, t))
+            .collect(),
+        product_states: timed.planned.product.states().len(),
+        seconds: timed.seconds,
+    }
+}
+
+impl PlanReport {
+    /// The report as `chronomap plan --time` prints it.
+    pub fn text(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl fmt::Display for PlanReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "task {:?} from {} at {}", self.task, self.from, self.utc)?;
+        writeln!(
+            f,
+            "maximum probability of success: {:.4}; expected time: {:.1} s (until done or failed)",
+            self.pmax, self.expected_secs
+        )?;
+        match &self.first_edge {
+            Some(e) => writeln!(f, "first action: {e}")?,
+            None if self.pmax >= 1.0 => writeln!(f, "the task holds already")?,
+            None => writeln!(f, "the task cannot be fulfilled from here")?,
+        }
+        if !self.route.is_empty() {
+            let names: Vec<String> = self
+                .route
+                .iter()
+                .zip(&self.route_success_probabilities)
+                .map(|(e, p)| format!("{e} ({p:.2})"))
+                .collect();
+            writeln!(f, "route if every edge succeeds: {}", names.join(" -> "))?;
+        }
+        writeln!(
+            f,
+            "({} product states, solved in {:.1} ms)",
+            self.product_states,
+            self.seconds * 1e3
+        )
+    }
+}
+
+/// Monday = 0.
+fn weekday(t: f64) -> usize {
+    ((t / 86_400.0).floor() as i64 + 3).rem_euclid(7) as usize
+}
+
+const WEEKDAYS: [&str; 7] = ["Mon", "Tue", "Wed", "Thu", "Fri", "Sat", "Sun"];
+
+/// `Thu 09-04`.
+fn day_label(t: f64) -> String {
+    let date = time(t);
+    let month_day = date.get(5..10).unwrap_or(&date);
+    format!("{} {month_day}", WEEKDAYS[weekday(t)])
+}
+
+/// A now-or-later table ([`WeekTable`], [Fentanes 2015] Table III) with the names it is
+/// printed with, as `chronomap plan --day-table` and the demo show it.
+#[derive(Clone, Debug)]
+pub struct DayTable {
+    /// The IDs of the map's edges.
+    edges: Vec<String>,
+    /// The task, as given.
+    pub task: String,
+    /// The start node, as given.
+    pub from: String,
+    /// The plans.
+    pub table: WeekTable,
+    /// Seconds spent planning.
+    pub seconds: f64,
+}
+
+impl DayTable {
+    /// Plans `task` from node `from` at every start time (`step_mins` apart, `days` days from
+    /// midnight UTC of `first_day`), timing it ([`plan_week`]).
+    ///
+    /// # Errors
+    /// As [`plan_week`].
+    pub fn compute(
+        models: &EdgeModels,
+        (start, from): (usize, &str),
+        (task, text): (&Task, &str),
+        first_day: f64,
+        days: usize,
+        step_mins: usize,
+    ) -> Result<Self, PlanError> {
+        let TimedWeek { table, seconds } =
+            plan_week(models, start, task, first_day, days, step_mins)?;
+        Ok(DayTable {
+            edges: models.map().edges().iter().map(|e| e.id.clone()).collect(),
+            task: text.to_string(),
+            from: from.to_string(),
+            table,
+            seconds,
+        })
+    }
+
+    fn at(&self, day: usize, k: usize) -> &PlanAt {
+        self.table.at(day, k)
+    }
+
+    /// `HH:MM` of start time `k`.
+    pub fn row_label(&self, k: usize) -> String {
+        let minutes = self.table.minutes(k);
+        format!("{:02}:{:02}", minutes / 60, minutes % 60)
+    }
+
+    /// `Thu 09-04` of day `d`.
+    pub fn day_label(&self, d: usize) -> String {
+        day_label(self.table.day(d))
+    }
+
+    /// What the codes of the first actions stand for.
+    pub fn legend(&self) -> Vec<String> {
+        self.table
+            .first_edges
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| format!("{} = {}", letters(i), self.edges[e]))
+            .chain(std::iter::once(
+                "- = nothing to do (the task holds, or cannot be fulfilled)".to_string(),
+            ))
+            .collect()
+    }
+
+    /// The table as text: `Pmax code` per start time (rows) and day (columns), then the
+    /// legend.
+    pub fn render(&self) -> String {
+        let mut header = vec!["start (UTC)".to_string()];
+        header.extend((0..self.table.days).map(|d| self.day_label(d)));
+        let mut grid = Table::new(header);
+        for k in 0..self.table.per_day {
+            let mut row = vec![self.row_label(k)];
+            for d in 0..self.table.days {
+                let p = self.at(d, k);
+                row.push(format!("{:.2} {}", p.pmax, self.table.code(p)));
+            }
+            grid.row(row);
+        }
+        let mut text = grid.render();
+        for line in self.legend() {
+            text.push_str(&format!("\n  {line}"));
+        }
+        text
+    }
+
+    /// The table as `chronomap plan --day-table` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "task {:?} from {}: maximum probability of success and first action, {} start times in {:.2} s\n{}\n",
+            self.task,
+            self.from,
+            self.table.plans.len(),
+            self.seconds,
+            self.render()
+        )
+    }
+
+    /// The plans as `chronomap plan --day-table --json` prints them.
+    pub fn json(&self) -> Value {
+        let rows: Vec<Value> = self
+            .table
+            .plans
+            .iter()
+            .map(|p| {
+                json!({
+                    "time": p.time,
+                    "utc": time(p.time),
+                    "pmax": p.pmax,
+                    "expected_secs": p.expected_secs,
+                    "first_edge": p.first_edge.map(|e| self.edges[e].clone()),
+                })
+            })
+            .collect();
+        json!({"task": self.task, "from": self.from, "plans": rows, "seconds": self.seconds})
+    }
+
+    /// The table as a heat map of `Pmax` with the codes of the first actions.
+    pub fn heatmap(&self) -> Heatmap {
+        let (days, per_day) = (self.table.days, self.table.per_day);
+        // Row-major, one row per start time.
+        let cells = || (0..per_day).flat_map(move |k| (0..days).map(move |d| (d, k)));
+        Heatmap {
+            title: format!(
+                "Now or later? P(success) of {:?} from {}",
+                self.task, self.from
+            ),
+            row_label: "start (UTC)".to_string(),
+            column_label: "day".to_string(),
+            rows: (0..per_day).map(|k| self.row_label(k)).collect(),
+            columns: (0..days).map(|d| self.day_label(d)).collect(),
+            values: cells()
+                .map(|(d, k)| self.at(d, k).pmax.clamp(0.0, 1.0))
+                .collect(),
+            cell_text: cells()
+                .map(|(d, k)| self.table.code(self.at(d, k)))
+                .collect(),
+            value_label: "Pmax".to_string(),
+            legend: self.legend(),
+        }
+    }
+}
+
+/// 2014-08-20 00:00 UTC: the chronological split of the Witham Wharf data in the demo (train
+/// before, test from).
+pub const WITHAM_SPLIT: f64 = 1_408_492_800.0;
+
+/// The topological part of `chronomap demo` ([Fentanes 2015]): edge models of the Witham Wharf
+/// deployment scored on its later weeks, and a now-or-later table through the lab door.
+pub struct WithamDemo {
+    /// Nodes, edges and attempts of the data.
+    pub nodes: usize,
+    /// Edges of the map.
+    pub edges: usize,
+    /// Attempts in all.
+    pub attempts: usize,
+    /// The first and last attempt's times.
+    pub span: (f64, f64),
+    /// Attempts before [`WITHAM_SPLIT`] (trained on).
+    pub train_attempts: usize,
+    /// Attempts from it on (scored on).
+    pub test_attempts: usize,
+    /// Scores when each attempt is predicted from everything before it.
+    pub online: EdgeEvaluation,
+    /// Scores of the models as trained.
+    pub frozen: EdgeEvaluation,
+    /// Seconds spent fitting the models on all attempts (timed on purpose: the demo says it).
+    pub fit_seconds: f64,
+    /// "F Kitchen" from Station over the week after the data.
+    pub table: DayTable,
+}
+
+/// The models of the demo: success by FreMEn of order 1 with persistence (the daily rhythm of
+/// the doors plus the memory of the last attempts), durations by FreMEn with automatic order.
+fn witham_config() -> EdgeModelConfig {
+    EdgeModelConfig {
+        success_order: Some(1),
+        ..EdgeModelConfig::default()
+    }
+}
+
+/// Runs the demo's topological section on the Witham Wharf edge statistics `stats`: trains
+/// before [`WITHAM_SPLIT`] and scores after it, then fits all attempts and plans "F Kitchen"
+/// from Station every two hours of the week after the data (reported to `progress` as the
+/// stages `Witham edges` and `Witham plans`).
+///
+/// # Errors
+/// [`TopoJobError::WithamEmpty`] for data without attempts, a fit or evaluation that fails,
+/// a map without the Station or Kitchen node.
+pub fn witham_demo(
+    stats: &EdgeStatistics,
+    progress: &dyn Progress,
+) -> Result<WithamDemo, TopoJobError> {
+    let fit = |map, attempts: &[_]| {
+        EdgeModels::fit(map, attempts, witham_config()).map_err(|(edge, error)| TopoJobError::Fit {
+            file: PathBuf::from(format!("Witham edge {edge}")),
+            attempt: None,
+            error,
+        })
+    };
+    progress.stage("Witham edges", 0);
+    let span = stats.time_span().ok_or(TopoJobError::WithamEmpty)?;
+    let (train, test) = stats.split_at(WITHAM_SPLIT);
+    let train_attempts = train.total_attempts();
+    let models = fit(train.map, &train.attempts)?;
+    let online = models.evaluate_online(&test.attempts)?;
+    let frozen = models.evaluate(&test.attempts)?;
+    progress.stage("Witham plans", 0);
+    let started = Instant::now();
+    let models = fit(stats.map.clone(), &stats.attempts)?;
+    let fit_seconds = started.elapsed().as_secs_f64();
+    let (from, text) = ("Station", "F Kitchen");
+    let start = models.map().node(from).map_err(PlanError::from)?;
+    let task = Task::parse(text, models.map())?;
+    let table = DayTable::compute(
+        &models,
+        (start, from),
+        (&task, text),
+        span.1 + 86_400.0,
+        7,
+        120,
+    )?;
+    Ok(WithamDemo {
+        nodes: stats.map.nodes().len(),
+        edges: stats.map.edges().len(),
+        attempts: stats.total_attempts(),
+        span,
+        train_attempts,
+        test_attempts: test.total_attempts(),
+        online,
+        frozen,
+        fit_seconds,
+        table,
+    })
+}
+
+/// `text` with every line indented by three spaces, as the demo's sections are.
+fn indent(text: &str) -> String {
+    text.lines()
+        .map(|l| format!("   {l}"))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+impl WithamDemo {
+    /// The section as `chronomap demo` prints it (after its title).
+    pub fn text(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl fmt::Display for WithamDemo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "   Witham Wharf, {} nodes, {} edges, {} traversal attempts, {} .. {}.",
+            self.nodes,
+            self.edges,
+            self.attempts,
+            time(self.span.0),
+            time(self.span.1)
+        )?;
+        writeln!(
+            f,
+            "   Trained on the {} attempts before {}, scored on the {} after (the robot's later weeks):\n",
+            self.train_attempts,
+            time(WITHAM_SPLIT),
+            self.test_attempts
+        )?;
+        let table = score_table(
+            "static (s²)",
+            [
+                (
+                    "online: models learn each attempt after predicting it".to_string(),
+                    &self.online,
+                ),
+                ("frozen: models as trained".to_string(), &self.frozen),
+            ],
+        );
+        writeln!(f, "{}", indent(&table.render()))?;
+        writeln!(
+            f,
+            "\n   Online, the per-edge models beat the static per-edge rates by far: persistence (\
+             [Krajník 2017] eq. 12-13)\n   carries the robot's retry bursts. Frozen for weeks, the daily rhythm \
+             alone does not transfer."
+        )?;
+        writeln!(
+            f,
+            "\n   Fitted on all attempts in {:.2} s. Task \"F Kitchen\" from Station: the lab's \
+             only way out\n   is the door LabDoor1 -> LabDoor2. Maximum probability of success and first \
+             action in the week\n   after the data ({} plans in {:.1} ms):\n",
+            self.fit_seconds,
+            7 * 12,
+            1e3 * self.table.seconds
+        )?;
+        writeln!(f, "{}", indent(&self.table.render()))?;
+        writeln!(
+            f,
+            "\n   The door's daily rhythm: hopeless at night, best in the afternoon; the first night \
+             still\n   remembers the successes just before the data end (persistence)."
+        )
+    }
 }
 
 #[cfg(test)]
@@ -265,5 +1225,135 @@ mod tests {
         assert_eq!(week.table.plans.len(), 4);
         assert!(week.table.plans.iter().all(|p| p.first_edge == Some(0)));
         let _ = std::fs::remove_dir_all(&tmp);
+    }
+
+    #[test]
+    fn fit_split_predict_and_plan_report_one_edge() {
+        let tmp = chronomap_testutil::fresh_dir(
+            std::env::temp_dir().join(format!("chronomap-app-topo-report-{}", std::process::id())),
+        );
+        let edges = tmp.join("edges");
+        std::fs::create_dir_all(&edges).unwrap();
+        // Four attempts of A_B on 2014-08-20 (Wednesday): `time duration success`.
+        let t0 = 1_408_492_800.0;
+        chronomap_testutil::write(
+            &edges,
+            "A_B.data",
+            format!(
+                "{t0} 10 1\n{} 20 0\n{} 30 1\n{} 40 1\n",
+                t0 + 60.0,
+                t0 + 120.0,
+                t0 + 180.0
+            ),
+        );
+        let model = tmp.join("m.cme");
+        let fit = fit_report(&edges, &model, EdgeModelConfig::default()).unwrap();
+        assert_eq!((fit.nodes, fit.edges, fit.attempts), (2, 1, 4));
+        assert_eq!((fit.first, fit.last), (Some(t0), Some(t0 + 180.0)));
+        assert_eq!(fit.success_orders.iter().sum::<usize>(), 1);
+        let text = fit.to_string();
+        assert!(
+            text.starts_with(&format!(
+                "{}: 2 nodes, 1 edges, 4 attempts, 2014-08-20 00:00 UTC .. 2014-08-20 00:03 UTC\n",
+                edges.display()
+            )),
+            "{text}"
+        );
+        assert!(text.ends_with(&format!("; wrote {}\n", model.display())));
+
+        // Two attempts on either side of t0 + 90 s.
+        let (before, after) = (tmp.join("before"), tmp.join("after"));
+        let split_at = split(&edges, t0 + 90.0, &before, &after).unwrap();
+        assert_eq!((split_at.before.attempts, split_at.after.attempts), (2, 2));
+        assert_eq!(
+            (split_at.before.edge_files, split_at.after.edge_files),
+            (1, 1)
+        );
+        assert_eq!(split_at.utc, "2014-08-20 00:01 UTC");
+        let outside = split(&edges, t0 + 1000.0, &tmp.join("b2"), &tmp.join("a2")).unwrap_err();
+        assert_eq!(
+            outside.to_string(),
+            "splitting at 2014-08-20 00:16 UTC leaves 4 attempts before and 0 after; choose a \
+             time inside the data (2014-08-20 00:00 UTC .. 2014-08-20 00:03 UTC)"
+        );
+
+        let models = chronomap_io::read_edge_models(&model).unwrap();
+        let predicted = predict(&models, t0);
+        assert_eq!(predicted.edges.len(), 1);
+        let edge = &predicted.edges[0];
+        assert_eq!(
+            (edge.edge.as_str(), edge.from.as_str(), edge.to.as_str()),
+            ("A_B", "A", "B")
+        );
+        assert_eq!(edge.attempts, 4);
+        assert_eq!(edge.success_probability, models.success_probability(0, t0));
+
+        let (a, task) = (
+            models.map().node("A").unwrap(),
+            Task::parse("F B", models.map()).unwrap(),
+        );
+        let timed = plan_at(&models, a, &task, t0, &SolverOptions::default()).unwrap();
+        let report = plan_report(&models, &timed, "A", "F B", t0);
+        assert_eq!(report.first_edge.as_deref(), Some("A_B"));
+        assert_eq!(report.route, ["A_B"]);
+        assert_eq!(
+            report.route_success_probabilities,
+            [edge.success_probability]
+        );
+        let text = report.to_string();
+        assert!(
+            text.starts_with("task \"F B\" from A at 2014-08-20 00:00 UTC\n"),
+            "{text}"
+        );
+        assert!(text.contains(&format!(
+            "\nfirst action: A_B\nroute if every edge succeeds: A_B ({:.2})\n",
+            edge.success_probability
+        )));
+        let (prism, property) = timed.prism(a, &task).unwrap();
+        assert!(!prism.is_empty() && property.ends_with('\n'));
+
+        // Two days from Wednesday, every 12 hours: one code, `a`, for the only edge.
+        let table =
+            DayTable::compute(&models, (a, "A"), (&task, "F B"), t0 + 3600.0, 2, 720).unwrap();
+        assert_eq!(table.table.plans.len(), 4);
+        assert_eq!(
+            (table.day_label(0), table.day_label(1)),
+            ("Wed 08-20".to_string(), "Thu 08-21".to_string())
+        );
+        assert_eq!(
+            (table.row_label(0), table.row_label(1)),
+            ("00:00".to_string(), "12:00".to_string())
+        );
+        assert_eq!(
+            table.legend(),
+            [
+                "a = A_B",
+                "- = nothing to do (the task holds, or cannot be fulfilled)"
+            ]
+        );
+        let heatmap = table.heatmap();
+        assert_eq!(heatmap.cell_text, ["a", "a", "a", "a"]);
+        assert_eq!(table.json()["plans"][3]["first_edge"], "A_B");
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+
+    #[test]
+    fn the_witham_demo_trains_before_the_split_and_plans_the_week_after() {
+        let stats = read_edge_directory(chronomap_testutil::data_path(
+            "witham_topological_nav/edges",
+        ))
+        .unwrap();
+        let demo = witham_demo(&stats, &NoProgress).unwrap();
+        assert_eq!(demo.train_attempts + demo.test_attempts, demo.attempts);
+        let (before, after) = stats.split_at(WITHAM_SPLIT);
+        assert_eq!(
+            (demo.train_attempts, demo.test_attempts),
+            (before.total_attempts(), after.total_attempts())
+        );
+        // Seven days of twelve start times, two hours apart.
+        assert_eq!((demo.table.table.days, demo.table.table.per_day), (7, 12));
+        let text = demo.to_string();
+        assert!(text.contains("(84 plans in "), "{text}");
+        assert!(text.lines().all(|l| l.is_empty() || l.starts_with("   ")));
     }
 }
