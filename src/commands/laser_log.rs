@@ -1,12 +1,12 @@
 //! Laser logs for `chronomap lidar` and `chronomap maps`: the source flags translated into
-//! [`chronomap_app::laser_log`], which reads the text files of the bundled Málaga log or a
+//! [`chronomap_app_range::laser_log`], which reads the text files of the bundled Málaga log or a
 //! rosbag2 bag.
 
 use std::path::Path;
 
 use anyhow::Result;
-pub use chronomap_app::laser_log::LaserLog;
-use chronomap_app::laser_log::{BagTopics, from_bag, from_keyframes, from_scans};
+pub use chronomap_app_range::laser_log::LaserLog;
+use chronomap_app_range::laser_log::{BagTopics, from_bag, from_keyframes, from_scans};
 
 use crate::cli::LaserSourceArgs;
 use crate::output::{ProgressBar, usage};

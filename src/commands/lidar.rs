@@ -1,15 +1,15 @@
 //! `chronomap lidar`: scan descriptors, the loop classifier (cross-validation, training,
 //! detection along a log) and the registration of clouds ([Stüde 2024] §3.2); the jobs and
-//! their reports are [`chronomap_app::lidar_study`] and [`chronomap_app::registration`].
+//! their reports are [`chronomap_app_range::lidar_study`] and [`chronomap_app_range::registration`].
 
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
-use chronomap_app::lidar_study::{
+use chronomap_app_range::lidar_study::{
     LoopStudyError, LoopTraining, MAX_FOLDS, SettingsError, cloud_descriptors, cloud_params,
     detect_report, evaluate_loops, log_descriptors, read_classifier, train_loops,
 };
-use chronomap_app::registration::{
+use chronomap_app_range::registration::{
     CloudSettings, read_cloud, read_transform, register_cloud_files, register_keyframes,
 };
 use chronomap_io::{write_data_file, write_model_file};
@@ -67,7 +67,7 @@ pub fn register_clouds(args: &LidarRegisterArgs) -> Result<()> {
         &ProgressBar::new(),
     )?;
     if let Some(path) = &args.output {
-        let text = chronomap_app::registration::matrix_text(&report.transform);
+        let text = chronomap_app_range::registration::matrix_text(&report.transform);
         write_data_file(path, text.as_bytes())?;
     }
     if args.json {

@@ -1,8 +1,8 @@
 //! `chronomap maps build`: the map manager of [Stüde 2024] §3.3 along a laser log
-//! ([`chronomap_app::maps`] runs it and reports).
+//! ([`chronomap_app_range::maps`] runs it and reports).
 
 use anyhow::Result;
-use chronomap_app::maps::{MapsReport, build_maps};
+use chronomap_app_range::maps::{MapsReport, build_maps};
 use chronomap_plot::plane::{PlaneLayer, PlanePlot, PlaneShape, render_plane_png};
 
 use super::laser_log;

@@ -36,9 +36,12 @@
 //! | [`events`], [`ingest`] | people as events and tracks, the pedestrian study ([Krajník 2019] §V-D) |
 //! | [`datasets`], [`explore`] | the exploration datasets (Aruba, Brayford), the strategy × model table, Figs. 5 and 6 ([Santos 2017]) |
 //! | [`topo`] | edge-model fits, evaluations, splits, predictions, timed plans and now-or-later tables, the Witham demo ([Fentanes 2015]) |
-//! | [`laser_log`], [`lidar_study`] | laser logs and keyframes; the range-data studies with the `p_min` rule ([Stüde 2024] §3.2) |
-//! | [`registration`], [`maps`] | clouds and keyframe pairs registered against a truth or SLAM (§3.2.2); the map manager along a log (§3.3) |
 //! | [`features`] | which features will be visible ([Krajník 2017] §VII Table I, [Krajník 2019] §V-B) |
+//!
+//! The jobs of two families live in crates of their own beside this one, as linfa keeps one
+//! crate per algorithm family: `chronomap-app-range` (laser logs, loop closure, registration,
+//! the map manager: [Stüde 2024] chapter 3) and `chronomap-app-bt` (behavior trees,
+//! monitoring, person search: chapter 5). They share this crate's [`report`] and [`open`].
 #![deny(missing_docs)]
 
 pub mod activity;
@@ -53,13 +56,9 @@ pub mod explore;
 pub mod features;
 pub mod grid;
 pub mod ingest;
-pub mod laser_log;
-pub mod lidar_study;
-pub mod maps;
 pub mod model;
 pub mod monitor;
 pub mod open;
 pub mod psbt;
-pub mod registration;
 pub mod report;
 pub mod topo;

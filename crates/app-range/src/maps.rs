@@ -14,7 +14,7 @@ use chronomap_multimap::mapper::{Mapper, MapperParams};
 use serde::Serialize;
 
 use crate::laser_log::LaserLog;
-use crate::report::Table;
+use chronomap_app::report::Table;
 
 /// A log the map manager cannot follow.
 #[derive(Debug, thiserror::Error)]

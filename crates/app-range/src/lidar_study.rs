@@ -33,7 +33,7 @@ use serde::Serialize;
 
 use crate::laser_log::{LaserLog, LaserLogError, from_keyframes};
 use crate::registration::RegistrationJobError;
-use crate::report::Table;
+use chronomap_app::report::Table;
 
 /// The most folds a cross-validation may ask for (the sectors of [`layout_folds`]).
 pub const MAX_FOLDS: usize = 1000;
