@@ -28,56 +28,21 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! ## Layout
-//! * [`text`] — readers of the door datasets bundled in `data/`: `time value` files
-//!   ([`read_pairs`]) and test sets of two line-aligned files ([`read_test_set`]), plain, `.xz`
-//!   or `.gz`. Everything read satisfies the
-//!   [observation contract](chronomap_core::observe); anything else is a [`DataError`] naming
-//!   file, line and field.
-//! * [`events`] — event files: people detected at `t x y` ([`read_events`], as in the bundled
-//!   Lincoln pedestrian data), with the same `file:line: field: reason` errors.
-//! * [`activity`] — activity-rate grids: people per hour of observation at spatio-temporal
-//!   cells, CSV `x1,x2,t,y` ([`read_rate_samples`], as in the bundled ATC grid of CoPA-Map).
-//! * [`rate_predictions`] — predicted rates with their standard deviation, CSV
-//!   `x1,x2,t,mean,std` ([`rate_predictions::write_rate_predictions`]).
-//! * [`tracks`] — pedestrian tracks `t,person,x,y,speed,heading` ([`read_tracks`], as in the
-//!   bundled ATC day), returned in time order.
-//! * [`robot_paths`] — patrol loops of simulated robots, CSV `path,x,y,stop_s`
-//!   ([`read_robot_paths`], as in the bundled ATC day), from which `chronomap activity
-//!   extract` builds training rates ([`write_rate_grid`]).
-//! * [`scenarios`] — navigation scenarios for the service-disturbance benchmark: named patrols
-//!   through waypoints, CSV `scenario,waypoint,x,y` ([`scenarios::read_scenarios`]).
-//! * [`model_file`] — models saved as a one-line ASCII header (format version, kind, payload
-//!   length, CRC-32) and a postcard payload ([`write_model_file`], [`read_model_file`]);
-//!   writes are atomic, and damaged, truncated or foreign files are rejected with a
-//!   [`ModelFileError`].
-//! * [`navmap`] — ROS occupancy-grid maps as `map_server` (ROS 1) and `nav2_map_server` read
-//!   them and `map_saver` writes them: a YAML file and a PGM or PNG image
-//!   ([`save_map`], [`load_map`]), with Nav2's or ROS 1's pixel semantics; errors
-//!   ([`NavMapError`]) name the file, line and key; the map itself is
-//!   `chronomap_spatial::OccupancyMap`. [`frame_list`] — the `<time> <map.yaml>` lists of
-//!   maps that occupancy grids are built from ([`read_frame_list`]).
-//! * [`ply`] — 3-D point clouds as PLY files, ASCII or binary ([`read_ply`], [`write_ply`]), as
-//!   [`chronomap_registration::Cloud`]s; errors ([`PlyError`]) name the file, the header line or
-//!   the vertex and property, and sizes are bounded.
-//! * [`topo_files`] — topological maps: edge-traversal statistics read from a directory of
-//!   `<From>_<To>.data` files ([`read_edge_directory`], as in the bundled Witham Wharf data),
-//!   STRANDS / LCAS `tmap2` YAML maps ([`read_tmap2`], [`write_tmap2`]) and Nav2 route-server
-//!   GeoJSON graphs ([`write_route_geojson`]); errors ([`TopoFileError`]) name the file, line
-//!   and key.
-//! * [`bt_xml`] — BehaviorTree.CPP 4 XML behavior trees ([`read_bt_xml`], [`encode_bt_xml`]):
-//!   both node forms, subtrees, `<TreeNodesModel>`; errors ([`BtXmlError`]) name the file,
-//!   line, column and attribute. [`bt_log`] — Groot2 `.btlog` execution logs from recorded
-//!   transitions ([`write_btlog`]); [`bt_script`] — tick-by-tick leaf outcomes for
-//!   `chronomap bt run` ([`read_bt_script`]); [`sbt_params`] — leaf parameters of a stochastic
-//!   behavior tree for `chronomap bt analyse` ([`read_leaf_params`]); [`monitor_faults`] —
-//!   faults injected into the monitoring simulation ([`read_fault_file`]); the errors of
-//!   these three ([`line_error::LineError`]) name the file and line.
-//! * [`laser_text`] — 2-D laser logs as text (the bundled Málaga log): scans with their sensor
-//!   pose ([`read_scans`]), SLAM keyframes ([`read_keyframes`]) and odometry increments
-//!   ([`read_odometry`]); no-returns become `+inf`; errors ([`LaserTextError`]) name the file,
-//!   line and field.
+//! ## Layout: a folder per cargo feature
+//! | feature (folder) | modules: what they read and write |
+//! |---|---|
+//! | always (top level) | [`text`]: `time value` door files and test sets, plain, `.xz` or `.gz` ([`read_pairs`], [`read_test_set`]); [`model_file`]: a versioned, checksummed header and a postcard payload, written atomically ([`write_model_file`], [`read_model_file`]); [`matrix`]: state matrices; [`output`]: the one safe writer of outputs |
+//! | `activity` | [`activity`]: activity-rate grids of CoPA-Map, CSV `x1,x2,t,y`; [`rate_predictions`]; [`tracks`]: pedestrian tracks; [`robot_paths`]: patrol loops; [`scenarios`]: service-disturbance patrols |
+//! | `bt` | [`bt_xml`]: BehaviorTree.CPP 4 XML; [`bt_log`]: Groot2 `.btlog`; [`bt_script`]: scripted leaf outcomes; [`sbt_params`]: stochastic leaf parameters; [`monitor_faults`]: injected faults; their line errors ([`line_error::LineError`]) |
+//! | `grid` | [`grid_file`]: grid files of every kind ([`read_grid_file`]) |
+//! | `hypertime` | [`events`]: people detected at `t x y` ([`read_events`]) |
+//! | `lidar` | [`laser_text`]: 2-D laser logs, keyframes and odometry as text; [`ply`]: point clouds, ASCII or binary |
+//! | `navmap` | [`navmap`]: ROS 1 `map_server` and Nav2 maps, YAML with PGM or PNG ([`load_map`], [`save_map`]); [`frame_list`]: the `<time> <map.yaml>` lists grids are built from |
+//! | `psbt` | [`psbt_xml`]: person search trees as BehaviorTree.CPP XML |
+//! | `topo` | [`topo_files`]: edge statistics of `<From>_<To>.data` directories, STRANDS / LCAS `tmap2` maps, Nav2 route-server GeoJSON |
 //!
+//! Everything read satisfies the [observation contract](chronomap_core::observe) or is refused
+//! with an error naming the file, line and field (or header, vertex, key, attribute).
 //! Errors are concrete types with a matchable kind ([`DataErrorKind`], [`ModelFileErrorKind`],
 //! [`NavMapErrorKind`], [`TopoFileErrorKind`]); their messages are complete on their own (they do
 //! not repeat through [`std::error::Error::source`]).
