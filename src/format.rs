@@ -7,7 +7,7 @@ pub fn parse_iso8601(text: &str) -> Result<f64, String> {
     chronomap_core::time::parse_iso8601(text).map_err(|e| e.to_string())
 }
 
-pub use chronomap_app::report::{Table, duration, elide, pad_left, pad_right, period, time};
+pub use chronomap_app::report::{Table, duration, time};
 
 #[cfg(test)]
 mod tests {

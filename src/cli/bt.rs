@@ -184,7 +184,7 @@ pub struct BtRunArgs {
 }
 
 /// What a `--stub` makes of a node, and `--stub ID=BEHAVIOUR`.
-pub use chronomap_app::bt::{StubBehaviour, StubSpec};
+pub use chronomap_app_bt::bt::{StubBehaviour, StubSpec};
 
 /// `SUCCESS`, `FAILURE`, `RUNNING:n`, `SEQUENCE`, `PASS` or `NAV2` (any case).
 fn parse_stub_behaviour(text: &str) -> Result<StubBehaviour, String> {

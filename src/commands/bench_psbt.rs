@@ -1,10 +1,10 @@
 //! `chronomap bench psbt`: person search tree synthesis ([Stüde 2024] §5.4.3) for 6 and 10 places
 //! on the bundled ATC day, against the dense reference and a per-tree solve in the same run —
 //! [`chronomap_bench::psbt`] measures, the world loads as `chronomap psbt` loads it
-//! ([`chronomap_app::psbt::load_world`]).
+//! ([`chronomap_app_bt::psbt::load_world`]).
 
 use anyhow::Result;
-use chronomap_app::psbt::{PsbtJobError, fit_model, load_world};
+use chronomap_app_bt::psbt::{PsbtJobError, fit_model, load_world};
 use chronomap_bench::psbt::PsbtBenchConfig;
 
 use super::psbt::job_error;

@@ -1,13 +1,13 @@
 //! `chronomap bt check`, `chronomap bt run` and `chronomap bt analyse`: BehaviorTree.CPP 4 XML
 //! trees ([Stüde 2024] §5.2–5.3) checked and printed, ticked with leaves that follow a script of
 //! outcomes (or stubs), or analysed as stochastic behavior trees (§5.2.2, eqs. 5.1–5.4). The
-//! jobs and their reports are `chronomap_app::bt`; this file translates flags, serves Groot2,
+//! jobs and their reports are `chronomap_app_bt::bt`; this file translates flags, serves Groot2,
 //! prints and writes.
 
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow};
-use chronomap_app::bt::{self, BtJobError, Pacing, RunSetup};
+use chronomap_app_bt::bt::{self, BtJobError, Pacing, RunSetup};
 use chronomap_bt::{BtDocument, Transition, Tree};
 use chronomap_groot2::publisher::Publisher;
 use chronomap_io::{write_bt_xml, write_btlog};

@@ -1,9 +1,9 @@
 //! `chronomap monitor sim`: the fault-injection simulation of the system monitoring of
-//! [Stüde 2024] §5.3 ([`chronomap_app::monitor::simulate`]), printed as the intervention table
+//! [Stüde 2024] §5.3 ([`chronomap_app_bt::monitor::simulate`]), printed as the intervention table
 //! and the metrics of Tables 5.2 and 5.3.
 
 use anyhow::Result;
-use chronomap_app::monitor::{SimSetup, simulate};
+use chronomap_app_bt::monitor::{SimSetup, simulate};
 
 use crate::cli::MonitorSimArgs;
 use crate::output::print_json;

@@ -1,10 +1,10 @@
 //! `chronomap psbt`: the person search behavior tree of [Stüde 2024] §5.4, synthesised from a
 //! grid Poisson model (eq. 5.7) learned from pedestrian tracks, or from a saved CoPA-Map;
 //! `chronomap psbt eval`: the model-based comparison of §5.4.4 (Fig. 5.11). The jobs and their
-//! reports are `chronomap_app::psbt`; this file translates flags, prints and plots.
+//! reports are `chronomap_app_bt::psbt`; this file translates flags, prints and plots.
 
 use anyhow::Result;
-use chronomap_app::psbt::{self, CopaTime, PsbtJobError, WorldSetup};
+use chronomap_app_bt::psbt::{self, CopaTime, PsbtJobError, WorldSetup};
 use chronomap_plot::render_panels_png;
 use chronomap_psbt::PsbtConfig;
 

@@ -27,8 +27,6 @@
 //! | [`open`] | what kind of file a path holds |
 //! | [`report`] | plain-text tables and units for the reports the jobs render |
 //! | [`activity`], [`disturbance`] | activity models opened by content, rate maps, sample extraction, the evaluation of [Stüde 2024] §4.3.2 and the service-disturbance experiment (eq. 4.22) |
-//! | [`bt`], [`monitor`] | a BehaviorTree.CPP document with node models, its registry under stubs, checks, scripted runs and the stochastic analysis ([Stüde 2024] §5.2); the monitoring simulation (§5.3) |
-//! | [`psbt`] | the person search behavior tree: synthesis and the comparison with the baselines ([Stüde 2024] §5.4) |
 //! | [`grid`] | the grid build job and its hold-out error table ([Krajník 2017] §VI), what a grid file holds, predicted maps (§VIII) |
 //! | [`model`] | a model fitted and written, what a model file holds, anomalies ([Krajník 2017], [Krajník 2019]) |
 //! | [`demo`] | the sections of `chronomap demo`: doors beside the original FreMEn code, FFT FreMEn, grids ([Krajník 2017]) |
@@ -45,7 +43,6 @@
 #![deny(missing_docs)]
 
 pub mod activity;
-pub mod bt;
 pub mod compress;
 pub mod datasets;
 pub mod demo;
@@ -57,8 +54,6 @@ pub mod features;
 pub mod grid;
 pub mod ingest;
 pub mod model;
-pub mod monitor;
 pub mod open;
-pub mod psbt;
 pub mod report;
 pub mod topo;

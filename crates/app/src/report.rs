@@ -183,7 +183,6 @@ mod tests {
         assert_eq!(duration(70.0 * 86_400.0), "70.0 days");
     }
 
-
     #[test]
     fn tables_align() {
         let mut t = Table::new(["model", "mse"]);
@@ -194,7 +193,6 @@ mod tests {
             "model        mse\n----------------\nfremen:4  0.0670\nmean      0.0807"
         );
     }
-
 
     #[test]
     fn a_cell_of_70000_characters_is_shown_elided_not_padded_to_its_width() {
@@ -217,7 +215,6 @@ mod tests {
         );
     }
 
-
     /// docs/limits.md names the cell cap in its table rows as `tests/cli/limits.rs` checks
     /// the library's limits (that test cannot see the binary's constants).
     #[test]
@@ -229,7 +226,10 @@ mod tests {
         ] {
             let row = doc
                 .lines()
-                .find(|l| l.starts_with(&format!("| `{name}`")) && l.contains("`crates/app/src/report.rs`"))
+                .find(|l| {
+                    l.starts_with(&format!("| `{name}`"))
+                        && l.contains("`crates/app/src/report.rs`")
+                })
                 .unwrap_or_else(|| panic!("docs/limits.md has no row for {name}"));
             let cells: Vec<&str> = row.split('|').map(str::trim).collect();
             let digits: String = cells[2]
@@ -242,7 +242,6 @@ mod tests {
             assert_eq!(digits, value.to_string(), "docs/limits.md row of {name}");
         }
     }
-
 
     #[test]
     fn elision_keeps_texts_up_to_the_cap_and_counts_characters_not_bytes() {

@@ -33,7 +33,7 @@ use serde::Serialize;
 use serde_json::{Value, json};
 use thiserror::Error;
 
-use crate::report::{elide, pad_right};
+use chronomap_app::report::{elide, pad_right};
 
 /// What a stub makes of a node that chronomap does not implement.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

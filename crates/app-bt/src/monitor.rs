@@ -4,7 +4,7 @@
 //! of Tables 5.2 and 5.3.
 //!
 //! ```
-//! use chronomap_app::monitor::{SimSetup, simulate};
+//! use chronomap_app_bt::monitor::{SimSetup, simulate};
 //!
 //! // One simulated hour of random faults, every recovery certain.
 //! let report = simulate(&SimSetup { hours: 1.0, seed: 1, faults: None, certain: true, arbiter: None }, &mut |_| {}).unwrap();
@@ -24,7 +24,7 @@ use chronomap_core::num::fmt_number;
 use chronomap_io::{BtXml, BtXmlError, FaultFileError, read_bt_xml, read_fault_file};
 use serde::Serialize;
 
-use crate::report::Table;
+use chronomap_app::report::Table;
 
 /// Why a simulation cannot run.
 #[derive(Debug, thiserror::Error)]

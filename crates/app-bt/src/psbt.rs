@@ -26,9 +26,9 @@ use chronomap_psbt::{GridPoisson, PsbtConfig, PsbtError, copa_field, synthesize}
 use serde::Serialize;
 use serde_json::{Map, Value, json};
 
-use crate::disturbance::OCCUPIED_PERCENT;
-use crate::open::{FileKind, SniffError};
-use crate::report::{Table, time};
+use chronomap_app::disturbance::OCCUPIED_PERCENT;
+use chronomap_app::open::{FileKind, SniffError};
+use chronomap_app::report::{Table, time};
 
 /// Why a person-search job failed.
 #[derive(Debug, thiserror::Error)]
