@@ -11,6 +11,7 @@ mod activity_disturbance;
 mod activity_extract;
 mod activity_model;
 mod activity_truth;
+mod architecture;
 mod aruba;
 mod basics;
 mod bench_activity;
