@@ -15,10 +15,6 @@ use chronomap_plot::{
     Panel, Series, SeriesStyle, SpectrumBar, render_panels_png, render_spectrum_png,
 };
 
-/// The demo's indentation, for the topological section's tables too.
-#[allow(unused_imports)]
-pub(super) use chronomap_app::demo::indent;
-
 use crate::bundled;
 use crate::cli::DemoArgs;
 use crate::format::{duration, time};
