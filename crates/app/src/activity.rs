@@ -1503,6 +1503,17 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// The per-cell mean (the `ML` baseline) over a 12-hour period, sequentially.
+    fn ml_settings() -> EvalSettings {
+        EvalSettings {
+            period: 12.0,
+            inducing: 4,
+            iterations: 5,
+            choice: EvalChoice::Baseline(Baseline::Ml),
+            parallelism: Parallelism::Sequential,
+        }
+    }
+
     #[test]
     fn evaluate_scores_every_baseline_and_names_the_data_in_errors() {
         let mut train = RateSamples::default();
@@ -1512,13 +1523,7 @@ mod tests {
             samples.push([0.25, 0.25], f64::from(t), 10.0).unwrap();
             samples.push([0.75, 0.25], f64::from(t), 1.0).unwrap();
         }
-        let settings = EvalSettings {
-            period: 12.0,
-            inducing: 4,
-            iterations: 5,
-            choice: EvalChoice::Baseline(Baseline::Ml),
-            parallelism: Parallelism::Sequential,
-        };
+        let settings = ml_settings();
         let progress = chronomap_core::progress::NoProgress;
         let names = ["train.csv", "test.csv"];
         let eval = evaluate(&train, &test, &settings, names, &progress).unwrap();
@@ -1581,13 +1586,7 @@ mod tests {
         }
         let path = dir.join("rates.csv");
         chronomap_io::write_rate_samples(&path, &all).unwrap();
-        let settings = EvalSettings {
-            period: 12.0,
-            inducing: 4,
-            iterations: 5,
-            choice: EvalChoice::Baseline(Baseline::Ml),
-            parallelism: Parallelism::Sequential,
-        };
+        let settings = ml_settings();
         let progress = chronomap_core::progress::NoProgress;
         let report = evaluate_files(&path, EvalTest::SplitAt(24.0), &settings, &progress).unwrap();
         let name = path.display();

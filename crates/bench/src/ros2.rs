@@ -369,19 +369,25 @@ fn row(map: &str, publisher: &str, d: &Delivery) -> String {
 mod tests {
     use super::*;
 
+    /// A report of one 1000×1000 map size: three maps from chronomap (one lost of four
+    /// published), three from Fast DDS (none lost of three).
+    fn hand_made_report() -> Report {
+        serde_json::from_str(
+            r#"{"maps": 3, "warmup": 2, "period": 1.0, "rmw": "rmw_fastrtps_cpp",
+            "python": "3.11.2", "sides": [{"side": 1000, "cells": 1000000, "bytes": 1000104,
+            "chronomap": {"published": 4, "reference": "publish", "maps": [
+                {"delay": 0.3, "since_stamp": 0.5}, {"delay": 0.1, "since_stamp": 0.2},
+                {"delay": 0.2, "since_stamp": 0.4}]},
+            "fastdds": {"published": 3, "maps": [
+                {"delay": 0.05}, {"delay": 0.02}, {"delay": 0.1}]}}]}"#,
+        )
+        .unwrap()
+    }
+
     /// Medians, maxima, losses and ratios of a hand-made report.
     #[test]
     fn reports_reduce_to_medians_losses_and_ratios() {
-        let report: Report = serde_json::from_str(
-            r#"{"maps": 3, "warmup": 2, "period": 1.0, "rmw": "rmw_fastrtps_cpp",
-                "python": "3.11.2", "sides": [{"side": 1000, "cells": 1000000, "bytes": 1000104,
-                "chronomap": {"published": 4, "reference": "publish", "maps": [
-                    {"delay": 0.3, "since_stamp": 0.5}, {"delay": 0.1, "since_stamp": 0.2},
-                    {"delay": 0.2, "since_stamp": 0.4}]},
-                "fastdds": {"published": 3, "maps": [
-                    {"delay": 0.05}, {"delay": 0.02}, {"delay": 0.1}]}}]}"#,
-        )
-        .unwrap();
+        let report = hand_made_report();
         let bench = reduce(report, "unshare -n".into());
         let size = &bench.sizes[0];
         let c = &size.chronomap;
@@ -420,16 +426,7 @@ mod tests {
     /// since the stamp last.
     #[test]
     fn the_text_has_a_line_per_publisher_and_the_delays_since_the_stamp() {
-        let report: Report = serde_json::from_str(
-            r#"{"maps": 3, "warmup": 2, "period": 1.0, "rmw": "rmw_fastrtps_cpp",
-                "python": "3.11.2", "sides": [{"side": 1000, "cells": 1000000, "bytes": 1000104,
-                "chronomap": {"published": 4, "reference": "publish", "maps": [
-                    {"delay": 0.3, "since_stamp": 0.5}, {"delay": 0.1, "since_stamp": 0.2},
-                    {"delay": 0.2, "since_stamp": 0.4}]},
-                "fastdds": {"published": 3, "maps": [
-                    {"delay": 0.05}, {"delay": 0.02}, {"delay": 0.1}]}}]}"#,
-        )
-        .unwrap();
+        let report = hand_made_report();
         let text = reduce(report, "unshare -n".into()).text();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 5);
