@@ -36,6 +36,7 @@ pub fn build(args: &GridBuildArgs) -> Result<()> {
             StoreArg::Lossy => GridStore::Lossy,
             StoreArg::Lossless => GridStore::Lossless,
         },
+        keep_history: false,
     };
     let source = if args.source.synthetic {
         FrameSource::Synthetic {

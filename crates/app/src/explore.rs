@@ -13,12 +13,15 @@ use chronomap_core::Parallelism;
 use chronomap_core::num::count_of;
 use chronomap_core::progress::Progress;
 use chronomap_explore::table::{
-    ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, SWEEP_SEEDS, TableEntry,
-    busiest_locations, exploration_sweep, explore_table, row_title,
+    ModelKind, PAPER_TABLE_1_ARUBA, PAPER_TABLE_2_BRAYFORD, TableEntry, busiest_locations,
+    explore_table, row_title,
 };
+#[cfg(feature = "plot")]
+use chronomap_explore::table::{SWEEP_SEEDS, exploration_sweep};
 use chronomap_explore::{
     ExploreConfig, ExploreError, ExploreResult, MAX_STEPS_PER_DAY, Strategy, World, explore,
 };
+#[cfg(feature = "plot")]
 use chronomap_plot::{Panel, Series, SeriesStyle};
 use serde_json::{Value, json};
 
@@ -308,6 +311,7 @@ impl fmt::Display for ExploreReport {
 ///
 /// # Errors
 /// [`ExploreJobError::Explore`] from a run.
+#[cfg(feature = "plot")]
 pub fn sweep_panel(
     world: &World,
     seed: u64,
@@ -349,6 +353,7 @@ pub fn sweep_panel(
 ///
 /// # Errors
 /// As [`behaviour`].
+#[cfg(feature = "plot")]
 pub fn behaviour_panels(
     world: &World,
     ratio: f64,
@@ -508,6 +513,7 @@ mod tests {
             "{greedy}"
         );
         assert!(text.contains("\nbest: "));
+        #[cfg(feature = "plot")]
         assert_eq!(behaviour_panels(&world, 0.5, 3).unwrap().len(), 4);
     }
 }

@@ -21,8 +21,10 @@ use chronomap_core::PeriodSet;
 use chronomap_core::fremen::FremenConfig;
 use chronomap_core::metrics::compression_ratio;
 use chronomap_core::progress::Progress;
+#[cfg(feature = "rosbag")]
+use chronomap_grid::build::GridBuilder;
 use chronomap_grid::build::{
-    GridBuild, GridBuilder, PartitionError, build_from_frames, build_partitioned, holdout_splits,
+    GridBuild, PartitionError, build_from_frames, build_partitioned, holdout_splits,
     occupancy_percent,
 };
 use chronomap_grid::report::{OrderErrors, RowOrders, order_errors, project_layers};
@@ -37,6 +39,7 @@ use chronomap_io::{
     DataError, encode_grid, load_frame_map, load_next_frame_map, read_frame_list, read_grid_file,
     read_pairs,
 };
+#[cfg(feature = "rosbag")]
 use chronomap_rosbag::{Bag, BagError, MapFrame, TimeSource};
 use chronomap_spatial::OccupancyMap;
 use chronomap_synth::SynthError;
@@ -84,9 +87,11 @@ pub enum GridJobError {
         source: GridError,
     },
     /// A bag cannot be read, or a map of it differs from the first.
+    #[cfg(feature = "rosbag")]
     #[error(transparent)]
     Bag(#[from] BagError),
     /// A bag's topic holds no map.
+    #[cfg(feature = "rosbag")]
     #[error("{bag}: topic {topic} has no map")]
     NoMap {
         /// The bag.
@@ -163,6 +168,7 @@ pub enum FrameSource<'a> {
         semantics: LoadSemantics,
     },
     /// The `nav_msgs/msg/OccupancyGrid` messages of a bag's topic.
+    #[cfg(feature = "rosbag")]
     Bag {
         /// The bag.
         bag: &'a Path,
@@ -188,13 +194,21 @@ pub struct BuildSettings {
     pub errors: bool,
     /// The form the grid is stored in.
     pub store: GridStore,
+    /// Whether the grid keeps every cell's history although nothing of this build needs it
+    /// (a learning state that may later be stored lossless, as Python's `keep_history=True`).
+    pub keep_history: bool,
 }
 
 impl BuildSettings {
-    /// Whether the grid keeps its history and snapshots: for the error table, a lossless file
-    /// or per-cell orders.
-    pub fn needs_history(&self) -> bool {
+    /// Whether the build takes snapshots at the hold-out splits, keeping the history: for the
+    /// error table, a lossless file or per-cell orders.
+    pub fn needs_snapshots(&self) -> bool {
         self.errors || self.store == GridStore::Lossless || self.order.is_none()
+    }
+
+    /// Whether the grid keeps its history: when it takes snapshots, or is asked to.
+    pub fn needs_history(&self) -> bool {
+        self.needs_snapshots() || self.keep_history
     }
 
     /// The grid's configuration: the order learned with is `order`, or 2 while choosing.
@@ -324,7 +338,7 @@ pub fn build_grid(
     let job = Job {
         config: settings.config(),
         holdout: settings.holdout,
-        snapshots: settings.needs_history(),
+        snapshots: settings.needs_snapshots(),
         progress,
     };
     match *source {
@@ -335,6 +349,7 @@ pub fn build_grid(
             threads,
         } => job.synthetic(cells, days, seed, threads),
         FrameSource::MapList { list, semantics } => job.map_list(list, semantics),
+        #[cfg(feature = "rosbag")]
         FrameSource::Bag { bag, topic, time } => job.bag(bag, topic, time),
         FrameSource::CellSeries(files) => job.cell_series(files),
     }
@@ -910,6 +925,7 @@ impl Job<'_> {
     /// Frames from the `nav_msgs/msg/OccupancyGrid` messages of a bag's topic, observed as a
     /// list of map files is. With snapshots, a first pass counts the maps to place the
     /// hold-out splits.
+    #[cfg(feature = "rosbag")]
     fn bag(&self, bag: &Path, topic: &str, time: TimeSource) -> Result<BuiltGrid, GridJobError> {
         let started = Instant::now();
         let bag = Bag::open(bag)?;
@@ -1019,6 +1035,7 @@ mod tests {
             holdout: 0.25,
             errors,
             store: GridStore::Lossy,
+            keep_history: false,
         }
     }
 

@@ -52,6 +52,7 @@ pub mod events;
 pub mod explore;
 pub mod features;
 pub mod grid;
+#[cfg(feature = "rosbag")]
 pub mod ingest;
 pub mod model;
 pub mod open;

@@ -16,6 +16,7 @@ use chronomap_io::{
     DataError, ModelFileError, TopoFileError, read_edge_directory, write_edge_directory,
     write_edge_models,
 };
+#[cfg(feature = "plot")]
 use chronomap_plot::Heatmap;
 use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics};
 use chronomap_topo::map::TopoMap;
@@ -981,6 +982,7 @@ impl DayTable {
     }
 
     /// The table as a heat map of `Pmax` with the codes of the first actions.
+    #[cfg(feature = "plot")]
     pub fn heatmap(&self) -> Heatmap {
         let (days, per_day) = (self.table.days, self.table.per_day);
         // Row-major, one row per start time.
@@ -1331,8 +1333,8 @@ mod tests {
                 "- = nothing to do (the task holds, or cannot be fulfilled)"
             ]
         );
-        let heatmap = table.heatmap();
-        assert_eq!(heatmap.cell_text, ["a", "a", "a", "a"]);
+        #[cfg(feature = "plot")]
+        assert_eq!(table.heatmap().cell_text, ["a", "a", "a", "a"]);
         assert_eq!(table.json()["plans"][3]["first_edge"], "A_B");
         let _ = std::fs::remove_dir_all(&tmp);
     }
