@@ -326,6 +326,20 @@ def test_a_rejected_batch_leaves_the_grid_as_it_was():
         grid.predict_map(float("nan"))
 
 
+def test_nav2_frames_kept_with_history_give_the_lossless_file_the_cli_writes(atc_frames, cli, tmp_path):
+    # Grid.from_nav2 runs the CLI's build job (chronomap-app); with keep_history=True the grid
+    # can be stored lossless, byte for byte as `grid build --store lossless` stores it.
+    frame_list = atc_frames[0]
+    grid = Grid.from_nav2(frame_list, keep_history=True)
+    mine = tmp_path / "python-lossless.cmg"
+    grid.save(mine, store="lossless")
+    cli_file = tmp_path / "cli-lossless.cmg"
+    cli("grid", "build", "--frames", frame_list, "--store", "lossless", "-o", cli_file)
+    assert mine.read_bytes() == cli_file.read_bytes()
+    with pytest.raises(ValueError, match=r"store='lossless': .*keep_history=True"):
+        Grid.from_nav2(frame_list).save(tmp_path / "refused.cmg", store="lossless")
+
+
 def test_missing_and_damaged_files(tmp_path, atc_frames):
     missing = tmp_path / "nothing.cmg"
     with pytest.raises(FileNotFoundError, match="nothing.cmg"):

@@ -8,16 +8,14 @@
 
 use std::path::{Path, PathBuf};
 
+use chronomap_app::grid::{BuildSettings, FrameSource, GridJobError, build_grid};
 use chronomap_core::periods::PeriodSet;
 use chronomap_core::progress::NoProgress;
 use chronomap_core::{FremenConfig, ObservationError};
-use chronomap_grid::build::build_from_frames;
 use chronomap_grid::{AnyGrid, GridStore};
 use chronomap_grid::{FittedGrid, FremenGrid, GridConfig, GridError, GridGeometry, OrderChoice};
 use chronomap_io::navmap::{LoadSemantics, NavMapError, NavMapErrorKind, load_map};
-use chronomap_io::{
-    FrameMapError, load_frame_map, read_frame_list, read_grid_file, write_grid_file,
-};
+use chronomap_io::{FrameMapError, read_grid_file, write_grid_file};
 use chronomap_spatial::OccupancyMap;
 use numpy::{PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -49,6 +47,18 @@ fn frame_map_error(error: &FrameMapError) -> PyErr {
 /// A grid error as a `ValueError`.
 fn grid_error(error: &GridError) -> PyErr {
     PyValueError::new_err(error.to_string())
+}
+
+/// An error of the grid build job of a frame list: a missing list or map is a
+/// `FileNotFoundError`, anything else a `ValueError`; both name the list and its line.
+fn grid_job_error(error: &GridJobError) -> PyErr {
+    match error {
+        GridJobError::Data(e) => errors::data(e),
+        GridJobError::FrameMap(e) => frame_map_error(e),
+        GridJobError::Grid(e) => grid_error(e),
+        GridJobError::Frame { source, .. } => PyValueError::new_err(format!("{error}: {source}")),
+        other => PyValueError::new_err(other.to_string()),
+    }
 }
 
 /// The grid configuration of `chronomap grid build --periods P --order K`.
@@ -357,51 +367,29 @@ impl PyGrid {
         order: usize,
         keep_history: bool,
     ) -> PyResult<Self> {
-        let config = grid_config(periods, order, keep_history)?;
-        let name = frame_list.display().to_string();
+        // The job `chronomap grid build --frames` runs (chronomap-app), with nothing held back.
+        let settings = BuildSettings {
+            periods: grid_config(periods, order, keep_history)?.fremen.periods,
+            order: Some(order),
+            holdout: 0.0,
+            errors: false,
+            store: GridStore::State,
+            keep_history,
+        };
         let semantics = if ros1 {
             LoadSemantics::Ros1
         } else {
             LoadSemantics::Nav2
         };
-        let build = py.detach(|| -> Result<_, PyErrText> {
-            let frames = read_frame_list(&frame_list).map_err(|e| PyErrText::Data(Box::new(e)))?;
-            let first = load_frame_map(&name, &frames[0], semantics, None)
-                .map_err(|e| PyErrText::Frame(Box::new(e)))?;
-            let geometry = GridGeometry::planar(
-                first.width,
-                first.height,
-                f64::from(first.resolution),
-                [first.origin[0], first.origin[1]],
-            )
-            .map_err(PyErrText::Grid)?;
-            build_from_frames(
-                geometry,
-                &config,
-                frames.len(),
-                &[],
-                &NoProgress,
-                |f, grid| {
-                    let frame = &frames[f];
-                    let map = if f == 0 {
-                        first.clone()
-                    } else {
-                        load_frame_map(&name, frame, semantics, Some(&first))
-                            .map_err(|e| PyErrText::Frame(Box::new(e)))?
-                    };
-                    grid.observe_occupancy(frame.time, &map.data).map_err(|e| {
-                        PyErrText::Value(format!(
-                            "{name}:{}: {}: {e}",
-                            frame.line,
-                            frame.map.display()
-                        ))
-                    })
-                },
-            )
-        });
-        let build = build.map_err(PyErrText::into_py)?;
+        let source = FrameSource::MapList {
+            list: &frame_list,
+            semantics,
+        };
+        let built = py
+            .detach(|| build_grid(&source, &settings, &NoProgress))
+            .map_err(|e| grid_job_error(&e))?;
         Ok(PyGrid {
-            file: AnyGrid::State(Box::new(build.grid)),
+            file: AnyGrid::State(Box::new(built.build.grid)),
         })
     }
 
@@ -562,31 +550,6 @@ impl PyGrid {
             g.resolution,
             self.frames()
         )
-    }
-}
-
-/// Errors raised without the GIL, turned into Python exceptions after.
-enum PyErrText {
-    Data(Box<chronomap_io::DataError>),
-    Frame(Box<FrameMapError>),
-    Grid(GridError),
-    Value(String),
-}
-
-impl PyErrText {
-    fn into_py(self) -> PyErr {
-        match self {
-            PyErrText::Data(e) => errors::data(&e),
-            PyErrText::Frame(e) => frame_map_error(&e),
-            PyErrText::Grid(e) => grid_error(&e),
-            PyErrText::Value(text) => PyValueError::new_err(text),
-        }
-    }
-}
-
-impl From<GridError> for PyErrText {
-    fn from(e: GridError) -> Self {
-        PyErrText::Grid(e)
     }
 }
 
