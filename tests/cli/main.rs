@@ -65,6 +65,7 @@ mod serve_network;
 mod serve_refit;
 #[cfg(feature = "serve")]
 mod serve_security;
+mod sklearn_calibration;
 mod sklearn_gmm;
 mod storm_case;
 mod storm_witham;

@@ -30,7 +30,8 @@
 //!   (periodic Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
 //! * [`select`] — order and model selection on held-back data. [`stacking`] — weights that
 //!   combine models' out-of-sample predictions. [`anomaly`] — anomaly
-//!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`naive`] — slow
+//!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`calibration`] —
+//!   reliability diagrams, expected calibration error, the Brier score's decomposition. [`naive`] — slow
 //!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
 //!   use (results never depend on it); [`rng`] — seeded randomness; [`time`] — calendar
 //!   conversions and ISO 8601 parsing without a clock.
@@ -42,6 +43,7 @@
 #![deny(missing_docs)]
 
 pub mod anomaly;
+pub mod calibration;
 pub mod conformance;
 pub mod crossings;
 pub mod error;
