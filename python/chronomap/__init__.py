@@ -104,7 +104,12 @@ def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.
     dict of arrays, or pandas.DataFrame
         One row per model: ``model`` (the spec as given), ``fitted`` (as fitted, orders
         resolved), ``mse_1`` .. ``mse_n`` (Brier score per test set), ``mean_mse``,
-        ``binary_error_1`` .. ``binary_error_n`` and ``mean_binary_error``.
+        ``binary_error_1`` .. ``binary_error_n``, ``mean_binary_error``, ``ece_1`` ..
+        ``ece_n`` (expected calibration error, 10 equal-width bins) and ``mean_ece``; then the
+        calibration of all test sets together: ``ece``, the Brier score's decomposition
+        (Murphy 1973) ``reliability``, ``resolution``, ``uncertainty`` and ``within_bins``
+        (they add up to the pooled Brier score as ``reliability - resolution + uncertainty +
+        within_bins``), ``mean_prediction`` and ``base_rate``.
     """
     if isinstance(models, str):
         models = [models]

@@ -57,6 +57,34 @@ def test_evaluate_equals_the_command_line_bit_for_bit(greg, repo, cli):
             assert table[f"binary_error_{i + 1}"][row] == test["binary_error"]
         assert table["mean_mse"][row] == model["mean_mse"]
         assert table["mean_binary_error"][row] == model["mean_binary_error"]
+        for i, test in enumerate(model["tests"]):
+            assert table[f"ece_{i + 1}"][row] == test["ece"]
+        assert table["mean_ece"][row] == model["mean_ece"]
+        for key in ["ece", "reliability", "resolution", "uncertainty", "mean_prediction",
+                    "base_rate"]:
+            assert table[key][row] == model["calibration"][key]
+        assert table["within_bins"][row] == model["calibration"]["within_bin"]
+
+
+def test_evaluate_reports_calibration_that_adds_up_to_the_brier_score(greg):
+    train, tests = greg
+    table = chronomap.evaluate(train, tests, ["mean", "fremen:4"])
+    # The pooled Brier score of all five weeks, from the arrays themselves.
+    times = np.concatenate([t for t, _ in tests])
+    values = np.concatenate([v for _, v in tests])
+    base = values.mean()
+    assert table["base_rate"][0] == pytest.approx(base, rel=1e-12)
+    assert table["uncertainty"][0] == pytest.approx(base * (1 - base), rel=1e-12)
+    model = chronomap.model("fremen:4").observe(*train)
+    pooled_brier = np.mean((model.predict(times) - values) ** 2)
+    decomposed = (table["reliability"][1] - table["resolution"][1] + table["uncertainty"][1]
+                  + table["within_bins"][1])
+    assert decomposed == pytest.approx(pooled_brier, rel=1e-12)
+    # The training mean predicts one value: one bin, no resolution, ECE = |mean p - base|.
+    assert table["resolution"][0] == 0.0
+    assert table["ece"][0] == pytest.approx(abs(table["mean_prediction"][0] - base), rel=1e-12)
+    # FreMEn of order 4 over-predicts the door on the public weeks (docs/accuracy.md).
+    assert table["mean_prediction"][1] > base + 0.04
 
 
 def test_evaluate_as_a_data_frame(greg):
@@ -65,7 +93,10 @@ def test_evaluate_as_a_data_frame(greg):
     frame = chronomap.evaluate(train, tests[:2], ["fremen:2", "mean"], as_frame=True)
     assert isinstance(frame, pd.DataFrame)
     assert list(frame.columns) == ["model", "fitted", "mse_1", "mse_2", "mean_mse",
-                                   "binary_error_1", "binary_error_2", "mean_binary_error"]
+                                   "binary_error_1", "binary_error_2", "mean_binary_error",
+                                   "ece_1", "ece_2", "mean_ece", "ece", "reliability",
+                                   "resolution", "uncertainty", "within_bins",
+                                   "mean_prediction", "base_rate"]
     assert frame.loc[0, "mean_mse"] == pytest.approx((frame.loc[0, "mse_1"]
                                                       + frame.loc[0, "mse_2"]) / 2, rel=1e-15)
 

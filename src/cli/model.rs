@@ -85,6 +85,9 @@ pub struct EvalArgs {
     /// Significance level of the paired t-tests.
     #[arg(long, default_value_t = 0.05, value_parser = parse_fraction)]
     pub alpha: f64,
+    /// Draw the reliability diagram of every model over all test sets (PNG).
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
     /// Fitting options.
     #[command(flatten)]
     pub fit: FitFlags,

@@ -4,6 +4,7 @@
 use anyhow::{Context, Result};
 use chronomap_app::eval::{EvalDataError, EvalOutcome, evaluate_models, read_study};
 use chronomap_models::split::SplitError;
+use chronomap_plot::render_panels_png;
 
 use crate::cli::{EvalArgs, model_specs};
 use crate::outln;
@@ -29,6 +30,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         report,
         alpha: args.alpha,
     };
+    if let Some(path) = &args.plot {
+        render_panels_png(&outcome.reliability_panels(), path, 1000, 1000)?;
+    }
     if args.json {
         return print_json(&outcome.json());
     }

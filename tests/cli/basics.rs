@@ -76,6 +76,64 @@ fn eval_json_has_the_documented_shape_and_values() {
     assert!((mean - expected).abs() < 1e-15);
 }
 
+/// `eval` measures calibration: per test set and over all test sets, with the Brier score's
+/// decomposition (Murphy 1973) adding up to the pooled Brier score, and `--plot` draws the
+/// reliability diagram.
+#[test]
+fn eval_reports_calibration_and_draws_the_reliability_diagram() {
+    let dir = scratch("eval-calibration");
+    let png = dir.join("reliability.png");
+    let (test1, test2) = (test_set(greg, 1), test_set(greg, 2));
+    let args = [
+        "eval",
+        "--train",
+        &greg("training_data.txt.xz"),
+        "--test",
+        &test1,
+        "--test",
+        &test2,
+        "--models",
+        "mean,fremen:4",
+    ];
+    let mut with_plot = args.to_vec();
+    with_plot.extend(["--json", "--plot", png.to_str().unwrap()]);
+    let json = json_of(&chronomap(&with_plot));
+    assert_eq!(&std::fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+    let fremen = &json["models"][1];
+    let c = &fremen["calibration"];
+    let number = |v: &serde_json::Value| v.as_f64().unwrap();
+    let tests = fremen["tests"].as_array().unwrap();
+    // Both weeks have 10,081 minutes: the pooled Brier score is the mean of the two.
+    let pooled = (number(&tests[0]["mse"]) + number(&tests[1]["mse"])) / 2.0;
+    assert!((number(&c["brier"]) - pooled).abs() < 1e-12);
+    let sum = number(&c["reliability"]) - number(&c["resolution"])
+        + number(&c["uncertainty"])
+        + number(&c["within_bin"]);
+    assert!((sum - pooled).abs() < 1e-12, "{sum} vs {pooled}");
+    // FreMEn of order 4 over-predicts the door in March: ECE 0.0677 on week 1 (scikit-learn
+    // agrees, tests/cli/sklearn_calibration.rs), and its mean forecast is above the rate.
+    assert!(
+        (number(&tests[0]["ece"]) - 0.0677).abs() < 5e-5,
+        "{}",
+        tests[0]["ece"]
+    );
+    assert!(number(&c["mean_prediction"]) > number(&c["base_rate"]) + 0.04);
+    let bins = c["bins"].as_array().unwrap();
+    let counted: u64 = bins.iter().map(|b| b["count"].as_u64().unwrap()).sum();
+    assert_eq!(counted, 2 * 10_081);
+    // The training mean is one forecast: one bin, and its ECE is |mean − rate|.
+    let mean = &json["models"][0]["calibration"];
+    assert_eq!(mean["bins"].as_array().unwrap().len(), 1);
+    let gap = (number(&mean["mean_prediction"]) - number(&mean["base_rate"])).abs();
+    assert!((number(&mean["ece"]) - gap).abs() < 1e-12);
+    let text = stdout(&chronomap(&args));
+    assert!(
+        text.contains("Expected calibration error of p(t) (10 equal-width bins)"),
+        "{text}"
+    );
+    assert!(text.contains("Calibration over all test sets"), "{text}");
+}
+
 #[test]
 fn eval_prints_tables_and_significance() {
     let mut args = vec![

@@ -1576,9 +1576,10 @@ mod tests {
 
     #[test]
     fn evaluate_files_splits_one_file_and_reports_text_and_json() {
-        let dir = chronomap_testutil::fresh_dir(
-            std::env::temp_dir().join(format!("chronomap-app-eval-{}", std::process::id())),
-        );
+        let dir = chronomap_testutil::fresh_dir(std::env::temp_dir().join(format!(
+            "chronomap-app-activity-eval-{}",
+            std::process::id()
+        )));
         let mut all = RateSamples::default();
         for t in 0..36 {
             all.push([0.25, 0.25], f64::from(t), 10.0).unwrap();

@@ -8,13 +8,16 @@
 
 use std::path::{Path, PathBuf};
 
+use chronomap_core::calibration::DEFAULT_BINS;
 use chronomap_core::metrics::TestScore;
 use chronomap_core::progress::Progress;
 use chronomap_core::{BuildError, TimeSeries};
 use chronomap_io::{DataError, read_pairs, read_test_set};
-use chronomap_models::eval::{EvalReport, TestSet, evaluate};
+use chronomap_models::eval::{EvalReport, ModelEvaluation, TestSet, evaluate};
 use chronomap_models::spec::{FitOptions, ModelSpec};
 use chronomap_models::split::{SplitError, chronological_split};
+#[cfg(feature = "plot")]
+use chronomap_plot::{Panel, Series, SeriesStyle};
 use serde_json::{Value, json};
 
 use crate::model::describe_selection;
@@ -212,12 +215,15 @@ impl EvalOutcome {
                 "name": m.spec.to_string(),
                 "fitted": m.fitted.model.fitted_as(),
                 "selection": m.fitted.selection.as_ref().map(describe_selection),
-                "tests": m.tests.iter().map(|t| json!({
+                "tests": m.tests.iter().zip(&m.calibration).map(|(t, c)| json!({
                     "mse": t.mse,
                     "binary_error": t.binary_error,
+                    "ece": c.ece,
                 })).collect::<Vec<_>>(),
                 "mean_mse": m.mean_mse(),
                 "mean_binary_error": m.mean_binary_error(),
+                "mean_ece": m.mean_ece(),
+                "calibration": m.pooled_calibration,
             })).collect::<Vec<_>>(),
             "alpha": self.alpha,
             "comparisons": report.comparisons.iter().map(|c| json!({
@@ -285,6 +291,16 @@ impl EvalOutcome {
                 |t| t.binary_error,
             ));
             lines.push(String::new());
+            lines.push(per_test_table(
+                report,
+                &format!(
+                    "Expected calibration error of p(t) ({DEFAULT_BINS} equal-width bins), lower is better"
+                ),
+                |m| m.calibration.iter().map(|c| c.ece).collect(),
+            ));
+            lines.push(String::new());
+            lines.push(calibration_table(report));
+            lines.push(String::new());
         }
         let selections: Vec<String> = report
             .models
@@ -331,15 +347,95 @@ impl EvalOutcome {
     }
 }
 
+impl EvalOutcome {
+    /// The reliability diagram of every model over all test sets together (above: observed
+    /// frequency against mean forecast per bin, the diagonal being perfect calibration; below:
+    /// the share of forecasts in each bin), as `chronomap eval --plot` draws it.
+    #[cfg(feature = "plot")]
+    pub fn reliability_panels(&self) -> Vec<Panel> {
+        // One colour per model in both panels: the diagonal comes last.
+        let style = |points: &[(f64, f64)]| {
+            if points.len() == 1 {
+                SeriesStyle::Dots
+            } else {
+                SeriesStyle::Line
+            }
+        };
+        let mut diagram = Vec::new();
+        let mut shares = Vec::new();
+        for m in &self.report.models {
+            let c = &m.pooled_calibration;
+            let points: Vec<(f64, f64)> = c
+                .bins
+                .iter()
+                .map(|b| (b.mean_prediction, b.observed_frequency))
+                .collect();
+            diagram.push(Series {
+                label: format!("{} (ECE {:.3})", m.spec, c.ece),
+                style: style(&points),
+                points,
+            });
+            let points: Vec<(f64, f64)> = c
+                .bins
+                .iter()
+                .map(|b| (b.mean_prediction, b.count as f64 / c.samples as f64))
+                .collect();
+            shares.push(Series {
+                label: m.spec.to_string(),
+                style: style(&points),
+                points,
+            });
+        }
+        diagram.push(Series {
+            label: "calibrated".into(),
+            points: vec![(0.0, 0.0), (1.0, 1.0)],
+            style: SeriesStyle::Line,
+        });
+        let top_share = shares
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.1))
+            .fold(0.0, f64::max);
+        vec![
+            Panel {
+                title: format!(
+                    "Reliability diagram: all {} test sets, {DEFAULT_BINS} equal-width bins",
+                    self.study.tests.len()
+                ),
+                x_label: String::new(),
+                y_label: "observed frequency".into(),
+                y_range: (-0.02, 1.02),
+                series: diagram,
+            },
+            Panel {
+                title: "Share of forecasts per bin".into(),
+                x_label: "mean predicted probability in the bin".into(),
+                y_label: "share".into(),
+                y_range: (0.0, (1.1 * top_share).max(0.01)),
+                series: shares,
+            },
+        ]
+    }
+}
+
 /// A titled table of one metric per model and test set, and its mean.
 fn metric_table(report: &EvalReport, title: &str, metric: impl Fn(&TestScore) -> f64) -> String {
+    per_test_table(report, title, |m| m.tests.iter().map(&metric).collect())
+}
+
+/// A titled table of one value per model and test set (`values` of a model, in test order),
+/// and their mean.
+fn per_test_table(
+    report: &EvalReport,
+    title: &str,
+    values: impl Fn(&ModelEvaluation) -> Vec<f64>,
+) -> String {
     let tests = report.models.first().map_or(0, |m| m.tests.len());
     let mut header = vec!["model".to_string(), "fitted as".to_string()];
     header.extend((1..=tests).map(|i| format!("test {i}")));
     header.push("mean".into());
     let mut table = Table::new(header);
     for m in &report.models {
-        let values: Vec<f64> = m.tests.iter().map(&metric).collect();
+        let values = values(m);
         let mut row = vec![m.spec.to_string(), m.fitted.model.fitted_as()];
         row.extend(values.iter().map(|v| format!("{v:.4}")));
         row.push(format!(
@@ -349,6 +445,45 @@ fn metric_table(report: &EvalReport, title: &str, metric: impl Fn(&TestScore) ->
         table.row(row);
     }
     format!("{title}\n{}", table.render())
+}
+
+/// The calibration of every model over all test sets together, with the Brier score's
+/// decomposition ([`chronomap_core::calibration`]).
+fn calibration_table(report: &EvalReport) -> String {
+    let mut table = Table::new(
+        [
+            "model",
+            "mean p",
+            "observed",
+            "ECE",
+            "reliability",
+            "resolution",
+            "uncertainty",
+            "within bins",
+            "Brier",
+        ]
+        .map(String::from)
+        .to_vec(),
+    );
+    for m in &report.models {
+        let c = &m.pooled_calibration;
+        table.row(vec![
+            m.spec.to_string(),
+            format!("{:.4}", c.mean_prediction),
+            format!("{:.4}", c.base_rate),
+            format!("{:.4}", c.ece),
+            format!("{:.5}", c.reliability),
+            format!("{:.5}", c.resolution),
+            format!("{:.5}", c.uncertainty),
+            format!("{:+.5}", c.within_bin),
+            format!("{:.4}", c.brier),
+        ]);
+    }
+    format!(
+        "Calibration over all test sets ({DEFAULT_BINS} bins; Brier = reliability − resolution \
+         + uncertainty + within bins, Murphy 1973)\n{}",
+        table.render()
+    )
 }
 
 #[cfg(test)]

@@ -2,8 +2,10 @@
 //! function (the command line prints it).
 
 use crate::spec::{FitOptions, Fitted, ModelSpec};
+use chronomap_core::calibration::{Calibration, DEFAULT_BINS};
 use chronomap_core::error::BuildError;
-use chronomap_core::metrics::{PairedTTest, TestScore, paired_t_test, score};
+use chronomap_core::metrics::{PairedTTest, TestScore, binary_error, mse, paired_t_test};
+use chronomap_core::model::TemporalModel;
 
 /// One test set: times and observed values.
 #[derive(Clone, Copy, Debug)]
@@ -33,6 +35,10 @@ pub struct ModelEvaluation {
     pub fitted: Fitted,
     /// Scores per test set, in the order given.
     pub tests: Vec<TestScore>,
+    /// Calibration per test set ([`DEFAULT_BINS`] equal-width bins), in the order given.
+    pub calibration: Vec<Calibration>,
+    /// Calibration of the predictions of all test sets together.
+    pub pooled_calibration: Calibration,
 }
 
 impl ModelEvaluation {
@@ -44,6 +50,11 @@ impl ModelEvaluation {
     /// Mean binary error over the test sets.
     pub fn mean_binary_error(&self) -> f64 {
         mean(self.tests.iter().map(|t| t.binary_error))
+    }
+
+    /// Mean expected calibration error over the test sets.
+    pub fn mean_ece(&self) -> f64 {
+        mean(self.calibration.iter().map(|c| c.ece))
     }
 
     /// Brier scores per test set.
@@ -107,14 +118,25 @@ pub fn evaluate(
         let fitted = spec
             .fit(train_times, train_values, options)
             .map_err(|e| (spec.clone(), e))?;
-        let scores = tests
-            .iter()
-            .map(|t| score(&fitted.model, t.times, t.values))
-            .collect();
+        let (mut scores, mut calibration) = (Vec::new(), Vec::new());
+        let (mut all_predictions, mut all_values) = (Vec::new(), Vec::new());
+        for test in tests {
+            let predictions = fitted.model.predict_many(test.times);
+            scores.push(TestScore {
+                mse: mse(&predictions, test.values),
+                binary_error: binary_error(&predictions, test.values),
+                samples: test.times.len(),
+            });
+            calibration.push(Calibration::of(&predictions, test.values, DEFAULT_BINS));
+            all_predictions.extend(predictions);
+            all_values.extend_from_slice(test.values);
+        }
         let evaluation = ModelEvaluation {
             spec: spec.clone(),
             fitted,
             tests: scores,
+            calibration,
+            pooled_calibration: Calibration::of(&all_predictions, &all_values, DEFAULT_BINS),
         };
         on_fitted(&evaluation);
         models.push(evaluation);

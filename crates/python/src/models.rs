@@ -913,6 +913,20 @@ pub fn evaluate_table<'py>(
         )?;
     }
     dict.set_item("mean_binary_error", column(&|m| m.mean_binary_error()))?;
+    for i in 0..sets.len() {
+        dict.set_item(format!("ece_{}", i + 1), column(&|m| m.calibration[i].ece))?;
+    }
+    dict.set_item("mean_ece", column(&|m| m.mean_ece()))?;
+    dict.set_item("ece", column(&|m| m.pooled_calibration.ece))?;
+    dict.set_item("reliability", column(&|m| m.pooled_calibration.reliability))?;
+    dict.set_item("resolution", column(&|m| m.pooled_calibration.resolution))?;
+    dict.set_item("uncertainty", column(&|m| m.pooled_calibration.uncertainty))?;
+    dict.set_item("within_bins", column(&|m| m.pooled_calibration.within_bin))?;
+    dict.set_item(
+        "mean_prediction",
+        column(&|m| m.pooled_calibration.mean_prediction),
+    )?;
+    dict.set_item("base_rate", column(&|m| m.pooled_calibration.base_rate))?;
     Ok(dict)
 }
 
