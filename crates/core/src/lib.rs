@@ -2,9 +2,9 @@
 //!
 //! Pure algorithms for world models that know time: models of a state (a door, a grid cell,
 //! a corridor, a person's presence) that learn from sparse, irregular observations how it
-//! changes with daily and weekly rhythms, and predict it for any time with calibrated
-//! probabilities. No I/O, no printing, no clocks, no global state: file formats, plots and
-//! the command line live in `chronomap-io` and the `chronomap` binary.
+//! changes with daily and weekly rhythms, and predict it for any time as a probability whose
+//! calibration [`calibration`] measures. No I/O, no printing, no clocks, no global state: file
+//! formats, plots and the command line live in `chronomap-io` and the `chronomap` binary.
 //!
 //! ```
 //! use chronomap_core::{FremenModel, TemporalModel, Ordered};
