@@ -412,8 +412,9 @@ impl fmt::Display for TopoFitReport {
     }
 }
 
-/// Success Brier score and duration MSE of each labelled evaluation against the static
-/// per-edge rates ([Fentanes 2015] §V-A); `static_mse` heads the static duration column.
+/// Success Brier score, expected calibration error and duration MSE of each labelled evaluation
+/// against the static per-edge rates ([Fentanes 2015] §V-A); `static_mse` heads the static
+/// duration column.
 pub fn score_table<'a>(
     static_mse: &str,
     scores: impl IntoIterator<Item = (String, &'a EdgeEvaluation)>,
@@ -423,6 +424,8 @@ pub fn score_table<'a>(
         "success Brier",
         "static Brier",
         "ratio",
+        "ECE",
+        "static ECE",
         "duration MSE (s²)",
         static_mse,
     ]);
@@ -432,6 +435,8 @@ pub fn score_table<'a>(
             format!("{:.4}", s.success_brier),
             format!("{:.4}", s.static_success_brier),
             format!("{:.2}", s.success_brier / s.static_success_brier),
+            format!("{:.4}", s.success_ece),
+            format!("{:.4}", s.static_success_ece),
             format!("{:.2}", s.duration_mse),
             format!("{:.2}", s.static_duration_mse),
         ]);
@@ -481,6 +486,8 @@ fn score_json(score: &EdgeEvaluation) -> Value {
     json!({
         "success_brier": score.success_brier,
         "static_success_brier": score.static_success_brier,
+        "success_ece": score.success_ece,
+        "static_success_ece": score.static_success_ece,
         "duration_mse": score.duration_mse,
         "static_duration_mse": score.static_duration_mse,
     })
@@ -500,6 +507,8 @@ impl EvalReport {
             "duration_mse": chosen.duration_mse,
             "static_success_brier": chosen.static_success_brier,
             "static_duration_mse": chosen.static_duration_mse,
+            "success_ece": chosen.success_ece,
+            "static_success_ece": chosen.static_success_ece,
             "attempts": chosen.attempts,
             "successes": chosen.successes,
             "protocol": self.protocol.name(),

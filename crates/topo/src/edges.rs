@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::map::TopoMap;
 use chronomap_core::TimeSeries;
+use chronomap_core::calibration::{Calibration, DEFAULT_BINS};
 use chronomap_core::error::BuildError;
 use chronomap_core::model::TemporalModel;
 use chronomap_core::select::Criterion;
@@ -203,6 +204,32 @@ pub struct EdgeEvaluation {
     pub attempts: usize,
     /// Successful attempts among them (those whose durations are scored).
     pub successes: usize,
+    /// Expected calibration error of the success probabilities
+    /// ([`chronomap_core::calibration`], 10 equal-width bins).
+    #[serde(default)]
+    pub success_ece: f64,
+    /// Reliability term of the success Brier score's decomposition (Murphy 1973).
+    #[serde(default)]
+    pub success_reliability: f64,
+    /// Expected calibration error of the static per-edge success rates.
+    #[serde(default)]
+    pub static_success_ece: f64,
+}
+
+impl EdgeEvaluation {
+    /// Sets the success scores from the predictions of every attempt (`(p, p_static, y)`).
+    fn score_success(&mut self, scored: &[(f64, f64, f64)]) {
+        let column =
+            |k: usize| -> Vec<f64> { scored.iter().map(|&(p, q, y)| [p, q, y][k]).collect() };
+        let (p, p_static, y) = (column(0), column(1), column(2));
+        let model = Calibration::of(&p, &y, DEFAULT_BINS);
+        let fixed = Calibration::of(&p_static, &y, DEFAULT_BINS);
+        self.success_brier = model.brier;
+        self.static_success_brier = fixed.brier;
+        self.success_ece = model.ece;
+        self.success_reliability = model.reliability;
+        self.static_success_ece = fixed.ece;
+    }
 }
 
 /// The models of one edge.
@@ -600,14 +627,14 @@ impl EdgeModels {
             )));
         }
         let mut score = EdgeEvaluation::default();
-        let (mut brier, mut static_brier, mut mse, mut static_mse) = (0.0, 0.0, 0.0, 0.0);
+        let (mut mse, mut static_mse) = (0.0, 0.0);
+        let mut scored = Vec::new();
         for (edge, list) in test.iter().enumerate() {
             let p_static = self.static_success_probability(edge);
             let d_static = self.static_duration(edge);
             for a in list {
                 let y = f64::from(u8::from(a.success));
-                brier += (self.success_probability(edge, a.time) - y).powi(2);
-                static_brier += (p_static - y).powi(2);
+                scored.push((self.success_probability(edge, a.time), p_static, y));
                 score.attempts += 1;
                 if a.success {
                     mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
@@ -616,10 +643,7 @@ impl EdgeModels {
                 }
             }
         }
-        if score.attempts > 0 {
-            score.success_brier = brier / score.attempts as f64;
-            score.static_success_brier = static_brier / score.attempts as f64;
-        }
+        score.score_success(&scored);
         if score.successes > 0 {
             score.duration_mse = mse / score.successes as f64;
             score.static_duration_mse = static_mse / score.successes as f64;
@@ -660,19 +684,19 @@ impl EdgeModels {
     pub fn evaluate_online(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
         let mut score = self.evaluate(test)?;
         let mut live = self.clone();
-        let (mut brier, mut static_brier) = (0.0, 0.0);
+        let mut scored = Vec::new();
         for (edge, list) in test.iter().enumerate() {
             for a in list {
                 let y = f64::from(u8::from(a.success));
-                brier += (live.success_probability(edge, a.time) - y).powi(2);
-                static_brier += (live.static_success_probability(edge) - y).powi(2);
+                scored.push((
+                    live.success_probability(edge, a.time),
+                    live.static_success_probability(edge),
+                    y,
+                ));
                 live.observe(edge, a)?;
             }
         }
-        if score.attempts > 0 {
-            score.success_brier = brier / score.attempts as f64;
-            score.static_success_brier = static_brier / score.attempts as f64;
-        }
+        score.score_success(&scored);
         Ok(score)
     }
 
@@ -859,6 +883,10 @@ mod tests {
         assert_eq!((score.attempts, score.successes), (2, 1));
         assert!((score.success_brier - 0.41).abs() < 1e-12);
         assert_eq!(score.success_brier, score.static_success_brier);
+        // One bin: forecasts of 0.9 that came true half the time: ECE 0.4, reliability 0.16.
+        assert!((score.success_ece - 0.4).abs() < 1e-12);
+        assert!((score.success_reliability - 0.16).abs() < 1e-12);
+        assert_eq!(score.success_ece, score.static_success_ece);
         let d = models.expected_duration(1, 0.0);
         assert!((score.duration_mse - (d - 30.0).powi(2)).abs() < 1e-9);
         // On the door's own rhythm the periodic model beats the static rate by far.
