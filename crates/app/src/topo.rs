@@ -18,7 +18,9 @@ use chronomap_io::{
 };
 #[cfg(feature = "plot")]
 use chronomap_plot::Heatmap;
-use chronomap_topo::edges::{Attempt, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics};
+use chronomap_topo::edges::{
+    Attempt, EVALUATION_COVERAGE, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics,
+};
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
 use chronomap_topo::plan::{PlanAt, PlanError, Planned, Task, plan_full};
@@ -428,6 +430,8 @@ pub fn score_table<'a>(
         "static ECE",
         "duration MSE (s²)",
         static_mse,
+        "90 % interval: coverage",
+        "width (s)",
     ]);
     for (label, s) in scores {
         table.row([
@@ -439,6 +443,8 @@ pub fn score_table<'a>(
             format!("{:.4}", s.static_success_ece),
             format!("{:.2}", s.duration_mse),
             format!("{:.2}", s.static_duration_mse),
+            format!("{:.3}", s.duration_coverage),
+            format!("{:.1}", s.duration_interval_width),
         ]);
     }
     table
@@ -489,6 +495,8 @@ fn score_json(score: &EdgeEvaluation) -> Value {
         "success_ece": score.success_ece,
         "static_success_ece": score.static_success_ece,
         "duration_mse": score.duration_mse,
+        "duration_coverage": score.duration_coverage,
+        "duration_interval_width": score.duration_interval_width,
         "static_duration_mse": score.static_duration_mse,
     })
 }
@@ -509,6 +517,9 @@ impl EvalReport {
             "static_duration_mse": chosen.static_duration_mse,
             "success_ece": chosen.success_ece,
             "static_success_ece": chosen.static_success_ece,
+            "duration_coverage": chosen.duration_coverage,
+            "duration_interval_width": chosen.duration_interval_width,
+            "duration_nominal_coverage": EVALUATION_COVERAGE,
             "attempts": chosen.attempts,
             "successes": chosen.successes,
             "protocol": self.protocol.name(),

@@ -35,6 +35,8 @@
 //! assert_eq!(c.bins.len(), 2); // only the bins that hold forecasts
 //! ```
 //!
+//! Intervals are scored by [`Coverage`]: how often they held the value, and how wide they were.
+//!
 //! - A. H. Murphy, "A new vector partition of the probability score", J. Appl. Meteor. 12, 1973.
 //! - D. B. Stephenson, C. A. S. Coelho, I. T. Jolliffe, "Two extra components in the Brier score
 //!   decomposition", Weather and Forecasting 23, 2008.
@@ -192,6 +194,77 @@ impl Calibration {
             });
         }
         c
+    }
+}
+
+/// How prediction intervals held up against what happened: the share of values inside their
+/// interval (its *empirical coverage*, to compare with the nominal level) and the intervals'
+/// mean width — an interval is only as useful as it is narrow at its coverage.
+///
+/// ```
+/// use chronomap_core::calibration::Coverage;
+///
+/// let intervals = [(10.0, 20.0), (10.0, 20.0), (0.0, 4.0), (5.0, 5.0)];
+/// let values = [15.0, 21.0, 4.0, 5.0]; // ends belong to the interval
+/// let c = Coverage::of(&intervals, &values);
+/// assert_eq!((c.covered, c.samples), (3, 4));
+/// assert_eq!(c.coverage, 0.75);
+/// assert_eq!(c.mean_width, (10.0 + 10.0 + 4.0 + 0.0) / 4.0);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Coverage {
+    /// Values scored.
+    pub samples: usize,
+    /// Values inside their interval (ends included).
+    pub covered: usize,
+    /// `covered / samples` (0 when there are none).
+    pub coverage: f64,
+    /// Mean `upper − lower`.
+    pub mean_width: f64,
+    /// Values below their interval.
+    pub below: usize,
+    /// Values above their interval.
+    pub above: usize,
+}
+
+impl Coverage {
+    /// Scores `intervals[i] = (lower, upper)` against `values[i]`; pairs with a non-finite
+    /// value or bound are left out.
+    ///
+    /// # Panics
+    /// If the slices differ in length.
+    pub fn of(intervals: &[(f64, f64)], values: &[f64]) -> Coverage {
+        assert_eq!(intervals.len(), values.len());
+        let mut c = Coverage::default();
+        let mut width = 0.0;
+        for (&(lower, upper), &v) in intervals.iter().zip(values) {
+            if !(lower.is_finite() && upper.is_finite() && v.is_finite()) {
+                continue;
+            }
+            c.samples += 1;
+            width += upper - lower;
+            if v < lower {
+                c.below += 1;
+            } else if v > upper {
+                c.above += 1;
+            } else {
+                c.covered += 1;
+            }
+        }
+        if c.samples > 0 {
+            c.coverage = c.covered as f64 / c.samples as f64;
+            c.mean_width = width / c.samples as f64;
+        }
+        c
+    }
+
+    /// Whether the coverage is the `nominal` one up to sampling error: within `z` binomial
+    /// standard errors `sqrt(nominal (1 − nominal) / n)` (the conformance checks use `z = 4`,
+    /// so that a correct interval fails about once in 16,000 runs).
+    pub fn agrees_with(&self, nominal: f64, z: f64) -> bool {
+        let n = self.samples as f64;
+        self.samples > 0
+            && (self.coverage - nominal).abs() <= z * (nominal * (1.0 - nominal) / n).sqrt()
     }
 }
 

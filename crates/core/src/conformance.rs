@@ -1,8 +1,47 @@
 //! One conformance checker for every [`TemporalModel`] (after RustFFT's
 //! `check_fft_algorithm`): every implementation in this workspace runs through it, and
-//! implementations outside it can too.
+//! implementations outside it can too; [`check_interval_coverage`] does the same for
+//! prediction intervals.
 
+use crate::calibration::Coverage;
 use crate::model::{TemporalModel, binary_entropy};
+
+/// Checks that prediction intervals of nominal coverage `nominal` (for example 0.9) hold values
+/// drawn from the distribution they claim to describe that often: `intervals[i]` against the
+/// fresh draw `draws[i]`, within 4 binomial standard errors ([`Coverage::agrees_with`]).
+/// Every interval-producing model in this workspace runs through it on data drawn from a known
+/// distribution. Returns the coverage measured.
+///
+/// # Panics
+/// If the coverage disagrees, naming `what`, or with fewer than 1,000 draws (too few to tell
+/// 90 % from 88 %).
+pub fn check_interval_coverage(
+    what: &str,
+    nominal: f64,
+    intervals: &[(f64, f64)],
+    draws: &[f64],
+) -> Coverage {
+    assert!(
+        draws.len() >= 1000,
+        "{what}: a coverage check needs at least 1,000 draws"
+    );
+    let c = Coverage::of(intervals, draws);
+    assert_eq!(
+        c.samples,
+        draws.len(),
+        "{what}: non-finite intervals or draws"
+    );
+    assert!(
+        c.agrees_with(nominal, 4.0),
+        "{what}: {:.4} of {} draws inside intervals of nominal coverage {nominal} \
+         ({} below, {} above)",
+        c.coverage,
+        c.samples,
+        c.below,
+        c.above
+    );
+    c
+}
 
 /// Checks the [`TemporalModel`] contract on a model type, panicking with a precise message
 /// on the first violation. `make` builds an empty model; `times`/`values` is a valid series
@@ -97,5 +136,30 @@ where
             "bad batch {t:?} {v:?} accepted"
         );
         same_as_batch(&model, &format!("after the rejected batch {t:?}"));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_interval_coverage;
+    use crate::rng::Xoshiro256StarStar;
+
+    fn uniform_draws(n: usize) -> Vec<f64> {
+        let mut rng = Xoshiro256StarStar::seed_from_u64(5);
+        (0..n).map(|_| rng.next_f64()).collect()
+    }
+
+    #[test]
+    fn the_central_90_percent_of_a_uniform_law_covers_90_percent_of_its_draws() {
+        let draws = uniform_draws(20_000);
+        let c = check_interval_coverage("U(0, 1)", 0.9, &vec![(0.05, 0.95); 20_000], &draws);
+        assert!((c.coverage - 0.9).abs() < 0.01 && (c.mean_width - 0.9).abs() < 1e-12);
+    }
+
+    #[test]
+    #[should_panic(expected = "inside intervals of nominal coverage 0.9")]
+    fn an_interval_that_claims_more_than_it_holds_fails() {
+        let draws = uniform_draws(20_000);
+        check_interval_coverage("too narrow", 0.9, &vec![(0.1, 0.9); 20_000], &draws);
     }
 }

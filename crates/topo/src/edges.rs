@@ -27,9 +27,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::duration_intervals::{DurationSpread, residual};
 use crate::map::TopoMap;
 use chronomap_core::TimeSeries;
-use chronomap_core::calibration::{Calibration, DEFAULT_BINS};
+use chronomap_core::calibration::{Calibration, Coverage, DEFAULT_BINS};
 use chronomap_core::error::BuildError;
 use chronomap_core::model::TemporalModel;
 use chronomap_core::select::Criterion;
@@ -214,7 +215,17 @@ pub struct EdgeEvaluation {
     /// Expected calibration error of the static per-edge success rates.
     #[serde(default)]
     pub static_success_ece: f64,
+    /// Share of successful durations inside their interval of nominal coverage
+    /// [`EVALUATION_COVERAGE`] ([`EdgeModels::duration_interval`]; 0 without intervals).
+    #[serde(default)]
+    pub duration_coverage: f64,
+    /// Mean width of those intervals (s).
+    #[serde(default)]
+    pub duration_interval_width: f64,
 }
+
+/// Nominal coverage of the duration intervals [`EdgeModels::evaluate`] scores: 90 %.
+pub const EVALUATION_COVERAGE: f64 = 0.9;
 
 impl EdgeEvaluation {
     /// Sets the success scores from the predictions of every attempt (`(p, p_static, y)`).
@@ -278,6 +289,10 @@ pub struct EdgeModels {
     config: EdgeModelConfig,
     edges: Vec<EdgeModel>,
     default_duration_secs: f64,
+    /// The spread of durations around the models (empty in files written before it existed:
+    /// no intervals then).
+    #[serde(default)]
+    duration_spread: DurationSpread,
 }
 
 /// The model of success probabilities the configuration asks for.
@@ -295,6 +310,40 @@ fn success_spec(config: &EdgeModelConfig) -> ModelSpec {
 
 /// The model of durations: persistence does not help there (a slow traversal says little
 /// about the next one).
+/// The duration model of successful traversals `good` (`None` with fewer than
+/// `min_attempts` or no positive duration), the scale its values are fractions of, and the mean
+/// duration (`None` without successes).
+fn fit_duration(
+    good: &[&Attempt],
+    config: &EdgeModelConfig,
+) -> Result<(Option<AnyModel>, f64, Option<f64>), BuildError> {
+    let scale = good.iter().map(|a| a.duration_secs).fold(0.0f64, f64::max);
+    // Σ d / n where Σ d overflows (durations near f64::MAX): a finite mean either way.
+    let mean_duration_secs = (!good.is_empty()).then(|| {
+        let n = good.len() as f64;
+        let sum = good.iter().map(|a| a.duration_secs).sum::<f64>();
+        if sum.is_finite() {
+            sum / n
+        } else {
+            good.iter().map(|a| a.duration_secs / n).sum::<f64>()
+        }
+    });
+    let duration = if good.len() >= config.min_attempts && scale > 0.0 {
+        let t: Vec<f64> = good.iter().map(|a| a.time).collect();
+        let v: Vec<f64> = good.iter().map(|a| a.duration_secs / scale).collect();
+        Some(fit_series(
+            duration_spec(config),
+            &t,
+            &v,
+            config,
+            Criterion::AbsoluteError,
+        )?)
+    } else {
+        None
+    };
+    Ok((duration, scale, mean_duration_secs))
+}
+
 fn duration_spec(config: &EdgeModelConfig) -> ModelSpec {
     if config.periodic {
         ModelSpec::Fremen(OrderSpec::Auto)
@@ -455,33 +504,8 @@ impl EdgeModels {
                 series.push((edges.len(), times, outcomes));
             }
             let good: Vec<&Attempt> = list.iter().filter(|a| a.success).collect();
-            let scale = good.iter().map(|a| a.duration_secs).fold(0.0f64, f64::max);
-            // Σ d / n where Σ d overflows (durations near f64::MAX): a finite mean either way.
-            let mean_duration_secs = (!good.is_empty()).then(|| {
-                let n = good.len() as f64;
-                let sum = good.iter().map(|a| a.duration_secs).sum::<f64>();
-                if sum.is_finite() {
-                    sum / n
-                } else {
-                    good.iter().map(|a| a.duration_secs / n).sum::<f64>()
-                }
-            });
-            let duration = if good.len() >= config.min_attempts && scale > 0.0 {
-                let t: Vec<f64> = good.iter().map(|a| a.time).collect();
-                let v: Vec<f64> = good.iter().map(|a| a.duration_secs / scale).collect();
-                Some(
-                    fit_series(
-                        duration_spec(&config),
-                        &t,
-                        &v,
-                        &config,
-                        Criterion::AbsoluteError,
-                    )
-                    .map_err(named)?,
-                )
-            } else {
-                None
-            };
+            let (duration, scale, mean_duration_secs) =
+                fit_duration(&good, &config).map_err(named)?;
             edges.push(EdgeModel {
                 attempts: list.len(),
                 successes,
@@ -497,12 +521,42 @@ impl EdgeModels {
         means.sort_by(f64::total_cmp);
         let median = means.get(means.len() / 2).copied().unwrap_or(60.0);
         let default_duration_secs = config.default_duration_secs.unwrap_or(median);
-        Ok(EdgeModels {
+        let mut models = EdgeModels {
             map,
             config,
             edges,
             default_duration_secs,
-        })
+            duration_spread: DurationSpread::default(),
+        };
+        // The spread of the training durations around the fitted models
+        // ([`crate::duration_intervals`]).
+        let residuals: Vec<Vec<f64>> = attempts
+            .iter()
+            .enumerate()
+            .map(|(edge, list)| {
+                list.iter()
+                    .filter(|a| a.success)
+                    .map(|a| residual(a.duration_secs, models.expected_duration(edge, a.time)))
+                    .collect()
+            })
+            .collect();
+        models.duration_spread = DurationSpread::fit(&residuals);
+        Ok(models)
+    }
+
+    /// The interval that holds a successful traversal's duration of `edge` started at `time`
+    /// with probability `coverage` (in `(0, 0.99]`), in seconds, around
+    /// [`EdgeModels::expected_duration`] ([`crate::duration_intervals`]); `None` for models
+    /// without the spread of their durations (files written before it existed, or no
+    /// successful traversal at all).
+    pub fn duration_interval(&self, edge: usize, time: f64, coverage: f64) -> Option<(f64, f64)> {
+        self.duration_spread
+            .interval(edge, self.expected_duration(edge, time), coverage)
+    }
+
+    /// The spread of durations around the models.
+    pub fn duration_spread(&self) -> &DurationSpread {
+        &self.duration_spread
     }
 
     /// The map.
@@ -629,6 +683,7 @@ impl EdgeModels {
         let mut score = EdgeEvaluation::default();
         let (mut mse, mut static_mse) = (0.0, 0.0);
         let mut scored = Vec::new();
+        let (mut intervals, mut durations) = (Vec::new(), Vec::new());
         for (edge, list) in test.iter().enumerate() {
             let p_static = self.static_success_probability(edge);
             let d_static = self.static_duration(edge);
@@ -637,6 +692,12 @@ impl EdgeModels {
                 scored.push((self.success_probability(edge, a.time), p_static, y));
                 score.attempts += 1;
                 if a.success {
+                    if let Some(interval) =
+                        self.duration_interval(edge, a.time, EVALUATION_COVERAGE)
+                    {
+                        intervals.push(interval);
+                        durations.push(a.duration_secs);
+                    }
                     mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
                     static_mse += (d_static - a.duration_secs).powi(2);
                     score.successes += 1;
@@ -644,6 +705,9 @@ impl EdgeModels {
             }
         }
         score.score_success(&scored);
+        let coverage = Coverage::of(&intervals, &durations);
+        score.duration_coverage = coverage.coverage;
+        score.duration_interval_width = coverage.mean_width;
         if score.successes > 0 {
             score.duration_mse = mse / score.successes as f64;
             score.static_duration_mse = static_mse / score.successes as f64;
@@ -768,6 +832,10 @@ impl EdgeModels {
                 ));
             }
         }
+        let spread = &self.duration_spread;
+        if *spread != DurationSpread::default() && !spread.is_consistent(self.edges.len()) {
+            return Err("the spread of the durations breaks its invariants".into());
+        }
         Ok(())
     }
 }
@@ -800,6 +868,76 @@ mod tests {
         map.add_edge("B_C", "B", "C").unwrap();
         map.add_edge("C_A", "C", "A").unwrap();
         map
+    }
+
+    /// Durations drawn from a known law, `scale · exp(σ z)` with `z` standard normal
+    /// (Box–Muller), at times spread over four weeks.
+    fn lognormal_attempts(n: usize, scale: f64, sigma: f64, seed: u64) -> Vec<Attempt> {
+        let mut rng = chronomap_core::rng::Xoshiro256StarStar::seed_from_u64(seed);
+        let mut times: Vec<f64> = (0..n).map(|_| 28.0 * 86_400.0 * rng.next_f64()).collect();
+        times.sort_by(f64::total_cmp);
+        times
+            .into_iter()
+            .map(|time| {
+                let (u, v) = (1.0 - rng.next_f64(), rng.next_f64());
+                let z = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+                Attempt {
+                    time,
+                    duration_secs: scale * (sigma * z).exp(),
+                    success: true,
+                }
+            })
+            .collect()
+    }
+
+    /// The conformance check of duration intervals: on an edge whose durations follow a known
+    /// law, intervals of 50 %, 90 % and 99 % hold that share of fresh draws.
+    #[test]
+    fn duration_intervals_cover_fresh_draws_of_a_known_law_as_often_as_they_claim() {
+        let models = EdgeModels::fit(
+            map(),
+            &[
+                lognormal_attempts(3000, 30.0, 0.3, 1),
+                Vec::new(),
+                Vec::new(),
+            ],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let fresh: Vec<Attempt> = lognormal_attempts(20_000, 30.0, 0.3, 2)
+            .into_iter()
+            .map(|a| Attempt {
+                time: a.time + 28.0 * 86_400.0,
+                ..a
+            })
+            .collect();
+        let durations: Vec<f64> = fresh.iter().map(|a| a.duration_secs).collect();
+        for coverage in [0.5, 0.9, 0.99] {
+            let intervals: Vec<(f64, f64)> = fresh
+                .iter()
+                .map(|a| models.duration_interval(0, a.time, coverage).unwrap())
+                .collect();
+            let c = chronomap_core::conformance::check_interval_coverage(
+                &format!("lognormal durations, {coverage}"),
+                coverage,
+                &intervals,
+                &durations,
+            );
+            // The exact interval of the law is 30 · exp(±σ z_{1−α/2}): 90 % → 18.3 … 49.1 s.
+            if coverage == 0.9 {
+                assert!(
+                    (c.mean_width - 30.0 * (0.3f64 * 1.6449).exp()
+                        + 30.0 * (-0.3f64 * 1.6449).exp())
+                    .abs()
+                        < 2.0,
+                    "{c:?}"
+                );
+            }
+        }
+        // An edge never traversed borrows the pooled spread around the default duration.
+        let (lo, hi) = models.duration_interval(2, 0.0, 0.9).unwrap();
+        let default = models.expected_duration(2, 0.0);
+        assert!(lo < default && default < hi && hi / lo > 2.0, "{lo} {hi}");
     }
 
     #[test]

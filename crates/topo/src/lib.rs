@@ -2,7 +2,8 @@
 //!
 //! Navigation on topological maps whose edges know time (Fentanes et al., "Now or later?",
 //! ICRA 2015): [`map`] — named nodes and directed edges; [`edges`] — one success and one
-//! duration model per edge, learned from traversal attempts; [`ltl`] — co-safe LTL tasks over
+//! duration model per edge, learned from traversal attempts, with prediction intervals of
+//! durations ([`duration_intervals`]); [`ltl`] — co-safe LTL tasks over
 //! node names and their automata ([`automaton`]); [`mdp`] — the Navigation MDP at a time `t`,
 //! its product with a task automaton, and the solver of `Pmax` and expected time; [`plan`] —
 //! all of it together: the policy for a task started now, and "now or later?"; [`report`] —
@@ -12,6 +13,7 @@
 #![deny(missing_docs)]
 
 pub mod automaton;
+pub mod duration_intervals;
 pub mod edges;
 pub mod layout;
 pub mod ltl;
