@@ -47,6 +47,18 @@ def test_predict_agrees_with_topo_predict(fitted, cli, time):
         for key in ("success_probability", "uncertainty", "static_success_probability",
                     "duration_secs", "attempts"):
             np.testing.assert_array_equal(mine[key], [e[key] for e in theirs], err_msg=key)
+        # The 90 % intervals of durations, bit for bit, around the expected duration.
+        np.testing.assert_array_equal(mine["duration_lower_secs"],
+                                      [e["duration_interval_secs"][0] for e in theirs])
+        np.testing.assert_array_equal(mine["duration_upper_secs"],
+                                      [e["duration_interval_secs"][1] for e in theirs])
+        assert np.all(mine["duration_lower_secs"] <= mine["duration_secs"])
+        assert np.all(mine["duration_secs"] <= mine["duration_upper_secs"])
+    # Wider coverage, wider intervals; a coverage the quantiles cannot give is refused.
+    wide = models.predict(time, coverage=0.99)
+    assert np.all(wide["duration_upper_secs"] > mine["duration_upper_secs"])
+    with pytest.raises(ValueError, match="coverage"):
+        models.predict(time, coverage=0.999)
     # The door edge changes over the day; most edges hardly do.
     door = models.edges.index("LabDoor1_LabDoor2")
     assert 0.05 <= mine["success_probability"][door] < 0.9

@@ -447,6 +447,8 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
             "{}",
             e.id
         );
+        let interval = models.duration_interval(k, t, 0.9).unwrap();
+        assert_eq!(e.duration_interval_secs, Some([interval.0, interval.1]));
     }
     let door = edges
         .edges

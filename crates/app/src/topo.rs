@@ -697,6 +697,10 @@ pub struct EdgePrediction {
     pub static_success_probability: f64,
     /// Expected duration of a successful traversal (seconds).
     pub duration_secs: f64,
+    /// The interval that holds a successful traversal's duration with probability
+    /// [`EVALUATION_COVERAGE`] (90 %), in seconds (`None` for models written before
+    /// intervals existed).
+    pub duration_interval_secs: Option<(f64, f64)>,
     /// Attempts the model was fitted on.
     pub attempts: usize,
 }
@@ -711,7 +715,7 @@ pub struct PredictReport {
 }
 
 /// Every edge of `models` at time `t`: success probability with its uncertainty, the static
-/// rate, the expected duration ([Fentanes 2015] §IV).
+/// rate, the expected duration ([Fentanes 2015] §IV) and its 90 % interval.
 pub fn predict(models: &EdgeModels, t: f64) -> PredictReport {
     let (success, duration) = models.at(t);
     let map = models.map();
@@ -727,6 +731,7 @@ pub fn predict(models: &EdgeModels, t: f64) -> PredictReport {
             uncertainty: models.success_uncertainty(e, t),
             static_success_probability: models.static_success_probability(e),
             duration_secs: duration[e],
+            duration_interval_secs: models.duration_interval(e, t, EVALUATION_COVERAGE),
             attempts: models.edge(e).attempts,
         })
         .collect();
@@ -750,6 +755,7 @@ impl PredictReport {
             "± sd",
             "static p",
             "duration",
+            "90 % interval",
             "attempts",
         ]);
         for e in &self.edges {
@@ -759,6 +765,8 @@ impl PredictReport {
                 format!("{:.3}", e.uncertainty),
                 format!("{:.3}", e.static_success_probability),
                 format!("{:.1} s", e.duration_secs),
+                e.duration_interval_secs
+                    .map_or("-".into(), |(lo, hi)| format!("{lo:.1} – {hi:.1} s")),
                 e.attempts.to_string(),
             ]);
         }

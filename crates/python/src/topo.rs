@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use chronomap_io::{read_edge_directory, read_edge_models, write_edge_models};
+use chronomap_topo::duration_intervals::MAX_COVERAGE;
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, now_or_later, plan_full};
@@ -138,14 +139,23 @@ impl PyEdgeModels {
     /// a dict with `edge`, `from`, `to` (lists of names, in edge order) and the arrays
     /// `success_probability`, `uncertainty` (sd of the Beta posterior),
     /// `static_success_probability`, `duration_secs` (expected duration of a successful
-    /// traversal) and `attempts`.
+    /// traversal), `duration_lower_secs` and `duration_upper_secs` (the interval that holds a
+    /// successful traversal's duration with probability `coverage`, 0.9 by default as in the
+    /// CLI, at most 0.99; NaN for models written before intervals existed) and `attempts`.
+    #[pyo3(signature = (time, *, coverage = 0.9))]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         time: &Bound<'py, PyAny>,
+        coverage: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let time = arrays::time_scalar(time, "time")?;
         check_time("time", time)?;
+        if !(coverage > 0.0 && coverage <= MAX_COVERAGE) {
+            return Err(PyValueError::new_err(format!(
+                "coverage: {coverage} is not in (0, {MAX_COVERAGE}]"
+            )));
+        }
         let models = &self.models;
         let map = models.map();
         let (success, duration) = py.detach(|| models.at(time));
@@ -190,6 +200,21 @@ impl PyEdgeModels {
             ),
         )?;
         dict.set_item("duration_secs", to_numpy(py, duration))?;
+        let intervals: Vec<(f64, f64)> = (0..n)
+            .map(|e| {
+                models
+                    .duration_interval(e, time, coverage)
+                    .unwrap_or((f64::NAN, f64::NAN))
+            })
+            .collect();
+        dict.set_item(
+            "duration_lower_secs",
+            to_numpy(py, intervals.iter().map(|i| i.0).collect()),
+        )?;
+        dict.set_item(
+            "duration_upper_secs",
+            to_numpy(py, intervals.iter().map(|i| i.1).collect()),
+        )?;
         dict.set_item(
             "attempts",
             PyArray1::from_vec(py, (0..n).map(|e| models.edge(e).attempts as i64).collect()),

@@ -37,6 +37,7 @@ use axum::{Json, Router};
 use chronomap_core::observe::ObservedSpan;
 use chronomap_grid::AnyGrid;
 use chronomap_grid::{FittedGrid, GridGeometry, OrderChoice};
+use chronomap_topo::edges::EVALUATION_COVERAGE;
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, plan_at};
 use serde::{Deserialize, Serialize};
@@ -114,6 +115,10 @@ pub struct EdgePrediction {
     pub success: f64,
     /// Expected duration of a traversal started then (s).
     pub duration_secs: f64,
+    /// The interval that holds a successful traversal's duration with probability 0.9, `[lower,
+    /// upper]` in seconds (absent for models written before intervals existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration_interval_secs: Option<[f64; 2]>,
 }
 
 /// Answer of `POST /v1/topo/{name}/predict`.
@@ -550,6 +555,9 @@ pub(crate) async fn topo_predict(
                     to: map.nodes()[e.to].name.clone(),
                     success: success[k],
                     duration_secs: duration[k],
+                    duration_interval_secs: models
+                        .duration_interval(k, time, EVALUATION_COVERAGE)
+                        .map(|(lower, upper)| [lower, upper]),
                 })
                 .collect();
             json_answer(&EdgesResponse { edges })
