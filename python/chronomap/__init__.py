@@ -82,7 +82,7 @@ __all__ = [
 
 
 def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.25,
-             max_order=10, criterion="brier"):
+             max_order=10, criterion="brier", days_off=None):
     """The experiment of ``chronomap eval`` (the FreMEn benchmarks) on arrays.
 
     Every model in ``models`` (specs such as ``"fremen:2"`` or ``"auto"``) is fitted on
@@ -98,6 +98,10 @@ def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.
         Model specs.
     as_frame : bool
         Return a ``pandas.DataFrame`` (needs pandas) instead of a dict of arrays.
+    days_off : str or path, optional
+        A calendar of days off (``chronomap eval --days-off``: one ``YYYY-MM-DD`` per line):
+        training observations on them are left out, test times on them are predicted as the
+        Sunday before.
 
     Returns
     -------
@@ -114,7 +118,8 @@ def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.
     if isinstance(models, str):
         models = [models]
     table = _native.evaluate_table(train, list(tests), list(models), periods=periods,
-                                   holdout=holdout, max_order=max_order, criterion=criterion)
+                                   holdout=holdout, max_order=max_order, criterion=criterion,
+                                   days_off=None if days_off is None else str(days_off))
     import numpy as np
 
     table["model"] = np.array(table["model"], dtype=object)

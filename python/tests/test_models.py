@@ -87,6 +87,23 @@ def test_evaluate_reports_calibration_that_adds_up_to_the_brier_score(greg):
     assert table["mean_prediction"][1] > base + 0.04
 
 
+def test_evaluate_with_days_off_equals_the_command_line(greg, repo, cli):
+    train, tests = greg
+    calendar = f"{repo}/data/calendars/england_wales_2016.txt"
+    table = chronomap.evaluate(train, tests, ["fremen:4"], days_off=calendar)
+    argv = ["eval", "--train", f"{GREG}/training_data.txt.xz", "--models", "fremen:4",
+            "--days-off", calendar]
+    for i in range(1, 6):
+        argv += ["--test", f"{GREG}/test_times_{i}.txt.xz,{GREG}/test_data_{i}.txt.xz"]
+    expected = cli(*argv, json_output=True)["models"][0]["tests"]
+    assert [table[f"mse_{i + 1}"][0] for i in range(5)] == [t["mse"] for t in expected]
+    # Good Friday and Easter Monday predicted as Sundays: weeks 1 and 2 better.
+    plain = chronomap.evaluate(train, tests, ["fremen:4"])
+    assert table["mse_1"][0] < plain["mse_1"][0] - 0.004
+    with pytest.raises(ValueError, match="not a date"):
+        chronomap.evaluate(train, tests, ["mean"], days_off=f"{repo}/data/README.md")
+
+
 def test_evaluate_as_a_data_frame(greg):
     pd = pytest.importorskip("pandas")
     train, tests = greg

@@ -88,6 +88,10 @@ pub struct EvalArgs {
     /// Draw the reliability diagram of every model over all test sets (PNG).
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// A calendar of days off (one YYYY-MM-DD per line, UTC dates, optionally a name): training
+    /// observations on them are left out, test times on them are predicted as the Sunday before.
+    #[arg(long, value_name = "FILE")]
+    pub days_off: Option<PathBuf>,
     /// Fitting options.
     #[command(flatten)]
     pub fit: FitFlags,
@@ -133,6 +137,10 @@ pub struct PredictArgs {
     /// Use this order instead of the stored one (FreMEn-family models).
     #[arg(long)]
     pub order: Option<usize>,
+    /// A calendar of days off (one YYYY-MM-DD per line, UTC dates): times on them are
+    /// predicted as the same time on the Sunday before.
+    #[arg(long, value_name = "FILE")]
+    pub days_off: Option<PathBuf>,
     /// Print one JSON object: {"model", "predictions": [{"time", "p", "entropy_bits"}]}.
     #[arg(long)]
     pub json: bool,

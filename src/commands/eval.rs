@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result};
 use chronomap_app::eval::{EvalDataError, EvalOutcome, evaluate_models, read_study};
+use chronomap_core::calendar::DaysOff;
 use chronomap_models::split::SplitError;
 use chronomap_plot::render_panels_png;
 
@@ -18,11 +19,22 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         } => usage(e.to_string()),
         e => e.into(),
     })?;
+    let days_off = match &args.days_off {
+        Some(path) => chronomap_io::read_days_off(path)?,
+        None => DaysOff::default(),
+    };
     let report = {
         let bar = ProgressBar::new();
         let specs = model_specs(&args.models);
         let options = args.fit.options();
-        evaluate_models(&specs, &study.train, &study.tests, &options, &bar)
+        evaluate_models(
+            &specs,
+            &study.train,
+            &study.tests,
+            &options,
+            &days_off,
+            &bar,
+        )
     }
     .with_context(|| format!("cannot fit to {}", args.train.display()))?;
     let outcome = EvalOutcome {

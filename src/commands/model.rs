@@ -46,7 +46,10 @@ pub fn predict(args: &PredictArgs) -> Result<()> {
         Some(path) => read_column(path, Field::Time)?,
         None => args.at.clone(),
     };
-    let predictions = model.predict_many(&times);
+    let predictions = match &args.days_off {
+        Some(path) => chronomap_io::read_days_off(path)?.predict_many(&model, &times),
+        None => model.predict_many(&times),
+    };
     if args.json {
         let rows: Vec<_> = times
             .iter()

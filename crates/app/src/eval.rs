@@ -8,12 +8,13 @@
 
 use std::path::{Path, PathBuf};
 
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::calibration::DEFAULT_BINS;
 use chronomap_core::metrics::TestScore;
 use chronomap_core::progress::Progress;
 use chronomap_core::{BuildError, TimeSeries};
 use chronomap_io::{DataError, read_pairs, read_test_set};
-use chronomap_models::eval::{EvalReport, ModelEvaluation, TestSet, evaluate};
+use chronomap_models::eval::{EvalReport, ModelEvaluation, TestSet, evaluate_on_calendar};
 use chronomap_models::spec::{FitOptions, ModelSpec};
 use chronomap_models::split::{SplitError, chronological_split};
 #[cfg(feature = "plot")]
@@ -55,7 +56,8 @@ pub struct FitError {
 }
 
 /// Fits every model of `specs` on `train` with `options` and scores it on every test set,
-/// reporting the stage `fitting models` with one step per model to `progress`.
+/// the days of `days_off` predicted as the Sunday before ([`evaluate_on_calendar`]; none: an
+/// empty set), reporting the stage `fitting models` with one step per model to `progress`.
 ///
 /// # Errors
 /// [`FitError`] for the first model that cannot be fitted.
@@ -64,13 +66,20 @@ pub fn evaluate_models(
     train: &TimeSeries,
     tests: &[TimeSeries],
     options: &FitOptions,
+    days_off: &DaysOff,
     progress: &dyn Progress,
 ) -> Result<EvalReport, FitError> {
     let sets: Vec<TestSet<'_>> = tests.iter().map(TestSet::from).collect();
     progress.stage("fitting models", specs.len() as u64);
-    evaluate(specs, &train.times, &train.values, &sets, options, |_| {
-        progress.advance(1)
-    })
+    evaluate_on_calendar(
+        specs,
+        &train.times,
+        &train.values,
+        &sets,
+        options,
+        days_off,
+        |_| progress.advance(1),
+    )
     .map_err(|(spec, error)| FitError { spec, error })
 }
 
@@ -524,8 +533,15 @@ mod tests {
             series(&[6.0, 7.0], &[1.0, 1.0]),
         ];
         let specs: Vec<ModelSpec> = vec!["mean".parse().unwrap()];
-        let report =
-            evaluate_models(&specs, &train, &tests, &FitOptions::default(), &NoProgress).unwrap();
+        let report = evaluate_models(
+            &specs,
+            &train,
+            &tests,
+            &FitOptions::default(),
+            &DaysOff::default(),
+            &NoProgress,
+        )
+        .unwrap();
         let outcome = EvalOutcome {
             study: EvalStudy {
                 train_file: "train.txt".into(),
@@ -592,13 +608,21 @@ mod tests {
             &train,
             std::slice::from_ref(&test),
             &FitOptions::default(),
+            &DaysOff::default(),
             &NoProgress,
         )
         .unwrap();
         assert_eq!(report.models[0].tests[0].mse, 0.3125);
         let bad = series(&[1.0, 0.0], &[0.0, 1.0]);
-        let error = evaluate_models(&specs, &bad, &[test], &FitOptions::default(), &NoProgress)
-            .unwrap_err();
+        let error = evaluate_models(
+            &specs,
+            &bad,
+            &[test],
+            &FitOptions::default(),
+            &DaysOff::default(),
+            &NoProgress,
+        )
+        .unwrap_err();
         assert!(
             error
                 .to_string()

@@ -31,7 +31,8 @@
 //! * [`select`] — order and model selection on held-back data. [`stacking`] — weights that
 //!   combine models' out-of-sample predictions. [`anomaly`] — anomaly
 //!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`calibration`] —
-//!   reliability diagrams, expected calibration error, the Brier score's decomposition. [`naive`] — slow
+//!   reliability diagrams, expected calibration error, the Brier score's decomposition.
+//!   [`calendar`] — days off (holidays) predicted as the Sunday before. [`naive`] — slow
 //!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
 //!   use (results never depend on it); [`rng`] — seeded randomness; [`time`] — calendar
 //!   conversions and ISO 8601 parsing without a clock.
@@ -43,6 +44,7 @@
 #![deny(missing_docs)]
 
 pub mod anomaly;
+pub mod calendar;
 pub mod calibration;
 pub mod conformance;
 pub mod crossings;

@@ -48,10 +48,12 @@
 //! not repeat through [`std::error::Error::source`]).
 #![deny(missing_docs)]
 
-// Shared by every feature: bounded reads, atomic writes, text and model files.
+// Shared by every feature: bounded reads, atomic writes, text and model files, calendars.
 mod atomic;
 mod bounded;
 pub use bounded::{MAX_FILE_BYTES, read_regular_at_most};
+pub mod days_off;
+pub use days_off::{read_days_off, read_days_off_from};
 pub mod matrix;
 pub mod model_file;
 pub mod output;

@@ -2,10 +2,10 @@
 //! function (the command line prints it).
 
 use crate::spec::{FitOptions, Fitted, ModelSpec};
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::calibration::{Calibration, DEFAULT_BINS};
 use chronomap_core::error::BuildError;
 use chronomap_core::metrics::{PairedTTest, TestScore, binary_error, mse, paired_t_test};
-use chronomap_core::model::TemporalModel;
 
 /// One test set: times and observed values.
 #[derive(Clone, Copy, Debug)]
@@ -111,8 +111,44 @@ pub fn evaluate(
     train_values: &[f64],
     tests: &[TestSet<'_>],
     options: &FitOptions,
+    on_fitted: impl FnMut(&ModelEvaluation),
+) -> Result<EvalReport, (ModelSpec, BuildError)> {
+    evaluate_on_calendar(
+        specs,
+        train_times,
+        train_values,
+        tests,
+        options,
+        &DaysOff::default(),
+        on_fitted,
+    )
+}
+
+/// [`evaluate`] with a calendar of days off ([`chronomap_core::calendar`]): training
+/// observations on days off are left out, and test times on days off are predicted by their
+/// stand-ins (the Sunday before). With no days off this is [`evaluate`].
+///
+/// # Errors
+/// The first model that cannot be fitted, with its spec.
+pub fn evaluate_on_calendar(
+    specs: &[ModelSpec],
+    train_times: &[f64],
+    train_values: &[f64],
+    tests: &[TestSet<'_>],
+    options: &FitOptions,
+    days_off: &DaysOff,
     mut on_fitted: impl FnMut(&ModelEvaluation),
 ) -> Result<EvalReport, (ModelSpec, BuildError)> {
+    let (kept_times, kept_values): (Vec<f64>, Vec<f64>) = train_times
+        .iter()
+        .zip(train_values)
+        .filter(|(t, _)| !days_off.contains(**t))
+        .unzip();
+    let (train_times, train_values) = if days_off.is_empty() {
+        (train_times, train_values)
+    } else {
+        (kept_times.as_slice(), kept_values.as_slice())
+    };
     let mut models = Vec::with_capacity(specs.len());
     for spec in specs {
         let fitted = spec
@@ -121,7 +157,7 @@ pub fn evaluate(
         let (mut scores, mut calibration) = (Vec::new(), Vec::new());
         let (mut all_predictions, mut all_values) = (Vec::new(), Vec::new());
         for test in tests {
-            let predictions = fitted.model.predict_many(test.times);
+            let predictions = days_off.predict_many(&fitted.model, test.times);
             scores.push(TestScore {
                 mse: mse(&predictions, test.values),
                 binary_error: binary_error(&predictions, test.values),

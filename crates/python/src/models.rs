@@ -5,10 +5,11 @@
 use std::path::PathBuf;
 
 use chronomap_core::anomaly::detect_anomalies;
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::periods::{DAY, PeriodSet, WEEK};
 use chronomap_core::select::Criterion;
 use chronomap_core::{ObservationError, Parallelism, TemporalModel, binary_entropy};
-use chronomap_models::eval::{TestSet, evaluate};
+use chronomap_models::eval::{TestSet, evaluate_on_calendar};
 use chronomap_models::spec::{OrderSpec, Selection};
 use chronomap_models::{AnyModel, FitOptions, ModelSpec};
 use numpy::PyArray1;
@@ -843,7 +844,7 @@ fn series_arg<'py>(
 /// The experiment of `chronomap eval` (the FreMEn benchmarks): every model fitted on `train`
 /// and scored on every test set. Returns the columns of the command line's tables.
 #[pyfunction]
-#[pyo3(signature = (train, tests, models, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier"))]
+#[pyo3(signature = (train, tests, models, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier", days_off = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_table<'py>(
     py: Python<'py>,
@@ -854,7 +855,14 @@ pub fn evaluate_table<'py>(
     holdout: f64,
     max_order: usize,
     criterion: &str,
+    days_off: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let days_off = match days_off {
+        Some(path) => py
+            .detach(|| chronomap_io::read_days_off(&path))
+            .map_err(|e| errors::data(&e))?,
+        None => DaysOff::default(),
+    };
     let specs: Vec<ModelSpec> = models
         .iter()
         .map(|m| parse_spec(m))
@@ -882,7 +890,7 @@ pub fn evaluate_table<'py>(
         .collect();
     let (t, v) = (train_t.as_slice(), train_v.as_slice());
     let report = py
-        .detach(|| evaluate(&specs, t, v, &sets, &options, |_| {}))
+        .detach(|| evaluate_on_calendar(&specs, t, v, &sets, &options, &days_off, |_| {}))
         .map_err(|(spec, e)| match e.observation_index() {
             Some(i) => PyValueError::new_err(format!(
                 "model {spec}: training observation {} (train times[{i}]): {e}",
