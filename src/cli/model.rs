@@ -13,6 +13,10 @@ Example:
     --test data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz \\
     --test data/door_greg_2016/test_times_2.txt.xz,data/door_greg_2016/test_data_2.txt.xz \\
     --models mean,hist:24,fremen:2,fremen:4,fremen:auto,pergam:2,stm,auto --json
+  # Calibration: the reliability diagram, and the bank holidays predicted as Sundays
+  chronomap eval --train data/door_greg_2016/training_data.txt.xz \\
+    --test data/door_greg_2016/test_times_1.txt.xz,data/door_greg_2016/test_data_1.txt.xz \\
+    --models fremen:4,auto --plot reliability.png --days-off data/calendars/england_wales_2016.txt
   # One file split in time: train before the first time, test between the times and after
   chronomap eval --train data/witham_topological_nav/labdoor_velocity/training_data.txt.xz \
     --split-at 2014-08-20,2014-08-27 --models mean,hist:24,fremen:auto,hyt-em:auto,hyt-km";
