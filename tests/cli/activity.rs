@@ -114,6 +114,12 @@ fn atc_split_after_eight_days_json_has_the_issue_shape_and_measured_scores() {
     assert_eq!(json["nrmse"], b["log_additive"]["nrmse"]);
     assert_eq!(json["chi2"], b["log_additive"]["chi2"]);
     assert!(json["train_seconds"].as_f64().unwrap() >= 0.0);
+    // Log-AM's 90 % predictive intervals (the log-normal of its σ) on the last two days:
+    // measured 86.6 % of the rates inside, more below than above (docs/accuracy.md).
+    let interval = &json["interval"];
+    close(&interval["nominal"], 0.9, 0.0);
+    close(&interval["coverage"], 0.866, 0.005);
+    assert!(interval["below"].as_u64().unwrap() > interval["above"].as_u64().unwrap());
 }
 
 #[test]
@@ -155,6 +161,10 @@ fn train_and_test_files_are_scored_as_given() {
     // table's fit, not a second one.
     let json = eval_files(&train, &test, &["--model", "gp-hom", "--iterations", "50"]);
     assert_eq!(json["model"], "gp_hom");
+    assert!(
+        json["interval"].is_null(),
+        "GP-Hom has no predictive intervals here"
+    );
     assert_eq!(json["nrmse"], json["baselines"]["gp_hom"]["nrmse"]);
     assert_eq!(json["chi2"], json["baselines"]["gp_hom"]["chi2"]);
     // Measured 0.1979: the space-time GP shares the two cells' rates a little, so it lies

@@ -296,6 +296,13 @@ pub trait RatePredictor {
             .map(|(&x, &t)| self.predict(x, t))
             .collect()
     }
+
+    /// The interval that holds the rate in the cell centred at `x` at time `t` with probability
+    /// `coverage` (in `(0, 1)`) under the model's own predictive distribution; `None` for models
+    /// without one (the default).
+    fn interval(&self, _x: [f64; 2], _t: f64, _coverage: f64) -> Option<(f64, f64)> {
+        None
+    }
 }
 
 /// Normalised root mean square error, eq. (4.20):

@@ -22,6 +22,7 @@ use chronomap_activity::{
     RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_core::Parallelism;
+use chronomap_core::calibration::Coverage;
 use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::progress::Progress;
 use chronomap_hypertime::events::Event;
@@ -596,6 +597,24 @@ pub struct ActivityEvalReport {
     pub train_seconds: f64,
     /// With CoPA-Map at the top: what Algorithm 4.1 found (`None`: started from the day).
     pub copa_init: Option<Option<PeriodInit>>,
+    /// How the model's 90 % predictive intervals held the test rates (`None`: the model has
+    /// no predictive distribution).
+    pub interval: Option<Coverage>,
+}
+
+/// Nominal coverage of the predictive intervals `activity eval` scores.
+pub const INTERVAL_COVERAGE: f64 = 0.9;
+
+/// How `model`'s intervals of [`INTERVAL_COVERAGE`] held the rates of `test`; `None` if it has
+/// none.
+fn interval_coverage(model: &dyn RatePredictor, test: &RateSamples) -> Option<Coverage> {
+    let intervals: Option<Vec<(f64, f64)>> = test
+        .x()
+        .iter()
+        .zip(test.t())
+        .map(|(&x, &t)| model.interval(x, t, INTERVAL_COVERAGE))
+        .collect();
+    Some(Coverage::of(&intervals?, test.y()))
 }
 
 impl ActivityEvalReport {
@@ -633,6 +652,13 @@ impl ActivityEvalReport {
             "chi2": self.scores.chi2,
             "train_seconds": self.train_seconds,
             "copa_init": copa_init,
+            "interval": self.interval.map(|c| json!({
+                "nominal": INTERVAL_COVERAGE,
+                "coverage": c.coverage,
+                "mean_width": c.mean_width,
+                "below": c.below,
+                "above": c.above,
+            })),
             "train": self.train,
             "test": self.test,
             "split_at": self.split_at,
@@ -682,6 +708,17 @@ impl ActivityEvalReport {
             "\nmodel: {} ({why}); NRMSE {:.4}, chi2 {:.1}, trained in {:.3} s",
             self.model, self.scores.nrmse, self.scores.chi2, self.train_seconds
         );
+        if let Some(c) = &self.interval {
+            let _ = writeln!(
+                out,
+                "90 % predictive intervals: {:.1} % of the test rates inside ({} below, {} above), \
+                 mean width {:.1} per hour",
+                100.0 * c.coverage,
+                c.below,
+                c.above,
+                c.mean_width
+            );
+        }
         let _ = writeln!(
             out,
             "NRMSE: eq. (4.20), root mean square error over the mean test rate; chi2: eq. (4.21), \
@@ -745,6 +782,7 @@ pub fn evaluate_files(
         baselines: evaluation.baselines,
         selection: evaluation.selection,
         model: evaluation.model.name().to_string(),
+        interval: interval_coverage(evaluation.model.as_ref(), &test),
         scores: evaluation.scores,
         train_seconds: evaluation.train_seconds,
         copa_init: evaluation.copa_init,
