@@ -400,6 +400,14 @@ def test_topological_map_colours_edges_and_plans_now_or_later(page, service):
         "return Object.fromEntries([...document.querySelectorAll('#topo-map line[data-edge]')]"
         ".map(l => [l.dataset.edge, +l.dataset.success]))")
     assert drawn == success
+    # Each edge carries its 90 % duration interval, and its tooltip says it.
+    intervals = page.driver.execute_script(
+        "return Object.fromEntries([...document.querySelectorAll('#topo-map line[data-edge]')]"
+        ".map(l => [l.dataset.edge, l.dataset.durationInterval.split(',').map(Number)]))")
+    assert intervals == {e["id"]: e["duration_interval_secs"] for e in predicted}
+    title = page.driver.execute_script(
+        "return document.querySelector('#topo-map line[data-edge]').textContent")
+    assert "(90 %: " in title, title
 
     page.driver.find_element("id", "plan-run").click()
     page.ready("plan-chart")
