@@ -6,9 +6,9 @@ use std::io::Read;
 use std::path::Path;
 
 use chronomap_core::calendar::DaysOff;
-use chronomap_core::time::{days_from_civil, days_in_month};
+use chronomap_core::time::parse_iso8601;
 
-use crate::text::{DataError, DataErrorKind, for_each_data_line, read_data_file};
+use crate::text::{DataError, DataErrorKind, Fields, for_each_data_line, quote, read_data_file};
 
 /// Reads a calendar of days off from `path` (plain, `.xz` or `.gz`).
 ///
@@ -28,21 +28,14 @@ pub fn read_days_off(path: impl AsRef<Path>) -> Result<DaysOff, DataError> {
 pub fn read_days_off_from(name: &str, reader: impl Read) -> Result<DaysOff, DataError> {
     let mut days = Vec::new();
     for_each_data_line(name, reader, |_, line| {
-        let text = String::from_utf8_lossy(line);
-        let date = text.split_whitespace().next().unwrap_or_default();
-        let bad = || DataErrorKind::BadHeader {
-            reason: format!("date: {date:?} is not a date YYYY-MM-DD"),
-        };
-        let mut parts = date.splitn(3, '-').map(|p| p.parse::<u32>().ok());
-        let (Some(Some(y)), Some(Some(m)), Some(Some(d))) =
-            (parts.next(), parts.next(), parts.next())
-        else {
-            return Err(bad());
-        };
-        if date.len() != 10 || d == 0 || days_in_month(i64::from(y), m).is_none_or(|n| d > n) {
-            return Err(bad());
-        }
-        days.push(days_from_civil(i64::from(y), m, d));
+        let date = Fields::new(line).next().unwrap_or_default();
+        let day = std::str::from_utf8(date)
+            .ok()
+            .filter(|d| d.len() == "YYYY-MM-DD".len())
+            .and_then(|d| parse_iso8601(d).ok())
+            .ok_or_else(|| DataErrorKind::BadDate { text: quote(date) })?;
+        // A date alone is its midnight UTC: a whole number of days.
+        days.push((day / 86_400.0).floor() as i64);
         Ok(())
     })?;
     Ok(DaysOff::new(days))
@@ -75,5 +68,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(days.len(), 1);
+    }
+
+    #[test]
+    fn a_long_line_of_garbage_is_quoted_shortened() {
+        let garbage = "\u{1}x".repeat(5000);
+        let error = read_days_off_from("cal", garbage.as_bytes()).unwrap_err();
+        assert!(error.to_string().len() < 200, "{error}");
+        assert!(
+            error.to_string().contains("…\" is not a date YYYY-MM-DD"),
+            "{error}"
+        );
     }
 }

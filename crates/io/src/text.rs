@@ -294,6 +294,12 @@ pub enum DataErrorKind {
         /// The upper bound.
         max: f64,
     },
+    /// A line of a calendar of days off does not start with a date `YYYY-MM-DD` that exists.
+    #[error("date: {text:?} is not a date YYYY-MM-DD")]
+    BadDate {
+        /// The text found (shortened if long).
+        text: String,
+    },
     /// An event file starts like a file with a range header (a first data line of two fields)
     /// but does not continue like one.
     #[error("{reason}")]

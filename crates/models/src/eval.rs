@@ -139,15 +139,17 @@ pub fn evaluate_on_calendar(
     days_off: &DaysOff,
     mut on_fitted: impl FnMut(&ModelEvaluation),
 ) -> Result<EvalReport, (ModelSpec, BuildError)> {
-    let (kept_times, kept_values): (Vec<f64>, Vec<f64>) = train_times
-        .iter()
-        .zip(train_values)
-        .filter(|(t, _)| !days_off.contains(**t))
-        .unzip();
-    let (train_times, train_values) = if days_off.is_empty() {
-        (train_times, train_values)
-    } else {
-        (kept_times.as_slice(), kept_values.as_slice())
+    // Training observations on days off are left out (a copy only when there are days off).
+    let kept: Option<(Vec<f64>, Vec<f64>)> = (!days_off.is_empty()).then(|| {
+        train_times
+            .iter()
+            .zip(train_values)
+            .filter(|(t, _)| !days_off.contains(**t))
+            .unzip()
+    });
+    let (train_times, train_values) = match &kept {
+        Some((times, values)) => (times.as_slice(), values.as_slice()),
+        None => (train_times, train_values),
     };
     let mut models = Vec::with_capacity(specs.len());
     for spec in specs {

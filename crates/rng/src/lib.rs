@@ -138,6 +138,16 @@ impl Xoshiro256StarStar {
         -(1.0 - self.next_f64()).ln()
     }
 
+    /// A standard normal number (Box–Muller: `sqrt(−2 ln(1 − u)) · cos(2π v)` of two uniform
+    /// numbers `u` then `v`).
+    #[inline]
+    pub fn standard_normal(&mut self) -> f64 {
+        // 1 − u lies in (0, 1], so the logarithm is finite.
+        let u = 1.0 - self.next_f64();
+        let v = self.next_f64();
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
     /// Shuffles `items` uniformly (Fisher–Yates).
     pub fn shuffle<T>(&mut self, items: &mut [T]) {
         for i in (1..items.len()).rev() {

@@ -228,13 +228,11 @@ pub struct EdgeEvaluation {
 pub const EVALUATION_COVERAGE: f64 = 0.9;
 
 impl EdgeEvaluation {
-    /// Sets the success scores from the predictions of every attempt (`(p, p_static, y)`).
-    fn score_success(&mut self, scored: &[(f64, f64, f64)]) {
-        let column =
-            |k: usize| -> Vec<f64> { scored.iter().map(|&(p, q, y)| [p, q, y][k]).collect() };
-        let (p, p_static, y) = (column(0), column(1), column(2));
-        let model = Calibration::of(&p, &y, DEFAULT_BINS);
-        let fixed = Calibration::of(&p_static, &y, DEFAULT_BINS);
+    /// Sets the success scores from the model's and the static rates' predictions of every
+    /// attempt, and the attempts' outcomes.
+    fn score_success(&mut self, model: &[f64], fixed: &[f64], outcomes: &[f64]) {
+        let model = Calibration::of(model, outcomes, DEFAULT_BINS);
+        let fixed = Calibration::of(fixed, outcomes, DEFAULT_BINS);
         self.success_brier = model.brier;
         self.static_success_brier = fixed.brier;
         self.success_ece = model.ece;
@@ -682,14 +680,15 @@ impl EdgeModels {
         }
         let mut score = EdgeEvaluation::default();
         let (mut mse, mut static_mse) = (0.0, 0.0);
-        let mut scored = Vec::new();
+        let (mut model, mut fixed, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
         let (mut intervals, mut durations) = (Vec::new(), Vec::new());
         for (edge, list) in test.iter().enumerate() {
             let p_static = self.static_success_probability(edge);
             let d_static = self.static_duration(edge);
             for a in list {
-                let y = f64::from(u8::from(a.success));
-                scored.push((self.success_probability(edge, a.time), p_static, y));
+                model.push(self.success_probability(edge, a.time));
+                fixed.push(p_static);
+                outcomes.push(f64::from(u8::from(a.success)));
                 score.attempts += 1;
                 if a.success {
                     if let Some(interval) =
@@ -704,7 +703,7 @@ impl EdgeModels {
                 }
             }
         }
-        score.score_success(&scored);
+        score.score_success(&model, &fixed, &outcomes);
         let coverage = Coverage::of(&intervals, &durations);
         score.duration_coverage = coverage.coverage;
         score.duration_interval_width = coverage.mean_width;
@@ -748,19 +747,16 @@ impl EdgeModels {
     pub fn evaluate_online(&self, test: &[Vec<Attempt>]) -> Result<EdgeEvaluation, BuildError> {
         let mut score = self.evaluate(test)?;
         let mut live = self.clone();
-        let mut scored = Vec::new();
+        let (mut model, mut fixed, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
         for (edge, list) in test.iter().enumerate() {
             for a in list {
-                let y = f64::from(u8::from(a.success));
-                scored.push((
-                    live.success_probability(edge, a.time),
-                    live.static_success_probability(edge),
-                    y,
-                ));
+                model.push(live.success_probability(edge, a.time));
+                fixed.push(live.static_success_probability(edge));
+                outcomes.push(f64::from(u8::from(a.success)));
                 live.observe(edge, a)?;
             }
         }
-        score.score_success(&scored);
+        score.score_success(&model, &fixed, &outcomes);
         Ok(score)
     }
 
@@ -870,22 +866,18 @@ mod tests {
         map
     }
 
-    /// Durations drawn from a known law, `scale · exp(σ z)` with `z` standard normal
-    /// (Box–Muller), at times spread over four weeks.
+    /// Durations drawn from a known law, `scale · exp(σ z)` with `z` standard normal, at times
+    /// spread over four weeks.
     fn lognormal_attempts(n: usize, scale: f64, sigma: f64, seed: u64) -> Vec<Attempt> {
         let mut rng = chronomap_core::rng::Xoshiro256StarStar::seed_from_u64(seed);
         let mut times: Vec<f64> = (0..n).map(|_| 28.0 * 86_400.0 * rng.next_f64()).collect();
         times.sort_by(f64::total_cmp);
         times
             .into_iter()
-            .map(|time| {
-                let (u, v) = (1.0 - rng.next_f64(), rng.next_f64());
-                let z = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
-                Attempt {
-                    time,
-                    duration_secs: scale * (sigma * z).exp(),
-                    success: true,
-                }
+            .map(|time| Attempt {
+                time,
+                duration_secs: scale * (sigma * rng.standard_normal()).exp(),
+                success: true,
             })
             .collect()
     }

@@ -404,10 +404,7 @@ fn synthetic(seed: u64, n: usize) -> (Vec<Point>, Vec<f64>) {
     sample(seed, n, |rng, p| {
         let f = 1.0 + (0.5 + p[0]) * (2.0 * std::f64::consts::PI * p[2] / 24.0).sin();
         let sd = if p[0] < 0.5 { 0.05 } else { 0.4 };
-        // Box–Muller.
-        let (u1, u2) = (1.0 - rng.next_f64(), rng.next_f64());
-        let e = (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos();
-        f + sd * e
+        f + sd * rng.standard_normal()
     })
 }
 

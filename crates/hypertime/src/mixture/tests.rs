@@ -5,11 +5,9 @@
 use super::*;
 use chronomap_core::rng::Xoshiro256StarStar;
 
-/// A standard normal draw (Box–Muller).
+/// A standard normal draw.
 fn normal(rng: &mut Xoshiro256StarStar) -> f64 {
-    let u = 1.0 - rng.next_f64();
-    let v = rng.next_f64();
-    (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    rng.standard_normal()
 }
 
 /// `n` rows in `dim` dimensions from `k` random Gaussian blobs.
