@@ -2,6 +2,7 @@
 //! (`2016-03-25 Good Friday`); `#` starts a comment line. Read into
 //! [`chronomap_core::calendar::DaysOff`].
 
+use std::collections::BTreeSet;
 use std::io::Read;
 use std::path::Path;
 
@@ -26,7 +27,9 @@ pub fn read_days_off(path: impl AsRef<Path>) -> Result<DaysOff, DataError> {
 /// # Ok::<(), chronomap_io::DataError>(())
 /// ```
 pub fn read_days_off_from(name: &str, reader: impl Read) -> Result<DaysOff, DataError> {
-    let mut days = Vec::new();
+    // A set, not a list: a file repeating one date a billion times holds one day (at most
+    // 3,652,425 distinct dates YYYY-MM-DD exist).
+    let mut days = BTreeSet::new();
     for_each_data_line(name, reader, |_, line| {
         let date = Fields::new(line).next().unwrap_or_default();
         let day = std::str::from_utf8(date)
@@ -35,7 +38,7 @@ pub fn read_days_off_from(name: &str, reader: impl Read) -> Result<DaysOff, Data
             .and_then(|d| parse_iso8601(d).ok())
             .ok_or_else(|| DataErrorKind::BadDate { text: quote(date) })?;
         // A date alone is its midnight UTC: a whole number of days.
-        days.push((day / 86_400.0).floor() as i64);
+        days.insert((day / 86_400.0).floor() as i64);
         Ok(())
     })?;
     Ok(DaysOff::new(days))
