@@ -143,6 +143,19 @@ impl DurationSpread {
         Some((lower, upper))
     }
 
+    /// The durations (seconds) of `edge` at the stored levels `i / 200`, `i = 1..=199`, around
+    /// the expected duration `expected_secs`: its quantile function where it is known,
+    /// increasing; `None` when no edge had a residual.
+    pub fn durations(&self, edge: usize, expected_secs: f64) -> Option<Vec<f64>> {
+        let base = expected_secs.max(DURATION_FLOOR_SECS);
+        (1..=LEVELS)
+            .map(|i| {
+                let level = i as f64 / (LEVELS + 1) as f64;
+                Some(base * self.quantile(edge, level)?.exp())
+            })
+            .collect()
+    }
+
     /// Whether the stored values can be used (for models read from files), with `edges` edges.
     pub fn is_consistent(&self, edges: usize) -> bool {
         self.edges.len() == edges
