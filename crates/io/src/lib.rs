@@ -173,8 +173,8 @@ pub use matrix::{read_state_matrix, read_state_matrix_from};
 #[cfg(feature = "topo")]
 pub use model_file::{EDGE_MODELS_KIND, decode_edge_models, read_edge_models, write_edge_models};
 pub use model_file::{
-    ModelFileError, ModelFileErrorKind, decode_model, encode_model, read_model_file,
-    write_model_file,
+    ModelFileError, ModelFileErrorKind, decode_model, decode_model_or_older, encode_model,
+    read_model_file, read_model_file_or_older, write_model_file,
 };
 #[cfg(feature = "models")]
 pub use model_file::{decode_any_model, read_any_model, write_any_model};

@@ -264,12 +264,27 @@ pub fn encode_model<T: Serialize + ?Sized>(
             kind: quote(kind.as_bytes()),
         }));
     }
-    let mut bytes = postcard::to_allocvec(model).map_err(|e| {
+    let bytes = postcard::to_allocvec(model).map_err(|e| {
         ModelFileError::new(ModelFileErrorKind::Encode {
             kind: kind.to_owned(),
             reason: e.to_string(),
         })
     })?;
+    encode_payload(kind, bytes)
+}
+
+/// The file of a payload already serialised with postcard: the header (kind, length,
+/// checksum) in front of `bytes`. [`encode_model`] is this after serialising; on its own it
+/// rewraps a payload (for example to check that files of an older layout still read).
+///
+/// # Errors
+/// [`ModelFileErrorKind::InvalidKind`].
+pub fn encode_payload(kind: &str, mut bytes: Vec<u8>) -> Result<Vec<u8>, ModelFileError> {
+    if !is_valid_kind(kind) {
+        return Err(ModelFileError::new(ModelFileErrorKind::InvalidKind {
+            kind: quote(kind.as_bytes()),
+        }));
+    }
     let covered = format!(
         "{MAGIC} {FORMAT_VERSION} kind={kind} encoding=postcard bytes={}",
         bytes.len()
@@ -315,6 +330,42 @@ pub fn decode_model<T: DeserializeOwned>(bytes: &[u8]) -> Result<(String, T), Mo
         )));
     }
     Ok((kind, model))
+}
+
+/// Decodes a model whose layout grew a field at its end since older files were written: as
+/// the current layout `T`, else as the layout before the field, `Older`, converted (for
+/// example with the new field unknown). The two cannot be confused: a payload must decode
+/// completely, and an older payload ends before the new field, a newer one has it left over.
+///
+/// # Errors
+/// As [`decode_model`] for the current layout, when neither decodes.
+pub fn decode_model_or_older<T, Older>(bytes: &[u8]) -> Result<(String, T), ModelFileError>
+where
+    T: DeserializeOwned,
+    Older: DeserializeOwned + Into<T>,
+{
+    decode_model::<T>(bytes).or_else(|current| {
+        decode_model::<Older>(bytes)
+            .map(|(kind, older)| (kind, older.into()))
+            .map_err(|_| current)
+    })
+}
+
+/// Reads a model file as [`decode_model_or_older`] decodes it.
+///
+/// # Errors
+/// As [`read_model_file`].
+pub fn read_model_file_or_older<T, Older>(
+    path: impl AsRef<Path>,
+) -> Result<(String, T), ModelFileError>
+where
+    T: DeserializeOwned,
+    Older: DeserializeOwned + Into<T>,
+{
+    let path = path.as_ref();
+    let bytes = crate::bounded::read(path)
+        .map_err(|io| ModelFileError::at(path, ModelFileErrorKind::Io { action: "read", io }))?;
+    decode_model_or_older::<T, Older>(&bytes).map_err(|e| e.in_file(path))
 }
 
 /// Writes `model` to `path` as a model file of the given kind, atomically: either the complete
@@ -428,7 +479,9 @@ pub fn decode_edge_models(
             reason: format!("this is a {kind:?} model, not the edge models of a topological map"),
         }));
     }
-    let (_, mut models): (String, chronomap_topo::edges::EdgeModels) = decode_model(bytes)?;
+    // Files written before the models kept their durations' spread read without it.
+    let (_, mut models): (String, chronomap_topo::edges::EdgeModels) =
+        decode_model_or_older::<_, chronomap_topo::edges::EdgeModelsWithoutSpread>(bytes)?;
     models.reindex();
     models
         .check()

@@ -287,10 +287,31 @@ pub struct EdgeModels {
     config: EdgeModelConfig,
     edges: Vec<EdgeModel>,
     default_duration_secs: f64,
-    /// The spread of durations around the models (empty in files written before it existed:
-    /// no intervals then).
-    #[serde(default)]
+    /// The spread of durations around the models (empty in files written before it existed,
+    /// read through [`EdgeModelsWithoutSpread`]: no intervals then).
     duration_spread: DurationSpread,
+}
+
+/// The layout of [`EdgeModels`] in files written before they kept the spread of their
+/// durations: read as models without duration intervals.
+#[derive(Deserialize)]
+pub struct EdgeModelsWithoutSpread {
+    map: TopoMap,
+    config: EdgeModelConfig,
+    edges: Vec<EdgeModel>,
+    default_duration_secs: f64,
+}
+
+impl From<EdgeModelsWithoutSpread> for EdgeModels {
+    fn from(old: EdgeModelsWithoutSpread) -> Self {
+        EdgeModels {
+            map: old.map,
+            config: old.config,
+            edges: old.edges,
+            default_duration_secs: old.default_duration_secs,
+            duration_spread: DurationSpread::default(),
+        }
+    }
 }
 
 /// The model of success probabilities the configuration asks for.

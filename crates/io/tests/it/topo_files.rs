@@ -1084,6 +1084,53 @@ fn witham_edge_models_round_trip_through_a_checked_model_file() {
     fs::remove_dir_all(dir).unwrap();
 }
 
+/// The payload of `bytes` with `suffix` cut from its end, in a new container of the same
+/// kind: the file a model whose layout lacked its last field would have been.
+fn without_last_field(bytes: &[u8], suffix: &[u8]) -> Vec<u8> {
+    let header_end = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
+    let header = std::str::from_utf8(&bytes[..header_end]).unwrap();
+    let kind = header
+        .split_whitespace()
+        .nth(2)
+        .unwrap()
+        .strip_prefix("kind=")
+        .unwrap();
+    let payload = &bytes[header_end..];
+    assert!(
+        payload.ends_with(suffix),
+        "the last field is not at the end"
+    );
+    let older = payload[..payload.len() - suffix.len()].to_vec();
+    chronomap_io::model_file::encode_payload(kind, older).unwrap()
+}
+
+/// An edge-model file written before the models kept the spread of their durations (the
+/// same layout without its last field) still reads: the same predictions, no intervals.
+#[test]
+fn edge_models_written_before_their_duration_spread_read_without_intervals() {
+    use chronomap_io::model_file::{decode_edge_models, encode_model};
+    use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
+
+    let stats = read_edge_directory(witham_edges()).unwrap();
+    let models = EdgeModels::fit(stats.map, &stats.attempts, EdgeModelConfig::default()).unwrap();
+    let t = 1_409_788_800.0;
+    assert!(models.duration_interval(0, t, 0.9).is_some());
+    let current = encode_model(chronomap_io::EDGE_MODELS_KIND, &models).unwrap();
+    let spread = postcard::to_allocvec(models.duration_spread()).unwrap();
+    let older = without_last_field(&current, &spread);
+    let loaded = decode_edge_models(&older).unwrap();
+    for e in 0..models.map().edges().len() {
+        assert_eq!(
+            models.expected_duration(e, t).to_bits(),
+            loaded.expected_duration(e, t).to_bits()
+        );
+        assert_eq!(loaded.duration_interval(e, t, 0.9), None);
+    }
+    // A payload cut short anywhere else is still an error, not an older file.
+    let broken = without_last_field(&current, &current[current.len() - spread.len() - 1..]);
+    assert!(decode_edge_models(&broken).is_err());
+}
+
 #[test]
 fn witham_split_writes_directories_that_read_back_exactly() {
     use chronomap_io::topo_files::write_edge_directory;
