@@ -66,6 +66,7 @@ pub mod gphom;
 pub mod grids;
 pub mod init;
 pub mod lograte;
+pub mod nugget;
 pub mod planning;
 pub mod truth;
 pub mod whyte;
@@ -297,10 +298,18 @@ pub trait RatePredictor {
             .collect()
     }
 
-    /// The interval that holds the rate in the cell centred at `x` at time `t` with probability
-    /// `coverage` (in `(0, 1)`) under the model's own predictive distribution; `None` for models
-    /// without one (the default).
+    /// The interval that holds the rate of a whole time bin (what the ground truth of
+    /// [Stüde 2024] §4.3.2 counts: people in the cell over the whole hour) in the cell centred
+    /// at `x` at time `t` with probability `coverage` (in `(0, 1)`) under the model's own
+    /// predictive distribution; `None` for models without one (the default).
     fn interval(&self, _x: [f64; 2], _t: f64, _coverage: f64) -> Option<(f64, f64)> {
+        None
+    }
+
+    /// The interval that holds one observation like the training samples (for a robot's
+    /// rates: a glimpse of the cell, with its counting noise) with probability `coverage`;
+    /// `None` for models without one (the default).
+    fn observation_interval(&self, _x: [f64; 2], _t: f64, _coverage: f64) -> Option<(f64, f64)> {
         None
     }
 }

@@ -55,6 +55,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::{ActivityError, CellKey, RatePredictor, RateSamples};
+use crate::nugget::{BinResidual, process_variance};
 
 /// How [`LogAdditive`] is fitted.
 #[derive(Clone, Debug, PartialEq)]
@@ -166,6 +167,40 @@ pub struct LogAdditive {
     /// Hold-out RMSE of ln(1 + ŷ) of every candidate `(τ, κ)`, in the order tried (empty
     /// without a hold-out).
     holdout_scores: Vec<HoldoutScore>,
+    /// Standard deviation of a whole bin's `ln(1 + rate)` around the model: the correlated part
+    /// of `σ`, the glimpses' noise left out ([`crate::nugget`], (N3)). `None` where the
+    /// training samples do not tell the two apart, and in files written before it existed.
+    process_sigma: Option<f64>,
+}
+
+/// The layout of [`LogAdditive`] in files written before it had `process_sigma`: read as a
+/// model without intervals of whole bins.
+#[derive(Deserialize)]
+pub struct LogAdditiveWithoutProcessSigma {
+    period: f64,
+    profile: Vec<f64>,
+    cells: Vec<LogCell>,
+    fallback: f64,
+    shrinkage: f64,
+    memory: f64,
+    sigma: f64,
+    holdout_scores: Vec<HoldoutScore>,
+}
+
+impl From<LogAdditiveWithoutProcessSigma> for LogAdditive {
+    fn from(old: LogAdditiveWithoutProcessSigma) -> Self {
+        LogAdditive {
+            period: old.period,
+            profile: old.profile,
+            cells: old.cells,
+            fallback: old.fallback,
+            shrinkage: old.shrinkage,
+            memory: old.memory,
+            sigma: old.sigma,
+            holdout_scores: old.holdout_scores,
+            process_sigma: None,
+        }
+    }
 }
 
 impl LogAdditive {
@@ -212,8 +247,10 @@ impl LogAdditive {
                 }
             }
         }
-        let mut model = MainEffects::fit(train, config, memory).with_interaction(shrinkage);
+        let main = MainEffects::fit(train, config, memory);
+        let mut model = main.with_interaction(shrinkage);
         model.holdout_scores = holdout_scores;
+        model.process_sigma = main.process_sigma(&model);
         Ok(model)
     }
 
@@ -240,6 +277,12 @@ impl LogAdditive {
     /// Residual standard deviation `σ` of (L2) on the training samples.
     pub fn sigma(&self) -> f64 {
         self.sigma
+    }
+
+    /// Standard deviation of a whole bin's `ln(1 + rate)` around the model, the noise of the
+    /// robot's short observations left out ([`crate::nugget`], (N3)); `None` if unknown.
+    pub fn process_sigma(&self) -> Option<f64> {
+        self.process_sigma
     }
 
     /// The training cells and their terms.
@@ -306,6 +349,9 @@ impl LogAdditive {
             && self.fallback.is_finite()
             && self.sigma.is_finite()
             && self.sigma >= 0.0
+            && self
+                .process_sigma
+                .is_none_or(|s| s.is_finite() && s >= 0.0 && s <= self.sigma)
             && self.shrinkage > 0.0
             && self.memory > 0.0;
         if !finite {
@@ -336,17 +382,39 @@ impl RatePredictor for LogAdditive {
         self.log_mean(x, t).exp_m1().max(0.0)
     }
 
-    /// The central interval of the log-normal `1 + y ~ LogNormal(m, σ²)` of (L2):
-    /// `exp(m ± z σ) − 1` (clipped at 0), `z` the standard normal quantile of
-    /// `(1 + coverage) / 2`. `σ` is the residual deviation on the training samples.
+    /// The rate over a whole bin: the central interval of `1 + y ~ LogNormal(m, σ_u²)`,
+    /// `exp(m ± z σ_u) − 1` (clipped at 0), `z` the standard normal quantile of
+    /// `(1 + coverage) / 2` and `σ_u` the [process deviation](LogAdditive::process_sigma)
+    /// (N3) of [`crate::nugget`]: the spread of whole hours, without the glimpses' noise.
     fn interval(&self, x: [f64; 2], t: f64, coverage: f64) -> Option<(f64, f64)> {
+        self.log_normal_interval(x, t, coverage, self.process_sigma?)
+    }
+
+    /// One observation like the training samples: the central interval of the log-normal of
+    /// (L2), `exp(m ± z σ) − 1` (clipped at 0), `σ` the residual deviation on the training
+    /// samples (process and glimpse noise together).
+    fn observation_interval(&self, x: [f64; 2], t: f64, coverage: f64) -> Option<(f64, f64)> {
+        self.log_normal_interval(x, t, coverage, self.sigma)
+    }
+}
+
+impl LogAdditive {
+    /// `exp(m ± z s) − 1` (clipped at 0), `z` the standard normal quantile of
+    /// `(1 + coverage) / 2`; `None` unless `coverage` is in `(0, 1)`.
+    fn log_normal_interval(
+        &self,
+        x: [f64; 2],
+        t: f64,
+        coverage: f64,
+        s: f64,
+    ) -> Option<(f64, f64)> {
         use statrs::distribution::{ContinuousCDF, Normal};
         if !(coverage > 0.0 && coverage < 1.0) {
             return None;
         }
         let z = Normal::standard().inverse_cdf(0.5 + coverage / 2.0);
         let m = self.log_mean(x, t);
-        let bound = |k: f64| (m + k * z * self.sigma).exp_m1().max(0.0);
+        let bound = |k: f64| (m + k * z * s).exp_m1().max(0.0);
         Some((bound(-1.0), bound(1.0)))
     }
 }
@@ -382,6 +450,8 @@ struct MainEffects {
     profile: Vec<f64>,
     sample_cell: Vec<usize>,
     sample_bin: Vec<usize>,
+    /// The period (day) index `⌊t / P⌋` of every sample.
+    sample_day: Vec<i64>,
     weight: Vec<f64>,
     z: Vec<f64>,
 }
@@ -400,6 +470,8 @@ impl MainEffects {
         }
         let t = train.t();
         let sample_bin: Vec<usize> = t.iter().map(|&t| phase_bin(t, period, h)).collect();
+        // Saturating: a day index beyond ±2^63 (absurd times) only merges far-away days.
+        let sample_day: Vec<i64> = t.iter().map(|&t| (t / period).floor() as i64).collect();
         // (L7): whole periods before the last training time.
         let t_max = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let weight: Vec<f64> = t
@@ -466,6 +538,7 @@ impl MainEffects {
             profile,
             sample_cell,
             sample_bin,
+            sample_day,
             weight,
             z,
         }
@@ -520,7 +593,30 @@ impl MainEffects {
             memory: self.memory,
             sigma: (sse / total).sqrt(),
             holdout_scores: Vec::new(),
+            process_sigma: None,
         }
+    }
+
+    /// The process deviation (N3) of `model`'s residuals on these samples
+    /// ([`crate::nugget::process_variance`]), at most `σ`.
+    fn process_sigma(&self, model: &LogAdditive) -> Option<f64> {
+        let residuals: Vec<BinResidual> = (0..self.z.len())
+            .map(|i| {
+                let (c, b) = (self.sample_cell[i], self.sample_bin[i]);
+                BinResidual {
+                    cell: c,
+                    day: self.sample_day[i],
+                    bin: b,
+                    residual: self.z[i]
+                        - self.level[c]
+                        - self.profile[b]
+                        - model.cells[c].interaction[b],
+                    weight: self.weight[i],
+                }
+            })
+            .collect();
+        let variance = process_variance(&residuals)?.variance;
+        Some(variance.sqrt().min(model.sigma))
     }
 }
 
@@ -528,11 +624,11 @@ impl MainEffects {
 mod tests {
     use super::*;
 
-    /// The conformance check of Log-AM's intervals: rates drawn from the law of (L2) itself
-    /// (`ln(1 + y) = a_c + b_h + ε`, `ε ~ N(0, 0.5²)`, 10 cells, 12 bins of a 12-hour day, 20
-    /// days) are held by the intervals of 50, 90 and 99 % that often.
+    /// The conformance check of Log-AM's observation intervals: rates drawn from the law of
+    /// (L2) itself (`ln(1 + y) = a_c + b_h + ε`, `ε ~ N(0, 0.5²)`, 10 cells, 12 bins of a
+    /// 12-hour day, 20 days) are held by the intervals of 50, 90 and 99 % that often.
     #[test]
-    fn intervals_cover_draws_from_the_models_own_law() {
+    fn observation_intervals_cover_draws_from_the_models_own_law() {
         let mut rng = chronomap_core::rng::Xoshiro256StarStar::seed_from_u64(9);
         let mut normal = move || rng.standard_normal();
         let mut draw = |days: std::ops::Range<u32>, repeats: u32| {
@@ -568,7 +664,7 @@ mod tests {
                 .x()
                 .iter()
                 .zip(fresh.t())
-                .map(|(&x, &t)| model.interval(x, t, coverage).unwrap())
+                .map(|(&x, &t)| model.observation_interval(x, t, coverage).unwrap())
                 .collect();
             chronomap_core::conformance::check_interval_coverage(
                 &format!("Log-AM, {coverage}"),
@@ -577,7 +673,80 @@ mod tests {
                 fresh.y(),
             );
         }
-        assert_eq!(model.interval([0.25, 0.25], 0.0, 1.0), None);
+        assert_eq!(model.observation_interval([0.25, 0.25], 0.0, 1.0), None);
+    }
+
+    /// The conformance check of Log-AM's intervals of whole bins, on the law of
+    /// [`crate::nugget`] (N1): per cell and day an AR(1) process over the 12 hourly bins
+    /// (deviation 0.5, correlation 0.8 from hour to hour) on `a_c + b_h`; a training sample
+    /// is a glimpse, the process plus white noise of deviation 0.8. Fresh days' whole bins
+    /// (the process alone) are held by the intervals of 50, 90 and 99 % that often, fresh
+    /// glimpses by the observation intervals.
+    #[test]
+    fn whole_bin_intervals_cover_the_process_under_glimpse_noise() {
+        let mut rng = chronomap_core::rng::Xoshiro256StarStar::seed_from_u64(11);
+        let mut draw = |days: std::ops::Range<u32>, glimpse: bool| {
+            let mut s = RateSamples::default();
+            for c in 0..30u32 {
+                for day in days.clone() {
+                    let mut u = 0.5 * rng.standard_normal();
+                    for h in 0..12u32 {
+                        if h > 0 {
+                            u = 0.8 * u + 0.3 * rng.standard_normal(); // 0.5 · sqrt(1 − 0.8²)
+                        }
+                        let e = if glimpse {
+                            0.8 * rng.standard_normal()
+                        } else {
+                            0.0
+                        };
+                        let z = 1.5 + 0.05 * f64::from(c) + (f64::from(h) * 0.5).sin() + u + e;
+                        let x = [0.25 + 0.5 * f64::from(c), 0.25];
+                        s.push(x, f64::from(day * 12 + h), z.exp_m1().max(0.0))
+                            .unwrap();
+                    }
+                }
+            }
+            s
+        };
+        let train = draw(0..60, true);
+        let whole_bins = draw(60..160, false);
+        let glimpses = draw(60..160, true);
+        let config = LogAdditiveConfig {
+            shrinkage: vec![f64::INFINITY],
+            memory: vec![f64::INFINITY],
+            ..LogAdditiveConfig::default()
+        };
+        let model = LogAdditive::fit(&train, &config).unwrap();
+        let process = model.process_sigma().unwrap();
+        assert!((process - 0.5).abs() < 0.03, "σ_u {process}");
+        assert!(
+            (model.sigma() - 0.5f64.hypot(0.8)).abs() < 0.03,
+            "σ {}",
+            model.sigma()
+        );
+        for coverage in [0.5, 0.9, 0.99] {
+            for (what, fresh) in [("whole bins", &whole_bins), ("glimpses", &glimpses)] {
+                let intervals: Vec<(f64, f64)> = fresh
+                    .x()
+                    .iter()
+                    .zip(fresh.t())
+                    .map(|(&x, &t)| {
+                        if what == "glimpses" {
+                            model.observation_interval(x, t, coverage)
+                        } else {
+                            model.interval(x, t, coverage)
+                        }
+                        .unwrap()
+                    })
+                    .collect();
+                chronomap_core::conformance::check_interval_coverage(
+                    &format!("Log-AM {what}, {coverage}"),
+                    coverage,
+                    &intervals,
+                    fresh.y(),
+                );
+            }
+        }
     }
 
     fn samples(rows: &[([f64; 2], f64, f64)]) -> RateSamples {

@@ -15,6 +15,7 @@ use chronomap_activity::extract::{
     ExtractConfig, Extraction, ObstacleGrid, RobotPath, extract_with_progress, ground_truth,
 };
 use chronomap_activity::grids::{RegionGrid, check_aligned, detection_bins, distinct_cells};
+use chronomap_activity::lograte::LogAdditiveWithoutProcessSigma;
 use chronomap_activity::truth::{TruthGrid, person_counts};
 use chronomap_activity::{
     AnyActivityModel, Baseline, BaselineConfig, BaselineSelection, CopaConfig, CopaMap,
@@ -27,12 +28,12 @@ use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::progress::Progress;
 use chronomap_hypertime::events::Event;
 use chronomap_io::DataError;
-use chronomap_io::model_file::ModelFileError;
+use chronomap_io::model_file::{ModelFileError, read_model_file_or_older};
 use chronomap_io::navmap::{LoadSemantics, NavMapError, load_map};
 use chronomap_io::rate_predictions::RatePrediction;
 use chronomap_io::{
-    LOG_ADDITIVE_KIND, read_copa_map, read_model_file, read_rate_samples, read_robot_paths,
-    read_track_files, read_track_point_files,
+    LOG_ADDITIVE_KIND, read_copa_map, read_rate_samples, read_robot_paths, read_track_files,
+    read_track_point_files,
 };
 use chronomap_spatial::OccupancyMap;
 use chronomap_spatial::occupancy::WALL_PERCENT;
@@ -71,7 +72,9 @@ pub fn open_activity_model(path: &Path) -> Result<AnyActivityModel, OpenActivity
     if !log_additive {
         return Ok(AnyActivityModel::Copa(Box::new(read_copa_map(path)?)));
     }
-    let (_, model): (String, LogAdditive) = read_model_file(path)?;
+    // Files written before Log-AM knew the spread of whole hours read without it.
+    let (_, model): (String, LogAdditive) =
+        read_model_file_or_older::<_, LogAdditiveWithoutProcessSigma>(path)?;
     model
         .check()
         .map_err(|e| OpenActivityError::InconsistentLogAdditive {
@@ -597,24 +600,41 @@ pub struct ActivityEvalReport {
     pub train_seconds: f64,
     /// With CoPA-Map at the top: what Algorithm 4.1 found (`None`: started from the day).
     pub copa_init: Option<Option<PeriodInit>>,
-    /// How the model's 90 % predictive intervals held the test rates (`None`: the model has
-    /// no predictive distribution).
+    /// How the model's 90 % predictive intervals of whole bins ([`RatePredictor::interval`])
+    /// held the test rates (`None`: the model has none).
     pub interval: Option<Coverage>,
+    /// How its 90 % intervals of one observation like the training samples
+    /// ([`RatePredictor::observation_interval`]) held them.
+    pub observation_interval: Option<Coverage>,
 }
 
 /// Nominal coverage of the predictive intervals `activity eval` scores.
 pub const INTERVAL_COVERAGE: f64 = 0.9;
 
-/// How `model`'s intervals of [`INTERVAL_COVERAGE`] held the rates of `test`; `None` if it has
-/// none.
-fn interval_coverage(model: &dyn RatePredictor, test: &RateSamples) -> Option<Coverage> {
+/// How the intervals of [`INTERVAL_COVERAGE`] that `interval` gives at each test sample held
+/// the rates of `test`; `None` if there are none.
+fn interval_coverage(
+    test: &RateSamples,
+    interval: impl Fn([f64; 2], f64, f64) -> Option<(f64, f64)>,
+) -> Option<Coverage> {
     let intervals: Option<Vec<(f64, f64)>> = test
         .x()
         .iter()
         .zip(test.t())
-        .map(|(&x, &t)| model.interval(x, t, INTERVAL_COVERAGE))
+        .map(|(&x, &t)| interval(x, t, INTERVAL_COVERAGE))
         .collect();
     Some(Coverage::of(&intervals?, test.y()))
+}
+
+/// A coverage as `activity eval --json` prints it.
+fn coverage_json(c: Coverage) -> Value {
+    json!({
+        "nominal": INTERVAL_COVERAGE,
+        "coverage": c.coverage,
+        "mean_width": c.mean_width,
+        "below": c.below,
+        "above": c.above,
+    })
 }
 
 impl ActivityEvalReport {
@@ -652,13 +672,8 @@ impl ActivityEvalReport {
             "chi2": self.scores.chi2,
             "train_seconds": self.train_seconds,
             "copa_init": copa_init,
-            "interval": self.interval.map(|c| json!({
-                "nominal": INTERVAL_COVERAGE,
-                "coverage": c.coverage,
-                "mean_width": c.mean_width,
-                "below": c.below,
-                "above": c.above,
-            })),
+            "interval": self.interval.map(coverage_json),
+            "observation_interval": self.observation_interval.map(coverage_json),
             "train": self.train,
             "test": self.test,
             "split_at": self.split_at,
@@ -708,16 +723,21 @@ impl ActivityEvalReport {
             "\nmodel: {} ({why}); NRMSE {:.4}, chi2 {:.1}, trained in {:.3} s",
             self.model, self.scores.nrmse, self.scores.chi2, self.train_seconds
         );
-        if let Some(c) = &self.interval {
-            let _ = writeln!(
-                out,
-                "90 % predictive intervals: {:.1} % of the test rates inside ({} below, {} above), \
-                 mean width {:.1} per hour",
-                100.0 * c.coverage,
-                c.below,
-                c.above,
-                c.mean_width
-            );
+        for (what, interval) in [
+            ("whole hours", &self.interval),
+            ("one observation", &self.observation_interval),
+        ] {
+            if let Some(c) = interval {
+                let _ = writeln!(
+                    out,
+                    "90 % predictive intervals of {what}: {:.1} % of the test rates inside ({} \
+                     below, {} above), mean width {:.1} per hour",
+                    100.0 * c.coverage,
+                    c.below,
+                    c.above,
+                    c.mean_width
+                );
+            }
         }
         let _ = writeln!(
             out,
@@ -782,7 +802,10 @@ pub fn evaluate_files(
         baselines: evaluation.baselines,
         selection: evaluation.selection,
         model: evaluation.model.name().to_string(),
-        interval: interval_coverage(evaluation.model.as_ref(), &test),
+        interval: interval_coverage(&test, |x, t, c| evaluation.model.interval(x, t, c)),
+        observation_interval: interval_coverage(&test, |x, t, c| {
+            evaluation.model.observation_interval(x, t, c)
+        }),
         scores: evaluation.scores,
         train_seconds: evaluation.train_seconds,
         copa_init: evaluation.copa_init,
@@ -1250,6 +1273,7 @@ impl LogAmFitReport {
                 "rmse": s.rmse,
             })).collect::<Vec<_>>(),
             "sigma": m.sigma(),
+            "process_sigma": m.process_sigma(),
             "profile": m.profile(),
             "fit_seconds": self.fit_seconds,
         })
@@ -1259,14 +1283,17 @@ impl LogAmFitReport {
     pub fn text(&self) -> String {
         format!(
             "{}: Log-AM fitted in {:.3} s on {} samples, {} cells; memory τ = {} days, \
-             shrinkage κ = {} (hold-out); residual σ {:.3} in ln(1 + rate)\n",
+             shrinkage κ = {} (hold-out); residual σ {:.3} in ln(1 + rate), of whole hours {}\n",
             self.model,
             self.fit_seconds,
             self.samples,
             self.cells,
             self.fitted.memory(),
             self.fitted.shrinkage(),
-            self.fitted.sigma()
+            self.fitted.sigma(),
+            self.fitted
+                .process_sigma()
+                .map_or_else(|| "unknown".to_string(), |s| format!("{s:.3}"))
         )
     }
 }
@@ -1535,6 +1562,25 @@ mod tests {
                 other.display()
             )
         );
+        // A file written before Log-AM had its process deviation (the same payload without
+        // its last field, an `Option<f64>`: 9 bytes when set) opens as the same model
+        // without it.
+        assert!(model.process_sigma().is_some());
+        let current = std::fs::read(&path).unwrap();
+        let header_end = current.iter().position(|&b| b == b'\n').unwrap() + 1;
+        let older = current[header_end..current.len() - 9].to_vec();
+        let older_path = dir.join("older.cmlog");
+        let older = chronomap_io::model_file::encode_payload(LOG_ADDITIVE_KIND, older).unwrap();
+        std::fs::write(&older_path, older).unwrap();
+        let AnyActivityModel::LogAdditive(opened) = open_activity_model(&older_path).unwrap()
+        else {
+            panic!("not Log-AM");
+        };
+        assert_eq!(opened.process_sigma(), None);
+        assert_eq!(opened.sigma(), model.sigma());
+        assert_eq!(opened.cells(), model.cells());
+        assert_eq!(opened.interval([0.25, 0.25], 3.0, 0.9), None);
+
         let missing = dir.join("missing");
         let error = open_activity_model(&missing).unwrap_err();
         assert!(matches!(error, OpenActivityError::ModelFile(_)), "{error}");
