@@ -823,10 +823,10 @@ pub fn plan_deadline(
     options: &DeadlineOptions,
 ) -> Result<DeadlinePlanned, DeadlineError> {
     let (bucket_secs, k) = buckets_for(deadline_secs, options.bucket_secs)?;
-    // Refuse before building anything when K alone is absurd.
-    check_cells(1, k, options.max_cells)?;
-    let buckets = k as usize;
     let planned = plan_full(models, start, task, time, &options.solver)?;
+    // Refuse before allocating anything of the size of K (`k as usize` saturates).
+    check_cells(planned.product.states().len(), k, options.max_cells)?;
+    let buckets = k as usize;
     let (laws, duration_quantiles) = edge_laws(models, time, bucket_secs, buckets);
     let mdp = planned.product.mdp();
     let prefer = &planned.solution.policy_choice;
