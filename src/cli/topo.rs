@@ -26,9 +26,15 @@ Examples:
   chronomap plan --model witham.cmt --from Station --task \"F Kitchen\" --day-table --plot kitchen.png
   chronomap plan --model witham.cmt --from Station --task \"!Ramp1 U Kitchen\" --time 2014-09-04T10:00Z \\
       --prism witham.nm --drn witham.drn
+  chronomap plan --model witham.cmt --from Kitchen --task \"F Station\" --time 2014-09-04T14:00Z \\
+      --deadline 100 --confidence 0.5 --plot kitchen-deadline.png
 
 Tasks are co-safe LTL over node names: ! & | -> X F U ( ) true false; e.g. \"F Kitchen\",
-\"F (Printer & F Kitchen)\" (visit in order), \"!Ramp1 U Kitchen\" (avoid Ramp1 until Kitchen).";
+\"F (Printer & F Kitchen)\" (visit in order), \"!Ramp1 U Kitchen\" (avoid Ramp1 until Kitchen).
+
+--deadline D plans for the greatest probability of fulfilling the task within D seconds (every
+edge succeeds and the durations, drawn from each edge's duration quantiles, sum to at most D),
+rounding durations up to buckets of --bucket-secs: the probability is a lower bound.";
 
 /// `chronomap topo ...`.
 #[derive(Debug, Subcommand)]
@@ -240,9 +246,22 @@ pub struct PlanArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Write the table as a PNG heat map (with --day-table).
-    #[arg(long, conflicts_with = "time")]
+    /// Write a PNG: the table as a heat map (with --day-table), or the probability of
+    /// fulfilling the task within d seconds for every d up to the deadline (with --deadline).
+    #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Plan for the greatest probability of fulfilling the task within this many seconds of
+    /// --time ("arrive by T"): a finite number > 0.
+    #[arg(long, value_parser = parse_positive, conflicts_with = "day_table")]
+    pub deadline: Option<f64>,
+    /// With --deadline: the probability asked for; the report says whether the plan reaches
+    /// it and within how many seconds it could [default: 0.95].
+    #[arg(long, value_parser = parse_probability, requires = "deadline")]
+    pub confidence: Option<f64>,
+    /// With --deadline: the width of the time buckets durations are rounded up to, seconds
+    /// [default: the deadline / 600, at least 1].
+    #[arg(long, value_parser = parse_positive, requires = "deadline")]
+    pub bucket_secs: Option<f64>,
     /// Write the Navigation MDP at --time in the PRISM language (STRANDS layout) and its
     /// property next to it (`.props`).
     #[arg(long, conflicts_with = "day_table")]

@@ -5,11 +5,11 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use chronomap_app::topo::{self, DayTable, plan_at, plan_report};
+use chronomap_app::topo::{self, DayTable, TimedPlan, deadline_report, plan_at, plan_report};
 use chronomap_core::progress::NoProgress;
 use chronomap_io::output::write_output;
 use chronomap_io::{read_edge_models, write_route_geojson, write_tmap2};
-use chronomap_plot::render_heatmap_png;
+use chronomap_plot::{render_heatmap_png, render_panels_png};
 use chronomap_topo::edges::EdgeModels;
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::Task;
@@ -115,6 +115,12 @@ pub fn predict(args: &TopoPredictArgs) -> Result<()> {
 }
 
 pub fn plan(args: &PlanArgs) -> Result<()> {
+    if args.plot.is_some() && args.when.time.is_some() && args.deadline.is_none() {
+        return Err(usage(
+            "--plot draws the day table (--day-table) or the deadline curve (--deadline); \
+             with --time alone there is nothing to draw",
+        ));
+    }
     let models = load(&args.model)?;
     let first_day = match args.when.time {
         Some(t) => t,
@@ -129,6 +135,9 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
         .with_context(|| format!("--from {}", args.from))?;
     let task = Task::parse(&args.task, map).context("--task")?;
     if let Some(t) = args.when.time {
+        if let Some(deadline) = args.deadline {
+            return plan_deadline(args, &models, start, &task, t, deadline);
+        }
         return plan_once(args, &models, start, &task, t);
     }
     let table = DayTable::compute(
@@ -149,15 +158,8 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
     Ok(())
 }
 
-/// `chronomap plan --time`: the plan at one time, with the PRISM and DRN files asked for.
-fn plan_once(
-    args: &PlanArgs,
-    models: &EdgeModels,
-    start: usize,
-    task: &Task,
-    t: f64,
-) -> Result<()> {
-    let timed = plan_at(models, start, task, t, &SolverOptions::default())?;
+/// The PRISM and DRN files of the plan at one time, if asked for.
+fn write_exports(args: &PlanArgs, timed: &TimedPlan, start: usize, task: &Task) -> Result<()> {
     if let Some(path) = &args.prism {
         let (model, property) = timed.prism(start, task)?;
         write_output(path, model.as_bytes())?;
@@ -169,7 +171,55 @@ fn plan_once(
         write_output(path, timed.drn()?.as_bytes())?;
         errln!("wrote {}", path.display());
     }
+    Ok(())
+}
+
+/// `chronomap plan --time`: the plan at one time, with the PRISM and DRN files asked for.
+fn plan_once(
+    args: &PlanArgs,
+    models: &EdgeModels,
+    start: usize,
+    task: &Task,
+    t: f64,
+) -> Result<()> {
+    let timed = plan_at(models, start, task, t, &SolverOptions::default())?;
+    write_exports(args, &timed, start, task)?;
     let report = plan_report(models, &timed, &args.from, &args.task, t);
+    if args.json {
+        return print_json(&serde_json::to_value(&report)?);
+    }
+    out!("{report}")?;
+    Ok(())
+}
+
+/// `chronomap plan --time --deadline`: the plan most likely to fulfil the task in time.
+fn plan_deadline(
+    args: &PlanArgs,
+    models: &EdgeModels,
+    start: usize,
+    task: &Task,
+    t: f64,
+    deadline: f64,
+) -> Result<()> {
+    // Exports and the deadline plan are independent: write the MDPs first.
+    if args.prism.is_some() || args.drn.is_some() {
+        let timed = plan_at(models, start, task, t, &SolverOptions::default())?;
+        write_exports(args, &timed, start, task)?;
+    }
+    let report = deadline_report(
+        models,
+        (start, &args.from),
+        (task, &args.task),
+        t,
+        deadline,
+        args.bucket_secs,
+        args.confidence.unwrap_or(0.95),
+    )
+    .context("--deadline")?;
+    if let Some(path) = &args.plot {
+        render_panels_png(&[report.panel()], path, 1000, 500)?;
+        errln!("wrote {}", path.display());
+    }
     if args.json {
         return print_json(&serde_json::to_value(&report)?);
     }

@@ -17,7 +17,8 @@ use chronomap_io::{
     write_edge_models,
 };
 #[cfg(feature = "plot")]
-use chronomap_plot::Heatmap;
+use chronomap_plot::{Heatmap, Panel, Series, SeriesStyle};
+use chronomap_topo::deadline::{DeadlineError, DeadlineOptions, plan_deadline};
 use chronomap_topo::edges::{
     Attempt, EVALUATION_COVERAGE, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics,
 };
@@ -872,6 +873,226 @@ impl fmt::Display for PlanReport {
             self.seconds * 1e3
         )
     }
+}
+
+/// What `chronomap plan --time --deadline` reports: the plan most likely to fulfil the task
+/// within the deadline ([`chronomap_topo::deadline`]) beside the expected-time plan of
+/// [Fentanes 2015] §V under the same deadline (serialises as its `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct DeadlineReport {
+    /// The task, as given.
+    pub task: String,
+    /// The start node, as given.
+    pub from: String,
+    /// The start time.
+    pub time: f64,
+    /// The same in UTC.
+    pub utc: String,
+    /// The deadline (seconds after the start).
+    pub deadline_secs: f64,
+    /// The probability asked for.
+    pub confidence: f64,
+    /// The greatest probability of fulfilling the task within the deadline (a certified lower
+    /// bound: durations rounded up to buckets).
+    pub probability: f64,
+    /// Whether it reaches `confidence`.
+    pub reaches_confidence: bool,
+    /// The first edge to take, if any.
+    pub first_edge: Option<String>,
+    /// The route if every edge succeeds in its median duration.
+    pub median_route: Vec<String>,
+    /// The shortest deadline (seconds, a multiple of the bucket) within which the task is
+    /// fulfilled with probability `confidence`; `None` if not within the deadline.
+    pub shortest_deadline_secs: Option<f64>,
+    /// The expected-time plan's probability of fulfilling the task within the deadline.
+    pub min_time_probability: f64,
+    /// The expected-time plan's first edge.
+    pub min_time_first_edge: Option<String>,
+    /// `Pmax` without a deadline.
+    pub pmax: f64,
+    /// The expected-time plan's expected time (seconds, until done or failed).
+    pub expected_secs: f64,
+    /// The bucket width (seconds).
+    pub bucket_secs: f64,
+    /// `[d, deadline plan, expected-time plan]`: the probabilities of fulfilling the task
+    /// within `d` seconds, `d = 0, Δ, …, K·Δ`.
+    pub curve: Vec<[f64; 3]>,
+    /// Whether the durations' laws come from their quantiles (else: sure expected durations).
+    pub duration_quantiles: bool,
+    /// States of the product of the Navigation MDP and the task automaton.
+    pub product_states: usize,
+    /// Seconds spent planning (timed on purpose: the report says it).
+    pub seconds: f64,
+}
+
+/// Plans `task` from node `start` (named `from`) at time `t` for the greatest probability of
+/// fulfilling it within `deadline_secs` (buckets of `bucket_secs`, default `max(D / 600, 1 s)`),
+/// and says whether that reaches `confidence`.
+///
+/// # Errors
+/// As [`plan_deadline`]: an invalid deadline or bucket, too many cells, a plan that cannot be
+/// made.
+pub fn deadline_report(
+    models: &EdgeModels,
+    (start, from): (usize, &str),
+    (task, text): (&Task, &str),
+    t: f64,
+    deadline_secs: f64,
+    bucket_secs: Option<f64>,
+    confidence: f64,
+) -> Result<DeadlineReport, DeadlineError> {
+    let started = Instant::now();
+    let options = DeadlineOptions {
+        bucket_secs,
+        ..DeadlineOptions::default()
+    };
+    let planned = plan_deadline(models, start, task, t, deadline_secs, &options)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let plan = &planned.plan;
+    let edges = models.map().edges();
+    let name = |e: Option<usize>| e.map(|e| edges[e].id.clone());
+    Ok(DeadlineReport {
+        task: text.to_string(),
+        from: from.to_string(),
+        time: t,
+        utc: time(t),
+        deadline_secs,
+        confidence,
+        probability: plan.probability,
+        reaches_confidence: plan.probability >= confidence,
+        first_edge: name(plan.first_edge),
+        median_route: planned
+            .median_route()
+            .iter()
+            .map(|&e| edges[e].id.clone())
+            .collect(),
+        shortest_deadline_secs: plan.shortest_deadline(confidence),
+        min_time_probability: plan.min_time_probability,
+        min_time_first_edge: name(plan.min_time_first_edge),
+        pmax: plan.pmax,
+        expected_secs: plan.expected_secs,
+        bucket_secs: plan.bucket_secs,
+        curve: plan
+            .curve
+            .iter()
+            .zip(&plan.min_time_curve)
+            .enumerate()
+            .map(|(k, (&p, &q))| [k as f64 * plan.bucket_secs, p, q])
+            .collect(),
+        duration_quantiles: plan.duration_quantiles,
+        product_states: planned.planned.product.states().len(),
+        seconds,
+    })
+}
+
+impl DeadlineReport {
+    /// The report as `chronomap plan --deadline` prints it.
+    pub fn text(&self) -> String {
+        self.to_string()
+    }
+
+    /// The curves "probability within `d`" of both plans, for `--plot`.
+    #[cfg(feature = "plot")]
+    pub fn panel(&self) -> Panel {
+        let series = |label: String, column: usize| Series {
+            label,
+            points: self.curve.iter().map(|row| (row[0], row[column])).collect(),
+            style: SeriesStyle::Step,
+        };
+        Panel {
+            title: format!(
+                "{:?} from {} at {}: probability of fulfilling it within d",
+                self.task, self.from, self.utc
+            ),
+            x_label: "d (s)".into(),
+            y_label: "probability".into(),
+            y_range: (0.0, 1.0),
+            series: vec![
+                series("best plan for each d".into(), 1),
+                series("expected-time plan".into(), 2),
+            ],
+        }
+    }
+}
+
+impl fmt::Display for DeadlineReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "task {:?} from {} at {}, deadline {} s",
+            self.task,
+            self.from,
+            self.utc,
+            trim(self.deadline_secs)
+        )?;
+        let verdict = if self.reaches_confidence {
+            "reaches"
+        } else {
+            "does not reach"
+        };
+        writeln!(
+            f,
+            "probability of fulfilling it in time: {:.4} ({verdict} {}; a lower bound, durations \
+             rounded up to {} s)",
+            self.probability,
+            trim(self.confidence),
+            trim(self.bucket_secs)
+        )?;
+        match &self.first_edge {
+            Some(e) => writeln!(f, "first action: {e}")?,
+            None if self.probability >= 1.0 => writeln!(f, "the task holds already")?,
+            None => writeln!(f, "the task cannot be fulfilled in time from here")?,
+        }
+        if !self.median_route.is_empty() {
+            writeln!(
+                f,
+                "route if every edge succeeds in its median time: {}",
+                self.median_route.join(" -> ")
+            )?;
+        }
+        match self.shortest_deadline_secs {
+            Some(d) => writeln!(
+                f,
+                "{} is reached within {} s ({} s to spare)",
+                trim(self.confidence),
+                trim(d),
+                trim(self.deadline_secs - d)
+            )?,
+            None => writeln!(
+                f,
+                "{} is not reached within the deadline: at most {:.4}",
+                trim(self.confidence),
+                self.probability
+            )?,
+        }
+        writeln!(
+            f,
+            "expected-time plan (Pmax {:.4}, expected {:.1} s, first action {}): {:.4} in time",
+            self.pmax,
+            self.expected_secs,
+            self.min_time_first_edge.as_deref().unwrap_or("none"),
+            self.min_time_probability
+        )?;
+        if !self.duration_quantiles {
+            writeln!(
+                f,
+                "(the model file has no duration quantiles: expected durations taken as sure)"
+            )?;
+        }
+        writeln!(
+            f,
+            "({} product states x {} buckets, solved in {:.1} ms)",
+            self.product_states,
+            self.curve.len(),
+            self.seconds * 1e3
+        )
+    }
+}
+
+/// `100`, `0.95`, `2.5`: a number without trailing zeros.
+fn trim(x: f64) -> String {
+    let s = format!("{x:.6}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
 /// Monday = 0.
