@@ -68,6 +68,8 @@ mod serve_security;
 mod sklearn_calibration;
 mod sklearn_gmm;
 mod storm_case;
+mod storm_deadline;
 mod storm_witham;
 mod tom_door;
 mod topo;
+mod topo_deadline;
