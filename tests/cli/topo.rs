@@ -139,6 +139,44 @@ fn eval_of_a_chronological_split_prints_the_documented_json_and_beats_the_static
     );
 }
 
+/// The 90 % intervals of traversal durations on the three public splits (docs/accuracy.md,
+/// "Intervals of traversal durations"): each edge's log-residual quantiles, borrowing from all
+/// edges by n/(n + 20) and stretched by (n + 1)/n, fitted on the weeks before the split and
+/// scored on every successful traversal after it.
+#[test]
+fn duration_intervals_hold_about_nine_tenths_of_the_later_weeks() {
+    let dir = scratch("topo_duration_intervals");
+    // (split, measured coverage, mean width in s, below, above)
+    let measured = [
+        ("2014-08-14", 0.8831, 11.58, 924, 455),
+        ("2014-08-20", 0.9189, 9.97, 263, 451),
+        ("2014-08-27", 0.8786, 9.49, 236, 433),
+    ];
+    for (at, coverage, width, below, above) in measured {
+        let (before, after) = (
+            path(&dir, &format!("{at}-a")),
+            path(&dir, &format!("{at}-b")),
+        );
+        stdout(&split(at, &before, &after, &[]));
+        let out = stdout(&chronomap(&[
+            "topo", "eval", "--train", &before, "--test", &after, "--json",
+        ]));
+        let report: Value = serde_json::from_str(out.trim()).unwrap();
+        let number = |key: &str| report[key].as_f64().unwrap();
+        assert_eq!(number("duration_nominal_coverage"), 0.9);
+        assert!(
+            (number("duration_coverage") - coverage).abs() < 1e-3,
+            "{at}: {report}"
+        );
+        assert!(
+            (number("duration_interval_width") - width).abs() < 0.02,
+            "{at}: {report}"
+        );
+        assert_eq!(report["duration_below"], below, "{at}");
+        assert_eq!(report["duration_above"], above, "{at}");
+    }
+}
+
 #[test]
 fn plan_at_a_time_and_the_day_table_cross_the_lab_door() {
     let dir = scratch("plan");

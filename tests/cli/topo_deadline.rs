@@ -165,7 +165,7 @@ fn plan_with_a_deadline_on_the_command_line() {
     assert_eq!(number("confidence"), 0.95);
     assert_eq!(report["reaches_confidence"], false);
     assert_eq!(report["shortest_deadline_secs"], Value::Null);
-    // Measured: 0.5255 by Ramp2, against 0.0846 for the expected-time plan by GroundCentral.
+    // Measured: 0.5216 by Ramp2, against 0.0878 for the expected-time plan by GroundCentral.
     assert!(number("probability") > 0.5, "{report}");
     assert!(number("min_time_probability") < 0.1, "{report}");
     assert_eq!(report["first_edge"], "Kitchen_Ramp2");

@@ -498,6 +498,8 @@ fn score_json(score: &EdgeEvaluation) -> Value {
         "duration_mse": score.duration_mse,
         "duration_coverage": score.duration_coverage,
         "duration_interval_width": score.duration_interval_width,
+        "duration_below": score.duration_below,
+        "duration_above": score.duration_above,
         "static_duration_mse": score.static_duration_mse,
     })
 }
@@ -520,6 +522,8 @@ impl EvalReport {
             "static_success_ece": chosen.static_success_ece,
             "duration_coverage": chosen.duration_coverage,
             "duration_interval_width": chosen.duration_interval_width,
+            "duration_below": chosen.duration_below,
+            "duration_above": chosen.duration_above,
             "duration_nominal_coverage": EVALUATION_COVERAGE,
             "attempts": chosen.attempts,
             "successes": chosen.successes,

@@ -18,8 +18,10 @@
 //! function `w q_edge + (1 − w) q_pooled` with `w = n / (n + k)`, `k` =
 //! [`DURATION_PSEUDO_TRAVERSALS`] (a mixture of quantile functions, "Vincentization",
 //! Ratcliff 1979): an edge traversed 5 times borrows most of its spread from the others, one
-//! traversed 500 times has its own. The interval of coverage `1 − α` at `t` is
-//! `d̂(t) · exp(q(α/2)) … d̂(t) · exp(q(1 − α/2))`.
+//! traversed 500 times has its own. Each quantile function is read at levels stretched away
+//! from the median by `(n + 1)/n` for its `n` residuals ([`ResidualQuantiles::at_stretched`],
+//! the finite-sample widening of conformal prediction). The interval of coverage `1 − α` at `t`
+//! is `d̂(t) · exp(q(α/2)) … d̂(t) · exp(q(1 − α/2))`.
 
 use serde::{Deserialize, Serialize};
 
@@ -92,6 +94,17 @@ impl ResidualQuantiles {
         Some(self.quantiles[low] + fraction * (self.quantiles[high] - self.quantiles[low]))
     }
 
+    /// The quantile at `level` stretched away from the median for a sample of `count`
+    /// residuals: at `1/2 + (level − 1/2)(n + 1)/n`. A central interval between the empirical
+    /// quantiles of `n` residuals holds a fresh one less often than its nominal coverage; split
+    /// conformal prediction takes the `⌈(n + 1)(1 − α)⌉`-th smallest of `n` (Vovk, Gammerman
+    /// and Shafer 2005; Lei et al., JASA 2018), about this stretch. It matters for an edge
+    /// traversed a few times and vanishes for many.
+    pub fn at_stretched(&self, level: f64) -> Option<f64> {
+        let n = self.count as f64;
+        self.at(0.5 + (level - 0.5) * (n + 1.0) / n)
+    }
+
     /// Whether the stored values can be used (for models read from files).
     pub fn is_consistent(&self) -> bool {
         (self.count == 0 && self.quantiles.is_empty())
@@ -124,13 +137,13 @@ impl DurationSpread {
     /// The residual quantile of `edge` at `level`: the edge's own and the pooled quantile
     /// weighted `n / (n + k)` and `k / (n + k)`; `None` when no edge had a residual.
     pub fn quantile(&self, edge: usize, level: f64) -> Option<f64> {
-        let pooled = self.pooled.at(level)?;
+        let pooled = self.pooled.at_stretched(level)?;
         let Some(own) = self.edges.get(edge).filter(|q| q.count > 0) else {
             return Some(pooled);
         };
         let n = own.count as f64;
         let w = n / (n + DURATION_PSEUDO_TRAVERSALS);
-        Some(w * own.at(level)? + (1.0 - w) * pooled)
+        Some(w * own.at_stretched(level)? + (1.0 - w) * pooled)
     }
 
     /// The interval of `coverage` (in `(0, 0.99]`) around the expected duration `expected_secs`
@@ -180,6 +193,11 @@ mod tests {
         assert!((q.at(0.1025).unwrap() - 0.41).abs() < 1e-12);
         assert!(q.is_consistent());
         assert_eq!(ResidualQuantiles::of(&[]).at(0.5), None);
+        // Stretched for 5 residuals: 0.9 is read at 0.5 + 0.4 · 6/5 = 0.98 → 3.92, 0.1 at 0.02
+        // → 0.08; the median stays.
+        assert!((q.at_stretched(0.9).unwrap() - 3.92).abs() < 1e-12);
+        assert!((q.at_stretched(0.1).unwrap() - 0.08).abs() < 1e-12);
+        assert!((q.at_stretched(0.5).unwrap() - 2.0).abs() < 1e-12);
     }
 
     #[test]
@@ -187,15 +205,16 @@ mod tests {
         // Edge 0: 20 residuals all 0 (w = 1/2); edge 1: many spread ones; edge 2: none.
         let spread_out: Vec<f64> = (0..=1000).map(|i| f64::from(i) / 1000.0 - 0.5).collect();
         let spread = DurationSpread::fit(&[vec![0.0; 20], spread_out, Vec::new()]);
-        let pooled = spread.pooled.at(0.95).unwrap();
+        let pooled = spread.pooled.at_stretched(0.95).unwrap();
         assert!((spread.quantile(0, 0.95).unwrap() - 0.5 * pooled).abs() < 1e-12);
         assert_eq!(spread.quantile(2, 0.95).unwrap(), pooled);
-        // Edge 1's own: 0.45 at 0.95, weighted 1001/1021.
+        // Edge 1's own: read at 0.5 + 0.45 · 1002/1001, where its residuals (evenly spread
+        // from −0.5 to 0.5) have the quantile 0.45 · 1002/1001; weighted 1001/1021.
         let w = 1001.0 / 1021.0;
-        let expected = w * 0.45 + (1.0 - w) * pooled;
+        let expected = w * (0.45 * 1002.0 / 1001.0) + (1.0 - w) * pooled;
         assert!((spread.quantile(1, 0.95).unwrap() - expected).abs() < 1e-12);
         let (lo, hi) = spread.interval(2, 30.0, 0.9).unwrap();
-        assert!((lo - 30.0 * spread.pooled.at(0.05).unwrap().exp()).abs() < 1e-9);
+        assert!((lo - 30.0 * spread.pooled.at_stretched(0.05).unwrap().exp()).abs() < 1e-9);
         assert!((hi - 30.0 * pooled.exp()).abs() < 1e-9);
         assert!(spread.is_consistent(3) && !spread.is_consistent(2));
         assert_eq!(

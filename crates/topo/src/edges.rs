@@ -222,6 +222,12 @@ pub struct EdgeEvaluation {
     /// Mean width of those intervals (s).
     #[serde(default)]
     pub duration_interval_width: f64,
+    /// Successful durations shorter than their interval.
+    #[serde(default)]
+    pub duration_below: usize,
+    /// Successful durations longer than their interval.
+    #[serde(default)]
+    pub duration_above: usize,
 }
 
 /// Nominal coverage of the duration intervals [`EdgeModels::evaluate`] scores: 90 %.
@@ -728,6 +734,8 @@ impl EdgeModels {
         let coverage = Coverage::of(&intervals, &durations);
         score.duration_coverage = coverage.coverage;
         score.duration_interval_width = coverage.mean_width;
+        score.duration_below = coverage.below;
+        score.duration_above = coverage.above;
         if score.successes > 0 {
             score.duration_mse = mse / score.successes as f64;
             score.static_duration_mse = static_mse / score.successes as f64;
