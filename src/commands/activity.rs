@@ -10,6 +10,7 @@ use chronomap_core::Parallelism;
 use crate::cli::{ActivityEvalArgs, ActivityModel, CopaInit, CopaScale};
 use crate::out;
 use crate::output::{ProgressBar, print_json, usage};
+use chronomap_plot::render_panels_png;
 
 pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
     let test = match (&args.test, args.split_at) {
@@ -44,7 +45,24 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         },
         parallelism: Parallelism::Rayon(0),
     };
+    if args.plot.is_some()
+        && !matches!(args.model, ActivityModel::LogAdditive | ActivityModel::Auto)
+    {
+        return Err(usage(
+            "--plot draws predictive intervals, which only Log-AM has (--model log-additive)",
+        ));
+    }
     let report = evaluate_files(&args.train, test, &settings, &ProgressBar::new())?;
+    if let Some(path) = &args.plot {
+        let panels = report.interval_panels().ok_or_else(|| {
+            anyhow::anyhow!(
+                "{}: --plot: the chosen model {} has no predictive intervals to draw",
+                path.display(),
+                report.model
+            )
+        })?;
+        render_panels_png(&panels, path, 1000, 1000)?;
+    }
     if args.json {
         return print_json(&report.json());
     }

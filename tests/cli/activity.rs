@@ -291,4 +291,22 @@ fn test_and_split_at_together_or_neither_are_usage_errors() {
         "copa",
     ]));
     assert!(err.contains("CoPA-Map"), "{err}");
+    // Only Log-AM has predictive intervals to plot: asked of another model, before any fit.
+    let png = scratch("usage_plot.png", "");
+    let err = usage_error(&chronomap(&[
+        "activity",
+        "eval",
+        "--train",
+        train,
+        "--split-at",
+        "1",
+        "--model",
+        "ml",
+        "--plot",
+        png.to_str().unwrap(),
+    ]));
+    assert!(
+        err.contains("--plot") && err.contains("log-additive"),
+        "{err}"
+    );
 }

@@ -54,6 +54,8 @@ fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
     stdout(&truth(&tracks, "1351036800", &flags));
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
     // GP-Hom, a baseline of the table, is trained small: only Log-AM is checked here.
+    let png = tmp("activity_truth_intervals").join("intervals.png");
+    let png_arg = png.display().to_string();
     let text = stdout(&chronomap(&[
         "activity",
         "eval",
@@ -68,6 +70,8 @@ fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
         "--iterations",
         "5",
         "--json",
+        "--plot",
+        &png_arg,
     ]));
     let v: Value = serde_json::from_str(&text).unwrap();
     close(&v["nrmse"], 0.66435, 5e-4);
@@ -78,6 +82,22 @@ fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
     close(&v["interval"]["mean_width"], 72.19, 0.05);
     close(&v["observation_interval"]["coverage"], 0.977, 0.003);
     close(&v["observation_interval"]["mean_width"], 151.87, 0.05);
+    // The curve over nominal coverages (the --plot's data): its 90 % point is the interval
+    // above, and the share inside grows with the nominal coverage.
+    let curve = v["interval_curve"].as_array().unwrap();
+    assert_eq!(curve.len(), 11);
+    let at_90 = curve.iter().find(|l| l["nominal"] == 0.9).unwrap();
+    assert_eq!(at_90["coverage"], v["interval"]["coverage"]);
+    assert_eq!(
+        at_90["observation_coverage"],
+        v["observation_interval"]["coverage"]
+    );
+    let shares: Vec<f64> = curve
+        .iter()
+        .map(|l| l["coverage"].as_f64().unwrap())
+        .collect();
+    assert!(shares.windows(2).all(|w| w[0] <= w[1]), "{shares:?}");
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
 }
 
 #[test]

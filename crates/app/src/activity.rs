@@ -606,24 +606,115 @@ pub struct ActivityEvalReport {
     /// How its 90 % intervals of one observation like the training samples
     /// ([`RatePredictor::observation_interval`]) held them.
     pub observation_interval: Option<Coverage>,
+    /// Both kinds of interval at every level of [`CURVE_LEVELS`]: how well the model's
+    /// predictive distribution is calibrated across levels (empty without intervals).
+    pub interval_curve: Vec<IntervalLevel>,
+}
+
+/// The nominal coverages of [`ActivityEvalReport::interval_curve`].
+pub const CURVE_LEVELS: [f64; 11] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99];
+
+/// How a model's intervals of one nominal coverage held the test rates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntervalLevel {
+    /// The nominal coverage.
+    pub nominal: f64,
+    /// Intervals of whole bins ([`RatePredictor::interval`]).
+    pub whole: Option<Coverage>,
+    /// Intervals of one observation ([`RatePredictor::observation_interval`]).
+    pub observation: Option<Coverage>,
 }
 
 /// Nominal coverage of the predictive intervals `activity eval` scores.
 pub const INTERVAL_COVERAGE: f64 = 0.9;
 
-/// How the intervals of [`INTERVAL_COVERAGE`] that `interval` gives at each test sample held
-/// the rates of `test`; `None` if there are none.
+/// How the intervals of coverage `level` that `interval` gives at each test sample held the
+/// rates of `test`; `None` if there are none.
 fn interval_coverage(
     test: &RateSamples,
+    level: f64,
     interval: impl Fn([f64; 2], f64, f64) -> Option<(f64, f64)>,
 ) -> Option<Coverage> {
     let intervals: Option<Vec<(f64, f64)>> = test
         .x()
         .iter()
         .zip(test.t())
-        .map(|(&x, &t)| interval(x, t, INTERVAL_COVERAGE))
+        .map(|(&x, &t)| interval(x, t, level))
         .collect();
     Some(Coverage::of(&intervals?, test.y()))
+}
+
+/// Both kinds of `model`'s intervals on `test` at `level`.
+fn interval_level(model: &dyn RatePredictor, test: &RateSamples, level: f64) -> IntervalLevel {
+    IntervalLevel {
+        nominal: level,
+        whole: interval_coverage(test, level, |x, t, c| model.interval(x, t, c)),
+        observation: interval_coverage(test, level, |x, t, c| model.observation_interval(x, t, c)),
+    }
+}
+
+impl ActivityEvalReport {
+    /// The calibration of the model's predictive intervals, as `chronomap activity eval --plot`
+    /// draws it: above, the share of test rates inside the intervals against their nominal
+    /// coverage (the diagonal is perfect calibration); below, their mean width. `None` when the
+    /// model has no intervals.
+    #[cfg(feature = "plot")]
+    pub fn interval_panels(&self) -> Option<Vec<chronomap_plot::Panel>> {
+        use chronomap_plot::{Panel, Series, SeriesStyle};
+        if self.interval_curve.is_empty() {
+            return None;
+        }
+        let series = |value: fn(&Coverage) -> f64| -> Vec<Series> {
+            [("whole hours", true), ("one observation", false)]
+                .into_iter()
+                .filter_map(|(label, whole)| {
+                    let points: Vec<(f64, f64)> = self
+                        .interval_curve
+                        .iter()
+                        .filter_map(|l| {
+                            let kind = if whole { l.whole } else { l.observation };
+                            kind.map(|c| (l.nominal, value(&c)))
+                        })
+                        .collect();
+                    (!points.is_empty()).then(|| Series {
+                        label: format!("{} intervals of {label}", self.model),
+                        points,
+                        style: SeriesStyle::Line,
+                    })
+                })
+                .collect()
+        };
+        let mut coverage = series(|c| c.coverage);
+        coverage.push(Series {
+            label: "calibrated".into(),
+            points: vec![(0.0, 0.0), (1.0, 1.0)],
+            style: SeriesStyle::Line,
+        });
+        let widths = series(|c| c.mean_width);
+        let widest = widths
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.1))
+            .fold(0.0, f64::max);
+        Some(vec![
+            Panel {
+                title: format!(
+                    "Predictive intervals on {} test rates: share inside against nominal coverage",
+                    self.test.samples
+                ),
+                x_label: String::new(),
+                y_label: "share of test rates inside".into(),
+                y_range: (-0.02, 1.02),
+                series: coverage,
+            },
+            Panel {
+                title: "Mean width of the intervals".into(),
+                x_label: "nominal coverage".into(),
+                y_label: "people per hour".into(),
+                y_range: (0.0, (1.1 * widest).max(1.0)),
+                series: widths,
+            },
+        ])
+    }
 }
 
 /// A coverage as `activity eval --json` prints it.
@@ -674,6 +765,13 @@ impl ActivityEvalReport {
             "copa_init": copa_init,
             "interval": self.interval.map(coverage_json),
             "observation_interval": self.observation_interval.map(coverage_json),
+            "interval_curve": self.interval_curve.iter().map(|l| json!({
+                "nominal": l.nominal,
+                "coverage": l.whole.map(|c| c.coverage),
+                "mean_width": l.whole.map(|c| c.mean_width),
+                "observation_coverage": l.observation.map(|c| c.coverage),
+                "observation_mean_width": l.observation.map(|c| c.mean_width),
+            })).collect::<Vec<_>>(),
             "train": self.train,
             "test": self.test,
             "split_at": self.split_at,
@@ -795,6 +893,15 @@ pub fn evaluate_files(
         )));
     }
     let evaluation = evaluate(&train, &test, settings, [&train_name, &test_name], progress)?;
+    let headline = interval_level(evaluation.model.as_ref(), &test, INTERVAL_COVERAGE);
+    let interval_curve = if headline.whole.is_some() || headline.observation.is_some() {
+        CURVE_LEVELS
+            .iter()
+            .map(|&level| interval_level(evaluation.model.as_ref(), &test, level))
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(ActivityEvalReport {
         train: RatesSummary::of(&train_name, &train),
         test: RatesSummary::of(&test_name, &test),
@@ -802,10 +909,9 @@ pub fn evaluate_files(
         baselines: evaluation.baselines,
         selection: evaluation.selection,
         model: evaluation.model.name().to_string(),
-        interval: interval_coverage(&test, |x, t, c| evaluation.model.interval(x, t, c)),
-        observation_interval: interval_coverage(&test, |x, t, c| {
-            evaluation.model.observation_interval(x, t, c)
-        }),
+        interval: headline.whole,
+        observation_interval: headline.observation,
+        interval_curve,
         scores: evaluation.scores,
         train_seconds: evaluation.train_seconds,
         copa_init: evaluation.copa_init,
