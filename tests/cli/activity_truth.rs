@@ -33,13 +33,10 @@ fn truth(tracks: &[&str], t0: &str, flags: &[&str]) -> Output {
     )
 }
 
-/// Log-AM's 90 % intervals of whole hours on the held-out day (proxy (b) of
-/// `docs/accuracy.md`): the spread of whole hours is estimated from the glimpses'
-/// autocovariance over neighbouring hours, their own noise (the nugget) left out.
-#[test]
-fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
-    let truth_file = tmp("activity_truth_intervals").join("truth.csv");
-    let truth_arg = truth_file.display().to_string();
+/// The ground truth of 2012-10-24 (every bundled hour, whole bins 1, 2, 4 … 10 at t = 120 +
+/// bin) written to `dir/truth.csv`: the file's path and `activity truth`'s stdout.
+fn day_truth(dir: &str) -> (String, String) {
+    let truth_arg = tmp(dir).join("truth.csv").display().to_string();
     let hours = [9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20];
     let tracks: Vec<String> = hours.into_iter().map(tracks).collect();
     let tracks: Vec<&str> = tracks.iter().map(String::as_str).collect();
@@ -51,7 +48,16 @@ fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
         "-o",
         &truth_arg,
     ];
-    stdout(&truth(&tracks, "1351036800", &flags));
+    let text = stdout(&truth(&tracks, "1351036800", &flags));
+    (truth_arg, text)
+}
+
+/// Log-AM's 90 % intervals of whole hours on the held-out day (proxy (b) of
+/// `docs/accuracy.md`): the spread of whole hours is estimated from the glimpses'
+/// autocovariance over neighbouring hours, their own noise (the nugget) left out.
+#[test]
+fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
+    let (truth_arg, _) = day_truth("activity_truth_intervals");
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
     // GP-Hom, a baseline of the table, is trained small: only Log-AM is checked here.
     let png = tmp("activity_truth_intervals").join("intervals.png");
@@ -106,24 +112,9 @@ fn log_am_intervals_of_whole_hours_hold_nine_tenths_of_the_days_counts() {
 // `cargo test --workspace -- --include-ignored`.
 #[ignore = "slow: trains CoPA-Map and GP-Hom (cargo test -- --include-ignored)"]
 fn the_atc_day_is_a_test_day_on_which_copa_map_beats_the_baselines() {
-    let truth_file = tmp("activity_truth").join("atc_20121024_truth.csv");
-    let hours = [9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20];
-    let tracks: Vec<String> = hours.into_iter().map(tracks).collect();
-    let tracks: Vec<&str> = tracks.iter().map(String::as_str).collect();
+    let (truth_arg, text) = day_truth("activity_truth");
+    let truth_file = std::path::PathBuf::from(&truth_arg);
     let grid = repo("data/atc_copa_map_grid/grid_atc_50cm_60min_train_xy.csv.xz");
-    let truth_arg = truth_file.display().to_string();
-    let text = stdout(&truth(
-        &tracks,
-        "1351036800",
-        &[
-            "--bins",
-            "1,2,4,5,6,7,8,9,10",
-            "--t-offset",
-            "120",
-            "-o",
-            &truth_arg,
-        ],
-    ));
     assert!(
         text.contains("5868 samples (652 cells × 9 bins) from 554969 detections; mean 21.805"),
         "{text}"
