@@ -188,6 +188,13 @@ pub struct TopoPredictArgs {
     #[arg(long)]
     pub json: bool,
     /// Write the map as a Nav2 route-server graph (GeoJSON) with the predictions.
+    ///
+    /// Each edge's metadata holds flat numbers: success_probability, abs_time_taken (expected
+    /// seconds) and the 90 % interval of the duration, abs_time_taken_lower,
+    /// abs_time_taken_upper and abs_time_taken_coverage (0.9; none of the three for models
+    /// written before intervals existed), e.g. {"name": "LabDoor1_LabDoor2",
+    /// "success_probability": 0.49, "abs_time_taken": 8.9, "abs_time_taken_lower": 5.7,
+    /// "abs_time_taken_upper": 13.9, "abs_time_taken_coverage": 0.9}.
     #[arg(long)]
     pub geojson: Option<PathBuf>,
     /// Write the map as an LCAS tmap2 file.

@@ -10,7 +10,8 @@
 //! observations the node recorded (which must be the ones sent, at the times sent),
 //! `chronomap grid build --frames` + `grid predict` (trinary map and scale mask, loaded as
 //! nav2_map_server loads them) on the map frames sent, `grid predict` of the saved people
-//! grid, and `chronomap topo predict --geojson` for the route graph the node rewrote.
+//! grid, and `chronomap topo predict --geojson` for the route graph the node rewrote (whose
+//! edges carry the 90 % duration intervals of `EdgeModels::duration_interval` at that time).
 //!
 //! It runs when `CHRONOMAP_ROS_PYTHON` names a Python with ros-kilted-rclpy (and std_msgs,
 //! nav_msgs, geometry_msgs); `.ci/run` makes one in `target/ros-venv` and sets
@@ -496,10 +497,33 @@ chronomap:
         "--geojson",
         &path("expected.geojson"),
     ]));
+    let route = std::fs::read_to_string(dir.join("route.geojson")).unwrap();
     assert_eq!(
-        std::fs::read_to_string(dir.join("route.geojson")).unwrap(),
+        route,
         std::fs::read_to_string(dir.join("expected.geojson")).unwrap()
     );
+    // Each edge carries the 90 % interval of its duration that the library gives at that
+    // time, as flat numbers.
+    let models = chronomap_io::read_edge_models(dir.join("witham.cmt")).unwrap();
+    let route: Value = serde_json::from_str(&route).unwrap();
+    let edges: Vec<&Value> = route["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "MultiLineString")
+        .map(|f| &f["properties"]["metadata"])
+        .collect();
+    assert_eq!(edges.len(), models.map().edges().len());
+    let coverage = chronomap_topo::edges::EVALUATION_COVERAGE;
+    for (e, metadata) in edges.iter().enumerate() {
+        let (lower, upper) = models
+            .duration_interval(e, target as f64, coverage)
+            .expect("models fitted now have intervals");
+        assert_eq!(metadata["name"], models.map().edges()[e].id);
+        assert_eq!(metadata["abs_time_taken_lower"].as_f64(), Some(lower));
+        assert_eq!(metadata["abs_time_taken_upper"].as_f64(), Some(upper));
+        assert_eq!(metadata["abs_time_taken_coverage"].as_f64(), Some(coverage));
+    }
 
     // The ROS graph shows the filter info with Nav2's type (rclpy has no nav2_msgs to read it).
     let types = &phases[1]["topic_types"];

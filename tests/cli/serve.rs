@@ -713,7 +713,8 @@ fn laid_out_topological_maps_and_activity_maps_are_served_as_their_files_and_the
             .unwrap();
     }
     let layout = arg("witham.geojson");
-    let metadata = vec![(0.5, 10.0); placed.edges().len()];
+    let metadata =
+        vec![chronomap_io::topo_files::RouteEdgeMetadata::new(0.5, 10.0); placed.edges().len()];
     chronomap_io::topo_files::write_route_geojson(&layout, &placed, &metadata).unwrap();
 
     // A CoPA-Map fitted cheaply on the bundled ATC grid, masked by the ATC map.

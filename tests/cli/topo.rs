@@ -7,7 +7,7 @@ use std::path::Path;
 use crate::common::{
     assert_mentions, chronomap, closed_pipe, data, error, scratch, stdout, strings,
 };
-use serde_json::Value;
+use serde_json::{Value, json};
 
 fn edges() -> String {
     data("witham_topological_nav/edges")
@@ -270,14 +270,38 @@ fn predict_writes_a_route_graph_with_predictions() {
     let features = graph["features"].as_array().unwrap();
     let edge = features
         .iter()
-        .find(|f| f["properties"]["id"] == "LabDoor1_LabDoor2")
-        .or_else(|| {
-            features
-                .iter()
-                .find(|f| f.to_string().contains("LabDoor1_LabDoor2"))
-        })
+        .find(|f| f["properties"]["metadata"]["name"] == "LabDoor1_LabDoor2")
         .expect("the door edge is in the graph");
-    assert!(edge.to_string().contains("abs_time_taken"), "{edge}");
+    // Its metadata is what `--json` reports, the 90 % interval of the duration as flat keys.
+    let report: Value = serde_json::from_str(&stdout(&chronomap(&[
+        "topo",
+        "predict",
+        &model,
+        "--time",
+        "2014-09-04T14:00Z",
+        "--json",
+    ])))
+    .unwrap();
+    let predicted = report["edges"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["edge"] == "LabDoor1_LabDoor2")
+        .unwrap();
+    let metadata = &edge["properties"]["metadata"];
+    assert_eq!(
+        metadata["success_probability"],
+        predicted["success_probability"]
+    );
+    assert_eq!(metadata["abs_time_taken"], predicted["duration_secs"]);
+    assert_eq!(
+        json!([
+            metadata["abs_time_taken_lower"],
+            metadata["abs_time_taken_upper"]
+        ]),
+        predicted["duration_interval_secs"]
+    );
+    assert_eq!(metadata["abs_time_taken_coverage"], 0.9);
 }
 
 #[test]

@@ -744,11 +744,15 @@ pub fn predict(models: &EdgeModels, t: f64) -> PredictReport {
 }
 
 impl PredictReport {
-    /// `(success probability, duration)` of every edge, as route metadata.
-    pub fn route_metadata(&self) -> Vec<(f64, f64)> {
+    /// Every edge's metadata in a Nav2 route graph: success probability, expected duration
+    /// and its [`EVALUATION_COVERAGE`] (90 %) interval where the models have one.
+    pub fn route_metadata(&self) -> Vec<chronomap_io::RouteEdgeMetadata> {
         self.edges
             .iter()
-            .map(|e| (e.success_probability, e.duration_secs))
+            .map(|e| {
+                chronomap_io::RouteEdgeMetadata::new(e.success_probability, e.duration_secs)
+                    .with_time_interval(e.duration_interval_secs, EVALUATION_COVERAGE)
+            })
             .collect()
     }
 

@@ -201,10 +201,11 @@ pub use text::{
 };
 #[cfg(feature = "topo")]
 pub use topo_files::{
-    EdgeAttempt, NodePose, Tmap2, TopoFileError, TopoFileErrorKind, decode_tmap2, encode_edge_file,
-    encode_route_geojson, encode_tmap2, node_poses, read_edge_directory,
-    read_edge_directory_with_nodes, read_edge_file, read_edge_file_from, read_edge_files,
-    read_tmap2, write_edge_directory, write_route_geojson, write_tmap2,
+    EdgeAttempt, NodePose, RouteEdgeMetadata, RouteTimeInterval, Tmap2, TopoFileError,
+    TopoFileErrorKind, decode_tmap2, encode_edge_file, encode_route_geojson, encode_tmap2,
+    node_poses, read_edge_directory, read_edge_directory_with_nodes, read_edge_file,
+    read_edge_file_from, read_edge_files, read_tmap2, write_edge_directory, write_route_geojson,
+    write_tmap2,
 };
 #[cfg(feature = "activity")]
 pub use tracks::{

@@ -30,10 +30,12 @@ use chronomap_io::navmap::{
     LoadSemantics, MapMetadata, MapMode, SaveOptions, decode_map_image, decode_map_yaml,
     encode_map_image, encode_map_yaml,
 };
-use chronomap_io::{ModelFileError, TopoFileError, read_edge_models, write_route_geojson};
+use chronomap_io::{
+    ModelFileError, RouteEdgeMetadata, TopoFileError, read_edge_models, write_route_geojson,
+};
 use chronomap_models::learner::{Learner, Refit, RefitError, RefitJob};
 use chronomap_spatial::OccupancyMap;
-use chronomap_topo::edges::EdgeModels;
+use chronomap_topo::edges::{EVALUATION_COVERAGE, EdgeModels};
 use thiserror::Error;
 
 use crate::config::{GridEntry, GridSource, MapValues, NodeConfig};
@@ -1030,9 +1032,9 @@ impl World {
         })
     }
 
-    /// Rewrites the route graph with the edges' success probabilities and expected durations
-    /// at `time` (atomically), as `chronomap topo predict --geojson` writes it; `false` without
-    /// edges.
+    /// Rewrites the route graph with the edges' success probabilities, expected durations and
+    /// their 90 % intervals ([`EVALUATION_COVERAGE`]) at `time` (atomically), as `chronomap
+    /// topo predict --geojson` writes it; `false` without edges.
     ///
     /// # Errors
     /// A graph that cannot be written.
@@ -1041,7 +1043,17 @@ impl World {
             return Ok(false);
         };
         let (success, duration) = models.at(time);
-        let metadata: Vec<(f64, f64)> = success.into_iter().zip(duration).collect();
+        let metadata: Vec<RouteEdgeMetadata> = success
+            .into_iter()
+            .zip(duration)
+            .enumerate()
+            .map(|(edge, (p, secs))| {
+                RouteEdgeMetadata::new(p, secs).with_time_interval(
+                    models.duration_interval(edge, time, EVALUATION_COVERAGE),
+                    EVALUATION_COVERAGE,
+                )
+            })
+            .collect();
         write_route_geojson(&config.geojson, models.map(), &metadata)?;
         Ok(true)
     }

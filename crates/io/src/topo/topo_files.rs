@@ -2,7 +2,9 @@
 //! Wharf dataset), STRANDS / LCAS `tmap2` YAML maps, and Nav2 route-server GeoJSON graphs.
 //!
 //! ```
-//! use chronomap_io::topo_files::{decode_tmap2, encode_route_geojson, encode_tmap2, read_edge_file_from};
+//! use chronomap_io::topo_files::{
+//!     RouteEdgeMetadata, decode_tmap2, encode_route_geojson, encode_tmap2, read_edge_file_from,
+//! };
 //! use chronomap_topo::map::TopoMap;
 //!
 //! // One edge file: `t duration_s success` per line.
@@ -20,9 +22,12 @@
 //! assert_eq!(read.map.edges(), map.edges());
 //! assert_eq!(read.actions, [Some("NavigateToPose".to_string())]);
 //!
-//! // The same map as a Nav2 route graph, with success probability and time per edge.
-//! let json = encode_route_geojson(&map, &[(0.2, 6.5)])?;
+//! // The same map as a Nav2 route graph, with success probability and time per edge (and,
+//! // if known, an interval of the time).
+//! let metadata = RouteEdgeMetadata::new(0.2, 6.5).with_time_interval(Some((4.0, 11.0)), 0.9);
+//! let json = encode_route_geojson(&map, &[metadata])?;
 //! assert!(json.contains("\"success_probability\": 0.2"));
+//! assert!(json.contains("\"abs_time_taken_upper\": 11.0"));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
@@ -123,7 +128,13 @@
 //!   node's: properties `id` (`n + edge index`, so ids are unique across nodes and edges, as
 //!   the route server requires), `startid`, `endid` and `metadata` `{name,
 //!   success_probability, abs_time_taken}` (probability in `[0, 1]`, seconds; Nav2's
-//!   `TimeScorer` reads `abs_time_taken`, `success_probability` is chronomap's own).
+//!   `TimeScorer` reads `abs_time_taken`, `success_probability` is chronomap's own), plus,
+//!   where an interval of the time is known ([`RouteEdgeMetadata`]), `abs_time_taken_lower`,
+//!   `abs_time_taken_upper` (seconds) and `abs_time_taken_coverage` (the probability that
+//!   the time taken falls between them, e.g. `0.9`): flat numbers, as `abs_time_taken` is,
+//!   so that a route-server plugin can read them by key from the edge's metadata (see *Not
+//!   verified*). The bounds are quantiles, so `abs_time_taken` (an expectation) need not lie
+//!   between them.
 //!
 //! **Reading** ([`decode_route_geojson`]) takes any `FeatureCollection` of this kind, such as
 //! Nav2's sample graphs whose features carry only ids. It uses only: the top-level `type`
@@ -152,7 +163,8 @@
 //!   property. Files written here were read back by this module and by no other tool.
 //! * GeoJSON: the node property is `frame` (as in the notes; not `frameid`); that the route
 //!   server accepts node id 0, ignores the edge geometry, and keeps the extra metadata
-//!   members (`name`, `synthetic_position`, `success_probability`) as edge/node metadata.
+//!   members (`name`, `synthetic_position`, `success_probability`, `abs_time_taken_lower`,
+//!   `abs_time_taken_upper`, `abs_time_taken_coverage`) as edge/node metadata.
 //!   The reader was tested on files this module writes and on a hand-written graph in the
 //!   style of Nav2's sample graphs (ids, `startid`/`endid`, `MultiLineString` edges), not on
 //!   Nav2's own files.
@@ -1288,16 +1300,131 @@ fn format_last_updated(unix_secs: u64) -> String {
 // ---------------------------------------------------------------------------------------------
 // Nav2 route graph
 
+/// What a Nav2 route graph says of one edge besides its name: the members of the edge's
+/// `metadata` that [`encode_route_geojson`] writes. A plain carrier; its values are checked
+/// when written.
+///
+/// ```
+/// use chronomap_io::topo_files::{RouteEdgeMetadata, RouteTimeInterval};
+///
+/// let plain = RouteEdgeMetadata::new(0.93, 11.5);
+/// assert_eq!(plain.time_taken_interval, None);
+/// // With the 90 % interval of the duration, e.g. `EdgeModels::duration_interval`'s.
+/// let spread = plain.with_time_interval(Some((7.0, 19.0)), 0.9);
+/// assert_eq!(
+///     spread.time_taken_interval,
+///     Some(RouteTimeInterval { lower_secs: 7.0, upper_secs: 19.0, coverage: 0.9 })
+/// );
+/// assert_eq!(plain.with_time_interval(None, 0.9), plain);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RouteEdgeMetadata {
+    /// Probability that a traversal succeeds, in `[0, 1]` (`success_probability`).
+    pub success_probability: f64,
+    /// Time a traversal takes, in seconds, finite and `>= 0` (`abs_time_taken`, which Nav2's
+    /// `TimeScorer` reads).
+    pub time_taken_secs: f64,
+    /// The interval that holds the time taken with a given probability
+    /// (`abs_time_taken_lower`, `abs_time_taken_upper`, `abs_time_taken_coverage`); `None`
+    /// writes none of these keys.
+    pub time_taken_interval: Option<RouteTimeInterval>,
+}
+
+/// An interval of an edge's traversal time in a Nav2 route graph ([`RouteEdgeMetadata`]).
+/// Written only if `0 <= lower_secs <= upper_secs`, both finite, and `coverage` in `(0, 1]`;
+/// the time taken need not lie inside it (it is an expectation, the bounds are quantiles).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RouteTimeInterval {
+    /// Lower bound, seconds (`abs_time_taken_lower`).
+    pub lower_secs: f64,
+    /// Upper bound, seconds (`abs_time_taken_upper`).
+    pub upper_secs: f64,
+    /// Probability that the time taken is in the interval (`abs_time_taken_coverage`).
+    pub coverage: f64,
+}
+
+impl RouteEdgeMetadata {
+    /// Success probability and time taken (seconds), without an interval.
+    pub fn new(success_probability: f64, time_taken_secs: f64) -> Self {
+        RouteEdgeMetadata {
+            success_probability,
+            time_taken_secs,
+            time_taken_interval: None,
+        }
+    }
+
+    /// The same with the interval `(lower, upper)` (seconds) of probability `coverage`, or
+    /// without one if `interval` is `None`.
+    #[must_use]
+    pub fn with_time_interval(self, interval: Option<(f64, f64)>, coverage: f64) -> Self {
+        RouteEdgeMetadata {
+            time_taken_interval: interval.map(|(lower_secs, upper_secs)| RouteTimeInterval {
+                lower_secs,
+                upper_secs,
+                coverage,
+            }),
+            ..self
+        }
+    }
+
+    /// The `metadata` object of edge `id`, or why these values cannot be written.
+    fn to_json(self, id: &str) -> Result<Value, TopoFileError> {
+        let bad = |what: String| TopoFileError::invalid_input(format!("edge {id:?}: {what}"));
+        let RouteEdgeMetadata {
+            success_probability: probability,
+            time_taken_secs: time,
+            time_taken_interval: interval,
+        } = self;
+        if !(0.0..=1.0).contains(&probability) {
+            return Err(bad(format!(
+                "success probability {probability} is not in [0, 1]"
+            )));
+        }
+        if !(time.is_finite() && time >= 0.0) {
+            return Err(bad(format!(
+                "time taken {time} is not a finite number of seconds >= 0"
+            )));
+        }
+        let mut metadata = json!({
+            "name": id,
+            "success_probability": probability,
+            "abs_time_taken": time,
+        });
+        if let Some(RouteTimeInterval {
+            lower_secs: lower,
+            upper_secs: upper,
+            coverage,
+        }) = interval
+        {
+            if !(lower.is_finite() && upper.is_finite() && 0.0 <= lower && lower <= upper) {
+                return Err(bad(format!(
+                    "time interval [{lower}, {upper}] is not finite seconds with \
+                     0 <= lower <= upper"
+                )));
+            }
+            if !(coverage > 0.0 && coverage <= 1.0) {
+                return Err(bad(format!(
+                    "time interval coverage {coverage} is not in (0, 1]"
+                )));
+            }
+            metadata["abs_time_taken_lower"] = json!(lower);
+            metadata["abs_time_taken_upper"] = json!(upper);
+            metadata["abs_time_taken_coverage"] = json!(coverage);
+        }
+        Ok(metadata)
+    }
+}
+
 /// Writes `map` as a Nav2 route-server GeoJSON graph (atomically; see the
 /// [module docs](self#nav2-route-server-geojson-write_route_geojson-read_route_geojson)).
-/// `edge_metadata[i]` is `(success probability, time taken in seconds)` of `map.edges()[i]`.
+/// `edge_metadata[i]` is the metadata of `map.edges()[i]`.
 ///
 /// # Errors
 /// As [`encode_route_geojson`], or [`TopoFileErrorKind::Io`] naming `path`.
 pub fn write_route_geojson(
     path: impl AsRef<Path>,
     map: &TopoMap,
-    edge_metadata: &[(f64, f64)],
+    edge_metadata: &[RouteEdgeMetadata],
 ) -> Result<(), TopoFileError> {
     let path = path.as_ref();
     let text = encode_route_geojson(map, edge_metadata)
@@ -1306,14 +1433,17 @@ pub fn write_route_geojson(
 }
 
 /// The text of a Nav2 route-server GeoJSON graph for `map` (pretty-printed JSON ending in a
-/// newline).
+/// newline); `edge_metadata[i]` is the metadata of `map.edges()[i]`.
 ///
 /// # Errors
 /// [`TopoFileErrorKind::InvalidInput`] if `edge_metadata` does not have one entry per edge, a
-/// probability is not in `[0, 1]`, a time is negative or not finite, or a pose is not finite.
+/// pose is not finite, or an edge's metadata is not writable (naming the edge): a
+/// probability not in `[0, 1]`, a time taken that is negative or not finite, an interval
+/// whose bounds are not finite with `0 <= lower <= upper`, or whose coverage is not in
+/// `(0, 1]`.
 pub fn encode_route_geojson(
     map: &TopoMap,
-    edge_metadata: &[(f64, f64)],
+    edge_metadata: &[RouteEdgeMetadata],
 ) -> Result<String, TopoFileError> {
     if edge_metadata.len() != map.edges().len() {
         return Err(TopoFileError::invalid_input(format!(
@@ -1337,19 +1467,8 @@ pub fn encode_route_geojson(
     }
     let node_count = map.nodes().len();
     let xy = |node: usize| [poses[node].pose[0], poses[node].pose[1]];
-    for (index, (edge, &(probability, time))) in map.edges().iter().zip(edge_metadata).enumerate() {
-        if !(0.0..=1.0).contains(&probability) {
-            return Err(TopoFileError::invalid_input(format!(
-                "edge {:?}: success probability {probability} is not in [0, 1]",
-                edge.id
-            )));
-        }
-        if !(time.is_finite() && time >= 0.0) {
-            return Err(TopoFileError::invalid_input(format!(
-                "edge {:?}: time taken {time} is not a finite number of seconds >= 0",
-                edge.id
-            )));
-        }
+    for (index, (edge, metadata)) in map.edges().iter().zip(edge_metadata).enumerate() {
+        let metadata = metadata.to_json(&edge.id)?;
         let (start, end) = (xy(edge.from), xy(edge.to));
         features.push(json!({
             "type": "Feature",
@@ -1357,11 +1476,7 @@ pub fn encode_route_geojson(
                 "id": node_count + index,
                 "startid": edge.from,
                 "endid": edge.to,
-                "metadata": {
-                    "name": edge.id,
-                    "success_probability": probability,
-                    "abs_time_taken": time,
-                },
+                "metadata": metadata,
             },
             "geometry": {"type": "MultiLineString", "coordinates": [[start, end]]},
         }));
@@ -1858,12 +1973,20 @@ mod tests {
     #[test]
     fn route_geojson_round_trips() {
         let map = posed_map();
-        let metadata = vec![(0.5, 3.0); map.edges().len()];
-        let json = encode_route_geojson(&map, &metadata).unwrap();
-        let read = decode_route_geojson("map.geojson", json.as_bytes()).unwrap();
-        // Same nodes (names, poses bit for bit; the unposed node stays unposed) and edges.
-        assert_eq!(read.nodes(), map.nodes());
-        assert_eq!(read.edges(), map.edges());
+        // With and without intervals of the time taken (files of models without them).
+        let plain = RouteEdgeMetadata::new(0.5, 3.0);
+        let spread = plain.with_time_interval(Some((1.25, 7.5)), 0.9);
+        for metadata in [plain, spread] {
+            let json = encode_route_geojson(&map, &vec![metadata; map.edges().len()]).unwrap();
+            assert_eq!(
+                json.contains("abs_time_taken_lower"),
+                metadata.time_taken_interval.is_some()
+            );
+            let read = decode_route_geojson("map.geojson", json.as_bytes()).unwrap();
+            // Same nodes (names, poses bit for bit; the unposed node stays unposed) and edges.
+            assert_eq!(read.nodes(), map.nodes());
+            assert_eq!(read.edges(), map.edges());
+        }
         // Yaw is not in the format: it reads back as 0.
         let mut turned = TopoMap::new();
         turned.add_node("A", Some([1.0, 2.0, 0.7])).unwrap();
@@ -2074,7 +2197,11 @@ mod tests {
             std::env::temp_dir().join(format!("chronomap-io-route-{}", std::process::id())),
         );
         let map = posed_map();
-        let metadata = vec![(1.0, 0.0); map.edges().len()];
+        let metadata = vec![
+            RouteEdgeMetadata::new(1.0, 0.0)
+                .with_time_interval(Some((0.0, 0.0)), 0.9);
+            map.edges().len()
+        ];
         let path = dir.join("map.geojson");
         write_route_geojson(&path, &map, &metadata).unwrap();
         assert_eq!(read_route_geojson(&path).unwrap(), map);

@@ -13,8 +13,8 @@ use chronomap_io::laser_text::{
 use chronomap_io::model_file::{decode_any_model, decode_model, encode_model};
 use chronomap_io::ply::{PlyFormat, decode_ply, encode_ply};
 use chronomap_io::topo_files::{
-    decode_route_geojson, decode_tmap2, encode_edge_file, encode_route_geojson, encode_tmap2,
-    read_edge_file_from,
+    RouteEdgeMetadata, decode_route_geojson, decode_tmap2, encode_edge_file, encode_route_geojson,
+    encode_tmap2, read_edge_file_from,
 };
 use chronomap_io::{decode_map_yaml, read_events_from, read_frame_list_from, read_pairs_from};
 use chronomap_lidar::classifier::{LoopClassifier, MODEL_KIND};
@@ -117,9 +117,15 @@ fn seeds() -> Vec<Vec<u8>> {
             .into_bytes(),
     );
     seeds.push(
-        encode_route_geojson(&map, &[(0.9, 30.0), (0.5, 12.0)])
-            .unwrap()
-            .into_bytes(),
+        encode_route_geojson(
+            &map,
+            &[
+                RouteEdgeMetadata::new(0.9, 30.0).with_time_interval(Some((21.5, 44.0)), 0.9),
+                RouteEdgeMetadata::new(0.5, 12.0),
+            ],
+        )
+        .unwrap()
+        .into_bytes(),
     );
     // A real model file and a real grid file.
     seeds.push(std::fs::read(repo_path("tests/hostile/door.cmm")).unwrap());
@@ -204,6 +210,7 @@ proptest! {
     fn route_geojson_and_tmap2_round_trip(
         poses in proptest::collection::vec((-1e4f64..1e4, -1e4f64..1e4), 1..12),
         edges in proptest::collection::vec((any::<usize>(), any::<usize>()), 0..24),
+        interval in proptest::option::of((0.0f64..1e4, 0.0f64..1e4, 0.01f64..=1.0)),
     ) {
         let mut map = TopoMap::new();
         for (i, &(x, y)) in poses.iter().enumerate() {
@@ -217,8 +224,21 @@ proptest! {
                 map.add_edge(&format!("N{a}_N{b}"), &format!("N{a}"), &format!("N{b}")).unwrap();
             }
         }
-        let metadata = vec![(0.5, 10.0); map.edges().len()];
-        let json = encode_route_geojson(&map, &metadata).unwrap();
+        // With or without an interval of the time taken (its bounds need not hold the time).
+        let interval = interval.map(|(a, b, coverage)| ((a.min(b), a.max(b)), coverage));
+        let metadata = RouteEdgeMetadata::new(0.5, 10.0)
+            .with_time_interval(interval.map(|i| i.0), interval.map_or(0.9, |i| i.1));
+        let json = encode_route_geojson(&map, &vec![metadata; map.edges().len()]).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        for feature in value["features"].as_array().unwrap() {
+            if feature["geometry"]["type"] == "MultiLineString" {
+                let m = &feature["properties"]["metadata"];
+                let bounds =
+                    m["abs_time_taken_lower"].as_f64().zip(m["abs_time_taken_upper"].as_f64());
+                prop_assert_eq!(bounds, interval.map(|i| i.0));
+                prop_assert_eq!(m["abs_time_taken_coverage"].as_f64(), interval.map(|i| i.1));
+            }
+        }
         let from_json = decode_route_geojson("g.geojson", json.as_bytes()).unwrap();
         let yaml = encode_tmap2(&map, "m", "01-01-2026_00-00-00").unwrap();
         let from_yaml = decode_tmap2("m.tmap2.yaml", yaml.as_bytes()).unwrap().map;

@@ -9,9 +9,10 @@ use std::path::{Path, PathBuf};
 
 use chronomap_io::text::{DataError, DataErrorKind, Field};
 use chronomap_io::topo_files::{
-    TopoFileError, TopoFileErrorKind, decode_tmap2, encode_route_geojson, encode_tmap2,
-    read_edge_directory, read_edge_directory_with_nodes, read_edge_file, read_edge_file_from,
-    read_edge_files, read_tmap2, write_route_geojson, write_tmap2,
+    RouteEdgeMetadata, RouteTimeInterval, TopoFileError, TopoFileErrorKind, decode_tmap2,
+    encode_route_geojson, encode_tmap2, read_edge_directory, read_edge_directory_with_nodes,
+    read_edge_file, read_edge_file_from, read_edge_files, read_route_geojson, read_tmap2,
+    write_route_geojson, write_tmap2,
 };
 use chronomap_topo::map::{TopoError, TopoMap};
 use serde_json::Value;
@@ -187,14 +188,14 @@ fn witham_with_extra_nodes_puts_them_first() {
 #[test]
 fn witham_exports_to_geojson_and_tmap2() {
     let stats = read_edge_directory(witham_edges()).unwrap();
-    let metadata: Vec<(f64, f64)> = stats
+    let metadata: Vec<RouteEdgeMetadata> = stats
         .attempts
         .iter()
         .enumerate()
         .map(|(i, attempts)| {
             let mean =
                 attempts.iter().map(|a| a.duration_secs).sum::<f64>() / attempts.len() as f64;
-            (stats.success_rate(i).unwrap(), mean)
+            RouteEdgeMetadata::new(stats.success_rate(i).unwrap(), mean)
         })
         .collect();
     let json: Value =
@@ -933,15 +934,19 @@ fn route_geojson_has_nodes_edges_and_metadata() {
     map.add_node("Nowhere", None).unwrap();
     map.add_edge("Station_Nowhere", "Station", "Nowhere")
         .unwrap();
+    // Intervals on some edges: one around the time, one that does not hold it (quantile
+    // bounds need not), one of zero width, none.
     let metadata = [
-        (0.2, 12.5),
-        (0.99, 8.0),
-        (1.0, 0.0),
-        (0.5, 30.25),
-        (0.0, 1.0),
+        RouteEdgeMetadata::new(0.2, 12.5).with_time_interval(Some((9.75, 17.0)), 0.9),
+        RouteEdgeMetadata::new(0.99, 8.0),
+        RouteEdgeMetadata::new(1.0, 0.0).with_time_interval(Some((0.0, 0.0)), 0.9),
+        RouteEdgeMetadata::new(0.5, 30.25).with_time_interval(Some((31.0, 62.5)), 0.5),
+        RouteEdgeMetadata::new(0.0, 1.0),
     ];
     let path = scratch("geojson").join("route.geojson");
     write_route_geojson(&path, &map, &metadata).unwrap();
+    // Read back with the new keys: the same edges (poses lose their yaw).
+    assert_eq!(read_route_geojson(&path).unwrap().edges(), map.edges());
     let json: Value = serde_json::from_str(&fs::read_to_string(&path).unwrap()).unwrap();
 
     assert_eq!(json["type"], "FeatureCollection");
@@ -996,17 +1001,46 @@ fn route_geojson_has_nodes_edges_and_metadata() {
     assert_eq!(first["metadata"]["success_probability"].as_f64(), Some(0.2));
     assert_eq!(first["metadata"]["abs_time_taken"].as_f64(), Some(12.5));
     assert_eq!(
+        first["metadata"]["abs_time_taken_lower"].as_f64(),
+        Some(9.75)
+    );
+    assert_eq!(
+        first["metadata"]["abs_time_taken_upper"].as_f64(),
+        Some(17.0)
+    );
+    assert_eq!(
+        first["metadata"]["abs_time_taken_coverage"].as_f64(),
+        Some(0.9)
+    );
+    assert_eq!(
         lines[0]["geometry"]["coordinates"],
         serde_json::json!([[[1.25, -2.5], [4.0, 2.0]]])
     );
-    for (line, &(p, t)) in lines.iter().zip(&metadata) {
+    for (line, m) in lines.iter().zip(&metadata) {
+        let written = &line["properties"]["metadata"];
         assert_eq!(
-            line["properties"]["metadata"]["success_probability"].as_f64(),
-            Some(p)
+            written["success_probability"].as_f64(),
+            Some(m.success_probability)
+        );
+        assert_eq!(written["abs_time_taken"].as_f64(), Some(m.time_taken_secs));
+        // Flat numbers (Nav2 reads scalar metadata), or no key at all without an interval.
+        let key = |k: &str| written.get(k).map(|v| v.as_f64().expect("a number"));
+        assert_eq!(
+            key("abs_time_taken_lower").zip(key("abs_time_taken_upper")),
+            m.time_taken_interval.map(|i| (i.lower_secs, i.upper_secs))
         );
         assert_eq!(
-            line["properties"]["metadata"]["abs_time_taken"].as_f64(),
-            Some(t)
+            key("abs_time_taken_coverage"),
+            m.time_taken_interval.map(|i| i.coverage)
+        );
+        let keys = written.as_object().unwrap().len();
+        assert_eq!(
+            keys,
+            if m.time_taken_interval.is_some() {
+                6
+            } else {
+                3
+            }
         );
     }
 }
@@ -1014,25 +1048,68 @@ fn route_geojson_has_nodes_edges_and_metadata() {
 #[test]
 fn route_geojson_rejects_bad_metadata() {
     let map = three_node_map();
-    let err = encode_route_geojson(&map, &[(0.5, 1.0)]).unwrap_err();
+    let err = encode_route_geojson(&map, &[RouteEdgeMetadata::new(0.5, 1.0)]).unwrap_err();
     assert_eq!(
         err.to_string(),
         "cannot write the map: 1 edge metadata entries for 4 edges"
     );
-    let good = [(0.5, 1.0); 4];
+    let good = [RouteEdgeMetadata::new(0.5, 1.0); 4];
     encode_route_geojson(&map, &good).unwrap();
+    let interval = |lower_secs, upper_secs, coverage| RouteEdgeMetadata {
+        time_taken_interval: Some(RouteTimeInterval {
+            lower_secs,
+            upper_secs,
+            coverage,
+        }),
+        ..RouteEdgeMetadata::new(0.5, 1.0)
+    };
+    // The time taken need not be inside its interval: quantiles do not promise it.
+    for fine in [interval(2.0, 3.0, 0.9), interval(0.0, 0.5, 1.0)] {
+        let mut metadata = good;
+        metadata[2] = fine;
+        encode_route_geojson(&map, &metadata).unwrap();
+    }
     for bad in [
-        (1.5, 1.0),
-        (-0.1, 1.0),
-        (f64::NAN, 1.0),
-        (0.5, -1.0),
-        (0.5, f64::INFINITY),
+        RouteEdgeMetadata::new(1.5, 1.0),
+        RouteEdgeMetadata::new(-0.1, 1.0),
+        RouteEdgeMetadata::new(f64::NAN, 1.0),
+        RouteEdgeMetadata::new(0.5, -1.0),
+        RouteEdgeMetadata::new(0.5, f64::INFINITY),
+        interval(2.0, 1.0, 0.9),
+        interval(-0.5, 1.0, 0.9),
+        interval(f64::NAN, 1.0, 0.9),
+        interval(0.5, f64::INFINITY, 0.9),
+        interval(0.5, f64::NAN, 0.9),
+        interval(0.5, 1.5, 0.0),
+        interval(0.5, 1.5, 1.5),
+        interval(0.5, 1.5, f64::NAN),
     ] {
         let mut metadata = good;
         metadata[2] = bad;
         let err = encode_route_geojson(&map, &metadata).unwrap_err();
         assert!(err.to_string().contains("LabDoor2_Kitchen"), "{err}");
+        assert!(
+            matches!(err.kind(), TopoFileErrorKind::InvalidInput { .. }),
+            "{err}"
+        );
     }
+    let mut metadata = good;
+    metadata[2] = interval(2.0, 1.0, 0.9);
+    assert_eq!(
+        encode_route_geojson(&map, &metadata)
+            .unwrap_err()
+            .to_string(),
+        "cannot write the map: edge \"LabDoor2_Kitchen\": time interval [2, 1] is not finite \
+         seconds with 0 <= lower <= upper"
+    );
+    metadata[2] = interval(0.5, 1.5, 1.5);
+    assert_eq!(
+        encode_route_geojson(&map, &metadata)
+            .unwrap_err()
+            .to_string(),
+        "cannot write the map: edge \"LabDoor2_Kitchen\": time interval coverage 1.5 is not in \
+         (0, 1]"
+    );
     let path = scratch("geojson_bad").join("route.geojson");
     let err = write_route_geojson(&path, &map, &[]).unwrap_err();
     assert_eq!(err.file(), Some(path.display().to_string().as_str()));

@@ -789,3 +789,73 @@ fn a_map_that_could_bring_the_grids_above_memory_limit_is_refused_and_changes_no
         "{held}: the bound is conservative, not the use"
     );
 }
+
+/// Edge models of a three-node map, fitted on a few weeks of made-up traversals: `spread`
+/// with successful ones (durations have a spread), else only failures (no interval).
+fn edge_models(spread: bool) -> chronomap_topo::edges::EdgeModels {
+    use chronomap_topo::edges::{Attempt, EdgeModelConfig, EdgeModels};
+    let mut map = chronomap_topo::TopoMap::new();
+    for (name, x) in [("Station", 0.0), ("Door", 4.0), ("Lab", 9.5)] {
+        map.add_node(name, Some([x, 1.0, 0.0])).unwrap();
+    }
+    map.add_edge("Station_Door", "Station", "Door").unwrap();
+    map.add_edge("Door_Lab", "Door", "Lab").unwrap();
+    map.add_edge("Lab_Station", "Lab", "Station").unwrap();
+    let attempts = |edge: usize, n: usize| -> Vec<Attempt> {
+        (0..n)
+            .map(|i| Attempt {
+                time: 1_404_000_000.0 + 3_600.0 * i as f64,
+                duration_secs: 10.0 * (edge + 1) as f64 + ((i * 7 + edge) % 13) as f64,
+                success: spread && i % 9 != 4,
+            })
+            .collect()
+    };
+    let all = [attempts(0, 400), attempts(1, 60), Vec::new()];
+    EdgeModels::fit(map, &all, EdgeModelConfig::default()).unwrap()
+}
+
+#[test]
+fn the_route_graph_carries_each_edge_s_duration_interval_as_flat_metadata() {
+    let dir = Scratch::new("route_graph");
+    let params = "    edges: {models: witham.cmt, geojson: route.geojson, period: 1.0}\n";
+    let time = 1_404_000_000.0 + 3_600.0 * 430.5;
+    for spread in [true, false] {
+        let models = edge_models(spread);
+        chronomap_io::write_edge_models(dir.0.join("witham.cmt"), &models).unwrap();
+        let world = World::new(config(&dir.0, params)).unwrap();
+        assert!(world.write_route_graph(time).unwrap());
+        let text = std::fs::read_to_string(dir.0.join("route.geojson")).unwrap();
+        let graph: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let edges: Vec<&serde_json::Value> = graph["features"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|f| f["geometry"]["type"] == "MultiLineString")
+            .map(|f| &f["properties"]["metadata"])
+            .collect();
+        assert_eq!(edges.len(), 3);
+        let (success, duration) = models.at(time);
+        for (e, metadata) in edges.iter().enumerate() {
+            assert_eq!(metadata["name"], models.map().edges()[e].id);
+            let number = |key: &str| metadata.get(key).map(|v| v.as_f64().unwrap().to_bits());
+            assert_eq!(number("success_probability"), Some(success[e].to_bits()));
+            assert_eq!(number("abs_time_taken"), Some(duration[e].to_bits()));
+            // The library's interval at the same time, bit for bit, or no keys without one.
+            let interval = models.duration_interval(e, time, EVALUATION_COVERAGE);
+            assert_eq!(interval.is_some(), spread, "edge {e}");
+            assert_eq!(
+                number("abs_time_taken_lower").zip(number("abs_time_taken_upper")),
+                interval.map(|(lo, hi)| (lo.to_bits(), hi.to_bits())),
+                "edge {e}"
+            );
+            assert_eq!(
+                number("abs_time_taken_coverage"),
+                spread.then_some(0.9f64.to_bits()),
+                "edge {e}"
+            );
+            if let Some((lo, hi)) = interval {
+                assert!(0.0 < lo && lo < hi, "edge {e}: {lo} {hi}");
+            }
+        }
+    }
+}
