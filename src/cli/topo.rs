@@ -151,6 +151,11 @@ pub struct TopoEvalArgs {
     /// Also show the scores of every edge.
     #[arg(long)]
     pub per_edge: bool,
+    /// Draw the calibration as a PNG: the reliability diagram of the success probabilities
+    /// (edge models and static rates, the chosen protocol) and the share of successful
+    /// durations inside their intervals against the nominal coverage (10 % … 99 %).
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
     /// Model options.
     #[command(flatten)]
     pub model: EdgeModelFlags,

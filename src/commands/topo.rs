@@ -75,6 +75,9 @@ pub fn eval(args: &TopoEvalArgs) -> Result<()> {
             None => &NoProgress,
         },
     )?;
+    if let Some(path) = &args.plot {
+        render_panels_png(&report.calibration_panels(), path, 1000, 1400)?;
+    }
     if args.json {
         return print_json(&report.json());
     }

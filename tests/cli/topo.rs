@@ -158,12 +158,37 @@ fn duration_intervals_hold_about_nine_tenths_of_the_later_weeks() {
             path(&dir, &format!("{at}-b")),
         );
         stdout(&split(at, &before, &after, &[]));
+        let png = path(&dir, &format!("{at}.png"));
         let out = stdout(&chronomap(&[
-            "topo", "eval", "--train", &before, "--test", &after, "--json",
+            "topo", "eval", "--train", &before, "--test", &after, "--json", "--plot", &png,
         ]));
+        assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
         let report: Value = serde_json::from_str(out.trim()).unwrap();
         let number = |key: &str| report[key].as_f64().unwrap();
         assert_eq!(number("duration_nominal_coverage"), 0.9);
+        // The curve the --plot draws: its 90 % point is the headline, and it rises.
+        let curve = report["duration_curve"].as_array().unwrap();
+        assert_eq!(curve.len(), 11);
+        let at_90 = curve.iter().find(|l| l["nominal"] == 0.9).unwrap();
+        assert_eq!(at_90["coverage"], report["duration_coverage"]);
+        let shares: Vec<f64> = curve
+            .iter()
+            .map(|l| l["coverage"].as_f64().unwrap())
+            .collect();
+        assert!(shares.windows(2).all(|w| w[0] < w[1]), "{at}: {shares:?}");
+        // The reliability bins hold every attempt once.
+        for key in [
+            "success_reliability_bins",
+            "static_success_reliability_bins",
+        ] {
+            let counted: u64 = report[key]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|b| b["count"].as_u64().unwrap())
+                .sum();
+            assert_eq!(report["attempts"], counted, "{at} {key}");
+        }
         assert!(
             (number("duration_coverage") - coverage).abs() < 1e-3,
             "{at}: {report}"

@@ -23,7 +23,7 @@ use chronomap_activity::{
     RatePredictor, RateSamples, RateScale, Scores, WhyteConfig, score, select_baseline,
 };
 use chronomap_core::Parallelism;
-use chronomap_core::calibration::Coverage;
+use chronomap_core::calibration::{CURVE_LEVELS, Coverage};
 use chronomap_core::num::{count_of, fmt_number};
 use chronomap_core::progress::Progress;
 use chronomap_hypertime::events::Event;
@@ -611,9 +611,6 @@ pub struct ActivityEvalReport {
     pub interval_curve: Vec<IntervalLevel>,
 }
 
-/// The nominal coverages of [`ActivityEvalReport::interval_curve`].
-pub const CURVE_LEVELS: [f64; 11] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99];
-
 /// How a model's intervals of one nominal coverage held the test rates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IntervalLevel {
@@ -660,60 +657,35 @@ impl ActivityEvalReport {
     /// model has no intervals.
     #[cfg(feature = "plot")]
     pub fn interval_panels(&self) -> Option<Vec<chronomap_plot::Panel>> {
-        use chronomap_plot::{Panel, Series, SeriesStyle};
         if self.interval_curve.is_empty() {
             return None;
         }
-        let series = |value: fn(&Coverage) -> f64| -> Vec<Series> {
-            [("whole hours", true), ("one observation", false)]
-                .into_iter()
-                .filter_map(|(label, whole)| {
-                    let points: Vec<(f64, f64)> = self
-                        .interval_curve
-                        .iter()
-                        .filter_map(|l| {
-                            let kind = if whole { l.whole } else { l.observation };
-                            kind.map(|c| (l.nominal, value(&c)))
-                        })
-                        .collect();
-                    (!points.is_empty()).then(|| Series {
-                        label: format!("{} intervals of {label}", self.model),
-                        points,
-                        style: SeriesStyle::Line,
-                    })
+        let curve = |whole: bool| -> Vec<(f64, Coverage)> {
+            self.interval_curve
+                .iter()
+                .filter_map(|l| {
+                    let kind = if whole { l.whole } else { l.observation };
+                    kind.map(|c| (l.nominal, c))
                 })
                 .collect()
         };
-        let mut coverage = series(|c| c.coverage);
-        coverage.push(Series {
-            label: "calibrated".into(),
-            points: vec![(0.0, 0.0), (1.0, 1.0)],
-            style: SeriesStyle::Line,
-        });
-        let widths = series(|c| c.mean_width);
-        let widest = widths
-            .iter()
-            .flat_map(|s| s.points.iter().map(|p| p.1))
-            .fold(0.0, f64::max);
-        Some(vec![
-            Panel {
-                title: format!(
-                    "Predictive intervals on {} test rates: share inside against nominal coverage",
-                    self.test.samples
+        Some(crate::calibration_plots::coverage_panels(
+            format!(
+                "Predictive intervals on {} test rates: share inside against nominal coverage",
+                self.test.samples
+            ),
+            "people per hour",
+            &[
+                (
+                    format!("{} intervals of whole hours", self.model),
+                    curve(true),
                 ),
-                x_label: String::new(),
-                y_label: "share of test rates inside".into(),
-                y_range: (-0.02, 1.02),
-                series: coverage,
-            },
-            Panel {
-                title: "Mean width of the intervals".into(),
-                x_label: "nominal coverage".into(),
-                y_label: "people per hour".into(),
-                y_range: (0.0, (1.1 * widest).max(1.0)),
-                series: widths,
-            },
-        ])
+                (
+                    format!("{} intervals of one observation", self.model),
+                    curve(false),
+                ),
+            ],
+        ))
     }
 }
 

@@ -18,7 +18,7 @@ use chronomap_models::eval::{EvalReport, ModelEvaluation, TestSet, evaluate_on_c
 use chronomap_models::spec::{FitOptions, ModelSpec};
 use chronomap_models::split::{SplitError, chronological_split};
 #[cfg(feature = "plot")]
-use chronomap_plot::{Panel, Series, SeriesStyle};
+use chronomap_plot::Panel;
 use serde_json::{Value, json};
 
 use crate::model::describe_selection;
@@ -362,67 +362,22 @@ impl EvalOutcome {
     /// the share of forecasts in each bin), as `chronomap eval --plot` draws it.
     #[cfg(feature = "plot")]
     pub fn reliability_panels(&self) -> Vec<Panel> {
-        // One colour per model in both panels: the diagonal comes last.
-        let style = |points: &[(f64, f64)]| {
-            if points.len() == 1 {
-                SeriesStyle::Dots
-            } else {
-                SeriesStyle::Line
-            }
-        };
-        let mut diagram = Vec::new();
-        let mut shares = Vec::new();
-        for m in &self.report.models {
-            let c = &m.pooled_calibration;
-            let points: Vec<(f64, f64)> = c
-                .bins
-                .iter()
-                .map(|b| (b.mean_prediction, b.observed_frequency))
-                .collect();
-            diagram.push(Series {
-                label: format!("{} (ECE {:.3})", m.spec, c.ece),
-                style: style(&points),
-                points,
-            });
-            let points: Vec<(f64, f64)> = c
-                .bins
-                .iter()
-                .map(|b| (b.mean_prediction, b.count as f64 / c.samples as f64))
-                .collect();
-            shares.push(Series {
-                label: m.spec.to_string(),
-                style: style(&points),
-                points,
-            });
-        }
-        diagram.push(Series {
-            label: "calibrated".into(),
-            points: vec![(0.0, 0.0), (1.0, 1.0)],
-            style: SeriesStyle::Line,
-        });
-        let top_share = shares
+        let forecasts: Vec<(String, &[chronomap_core::calibration::ReliabilityBin])> = self
+            .report
+            .models
             .iter()
-            .flat_map(|s| s.points.iter().map(|p| p.1))
-            .fold(0.0, f64::max);
-        vec![
-            Panel {
-                title: format!(
-                    "Reliability diagram: all {} test sets, {DEFAULT_BINS} equal-width bins",
-                    self.study.tests.len()
-                ),
-                x_label: String::new(),
-                y_label: "observed frequency".into(),
-                y_range: (-0.02, 1.02),
-                series: diagram,
-            },
-            Panel {
-                title: "Share of forecasts per bin".into(),
-                x_label: "mean predicted probability in the bin".into(),
-                y_label: "share".into(),
-                y_range: (0.0, (1.1 * top_share).max(0.01)),
-                series: shares,
-            },
-        ]
+            .map(|m| {
+                let c = &m.pooled_calibration;
+                (format!("{} (ECE {:.3})", m.spec, c.ece), c.bins.as_slice())
+            })
+            .collect();
+        crate::calibration_plots::reliability_panels(
+            format!(
+                "Reliability diagram: all {} test sets, {DEFAULT_BINS} equal-width bins",
+                self.study.tests.len()
+            ),
+            &forecasts,
+        )
     }
 }
 

@@ -43,6 +43,8 @@
 #![deny(missing_docs)]
 
 pub mod activity;
+#[cfg(feature = "plot")]
+pub mod calibration_plots;
 pub mod compress;
 pub mod datasets;
 pub mod demo;

@@ -532,6 +532,15 @@ impl EvalReport {
             "edges": e.models.map().edges().len(),
             "online": score_json(&e.online),
             "frozen": score_json(&e.frozen),
+            "success_reliability_bins": chosen.success_bins,
+            "static_success_reliability_bins": chosen.static_success_bins,
+            "duration_curve": chosen.duration_curve.iter().map(|(nominal, c)| json!({
+                "nominal": nominal,
+                "coverage": c.coverage,
+                "mean_width": c.mean_width,
+                "below": c.below,
+                "above": c.above,
+            })).collect::<Vec<_>>(),
         });
         if self.per_edge {
             report["per_edge"] = e
@@ -554,6 +563,44 @@ impl EvalReport {
     /// The report as `chronomap topo eval` prints it.
     pub fn text(&self) -> String {
         self.to_string()
+    }
+
+    /// The calibration of the chosen protocol's predictions, as `chronomap topo eval --plot`
+    /// draws it: the reliability diagram of the success probabilities (the models' and the
+    /// static rates') and the coverage curve of the duration intervals.
+    #[cfg(feature = "plot")]
+    pub fn calibration_panels(&self) -> Vec<Panel> {
+        use crate::calibration_plots::{coverage_panels, reliability_panels};
+        let chosen = self.evaluation.by(self.protocol);
+        let mut panels = reliability_panels(
+            format!(
+                "Success probabilities ({}): reliability over {} attempts, 10 bins",
+                self.protocol.name(),
+                chosen.attempts
+            ),
+            &[
+                (
+                    format!("edge models (ECE {:.3})", chosen.success_ece),
+                    chosen.success_bins.as_slice(),
+                ),
+                (
+                    format!("static rates (ECE {:.3})", chosen.static_success_ece),
+                    chosen.static_success_bins.as_slice(),
+                ),
+            ],
+        );
+        panels.extend(coverage_panels(
+            format!(
+                "Duration intervals on {} successful traversals: share inside",
+                chosen.successes
+            ),
+            "seconds",
+            &[(
+                "duration intervals".to_string(),
+                chosen.duration_curve.clone(),
+            )],
+        ));
+        panels
     }
 }
 

@@ -197,6 +197,11 @@ impl Calibration {
     }
 }
 
+/// The nominal coverages at which calibration curves of intervals are drawn (`chronomap
+/// activity eval --plot`, `chronomap topo eval --plot`): the share of values inside the
+/// intervals of each coverage against the coverage itself.
+pub const CURVE_LEVELS: [f64; 11] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99];
+
 /// How prediction intervals held up against what happened: the share of values inside their
 /// interval (its *empirical coverage*, to compare with the nominal level) and the intervals'
 /// mean width — an interval is only as useful as it is narrow at its coverage.

@@ -30,7 +30,9 @@ use serde::{Deserialize, Serialize};
 use crate::duration_intervals::{DurationSpread, residual};
 use crate::map::TopoMap;
 use chronomap_core::TimeSeries;
-use chronomap_core::calibration::{Calibration, Coverage, DEFAULT_BINS};
+use chronomap_core::calibration::{
+    CURVE_LEVELS, Calibration, Coverage, DEFAULT_BINS, ReliabilityBin,
+};
 use chronomap_core::error::BuildError;
 use chronomap_core::model::TemporalModel;
 use chronomap_core::select::Criterion;
@@ -191,7 +193,7 @@ impl Default for EdgeModelConfig {
 }
 
 /// Scores of edge models on later attempts ([`EdgeModels::evaluate`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EdgeEvaluation {
     /// Mean squared error of the success probabilities over all attempts.
     pub success_brier: f64,
@@ -228,6 +230,16 @@ pub struct EdgeEvaluation {
     /// Successful durations longer than their interval.
     #[serde(default)]
     pub duration_above: usize,
+    /// The reliability bins of the success probabilities (all attempts, [`DEFAULT_BINS`]).
+    #[serde(default)]
+    pub success_bins: Vec<ReliabilityBin>,
+    /// Those of the static per-edge success rates.
+    #[serde(default)]
+    pub static_success_bins: Vec<ReliabilityBin>,
+    /// How the duration intervals of every nominal coverage of
+    /// [`CURVE_LEVELS`] held the successful durations (empty without intervals).
+    #[serde(default)]
+    pub duration_curve: Vec<(f64, Coverage)>,
 }
 
 /// Nominal coverage of the duration intervals [`EdgeModels::evaluate`] scores: 90 %.
@@ -244,6 +256,8 @@ impl EdgeEvaluation {
         self.success_ece = model.ece;
         self.success_reliability = model.reliability;
         self.static_success_ece = fixed.ece;
+        self.success_bins = model.bins;
+        self.static_success_bins = fixed.bins;
     }
 }
 
@@ -708,7 +722,8 @@ impl EdgeModels {
         let mut score = EdgeEvaluation::default();
         let (mut mse, mut static_mse) = (0.0, 0.0);
         let (mut model, mut fixed, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut intervals, mut durations) = (Vec::new(), Vec::new());
+        // (edge, time, duration) of every successful attempt, for the intervals.
+        let mut traversals = Vec::new();
         for (edge, list) in test.iter().enumerate() {
             let p_static = self.static_success_probability(edge);
             let d_static = self.static_duration(edge);
@@ -718,12 +733,7 @@ impl EdgeModels {
                 outcomes.push(f64::from(u8::from(a.success)));
                 score.attempts += 1;
                 if a.success {
-                    if let Some(interval) =
-                        self.duration_interval(edge, a.time, EVALUATION_COVERAGE)
-                    {
-                        intervals.push(interval);
-                        durations.push(a.duration_secs);
-                    }
+                    traversals.push((edge, a.time, a.duration_secs));
                     mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
                     static_mse += (d_static - a.duration_secs).powi(2);
                     score.successes += 1;
@@ -731,7 +741,19 @@ impl EdgeModels {
             }
         }
         score.score_success(&model, &fixed, &outcomes);
-        let coverage = Coverage::of(&intervals, &durations);
+        let coverage_at = |level: f64| -> Option<Coverage> {
+            let (mut intervals, mut durations) = (Vec::new(), Vec::new());
+            for &(edge, time, duration) in &traversals {
+                intervals.push(self.duration_interval(edge, time, level)?);
+                durations.push(duration);
+            }
+            Some(Coverage::of(&intervals, &durations))
+        };
+        score.duration_curve = CURVE_LEVELS
+            .iter()
+            .filter_map(|&level| Some((level, coverage_at(level)?)))
+            .collect();
+        let coverage = coverage_at(EVALUATION_COVERAGE).unwrap_or_default();
         score.duration_coverage = coverage.coverage;
         score.duration_interval_width = coverage.mean_width;
         score.duration_below = coverage.below;
