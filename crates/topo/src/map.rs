@@ -194,6 +194,19 @@ fn edit_distance(a: &str, b: &str) -> usize {
     row[b.len()]
 }
 
+/// A map from node names and `(id, from, to)` edges, for tests.
+#[cfg(test)]
+pub(crate) fn test_map(nodes: &[&str], edges: &[(&str, &str, &str)]) -> TopoMap {
+    let mut map = TopoMap::new();
+    for n in nodes {
+        map.add_node(n, None).unwrap();
+    }
+    for (id, from, to) in edges {
+        map.add_edge(id, from, to).unwrap();
+    }
+    map
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,17 +3,7 @@ use crate::edges::{Attempt, EdgeModelConfig};
 use crate::map::TopoMap;
 use crate::mdp::{NavigationMdp, ProductMdp, Solution};
 
-/// A map from node names and `(id, from, to)` edges.
-fn map(nodes: &[&str], edges: &[(&str, &str, &str)]) -> TopoMap {
-    let mut map = TopoMap::new();
-    for n in nodes {
-        map.add_node(n, None).unwrap();
-    }
-    for (id, from, to) in edges {
-        map.add_edge(id, from, to).unwrap();
-    }
-    map
-}
+use crate::map::test_map as map;
 
 /// The product of `task` from `start` and its expected-time solution.
 fn product(

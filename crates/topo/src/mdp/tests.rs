@@ -1,17 +1,7 @@
 use super::*;
 use chronomap_core::rng::Xoshiro256StarStar;
 
-/// A map from node names and `(id, from, to)` edges.
-fn map(nodes: &[&str], edges: &[(&str, &str, &str)]) -> TopoMap {
-    let mut map = TopoMap::new();
-    for n in nodes {
-        map.add_node(n, None).unwrap();
-    }
-    for (id, from, to) in edges {
-        map.add_edge(id, from, to).unwrap();
-    }
-    map
-}
+use crate::map::test_map as map;
 
 /// `F target`: state 0 waits, state 1 accepts.
 fn eventually(target: &str) -> Dfa {
