@@ -34,12 +34,30 @@ class EdgeModels:
         """Every edge at ``time``, as ``chronomap topo predict --json``: ``edge``, ``from``,
         ``to`` (lists) and the arrays ``success_probability``, ``uncertainty``,
         ``static_success_probability``, ``duration_secs``, ``attempts``."""
-    def plan(self, start: str, task: str, time: Any) -> Dict[str, Any]:
+    def plan(
+        self,
+        start: str,
+        task: str,
+        time: Any,
+        *,
+        deadline: Optional[float] = None,
+        confidence: Optional[float] = None,
+        bucket_secs: Optional[float] = None,
+    ) -> Dict[str, Any]:
         """The plan of a co-safe LTL ``task`` from node ``start`` at ``time``, as
         ``chronomap plan --time --json``: ``pmax``, ``expected_secs``, ``first_edge``,
         ``route``, ``route_success_probabilities``, ``product_states``, ``task``, ``from``,
         ``time``; and ``policy``: for every undecided product state its ``node``,
-        ``automaton_state``, the ``edge`` to take and its ``pmax``."""
+        ``automaton_state``, the ``edge`` to take and its ``pmax``.
+
+        With ``deadline`` (seconds > 0), the plan most likely to fulfil the task within it,
+        as ``chronomap plan --time --deadline --json``: ``probability`` (a lower bound),
+        ``first_edge``, ``median_route``, ``reaches_confidence`` and
+        ``shortest_deadline_secs`` (``confidence``, default 0.95), ``min_time_probability``,
+        ``min_time_first_edge``, ``pmax``, ``expected_secs``, ``curve`` (array of rows
+        ``[d, deadline plan, expected-time plan]``), ``deadline_secs``, ``confidence``,
+        ``bucket_secs`` (default ``max(deadline / 600, 1)``), ``duration_quantiles``,
+        ``product_states``, ``seconds``, ``task``, ``from``, ``time``, ``utc``."""
     def now_or_later(self, start: str, task: str, times: npt.ArrayLike) -> Dict[str, Any]:
         """The plan at each of ``times``: arrays ``time``, ``pmax``, ``expected_secs`` and the
         list ``first_edge``."""

@@ -43,6 +43,12 @@ def test_python_guide_examples(repo, in_scratch, capsys):
     assert "[ 24. 168.]" in printed and "fremen:10" in printed
     assert [round(x, 4) for x in ns["scores"]["mean_mse"]] == [0.0807, 0.0701, 0.0670, 0.0603]
     assert np.array_equal(ns["people"].periods, [43200.0])
+    # "Arrive by T": the deadline plan of the Witham trip, as its comments say.
+    fast = ns["fast"]
+    assert round(fast["probability"], 4) == 0.5216 and fast["first_edge"] == "Kitchen_Ramp2"
+    assert round(fast["min_time_probability"], 4) == 0.0878
+    assert fast["min_time_first_edge"] == "Kitchen_GroundCentral"
+    assert ns["d"][-1] == 100.0 and ns["p_in_time"][-1] == fast["probability"]
     # Times from pandas: the door of "Times from pandas and numpy", open 08:00-18:00 UTC.
     assert "1.0" in printed.splitlines()
     assert ns["p_week"].index.name == "time" and str(ns["p_week"].index.tz) == "UTC"

@@ -144,3 +144,86 @@ def test_bad_input(fitted, tmp_path, repo):
     (edges / "A_B.data").write_text("100 5 1\n200 nan 1\n")
     with pytest.raises(ValueError, match=r"A_B.data"):
         EdgeModels.fit(edges)
+
+
+# (start, task, hour of 2014-09-04 UTC, deadline, confidence, bucket_secs): the README's trip,
+# trips of tests/cli/topo_deadline.rs, a two-step task in buckets of 2.5 s, and a deadline
+# of a day (buckets of 144 s).
+DEADLINES = [("Kitchen", "F Station", 14, 100, 0.5, None),
+             ("LabDoor2", "F Kitchen", 14, 80, None, None),
+             ("Station", "F (Printer & F Kitchen)", 10, 300, 0.9, 2.5),
+             ("Station", "!Ramp1 U Kitchen", 3, 86400, None, None)]
+
+
+@pytest.mark.parametrize(("start", "task", "hour", "deadline", "confidence", "bucket"), DEADLINES)
+def test_deadline_plan_agrees_with_chronomap_plan_deadline(fitted, cli, start, task, hour,
+                                                           deadline, confidence, bucket):
+    models, py_file, _ = fitted
+    time = 1409788800.0 + 3600.0 * hour
+    options = {}
+    args = ["plan", "--model", py_file, "--from", start, "--task", task, "--time", time,
+            "--deadline", deadline]
+    if confidence is not None:
+        options["confidence"] = confidence
+        args += ["--confidence", confidence]
+    if bucket is not None:
+        options["bucket_secs"] = bucket
+        args += ["--bucket-secs", bucket]
+    mine = models.plan(start, task, time, deadline=deadline, **options)
+    theirs = cli(*args, json_output=True)
+    assert set(mine) == set(theirs)
+    for key in theirs:
+        if key == "curve":
+            np.testing.assert_array_equal(mine[key], np.array(theirs[key]))
+        elif key != "seconds":  # the time spent planning
+            assert mine[key] == theirs[key], key
+    curve = mine["curve"]
+    assert curve.dtype == np.float64 and curve.shape == (len(theirs["curve"]), 3)
+    assert mine["bucket_secs"] == (bucket or max(deadline / 600, 1.0))
+    # The deadline plan is never behind the expected-time plan, at any d up to the deadline
+    # (the planner counts values within 1e-12 of 0 as 0: at 72 s of the README's trip the
+    # expected-time plan has 1.01e-12 where the deadline plan has 0).
+    assert np.all(curve[:, 1] >= curve[:, 2] - 1e-9)
+    assert mine["probability"] == curve[-1, 1] and mine["min_time_probability"] == curve[-1, 2]
+    assert mine["reaches_confidence"] == (mine["probability"] >= (confidence or 0.95))
+    # Without a deadline: the plan as before, whose summary the deadline plan carries.
+    plain = models.plan(start, task, time)
+    assert (plain["pmax"], plain["expected_secs"], plain["first_edge"]) == (
+        mine["pmax"], mine["expected_secs"], mine["min_time_first_edge"])
+
+
+def test_a_short_deadline_takes_another_way(fitted):
+    models, _, _ = fitted
+    fast = models.plan("Kitchen", "F Station", 1409839200.0, deadline=100, confidence=0.5)
+    assert fast["first_edge"] == "Kitchen_Ramp2"
+    assert fast["min_time_first_edge"] == "Kitchen_GroundCentral"
+    assert fast["reaches_confidence"] and fast["probability"] > 5 * fast["min_time_probability"]
+    assert fast["shortest_deadline_secs"] <= 100
+    # With time to spare both plans are the same.
+    slow = models.plan("Kitchen", "F Station", 1409839200.0, deadline=600)
+    assert slow["first_edge"] == slow["min_time_first_edge"]
+
+
+def test_bad_deadlines(fitted):
+    models, _, _ = fitted
+    t = TIMES[2]
+    for deadline in (0, -5.0, float("nan"), float("inf"), -0.0):
+        with pytest.raises(ValueError, match=r"^deadline: .* is not a finite number of seconds > 0"):
+            models.plan("Kitchen", "F Station", t, deadline=deadline)
+    for confidence in (1.5, -0.1, float("nan")):
+        with pytest.raises(ValueError, match=r"^confidence: .* is not a probability in \[0, 1\]"):
+            models.plan("Kitchen", "F Station", t, deadline=100, confidence=confidence)
+    for bucket in (0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match=r"^bucket_secs: .* is not a finite number of seconds > 0"):
+            models.plan("Kitchen", "F Station", t, deadline=100, bucket_secs=bucket)
+    with pytest.raises(ValueError, match=r"^confidence: only with deadline"):
+        models.plan("Kitchen", "F Station", t, confidence=0.9)
+    with pytest.raises(ValueError, match=r"^bucket_secs: only with deadline"):
+        models.plan("Kitchen", "F Station", t, bucket_secs=1.0)
+    # More than 10^6 cells: 18 product states × 100,001 buckets, refused before the work.
+    with pytest.raises(ValueError, match=r"^bucket_secs: the deadline plan would need 18 states"):
+        models.plan("Kitchen", "F Station", t, deadline=100, bucket_secs=0.001)
+    with pytest.raises(ValueError, match=r'^start: unknown node "Kitchn"'):
+        models.plan("Kitchn", "F Station", t, deadline=100)
+    with pytest.raises(TypeError):
+        models.plan("Kitchen", "F Station", t, deadline="100")

@@ -183,6 +183,16 @@ fn every_endpoint_is_documented_and_the_web_page_is_served() {
             "{method} {path} is not documented"
         );
     }
+    // The deadline of a plan request and its answer are described.
+    let schemas = &spec["components"]["schemas"];
+    for field in ["deadline_secs", "confidence", "bucket_secs", "curve"] {
+        assert!(
+            schemas["PlanRequest"]["properties"][field].is_object(),
+            "{field}"
+        );
+    }
+    assert!(schemas["PlanResult"]["properties"]["deadline"].is_object());
+    assert!(schemas["DeadlineResult"]["properties"]["probability"].is_object());
     // Writes declare the bearer token.
     assert!(paths["/v1/add"]["post"]["security"].is_array());
     assert!(paths["/v1/models/{id}/refit"]["post"]["security"].is_array());
@@ -684,6 +694,149 @@ fn topological_maps_and_grids_are_served_as_their_models_predict_and_plan() {
             "{text}"
         );
     }
+}
+
+/// Deadline plans: `POST /v1/topo/{name}/plan` with `deadline_secs` answers, at every start
+/// time, what `chronomap plan --deadline --json` prints, bit for bit, on Witham trips where the
+/// plan most likely to arrive in time is not the expected-time plan.
+#[test]
+fn deadline_plans_are_served_as_chronomap_plan_deadline_prints_them() {
+    use chronomap_serve::maps::PlanResponse;
+
+    let data = scratch("serve_cli_deadline");
+    let witham = data.join("witham.cmt").display().to_string();
+    // As the README fits them.
+    fit_witham(&witham, &["--success-order", "1"]);
+    let topo_flag = format!("witham={witham}");
+    let server = start(&data, free_port(), &Backend::Redb, &["--topo", &topo_flag]);
+    let client = Client::new(&server.url, None).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let post = |body: &serde_json::Value| -> (u16, String) {
+        let (status, text) = runtime
+            .block_on(client.raw(
+                chronomap_client::Method::POST,
+                "/v1/topo/witham/plan",
+                body.to_string().into_bytes(),
+                None,
+            ))
+            .unwrap();
+        (status.as_u16(), text)
+    };
+    // 2014-09-04 14:00 and 02:00 UTC.
+    let times = [1_409_839_200.0, 1_409_796_000.0];
+    // (from, task, deadline, confidence, bucket): the README's trip, two of
+    // tests/cli/topo_deadline.rs, and a two-step task in buckets of 2.5 s.
+    type Case<'a> = (&'a str, &'a str, f64, Option<f64>, Option<f64>);
+    let cases: [Case; 4] = [
+        ("Kitchen", "F Station", 100.0, Some(0.5), None),
+        ("LabDoor2", "F Kitchen", 80.0, None, None),
+        ("Station", "F Kitchen", 110.0, Some(0.8), None),
+        (
+            "Station",
+            "F (Printer & F Kitchen)",
+            300.0,
+            Some(0.9),
+            Some(2.5),
+        ),
+    ];
+    let mut differ = 0;
+    for (from, task, deadline, confidence, bucket) in cases {
+        let mut body = serde_json::json!({
+            "from": from, "task": task, "times": times, "deadline_secs": deadline, "curve": true,
+        });
+        if let Some(c) = confidence {
+            body["confidence"] = c.into();
+        }
+        if let Some(b) = bucket {
+            body["bucket_secs"] = b.into();
+        }
+        let started = std::time::Instant::now();
+        let (status, text) = post(&body);
+        assert_eq!(status, 200, "{text}");
+        eprintln!(
+            "{from} {task:?} within {deadline} s at 2 times: {:.1} ms",
+            started.elapsed().as_secs_f64() * 1e3
+        );
+        // The typed answer reads back; the fields are compared as the JSON carries them.
+        let typed: PlanResponse = serde_json::from_str(&text).unwrap();
+        assert_eq!(typed.plans.len(), times.len());
+        let served: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for (i, &time) in times.iter().enumerate() {
+            let time_arg = time.to_string();
+            let deadline_arg = deadline.to_string();
+            let mut args = vec![
+                "plan",
+                "--model",
+                &witham,
+                "--from",
+                from,
+                "--task",
+                task,
+                "--time",
+                &time_arg,
+                "--deadline",
+                &deadline_arg,
+                "--json",
+            ];
+            let (confidence_arg, bucket_arg) = (
+                confidence.map(|c| c.to_string()),
+                bucket.map(|b| b.to_string()),
+            );
+            if let Some(c) = &confidence_arg {
+                args.extend(["--confidence", c]);
+            }
+            if let Some(b) = &bucket_arg {
+                args.extend(["--bucket-secs", b]);
+            }
+            let cli: serde_json::Value = serde_json::from_str(&stdout(&chronomap(&args))).unwrap();
+            let plan = &served["plans"][i];
+            // The expected-time plan beside it is the CLI's.
+            assert_eq!(plan["time"], cli["time"]);
+            assert_eq!(plan["pmax"], cli["pmax"]);
+            assert_eq!(plan["expected_secs"], cli["expected_secs"]);
+            assert_eq!(plan["first_edge"], cli["min_time_first_edge"]);
+            let deadline_plan = plan["deadline"].as_object().unwrap();
+            assert_eq!(deadline_plan.len(), 12, "{deadline_plan:?}");
+            for (key, value) in deadline_plan {
+                assert_eq!(value, &cli[key], "{from} {task:?} at {time}: {key}");
+            }
+            let curve = deadline_plan["curve"].as_array().unwrap();
+            assert_eq!(
+                curve.len(),
+                typed.plans[i]
+                    .deadline
+                    .as_ref()
+                    .unwrap()
+                    .curve
+                    .as_ref()
+                    .unwrap()
+                    .len()
+            );
+            if deadline_plan["first_edge"] != plan["first_edge"] {
+                differ += 1;
+            }
+        }
+    }
+    // The afternoon trips of the README and tests/cli/topo_deadline.rs start another way.
+    assert!(differ >= 2, "{differ}");
+    let readme = post(&serde_json::json!({
+        "from": "Kitchen", "task": "F Station", "times": [times[0]], "deadline_secs": 100,
+        "confidence": 0.5,
+    }));
+    let plan = &serde_json::from_str::<serde_json::Value>(&readme.1).unwrap()["plans"][0];
+    assert_eq!(plan["first_edge"], "Kitchen_GroundCentral");
+    assert_eq!(plan["deadline"]["first_edge"], "Kitchen_Ramp2");
+    assert_eq!(plan["deadline"]["reaches_confidence"], true);
+    // Without `curve`, no curve; without `deadline_secs`, no deadline plan.
+    assert!(plan["deadline"].get("curve").is_none(), "{plan}");
+    let (status, text) = post(&serde_json::json!({
+        "from": "Kitchen", "task": "F Station", "times": [times[0]],
+    }));
+    assert_eq!(status, 200, "{text}");
+    assert!(!text.contains("deadline"), "{text}");
 }
 
 #[test]

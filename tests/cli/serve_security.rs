@@ -387,3 +387,195 @@ fn client_ranges_are_checked_and_create_takes_lo_comma_hi() {
     let view: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(view["range"], serde_json::json!([-5.0, 5.0]));
 }
+
+/// Deadline plans (`POST /v1/topo/{name}/plan` with `deadline_secs`): deadlines, confidences
+/// and buckets that are not numbers in their range, options without a deadline and requests
+/// whose time-augmented products exceed 10^6 cells are refused with a 400 naming the field,
+/// before the work; the service still plans afterwards.
+#[test]
+fn hostile_deadline_plans_are_refused_naming_the_field() {
+    let data = scratch("serve_security_deadline");
+    let witham = data.join("witham.cmt").display().to_string();
+    crate::common::fit_witham(&witham, &["--success-order", "1"]);
+    let topo_flag = format!("witham={witham}");
+    let server = start(&data, free_port(), &Backend::Redb, &["--topo", &topo_flag]);
+    let client = Client::new(&server.url, None).unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let post = |body: &str| {
+        runtime
+            .block_on(client.raw(
+                Method::POST,
+                "/v1/topo/witham/plan",
+                body.as_bytes().to_vec(),
+                None,
+            ))
+            .unwrap()
+    };
+    let trip = r#""from":"Kitchen","task":"F Station","times":[1409839200]"#;
+    let thousand = vec!["1409839200"; 1000].join(",");
+    let refused: Vec<(String, &str)> = vec![
+        (
+            format!(r#"{{{trip},"deadline_secs":0}}"#),
+            "field `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":-100}}"#),
+            "field `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":-0.0}}"#),
+            "field `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":1e12}}"#),
+            "field `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":1.7e308}}"#),
+            "field `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":NaN}}"#),
+            "malformed JSON",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":1e999}}"#),
+            "malformed JSON",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":"100"}}"#),
+            "invalid type: string",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":[100]}}"#),
+            "invalid type: sequence",
+        ),
+        (
+            format!(r#"{{{trip},"deadline":100}}"#),
+            "unknown field `deadline`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"confidence":1.5}}"#),
+            "field `confidence`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"confidence":-0.1}}"#),
+            "field `confidence`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"confidence":"high"}}"#),
+            "invalid type: string",
+        ),
+        (
+            format!(r#"{{{trip},"confidence":0.9}}"#),
+            "field `confidence`: only with `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"bucket_secs":1}}"#),
+            "field `bucket_secs`: only with `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"curve":true}}"#),
+            "field `curve`: only with `deadline_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"curve":1}}"#),
+            "invalid type: integer",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"bucket_secs":0}}"#),
+            "field `bucket_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"bucket_secs":-1}}"#),
+            "field `bucket_secs`",
+        ),
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"bucket_secs":101}}"#),
+            "field `bucket_secs`",
+        ),
+        // 10^306 buckets, refused before the product is built.
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"bucket_secs":1e-304}}"#),
+            "field `bucket_secs`: 1 start time(s) × at least 1 product state(s) × 1.000e306 buckets",
+        ),
+        // 100,001 buckets of 18 product states: refused by the planner before it allocates.
+        (
+            format!(r#"{{{trip},"deadline_secs":100,"bucket_secs":0.001}}"#),
+            "field `bucket_secs`: 1 start time(s) × 18 product state(s) × 100001 buckets",
+        ),
+        // 1,000 start times × 18 states × 101 buckets.
+        (
+            format!(
+                r#"{{"from":"Kitchen","task":"F Station","times":[{thousand}],"deadline_secs":100}}"#
+            ),
+            "field `times`: 1000 start time(s) × 18 product state(s) × 101 buckets = 1.818e6 cells",
+        ),
+        (
+            format!(
+                r#"{{"from":"Kitchen","task":"F Station","times":[{thousand},1],"deadline_secs":100}}"#
+            ),
+            "field `times`: give 1 to 1000",
+        ),
+        (
+            r#"{"from":"Kitchen","task":"F Station","times":[1e12],"deadline_secs":100}"#
+                .to_string(),
+            "field `times[0]`",
+        ),
+        (
+            r#"{"from":"Kitchn","task":"F Station","times":[1],"deadline_secs":100}"#.to_string(),
+            "field `from`",
+        ),
+        (
+            r#"{"from":"Kitchen","task":"F (Station","times":[1],"deadline_secs":100}"#.to_string(),
+            "field `task`",
+        ),
+    ];
+    for (body, needed) in &refused {
+        let started = std::time::Instant::now();
+        let (status, text) = post(body);
+        let short = &body[..body.len().min(160)];
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{short}: {text}");
+        let error: chronomap_serve::api::ErrorBody = serde_json::from_str(&text)
+            .unwrap_or_else(|e| panic!("{short}: the error is not JSON ({e}): {text}"));
+        assert_eq!(error.error, "bad_request");
+        assert!(error.reason.contains(needed), "{short}: {}", error.reason);
+        assert!(started.elapsed().as_secs_f64() < 5.0, "{short}");
+    }
+    // Still planning: the same trip within 100 s; as many start times as fit (550 × 18 states
+    // × 101 buckets = 999,900 cells), and one more is too many.
+    let times = |n: usize| vec!["1409839200"; n].join(",");
+    let (status, text) = post(&format!(
+        r#"{{"from":"Kitchen","task":"F Station","times":[{}],"deadline_secs":100}}"#,
+        times(551)
+    ));
+    assert_eq!(status, StatusCode::BAD_REQUEST, "{text}");
+    assert!(
+        text.contains("field `times`: 551 start time(s) × 18 product state(s)"),
+        "{text}"
+    );
+    for n in [1, 550] {
+        let started = std::time::Instant::now();
+        let (status, text) = post(&format!(
+            r#"{{"from":"Kitchen","task":"F Station","times":[{}],"deadline_secs":100}}"#,
+            times(n)
+        ));
+        assert_eq!(status, StatusCode::OK, "{n}: {text}");
+        eprintln!(
+            "deadline plans at {n} start time(s): {:.1} ms",
+            started.elapsed().as_secs_f64() * 1e3
+        );
+        let answer: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let plans = answer["plans"].as_array().unwrap();
+        assert_eq!(plans.len(), n);
+        let p = plans[n - 1]["deadline"]["probability"].as_f64().unwrap();
+        assert!(p > 0.5 && p < 0.6, "{n}: {p}");
+    }
+    eprintln!(
+        "{} hostile deadline plans -> 400 naming the field",
+        refused.len() + 1
+    );
+}

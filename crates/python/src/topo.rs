@@ -4,13 +4,15 @@
 
 use std::path::{Path, PathBuf};
 
+use chronomap_app::topo::deadline_report;
 use chronomap_io::{read_edge_directory, read_edge_models, write_edge_models};
+use chronomap_topo::deadline::DeadlineError;
 use chronomap_topo::duration_intervals::MAX_COVERAGE;
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, now_or_later, plan_full};
 use chronomap_topo::report::success_route;
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -28,6 +30,9 @@ fn check_time(name: &str, time: f64) -> PyResult<()> {
         )))
     }
 }
+
+/// The confidence of a deadline plan when none is given (as `chronomap plan --deadline`).
+const DEFAULT_CONFIDENCE: f64 = 0.95;
 
 /// Checks that `value` is a probability, as `chronomap topo fit --prior/--floor` do.
 fn probability(name: &str, value: f64) -> PyResult<f64> {
@@ -47,7 +52,8 @@ fn probability(name: &str, value: f64) -> PyResult<f64> {
 /// Fit them with `EdgeModels.fit(edges_dir)` from a directory of edge files (what `chronomap
 /// topo fit` reads), or read an edge-model file with `chronomap.load_edge_models(path)`.
 /// `predict(t)` gives every edge's prediction (`chronomap topo predict`), `plan(start, task, t)`
-/// the now-or-later plan of a co-safe LTL task (`chronomap plan --time`).
+/// the now-or-later plan of a co-safe LTL task (`chronomap plan --time`), and with `deadline=D`
+/// the plan most likely to fulfil it within `D` seconds (`chronomap plan --deadline`).
 #[pyclass(name = "EdgeModels", module = "chronomap", frozen)]
 pub struct PyEdgeModels {
     models: EdgeModels,
@@ -62,6 +68,141 @@ impl PyEdgeModels {
         let task =
             Task::parse(task, map).map_err(|e| PyValueError::new_err(format!("task: {e}")))?;
         Ok((start, task))
+    }
+
+    /// `plan` without a deadline.
+    fn plan_at<'py>(
+        &self,
+        py: Python<'py>,
+        start: &str,
+        task: &str,
+        time: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (start_node, parsed) = self.start_and_task(start, task)?;
+        let models = &self.models;
+        let map = models.map();
+        let planned = py
+            .detach(|| plan_full(models, start_node, &parsed, time, &SolverOptions::default()))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let route = success_route(&planned, map);
+        let plan = &planned.plan;
+        let dict = PyDict::new(py);
+        dict.set_item("task", task)?;
+        dict.set_item("from", start)?;
+        dict.set_item("time", time)?;
+        dict.set_item("pmax", plan.pmax)?;
+        dict.set_item("expected_secs", plan.expected_secs)?;
+        dict.set_item(
+            "first_edge",
+            plan.first_edge.map(|e| map.edges()[e].id.clone()),
+        )?;
+        dict.set_item(
+            "route",
+            route
+                .iter()
+                .map(|&e| map.edges()[e].id.clone())
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item(
+            "route_success_probabilities",
+            route
+                .iter()
+                .map(|&e| models.success_probability(e, time))
+                .collect::<Vec<_>>(),
+        )?;
+        dict.set_item("product_states", planned.product.states().len())?;
+        // The policy: the edge to take in every undecided state of the product (node,
+        // automaton state), with that state's Pmax.
+        let (mut nodes, mut dfa_states, mut edges, mut pmax) = (vec![], vec![], vec![], vec![]);
+        for (s, state) in planned.product.states().iter().enumerate() {
+            if let (Some(node), Some(edge)) = (state.node, planned.solution.policy[s]) {
+                nodes.push(map.nodes()[node].name.clone());
+                dfa_states.push(state.dfa_state as i64);
+                edges.push(map.edges()[edge].id.clone());
+                pmax.push(planned.solution.pmax[s]);
+            }
+        }
+        let policy = PyDict::new(py);
+        policy.set_item("node", nodes)?;
+        policy.set_item("automaton_state", numpy::PyArray1::from_vec(py, dfa_states))?;
+        policy.set_item("edge", edges)?;
+        policy.set_item("pmax", to_numpy(py, pmax))?;
+        dict.set_item("policy", policy)?;
+        Ok(dict)
+    }
+
+    /// `plan` with a deadline: [`deadline_report`] as a dict.
+    fn plan_deadline<'py>(
+        &self,
+        py: Python<'py>,
+        (start, task, time): (&str, &str, f64),
+        deadline: f64,
+        confidence: Option<f64>,
+        bucket_secs: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if !(deadline.is_finite() && deadline > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "deadline: {deadline} is not a finite number of seconds > 0"
+            )));
+        }
+        let confidence = probability("confidence", confidence.unwrap_or(DEFAULT_CONFIDENCE))?;
+        if let Some(width) = bucket_secs
+            && !(width.is_finite() && width > 0.0)
+        {
+            return Err(PyValueError::new_err(format!(
+                "bucket_secs: {width} is not a finite number of seconds > 0"
+            )));
+        }
+        let (start_node, parsed) = self.start_and_task(start, task)?;
+        let models = &self.models;
+        let report = py
+            .detach(|| {
+                deadline_report(
+                    models,
+                    (start_node, start),
+                    (&parsed, task),
+                    time,
+                    deadline,
+                    bucket_secs,
+                    confidence,
+                )
+            })
+            .map_err(|e| match e {
+                DeadlineError::InvalidDeadline(_) => {
+                    PyValueError::new_err(format!("deadline: {e}"))
+                }
+                DeadlineError::TooManyCells { .. } if bucket_secs.is_none() => {
+                    PyValueError::new_err(format!("deadline: {e}"))
+                }
+                DeadlineError::InvalidBucket(_) | DeadlineError::TooManyCells { .. } => {
+                    PyValueError::new_err(format!("bucket_secs: {e}"))
+                }
+                e => PyValueError::new_err(e.to_string()),
+            })?;
+        let dict = PyDict::new(py);
+        dict.set_item("task", &report.task)?;
+        dict.set_item("from", &report.from)?;
+        dict.set_item("time", report.time)?;
+        dict.set_item("utc", &report.utc)?;
+        dict.set_item("deadline_secs", report.deadline_secs)?;
+        dict.set_item("confidence", report.confidence)?;
+        dict.set_item("probability", report.probability)?;
+        dict.set_item("reaches_confidence", report.reaches_confidence)?;
+        dict.set_item("first_edge", &report.first_edge)?;
+        dict.set_item("median_route", &report.median_route)?;
+        dict.set_item("shortest_deadline_secs", report.shortest_deadline_secs)?;
+        dict.set_item("min_time_probability", report.min_time_probability)?;
+        dict.set_item("min_time_first_edge", &report.min_time_first_edge)?;
+        dict.set_item("pmax", report.pmax)?;
+        dict.set_item("expected_secs", report.expected_secs)?;
+        dict.set_item("bucket_secs", report.bucket_secs)?;
+        let rows = report.curve.len();
+        let flat: Vec<f64> = report.curve.iter().flatten().copied().collect();
+        dict.set_item("curve", to_numpy(py, flat).reshape([rows, 3])?)?;
+        dict.set_item("duration_quantiles", report.duration_quantiles)?;
+        dict.set_item("product_states", report.product_states)?;
+        dict.set_item("seconds", report.seconds)?;
+        Ok(dict)
     }
 }
 
@@ -232,66 +373,45 @@ impl PyEdgeModels {
     /// taken if every edge succeeds), `route_success_probabilities` and `product_states`;
     /// and `policy`, the whole policy: for every undecided state of the product MDP, its
     /// `node`, `automaton_state`, the `edge` to take and the state's `pmax` (lists/arrays).
+    ///
+    /// With `deadline` (seconds, finite, > 0): "arrive by T" — the plan most likely to fulfil
+    /// the task within `deadline` seconds of `time` ([`chronomap_topo::deadline`]), as
+    /// `chronomap plan --time --deadline --json` gives it instead: `probability` (a certified
+    /// lower bound: durations rounded up to buckets of `bucket_secs`, default
+    /// `max(deadline / 600, 1)` s), `first_edge`, `median_route`, `reaches_confidence` and
+    /// `shortest_deadline_secs` (for `confidence`, default 0.95), the expected-time plan's
+    /// `min_time_probability`, `min_time_first_edge`, `pmax` and `expected_secs`, `curve` (a
+    /// float64 array of rows `[d, deadline plan, expected-time plan]`: the probabilities
+    /// within `d`, `d = 0, bucket_secs, …`), `deadline_secs`, `confidence`, `bucket_secs`,
+    /// `duration_quantiles`, `product_states`, `seconds`, `task`, `from`, `time`, `utc`. More
+    /// than 10^6 cells (product states × buckets) is a ValueError. The GIL is released while
+    /// it plans.
+    #[pyo3(signature = (start, task, time, *, deadline = None, confidence = None, bucket_secs = None))]
+    #[allow(clippy::too_many_arguments)]
     fn plan<'py>(
         &self,
         py: Python<'py>,
         start: &str,
         task: &str,
         time: &Bound<'py, PyAny>,
+        deadline: Option<f64>,
+        confidence: Option<f64>,
+        bucket_secs: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let time = arrays::time_scalar(time, "time")?;
         check_time("time", time)?;
-        let (start_node, parsed) = self.start_and_task(start, task)?;
-        let models = &self.models;
-        let map = models.map();
-        let planned = py
-            .detach(|| plan_full(models, start_node, &parsed, time, &SolverOptions::default()))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let route = success_route(&planned, map);
-        let plan = &planned.plan;
-        let dict = PyDict::new(py);
-        dict.set_item("task", task)?;
-        dict.set_item("from", start)?;
-        dict.set_item("time", time)?;
-        dict.set_item("pmax", plan.pmax)?;
-        dict.set_item("expected_secs", plan.expected_secs)?;
-        dict.set_item(
-            "first_edge",
-            plan.first_edge.map(|e| map.edges()[e].id.clone()),
-        )?;
-        dict.set_item(
-            "route",
-            route
-                .iter()
-                .map(|&e| map.edges()[e].id.clone())
-                .collect::<Vec<_>>(),
-        )?;
-        dict.set_item(
-            "route_success_probabilities",
-            route
-                .iter()
-                .map(|&e| models.success_probability(e, time))
-                .collect::<Vec<_>>(),
-        )?;
-        dict.set_item("product_states", planned.product.states().len())?;
-        // The policy: the edge to take in every undecided state of the product (node,
-        // automaton state), with that state's Pmax.
-        let (mut nodes, mut dfa_states, mut edges, mut pmax) = (vec![], vec![], vec![], vec![]);
-        for (s, state) in planned.product.states().iter().enumerate() {
-            if let (Some(node), Some(edge)) = (state.node, planned.solution.policy[s]) {
-                nodes.push(map.nodes()[node].name.clone());
-                dfa_states.push(state.dfa_state as i64);
-                edges.push(map.edges()[edge].id.clone());
-                pmax.push(planned.solution.pmax[s]);
+        let Some(deadline) = deadline else {
+            for (name, given) in [
+                ("confidence", confidence.is_some()),
+                ("bucket_secs", bucket_secs.is_some()),
+            ] {
+                if given {
+                    return Err(PyValueError::new_err(format!("{name}: only with deadline")));
+                }
             }
-        }
-        let policy = PyDict::new(py);
-        policy.set_item("node", nodes)?;
-        policy.set_item("automaton_state", numpy::PyArray1::from_vec(py, dfa_states))?;
-        policy.set_item("edge", edges)?;
-        policy.set_item("pmax", to_numpy(py, pmax))?;
-        dict.set_item("policy", policy)?;
-        Ok(dict)
+            return self.plan_at(py, start, task, time);
+        };
+        self.plan_deadline(py, (start, task, time), deadline, confidence, bucket_secs)
     }
 
     /// "Now or later?" ([Fentanes 2015] Table III): the plan of `task` from `start` at each of

@@ -6,8 +6,10 @@
 //! * `GET /v1/topo/{name}`: nodes with positions, edges and the models' time span.
 //! * `POST /v1/topo/{name}/predict {time}`: every edge's success probability and expected
 //!   duration at `time`.
-//! * `POST /v1/topo/{name}/plan {from, task, times}`: "now or later?" — for each start time the
-//!   maximum probability of fulfilling a co-safe LTL task, the expected time and the first edge.
+//! * `POST /v1/topo/{name}/plan {from, task, times, deadline_secs?}`: "now or later?" — for each
+//!   start time the maximum probability of fulfilling a co-safe LTL task, the expected time and
+//!   the first edge; with `deadline_secs` also the plan most likely to fulfil it in time
+//!   ([`chronomap_topo::deadline`], `chronomap plan --deadline`).
 //! * `GET /v1/grid/{name}`: shape, placement and frames of a grid.
 //! * `POST /v1/grid/{name}/predict {time}`: the predicted occupancy probability of every cell.
 //! * `POST /v1/grid/{name}/cell {cell, times}`: one cell's occupancy probability at many times.
@@ -34,10 +36,15 @@ use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
+use chronomap_core::observe::MAX_TIME_SECS;
 use chronomap_core::observe::ObservedSpan;
 use chronomap_grid::AnyGrid;
 use chronomap_grid::{FittedGrid, GridGeometry, OrderChoice};
+use chronomap_topo::deadline::{
+    DEFAULT_MAX_CELLS, DeadlineError, DeadlineOptions, DeadlinePlanned, buckets_for, plan_deadline,
+};
 use chronomap_topo::edges::EVALUATION_COVERAGE;
+use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::SolverOptions;
 use chronomap_topo::plan::{Task, plan_at};
 use serde::{Deserialize, Serialize};
@@ -61,6 +68,17 @@ pub const MAX_PLAN_TIMES: usize = 1000;
 
 /// Most times of one `cell` request.
 pub const MAX_CELL_TIMES: usize = 10_000;
+
+/// Most cells (start times × product states × buckets `K + 1`) of the deadline plans of one
+/// `plan` request: as much as one `chronomap plan --deadline` may compute
+/// ([`chronomap_topo::deadline::DEFAULT_MAX_CELLS`]).
+pub const MAX_DEADLINE_CELLS: usize = DEFAULT_MAX_CELLS;
+
+/// The longest deadline of a `plan` request (s): the bound of every time.
+pub const MAX_DEADLINE_SECS: f64 = MAX_TIME_SECS;
+
+/// The confidence of a deadline plan when the request gives none (as `chronomap plan`).
+pub const DEFAULT_CONFIDENCE: f64 = 0.95;
 
 /// The maps a service holds, by name.
 #[derive(Debug, Default)]
@@ -138,6 +156,21 @@ pub struct PlanRequest {
     pub task: String,
     /// Start times (s) to compare: now, and later.
     pub times: Vec<f64>,
+    /// Also plan for the greatest probability of fulfilling the task within this many seconds
+    /// of each start time ("arrive by T"): finite, > 0, at most 10^11.
+    #[serde(default)]
+    pub deadline_secs: Option<f64>,
+    /// With `deadline_secs`: the probability asked for, in [0, 1] (default 0.95); the answer
+    /// says whether the deadline plan reaches it and within how many seconds it could.
+    #[serde(default)]
+    pub confidence: Option<f64>,
+    /// With `deadline_secs`: the width of the time buckets durations are rounded up to (s;
+    /// default `max(deadline_secs / 600, 1)`), finite, > 0, at most `deadline_secs`.
+    #[serde(default)]
+    pub bucket_secs: Option<f64>,
+    /// With `deadline_secs`: also answer the `curve` of the probabilities within `d`.
+    #[serde(default)]
+    pub curve: bool,
 }
 
 /// The plan for one start time.
@@ -151,6 +184,44 @@ pub struct PlanResult {
     pub expected_secs: f64,
     /// First edge to take (`null`: the task holds already or cannot be fulfilled).
     pub first_edge: Option<String>,
+    /// The deadline plan, when the request gave `deadline_secs`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deadline: Option<DeadlineResult>,
+}
+
+/// The plan most likely to fulfil the task within the deadline ([`chronomap_topo::deadline`]),
+/// beside the expected-time plan of [`PlanResult`]: the fields of `chronomap plan --deadline
+/// --json` of the same names.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DeadlineResult {
+    /// The deadline (s after the start).
+    pub deadline_secs: f64,
+    /// The probability asked for.
+    pub confidence: f64,
+    /// The bucket width durations are rounded up to (s).
+    pub bucket_secs: f64,
+    /// The greatest probability of fulfilling the task within the deadline (a certified lower
+    /// bound: durations rounded up to buckets, the top 0.5 % of each edge's durations late).
+    pub probability: f64,
+    /// Whether `probability` reaches `confidence`.
+    pub reaches_confidence: bool,
+    /// The first edge to take (`null`: the task holds already or cannot be fulfilled in time).
+    pub first_edge: Option<String>,
+    /// The route if every edge succeeds in its median duration.
+    pub median_route: Vec<String>,
+    /// The shortest deadline (s, a multiple of the bucket) within which the task is fulfilled
+    /// with probability `confidence`; `null` if not within the deadline.
+    pub shortest_deadline_secs: Option<f64>,
+    /// The expected-time plan's probability of fulfilling the task within the deadline.
+    pub min_time_probability: f64,
+    /// Whether the durations' laws come from their quantiles (else: sure expected durations).
+    pub duration_quantiles: bool,
+    /// States of the product of the Navigation MDP and the task automaton.
+    pub product_states: u64,
+    /// With `curve: true`: `[d, deadline plan, expected-time plan]`, the probabilities of
+    /// fulfilling the task within `d` s, `d = 0, bucket_secs, …, deadline`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curve: Option<Vec<[f64; 3]>>,
 }
 
 /// Answer of `POST /v1/topo/{name}/plan`.
@@ -566,7 +637,9 @@ pub(crate) async fn topo_predict(
     Ok(json_response(body))
 }
 
-/// Now or later: the best plan for a co-safe LTL task at each start time ([Fentanes 2015] §V).
+/// Now or later: the best plan for a co-safe LTL task at each start time ([Fentanes 2015] §V);
+/// with `deadline_secs`, also the plan most likely to fulfil it within the deadline
+/// ([`chronomap_topo::deadline`], what `chronomap plan --deadline --json` says).
 #[utoipa::path(post, path = "/v1/topo/{name}/plan", request_body = PlanRequest,
     params(("name" = String, Path, description = "map name")),
     responses((status = 200, body = PlanResponse), (status = 400, body = crate::api::ErrorBody),
@@ -589,6 +662,7 @@ pub(crate) async fn topo_plan(
     for (i, &t) in request.times.iter().enumerate() {
         check_time(t, &format!("times[{i}]"))?;
     }
+    let deadline = DeadlineAsk::check(&request)?;
     let models = topo(&state.maps, &name)?.models();
     let start = models
         .map()
@@ -603,24 +677,200 @@ pub(crate) async fn topo_plan(
         .heavy
         .run(move |cancel| {
             let models = topo(&maps, &name)?.models();
+            let edges = models.map().edges();
             let mut plans = Vec::with_capacity(request.times.len());
             for &time in &request.times {
                 if cancel.is_cancelled() {
                     return Err(heavy::cancelled());
                 }
-                let p = plan_at(models, start, &task, time, &SolverOptions::default())
-                    .map_err(|e| ApiError::bad_request(format!("cannot plan: {e}")))?;
+                let Some(ask) = &deadline else {
+                    let p = plan_at(models, start, &task, time, &SolverOptions::default())
+                        .map_err(|e| ApiError::bad_request(format!("cannot plan: {e}")))?;
+                    plans.push(PlanResult {
+                        time: p.time,
+                        pmax: p.pmax,
+                        expected_secs: p.expected_secs,
+                        first_edge: p.first_edge.map(|e| edges[e].id.clone()),
+                        deadline: None,
+                    });
+                    continue;
+                };
+                let planned = plan_deadline(models, start, &task, time, ask.secs, &ask.options)
+                    .map_err(|e| ask.error(e))?;
+                let p = &planned.planned.plan;
                 plans.push(PlanResult {
                     time: p.time,
                     pmax: p.pmax,
                     expected_secs: p.expected_secs,
-                    first_edge: p.first_edge.map(|e| models.map().edges()[e].id.clone()),
+                    first_edge: p.first_edge.map(|e| edges[e].id.clone()),
+                    deadline: Some(ask.result(models.map(), &planned)),
                 });
             }
             json_answer(&PlanResponse { plans })
         })
         .await?;
     Ok(json_response(body))
+}
+
+/// The deadline of a plan request, checked before anything is computed.
+struct DeadlineAsk {
+    /// `deadline_secs`.
+    secs: f64,
+    /// `confidence`, or its default.
+    confidence: f64,
+    /// Whether the request gave `bucket_secs`.
+    bucket_given: bool,
+    /// Start times of the request.
+    times: usize,
+    /// Whether to answer the curves.
+    curve: bool,
+    /// The planner's settings: the bucket, and the cells each start time may take
+    /// ([`MAX_DEADLINE_CELLS`] shared by the start times).
+    options: DeadlineOptions,
+}
+
+impl DeadlineAsk {
+    /// `None` without `deadline_secs`; `400` naming the field for a deadline, confidence or
+    /// bucket that is not a number in its range, for `confidence`, `bucket_secs` or `curve`
+    /// without a deadline, and for buckets that cannot fit [`MAX_DEADLINE_CELLS`] even on a
+    /// product of one state.
+    fn check(request: &PlanRequest) -> Result<Option<Self>, ApiError> {
+        let Some(secs) = request.deadline_secs else {
+            let without = [
+                ("confidence", request.confidence.is_some()),
+                ("bucket_secs", request.bucket_secs.is_some()),
+                ("curve", request.curve),
+            ];
+            if let Some((field, _)) = without.iter().find(|(_, given)| *given) {
+                return Err(ApiError::bad_request(format!(
+                    "field `{field}`: only with `deadline_secs`"
+                )));
+            }
+            return Ok(None);
+        };
+        if !(secs.is_finite() && secs > 0.0 && secs <= MAX_DEADLINE_SECS) {
+            return Err(ApiError::bad_request(format!(
+                "field `deadline_secs`: {secs} is not a number of seconds in (0, \
+                 {MAX_DEADLINE_SECS:e}]"
+            )));
+        }
+        let confidence = request.confidence.unwrap_or(DEFAULT_CONFIDENCE);
+        if !(0.0..=1.0).contains(&confidence) {
+            return Err(ApiError::bad_request(format!(
+                "field `confidence`: {confidence} is not a probability in [0, 1]"
+            )));
+        }
+        if let Some(width) = request.bucket_secs
+            && !(width.is_finite() && width > 0.0 && width <= secs)
+        {
+            return Err(ApiError::bad_request(format!(
+                "field `bucket_secs`: {width} is not a number of seconds in (0, {secs}] (the \
+                 deadline)"
+            )));
+        }
+        let ask = DeadlineAsk {
+            secs,
+            confidence,
+            bucket_given: request.bucket_secs.is_some(),
+            times: request.times.len(),
+            curve: request.curve,
+            options: DeadlineOptions {
+                bucket_secs: request.bucket_secs,
+                max_cells: MAX_DEADLINE_CELLS / request.times.len(),
+                ..DeadlineOptions::default()
+            },
+        };
+        // Every product has a state: refuse what cannot fit before planning anything.
+        let (_, k) = buckets_for(secs, request.bucket_secs).map_err(|e| ask.error(e))?;
+        if (ask.times as f64) * (k + 1.0) > MAX_DEADLINE_CELLS as f64 {
+            return Err(ask.too_many_cells(None, k + 1.0));
+        }
+        Ok(Some(ask))
+    }
+
+    /// The field to blame for too many cells: the bucket if given, else the start times if
+    /// several, else the deadline.
+    fn cells_field(&self) -> &'static str {
+        if self.bucket_given {
+            "bucket_secs"
+        } else if self.times > 1 {
+            "times"
+        } else {
+            "deadline_secs"
+        }
+    }
+
+    /// `400`: the deadline plans of `states` product states (`None`: not known yet, at least
+    /// one) and `buckets` buckets at each start time are more than [`MAX_DEADLINE_CELLS`].
+    fn too_many_cells(&self, states: Option<usize>, buckets: f64) -> ApiError {
+        let (states, at_least) = match states {
+            Some(n) => (n, ""),
+            None => (1, "at least "),
+        };
+        let cells = self.times as f64 * states as f64 * buckets;
+        // Whole numbers below 10^15, else 1.000e306.
+        let buckets = if buckets < 1e15 {
+            format!("{buckets:.0}")
+        } else {
+            format!("{buckets:.3e}")
+        };
+        ApiError::bad_request(format!(
+            "field `{}`: {} start time(s) × {at_least}{states} product state(s) × {buckets} \
+             buckets = {at_least}{cells:.3e} cells, more than the limit of {MAX_DEADLINE_CELLS} \
+             per request (widen `bucket_secs`, shorten `deadline_secs` or give fewer `times`)",
+            self.cells_field(),
+            self.times,
+        ))
+    }
+
+    /// A planner's error as an answer: `400` naming the field, or `500` for what would be a bug.
+    fn error(&self, e: DeadlineError) -> ApiError {
+        match e {
+            DeadlineError::InvalidDeadline(_) => {
+                ApiError::bad_request(format!("field `deadline_secs`: {e}"))
+            }
+            DeadlineError::InvalidBucket(_) => {
+                ApiError::bad_request(format!("field `bucket_secs`: {e}"))
+            }
+            DeadlineError::TooManyCells {
+                states, buckets, ..
+            } => self.too_many_cells(Some(states), buckets),
+            DeadlineError::Plan(e) => ApiError::bad_request(format!("cannot plan: {e}")),
+            e => ApiError::internal(format!("cannot plan for the deadline: {e}")),
+        }
+    }
+
+    /// What the answer says of a deadline plan: the fields of `chronomap plan --deadline
+    /// --json` (`chronomap_app::topo::deadline_report`) of the same names.
+    fn result(&self, map: &TopoMap, planned: &DeadlinePlanned) -> DeadlineResult {
+        let plan = &planned.plan;
+        let edges = map.edges();
+        DeadlineResult {
+            deadline_secs: self.secs,
+            confidence: self.confidence,
+            bucket_secs: plan.bucket_secs,
+            probability: plan.probability,
+            reaches_confidence: plan.probability >= self.confidence,
+            first_edge: plan.first_edge.map(|e| edges[e].id.clone()),
+            median_route: planned
+                .median_route()
+                .iter()
+                .map(|&e| edges[e].id.clone())
+                .collect(),
+            shortest_deadline_secs: plan.shortest_deadline(self.confidence),
+            min_time_probability: plan.min_time_probability,
+            duration_quantiles: plan.duration_quantiles,
+            product_states: planned.planned.product.states().len() as u64,
+            curve: self.curve.then(|| {
+                plan.curve
+                    .iter()
+                    .zip(&plan.min_time_curve)
+                    .enumerate()
+                    .map(|(k, (&p, &q))| [k as f64 * plan.bucket_secs, p, q])
+                    .collect()
+            }),
+        }
+    }
 }
 
 fn geometry(grid: &AnyGrid) -> GridGeometry {
