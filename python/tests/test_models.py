@@ -149,6 +149,24 @@ def test_a_model_fitted_by_the_cli_loads_in_python(greg, repo, tmp_path, cli):
     assert mine.selection["Order"]["order"] == loaded.order
 
 
+def test_a_model_fitted_with_its_calendar_predicts_holidays_in_python(greg, repo, tmp_path, cli):
+    _, tests = greg
+    path = tmp_path / "calendar.cmm"
+    calendar = f"{repo}/data/calendars/england_wales_2016.txt"
+    fitted = cli("fit", "--train", f"{GREG}/training_data.txt.xz", "--model", "fremen:4",
+                 "--days-off", calendar, "-o", path, json_output=True)
+    assert fitted["kind"] == "calendar" and fitted["days_off"] == 8
+    loaded = chronomap.load(path)
+    at = tests[0][0]
+    times_file = tmp_path / "times.txt"
+    np.savetxt(times_file, at, fmt="%.17g")
+    out = cli("predict", path, "--times", times_file, json_output=True)
+    assert np.array_equal(np.array([r["p"] for r in out["predictions"]]), loaded.predict(at))
+    # Good Friday 10:00 (a day off) is predicted as Sunday 20 March 10:00.
+    friday, sunday = 1458900000.0, 1458468000.0
+    assert loaded.predict(friday) == loaded.predict(sunday)
+
+
 def test_typed_classes_match_their_specs(greg):
     (times, values), tests = greg
     at = tests[1][0][:500]

@@ -121,6 +121,11 @@ pub struct FitArgs {
     /// Print one JSON object (the model fitted, how it was chosen, the file written).
     #[arg(long)]
     pub json: bool,
+    /// A calendar of days off (one YYYY-MM-DD per line, UTC dates, optionally a name): the
+    /// model is fitted on the working days and saved with the calendar, so that whoever opens
+    /// the file (`predict`, Python's `load`) predicts a day off as the Sunday before.
+    #[arg(long, value_name = "FILE")]
+    pub days_off: Option<PathBuf>,
     /// Fitting options.
     #[command(flatten)]
     pub fit: FitFlags,

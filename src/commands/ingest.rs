@@ -51,7 +51,13 @@ pub fn run(args: &IngestArgs) -> Result<()> {
             if let Some(warning) = warning {
                 errln!("warning: {warning}");
             }
-            let report = chronomap_app::model::fit(&training, model, &args.fit.options(), output)?;
+            let report = chronomap_app::model::fit(
+                &training,
+                model,
+                &args.fit.options(),
+                &chronomap_core::calendar::DaysOff::default(),
+                output,
+            )?;
             if args.json {
                 return print_json(&report.json());
             }

@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 
 use anyhow::Result;
 use chronomap_app::model::{Inspection, Training, anomalies as find_anomalies, fit as fit_model};
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::{TemporalModel, binary_entropy};
 use chronomap_io::{Field, read_column, read_pairs};
 use serde_json::json;
@@ -22,7 +23,17 @@ pub fn fit(args: &FitArgs) -> Result<()> {
         name,
         series,
     };
-    let report = fit_model(&training, &args.model, &args.fit.options(), &args.output)?;
+    let days_off = match &args.days_off {
+        Some(path) => chronomap_io::read_days_off(path)?,
+        None => DaysOff::default(),
+    };
+    let report = fit_model(
+        &training,
+        &args.model,
+        &args.fit.options(),
+        &days_off,
+        &args.output,
+    )?;
     if args.json {
         return print_json(&report.json());
     }

@@ -231,6 +231,50 @@ fn days_off_predicted_as_sundays_improve_the_easter_weeks_only() {
     assert_eq!(friday, p("2016-03-20T10:00Z", &[]));
     assert!(friday < p("2016-03-25T10:00Z", &[]) - 0.1);
 
+    // `fit --days-off`: the model keeps its calendar, so `predict` needs no flag, and on the
+    // test weeks it predicts what `eval --days-off` scored (Brier of week 1 as above).
+    let with_calendar = dir.join("fremen4-calendar.cfm");
+    let with_calendar = with_calendar.to_str().unwrap();
+    let fit = [
+        "fit",
+        "--train",
+        &train,
+        "--model",
+        "fremen:4",
+        "--days-off",
+        &calendar,
+        "-o",
+        with_calendar,
+        "--json",
+    ];
+    let report = chronomap_testutil::json(&crate::common::chronomap(&fit));
+    assert_eq!(report["kind"], "calendar");
+    assert_eq!(report["days_off"], 8);
+    let predict_week = |week: &TimeSeries| -> Vec<f64> {
+        let times: Vec<String> = week.times.iter().map(f64::to_string).collect();
+        let times = crate::common::write_arg(&dir, "week.txt", times.join("\n"));
+        let args = ["predict", with_calendar, "--times", &times, "--json"];
+        let json = chronomap_testutil::json(&crate::common::chronomap(&args));
+        let rows = json["predictions"].as_array().unwrap();
+        rows.iter().map(|r| r["p"].as_f64().unwrap()).collect()
+    };
+    for (week, expected) in tests().iter().zip(&after).take(2) {
+        let p = predict_week(week);
+        let mse = p
+            .iter()
+            .zip(&week.values)
+            .map(|(p, v)| (p - v) * (p - v))
+            .sum::<f64>()
+            / p.len() as f64;
+        assert!((mse - expected).abs() < 1e-12, "{mse} vs {expected}");
+    }
+    let inspect = ["inspect", with_calendar];
+    let text = chronomap_testutil::stdout(&crate::common::chronomap(&inspect));
+    assert!(
+        text.contains("days off: 8 (2016-01-01 .. 2016-12-27), predicted as the Sunday before"),
+        "{text}"
+    );
+
     let bad = crate::common::write_arg(&dir, "days.txt", "2016-03-25\n2016-02-30 Leap\n");
     let out = crate::common::chronomap(&[
         "eval",

@@ -10,6 +10,7 @@
 use std::path::Path;
 
 use chronomap_core::anomaly::{Anomaly, detect_anomalies};
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::fft::FftFremen;
 use chronomap_core::{
     BuildError, ConfigError, FremenModel, FrequencyComponent, Ordered, TemporalModel, TimeSeries,
@@ -17,6 +18,7 @@ use chronomap_core::{
 use chronomap_io::model_file::ModelFileError;
 use chronomap_io::output::{OutputError, write_output};
 use chronomap_models::AnyModel;
+use chronomap_models::calendar::OnCalendar;
 use chronomap_models::spec::{FitOptions, ModelSpec, Selection};
 use serde_json::{Value, json};
 
@@ -75,8 +77,10 @@ pub struct FitReport {
     pub train: Value,
     /// Their name in text.
     pub train_name: String,
-    /// Observations fitted on.
+    /// Observations fitted on (those of working days, with a calendar).
     pub observations: usize,
+    /// Days off of the model's calendar (0: none).
+    pub days_off: usize,
     /// The model asked for (`fremen:auto`).
     pub model: String,
     /// The model fitted (`fremen:4`).
@@ -105,6 +109,8 @@ impl FitReport {
             "kind": self.kind,
             "order": self.order,
             "selection": self.selection,
+            "observations": self.observations,
+            "days_off": self.days_off,
             "output": self.output,
             "bytes": self.bytes,
         })
@@ -123,7 +129,9 @@ impl FitReport {
 }
 
 /// Fits `spec` on `training` with `options` and writes the model file to `output` (a pipe or
-/// a device is written through).
+/// a device is written through). With `days_off`, the model is fitted on the working days and
+/// saved with its calendar ([`OnCalendar`]): whoever opens the file predicts a day off by its
+/// stand-in.
 ///
 /// # Errors
 /// [`ModelJobError::Fit`] naming the observation that cannot be used, or the file's error.
@@ -131,11 +139,18 @@ pub fn fit(
     training: &Training,
     spec: &ModelSpec,
     options: &FitOptions,
+    days_off: &DaysOff,
     output: &Path,
 ) -> Result<FitReport, ModelJobError> {
     let train = &training.series;
-    let fitted = spec
-        .fit(&train.times, &train.values, options)
+    let working: Option<(Vec<f64>, Vec<f64>)> =
+        (!days_off.is_empty()).then(|| days_off.working_days(&train.times, &train.values));
+    let (times, values) = match &working {
+        Some((times, values)) => (times.as_slice(), values.as_slice()),
+        None => (train.times.as_slice(), train.values.as_slice()),
+    };
+    let mut fitted = spec
+        .fit(times, values, options)
         .map_err(|error| ModelJobError::Fit {
             spec: spec.to_string(),
             source: DataIssue {
@@ -143,6 +158,10 @@ pub fn fit(
                 error,
             },
         })?;
+    if !days_off.is_empty() {
+        fitted.model =
+            AnyModel::Calendar(Box::new(OnCalendar::new(fitted.model, days_off.clone())));
+    }
     // The size is what was written, not the output's size afterwards (0 for `-o /dev/null`
     // or a pipe, which the one output writer writes through).
     let encoded = chronomap_io::encode_model(fitted.model.kind(), &fitted.model)?;
@@ -150,7 +169,8 @@ pub fn fit(
     Ok(FitReport {
         train: training.json.clone(),
         train_name: training.name.clone(),
-        observations: train.len(),
+        observations: times.len(),
+        days_off: days_off.len(),
         model: spec.to_string(),
         fitted: fitted.model.spec().to_string(),
         fitted_as: fitted.model.fitted_as(),
@@ -281,10 +301,17 @@ impl Inspection {
         } else {
             "data:   none (predicts 0.5)".to_string()
         });
+        lines.extend(self.detail_lines(model));
+        lines.join("\n")
+    }
+
+    /// What `model` holds, line by line (a calendar first, then its model of working days).
+    fn detail_lines(&self, model: &AnyModel) -> Vec<String> {
+        let mut out = Vec::new();
         match model {
-            AnyModel::Mean(m) => lines.push(format!("mean:   {:.6}", m.mean().unwrap_or(0.5))),
+            AnyModel::Mean(m) => out.push(format!("mean:   {:.6}", m.mean().unwrap_or(0.5))),
             AnyModel::Histogram(h) => {
-                lines.push(format!(
+                out.push(format!(
                     "bins:   {} over {}",
                     h.bins(),
                     period(h.period_secs())
@@ -297,32 +324,32 @@ impl Inspection {
                         mean.map_or("-".into(), |m| format!("{m:.4}")),
                     ]);
                 }
-                lines.push(table.render());
+                out.push(table.render());
             }
-            AnyModel::Fremen(m) => lines.push(fremen_text(m, self.spectrum)),
+            AnyModel::Fremen(m) => out.push(fremen_text(m, self.spectrum)),
             AnyModel::Persistence(m) => {
-                lines.push(match m.persistence_secs() {
+                out.push(match m.persistence_secs() {
                     Some(tau) => format!("persistence tau: {} (eq. 12)", duration(tau)),
                     None => "persistence tau: infinite (no change observed)".to_string(),
                 });
-                lines.push(fremen_text(m.fremen(), self.spectrum));
+                out.push(fremen_text(m.fremen(), self.spectrum));
             }
             AnyModel::Markov(m) => {
-                lines.push(format!(
+                out.push(format!(
                     "rates:  0->1 {:.3e}/s, 1->0 {:.3e}/s",
                     m.rate_up_per_sec(),
                     m.rate_down_per_sec()
                 ));
                 if let Some(pi) = m.stationary() {
-                    lines.push(format!("stationary p: {pi:.4}"));
+                    out.push(format!("stationary p: {pi:.4}"));
                 }
                 if let Some((t, s)) = m.last_observation() {
-                    lines.push(format!("last observation: {s} at {}", time(t)));
+                    out.push(format!("last observation: {s} at {}", time(t)));
                 }
             }
             AnyModel::Pergam(m) => {
                 let fit = m.fit();
-                lines.push(format!(
+                out.push(format!(
                     "period: {}, scale A = {:.4}, {} EM iterations",
                     period(m.config().period_secs),
                     fit.scale,
@@ -336,11 +363,11 @@ impl Inspection {
                         duration(c.sigma_secs),
                     ]);
                 }
-                lines.push(table.render());
+                out.push(table.render());
             }
             AnyModel::Hypertime(m) => {
                 let periods: Vec<String> = m.periods().iter().map(|&p| period(p)).collect();
-                lines.push(format!(
+                out.push(format!(
                     "{} mixture components over {} periodicities: {}",
                     m.components(),
                     m.periods().len(),
@@ -353,22 +380,26 @@ impl Inspection {
             }
             AnyModel::Fft(m) => {
                 let (start, step) = m.sampling();
-                lines.push(format!(
+                out.push(format!(
                     "series: {} samples every {step} s from {} (spectrum over the first {})",
                     m.len(),
                     time(start),
                     m.model_len()
                 ));
-                lines.push(format!(
+                out.push(format!(
                     "gain:   {:.6}; outlier set: {} toggles; estimation error {:.4}",
                     m.gain(),
                     m.outlier_toggles().len(),
                     m.estimation_error()
                 ));
-                lines.push(fft_components_table(m).render());
+                out.push(fft_components_table(m).render());
+            }
+            AnyModel::Calendar(m) => {
+                out.push(calendar_line(m.days_off()));
+                out.extend(self.detail_lines(m.model()));
             }
             AnyModel::Stack(m) => {
-                lines.push(
+                out.push(
                     "a weighted average of these models (weights fitted by rolling-origin cross-validation):"
                         .to_string(),
                 );
@@ -376,10 +407,10 @@ impl Inspection {
                 for (member, weight) in m.members() {
                     table.row([format!("{weight:.4}"), member.spec().to_string()]);
                 }
-                lines.push(table.render());
+                out.push(table.render());
             }
         }
-        lines.join("\n")
+        out
     }
 
     /// The report as `chronomap inspect --json` prints it.
@@ -394,7 +425,19 @@ impl Inspection {
                 "duration_secs": span.duration(),
             })
         });
-        let details = match model {
+        let details = self.detail_json(model);
+        json!({
+            "file": self.file,
+            "model": model.spec().to_string(),
+            "kind": model.kind(),
+            "data": data,
+            "details": details,
+        })
+    }
+
+    /// What `model` holds, as JSON (a calendar: its days off and its model's details).
+    fn detail_json(&self, model: &AnyModel) -> Value {
+        match model {
             AnyModel::Mean(m) => json!({"mean": m.mean().unwrap_or(0.5)}),
             AnyModel::Histogram(h) => json!({
                 "bins": h.bins(),
@@ -445,20 +488,38 @@ impl Inspection {
                     "components": fft_components_json(m),
                 })
             }
+            AnyModel::Calendar(m) => json!({
+                "days_off": m.days_off().days().map(iso_date).collect::<Vec<_>>(),
+                "model": m.model().spec().to_string(),
+                "details": self.detail_json(m.model()),
+            }),
             AnyModel::Stack(m) => json!({
                 "members": m.members().map(|(member, weight)| json!({
                     "weight": weight,
                     "model": member.spec().to_string(),
                 })).collect::<Vec<_>>(),
             }),
-        };
-        json!({
-            "file": self.file,
-            "model": model.spec().to_string(),
-            "kind": model.kind(),
-            "data": data,
-            "details": details,
-        })
+        }
+    }
+}
+
+/// A date (days since 1970-01-01) as `YYYY-MM-DD`.
+fn iso_date(days: i64) -> String {
+    let (y, m, d) = chronomap_core::time::civil_from_days(days);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+/// `days off: 8 (2016-01-01 .. 2016-12-27)`.
+fn calendar_line(days_off: &DaysOff) -> String {
+    let mut days = days_off.days();
+    match (days.next(), days.last()) {
+        (Some(first), last) => format!(
+            "days off: {} ({} .. {}), predicted as the Sunday before",
+            days_off.len(),
+            iso_date(first),
+            iso_date(last.unwrap_or(first))
+        ),
+        (None, _) => "days off: none".to_string(),
     }
 }
 
@@ -622,7 +683,14 @@ mod tests {
         };
         let spec: ModelSpec = "mean".parse().unwrap();
         let output = dir.join("door.cmm");
-        let report = fit(&training, &spec, &FitOptions::default(), &output).unwrap();
+        let report = fit(
+            &training,
+            &spec,
+            &FitOptions::default(),
+            &DaysOff::default(),
+            &output,
+        )
+        .unwrap();
         assert_eq!(
             report.bytes as u64,
             std::fs::metadata(&output).unwrap().len()
@@ -675,6 +743,7 @@ mod tests {
             &training,
             &spec,
             &FitOptions::default(),
+            &DaysOff::default(),
             Path::new("/nonexistent/never.cmm"),
         )
         .unwrap_err();

@@ -22,6 +22,8 @@
 
 use std::collections::BTreeSet;
 
+use serde::{Deserialize, Serialize};
+
 use crate::model::TemporalModel;
 
 /// Seconds in a day.
@@ -32,7 +34,7 @@ const DAY: f64 = 86_400.0;
 const MAX_LOOKBACK_DAYS: i64 = 366;
 
 /// A set of days off, as days since 1970-01-01 (UTC dates).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DaysOff {
     days: BTreeSet<i64>,
 }
@@ -80,6 +82,27 @@ impl DaysOff {
             .map_or(time, |sunday| time - (day - sunday) as f64 * DAY)
     }
 
+    /// The days off of both.
+    pub fn union(&self, other: &DaysOff) -> DaysOff {
+        DaysOff {
+            days: self.days.union(&other.days).copied().collect(),
+        }
+    }
+
+    /// The observations `(times[i], values[i])` made on working days: what a model of the
+    /// rhythms learns from (a day off is predicted by its stand-in, never learned).
+    ///
+    /// # Panics
+    /// If the slices differ in length.
+    pub fn working_days(&self, times: &[f64], values: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        assert_eq!(times.len(), values.len(), "one value per time");
+        times
+            .iter()
+            .zip(values)
+            .filter(|(t, _)| !self.contains(**t))
+            .unzip()
+    }
+
     /// `model`'s predictions at `times`, each day off predicted by its [stand-in](Self::stand_in).
     pub fn predict_many<M: TemporalModel + ?Sized>(&self, model: &M, times: &[f64]) -> Vec<f64> {
         if self.is_empty() {
@@ -113,6 +136,19 @@ mod tests {
         assert!(off.contains(t) && !off.contains(expected));
         assert!(off.stand_in(f64::NAN).is_nan());
         assert_eq!(off.len(), 4);
+    }
+
+    #[test]
+    fn working_days_leave_out_the_days_off_and_calendars_unite() {
+        let off = DaysOff::new([days_from_civil(2016, 3, 25)]);
+        let day = |d: u32| 86_400.0 * days_from_civil(2016, 3, d) as f64;
+        let (times, values) =
+            off.working_days(&[day(24), day(25) + 1.0, day(26) + 1.0], &[1.0, 2.0, 3.0]);
+        assert_eq!(times, [day(24), day(26) + 1.0]);
+        assert_eq!(values, [1.0, 3.0]);
+        let both = off.union(&DaysOff::new([days_from_civil(2016, 3, 28)]));
+        assert_eq!(both.len(), 2);
+        assert_eq!(both.union(&off), both);
     }
 
     #[test]

@@ -140,13 +140,8 @@ pub fn evaluate_on_calendar(
     mut on_fitted: impl FnMut(&ModelEvaluation),
 ) -> Result<EvalReport, (ModelSpec, BuildError)> {
     // Training observations on days off are left out (a copy only when there are days off).
-    let kept: Option<(Vec<f64>, Vec<f64>)> = (!days_off.is_empty()).then(|| {
-        train_times
-            .iter()
-            .zip(train_values)
-            .filter(|(t, _)| !days_off.contains(**t))
-            .unzip()
-    });
+    let kept: Option<(Vec<f64>, Vec<f64>)> =
+        (!days_off.is_empty()).then(|| days_off.working_days(train_times, train_values));
     let (train_times, train_values) = match &kept {
         Some((times, values)) => (times.as_slice(), values.as_slice()),
         None => (train_times, train_values),

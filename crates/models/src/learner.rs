@@ -403,6 +403,7 @@ fn learns_online(model: &AnyModel) -> bool {
         AnyModel::Fft(_) => false,
         #[cfg(feature = "hypertime")]
         AnyModel::Hypertime(_) => false,
+        AnyModel::Calendar(m) => learns_online(m.model()),
     }
 }
 

@@ -15,6 +15,7 @@
 //! edge models) do not compile the mixture code and its linear algebra.
 #![deny(missing_docs)]
 
+pub mod calendar;
 pub mod eval;
 pub mod features;
 pub mod learner;

@@ -20,6 +20,8 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use crate::calendar::OnCalendar;
+
 use chronomap_core::error::{BuildError, ConfigError, ObservationError};
 use chronomap_core::fft::{FftFremen, FftFremenConfig};
 use chronomap_core::fremen::{FremenConfig, FremenModel};
@@ -567,6 +569,9 @@ pub enum AnyModel {
     Hypertime(Box<HypertimeModel>),
     /// [`StackedModel`] (`auto`).
     Stack(Box<StackedModel>),
+    /// A model with its calendar of days off ([`OnCalendar`]; last, so that the files of the
+    /// other kinds keep their layout).
+    Calendar(Box<OnCalendar>),
 }
 
 macro_rules! delegate {
@@ -582,6 +587,7 @@ macro_rules! delegate {
             #[cfg(feature = "hypertime")]
             AnyModel::Hypertime($m) => $body,
             AnyModel::Stack($m) => $body,
+            AnyModel::Calendar($m) => $body,
         }
     };
 }
@@ -621,6 +627,7 @@ impl AnyModel {
                 Clustering::KMeans => "hyt-km",
             },
             AnyModel::Stack(_) => "stack",
+            AnyModel::Calendar(_) => "calendar",
         }
     }
 
@@ -649,6 +656,8 @@ impl AnyModel {
             },
             // What `auto` fits; its members and weights: [`AnyModel::Stack`].
             AnyModel::Stack(_) => ModelSpec::Auto,
+            // The calendar is not part of a spec: the model of the working days is.
+            AnyModel::Calendar(m) => m.model().spec(),
         }
     }
 
@@ -657,6 +666,11 @@ impl AnyModel {
     pub fn fitted_as(&self) -> String {
         match self {
             AnyModel::Stack(stack) => format!("stack of {}", stack.members().count()),
+            AnyModel::Calendar(m) => format!(
+                "{} on a calendar of {} days off",
+                m.model().fitted_as(),
+                m.days_off().len()
+            ),
             other => other.spec().to_string(),
         }
     }
@@ -668,6 +682,7 @@ impl AnyModel {
             AnyModel::Persistence(m) => Some(m.order()),
             AnyModel::Pergam(m) => Some(m.order()),
             AnyModel::Fft(m) => Some(m.order()),
+            AnyModel::Calendar(m) => m.model().order(),
             _ => None,
         }
     }
@@ -679,6 +694,7 @@ impl AnyModel {
             AnyModel::Persistence(m) => m.set_order(order),
             AnyModel::Pergam(m) => m.set_order(order.max(1)),
             AnyModel::Fft(m) => m.set_order(order),
+            AnyModel::Calendar(m) => return m.model_mut().set_order(order),
             _ => return false,
         }
         true
@@ -698,6 +714,7 @@ impl AnyModel {
             #[cfg(feature = "hypertime")]
             AnyModel::Hypertime(m) => m.is_consistent(),
             AnyModel::Stack(m) => m.is_consistent(),
+            AnyModel::Calendar(m) => m.is_consistent(),
         }
     }
 }

@@ -464,6 +464,11 @@ impl PyTemporalModel {
             dict.set_item("mean", to_numpy(py, vec![m.fit().mean]))?;
             Ok(())
         };
+        // A model with a calendar of days off: the components of its model of working days.
+        let model = match model {
+            AnyModel::Calendar(c) => c.model(),
+            other => other,
+        };
         match model {
             AnyModel::Fremen(m) => fremen(m)?,
             AnyModel::Persistence(m) => fremen(m.fremen())?,
@@ -502,7 +507,10 @@ impl PyTemporalModel {
                 let specs: Vec<String> = m.members().map(|(m, _)| m.spec().to_string()).collect();
                 dict.set_item("model", specs)?;
             }
-            AnyModel::Mean(_) | AnyModel::Histogram(_) | AnyModel::Markov(_) => {}
+            AnyModel::Mean(_)
+            | AnyModel::Histogram(_)
+            | AnyModel::Markov(_)
+            | AnyModel::Calendar(_) => {}
         }
         Ok(dict)
     }
