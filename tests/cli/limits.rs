@@ -110,6 +110,11 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_topo::layout::MAX_STRESS_NODES as u128,
         ),
         (
+            "DEFAULT_MAX_CELLS",
+            "chronomap_topo::deadline",
+            chronomap_topo::deadline::DEFAULT_MAX_CELLS as u128,
+        ),
+        (
             "MAX_PERIODS",
             "chronomap_core::periods",
             chronomap_core::periods::MAX_PERIODS as u128,
@@ -352,6 +357,16 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             "MAX_PLAN_TIMES",
             "chronomap_serve::maps",
             chronomap_serve::maps::MAX_PLAN_TIMES as u128,
+        ),
+        (
+            "MAX_DEADLINE_CELLS",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_DEADLINE_CELLS as u128,
+        ),
+        (
+            "MAX_DEADLINE_SECS",
+            "chronomap_serve::maps",
+            chronomap_serve::maps::MAX_DEADLINE_SECS as u128,
         ),
         (
             "MAX_CELL_TIMES",
