@@ -1,6 +1,6 @@
 //! A model that keeps its calendar of days off: [`OnCalendar`].
 //!
-//! [`DaysOff`](chronomap_core::calendar::DaysOff) answers a day off with the most recent Sunday
+//! [`DaysOff`] answers a day off with the most recent Sunday
 //! that is not one; `chronomap eval --days-off` and `predict --days-off` ask any model that
 //! way. A model saved with its calendar (`chronomap fit --days-off`) does it by itself, so every
 //! face that opens the file (`chronomap predict`, Python's `load`) predicts the holidays
