@@ -865,15 +865,23 @@ pub fn evaluate_files(
         )));
     }
     let evaluation = evaluate(&train, &test, settings, [&train_name, &test_name], progress)?;
-    let headline = interval_level(evaluation.model.as_ref(), &test, INTERVAL_COVERAGE);
-    let interval_curve = if headline.whole.is_some() || headline.observation.is_some() {
-        CURVE_LEVELS
-            .iter()
-            .map(|&level| interval_level(evaluation.model.as_ref(), &test, level))
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let mut interval_curve: Vec<IntervalLevel> = CURVE_LEVELS
+        .iter()
+        .map(|&level| interval_level(evaluation.model.as_ref(), &test, level))
+        .collect();
+    // CURVE_LEVELS holds INTERVAL_COVERAGE: the headline is its point of the curve.
+    let headline = interval_curve
+        .iter()
+        .find(|l| l.nominal == INTERVAL_COVERAGE)
+        .copied()
+        .unwrap_or(IntervalLevel {
+            nominal: INTERVAL_COVERAGE,
+            whole: None,
+            observation: None,
+        });
+    if headline.whole.is_none() && headline.observation.is_none() {
+        interval_curve.clear();
+    }
     Ok(ActivityEvalReport {
         train: RatesSummary::of(&train_name, &train),
         test: RatesSummary::of(&test_name, &test),

@@ -16,6 +16,14 @@ fn style(points: &[(f64, f64)]) -> SeriesStyle {
     }
 }
 
+/// The largest `y` of any point of `series` (0 without points).
+fn highest(series: &[Series]) -> f64 {
+    series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .fold(0.0, f64::max)
+}
+
 /// The diagonal `y = x` from 0 to 1, labelled "calibrated".
 fn diagonal() -> Series {
     Series {
@@ -53,10 +61,7 @@ pub fn reliability_panels(title: String, forecasts: &[(String, &[ReliabilityBin]
         });
     }
     diagram.push(diagonal());
-    let top_share = shares
-        .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.1))
-        .fold(0.0, f64::max);
+    let top_share = highest(&shares);
     vec![
         Panel {
             title,
@@ -100,10 +105,7 @@ pub fn coverage_panels(
     let mut coverage = series(|c| c.coverage);
     coverage.push(diagonal());
     let widths = series(|c| c.mean_width);
-    let widest = widths
-        .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.1))
-        .fold(0.0, f64::max);
+    let widest = highest(&widths);
     vec![
         Panel {
             title,

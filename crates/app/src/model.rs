@@ -143,14 +143,9 @@ pub fn fit(
     output: &Path,
 ) -> Result<FitReport, ModelJobError> {
     let train = &training.series;
-    let working: Option<(Vec<f64>, Vec<f64>)> =
-        (!days_off.is_empty()).then(|| days_off.working_days(&train.times, &train.values));
-    let (times, values) = match &working {
-        Some((times, values)) => (times.as_slice(), values.as_slice()),
-        None => (train.times.as_slice(), train.values.as_slice()),
-    };
+    let (times, values) = days_off.working_days(&train.times, &train.values);
     let mut fitted = spec
-        .fit(times, values, options)
+        .fit(&times, &values, options)
         .map_err(|error| ModelJobError::Fit {
             spec: spec.to_string(),
             source: DataIssue {

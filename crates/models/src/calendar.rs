@@ -85,7 +85,7 @@ impl OnCalendar {
 impl TemporalModel for OnCalendar {
     /// Learns the observations made on working days; those on days off are left out.
     fn observe(&mut self, times: &[f64], values: &[f64]) -> Result<(), ObservationError> {
-        if times.len() != values.len() || self.days_off.is_empty() {
+        if times.len() != values.len() {
             // The model names a length mismatch as it always does.
             return self.model.observe(times, values);
         }

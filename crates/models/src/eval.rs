@@ -140,16 +140,11 @@ pub fn evaluate_on_calendar(
     mut on_fitted: impl FnMut(&ModelEvaluation),
 ) -> Result<EvalReport, (ModelSpec, BuildError)> {
     // Training observations on days off are left out (a copy only when there are days off).
-    let kept: Option<(Vec<f64>, Vec<f64>)> =
-        (!days_off.is_empty()).then(|| days_off.working_days(train_times, train_values));
-    let (train_times, train_values) = match &kept {
-        Some((times, values)) => (times.as_slice(), values.as_slice()),
-        None => (train_times, train_values),
-    };
+    let (train_times, train_values) = days_off.working_days(train_times, train_values);
     let mut models = Vec::with_capacity(specs.len());
     for spec in specs {
         let fitted = spec
-            .fit(train_times, train_values, options)
+            .fit(&train_times, &train_values, options)
             .map_err(|e| (spec.clone(), e))?;
         let (mut scores, mut calibration) = (Vec::new(), Vec::new());
         let (mut all_predictions, mut all_values) = (Vec::new(), Vec::new());

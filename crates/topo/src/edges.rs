@@ -722,7 +722,7 @@ impl EdgeModels {
         let mut score = EdgeEvaluation::default();
         let (mut mse, mut static_mse) = (0.0, 0.0);
         let (mut model, mut fixed, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
-        // (edge, time, duration) of every successful attempt, for the intervals.
+        // (edge, expected duration, duration) of every successful attempt, for the intervals.
         let mut traversals = Vec::new();
         for (edge, list) in test.iter().enumerate() {
             let p_static = self.static_success_probability(edge);
@@ -733,8 +733,9 @@ impl EdgeModels {
                 outcomes.push(f64::from(u8::from(a.success)));
                 score.attempts += 1;
                 if a.success {
-                    traversals.push((edge, a.time, a.duration_secs));
-                    mse += (self.expected_duration(edge, a.time) - a.duration_secs).powi(2);
+                    let expected = self.expected_duration(edge, a.time);
+                    traversals.push((edge, expected, a.duration_secs));
+                    mse += (expected - a.duration_secs).powi(2);
                     static_mse += (d_static - a.duration_secs).powi(2);
                     score.successes += 1;
                 }
@@ -743,8 +744,8 @@ impl EdgeModels {
         score.score_success(&model, &fixed, &outcomes);
         let coverage_at = |level: f64| -> Option<Coverage> {
             let (mut intervals, mut durations) = (Vec::new(), Vec::new());
-            for &(edge, time, duration) in &traversals {
-                intervals.push(self.duration_interval(edge, time, level)?);
+            for &(edge, expected, duration) in &traversals {
+                intervals.push(self.duration_spread.interval(edge, expected, level)?);
                 durations.push(duration);
             }
             Some(Coverage::of(&intervals, &durations))
@@ -753,7 +754,13 @@ impl EdgeModels {
             .iter()
             .filter_map(|&level| Some((level, coverage_at(level)?)))
             .collect();
-        let coverage = coverage_at(EVALUATION_COVERAGE).unwrap_or_default();
+        // CURVE_LEVELS holds EVALUATION_COVERAGE: the headline is its point of the curve.
+        let coverage = score
+            .duration_curve
+            .iter()
+            .find(|(level, _)| *level == EVALUATION_COVERAGE)
+            .map(|(_, c)| *c)
+            .unwrap_or_default();
         score.duration_coverage = coverage.coverage;
         score.duration_interval_width = coverage.mean_width;
         score.duration_below = coverage.below;
