@@ -32,6 +32,7 @@
 //!   combine models' out-of-sample predictions. [`anomaly`] — anomaly
 //!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`calibration`] —
 //!   reliability diagrams, expected calibration error, the Brier score's decomposition.
+//!   [`spread`] — intervals of a continuous state from the models of its first two moments.
 //!   [`calendar`] — days off (holidays) predicted as the Sunday before. [`naive`] — slow
 //!   oracles for tests and benchmarks. [`Parallelism`] — how many threads a computation may
 //!   use (results never depend on it); [`rng`] — seeded randomness; [`time`] — calendar
@@ -69,6 +70,7 @@ pub mod progress;
 pub use chronomap_rng as rng;
 pub mod select;
 pub mod spectrum;
+pub mod spread;
 pub mod stacking;
 pub mod stm;
 #[cfg(test)]
