@@ -108,6 +108,27 @@ pub struct PredictRequest {
     /// Order to predict with (models with an order); default the model's own.
     #[serde(default)]
     pub order: Option<usize>,
+    /// `predict` only: the share of values that the prediction intervals of a model of
+    /// continuous values should hold, strictly between 0 and 1 (for example 0.9). The answer
+    /// then has `lower` and `upper`.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "coverage"
+    )]
+    pub coverage: Option<f64>,
+}
+
+/// `coverage` given: a number. JSON has no NaN or infinity, and serialisers write them as
+/// `null`, which must not pass for "no coverage".
+fn coverage<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    match Option::<f64>::deserialize(d)? {
+        Some(c) => Ok(Some(c)),
+        None => Err(serde::de::Error::custom(
+            "field `coverage`: null is not a share strictly between 0 and 1 (NaN or infinity \
+             written as JSON?); leave the field out for no intervals",
+        )),
+    }
 }
 
 /// Answer to [`PredictRequest`].
@@ -119,6 +140,17 @@ pub struct PredictResponse {
     /// For models with a `range` and `predict`: the predictions mapped back onto it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scaled: Option<Vec<f64>>,
+    /// With `coverage`, for models with a `range`: the lower ends of the central prediction
+    /// intervals, in the range (one per time). The interval is that of the Beta law matched
+    /// to the predicted mean and variance of the normalised value, learnt from its values and
+    /// their squares. Absent for binary models, and for models of continuous values without
+    /// an interval yet: those fitted on a whole series before their first fit, and those
+    /// restored from a snapshot written before intervals were served.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lower: Option<Vec<f64>>,
+    /// With `coverage`: the upper ends, as `lower`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper: Option<Vec<f64>>,
 }
 
 /// Predictions of many models at one time (`POST /v1/forecast`, `POST /v1/forecastEntropy`).

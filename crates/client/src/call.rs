@@ -42,6 +42,11 @@ macro_rules! endpoints {
             /// `p(t)` at many times.
             fn predict(id: &str, times: &[f64], order: Option<usize>) -> PredictResponse =
                 Call::at_times("/v1/predict", id, times, order);
+            /// `p(t)` at many times with the central prediction intervals of coverage
+            /// `coverage` (strictly between 0 and 1) of a model of continuous values
+            /// (`lower`, `upper`; absent for binary models).
+            fn predict_interval(id: &str, times: &[f64], order: Option<usize>, coverage: f64)
+                -> PredictResponse = Call::predict_interval(id, times, order, coverage);
             /// Entropies (bits) at many times.
             fn entropy(id: &str, times: &[f64], order: Option<usize>) -> PredictResponse =
                 Call::at_times("/v1/entropy", id, times, order);
@@ -272,8 +277,25 @@ impl Call {
             id: id.to_owned(),
             times: times.to_vec(),
             order,
+            coverage: None,
         };
         Call::json(Method::POST, path, &body)
+    }
+
+    /// `/v1/predict` with `coverage`.
+    pub fn predict_interval(
+        id: &str,
+        times: &[f64],
+        order: Option<usize>,
+        coverage: f64,
+    ) -> Result<Call, ClientError> {
+        let body = PredictRequest {
+            id: id.to_owned(),
+            times: times.to_vec(),
+            order,
+            coverage: Some(coverage),
+        };
+        Call::json(Method::POST, "/v1/predict", &body)
     }
 
     pub fn forecast(request: &ForecastRequest) -> Result<Call, ClientError> {

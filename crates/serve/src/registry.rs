@@ -130,9 +130,35 @@ pub struct Entry {
     pub config: ModelConfig,
     /// The model: the online model, or kept observations and the last fit.
     pub model: Learner,
+    /// For models of continuous values (with a `range`) whose spec learns online: the same
+    /// model fed the squares of the normalised values, the second moment that prediction
+    /// intervals come from ([`chronomap_core::spread`]). `None` for binary models; for specs
+    /// fitted on a whole series (`auto`, `fremen:auto`, ...: their order or combination is
+    /// chosen for the squares apart from the values, and too few components for the squares
+    /// make the variance collapse; see `docs/service.md`); and for models restored from a
+    /// snapshot written before intervals were served (they never learnt the squares, so they
+    /// have no interval until they are created again).
+    pub spread: Option<Learner>,
 }
 
 impl Entry {
+    /// A model of this configuration that has seen nothing.
+    ///
+    /// # Errors
+    /// As [`ModelConfig::parse`].
+    pub fn new(config: ModelConfig) -> Result<Self, String> {
+        let model = config.empty_model()?;
+        let spread = match config.range {
+            Some(_) if !model.is_refitting() => Some(config.empty_model()?),
+            _ => None,
+        };
+        Ok(Entry {
+            config,
+            model,
+            spread,
+        })
+    }
+
     /// Adds observations given in the model's range (`id` is for errors).
     ///
     /// # Errors
@@ -152,10 +178,38 @@ impl Entry {
                 }
                 let normalised: Vec<f64> =
                     values.iter().map(|&v| self.config.normalise(v)).collect();
-                self.model.observe(times, &normalised)
+                self.model.observe(times, &normalised).and_then(|()| {
+                    // The same times and values in [0, 1] that the model accepted: the
+                    // squares are accepted too.
+                    let Some(spread) = &mut self.spread else {
+                        return Ok(());
+                    };
+                    let squares: Vec<f64> = normalised.iter().map(|x| x * x).collect();
+                    spread.observe(times, &squares)
+                })
             }
         };
         observed.map_err(|e| ApplyError::Observation(id.to_owned(), e))
+    }
+
+    /// The model of the second moment with `order` (as [`Entry::with_order`]), when it has
+    /// one ([`Entry::spread`]); `None` for every other model.
+    pub fn spread_with_order(
+        &self,
+        order: Option<usize>,
+    ) -> Option<std::borrow::Cow<'_, AnyModel>> {
+        let model = self.spread.as_ref()?.model()?;
+        match order {
+            Some(order) if model.order() != Some(order) => {
+                if order > max_order(model)? {
+                    return None;
+                }
+                let mut copy = model.clone();
+                copy.set_order(order);
+                Some(std::borrow::Cow::Owned(copy))
+            }
+            _ => Some(std::borrow::Cow::Borrowed(model)),
+        }
     }
 
     /// Puts a fit of its kept observations in place (`id` is for errors).
@@ -445,11 +499,7 @@ pub fn apply_to(slot: &mut Option<Entry>, record: &LogRecord) -> Result<(), Appl
             Some(entry) if entry.config == *config => Ok(()),
             Some(_) => Err(ApplyError::Conflict(id.clone())),
             None => {
-                let model = config.empty_model().map_err(ApplyError::Config)?;
-                *slot = Some(Entry {
-                    config: config.clone(),
-                    model,
-                });
+                *slot = Some(Entry::new(config.clone()).map_err(ApplyError::Config)?);
                 Ok(())
             }
         },

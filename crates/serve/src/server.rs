@@ -1239,11 +1239,49 @@ fn one_model_at_times(
 impl ModelRequest for PredictRequest {
     fn check(&self, registry: &Registry) -> Result<u64, ApiError> {
         check_times(&self.times)?;
-        one_model_at_times(registry, &self.id, self.order, &self.times)
+        if let Some(coverage) = self.coverage {
+            check_coverage(coverage)?;
+        }
+        let work = one_model_at_times(registry, &self.id, self.order, &self.times)?;
+        // Intervals predict the second moment too.
+        Ok(work * (1 + u64::from(self.coverage.is_some())))
     }
 }
 
-/// `predict` and `entropy`: one call of the model over all the times.
+/// A `coverage` of prediction intervals: strictly between 0 and 1 (`400` naming the field
+/// otherwise).
+fn check_coverage(coverage: f64) -> Result<(), ApiError> {
+    if !(coverage > 0.0 && coverage < 1.0) {
+        return Err(ApiError::bad_request(format!(
+            "field `coverage`: {coverage} is not a share strictly between 0 and 1 (0.9 asks \
+             for intervals that hold 90 % of the values)"
+        )));
+    }
+    Ok(())
+}
+
+/// The central intervals of coverage `coverage` in the model's range, from the predicted means
+/// `means` (normalised) and the model of the second moment ([`chronomap_core::spread`]).
+fn intervals(
+    spread: &AnyModel,
+    config: &ModelConfig,
+    times: &[f64],
+    means: &[f64],
+    coverage: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let seconds = spread.predict_many(times);
+    means
+        .iter()
+        .zip(&seconds)
+        .map(|(&m, &s)| {
+            let (lo, hi) = chronomap_core::spread::beta_interval(m, s, coverage);
+            (config.scale(lo), config.scale(hi))
+        })
+        .unzip()
+}
+
+/// `predict` and `entropy`: one call of the model over all the times (and for intervals, one
+/// of the model of the second moment).
 async fn predictions(
     state: &AppState,
     body: Result<Bytes, BytesRejection>,
@@ -1254,26 +1292,73 @@ async fn predictions(
         state,
         body,
         move |request: PredictRequest, shared, cancel, class| {
-            let (mut values, scaled) = on_model(
+            let coverage = match request.coverage {
+                Some(_) if !scaled => {
+                    return Err(ApiError::bad_request(
+                        "field `coverage`: only `POST /v1/predict` gives intervals".into(),
+                    ));
+                }
+                coverage => coverage,
+            };
+            let (mut values, scaled, bands) = on_model_and_spread(
                 shared,
                 class,
                 &request.id,
                 request.order,
-                |model, config| {
+                |model, spread, config| {
                     if cancel.is_cancelled() {
                         return Err(heavy::cancelled());
                     }
                     let values = model.predict_many(&request.times);
                     let scaled = (scaled && config.range.is_some())
                         .then(|| values.iter().map(|&p| config.scale(p)).collect());
-                    Ok((values, scaled))
+                    let bands = match (coverage, spread) {
+                        (Some(c), Some(spread)) if config.range.is_some() => {
+                            Some(intervals(spread, config, &request.times, &values, c))
+                        }
+                        _ => None,
+                    };
+                    Ok((values, scaled, bands))
                 },
             )?;
             values.iter_mut().for_each(|v| *v = map(*v));
-            json_bytes(&PredictResponse { values, scaled })
+            let (lower, upper) = bands.unzip();
+            json_bytes(&PredictResponse {
+                values,
+                scaled,
+                lower,
+                upper,
+            })
         },
     )
     .await
+}
+
+/// [`on_model`] with the model of the second moment at the same order, where the model has
+/// one that predicts ([`Entry::spread_with_order`]).
+fn on_model_and_spread<T>(
+    shared: &Shared,
+    class: Class,
+    id: &str,
+    order: Option<usize>,
+    f: impl FnOnce(&AnyModel, Option<&AnyModel>, &ModelConfig) -> Result<T, ApiError>,
+) -> Result<T, ApiError> {
+    let registry = shared.registry.read().expect("registry lock");
+    let entry = model_entry(&registry, id, "id")?;
+    let model = entry.with_order(order).map_err(ApiError::bad_request)?;
+    let spread = entry.spread_with_order(order);
+    match class {
+        Class::Light => f(&model, spread.as_deref(), &entry.config),
+        Class::Heavy => {
+            let (model, spread, config) = (
+                model.into_owned(),
+                spread.map(std::borrow::Cow::into_owned),
+                entry.config.clone(),
+            );
+            drop(registry);
+            f(&model, spread.as_ref(), &config)
+        }
+    }
 }
 
 /// `p(t)` of one model at many times (`predict`).

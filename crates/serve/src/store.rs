@@ -20,9 +20,15 @@ use chronomap_models::{AnyModel, Learner};
 use crate::registry::{Entry, ModelConfig};
 
 /// Kind tag of model snapshots (inside a versioned, checksummed model-file container): version
-/// 2, an [`Entry`] whose model is a [`Learner`] (the online model, or the kept observations and
-/// last fit of a model fitted on a whole series).
-const SNAPSHOT_KIND: &str = "serve-snapshot-2";
+/// 3, an [`Entry`] with the learner of the second moment of a model of continuous values
+/// ([`Entry::spread`]).
+const SNAPSHOT_KIND: &str = "serve-snapshot-3";
+
+/// Kind tag of version 2 snapshots (still read): an entry whose model is a [`Learner`] (the
+/// online model, or the kept observations and last fit of a model fitted on a whole series),
+/// without the second moment. Its models of continuous values load without one: they have no
+/// prediction intervals until they are created again.
+const SNAPSHOT_KIND_2: &str = "serve-snapshot-2";
 
 /// Kind tag of version 1 snapshots (still read): an entry whose model is an [`AnyModel`] that
 /// learns online.
@@ -175,6 +181,13 @@ struct Entry1 {
     model: AnyModel,
 }
 
+/// A version 2 snapshot.
+#[derive(serde::Deserialize)]
+struct Entry2 {
+    config: ModelConfig,
+    model: Learner,
+}
+
 /// The kind a model-file container's header names (` kind=KIND ` in its first line), to choose
 /// the type its payload is decoded as; the container itself is checked by [`decode_model`].
 fn container_kind(bytes: &[u8]) -> Option<&str> {
@@ -186,30 +199,52 @@ fn container_kind(bytes: &[u8]) -> Option<&str> {
         .find_map(|word| word.strip_prefix("kind="))
 }
 
-/// Decodes a snapshot (version 2, or version 1 of services before models fitted on a whole
-/// series were served).
+/// Decodes a snapshot (version 3; version 2 of services before prediction intervals were
+/// served, whose models of continuous values then have no learner of the second moment; or
+/// version 1 of services before models fitted on a whole series were served).
 ///
 /// # Errors
 /// A damaged or foreign snapshot, naming the id.
 pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
     let damaged = |e: chronomap_io::ModelFileError| format!("snapshot of {id:?}: {e}");
-    let (kind, entry): (String, Entry) = if container_kind(bytes) == Some(SNAPSHOT_KIND_1) {
-        let (kind, old): (String, Entry1) = decode_model(bytes).map_err(damaged)?;
-        let entry = Entry {
-            config: old.config,
-            model: Learner::Online(old.model),
-        };
-        (kind, entry)
-    } else {
-        decode_model(bytes).map_err(damaged)?
+    let (kind, entry): (String, Entry) = match container_kind(bytes) {
+        Some(SNAPSHOT_KIND_1) => {
+            let (kind, old): (String, Entry1) = decode_model(bytes).map_err(damaged)?;
+            let entry = Entry {
+                config: old.config,
+                model: Learner::Online(old.model),
+                spread: None,
+            };
+            (kind, entry)
+        }
+        Some(SNAPSHOT_KIND_2) => {
+            let (kind, old): (String, Entry2) = decode_model(bytes).map_err(damaged)?;
+            let entry = Entry {
+                config: old.config,
+                model: old.model,
+                spread: None,
+            };
+            (kind, entry)
+        }
+        _ => decode_model(bytes).map_err(damaged)?,
     };
-    if kind != SNAPSHOT_KIND && kind != SNAPSHOT_KIND_1 {
+    if ![SNAPSHOT_KIND, SNAPSHOT_KIND_2, SNAPSHOT_KIND_1].contains(&kind.as_str()) {
         return Err(format!(
             "snapshot of {id:?}: a {kind:?} container, not a model snapshot"
         ));
     }
-    if !entry.model.is_consistent() {
+    if !entry.model.is_consistent() || entry.spread.as_ref().is_some_and(|s| !s.is_consistent()) {
         return Err(format!("snapshot of {id:?}: inconsistent model parameters"));
+    }
+    // A model of continuous values may lack one (restored from version 2 and snapshotted
+    // again); a binary model, or one fitted on a whole series, never has one.
+    if let Some(spread) = &entry.spread
+        && (entry.config.range.is_none() || entry.model.is_refitting() || spread.is_refitting())
+    {
+        return Err(format!(
+            "snapshot of {id:?}: a learner of the second moment for a model of binary states \
+             or one fitted on a whole series"
+        ));
     }
     Ok(entry)
 }
@@ -252,7 +287,7 @@ mod tests {
         }
         // Written again, it is version 2 and reads back the same.
         let new = encode_snapshot(&entry);
-        assert!(new.starts_with(b"chronomap-model 1 kind=serve-snapshot-2 encoding=postcard "));
+        assert!(new.starts_with(b"chronomap-model 1 kind=serve-snapshot-3 encoding=postcard "));
         let again = decode_snapshot("door", &new).unwrap();
         assert_eq!(encode_snapshot(&again), new);
         // Damage is still found, in both versions, naming the id.
@@ -269,5 +304,67 @@ mod tests {
             Some("x")
         );
         assert_eq!(container_kind(b"no header line"), None);
+    }
+
+    #[test]
+    fn version_2_snapshots_load_without_a_second_moment_and_stay_so() {
+        // What services wrote before prediction intervals: the entry without `spread`.
+        #[derive(serde::Serialize)]
+        struct Version2<'a> {
+            config: &'a ModelConfig,
+            model: &'a Learner,
+        }
+        let config = ModelConfig::parse(Some("fremen:2"), Some([10.0, 30.0])).unwrap();
+        let mut live = Entry::new(config.clone()).unwrap();
+        let times: Vec<f64> = (0..500).map(|i| 600.0 * f64::from(i)).collect();
+        let values: Vec<f64> = times
+            .iter()
+            .map(|t| 20.0 + 8.0 * (t / 86_400.0 * std::f64::consts::TAU).sin())
+            .collect();
+        live.observe("temp", &times, &values).unwrap();
+        assert!(live.spread_with_order(None).is_some());
+        let old = encode_model(
+            SNAPSHOT_KIND_2,
+            &Version2 {
+                config: &config,
+                model: &live.model,
+            },
+        )
+        .unwrap();
+        assert!(old.starts_with(b"chronomap-model 1 kind=serve-snapshot-2 encoding=postcard "));
+        let mut entry = decode_snapshot("temp", &old).unwrap();
+        assert_eq!(entry.config, config);
+        assert!(entry.spread.is_none() && entry.spread_with_order(None).is_none());
+        for t in [0.0, 4e4, 3e5, 1e6] {
+            assert_eq!(
+                entry.model.predict(t).to_bits(),
+                live.model.predict(t).to_bits()
+            );
+        }
+        // It goes on learning its mean, still without intervals, and is written as version 3
+        // without a second moment, which reads back the same.
+        entry.observe("temp", &[4e5], &[25.0]).unwrap();
+        assert!(entry.spread.is_none());
+        let new = encode_snapshot(&entry);
+        assert!(new.starts_with(b"chronomap-model 1 kind=serve-snapshot-3 encoding=postcard "));
+        let again = decode_snapshot("temp", &new).unwrap();
+        assert!(again.spread.is_none());
+        assert_eq!(encode_snapshot(&again), new);
+        // A version 3 snapshot keeps the second moment bit for bit.
+        let with = encode_snapshot(&live);
+        let back = decode_snapshot("temp", &with).unwrap();
+        for t in [0.0, 4e4, 3e5] {
+            assert_eq!(
+                back.spread_with_order(None).unwrap().predict(t).to_bits(),
+                live.spread_with_order(None).unwrap().predict(t).to_bits()
+            );
+        }
+        // A binary model with a second moment is refused.
+        let binary = Entry {
+            config: ModelConfig::parse(Some("fremen:2"), None).unwrap(),
+            ..live
+        };
+        let error = decode_snapshot("door", &encode_snapshot(&binary)).unwrap_err();
+        assert!(error.contains("second moment"), "{error}");
     }
 }

@@ -854,10 +854,7 @@ mod tests {
                 CheckpointPolicy::default(),
             );
             assert!(outcomes[0].is_ok());
-            let mut snapshot = encode_snapshot(&Entry {
-                config: config("fremen:2"),
-                model: config("fremen:2").empty_model().unwrap(),
-            });
+            let mut snapshot = encode_snapshot(&Entry::new(config("fremen:2")).unwrap());
             *snapshot.last_mut().unwrap() ^= 0x40;
             let snapshots = [("door".into(), snapshot)];
             store
