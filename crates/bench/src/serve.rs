@@ -349,10 +349,7 @@ pub fn run(config: &ServeBenchConfig, train: TimeSeries) -> Result<ServeBench, S
             id: id.clone(),
             message,
         };
-        let mut entry = Entry {
-            config: model_config.clone(),
-            model: model_config.empty_model().map_err(in_process_error)?,
-        };
+        let mut entry = Entry::new(model_config.clone()).map_err(in_process_error)?;
         times.clear();
         values.clear();
         door.take(stream, config.preload, &mut times, &mut values);
