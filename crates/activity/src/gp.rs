@@ -58,6 +58,6 @@ pub use kernel::{ActivityKernel, Kernel, PeriodicComponent, Point, RbfKernel};
 pub use poisson::{ExpectedPoissonLogLik, PoissonElboGrad, PoissonSvgp, expected_poisson_log_lik};
 pub use quad::{ExpectedLogLik, HeteroGaussian, gauss_hermite, softplus};
 pub use svgp::{
-    Adam, Batch, ElboGrad, GpError, HeteroSvgp, LatentGp, Marginals, Prediction, SvgpModel,
-    TrainConfig, Variational, train, train_with_progress,
+    Adam, Batch, ElboGrad, GpError, HeteroSvgp, LatentGp, LatentPrediction, Marginals, Prediction,
+    SvgpModel, TrainConfig, Variational, train, train_with_progress,
 };

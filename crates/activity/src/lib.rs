@@ -312,6 +312,31 @@ pub trait RatePredictor {
     fn observation_interval(&self, _x: [f64; 2], _t: f64, _coverage: f64) -> Option<(f64, f64)> {
         None
     }
+
+    /// [`RatePredictor::interval`] at every sample of `at` (the rates of `at` are not used);
+    /// `None` where the model has no intervals. The default calls `interval` point by point;
+    /// models with a faster batch path override it.
+    fn interval_samples(&self, at: &RateSamples, coverage: f64) -> Option<Vec<(f64, f64)>> {
+        at.x()
+            .iter()
+            .zip(at.t())
+            .map(|(&x, &t)| self.interval(x, t, coverage))
+            .collect()
+    }
+
+    /// [`RatePredictor::observation_interval`] at every sample of `at`, as
+    /// [`RatePredictor::interval_samples`] is.
+    fn observation_interval_samples(
+        &self,
+        at: &RateSamples,
+        coverage: f64,
+    ) -> Option<Vec<(f64, f64)>> {
+        at.x()
+            .iter()
+            .zip(at.t())
+            .map(|(&x, &t)| self.observation_interval(x, t, coverage))
+            .collect()
+    }
 }
 
 /// Normalised root mean square error, eq. (4.20):

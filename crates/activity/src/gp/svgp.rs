@@ -554,6 +554,21 @@ pub struct Prediction {
     pub std: Vec<f64>,
 }
 
+/// The marginals of both latent GPs of a [`HeteroSvgp`] at prediction points
+/// ([`HeteroSvgp::predict_latent`]): `q(f(x_i)) = N(f_mean_i, f_var_i)`,
+/// `q(g(x_i)) = N(g_mean_i, g_var_i)` ([Stüde 2024] eqs. 4.13–4.16).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LatentPrediction {
+    /// Means of the rate function `f`.
+    pub f_mean: Vec<f64>,
+    /// Variances of `f` (the uncertainty of the function, without the noise).
+    pub f_var: Vec<f64>,
+    /// Means of the noise function `g` (noise standard deviation `ζ(g)`).
+    pub g_mean: Vec<f64>,
+    /// Variances of `g`.
+    pub g_var: Vec<f64>,
+}
+
 /// A batch of training data `(x, y)` and the factor `scale` by which its expected
 /// log-likelihood enters the ELBO estimate ([Stüde 2024] eq. 4.12): `n / |B|` for a minibatch
 /// of a data set of `n` points, `1` for the full data.
@@ -781,18 +796,42 @@ impl HeteroSvgp {
     /// Predictive mean and standard deviation of `y` at `x` ([Stüde 2024] eq. 4.19): mean `m_f`,
     /// variance `Σ_f + E_{q(g)}[ζ(g)²]`. Works in chunks of 1024 points.
     pub fn predict(&self, x: &[Point], par: Parallelism) -> Result<Prediction, GpError> {
-        predict_in_chunks(x, |chunk, out| {
+        let latent = self.predict_latent(x, par)?;
+        let std = latent
+            .f_var
+            .iter()
+            .zip(latent.g_mean.iter().zip(&latent.g_var))
+            .map(|(vf, (&mg, &vg))| (vf + self.likelihood.expected_noise_variance(mg, vg)).sqrt())
+            .collect();
+        Ok(Prediction {
+            mean: latent.f_mean,
+            std,
+        })
+    }
+
+    /// The marginals of `f` and `g` at `x` ([Stüde 2024] eqs. 4.13–4.16): what the predictive
+    /// law of `y` is made of ([`HeteroGaussian::central_half_width`]). Works in chunks of 1024
+    /// points.
+    pub fn predict_latent(
+        &self,
+        x: &[Point],
+        par: Parallelism,
+    ) -> Result<LatentPrediction, GpError> {
+        let mut out = LatentPrediction {
+            f_mean: Vec::with_capacity(x.len()),
+            f_var: Vec::with_capacity(x.len()),
+            g_mean: Vec::with_capacity(x.len()),
+            g_var: Vec::with_capacity(x.len()),
+        };
+        for chunk in x.chunks(1024) {
             let mf = self.f.marginals(chunk, self.jitter, par)?;
             let mg = self.g.marginals(chunk, self.jitter, par)?;
-            for i in 0..chunk.len() {
-                out.mean.push(mf.mean[i]);
-                let noise = self
-                    .likelihood
-                    .expected_noise_variance(mg.mean[i], mg.var[i]);
-                out.std.push((mf.var[i] + noise).sqrt());
-            }
-            Ok(())
-        })
+            out.f_mean.extend(mf.mean);
+            out.f_var.extend(mf.var);
+            out.g_mean.extend(mg.mean);
+            out.g_var.extend(mg.var);
+        }
+        Ok(out)
     }
 
     /// All hyperparameters trained by Adam, flattened: `k_f` log-parameters, `k_g`

@@ -155,6 +155,57 @@ fn expected_log_lik_matches_brute_force_2d_quadrature() {
     }
 }
 
+/// The half-width of the predictive law of an observation: the normal's `z √(v_f + ζ(m_g)²)`
+/// when `g` is certain; otherwise the probability of the mixture within it is `coverage` by a
+/// brute-force midpoint rule over `g` (to the accuracy of the model's 20-node rule), and it lies between the normals of the least and the greatest noise.
+#[test]
+fn central_half_width_solves_the_mixture_of_normals() {
+    use statrs::distribution::{Continuous, ContinuousCDF, Normal};
+    let lik = HeteroGaussian::new(20);
+    let normal = Normal::standard();
+    let normal_pdf = |u: f64| normal.pdf(u);
+    for coverage in [0.1, 0.5, 0.9, 0.99, 0.999] {
+        let z = normal.inverse_cdf(0.5 + coverage / 2.0);
+        for &(vf, mg) in &[(0.0f64, 0.0f64), (0.3, -1.0), (2.0, 1.5)] {
+            let exact = z * (vf + softplus(mg).powi(2)).sqrt();
+            let h = lik.central_half_width(vf, mg, 0.0, coverage);
+            assert!(rel(h, exact, 0.0) < 1e-12, "{h} vs {exact}");
+        }
+        for &(vf, mg, vg) in &[
+            (0.1f64, -0.5f64, 0.8f64),
+            (0.0, 0.5, 1.0),
+            (0.01, 1.0, 0.5),
+            (1.0, -2.0, 0.3),
+        ] {
+            let h = lik.central_half_width(vf, mg, vg, coverage);
+            // The midpoint rule over g in m_g ± 10 sd, 20,000 steps.
+            let steps = 20_000;
+            let du = 20.0 / f64::from(steps);
+            let p: f64 = (0..steps)
+                .map(|k| {
+                    let u = -10.0 + (f64::from(k) + 0.5) * du;
+                    let s = (vf + softplus(mg + vg.sqrt() * u).powi(2)).sqrt();
+                    du * normal_pdf(u) * (2.0 * normal.cdf(h / s) - 1.0)
+                })
+                .sum();
+            // The 20-node rule is exact to 1e-7 here but where the noise dominates and g is
+            // uncertain (v_f = 0, v_g = 1: 1.2e-5 at 90 %).
+            assert!((p - coverage).abs() < 1e-4, "{p} vs {coverage}");
+            let variance = vf + lik.expected_noise_variance(mg, vg);
+            assert!(h > 0.0 && h.is_finite());
+            let lo = z * (vf + softplus(mg - 6.0 * vg.sqrt()).powi(2)).sqrt();
+            let hi = z * (vf + softplus(mg + 6.0 * vg.sqrt()).powi(2)).sqrt();
+            assert!(
+                lo < h && h < hi,
+                "{lo} {h} {hi} (normal {})",
+                z * variance.sqrt()
+            );
+        }
+    }
+    assert!(lik.central_half_width(1.0, 0.0, 0.0, 1.0).is_nan());
+    assert!(lik.central_half_width(f64::NAN, 0.0, 0.0, 0.9).is_nan());
+}
+
 #[test]
 fn expected_log_lik_gradients_match_finite_differences() {
     let lik = HeteroGaussian::new(20);
