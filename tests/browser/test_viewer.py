@@ -261,6 +261,8 @@ def test_models_plot_what_the_api_predicts(page, service):
     assert times[0] == GREG_WEEK and len(times) == 7 * 96 + 1
     assert page.data("model-chart", "p") == service.post("/v1/predict", {"id": "greg_door", "times": times})["values"]
     assert page.data("model-chart", "entropy") == service.post("/v1/entropy", {"id": "greg_door", "times": times})["values"]
+    # A binary model has no prediction interval: its band is p ± half the entropy.
+    assert page.data("model-chart", "lower") is None and page.data("model-chart", "upper") is None
     obs = service.get("/v1/models/greg_door/observations")
     week = [(t, v) for t, v in zip(obs["times"], obs["values"]) if GREG_WEEK <= t < GREG_WEEK + 7 * 86400]
     assert page.data("model-chart", "observations") == len(week) == 10080
@@ -286,8 +288,15 @@ def test_models_plot_what_the_api_predicts(page, service):
     page.ready("model-chart")
     times = page.data("model-chart", "times")
     p = page.data("model-chart", "p")
-    assert p == service.post("/v1/predict", {"id": "labdoor_speed", "times": times})["values"]
-    assert all(0.0 <= v <= 0.8 for v in p)
+    answer = service.post("/v1/predict", {"id": "labdoor_speed", "times": times, "coverage": 0.9})
+    assert p == answer["values"]
+    assert all(0.0 <= v <= 1.0 for v in p)
+    # Its band is the 90 % prediction interval, in its range.
+    lower, upper = page.data("model-chart", "lower"), page.data("model-chart", "upper")
+    assert lower == answer["lower"] and upper == answer["upper"]
+    assert len(lower) == len(times) and all(0.0 <= a <= b <= 0.8 for a, b in zip(lower, upper))
+    assert "90 % prediction interval" in page.text("model-band-legend")
+    page.shot("viewer-model-interval.png")
     # A bad threshold is said, not drawn.
     page.set_value("model-confidence", "5")
     assert "(0, 1]" in page.text("model-error")
