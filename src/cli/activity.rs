@@ -377,7 +377,8 @@ pub struct ActivityEvalArgs {
     pub json: bool,
     /// Draw the calibration of the model's predictive intervals as a PNG: the share of test
     /// rates inside its intervals of whole hours and of one observation against their nominal
-    /// coverage (10 % … 99 %), and their mean width (Log-AM; other models have none).
+    /// coverage (10 % … 99 %), and their mean width (Log-AM and CoPA-Map; other models have
+    /// none).
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
 }

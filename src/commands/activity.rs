@@ -46,10 +46,14 @@ pub fn eval(args: &ActivityEvalArgs) -> Result<()> {
         parallelism: Parallelism::Rayon(0),
     };
     if args.plot.is_some()
-        && !matches!(args.model, ActivityModel::LogAdditive | ActivityModel::Auto)
+        && !matches!(
+            args.model,
+            ActivityModel::LogAdditive | ActivityModel::Copa | ActivityModel::Auto
+        )
     {
         return Err(usage(
-            "--plot draws predictive intervals, which only Log-AM has (--model log-additive)",
+            "--plot draws predictive intervals, which only Log-AM and CoPA-Map have \
+             (--model log-additive or copa)",
         ));
     }
     let report = evaluate_files(&args.train, test, &settings, &ProgressBar::new())?;

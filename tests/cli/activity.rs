@@ -291,7 +291,8 @@ fn test_and_split_at_together_or_neither_are_usage_errors() {
         "copa",
     ]));
     assert!(err.contains("CoPA-Map"), "{err}");
-    // Only Log-AM has predictive intervals to plot: asked of another model, before any fit.
+    // Only Log-AM and CoPA-Map have predictive intervals to plot: asked of another model,
+    // before any fit.
     let png = scratch("usage_plot.png", "");
     let err = usage_error(&chronomap(&[
         "activity",

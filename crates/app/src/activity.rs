@@ -625,28 +625,14 @@ pub struct IntervalLevel {
 /// Nominal coverage of the predictive intervals `activity eval` scores.
 pub const INTERVAL_COVERAGE: f64 = 0.9;
 
-/// How the intervals of coverage `level` that `interval` gives at each test sample held the
-/// rates of `test`; `None` if there are none.
-fn interval_coverage(
-    test: &RateSamples,
-    level: f64,
-    interval: impl Fn([f64; 2], f64, f64) -> Option<(f64, f64)>,
-) -> Option<Coverage> {
-    let intervals: Option<Vec<(f64, f64)>> = test
-        .x()
-        .iter()
-        .zip(test.t())
-        .map(|(&x, &t)| interval(x, t, level))
-        .collect();
-    Some(Coverage::of(&intervals?, test.y()))
-}
-
-/// Both kinds of `model`'s intervals on `test` at `level`.
+/// Both kinds of `model`'s intervals on `test` at `level` (each computed for all samples at
+/// once: [`RatePredictor::interval_samples`]), scored against its rates.
 fn interval_level(model: &dyn RatePredictor, test: &RateSamples, level: f64) -> IntervalLevel {
+    let score = |intervals: Option<Vec<(f64, f64)>>| Some(Coverage::of(&intervals?, test.y()));
     IntervalLevel {
         nominal: level,
-        whole: interval_coverage(test, level, |x, t, c| model.interval(x, t, c)),
-        observation: interval_coverage(test, level, |x, t, c| model.observation_interval(x, t, c)),
+        whole: score(model.interval_samples(test, level)),
+        observation: score(model.observation_interval_samples(test, level)),
     }
 }
 
