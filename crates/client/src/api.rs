@@ -116,6 +116,7 @@ pub struct PredictRequest {
         skip_serializing_if = "Option::is_none",
         deserialize_with = "coverage"
     )]
+    #[cfg_attr(feature = "openapi", schema(nullable = false))]
     pub coverage: Option<f64>,
 }
 
