@@ -32,6 +32,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::{FremenConfig, FremenModel, Ordered, PeriodSet};
 use chronomap_models::ModelSpec;
 use chronomap_models::learner::{DEFAULT_KEEP, Learner, RefitPolicy};
@@ -292,6 +293,12 @@ pub struct NodeConfig {
     pub sync_period: f64,
     /// Learned messages that make a journal sync due at once.
     pub sync_messages: u64,
+    /// The calendar of days off (`days_off_file`), if any.
+    pub days_off_file: Option<PathBuf>,
+    /// Its days: a state observed on one is not learned, and a state's prediction for a time
+    /// on one is its prediction at [`DaysOff::stand_in`]. Empty without `days_off_file`, and
+    /// when the configuration was checked without its files ([`NodeConfig::parse_text`]).
+    pub days_off: DaysOff,
     /// Largest map accepted, in cells.
     pub max_map_cells: u64,
     /// Most heap the grids may hold (bytes): a map whose learning could bring them above it
@@ -613,8 +620,8 @@ fn outside_the_kernel(path: &Path) -> Result<PathBuf, String> {
     Ok(absolute)
 }
 
-/// Checks that the file `path` that the node reads when it starts (`edges.models`) can be
-/// read: it is a regular file (not a directory, a device or a pipe), it opens read-only and
+/// Checks that the file `path` that the node reads when it starts (`edges.models`,
+/// `days_off_file`) can be read: it is a regular file (not a directory, a device or a pipe), it opens read-only and
 /// its first byte reads, and it has at most [`chronomap_io::MAX_FILE_BYTES`]. Its content is
 /// checked when it is read.
 ///
@@ -732,6 +739,9 @@ pub fn description(name: &str) -> &'static str {
         }
         ("sync_messages", _) => "learned messages that make a journal sync due at once",
         ("max_map_cells", _) => "larger OccupancyGrid messages are refused",
+        ("days_off_file", _) => {
+            "calendar of days off (YYYY-MM-DD per line): states observed on one are not learned and are predicted as on the last Sunday that is not one (\"\" for none)"
+        }
         ("memory_limit", _) => {
             "bytes the grids may hold at most: a map that could bring them above it is refused (0: no limit)"
         }
@@ -794,10 +804,10 @@ impl NodeConfig {
     }
 
     /// As [`NodeConfig::parse`], but the files and folders the text names (`save_dir`,
-    /// `edges.models`, `edges.geojson`) are not looked at: nothing on the file system is read
-    /// or created. For checking a configuration's text away from the machine that runs it
-    /// (and for tests of arbitrary text); the node and `chronomap ros2 --check` check the
-    /// files too.
+    /// `edges.models`, `edges.geojson`, `days_off_file`) are not looked at: nothing on the
+    /// file system is read or created (so [`NodeConfig::days_off`] is empty). For checking a
+    /// configuration's text away from the machine that runs it (and for tests of arbitrary
+    /// text); the node and `chronomap ros2 --check` check the files too.
     ///
     /// # Errors
     /// As [`NodeConfig::parse`], less the files.
@@ -896,6 +906,10 @@ impl NodeConfig {
         put(
             "max_map_cells".into(),
             Value::Integer(self.max_map_cells as i64),
+        );
+        put(
+            "days_off_file".into(),
+            self.days_off_file.as_deref().map_or(text(""), path),
         );
         put(
             "memory_limit".into(),
@@ -1061,6 +1075,7 @@ struct RawParams {
     sync_messages: Option<Spanned<u64>>,
     max_map_cells: Option<Spanned<u64>>,
     memory_limit: Option<Spanned<u64>>,
+    days_off_file: Option<Spanned<String>>,
     states: BTreeMap<String, Spanned<RawState>>,
     maps: BTreeMap<String, Spanned<RawGrid>>,
     people: BTreeMap<String, Spanned<RawGrid>>,
@@ -1124,6 +1139,7 @@ const TOP_KEYS: &[&str] = &[
     "sync_messages",
     "max_map_cells",
     "memory_limit",
+    "days_off_file",
 ];
 
 struct RawState {
@@ -1461,6 +1477,7 @@ impl<'a> Reader<'a> {
             sync_messages: self.integer("sync_messages")?,
             max_map_cells: self.integer("max_map_cells")?,
             memory_limit: self.integer("memory_limit")?,
+            days_off_file: self.text("days_off_file")?,
             states,
             maps,
             people,
@@ -1753,6 +1770,20 @@ impl Checker<'_> {
                 ));
             }
         };
+        let (days_off_file, days_off) = match &raw.days_off_file {
+            Some(f) if !f.value.is_empty() => {
+                let file = f.origin.folder().join(&f.value);
+                let days = if self.files {
+                    check_input_file(&file).map_err(|m| self.at(f, "days_off_file", m))?;
+                    chronomap_io::read_days_off(&file)
+                        .map_err(|e| self.at(f, "days_off_file", e.to_string()))?
+                } else {
+                    DaysOff::default()
+                };
+                (Some(file), days)
+            }
+            _ => (None, DaysOff::default()),
+        };
         let clock_topic = args
             .remap("/clock", false, &names.namespace, &names.name)
             .map_err(|e| self.error(None, Some("use_sim_time".into()), e.to_string()))?;
@@ -1770,6 +1801,8 @@ impl Checker<'_> {
             record_observations,
             sync_period,
             sync_messages,
+            days_off_file,
+            days_off,
             max_map_cells,
             memory_limit: match raw.memory_limit.as_ref().map(|v| v.value) {
                 None => Some(DEFAULT_MEMORY_LIMIT),

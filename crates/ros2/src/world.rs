@@ -174,6 +174,8 @@ pub enum StoreError {
 struct StateSlot {
     model: Learner,
     learned: u64,
+    /// Observations on days off since the node started (not learned).
+    days_off: u64,
     record: Option<BufWriter<File>>,
 }
 
@@ -222,6 +224,8 @@ pub struct Learned {
     pub observations: u64,
     /// Total after restoring (states: the model's count; grids: frames).
     pub total: u64,
+    /// States: observations made on a day off (`days_off_file`), not learned; grids: 0.
+    pub days_off: u64,
 }
 
 /// The predicted map of a grid and its mask.
@@ -353,6 +357,7 @@ impl World {
             states.push(StateSlot {
                 model,
                 learned: 0,
+                days_off: 0,
                 record,
             });
         }
@@ -585,12 +590,27 @@ impl World {
     }
 
     /// Learns `value` of state `index` observed at `time` (the node's time of receipt) and
-    /// appends it to the journal.
+    /// appends it to the journal; with a calendar (`days_off_file`), an observation on a day
+    /// off is neither learned nor journaled nor recorded, only counted ([`Learned::days_off`]),
+    /// and `Ok(false)` says so. (Journal records are replayed as they were learned, whatever
+    /// the calendar is now, so that a restart gives the model that was saved.)
     ///
     /// # Errors
     /// A value outside [0, 1] or a time before the state's last observation; nothing is
     /// learned then.
-    pub fn observe_state(&mut self, index: usize, time: f64, value: f64) -> Result<(), LearnError> {
+    pub fn observe_state(
+        &mut self,
+        index: usize,
+        time: f64,
+        value: f64,
+    ) -> Result<bool, LearnError> {
+        if self.config.days_off.contains(time) {
+            if !(0.0..=1.0).contains(&value) {
+                return Err(LearnError::Value(value));
+            }
+            self.states[index].days_off += 1;
+            return Ok(false);
+        }
         self.learn_state(index, time, value)?;
         let name = &self.config.states[index].name;
         let entry = Entry::State {
@@ -599,7 +619,7 @@ impl World {
             value,
         };
         journal(&mut self.durable, &entry);
-        Ok(())
+        Ok(true)
     }
 
     /// Learns a state observation (live or replayed).
@@ -882,6 +902,7 @@ impl World {
             .map(|s| Learned {
                 observations: s.learned,
                 total: s.model.span().count,
+                days_off: s.days_off,
             })
             .collect();
         let grids = self
@@ -890,6 +911,7 @@ impl World {
             .map(|g| Learned {
                 observations: g.frames,
                 total: g.grid.as_ref().map_or(0, FremenGrid::frames),
+                days_off: 0,
             })
             .collect();
         (states, grids)
@@ -935,15 +957,19 @@ impl World {
         self.grids[index].grid.as_ref()
     }
 
-    /// Probability and entropy (bits) of state `index` at `time`.
+    /// Probability and entropy (bits) of state `index` at `time`; with a calendar
+    /// (`days_off_file`), a time on a day off is predicted at its stand-in
+    /// ([`DaysOff::stand_in`](chronomap_core::calendar::DaysOff::stand_in): the same time of
+    /// day on the most recent Sunday that is not a day off).
     pub fn predict_state(&self, index: usize, time: f64) -> (f64, f64) {
         let model = &self.states[index].model;
+        let time = self.config.days_off.stand_in(time);
         (model.predict(time), model.entropy(time))
     }
 
     /// The prediction of state `index` for `time`, made at `made` (the node's time), as
-    /// `chronomap_msgs/msg/Prediction`: stamped with `time`, with p, its entropy, the model's
-    /// spec and its observation count.
+    /// `chronomap_msgs/msg/Prediction`: stamped with `time` (on a day off too), with p and its
+    /// entropy ([`World::predict_state`]), the model's spec and its observation count.
     pub fn state_prediction(&self, index: usize, time: f64, made: Time) -> Prediction {
         let model = &self.states[index].model;
         let (probability, entropy) = self.predict_state(index, time);

@@ -393,8 +393,9 @@ fn ros_arguments_rename_remap_and_override_the_file() {
     );
     // The declared parameters: every one, defaults filled in, names resolved.
     let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
-    assert_eq!(declared.len(), 19);
+    assert_eq!(declared.len(), 20);
     assert_eq!(declared["memory_limit"], Value::Integer(4 << 30));
+    assert_eq!(declared["days_off_file"], Value::String(String::new()));
     assert_eq!(declared["horizon"], Value::Double(7.5));
     assert_eq!(declared["sync_period"], Value::Double(1.0));
     assert_eq!(declared["sync_messages"], Value::Integer(1000));
@@ -622,5 +623,70 @@ fn edge_files_that_cannot_be_read_or_written_are_refused_at_once() {
         .collect();
     left.sort();
     assert_eq!(left, ["a_file", "a_folder", "witham.cmt"]);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// `days_off_file` is read with the configuration (`--check`, start-up, configure): a date
+/// that is not one is refused naming the parameter file, line and parameter, and the
+/// calendar's file and line; "" is no calendar; `parse_text` reads no file.
+#[test]
+fn a_days_off_file_is_read_with_the_configuration_and_a_bad_one_is_refused() {
+    let dir = std::env::temp_dir().join(format!("chronomap-ros2-days-off-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("a_folder")).unwrap();
+    std::fs::write(
+        dir.join("uk.txt"),
+        "# England\n2016-03-25 Good Friday\n2016-03-28\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("bad.txt"), "2016-03-25\n2016-02-30 nope\n").unwrap();
+    let config = dir.join("node.yaml");
+    let text = |file: &str| {
+        format!(
+            "chronomap:\n  ros__parameters:\n    days_off_file: {file}\n    states:\n      \
+             door: {{topic: /door, type: std_msgs/msg/Bool}}\n"
+        )
+    };
+    let check = |file: &str| {
+        NodeConfig::parse(&config, text(file).as_bytes(), None).map_err(|e| e.to_string())
+    };
+    let c = check("uk.txt").unwrap();
+    assert_eq!(c.days_off_file, Some(dir.join("uk.txt")));
+    assert_eq!(c.days_off.len(), 2);
+    let declared: BTreeMap<String, Value> = c.parameters().into_iter().collect();
+    assert_eq!(
+        declared["days_off_file"],
+        Value::String(dir.join("uk.txt").display().to_string())
+    );
+    assert!(!is_dynamic("days_off_file"));
+    assert!(description("days_off_file").contains("days off"));
+    let none = check("\"\"").unwrap();
+    assert_eq!((none.days_off_file, none.days_off.len()), (None, 0));
+    let at = format!("{}:3: days_off_file: ", config.display());
+    assert_eq!(
+        check("bad.txt").unwrap_err(),
+        format!(
+            "{at}{}:2: date: \"2016-02-30\" is not a date YYYY-MM-DD",
+            dir.join("bad.txt").display()
+        )
+    );
+    assert_eq!(
+        check("missing.txt").unwrap_err(),
+        format!(
+            "{at}cannot read {}: No such file or directory (os error 2)",
+            dir.join("missing.txt").display()
+        )
+    );
+    assert_eq!(
+        check("a_folder").unwrap_err(),
+        format!(
+            "{at}{} is not a regular file (a directory, a device or a pipe)",
+            dir.join("a_folder").display()
+        )
+    );
+    // The text alone names the file and reads nothing.
+    let c = NodeConfig::parse_text(&config, text("missing.txt").as_bytes(), None).unwrap();
+    assert_eq!(c.days_off_file, Some(dir.join("missing.txt")));
+    assert!(c.days_off.is_empty());
     std::fs::remove_dir_all(dir).unwrap();
 }

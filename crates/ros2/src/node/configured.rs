@@ -28,7 +28,8 @@ pub(super) fn learn_state(
     let topic = &input.topic;
     for &index in &input.states {
         match world.observe_state(index, time, value) {
-            Ok(()) => log::trace!("{topic}: learned {value} at {time}"),
+            Ok(true) => log::trace!("{topic}: learned {value} at {time}"),
+            Ok(false) => log::debug!("{topic}: {value} at {time} not learned: a day off"),
             Err(e) => throttle(throttles, topic).error(topic, || e.to_string()),
         }
     }

@@ -428,7 +428,9 @@ fn messages(hours: std::ops::Range<i32>) -> Vec<Message> {
 fn learn(world: &mut World, messages: &[Message]) {
     for m in messages {
         match m {
-            Message::State(i, t, v) => world.observe_state(*i, *t, *v).unwrap(),
+            Message::State(i, t, v) => {
+                world.observe_state(*i, *t, *v).unwrap();
+            }
             Message::Map(msg) => world.observe_map(0, msg).unwrap(),
             Message::People(msg) => world.observe_people(1, msg).unwrap(),
             Message::CloseBins(now) => world.close_stale_bins(*now).unwrap(),
@@ -858,4 +860,92 @@ fn the_route_graph_carries_each_edge_s_duration_interval_as_flat_metadata() {
             }
         }
     }
+}
+
+/// With `days_off_file`, a state observed on a day off learns nothing (not journaled, not
+/// recorded, counted), and its prediction for a time on a day off is its prediction at the
+/// stand-in Sunday (`DaysOff::stand_in`); the calendar is configuration, not saved state:
+/// the models restore with or without it.
+#[test]
+fn a_state_on_a_day_off_learns_nothing_and_is_predicted_as_its_sunday() {
+    use chronomap_core::time::days_from_civil;
+    let dir = Scratch::new("days-off");
+    std::fs::write(
+        dir.0.join("holidays.txt"),
+        "# England\n2016-03-25 Good Friday\n",
+    )
+    .unwrap();
+    let week =
+        "    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: hist:168}\n";
+    let saved = "    save_dir: saved\n    record_observations: true\n";
+    let calendar = "    days_off_file: holidays.txt\n";
+    let mut world = World::new(config(&dir.0, &format!("{saved}{calendar}{week}"))).unwrap();
+    let mut plain = World::new(config(&dir.0, week)).unwrap();
+    // Hourly, three weeks from Monday 2016-03-07: open (1) on weekdays 8-18 h, and open on
+    // Good Friday too (someone came in), which the calendar keeps out.
+    let day = |d: u32| 86_400.0 * days_from_civil(2016, 3, d) as f64;
+    let good_friday = day(25);
+    for h in 0..21 * 24 {
+        let t = day(7) + 3600.0 * f64::from(h);
+        let hour = f64::from(h % 24);
+        let weekday = h / 24 % 7 < 5;
+        let v = f64::from(u8::from(weekday && (8.0..18.0).contains(&hour)));
+        let on_day_off = (good_friday..good_friday + 86_400.0).contains(&t);
+        assert_eq!(world.observe_state(0, t, v).unwrap(), !on_day_off, "{t}");
+        if !on_day_off {
+            assert!(plain.observe_state(0, t, v).unwrap());
+        }
+    }
+    // A bad value on a day off is still refused.
+    assert!(world.observe_state(0, good_friday + 1.0, 2.0).is_err());
+    let learned = Learned {
+        observations: 20 * 24,
+        total: 20 * 24,
+        days_off: 24,
+    };
+    assert_eq!(world.learned().0[0], learned);
+    // Working days are predicted as the model learned them (the plain world saw the same).
+    let noon = 12.0 * 3600.0;
+    for t in [
+        day(24) + noon,
+        day(18) + noon,
+        day(20) + noon,
+        day(26) + 3.0,
+    ] {
+        assert_eq!(world.predict_state(0, t), plain.predict_state(0, t), "{t}");
+    }
+    // Good Friday noon is predicted as Sunday 2016-03-20 noon: shut; without the calendar,
+    // as a Friday: open.
+    let friday_noon = good_friday + noon;
+    let (p, h) = world.predict_state(0, friday_noon);
+    let sunday = plain.predict_state(0, day(20) + noon);
+    assert_eq!(
+        (p.to_bits(), h.to_bits()),
+        (sunday.0.to_bits(), sunday.1.to_bits())
+    );
+    assert_eq!(p, 0.0);
+    assert_eq!(plain.predict_state(0, friday_noon).0, 1.0);
+    let message = world.state_prediction(0, friday_noon, Time::default());
+    assert_eq!(message.header.stamp, Time::from_seconds(friday_noon));
+    assert_eq!(message.probability.to_bits(), p.to_bits());
+    assert_eq!(message.observations, 20 * 24);
+    // Nothing of the day off was recorded; restored with the calendar, the same model and
+    // predictions; restored without it (it is not saved), the same model predicting Good
+    // Friday as a Friday.
+    world.save(true).unwrap();
+    let record = read_pairs(dir.0.join("saved/states/door.txt")).unwrap();
+    assert_eq!(record.times.len(), 20 * 24);
+    assert!(
+        !record
+            .times
+            .iter()
+            .any(|&t| t >= good_friday && t < good_friday + 86_400.0)
+    );
+    let again = World::new(config(&dir.0, &format!("{saved}{calendar}{week}"))).unwrap();
+    assert_eq!(again.learned().0[0].total, 20 * 24);
+    assert_eq!(again.predict_state(0, friday_noon), (p, h));
+    drop(again);
+    let without = World::new(config(&dir.0, &format!("{saved}{week}"))).unwrap();
+    assert_eq!(without.learned().0[0].total, 20 * 24);
+    assert_eq!(without.predict_state(0, friday_noon).0, 1.0);
 }
