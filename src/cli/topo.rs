@@ -215,7 +215,8 @@ pub struct PlanWhen {
     /// offset is given).
     #[arg(long, value_parser = parse_time)]
     pub time: Option<f64>,
-    /// The now-or-later table: every hour (see --step-mins) of a week (see --week-of).
+    /// The now-or-later table: every hour (see --step-mins) of a week (see --week-of); with
+    /// --deadline, of the plans most likely to arrive in time.
     #[arg(long)]
     pub day_table: bool,
 }
@@ -258,17 +259,24 @@ pub struct PlanArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
-    /// Write a PNG: the table as a heat map (with --day-table), or the probability of
-    /// fulfilling the task within d seconds for every d up to the deadline (with --deadline).
+    /// Write a PNG: the table as a heat map (with --day-table; of the probabilities within
+    /// the deadline with --deadline), or the probability of fulfilling the task within d
+    /// seconds for every d up to the deadline (with --time and --deadline).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Plan for the greatest probability of fulfilling the task within this many seconds of
-    /// --time ("arrive by T"): a finite number > 0.
-    #[arg(long, value_parser = parse_positive, conflicts_with = "day_table")]
+    /// --time ("arrive by T"), or of every start time of --day-table (when to leave to be
+    /// there in time): a finite number > 0.
+    #[arg(long, value_parser = parse_positive)]
     pub deadline: Option<f64>,
-    /// With --deadline: the probability asked for; the report says whether the plan reaches
-    /// it and within how many seconds it could [default: 0.95].
-    #[arg(long, value_parser = parse_probability, requires = "deadline")]
+    /// With --time and --deadline: the probability asked for; the report says whether the
+    /// plan reaches it and within how many seconds it could [default: 0.95].
+    #[arg(
+        long,
+        value_parser = parse_probability,
+        requires = "deadline",
+        conflicts_with = "day_table"
+    )]
     pub confidence: Option<f64>,
     /// With --deadline: the width of the time buckets durations are rounded up to, seconds
     /// [default: the deadline / 600, at least 1].

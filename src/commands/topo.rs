@@ -143,7 +143,7 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
         }
         return plan_once(args, &models, start, &task, t);
     }
-    let table = DayTable::compute(
+    let mut table = DayTable::compute(
         &models,
         (start, &args.from),
         (&task, &args.task),
@@ -151,6 +151,17 @@ pub fn plan(args: &PlanArgs) -> Result<()> {
         args.days as usize,
         args.step_mins as usize,
     )?;
+    if let Some(deadline) = args.deadline {
+        table
+            .add_deadline(
+                &models,
+                (start, &task),
+                deadline,
+                args.bucket_secs,
+                &ProgressBar::new(),
+            )
+            .context("--deadline")?;
+    }
     if let Some(path) = &args.plot {
         render_heatmap_png(&table.heatmap(), path)?;
     }

@@ -214,19 +214,54 @@ fn plan_with_a_deadline_on_the_command_line() {
         let err = usage_error(&run(flags));
         assert!(err.contains(expected), "{flags:?}: {err}");
     }
-    let day_table = chronomap(&[
-        "plan",
-        "--model",
-        &model,
-        "--from",
-        "Kitchen",
-        "--task",
-        "F Station",
-        "--day-table",
-        "--deadline",
-        "100",
-    ]);
-    assert!(usage_error(&day_table).contains("--deadline"));
+    // The now-or-later table with a deadline: at each start time the deadline plan's
+    // probability and first edge, as the library plans it at that time alone.
+    let day_table = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--model",
+            &model,
+            "--from",
+            "Kitchen",
+            "--task",
+            "F Station",
+            "--day-table",
+            "--week-of",
+            "2014-09-04",
+            "--days",
+            "1",
+            "--step-mins",
+            "240",
+            "--deadline",
+            "100",
+        ];
+        args.extend_from_slice(extra);
+        chronomap(&args)
+    };
+    let table: Value = serde_json::from_str(stdout(&day_table(&["--json"])).trim()).unwrap();
+    assert_eq!(table["deadline_secs"], 100.0);
+    let rows = table["plans"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for (i, row) in rows.iter().enumerate() {
+        let plan = plan_case(&models, ("Kitchen", "F Station", 4 * i as u32, 100.0)).plan;
+        assert_eq!(row["deadline_probability"].as_f64(), Some(plan.probability));
+        assert_eq!(
+            row["min_time_probability"].as_f64(),
+            Some(plan.min_time_probability)
+        );
+        let edge = plan.first_edge.map(|e| models.map().edges()[e].id.clone());
+        assert_eq!(
+            row["deadline_first_edge"].as_str(),
+            edge.as_deref(),
+            "{row}"
+        );
+    }
+    let text = stdout(&day_table(&[]));
+    assert!(
+        text.contains("greatest probability of fulfilling it within 100 s and first action"),
+        "{text}"
+    );
+    assert!(usage_error(&day_table(&["--confidence", "0.9"])).contains("--confidence"));
     // Too many buckets is a failure of the plan (exit 1), said clearly.
     let err = error(&run(&["--deadline", "100", "--bucket-secs", "0.00001"]));
     assert!(err.contains("widen the buckets"), "{err}");

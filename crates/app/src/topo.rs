@@ -24,7 +24,7 @@ use chronomap_topo::edges::{
 };
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
-use chronomap_topo::plan::{PlanAt, PlanError, Planned, Task, plan_full};
+use chronomap_topo::plan::{PlanError, Planned, Task, plan_full};
 use chronomap_topo::report::{
     EdgeScore, MergeError, Protocol, WeekTable, fit_summary, letters, merge_maps, per_edge_scores,
     success_route,
@@ -1205,8 +1205,59 @@ impl DayTable {
         })
     }
 
-    fn at(&self, day: usize, k: usize) -> &PlanAt {
-        self.table.at(day, k)
+    /// Plans, at every start time, for the greatest probability of fulfilling the task within
+    /// `deadline_secs` (buckets of `bucket_secs`, default `max(D / 600, 1 s)`;
+    /// [`WeekTable::add_deadline`]), reporting the stage `deadline plans` with one step per
+    /// start time to `progress` and adding the time it takes to [`DayTable::seconds`]. The
+    /// table then shows those probabilities and first actions.
+    ///
+    /// # Errors
+    /// As [`plan_deadline`]; the table is then unchanged.
+    pub fn add_deadline(
+        &mut self,
+        models: &EdgeModels,
+        (start, task): (usize, &Task),
+        deadline_secs: f64,
+        bucket_secs: Option<f64>,
+        progress: &dyn Progress,
+    ) -> Result<(), DeadlineError> {
+        let started = Instant::now();
+        let options = DeadlineOptions {
+            bucket_secs,
+            ..DeadlineOptions::default()
+        };
+        progress.stage("deadline plans", self.table.plans.len() as u64);
+        self.table
+            .add_deadline(models, start, task, deadline_secs, &options, || {
+                progress.advance(1)
+            })?;
+        self.seconds += started.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The deadline, once [`DayTable::add_deadline`] planned for one.
+    pub fn deadline_secs(&self) -> Option<f64> {
+        self.table.deadline_plans.first().map(|p| p.deadline_secs)
+    }
+
+    /// What the table shows at start time `k` of day `day`: the probability (of fulfilling
+    /// the task within the deadline, or `Pmax` without one) and the first edge.
+    fn cell(&self, day: usize, k: usize) -> (f64, Option<usize>) {
+        match self.table.deadline_at(day, k) {
+            Some(plan) => (plan.probability, plan.first_edge),
+            None => {
+                let plan = self.table.at(day, k);
+                (plan.pmax, plan.first_edge)
+            }
+        }
+    }
+
+    /// What the table's numbers are.
+    fn what(&self) -> String {
+        match self.deadline_secs() {
+            Some(d) => format!("greatest probability of fulfilling it within {d} s"),
+            None => "maximum probability of success".to_string(),
+        }
     }
 
     /// `HH:MM` of start time `k`.
@@ -1242,8 +1293,8 @@ impl DayTable {
         for k in 0..self.table.per_day {
             let mut row = vec![self.row_label(k)];
             for d in 0..self.table.days {
-                let p = self.at(d, k);
-                row.push(format!("{:.2} {}", p.pmax, self.table.code(p)));
+                let (p, first_edge) = self.cell(d, k);
+                row.push(format!("{p:.2} {}", self.table.code(first_edge)));
             }
             grid.row(row);
         }
@@ -1257,56 +1308,75 @@ impl DayTable {
     /// The table as `chronomap plan --day-table` prints it.
     pub fn text(&self) -> String {
         format!(
-            "task {:?} from {}: maximum probability of success and first action, {} start times in {:.2} s\n{}\n",
+            "task {:?} from {}: {} and first action, {} start times in {:.2} s\n{}\n",
             self.task,
             self.from,
+            self.what(),
             self.table.plans.len(),
             self.seconds,
             self.render()
         )
     }
 
-    /// The plans as `chronomap plan --day-table --json` prints them.
+    /// The plans as `chronomap plan --day-table --json` prints them; with a deadline each
+    /// start time also has `deadline_probability`, `deadline_first_edge` and
+    /// `min_time_probability` (the expected-time plan's probability within the deadline).
     pub fn json(&self) -> Value {
+        let name = |e: Option<usize>| e.map(|e| self.edges[e].clone());
         let rows: Vec<Value> = self
             .table
             .plans
             .iter()
-            .map(|p| {
-                json!({
+            .enumerate()
+            .map(|(i, p)| {
+                let mut row = json!({
                     "time": p.time,
                     "utc": time(p.time),
                     "pmax": p.pmax,
                     "expected_secs": p.expected_secs,
-                    "first_edge": p.first_edge.map(|e| self.edges[e].clone()),
-                })
+                    "first_edge": name(p.first_edge),
+                });
+                if let Some(d) = self.table.deadline_plans.get(i) {
+                    row["deadline_probability"] = json!(d.probability);
+                    row["deadline_first_edge"] = json!(name(d.first_edge));
+                    row["min_time_probability"] = json!(d.min_time_probability);
+                }
+                row
             })
             .collect();
-        json!({"task": self.task, "from": self.from, "plans": rows, "seconds": self.seconds})
+        let mut table =
+            json!({"task": self.task, "from": self.from, "plans": rows, "seconds": self.seconds});
+        if let Some(d) = self.table.deadline_plans.first() {
+            table["deadline_secs"] = json!(d.deadline_secs);
+            table["bucket_secs"] = json!(d.bucket_secs);
+        }
+        table
     }
 
-    /// The table as a heat map of `Pmax` with the codes of the first actions.
+    /// The table as a heat map of `Pmax` (or of the probability within the deadline) with
+    /// the codes of the first actions.
     #[cfg(feature = "plot")]
     pub fn heatmap(&self) -> Heatmap {
         let (days, per_day) = (self.table.days, self.table.per_day);
         // Row-major, one row per start time.
         let cells = || (0..per_day).flat_map(move |k| (0..days).map(move |d| (d, k)));
+        let (what, value_label) = match self.deadline_secs() {
+            Some(d) => (format!("P(within {d} s)"), format!("P(within {d} s)")),
+            None => ("P(success)".to_string(), "Pmax".to_string()),
+        };
         Heatmap {
-            title: format!(
-                "Now or later? P(success) of {:?} from {}",
-                self.task, self.from
-            ),
+            title: format!("Now or later? {what} of {:?} from {}", self.task, self.from),
             row_label: "start (UTC)".to_string(),
             column_label: "day".to_string(),
             rows: (0..per_day).map(|k| self.row_label(k)).collect(),
             columns: (0..days).map(|d| self.day_label(d)).collect(),
             values: cells()
-                .map(|(d, k)| self.at(d, k).pmax.clamp(0.0, 1.0))
+                .map(|(d, k)| self.cell(d, k).0.clamp(0.0, 1.0))
                 .collect(),
             cell_text: cells()
-                .map(|(d, k)| self.table.code(self.at(d, k)))
+                .map(|(d, k)| self.table.code(self.cell(d, k).1))
                 .collect(),
-            value_label: "Pmax".to_string(),
+            value_label,
             legend: self.legend(),
         }
     }

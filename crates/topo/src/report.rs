@@ -6,6 +6,7 @@
 
 use thiserror::Error;
 
+use crate::deadline::{DeadlineError, DeadlineOptions, DeadlinePlan, plan_deadline};
 use crate::edges::{Attempt, EdgeEvaluation, EdgeModels};
 use crate::map::{TopoError, TopoMap};
 use crate::mdp::SolverOptions;
@@ -265,7 +266,11 @@ pub struct WeekTable {
     pub step_mins: usize,
     /// The plans, day-major.
     pub plans: Vec<PlanAt>,
-    /// The first edges that occur, in edge order: the legend of [`WeekTable::code`].
+    /// The plans most likely to fulfil the task within a deadline, day-major like
+    /// [`WeekTable::plans`] ([`WeekTable::add_deadline`]); empty without a deadline.
+    pub deadline_plans: Vec<DeadlinePlan>,
+    /// The first edges that occur (of the deadline plans once there are any), in edge order:
+    /// the legend of [`WeekTable::code`].
     pub first_edges: Vec<usize>,
 }
 
@@ -292,22 +297,59 @@ impl WeekTable {
             })
             .collect();
         let plans = now_or_later(models, start, task, &times, &SolverOptions::default())?;
-        let mut first_edges: Vec<usize> = plans.iter().filter_map(|p| p.first_edge).collect();
-        first_edges.sort_unstable();
-        first_edges.dedup();
+        let first_edges = distinct_edges(plans.iter().map(|p| p.first_edge));
         Ok(WeekTable {
             first_day,
             days,
             per_day,
             step_mins,
             plans,
+            deadline_plans: Vec::new(),
             first_edges,
         })
+    }
+
+    /// Adds the plan most likely to fulfil `task` from `start` within `deadline_secs` of every
+    /// start time ([`plan_deadline`]): "when to leave to be there in time?", the now-or-later
+    /// question of [Fentanes 2015] Table III asked of a deadline instead of the expected time.
+    /// The codes then name the deadline plans' first edges. `planned` is called after each
+    /// start time (for progress: one deadline plan can take seconds).
+    ///
+    /// # Errors
+    /// As [`plan_deadline`], for the first start time that cannot be planned; the table is
+    /// then unchanged.
+    pub fn add_deadline(
+        &mut self,
+        models: &EdgeModels,
+        start: usize,
+        task: &Task,
+        deadline_secs: f64,
+        options: &DeadlineOptions,
+        mut planned: impl FnMut(),
+    ) -> Result<(), DeadlineError> {
+        let plans = self
+            .plans
+            .iter()
+            .map(|p| {
+                let plan = plan_deadline(models, start, task, p.time, deadline_secs, options);
+                planned();
+                plan.map(|d| d.plan)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        self.first_edges = distinct_edges(plans.iter().map(|p| p.first_edge));
+        self.deadline_plans = plans;
+        Ok(())
     }
 
     /// The plan of start time `k` on day `day`.
     pub fn at(&self, day: usize, k: usize) -> &PlanAt {
         &self.plans[day * self.per_day + k]
+    }
+
+    /// The deadline plan of start time `k` on day `day`, once [`WeekTable::add_deadline`] made
+    /// them.
+    pub fn deadline_at(&self, day: usize, k: usize) -> Option<&DeadlinePlan> {
+        self.deadline_plans.get(day * self.per_day + k)
     }
 
     /// Minutes after midnight of start time `k`.
@@ -322,11 +364,19 @@ impl WeekTable {
 
     /// The short code of a plan's first edge (its position in [`WeekTable::first_edges`]
     /// as [`letters`]); `-` for none.
-    pub fn code(&self, plan: &PlanAt) -> String {
-        plan.first_edge
+    pub fn code(&self, first_edge: Option<usize>) -> String {
+        first_edge
             .and_then(|e| self.first_edges.iter().position(|&c| c == e))
             .map_or_else(|| "-".to_string(), letters)
     }
+}
+
+/// The distinct edges among `first_edges`, in edge order.
+fn distinct_edges(first_edges: impl Iterator<Item = Option<usize>>) -> Vec<usize> {
+    let mut edges: Vec<usize> = first_edges.flatten().collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
 }
 
 /// Short codes `a`, `b`, …, `z`, `aa`, `ab`, … for position `i`.

@@ -127,9 +127,9 @@ fn two_routes_known_answer() {
     assert!(curve.windows(2).all(|w| w[0] <= w[1]));
 }
 
-#[test]
-fn plan_deadline_on_fitted_models_and_its_errors() {
-    // Office → Lab through a door (5 + 5 s, open 12:00–24:00) or a corridor (3 × 30 s).
+/// Office → Lab through a door (5 + 5 s, open 12:00–24:00) or a corridor (3 × 30 s), fitted
+/// on three weeks of hourly attempts.
+fn office_models() -> EdgeModels {
     let m = map(
         &["Office", "Door", "Lab", "C1", "C2"],
         &[
@@ -167,7 +167,12 @@ fn plan_deadline_on_fitted_models_and_its_errors() {
         success_order: Some(10),
         ..EdgeModelConfig::default()
     };
-    let models = EdgeModels::fit(m, &data, config).unwrap();
+    EdgeModels::fit(m, &data, config).unwrap()
+}
+
+#[test]
+fn plan_deadline_on_fitted_models_and_its_errors() {
+    let models = office_models();
     let task = Task::parse("F Lab", models.map()).unwrap();
     let office = models.map().node("Office").unwrap();
     let afternoon = 22.0 * 86_400.0 + 18.0 * 3600.0;
@@ -407,4 +412,57 @@ fn the_duration_branching_mdp_has_one_state_per_duration() {
         (0..chain.state_count()).all(|s| chain.choices(s).len() <= 1),
         "a chain"
     );
+}
+
+#[test]
+fn a_week_table_with_a_deadline_says_when_to_leave() {
+    use crate::report::WeekTable;
+    let models = office_models();
+    let task = Task::parse("F Lab", models.map()).unwrap();
+    let office = models.map().node("Office").unwrap();
+    let day = 22.0 * 86_400.0;
+    let mut table = WeekTable::compute(&models, office, &task, day, 1, 60).unwrap();
+    assert!(table.deadline_plans.is_empty() && table.deadline_at(0, 0).is_none());
+    let mut calls = 0;
+    let options = DeadlineOptions::default();
+    table
+        .add_deadline(&models, office, &task, 60.0, &options, || calls += 1)
+        .unwrap();
+    assert_eq!((calls, table.deadline_plans.len()), (24, 24));
+    // Only the door (open from noon) makes it within 60 s: before noon nothing does, in the
+    // afternoon the door does with the probability of its plan at that time.
+    for h in 0..24 {
+        let plan = table.deadline_at(0, h).unwrap();
+        let alone = plan_deadline(&models, office, &task, table.at(0, h).time, 60.0, &options)
+            .unwrap()
+            .plan;
+        assert_eq!(*plan, alone, "{h}:00");
+        if (1..=10).contains(&h) {
+            assert!(plan.probability < 0.1, "{h}:00 {plan:?}");
+        }
+        if h >= 13 {
+            assert!(plan.probability > 0.9, "{h}:00 {plan:?}");
+            assert_eq!(plan.first_edge, Some(0));
+            assert_eq!(table.code(plan.first_edge), "a");
+            // The expected-time plan maximises the probability of success first: where the
+            // corridor's is the higher it takes the corridor (90 s) and is never in time,
+            // else the door as the deadline plan does.
+            match plan.min_time_first_edge {
+                Some(2) => assert_eq!(plan.min_time_probability, 0.0),
+                other => {
+                    assert_eq!(other, Some(0));
+                    assert!((plan.min_time_probability - plan.probability).abs() < 1e-12);
+                }
+            }
+        }
+    }
+    // The codes name the deadline plans' first edges.
+    assert!(table.first_edges.contains(&0) && !table.first_edges.contains(&2));
+    // An invalid deadline leaves the table as it was.
+    let before = table.deadline_plans.clone();
+    let err = table
+        .add_deadline(&models, office, &task, f64::NAN, &options, || {})
+        .unwrap_err();
+    assert!(matches!(err, DeadlineError::InvalidDeadline(_)), "{err}");
+    assert_eq!(table.deadline_plans, before);
 }
