@@ -57,6 +57,13 @@ class Client:
                 as_series: bool = False) -> Any:
         """p(t) at ``times`` (seconds, ``datetime64``, pandas datetimes); ``as_series=True``:
         a ``pandas.Series`` named ``p`` indexed by the times (UTC)."""
+    def interval(self, id: str, times: Any, *, coverage: float = 0.9,
+                 order: Optional[int] = None, as_frame: bool = False) -> Any:
+        """The central prediction interval of ``coverage`` (strictly between 0 and 1) of a
+        model of continuous values (created with a ``range``) at ``times``: ``(lower, upper)``
+        in its range (two arrays, or two floats for one time); ``as_frame=True``: a
+        ``pandas.DataFrame`` with columns ``time``, ``lower``, ``upper``. A model without
+        intervals (binary, or fitted on a whole series) is a ``ValueError``."""
     @overload
     def entropy(self, id: str, times: Time, *, order: Optional[int] = None,
                 as_series: bool = False) -> float: ...

@@ -189,3 +189,58 @@ def test_pandas_times_and_states_go_to_the_service_as_seconds(client):
                                   [p.iloc[12], p.iloc[12]])
     with pytest.raises(ValueError, match=r"^times\[1\]: NaT"):
         client.predict("pandas-door", pd.Series([noon, pd.NaT]))
+
+
+def test_intervals_of_a_continuous_state_hold_fresh_values_and_match_the_service(client, service):
+    import json
+    import urllib.request
+
+    url, _ = service
+    # A temperature in [10, 30]: a Beta law whose mean follows the time of day, one value
+    # every two minutes for six weeks, learnt online by fremen:2 with its second moment.
+    rng = np.random.default_rng(7)
+    day = 86_400.0
+
+    def draw(t):
+        mean = 0.5 + 0.3 * np.cos(2 * np.pi * t / day)
+        k = 12.0
+        return 10.0 + 20.0 * rng.beta(mean * k, (1 - mean) * k)
+
+    t = 1_700_000_000.0 + 120.0 * np.arange(6 * 7 * 720)
+    client.create("temperature", "fremen:2", range=(10.0, 30.0))
+    client.add("temperature", t, draw(t))
+    fresh = t[-1] + 60.0 + day * rng.random(4000)
+    fresh.sort()
+    lower, upper = client.interval("temperature", fresh)
+    assert lower.shape == upper.shape == fresh.shape
+    assert np.all((10.0 <= lower) & (lower <= upper) & (upper <= 30.0))
+    inside = np.mean((lower <= (v := draw(fresh))) & (v <= upper))
+    print(f"90 % intervals hold {inside:.4f} of 4,000 fresh values")
+    assert 0.87 <= inside <= 0.93, inside  # 4,000 draws: 2 SE ≈ 0.01
+
+    # The same numbers as the service's JSON answer.
+    request = urllib.request.Request(
+        f"{url}/v1/predict", method="POST", headers={"Content-Type": "application/json"},
+        data=json.dumps({"id": "temperature", "times": fresh[:5].tolist(),
+                         "coverage": 0.5}).encode())
+    with urllib.request.urlopen(request) as response:
+        answer = json.load(response)
+    lo50, hi50 = client.interval("temperature", fresh[:5], coverage=0.5)
+    assert lo50.tolist() == answer["lower"] and hi50.tolist() == answer["upper"]
+    assert np.all((lower[:5] <= lo50) & (hi50 <= upper[:5]))  # narrower at 50 %
+
+    one = client.interval("temperature", float(fresh[0]))
+    assert one == (lower[0], upper[0])
+    frame = client.interval("temperature", fresh[:3], as_frame=True)
+    assert list(frame.columns) == ["time", "lower", "upper"]
+    np.testing.assert_array_equal(frame["lower"].to_numpy(), lower[:3])
+    assert str(frame["time"].dt.tz) == "UTC"
+
+    with pytest.raises(ValueError, match="coverage: 1.5 is not strictly between 0 and 1"):
+        client.interval("temperature", fresh, coverage=1.5)
+    with pytest.raises(ValueError, match="coverage: NaN is not"):
+        client.interval("temperature", fresh, coverage=float("nan"))
+    client.create("door-state", "fremen:2")
+    client.add("door-state", t[:100], np.zeros(100))
+    with pytest.raises(ValueError, match='model "door-state" has no prediction intervals'):
+        client.interval("door-state", fresh)

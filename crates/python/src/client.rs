@@ -205,6 +205,55 @@ impl PyClient {
         values_out(py, &times, answer.values, as_series.then_some("p"))
     }
 
+    /// The central prediction interval of coverage `coverage` (strictly between 0 and 1,
+    /// default 0.9) of model `id`, a model of continuous values (created with a `range`), at
+    /// `times` (an array, or one time): `(lower, upper)` in the model's range, two float64
+    /// arrays (or two floats); with `as_frame=True` a `pandas.DataFrame` with columns `time`
+    /// (UTC datetimes), `lower` and `upper`. A model without intervals (binary models,
+    /// models fitted on a whole series such as `auto`) is a `ValueError` naming it.
+    #[pyo3(signature = (id, times, *, coverage = 0.9, order = None, as_frame = false))]
+    fn interval<'py>(
+        &self,
+        py: Python<'py>,
+        id: &str,
+        times: &Bound<'py, PyAny>,
+        coverage: f64,
+        order: Option<usize>,
+        as_frame: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if !(coverage > 0.0 && coverage < 1.0) {
+            return Err(PyValueError::new_err(format!(
+                "coverage: {coverage} is not strictly between 0 and 1"
+            )));
+        }
+        let times = arrays::times(times, "times")?;
+        let t = times.as_slice();
+        let answer = self.block(py, |c| c.predict_interval(id, t, order, coverage))?;
+        let (Some(lower), Some(upper)) = (answer.lower, answer.upper) else {
+            return Err(PyValueError::new_err(format!(
+                "model {id:?} has no prediction intervals: only models of continuous values \
+                 (created with a range) whose spec learns online have them"
+            )));
+        };
+        if as_frame {
+            let columns = pyo3::types::PyDict::new(py);
+            columns.set_item("time", to_numpy(py, t.to_vec()))?;
+            columns.set_item("lower", to_numpy(py, lower))?;
+            columns.set_item("upper", to_numpy(py, upper))?;
+            return py
+                .import("chronomap._time")?
+                .call_method1("frame", (columns,));
+        }
+        Ok(pyo3::types::PyTuple::new(
+            py,
+            [
+                values_out(py, &times, lower, None)?,
+                values_out(py, &times, upper, None)?,
+            ],
+        )?
+        .into_any())
+    }
+
     /// The binary entropy (bits) of model `id`'s p(t) at `times` (an array or one time); with
     /// `as_series=True` a `pandas.Series` named `entropy`.
     #[pyo3(signature = (id, times, *, order = None, as_series = false))]
