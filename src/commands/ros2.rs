@@ -72,6 +72,7 @@ pub fn run(args: &Ros2Args) -> Result<()> {
             "node": config.fully_qualified_name(),
             "states": summary.states.iter().map(|(name, l)| json!({
                 "name": name, "learned": l.observations, "total": l.total,
+                "days_off": l.days_off,
             })).collect::<Vec<_>>(),
             "grids": summary.grids.iter().map(|(section, name, l)| json!({
                 "section": section, "name": name, "frames": l.observations, "total": l.total,
@@ -82,9 +83,14 @@ pub fn run(args: &Ros2Args) -> Result<()> {
     } else {
         for (name, l) in &summary.states {
             outln!(
-                "states.{name}: learned {} observations ({} in the model)",
+                "states.{name}: learned {} observations ({} in the model){}",
                 l.observations,
-                l.total
+                l.total,
+                if l.days_off > 0 {
+                    format!("; {} on days off, not learned", l.days_off)
+                } else {
+                    String::new()
+                }
             )?;
         }
         for (section, name, l) in &summary.grids {
@@ -131,11 +137,14 @@ fn check(args: &Ros2Args, config: &NodeConfig) -> Result<()> {
                 "period": e.period,
             })),
             "save_dir": config.save_dir.as_ref().map(|d| d.display().to_string()),
+            "days_off": config.days_off_file.as_ref().map(|f| json!({
+                "file": f.display().to_string(), "days": config.days_off.len(),
+            })),
             "topics": topics,
         }));
     }
     outln!(
-        "node {}: {} states, {} grids{}; parameters are valid",
+        "node {}: {} states, {} grids{}{}; parameters are valid",
         config.fully_qualified_name(),
         config.states.len(),
         config.grids.len(),
@@ -143,6 +152,10 @@ fn check(args: &Ros2Args, config: &NodeConfig) -> Result<()> {
             ", a route graph"
         } else {
             ""
+        },
+        match &config.days_off_file {
+            Some(file) => format!(", {} days off ({})", config.days_off.len(), file.display()),
+            None => String::new(),
         }
     )?;
     let mut table = Table::new(["", "topic", "type", "QoS"]);

@@ -640,6 +640,30 @@ fn check_lists_the_topics_and_bad_parameter_files_are_refused_by_file_line_and_p
             bad.display()
         )],
     );
+    // A calendar of days off is read with the parameters: a date that is not one names the
+    // parameter's file, line and name and the calendar's file and line.
+    let with_days_off = |calendar: &str, days: &str| {
+        write(&dir, calendar, days);
+        let text = PEOPLE_NODE.replace(
+            "    save_dir: saved\n",
+            &format!("    save_dir: saved\n    days_off_file: {calendar}\n"),
+        );
+        write(&dir, "days_off.yaml", text).display().to_string()
+    };
+    let good_days = with_days_off("uk.txt", "2016-03-25 Good Friday\n2016-03-28\n");
+    let out = json(&chronomap(&[
+        "ros2", "--config", &good_days, "--check", "--json",
+    ]));
+    assert_eq!(out["days_off"]["days"], 2, "{out}");
+    let bad_days = with_days_off("bad.txt", "2016-03-25\n2016-02-30 nope\n");
+    assert_mentions(
+        &error(&chronomap(&["ros2", "--config", &bad_days, "--check"])),
+        &[&format!(
+            "error: {bad_days}:4: days_off_file: {}:2: date: \"2016-02-30\" is not a date \
+             YYYY-MM-DD",
+            dir.join("bad.txt").display()
+        )],
+    );
     let missing = dir.join("missing.yaml").display().to_string();
     assert_mentions(
         &error(&chronomap(&["ros2", "--config", &missing])),

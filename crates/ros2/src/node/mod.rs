@@ -181,7 +181,7 @@ impl Host<'_> {
         let config = self.configured.as_ref().map(|c| &c.config);
         match config {
             Some(config) => log::info!(
-                "node {} on DDS domain {}: {} state, {} grid topics{}{}",
+                "node {} on DDS domain {}: {} state, {} grid topics{}{}{}",
                 config.fully_qualified_name(),
                 self.domain_id,
                 config.states.len(),
@@ -190,6 +190,14 @@ impl Host<'_> {
                     ", a route graph"
                 } else {
                     ""
+                },
+                match &config.days_off_file {
+                    Some(file) => format!(
+                        ", {} days off for the states ({})",
+                        config.days_off.len(),
+                        file.display()
+                    ),
+                    None => String::new(),
                 },
                 if config.use_sim_time {
                     "; time from /clock"
