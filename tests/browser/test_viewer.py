@@ -462,6 +462,116 @@ def test_topological_map_colours_edges_and_plans_now_or_later(page, service):
     page.expected_failures = 1
 
 
+def test_plan_panel_plans_for_a_deadline(page, service):
+    """"Arrive by T": with a deadline the plan chart draws, for every start time of the day, the
+    deadline plan's probability of arriving in time beside the expected-time plan's, as the API
+    answers the same request; an invalid deadline is refused in the page (nothing is sent), one
+    beyond the service's range shows the service's reason, and an empty one plans as before."""
+    page.open("topo")
+    page.ready("topo-map")
+    plan_requests = lambda: page.driver.execute_script(
+        "return performance.getEntriesByType('resource').filter(e => /\\/plan$/.test(e.name)).length")
+
+    def plan(deadline):
+        page.set_value("plan-deadline", deadline, "input")
+        page.restart("plan-chart")
+        page.driver.find_element("id", "plan-run").click()
+        page.ready("plan-chart")
+        request = {"from": page.driver.execute_script("return document.getElementById('plan-from').value"),
+                   "task": page.driver.execute_script("return document.getElementById('plan-task').value"),
+                   "times": page.data("plan-chart", "times")}
+        assert len(request["times"]) == 96
+        return request
+
+    # The kitchen to the station within 100 s (docs/service.md's example): the service's
+    # default buckets (1 s).
+    page.set_value("plan-from", "Kitchen")
+    page.set_value("plan-task", "F Station", "input")
+    request = plan("100")
+    assert request["from"] == "Kitchen" and request["task"] == "F Station"
+    assert page.data("plan-chart", "deadline") == 100
+    assert page.data("plan-chart", "bucket") is None
+    plans = service.post("/v1/topo/witham/plan", {**request, "deadline_secs": 100})["plans"]
+    assert page.data("plan-chart", "inTime") == [p["deadline"]["probability"] for p in plans]
+    assert page.data("plan-chart", "minTime") == [p["deadline"]["min_time_probability"] for p in plans]
+    assert page.data("plan-chart", "deadlineFirst") == [p["deadline"]["first_edge"] for p in plans]
+    assert page.data("plan-chart", "pmax") == [p["pmax"] for p in plans]
+    assert page.data("plan-chart", "first") == [p["first_edge"] for p in plans]
+    # The deadline plan is never worse than the expected-time plan, nor better than Pmax.
+    assert all(p["deadline"]["min_time_probability"] <= p["deadline"]["probability"] <= p["pmax"] + 1e-12
+               for p in plans)
+    assert any(p["deadline"]["probability"] > p["deadline"]["min_time_probability"] + 0.01 for p in plans)
+    # The best start: the earliest with the greatest probability in time, named with its first edge.
+    best = max(plans, key=lambda p: p["deadline"]["probability"])
+    assert page.data("plan-chart", "best") == best["time"]
+    summary = page.text("plan-summary")
+    hhmm = time.strftime("%H:%M", time.gmtime(best["time"]))
+    assert f"best start {hhmm} UTC" in summary, summary
+    assert f"{best['deadline']['probability']:.3f}" in summary, summary
+    assert best["deadline"]["first_edge"] and f"first edge {best['deadline']['first_edge']}" in summary, summary
+    legend = page.text("plan-legend")
+    assert "deadline plan" in legend and "expected-time plan" in legend and "Pmax" in legend, legend
+    # Three lines: Pmax, the expected-time plan and the deadline plan.
+    assert page.driver.execute_script("return document.querySelectorAll('#plan-chart polyline').length") == 3
+    page.shot("viewer-topo-deadline.png")
+
+    # 1000 s: the default buckets of 96 start times would be more cells than the service
+    # plans in one request, so the page asks for wider ones, and plots what the API answers.
+    request = plan("1000")
+    bucket = page.data("plan-chart", "bucket")
+    assert bucket is not None and 1000 / 600 < bucket < 1000 / 400
+    plans = service.post("/v1/topo/witham/plan", {**request, "deadline_secs": 1000, "bucket_secs": bucket})["plans"]
+    assert all(p["deadline"]["bucket_secs"] == bucket for p in plans)
+    assert page.data("plan-chart", "inTime") == [p["deadline"]["probability"] for p in plans]
+    assert page.data("plan-chart", "minTime") == [p["deadline"]["min_time_probability"] for p in plans]
+    assert "wider than the default" in page.text("plan-summary")
+
+    # Invalid deadlines are refused in the page, naming what is wrong; nothing is sent.
+    def refused(deadline, typed=False):
+        before = plan_requests()
+        if typed:  # what the number field cannot parse: its value is empty, its input bad
+            field = page.driver.find_element("id", "plan-deadline")
+            field.clear()
+            field.send_keys(deadline)
+        else:
+            page.set_value("plan-deadline", deadline, "input")
+        page.driver.find_element("id", "plan-run").click()
+        give_up = time.time() + 30
+        while not page.text("plan-error") and time.time() < give_up:
+            time.sleep(0.05)
+        error = page.text("plan-error")
+        assert page.driver.execute_script("return document.getElementById('plan-chart').dataset.state") == "error"
+        assert page.text("plan-summary") == "" and page.text("plan-legend") == ""
+        time.sleep(0.3)
+        assert plan_requests() == before, f"{deadline!r} was sent"
+        return error
+
+    for bad in ["-5", "0"]:
+        error = refused(bad)
+        assert f"{bad} is not a number of seconds > 0" in error, error
+    error = refused("1e", typed=True)
+    assert "not a number" in error, error
+
+    # Beyond what the service plans (10^11 s): its reason, naming the field.
+    page.set_value("plan-deadline", "1e12", "input")
+    page.driver.find_element("id", "plan-run").click()
+    give_up = time.time() + 30
+    while "deadline_secs" not in page.text("plan-error") and time.time() < give_up:
+        time.sleep(0.05)
+    assert "field `deadline_secs`" in page.text("plan-error"), page.text("plan-error")
+    page.expected_failures = 1
+
+    # No deadline again: the Pmax chart, as before.
+    request = plan("")
+    assert page.text("plan-error") == ""
+    assert page.data("plan-chart", "deadline") is None and page.data("plan-chart", "inTime") is None
+    plans = service.post("/v1/topo/witham/plan", request)["plans"]
+    assert page.data("plan-chart", "pmax") == [p["pmax"] for p in plans]
+    assert page.data("plan-chart", "expected") == [p["expected_secs"] for p in plans]
+    assert "Pmax (left axis)" in page.text("plan-legend")
+    assert page.driver.execute_script("return document.querySelectorAll('#plan-chart polyline').length") == 2
+
+
 def test_activity_map_shows_mean_and_deviation(page, service):
     page.open("activity")
     page.ready("activity-mean")
