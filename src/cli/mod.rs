@@ -269,6 +269,14 @@ fn parse_probability(text: &str) -> Result<f64, String> {
     }
 }
 
+/// A coverage of a central interval: strictly between 0 and 1.
+fn parse_open_probability(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(p) if p > 0.0 && p < 1.0 => Ok(p),
+        _ => Err(format!("{text:?} is not a number strictly between 0 and 1")),
+    }
+}
+
 fn parse_non_negative(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),

@@ -234,7 +234,7 @@ pub enum ClientCommand {
         #[arg(long, default_value = "fremen:2")]
         model: String,
         /// Value range LO,HI of continuous states (`--range 0,10` or `--range 0 10`).
-        #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_hyphen_values = true)]
+        #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_negative_numbers = true)]
         range: Option<Vec<f64>>,
     },
     /// Remove a model.
@@ -255,7 +255,9 @@ pub enum ClientCommand {
     Add {
         /// Model id.
         id: String,
-        /// Observations: one `t value` file, or TIMES,VALUES (two line-aligned files).
+        /// Observations: one `t value` file, or TIMES,VALUES (two line-aligned files). A
+        /// `t value` file's values may be any finite numbers, for a model of continuous values
+        /// (created with --range), which checks them against its range.
         #[arg(long, value_parser = parse_series_source)]
         file: SeriesSource,
         /// Spec of the model to create if it does not exist.
@@ -294,6 +296,11 @@ pub enum ClientCommand {
         /// Order to predict with.
         #[arg(long)]
         order: Option<usize>,
+        /// For a model of continuous values (created with --range): also the central
+        /// prediction interval of this coverage, strictly between 0 and 1 (e.g. 0.9), in the
+        /// range.
+        #[arg(long, value_parser = parse_open_probability)]
+        coverage: Option<f64>,
     },
     /// p(t) of many models at one time.
     Forecast {

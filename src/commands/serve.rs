@@ -20,7 +20,7 @@ use chronomap_serve::writer::CheckpointPolicy;
 use chronomap_serve::{Service, ServiceConfig};
 use serde_json::json;
 
-use crate::cli::{ClientArgs, ClientCommand, ServeArgs};
+use crate::cli::{ClientArgs, ClientCommand, SeriesSource, ServeArgs};
 use crate::outln;
 use crate::output::{print_json, usage};
 
@@ -305,7 +305,12 @@ async fn run_client(
             model,
             batch,
         } => {
-            let series = super::read_series(file)?;
+            // Values in the units of a continuous state's range are checked by the service,
+            // which knows the model's range.
+            let series = match file {
+                SeriesSource::Pairs(path) => chronomap_io::read_measurements(path)?,
+                split => super::read_series(split)?,
+            };
             let added = client
                 .add_series(id, &series.times, &series.values, model.as_deref(), *batch)
                 .await
@@ -316,7 +321,12 @@ async fn run_client(
             }
             outln!("added {added} observations to {id:?}")?;
         }
-        ClientCommand::Predict { id, order, .. } => {
+        ClientCommand::Predict {
+            id,
+            order,
+            coverage: None,
+            ..
+        } => {
             let times = times.expect("checked in client()");
             let p = client.predict(id, &times, *order).await?;
             let entropies = client.entropy(id, &times, *order).await?;
@@ -331,6 +341,39 @@ async fn run_client(
             outln!("time\tprobability\tentropy")?;
             for ((t, p), h) in times.iter().zip(&p.values).zip(&entropies.values) {
                 outln!("{}\t{p:.4}\t{h:.4}", crate::format::time(*t))?;
+            }
+        }
+        ClientCommand::Predict {
+            id,
+            order,
+            coverage: Some(coverage),
+            ..
+        } => {
+            let times = times.expect("checked in client()");
+            let answer = client
+                .predict_interval(id, &times, *order, *coverage)
+                .await?;
+            let (Some(value), Some(lower), Some(upper)) =
+                (answer.scaled, answer.lower, answer.upper)
+            else {
+                bail!(
+                    "model {id:?} has no prediction intervals: only models of continuous \
+                     values (created with --range) whose spec learns online have them"
+                );
+            };
+            if as_json {
+                return print_json(&json!({
+                    "id": id,
+                    "times": times,
+                    "value": value,
+                    "coverage": coverage,
+                    "lower": lower,
+                    "upper": upper,
+                }));
+            }
+            outln!("time\tvalue\tlower\tupper")?;
+            for (((t, v), lo), hi) in times.iter().zip(&value).zip(&lower).zip(&upper) {
+                outln!("{}\t{v:.4}\t{lo:.4}\t{hi:.4}", crate::format::time(*t))?;
             }
         }
         ClientCommand::Forecast { ids, at, order } => {

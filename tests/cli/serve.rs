@@ -1212,6 +1212,96 @@ fn the_client_prints_json_and_refuses_contradicting_flags_before_connecting() {
     assert_eq!(v["models"][0]["observations"], 96_480);
     let v = json(&["forecast", "--ids", "greg-door", "--at", "1457960400"]);
     assert_eq!(v["probability"][0].as_f64(), Some(expected[1]));
+
+    // A continuous state in [10, 30] and its 90 % intervals: those of the Beta law matched to
+    // fremen:2 models of the normalised values and of their squares.
+    let (t, x): (Vec<f64>, Vec<f64>) = (0..2016)
+        .map(|i| {
+            let t = 600.0 * f64::from(i);
+            let day = (std::f64::consts::TAU * t / 86_400.0).sin();
+            let x = (0.5 + 0.3 * day + 0.15 * (f64::from(i) * 0.754).sin()).clamp(0.0, 1.0);
+            (t, x)
+        })
+        .unzip();
+    let file = scratch("serve_cli_json_values").join("temperature.txt");
+    let lines: String = t
+        .iter()
+        .zip(&x)
+        .map(|(t, x)| format!("{t} {}\n", 10.0 + 20.0 * x))
+        .collect();
+    std::fs::write(&file, lines).unwrap();
+    json(&[
+        "create",
+        "temperature",
+        "--model",
+        "fremen:2",
+        "--range",
+        "10,30",
+    ]);
+    json(&["add", "temperature", "--file", file.to_str().unwrap()]);
+    let at = ["1300000", "1300600"];
+    let v = json(&[
+        "predict",
+        "temperature",
+        "--at",
+        at[0],
+        "--at",
+        at[1],
+        "--coverage",
+        "0.9",
+    ]);
+    assert_eq!(v["coverage"], 0.9);
+    let (mut mean, mut second) = (FremenModel::with_order(2), FremenModel::with_order(2));
+    // What the service learnt: the values as the file gives them, normalised.
+    let normalised: Vec<f64> = x
+        .iter()
+        .map(|x| ((10.0 + 20.0 * x) - 10.0) / 20.0)
+        .collect();
+    let squares: Vec<f64> = normalised.iter().map(|x| x * x).collect();
+    mean.observe(&t, &normalised).unwrap();
+    second.observe(&t, &squares).unwrap();
+    for (k, at) in at.iter().enumerate() {
+        let time: f64 = at.parse().unwrap();
+        let (m, s) = (mean.predict(time), second.predict(time));
+        let (lo, hi) = chronomap_core::spread::beta_interval(m, s, 0.9);
+        assert_eq!(v["lower"][k].as_f64(), Some(10.0 + 20.0 * lo), "{v}");
+        assert_eq!(v["upper"][k].as_f64(), Some(10.0 + 20.0 * hi), "{v}");
+        assert_eq!(v["value"][k].as_f64(), Some(10.0 + 20.0 * m), "{v}");
+        assert!(lo < m && m < hi, "{v}");
+    }
+    // A binary model has none: a failure naming it; a coverage of 1 is a usage error.
+    let out = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args([
+            "client",
+            "--url",
+            &server.url,
+            "predict",
+            "greg-door",
+            "--at",
+            "0",
+        ])
+        .args(["--coverage", "0.9"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("model \"greg-door\" has no prediction intervals"),
+        "{err}"
+    );
+    let out = run(&[
+        "client",
+        "--url",
+        &url,
+        "predict",
+        "door",
+        "--at",
+        "0",
+        "--coverage",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    json(&["remove", "temperature"]);
     let v = json(&["remove", "greg-door"]);
     assert_eq!(v["removed"], true);
     assert!(json(&["list"])["models"].as_array().unwrap().is_empty());

@@ -196,8 +196,8 @@ pub use robot_paths::{NamedRobotPath, read_robot_paths, read_robot_paths_from};
 pub use sbt_params::{SbtParamsError, read_leaf_params};
 pub use text::{
     DataError, DataErrorKind, Field, decompressing_reader, open_data_file, read_column,
-    read_column_from, read_pairs, read_pairs_from, read_test_set, read_test_set_from,
-    write_data_file,
+    read_column_from, read_measurements, read_measurements_from, read_pairs, read_pairs_from,
+    read_test_set, read_test_set_from, write_data_file,
 };
 #[cfg(feature = "topo")]
 pub use topo_files::{

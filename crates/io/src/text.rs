@@ -518,6 +518,39 @@ pub fn read_pairs_from(name: &str, reader: impl Read) -> Result<TimeSeries, Data
     Ok(TimeSeries { times, values })
 }
 
+/// Reads `time value` lines whose values are any finite numbers — measurements of a continuous
+/// state in its own units (a temperature, a speed), for a model created with a range that
+/// checks them itself — from `path` (plain, `.xz` or `.gz`). Times follow the
+/// [observation contract](chronomap_core::observe) as in [`read_pairs`].
+///
+/// ```
+/// let series = chronomap_io::read_measurements_from("temperature", "0 21.5\n60 -3\n".as_bytes())?;
+/// assert_eq!(series.values, [21.5, -3.0]);
+/// let err = chronomap_io::read_measurements_from("temperature", "0 21.5\n60 inf\n".as_bytes())
+///     .unwrap_err();
+/// assert_eq!(err.line(), Some(2));
+/// # Ok::<(), chronomap_io::DataError>(())
+/// ```
+///
+/// # Errors
+/// A [`DataError`] naming `path` if the file cannot be read, has no data line, or a line is not
+/// `time value` with a valid time and a finite value.
+pub fn read_measurements(path: impl AsRef<Path>) -> Result<TimeSeries, DataError> {
+    read_data_file(path.as_ref(), read_measurements_from)
+}
+
+/// [`read_measurements`] from `reader` (uncompressed text); `name` is used in errors.
+///
+/// # Errors
+/// As [`read_measurements`].
+pub fn read_measurements_from(name: &str, reader: impl Read) -> Result<TimeSeries, DataError> {
+    const EXPECTED: &str = "expected two fields: time value";
+    let (times, values) = read_timed_lines(name, reader, EXPECTED, |fields| {
+        parse_finite(fields.next_text(Field::Value)?, Field::Value)
+    })?;
+    Ok(TimeSeries { times, values })
+}
+
 /// The fields after the time of one data line, for [`read_timed_lines`].
 pub(crate) struct LineFields<'a> {
     fields: Fields<'a>,
