@@ -41,7 +41,19 @@ pub struct CreateRequest {
     /// `[0, 1]` and predictions back. Absent: values must lie in `[0, 1]`.
     #[serde(default)]
     pub range: Option<[f64; 2]>,
+    /// A calendar of days off (public holidays, closures): UTC dates `YYYY-MM-DD`, at most
+    /// [`MAX_DAYS_OFF`], in any order (a date given twice is one day). Observations made on a
+    /// day off are accepted but not learned; a time on a day off is predicted (its value,
+    /// entropy and interval) as the same time of day on the most recent Sunday that is not a
+    /// day off, as `chronomap eval --days-off` does offline. Absent or empty: no calendar.
+    /// Part of the model's configuration: creating it again with other days is a `409`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub days_off: Option<Vec<String>>,
 }
+
+/// Most days off one model's calendar holds ([`CreateRequest::days_off`]): 27 years of
+/// every day, far more than any calendar of holidays.
+pub const MAX_DAYS_OFF: usize = 10_000;
 
 /// Binary observations of one state (`POST /v1/add`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -289,6 +301,23 @@ pub struct ModelInfo {
     /// observations kept for refits and the last fit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refit: Option<RefitInfo>,
+    /// The model's calendar of days off ([`CreateRequest::days_off`]); absent without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub days_off: Option<DaysOffInfo>,
+}
+
+/// A model's calendar of days off, in brief.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct DaysOffInfo {
+    /// Number of days off (distinct dates).
+    pub days: u64,
+    /// The earliest, `YYYY-MM-DD`.
+    pub first: String,
+    /// The latest, `YYYY-MM-DD`.
+    pub last: String,
+    /// Observations made on a day off: accepted, not learned (not in `observations`).
+    pub skipped: u64,
 }
 
 /// What a model fitted on a whole series (`auto`, `fremen:auto`, ...) keeps, and its last fit.

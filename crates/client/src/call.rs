@@ -17,6 +17,10 @@ macro_rules! endpoints {
             /// Creates a model (`model` spec, `range` for continuous values).
             fn create(id: &str, model: Option<&str>, range: Option<[f64; 2]>) -> WriteAck =
                 Call::create(id, model, range);
+            /// Creates a model as `request` says: its spec, range and calendar of days off
+            /// ([`CreateRequest::days_off`]).
+            fn create_with(id: &str, request: &CreateRequest) -> WriteAck =
+                Call::create_with(id, request);
             /// Removes a model.
             fn remove(id: &str) -> WriteAck = Ok(Call::remove(id));
             /// A model's parameters.
@@ -198,8 +202,13 @@ impl Call {
         let body = CreateRequest {
             model: model.map(str::to_owned),
             range,
+            days_off: None,
         };
-        Call::json(Method::PUT, model_path(id, ""), &body)
+        Call::create_with(id, &body)
+    }
+
+    pub fn create_with(id: &str, request: &CreateRequest) -> Result<Call, ClientError> {
+        Call::json(Method::PUT, model_path(id, ""), request)
     }
 
     pub fn remove(id: &str) -> Call {

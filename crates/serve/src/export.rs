@@ -526,7 +526,8 @@ impl Export<'_> {
                 let end = (k + BATCH as u64).min(grid.points);
                 times.clear();
                 times.extend((k..end).map(|k| grid.time(k)));
-                let probabilities = entry.model.predict_many(&times);
+                // A day off of the model's calendar is predicted at its stand-in.
+                let probabilities = entry.model.predict_many(&entry.config.stand_ins(&times));
                 rows.clear();
                 rows.extend(
                     times

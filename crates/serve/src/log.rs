@@ -11,7 +11,7 @@
 use chronomap_models::learner::Refit;
 use serde::{Deserialize, Serialize};
 
-use crate::registry::ModelConfig;
+use crate::registry::{ConfigV1, ModelConfig};
 
 /// Format 1 of a commit group: magic, CRC-32 of the payload, payload.
 const MAGIC_1: &[u8; 8] = b"CMLOG\x001\n";
@@ -20,8 +20,12 @@ const MAGIC: &[u8; 8] = b"CMLOG\x002\n";
 
 /// One change of the service's state.
 ///
-/// Variants are only ever appended (their index is part of the log format).
-#[derive(Clone, Debug, Serialize, Deserialize)]
+/// Stored as the record kinds `Create`, `Observe`, `Remove`, `Refit` and `CreateOnCalendar`,
+/// in that order, which only ever grows (the index of a kind is part of the log format): a
+/// [`LogRecord::Create`] without a calendar of days off is written as services before
+/// calendars wrote it (`Create`, the configuration as a [`ConfigV1`]), one with a calendar as
+/// `CreateOnCalendar`. Logs written before calendars read as they did.
+#[derive(Clone, Debug)]
 pub enum LogRecord {
     /// A model is created.
     Create {
@@ -55,6 +59,83 @@ pub enum LogRecord {
         /// The fit ([`chronomap_models::Learner::install`]).
         refit: Box<Refit>,
     },
+}
+
+/// How a [`LogRecord`] is stored; variants are only ever appended.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "LogRecord")]
+enum Wire<Id, Times, Config, Fit> {
+    /// A model without a calendar is created (the only `Create` before calendars).
+    Create {
+        /// Model id.
+        id: Id,
+        /// Its configuration, without a calendar.
+        config: ConfigV1,
+    },
+    /// As [`LogRecord::Observe`].
+    Observe {
+        /// Model id.
+        id: Id,
+        /// Times (s).
+        times: Times,
+        /// Values.
+        values: Times,
+    },
+    /// As [`LogRecord::Remove`].
+    Remove {
+        /// Model id.
+        id: Id,
+    },
+    /// As [`LogRecord::Refit`].
+    Refit {
+        /// Model id.
+        id: Id,
+        /// The fit.
+        refit: Fit,
+    },
+    /// A model with a calendar of days off is created.
+    CreateOnCalendar {
+        /// Model id.
+        id: Id,
+        /// Its whole configuration.
+        config: Config,
+    },
+}
+
+impl Serialize for LogRecord {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // Borrowed, so that writing observations copies nothing.
+        let wire: Wire<&str, &[f64], &ModelConfig, &Refit> = match self {
+            LogRecord::Create { id, config } if config.days_off.is_empty() => Wire::Create {
+                id,
+                config: ConfigV1 {
+                    spec: config.spec.clone(),
+                    range: config.range,
+                },
+            },
+            LogRecord::Create { id, config } => Wire::CreateOnCalendar { id, config },
+            LogRecord::Observe { id, times, values } => Wire::Observe { id, times, values },
+            LogRecord::Remove { id } => Wire::Remove { id },
+            LogRecord::Refit { id, refit } => Wire::Refit { id, refit },
+        };
+        wire.serialize(serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for LogRecord {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        type Owned = Wire<String, Vec<f64>, ModelConfig, Box<Refit>>;
+        Ok(match Owned::deserialize(deserializer)? {
+            Wire::Create { id, config } => LogRecord::Create {
+                id,
+                config: config.into(),
+            },
+            Wire::CreateOnCalendar { id, config } => LogRecord::Create { id, config },
+            Wire::Observe { id, times, values } => LogRecord::Observe { id, times, values },
+            Wire::Remove { id } => LogRecord::Remove { id },
+            Wire::Refit { id, refit } => LogRecord::Refit { id, refit },
+        })
+    }
 }
 
 impl PartialEq for LogRecord {
@@ -280,6 +361,27 @@ mod tests {
         old.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
         old.extend_from_slice(&payload);
         assert_eq!(decode_group(3, &old).unwrap(), group());
+    }
+
+    #[test]
+    fn a_creation_with_a_calendar_is_a_record_kind_of_its_own() {
+        let days_off = chronomap_core::calendar::DaysOff::new([16_885, 16_888]);
+        let config = ModelConfig::parse(Some("auto"), Some([0.0, 5.0]))
+            .unwrap()
+            .with_days_off(days_off);
+        let records = vec![LogRecord::Create {
+            id: "door".into(),
+            config,
+        }];
+        let payload = postcard::to_allocvec(&records).unwrap();
+        // One record, of the fifth kind (appended after `Refit`).
+        assert_eq!(payload[..2], [1, 4]);
+        assert_eq!(
+            decode_group(2, &encode_group(2, &records)).unwrap(),
+            records
+        );
+        // Without a calendar, the first kind as before.
+        assert_eq!(postcard::to_allocvec(&group()).unwrap()[..2], [3, 0]);
     }
 
     #[test]

@@ -5,13 +5,16 @@
 
 use std::collections::HashMap;
 
+use chronomap_core::calendar::DaysOff;
 use chronomap_core::{ObservationError, Ordered, TemporalModel};
 use chronomap_models::learner::{FitRecord, RefitError};
 use chronomap_models::spec::Selection;
 use chronomap_models::{AnyModel, Learner, ModelSpec};
 use serde::{Deserialize, Serialize};
 
-use crate::api::{Component, FitInfo, MAX_ID_BYTES, ModelInfo, RefitInfo, StackWeight};
+use crate::api::{
+    Component, DaysOffInfo, FitInfo, MAX_DAYS_OFF, MAX_ID_BYTES, ModelInfo, RefitInfo, StackWeight,
+};
 use crate::log::LogRecord;
 
 /// Observations the service keeps per model fitted on a whole series (`auto`, `fremen:auto`,
@@ -19,14 +22,82 @@ use crate::log::LogRecord;
 /// are dropped). Fixed, so that replaying a log always makes the same learners.
 pub const KEEP: usize = chronomap_models::learner::DEFAULT_KEEP;
 
-/// How a model was created: what it is and the range of its values.
+/// How a model was created: what it is, the range of its values and its calendar of days off.
+///
+/// Serialised whole (a [`LogRecord::Create`] of a model with a calendar, snapshots of version
+/// 4). A configuration without a calendar is written as services before calendars wrote it,
+/// [`ConfigV1`]: their records and snapshots load as they did (see [`crate::log`] and
+/// [`crate::store`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelConfig {
     /// The model.
     pub spec: ModelSpec,
     /// Range `[lo, hi]` of continuous values, mapped onto `[0, 1]`.
     pub range: Option<[f64; 2]>,
+    /// Days off: observations on them are not learned, and a time on one is predicted at its
+    /// [stand-in](DaysOff::stand_in). Empty: no calendar.
+    pub days_off: DaysOff,
 }
+
+/// The layout of a configuration before calendars of days off (log records of every format,
+/// snapshots of versions 1 to 3), still written for configurations without one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ConfigV1 {
+    /// The model.
+    pub spec: ModelSpec,
+    /// Range of continuous values.
+    pub range: Option<[f64; 2]>,
+}
+
+impl From<ConfigV1> for ModelConfig {
+    fn from(old: ConfigV1) -> Self {
+        ModelConfig {
+            spec: old.spec,
+            range: old.range,
+            days_off: DaysOff::default(),
+        }
+    }
+}
+
+/// Parses a calendar of days off as a client gives it: UTC dates `YYYY-MM-DD`, at most
+/// [`MAX_DAYS_OFF`] (a date given twice is one day).
+///
+/// # Errors
+/// A sentence naming the field `days_off` and the index of the first date that is not one, or
+/// the number of dates when there are too many.
+pub fn parse_days_off(dates: &[String]) -> Result<DaysOff, String> {
+    if dates.len() > MAX_DAYS_OFF {
+        return Err(format!(
+            "field `days_off`: {} dates, more than {MAX_DAYS_OFF} (a calendar of days off \
+             holds holidays and closures, not every day)",
+            dates.len()
+        ));
+    }
+    let mut days = Vec::with_capacity(dates.len());
+    for (i, date) in dates.iter().enumerate() {
+        let day = (date.len() == "YYYY-MM-DD".len())
+            .then(|| chronomap_core::time::parse_iso8601(date).ok())
+            .flatten()
+            .filter(|t| (0.0..=chronomap_core::observe::MAX_TIME_SECS).contains(t))
+            .ok_or_else(|| {
+                format!(
+                    "field `days_off`, element {i}: {date:?} is not a UTC date YYYY-MM-DD \
+                     between 1970-01-01 and the largest time (about the year 5138)"
+                )
+            })?;
+        days.push((day / DAY).floor() as i64);
+    }
+    Ok(DaysOff::new(days))
+}
+
+/// A day as the API writes it: `YYYY-MM-DD`.
+pub fn format_day(day: i64) -> String {
+    let (year, month, day) = chronomap_core::time::civil_from_days(day);
+    format!("{year:04}-{month:02}-{day:02}")
+}
+
+/// Seconds in a day.
+const DAY: f64 = 86_400.0;
 
 impl ModelConfig {
     /// Parses and checks a spec and range as a client gives them.
@@ -48,7 +119,30 @@ impl ModelConfig {
                  and a finite width hi - lo"
             ));
         }
-        Ok(ModelConfig { spec, range })
+        Ok(ModelConfig {
+            spec,
+            range,
+            days_off: DaysOff::default(),
+        })
+    }
+
+    /// This configuration with the calendar `days_off`.
+    pub fn with_days_off(self, days_off: DaysOff) -> Self {
+        ModelConfig { days_off, ..self }
+    }
+
+    /// The times whose predictions stand for `times`: a time on a day off is moved to its
+    /// [stand-in](DaysOff::stand_in); without a calendar, `times` itself.
+    pub fn stand_ins<'a>(&self, times: &'a [f64]) -> std::borrow::Cow<'a, [f64]> {
+        if self.days_off.is_empty() {
+            return std::borrow::Cow::Borrowed(times);
+        }
+        times.iter().map(|&t| self.days_off.stand_in(t)).collect()
+    }
+
+    /// The time whose prediction stands for `time` ([`ModelConfig::stand_ins`]).
+    pub fn stand_in(&self, time: f64) -> f64 {
+        self.days_off.stand_in(time)
     }
 
     /// The learner this configuration describes, having seen nothing.
@@ -139,6 +233,9 @@ pub struct Entry {
     /// snapshot written before intervals were served (they never learnt the squares, so they
     /// have no interval until they are created again).
     pub spread: Option<Learner>,
+    /// Observations made on a day off of the model's calendar ([`ModelConfig::days_off`]):
+    /// accepted and logged, not learned.
+    pub skipped: u64,
 }
 
 impl Entry {
@@ -156,17 +253,22 @@ impl Entry {
             config,
             model,
             spread,
+            skipped: 0,
         })
     }
 
-    /// Adds observations given in the model's range (`id` is for errors).
+    /// Adds observations given in the model's range (`id` is for errors). Those made on a day
+    /// off of its calendar are checked like the others and counted ([`Entry::skipped`]), not
+    /// learned: neither the model, nor the kept observations of one fitted on a whole series,
+    /// nor the second moment see them.
     ///
     /// # Errors
-    /// The first violation of the observation contract, or a value outside the model's range;
-    /// the entry is then unchanged.
+    /// The first violation of the observation contract, or a value outside the model's range
+    /// (with its index in the batch as given); the entry is then unchanged.
     pub fn observe(&mut self, id: &str, times: &[f64], values: &[f64]) -> Result<(), ApplyError> {
-        let observed = match self.config.range {
-            None => self.model.observe(times, values),
+        use std::borrow::Cow;
+        let normalised: Cow<'_, [f64]> = match self.config.range {
+            None => Cow::Borrowed(values),
             Some([lo, hi]) => {
                 if let Some(index) = values.iter().position(|v| !(lo..=hi).contains(v)) {
                     return Err(ApplyError::OutOfRange {
@@ -176,20 +278,40 @@ impl Entry {
                         range: [lo, hi],
                     });
                 }
-                let normalised: Vec<f64> =
-                    values.iter().map(|&v| self.config.normalise(v)).collect();
-                self.model.observe(times, &normalised).and_then(|()| {
-                    // The same times and values in [0, 1] that the model accepted: the
-                    // squares are accepted too.
-                    let Some(spread) = &mut self.spread else {
-                        return Ok(());
-                    };
-                    let squares: Vec<f64> = normalised.iter().map(|x| x * x).collect();
-                    spread.observe(times, &squares)
-                })
+                Cow::Owned(values.iter().map(|&v| self.config.normalise(v)).collect())
             }
         };
-        observed.map_err(|e| ApplyError::Observation(id.to_owned(), e))
+        let observation = |e| ApplyError::Observation(id.to_owned(), e);
+        let days_off = &self.config.days_off;
+        let (times, normalised, skipped) = if days_off.is_empty() {
+            (Cow::Borrowed(times), normalised, 0)
+        } else {
+            // The whole batch is checked, so that an error names the index the client gave
+            // (and an observation on a day off is held to the contract too).
+            chronomap_core::observe::validate(self.model.span().last_time(), times, &normalised)
+                .map_err(observation)?;
+            let (kept, kept_values) = days_off.working_days(times, &normalised);
+            let skipped = (times.len() - kept.len()) as u64;
+            (
+                Cow::Owned(kept.into_owned()),
+                Cow::Owned(kept_values.into_owned()),
+                skipped,
+            )
+        };
+        self.model
+            .observe(&times, &normalised)
+            .and_then(|()| {
+                // The same times and values in [0, 1] that the model accepted: the squares
+                // are accepted too.
+                let Some(spread) = &mut self.spread else {
+                    return Ok(());
+                };
+                let squares: Vec<f64> = normalised.iter().map(|x| x * x).collect();
+                spread.observe(&times, &squares)
+            })
+            .map_err(observation)?;
+        self.skipped += skipped;
+        Ok(())
     }
 
     /// The model of the second moment with `order` (as [`Entry::with_order`]), when it has
@@ -297,7 +419,19 @@ impl Entry {
                 })
                 .unwrap_or_default(),
             refit: self.refit_info(),
+            days_off: self.days_off_info(),
         }
+    }
+
+    /// The model's calendar of days off in brief (`None` without one).
+    pub fn days_off_info(&self) -> Option<DaysOffInfo> {
+        let days = &self.config.days_off;
+        Some(DaysOffInfo {
+            days: days.len() as u64,
+            first: format_day(days.days().next()?),
+            last: format_day(days.days().last()?),
+            skipped: self.skipped,
+        })
     }
 
     /// What a model fitted on a whole series keeps, and its last fit (`None` for models that

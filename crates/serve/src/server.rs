@@ -923,8 +923,12 @@ async fn create(
 ) -> Result<Json<WriteAck>, ApiError> {
     let id = path_id(path)?;
     let request: CreateRequest = parse_body(body)?;
-    let config = ModelConfig::parse(request.model.as_deref(), request.range)
+    let mut config = ModelConfig::parse(request.model.as_deref(), request.range)
         .map_err(ApiError::bad_request)?;
+    if let Some(dates) = &request.days_off {
+        let days_off = crate::registry::parse_days_off(dates).map_err(ApiError::bad_request)?;
+        config = config.with_days_off(days_off);
+    }
     Ok(Json(
         submit(&state, vec![WriteOp::create(id, config)]).await?,
     ))
@@ -1309,12 +1313,15 @@ async fn predictions(
                     if cancel.is_cancelled() {
                         return Err(heavy::cancelled());
                     }
-                    let values = model.predict_many(&request.times);
+                    // A time on a day off is asked at its stand-in, for the value and the
+                    // second moment alike.
+                    let times = config.stand_ins(&request.times);
+                    let values = model.predict_many(&times);
                     let scaled = (scaled && config.range.is_some())
                         .then(|| values.iter().map(|&p| config.scale(p)).collect());
                     let bands = match (coverage, spread) {
                         (Some(c), Some(spread)) if config.range.is_some() => {
-                            Some(intervals(spread, config, &request.times, &values, c))
+                            Some(intervals(spread, config, &times, &values, c))
                         }
                         _ => None,
                     };
@@ -1436,7 +1443,7 @@ async fn forecasts(
                     let model = entry
                         .with_order(order)
                         .map_err(|e| ApiError::bad_request(format!("ids[{i}]: {e}")))?;
-                    values.push(map(model.predict(request.time)));
+                    values.push(map(model.predict(entry.config.stand_in(request.time))));
                 }
             }
             json_bytes(&ForecastResponse { values })
@@ -1551,8 +1558,9 @@ async fn evaluate(
                 .map(|&v| entry.config.normalise(v))
                 .collect();
             let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
-            let scored =
-                |models: &[&AnyModel]| score(models, &request.times, &targets, binary, cancel);
+            // Days off are scored against their stand-ins' predictions, as they are answered.
+            let times = entry.config.stand_ins(&request.times);
+            let scored = |models: &[&AnyModel]| score(models, &times, &targets, binary, cancel);
             let (errors, brier) = match class {
                 Class::Light => scored(&models.iter().map(|m| &**m).collect::<Vec<_>>())?,
                 Class::Heavy => {
@@ -1666,7 +1674,7 @@ async fn detect(
                             return Err(heavy::cancelled());
                         }
                         anomalies.extend(times.iter().zip(values).filter_map(|(&time, &value)| {
-                            let p = model.predict(time);
+                            let p = model.predict(config.stand_in(time));
                             ((config.normalise(value) - p).abs() >= request.confidence).then(|| {
                                 Anomaly {
                                     time,

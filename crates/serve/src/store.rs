@@ -17,12 +17,18 @@ pub(crate) use redb_store::Unopened;
 use chronomap_io::model_file::{decode_model, encode_model};
 use chronomap_models::{AnyModel, Learner};
 
-use crate::registry::{Entry, ModelConfig};
+use crate::registry::{ConfigV1, Entry};
 
-/// Kind tag of model snapshots (inside a versioned, checksummed model-file container): version
-/// 3, an [`Entry`] with the learner of the second moment of a model of continuous values
-/// ([`Entry::spread`]).
-const SNAPSHOT_KIND: &str = "serve-snapshot-3";
+/// Kind tag of the snapshots of models with a calendar of days off (inside a versioned,
+/// checksummed model-file container): version 4, an [`Entry`] whose configuration holds the
+/// calendar, and the count of observations made on days off ([`Entry::skipped`]).
+const SNAPSHOT_KIND: &str = "serve-snapshot-4";
+
+/// Kind tag of version 3 snapshots, still written for models without a calendar (so that
+/// their snapshots are those services before calendars wrote and read): an entry with the
+/// learner of the second moment of a model of continuous values ([`Entry::spread`]), its
+/// configuration a [`ConfigV1`].
+const SNAPSHOT_KIND_3: &str = "serve-snapshot-3";
 
 /// Kind tag of version 2 snapshots (still read): an entry whose model is a [`Learner`] (the
 /// online model, or the kept observations and last fit of a model fitted on a whole series),
@@ -169,23 +175,43 @@ pub trait Store: Send + Sync {
     }
 }
 
-/// Encodes a model entry as a snapshot (versioned, CRC-32-checked container).
+/// Encodes a model entry as a snapshot (versioned, CRC-32-checked container): version 4 for a
+/// model with a calendar of days off, version 3 for the others.
 pub fn encode_snapshot(entry: &Entry) -> Vec<u8> {
+    if entry.config.days_off.is_empty() && entry.skipped == 0 {
+        let old = Entry3 {
+            config: ConfigV1 {
+                spec: entry.config.spec.clone(),
+                range: entry.config.range,
+            },
+            model: &entry.model,
+            spread: entry.spread.as_ref(),
+        };
+        return encode_model(SNAPSHOT_KIND_3, &old).expect("entries always serialise");
+    }
     encode_model(SNAPSHOT_KIND, entry).expect("entries always serialise")
 }
 
 /// A version 1 snapshot.
 #[derive(serde::Deserialize)]
 struct Entry1 {
-    config: ModelConfig,
+    config: ConfigV1,
     model: AnyModel,
 }
 
 /// A version 2 snapshot.
 #[derive(serde::Deserialize)]
 struct Entry2 {
-    config: ModelConfig,
+    config: ConfigV1,
     model: Learner,
+}
+
+/// A version 3 snapshot (`M` is the learner, borrowed to write, owned to read).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Entry3<M> {
+    config: ConfigV1,
+    model: M,
+    spread: Option<M>,
 }
 
 /// The kind a model-file container's header names (` kind=KIND ` in its first line), to choose
@@ -199,7 +225,8 @@ fn container_kind(bytes: &[u8]) -> Option<&str> {
         .find_map(|word| word.strip_prefix("kind="))
 }
 
-/// Decodes a snapshot (version 3; version 2 of services before prediction intervals were
+/// Decodes a snapshot (version 4 of a model with a calendar of days off; version 3 of one
+/// without, and of services before calendars; version 2 of services before prediction intervals were
 /// served, whose models of continuous values then have no learner of the second moment; or
 /// version 1 of services before models fitted on a whole series were served).
 ///
@@ -211,24 +238,43 @@ pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
         Some(SNAPSHOT_KIND_1) => {
             let (kind, old): (String, Entry1) = decode_model(bytes).map_err(damaged)?;
             let entry = Entry {
-                config: old.config,
+                config: old.config.into(),
                 model: Learner::Online(old.model),
                 spread: None,
+                skipped: 0,
             };
             (kind, entry)
         }
         Some(SNAPSHOT_KIND_2) => {
             let (kind, old): (String, Entry2) = decode_model(bytes).map_err(damaged)?;
             let entry = Entry {
-                config: old.config,
+                config: old.config.into(),
                 model: old.model,
                 spread: None,
+                skipped: 0,
+            };
+            (kind, entry)
+        }
+        Some(SNAPSHOT_KIND_3) => {
+            let (kind, old): (String, Entry3<Learner>) = decode_model(bytes).map_err(damaged)?;
+            let entry = Entry {
+                config: old.config.into(),
+                model: old.model,
+                spread: old.spread,
+                skipped: 0,
             };
             (kind, entry)
         }
         _ => decode_model(bytes).map_err(damaged)?,
     };
-    if ![SNAPSHOT_KIND, SNAPSHOT_KIND_2, SNAPSHOT_KIND_1].contains(&kind.as_str()) {
+    if ![
+        SNAPSHOT_KIND,
+        SNAPSHOT_KIND_3,
+        SNAPSHOT_KIND_2,
+        SNAPSHOT_KIND_1,
+    ]
+    .contains(&kind.as_str())
+    {
         return Err(format!(
             "snapshot of {id:?}: a {kind:?} container, not a model snapshot"
         ));
@@ -252,14 +298,24 @@ pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::registry::ModelConfig;
     use chronomap_core::TemporalModel;
+
+    /// A configuration as snapshots before calendars wrote it.
+    fn v1(config: &ModelConfig) -> ConfigV1 {
+        assert!(config.days_off.is_empty());
+        ConfigV1 {
+            spec: config.spec.clone(),
+            range: config.range,
+        }
+    }
 
     #[test]
     fn version_1_snapshots_still_load_as_online_learners() {
         // What services wrote before version 2: the entry with its model as an `AnyModel`.
         #[derive(serde::Serialize)]
         struct Version1<'a> {
-            config: &'a ModelConfig,
+            config: ConfigV1,
             model: &'a AnyModel,
         }
         let config = ModelConfig::parse(Some("fremen:2"), None).unwrap();
@@ -273,7 +329,7 @@ mod tests {
         let old = encode_model(
             SNAPSHOT_KIND_1,
             &Version1 {
-                config: &config,
+                config: v1(&config),
                 model: &model,
             },
         )
@@ -311,7 +367,7 @@ mod tests {
         // What services wrote before prediction intervals: the entry without `spread`.
         #[derive(serde::Serialize)]
         struct Version2<'a> {
-            config: &'a ModelConfig,
+            config: ConfigV1,
             model: &'a Learner,
         }
         let config = ModelConfig::parse(Some("fremen:2"), Some([10.0, 30.0])).unwrap();
@@ -326,7 +382,7 @@ mod tests {
         let old = encode_model(
             SNAPSHOT_KIND_2,
             &Version2 {
-                config: &config,
+                config: v1(&config),
                 model: &live.model,
             },
         )
