@@ -372,6 +372,16 @@ fn bad_calendars_are_refused_naming_the_field_and_the_index() {
             "{days_off}: {text}"
         );
     }
+    // The OpenAPI description shows the field and the calendar in `GET`.
+    let openapi = ok(send(&service, &runtime, "GET", "/openapi.json", &json!({})));
+    let schemas = &openapi["components"]["schemas"];
+    assert_eq!(
+        schemas["CreateRequest"]["properties"]["days_off"]["type"],
+        json!(["array", "null"]),
+        "{}",
+        schemas["CreateRequest"]
+    );
+    assert!(schemas["DaysOffInfo"]["properties"]["skipped"].is_object());
     // Nothing was created.
     let (status, _) = send(&service, &runtime, "GET", "/v1/models/door", &json!({}));
     assert_eq!(status, StatusCode::NOT_FOUND);
