@@ -265,4 +265,10 @@ fn plan_with_a_deadline_on_the_command_line() {
     // Too many buckets is a failure of the plan (exit 1), said clearly.
     let err = error(&run(&["--deadline", "100", "--bucket-secs", "0.00001"]));
     assert!(err.contains("widen the buckets"), "{err}");
+    // A bucket wider than the deadline: refused as the service refuses it.
+    let err = error(&run(&["--deadline", "100", "--bucket-secs", "101"]));
+    assert!(
+        err.contains("the bucket width 101 s is wider than the deadline 100 s"),
+        "{err}"
+    );
 }

@@ -760,14 +760,6 @@ impl DeadlineAsk {
                 "field `confidence`: {confidence} is not a probability in [0, 1]"
             )));
         }
-        if let Some(width) = request.bucket_secs
-            && !(width.is_finite() && width > 0.0 && width <= secs)
-        {
-            return Err(ApiError::bad_request(format!(
-                "field `bucket_secs`: {width} is not a number of seconds in (0, {secs}] (the \
-                 deadline)"
-            )));
-        }
         let ask = DeadlineAsk {
             secs,
             confidence,
@@ -829,7 +821,7 @@ impl DeadlineAsk {
             DeadlineError::InvalidDeadline(_) => {
                 ApiError::bad_request(format!("field `deadline_secs`: {e}"))
             }
-            DeadlineError::InvalidBucket(_) => {
+            DeadlineError::InvalidBucket(_) | DeadlineError::BucketWiderThanDeadline { .. } => {
                 ApiError::bad_request(format!("field `bucket_secs`: {e}"))
             }
             DeadlineError::TooManyCells {

@@ -20,7 +20,8 @@
 //!
 //! # Buckets, and why the result is a lower bound
 //! Time is counted in buckets of `Δ` seconds ([`DeadlineOptions::bucket_secs`]; default
-//! `max(D / 600, 1 s)`), `K = ⌊D / Δ⌋` of them fit into the deadline. Every duration is rounded
+//! `max(D / 600, 1 s)`, at most `D`; a bucket wider than the deadline is refused),
+//! `K = ⌊D / Δ⌋` of them fit into the deadline. Every duration is rounded
 //! **up** to whole buckets, at least one: `b = max(1, ⌈d / Δ⌉)` (`⌈·⌉` forgives 1e-9 of a
 //! bucket of floating-point noise). Then `Σ b_i ≤ K` implies `Σ d_i ≤ K·Δ ≤ D`, so the
 //! probability computed is a **certified lower bound** of the probability under the durations'
@@ -130,6 +131,14 @@ pub enum DeadlineError {
     /// The bucket width is NaN, infinite, zero or negative.
     #[error("the bucket width must be a finite number of seconds > 0, not {0}")]
     InvalidBucket(f64),
+    /// The bucket width is wider than the deadline: no whole bucket would fit into it.
+    #[error("the bucket width {bucket} s is wider than the deadline {deadline} s")]
+    BucketWiderThanDeadline {
+        /// The bucket width (seconds).
+        bucket: f64,
+        /// The deadline (seconds).
+        deadline: f64,
+    },
     /// The time-augmented product would be too large.
     #[error(
         "the deadline plan would need {states} states × {buckets} buckets = {cells:.3e} cells, \
@@ -661,7 +670,7 @@ pub fn duration_branching_mdp(
 /// Settings of [`plan_deadline`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeadlineOptions {
-    /// Bucket width `Δ` (seconds); `None`: `max(D / 600, 1 s)`.
+    /// Bucket width `Δ` (seconds); `None`: `max(D / 600, 1 s)`, at most `D`.
     pub bucket_secs: Option<f64>,
     /// Most cells `states × (K + 1)` of the time-augmented product. Default 10⁶.
     pub max_cells: usize,
@@ -760,10 +769,19 @@ impl DeadlinePlanned {
     }
 }
 
+/// The default bucket width of a deadline `D`: `D / 600`, at least
+/// [`MIN_DEFAULT_BUCKET_SECS`] and at most `D` (one bucket).
+fn default_bucket_secs(deadline_secs: f64) -> f64 {
+    (deadline_secs / DEFAULT_BUCKETS)
+        .max(MIN_DEFAULT_BUCKET_SECS)
+        .min(deadline_secs)
+}
+
 /// The bucket width and `K` for a deadline.
 ///
 /// # Errors
-/// [`DeadlineError::InvalidDeadline`], [`DeadlineError::InvalidBucket`].
+/// [`DeadlineError::InvalidDeadline`], [`DeadlineError::InvalidBucket`],
+/// [`DeadlineError::BucketWiderThanDeadline`].
 pub fn buckets_for(
     deadline_secs: f64,
     bucket_secs: Option<f64>,
@@ -771,10 +789,15 @@ pub fn buckets_for(
     if !(deadline_secs.is_finite() && deadline_secs > 0.0) {
         return Err(DeadlineError::InvalidDeadline(deadline_secs));
     }
-    let width =
-        bucket_secs.unwrap_or((deadline_secs / DEFAULT_BUCKETS).max(MIN_DEFAULT_BUCKET_SECS));
+    let width = bucket_secs.unwrap_or_else(|| default_bucket_secs(deadline_secs));
     if !(width.is_finite() && width > 0.0) {
         return Err(DeadlineError::InvalidBucket(width));
+    }
+    if width > deadline_secs {
+        return Err(DeadlineError::BucketWiderThanDeadline {
+            bucket: width,
+            deadline: deadline_secs,
+        });
     }
     // ⌊D / Δ⌋, forgiving the noise of D / (D / 600).
     let k = (deadline_secs / width + ROUNDING_SLACK).floor();

@@ -240,6 +240,19 @@ fn plan_deadline_on_fitted_models_and_its_errors() {
         .err()
         .unwrap();
     assert!(matches!(err, DeadlineError::InvalidBucket(_)), "{err}");
+    // One bucket as wide as the deadline is the coarsest plan; a wider one is refused.
+    assert_eq!(buckets_for(120.0, Some(120.0)).unwrap(), (120.0, 1.0));
+    let wide = DeadlineOptions {
+        bucket_secs: Some(121.0),
+        ..DeadlineOptions::default()
+    };
+    let err = plan_deadline(&models, office, &task, afternoon, 120.0, &wide)
+        .err()
+        .unwrap();
+    assert!(
+        matches!(err, DeadlineError::BucketWiderThanDeadline { .. }),
+        "{err}"
+    );
 }
 
 #[test]
@@ -262,10 +275,10 @@ fn laws_from_quantiles_round_up_and_count_the_top_slice_late() {
     assert!(BucketLaw::new(vec![(2, 0.5), (2, 0.5)], 0.0).is_err());
     assert!(BucketLaw::new(vec![(2, 0.5)], 0.2).is_err());
     assert!(BucketLaw::new(vec![(2, 0.5)], 0.5).is_ok());
-    // The default width: D / 600, at least 1 s.
+    // The default width: D / 600, at least 1 s and at most the deadline.
     assert_eq!(buckets_for(120.0, None).unwrap(), (1.0, 120.0));
     assert_eq!(buckets_for(3000.0, None).unwrap(), (5.0, 600.0));
-    assert_eq!(buckets_for(0.5, None).unwrap(), (1.0, 0.0));
+    assert_eq!(buckets_for(0.5, None).unwrap(), (0.5, 1.0));
     assert_eq!(buckets_for(10.0, Some(3.0)).unwrap(), (3.0, 3.0));
 }
 
