@@ -233,8 +233,9 @@ pub enum ClientCommand {
         /// fremen:auto, pergam:auto, fft:L, ... keep their observations and are refitted.
         #[arg(long, default_value = "fremen:2")]
         model: String,
-        /// Value range LO,HI of continuous states (`--range 0,10` or `--range 0 10`).
-        #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_negative_numbers = true)]
+        /// Value range LO,HI of continuous states (`--range 0,10`, `--range -5,5`): one
+        /// argument, so that the flag after it stays a flag.
+        #[arg(long, value_delimiter = ',', num_args = 1, allow_hyphen_values = true)]
         range: Option<Vec<f64>>,
     },
     /// Remove a model.

@@ -1233,10 +1233,10 @@ fn the_client_prints_json_and_refuses_contradicting_flags_before_connecting() {
     json(&[
         "create",
         "temperature",
-        "--model",
-        "fremen:2",
         "--range",
         "10,30",
+        "--model",
+        "fremen:2",
     ]);
     json(&["add", "temperature", "--file", file.to_str().unwrap()]);
     let at = ["1300000", "1300600"];

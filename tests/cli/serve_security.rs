@@ -370,7 +370,7 @@ fn client_ranges_are_checked_and_create_takes_lo_comma_hi() {
     for (id, range) in [
         ("level", vec!["--range", "0,10"]),
         ("temp", vec!["--range", "-5,5"]),
-        ("depth", vec!["--range", "0", "10"]),
+        ("depth", vec!["--range", "0,10", "--model", "fremen:1"]),
     ] {
         let mut args = vec!["create", id];
         args.extend(range);
@@ -383,6 +383,10 @@ fn client_ranges_are_checked_and_create_takes_lo_comma_hi() {
     }
     let output = client(&server.url, &token, &["create", "x", "--range", "5"]);
     assert_eq!(output.status.code(), Some(2));
+    // Two numbers are one argument: a second one is not taken (nor a flag after the range).
+    let output = client(&server.url, &token, &["create", "x", "--range", "0", "10"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("unexpected argument '10'"));
     let output = client(&server.url, &token, &["--json", "view", "temp"]);
     let view: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(view["range"], serde_json::json!([-5.0, 5.0]));
