@@ -237,6 +237,11 @@ pub enum ClientCommand {
         /// argument, so that the flag after it stays a flag.
         #[arg(long, value_delimiter = ',', num_args = 1, allow_hyphen_values = true)]
         range: Option<Vec<f64>>,
+        /// A calendar of days off (one `YYYY-MM-DD` UTC date per line, optionally a name, as
+        /// `eval --days-off` reads it): observations on those days are not learned, and the
+        /// days are predicted as the Sunday before.
+        #[arg(long)]
+        days_off: Option<PathBuf>,
     },
     /// Remove a model.
     Remove {

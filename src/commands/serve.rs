@@ -10,7 +10,8 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use chronomap_client::Client;
 use chronomap_client::api::{TimeRangeError, time_range};
-use chronomap_serve::api::{EvaluateRequest, ForecastRequest};
+use chronomap_core::calendar::DaysOff;
+use chronomap_serve::api::{CreateRequest, EvaluateRequest, ForecastRequest};
 use chronomap_serve::bt_monitor::{BtMonitors, MonitorOptions};
 use chronomap_serve::check;
 use chronomap_serve::heavy::HeavyLimits;
@@ -231,6 +232,17 @@ pub fn client(args: &ClientArgs) -> Result<()> {
     runtime.block_on(run_client(&client, &args.command, times, args.json))
 }
 
+/// The days of a calendar as the service takes them: `YYYY-MM-DD`.
+fn dates(days_off: &DaysOff) -> Vec<String> {
+    days_off
+        .days()
+        .map(|day| {
+            let (year, month, day) = chronomap_core::time::civil_from_days(day);
+            format!("{year:04}-{month:02}-{day:02}")
+        })
+        .collect()
+}
+
 async fn run_client(
     client: &Client,
     command: &ClientCommand,
@@ -257,10 +269,26 @@ async fn run_client(
             }
         }
         ClientCommand::View { id } => print_json(&client.view(id).await?)?,
-        ClientCommand::Create { id, model, range } => {
-            let range = range.as_ref().map(|r| [r[0], r[1]]);
+        ClientCommand::Create {
+            id,
+            model,
+            range,
+            days_off,
+        } => {
             // (two values: checked in client())
-            let ack = client.create(id, Some(model), range).await?;
+            let range = range.as_ref().map(|r| [r[0], r[1]]);
+            let days_off = match days_off {
+                Some(path) => Some(dates(
+                    &chronomap_io::read_days_off(path).context("--days-off")?,
+                )),
+                None => None,
+            };
+            let request = CreateRequest {
+                model: Some(model.clone()),
+                range,
+                days_off,
+            };
+            let ack = client.create_with(id, &request).await?;
             if as_json {
                 return print_json(&json!({"id": id, "model": model, "seq": ack.seq}));
             }

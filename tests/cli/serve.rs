@@ -1302,6 +1302,38 @@ fn the_client_prints_json_and_refuses_contradicting_flags_before_connecting() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     json(&["remove", "temperature"]);
+    // A calendar of days off from a file: the training weeks hold no holiday, and Good Friday
+    // is predicted as the Sunday before.
+    json(&[
+        "create",
+        "greg-holidays",
+        "--days-off",
+        "data/calendars/england_wales_2016.txt",
+    ]);
+    json(&["add", "greg-holidays", "--file", TRAIN]);
+    let view = json(&["view", "greg-holidays"]);
+    assert_eq!(view["days_off"]["days"], 8, "{view}");
+    assert_eq!(view["days_off"]["first"], "2016-01-01", "{view}");
+    let v = json(&[
+        "predict",
+        "greg-holidays",
+        "--at",
+        "2016-03-25T10:00Z,2016-03-20T10:00Z,2016-03-24T10:00Z",
+    ]);
+    assert_eq!(v["probability"][0], v["probability"][1], "{v}");
+    assert_eq!(
+        v["probability"][2].as_f64(),
+        Some(reference.predict(1_458_813_600.0)),
+        "{v}"
+    );
+    json(&["remove", "greg-holidays"]);
+    let err = Command::new(env!("CARGO_BIN_EXE_chronomap"))
+        .args(["client", "--url", &server.url, "create", "x", "--days-off"])
+        .arg(TRAIN)
+        .output()
+        .unwrap();
+    assert_eq!(err.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&err.stderr).contains("--days-off"));
     let v = json(&["remove", "greg-door"]);
     assert_eq!(v["removed"], true);
     assert!(json(&["list"])["models"].as_array().unwrap().is_empty());

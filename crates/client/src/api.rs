@@ -156,9 +156,9 @@ pub struct PredictResponse {
     /// With `coverage`, for models with a `range`: the lower ends of the central prediction
     /// intervals, in the range (one per time). The interval is that of the Beta law matched
     /// to the predicted mean and variance of the normalised value, learnt from its values and
-    /// their squares. Absent for binary models, and for models of continuous values without
-    /// an interval yet: those fitted on a whole series before their first fit, and those
-    /// restored from a snapshot written before intervals were served.
+    /// their squares. Absent for binary models, for models fitted on a whole series (`auto`,
+    /// `fremen:auto`, ...: see `docs/service.md`), and for models restored from a snapshot
+    /// written before intervals were served.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lower: Option<Vec<f64>>,
     /// With `coverage`: the upper ends, as `lower`.
