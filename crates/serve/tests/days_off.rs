@@ -5,69 +5,23 @@
 //! a snapshot written before calendars load as they did; and a bad date is a `400` naming the
 //! field and its index.
 
-use std::sync::Arc;
+mod common;
 
-use axum::body::{Body, to_bytes};
-use axum::http::{Request, StatusCode};
+use axum::http::StatusCode;
 use chronomap_core::time::days_from_civil;
-use chronomap_models::{Learner, ModelSpec, RefitPolicy};
+use chronomap_models::{Learner, ModelSpec};
+use chronomap_serve::Service;
 use chronomap_serve::log::LogRecord;
 use chronomap_serve::registry::{Entry, ModelConfig};
 use chronomap_serve::store::{Checkpoint, RedbStore, Store};
-use chronomap_serve::{Service, ServiceConfig};
+use common::{ok, send, start};
 use serde_json::{Value, json};
-use tower::ServiceExt;
 
 const DAY: f64 = 86_400.0;
 
 /// Midnight (UTC) of a day of March 2016.
 fn march(day: u32) -> f64 {
     DAY * days_from_civil(2016, 3, day) as f64
-}
-
-fn start(path: &std::path::Path) -> (Service, tokio::runtime::Runtime) {
-    let store = Arc::new(RedbStore::open(path).unwrap());
-    let service = Service::start(
-        store,
-        ServiceConfig {
-            // Refits only on request, so that the models change only when the test says.
-            refit: RefitPolicy::NEVER,
-            ..ServiceConfig::default()
-        },
-    )
-    .unwrap();
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    (service, runtime)
-}
-
-fn send(
-    service: &Service,
-    runtime: &tokio::runtime::Runtime,
-    method: &str,
-    path: &str,
-    body: &Value,
-) -> (StatusCode, String) {
-    let request = Request::builder()
-        .method(method)
-        .uri(path)
-        .header("host", "127.0.0.1")
-        .header("content-type", "application/json")
-        .body(Body::from(body.to_string()))
-        .unwrap();
-    runtime.block_on(async {
-        let response = service.router().oneshot(request).await.unwrap();
-        let status = response.status();
-        let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
-        (status, String::from_utf8_lossy(&bytes).into_owned())
-    })
-}
-
-fn ok(answer: (StatusCode, String)) -> Value {
-    assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
-    serde_json::from_str(&answer.1).unwrap()
 }
 
 fn bits(value: &Value) -> Vec<u64> {

@@ -4,18 +4,15 @@
 //! a bad `coverage` is a `400` naming the field; and the intervals are bit for bit the same
 //! after recovery by log replay (a crash) and from snapshots (a clean shutdown).
 
-use std::sync::Arc;
+mod common;
 
-use axum::body::{Body, to_bytes};
-use axum::http::{Request, StatusCode};
+use axum::http::StatusCode;
 use chronomap_core::conformance::check_interval_coverage;
 use chronomap_core::rng::Xoshiro256StarStar;
-use chronomap_models::RefitPolicy;
-use chronomap_serve::store::RedbStore;
-use chronomap_serve::{Service, ServiceConfig};
+use chronomap_serve::Service;
+use common::{ok, send, start};
 use serde_json::{Value, json};
 use statrs::distribution::{Beta, ContinuousCDF};
-use tower::ServiceExt;
 
 const DAY: f64 = 86_400.0;
 const START: f64 = 1.7e9;
@@ -33,51 +30,6 @@ fn law_at(t: f64) -> Beta {
 /// A value of the law at `t`, in the model's range.
 fn draw(rng: &mut Xoshiro256StarStar, t: f64) -> f64 {
     RANGE[0] + (RANGE[1] - RANGE[0]) * law_at(t).inverse_cdf(rng.next_f64())
-}
-
-fn start(path: &std::path::Path) -> (Service, tokio::runtime::Runtime) {
-    let store = Arc::new(RedbStore::open(path).unwrap());
-    let service = Service::start(
-        store,
-        ServiceConfig {
-            // Refits only on request, so that the models change only when the test says.
-            refit: RefitPolicy::NEVER,
-            ..ServiceConfig::default()
-        },
-    )
-    .unwrap();
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    (service, runtime)
-}
-
-fn send(
-    service: &Service,
-    runtime: &tokio::runtime::Runtime,
-    method: &str,
-    path: &str,
-    body: &Value,
-) -> (StatusCode, String) {
-    let request = Request::builder()
-        .method(method)
-        .uri(path)
-        .header("host", "127.0.0.1")
-        .header("content-type", "application/json")
-        .body(Body::from(body.to_string()))
-        .unwrap();
-    runtime.block_on(async {
-        let response = service.router().oneshot(request).await.unwrap();
-        let status = response.status();
-        let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
-        (status, String::from_utf8_lossy(&bytes).into_owned())
-    })
-}
-
-fn ok(answer: (StatusCode, String)) -> Value {
-    assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
-    serde_json::from_str(&answer.1).unwrap()
 }
 
 fn floats(value: &Value) -> Vec<f64> {

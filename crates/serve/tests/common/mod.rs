@@ -1,0 +1,60 @@
+//! What the tests that drive one in-process service through its router share: a service on
+//! a redb store that refits only on request, a request and its answer, a `200`'s JSON.
+
+use std::sync::Arc;
+
+use axum::body::{Body, to_bytes};
+use axum::http::{Request, StatusCode};
+use chronomap_models::RefitPolicy;
+use chronomap_serve::store::RedbStore;
+use chronomap_serve::{Service, ServiceConfig};
+use serde_json::Value;
+use tower::ServiceExt;
+
+/// A service on the redb store at `path` (refits only on request, so that the models change
+/// only when the test says) and a runtime to send it requests.
+pub fn start(path: &std::path::Path) -> (Service, tokio::runtime::Runtime) {
+    let store = Arc::new(RedbStore::open(path).unwrap());
+    let service = Service::start(
+        store,
+        ServiceConfig {
+            refit: RefitPolicy::NEVER,
+            ..ServiceConfig::default()
+        },
+    )
+    .unwrap();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    (service, runtime)
+}
+
+/// `method path` with the JSON `body`: the status and the answer's text.
+pub fn send(
+    service: &Service,
+    runtime: &tokio::runtime::Runtime,
+    method: &str,
+    path: &str,
+    body: &Value,
+) -> (StatusCode, String) {
+    let request = Request::builder()
+        .method(method)
+        .uri(path)
+        .header("host", "127.0.0.1")
+        .header("content-type", "application/json")
+        .body(Body::from(body.to_string()))
+        .unwrap();
+    runtime.block_on(async {
+        let response = service.router().oneshot(request).await.unwrap();
+        let status = response.status();
+        let bytes = to_bytes(response.into_body(), usize::MAX).await.unwrap();
+        (status, String::from_utf8_lossy(&bytes).into_owned())
+    })
+}
+
+/// The JSON of a `200` answer (a failure naming the answer otherwise).
+pub fn ok(answer: (StatusCode, String)) -> Value {
+    assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
+    serde_json::from_str(&answer.1).unwrap()
+}
