@@ -14,7 +14,7 @@ use chronomap_serve::Service;
 use chronomap_serve::log::LogRecord;
 use chronomap_serve::registry::{Entry, ModelConfig};
 use chronomap_serve::store::{Checkpoint, RedbStore, Store};
-use common::{ok, send, start};
+use common::{assert_same_after_replay_and_restart, ok, send, start};
 use serde_json::{Value, json};
 
 const DAY: f64 = 86_400.0;
@@ -269,33 +269,13 @@ fn a_calendar_is_not_learned_predicts_its_sundays_and_survives_restarts() {
         }
     }
 
-    // A crash now: a copy of the store file as it is replays the log (no checkpoint yet).
+    // The answers survive a crash (log replay) and a clean restart (snapshots).
     let probe: Vec<f64> = (0..120)
         .map(|i| march(24) + 3600.0 * f64::from(i))
         .collect();
-    let live = answers(&service, &runtime, &probe);
-    let crashed = dir.join("crashed.redb");
-    std::fs::copy(&path, &crashed).unwrap();
-    {
-        let (replayed, runtime) = start(&crashed);
-        assert_eq!(
-            answers(&replayed, &runtime, &probe),
-            live,
-            "after log replay"
-        );
-    }
-    // A clean shutdown writes a checkpoint: the restart loads the snapshots.
-    runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        service.run(listener, async {}).await.unwrap();
+    assert_same_after_replay_and_restart((service, runtime), &path, |service, runtime| {
+        answers(service, runtime, &probe)
     });
-    let (restarted, runtime) = start(&path);
-    assert_eq!(
-        answers(&restarted, &runtime, &probe),
-        live,
-        "after snapshots"
-    );
-    drop(restarted);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

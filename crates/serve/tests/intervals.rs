@@ -10,7 +10,7 @@ use axum::http::StatusCode;
 use chronomap_core::conformance::check_interval_coverage;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_serve::Service;
-use common::{ok, send, start};
+use common::{assert_same_after_replay_and_restart, ok, send, start};
 use serde_json::{Value, json};
 use statrs::distribution::{Beta, ContinuousCDF};
 
@@ -155,30 +155,10 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
     assert_eq!(status, StatusCode::BAD_REQUEST, "{text}");
     assert!(text.contains("field `coverage`"), "{text}");
 
-    // A crash now: a copy of the store file as it is replays the log (no checkpoint yet).
+    // The answers survive a crash (log replay) and a clean restart (snapshots).
     let probe: Vec<f64> = (0..200).map(|i| after + 3000.0 * f64::from(i)).collect();
-    let live = answers(&service, &runtime, &probe);
-    let crashed = dir.join("crashed.redb");
-    std::fs::copy(&path, &crashed).unwrap();
-    {
-        let (replayed, runtime) = start(&crashed);
-        assert_eq!(
-            answers(&replayed, &runtime, &probe),
-            live,
-            "after log replay"
-        );
-    }
-    // A clean shutdown writes a checkpoint: the restart loads the snapshots.
-    runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        service.run(listener, async {}).await.unwrap();
+    assert_same_after_replay_and_restart((service, runtime), &path, |service, runtime| {
+        answers(service, runtime, &probe)
     });
-    let (restarted, runtime) = start(&path);
-    assert_eq!(
-        answers(&restarted, &runtime, &probe),
-        live,
-        "after snapshots"
-    );
-    drop(restarted);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,5 +1,6 @@
 //! What the tests that drive one in-process service through its router share: a service on
-//! a redb store that refits only on request, a request and its answer, a `200`'s JSON.
+//! a redb store that refits only on request, a request and its answer, a `200`'s JSON, and
+//! the check that a service answers alike after a crash and after a restart.
 
 use std::sync::Arc;
 
@@ -57,4 +58,28 @@ pub fn send(
 pub fn ok(answer: (StatusCode, String)) -> Value {
     assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
     serde_json::from_str(&answer.1).unwrap()
+}
+
+/// What `answers` says of `service` (whose store is at `path`) is said again, bit for bit, by
+/// a service recovered from a copy of the store as it is now (a crash: the log is replayed)
+/// and, after a clean shutdown of `service` (which writes a checkpoint), by one restarted
+/// from the store (the snapshots are loaded).
+pub fn assert_same_after_replay_and_restart(
+    (service, runtime): (Service, tokio::runtime::Runtime),
+    path: &std::path::Path,
+    answers: impl Fn(&Service, &tokio::runtime::Runtime) -> Vec<String>,
+) {
+    let live = answers(&service, &runtime);
+    let crashed = path.with_extension("crashed.redb");
+    std::fs::copy(path, &crashed).unwrap();
+    {
+        let (replayed, runtime) = start(&crashed);
+        assert_eq!(answers(&replayed, &runtime), live, "after log replay");
+    }
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        service.run(listener, async {}).await.unwrap();
+    });
+    let (restarted, runtime) = start(path);
+    assert_eq!(answers(&restarted, &runtime), live, "after snapshots");
 }
