@@ -345,6 +345,7 @@ fn parameters_are_ros_parameters_that_rclpy_lists_gets_and_sets() {
     assert_eq!(
         r["list"],
         json!([
+            "days_off_file",
             "horizon",
             "map_period",
             "max_map_cells",
