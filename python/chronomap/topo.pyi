@@ -58,9 +58,13 @@ class EdgeModels:
         ``[d, deadline plan, expected-time plan]``), ``deadline_secs``, ``confidence``,
         ``bucket_secs`` (default ``max(deadline / 600, 1)``), ``duration_quantiles``,
         ``product_states``, ``seconds``, ``task``, ``from``, ``time``, ``utc``."""
-    def now_or_later(self, start: str, task: str, times: npt.ArrayLike) -> Dict[str, Any]:
+    def now_or_later(self, start: str, task: str, times: npt.ArrayLike, *,
+                     deadline: Optional[float] = None,
+                     bucket_secs: Optional[float] = None) -> Dict[str, Any]:
         """The plan at each of ``times``: arrays ``time``, ``pmax``, ``expected_secs`` and the
-        list ``first_edge``."""
+        list ``first_edge``. With ``deadline`` (seconds), also the plan most likely to arrive
+        in time at each: arrays ``deadline_probability``, ``min_time_probability``, the list
+        ``deadline_first_edge``, and ``deadline_secs``, ``bucket_secs``."""
     def save(self, path: _Path) -> None:
         """Writes the edge-model file ``chronomap topo fit -o`` writes."""
     @property

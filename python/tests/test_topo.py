@@ -99,6 +99,34 @@ def test_now_or_later_agrees_with_the_day_table(fitted, cli):
     assert len(set(np.round(mine["pmax"], 6))) > 1  # it does depend on the time
 
 
+def test_now_or_later_with_a_deadline_agrees_with_the_day_table(fitted, cli):
+    models, py_file, _ = fitted
+    table = cli("plan", "--model", py_file, "--from", "Kitchen", "--task", "F Station",
+                "--day-table", "--days", "1", "--step-mins", "180", "--deadline", "100",
+                json_output=True)
+    plans = table["plans"]
+    times = np.array([p["time"] for p in plans])
+    mine = models.now_or_later("Kitchen", "F Station", times, deadline=100)
+    assert mine["deadline_secs"] == table["deadline_secs"] == 100
+    assert mine["bucket_secs"] == table["bucket_secs"] == 1.0
+    for key in ("deadline_probability", "min_time_probability", "pmax"):
+        np.testing.assert_array_equal(mine[key], [p[key] for p in plans], err_msg=key)
+    assert mine["deadline_first_edge"] == [p["deadline_first_edge"] for p in plans]
+    # The deadline plan is never less likely in time than the expected-time plan, nor than Pmax.
+    assert np.all(mine["min_time_probability"] <= mine["deadline_probability"])
+    assert np.all(mine["deadline_probability"] <= mine["pmax"])
+    # One start time is the plan of that time alone.
+    alone = models.plan("Kitchen", "F Station", float(times[4]), deadline=100)
+    assert alone["probability"] == mine["deadline_probability"][4]
+    assert "deadline_probability" not in models.now_or_later("Kitchen", "F Station", times)
+    with pytest.raises(ValueError, match="bucket_secs: the bucket width 101 s is wider than the deadline 100 s"):
+        models.now_or_later("Kitchen", "F Station", times, deadline=100, bucket_secs=101)
+    with pytest.raises(ValueError, match="deadline: nan is not a finite number|deadline: NaN is not a finite number"):
+        models.now_or_later("Kitchen", "F Station", times, deadline=float("nan"))
+    with pytest.raises(ValueError, match="bucket_secs: only with deadline"):
+        models.now_or_later("Kitchen", "F Station", times, bucket_secs=1.0)
+
+
 def test_a_model_file_of_the_cli_loads(fitted):
     models, _, cli_file = fitted
     loaded = load_edge_models(cli_file)

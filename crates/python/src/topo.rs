@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use chronomap_app::topo::deadline_report;
 use chronomap_io::{read_edge_directory, read_edge_models, write_edge_models};
-use chronomap_topo::deadline::DeadlineError;
+use chronomap_topo::deadline::{DeadlineError, DeadlineOptions, now_or_later_by_deadline};
 use chronomap_topo::duration_intervals::MAX_COVERAGE;
 use chronomap_topo::edges::{EdgeModelConfig, EdgeModels};
 use chronomap_topo::mdp::SolverOptions;
@@ -35,6 +35,21 @@ fn check_time(name: &str, time: f64) -> PyResult<()> {
 const DEFAULT_CONFIDENCE: f64 = 0.95;
 
 /// Checks that `value` is a probability, as `chronomap topo fit --prior/--floor` do.
+/// A deadline planner's error as a ValueError naming the argument at fault: the deadline, or
+/// the bucket width when it was given (too many cells without one: the deadline).
+fn deadline_error(e: DeadlineError, bucket_given: bool) -> PyErr {
+    match e {
+        DeadlineError::InvalidDeadline(_) => PyValueError::new_err(format!("deadline: {e}")),
+        DeadlineError::TooManyCells { .. } if !bucket_given => {
+            PyValueError::new_err(format!("deadline: {e}"))
+        }
+        DeadlineError::InvalidBucket(_)
+        | DeadlineError::BucketWiderThanDeadline { .. }
+        | DeadlineError::TooManyCells { .. } => PyValueError::new_err(format!("bucket_secs: {e}")),
+        e => PyValueError::new_err(e.to_string()),
+    }
+}
+
 fn probability(name: &str, value: f64) -> PyResult<f64> {
     if (0.0..=1.0).contains(&value) {
         Ok(value)
@@ -131,6 +146,24 @@ impl PyEdgeModels {
         Ok(dict)
     }
 
+    /// The deadline and bucket width of `plan` and `now_or_later`, checked (a ValueError
+    /// naming the argument).
+    fn check_deadline(deadline: f64, bucket_secs: Option<f64>) -> PyResult<()> {
+        if !(deadline.is_finite() && deadline > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "deadline: {deadline} is not a finite number of seconds > 0"
+            )));
+        }
+        if let Some(width) = bucket_secs
+            && !(width.is_finite() && width > 0.0)
+        {
+            return Err(PyValueError::new_err(format!(
+                "bucket_secs: {width} is not a finite number of seconds > 0"
+            )));
+        }
+        Ok(())
+    }
+
     /// `plan` with a deadline: [`deadline_report`] as a dict.
     fn plan_deadline<'py>(
         &self,
@@ -140,19 +173,8 @@ impl PyEdgeModels {
         confidence: Option<f64>,
         bucket_secs: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        if !(deadline.is_finite() && deadline > 0.0) {
-            return Err(PyValueError::new_err(format!(
-                "deadline: {deadline} is not a finite number of seconds > 0"
-            )));
-        }
+        Self::check_deadline(deadline, bucket_secs)?;
         let confidence = probability("confidence", confidence.unwrap_or(DEFAULT_CONFIDENCE))?;
-        if let Some(width) = bucket_secs
-            && !(width.is_finite() && width > 0.0)
-        {
-            return Err(PyValueError::new_err(format!(
-                "bucket_secs: {width} is not a finite number of seconds > 0"
-            )));
-        }
         let (start_node, parsed) = self.start_and_task(start, task)?;
         let models = &self.models;
         let report = py
@@ -167,18 +189,7 @@ impl PyEdgeModels {
                     confidence,
                 )
             })
-            .map_err(|e| match e {
-                DeadlineError::InvalidDeadline(_) => {
-                    PyValueError::new_err(format!("deadline: {e}"))
-                }
-                DeadlineError::TooManyCells { .. } if bucket_secs.is_none() => {
-                    PyValueError::new_err(format!("deadline: {e}"))
-                }
-                DeadlineError::InvalidBucket(_) | DeadlineError::TooManyCells { .. } => {
-                    PyValueError::new_err(format!("bucket_secs: {e}"))
-                }
-                e => PyValueError::new_err(e.to_string()),
-            })?;
+            .map_err(|e| deadline_error(e, bucket_secs.is_some()))?;
         let dict = PyDict::new(py);
         dict.set_item("task", &report.task)?;
         dict.set_item("from", &report.from)?;
@@ -417,13 +428,20 @@ impl PyEdgeModels {
     /// "Now or later?" ([Fentanes 2015] Table III): the plan of `task` from `start` at each of
     /// `times` (float64 seconds). A dict with the arrays `time`, `pmax`, `expected_secs` and the
     /// list `first_edge` (edge ids or None), as `chronomap plan --day-table --json` gives per
-    /// start time.
+    /// start time. With `deadline` (seconds > 0; `bucket_secs` as for `plan`), also the plan
+    /// most likely to fulfil the task within it at each time, as `chronomap plan --day-table
+    /// --deadline --json`: the arrays `deadline_probability` and `min_time_probability` (the
+    /// expected-time plan's probability in time), the list `deadline_first_edge`, and
+    /// `deadline_secs`, `bucket_secs`. The GIL is released while it plans.
+    #[pyo3(signature = (start, task, times, *, deadline = None, bucket_secs = None))]
     fn now_or_later<'py>(
         &self,
         py: Python<'py>,
         start: &str,
         task: &str,
         times: &Bound<'py, PyAny>,
+        deadline: Option<f64>,
+        bucket_secs: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let times = arrays::time_array(times, "times")?;
         let times = times.as_slice();
@@ -457,6 +475,52 @@ impl PyEdgeModels {
         dict.set_item(
             "first_edge",
             plans
+                .iter()
+                .map(|p| p.first_edge.map(|e| edges[e].id.clone()))
+                .collect::<Vec<_>>(),
+        )?;
+        let Some(deadline) = deadline else {
+            if bucket_secs.is_some() {
+                return Err(PyValueError::new_err("bucket_secs: only with deadline"));
+            }
+            return Ok(dict);
+        };
+        Self::check_deadline(deadline, bucket_secs)?;
+        let options = DeadlineOptions {
+            bucket_secs,
+            ..DeadlineOptions::default()
+        };
+        let by_deadline = py
+            .detach(|| {
+                now_or_later_by_deadline(
+                    models,
+                    start_node,
+                    &parsed,
+                    times,
+                    deadline,
+                    &options,
+                    || {},
+                )
+            })
+            .map_err(|e| deadline_error(e, bucket_secs.is_some()))?;
+        dict.set_item("deadline_secs", deadline)?;
+        if let Some(plan) = by_deadline.first() {
+            dict.set_item("bucket_secs", plan.bucket_secs)?;
+        }
+        dict.set_item(
+            "deadline_probability",
+            to_numpy(py, by_deadline.iter().map(|p| p.probability).collect()),
+        )?;
+        dict.set_item(
+            "min_time_probability",
+            to_numpy(
+                py,
+                by_deadline.iter().map(|p| p.min_time_probability).collect(),
+            ),
+        )?;
+        dict.set_item(
+            "deadline_first_edge",
+            by_deadline
                 .iter()
                 .map(|p| p.first_edge.map(|e| edges[e].id.clone()))
                 .collect::<Vec<_>>(),

@@ -777,6 +777,31 @@ fn default_bucket_secs(deadline_secs: f64) -> f64 {
         .min(deadline_secs)
 }
 
+/// "Now or later, to be there in time?": the deadline plan ([`plan_deadline`]) at each of
+/// `times`, the now-or-later question of [Fentanes 2015] Table III asked of a deadline.
+/// `planned` is called after each time (for progress: one plan can take seconds).
+///
+/// # Errors
+/// As [`plan_deadline`], for the first time that cannot be planned.
+pub fn now_or_later_by_deadline(
+    models: &EdgeModels,
+    start: usize,
+    task: &Task,
+    times: &[f64],
+    deadline_secs: f64,
+    options: &DeadlineOptions,
+    mut planned: impl FnMut(),
+) -> Result<Vec<DeadlinePlan>, DeadlineError> {
+    times
+        .iter()
+        .map(|&time| {
+            let plan = plan_deadline(models, start, task, time, deadline_secs, options);
+            planned();
+            plan.map(|d| d.plan)
+        })
+        .collect()
+}
+
 /// The bucket width and `K` for a deadline.
 ///
 /// # Errors

@@ -6,7 +6,7 @@
 
 use thiserror::Error;
 
-use crate::deadline::{DeadlineError, DeadlineOptions, DeadlinePlan, plan_deadline};
+use crate::deadline::{DeadlineError, DeadlineOptions, DeadlinePlan, now_or_later_by_deadline};
 use crate::edges::{Attempt, EdgeEvaluation, EdgeModels};
 use crate::map::{TopoError, TopoMap};
 use crate::mdp::SolverOptions;
@@ -310,14 +310,14 @@ impl WeekTable {
     }
 
     /// Adds the plan most likely to fulfil `task` from `start` within `deadline_secs` of every
-    /// start time ([`plan_deadline`]): "when to leave to be there in time?", the now-or-later
+    /// start time ([`now_or_later_by_deadline`]): "when to leave to be there in time?", the now-or-later
     /// question of [Fentanes 2015] Table III asked of a deadline instead of the expected time.
     /// The codes then name the deadline plans' first edges. `planned` is called after each
     /// start time (for progress: one deadline plan can take seconds).
     ///
     /// # Errors
-    /// As [`plan_deadline`], for the first start time that cannot be planned; the table is
-    /// then unchanged.
+    /// As [`crate::deadline::plan_deadline`], for the first start time that cannot be
+    /// planned; the table is then unchanged.
     pub fn add_deadline(
         &mut self,
         models: &EdgeModels,
@@ -325,17 +325,11 @@ impl WeekTable {
         task: &Task,
         deadline_secs: f64,
         options: &DeadlineOptions,
-        mut planned: impl FnMut(),
+        planned: impl FnMut(),
     ) -> Result<(), DeadlineError> {
-        let plans = self
-            .plans
-            .iter()
-            .map(|p| {
-                let plan = plan_deadline(models, start, task, p.time, deadline_secs, options);
-                planned();
-                plan.map(|d| d.plan)
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let times: Vec<f64> = self.plans.iter().map(|p| p.time).collect();
+        let plans =
+            now_or_later_by_deadline(models, start, task, &times, deadline_secs, options, planned)?;
         self.first_edges = distinct_edges(plans.iter().map(|p| p.first_edge));
         self.deadline_plans = plans;
         Ok(())
