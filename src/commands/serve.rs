@@ -10,7 +10,6 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use chronomap_client::Client;
 use chronomap_client::api::{TimeRangeError, time_range};
-use chronomap_core::calendar::DaysOff;
 use chronomap_serve::api::{CreateRequest, EvaluateRequest, ForecastRequest};
 use chronomap_serve::bt_monitor::{BtMonitors, MonitorOptions};
 use chronomap_serve::check;
@@ -232,17 +231,6 @@ pub fn client(args: &ClientArgs) -> Result<()> {
     runtime.block_on(run_client(&client, &args.command, times, args.json))
 }
 
-/// The days of a calendar as the service takes them: `YYYY-MM-DD`.
-fn dates(days_off: &DaysOff) -> Vec<String> {
-    days_off
-        .days()
-        .map(|day| {
-            let (year, month, day) = chronomap_core::time::civil_from_days(day);
-            format!("{year:04}-{month:02}-{day:02}")
-        })
-        .collect()
-}
-
 async fn run_client(
     client: &Client,
     command: &ClientCommand,
@@ -278,9 +266,14 @@ async fn run_client(
             // (two values: checked in client())
             let range = range.as_ref().map(|r| [r[0], r[1]]);
             let days_off = match days_off {
-                Some(path) => Some(dates(
-                    &chronomap_io::read_days_off(path).context("--days-off")?,
-                )),
+                // The days as the service takes them: `YYYY-MM-DD`.
+                Some(path) => Some(
+                    chronomap_io::read_days_off(path)
+                        .context("--days-off")?
+                        .days()
+                        .map(chronomap_core::time::format_date)
+                        .collect(),
+                ),
                 None => None,
             };
             let request = CreateRequest {

@@ -484,7 +484,7 @@ impl Inspection {
                 })
             }
             AnyModel::Calendar(m) => json!({
-                "days_off": m.days_off().days().map(iso_date).collect::<Vec<_>>(),
+                "days_off": m.days_off().days().map(chronomap_core::time::format_date).collect::<Vec<_>>(),
                 "model": m.model().spec().to_string(),
                 "details": self.detail_json(m.model()),
             }),
@@ -498,12 +498,6 @@ impl Inspection {
     }
 }
 
-/// A date (days since 1970-01-01) as `YYYY-MM-DD`.
-fn iso_date(days: i64) -> String {
-    let (y, m, d) = chronomap_core::time::civil_from_days(days);
-    format!("{y:04}-{m:02}-{d:02}")
-}
-
 /// `days off: 8 (2016-01-01 .. 2016-12-27)`.
 fn calendar_line(days_off: &DaysOff) -> String {
     let mut days = days_off.days();
@@ -511,8 +505,8 @@ fn calendar_line(days_off: &DaysOff) -> String {
         (Some(first), last) => format!(
             "days off: {} ({} .. {}), predicted as the Sunday before",
             days_off.len(),
-            iso_date(first),
-            iso_date(last.unwrap_or(first))
+            chronomap_core::time::format_date(first),
+            chronomap_core::time::format_date(last.unwrap_or(first))
         ),
         (None, _) => "days off: none".to_string(),
     }

@@ -113,13 +113,18 @@ impl DaysOff {
         (Cow::Owned(times), Cow::Owned(values))
     }
 
+    /// The times whose predictions stand for `times`: each day off moved to its
+    /// [stand-in](Self::stand_in). Without days off, `times` themselves, not a copy.
+    pub fn stand_ins<'a>(&self, times: &'a [f64]) -> Cow<'a, [f64]> {
+        if self.is_empty() {
+            return Cow::Borrowed(times);
+        }
+        times.iter().map(|&t| self.stand_in(t)).collect()
+    }
+
     /// `model`'s predictions at `times`, each day off predicted by its [stand-in](Self::stand_in).
     pub fn predict_many<M: TemporalModel + ?Sized>(&self, model: &M, times: &[f64]) -> Vec<f64> {
-        if self.is_empty() {
-            return model.predict_many(times);
-        }
-        let stand_ins: Vec<f64> = times.iter().map(|&t| self.stand_in(t)).collect();
-        model.predict_many(&stand_ins)
+        model.predict_many(&self.stand_ins(times))
     }
 }
 

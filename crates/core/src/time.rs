@@ -68,6 +68,33 @@ pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
     (if m <= 2 { y + 1 } else { y }, m, d)
 }
 
+/// A date (days since 1970-01-01) as `YYYY-MM-DD`.
+///
+/// ```
+/// assert_eq!(chronomap_core::time::format_date(16_885), "2016-03-25");
+/// ```
+pub fn format_date(days: i64) -> String {
+    let (year, month, day) = civil_from_days(days);
+    format!("{year:04}-{month:02}-{day:02}")
+}
+
+/// Days since 1970-01-01 of a date written exactly `YYYY-MM-DD` (a UTC date, as calendars of
+/// days off give them); `None` for anything else or a date that does not exist.
+///
+/// ```
+/// use chronomap_core::time::parse_date;
+/// assert_eq!(parse_date("2016-03-25"), Some(16_885));
+/// assert_eq!(parse_date("2016-02-30"), None);
+/// assert_eq!(parse_date("2016-03-25T00:00Z"), None);
+/// ```
+pub fn parse_date(text: &str) -> Option<i64> {
+    (text.len() == "YYYY-MM-DD".len())
+        .then(|| parse_iso8601(text).ok())
+        .flatten()
+        // A date alone is its midnight UTC: a whole number of days.
+        .map(|t| (t / DAY_SECS as f64).floor() as i64)
+}
+
 /// Days since 1970-01-01 of the Gregorian date `year-month-day` (Hinnant's
 /// `days_from_civil`). The date is not checked: see [`days_in_month`].
 pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {

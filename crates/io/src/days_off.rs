@@ -7,7 +7,7 @@ use std::io::Read;
 use std::path::Path;
 
 use chronomap_core::calendar::DaysOff;
-use chronomap_core::time::parse_iso8601;
+use chronomap_core::time::parse_date;
 
 use crate::text::{DataError, DataErrorKind, Fields, for_each_data_line, quote, read_data_file};
 
@@ -34,11 +34,9 @@ pub fn read_days_off_from(name: &str, reader: impl Read) -> Result<DaysOff, Data
         let date = Fields::new(line).next().unwrap_or_default();
         let day = std::str::from_utf8(date)
             .ok()
-            .filter(|d| d.len() == "YYYY-MM-DD".len())
-            .and_then(|d| parse_iso8601(d).ok())
+            .and_then(parse_date)
             .ok_or_else(|| DataErrorKind::BadDate { text: quote(date) })?;
-        // A date alone is its midnight UTC: a whole number of days.
-        days.insert((day / 86_400.0).floor() as i64);
+        days.insert(day);
         Ok(())
     })?;
     Ok(DaysOff::new(days))

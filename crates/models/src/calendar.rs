@@ -98,8 +98,8 @@ impl TemporalModel for OnCalendar {
     }
 
     fn predict_into(&self, times: &[f64], out: &mut [f64]) {
-        let stand_ins: Vec<f64> = times.iter().map(|&t| self.days_off.stand_in(t)).collect();
-        self.model.predict_into(&stand_ins, out);
+        self.model
+            .predict_into(&self.days_off.stand_ins(times), out);
     }
 
     fn span(&self) -> ObservedSpan {

@@ -527,7 +527,9 @@ impl Export<'_> {
                 times.clear();
                 times.extend((k..end).map(|k| grid.time(k)));
                 // A day off of the model's calendar is predicted at its stand-in.
-                let probabilities = entry.model.predict_many(&entry.config.stand_ins(&times));
+                let probabilities = entry
+                    .model
+                    .predict_many(&entry.config.days_off.stand_ins(&times));
                 rows.clear();
                 rows.extend(
                     times

@@ -75,25 +75,19 @@ pub fn parse_days_off(dates: &[String]) -> Result<DaysOff, String> {
     }
     let mut days = Vec::with_capacity(dates.len());
     for (i, date) in dates.iter().enumerate() {
-        let day = (date.len() == "YYYY-MM-DD".len())
-            .then(|| chronomap_core::time::parse_iso8601(date).ok())
-            .flatten()
-            .filter(|t| (0.0..=chronomap_core::observe::MAX_TIME_SECS).contains(t))
+        let day = chronomap_core::time::parse_date(date)
+            .filter(|&day| {
+                (0.0..=chronomap_core::observe::MAX_TIME_SECS).contains(&(day as f64 * DAY))
+            })
             .ok_or_else(|| {
                 format!(
                     "field `days_off`, element {i}: {date:?} is not a UTC date YYYY-MM-DD \
                      between 1970-01-01 and the largest time (about the year 5138)"
                 )
             })?;
-        days.push((day / DAY).floor() as i64);
+        days.push(day);
     }
     Ok(DaysOff::new(days))
-}
-
-/// A day as the API writes it: `YYYY-MM-DD`.
-pub fn format_day(day: i64) -> String {
-    let (year, month, day) = chronomap_core::time::civil_from_days(day);
-    format!("{year:04}-{month:02}-{day:02}")
 }
 
 /// Seconds in a day.
@@ -129,20 +123,6 @@ impl ModelConfig {
     /// This configuration with the calendar `days_off`.
     pub fn with_days_off(self, days_off: DaysOff) -> Self {
         ModelConfig { days_off, ..self }
-    }
-
-    /// The times whose predictions stand for `times`: a time on a day off is moved to its
-    /// [stand-in](DaysOff::stand_in); without a calendar, `times` itself.
-    pub fn stand_ins<'a>(&self, times: &'a [f64]) -> std::borrow::Cow<'a, [f64]> {
-        if self.days_off.is_empty() {
-            return std::borrow::Cow::Borrowed(times);
-        }
-        times.iter().map(|&t| self.days_off.stand_in(t)).collect()
-    }
-
-    /// The time whose prediction stands for `time` ([`ModelConfig::stand_ins`]).
-    pub fn stand_in(&self, time: f64) -> f64 {
-        self.days_off.stand_in(time)
     }
 
     /// The learner this configuration describes, having seen nothing.
@@ -283,21 +263,18 @@ impl Entry {
         };
         let observation = |e| ApplyError::Observation(id.to_owned(), e);
         let days_off = &self.config.days_off;
-        let (times, normalised, skipped) = if days_off.is_empty() {
-            (Cow::Borrowed(times), normalised, 0)
+        let batch = times.len();
+        let (times, normalised) = if days_off.is_empty() {
+            (Cow::Borrowed(times), Cow::Borrowed(&*normalised))
         } else {
-            // The whole batch is checked, so that an error names the index the client gave
-            // (and an observation on a day off is held to the contract too).
+            // The whole batch is checked (one value per time among it), so that an error
+            // names the index the client gave (and an observation on a day off is held to the
+            // contract too).
             chronomap_core::observe::validate(self.model.span().last_time(), times, &normalised)
                 .map_err(observation)?;
-            let (kept, kept_values) = days_off.working_days(times, &normalised);
-            let skipped = (times.len() - kept.len()) as u64;
-            (
-                Cow::Owned(kept.into_owned()),
-                Cow::Owned(kept_values.into_owned()),
-                skipped,
-            )
+            days_off.working_days(times, &normalised)
         };
+        let skipped = (batch - times.len()) as u64;
         self.model
             .observe(&times, &normalised)
             .and_then(|()| {
@@ -428,8 +405,8 @@ impl Entry {
         let days = &self.config.days_off;
         Some(DaysOffInfo {
             days: days.len() as u64,
-            first: format_day(days.days().next()?),
-            last: format_day(days.days().last()?),
+            first: chronomap_core::time::format_date(days.days().next()?),
+            last: chronomap_core::time::format_date(days.days().last()?),
             skipped: self.skipped,
         })
     }

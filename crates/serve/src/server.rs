@@ -1315,7 +1315,7 @@ async fn predictions(
                     }
                     // A time on a day off is asked at its stand-in, for the value and the
                     // second moment alike.
-                    let times = config.stand_ins(&request.times);
+                    let times = config.days_off.stand_ins(&request.times);
                     let values = model.predict_many(&times);
                     let scaled = (scaled && config.range.is_some())
                         .then(|| values.iter().map(|&p| config.scale(p)).collect());
@@ -1443,7 +1443,9 @@ async fn forecasts(
                     let model = entry
                         .with_order(order)
                         .map_err(|e| ApiError::bad_request(format!("ids[{i}]: {e}")))?;
-                    values.push(map(model.predict(entry.config.stand_in(request.time))));
+                    values.push(map(
+                        model.predict(entry.config.days_off.stand_in(request.time))
+                    ));
                 }
             }
             json_bytes(&ForecastResponse { values })
@@ -1559,7 +1561,7 @@ async fn evaluate(
                 .collect();
             let binary = targets.iter().all(|&v| v == 0.0 || v == 1.0);
             // Days off are scored against their stand-ins' predictions, as they are answered.
-            let times = entry.config.stand_ins(&request.times);
+            let times = entry.config.days_off.stand_ins(&request.times);
             let scored = |models: &[&AnyModel]| score(models, &times, &targets, binary, cancel);
             let (errors, brier) = match class {
                 Class::Light => scored(&models.iter().map(|m| &**m).collect::<Vec<_>>())?,
@@ -1674,7 +1676,7 @@ async fn detect(
                             return Err(heavy::cancelled());
                         }
                         anomalies.extend(times.iter().zip(values).filter_map(|(&time, &value)| {
-                            let p = model.predict(config.stand_in(time));
+                            let p = model.predict(config.days_off.stand_in(time));
                             ((config.normalise(value) - p).abs() >= request.confidence).then(|| {
                                 Anomaly {
                                     time,

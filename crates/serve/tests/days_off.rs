@@ -284,7 +284,7 @@ fn bad_calendars_are_refused_naming_the_field_and_the_index() {
     let dir = temp_dir("days-off-bad");
     let (service, runtime) = start(&dir.join("chronomap.redb"));
     let too_many: Vec<String> = (0..=chronomap_serve::api::MAX_DAYS_OFF as i64)
-        .map(|d| chronomap_serve::registry::format_day(16_000 + d))
+        .map(|d| chronomap_core::time::format_date(16_000 + d))
         .collect();
     for (days_off, expected) in [
         (json!(["2016-03-25", "2016-02-30"]), "element 1"),
