@@ -605,9 +605,7 @@ impl World {
         value: f64,
     ) -> Result<bool, LearnError> {
         if self.config.days_off.contains(time) {
-            if !(0.0..=1.0).contains(&value) {
-                return Err(LearnError::Value(value));
-            }
+            check_state_value(value)?;
             self.states[index].days_off += 1;
             return Ok(false);
         }
@@ -624,9 +622,7 @@ impl World {
 
     /// Learns a state observation (live or replayed).
     fn learn_state(&mut self, index: usize, time: f64, value: f64) -> Result<(), LearnError> {
-        if !(0.0..=1.0).contains(&value) {
-            return Err(LearnError::Value(value));
-        }
+        check_state_value(value)?;
         let slot = &mut self.states[index];
         slot.model.observe(&[time], &[value])?;
         slot.learned += 1;
@@ -1123,6 +1119,15 @@ fn cell_of(g: &GridGeometry, p: &Point) -> Option<usize> {
     let y = ((p.y - g.origin[1]) / g.resolution).floor();
     let inside = x >= 0.0 && y >= 0.0 && x < f64::from(g.width) && y < f64::from(g.height);
     inside.then(|| y as usize * g.width as usize + x as usize)
+}
+
+/// A state's observed value must lie in [0, 1] (on a day off too, though it is not learned).
+fn check_state_value(value: f64) -> Result<(), LearnError> {
+    if (0.0..=1.0).contains(&value) {
+        Ok(())
+    } else {
+        Err(LearnError::Value(value))
+    }
 }
 
 mod store;
