@@ -25,9 +25,10 @@
 //! ## Layout
 //! * [`TemporalModel`] — the one trait of a state over time; [`Ordered`] — models whose
 //!   order can change without re-observing. [`conformance`] checks any implementation.
-//! * Models: [`MeanModel`], [`HistogramModel`], [`FremenModel`] (non-uniform incremental
-//!   FreMEn), [`PersistenceModel`], [`MarkovModel`] (short-term memory), [`PergamModel`]
-//!   (periodic Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
+//! * Models: [`MeanModel`], [`HistogramModel`] (and [`recent::RecentHistogram`], which
+//!   forgets all but the last cycles), [`FremenModel`] (non-uniform incremental FreMEn),
+//!   [`PersistenceModel`], [`MarkovModel`] (short-term memory), [`PergamModel`] (periodic
+//!   Gaussian mixture), [`FftFremen`] (FFT FreMEn with outlier set).
 //! * [`select`] — order and model selection on held-back data. [`stacking`] — weights that
 //!   combine models' out-of-sample predictions. [`anomaly`] — anomaly
 //!   detection. [`metrics`] — Brier score, binary error, paired t-tests. [`calibration`] —
@@ -66,6 +67,7 @@ pub mod pergam;
 pub mod periods;
 pub mod persistence;
 pub mod progress;
+pub mod recent;
 /// Seeded pseudo-random numbers (the `chronomap-rng` crate).
 pub use chronomap_rng as rng;
 pub mod select;
