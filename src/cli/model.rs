@@ -4,9 +4,9 @@
 use super::*;
 
 pub(super) const EVAL_HELP: &str = "\
-Models: mean, hist:N[:PERIOD], fremen:K, fremen:auto, persistence[:K|auto], stm,
-pergam:K[:PERIOD], pergam:auto, fft:L|auto (uniform binary data), hyt-em:K|auto, hyt-km
-(Warped Hypertime), auto.
+Models: mean, hist:N[:PERIOD], recent:N[:PERIOD[:CYCLES]], fremen:K, fremen:auto,
+persistence[:K|auto], stm, pergam:K[:PERIOD], pergam:auto, fft:L|auto (uniform binary data),
+hyt-em:K|auto, hyt-km (Warped Hypertime), auto.
 
 Example:
   chronomap eval --train data/door_greg_2016/training_data.txt.xz \\

@@ -229,7 +229,8 @@ pub enum ClientCommand {
     Create {
         /// Model id.
         id: String,
-        /// Model spec: fremen:K, persistence:K, hist:N, pergam:K, stm, mean learn online; auto,
+        /// Model spec: fremen:K, persistence:K, hist:N, recent:N:PERIOD:CYCLES, pergam:K, stm,
+        /// mean learn online; auto,
         /// fremen:auto, pergam:auto, fft:L, ... keep their observations and are refitted.
         #[arg(long, default_value = "fremen:2")]
         model: String,

@@ -311,15 +311,17 @@ impl Inspection {
                     h.bins(),
                     period(h.period_secs())
                 ));
-                let mut table = Table::new(["bin", "from", "mean"]);
-                for (i, mean) in h.bin_means().iter().enumerate() {
-                    table.row([
-                        i.to_string(),
-                        duration(bin_start(h.period_secs(), h.bins(), i)),
-                        mean.map_or("-".into(), |m| format!("{m:.4}")),
-                    ]);
-                }
-                out.push(table.render());
+                out.push(bin_table(h.period_secs(), &h.bin_means()));
+            }
+            AnyModel::Recent(h) => {
+                out.push(format!(
+                    "bins:   {} over {}, of the last {} periods ({} observations)",
+                    h.bins(),
+                    period(h.period_secs()),
+                    h.cycles(),
+                    h.window_count()
+                ));
+                out.push(bin_table(h.period_secs(), &h.bin_means()));
             }
             AnyModel::Fremen(m) => out.push(fremen_text(m, self.spectrum)),
             AnyModel::Persistence(m) => {
@@ -438,9 +440,15 @@ impl Inspection {
                 "bins": h.bins(),
                 "period_secs": h.period_secs(),
                 "bin_means": h.bin_means(),
-                "bin_starts_secs": (0..h.bins())
-                    .map(|i| bin_start(h.period_secs(), h.bins(), i))
-                    .collect::<Vec<_>>(),
+                "bin_starts_secs": bin_starts(h.period_secs(), h.bins()),
+            }),
+            AnyModel::Recent(h) => json!({
+                "bins": h.bins(),
+                "period_secs": h.period_secs(),
+                "cycles": h.cycles(),
+                "window_observations": h.window_count(),
+                "bin_means": h.bin_means(),
+                "bin_starts_secs": bin_starts(h.period_secs(), h.bins()),
             }),
             AnyModel::Fremen(m) => json!({"fremen": fremen_json(m, self.spectrum)}),
             AnyModel::Persistence(m) => json!({
@@ -515,6 +523,24 @@ fn calendar_line(days_off: &DaysOff) -> String {
 /// Start of histogram bin `i` of `bins` over `period` seconds.
 fn bin_start(period: f64, bins: usize, i: usize) -> f64 {
     period * i as f64 / bins as f64
+}
+
+/// Where each of `bins` bins of a period starts, in seconds.
+fn bin_starts(period: f64, bins: usize) -> Vec<f64> {
+    (0..bins).map(|i| bin_start(period, bins, i)).collect()
+}
+
+/// A histogram's bins: their number, start and mean (`-` for bins never seen).
+fn bin_table(period: f64, means: &[Option<f64>]) -> String {
+    let mut table = Table::new(["bin", "from", "mean"]);
+    for (i, mean) in means.iter().enumerate() {
+        table.row([
+            i.to_string(),
+            duration(bin_start(period, means.len(), i)),
+            mean.map_or("-".into(), |m| format!("{m:.4}")),
+        ]);
+    }
+    table.render()
 }
 
 /// The rows of a FreMEn table: the components in use, or the whole spectrum; and the periods

@@ -395,6 +395,7 @@ fn learns_online(model: &AnyModel) -> bool {
     match model {
         AnyModel::Mean(_)
         | AnyModel::Histogram(_)
+        | AnyModel::Recent(_)
         | AnyModel::Fremen(_)
         | AnyModel::Persistence(_)
         | AnyModel::Markov(_)

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | `mean` | [`MeanModel`], long-term memory ([Santos 2017] §4.3.1) |
 //! | `hist:N[:PERIOD]` | [`HistogramModel`], N bins over PERIOD s (default one week) |
+//! | `recent:N[:PERIOD[:CYCLES]]` | [`RecentHistogram`], the same of the last CYCLES periods only (default 4) |
 //! | `fremen:K`, `fremen:auto` | [`FremenModel`] of order K, or K chosen on held-back data |
 //! | `persistence[:K\|:auto]` | [`PersistenceModel`], FreMEn + persistence ([Krajník 2017] eq. (12)–(13)) |
 //! | `stm` | [`MarkovModel`], short-term memory ([Santos 2017] eq. (5)–(6)) |
@@ -33,6 +34,7 @@ use chronomap_core::par::Parallelism;
 use chronomap_core::pergam::{PergamConfig, PergamModel};
 use chronomap_core::periods::{DAY, PeriodSet, WEEK};
 use chronomap_core::persistence::PersistenceModel;
+use chronomap_core::recent::RecentHistogram;
 use chronomap_core::select::{
     Criterion, OrderSelection, fit_with_order_selection, holdout_split, select_order_online,
 };
@@ -72,6 +74,15 @@ pub enum ModelSpec {
         /// Period in seconds.
         period_secs: f64,
     },
+    /// `recent:N[:PERIOD[:CYCLES]]`.
+    Recent {
+        /// Number of bins.
+        bins: usize,
+        /// Period in seconds.
+        period_secs: f64,
+        /// Periods remembered, the current one included.
+        cycles: usize,
+    },
     /// `fremen:K` / `fremen:auto`.
     Fremen(OrderSpec),
     /// `persistence:K` / `persistence:auto`.
@@ -105,6 +116,11 @@ impl fmt::Display for ModelSpec {
                 write!(f, "hist:{bins}")
             }
             ModelSpec::Histogram { bins, period_secs } => write!(f, "hist:{bins}:{period_secs}"),
+            ModelSpec::Recent {
+                bins,
+                period_secs,
+                cycles,
+            } => write!(f, "recent:{bins}:{period_secs}:{cycles}"),
             ModelSpec::Fremen(order) => write!(f, "fremen:{order}"),
             ModelSpec::Persistence(order) => write!(f, "persistence:{order}"),
             ModelSpec::Markov => f.write_str("stm"),
@@ -126,7 +142,7 @@ impl fmt::Display for ModelSpec {
     }
 }
 
-const ACCEPTED: &str = "mean, hist:N[:PERIOD], fremen:K|auto, persistence[:K|auto], stm, \
+const ACCEPTED: &str = "mean, hist:N[:PERIOD], recent:N[:PERIOD[:CYCLES]], fremen:K|auto, persistence[:K|auto], stm, \
                         pergam:K|auto[:PERIOD], fft:L|auto, hyt-em:K|auto, hyt-km, auto";
 
 impl FromStr for ModelSpec {
@@ -165,6 +181,7 @@ impl FromStr for ModelSpec {
             "mean" | "stm" | "auto" => 1,
             "fremen" | "persistence" | "fft" => 2,
             "hist" | "pergam" => 3,
+            "recent" => 4,
             #[cfg(feature = "hypertime")]
             "hyt-km" => 1,
             #[cfg(feature = "hypertime")]
@@ -175,20 +192,38 @@ impl FromStr for ModelSpec {
         if parts.len() > max_parts {
             return Err(error(format!("too many ':' fields for {}", parts[0])));
         }
+        let bins = || match parts.get(1) {
+            None => Ok(24),
+            Some(n) => n
+                .parse()
+                .ok()
+                .filter(|&n| (1..=chronomap_core::hist::MAX_BINS).contains(&n))
+                .ok_or_else(|| error(format!("bins {n:?} is not in 1..=1048576"))),
+        };
         let spec = match parts[0] {
             "mean" => ModelSpec::Mean,
-            "hist" => {
-                let bins = match parts.get(1) {
-                    None => 24,
-                    Some(n) => n
+            "hist" => ModelSpec::Histogram {
+                bins: bins()?,
+                period_secs: period(2, WEEK)?,
+            },
+            "recent" => {
+                let bins = bins()?;
+                let cycles = match parts.get(3) {
+                    None => 4,
+                    Some(k) => k
                         .parse()
                         .ok()
-                        .filter(|&n| (1..=chronomap_core::hist::MAX_BINS).contains(&n))
-                        .ok_or_else(|| error(format!("bins {n:?} is not in 1..=1048576")))?,
+                        .filter(|&k: &usize| k >= 1 && bins.saturating_mul(k) <= chronomap_core::recent::MAX_CELLS)
+                        .ok_or_else(|| {
+                            error(format!(
+                                "cycles {k:?} is not a whole number from 1 with bins × cycles at most 1048576"
+                            ))
+                        })?,
                 };
-                ModelSpec::Histogram {
+                ModelSpec::Recent {
                     bins,
                     period_secs: period(2, WEEK)?,
+                    cycles,
                 }
             }
             "fremen" => ModelSpec::Fremen(order(1, OrderSpec::Auto)?),
@@ -268,6 +303,9 @@ pub struct FitOptions {
     /// Rolling origins at which `auto` scores its candidates (default 6: 40 %, 50 %, …, 90 % of
     /// the training span; [`crate::stack::origin_fractions`]).
     pub origins: usize,
+    /// Memories in days of `auto`'s drift candidates (default
+    /// [`RECENT_DAYS`](crate::stack::RECENT_DAYS): 7, 14, 28, 56; empty for none).
+    pub recent_days: Vec<usize>,
     /// Parallelism of the spectral accumulation (results do not depend on it).
     pub parallelism: Parallelism,
 }
@@ -281,6 +319,7 @@ impl Default for FitOptions {
             max_components: 6,
             criterion: Criterion::Brier,
             origins: 6,
+            recent_days: crate::stack::RECENT_DAYS.to_vec(),
             parallelism: Parallelism::Sequential,
         }
     }
@@ -351,6 +390,15 @@ impl ModelSpec {
                 let mut m = HistogramModel::new(bins, period_secs)?;
                 m.observe(times, values)?;
                 fixed(AnyModel::Histogram(m))
+            }
+            ModelSpec::Recent {
+                bins,
+                period_secs,
+                cycles,
+            } => {
+                let mut m = RecentHistogram::new(bins, period_secs, cycles)?;
+                m.observe(times, values)?;
+                fixed(AnyModel::Recent(m))
             }
             ModelSpec::Fremen(order) => {
                 let model = FremenModel::new(fremen_config(0))?;
@@ -569,9 +617,11 @@ pub enum AnyModel {
     Hypertime(Box<HypertimeModel>),
     /// [`StackedModel`] (`auto`).
     Stack(Box<StackedModel>),
-    /// A model with its calendar of days off ([`OnCalendar`]; last, so that the files of the
-    /// other kinds keep their layout).
+    /// A model with its calendar of days off ([`OnCalendar`]; after the others, so that their
+    /// files keep their layout).
     Calendar(Box<OnCalendar>),
+    /// [`RecentHistogram`] (appended after [`AnyModel::Calendar`]).
+    Recent(RecentHistogram),
 }
 
 macro_rules! delegate {
@@ -588,6 +638,7 @@ macro_rules! delegate {
             AnyModel::Hypertime($m) => $body,
             AnyModel::Stack($m) => $body,
             AnyModel::Calendar($m) => $body,
+            AnyModel::Recent($m) => $body,
         }
     };
 }
@@ -628,6 +679,7 @@ impl AnyModel {
             },
             AnyModel::Stack(_) => "stack",
             AnyModel::Calendar(_) => "calendar",
+            AnyModel::Recent(_) => "recent",
         }
     }
 
@@ -658,6 +710,11 @@ impl AnyModel {
             AnyModel::Stack(_) => ModelSpec::Auto,
             // The calendar is not part of a spec: the model of the working days is.
             AnyModel::Calendar(m) => m.model().spec(),
+            AnyModel::Recent(h) => ModelSpec::Recent {
+                bins: h.bins(),
+                period_secs: h.period_secs(),
+                cycles: h.cycles(),
+            },
         }
     }
 
@@ -715,6 +772,7 @@ impl AnyModel {
             AnyModel::Hypertime(m) => m.is_consistent(),
             AnyModel::Stack(m) => m.is_consistent(),
             AnyModel::Calendar(m) => m.is_consistent(),
+            AnyModel::Recent(m) => m.is_consistent(),
         }
     }
 }
@@ -736,7 +794,8 @@ pub enum OnlineError {
     /// A model fitted on a whole series (`auto`, `fft`, hypertime).
     #[error(
         "`{spec}` is fitted offline on a whole series (`chronomap fit`); models that learn online \
-         are fremen:K, persistence:K, hist:N[:PERIOD], pergam:K[:PERIOD], stm, mean"
+         are fremen:K, persistence:K, hist:N[:PERIOD], recent:N[:PERIOD[:CYCLES]], pergam:K[:PERIOD], \
+         stm, mean"
     )]
     Offline {
         /// The spec as written.
@@ -786,6 +845,13 @@ impl ModelSpec {
             ModelSpec::Histogram { bins, period_secs } => {
                 AnyModel::Histogram(HistogramModel::new(*bins, *period_secs).map_err(config)?)
             }
+            ModelSpec::Recent {
+                bins,
+                period_secs,
+                cycles,
+            } => AnyModel::Recent(
+                RecentHistogram::new(*bins, *period_secs, *cycles).map_err(config)?,
+            ),
             ModelSpec::Fremen(order) => AnyModel::Fremen(
                 FremenModel::new(FremenConfig::with_order(fixed(order, "order")?))
                     .map_err(config)?,
@@ -864,6 +930,7 @@ mod tests {
             "mean",
             "hist:24",
             "hist:48:86400",
+            "recent:24:86400:14",
             "fremen:4",
             "fremen:auto",
             "persistence:2",
@@ -895,6 +962,9 @@ mod tests {
             "pergam:40",
             "mean:3",
             "hist:24:-5",
+            "recent:24:86400:0",
+            "recent:1024:86400:2048",
+            "recent:24:86400:7:1",
             "nope",
         ] {
             let err = text.parse::<ModelSpec>().unwrap_err().to_string();

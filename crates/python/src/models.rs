@@ -509,6 +509,7 @@ impl PyTemporalModel {
             }
             AnyModel::Mean(_)
             | AnyModel::Histogram(_)
+            | AnyModel::Recent(_)
             | AnyModel::Markov(_)
             | AnyModel::Calendar(_) => {}
         }
@@ -767,6 +768,7 @@ fn spec_family(spec: &ModelSpec) -> Option<&'static str> {
     Some(match spec {
         ModelSpec::Mean => "mean",
         ModelSpec::Histogram { .. } => "hist",
+        ModelSpec::Recent { .. } => "recent",
         ModelSpec::Fremen(_) => "fremen",
         ModelSpec::Persistence(_) => "persistence",
         ModelSpec::Markov => "stm",
