@@ -129,6 +129,15 @@ impl StackingProblem {
         ((quadratic - 2.0 * linear + self.squares) / self.count as f64).max(0.0)
     }
 
+    /// Whether candidates `i` and `j` made the same predictions of every observation added
+    /// (to rounding): `‖p_i − p_j‖² = G_ii + G_jj − 2 G_ij` is zero exactly when the rows agree,
+    /// and rows that agree bit for bit give bit-equal statistics.
+    pub fn predicted_alike(&self, i: usize, j: usize) -> bool {
+        let k = self.candidates;
+        let g = |a: usize, b: usize| self.gram[a * k + b];
+        g(i, i) == g(j, j) && g(i, j) == g(i, i) && self.rhs[i] == self.rhs[j]
+    }
+
     /// Mean squared error of candidate `i` alone.
     pub fn candidate_error(&self, i: usize) -> f64 {
         let mut w = vec![0.0; self.candidates];
@@ -322,6 +331,21 @@ mod tests {
             }
         }
         Some((0..m).map(|i| r[i] / a[i * m + i]).collect())
+    }
+
+    #[test]
+    fn candidates_that_predict_alike_are_recognised() {
+        let a = [0.2, 0.7, 0.1];
+        let b = [0.3, 0.6, 0.1];
+        let mut problem = StackingProblem::new(3);
+        problem.add(&[&a, &b, &a], &[0.0, 1.0, 0.0]);
+        assert!(problem.predicted_alike(0, 2) && problem.predicted_alike(2, 0));
+        assert!(!problem.predicted_alike(0, 1) && !problem.predicted_alike(1, 2));
+        // Equal norms and targets are not enough: the rows must agree.
+        let c = [0.7, 0.2, 0.1];
+        let mut mirrored = StackingProblem::new(2);
+        mirrored.add(&[&a, &c], &[0.5, 0.5, 0.0]);
+        assert!(!mirrored.predicted_alike(0, 1));
     }
 
     #[test]
