@@ -196,6 +196,30 @@ pub struct FitFlags {
     /// Error measure used to choose orders and models on held-back data.
     #[arg(long, value_enum, default_value_t = CriterionArg::Brier)]
     pub criterion: CriterionArg,
+    /// Memories in days of `auto`'s drift candidates: for each, the mean and histograms of the
+    /// last that many days only (comma-separated, 1 to 3650 each; `none` for none).
+    #[arg(long, default_value = "7,14,28,56", value_parser = parse_recent_days)]
+    pub recent_days: RecentDays,
+}
+
+/// `--recent-days`: memories in days (possibly none).
+#[derive(Debug, Clone)]
+pub struct RecentDays(pub Vec<usize>);
+
+fn parse_recent_days(text: &str) -> Result<RecentDays, String> {
+    if text.trim() == "none" {
+        return Ok(RecentDays(Vec::new()));
+    }
+    text.split(',')
+        .map(|d| match d.trim().parse::<usize>() {
+            Ok(days) if (1..=3650).contains(&days) => Ok(days),
+            _ => Err(format!(
+                "{:?} is not a whole number of days from 1 to 3650 (or `none`)",
+                d.trim()
+            )),
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(RecentDays)
 }
 
 impl FitFlags {
@@ -206,6 +230,7 @@ impl FitFlags {
             holdout: self.holdout,
             max_order: self.max_order,
             criterion: self.criterion.into(),
+            recent_days: self.recent_days.0.clone(),
             parallelism: chronomap_core::Parallelism::Rayon(0),
             ..FitOptions::default()
         }

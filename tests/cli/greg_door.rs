@@ -55,18 +55,21 @@ fn automatic_models_reach_the_target_from_training_data_only() {
 }
 
 /// Issue 23: `auto` (stacking over rolling origins) beats the originals on the test weeks,
-/// and on every week the best fixed FreMEn order (16, chosen knowing the answers). Measured:
-/// 0.0603 against 0.0632 (fremen:16), 0.0656 (fremen:auto) and 0.0670 (fremen:4).
+/// and the best fixed FreMEn order (16, chosen knowing the answers) on the mean and on every
+/// week but the first. Measured: 0.0591 against 0.0634 (fremen:16), 0.0656 (fremen:auto) and
+/// 0.0670 (fremen:4); week 1 (Good Friday's) 0.0649 against fremen:16's 0.0641 — the drift
+/// candidates (issue 41) follow the door's falling rate, which helps the later weeks most (before
+/// them the stack scored 0.0603 and won every week).
 #[test]
-fn auto_beats_every_fixed_fremen_order_on_every_test_week() {
+fn auto_beats_every_fixed_fremen_order_on_the_mean_and_on_weeks_2_to_5() {
     let results = evaluate_specs("auto,fremen:16,fremen:auto,fremen:4");
     let (auto_weeks, auto_mean) = (&results[0].1, results[0].2);
-    assert!((auto_mean - 0.0603).abs() <= 0.0005, "{results:?}");
+    assert!((auto_mean - 0.0591).abs() <= 0.0005, "{results:?}");
     for (name, weeks, mean) in &results[1..] {
         assert!(auto_mean < *mean, "{name}: {results:?}");
         for (week, (ours, theirs)) in auto_weeks.iter().zip(weeks).enumerate() {
             assert!(
-                ours < theirs,
+                ours < theirs || (week == 0 && name == "fremen:16"),
                 "{name} week {}: {ours} vs {theirs}",
                 week + 1
             );
@@ -170,31 +173,66 @@ fn every_model_survives_save_and_load_bit_identically() {
     }
 }
 
+/// `chronomap eval --json` of `models` trained on the greg door's training weeks and tested on
+/// its five public weeks, with `extra` arguments.
+fn greg_eval_json(models: &str, extra: &[&str]) -> serde_json::Value {
+    let greg = |name: &str| chronomap_testutil::data(&format!("door_greg_2016/{name}"));
+    let tests: Vec<String> = (1..=5)
+        .map(|i| {
+            format!(
+                "{},{}",
+                greg(&format!("test_times_{i}.txt.xz")),
+                greg(&format!("test_data_{i}.txt.xz"))
+            )
+        })
+        .collect();
+    let train = greg("training_data.txt.xz");
+    let mut args = vec!["eval", "--train", &train, "--models", models, "--json"];
+    for t in &tests {
+        args.extend(["--test", t]);
+    }
+    args.extend(extra);
+    chronomap_testutil::json(&crate::common::chronomap(&args))
+}
+
+/// Issue 41: the drift candidates of `auto` (the last 7–56 days' mean and histograms,
+/// `chronomap_models::stack::RECENT_DAYS`) follow the door's falling rate. Measured on the public
+/// weeks pooled (before them: mean forecast 0.1219, ECE 0.0354, Brier 0.0603): mean forecast
+/// 0.1099 where the door was open 8.74 % of the time, ECE 0.0267, Brier 0.0591, the windows
+/// holding 0.23 of the weight.
+#[test]
+fn the_drift_candidates_follow_the_doors_falling_rate() {
+    let json = greg_eval_json("auto", &[]);
+    let auto = &json["models"][0];
+    let calibration = &auto["calibration"];
+    let number = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!((number(&calibration["base_rate"]) - 0.0874).abs() < 5e-5);
+    assert!(
+        (number(&calibration["mean_prediction"]) - 0.1099).abs() < 5e-4,
+        "{calibration}"
+    );
+    assert!(
+        (number(&calibration["ece"]) - 0.0267).abs() < 5e-4,
+        "{calibration}"
+    );
+    assert!(
+        (number(&calibration["brier"]) - 0.0591).abs() < 5e-4,
+        "{calibration}"
+    );
+    let selection = auto["selection"].as_str().unwrap();
+    assert!(
+        selection.contains("recent:168:604800:1 0.19"),
+        "{selection}"
+    );
+}
+
 /// The bank holidays of England and Wales (`data/calendars/`): Good Friday (week 1) and Easter
 /// Monday (week 2), predicted as the Sunday before, make those weeks better and leave the
 /// others bit for bit as they were (measured: fremen:4 0.0700 → 0.0650 and 0.0688 → 0.0634).
 #[test]
 fn days_off_predicted_as_sundays_improve_the_easter_weeks_only() {
     let calendar = chronomap_testutil::data("calendars/england_wales_2016.txt");
-    let run = |extra: &[&str]| -> serde_json::Value {
-        let greg = |name: &str| chronomap_testutil::data(&format!("door_greg_2016/{name}"));
-        let tests: Vec<String> = (1..=5)
-            .map(|i| {
-                format!(
-                    "{},{}",
-                    greg(&format!("test_times_{i}.txt.xz")),
-                    greg(&format!("test_data_{i}.txt.xz"))
-                )
-            })
-            .collect();
-        let train = greg("training_data.txt.xz");
-        let mut args = vec!["eval", "--train", &train, "--models", "fremen:4", "--json"];
-        for t in &tests {
-            args.extend(["--test", t]);
-        }
-        args.extend(extra);
-        chronomap_testutil::json(&crate::common::chronomap(&args))
-    };
+    let run = |extra: &[&str]| greg_eval_json("fremen:4", extra);
     let brier = |json: &serde_json::Value| -> Vec<f64> {
         json["models"][0]["tests"]
             .as_array()
