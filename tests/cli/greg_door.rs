@@ -107,6 +107,7 @@ fn fit_every_kind(fremen: &str) -> (TimeSeries, Vec<f64>, Vec<(ModelSpec, AnyMod
     let fitted = [
         "mean",
         "hist:24",
+        "recent:24:86400:14",
         fremen,
         "persistence:2",
         "stm",
