@@ -82,7 +82,7 @@ __all__ = [
 
 
 def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.25,
-             max_order=10, criterion="brier", days_off=None):
+             max_order=10, criterion="brier", recent_days=(7, 14, 28, 56), days_off=None):
     """The experiment of ``chronomap eval`` (the FreMEn benchmarks) on arrays.
 
     Every model in ``models`` (specs such as ``"fremen:2"`` or ``"auto"``) is fitted on
@@ -98,6 +98,14 @@ def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.
         Model specs.
     as_frame : bool
         Return a ``pandas.DataFrame`` (needs pandas) instead of a dict of arrays.
+    periods, holdout, max_order, criterion : optional
+        How orders and families are chosen (``chronomap eval --periods``, ``--holdout``,
+        ``--max-order``, ``--criterion``), as for ``TemporalModel``.
+    recent_days : sequence of int, or None
+        Memories in days of ``auto``'s drift candidates (``chronomap eval --recent-days``):
+        for each, the mean and histograms of the last that many days only; whole days from 1
+        to 3650. ``None`` or ``()`` for none (the stack without drift candidates). Other
+        values raise ``ValueError`` naming ``recent_days``.
     days_off : str or path, optional
         A calendar of days off (``chronomap eval --days-off``: one ``YYYY-MM-DD`` per line):
         training observations on them are left out, test times on them are predicted as the
@@ -119,6 +127,7 @@ def evaluate(train, tests, models, *, as_frame=False, periods="week", holdout=0.
         models = [models]
     table = _native.evaluate_table(train, list(tests), list(models), periods=periods,
                                    holdout=holdout, max_order=max_order, criterion=criterion,
+                                   recent_days=recent_days,
                                    days_off=None if days_off is None else str(days_off))
     import numpy as np
 

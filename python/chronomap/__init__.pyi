@@ -20,6 +20,9 @@ FloatArray = npt.NDArray[np.float64]
 Path = Union[str, os.PathLike]
 Order = Union[int, Literal["auto"]]
 Criterion = Literal["brier", "absolute", "binary"]
+RecentDays = Union[Sequence[int], None]
+"""Memories in days of ``auto``'s drift candidates (``--recent-days``): whole days from 1 to
+3650, by default ``(7, 14, 28, 56)``; ``None`` or ``()`` for no drift candidates."""
 Time = Union[float, datetime.datetime, datetime.date, np.datetime64]
 """One time: unix seconds, a ``datetime`` (naive = UTC), ``numpy.datetime64`` (UTC) or
 ``pandas.Timestamp`` (a ``datetime``; zone-aware ones converted to UTC)."""
@@ -34,10 +37,14 @@ class TemporalModel:
     that the state is 1 (or its expected value for states in [0, 1]), at any time. The first
     ``observe`` fits it (choosing orders or families where the spec says ``auto``, on the most
     recent ``holdout`` of that batch, as ``chronomap fit`` does); later ones add to it.
+    ``recent_days``: the memories in days of ``auto``'s drift candidates (the mean and
+    histograms of the last that many days only; ``chronomap fit --recent-days``), each a whole
+    number from 1 to 3650; ``None`` or ``()`` for none. Other values raise ``ValueError``.
     """
 
     def __init__(self, spec: str, *, periods: str = "week", holdout: float = 0.25,
-                 max_order: int = 10, criterion: Criterion = "brier") -> None: ...
+                 max_order: int = 10, criterion: Criterion = "brier",
+                 recent_days: RecentDays = (7, 14, 28, 56)) -> None: ...
     def observe(self, times: Times, values: ArrayLike) -> TemporalModel:
         """Adds observations: times (unix seconds, ``datetime64``, pandas datetimes) that never
         go backwards, values in [0, 1] (floats, ints or booleans, pandas Series too).
@@ -142,8 +149,10 @@ class Hypertime(TemporalModel):
                  clustering: Literal["em", "kmeans"] = "em") -> None: ...
 
 def model(spec: str, *, periods: str = "week", holdout: float = 0.25, max_order: int = 10,
-          criterion: Criterion = "brier") -> TemporalModel:
-    """The model a spec describes (``fremen:auto``, ``hist:24``, ``auto``...), typed."""
+          criterion: Criterion = "brier",
+          recent_days: RecentDays = (7, 14, 28, 56)) -> TemporalModel:
+    """The model a spec describes (``fremen:auto``, ``hist:24``, ``auto``...), typed; the
+    settings are ``TemporalModel``'s."""
 
 def load(path: Path) -> TemporalModel:
     """A model file (``chronomap fit -o``, ``TemporalModel.save``), checked, typed."""
@@ -155,12 +164,14 @@ def loads(data: bytes) -> TemporalModel:
 def evaluate(train: Tuple[ArrayLike, ArrayLike], tests: Sequence[Tuple[ArrayLike, ArrayLike]],
              models: Union[str, Sequence[str]], *, as_frame: Literal[False] = ...,
              periods: str = ..., holdout: float = ..., max_order: int = ...,
-             criterion: Criterion = ...) -> dict[str, np.ndarray]: ...
+             criterion: Criterion = ..., recent_days: RecentDays = ...,
+             days_off: Path | None = ...) -> dict[str, np.ndarray]: ...
 @overload
 def evaluate(train: Tuple[ArrayLike, ArrayLike], tests: Sequence[Tuple[ArrayLike, ArrayLike]],
              models: Union[str, Sequence[str]], *, as_frame: Literal[True],
              periods: str = ..., holdout: float = ..., max_order: int = ...,
-             criterion: Criterion = ...) -> Any: ...
+             criterion: Criterion = ..., recent_days: RecentDays = ...,
+             days_off: Path | None = ...) -> Any: ...
 
 def read_pairs(path: Path) -> Tuple[FloatArray, FloatArray]:
     """A ``time value`` file (plain, .xz, .gz) as ``(times, values)``, checked."""

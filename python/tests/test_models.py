@@ -104,6 +104,85 @@ def test_evaluate_with_days_off_equals_the_command_line(greg, repo, cli):
         chronomap.evaluate(train, tests, ["mean"], days_off=f"{repo}/data/README.md")
 
 
+def _eval_argv(*extra):
+    argv = ["eval", "--train", f"{GREG}/training_data.txt.xz", "--models", "auto", *extra]
+    for i in range(1, 6):
+        argv += ["--test", f"{GREG}/test_times_{i}.txt.xz,{GREG}/test_data_{i}.txt.xz"]
+    return argv
+
+
+def test_recent_days_equals_the_command_line(greg, cli):
+    train, tests = greg
+    # The stack with its drift candidates (7, 14, 28, 56 days, the default) and without.
+    default = chronomap.evaluate(train, tests, ["auto"])
+    without = chronomap.evaluate(train, tests, ["auto"], recent_days=None)
+    assert round(default["mean_mse"][0], 4) == 0.0591
+    assert round(without["mean_mse"][0], 4) == 0.0603
+    expected = cli(*_eval_argv(), json_output=True)["models"][0]
+    assert default["mean_mse"][0] == expected["mean_mse"]  # exactly, not approximately
+    assert default["fitted"][0] == expected["fitted"]
+    expected = cli(*_eval_argv("--recent-days", "none"), json_output=True)["models"][0]
+    assert without["mean_mse"][0] == expected["mean_mse"]
+    assert without["fitted"][0] == expected["fitted"]
+    # Other memories: any sequence of ints (here a numpy array) is `--recent-days 14,28`.
+    some = chronomap.evaluate(train, tests, ["auto"], recent_days=np.array([14, 28]))
+    expected = cli(*_eval_argv("--recent-days", "14,28"), json_output=True)["models"][0]
+    assert some["mean_mse"][0] == expected["mean_mse"]
+
+
+def _drift_candidates(model):
+    """The memories in days of the drift candidates `auto` compared (its selection): those of
+    the means of the last days (one bin a day)."""
+    return [spec["Recent"]["cycles"] for spec, _ in model.selection["Stack"]["errors"]
+            if isinstance(spec, dict) and "Recent" in spec and spec["Recent"]["bins"] == 1]
+
+
+def test_recent_days_reach_the_stack():
+    # Three weeks of a daily routine: `auto` compares drift candidates of the memories asked.
+    times = np.arange(0.0, 21 * 86400, 600.0)
+    values = ((times % 86400) < 8 * 3600).astype(float)
+    default = chronomap.model("auto").observe(times, values)
+    assert _drift_candidates(default) == [7, 14, 28, 56]
+    explicit = chronomap.TemporalModel("auto", recent_days=(7, 14, 28, 56)).observe(times, values)
+    at = times[::37] + 21 * 86400
+    assert np.array_equal(default.predict(at), explicit.predict(at))
+    assert _drift_candidates(chronomap.model("auto", recent_days=range(3, 5))
+                             .observe(times, values)) == [3, 4]
+    for none in (None, [], ()):
+        without = chronomap.TemporalModel("auto", recent_days=none).observe(times, values)
+        assert _drift_candidates(without) == []
+
+
+@pytest.mark.parametrize("days, message", [
+    ([0], r"^recent_days\[0\]: 0 \(int\) is not a whole number of days from 1 to 3650"),
+    ([7, -14], r"^recent_days\[1\]: -14 \(int\) is not a whole number"),
+    ([3651], r"^recent_days\[0\]: 3651 \(int\) is not a whole number"),
+    ([2 ** 70], r"^recent_days\[0\]: 1180591620717411303424 \(int\) is not"),
+    ([7.0], r"^recent_days\[0\]: 7\.0 \(float\) is not a whole number"),
+    ([float("nan")], r"^recent_days\[0\]: nan \(float\) is not a whole number"),
+    ([np.float64(7)], r"^recent_days\[0\]: .*7\.0.* \(float64\) is not a whole number"),
+    ([True], r"^recent_days\[0\]: True \(bool\) is not a whole number"),
+    ([7, "14"], r"^recent_days\[1\]: '14' \(str\) is not a whole number"),
+    ([None], r"^recent_days\[0\]: None \(NoneType\) is not a whole number"),
+    ("7,14", r"^recent_days: expected a sequence of whole days from 1 to 3650 \(e\.g\. "
+             r"\[7, 14\]\) or None, got str"),
+    (7, r"^recent_days: expected a sequence .* got int"),
+    (7.5, r"^recent_days: expected a sequence .* got float"),
+])
+def test_recent_days_are_checked_like_the_command_line(greg, days, message):
+    train, tests = greg
+    calls = [
+        lambda: chronomap.model("auto", recent_days=days),
+        lambda: chronomap.TemporalModel("auto", recent_days=days),
+        lambda: chronomap.evaluate(train, tests, ["auto"], recent_days=days),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError, match=message):
+            call()
+    # Whole numpy integers and the bounds themselves are days.
+    chronomap.model("auto", recent_days=np.array([1, 3650], dtype=np.int64))
+
+
 def test_evaluate_as_a_data_frame(greg):
     pd = pytest.importorskip("pandas")
     train, tests = greg

@@ -41,7 +41,13 @@ fn _rust_observe_seconds(
     values: Vec<f64>,
 ) -> PyResult<f64> {
     let spec = parse_spec(spec)?;
-    let options = crate::models::fit_options("week", 0.25, 10, "brier")?;
+    let options = crate::models::fit_options(
+        "week",
+        0.25,
+        10,
+        "brier",
+        crate::models::RecentDays::default(),
+    )?;
     py.detach(|| {
         let start = Instant::now();
         let model = spec

@@ -11,22 +11,87 @@ use chronomap_core::select::Criterion;
 use chronomap_core::{ObservationError, Parallelism, TemporalModel, binary_entropy};
 use chronomap_models::eval::{TestSet, evaluate_on_calendar};
 use chronomap_models::spec::{OrderSpec, Selection};
+use chronomap_models::stack::RECENT_DAYS;
 use chronomap_models::{AnyModel, FitOptions, ModelSpec};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyFloat, PyList, PyString};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyList, PyString};
 
 use crate::arrays::{self, ArrayPair, to_numpy};
 use crate::errors;
 
+/// Longest memory of a drift candidate, in days (the command line's `--recent-days` bound).
+const MAX_RECENT_DAYS: i64 = 3650;
+
+/// The `recent_days` argument: memories in days of `auto`'s drift candidates (the command
+/// line's `--recent-days`). A sequence of whole days from 1 to 3650 (a list, tuple, range or
+/// integer array); `None` or an empty sequence for no drift candidates; by default
+/// [`RECENT_DAYS`] (7, 14, 28, 56). Anything else is a `ValueError` naming `recent_days`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecentDays(pub Vec<usize>);
+
+impl Default for RecentDays {
+    fn default() -> Self {
+        RecentDays(RECENT_DAYS.to_vec())
+    }
+}
+
+impl<'a, 'py> FromPyObject<'a, 'py> for RecentDays {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if obj.is_none() {
+            return Ok(RecentDays(Vec::new()));
+        }
+        let not_a_sequence = || {
+            PyValueError::new_err(format!(
+                "recent_days: expected a sequence of whole days from 1 to {MAX_RECENT_DAYS} \
+                 (e.g. [7, 14]) or None, got {}",
+                crate::arrays::type_name(&obj)
+            ))
+        };
+        // A string is a sequence too, of characters: `"7,14"` is the command line's form.
+        if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+            return Err(not_a_sequence());
+        }
+        let items = obj.try_iter().map_err(|_| not_a_sequence())?;
+        let mut days = Vec::new();
+        for (index, item) in items.enumerate() {
+            let item = item?;
+            // Booleans are ints to Python, floats (7.0, nan) and strings are not days.
+            let whole = if item.is_instance_of::<PyBool>() {
+                None
+            } else {
+                item.extract::<i64>().ok()
+            };
+            match whole {
+                Some(d) if (1..=MAX_RECENT_DAYS).contains(&d) => days.push(d as usize),
+                _ => {
+                    let shown = item
+                        .repr()
+                        .map(|r| r.to_string())
+                        .unwrap_or_else(|_| "?".into());
+                    return Err(PyValueError::new_err(format!(
+                        "recent_days[{index}]: {shown} ({}) is not a whole number of days \
+                         from 1 to {MAX_RECENT_DAYS}",
+                        crate::arrays::type_name(&item)
+                    )));
+                }
+            }
+        }
+        Ok(RecentDays(days))
+    }
+}
+
 /// Settings of how models choose orders and families (the command line's `--periods`,
-/// `--holdout`, `--max-order` and `--criterion`).
+/// `--holdout`, `--max-order`, `--criterion` and `--recent-days`).
 pub fn fit_options(
     periods: &str,
     holdout: f64,
     max_order: usize,
     criterion: &str,
+    recent_days: RecentDays,
 ) -> PyResult<FitOptions> {
     let periods: PeriodSet = periods
         .parse()
@@ -51,6 +116,7 @@ pub fn fit_options(
         holdout,
         max_order,
         criterion,
+        recent_days: recent_days.0,
         parallelism: Parallelism::Rayon(0),
         ..FitOptions::default()
     })
@@ -212,23 +278,27 @@ fn predict_array<'py>(
 
 #[pymethods]
 impl PyTemporalModel {
-    /// `TemporalModel(spec, *, periods="week", holdout=0.25, max_order=10, criterion="brier")`
+    /// `TemporalModel(spec, *, periods="week", holdout=0.25, max_order=10, criterion="brier",
+    /// recent_days=(7, 14, 28, 56))`
     ///
     /// A model described by its spec, the names `chronomap fit --model` accepts: `mean`,
-    /// `hist:N[:PERIOD]`, `fremen:K`, `fremen:auto`, `persistence[:K|:auto]`, `stm`,
-    /// `pergam:K[:PERIOD]`, `fft:L`, `hyt-em:K`, `hyt-km`, `auto`.
+    /// `hist:N[:PERIOD]`, `recent:N[:PERIOD[:CYCLES]]`, `fremen:K`, `fremen:auto`,
+    /// `persistence[:K|:auto]`, `stm`, `pergam:K[:PERIOD]`, `fft:L`, `hyt-em:K`, `hyt-km`,
+    /// `auto`. `recent_days`: memories in days of `auto`'s drift candidates (`--recent-days`;
+    /// `None` for none).
     #[new]
-    #[pyo3(signature = (spec, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier"))]
+    #[pyo3(signature = (spec, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier", recent_days = RecentDays::default()))]
     fn py_new(
         spec: &str,
         periods: &str,
         holdout: f64,
         max_order: usize,
         criterion: &str,
+        recent_days: RecentDays,
     ) -> PyResult<Self> {
         PyTemporalModel::new(
             parse_spec(spec)?,
-            fit_options(periods, holdout, max_order, criterion)?,
+            fit_options(periods, holdout, max_order, criterion, recent_days)?,
         )
     }
 
@@ -550,7 +620,13 @@ fn ordered(
     let order = order.map_or(Ok(OrderSpec::Auto), |o| order_spec(o, "order"))?;
     typed(
         spec(order),
-        fit_options(periods, holdout, max_order, criterion)?,
+        fit_options(
+            periods,
+            holdout,
+            max_order,
+            criterion,
+            RecentDays::default(),
+        )?,
     )
 }
 
@@ -721,7 +797,7 @@ impl PyPergam {
             components,
             period_secs: period,
         };
-        let options = fit_options("week", holdout, 10, "brier")?;
+        let options = fit_options("week", holdout, 10, "brier", RecentDays::default())?;
         Ok(typed(spec, options)?.add_subclass(PyPergam))
     }
 }
@@ -781,9 +857,10 @@ fn spec_family(spec: &ModelSpec) -> Option<&'static str> {
 }
 
 /// `model(spec, **settings)`: the model a spec describes, as the class of its family
-/// (`TemporalModel` for `auto`, whose family is chosen on the data).
+/// (`TemporalModel` for `auto`, whose family is chosen on the data). The settings are
+/// `TemporalModel`'s: `periods`, `holdout`, `max_order`, `criterion`, `recent_days`.
 #[pyfunction]
-#[pyo3(signature = (spec, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier"))]
+#[pyo3(signature = (spec, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier", recent_days = RecentDays::default()))]
 pub fn model(
     py: Python<'_>,
     spec: &str,
@@ -791,8 +868,9 @@ pub fn model(
     holdout: f64,
     max_order: usize,
     criterion: &str,
+    recent_days: RecentDays,
 ) -> PyResult<Py<PyAny>> {
-    let options = fit_options(periods, holdout, max_order, criterion)?;
+    let options = fit_options(periods, holdout, max_order, criterion, recent_days)?;
     let model = PyTemporalModel::new(parse_spec(spec)?, options)?;
     // An `auto` model stays a `TemporalModel` even after it has chosen a family.
     if model.spec == ModelSpec::Auto {
@@ -854,7 +932,7 @@ fn series_arg<'py>(
 /// The experiment of `chronomap eval` (the FreMEn benchmarks): every model fitted on `train`
 /// and scored on every test set. Returns the columns of the command line's tables.
 #[pyfunction]
-#[pyo3(signature = (train, tests, models, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier", days_off = None))]
+#[pyo3(signature = (train, tests, models, *, periods = "week", holdout = 0.25, max_order = 10, criterion = "brier", recent_days = RecentDays::default(), days_off = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_table<'py>(
     py: Python<'py>,
@@ -865,6 +943,7 @@ pub fn evaluate_table<'py>(
     holdout: f64,
     max_order: usize,
     criterion: &str,
+    recent_days: RecentDays,
     days_off: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let days_off = match days_off {
@@ -880,7 +959,7 @@ pub fn evaluate_table<'py>(
     if specs.is_empty() {
         return Err(PyValueError::new_err("models: no model given"));
     }
-    let options = fit_options(periods, holdout, max_order, criterion)?;
+    let options = fit_options(periods, holdout, max_order, criterion, recent_days)?;
     let (train_t, train_v) = series_arg(train, "train")?;
     let tests: Vec<Bound<'py, PyAny>> = tests.try_iter()?.collect::<PyResult<_>>()?;
     if tests.is_empty() {
