@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use chronomap_core::PeriodSet;
 use chronomap_core::select::Criterion;
 use chronomap_models::spec::{FitOptions, ModelSpec};
+use chronomap_models::stack::MAX_RECENT_DAYS;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 mod activity;
@@ -212,9 +213,9 @@ fn parse_recent_days(text: &str) -> Result<RecentDays, String> {
     }
     text.split(',')
         .map(|d| match d.trim().parse::<usize>() {
-            Ok(days) if (1..=3650).contains(&days) => Ok(days),
+            Ok(days) if (1..=MAX_RECENT_DAYS).contains(&days) => Ok(days),
             _ => Err(format!(
-                "{:?} is not a whole number of days from 1 to 3650 (or `none`)",
+                "{:?} is not a whole number of days from 1 to {MAX_RECENT_DAYS} (or `none`)",
                 d.trim()
             )),
         })

@@ -78,6 +78,10 @@ pub fn stack_candidates(max_order: usize, recent_days: &[usize]) -> Vec<ModelSpe
 /// online, it forgets as the full histograms cannot.
 pub const RECENT_DAYS: [usize; 4] = [7, 14, 28, 56];
 
+/// The longest memory of a drift candidate the command line and Python accept, in days (ten
+/// years; a weekly histogram of that many days is 522 periods of 168 bins).
+pub const MAX_RECENT_DAYS: usize = 3650;
+
 /// The fractions of the training span at which the rolling origins lie: `origins` of them,
 /// evenly from 40 % to 90 % (one origin: 75 %, the hold-out of the originals).
 pub fn origin_fractions(origins: usize) -> Vec<f64> {

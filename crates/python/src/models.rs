@@ -11,7 +11,7 @@ use chronomap_core::select::Criterion;
 use chronomap_core::{ObservationError, Parallelism, TemporalModel, binary_entropy};
 use chronomap_models::eval::{TestSet, evaluate_on_calendar};
 use chronomap_models::spec::{OrderSpec, Selection};
-use chronomap_models::stack::RECENT_DAYS;
+use chronomap_models::stack::{MAX_RECENT_DAYS, RECENT_DAYS};
 use chronomap_models::{AnyModel, FitOptions, ModelSpec};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -20,9 +20,6 @@ use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyList, PyString};
 
 use crate::arrays::{self, ArrayPair, to_numpy};
 use crate::errors;
-
-/// Longest memory of a drift candidate, in days (the command line's `--recent-days` bound).
-const MAX_RECENT_DAYS: i64 = 3650;
 
 /// The `recent_days` argument: memories in days of `auto`'s drift candidates (the command
 /// line's `--recent-days`). A sequence of whole days from 1 to 3650 (a list, tuple, range or
@@ -65,8 +62,8 @@ impl<'a, 'py> FromPyObject<'a, 'py> for RecentDays {
             } else {
                 item.extract::<i64>().ok()
             };
-            match whole {
-                Some(d) if (1..=MAX_RECENT_DAYS).contains(&d) => days.push(d as usize),
+            match whole.and_then(|d| usize::try_from(d).ok()) {
+                Some(d) if (1..=MAX_RECENT_DAYS).contains(&d) => days.push(d),
                 _ => {
                     let shown = item
                         .repr()
