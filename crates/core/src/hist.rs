@@ -27,22 +27,28 @@ pub struct HistogramModel {
     counts: Vec<u64>,
 }
 
+/// Checks a periodic histogram's bins (1..=[`MAX_BINS`]) and period (positive and finite).
+pub(crate) fn check_bins_and_period(bins: usize, period_secs: f64) -> Result<(), ConfigError> {
+    if bins == 0 || bins > MAX_BINS {
+        return Err(ConfigError::OutOfRange {
+            name: "bins",
+            value: bins.to_string(),
+            expected: "1 ..= 1048576",
+        });
+    }
+    if !(period_secs.is_finite() && period_secs > 0.0) {
+        return Err(ConfigError::PeriodNotPositive { period_secs });
+    }
+    Ok(())
+}
+
 impl HistogramModel {
     /// An empty histogram of `bins` bins over `period_secs` seconds.
     ///
     /// # Errors
     /// If `bins` is 0 or above [`MAX_BINS`], or the period is not positive and finite.
     pub fn new(bins: usize, period_secs: f64) -> Result<Self, ConfigError> {
-        if bins == 0 || bins > MAX_BINS {
-            return Err(ConfigError::OutOfRange {
-                name: "bins",
-                value: bins.to_string(),
-                expected: "1 ..= 1048576",
-            });
-        }
-        if !(period_secs.is_finite() && period_secs > 0.0) {
-            return Err(ConfigError::PeriodNotPositive { period_secs });
-        }
+        check_bins_and_period(bins, period_secs)?;
         Ok(HistogramModel {
             period_secs,
             span: ObservedSpan::default(),

@@ -33,7 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{ConfigError, ObservationError};
 use crate::exact::ExactSum;
-use crate::hist::MAX_BINS;
+use crate::hist::{MAX_BINS, check_bins_and_period};
 use crate::model::TemporalModel;
 use crate::observe::ObservedSpan;
 use crate::periods::cycle_fraction;
@@ -104,22 +104,13 @@ impl RecentHistogram {
     /// If `bins` or `cycles` is 0, `bins × cycles` is above [`MAX_CELLS`], or the period is not
     /// positive and finite.
     pub fn new(bins: usize, period_secs: f64, cycles: usize) -> Result<Self, ConfigError> {
-        if bins == 0 || bins > MAX_BINS {
-            return Err(ConfigError::OutOfRange {
-                name: "bins",
-                value: bins.to_string(),
-                expected: "1 ..= 1048576",
-            });
-        }
+        check_bins_and_period(bins, period_secs)?;
         if cycles == 0 || bins.saturating_mul(cycles) > MAX_CELLS {
             return Err(ConfigError::OutOfRange {
                 name: "cycles",
                 value: cycles.to_string(),
                 expected: "1 or more, with bins × cycles at most 1048576",
             });
-        }
-        if !(period_secs.is_finite() && period_secs > 0.0) {
-            return Err(ConfigError::PeriodNotPositive { period_secs });
         }
         Ok(RecentHistogram {
             period_secs,
