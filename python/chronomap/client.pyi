@@ -63,7 +63,8 @@ class Client:
         model of continuous values (created with a ``range``) at ``times``: ``(lower, upper)``
         in its range (two arrays, or two floats for one time); ``as_frame=True``: a
         ``pandas.DataFrame`` with columns ``time``, ``lower``, ``upper``. A model without
-        intervals (binary, or fitted on a whole series) is a ``ValueError``."""
+        intervals (binary, ``auto`` before its first fit, or another spec fitted on a whole
+        series) is a ``ValueError``."""
     @overload
     def entropy(self, id: str, times: Time, *, order: Optional[int] = None,
                 as_series: bool = False) -> float: ...

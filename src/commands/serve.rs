@@ -379,7 +379,8 @@ async fn run_client(
             else {
                 bail!(
                     "model {id:?} has no prediction intervals: only models of continuous \
-                     values (created with --range) whose spec learns online have them"
+                     values (created with --range) whose spec learns online, or `auto` once \
+                     fitted, have them"
                 );
             };
             if as_json {

@@ -209,8 +209,9 @@ impl PyClient {
     /// default 0.9) of model `id`, a model of continuous values (created with a `range`), at
     /// `times` (an array, or one time): `(lower, upper)` in the model's range, two float64
     /// arrays (or two floats); with `as_frame=True` a `pandas.DataFrame` with columns `time`
-    /// (UTC datetimes), `lower` and `upper`. A model without intervals (binary models,
-    /// models fitted on a whole series such as `auto`) is a `ValueError` naming it.
+    /// (UTC datetimes), `lower` and `upper`. A model without intervals (binary models, `auto`
+    /// before its first fit, the other models fitted on a whole series such as `fremen:auto`)
+    /// is a `ValueError` naming it.
     #[pyo3(signature = (id, times, *, coverage = 0.9, order = None, as_frame = false))]
     fn interval<'py>(
         &self,
@@ -232,7 +233,8 @@ impl PyClient {
         let (Some(lower), Some(upper)) = (answer.lower, answer.upper) else {
             return Err(PyValueError::new_err(format!(
                 "model {id:?} has no prediction intervals: only models of continuous values \
-                 (created with a range) whose spec learns online have them"
+                 (created with a range) whose spec learns online, or `auto` once fitted, have \
+                 them"
             )));
         };
         if as_frame {

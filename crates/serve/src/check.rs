@@ -457,9 +457,15 @@ fn describe(record: &LogRecord) -> String {
         LogRecord::Create { .. } => "creation".into(),
         LogRecord::Observe { times, .. } => format!("batch of {} observations", times.len()),
         LogRecord::Remove { .. } => "removal".into(),
-        LogRecord::Refit { refit, .. } => {
-            format!("refit on {} observations", refit.record.observations)
-        }
+        LogRecord::Refit { refit, spread, .. } => format!(
+            "refit on {} observations{}",
+            refit.record.observations,
+            if spread.is_some() {
+                " (and of their second moment)"
+            } else {
+                ""
+            }
+        ),
     }
 }
 

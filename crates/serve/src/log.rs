@@ -20,11 +20,12 @@ const MAGIC: &[u8; 8] = b"CMLOG\x002\n";
 
 /// One change of the service's state.
 ///
-/// Stored as the record kinds `Create`, `Observe`, `Remove`, `Refit` and `CreateOnCalendar`,
-/// in that order, which only ever grows (the index of a kind is part of the log format): a
-/// [`LogRecord::Create`] without a calendar of days off is written as services before
-/// calendars wrote it (`Create`, the configuration as a [`ConfigV1`]), one with a calendar as
-/// `CreateOnCalendar`. Logs written before calendars read as they did.
+/// Stored as the record kinds `Create`, `Observe`, `Remove`, `Refit`, `CreateOnCalendar` and
+/// `RefitWithSpread`, in that order, which only ever grows (the index of a kind is part of the
+/// log format): a [`LogRecord::Create`] without a calendar of days off is written as services
+/// before calendars wrote it (`Create`, the configuration as a [`ConfigV1`]), one with a
+/// calendar as `CreateOnCalendar`; a [`LogRecord::Refit`] without a fit of the second moment
+/// as `Refit`, one with it as `RefitWithSpread`. Older logs read as they did.
 #[derive(Clone, Debug)]
 pub enum LogRecord {
     /// A model is created.
@@ -58,6 +59,10 @@ pub enum LogRecord {
         id: String,
         /// The fit ([`chronomap_models::Learner::install`]).
         refit: Box<Refit>,
+        /// The fit of the model of the second moment of a model of continuous values
+        /// ([`crate::registry::Entry::spread`]) on the same observations, squared; `None`
+        /// for every other model (and if that fit failed).
+        spread: Option<Box<Refit>>,
     },
 }
 
@@ -100,6 +105,15 @@ enum Wire<Id, Times, Config, Fit> {
         /// Its whole configuration.
         config: Config,
     },
+    /// As [`LogRecord::Refit`] with a fit of the second moment.
+    RefitWithSpread {
+        /// Model id.
+        id: Id,
+        /// The fit.
+        refit: Fit,
+        /// The fit of the second moment.
+        spread: Fit,
+    },
 }
 
 impl Serialize for LogRecord {
@@ -116,7 +130,16 @@ impl Serialize for LogRecord {
             LogRecord::Create { id, config } => Wire::CreateOnCalendar { id, config },
             LogRecord::Observe { id, times, values } => Wire::Observe { id, times, values },
             LogRecord::Remove { id } => Wire::Remove { id },
-            LogRecord::Refit { id, refit } => Wire::Refit { id, refit },
+            LogRecord::Refit {
+                id,
+                refit,
+                spread: None,
+            } => Wire::Refit { id, refit },
+            LogRecord::Refit {
+                id,
+                refit,
+                spread: Some(spread),
+            } => Wire::RefitWithSpread { id, refit, spread },
         };
         wire.serialize(serializer)
     }
@@ -133,7 +156,16 @@ impl<'de> Deserialize<'de> for LogRecord {
             Wire::CreateOnCalendar { id, config } => LogRecord::Create { id, config },
             Wire::Observe { id, times, values } => LogRecord::Observe { id, times, values },
             Wire::Remove { id } => LogRecord::Remove { id },
-            Wire::Refit { id, refit } => LogRecord::Refit { id, refit },
+            Wire::Refit { id, refit } => LogRecord::Refit {
+                id,
+                refit,
+                spread: None,
+            },
+            Wire::RefitWithSpread { id, refit, spread } => LogRecord::Refit {
+                id,
+                refit,
+                spread: Some(spread),
+            },
         })
     }
 }
@@ -153,8 +185,18 @@ impl PartialEq for LogRecord {
             ) => id == i && times == t && values == v,
             (Remove { id }, Remove { id: i }) => id == i,
             // Models have no `PartialEq`: fits are equal when they serialise alike.
-            (Refit { id, refit }, Refit { id: i, refit: r }) => {
-                id == i && postcard::to_allocvec(refit).ok() == postcard::to_allocvec(r).ok()
+            (
+                Refit { id, refit, spread },
+                Refit {
+                    id: i,
+                    refit: r,
+                    spread: s,
+                },
+            ) => {
+                let bytes = |fit| postcard::to_allocvec(fit).ok();
+                id == i
+                    && bytes(refit) == bytes(r)
+                    && spread.as_ref().map(bytes) == s.as_ref().map(bytes)
             }
             _ => false,
         }
@@ -382,6 +424,48 @@ mod tests {
         );
         // Without a calendar, the first kind as before.
         assert_eq!(postcard::to_allocvec(&group()).unwrap()[..2], [3, 0]);
+    }
+
+    #[test]
+    fn a_refit_with_its_second_moment_is_a_record_kind_of_its_own() {
+        use chronomap_core::TemporalModel as _;
+        let fit = |values: &[f64]| {
+            let mut learner = "fremen:auto"
+                .parse::<chronomap_models::ModelSpec>()
+                .unwrap()
+                .learner(100)
+                .unwrap();
+            let times: Vec<f64> = (0..values.len()).map(|i| 3600.0 * i as f64).collect();
+            learner.observe(&times, values).unwrap();
+            Box::new(
+                learner
+                    .refit_job()
+                    .unwrap()
+                    .run(&chronomap_models::FitOptions::default())
+                    .unwrap(),
+            )
+        };
+        let values: Vec<f64> = (0..48).map(|h| f64::from(h % 24) / 24.0).collect();
+        let squares: Vec<f64> = values.iter().map(|v| v * v).collect();
+        let without = vec![LogRecord::Refit {
+            id: "temp".into(),
+            refit: fit(&values),
+            spread: None,
+        }];
+        let with = vec![LogRecord::Refit {
+            id: "temp".into(),
+            refit: fit(&values),
+            spread: Some(fit(&squares)),
+        }];
+        // Without a second moment the fourth kind, as before; with one the sixth.
+        assert_eq!(postcard::to_allocvec(&without).unwrap()[..2], [1, 3]);
+        assert_eq!(postcard::to_allocvec(&with).unwrap()[..2], [1, 5]);
+        for records in [without, with] {
+            assert_eq!(
+                decode_group(4, &encode_group(4, &records)).unwrap(),
+                records
+            );
+        }
     }
 
     #[test]

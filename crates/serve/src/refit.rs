@@ -215,7 +215,7 @@ fn refit_one(
     requested: bool,
 ) -> Outcome {
     let how = if requested { "requested" } else { "scheduled" };
-    let (job, spec, current, last) = {
+    let (job, spread_job, spec, current, last) = {
         let registry = shared.registry.read().expect("registry lock");
         let entry = registry
             .get(id)
@@ -225,11 +225,14 @@ fn refit_one(
             .model
             .refit_job()
             .ok_or_else(|| RefitFailure::Online(id.to_owned(), spec.clone()))?;
+        // A model of continuous values fitted on a whole series with a second moment
+        // (`auto`): its squares are fitted with it, on the same observations.
+        let spread_job = entry.spread.as_ref().and_then(|s| s.refit_job());
         // Fitted on every observation already: nothing to do.
         let current = (entry.model.since_fit().0 == 0)
             .then(|| entry.fit_info())
             .flatten();
-        (job, spec, current, entry.model.span().last)
+        (job, spread_job, spec, current, entry.model.span().last)
     };
     if let Some(fit) = current {
         return Ok(RefitResponse {
@@ -254,11 +257,25 @@ fn refit_one(
             return Err(RefitFailure::Fit(id.to_owned(), e.to_string()));
         }
     };
+    // Without a fit of the second moment the model keeps predicting its intervals from the
+    // last one (it goes on learning the squares online meanwhile).
+    let spread = spread_job.and_then(|job| match job.run(&fit_options()) {
+        Ok(fit) => Some(fit),
+        Err(e) => {
+            log(format_args!(
+                "refit of the second moment of model {id:?} ({spec}, {how}) failed on {} \
+                 observations: {e}",
+                job.observations()
+            ));
+            None
+        }
+    });
+    let secs = started.elapsed().as_secs_f64();
     refits.failed(id, None);
     let fit = fit_info(&refit.record, &refit.model);
     let (reply, written) = oneshot::channel();
     let command = WriteCommand {
-        ops: vec![WriteOp::refit(id.to_owned(), refit)],
+        ops: vec![WriteOp::refit(id.to_owned(), refit, spread)],
         reply,
     };
     if writes.blocking_send(command).is_err() {

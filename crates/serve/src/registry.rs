@@ -133,6 +133,14 @@ impl ModelConfig {
         empty_model(&self.spec)
     }
 
+    /// Whether models of this configuration keep a model of the second moment
+    /// ([`Entry::spread`]): those of continuous values whose spec learns online, or is `auto`.
+    pub fn has_second_moment(&self) -> bool {
+        self.range.is_some()
+            && (self.spec == ModelSpec::Auto
+                || !self.spec.learner(1).is_ok_and(|l| l.is_refitting()))
+    }
+
     /// Maps a value as given onto `[0, 1]`.
     pub fn normalise(&self, value: f64) -> f64 {
         match self.range {
@@ -204,14 +212,16 @@ pub struct Entry {
     pub config: ModelConfig,
     /// The model: the online model, or kept observations and the last fit.
     pub model: Learner,
-    /// For models of continuous values (with a `range`) whose spec learns online: the same
-    /// model fed the squares of the normalised values, the second moment that prediction
-    /// intervals come from ([`chronomap_core::spread`]). `None` for binary models; for specs
-    /// fitted on a whole series (`auto`, `fremen:auto`, ...: their order or combination is
-    /// chosen for the squares apart from the values, and too few components for the squares
-    /// make the variance collapse; see `docs/service.md`); and for models restored from a
-    /// snapshot written before intervals were served (they never learnt the squares, so they
-    /// have no interval until they are created again).
+    /// For models of continuous values (with a `range`) whose spec learns online, or is
+    /// `auto`: the same model fed the squares of the normalised values, the second moment that
+    /// prediction intervals come from ([`chronomap_core::spread`]); `auto`'s is refitted with
+    /// it, on the same observations squared ([`LogRecord::Refit`]). `None` for binary models;
+    /// for the other specs fitted on a whole series (`fremen:auto`, ...: the order chosen for
+    /// the squares cannot hold the square of the values' rhythm, and the variance collapses;
+    /// `auto`'s histograms average the squares as they average the values; see
+    /// `docs/service.md`); and for models restored from a snapshot written before intervals
+    /// were served (they never learnt the squares, so they have no interval until they are
+    /// created again).
     pub spread: Option<Learner>,
     /// Observations made on a day off of the model's calendar ([`ModelConfig::days_off`]):
     /// accepted and logged, not learned.
@@ -225,9 +235,10 @@ impl Entry {
     /// As [`ModelConfig::parse`].
     pub fn new(config: ModelConfig) -> Result<Self, String> {
         let model = config.empty_model()?;
-        let spread = match config.range {
-            Some(_) if !model.is_refitting() => Some(config.empty_model()?),
-            _ => None,
+        let spread = if config.has_second_moment() {
+            Some(config.empty_model()?)
+        } else {
+            None
         };
         Ok(Entry {
             config,
@@ -311,19 +322,42 @@ impl Entry {
         }
     }
 
-    /// Puts a fit of its kept observations in place (`id` is for errors).
+    /// Puts a fit of its kept observations in place, and of their squares for the model of the
+    /// second moment (`spread`; `id` is for errors).
     ///
     /// # Errors
-    /// A fit that does not belong to this learner, or an older one than its own
-    /// ([`Learner::install`]); the entry is then unchanged.
+    /// A fit that does not belong to its learner, or an older one than its own
+    /// ([`Learner::install`]), or a fit of the second moment for a model without one; the entry
+    /// is then unchanged.
     pub fn install(
         &mut self,
         id: &str,
         refit: &chronomap_models::learner::Refit,
+        spread: Option<&chronomap_models::learner::Refit>,
     ) -> Result<(), ApplyError> {
-        self.model
-            .install(refit.clone())
-            .map_err(|e| ApplyError::Refit(id.to_owned(), e))
+        let refused = |e| ApplyError::Refit(id.to_owned(), e);
+        // Both or neither: the second moment's fit goes into a copy first.
+        let spread = match (spread, &self.spread) {
+            (None, _) => None,
+            (Some(fit), Some(learner)) => {
+                let mut learner = learner.clone();
+                learner.install(fit.clone()).map_err(refused)?;
+                Some(learner)
+            }
+            (Some(_), None) => {
+                return Err(refused(RefitError::NotThisLearner {
+                    reason: format!(
+                        "a fit of the second moment, and this `{}` model has no model of it",
+                        self.config.spec
+                    ),
+                }));
+            }
+        };
+        self.model.install(refit.clone()).map_err(refused)?;
+        if spread.is_some() {
+            self.spread = spread;
+        }
+        Ok(())
     }
 
     /// The model predicting with `order` (a copy when the order differs from its own). A model
@@ -582,11 +616,11 @@ impl Registry {
                 .ok_or_else(|| ApplyError::NotFound(id.clone()))?
                 .observe(id, times, values),
             // In place too: a learner installs a fit atomically.
-            LogRecord::Refit { id, refit } => self
+            LogRecord::Refit { id, refit, spread } => self
                 .models
                 .get_mut(id.as_str())
                 .ok_or_else(|| ApplyError::NotFound(id.clone()))?
-                .install(id, refit),
+                .install(id, refit, spread.as_deref()),
             _ => {
                 let id = record.id();
                 let mut slot = self.models.remove(id);
@@ -626,9 +660,70 @@ pub fn apply_to(slot: &mut Option<Entry>, record: &LogRecord) -> Result<(), Appl
             }
             Ok(())
         }
-        LogRecord::Refit { id, refit } => slot
+        LogRecord::Refit { id, refit, spread } => slot
             .as_mut()
             .ok_or_else(|| ApplyError::NotFound(id.clone()))?
-            .install(id, refit),
+            .install(id, refit, spread.as_deref()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fit of `values` (normalised) at hourly times by a learner of `spec`.
+    fn fit(spec: &str, values: &[f64]) -> chronomap_models::learner::Refit {
+        let mut learner = spec.parse::<ModelSpec>().unwrap().learner(KEEP).unwrap();
+        let times: Vec<f64> = (0..values.len()).map(|i| 3600.0 * i as f64).collect();
+        learner.observe(&times, values).unwrap();
+        learner
+            .refit_job()
+            .unwrap()
+            .run(&chronomap_models::FitOptions::default())
+            .unwrap()
+    }
+
+    #[test]
+    fn auto_refits_its_second_moment_with_it_and_other_whole_series_specs_have_none() {
+        let values: Vec<f64> = (0..96).map(|h| 10.0 + f64::from(h % 24)).collect();
+        let normalised: Vec<f64> = values.iter().map(|v| (v - 10.0) / 30.0).collect();
+        let squares: Vec<f64> = normalised.iter().map(|v| v * v).collect();
+        let times: Vec<f64> = (0..96).map(|i| 3600.0 * f64::from(i)).collect();
+        let entry = |spec: &str| {
+            let config = ModelConfig::parse(Some(spec), Some([10.0, 40.0])).unwrap();
+            assert_eq!(config.has_second_moment(), spec == "auto", "{spec}");
+            let mut entry = Entry::new(config).unwrap();
+            entry.observe("temp", &times, &values).unwrap();
+            entry
+        };
+        let mut stack = entry("auto");
+        stack
+            .install(
+                "temp",
+                &fit("auto", &normalised),
+                Some(&fit("auto", &squares)),
+            )
+            .unwrap();
+        assert!(stack.spread_with_order(None).is_some());
+        // A fit of the second moment for a model without one is refused, and changes nothing.
+        let mut order = entry("fremen:auto");
+        let error = order
+            .install(
+                "temp",
+                &fit("fremen:auto", &normalised),
+                Some(&fit("fremen:auto", &squares)),
+            )
+            .unwrap_err();
+        assert!(error.to_string().contains("second moment"), "{error}");
+        assert!(order.model.model().is_none() && order.spread.is_none());
+        // A fit of the second moment that does not belong (of more observations than the
+        // model has seen) leaves the model unfitted too.
+        let mut stack = entry("auto");
+        let more: Vec<f64> = squares.iter().chain(&squares).copied().collect();
+        let error = stack
+            .install("temp", &fit("auto", &normalised), Some(&fit("auto", &more)))
+            .unwrap_err();
+        assert!(matches!(error, ApplyError::Refit(..)), "{error}");
+        assert!(stack.model.model().is_none());
     }
 }

@@ -283,13 +283,15 @@ pub fn decode_snapshot(id: &str, bytes: &[u8]) -> Result<Entry, String> {
         return Err(format!("snapshot of {id:?}: inconsistent model parameters"));
     }
     // A model of continuous values may lack one (restored from version 2 and snapshotted
-    // again); a binary model, or one fitted on a whole series, never has one.
+    // again); a binary model, or one fitted on a whole series other than `auto`, never has
+    // one, and it learns as the model does.
     if let Some(spread) = &entry.spread
-        && (entry.config.range.is_none() || entry.model.is_refitting() || spread.is_refitting())
+        && (!entry.config.has_second_moment()
+            || spread.is_refitting() != entry.model.is_refitting())
     {
         return Err(format!(
             "snapshot of {id:?}: a learner of the second moment for a model of binary states \
-             or one fitted on a whole series"
+             or one fitted on a whole series other than `auto`"
         ));
     }
     Ok(entry)

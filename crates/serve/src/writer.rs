@@ -61,12 +61,18 @@ impl WriteOp {
         }
     }
 
-    /// Put a fit of a model's kept observations in place.
-    pub fn refit(id: String, refit: chronomap_models::learner::Refit) -> Self {
+    /// Put a fit of a model's kept observations in place (and of their squares, for a model
+    /// with a second moment).
+    pub fn refit(
+        id: String,
+        refit: chronomap_models::learner::Refit,
+        spread: Option<chronomap_models::learner::Refit>,
+    ) -> Self {
         WriteOp {
             record: LogRecord::Refit {
                 id,
                 refit: Box::new(refit),
+                spread: spread.map(Box::new),
             },
             create: None,
         }
@@ -754,8 +760,8 @@ mod tests {
                 Arc::clone(&store),
                 vec![
                     vec![observe_as("auto", "door", t1, 100)],
-                    vec![WriteOp::refit("door".into(), door)],
-                    vec![WriteOp::refit("lab".into(), lab.clone())],
+                    vec![WriteOp::refit("door".into(), door, None)],
+                    vec![WriteOp::refit("lab".into(), lab.clone(), None)],
                     vec![observe_as("auto", "door", t1 + 100.0 * 600.0, 50)],
                 ],
                 policy,
@@ -796,6 +802,7 @@ mod tests {
                 LogRecord::Refit {
                     id: "door".into(),
                     refit: Box::new(refit_of(&shared, "door")),
+                    spread: None,
                 },
             ];
             let seq = shared.seq.load(Ordering::Acquire) + 1;
@@ -821,10 +828,10 @@ mod tests {
             let (outcomes, shared) = run_writer(
                 Arc::clone(&store),
                 vec![
-                    vec![WriteOp::refit("lab".into(), stale.clone())],
-                    vec![WriteOp::refit("door".into(), stale.clone())],
+                    vec![WriteOp::refit("lab".into(), stale.clone(), None)],
+                    vec![WriteOp::refit("door".into(), stale.clone(), None)],
                     vec![WriteOp::remove("lab".into())],
-                    vec![WriteOp::refit("lab".into(), stale)],
+                    vec![WriteOp::refit("lab".into(), stale, None)],
                 ],
                 policy,
             );

@@ -45,7 +45,7 @@ fn floats(value: &Value) -> Vec<f64> {
 /// print alike).
 fn answers(service: &Service, runtime: &tokio::runtime::Runtime, times: &[f64]) -> Vec<String> {
     let mut all = Vec::new();
-    for id in ["temp", "auto-temp", "door"] {
+    for id in ["temp", "auto-temp", "stack-temp", "door"] {
         for coverage in [0.5, 0.9, 0.99] {
             let body = json!({"id": id, "times": times, "coverage": coverage});
             all.push(send(service, runtime, "POST", "/v1/predict", &body).1);
@@ -65,10 +65,12 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
     let mut rng = Xoshiro256StarStar::seed_from_u64(41);
 
     // Eight weeks of one value a minute for `temp` (learns online); two weeks every five
-    // minutes for `auto-temp` (fitted on its kept observations); a binary door.
+    // minutes for `auto-temp` and four for `stack-temp` (fitted on their kept observations); a
+    // binary door.
     for (id, model, days, step) in [
         ("temp", "fremen:2", 56.0, 60.0),
         ("auto-temp", "fremen:auto", 14.0, 300.0),
+        ("stack-temp", "auto", 28.0, 300.0),
     ] {
         let created = json!({"model": model, "range": RANGE});
         ok(send(
@@ -117,9 +119,9 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
         println!("temp, {coverage}: {c:?}");
     }
 
-    // A binary model answers no interval, nor does a model fitted on a whole series, before
-    // or after its fit (see docs/service.md for why).
-    for id in ["door", "auto-temp"] {
+    // A binary model answers no interval, nor does a model fitted on a whole series before its
+    // fit, nor after it but for `auto` (see docs/service.md for why).
+    for id in ["door", "auto-temp", "stack-temp"] {
         let at = json!({"id": id, "times": [after], "coverage": 0.9});
         let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &at));
         assert!(
@@ -140,6 +142,30 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
     assert!(
         answer.get("lower").is_none() && answer.get("scaled").is_some(),
         "{answer}"
+    );
+    // `auto` fits its second moment with its values (a stack of averages of the squares):
+    // its intervals hold about their share.
+    let refit = ok(send(
+        &service,
+        &runtime,
+        "POST",
+        "/v1/models/stack-temp/refit",
+        &json!({}),
+    ));
+    assert_eq!(refit["refitted"], json!(true), "{refit}");
+    let body = json!({"id": "stack-temp", "times": fresh_times, "coverage": 0.9});
+    let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &body));
+    let (lower, upper) = (floats(&answer["lower"]), floats(&answer["upper"]));
+    let inside = fresh
+        .iter()
+        .zip(lower.iter().zip(&upper))
+        .filter(|(v, (lo, hi))| (**lo..=**hi).contains(*v))
+        .count() as f64
+        / fresh.len() as f64;
+    println!("stack-temp, 0.9: {inside}");
+    assert!(
+        (0.87..=0.93).contains(&inside),
+        "auto's 90 % intervals held {inside}"
     );
 
     // A coverage that is no share is a 400 naming the field: out of (0, 1), null (how
