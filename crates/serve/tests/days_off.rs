@@ -14,7 +14,7 @@ use chronomap_serve::Service;
 use chronomap_serve::log::LogRecord;
 use chronomap_serve::registry::{Entry, ModelConfig};
 use chronomap_serve::store::{Checkpoint, RedbStore, Store};
-use common::{assert_same_after_replay_and_restart, ok, send, start};
+use common::{assert_same_after_replay_and_restart, ok, refit, send, start};
 use serde_json::{Value, json};
 
 const DAY: f64 = 86_400.0;
@@ -163,14 +163,7 @@ fn a_calendar_is_not_learned_predicts_its_sundays_and_survives_restarts() {
         assert_eq!(ack["observations"], json!(t.len()), "{id}: {ack}");
     }
     for id in ["auto", "auto-plain"] {
-        let refit = ok(send(
-            &service,
-            &runtime,
-            "POST",
-            &format!("/v1/models/{id}/refit"),
-            &json!({}),
-        ));
-        assert_eq!(refit["refitted"], json!(true), "{id}: {refit}");
+        refit(&service, &runtime, id);
     }
 
     // What `GET` says: the calendar in brief, the observations learned and those skipped.

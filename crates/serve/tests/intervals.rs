@@ -10,7 +10,7 @@ use axum::http::StatusCode;
 use chronomap_core::conformance::check_interval_coverage;
 use chronomap_core::rng::Xoshiro256StarStar;
 use chronomap_serve::Service;
-use common::{assert_same_after_replay_and_restart, ok, send, start};
+use common::{assert_same_after_replay_and_restart, ok, refit, send, start};
 use serde_json::{Value, json};
 use statrs::distribution::{Beta, ContinuousCDF};
 
@@ -129,14 +129,7 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
             "{answer}"
         );
     }
-    let refit = ok(send(
-        &service,
-        &runtime,
-        "POST",
-        "/v1/models/auto-temp/refit",
-        &json!({}),
-    ));
-    assert_eq!(refit["refitted"], json!(true), "{refit}");
+    refit(&service, &runtime, "auto-temp");
     let at = json!({"id": "auto-temp", "times": [after], "coverage": 0.9});
     let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &at));
     assert!(
@@ -145,14 +138,7 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
     );
     // `auto` fits its second moment with its values (a stack of averages of the squares):
     // its intervals hold about their share.
-    let refit = ok(send(
-        &service,
-        &runtime,
-        "POST",
-        "/v1/models/stack-temp/refit",
-        &json!({}),
-    ));
-    assert_eq!(refit["refitted"], json!(true), "{refit}");
+    refit(&service, &runtime, "stack-temp");
     let body = json!({"id": "stack-temp", "times": fresh_times, "coverage": 0.9});
     let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &body));
     let (lower, upper) = (floats(&answer["lower"]), floats(&answer["upper"]));

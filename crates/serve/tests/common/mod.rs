@@ -1,6 +1,7 @@
 //! What the tests that drive one in-process service through its router share: a service on
-//! a redb store that refits only on request, a request and its answer, a `200`'s JSON, and
-//! the check that a service answers alike after a crash and after a restart.
+//! a redb store that refits only on request, a request and its answer, a `200`'s JSON, a
+//! refit on request, and the check that a service answers alike after a crash and after a
+//! restart.
 
 use std::sync::Arc;
 
@@ -58,6 +59,23 @@ pub fn send(
 pub fn ok(answer: (StatusCode, String)) -> Value {
     assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
     serde_json::from_str(&answer.1).unwrap()
+}
+
+/// Refits model `id` on request and checks that it was refitted.
+pub fn refit(service: &Service, runtime: &tokio::runtime::Runtime, id: &str) {
+    let path = format!("/v1/models/{id}/refit");
+    let answer = ok(send(
+        service,
+        runtime,
+        "POST",
+        &path,
+        &serde_json::json!({}),
+    ));
+    assert_eq!(
+        answer["refitted"],
+        serde_json::json!(true),
+        "{id}: {answer}"
+    );
 }
 
 /// What `answers` says of `service` (whose store is at `path`) is said again, bit for bit, by
