@@ -228,10 +228,12 @@ fn refit_one(
         // A model of continuous values fitted on a whole series with a second moment
         // (`auto`): its squares are fitted with it, on the same observations.
         let spread_job = entry.spread.as_ref().and_then(|s| s.refit_job());
-        // Fitted on every observation already: nothing to do.
-        let current = (entry.model.since_fit().0 == 0)
-            .then(|| entry.fit_info())
-            .flatten();
+        // Fitted on every observation already, and so is the second moment (one restored from
+        // a log written before `auto` had one is fitted now): nothing to do.
+        let current = (entry.model.since_fit().0 == 0
+            && entry.spread.as_ref().is_none_or(|s| s.since_fit().0 == 0))
+        .then(|| entry.fit_info())
+        .flatten();
         (job, spread_job, spec, current, entry.model.span().last)
     };
     if let Some(fit) = current {
