@@ -38,8 +38,12 @@ use crate::model::TemporalModel;
 use crate::observe::ObservedSpan;
 use crate::periods::cycle_fraction;
 
-/// Largest `bins × cycles` of a [`RecentHistogram`] (its memory).
+/// Largest `bins × cycles` of a [`RecentHistogram`] (its memory, as a histogram's bins).
 pub const MAX_CELLS: usize = MAX_BINS;
+
+/// Most periods a [`RecentHistogram`] remembers (eleven years of days; each costs a slot even
+/// before it is observed).
+pub const MAX_CYCLES: usize = 4096;
 
 /// One cycle's sums (bins allocated when the cycle is first observed).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -101,15 +105,15 @@ impl RecentHistogram {
     /// `cycles` periods.
     ///
     /// # Errors
-    /// If `bins` or `cycles` is 0, `bins × cycles` is above [`MAX_CELLS`], or the period is not
-    /// positive and finite.
+    /// If `bins` or `cycles` is 0, `cycles` is above [`MAX_CYCLES`], `bins × cycles` is above
+    /// [`MAX_CELLS`], or the period is not positive and finite.
     pub fn new(bins: usize, period_secs: f64, cycles: usize) -> Result<Self, ConfigError> {
         check_bins_and_period(bins, period_secs)?;
-        if cycles == 0 || bins.saturating_mul(cycles) > MAX_CELLS {
+        if !(1..=MAX_CYCLES).contains(&cycles) || bins.saturating_mul(cycles) > MAX_CELLS {
             return Err(ConfigError::OutOfRange {
                 name: "cycles",
                 value: cycles.to_string(),
-                expected: "1 or more, with bins × cycles at most 1048576",
+                expected: "1 ..= 4096, with bins × cycles at most 1048576",
             });
         }
         Ok(RecentHistogram {
@@ -183,7 +187,7 @@ impl RecentHistogram {
             .iter()
             .try_fold(0u64, |a, s| a.checked_add(s.count));
         (1..=MAX_BINS).contains(&self.bins)
-            && cycles >= 1
+            && (1..=MAX_CYCLES).contains(&cycles)
             && self.bins.saturating_mul(cycles) <= MAX_CELLS
             && self.period_secs.is_finite()
             && self.period_secs > 0.0
@@ -337,6 +341,8 @@ mod tests {
         assert!(RecentHistogram::new(0, DAY, 7).is_err());
         assert!(RecentHistogram::new(24, DAY, 0).is_err());
         assert!(RecentHistogram::new(1 << 20, DAY, 2).is_err());
+        assert!(RecentHistogram::new(1, DAY, 4097).is_err());
+        assert!(RecentHistogram::new(1, DAY, 4096).is_ok());
         assert!(RecentHistogram::new(24, f64::NAN, 7).is_err());
         assert!(RecentHistogram::new(24, -1.0, 7).is_err());
         let mut h = RecentHistogram::new(2, 100.0, 2).unwrap();

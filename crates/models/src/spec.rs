@@ -212,17 +212,15 @@ impl FromStr for ModelSpec {
                     None => 4,
                     Some(k) => k
                         .parse()
-                        .ok()
-                        .filter(|&k: &usize| k >= 1 && bins.saturating_mul(k) <= chronomap_core::recent::MAX_CELLS)
-                        .ok_or_else(|| {
-                            error(format!(
-                                "cycles {k:?} is not a whole number from 1 with bins × cycles at most 1048576"
-                            ))
-                        })?,
+                        .map_err(|_| error(format!("cycles {k:?} is not a whole number")))?,
                 };
+                let period_secs = period(2, WEEK)?;
+                // The model's own limits (cycles, bins × cycles), said as a spec error.
+                RecentHistogram::new(bins, period_secs, cycles)
+                    .map_err(|e| error(e.to_string()))?;
                 ModelSpec::Recent {
                     bins,
-                    period_secs: period(2, WEEK)?,
+                    period_secs,
                     cycles,
                 }
             }
@@ -963,6 +961,7 @@ mod tests {
             "mean:3",
             "hist:24:-5",
             "recent:24:86400:0",
+            "recent:1:86400:4097",
             "recent:1024:86400:2048",
             "recent:24:86400:7:1",
             "nope",
