@@ -125,6 +125,16 @@ fn every_limit_in_docs_limits_is_the_one_in_the_code() {
             chronomap_core::hist::MAX_BINS as u128,
         ),
         (
+            "MAX_CYCLES",
+            "chronomap_core::recent",
+            chronomap_core::recent::MAX_CYCLES as u128,
+        ),
+        (
+            "MAX_RECENT_DAYS",
+            "chronomap_models::stack",
+            chronomap_models::stack::MAX_RECENT_DAYS as u128,
+        ),
+        (
             "MAX_COMPONENTS",
             "chronomap_core::pergam",
             chronomap_core::pergam::MAX_COMPONENTS as u128,
