@@ -174,3 +174,69 @@ fn range_models_answer_intervals_that_hold_their_share_and_survive_restarts() {
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A store whose log holds an `auto` model of continuous values refitted by a service from
+/// before `auto` had a second moment (a `Refit` record without the fit of the squares): it
+/// answers no interval, and a refit request — although the model itself is fitted on every
+/// observation — fits the second moment, after which it does.
+#[test]
+fn an_auto_model_refitted_without_its_second_moment_gets_one_at_the_next_refit_request() {
+    use chronomap_serve::log::{LogRecord, encode_group};
+    use chronomap_serve::registry::{Entry, ModelConfig};
+    use chronomap_serve::store::{RedbStore, Store};
+
+    let dir = std::env::temp_dir().join(format!(
+        "chronomap-serve-intervals-old-refit-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("chronomap.redb");
+    let mut rng = Xoshiro256StarStar::seed_from_u64(7);
+    let times: Vec<f64> = (0..7 * 288).map(|i| START + 300.0 * f64::from(i)).collect();
+    let values: Vec<f64> = times.iter().map(|&t| draw(&mut rng, t)).collect();
+    let config = ModelConfig::parse(Some("auto"), Some(RANGE)).unwrap();
+    let mut entry = Entry::new(config.clone()).unwrap();
+    entry.observe("old", &times, &values).unwrap();
+    let fit = entry
+        .model
+        .refit_job()
+        .unwrap()
+        .run(&chronomap_serve::refit::fit_options())
+        .unwrap();
+    let records = [
+        LogRecord::Create {
+            id: "old".into(),
+            config,
+        },
+        LogRecord::Observe {
+            id: "old".into(),
+            times: times.clone(),
+            values,
+        },
+        LogRecord::Refit {
+            id: "old".into(),
+            refit: Box::new(fit),
+            spread: None,
+        },
+    ];
+    RedbStore::open(&path)
+        .unwrap()
+        .append(1, &encode_group(1, &records))
+        .unwrap();
+
+    let (service, runtime) = start(&path);
+    let at = json!({"id": "old", "times": [START + 8.0 * DAY], "coverage": 0.9});
+    let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &at));
+    assert!(
+        answer.get("lower").is_none() && answer.get("scaled").is_some(),
+        "{answer}"
+    );
+    refit(&service, &runtime, "old");
+    let answer = ok(send(&service, &runtime, "POST", "/v1/predict", &at));
+    let (lower, upper) = (floats(&answer["lower"]), floats(&answer["upper"]));
+    let scaled = floats(&answer["scaled"]);
+    assert!(lower[0] < scaled[0] && scaled[0] < upper[0], "{answer}");
+    drop(service);
+    let _ = std::fs::remove_dir_all(&dir);
+}
