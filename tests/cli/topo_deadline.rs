@@ -129,8 +129,9 @@ fn plan_with_a_deadline_on_the_command_line() {
     let model = dir.join("witham.cmt").display().to_string();
     fit_witham(&model, &["--success-order", "1"]);
     let png = dir.join("curve.png").display().to_string();
-    let args = |extra: &[&str]| -> Vec<String> {
-        [
+    // `plan` from the kitchen to the F Station, `when` (one time, or a table of them).
+    let plan = |when: &[&str], extra: &[&str]| {
+        let mut args = vec![
             "plan",
             "--model",
             &model,
@@ -138,18 +139,12 @@ fn plan_with_a_deadline_on_the_command_line() {
             "Kitchen",
             "--task",
             "F Station",
-            "--time",
-            "2014-09-04T14:00Z",
-        ]
-        .iter()
-        .chain(extra)
-        .map(|s| s.to_string())
-        .collect()
+        ];
+        args.extend_from_slice(when);
+        args.extend_from_slice(extra);
+        chronomap(&args)
     };
-    let run = |extra: &[&str]| {
-        let args = args(extra);
-        chronomap(&args.iter().map(String::as_str).collect::<Vec<_>>())
-    };
+    let run = |extra: &[&str]| plan(&["--time", "2014-09-04T14:00Z"], extra);
     let out = stdout(&run(&["--deadline", "100", "--json", "--plot", &png]));
     let report: Value = serde_json::from_str(out.trim()).unwrap();
     let number = |key: &str| report[key].as_f64().unwrap();
@@ -217,14 +212,7 @@ fn plan_with_a_deadline_on_the_command_line() {
     // The now-or-later table with a deadline: at each start time the deadline plan's
     // probability and first edge, as the library plans it at that time alone.
     let day_table = |extra: &[&str]| {
-        let mut args = vec![
-            "plan",
-            "--model",
-            &model,
-            "--from",
-            "Kitchen",
-            "--task",
-            "F Station",
+        let when = [
             "--day-table",
             "--week-of",
             "2014-09-04",
@@ -235,8 +223,7 @@ fn plan_with_a_deadline_on_the_command_line() {
             "--deadline",
             "100",
         ];
-        args.extend_from_slice(extra);
-        chronomap(&args)
+        plan(&when, extra)
     };
     let table: Value = serde_json::from_str(stdout(&day_table(&["--json"])).trim()).unwrap();
     assert_eq!(table["deadline_secs"], 100.0);

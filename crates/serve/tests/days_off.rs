@@ -14,7 +14,7 @@ use chronomap_serve::Service;
 use chronomap_serve::log::LogRecord;
 use chronomap_serve::registry::{Entry, ModelConfig};
 use chronomap_serve::store::{Checkpoint, RedbStore, Store};
-use common::{assert_same_after_replay_and_restart, ok, refit, send, start};
+use common::{assert_same_after_replay_and_restart, get, ok, refit, send, start};
 use serde_json::{Value, json};
 
 const DAY: f64 = 86_400.0;
@@ -167,25 +167,13 @@ fn a_calendar_is_not_learned_predicts_its_sundays_and_survives_restarts() {
     }
 
     // What `GET` says: the calendar in brief, the observations learned and those skipped.
-    let door = ok(send(
-        &service,
-        &runtime,
-        "GET",
-        "/v1/models/door",
-        &json!({}),
-    ));
+    let door = get(&service, &runtime, "/v1/models/door");
     assert_eq!(door["observations"], json!(working.len()), "{door}");
     assert_eq!(
         door["days_off"],
         json!({"days": 3, "first": "2016-03-11", "last": "2016-03-28", "skipped": 48}),
     );
-    let plain = ok(send(
-        &service,
-        &runtime,
-        "GET",
-        "/v1/models/plain",
-        &json!({}),
-    ));
+    let plain = get(&service, &runtime, "/v1/models/plain");
     assert!(plain.get("days_off").is_none(), "{plain}");
 
     // Nothing was learned on the day off: at working times, a model with a calendar answers
@@ -300,7 +288,7 @@ fn bad_calendars_are_refused_naming_the_field_and_the_index() {
         );
     }
     // The OpenAPI description shows the field and the calendar in `GET`.
-    let openapi = ok(send(&service, &runtime, "GET", "/openapi.json", &json!({})));
+    let openapi = get(&service, &runtime, "/openapi.json");
     let schemas = &openapi["components"]["schemas"];
     assert_eq!(
         schemas["CreateRequest"]["properties"]["days_off"]["type"],
@@ -320,13 +308,7 @@ fn bad_calendars_are_refused_naming_the_field_and_the_index() {
         "/v1/models/door",
         &json!({"model": "fremen:2", "days_off": []}),
     ));
-    let door = ok(send(
-        &service,
-        &runtime,
-        "GET",
-        "/v1/models/door",
-        &json!({}),
-    ));
+    let door = get(&service, &runtime, "/v1/models/door");
     assert!(door.get("days_off").is_none(), "{door}");
     drop(service);
     let _ = std::fs::remove_dir_all(&dir);
@@ -472,13 +454,7 @@ fn logs_and_snapshots_written_before_calendars_load_as_they_did() {
     let mut seen = Vec::new();
     for path in [&log_path, &snapshot_path] {
         let (service, runtime) = start(path);
-        let info = ok(send(
-            &service,
-            &runtime,
-            "GET",
-            "/v1/models/temp",
-            &json!({}),
-        ));
+        let info = get(&service, &runtime, "/v1/models/temp");
         assert_eq!(info["observations"], json!(times.len()), "{info}");
         assert!(info.get("days_off").is_none(), "{info}");
         let at = json!({"id": "temp", "times": probe, "coverage": 0.9});

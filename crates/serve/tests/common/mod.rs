@@ -1,6 +1,6 @@
 //! What the tests that drive one in-process service through its router share: a service on
 //! a redb store that refits only on request, a request and its answer, a `200`'s JSON, a
-//! refit on request, and the check that a service answers alike after a crash and after a
+//! `GET`, a refit on request, and the check that a service answers alike after a crash and after a
 //! restart.
 
 use std::sync::Arc;
@@ -59,6 +59,12 @@ pub fn send(
 pub fn ok(answer: (StatusCode, String)) -> Value {
     assert_eq!(answer.0, StatusCode::OK, "{}", answer.1);
     serde_json::from_str(&answer.1).unwrap()
+}
+
+/// The JSON of a `GET` of `path` that answers `200`.
+#[allow(dead_code)] // not every test binary sharing this module reads
+pub fn get(service: &Service, runtime: &tokio::runtime::Runtime, path: &str) -> Value {
+    ok(send(service, runtime, "GET", path, &serde_json::json!({})))
 }
 
 /// Refits model `id` on request and checks that it was refitted.
