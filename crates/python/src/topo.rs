@@ -465,6 +465,12 @@ impl PyEdgeModels {
             })
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let edges = models.map().edges();
+        // The first edges of plans as edge ids (None where there is nothing to do).
+        let first_edges = |first: &mut dyn Iterator<Item = Option<usize>>| {
+            first
+                .map(|e| e.map(|e| edges[e].id.clone()))
+                .collect::<Vec<_>>()
+        };
         let dict = PyDict::new(py);
         dict.set_item("time", to_numpy(py, times.to_vec()))?;
         dict.set_item("pmax", to_numpy(py, plans.iter().map(|p| p.pmax).collect()))?;
@@ -474,10 +480,7 @@ impl PyEdgeModels {
         )?;
         dict.set_item(
             "first_edge",
-            plans
-                .iter()
-                .map(|p| p.first_edge.map(|e| edges[e].id.clone()))
-                .collect::<Vec<_>>(),
+            first_edges(&mut plans.iter().map(|p| p.first_edge)),
         )?;
         let Some(deadline) = deadline else {
             if bucket_secs.is_some() {
@@ -520,10 +523,7 @@ impl PyEdgeModels {
         )?;
         dict.set_item(
             "deadline_first_edge",
-            by_deadline
-                .iter()
-                .map(|p| p.first_edge.map(|e| edges[e].id.clone()))
-                .collect::<Vec<_>>(),
+            first_edges(&mut by_deadline.iter().map(|p| p.first_edge)),
         )?;
         Ok(dict)
     }
