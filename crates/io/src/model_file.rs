@@ -479,9 +479,13 @@ pub fn decode_edge_models(
             reason: format!("this is a {kind:?} model, not the edge models of a topological map"),
         }));
     }
-    // Files written before the models kept their durations' spread read without it.
-    let (_, mut models): (String, chronomap_topo::edges::EdgeModels) =
-        decode_model_or_older::<_, chronomap_topo::edges::EdgeModelsWithoutSpread>(bytes)?;
+    // Files written before the spread of the durations adapted online read as not adapted yet,
+    // and those written before the models kept the spread read without it.
+    use chronomap_topo::edges::{EdgeModels, EdgeModelsWithoutAdaptation, EdgeModelsWithoutSpread};
+    let (_, mut models): (String, EdgeModels) =
+        decode_model_or_older::<_, EdgeModelsWithoutAdaptation>(bytes).or_else(|current| {
+            decode_model_or_older::<EdgeModels, EdgeModelsWithoutSpread>(bytes).map_err(|_| current)
+        })?;
     models.reindex();
     models
         .check()

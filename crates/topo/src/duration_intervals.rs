@@ -22,6 +22,28 @@
 //! from the median by `(n + 1)/n` for its `n` residuals ([`ResidualQuantiles::at_stretched`],
 //! the finite-sample widening of conformal prediction). The interval of coverage `1 − α` at `t`
 //! is `d̂(t) · exp(q(α/2)) … d̂(t) · exp(q(1 − α/2))`.
+//!
+//! A robot that keeps travelling sees each traversal's duration after it predicted it. Routes drift
+//! (an edge is crossed faster in later weeks than in the training weeks), and a spread fitted once
+//! holds less or more than its nominal share. [`DurationSpread::adapt`] corrects that online by
+//! adaptive conformal inference ([Gibbs 2021] eq. 2), once for every stored level `u` and all edges
+//! together: the level `v` read from the quantile functions in place of `u` moves after each
+//! traversal with residual `r` by
+//!
+//! ```text
+//!     v ← v + γ (u − 1[r ≤ q(v)]),   γ = 0.005 (their experiments' step)
+//! ```
+//!
+//! so that, whatever the drift, the long-run share of residuals at or below `q(v)` tends to `u`
+//! ([Gibbs 2021] Proposition 4.1: within `(max(v₁, 1 − v₁) + γ) / (γ T)` after `T` traversals), and
+//! the central intervals between two adapted levels hold their nominal share. Before the first
+//! traversal is adapted to, `v = u`. A drift may call for levels beyond the stored ones (a route
+//! become more erratic than any training traversal): there the quantile function goes on with an
+//! exponential tail through its two outermost stored levels, one more spacing `q(0.010) − q(0.005)`
+//! for each halving of the level (a Pareto tail of the durations), to `q(v) = −∞` at `v ≤ 0` and
+//! `+∞` at `v ≥ 1`, as in adaptive conformal inference, whose levels then stay within `[−γ, 1 + γ]`
+//! ([Gibbs 2021] Lemma 4.1). An interval's lower end at `v ≤ 0` is 0 s; its upper end is read at
+//! most at [`ADAPTED_LEVEL_CAP`], so that it stays finite.
 
 use serde::{Deserialize, Serialize};
 
@@ -34,6 +56,17 @@ pub const DURATION_PSEUDO_TRAVERSALS: f64 = 20.0;
 
 /// Levels of the stored quantiles: `i / 200` for `i = 1..=199`.
 const LEVELS: usize = 199;
+
+/// Step `γ` of the online adaptation of the levels ([`DurationSpread::adapt`]): the value of
+/// [Gibbs 2021]'s experiments, fixed a priori, not tuned to any split.
+pub const ADAPTATION_STEP: f64 = 0.005;
+
+/// The highest level an interval's upper end is read at after adaptation, `1 − 0.0005` (a
+/// tenth of the lowest stored level from 1): above it the end would be unbounded.
+pub const ADAPTED_LEVEL_CAP: f64 = 0.9995;
+
+/// The lowest stored level, `1 / 200`.
+const LOWEST_LEVEL: f64 = 1.0 / (LEVELS + 1) as f64;
 
 /// Widest coverage an interval can have: 99 % (the stored quantiles end at 0.005 and 0.995).
 pub const MAX_COVERAGE: f64 = 0.99;
@@ -115,6 +148,48 @@ impl ResidualQuantiles {
     }
 }
 
+/// The stored level `i / 200` for the index `i − 1`.
+fn nominal_level(index: usize) -> f64 {
+    (index + 1) as f64 / (LEVELS + 1) as f64
+}
+
+/// The levels read from the quantile functions in place of the stored ones, adapted online to
+/// the traversals seen after the fit ([`DurationSpread::adapt`], the [module docs](self)).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AdaptedLevels {
+    /// Traversals adapted to.
+    pub count: u64,
+    /// For the stored level `i / 200`, the level read (`i = 1..=199`; empty: none adapted to
+    /// yet, the stored levels themselves).
+    pub levels: Vec<f64>,
+}
+
+impl AdaptedLevels {
+    /// The level read in place of the nominal `level` (in `[0.005, 0.995]`), interpolated
+    /// between the stored levels.
+    pub fn read(&self, level: f64) -> f64 {
+        if self.levels.len() != LEVELS {
+            return level;
+        }
+        let position = (level * (LEVELS + 1) as f64 - 1.0).clamp(0.0, (LEVELS - 1) as f64);
+        let low = position.floor() as usize;
+        let high = (low + 1).min(LEVELS - 1);
+        let fraction = position - low as f64;
+        self.levels[low] + fraction * (self.levels[high] - self.levels[low])
+    }
+
+    /// Whether the stored values can be used (for models read from files).
+    pub fn is_consistent(&self) -> bool {
+        (self.count == 0 && self.levels.is_empty())
+            || (self.count > 0
+                && self.levels.len() == LEVELS
+                && self
+                    .levels
+                    .iter()
+                    .all(|v| (-ADAPTATION_STEP..=1.0 + ADAPTATION_STEP).contains(v)))
+    }
+}
+
 /// The spread of every edge's durations around its model, and of all edges together.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct DurationSpread {
@@ -122,6 +197,26 @@ pub struct DurationSpread {
     pub edges: Vec<ResidualQuantiles>,
     /// All edges' residuals together.
     pub pooled: ResidualQuantiles,
+    /// The levels adapted online to later traversals ([`DurationSpread::adapt`]).
+    pub adapted: AdaptedLevels,
+}
+
+/// The layout of [`DurationSpread`] in files written before it adapted online: read as a
+/// spread not adapted yet.
+#[derive(Deserialize)]
+pub struct DurationSpreadWithoutAdaptation {
+    edges: Vec<ResidualQuantiles>,
+    pooled: ResidualQuantiles,
+}
+
+impl From<DurationSpreadWithoutAdaptation> for DurationSpread {
+    fn from(old: DurationSpreadWithoutAdaptation) -> Self {
+        DurationSpread {
+            edges: old.edges,
+            pooled: old.pooled,
+            adapted: AdaptedLevels::default(),
+        }
+    }
 }
 
 impl DurationSpread {
@@ -131,7 +226,34 @@ impl DurationSpread {
         DurationSpread {
             edges: residuals.iter().map(|r| ResidualQuantiles::of(r)).collect(),
             pooled: ResidualQuantiles::of(&all),
+            adapted: AdaptedLevels::default(),
         }
+    }
+
+    /// Adapts the levels to one more successful traversal of `edge` whose residual against the
+    /// prediction made before it was `residual` (see the [module docs](self)): every stored
+    /// level's `v` moves by `γ (u − 1[r ≤ q(v)])`. Nothing happens for a
+    /// non-finite residual or a spread without residuals.
+    pub fn adapt(&mut self, edge: usize, residual: f64) {
+        if !residual.is_finite() || self.pooled.count == 0 {
+            return;
+        }
+        let current: Vec<f64> = (0..LEVELS)
+            .map(|i| self.adapted.read(nominal_level(i)))
+            .collect();
+        let moved = current
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let at_or_below = self.tailed_quantile(edge, v).is_some_and(|q| residual <= q);
+                let miss = if at_or_below { 1.0 } else { 0.0 };
+                // Within [−γ, 1 + γ] by the rule itself; the clamp only absorbs rounding.
+                (v + ADAPTATION_STEP * (nominal_level(i) - miss))
+                    .clamp(-ADAPTATION_STEP, 1.0 + ADAPTATION_STEP)
+            })
+            .collect();
+        self.adapted.levels = moved;
+        self.adapted.count = self.adapted.count.saturating_add(1);
     }
 
     /// The residual quantile of `edge` at `level`: the edge's own and the pooled quantile
@@ -146,14 +268,45 @@ impl DurationSpread {
         Some(w * own.at_stretched(level)? + (1.0 - w) * pooled)
     }
 
+    /// The residual quantile of `edge` at a level read after adaptation:
+    /// [`DurationSpread::quantile`] within the stored levels, beyond them an exponential tail
+    /// through the two outermost, `−∞` at `level ≤ 0` and `+∞` at `level ≥ 1` (see the
+    /// [module docs](self)); `None` when no edge had a residual.
+    pub fn tailed_quantile(&self, edge: usize, level: f64) -> Option<f64> {
+        let spacing = std::f64::consts::LN_2;
+        if level <= 0.0 {
+            self.quantile(edge, LOWEST_LEVEL).map(|_| f64::NEG_INFINITY)
+        } else if level >= 1.0 {
+            self.quantile(edge, LOWEST_LEVEL).map(|_| f64::INFINITY)
+        } else if level < LOWEST_LEVEL {
+            let (q1, q2) = (
+                self.quantile(edge, LOWEST_LEVEL)?,
+                self.quantile(edge, 2.0 * LOWEST_LEVEL)?,
+            );
+            Some(q1 + (q2 - q1) / spacing * (level / LOWEST_LEVEL).ln())
+        } else if level > 1.0 - LOWEST_LEVEL {
+            let (q1, q2) = (
+                self.quantile(edge, 1.0 - LOWEST_LEVEL)?,
+                self.quantile(edge, 1.0 - 2.0 * LOWEST_LEVEL)?,
+            );
+            Some(q1 + (q1 - q2) / spacing * (LOWEST_LEVEL / (1.0 - level)).ln())
+        } else {
+            self.quantile(edge, level)
+        }
+    }
+
     /// The interval of `coverage` (in `(0, 0.99]`) around the expected duration `expected_secs`
     /// of `edge`: `(lower, upper)` in seconds; `None` when no edge had a residual.
     pub fn interval(&self, edge: usize, expected_secs: f64, coverage: f64) -> Option<(f64, f64)> {
         let alpha = 1.0 - coverage.clamp(0.0, MAX_COVERAGE);
         let base = expected_secs.max(DURATION_FLOOR_SECS);
-        let lower = base * self.quantile(edge, alpha / 2.0)?.exp();
-        let upper = base * self.quantile(edge, 1.0 - alpha / 2.0)?.exp();
-        Some((lower, upper))
+        let read = |level: f64| {
+            self.tailed_quantile(edge, self.adapted.read(level).min(ADAPTED_LEVEL_CAP))
+        };
+        let lower = base * read(alpha / 2.0)?.exp();
+        let upper = base * read(1.0 - alpha / 2.0)?.exp();
+        // Adapted levels move one by one and may cross by a step: the interval is their span.
+        Some((lower.min(upper), lower.max(upper)))
     }
 
     /// The durations (seconds) of `edge` at the stored levels `i / 200`, `i = 1..=199`, around
@@ -161,10 +314,13 @@ impl DurationSpread {
     /// increasing; `None` when no edge had a residual.
     pub fn durations(&self, edge: usize, expected_secs: f64) -> Option<Vec<f64>> {
         let base = expected_secs.max(DURATION_FLOOR_SECS);
-        (1..=LEVELS)
+        let mut highest = f64::NEG_INFINITY;
+        (0..LEVELS)
             .map(|i| {
-                let level = i as f64 / (LEVELS + 1) as f64;
-                Some(base * self.quantile(edge, level)?.exp())
+                let level = self.adapted.read(nominal_level(i)).min(ADAPTED_LEVEL_CAP);
+                // Adapted levels may cross by a step: the durations stay increasing.
+                highest = highest.max(base * self.tailed_quantile(edge, level)?.exp());
+                Some(highest)
             })
             .collect()
     }
@@ -174,6 +330,7 @@ impl DurationSpread {
         self.edges.len() == edges
             && self.pooled.is_consistent()
             && self.edges.iter().all(ResidualQuantiles::is_consistent)
+            && self.adapted.is_consistent()
     }
 }
 
@@ -221,5 +378,110 @@ mod tests {
             DurationSpread::fit(&[Vec::new()]).interval(0, 1.0, 0.9),
             None
         );
+    }
+
+    #[test]
+    fn one_traversal_moves_every_level_by_the_step() {
+        // One edge, 1,001 residuals evenly from −0.5 to 0.5: the median is 0, the quantile at
+        // u is above 0 for u > 1/2. A residual of 0 lies at or below q(u) for u ≥ 1/2.
+        let spread_out: Vec<f64> = (0..=1000).map(|i| f64::from(i) / 1000.0 - 0.5).collect();
+        let mut spread = DurationSpread::fit(&[spread_out]);
+        assert_eq!(spread.adapted.read(0.05), 0.05);
+        let before = spread.interval(0, 30.0, 0.9).unwrap();
+        spread.adapt(0, 0.0);
+        let g = ADAPTATION_STEP;
+        // v ← v + γ (u − 1[r ≤ q(v)]): 0.005 → 0.005 + 0.005γ; 0.5 → 0.5 − 0.5γ;
+        // 0.995 → 0.995 − 0.005γ.
+        let v = &spread.adapted.levels;
+        assert!((v[0] - (0.005 + 0.005 * g)).abs() < 1e-15, "{}", v[0]);
+        assert!((v[99] - (0.5 - 0.5 * g)).abs() < 1e-15, "{}", v[99]);
+        assert!((v[198] - (0.995 - 0.005 * g)).abs() < 1e-15, "{}", v[198]);
+        assert_eq!(spread.adapted.count, 1);
+        // Read between the stored levels: 0.0525 halfway between 0.050 and 0.055.
+        assert!((spread.adapted.read(0.0525) - 0.5 * (v[9] + v[10])).abs() < 1e-15);
+        // The 90 % interval now reads 0.05(1 + γ) and 0.95 − 0.05γ: a little narrower.
+        let (lo, hi) = spread.interval(0, 30.0, 0.9).unwrap();
+        let q = |level: f64| 30.0 * spread.quantile(0, level).unwrap().exp();
+        assert!((lo - q(0.05 * (1.0 + g))).abs() < 1e-9 && (hi - q(0.95 - 0.05 * g)).abs() < 1e-9);
+        assert!(lo > before.0 && hi < before.1);
+        // A residual beyond every quantile raises every level by γ u: the median back to 1/2.
+        spread.adapt(0, 10.0);
+        assert!((spread.adapted.levels[99] - 0.5).abs() < 1e-15);
+        // Below the lowest stored level the quantile goes on by one spacing per halving:
+        // q(0.0025) = q(0.005) − (q(0.010) − q(0.005)); residuals far below every quantile
+        // push the lowest level there and on below 0 (an interval from 0 s), never below −γ.
+        let (q005, q010) = (
+            spread.quantile(0, 0.005).unwrap(),
+            spread.quantile(0, 0.010).unwrap(),
+        );
+        let tail = spread.tailed_quantile(0, 0.0025).unwrap();
+        assert!((tail - (2.0 * q005 - q010)).abs() < 1e-12, "{tail}");
+        spread.adapt(0, -10.0);
+        let lowest = spread.adapted.levels[0];
+        assert!(lowest < 0.005 && lowest > 0.0, "{lowest}");
+        let (lo, _) = spread.interval(0, 30.0, 0.99).unwrap();
+        assert!(lo > 0.0 && lo < 30.0 * q005.exp(), "{lo}");
+        for _ in 0..1000 {
+            spread.adapt(0, -10.0);
+        }
+        let lowest = spread.adapted.levels[0];
+        assert!((-g..=0.0).contains(&lowest), "{lowest}");
+        assert_eq!(spread.interval(0, 30.0, 0.99).unwrap().0, 0.0);
+        // Residuals far above push the highest level beyond 1; the upper end stays finite,
+        // read at the cap.
+        for _ in 0..2000 {
+            spread.adapt(0, 10.0);
+        }
+        let highest = spread.adapted.levels[198];
+        assert!((1.0..=1.0 + g).contains(&highest), "{highest}");
+        let (_, hi) = spread.interval(0, 30.0, 0.99).unwrap();
+        let capped = 30.0 * spread.tailed_quantile(0, ADAPTED_LEVEL_CAP).unwrap().exp();
+        assert!(
+            hi.is_finite() && (hi - capped).abs() < 1e-9,
+            "{hi} {capped}"
+        );
+        assert_eq!(spread.tailed_quantile(0, 1.0), Some(f64::INFINITY));
+        assert!(spread.is_consistent(1));
+        // Nothing is learned from a non-finite residual, nor without residuals at all.
+        let kept = spread.clone();
+        spread.adapt(0, f64::NAN);
+        assert_eq!(spread, kept);
+        let mut empty = DurationSpread::fit(&[Vec::new()]);
+        empty.adapt(0, 0.1);
+        assert_eq!(empty.adapted, AdaptedLevels::default());
+    }
+
+    #[test]
+    fn adapted_levels_out_of_range_are_inconsistent() {
+        let mut spread = DurationSpread::fit(&[vec![0.1, -0.2, 0.3]]);
+        assert!(spread.is_consistent(1));
+        spread.adapt(0, 0.0);
+        assert!(spread.is_consistent(1));
+        for broken in [
+            AdaptedLevels {
+                count: 1,
+                levels: vec![0.5; LEVELS - 1],
+            },
+            AdaptedLevels {
+                count: 1,
+                levels: vec![1.5; LEVELS],
+            },
+            AdaptedLevels {
+                count: 1,
+                levels: vec![-0.5; LEVELS],
+            },
+            AdaptedLevels {
+                count: 1,
+                levels: vec![f64::NAN; LEVELS],
+            },
+            AdaptedLevels {
+                count: 0,
+                levels: vec![0.5; LEVELS],
+            },
+        ] {
+            let mut bad = spread.clone();
+            bad.adapted = broken;
+            assert!(!bad.is_consistent(1), "{:?}", bad.adapted);
+        }
     }
 }

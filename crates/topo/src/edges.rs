@@ -27,7 +27,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::duration_intervals::{DurationSpread, residual};
+use crate::duration_intervals::{DurationSpread, DurationSpreadWithoutAdaptation, residual};
 use crate::map::TopoMap;
 use chronomap_core::TimeSeries;
 use chronomap_core::calibration::{
@@ -245,7 +245,112 @@ pub struct EdgeEvaluation {
 /// Nominal coverage of the duration intervals [`EdgeModels::evaluate`] scores: 90 %.
 pub const EVALUATION_COVERAGE: f64 = 0.9;
 
+/// The intervals of every level of [`CURVE_LEVELS`] predicted for successful durations, and
+/// the durations.
+#[derive(Default)]
+struct DurationIntervals {
+    /// Per level of [`CURVE_LEVELS`], the interval of each duration.
+    intervals: Vec<Vec<(f64, f64)>>,
+    /// The durations (s).
+    durations: Vec<f64>,
+    /// Whether some duration had no interval (models without a spread).
+    missing: bool,
+}
+
+impl DurationIntervals {
+    /// The intervals `interval(edge, expected, level)` of every `(edge, expected, duration)`.
+    fn of(
+        traversals: &[(usize, f64, f64)],
+        interval: impl Fn(usize, f64, f64) -> Option<(f64, f64)>,
+    ) -> Self {
+        let mut all = DurationIntervals::default();
+        for &(edge, expected, duration) in traversals {
+            all.push(duration, |level| interval(edge, expected, level));
+        }
+        all
+    }
+
+    /// Adds a duration and its intervals `interval(level)`.
+    fn push(&mut self, duration: f64, interval: impl Fn(f64) -> Option<(f64, f64)>) {
+        self.intervals.resize(CURVE_LEVELS.len(), Vec::new());
+        for (level, list) in CURVE_LEVELS.iter().zip(&mut self.intervals) {
+            match interval(*level) {
+                Some(i) => list.push(i),
+                None => self.missing = true,
+            }
+        }
+        self.durations.push(duration);
+    }
+}
+
+/// Every attempt of `test` (one list per edge, each in its own order) with its edge, merged in
+/// the order of their times (ties: the lower edge first); a list out of order keeps its own
+/// order, for [`EdgeModels::observe`] to refuse.
+fn in_time_order(test: &[Vec<Attempt>]) -> Vec<(usize, &Attempt)> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    // (time of the list's next attempt, edge, position in the list), smallest first.
+    let mut heads: BinaryHeap<Reverse<(OrderedTime, usize, usize)>> = test
+        .iter()
+        .enumerate()
+        .filter_map(|(e, list)| Some(Reverse((OrderedTime(list.first()?.time), e, 0))))
+        .collect();
+    let mut merged = Vec::with_capacity(test.iter().map(Vec::len).sum());
+    while let Some(Reverse((_, edge, i))) = heads.pop() {
+        merged.push((edge, &test[edge][i]));
+        if let Some(next) = test[edge].get(i + 1) {
+            heads.push(Reverse((OrderedTime(next.time), edge, i + 1)));
+        }
+    }
+    merged
+}
+
+/// A time ordered by [`f64::total_cmp`].
+#[derive(Clone, Copy, PartialEq)]
+struct OrderedTime(f64);
+
+impl Eq for OrderedTime {}
+
+impl PartialOrd for OrderedTime {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for OrderedTime {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
 impl EdgeEvaluation {
+    /// Sets the coverage curve of the duration intervals and its headline point at
+    /// [`EVALUATION_COVERAGE`] (nothing when some duration had no interval).
+    fn score_durations(&mut self, all: &DurationIntervals) {
+        if all.missing {
+            return;
+        }
+        self.duration_curve = CURVE_LEVELS
+            .iter()
+            .enumerate()
+            .map(|(i, &level)| {
+                let intervals = all.intervals.get(i).map_or(&[][..], Vec::as_slice);
+                (level, Coverage::of(intervals, &all.durations))
+            })
+            .collect();
+        // CURVE_LEVELS holds EVALUATION_COVERAGE: the headline is its point of the curve.
+        let coverage = self
+            .duration_curve
+            .iter()
+            .find(|(level, _)| *level == EVALUATION_COVERAGE)
+            .map(|(_, c)| *c)
+            .unwrap_or_default();
+        self.duration_coverage = coverage.coverage;
+        self.duration_interval_width = coverage.mean_width;
+        self.duration_below = coverage.below;
+        self.duration_above = coverage.above;
+    }
+
     /// Sets the success scores from the model's and the static rates' predictions of every
     /// attempt, and the attempts' outcomes.
     fn score_success(&mut self, model: &[f64], fixed: &[f64], outcomes: &[f64]) {
@@ -330,6 +435,29 @@ impl From<EdgeModelsWithoutSpread> for EdgeModels {
             edges: old.edges,
             default_duration_secs: old.default_duration_secs,
             duration_spread: DurationSpread::default(),
+        }
+    }
+}
+
+/// The layout of [`EdgeModels`] in files written after they kept the spread of their durations
+/// and before the spread adapted online: read as models whose spread has not adapted yet.
+#[derive(Deserialize)]
+pub struct EdgeModelsWithoutAdaptation {
+    map: TopoMap,
+    config: EdgeModelConfig,
+    edges: Vec<EdgeModel>,
+    default_duration_secs: f64,
+    duration_spread: DurationSpreadWithoutAdaptation,
+}
+
+impl From<EdgeModelsWithoutAdaptation> for EdgeModels {
+    fn from(old: EdgeModelsWithoutAdaptation) -> Self {
+        EdgeModels {
+            map: old.map,
+            config: old.config,
+            edges: old.edges,
+            default_duration_secs: old.default_duration_secs,
+            duration_spread: old.duration_spread.into(),
         }
     }
 }
@@ -742,29 +870,10 @@ impl EdgeModels {
             }
         }
         score.score_success(&model, &fixed, &outcomes);
-        let coverage_at = |level: f64| -> Option<Coverage> {
-            let (mut intervals, mut durations) = (Vec::new(), Vec::new());
-            for &(edge, expected, duration) in &traversals {
-                intervals.push(self.duration_spread.interval(edge, expected, level)?);
-                durations.push(duration);
-            }
-            Some(Coverage::of(&intervals, &durations))
-        };
-        score.duration_curve = CURVE_LEVELS
-            .iter()
-            .filter_map(|&level| Some((level, coverage_at(level)?)))
-            .collect();
-        // CURVE_LEVELS holds EVALUATION_COVERAGE: the headline is its point of the curve.
-        let coverage = score
-            .duration_curve
-            .iter()
-            .find(|(level, _)| *level == EVALUATION_COVERAGE)
-            .map(|(_, c)| *c)
-            .unwrap_or_default();
-        score.duration_coverage = coverage.coverage;
-        score.duration_interval_width = coverage.mean_width;
-        score.duration_below = coverage.below;
-        score.duration_above = coverage.above;
+        let intervals = DurationIntervals::of(&traversals, |edge, expected, level| {
+            self.duration_spread.interval(edge, expected, level)
+        });
+        score.score_durations(&intervals);
         if score.successes > 0 {
             score.duration_mse = mse / score.successes as f64;
             score.static_duration_mse = static_mse / score.successes as f64;
@@ -773,8 +882,10 @@ impl EdgeModels {
     }
 
     /// Learns from one more attempt of `edge`, as a robot does after each traversal: the counts
-    /// behind the static rate, and the success model (its persistence term now starts from this
-    /// outcome). Duration models stay as fitted.
+    /// behind the static rate, the success model (its persistence term now starts from this
+    /// outcome), and, after a success, the levels of the duration intervals
+    /// ([`DurationSpread::adapt`], adaptive conformal inference). Duration models stay as
+    /// fitted.
     ///
     /// # Errors
     /// An attempt earlier than the edge's latest one, or with a non-finite time.
@@ -792,13 +903,22 @@ impl EdgeModels {
         e.attempts += 1;
         e.successes += usize::from(attempt.success);
         e.last_time = Some(attempt.time);
+        if attempt.success {
+            let r = residual(
+                attempt.duration_secs,
+                self.expected_duration(edge, attempt.time),
+            );
+            self.duration_spread.adapt(edge, r);
+        }
         Ok(())
     }
 
     /// Scores the models as they would have served a robot over the test period: every attempt
-    /// is predicted from everything before it, then learned ([`EdgeModels::observe`]). The
-    /// static baseline is the running per-edge rate, updated the same way. Durations are
-    /// scored as in [`EdgeModels::evaluate`].
+    /// of every edge, in the order of their times, is predicted from everything before it, then
+    /// learned ([`EdgeModels::observe`]). The static baseline is the running per-edge rate,
+    /// updated the same way. The expected durations are scored as in
+    /// [`EdgeModels::evaluate`] (the duration models do not learn online); their intervals as
+    /// they adapt.
     ///
     /// # Errors
     /// `test` not one list per edge, or attempts out of order.
@@ -806,15 +926,21 @@ impl EdgeModels {
         let mut score = self.evaluate(test)?;
         let mut live = self.clone();
         let (mut model, mut fixed, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
-        for (edge, list) in test.iter().enumerate() {
-            for a in list {
-                model.push(live.success_probability(edge, a.time));
-                fixed.push(live.static_success_probability(edge));
-                outcomes.push(f64::from(u8::from(a.success)));
-                live.observe(edge, a)?;
+        let mut intervals = DurationIntervals::default();
+        for (edge, a) in in_time_order(test) {
+            model.push(live.success_probability(edge, a.time));
+            fixed.push(live.static_success_probability(edge));
+            outcomes.push(f64::from(u8::from(a.success)));
+            if a.success {
+                let expected = live.expected_duration(edge, a.time);
+                intervals.push(a.duration_secs, |level| {
+                    live.duration_spread.interval(edge, expected, level)
+                });
             }
+            live.observe(edge, a)?;
         }
         score.score_success(&model, &fixed, &outcomes);
+        score.score_durations(&intervals);
         Ok(score)
     }
 
@@ -988,6 +1114,63 @@ mod tests {
         let (lo, hi) = models.duration_interval(2, 0.0, 0.9).unwrap();
         let default = models.expected_duration(2, 0.0);
         assert!(lo < default && default < hi && hi / lo > 2.0, "{lo} {hi}");
+    }
+
+    /// The conformance check of the online adaptation: fitted on one law, the edge is then
+    /// crossed faster and less regularly (scale 30 → 24 s, σ 0.3 → 0.45). The frozen intervals
+    /// miss that drift; predicted before each traversal and adapted after it
+    /// ([`EdgeModels::observe`], adaptive conformal inference), they hold the nominal share.
+    #[test]
+    fn duration_intervals_adapted_online_hold_their_share_of_a_drifted_law() {
+        let models = EdgeModels::fit(
+            map(),
+            &[
+                lognormal_attempts(3000, 30.0, 0.3, 1),
+                Vec::new(),
+                Vec::new(),
+            ],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let fresh: Vec<Attempt> = lognormal_attempts(20_000, 24.0, 0.45, 3)
+            .into_iter()
+            .map(|a| Attempt {
+                time: a.time + 28.0 * 86_400.0,
+                ..a
+            })
+            .collect();
+        let durations: Vec<f64> = fresh.iter().map(|a| a.duration_secs).collect();
+        let levels = [0.5, 0.9];
+        let mut live = models.clone();
+        let mut online = vec![Vec::new(); levels.len()];
+        for a in &fresh {
+            for (list, &level) in online.iter_mut().zip(&levels) {
+                list.push(live.duration_interval(0, a.time, level).unwrap());
+            }
+            live.observe(0, a).unwrap();
+        }
+        for (intervals, &level) in online.iter().zip(&levels) {
+            chronomap_core::conformance::check_interval_coverage(
+                &format!("drifted lognormal durations, online, {level}"),
+                level,
+                intervals,
+                &durations,
+            );
+            let frozen: Vec<(f64, f64)> = fresh
+                .iter()
+                .map(|a| models.duration_interval(0, a.time, level).unwrap())
+                .collect();
+            let c = Coverage::of(&frozen, &durations);
+            // The law's own: 50 % of z within ±0.674 · 0.3/0.45 with the centre moved by
+            // ln(24/30)/0.45 ≈ −0.50: 0.31; 90 %: 0.65.
+            assert!(c.coverage < level - 0.15, "frozen {level}: {c:?}");
+        }
+        assert_eq!(live.duration_spread().adapted.count, 20_000);
+        // The evaluation's online protocol does the same.
+        let score = models
+            .evaluate_online(&[fresh, Vec::new(), Vec::new()])
+            .unwrap();
+        assert!((score.duration_coverage - 0.9).abs() < 0.01, "{score:?}");
     }
 
     #[test]

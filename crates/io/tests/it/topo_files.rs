@@ -1208,6 +1208,54 @@ fn edge_models_written_before_their_duration_spread_read_without_intervals() {
     assert!(decode_edge_models(&broken).is_err());
 }
 
+/// An edge-model file written before the spread of the durations adapted online (the same
+/// layout without the adapted levels at its end) reads as models not adapted yet; models that
+/// adapted read back with their levels.
+#[test]
+fn edge_models_written_before_their_spread_adapted_read_as_not_adapted() {
+    use chronomap_io::model_file::{decode_edge_models, encode_model};
+    use chronomap_topo::edges::{Attempt, EdgeModelConfig, EdgeModels};
+
+    let stats = read_edge_directory(witham_edges()).unwrap();
+    let fitted = EdgeModels::fit(stats.map, &stats.attempts, EdgeModelConfig::default()).unwrap();
+    let t = 1_409_788_800.0;
+    let mut adapted = fitted.clone();
+    for i in 0..50 {
+        let attempt = Attempt {
+            time: t + f64::from(i) * 600.0,
+            duration_secs: 3.0 * fitted.expected_duration(0, t),
+            success: true,
+        };
+        adapted.observe(0, &attempt).unwrap();
+    }
+    assert_eq!(adapted.duration_spread().adapted.count, 50);
+    let (lo, hi) = fitted.duration_interval(0, t, 0.9).unwrap();
+    let (lo_adapted, hi_adapted) = adapted.duration_interval(0, t, 0.9).unwrap();
+    assert!(
+        lo_adapted > lo && hi_adapted > hi,
+        "{lo} {hi} {lo_adapted} {hi_adapted}"
+    );
+
+    let current = encode_model(chronomap_io::EDGE_MODELS_KIND, &adapted).unwrap();
+    let back = decode_edge_models(&current).unwrap();
+    assert_eq!(back.duration_spread(), adapted.duration_spread());
+    assert_eq!(
+        back.duration_interval(0, t, 0.9),
+        Some((lo_adapted, hi_adapted))
+    );
+
+    let levels = postcard::to_allocvec(&adapted.duration_spread().adapted).unwrap();
+    let older = without_last_field(&current, &levels);
+    let loaded = decode_edge_models(&older).unwrap();
+    assert_eq!(loaded.duration_spread().adapted.count, 0);
+    for e in 0..fitted.map().edges().len() {
+        assert_eq!(
+            loaded.duration_interval(e, t, 0.9),
+            fitted.duration_interval(e, t, 0.9)
+        );
+    }
+}
+
 #[test]
 fn witham_split_writes_directories_that_read_back_exactly() {
     use chronomap_io::topo_files::write_edge_directory;
