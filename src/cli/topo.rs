@@ -19,6 +19,17 @@ Protocols: `online` (default) predicts every test attempt from everything before
 that keeps learning does, and learns it afterwards (the static baseline is the running per-edge
 rate); `frozen` predicts all test attempts with the models as fitted on the training data.";
 
+pub(super) const TOPO_HELP_OBSERVE: &str = "\
+Example (fit on the weeks before 2014-08-20, then learn the weeks after):
+  chronomap topo split --edges data/witham_topological_nav/edges --at 2014-08-20 \\
+      --before witham-train --after witham-later
+  chronomap topo fit --edges witham-train -o witham.cmt
+  chronomap topo observe witham.cmt --edges witham-later -o witham.cmt
+
+Every attempt must be later than what its edge learned last. Edges the models do not have are
+added, modelled from their priors; an edge that joins other nodes than in the models is an
+error. Nothing is learned or written when an attempt is at fault.";
+
 pub(super) const PLAN_HELP: &str = "\
 Examples:
   chronomap topo fit --edges data/witham_topological_nav/edges -o witham.cmt
@@ -48,6 +59,10 @@ pub enum TopoCommand {
     Eval(TopoEvalArgs),
     /// Split a directory of edge files at a time into two directories (before, at-or-after).
     Split(TopoSplitArgs),
+    /// Teach fitted edge models later attempts, as a robot that keeps travelling learns them:
+    /// success models, static rates and the online adaptation of the duration intervals.
+    #[command(after_help = TOPO_HELP_OBSERVE)]
+    Observe(TopoObserveArgs),
     /// Predict every edge at a time; optionally write the map with its predictions as a Nav2
     /// route graph (GeoJSON) or a tmap2 file.
     #[command(
@@ -122,6 +137,22 @@ pub struct TopoFitArgs {
     /// Model options.
     #[command(flatten)]
     pub model: EdgeModelFlags,
+}
+
+/// `chronomap topo observe`.
+#[derive(Debug, Args)]
+pub struct TopoObserveArgs {
+    /// Edge model file (from `chronomap topo fit`).
+    pub model: PathBuf,
+    /// Directory of edge files with the later attempts.
+    #[arg(long)]
+    pub edges: PathBuf,
+    /// Model file to write (may be the one read: it is replaced atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `--protocol` values.

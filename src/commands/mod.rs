@@ -86,6 +86,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Topo(TopoCommand::Fit(args)) => topo::fit(&args),
         Command::Topo(TopoCommand::Eval(args)) => topo::eval(&args),
         Command::Topo(TopoCommand::Split(args)) => topo::split(&args),
+        Command::Topo(TopoCommand::Observe(args)) => topo::observe(&args),
         Command::Topo(TopoCommand::Predict(args)) => topo::predict(&args),
         Command::Plan(args) => topo::plan(&args),
         Command::Events(EventsCommand::Eval(args)) => events::eval(&args),

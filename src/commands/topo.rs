@@ -16,7 +16,8 @@ use chronomap_topo::plan::Task;
 use chronomap_topo::report::Protocol;
 
 use crate::cli::{
-    PlanArgs, ProtocolArg, TopoEvalArgs, TopoFitArgs, TopoPredictArgs, TopoSplitArgs,
+    PlanArgs, ProtocolArg, TopoEvalArgs, TopoFitArgs, TopoObserveArgs, TopoPredictArgs,
+    TopoSplitArgs,
 };
 use crate::output::{ProgressBar, print_json, usage};
 use crate::{errln, out};
@@ -36,6 +37,16 @@ fn load(path: &Path) -> Result<EdgeModels> {
 
 pub fn fit(args: &TopoFitArgs) -> Result<()> {
     let report = topo::fit_report(&args.edges, &args.output, args.model.config())?;
+    if args.json {
+        return print_json(&serde_json::to_value(&report)?);
+    }
+    out!("{report}")?;
+    Ok(())
+}
+
+pub fn observe(args: &TopoObserveArgs) -> Result<()> {
+    let models = load(&args.model)?;
+    let report = topo::observe_report(models, &args.edges, &args.output)?;
     if args.json {
         return print_json(&serde_json::to_value(&report)?);
     }

@@ -21,6 +21,7 @@ use chronomap_plot::{Heatmap, Panel, Series, SeriesStyle};
 use chronomap_topo::deadline::{DeadlineError, DeadlineOptions, plan_deadline};
 use chronomap_topo::edges::{
     Attempt, EVALUATION_COVERAGE, EdgeEvaluation, EdgeModelConfig, EdgeModels, EdgeStatistics,
+    ObserveAllError,
 };
 use chronomap_topo::map::TopoMap;
 use chronomap_topo::mdp::{SolverOptions, prism_property, product_drn};
@@ -92,6 +93,23 @@ pub enum TopoJobError {
     /// The bundled Witham Wharf data hold no attempt.
     #[error("the Witham data have no attempt")]
     WithamEmpty,
+    /// An edge file of later attempts names an edge of the fitted models but joins other
+    /// nodes.
+    #[error(
+        "{}: edge {:?} goes from {:?} to {:?} here, but from {:?} to {:?} in the models",
+        file.display(),
+        ends.edge,
+        ends.here.0,
+        ends.here.1,
+        ends.models.0,
+        ends.models.1
+    )]
+    ChangedEdge {
+        /// The edge file.
+        file: PathBuf,
+        /// The edge and the nodes it joins in each.
+        ends: Box<ChangedEnds>,
+    },
     /// A plan cannot be made.
     #[error(transparent)]
     Plan(#[from] PlanError),
@@ -341,6 +359,171 @@ pub fn fit_report(
         model: output.display().to_string(),
         directory: edges.display().to_string(),
     })
+}
+
+/// An edge that joins other nodes in an edge file than in the models
+/// ([`TopoJobError::ChangedEdge`]).
+#[derive(Debug)]
+pub struct ChangedEnds {
+    /// The edge's id.
+    pub edge: String,
+    /// The nodes it leaves and reaches in the file's map.
+    pub here: (String, String),
+    /// The nodes it leaves and reaches in the models' map.
+    pub models: (String, String),
+}
+
+/// What `chronomap topo observe` learned: later attempts taught to fitted edge models, and
+/// the file written. Serialises as the command's `--json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct TopoObserveReport {
+    /// Attempts learned.
+    pub attempts: usize,
+    /// Successful ones among them (whose durations adapted the intervals).
+    pub successes: usize,
+    /// Edges with at least one attempt learned.
+    pub edges: usize,
+    /// Edges the models did not have, added (modelled from their priors, then learned).
+    pub new_edges: Vec<String>,
+    /// The first attempt's time, if any.
+    pub first: Option<f64>,
+    /// The last attempt's time, if any.
+    pub last: Option<f64>,
+    /// Successful traversals the duration intervals had adapted to before.
+    pub adapted_before: u64,
+    /// Successful traversals the duration intervals have adapted to in all, these included
+    /// ([`chronomap_topo::duration_intervals::DurationSpread::adapt`]).
+    pub adapted_traversals: u64,
+    /// The levels the ends of a nominal 90 % duration interval are now read at (0.05 and 0.95
+    /// before any adaptation).
+    pub interval_levels: (f64, f64),
+    /// The model file written.
+    pub model: String,
+    /// The directory of edge files read.
+    #[serde(skip)]
+    pub directory: String,
+}
+
+/// Teaches `models` the attempts in the edge files of `edges` (later than what each edge
+/// learned last; edges the models do not have are added, [`EdgeModels::add_edge`]), in the
+/// order of their times, as a robot that keeps travelling learns them
+/// ([`EdgeModels::observe_all`]: success models, static rates and the online adaptation of the
+/// duration intervals), and writes them to `output`.
+///
+/// # Errors
+/// [`TopoJobError`]: the directory cannot be read, an edge that joins other nodes than the
+/// models' edge of its name, an attempt out of order or earlier than its edge's last (naming
+/// the file and attempt; nothing is learned then), the file cannot be written.
+pub fn observe_report(
+    mut models: EdgeModels,
+    edges: &Path,
+    output: &Path,
+) -> Result<TopoObserveReport, TopoJobError> {
+    let stats = read_edge_directory(edges)?;
+    let mut lists = vec![Vec::new(); models.map().edges().len()];
+    let mut files = vec![PathBuf::new(); lists.len()];
+    let mut new_edges = Vec::new();
+    for (edge, attempts) in stats.map.edges().iter().zip(&stats.attempts) {
+        let from = &stats.map.nodes()[edge.from].name;
+        let to = &stats.map.nodes()[edge.to].name;
+        let file = edges.join(format!("{}.data", edge.id));
+        let map = models.map();
+        let index = match map.edges().iter().position(|e| e.id == edge.id) {
+            Some(i) => {
+                let known = &map.edges()[i];
+                let (model_from, model_to) =
+                    (&map.nodes()[known.from].name, &map.nodes()[known.to].name);
+                if model_from != from || model_to != to {
+                    return Err(TopoJobError::ChangedEdge {
+                        file,
+                        ends: Box::new(ChangedEnds {
+                            edge: edge.id.clone(),
+                            here: (from.clone(), to.clone()),
+                            models: (model_from.clone(), model_to.clone()),
+                        }),
+                    });
+                }
+                i
+            }
+            None => {
+                let i = models
+                    .add_edge(&edge.id, from, to)
+                    .map_err(MergeError::from)?;
+                new_edges.push(edge.id.clone());
+                lists.push(Vec::new());
+                files.push(PathBuf::new());
+                i
+            }
+        };
+        lists[index] = attempts.clone();
+        files[index] = file;
+    }
+    let before = models.duration_spread().adapted.count;
+    models.observe_all(&lists).map_err(|e| match e {
+        ObserveAllError::Attempt {
+            edge,
+            position,
+            error,
+        } => TopoJobError::Fit {
+            file: files[edge].clone(),
+            attempt: Some(position + 1),
+            error: error.into(),
+        },
+        ObserveAllError::Lists { .. } => {
+            TopoJobError::Evaluate(BuildError::NotEnoughData(e.to_string()))
+        }
+    })?;
+    write_edge_models(output, &models)?;
+    let adapted = &models.duration_spread().adapted;
+    let span = stats.time_span();
+    let alpha = 1.0 - EVALUATION_COVERAGE;
+    Ok(TopoObserveReport {
+        attempts: stats.total_attempts(),
+        successes: lists.iter().flatten().filter(|a| a.success).count(),
+        edges: lists.iter().filter(|l| !l.is_empty()).count(),
+        new_edges,
+        first: span.map(|s| s.0),
+        last: span.map(|s| s.1),
+        adapted_before: before,
+        adapted_traversals: adapted.count,
+        interval_levels: (adapted.read(alpha / 2.0), adapted.read(1.0 - alpha / 2.0)),
+        model: output.display().to_string(),
+        directory: edges.display().to_string(),
+    })
+}
+
+impl fmt::Display for TopoObserveReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let span = self.first.zip(self.last);
+        writeln!(
+            f,
+            "{}: learned {} attempts ({} successful) on {} edges{}",
+            self.directory,
+            self.attempts,
+            self.successes,
+            self.edges,
+            span.map(|(a, b)| format!(", {} .. {}", time(a), time(b)))
+                .unwrap_or_default()
+        )?;
+        if !self.new_edges.is_empty() {
+            writeln!(
+                f,
+                "new edges (from their priors): {}",
+                self.new_edges.join(", ")
+            )?;
+        }
+        writeln!(
+            f,
+            "duration intervals adapted to {} traversals ({} before; [Gibbs 2021]): a nominal \
+             {:.0} % interval now reads the levels {:.4} .. {:.4}",
+            self.adapted_traversals,
+            self.adapted_before,
+            100.0 * EVALUATION_COVERAGE,
+            self.interval_levels.0,
+            self.interval_levels.1
+        )?;
+        writeln!(f, "wrote {}", self.model)
+    }
 }
 
 impl TopoFitReport {

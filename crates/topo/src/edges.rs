@@ -28,7 +28,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::duration_intervals::{DurationSpread, DurationSpreadWithoutAdaptation, residual};
-use crate::map::TopoMap;
+use crate::map::{TopoError, TopoMap};
 use chronomap_core::TimeSeries;
 use chronomap_core::calibration::{
     CURVE_LEVELS, Calibration, Coverage, DEFAULT_BINS, ReliabilityBin,
@@ -244,6 +244,29 @@ pub struct EdgeEvaluation {
 
 /// Nominal coverage of the duration intervals [`EdgeModels::evaluate`] scores: 90 %.
 pub const EVALUATION_COVERAGE: f64 = 0.9;
+
+/// Why [`EdgeModels::observe_all`] learned nothing.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ObserveAllError {
+    /// Not one list of attempts per edge.
+    #[error("{lists} attempt lists for {edges} edges")]
+    Lists {
+        /// Lists given.
+        lists: usize,
+        /// Edges of the map.
+        edges: usize,
+    },
+    /// An attempt cannot be learned.
+    #[error("attempt {} of edge {edge}: {error}", position + 1)]
+    Attempt {
+        /// The edge.
+        edge: usize,
+        /// Its position in the edge's list, from 0.
+        position: usize,
+        /// Why.
+        error: chronomap_core::ObservationError,
+    },
+}
 
 /// The intervals of every level of [`CURVE_LEVELS`] predicted for successful durations, and
 /// the durations.
@@ -913,6 +936,70 @@ impl EdgeModels {
         Ok(())
     }
 
+    /// Adds an edge the models have not seen, `from → to` (nodes added as needed, without a
+    /// pose), modelled as [`EdgeModels::fit`] models an edge without attempts: the prior
+    /// success rate, the default duration and the pooled spread of the durations. It learns
+    /// from there ([`EdgeModels::observe`]). Returns its index.
+    ///
+    /// # Errors
+    /// An id the map already has, or a name the map refuses; the models are then unchanged.
+    pub fn add_edge(&mut self, id: &str, from: &str, to: &str) -> Result<usize, TopoError> {
+        let mut map = self.map.clone();
+        for node in [from, to] {
+            if map.node(node).is_err() {
+                map.add_node(node, None)?;
+            }
+        }
+        let index = map.add_edge(id, from, to)?;
+        self.map = map;
+        self.edges.push(EdgeModel {
+            attempts: 0,
+            successes: 0,
+            success: None,
+            duration: None,
+            duration_scale: 0.0,
+            mean_duration_secs: None,
+            last_time: None,
+        });
+        // A spread that exists keeps one entry per edge; an old file's empty one stays empty.
+        if self.duration_spread != DurationSpread::default() {
+            self.duration_spread
+                .edges
+                .push(crate::duration_intervals::ResidualQuantiles::default());
+        }
+        Ok(index)
+    }
+
+    /// Learns later attempts (`attempts[e]` for edge `e`, each list in time order) as a robot
+    /// would have, one after the other in the order of their times ([`EdgeModels::observe`]):
+    /// all of them, or, on an error, none.
+    ///
+    /// # Errors
+    /// `attempts` not one list per edge, or `(edge, position in its list, why)` of the first
+    /// attempt that cannot be learned (out of order, or earlier than what the edge learned
+    /// last).
+    pub fn observe_all(&mut self, attempts: &[Vec<Attempt>]) -> Result<(), ObserveAllError> {
+        if attempts.len() != self.edges.len() {
+            return Err(ObserveAllError::Lists {
+                lists: attempts.len(),
+                edges: self.edges.len(),
+            });
+        }
+        let mut next = self.clone();
+        let mut seen = vec![0; attempts.len()];
+        for (edge, a) in in_time_order(attempts) {
+            next.observe(edge, a)
+                .map_err(|error| ObserveAllError::Attempt {
+                    edge,
+                    position: seen[edge],
+                    error,
+                })?;
+            seen[edge] += 1;
+        }
+        *self = next;
+        Ok(())
+    }
+
     /// Scores the models as they would have served a robot over the test period: every attempt
     /// of every edge, in the order of their times, is predicted from everything before it, then
     /// learned ([`EdgeModels::observe`]). The static baseline is the running per-edge rate,
@@ -1171,6 +1258,96 @@ mod tests {
             .evaluate_online(&[fresh, Vec::new(), Vec::new()])
             .unwrap();
         assert!((score.duration_coverage - 0.9).abs() < 0.01, "{score:?}");
+    }
+
+    /// `observe_all` learns all attempts or none; `add_edge` models a new edge as `fit` models
+    /// one without attempts.
+    #[test]
+    fn observe_all_learns_everything_or_nothing_and_new_edges_start_from_their_prior() {
+        let train = lognormal_attempts(300, 30.0, 0.3, 5);
+        let models = EdgeModels::fit(
+            map(),
+            &[train.clone(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let later = |shift: f64, n: usize| -> Vec<Attempt> {
+            lognormal_attempts(n, 30.0, 0.3, 6)
+                .into_iter()
+                .map(|a| Attempt {
+                    time: a.time + shift,
+                    ..a
+                })
+                .collect()
+        };
+        let month = 28.0 * 86_400.0;
+        let mut backwards = later(month, 3);
+        backwards.swap(1, 2);
+        let mut learner = models.clone();
+        let refused = learner.observe_all(&[later(month, 50), backwards, Vec::new()]);
+        assert!(
+            matches!(
+                refused,
+                Err(ObserveAllError::Attempt {
+                    edge: 1,
+                    position: 2,
+                    ..
+                })
+            ),
+            "{refused:?}"
+        );
+        assert_eq!(learner.edges[0].attempts, 300);
+        assert_eq!(learner.duration_spread, models.duration_spread);
+        assert!(matches!(
+            learner.observe_all(&[Vec::new()]),
+            Err(ObserveAllError::Lists { lists: 1, edges: 3 })
+        ));
+        learner
+            .observe_all(&[later(month, 50), later(month, 3), Vec::new()])
+            .unwrap();
+        assert_eq!(learner.edges[0].attempts, 350);
+        assert_eq!(learner.duration_spread.adapted.count, 53);
+        // Edge by edge in time order, the same models.
+        let mut one_by_one = models.clone();
+        let mut all: Vec<(usize, Attempt)> = later(month, 50)
+            .into_iter()
+            .map(|a| (0, a))
+            .chain(later(month, 3).into_iter().map(|a| (1, a)))
+            .collect();
+        all.sort_by(|a, b| a.1.time.total_cmp(&b.1.time).then(a.0.cmp(&b.0)));
+        for (edge, a) in &all {
+            one_by_one.observe(*edge, a).unwrap();
+        }
+        assert_eq!(one_by_one.duration_spread, learner.duration_spread);
+
+        // A new edge from C to a new node D: as fitted without attempts.
+        let d = learner.add_edge("C_D", "C", "D").unwrap();
+        assert_eq!(d, 3);
+        assert_eq!(learner.map().nodes().len(), 4);
+        let mut bigger = map();
+        bigger.add_node("D", None).unwrap();
+        bigger.add_edge("C_D", "C", "D").unwrap();
+        let fitted = EdgeModels::fit(
+            bigger,
+            &[train, Vec::new(), Vec::new(), Vec::new()],
+            EdgeModelConfig::default(),
+        )
+        .unwrap();
+        let t = 2.0 * month;
+        assert_eq!(
+            learner.success_probability(d, t),
+            fitted.success_probability(d, t)
+        );
+        assert_eq!(
+            learner.expected_duration(d, t),
+            learner.expected_duration(2, t)
+        );
+        assert!(learner.duration_interval(d, t, 0.9).is_some());
+        assert_eq!(learner.check(), Ok(()));
+        // An id the map has: refused, nothing changed.
+        assert!(learner.add_edge("A_B", "C", "A").is_err());
+        assert_eq!(learner.map().edges().len(), 4);
+        assert_eq!(learner.check(), Ok(()));
     }
 
     #[test]
