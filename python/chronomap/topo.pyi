@@ -65,6 +65,10 @@ class EdgeModels:
         list ``first_edge``. With ``deadline`` (seconds), also the plan most likely to arrive
         in time at each: arrays ``deadline_probability``, ``min_time_probability``, the list
         ``deadline_first_edge``, and ``deadline_secs``, ``bucket_secs``."""
+    def observe(self, edges: _Path) -> EdgeModels:
+        """New models that have also learnt the later attempts of a directory of edge files,
+        in time order, as ``chronomap topo observe`` does: success models, static rates and
+        the online adaptation of the duration intervals; new edges from their priors."""
     def save(self, path: _Path) -> None:
         """Writes the edge-model file ``chronomap topo fit -o`` writes."""
     @property
@@ -76,6 +80,9 @@ class EdgeModels:
     @property
     def last_time(self) -> Optional[float]:
         """Time of the latest attempt learnt from."""
+    @property
+    def adapted_traversals(self) -> int:
+        """Successful traversals the duration intervals have adapted to since the fit."""
 
 def load_edge_models(path: _Path) -> EdgeModels:
     """Reads an edge-model file (``chronomap topo fit``, ``EdgeModels.save``)."""

@@ -255,3 +255,33 @@ def test_bad_deadlines(fitted):
         models.plan("Kitchn", "F Station", t, deadline=100)
     with pytest.raises(TypeError):
         models.plan("Kitchen", "F Station", t, deadline="100")
+
+
+def test_observe_learns_the_later_weeks_as_topo_observe_does(repo, cli, tmp_path):
+    """Fitted on the weeks before 2014-08-27 and taught the weeks after, as `chronomap topo
+    split` + `topo fit` + `topo observe` do: the same file, bit for bit; the duration intervals
+    adapted to every successful traversal, and these models unchanged."""
+    before, after = tmp_path / "before", tmp_path / "after"
+    cli("topo", "split", "--edges", repo / EDGES, "--at", "2014-08-27", "--before", before,
+        "--after", after)
+    models = EdgeModels.fit(before)
+    cli_fitted, cli_observed = tmp_path / "fitted.cmt", tmp_path / "observed.cmt"
+    models.save(cli_fitted)
+    report = cli("topo", "observe", cli_fitted, "--edges", after, "-o", cli_observed,
+                 json_output=True)
+    learnt = models.observe(after)
+    assert models.adapted_traversals == 0
+    assert learnt.adapted_traversals == report["adapted_traversals"] == 5509
+    assert learnt.edges == models.edges + ["Ramp1_WayPoint2"]
+    learnt.save(tmp_path / "python.cmt")
+    assert (tmp_path / "python.cmt").read_bytes() == cli_observed.read_bytes()
+    # The later traversals ran longer than expected: the upper ends moved up.
+    door = models.edges.index("LabDoor1_LabDoor2")
+    fitted_upper = models.predict(TIMES[2])["duration_upper_secs"][door]
+    learnt_upper = learnt.predict(TIMES[2])["duration_upper_secs"][door]
+    assert learnt_upper > fitted_upper + 5.0
+    # The same attempts again: refused, naming the file and the attempt.
+    with pytest.raises(ValueError, match=r"\.data: attempt 1: .*earlier"):
+        learnt.observe(after)
+    with pytest.raises(FileNotFoundError):
+        models.observe(tmp_path / "missing")

@@ -419,7 +419,34 @@ pub fn observe_report(
     edges: &Path,
     output: &Path,
 ) -> Result<TopoObserveReport, TopoJobError> {
+    let mut report = observe_directory(&mut models, edges)?;
+    write_edge_models(output, &models)?;
+    report.model = output.display().to_string();
+    Ok(report)
+}
+
+/// [`observe_report`] without the file: teaches `models` the attempts of `edges` and says what
+/// they learned (`model` empty). On an error `models` are unchanged.
+///
+/// # Errors
+/// As [`observe_report`], but for writing.
+pub fn observe_directory(
+    models: &mut EdgeModels,
+    edges: &Path,
+) -> Result<TopoObserveReport, TopoJobError> {
     let stats = read_edge_directory(edges)?;
+    let mut learner = models.clone();
+    let report = observe_statistics(&mut learner, &stats, edges)?;
+    *models = learner;
+    Ok(report)
+}
+
+/// Teaches `models` the attempts of `stats`, read from `edges` (for errors).
+fn observe_statistics(
+    models: &mut EdgeModels,
+    stats: &EdgeStatistics,
+    edges: &Path,
+) -> Result<TopoObserveReport, TopoJobError> {
     let mut lists = vec![Vec::new(); models.map().edges().len()];
     let mut files = vec![PathBuf::new(); lists.len()];
     let mut new_edges = Vec::new();
@@ -473,7 +500,6 @@ pub fn observe_report(
             TopoJobError::Evaluate(BuildError::NotEnoughData(e.to_string()))
         }
     })?;
-    write_edge_models(output, &models)?;
     let adapted = &models.duration_spread().adapted;
     let span = stats.time_span();
     let alpha = 1.0 - EVALUATION_COVERAGE;
@@ -487,7 +513,7 @@ pub fn observe_report(
         adapted_before: before,
         adapted_traversals: adapted.count,
         interval_levels: (adapted.read(alpha / 2.0), adapted.read(1.0 - alpha / 2.0)),
-        model: output.display().to_string(),
+        model: String::new(),
         directory: edges.display().to_string(),
     })
 }

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use chronomap_app::topo::deadline_report;
+use chronomap_app::topo::{TopoJobError, deadline_report, observe_directory};
 use chronomap_io::{read_edge_directory, read_edge_models, write_edge_models};
 use chronomap_topo::deadline::{DeadlineError, DeadlineOptions, now_or_later_by_deadline};
 use chronomap_topo::duration_intervals::MAX_COVERAGE;
@@ -534,6 +534,30 @@ impl PyEdgeModels {
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         py.detach(|| write_edge_models(&path, &self.models))
             .map_err(|e| errors::model_file(&e))
+    }
+
+    /// `models.observe(edges)`: new models that have also learnt the attempts in the edge files
+    /// of `edges` (a directory as `fit` reads; each attempt later than what its edge learnt
+    /// last), in the order of their times, as a robot that keeps travelling learns them — what
+    /// `chronomap topo observe` does: the success models, the static rates and the online
+    /// adaptation of the duration intervals ([Gibbs 2021], adaptive conformal inference).
+    /// Edges the models lack are added, modelled from their priors. These models stay as they
+    /// are. An attempt out of order or already learnt is a `ValueError` naming the file and
+    /// the attempt; a missing directory a `FileNotFoundError`.
+    fn observe(&self, py: Python<'_>, edges: PathBuf) -> PyResult<Self> {
+        let mut models = self.models.clone();
+        py.detach(|| observe_directory(&mut models, &edges))
+            .map_err(|e| match e {
+                TopoJobError::Read(data) => errors::data(&data),
+                other => PyValueError::new_err(other.to_string()),
+            })?;
+        Ok(PyEdgeModels { models })
+    }
+
+    /// Successful traversals the duration intervals have adapted to since the fit (`observe`).
+    #[getter]
+    fn adapted_traversals(&self) -> u64 {
+        self.models.duration_spread().adapted.count
     }
 
     /// The node names, in map order.
