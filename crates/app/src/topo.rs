@@ -798,16 +798,29 @@ impl EvalReport {
                 ),
             ],
         );
+        // Both protocols' duration intervals, the one asked for first: adapted after each
+        // traversal (online) against as fitted (frozen).
+        let curve = |p: Protocol| {
+            let label = match p {
+                Protocol::Online => "online: adapted after each traversal",
+                Protocol::Frozen => "frozen: as fitted",
+            };
+            (
+                label.to_string(),
+                self.evaluation.by(p).duration_curve.clone(),
+            )
+        };
+        let other = match self.protocol {
+            Protocol::Online => Protocol::Frozen,
+            Protocol::Frozen => Protocol::Online,
+        };
         panels.extend(coverage_panels(
             format!(
                 "Duration intervals on {} successful traversals: share inside",
                 chosen.successes
             ),
             "seconds",
-            &[(
-                "duration intervals".to_string(),
-                chosen.duration_curve.clone(),
-            )],
+            &[curve(self.protocol), curve(other)],
         ));
         panels
     }
