@@ -53,17 +53,22 @@ def entropy_bits(p):
     return -(p * math.log2(p) + (1.0 - p) * math.log2(1.0 - p))
 
 
-# The examples: a prediction as the node publishes it, and one service call answered and one
-# refused. Values are exact in binary where possible; entropies are what entropy_bits computes.
+# The examples: a prediction of a continuous state (with its interval) as the node publishes
+# it, and one service call answered and one refused. Values are exact in binary where possible;
+# entropies are what entropy_bits computes. (A state without an interval has lower = upper =
+# NaN and coverage 0.0; NaN does not compare equal, so the examples carry an interval.)
 EXAMPLE_VALUES = {
     'prediction': {
         'header': {'stamp': {'sec': 1700003600, 'nanosec': 250000000}, 'frame_id': ''},
-        'name': 'door',
+        'name': 'level',
         'model': 'fremen:2',
         'probability': 0.25,
         'entropy': entropy_bits(0.25),
         'made': {'sec': 1700000000, 'nanosec': 1},
         'observations': 1234,
+        'lower': 0.0625,
+        'upper': 0.5,
+        'coverage': 0.9,
     },
     'predict_request': {
         'name': 'door',
@@ -75,6 +80,9 @@ EXAMPLE_VALUES = {
         'model': 'fremen:2',
         'probability': [0.25, 0.5],
         'entropy': [entropy_bits(0.25), 1.0],
+        'coverage': 0.9,
+        'lower': [0.0625, 0.125],
+        'upper': [0.5, 0.875],
     },
     'predict_response_refused': {
         'success': False,
@@ -82,6 +90,9 @@ EXAMPLE_VALUES = {
         'model': '',
         'probability': [],
         'entropy': [],
+        'coverage': 0.0,
+        'lower': [],
+        'upper': [],
     },
 }
 TYPES = {
@@ -148,6 +159,9 @@ def encode(kind, v):
         c.put('d', v['entropy'])
         c.time(v['made'])
         c.put('Q', v['observations'])
+        c.put('d', v['lower'])
+        c.put('d', v['upper'])
+        c.put('d', v['coverage'])
     elif kind == 'predict_request':
         c.string(v['name'])
         c.put('I', len(v['times']))
@@ -159,6 +173,9 @@ def encode(kind, v):
         c.string(v['model'])
         c.f64_seq(v['probability'])
         c.f64_seq(v['entropy'])
+        c.put('d', v['coverage'])
+        c.f64_seq(v['lower'])
+        c.f64_seq(v['upper'])
     return bytes(c.data), c.padding
 
 
@@ -238,8 +255,8 @@ def write_examples():
             'the fields, each aligned to its size (at most 8) counted from the end of that '
             "header. Fast CDR leaves alignment padding unwritten, so rclpy's padding bytes are "
             'arbitrary; here they are zero, at padding_offsets (into the whole buffer). '
-            'rclpy_length is the length serialize_message returns: for a response whose two '
-            "float64[] are empty it is 8 more than the bytes written (rmw_fastrtps' size "
+            'rclpy_length is the length serialize_message returns: for a response whose four '
+            "float64[] are empty it is 16 more than the bytes written (rmw_fastrtps' size "
             'estimate counts alignment before the absent elements); those bytes are arbitrary '
             'and readers ignore them. A service request or response is the payload alone; '
             'rmw_fastrtps_cpp carries the request identity beside it (the related sample '
@@ -292,6 +309,9 @@ def serve(examples):
         response.model = 'fremen:2'
         response.probability = [0.25 + 0.25 * i for i in range(len(request.times))]
         response.entropy = [entropy_bits(p) for p in response.probability]
+        response.coverage = 0.9
+        response.lower = [0.0625 * 2 ** i for i in range(len(request.times))]
+        response.upper = [0.5 + 0.375 * i for i in range(len(request.times))]
         return response
 
     node.create_service(Predict, 'chronomap/predict', predict)

@@ -237,6 +237,16 @@ impl ModelSpec {
             Err(e) => Err(e),
         }
     }
+
+    /// Whether a learner of this spec fed values in `[0, 1]` can have a twin fed their squares
+    /// that predicts the second moment, from which [`chronomap_core::spread`] makes prediction
+    /// intervals: specs that learn online, and `auto`, whose stack of averages averages the
+    /// squares as it averages the values. Not the other specs fitted on a whole series
+    /// (`fremen:auto`, ...: the order chosen for the squares cannot hold the square of the
+    /// values' rhythm, and the variance collapses).
+    pub fn has_second_moment(&self) -> bool {
+        *self == ModelSpec::Auto || !self.learner(1).is_ok_and(|l| l.is_refitting())
+    }
 }
 
 impl Learner {

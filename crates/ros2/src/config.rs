@@ -168,7 +168,15 @@ pub struct StateConfig {
     /// Where the stamped prediction is published (`chronomap_msgs/msg/Prediction`: the time it
     /// is for, p, entropy, the model), if anywhere.
     pub prediction_topic: Option<String>,
+    /// Coverage of the prediction intervals of a state with an interval
+    /// ([`StateConfig::has_interval`]): strictly between 0 and 1, [`DEFAULT_COVERAGE`] unless
+    /// set.
+    pub coverage: f64,
 }
+
+/// Coverage of the prediction intervals of continuous states unless `states.NAME.coverage`
+/// says otherwise.
+pub const DEFAULT_COVERAGE: f64 = 0.9;
 
 impl StateConfig {
     /// The learner of this state having seen nothing.
@@ -181,6 +189,15 @@ impl StateConfig {
     /// Whether its model learns online (else it is refitted on the kept observations).
     pub fn learns_online(&self) -> bool {
         self.model.online_model().is_ok()
+    }
+
+    /// Whether its predictions carry an interval: a continuous state (`Float32`, `Float64`)
+    /// whose spec has a second moment ([`ModelSpec::has_second_moment`]: it learns online, or
+    /// is `auto`). Such a state keeps a second learner of its spec fed the squared values,
+    /// and the interval is the Beta law's of the two moments
+    /// ([`chronomap_core::spread::beta_interval`], [Johnson 1995] ch. 25).
+    pub fn has_interval(&self) -> bool {
+        self.message != StateType::Bool && self.model.has_second_moment()
     }
 }
 
@@ -759,6 +776,9 @@ pub fn description(name: &str) -> &'static str {
         (_, "prediction_topic") => {
             "where the stamped prediction is published (chronomap_msgs/msg/Prediction; \"\" for none)"
         }
+        (_, "coverage") => {
+            "coverage of the prediction intervals of a Float32/Float64 state, strictly between 0 and 1"
+        }
         (_, "frame_id") => "frame of the input and of the published maps",
         (_, "periods") => "candidate periods of every cell's FreMEn model",
         (_, "order") => "order every cell is predicted with",
@@ -948,6 +968,9 @@ impl NodeConfig {
                 format!("{key}.prediction_topic"),
                 text(s.prediction_topic.as_deref().unwrap_or("")),
             );
+            if s.has_interval() {
+                put(format!("{key}.coverage"), Value::Double(s.coverage));
+            }
         }
         for g in &self.grids {
             let key = format!("{}.{}", g.section(), g.name);
@@ -1103,6 +1126,7 @@ const STATE_KEYS: &[&str] = &[
     "probability_topic",
     "entropy_topic",
     "prediction_topic",
+    "coverage",
 ];
 
 /// The parameters of a map (`maps.NAME.LEAF`); people grids have [`PEOPLE_KEYS`] too.
@@ -1155,6 +1179,7 @@ struct RawState {
     probability_topic: Option<Spanned<String>>,
     entropy_topic: Option<Spanned<String>>,
     prediction_topic: Option<Spanned<String>>,
+    coverage: Option<Spanned<f64>>,
 }
 
 /// `maps.NAME` and `people.NAME` (the geometry and bin keys are for people only).
@@ -1370,6 +1395,7 @@ impl<'a> Reader<'a> {
             probability_topic: self.text(&k("probability_topic"))?,
             entropy_topic: self.text(&k("entropy_topic"))?,
             prediction_topic: self.text(&k("prediction_topic"))?,
+            coverage: self.number(&k("coverage"))?,
         })
     }
 
@@ -1953,6 +1979,36 @@ impl Checker<'_> {
             None => Ok(format!("{}/{name}/{leaf}", names.node)),
             Some(v) => self.topic(v, &format!("{key}.{leaf}_topic"), names),
         };
+        let coverage = match &s.coverage {
+            None => DEFAULT_COVERAGE,
+            Some(c) if message == StateType::Bool => {
+                return Err(self.at(
+                    c,
+                    &format!("{key}.coverage"),
+                    "a std_msgs/msg/Bool state has no prediction interval (only Float32 and \
+                     Float64 states have one)"
+                        .to_string(),
+                ));
+            }
+            Some(c) if !model.has_second_moment() => {
+                return Err(self.at(
+                    c,
+                    &format!("{key}.coverage"),
+                    format!(
+                        "`{model}` gives no prediction interval (those that learn online and \
+                         `auto` do)"
+                    ),
+                ));
+            }
+            Some(c) if c.value > 0.0 && c.value < 1.0 => c.value,
+            Some(c) => {
+                return Err(self.at(
+                    c,
+                    &format!("{key}.coverage"),
+                    format!("{} is not strictly between 0 and 1", c.value),
+                ));
+            }
+        };
         Ok(StateConfig {
             name: name.to_string(),
             topic,
@@ -1961,6 +2017,7 @@ impl Checker<'_> {
             keep,
             refit,
             qos,
+            coverage,
             probability_topic: output(&s.probability_topic, "probability")?,
             entropy_topic: output(&s.entropy_topic, "entropy")?,
             prediction_topic: match &s.prediction_topic {

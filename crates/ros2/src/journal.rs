@@ -89,6 +89,18 @@ pub enum Entry<'a> {
         /// The fit.
         refit: Box<Refit>,
     },
+    /// As [`Entry::Refit`], for a state with a prediction interval (`auto` of a continuous
+    /// state): the fit of its kept observations and the fit of their squares, installed
+    /// together (both or neither). Appended after the other variants, so journals of nodes
+    /// before intervals still read.
+    RefitWithSpread {
+        /// The state's name.
+        name: Cow<'a, str>,
+        /// The fit of the values.
+        refit: Box<Refit>,
+        /// The fit of their squares (the second moment, [`chronomap_core::spread`]).
+        spread: Box<Refit>,
+    },
 }
 
 /// Entries are equal when they encode to the same bytes (what the journal holds).
@@ -106,7 +118,8 @@ impl Entry<'_> {
             | Entry::Map { name, .. }
             | Entry::People { name, .. }
             | Entry::BinClosed { name }
-            | Entry::Refit { name, .. } => name,
+            | Entry::Refit { name, .. }
+            | Entry::RefitWithSpread { name, .. } => name,
         }
     }
 }

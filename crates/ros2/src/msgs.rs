@@ -22,8 +22,8 @@
 //! | `lifecycle_msgs/srv/GetAvailableStates` | (empty) → `State[] available_states` |
 //! | `lifecycle_msgs/srv/GetAvailableTransitions`, `GetTransitionGraph` | (empty) → `TransitionDescription[] available_transitions` |
 //! | `std_srvs/srv/Trigger` | (empty) → `bool success`, `string message` |
-//! | `chronomap_msgs/msg/Prediction` | `Header header`, `string name`, `string model`, `float64 probability`, `float64 entropy`, `Time made`, `uint64 observations` |
-//! | `chronomap_msgs/srv/Predict` | `string name`, `Time[] times` → `bool success`, `string message`, `string model`, `float64[] probability`, `float64[] entropy` |
+//! | `chronomap_msgs/msg/Prediction` | `Header header`, `string name`, `string model`, `float64 probability`, `float64 entropy`, `Time made`, `uint64 observations`, `float64 lower`, `float64 upper`, `float64 coverage` |
+//! | `chronomap_msgs/srv/Predict` | `string name`, `Time[] times` → `bool success`, `string message`, `string model`, `float64[] probability`, `float64[] entropy`, `float64 coverage`, `float64[] lower`, `float64[] upper` |
 //!
 //! An empty request is one `uint8` (`structure_needs_at_least_one_member`), as rosidl
 //! generates it for DDS. The parameter services (`rcl_interfaces`) and `/rosout`
@@ -393,6 +393,13 @@ pub struct Prediction {
     pub made: Time,
     /// Observations the model has learned.
     pub observations: u64,
+    /// Lower end of the central interval that holds the value with probability `coverage`
+    /// (continuous states with an interval); NaN when the state has none.
+    pub lower: f64,
+    /// Upper end of that interval; NaN when the state has none.
+    pub upper: f64,
+    /// The interval's coverage, strictly between 0 and 1; 0 when the state has none.
+    pub coverage: f64,
 }
 message!(Prediction, "chronomap_msgs", "Prediction");
 
@@ -418,6 +425,12 @@ pub struct PredictResponse {
     pub probability: Vec<f64>,
     /// The entropy at each time, bits.
     pub entropy: Vec<f64>,
+    /// The coverage of the intervals; 0 when the state has none.
+    pub coverage: f64,
+    /// Lower end of the interval at each time; empty when the state has none.
+    pub lower: Vec<f64>,
+    /// Upper end of the interval at each time; empty when the state has none.
+    pub upper: Vec<f64>,
 }
 
 /// `std_srvs/srv/Trigger` response (its request is an [`EmptyRequest`]).
@@ -708,6 +721,9 @@ mod tests {
             entropy: v["entropy"].as_f64().unwrap(),
             made: time(&v["made"]),
             observations: v["observations"].as_u64().unwrap(),
+            lower: v["lower"].as_f64().unwrap(),
+            upper: v["upper"].as_f64().unwrap(),
+            coverage: v["coverage"].as_f64().unwrap(),
         };
         let bytes = to_vec::<_, Le>(&prediction).unwrap();
         assert_eq!(bytes, expected("prediction"));
@@ -733,16 +749,25 @@ mod tests {
                 model: text(&v["model"]),
                 probability: floats(&v["probability"]),
                 entropy: floats(&v["entropy"]),
+                coverage: v["coverage"].as_f64().unwrap(),
+                lower: floats(&v["lower"]),
+                upper: floats(&v["upper"]),
             };
             let bytes = to_vec::<_, Le>(&response).unwrap();
             let rclpy = expected(key);
-            // rclpy counts 8 bytes more than it writes for two empty arrays (the JSON says).
+            // rclpy counts 4 bytes more than it writes for each empty float64[] (the JSON
+            // says): 16 for the four of a refusal.
             let length = examples["messages"][key]["rclpy_length"].as_u64().unwrap() as usize;
-            let junk = if response.probability.is_empty() {
-                8
-            } else {
-                0
-            };
+            let empty = [
+                &response.probability,
+                &response.entropy,
+                &response.lower,
+                &response.upper,
+            ]
+            .iter()
+            .filter(|v| v.is_empty())
+            .count();
+            let junk = 4 * empty;
             assert_eq!(4 + rclpy.len() + junk, length, "{key}");
             assert_eq!(bytes, rclpy, "{key}");
             assert_eq!(

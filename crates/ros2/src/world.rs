@@ -14,6 +14,12 @@
 //!   the cells someone was detected in (occupied). The grid's FreMEn cells then predict the
 //!   probability that someone is in a cell during a bin, as [Krajník 2017] §VI models
 //!   dynamic cells; it is published like a map.
+//! * **Intervals** of continuous states (`Float32`, `Float64`) whose spec has a second
+//!   moment (it learns online, or is `auto`): a second learner of the same spec is fed the
+//!   squared values, at the same times, and refitted with the model (`auto`); the central
+//!   interval is the Beta law's matched to the two moments
+//!   ([`chronomap_core::spread::beta_interval`], [Johnson 1995] ch. 25), as the service
+//!   answers them.
 //! * **Predicted maps** are the map `chronomap grid predict` computes, with cells as
 //!   `nav2_map_server` publishes the map files it writes ([`MapValues`]).
 
@@ -23,6 +29,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
+use chronomap_core::spread::beta_interval;
 use chronomap_core::{ObservationError, Parallelism, TemporalModel};
 use chronomap_grid::report::project_layers;
 use chronomap_grid::{FremenGrid, GridConfig, GridError, GridGeometry};
@@ -173,6 +180,10 @@ pub enum StoreError {
 /// A state and what it learned.
 struct StateSlot {
     model: Learner,
+    /// States with an interval ([`StateConfig::has_interval`]): the same spec fed the squared
+    /// values, the second moment ([`chronomap_core::spread`]). `None` for the others, and for
+    /// a model restored from files of a node before intervals (it never learned the squares).
+    spread: Option<Learner>,
     learned: u64,
     /// Observations on days off since the node started (not learned).
     days_off: u64,
@@ -334,13 +345,18 @@ impl World {
             .collect();
         let mut states = Vec::new();
         for s in &config.states {
-            let model = match config.save_dir.as_ref().map(|d| state_file(d, s)) {
-                Some(file) if file.exists() => restore_state(&file, s)?,
-                Some(file) => {
-                    refuse_other_kind(&file, s)?;
-                    s.empty_learner()
+            let fresh_spread = || s.has_interval().then(|| s.empty_learner());
+            let (model, spread) = match config.save_dir.as_ref().map(|d| (d, state_file(d, s))) {
+                Some((dir, file)) if file.exists() => {
+                    let model = restore_state(&file, s)?;
+                    let spread = restore_spread(dir, s, &model, &covers)?;
+                    (model, spread)
                 }
-                None => s.empty_learner(),
+                Some((_, file)) => {
+                    refuse_other_kind(&file, s)?;
+                    (s.empty_learner(), fresh_spread())
+                }
+                None => (s.empty_learner(), fresh_spread()),
             };
             let record = match (&config.save_dir, config.record_observations) {
                 (Some(dir), true) => {
@@ -356,6 +372,7 @@ impl World {
             };
             states.push(StateSlot {
                 model,
+                spread,
                 learned: 0,
                 days_off: 0,
                 record,
@@ -478,7 +495,9 @@ impl World {
         // The state or grid the record belongs to, and the journal position its file covers.
         let state = || self.config.states.iter().position(|s| s.name == name);
         let target = match entry {
-            Entry::State { .. } | Entry::Refit { .. } => state().map(|i| (i, state_covers[i])),
+            Entry::State { .. } | Entry::Refit { .. } | Entry::RefitWithSpread { .. } => {
+                state().map(|i| (i, state_covers[i]))
+            }
             Entry::Map { .. } => self.grid_index(name, true).map(|i| (i, grid_covers[i])),
             Entry::People { .. } | Entry::BinClosed { .. } => {
                 self.grid_index(name, false).map(|i| (i, grid_covers[i]))
@@ -491,15 +510,20 @@ impl World {
         if seq < covers {
             return;
         }
-        let grid = !matches!(entry, Entry::State { .. } | Entry::Refit { .. });
+        let grid = !matches!(
+            entry,
+            Entry::State { .. } | Entry::Refit { .. } | Entry::RefitWithSpread { .. }
+        );
         let frames = if grid { self.grids[index].frames } else { 0 };
         let result = match entry {
             Entry::State { time, value, .. } => self
                 .learn_state(index, *time, *value)
                 .inspect(|()| restored.states[index].1 += 1),
-            Entry::Refit { refit, .. } => self.states[index]
-                .model
-                .install(Refit::clone(refit))
+            Entry::Refit { refit, .. } => self
+                .install_fits(index, refit, None)
+                .map_err(LearnError::Refit),
+            Entry::RefitWithSpread { refit, spread, .. } => self
+                .install_fits(index, refit, Some(spread))
                 .map_err(LearnError::Refit),
             Entry::Map { message, .. } => self.learn_map(index, message),
             Entry::People { message, .. } => self.learn_people(index, message, Some(seq)),
@@ -625,6 +649,18 @@ impl World {
         check_state_value(value)?;
         let slot = &mut self.states[index];
         slot.model.observe(&[time], &[value])?;
+        if let Some(spread) = &mut slot.spread
+            && let Err(e) = spread.observe(&[time], &[value * value])
+        {
+            // It learned every observation the model did, so it takes this one too; should it
+            // not, the state goes on without an interval rather than with a wrong one.
+            log::error!(
+                "states.{}: the model of the squared values refused {time} {value}: {e}; no \
+                 interval from now on",
+                self.config.states[index].name
+            );
+            slot.spread = None;
+        }
         slot.learned += 1;
         if let Some(record) = &mut slot.record {
             // `{}` writes the shortest text that reads back as the same f64.
@@ -933,19 +969,106 @@ impl World {
         self.states[index].model.refit_job()
     }
 
-    /// Puts a refit of state `index` in place and journals it (the fitted model itself, so
-    /// that a restart installs it at the same place without fitting again).
+    /// The kept squared observations of state `index` for the refit of its second moment,
+    /// made with [`World::refit_job`]: `Some` for `auto` states with an interval.
+    pub fn spread_refit_job(&self, index: usize) -> Option<RefitJob> {
+        self.states[index].spread.as_ref()?.refit_job()
+    }
+
+    /// Puts a refit of state `index` in place, with the fit of its squared values (`spread`,
+    /// from [`World::spread_refit_job`]) if there is one, and journals both (the fitted models
+    /// themselves, so that a restart installs them at the same place without fitting again).
+    /// Without `spread` (its fit failed) the second moment keeps its last fit.
     ///
     /// # Errors
-    /// As [`Learner::install`]; nothing changes then.
-    pub fn install_refit(&mut self, index: usize, refit: Refit) -> Result<(), RefitError> {
-        self.states[index].model.install(refit.clone())?;
-        let entry = Entry::Refit {
-            name: Cow::Borrowed(&self.config.states[index].name),
-            refit: Box::new(refit),
+    /// As [`Learner::install`], or a fit of the second moment for a state without one;
+    /// nothing changes then.
+    pub fn install_refit(
+        &mut self,
+        index: usize,
+        refit: Refit,
+        spread: Option<Refit>,
+    ) -> Result<(), RefitError> {
+        self.install_fits(index, &refit, spread.as_ref())?;
+        let name = Cow::Borrowed(self.config.states[index].name.as_str());
+        let entry = match spread {
+            None => Entry::Refit {
+                name,
+                refit: Box::new(refit),
+            },
+            Some(spread) => Entry::RefitWithSpread {
+                name,
+                refit: Box::new(refit),
+                spread: Box::new(spread),
+            },
         };
         journal(&mut self.durable, &entry);
         Ok(())
+    }
+
+    /// Installs the fits of a refit (live or replayed): both or neither.
+    fn install_fits(
+        &mut self,
+        index: usize,
+        refit: &Refit,
+        spread: Option<&Refit>,
+    ) -> Result<(), RefitError> {
+        let slot = &mut self.states[index];
+        // The second moment's fit goes into a copy first (cheap: kept observations are
+        // shared), so that a refused fit of either changes nothing.
+        let spread = match (spread, &slot.spread) {
+            (None, _) => None,
+            (Some(fit), Some(learner)) => {
+                let mut learner = learner.clone();
+                learner.install(fit.clone())?;
+                Some(learner)
+            }
+            (Some(_), None) => {
+                return Err(RefitError::NotThisLearner {
+                    reason: format!(
+                        "a fit of the second moment, and states.{} has no model of it",
+                        self.config.states[index].name
+                    ),
+                });
+            }
+        };
+        slot.model.install(refit.clone())?;
+        if spread.is_some() {
+            slot.spread = spread;
+        }
+        Ok(())
+    }
+
+    /// The learner of the squared values of state `index` (the second moment), for states
+    /// with an interval ([`StateConfig::has_interval`](crate::config::StateConfig::has_interval)).
+    pub fn state_spread(&self, index: usize) -> Option<&Learner> {
+        self.states[index].spread.as_ref()
+    }
+
+    /// Whether state `index` gives intervals now ([`World::state_interval`] is `Some` at every
+    /// time).
+    pub fn state_has_interval(&self, index: usize) -> bool {
+        let slot = &self.states[index];
+        slot.model.model().is_some() && slot.spread.as_ref().is_some_and(|s| s.model().is_some())
+    }
+
+    /// The central interval of coverage `states.NAME.coverage` of state `index` at `time`
+    /// (a day off predicted at its stand-in, as [`World::predict_state`]): the Beta law's of
+    /// the model's mean and the second moment's prediction
+    /// ([`chronomap_core::spread::beta_interval`], [Johnson 1995] ch. 25). `None` for states
+    /// without one: Bool states, specs without a second moment (`fremen:auto`, ...), `auto`
+    /// before the fit of its squares, models restored from files of a node before intervals.
+    pub fn state_interval(&self, index: usize, time: f64) -> Option<(f64, f64)> {
+        // (Whether there is one does not depend on the time: `state_has_interval`.)
+        let slot = &self.states[index];
+        let second = slot.spread.as_ref()?.model()?;
+        let mean = slot.model.model()?;
+        let time = self.config.days_off.stand_in(time);
+        Some(beta_interval(
+            mean.predict(time),
+            second.predict(time),
+            self.config.states[index].coverage,
+        ))
     }
 
     /// The grid of entry `index`, once it has one.
@@ -965,10 +1088,16 @@ impl World {
 
     /// The prediction of state `index` for `time`, made at `made` (the node's time), as
     /// `chronomap_msgs/msg/Prediction`: stamped with `time` (on a day off too), with p and its
-    /// entropy ([`World::predict_state`]), the model's spec and its observation count.
+    /// entropy ([`World::predict_state`]), the model's spec and its observation count, and
+    /// the interval ([`World::state_interval`]) with its coverage — or `lower` = `upper` =
+    /// NaN and `coverage` 0 when the state has none.
     pub fn state_prediction(&self, index: usize, time: f64, made: Time) -> Prediction {
         let model = &self.states[index].model;
         let (probability, entropy) = self.predict_state(index, time);
+        let (lower, upper, coverage) = match self.state_interval(index, time) {
+            Some((lower, upper)) => (lower, upper, self.config.states[index].coverage),
+            None => (f64::NAN, f64::NAN, 0.0),
+        };
         Prediction {
             header: Header {
                 stamp: Time::from_seconds(time),
@@ -980,6 +1109,9 @@ impl World {
             entropy,
             made,
             observations: model.span().count,
+            lower,
+            upper,
+            coverage,
         }
     }
 
@@ -1134,9 +1266,9 @@ mod store;
 
 use store::{
     Durable, JOURNAL_DIR, ManifestFile, journal, mismatch, open_record, recover_checkpoint,
-    refuse_other_kind, relative, restore_grid, restore_state,
+    refuse_other_kind, relative, restore_grid, restore_spread, restore_state,
 };
-pub use store::{Saved, grid_file, record_file, state_file};
+pub use store::{Saved, grid_file, record_file, spread_file, state_file};
 
 #[cfg(test)]
 mod tests;

@@ -136,9 +136,7 @@ impl ModelConfig {
     /// Whether models of this configuration keep a model of the second moment
     /// ([`Entry::spread`]): those of continuous values whose spec learns online, or is `auto`.
     pub fn has_second_moment(&self) -> bool {
-        self.range.is_some()
-            && (self.spec == ModelSpec::Auto
-                || !self.spec.learner(1).is_ok_and(|l| l.is_refitting()))
+        self.range.is_some() && self.spec.has_second_moment()
     }
 
     /// Maps a value as given onto `[0, 1]`.

@@ -210,6 +210,26 @@ fn errors_name_the_file_the_line_and_the_parameter() {
             "cfg/node.yaml:7: states.door.model: ",
         ),
         (
+            "    states:\n      level: {topic: /level, type: std_msgs/msg/Float64, coverage: 1.0}\n",
+            "cfg/node.yaml:4: states.level.coverage: 1 is not strictly between 0 and 1",
+        ),
+        (
+            "    states:\n      level: {topic: /level, type: std_msgs/msg/Float32, coverage: 0}\n",
+            "cfg/node.yaml:4: states.level.coverage: 0 is not strictly between 0 and 1",
+        ),
+        (
+            "    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, coverage: 0.9}\n",
+            "cfg/node.yaml:4: states.door.coverage: a std_msgs/msg/Bool state has no prediction interval",
+        ),
+        (
+            "    states:\n      level: {topic: /level, type: std_msgs/msg/Float64, model: \"fremen:auto\", coverage: 0.9}\n",
+            "cfg/node.yaml:4: states.level.coverage: `fremen:auto` gives no prediction interval",
+        ),
+        (
+            "    states:\n      level: {topic: /level, type: std_msgs/msg/Float64, coverage: \"0.9\"}\n",
+            "cfg/node.yaml:4: states.level.coverage: expected a number",
+        ),
+        (
             "    states:\n      door:\n        topic: /door\n        type: std_msgs/msg/Bool\n        keep: 1000\n",
             "cfg/node.yaml:7: states.door.keep: `fremen:2` learns online and is never refitted",
         ),

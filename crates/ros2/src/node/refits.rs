@@ -7,6 +7,11 @@
 //! A refit is started when a state's refit policy (`refit_observations`, `refit_period`)
 //! says so, or for every such state on request (`~/refit`). A fit that fails (too few
 //! observations for `auto`, ...) is logged and not tried again before new observations arrive.
+//!
+//! A state with a prediction interval (`auto` of a continuous state) has its squared values
+//! fitted in the same job, right after its values ([`World::spread_refit_job`]); both fits are
+//! installed and journaled together. Should only the squares' fit fail, the model is installed
+//! and the second moment keeps its last fit (logged).
 
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::Instant;
@@ -22,6 +27,8 @@ use crate::world::World;
 struct Job {
     index: usize,
     job: RefitJob,
+    /// The squared values, for a state with an interval.
+    spread: Option<RefitJob>,
     requested: bool,
 }
 
@@ -30,6 +37,8 @@ struct Done {
     index: usize,
     requested: bool,
     result: Result<Refit, BuildError>,
+    /// The fit of the squared values (`None`: no such job, or the values' fit failed).
+    spread: Option<Result<Refit, BuildError>>,
     secs: f64,
 }
 
@@ -66,16 +75,22 @@ impl Refits {
                 for Job {
                     index,
                     job,
+                    spread,
                     requested,
                 } in inbox
                 {
                     let started = Instant::now();
                     let result = job.run(&fit_options());
+                    let spread = match (&result, spread) {
+                        (Ok(_), Some(spread)) => Some(spread.run(&fit_options())),
+                        _ => None,
+                    };
                     let secs = started.elapsed().as_secs_f64();
                     let sent = outbox.send(Done {
                         index,
                         requested,
                         result,
+                        spread,
                         secs,
                     });
                     if sent.is_err() {
@@ -134,6 +149,7 @@ impl Refits {
                 .send(Job {
                     index,
                     job,
+                    spread: world.spread_refit_job(index),
                     requested,
                 })
                 .is_ok()
@@ -164,13 +180,24 @@ impl Refits {
                 return;
             }
         };
+        let spread = match done.spread {
+            None => None,
+            Some(Ok(fit)) => Some(fit),
+            Some(Err(e)) => {
+                log::warn!(
+                    "refit of the squared values of states.{name} ({spec}, {how}) failed: {e}; \
+                     its interval keeps the last fit of the second moment"
+                );
+                None
+            }
+        };
         let summary = describe(&refit);
         let (observations, first, last) = (
             refit.record.observations,
             refit.record.first_time,
             refit.record.last_time,
         );
-        match world.install_refit(done.index, refit) {
+        match world.install_refit(done.index, refit, spread) {
             Ok(()) => {
                 self.failed_at[done.index] = None;
                 log::info!(

@@ -132,12 +132,25 @@ pub(super) fn predict_answer(world: Option<&World>, request: &PredictRequest) ->
         .iter()
         .map(|t| world.predict_state(index, t.seconds()))
         .unzip();
+    // The intervals of a state with them (empty lists and coverage 0 otherwise).
+    let (coverage, (lower, upper)) = if world.state_has_interval(index) {
+        let intervals = request
+            .times
+            .iter()
+            .filter_map(|t| world.state_interval(index, t.seconds()));
+        (states[index].coverage, intervals.unzip())
+    } else {
+        (0.0, (Vec::new(), Vec::new()))
+    };
     PredictResponse {
         success: true,
         message: String::new(),
         model: states[index].model.to_string(),
         probability,
         entropy,
+        coverage,
+        lower,
+        upper,
     }
 }
 

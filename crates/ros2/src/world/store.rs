@@ -3,11 +3,13 @@
 //! between them ([`crate::journal`]), and the observation records. See [`World::save`] and
 //! [`World::open`].
 
+use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use chronomap_core::TemporalModel;
 use chronomap_grid::AnyGrid;
 use chronomap_grid::{FremenGrid, GridGeometry};
 use chronomap_io::grid_file::write_grid_state;
@@ -227,6 +229,21 @@ impl World {
                     covers: head,
                 });
                 written.push((next, file));
+                if let Some(spread) = &slot.spread {
+                    // The second moment, beside the model and covering what it covers.
+                    let file = spread_file(&dir, s);
+                    let next = next_name(&file, head);
+                    match spread {
+                        Learner::Online(model) => write_any_model(&next, model)?,
+                        learner => write_model_file(&next, LEARNER_KIND, learner)?,
+                    }
+                    bytes += file_len(&next);
+                    manifest.files.push(ManifestFile {
+                        path: relative(&file, &dir),
+                        covers: head,
+                    });
+                    written.push((next, file));
+                }
             }
             for (g, slot) in self.config.grids.iter().zip(&self.grids) {
                 let Some(grid) = &slot.grid else {
@@ -430,6 +447,16 @@ pub fn state_file(dir: &Path, state: &StateConfig) -> PathBuf {
         .join(format!("{}.{extension}", state.name))
 }
 
+/// `dir/states/NAME.squares.cmm` (or `.cml`, as [`state_file`]): the learner of the squared
+/// values of a state with a prediction interval (the second moment,
+/// [`chronomap_core::spread`]), saved beside its model by the same checkpoint. (State names
+/// are ROS name tokens, without dots: no state's file is called so.)
+pub fn spread_file(dir: &Path, state: &StateConfig) -> PathBuf {
+    let extension = if state.learns_online() { "cmm" } else { "cml" };
+    dir.join("states")
+        .join(format!("{}.squares.{extension}", state.name))
+}
+
 /// `dir/states/NAME.txt`: the learned observations as `t value` lines.
 pub fn record_file(dir: &Path, state: &StateConfig) -> PathBuf {
     dir.join("states").join(format!("{}.txt", state.name))
@@ -530,6 +557,52 @@ pub(super) fn restore_state(file: &Path, state: &StateConfig) -> Result<Learner,
         );
     }
     Ok(learner)
+}
+
+/// The learner of the squared values of `state` whose model `model` was restored from its
+/// file: the one the same checkpoint saved (`covers`: the checkpoint's files), or `None` for
+/// states without an interval, and for a model saved by a node before intervals (it never
+/// learned the squares: the state has no interval until its files are moved away; logged).
+///
+/// # Errors
+/// A file that cannot be read, of another spec, or that learned another number of
+/// observations than the model.
+pub(super) fn restore_spread(
+    dir: &Path,
+    state: &StateConfig,
+    model: &Learner,
+    covers: &HashMap<&str, &ManifestFile>,
+) -> Result<Option<Learner>, StoreError> {
+    if !state.has_interval() {
+        return Ok(None);
+    }
+    let model_file = state_file(dir, state);
+    let file = spread_file(dir, state);
+    let covered = |f: &Path| covers.get(relative(f, dir).as_str()).map(|m| m.covers);
+    // Written by the checkpoint that wrote the model (a file the checkpoint does not name is
+    // left over from an earlier configuration of the state).
+    if !(file.exists() && covered(&file).is_some() && covered(&file) == covered(&model_file)) {
+        log::warn!(
+            "{}: saved without the model of its squared values (by a node before prediction \
+             intervals): states.{} gives no interval; move its files away to start it afresh \
+             with one",
+            model_file.display(),
+            state.name
+        );
+        return Ok(None);
+    }
+    let spread = restore_state(&file, state)?;
+    let (learned, squared) = (model.span().count, spread.span().count);
+    if learned != squared {
+        return Err(StoreError::Mismatch {
+            file: file.display().to_string(),
+            reason: format!(
+                "it learned {squared} squared values, but {} learned {learned} values",
+                model_file.display()
+            ),
+        });
+    }
+    Ok(Some(spread))
 }
 
 /// An error if the file of the other kind of learner for `state` is there (a model learning

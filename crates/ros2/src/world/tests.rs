@@ -438,19 +438,21 @@ fn learn(world: &mut World, messages: &[Message]) {
     }
 }
 
-/// The bytes of every model and grid of `world`, with open people bins learned (as the node
-/// does at shutdown), for bit-for-bit comparisons.
+/// The bytes of every model (and model of the squared values) and grid of `world`, with open
+/// people bins learned (as the node does at shutdown), for bit-for-bit comparisons.
 fn model_bytes(world: &mut World) -> Vec<Vec<u8>> {
     for index in 0..world.grids.len() {
         world.close_bin(index).unwrap();
     }
+    let encode = |learner: &Learner| match learner {
+        Learner::Online(m) => chronomap_io::model_file::encode_model(m.kind(), m).unwrap(),
+        learner => chronomap_io::model_file::encode_model("learner", learner).unwrap(),
+    };
     let mut bytes: Vec<Vec<u8>> = world
         .states
         .iter()
-        .map(|s| match &s.model {
-            Learner::Online(m) => chronomap_io::model_file::encode_model(m.kind(), m).unwrap(),
-            learner => chronomap_io::model_file::encode_model("learner", learner).unwrap(),
-        })
+        .flat_map(|s| std::iter::once(&s.model).chain(&s.spread))
+        .map(encode)
         .collect();
     for g in &world.grids {
         let grid = g.grid.clone().expect("a grid");
@@ -517,6 +519,18 @@ fn a_crash_loses_only_what_was_not_synced_and_the_restart_equals_a_node_that_ran
     let mut expected = reference(&dir.0, learned);
     let r = restored.restored().clone();
     assert_eq!((r.unknown, r.refused, r.torn_bytes), (0, 0, 0));
+    // The light (Float64) has its interval back, bit for bit.
+    assert!(restored.state_spread(1).is_some());
+    for t in [1_451_606_400.0, 1_451_649_600.0] {
+        let (a, b) = (
+            restored.state_interval(1, t).unwrap(),
+            expected.state_interval(1, t).unwrap(),
+        );
+        assert_eq!(
+            (a.0.to_bits(), a.1.to_bits()),
+            (b.0.to_bits(), b.1.to_bits())
+        );
+    }
     // The open bin of the checkpoint is replayed from its first message.
     let after_checkpoint = |pick: fn(&Message) -> bool| {
         all[checkpoint_at..checkpoint_at + synced]
@@ -575,6 +589,7 @@ fn an_interrupted_checkpoint_is_completed_or_discarded_at_start() {
     let files = [
         "states/door.cmm",
         "states/light.cmm",
+        "states/light.squares.cmm",
         "maps/office.cmg",
         "people/lobby.cmg",
     ];
@@ -691,7 +706,7 @@ fn a_model_fitted_on_a_whole_series_is_refitted_journaled_and_restored_bit_for_b
     let refit = job
         .run(&chronomap_models::spec::FitOptions::default())
         .unwrap();
-    world.install_refit(0, refit).unwrap();
+    world.install_refit(0, refit, None).unwrap();
     // The fit is `chronomap fit` of the 2,000 observations it saw, then it observed the 500.
     let mut expected = "fremen:auto"
         .parse::<chronomap_models::ModelSpec>()
@@ -948,4 +963,208 @@ fn a_state_on_a_day_off_learns_nothing_and_is_predicted_as_its_sunday() {
     let without = World::new(config(&dir.0, &format!("{saved}{week}"))).unwrap();
     assert_eq!(without.learned().0[0].total, 20 * 24);
     assert_eq!(without.predict_state(0, friday_noon).0, 1.0);
+}
+
+/// The law of a continuous state at `t`: a Beta law whose mean and concentration (so its
+/// variance) follow the time of day (as `crates/serve/tests/intervals.rs`).
+fn beta_law_at(t: f64) -> statrs::distribution::Beta {
+    let phase = std::f64::consts::TAU * t / 86_400.0;
+    let m = 0.5 + 0.3 * phase.cos();
+    let k = 12.0 + 6.0 * phase.sin();
+    statrs::distribution::Beta::new(m * k, (1.0 - m) * k).unwrap()
+}
+
+fn beta_draw(rng: &mut chronomap_core::rng::Xoshiro256StarStar, t: f64) -> f64 {
+    use statrs::distribution::ContinuousCDF;
+    beta_law_at(t).inverse_cdf(rng.next_f64())
+}
+
+/// Four states of one `Float64` topic (`fremen:2` at 90 % and 50 %, `auto`, `fremen:auto`)
+/// and a `Bool` one; values of [`beta_law_at`].
+const LEVEL: &str = "    save_dir: saved\n    states:\n      level: {topic: /level, type: std_msgs/msg/Float64, model: fremen:2}\n      half: {topic: /level, type: std_msgs/msg/Float64, model: fremen:2, coverage: 0.5}\n      stack: {topic: /level, type: std_msgs/msg/Float64, model: auto, refit_observations: 0, refit_period: 0}\n      order: {topic: /level, type: std_msgs/msg/Float64, model: \"fremen:auto\", refit_observations: 0, refit_period: 0}\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n";
+
+#[test]
+fn a_continuous_state_s_interval_is_the_beta_law_of_its_two_moments_and_holds_its_coverage() {
+    use chronomap_core::conformance::check_interval_coverage;
+    use chronomap_core::rng::Xoshiro256StarStar;
+    let dir = Scratch::new("intervals");
+    let mut world = World::open(config(&dir.0, LEVEL), manual_sync()).unwrap();
+    // States are in the order of their names.
+    let states = &world.config().states;
+    let names: Vec<&str> = states.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["door", "half", "level", "order", "stack"]);
+    let (door, half, level, order, stack) = (0, 1, 2, 3, 4);
+    let with: Vec<bool> = states.iter().map(|s| s.has_interval()).collect();
+    assert_eq!(with, [false, true, true, false, true]);
+    assert_eq!((states[level].coverage, states[half].coverage), (0.9, 0.5));
+    // Four weeks, one value every two minutes, into every state of /level.
+    let mut rng = Xoshiro256StarStar::seed_from_u64(41);
+    let start = 1.7e9;
+    let n = 28 * 720;
+    let times: Vec<f64> = (0..n).map(|i| start + 120.0 * f64::from(i)).collect();
+    let values: Vec<f64> = times.iter().map(|&t| beta_draw(&mut rng, t)).collect();
+    for (&t, &v) in times.iter().zip(&values) {
+        for index in [half, level, order, stack] {
+            assert!(world.observe_state(index, t, v).unwrap());
+        }
+        world
+            .observe_state(door, t, f64::from(u8::from(v > 0.5)))
+            .unwrap();
+    }
+    // The interval is `beta_interval` of the two learners' predictions, bit for bit; and they
+    // are `chronomap fit` of the values and of their squares.
+    let squares: Vec<f64> = values.iter().map(|v| v * v).collect();
+    let fit = |values: &[f64]| {
+        "fremen:2"
+            .parse::<chronomap_models::ModelSpec>()
+            .unwrap()
+            .fit(&times, values, &FitOptions::default())
+            .unwrap()
+            .model
+    };
+    let (mean, second) = (fit(&values), fit(&squares));
+    let after = start + 28.0 * 86_400.0;
+    for t in [after, after + 7_000.0, after + 50_000.0] {
+        let m = world.state_model(level).predict(t);
+        let s = world.state_spread(level).unwrap().predict(t);
+        assert_eq!(m.to_bits(), mean.predict(t).to_bits());
+        assert_eq!(s.to_bits(), second.predict(t).to_bits());
+        for (index, coverage) in [(level, 0.9), (half, 0.5)] {
+            let (lo, hi) = world.state_interval(index, t).unwrap();
+            let (elo, ehi) = chronomap_core::spread::beta_interval(m, s, coverage);
+            assert_eq!((lo.to_bits(), hi.to_bits()), (elo.to_bits(), ehi.to_bits()));
+            assert!(lo < m && m < hi, "{lo} {m} {hi}");
+            let msg = world.state_prediction(index, t, Time::default());
+            assert_eq!(
+                (msg.lower.to_bits(), msg.upper.to_bits(), msg.coverage),
+                (lo.to_bits(), hi.to_bits(), coverage)
+            );
+        }
+    }
+    // No interval: the Bool state, `fremen:auto`, and `auto` before its fit.
+    for index in [door, order, stack] {
+        assert_eq!(world.state_interval(index, after), None, "{index}");
+        let msg = world.state_prediction(index, after, Time::default());
+        assert!(msg.lower.is_nan() && msg.upper.is_nan() && msg.coverage == 0.0);
+    }
+    assert!(world.spread_refit_job(order).is_none() && world.state_spread(order).is_none());
+    // `auto` refits its squares with its values: then it has an interval.
+    let options = FitOptions::default();
+    for index in [stack, order] {
+        let refit = world.refit_job(index).unwrap().run(&options).unwrap();
+        let spread = world
+            .spread_refit_job(index)
+            .map(|job| job.run(&options).unwrap());
+        world.install_refit(index, refit, spread).unwrap();
+    }
+    assert!(world.state_interval(stack, after).is_some());
+    assert_eq!(world.state_interval(order, after), None);
+    // Fresh values of the next week fall inside as often as the coverage says.
+    let fresh_times: Vec<f64> = (0..4000)
+        .map(|_| after + rng.uniform(0.0, 7.0 * 86_400.0))
+        .collect();
+    let fresh: Vec<f64> = fresh_times
+        .iter()
+        .map(|&t| beta_draw(&mut rng, t))
+        .collect();
+    for (index, coverage, what) in [
+        (level, 0.9, "fremen:2"),
+        (half, 0.5, "fremen:2"),
+        (stack, 0.9, "auto"),
+    ] {
+        let intervals: Vec<(f64, f64)> = fresh_times
+            .iter()
+            .map(|&t| world.state_interval(index, t).unwrap())
+            .collect();
+        let c = check_interval_coverage(
+            &format!("node, {what}, {coverage}"),
+            coverage,
+            &intervals,
+            &fresh,
+        );
+        println!("{what}, {coverage}: {c:?}");
+    }
+    // After a crash (journal replay, the refit of `auto` with its squares included) and after
+    // a checkpoint, the intervals are the same, bit for bit.
+    let probe: Vec<f64> = (0..50).map(|i| after + 3000.0 * f64::from(i)).collect();
+    let intervals = |w: &World| -> Vec<u64> {
+        (0..5)
+            .flat_map(|index| probe.iter().map(move |&t| (index, t)))
+            .flat_map(|(index, t)| {
+                let p = w.state_prediction(index, t, Time::default());
+                [p.probability, p.lower, p.upper, p.coverage].map(f64::to_bits)
+            })
+            .collect()
+    };
+    let live = intervals(&world);
+    world.sync_journal(Instant::now() + std::time::Duration::from_secs(7200));
+    std::mem::forget(world);
+    let mut restored = World::open(config(&dir.0, LEVEL), manual_sync()).unwrap();
+    assert_eq!(intervals(&restored), live);
+    restored.save(true).unwrap();
+    for f in ["level.squares.cmm", "half.squares.cmm", "stack.squares.cml"] {
+        assert!(dir.0.join("saved/states").join(f).is_file(), "{f}");
+    }
+    assert!(!dir.0.join("saved/states/order.squares.cml").exists());
+    assert!(!dir.0.join("saved/states/door.squares.cmm").exists());
+    let mut again = World::open(config(&dir.0, LEVEL), manual_sync()).unwrap();
+    assert_eq!(again.restored().replayed, 0);
+    assert_eq!(intervals(&again), live);
+    assert_same_models(&mut again, &mut restored);
+}
+
+#[test]
+fn files_of_a_node_before_intervals_still_load_and_give_no_interval() {
+    let dir = Scratch::new("before-intervals");
+    let params = "    save_dir: saved\n    states:\n      level: {topic: /level, type: std_msgs/msg/Float64, model: hist:24}\n";
+    let mut world = World::open(config(&dir.0, params), manual_sync()).unwrap();
+    for k in 0..500 {
+        let t = 1.7e9 + 600.0 * f64::from(k);
+        world.observe_state(0, t, f64::from(k % 7) / 6.0).unwrap();
+    }
+    world.save(true).unwrap();
+    let at = 1.7e9 + 400_000.0;
+    let live = world.predict_state(0, at);
+    assert!(world.state_interval(0, at).is_some());
+    drop(world);
+    // What a node before intervals left: the model alone, in a checkpoint naming it alone.
+    let saved = dir.0.join("saved");
+    std::fs::remove_file(saved.join("states/level.squares.cmm")).unwrap();
+    let (kind, mut manifest): (String, super::store::Manifest) =
+        chronomap_io::model_file::read_model_file(saved.join("checkpoint")).unwrap();
+    manifest.files.retain(|f| !f.path.contains(".squares."));
+    chronomap_io::model_file::write_model_file(saved.join("checkpoint"), &kind, &manifest).unwrap();
+    let mut old = World::open(config(&dir.0, params), manual_sync()).unwrap();
+    assert_eq!(old.predict_state(0, at), live);
+    assert_eq!(old.state_interval(0, at), None);
+    let msg = old.state_prediction(0, at, Time::default());
+    assert!(msg.lower.is_nan() && msg.upper.is_nan() && msg.coverage == 0.0);
+    // It goes on learning, and stays without an interval (it never learned the squares).
+    old.observe_state(0, at, 0.5).unwrap();
+    old.save(true).unwrap();
+    assert!(!saved.join("states/level.squares.cmm").exists());
+    drop(old);
+    // A file of squares the checkpoint does not name (left over) is not taken either, and a
+    // model of squares that learned another count than the model is refused.
+    let again = World::open(config(&dir.0, params), manual_sync()).unwrap();
+    assert_eq!(again.state_interval(0, at), None);
+    drop(again);
+    let fresh = Scratch::new("before-intervals-count");
+    let mut world = World::open(config(&fresh.0, params), manual_sync()).unwrap();
+    world.observe_state(0, 1.7e9, 0.5).unwrap();
+    world.save(true).unwrap();
+    drop(world);
+    let other = fresh.0.join("saved/states/level.squares.cmm");
+    let mut squares = chronomap_io::read_any_model(&other).unwrap();
+    squares.observe(&[1.7e9 + 1.0], &[0.25]).unwrap();
+    chronomap_io::write_any_model(&other, &squares).unwrap();
+    let e = World::open(config(&fresh.0, params), manual_sync())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("level.squares.cmm: it learned 2 squared values, but")
+            && e.contains("learned 1 values"),
+        "{e}"
+    );
 }
