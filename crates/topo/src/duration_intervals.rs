@@ -71,6 +71,16 @@ const LOWEST_LEVEL: f64 = 1.0 / (LEVELS + 1) as f64;
 /// Widest coverage an interval can have: 99 % (the stored quantiles end at 0.005 and 0.995).
 pub const MAX_COVERAGE: f64 = 0.99;
 
+/// The value at `level` of `values` stored at the levels `i / 200`, `i = 1..=199`, linearly
+/// interpolated between them (clamped to the first and last).
+fn at_level(values: &[f64], level: f64) -> f64 {
+    let position = (level * (LEVELS + 1) as f64 - 1.0).clamp(0.0, (LEVELS - 1) as f64);
+    let low = position.floor() as usize;
+    let high = (low + 1).min(LEVELS - 1);
+    let fraction = position - low as f64;
+    values[low] + fraction * (values[high] - values[low])
+}
+
 /// The log residual of a duration `d` against the prediction `expected` (see the
 /// [module docs](self)).
 pub fn residual(duration_secs: f64, expected_secs: f64) -> f64 {
@@ -117,14 +127,7 @@ impl ResidualQuantiles {
     /// The quantile at `level` in `[0.005, 0.995]` (clamped), interpolated between the stored
     /// levels; `None` without residuals.
     pub fn at(&self, level: f64) -> Option<f64> {
-        if self.quantiles.len() != LEVELS {
-            return None;
-        }
-        let position = (level * (LEVELS + 1) as f64 - 1.0).clamp(0.0, (LEVELS - 1) as f64);
-        let low = position.floor() as usize;
-        let high = (low + 1).min(LEVELS - 1);
-        let fraction = position - low as f64;
-        Some(self.quantiles[low] + fraction * (self.quantiles[high] - self.quantiles[low]))
+        (self.quantiles.len() == LEVELS).then(|| at_level(&self.quantiles, level))
     }
 
     /// The quantile at `level` stretched away from the median for a sample of `count`
@@ -171,11 +174,7 @@ impl AdaptedLevels {
         if self.levels.len() != LEVELS {
             return level;
         }
-        let position = (level * (LEVELS + 1) as f64 - 1.0).clamp(0.0, (LEVELS - 1) as f64);
-        let low = position.floor() as usize;
-        let high = (low + 1).min(LEVELS - 1);
-        let fraction = position - low as f64;
-        self.levels[low] + fraction * (self.levels[high] - self.levels[low])
+        at_level(&self.levels, level)
     }
 
     /// Whether the stored values can be used (for models read from files).

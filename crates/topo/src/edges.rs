@@ -1155,9 +1155,9 @@ mod tests {
 
     /// The conformance check of duration intervals: on an edge whose durations follow a known
     /// law, intervals of 50 %, 90 % and 99 % hold that share of fresh draws.
-    #[test]
-    fn duration_intervals_cover_fresh_draws_of_a_known_law_as_often_as_they_claim() {
-        let models = EdgeModels::fit(
+    /// Models of edge 0 fitted on 3,000 durations `30 s · exp(0.3 z)` over four weeks.
+    fn fitted_on_lognormal_durations() -> EdgeModels {
+        EdgeModels::fit(
             map(),
             &[
                 lognormal_attempts(3000, 30.0, 0.3, 1),
@@ -1166,14 +1166,24 @@ mod tests {
             ],
             EdgeModelConfig::default(),
         )
-        .unwrap();
-        let fresh: Vec<Attempt> = lognormal_attempts(20_000, 30.0, 0.3, 2)
+        .unwrap()
+    }
+
+    /// `n` durations `scale · exp(σ z)` over the four weeks after the fit's.
+    fn later_lognormal_attempts(n: usize, scale: f64, sigma: f64, seed: u64) -> Vec<Attempt> {
+        lognormal_attempts(n, scale, sigma, seed)
             .into_iter()
             .map(|a| Attempt {
                 time: a.time + 28.0 * 86_400.0,
                 ..a
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn duration_intervals_cover_fresh_draws_of_a_known_law_as_often_as_they_claim() {
+        let models = fitted_on_lognormal_durations();
+        let fresh = later_lognormal_attempts(20_000, 30.0, 0.3, 2);
         let durations: Vec<f64> = fresh.iter().map(|a| a.duration_secs).collect();
         for coverage in [0.5, 0.9, 0.99] {
             let intervals: Vec<(f64, f64)> = fresh
@@ -1209,23 +1219,8 @@ mod tests {
     /// ([`EdgeModels::observe`], adaptive conformal inference), they hold the nominal share.
     #[test]
     fn duration_intervals_adapted_online_hold_their_share_of_a_drifted_law() {
-        let models = EdgeModels::fit(
-            map(),
-            &[
-                lognormal_attempts(3000, 30.0, 0.3, 1),
-                Vec::new(),
-                Vec::new(),
-            ],
-            EdgeModelConfig::default(),
-        )
-        .unwrap();
-        let fresh: Vec<Attempt> = lognormal_attempts(20_000, 24.0, 0.45, 3)
-            .into_iter()
-            .map(|a| Attempt {
-                time: a.time + 28.0 * 86_400.0,
-                ..a
-            })
-            .collect();
+        let models = fitted_on_lognormal_durations();
+        let fresh = later_lognormal_attempts(20_000, 24.0, 0.45, 3);
         let durations: Vec<f64> = fresh.iter().map(|a| a.duration_secs).collect();
         let levels = [0.5, 0.9];
         let mut live = models.clone();
