@@ -8,10 +8,14 @@
 //! --model fremen:2` + `predict` of the observations the node recorded, and of `door_auto`,
 //! after `~/refit`, `chronomap fit --model auto` + `predict`; the stamped predictions carry the
 //! time they are for (clock + horizon), the time they were made, the model and its count.
+//! A continuous state (`level`, `std_msgs/msg/Float64`, `fremen:2`) carries its 90 % interval
+//! in both, rclpy decoding the new fields: `beta_interval` of `chronomap fit` of its values and
+//! of their squares; the door's (`Bool`) is NaN with coverage 0 and `~/predict` gives it none.
 //!
 //! Runs when `CHRONOMAP_ROS_PYTHON` names a Python with rclpy and `std_srvs`, and
 //! `CHRONOMAP_ROS_MSGS` the built interfaces (`.ci/run` sets both).
 
+use chronomap_core::spread::beta_interval;
 use serde_json::{Value, json};
 
 use crate::common::{assert_mentions, greg_training, oracle_python, scratch, write};
@@ -54,7 +58,8 @@ fn two_models_of_one_topic_stamped_predictions_and_the_node_s_services_from_rclp
         .zip(&greg.values)
         .step_by(10)
         .take(2016)
-        .map(|(&t, &v)| json!({"clock": t as i64, "door": v}))
+        .enumerate()
+        .map(|(i, (&t, &v))| json!({"clock": t as i64, "door": v, "level": level(i, v)}))
         .collect();
     let last = steps.last().unwrap()["clock"].as_i64().unwrap();
     let times: Vec<i64> = [0, 3600, 7 * 3600, 86_400 + 1800]
@@ -73,12 +78,13 @@ chronomap:
     states:
       door: {topic: /door, type: std_msgs/msg/Bool, model: \"fremen:2\", depth: 5000}
       door_auto: {topic: /door, type: std_msgs/msg/Bool, model: auto, depth: 5000, refit_observations: 0, refit_period: 0}
+      level: {topic: /level, type: std_msgs/msg/Float64, model: \"fremen:2\", depth: 5000}
 ";
     let config_file = write(&dir, "node.yaml", config);
     let plan = json!({
         "config": config_file.display().to_string(),
         "ros_msgs": ros_msgs,
-        "states": ["door", "door_auto"],
+        "states": ["door", "door_auto", "level"],
         "steps": steps,
         "flow_every": 100,
         "horizon": HORIZON,
@@ -174,7 +180,7 @@ chronomap:
     assert_eq!(unknown["success"], false);
     assert_eq!(
         unknown["message"],
-        "no state \"window\" (the states: door, door_auto)"
+        "no state \"window\" (the states: door, door_auto, level)"
     );
     // The refitted model's stamped prediction at the next clock.
     let after = &r["after_refit"];
@@ -186,12 +192,100 @@ chronomap:
         expected[0].0.to_bits()
     );
 
+    // The continuous state: its values recorded as sent; the interval of its stamped
+    // prediction (of as many observations as it says it had learned) and of ~/predict is the
+    // Beta law's of `chronomap fit` of the values and of their squares, bit for bit.
+    let levels: Vec<(f64, f64)> = sent
+        .iter()
+        .enumerate()
+        .map(|(i, &(t, v))| (t, level(i, v)))
+        .collect();
+    let record = chronomap_io::read_pairs(dir.join("saved/states/level.txt")).unwrap();
+    let recorded: Vec<(f64, f64)> = record.times.into_iter().zip(record.values).collect();
+    assert!(recorded == levels, "level: recorded observations differ");
+    // Mean and second moment at `times` of `chronomap fit` of the first `n` values.
+    let moments = |n: usize, times: &[i64]| -> Vec<(f64, f64)> {
+        let text = |square: bool| -> String {
+            levels[..n]
+                .iter()
+                .map(|&(t, v)| format!("{t} {}\n", if square { v * v } else { v }))
+                .collect()
+        };
+        write(&dir, "level_values.txt", text(false));
+        write(&dir, "level_squares.txt", text(true));
+        let mean = fit_and_predict(&dir, "level_values.txt", "fremen:2", times);
+        let second = fit_and_predict(&dir, "level_squares.txt", "fremen:2", times);
+        mean.iter().zip(&second).map(|(m, s)| (m.0, s.0)).collect()
+    };
+    let stamped = &before["level"];
+    assert_eq!(stamped["stamp"], json!([last + HORIZON, 0]));
+    let n = stamped["observations"].as_u64().unwrap() as usize;
+    assert!(n + 5 >= sent.len(), "{n} of {}", sent.len());
+    let (m, s) = moments(n, &[last + HORIZON])[0];
+    let (lo, hi) = beta_interval(m, s, 0.9);
+    assert_eq!(
+        stamped["probability"].as_f64().unwrap().to_bits(),
+        m.to_bits()
+    );
+    assert_eq!(stamped["lower"].as_f64().unwrap().to_bits(), lo.to_bits());
+    assert_eq!(stamped["upper"].as_f64().unwrap().to_bits(), hi.to_bits());
+    assert_eq!(stamped["coverage"], 0.9);
+    assert!(0.0 < lo && lo < m && m < hi && hi < 1.0, "{lo} {m} {hi}");
+    let answer = &r["answers"]["level"];
+    assert_eq!(
+        (answer["success"].as_bool(), answer["coverage"].as_f64()),
+        (Some(true), Some(0.9))
+    );
+    let (lower, upper) = (floats(&answer["lower"]), floats(&answer["upper"]));
+    assert_eq!((lower.len(), upper.len()), (times.len(), times.len()));
+    for (i, (m, s)) in moments(sent.len(), &times).into_iter().enumerate() {
+        let (lo, hi) = beta_interval(m, s, 0.9);
+        assert_eq!(
+            lower[i].to_bits(),
+            lo.to_bits(),
+            "level lower at {}",
+            times[i]
+        );
+        assert_eq!(
+            upper[i].to_bits(),
+            hi.to_bits(),
+            "level upper at {}",
+            times[i]
+        );
+    }
+    assert!(
+        lower
+            .iter()
+            .zip(&upper)
+            .any(|(l, u)| u - l != upper[0] - lower[0])
+    );
+    // A Bool state has no interval: NaN (null in the driver's JSON) and coverage 0 in the
+    // stamped prediction, empty lists from ~/predict.
+    for name in ["door", "door_auto"] {
+        let stamped = &before[name];
+        assert!(
+            stamped["lower"].is_null() && stamped["upper"].is_null(),
+            "{stamped}"
+        );
+        assert_eq!(stamped["coverage"], 0.0);
+        let answer = &r["answers"][name];
+        assert_eq!(answer["coverage"], 0.0);
+        assert!(floats(&answer["lower"]).is_empty() && floats(&answer["upper"]).is_empty());
+    }
+
     // ~/save made a checkpoint: the refitted learner is saved with its kept observations.
     assert_eq!(r["save"]["success"], true, "{}", r["save"]);
     assert_mentions(
         r["save"]["message"].as_str().unwrap(),
-        &["checkpoint 1 at journal position", "2 files"],
+        &["checkpoint 1 at journal position", "4 files"],
     );
     assert!(dir.join("saved/states/door.cmm").is_file());
     assert!(dir.join("saved/states/door_auto.cml").is_file());
+    assert!(dir.join("saved/states/level.squares.cmm").is_file());
+}
+
+/// The continuous state of step `i` with door state `door`: eighths, exact in binary and in
+/// text, following the door and a weekly-ish cycle of the steps.
+fn level(i: usize, door: f64) -> f64 {
+    (i % 7) as f64 / 8.0 + door / 8.0
 }

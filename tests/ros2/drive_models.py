@@ -4,8 +4,9 @@ state topic, the stamped predictions (chronomap_msgs/msg/Prediction), and the no
 
 Usage: drive_models.py CHRONOMAP_BINARY PLAN.json > RESULT.json
 
-The plan (written by the Rust test) names the parameter file, the steps (a /clock value and a
-door state each), the two states, the times to ask ~/predict for, and `flow_every`: every so many
+The plan (written by the Rust test) names the parameter file, the steps (a /clock value, a door
+state and a value of the continuous state `level` on /level each), the states (the first two
+the door's, then the level's), the times to ask ~/predict for, and `flow_every`: every so many
 steps the driver waits for the first state's stamped prediction made at that step's clock (the
 node has then learned everything before it). After the steps it reads the last predictions,
 asks for a refit and waits until the refitted model predicts something else than 0.5, asks
@@ -15,6 +16,7 @@ private network namespace with CHRONOMAP_ROS_MSGS set (tests/ros2/chronomap_msgs
 """
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -35,8 +37,13 @@ from chronomap_msgs.msg import Prediction  # noqa: E402
 from builtin_interfaces.msg import Time  # noqa: E402
 from chronomap_msgs.srv import Predict  # noqa: E402
 from driving import EVERY, LATEST, WAIT_SECS, RosDriver  # noqa: E402
-from std_msgs.msg import Bool  # noqa: E402
+from std_msgs.msg import Bool, Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
+
+
+def finite_or_none(x):
+    """JSON has no NaN (the node's lower and upper of a state without an interval)."""
+    return None if math.isnan(x) else x
 
 
 def prediction_json(msg):
@@ -49,6 +56,9 @@ def prediction_json(msg):
         "entropy": msg.entropy,
         "made": [msg.made.sec, msg.made.nanosec],
         "observations": msg.observations,
+        "lower": finite_or_none(msg.lower),
+        "upper": finite_or_none(msg.upper),
+        "coverage": msg.coverage,
     }
 
 
@@ -58,6 +68,7 @@ class Driver(RosDriver):
         self.plan = plan
         n = self.node
         self.door = n.create_publisher(Bool, "/door", EVERY)
+        self.level = n.create_publisher(Float64, "/level", EVERY)
         self.latest = {}
         for name in plan["states"]:
             n.create_subscription(
@@ -94,6 +105,9 @@ class Driver(RosDriver):
             "model": answer.model,
             "probability": list(answer.probability),
             "entropy": list(answer.entropy),
+            "coverage": answer.coverage,
+            "lower": list(answer.lower),
+            "upper": list(answer.upper),
         }
 
     @staticmethod
@@ -118,7 +132,7 @@ class Driver(RosDriver):
 
     def drive(self, process, started):
         steps = self.plan["steps"]
-        first_state, refitted = self.plan["states"]
+        first_state, refitted = self.plan["states"][:2]
         first = steps[0]["clock"]
         deadline = time.monotonic() + WAIT_SECS
         while self.made(first_state) != first or self.door.get_subscription_count() == 0:
@@ -135,10 +149,14 @@ class Driver(RosDriver):
             msg = Bool()
             msg.data = bool(step["door"])
             self.door.publish(msg)
+            level = Float64()
+            level.data = float(step["level"])
+            self.level.publish(level)
             if (i + 1) % self.plan["flow_every"] == 0 or i + 1 == len(steps):
                 self.spin_until(lambda: self.made(first_state) == t, f"a prediction made at {t}")
         last = steps[-1]["clock"]
-        self.spin_until(lambda: self.made(refitted) == last, f"{refitted}'s prediction at {last}")
+        for name in self.plan["states"][1:]:
+            self.spin_until(lambda: self.made(name) == last, f"{name}'s prediction at {last}")
         before = {name: prediction_json(self.latest[name]) for name in self.plan["states"]}
         refit = self.call(self.refit, Trigger.Request(), "~/refit")
         probe = [last + self.plan["horizon"]]

@@ -353,7 +353,7 @@ mod tests {
     fn predict_answers_a_state_at_given_times_or_says_why_not() {
         use crate::config::NodeConfig;
         use crate::msgs::Time;
-        let text = "chronomap:\n  ros__parameters:\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n      light: {topic: /light, type: std_msgs/msg/Bool, model: hist:24}\n";
+        let text = "chronomap:\n  ros__parameters:\n    states:\n      door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2}\n      light: {topic: /light, type: std_msgs/msg/Bool, model: hist:24}\n      level: {topic: /level, type: std_msgs/msg/Float64, model: hist:24, coverage: 0.8}\n";
         let config = NodeConfig::parse("node.yaml".as_ref(), text.as_bytes(), None).unwrap();
         let mut world = World::new(config).unwrap();
         for k in 0..500 {
@@ -362,6 +362,9 @@ mod tests {
             world
                 .observe_state(0, t, if open { 1.0 } else { 0.0 })
                 .unwrap();
+            // States are in the order of their names: door, level, light.
+            let level = f64::from(k % 5) / 4.0 * if open { 1.0 } else { 0.5 };
+            world.observe_state(1, t, level).unwrap();
         }
         let at = |sec: i32| Time { sec, nanosec: 0 };
         let request = |name: &str, times: Vec<Time>| PredictRequest {
@@ -380,13 +383,28 @@ mod tests {
             assert_eq!(answer.entropy[i].to_bits(), h.to_bits());
         }
         assert_ne!(answer.probability[0], answer.probability[1]);
+        // A Bool state has no interval; a Float64 one its intervals at each time.
+        assert_eq!(answer.coverage, 0.0);
+        assert!(answer.lower.is_empty() && answer.upper.is_empty());
+        let times = [1_450_400_000.0, 1_450_430_000.0];
+        let level = predict_answer(
+            Some(&world),
+            &request("level", vec![at(1_450_400_000), at(1_450_430_000)]),
+        );
+        assert_eq!(level.coverage, 0.8);
+        for (i, t) in times.into_iter().enumerate() {
+            let (lo, hi) = world.state_interval(1, t).unwrap();
+            assert_eq!(level.lower[i].to_bits(), lo.to_bits());
+            assert_eq!(level.upper[i].to_bits(), hi.to_bits());
+            assert!(lo < level.probability[i] && level.probability[i] < hi);
+        }
         // The light has learned nothing: 0.5, one bit.
         let light = predict_answer(Some(&world), &request("light", vec![at(5)]));
         assert_eq!((light.probability[0], light.entropy[0]), (0.5, 1.0));
         let refused = [
             (
                 predict_answer(Some(&world), &request("window", vec![at(5)])),
-                "no state \"window\" (the states: door, light)",
+                "no state \"window\" (the states: door, level, light)",
             ),
             (
                 predict_answer(
