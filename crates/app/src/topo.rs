@@ -856,7 +856,7 @@ impl fmt::Display for EvalReport {
         writeln!(f, "{}", table.render())?;
         writeln!(
             f,
-            "(* the protocol asked for; ratio < 1: the per-edge models beat the static per-edge rates; durations of the {} successful attempts, models as fitted)",
+            "(* the protocol asked for; ratio < 1: the per-edge models beat the static per-edge rates; durations of the {} successful attempts: expected by the models as fitted; online, the intervals adapt after each traversal)",
             chosen.successes
         )?;
         if self.per_edge {
