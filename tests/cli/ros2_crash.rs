@@ -1,6 +1,7 @@
 //! `chronomap ros2` killed with SIGKILL: what it acknowledged survives. rclpy on Fast DDS
 //! (`tests/ros2/drive_node.py`, in a private network namespace) drives the node with simulated
-//! time, door states (the real Greg door), observed maps and people, waiting every few steps
+//! time, door states (the real Greg door), a continuous state (`level`, `std_msgs/msg/Float64`
+//! with a daily rhythm, `fremen:2`), observed maps and people, waiting every few steps
 //! until the node has published a prediction at that step's clock (the node acknowledged
 //! everything before it). After the last acknowledgement and a wait longer than the journal's
 //! sync period, the driver sends a few more steps without waiting and kills the node with
@@ -10,12 +11,17 @@
 //! Every acknowledged observation must be there after the restart, each once, at the clock
 //! sent before it; of the steps in flight at the kill, what survived is a prefix; and what the
 //! restarted node publishes equals, bit for bit, `chronomap fit` + `predict` of the observations
-//! it holds and `grid build --frames` + `grid predict` of the frames it holds.
+//! it holds and `grid build --frames` + `grid predict` of the frames it holds. The level's
+//! interval — its stamped prediction (`chronomap_msgs/msg/Prediction`, decoded by rclpy), its
+//! `~/predict` and the learner of its squares the restarted node saves — is `beta_interval` of
+//! `chronomap fit` of its values and of their squares: the squares came back from the journal.
 //!
-//! It runs when `CHRONOMAP_ROS_PYTHON` names a Python with rclpy (as `ros2_node.rs`).
+//! It runs when `CHRONOMAP_ROS_PYTHON` names a Python with rclpy and `CHRONOMAP_ROS_MSGS` the
+//! built chronomap_msgs (as `ros2_models.rs`; `.ci/run` sets both).
 
 use std::time::Instant;
 
+use chronomap_core::spread::beta_interval;
 use chronomap_io::navmap::{MapMode, SaveOptions, save_map};
 use chronomap_io::read_pairs;
 use chronomap_spatial::OccupancyMap;
@@ -24,22 +30,29 @@ use serde_json::{Value, json};
 use crate::common::{
     assert_mentions, chronomap, greg_training, oracle_python, scratch, stdout, write,
 };
+use crate::ros2_models::{fitted_moments, floats, ros_msgs_or_skip};
 use crate::ros2_node::{
     FLOW_EVERY, HEIGHT, HORIZON, WIDTH, cells, fit_and_predict, grid_predict, office_frame,
-    private_network_or_skip,
+    predict, private_network_or_skip,
 };
 
 /// Steps acknowledged before the kill, steps in flight at the kill, steps after the restart.
 const ACKNOWLEDGED: usize = 400;
 const IN_FLIGHT: usize = 30;
 const AFTER: usize = 170;
+/// Of the level's interval (`states.level.coverage` in the parameter file below).
+const COVERAGE: f64 = 0.8;
 
 #[test]
 fn a_node_killed_with_sigkill_keeps_everything_it_acknowledged() {
     let started = Instant::now();
     let enable = "set CHRONOMAP_ROS_PYTHON to a Python with ros-kilted-rclpy[fastrtps]==9.1.2 \
-                  and the message packages (.ci/run makes target/ros-venv)";
+                  and the message packages, and CHRONOMAP_ROS_MSGS to chronomap_msgs built by \
+                  tests/ros2/build_chronomap_msgs.sh (.ci/run does both)";
     let Some(python) = oracle_python("ROS", "ros2_crash", "ROS 2 crash recovery", enable) else {
+        return;
+    };
+    let Some(ros_msgs) = ros_msgs_or_skip("ros2_crash", enable) else {
         return;
     };
     let Some(netns) = private_network_or_skip("ros2_crash") else {
@@ -57,6 +70,11 @@ fn a_node_killed_with_sigkill_keeps_everything_it_acknowledged() {
         .step_by(10)
         .take(total)
         .map(|(&t, &v)| (t as i64, v))
+        .collect();
+    let levels: Vec<(i64, f64)> = door
+        .iter()
+        .enumerate()
+        .map(|(i, &(t, _))| (t, level(i, t)))
         .collect();
     // A map frame every 9th step (saved for `grid build --frames`), people every 3rd.
     let mut frames = Vec::new();
@@ -78,7 +96,7 @@ fn a_node_killed_with_sigkill_keeps_everything_it_acknowledged() {
         .iter()
         .enumerate()
         .map(|(i, &(t, v))| {
-            let mut step = json!({"clock": t, "door": v});
+            let mut step = json!({"clock": t, "door": v, "level": levels[i].1});
             if let Some(k) = map_steps.iter().position(|&s| s == i) {
                 step["map"] = json!(k);
             }
@@ -104,6 +122,7 @@ chronomap:
     record_observations: true
     states:
       door: {topic: /door, type: std_msgs/msg/Bool, model: fremen:2, depth: 5000}
+      level: {topic: /level, type: std_msgs/msg/Float64, model: fremen:2, coverage: 0.8, depth: 5000}
     maps:
       office: {topic: /observed_map, depth: 100}
     people:
@@ -117,8 +136,17 @@ chronomap:
         "probability": "/chronomap/door/probability", "entropy": "/chronomap/door/entropy",
     });
     let killed_at = ACKNOWLEDGED + IN_FLIGHT;
+    // The restarted node's level is asked at clock + Δ and at two other times of day.
+    let last = door[total - 1].0;
+    let target = last + HORIZON;
+    let times = [target, last + 4 * 3600, last + 10 * 3600 + 1800];
     let plan = json!({
         "config": config_file.display().to_string(),
+        "ros_msgs": ros_msgs,
+        "interval": {
+            "state": "level", "topic": "/level", "prediction": "/chronomap/level/prediction",
+            "predict": "/chronomap/predict", "times": times,
+        },
         "topics": topics,
         "flow_every": FLOW_EVERY,
         "map_info": {"width": WIDTH, "height": HEIGHT, "resolution": 0.1, "origin": [-1.5, 2.0]},
@@ -163,43 +191,44 @@ chronomap:
     );
     assert!(!log.contains("not learned again"), "{log}");
 
-    // The door: the acknowledged states, then a prefix of those in flight, then the rest,
-    // each once and at the clock sent before it.
-    let record = read_pairs(dir.join("saved/states/door.txt")).unwrap();
-    let survived = record.times.len() as i64 - (ACKNOWLEDGED + AFTER) as i64;
-    assert!(
-        (0..=IN_FLIGHT as i64).contains(&survived),
-        "{} observations recorded",
-        record.times.len()
-    );
-    let survived = survived as usize;
-    let expected: Vec<(f64, f64)> = door[..ACKNOWLEDGED + survived]
-        .iter()
-        .chain(&door[killed_at..])
-        .map(|&(t, v)| (t as f64, v))
-        .collect();
-    let recorded: Vec<(f64, f64)> = record
-        .times
-        .iter()
-        .copied()
-        .zip(record.values.iter().copied())
-        .collect();
-    let first_difference = recorded.iter().zip(&expected).position(|(a, b)| a != b);
-    assert_eq!(first_difference, None, "recorded vs sent");
-    assert_mentions(
-        log,
-        &[&format!(
-            "restored states.door: fremen:2 with {n} observations (0 saved, {n} from the journal)",
-            n = ACKNOWLEDGED + survived
-        )],
-    );
+    // The door and the level: the acknowledged states, then a prefix of those in flight, then
+    // the rest, each once and at the clock sent before it, the first two from the journal.
     let summary: Value = serde_json::from_str(restarted["stdout"].as_str().unwrap()).unwrap();
-    assert_eq!(summary["states"][0]["total"], recorded.len(), "{summary}");
+    let held_states = |name: &str, sent: &[(i64, f64)]| -> (Vec<(f64, f64)>, usize) {
+        let record = read_pairs(dir.join(format!("saved/states/{name}.txt"))).unwrap();
+        let survived = record.times.len() as i64 - (ACKNOWLEDGED + AFTER) as i64;
+        assert!(
+            (0..=IN_FLIGHT as i64).contains(&survived),
+            "{name}: {} observations recorded",
+            record.times.len()
+        );
+        let survived = survived as usize;
+        let expected: Vec<(f64, f64)> = sent[..ACKNOWLEDGED + survived]
+            .iter()
+            .chain(&sent[killed_at..])
+            .map(|&(t, v)| (t as f64, v))
+            .collect();
+        let recorded: Vec<(f64, f64)> = record.times.into_iter().zip(record.values).collect();
+        let first_difference = recorded.iter().zip(&expected).position(|(a, b)| a != b);
+        assert_eq!(first_difference, None, "{name}: recorded vs sent");
+        assert_mentions(
+            log,
+            &[&format!(
+                "restored states.{name}: fremen:2 with {n} observations (0 saved, {n} from the \
+                 journal)",
+                n = ACKNOWLEDGED + survived
+            )],
+        );
+        let states = summary["states"].as_array().unwrap();
+        let state = states.iter().find(|s| s["name"] == name).unwrap();
+        assert_eq!(state["total"], recorded.len(), "{summary}");
+        (recorded, survived)
+    };
+    let (_, survived) = held_states("door", &door);
+    let (level_held, level_survived) = held_states("level", &levels);
 
     // The restarted node predicts what `chronomap fit` + `predict` of those observations do.
-    let last = restarted["final"]["clock"].as_i64().unwrap();
-    assert_eq!(last, door[total - 1].0);
-    let target = last + HORIZON;
+    assert_eq!(restarted["final"]["clock"].as_i64().unwrap(), last);
     let (p, h) = fit_and_predict(&dir, "saved/states/door.txt", "fremen:2", &[target])[0];
     let published = &restarted["final"];
     assert_eq!(
@@ -209,6 +238,72 @@ chronomap:
     assert_eq!(
         published["entropy"].as_f64().unwrap().to_bits(),
         h.to_bits()
+    );
+
+    // The level's interval survived the kill: its stamped prediction (of as many observations
+    // as it says it had learned) and ~/predict (of all it holds) carry the Beta law's interval
+    // of `chronomap fit` of its values and of their squares, bit for bit; and the learners the
+    // restarted node saved at SIGINT (the squares' too) predict the same moments.
+    let stamped = &published["level"];
+    assert_eq!(stamped["stamp"], json!([target, 0]), "{stamped}");
+    assert_eq!(stamped["made"], json!([last, 0]), "{stamped}");
+    assert_eq!(
+        (stamped["name"].as_str(), stamped["model"].as_str()),
+        (Some("level"), Some("fremen:2"))
+    );
+    let n = stamped["observations"].as_u64().unwrap() as usize;
+    assert!(
+        n <= level_held.len() && n + 5 >= level_held.len(),
+        "{n} of {}",
+        level_held.len()
+    );
+    let (m, s) = fitted_moments(&dir, "level", &level_held[..n], "fremen:2", &[target])[0];
+    let (lo, hi) = beta_interval(m, s, COVERAGE);
+    let bits = |v: &Value| v.as_f64().unwrap().to_bits();
+    assert_eq!(bits(&stamped["probability"]), m.to_bits());
+    assert_eq!(bits(&stamped["lower"]), lo.to_bits());
+    assert_eq!(bits(&stamped["upper"]), hi.to_bits());
+    assert_eq!(bits(&stamped["coverage"]), COVERAGE.to_bits());
+    assert!(0.0 < lo && lo < m && m < hi && hi < 1.0, "{lo} {m} {hi}");
+    let answer = &published["predict"];
+    assert_eq!(
+        (answer["success"].as_bool(), answer["model"].as_str()),
+        (Some(true), Some("fremen:2")),
+        "{answer}"
+    );
+    assert_eq!(bits(&answer["coverage"]), COVERAGE.to_bits());
+    let (p, lower, upper) = (
+        floats(&answer["probability"]),
+        floats(&answer["lower"]),
+        floats(&answer["upper"]),
+    );
+    assert_eq!([p.len(), lower.len(), upper.len()], [times.len(); 3]);
+    let moments = fitted_moments(&dir, "level", &level_held, "fremen:2", &times);
+    for (i, &(m, s)) in moments.iter().enumerate() {
+        let (lo, hi) = beta_interval(m, s, COVERAGE);
+        let at = times[i];
+        assert_eq!(p[i].to_bits(), m.to_bits(), "level p at {at}");
+        assert_eq!(lower[i].to_bits(), lo.to_bits(), "level lower at {at}");
+        assert_eq!(upper[i].to_bits(), hi.to_bits(), "level upper at {at}");
+    }
+    assert!(
+        lower
+            .iter()
+            .zip(&upper)
+            .any(|(l, u)| u - l != upper[0] - lower[0]),
+        "{lower:?} {upper:?}"
+    );
+    let states = dir.join("saved/states");
+    let (m, s) = moments[0];
+    assert_eq!(
+        predict(&states.join("level.cmm"), target).0.to_bits(),
+        m.to_bits()
+    );
+    assert_eq!(
+        predict(&states.join("level.squares.cmm"), target)
+            .0
+            .to_bits(),
+        s.to_bits()
     );
 
     // The office: the acknowledged frames, a prefix of those in flight, the rest.
@@ -245,9 +340,15 @@ chronomap:
         assert_eq!(cells(&published[key]["data"]), expected.data, "{mode}");
     }
     println!(
-        "ros2_crash: {survived} of {IN_FLIGHT} states in flight survived the kill, {} of {flying} \
-         frames; took {:.1} s",
+        "ros2_crash: {survived} of {IN_FLIGHT} door states and {level_survived} levels in flight \
+         survived the kill, {} of {flying} frames; took {:.1} s",
         held - acked - after,
         started.elapsed().as_secs_f64()
     );
+}
+
+/// The level at step `i`, time `t`: sixteenths (exact in binary and in text) in [0, 1], rising
+/// over the day in steps of three hours, with a wobble of the step.
+fn level(i: usize, t: i64) -> f64 {
+    (t % 86400 / 10800) as f64 / 8.0 + (i % 3) as f64 / 16.0
 }

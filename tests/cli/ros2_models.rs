@@ -15,18 +15,60 @@
 //! Runs when `CHRONOMAP_ROS_PYTHON` names a Python with rclpy and `std_srvs`, and
 //! `CHRONOMAP_ROS_MSGS` the built interfaces (`.ci/run` sets both).
 
+use std::path::Path;
+
 use chronomap_core::spread::beta_interval;
 use serde_json::{Value, json};
 
 use crate::common::{assert_mentions, greg_training, oracle_python, scratch, write};
 use crate::ros2_node::{HORIZON, fit_and_predict, private_network_or_skip};
 
-fn floats(v: &Value) -> Vec<f64> {
+/// A JSON list of numbers.
+pub(crate) fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .unwrap()
         .iter()
         .map(|x| x.as_f64().unwrap())
         .collect()
+}
+
+/// `CHRONOMAP_ROS_MSGS`, the chronomap_msgs built for rclpy, or `None` (the test skips), unless
+/// `CHRONOMAP_REQUIRE_ROS=1`, under which its absence fails the test.
+pub(crate) fn ros_msgs_or_skip(test: &str, enable: &str) -> Option<String> {
+    let Ok(ros_msgs) = std::env::var("CHRONOMAP_ROS_MSGS") else {
+        assert!(
+            std::env::var("CHRONOMAP_REQUIRE_ROS").as_deref() != Ok("1"),
+            "CHRONOMAP_REQUIRE_ROS=1 but CHRONOMAP_ROS_MSGS is not set: {enable}"
+        );
+        eprintln!("{test}: SKIPPED: {enable}");
+        return None;
+    };
+    Some(ros_msgs)
+}
+
+/// The mean and the second moment at `times` of a continuous state that learned
+/// `observations` (time, value) with `spec`: `chronomap fit --model SPEC` + `predict` of the
+/// values and of their squares (written to `NAME_values.txt`, `NAME_squares.txt` in `dir`).
+/// `beta_interval` of the two is the interval the node must publish.
+pub(crate) fn fitted_moments(
+    dir: &Path,
+    name: &str,
+    observations: &[(f64, f64)],
+    spec: &str,
+    times: &[i64],
+) -> Vec<(f64, f64)> {
+    let fit = |what: &str, f: fn(f64) -> f64| {
+        let text: String = observations
+            .iter()
+            .map(|&(t, v)| format!("{t} {}\n", f(v)))
+            .collect();
+        let file = format!("{name}_{what}.txt");
+        write(dir, &file, text);
+        fit_and_predict(dir, &file, spec, times)
+    };
+    let mean = fit("values", |v| v);
+    let second = fit("squares", |v| v * v);
+    mean.iter().zip(&second).map(|(m, s)| (m.0, s.0)).collect()
 }
 
 #[test]
@@ -37,12 +79,7 @@ fn two_models_of_one_topic_stamped_predictions_and_the_node_s_services_from_rclp
     let Some(python) = oracle_python("ROS", "ros2_models", "ROS 2 models", enable) else {
         return;
     };
-    let Ok(ros_msgs) = std::env::var("CHRONOMAP_ROS_MSGS") else {
-        assert!(
-            std::env::var("CHRONOMAP_REQUIRE_ROS").as_deref() != Ok("1"),
-            "CHRONOMAP_REQUIRE_ROS=1 but CHRONOMAP_ROS_MSGS is not set: {enable}"
-        );
-        eprintln!("ros2_models: SKIPPED: {enable}");
+    let Some(ros_msgs) = ros_msgs_or_skip("ros2_models", enable) else {
         return;
     };
     let Some(netns) = private_network_or_skip("ros2_models") else {
@@ -204,19 +241,8 @@ chronomap:
     let recorded: Vec<(f64, f64)> = record.times.into_iter().zip(record.values).collect();
     assert!(recorded == levels, "level: recorded observations differ");
     // Mean and second moment at `times` of `chronomap fit` of the first `n` values.
-    let moments = |n: usize, times: &[i64]| -> Vec<(f64, f64)> {
-        let text = |square: bool| -> String {
-            levels[..n]
-                .iter()
-                .map(|&(t, v)| format!("{t} {}\n", if square { v * v } else { v }))
-                .collect()
-        };
-        write(&dir, "level_values.txt", text(false));
-        write(&dir, "level_squares.txt", text(true));
-        let mean = fit_and_predict(&dir, "level_values.txt", "fremen:2", times);
-        let second = fit_and_predict(&dir, "level_squares.txt", "fremen:2", times);
-        mean.iter().zip(&second).map(|(m, s)| (m.0, s.0)).collect()
-    };
+    let moments =
+        |n: usize, times: &[i64]| fitted_moments(&dir, "level", &levels[..n], "fremen:2", times);
     let stamped = &before["level"];
     assert_eq!(stamped["stamp"], json!([last + HORIZON, 0]));
     let n = stamped["observations"].as_u64().unwrap() as usize;

@@ -16,7 +16,6 @@ private network namespace with CHRONOMAP_ROS_MSGS set (tests/ros2/chronomap_msgs
 """
 
 import json
-import math
 import os
 import signal
 import subprocess
@@ -34,32 +33,11 @@ chronomap_msgs_path.setup(PLAN["ros_msgs"])
 
 import rclpy  # noqa: E402
 from chronomap_msgs.msg import Prediction  # noqa: E402
-from builtin_interfaces.msg import Time  # noqa: E402
 from chronomap_msgs.srv import Predict  # noqa: E402
 from driving import EVERY, LATEST, WAIT_SECS, RosDriver  # noqa: E402
+from node_interfaces import call, predict_at, prediction_json  # noqa: E402
 from std_msgs.msg import Bool, Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
-
-
-def finite_or_none(x):
-    """JSON has no NaN (the node's lower and upper of a state without an interval)."""
-    return None if math.isnan(x) else x
-
-
-def prediction_json(msg):
-    return {
-        "stamp": [msg.header.stamp.sec, msg.header.stamp.nanosec],
-        "frame_id": msg.header.frame_id,
-        "name": msg.name,
-        "model": msg.model,
-        "probability": msg.probability,
-        "entropy": msg.entropy,
-        "made": [msg.made.sec, msg.made.nanosec],
-        "observations": msg.observations,
-        "lower": finite_or_none(msg.lower),
-        "upper": finite_or_none(msg.upper),
-        "coverage": msg.coverage,
-    }
 
 
 class Driver(RosDriver):
@@ -89,31 +67,10 @@ class Driver(RosDriver):
         return None if msg is None else msg.made.sec
 
     def call(self, client, request, what):
-        self.spin_until(client.service_is_ready, f"the service {what}")
-        future = client.call_async(request)
-        self.spin_until(future.done, f"the answer of {what}")
-        return future.result()
+        return call(self, client, request, what)
 
     def predict_at(self, name, times):
-        request = Predict.Request()
-        request.name = name
-        request.times = [self.stamp(t) for t in times]
-        answer = self.call(self.predict, request, "~/predict")
-        return {
-            "success": answer.success,
-            "message": answer.message,
-            "model": answer.model,
-            "probability": list(answer.probability),
-            "entropy": list(answer.entropy),
-            "coverage": answer.coverage,
-            "lower": list(answer.lower),
-            "upper": list(answer.upper),
-        }
-
-    @staticmethod
-    def stamp(t):
-        whole = int(t)
-        return Time(sec=whole, nanosec=int(round((t - whole) * 1e9)))
+        return predict_at(self, self.predict, name, times)
 
     def run(self, binary):
         started = time.monotonic()

@@ -1,14 +1,16 @@
-"""Drives `chronomap ros2` from a real ROS 2 stack (rclpy on Fast DDS) for tests/cli/ros2_node.rs.
+"""Drives `chronomap ros2` from a real ROS 2 stack (rclpy on Fast DDS) for tests/cli/ros2_node.rs
+and tests/cli/ros2_crash.rs.
 
 Usage: drive_node.py CHRONOMAP_BINARY PLAN.json PHASE > RESULT.json
 
 The plan (written by the Rust test) lists phases; the driver runs one: it starts the node (the
 binary, with the plan's parameter file), publishes the phase's steps, reads what the node
 publishes, and stops the node with SIGINT. Each phase is a fresh process, as a restarted robot
-is: no endpoint of a node that stopped is still matched. A step publishes, in this order: /clock (simulated time), then optionally a
-door state (std_msgs/Bool), an observed map (nav_msgs/OccupancyGrid), people
-(geometry_msgs/PoseArray), a message of the wrong type on a state topic and an oversized map
-(`"oversized": SIDE`, a SIDE x SIDE OccupancyGrid on the map topic). Every
+is: no endpoint of a node that stopped is still matched. A step publishes, in this order:
+/clock (simulated time), then optionally a door state (std_msgs/Bool), a value of a continuous
+state (std_msgs/Float64, with the plan's `interval`), an observed map (nav_msgs/OccupancyGrid),
+people (geometry_msgs/PoseArray), a message of the wrong type on a state topic and an oversized
+map (`"oversized": SIDE`, a SIDE x SIDE OccupancyGrid on the map topic). Every
 `flow_every` steps and at the end the driver waits until the node has published the people map
 stamped with that step's clock (flow control: the node has then taken everything before it).
 
@@ -19,8 +21,12 @@ without waiting for anything, and kills the node with SIGKILL at once.
 
 The result (JSON on stdout) holds the node's stdout, stderr and exit code, what
 was sent and the last messages the node published at the final clock (predicted map, mask,
-people map, probability, entropy), and the topic types the ROS graph shows. Only this script
-talks to DDS; every check is in the Rust test. Run it inside a private network namespace.
+people map, probability, entropy), and the topic types the ROS graph shows. With `interval` in
+the plan (the continuous state's topics, and `ros_msgs`, the built chronomap_msgs:
+tests/ros2/chronomap_msgs_path.py), the final messages also hold that state's stamped
+prediction (chronomap_msgs/msg/Prediction) and the answer of ~/predict for it at the plan's
+`times`. Only this script talks to DDS; every check is in the Rust test. Run it inside a
+private network namespace.
 """
 
 import json
@@ -30,13 +36,22 @@ import subprocess
 import sys
 import time
 
-import rclpy
-from geometry_msgs.msg import Pose, PoseArray
-from nav_msgs.msg import OccupancyGrid
-from std_msgs.msg import Bool, Float64
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import chronomap_msgs_path  # noqa: E402
+
+# The plan names the built chronomap_msgs when it asks for the continuous state's interval
+# (sudo, which may start the namespace, drops the environment).
+with open(sys.argv[2], encoding="utf-8") as plan_file:
+    PLAN = json.load(plan_file)
+if "interval" in PLAN:
+    chronomap_msgs_path.setup(PLAN["ros_msgs"])
+
+import rclpy  # noqa: E402
 from driving import EVERY, LATEST, WAIT_SECS, RosDriver  # noqa: E402
+from node_interfaces import predict_at, prediction_json  # noqa: E402
+from geometry_msgs.msg import Pose, PoseArray  # noqa: E402
+from nav_msgs.msg import OccupancyGrid  # noqa: E402
+from std_msgs.msg import Bool, Float64  # noqa: E402
 
 
 def grid_json(msg):
@@ -82,6 +97,17 @@ class Driver(RosDriver):
         }
         for key, (kind, topic) in outputs.items():
             n.create_subscription(kind, topic, self.keeper(key), LATEST)
+        self.interval = plan.get("interval")
+        self.level = None
+        if self.interval is not None:
+            from chronomap_msgs.msg import Prediction
+            from chronomap_msgs.srv import Predict
+
+            self.level = n.create_publisher(Float64, self.interval["topic"], EVERY)
+            n.create_subscription(
+                Prediction, self.interval["prediction"], self.keeper("level"), LATEST
+            )
+            self.predict = n.create_client(Predict, self.interval["predict"])
 
     def keeper(self, key):
         def keep(msg):
@@ -116,6 +142,11 @@ class Driver(RosDriver):
             msg.data = bool(step["door"])
             self.door.publish(msg)
             sent["door"] += 1
+        if "level" in step:
+            msg = Float64()
+            msg.data = float(step["level"])
+            self.level.publish(msg)
+            sent["level"] = sent.get("level", 0) + 1
         if "map" in step:
             frame = self.plan["frames"][step["map"]]
             self.map.publish(self.occupancy(frame["data"], frame["time"]))
@@ -186,7 +217,7 @@ class Driver(RosDriver):
         # Discovery: repeat the first clock until the node answers with the people map (a grid
         # that exists from the start) and reads every input topic.
         deadline = time.monotonic() + WAIT_SECS
-        readers = (self.door, self.map, self.people)
+        readers = [self.door, self.map, self.people] + ([self.level] if self.level else [])
         while self.stamp_of("people_map") != first or any(
             p.get_subscription_count() == 0 for p in readers
         ):
@@ -211,6 +242,11 @@ class Driver(RosDriver):
             lambda: all(self.stamp_of(k) == last for k in ("map", "mask", "people_map")),
             f"the maps at {last}",
         )
+        if self.level is not None:
+            self.spin_until(
+                lambda: "level" in self.latest and self.latest["level"].made.sec == last,
+                f"the prediction of {self.interval['state']} made at {last}",
+            )
         # The node publishes nothing more until the clock moves; take what is in flight.
         settle = time.monotonic() + 0.5
         while time.monotonic() < settle:
@@ -223,6 +259,11 @@ class Driver(RosDriver):
             "probability": self.latest["probability"].data,
             "entropy": self.latest["entropy"].data,
         }
+        if self.level is not None:
+            final["level"] = prediction_json(self.latest["level"])
+            final["predict"] = predict_at(
+                self, self.predict, self.interval["state"], self.interval["times"]
+            )
         types = {name: kinds for name, kinds in self.node.get_topic_names_and_types()}
         process.send_signal(signal.SIGINT)
         stdout, stderr = process.communicate(timeout=WAIT_SECS)
@@ -239,12 +280,10 @@ class Driver(RosDriver):
 
 
 def main():
-    binary, plan_file, phase = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    with open(plan_file, encoding="utf-8") as f:
-        plan = json.load(f)
+    binary, phase = sys.argv[1], int(sys.argv[3])
     rclpy.init()
     try:
-        result = Driver(plan).run_phase(plan["phases"][phase], binary, plan["config"])
+        result = Driver(PLAN).run_phase(PLAN["phases"][phase], binary, PLAN["config"])
     finally:
         rclpy.shutdown()
     json.dump(result, sys.stdout)
