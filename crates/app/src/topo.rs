@@ -93,23 +93,6 @@ pub enum TopoJobError {
     /// The bundled Witham Wharf data hold no attempt.
     #[error("the Witham data have no attempt")]
     WithamEmpty,
-    /// An edge file of later attempts names an edge of the fitted models but joins other
-    /// nodes.
-    #[error(
-        "{}: edge {:?} goes from {:?} to {:?} here, but from {:?} to {:?} in the models",
-        file.display(),
-        ends.edge,
-        ends.here.0,
-        ends.here.1,
-        ends.models.0,
-        ends.models.1
-    )]
-    ChangedEdge {
-        /// The edge file.
-        file: PathBuf,
-        /// The edge and the nodes it joins in each.
-        ends: Box<ChangedEnds>,
-    },
     /// A plan cannot be made.
     #[error(transparent)]
     Plan(#[from] PlanError),
@@ -361,18 +344,6 @@ pub fn fit_report(
     })
 }
 
-/// An edge that joins other nodes in an edge file than in the models
-/// ([`TopoJobError::ChangedEdge`]).
-#[derive(Debug)]
-pub struct ChangedEnds {
-    /// The edge's id.
-    pub edge: String,
-    /// The nodes it leaves and reaches in the file's map.
-    pub here: (String, String),
-    /// The nodes it leaves and reaches in the models' map.
-    pub models: (String, String),
-}
-
 /// What `chronomap topo observe` learned: later attempts taught to fitted edge models, and
 /// the file written. Serialises as the command's `--json`.
 #[derive(Clone, Debug, Serialize)]
@@ -412,7 +383,7 @@ pub struct TopoObserveReport {
 ///
 /// # Errors
 /// [`TopoJobError`]: the directory cannot be read, an edge that joins other nodes than the
-/// models' edge of its name, an attempt out of order or earlier than its edge's last (naming
+/// models' edge of its name ([`MergeError::EdgeMismatch`]), an attempt out of order or earlier than its edge's last (naming
 /// the file and attempt; nothing is learned then), the file cannot be written.
 pub fn observe_report(
     mut models: EdgeModels,
@@ -447,43 +418,22 @@ fn observe_statistics(
     stats: &EdgeStatistics,
     edges: &Path,
 ) -> Result<TopoObserveReport, TopoJobError> {
-    let mut lists = vec![Vec::new(); models.map().edges().len()];
-    let mut files = vec![PathBuf::new(); lists.len()];
+    // The models' map with the edges only the directory has, as `topo eval` merges them; those
+    // are added to the models in the same order, so the indices agree.
+    let known = models.map().edges().len();
+    let (map, _, lists) = merge_maps(
+        models.map().clone(),
+        vec![Vec::new(); known],
+        &stats.map,
+        &stats.attempts,
+    )?;
     let mut new_edges = Vec::new();
-    for (edge, attempts) in stats.map.edges().iter().zip(&stats.attempts) {
-        let from = &stats.map.nodes()[edge.from].name;
-        let to = &stats.map.nodes()[edge.to].name;
-        let file = edges.join(format!("{}.data", edge.id));
-        let map = models.map();
-        let index = match map.edges().iter().position(|e| e.id == edge.id) {
-            Some(i) => {
-                let known = &map.edges()[i];
-                let (model_from, model_to) =
-                    (&map.nodes()[known.from].name, &map.nodes()[known.to].name);
-                if model_from != from || model_to != to {
-                    return Err(TopoJobError::ChangedEdge {
-                        file,
-                        ends: Box::new(ChangedEnds {
-                            edge: edge.id.clone(),
-                            here: (from.clone(), to.clone()),
-                            models: (model_from.clone(), model_to.clone()),
-                        }),
-                    });
-                }
-                i
-            }
-            None => {
-                let i = models
-                    .add_edge(&edge.id, from, to)
-                    .map_err(MergeError::from)?;
-                new_edges.push(edge.id.clone());
-                lists.push(Vec::new());
-                files.push(PathBuf::new());
-                i
-            }
-        };
-        lists[index] = attempts.clone();
-        files[index] = file;
+    for edge in &map.edges()[known..] {
+        let (from, to) = (&map.nodes()[edge.from].name, &map.nodes()[edge.to].name);
+        models
+            .add_edge(&edge.id, from, to)
+            .map_err(MergeError::from)?;
+        new_edges.push(edge.id.clone());
     }
     let before = models.duration_spread().adapted.count;
     models.observe_all(&lists).map_err(|e| match e {
@@ -492,7 +442,7 @@ fn observe_statistics(
             position,
             error,
         } => TopoJobError::Fit {
-            file: files[edge].clone(),
+            file: edges.join(format!("{}.data", map.edges()[edge].id)),
             attempt: Some(position + 1),
             error: error.into(),
         },
