@@ -300,7 +300,9 @@ pub fn read_edge_directory_with_nodes(
         if file_name.starts_with('.') || is_path_list(&file_name) {
             continue;
         }
-        if path.is_dir() {
+        // Only regular files (or links to them): a directory is not an edge file, and a pipe
+        // without a writer would wait forever to be read.
+        if !path.is_file() {
             return Err(unexpected());
         }
         let stem = edge_stem(&file_name).ok_or_else(unexpected)?.to_owned();

@@ -453,6 +453,23 @@ fn ambiguous_file_names_are_errors_and_known_nodes_resolve_underscores() {
     );
 }
 
+/// A pipe named like an edge file is refused before it is opened (opening it would wait for a
+/// writer forever).
+#[cfg(unix)]
+#[test]
+fn a_pipe_among_the_edge_files_is_refused_without_waiting() {
+    let dir = folder("pipe", &[("A_B.data", "1 1 1\n")]);
+    let pipe = dir.join("B_C.data");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&pipe)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let err = read_edge_directory(&dir).unwrap_err();
+    assert_eq!(err.name(), pipe.display().to_string());
+    assert!(matches!(err.kind(), DataErrorKind::UnexpectedFile), "{err}");
+}
+
 #[test]
 fn other_files_and_repeated_edges_are_errors() {
     let dir = folder(
