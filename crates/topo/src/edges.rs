@@ -911,7 +911,8 @@ impl EdgeModels {
     /// fitted.
     ///
     /// # Errors
-    /// An attempt earlier than the edge's latest one, or with a non-finite time.
+    /// An attempt earlier than the edge's latest one, with a non-finite time, or with a
+    /// duration that is not a finite number >= 0; the models are then unchanged.
     pub fn observe(
         &mut self,
         edge: usize,
@@ -920,6 +921,13 @@ impl EdgeModels {
         let e = &mut self.edges[edge];
         let y = f64::from(u8::from(attempt.success));
         chronomap_core::observe::validate(e.last_time, &[attempt.time], &[y])?;
+        // As `fit` refuses them: a duration must be a finite number of seconds >= 0.
+        if !(attempt.duration_secs.is_finite() && attempt.duration_secs >= 0.0) {
+            return Err(chronomap_core::ObservationError::ValueOutOfRange {
+                index: 0,
+                value: attempt.duration_secs,
+            });
+        }
         if let Some(model) = &mut e.success {
             model.observe(&[attempt.time], &[y])?;
         }
@@ -1297,6 +1305,17 @@ mod tests {
             learner.observe_all(&[Vec::new()]),
             Err(ObserveAllError::Lists { lists: 1, edges: 3 })
         ));
+        // A duration that is not a finite number >= 0 is refused, as `fit` refuses it.
+        for duration_secs in [f64::NAN, f64::INFINITY, -1.0] {
+            let bad = Attempt {
+                time: 3.0 * month,
+                duration_secs,
+                success: true,
+            };
+            assert!(learner.observe(0, &bad).is_err(), "{duration_secs}");
+        }
+        assert_eq!(learner.edges[0].attempts, 300);
+        assert_eq!(learner.duration_spread, models.duration_spread);
         learner
             .observe_all(&[later(month, 50), later(month, 3), Vec::new()])
             .unwrap();
